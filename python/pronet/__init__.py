@@ -1,0 +1,49 @@
+"""pronet: INS/DVL navigation with learned, adaptive process noise.
+
+The navigation core (strapdown mechanization, the 15-state error-state EKF, the
+Monte Carlo engine) is Rust, in :mod:`pronet._core`; this package adds validated,
+documented Python entry points on top.
+
+Conventions: navigation frame NED, body frame FRD (x forward, y right, z down);
+positions are geodetic ``[lat, lon, h]`` in rad, rad, m (height positive up);
+attitude is roll, pitch, yaw (ZYX) in rad; IMU samples are
+``[f_x, f_y, f_z, w_x, w_y, w_z]`` in m/s² and rad/s, body frame. See
+``docs/filter.md`` for every formula.
+"""
+
+from pronet._core import (
+    Ensemble,
+    FilterConfig,
+    SensorConfig,
+    Strategy,
+    Trajectory,
+    __version__,
+    builtin_trajectory_names,
+    earth_radii,
+    normal_gravity,
+)
+from pronet.filter import FilterResult, run_filter
+from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.navigation import NavSolution, mechanize
+from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
+
+__all__ = [
+    "Ensemble",
+    "FilterConfig",
+    "FilterResult",
+    "MonteCarloResult",
+    "NavSolution",
+    "Segment",
+    "SensorConfig",
+    "Strategy",
+    "Trajectory",
+    "__version__",
+    "builtin_trajectory",
+    "builtin_trajectory_names",
+    "earth_radii",
+    "mechanize",
+    "monte_carlo",
+    "normal_gravity",
+    "run_filter",
+    "trajectory_from_segments",
+]

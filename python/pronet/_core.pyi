@@ -1,0 +1,228 @@
+"""Type stubs for the native core ``pronet._core`` (Rust, pyo3).
+
+Conventions: NED navigation frame, FRD body frame; positions ``[lat rad, lon rad, h m]``
+(height positive up); attitude roll, pitch, yaw (ZYX) in rad; IMU rows
+``[f_x, f_y, f_z, w_x, w_y, w_z]`` in m/s² and rad/s. q is the per-sample variance of an
+IMU channel. Array arguments must be float64 numpy arrays (the :mod:`pronet` wrappers
+convert array-likes). Every error raises ``ValueError`` starting with the argument's name.
+Heavy calls release the GIL.
+"""
+
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+__version__: str
+
+F64 = NDArray[np.float64]
+
+class Trajectory:
+    """Truth of a trajectory at n + 1 epochs and the ideal IMU over the n intervals."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def dt(self) -> float:
+        """Sample period [s]."""
+    @property
+    def duration(self) -> float:
+        """Length [s]."""
+    @property
+    def n_samples(self) -> int:
+        """Number of IMU samples n."""
+    @property
+    def time(self) -> F64:
+        """``(n+1,)`` epoch times [s], starting at 0."""
+    @property
+    def lla(self) -> F64:
+        """``(n+1, 3)`` latitude, longitude [rad], height [m]."""
+    @property
+    def vel_ned(self) -> F64:
+        """``(n+1, 3)`` NED velocity [m/s]."""
+    @property
+    def rpy(self) -> F64:
+        """``(n+1, 3)`` roll, pitch, yaw [rad]."""
+    @property
+    def imu(self) -> F64:
+        """``(n, 6)`` ideal IMU; row k covers ``(time[k], time[k+1]]``."""
+    @property
+    def segments(self) -> F64:
+        """``(k, 4)`` rows ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]``."""
+    @property
+    def speed0(self) -> float:
+        """Initial forward speed [m/s]."""
+
+def builtin_trajectory(name: str, dt: float = 0.01) -> Trajectory: ...
+def builtin_trajectory_names() -> list[str]: ...
+def trajectory_from_segments(
+    segments: F64,
+    *,
+    lla0: Any,
+    speed0: float,
+    rpy0: Any | None = None,
+    dt: float = 0.01,
+    name: str = "custom",
+) -> Trajectory: ...
+def normal_gravity(lat: float, h: float = 0.0) -> float:
+    """WGS-84 normal gravity [m/s²] at latitude [rad] and height [m]."""
+
+def earth_radii(lat: float) -> tuple[float, float]:
+    """Meridian and prime-vertical radii of curvature [m]."""
+
+def mechanize(imu: F64, dt: float, lla0: Any, vel0: Any, rpy0: Any) -> dict[str, F64]:
+    """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``."""
+
+class FilterConfig:
+    """EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
+    ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
+    ("body" velocity or "nav" NED velocity), nominal IMU period [s]."""
+
+    def __init__(
+        self,
+        *,
+        p0_sigma: Any | None = None,
+        accel_bias_psd: float = 1e-3,
+        gyro_bias_psd: float = 1e-3,
+        dvl_variance: Any | None = None,
+        lever_arm: Any | None = None,
+        aiding: Literal["body", "nav"] = "body",
+        imu_dt: float = 0.01,
+    ) -> None: ...
+    @property
+    def p0_sigma(self) -> list[float]: ...
+    @property
+    def accel_bias_psd(self) -> float: ...
+    @property
+    def gyro_bias_psd(self) -> float: ...
+    @property
+    def dvl_variance(self) -> list[float]: ...
+    @property
+    def lever_arm(self) -> list[float]: ...
+    @property
+    def aiding(self) -> str: ...
+    @property
+    def imu_dt(self) -> float: ...
+
+class Strategy:
+    """Process-noise strategy: constant Q^c, Mehra innovation-adaptive (window ξ), or
+    external (q set by the caller through an :class:`Ensemble`)."""
+
+    @staticmethod
+    def constant(q: Any) -> Strategy: ...
+    @staticmethod
+    def mehra(window: int, prior_q: Any) -> Strategy: ...
+    @staticmethod
+    def external(prior_q: Any) -> Strategy: ...
+    @property
+    def kind(self) -> Literal["constant", "mehra", "external"]: ...
+    @property
+    def label(self) -> str: ...
+    @property
+    def q(self) -> list[float]: ...
+    @property
+    def window(self) -> int | None: ...
+
+class SensorConfig:
+    """Simulated sensors. ``imu_variance``: 6 per-sample variances, or with
+    ``imu_variance_times`` (k,) [s, starting at 0] a ``(k, 6)`` piecewise-constant
+    schedule. Constant bias, bias random-walk PSD, DVL variance [(m/s)²], DVL period [s]
+    (a whole number of IMU steps), DVL lever arm [m, body]. Defaults: the paper's."""
+
+    def __init__(
+        self,
+        *,
+        imu_variance: Any | None = None,
+        imu_variance_times: Any | None = None,
+        imu_bias: Any | None = None,
+        imu_bias_psd: Any | None = None,
+        dvl_variance: Any | None = None,
+        dvl_period: float = 1.0,
+        lever_arm: Any | None = None,
+    ) -> None: ...
+    @property
+    def imu_variance_times(self) -> list[float]: ...
+    @property
+    def imu_variance(self) -> F64: ...
+    @property
+    def imu_bias(self) -> list[float]: ...
+    @property
+    def imu_bias_psd(self) -> list[float]: ...
+    @property
+    def dvl_variance(self) -> list[float]: ...
+    @property
+    def dvl_period(self) -> float: ...
+    @property
+    def lever_arm(self) -> list[float]: ...
+
+def run_filter(
+    imu: F64,
+    imu_time: F64,
+    dvl: F64,
+    dvl_time: F64,
+    *,
+    t0: float,
+    lla0: Any,
+    vel0: Any,
+    rpy0: Any,
+    config: FilterConfig,
+    strategy: Strategy,
+    bias0: Any | None = None,
+) -> dict[str, NDArray[Any]]:
+    """One filter pass; see :class:`pronet.FilterResult` for the keys."""
+
+def monte_carlo(
+    trajectory: Trajectory,
+    sensors: SensorConfig,
+    config: FilterConfig,
+    strategy: Strategy,
+    *,
+    n_runs: int,
+    seed: int = 0,
+    record_every: int = 0,
+    sample_initial_error: bool = True,
+    threads: int | None = None,
+) -> dict[str, Any]:
+    """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys."""
+
+class Ensemble:
+    """All runs of a Monte Carlo stepped in lockstep for outside tuning.
+
+    ``advance()`` steps every run to the next tuning instant (every ``tuning_period``
+    seconds once ``window`` samples exist) and returns the last ``window`` raw IMU
+    samples of every run, float32 ``(n_runs, 6, window)`` oldest first, or None at the
+    end; ``set_q(q)`` with ``q`` float64 ``(n_runs, 6)`` sets each run's IMU variances.
+    Until the first ``set_q`` every run uses ``prior_q``.
+    """
+
+    def __init__(
+        self,
+        trajectory: Trajectory,
+        sensors: SensorConfig,
+        config: FilterConfig,
+        prior_q: Any,
+        *,
+        n_runs: int,
+        seed: int = 0,
+        window: int = 200,
+        tuning_period: float = 1.0,
+        record_every: int = 0,
+        sample_initial_error: bool = True,
+        threads: int | None = None,
+    ) -> None: ...
+    def advance(self) -> NDArray[np.float32] | None: ...
+    def set_q(self, q: F64) -> None: ...
+    def finish(self) -> dict[str, Any]:
+        """Run to the end; the results as :func:`monte_carlo` returns them."""
+    @property
+    def n_runs(self) -> int: ...
+    @property
+    def window(self) -> int: ...
+    @property
+    def steps(self) -> int:
+        """IMU steps taken so far."""
+    @property
+    def time(self) -> float:
+        """Current time [s]."""
+    @property
+    def done(self) -> bool: ...

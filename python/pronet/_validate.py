@@ -1,0 +1,52 @@
+"""Input conversion shared by the Python entry points: array-likes become contiguous
+float64 arrays, and anything unusable raises ``ValueError`` naming the argument."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def float_array(value: ArrayLike, name: str, shape: tuple[int | None, ...]) -> NDArray[np.float64]:
+    """``value`` as a C-contiguous float64 array of ``shape`` (``None``: any length).
+
+    Integers and floats of any width are accepted; booleans, complex numbers, strings
+    and objects are not. Finiteness is checked by the native core, which reports the
+    offending row.
+    """
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: cannot be read as a numeric array ({exc})") from None
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"{name}: expected real numbers, got an array of dtype {arr.dtype}")
+    if arr.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(arr.shape, shape, strict=True)
+    ):
+        want_text = "(" + ", ".join("n" if s is None else str(s) for s in shape)
+        want_text += ",)" if len(shape) == 1 else ")"
+        raise ValueError(f"{name}: expected shape {want_text}, got {arr.shape}")
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+def scalar(value: object, name: str) -> float:
+    """``value`` as a Python float, or ``ValueError`` naming the argument."""
+    if isinstance(value, bool | complex | str | bytes):
+        raise ValueError(f"{name}: expected a real number, got {type(value).__name__}")
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a real number, got {type(value).__name__}") from None
+
+
+def count(value: object, name: str) -> int:
+    """``value`` as a Python int (a whole number), or ``ValueError`` naming the argument."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise ValueError(f"{name}: expected a whole number, got {value!r}")
+    return int(value)
+
+
+def check_type(value: object, kind: type, name: str) -> None:
+    """``ValueError`` naming the argument unless ``value`` is a ``kind``."""
+    if not isinstance(value, kind):
+        raise ValueError(f"{name}: expected a {kind.__name__}, got {type(value).__name__}")

@@ -1,0 +1,97 @@
+"""One filter pass over given IMU and DVL arrays: the way recorded data is filtered."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pronet import _core
+from pronet._validate import check_type, float_array, scalar
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """The estimate at every IMU epoch and every DVL update.
+
+    Epoch arrays have n + 1 rows: the initial state at ``t0``, then one per IMU sample
+    (after the DVL update applied there, if any). Update arrays have one row per DVL
+    row; rows that fell outside the run hold NaN and ``dvl_epoch = -1``.
+
+    Attributes:
+        time: ``(n+1,)`` epoch times [s].
+        lla: ``(n+1, 3)`` latitude, longitude [rad], height [m, up].
+        vel: ``(n+1, 3)`` NED velocity [m/s].
+        rpy: ``(n+1, 3)`` roll, pitch, yaw [rad].
+        bias: ``(n+1, 6)`` accelerometer [m/s²] and gyro [rad/s] bias estimates.
+        sigma: ``(n+1, 15)`` filter 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a, δb_g]``.
+        covariance: ``(15, 15)`` covariance at the last epoch.
+        dvl_epoch: ``(m,)`` epoch index each DVL row was applied at.
+        innovation: ``(m, 3)`` ``z − h(x̂)`` [m/s].
+        innovation_cov: ``(m, 3, 3)`` innovation covariance S [(m/s)²].
+        nis: ``(m,)`` normalized innovation squared (χ², 3 dof when consistent).
+        gain: ``(m, 15, 3)`` Kalman gains.
+    """
+
+    time: NDArray[np.float64]
+    lla: NDArray[np.float64]
+    vel: NDArray[np.float64]
+    rpy: NDArray[np.float64]
+    bias: NDArray[np.float64]
+    sigma: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    dvl_epoch: NDArray[np.int64]
+    innovation: NDArray[np.float64]
+    innovation_cov: NDArray[np.float64]
+    nis: NDArray[np.float64]
+    gain: NDArray[np.float64]
+
+
+def run_filter(
+    imu: ArrayLike,
+    imu_time: ArrayLike,
+    dvl: ArrayLike,
+    dvl_time: ArrayLike,
+    *,
+    t0: float,
+    lla0: ArrayLike,
+    vel0: ArrayLike,
+    rpy0: ArrayLike,
+    config: _core.FilterConfig | None = None,
+    strategy: _core.Strategy,
+    bias0: ArrayLike | None = None,
+) -> FilterResult:
+    """Run the INS/DVL error-state EKF over sensor arrays.
+
+    Args:
+        imu: ``(n, 6)`` raw IMU samples ``[f (m/s²), w (rad/s)]``, body frame FRD; row k
+            covers ``(imu_time[k-1], imu_time[k]]`` with ``imu_time[-1] = t0``.
+        imu_time: ``(n,)`` sample end times [s], strictly increasing, all after ``t0``.
+        dvl: ``(m, 3)`` DVL velocities [m/s], body frame (or NED with
+            ``FilterConfig(aiding="nav")``).
+        dvl_time: ``(m,)`` DVL times [s], strictly increasing. Each row is applied at the
+            IMU epoch nearest to it.
+        t0: time of the initial state [s].
+        lla0, vel0, rpy0: initial position [rad, rad, m], NED velocity [m/s], attitude [rad].
+        config: filter tuning (defaults: ``FilterConfig()``).
+        strategy: process-noise strategy, e.g. ``Strategy.constant(q)``.
+        bias0: initial ``[b_a (m/s²), b_g (rad/s)]`` estimate (default zeros).
+    """
+    config = config if config is not None else _core.FilterConfig()
+    check_type(config, _core.FilterConfig, "config")
+    check_type(strategy, _core.Strategy, "strategy")
+    out = _core.run_filter(
+        float_array(imu, "imu", (None, 6)),
+        float_array(imu_time, "imu_time", (None,)),
+        float_array(dvl, "dvl", (None, 3)),
+        float_array(dvl_time, "dvl_time", (None,)),
+        t0=scalar(t0, "t0"),
+        lla0=float_array(lla0, "lla0", (3,)),
+        vel0=float_array(vel0, "vel0", (3,)),
+        rpy0=float_array(rpy0, "rpy0", (3,)),
+        config=config,
+        strategy=strategy,
+        bias0=None if bias0 is None else float_array(bias0, "bias0", (6,)),
+    )
+    return FilterResult(**out)

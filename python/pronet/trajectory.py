@@ -1,0 +1,92 @@
+"""Trajectories: built-in ones and custom ones from segments.
+
+A trajectory is a list of segments during which the forward acceleration [m/s²], the
+yaw rate [rad/s, positive turns right] and the pitch rate [rad/s, positive noses up]
+are constant. The vehicle moves along its body x axis, roll stays at its initial value.
+The native core builds the truth (time, position, NED velocity, attitude) and the ideal
+100 Hz IMU consistent with it: mechanizing that IMU reproduces the truth.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from pronet import _core
+from pronet._validate import float_array, scalar
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One constant-rate piece of a trajectory.
+
+    Attributes:
+        duration: length [s], > 0.
+        accel: forward acceleration [m/s²].
+        yaw_rate: yaw rate [rad/s]; positive turns right (clockwise seen from above).
+        pitch_rate: pitch rate [rad/s]; positive noses up, negative dives.
+    """
+
+    duration: float
+    accel: float = 0.0
+    yaw_rate: float = 0.0
+    pitch_rate: float = 0.0
+
+    @classmethod
+    def degrees(
+        cls, duration: float, accel: float = 0.0, yaw_rate: float = 0.0, pitch_rate: float = 0.0
+    ) -> Segment:
+        """A segment with its rates given in degrees per second."""
+        return cls(duration, accel, math.radians(yaw_rate), math.radians(pitch_rate))
+
+    def as_row(self) -> tuple[float, float, float, float]:
+        return (self.duration, self.accel, self.yaw_rate, self.pitch_rate)
+
+
+def builtin_trajectory(name: str, dt: float = 0.01) -> _core.Trajectory:
+    """A built-in trajectory sampled every ``dt`` seconds.
+
+    Names (``pronet.builtin_trajectory_names()``): ``paper`` (the 330 s evaluation
+    trajectory: straight legs, left and right turns, a dive; v0 = [1, 0, 0] m/s,
+    p0 = 32°, 34°, −5 m) and the four 400 s training trajectories ``train-straight``,
+    ``train-turns``, ``train-zigzag``, ``train-helix``.
+    """
+    return _core.builtin_trajectory(name, dt)
+
+
+def trajectory_from_segments(
+    segments: Sequence[Segment] | ArrayLike,
+    *,
+    lla0: ArrayLike,
+    speed0: float,
+    rpy0: ArrayLike = (0.0, 0.0, 0.0),
+    dt: float = 0.01,
+    name: str = "custom",
+) -> _core.Trajectory:
+    """A trajectory from segments.
+
+    Args:
+        segments: :class:`Segment` objects, or an array ``(k, 4)`` of
+            ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]`` rows.
+        lla0: initial ``[lat rad, lon rad, h m]`` (height positive up).
+        speed0: initial forward speed [m/s].
+        rpy0: initial roll, pitch, yaw [rad]; roll is held.
+        dt: sample period [s].
+        name: label carried by the trajectory.
+    """
+    if isinstance(segments, Sequence) and segments and isinstance(segments[0], Segment):
+        rows = np.array([s.as_row() for s in segments], dtype=np.float64)
+    else:
+        rows = float_array(segments, "segments", (None, 4))
+    return _core.trajectory_from_segments(
+        rows,
+        lla0=float_array(lla0, "lla0", (3,)),
+        speed0=scalar(speed0, "speed0"),
+        rpy0=float_array(rpy0, "rpy0", (3,)),
+        dt=scalar(dt, "dt"),
+        name=name,
+    )

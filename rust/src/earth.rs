@@ -1,0 +1,239 @@
+//! WGS-84 Earth model: radii of curvature, normal gravity, Earth and transport rates,
+//! and conversions between geodetic coordinates and local NED offsets.
+//!
+//! Positions are `[lat, lon, h]`: geodetic latitude and longitude in radians, height
+//! above the ellipsoid in metres (positive up). Vectors in the navigation frame are
+//! NED (north, east, down).
+
+use nalgebra::{Matrix3, Vector3};
+
+/// Semi-major axis [m].
+pub const A: f64 = 6_378_137.0;
+/// Flattening.
+pub const F: f64 = 1.0 / 298.257_223_563;
+/// First eccentricity squared.
+pub const E2: f64 = F * (2.0 - F);
+/// Semi-minor axis [m].
+pub const B: f64 = A * (1.0 - F);
+/// Earth rotation rate [rad/s].
+pub const OMEGA_IE: f64 = 7.292_115e-5;
+/// Earth gravitational constant GM [m³/s²].
+pub const GM: f64 = 3.986_004_418e14;
+/// Normal gravity at the equator [m/s²].
+pub const GAMMA_EQUATOR: f64 = 9.780_325_335_9;
+/// Normal gravity at the poles [m/s²].
+pub const GAMMA_POLE: f64 = 9.832_184_937_8;
+
+/// Meridian (north-south) and prime-vertical (east-west) radii of curvature [m]
+/// at geodetic latitude `lat` [rad]: `(R_N, R_E)`.
+#[inline]
+pub fn radii(lat: f64) -> (f64, f64) {
+    let s = lat.sin();
+    let d = 1.0 - E2 * s * s;
+    let sqrt_d = d.sqrt();
+    let r_e = A / sqrt_d;
+    let r_n = A * (1.0 - E2) / (d * sqrt_d);
+    (r_n, r_e)
+}
+
+/// WGS-84 normal gravity magnitude [m/s²] at latitude `lat` [rad] and height `h` [m]:
+/// Somigliana's formula with the second-order height correction (NIMA TR8350.2, 4-3).
+/// It includes the centrifugal part, so at rest the accelerometer reads `-gravity`.
+#[inline]
+pub fn gravity(lat: f64, h: f64) -> f64 {
+    let s2 = lat.sin().powi(2);
+    let k = (1.0 - F) * GAMMA_POLE / GAMMA_EQUATOR - 1.0;
+    let gamma0 = GAMMA_EQUATOR * (1.0 + k * s2) / (1.0 - E2 * s2).sqrt();
+    let m = OMEGA_IE * OMEGA_IE * A * A * B / GM;
+    gamma0 * (1.0 - 2.0 * h / A * (1.0 + F + m - 2.0 * F * s2) + 3.0 * h * h / (A * A))
+}
+
+/// Normal gravity vector in NED [m/s²]: `[0, 0, gravity(lat, h)]`.
+#[inline]
+pub fn gravity_ned(lat: f64, h: f64) -> Vector3<f64> {
+    Vector3::new(0.0, 0.0, gravity(lat, h))
+}
+
+/// Earth rotation rate expressed in NED [rad/s].
+#[inline]
+pub fn earth_rate_ned(lat: f64) -> Vector3<f64> {
+    Vector3::new(OMEGA_IE * lat.cos(), 0.0, -OMEGA_IE * lat.sin())
+}
+
+/// Transport rate (rotation of NED relative to the Earth) [rad/s] for NED velocity
+/// `v` [m/s] at latitude `lat` [rad] and height `h` [m].
+#[inline]
+pub fn transport_rate_ned(lat: f64, h: f64, v: &Vector3<f64>) -> Vector3<f64> {
+    let (r_n, r_e) = radii(lat);
+    Vector3::new(
+        v[1] / (r_e + h),
+        -v[0] / (r_n + h),
+        -v[1] * lat.tan() / (r_e + h),
+    )
+}
+
+/// Geodetic `[lat, lon, h]` to Earth-centred Earth-fixed coordinates [m].
+pub fn lla_to_ecef(lla: &Vector3<f64>) -> Vector3<f64> {
+    let (lat, lon, h) = (lla[0], lla[1], lla[2]);
+    let (_, r_e) = radii(lat);
+    Vector3::new(
+        (r_e + h) * lat.cos() * lon.cos(),
+        (r_e + h) * lat.cos() * lon.sin(),
+        (r_e * (1.0 - E2) + h) * lat.sin(),
+    )
+}
+
+/// ECEF [m] to geodetic `[lat, lon, h]` (iterative; converges to machine precision
+/// within a few iterations anywhere outside the Earth's centre).
+pub fn ecef_to_lla(r: &Vector3<f64>) -> Vector3<f64> {
+    let p = (r[0] * r[0] + r[1] * r[1]).sqrt();
+    let lon = r[1].atan2(r[0]);
+    let mut lat = r[2].atan2(p * (1.0 - E2));
+    let mut h = 0.0;
+    for _ in 0..8 {
+        let (_, r_e) = radii(lat);
+        let cos_lat = lat.cos();
+        // Near the poles use the z-component for the height: p / cos(lat) is ill-conditioned.
+        h = if cos_lat.abs() > 1e-3 {
+            p / cos_lat - r_e
+        } else {
+            r[2] / lat.sin() - r_e * (1.0 - E2)
+        };
+        lat = r[2].atan2(p * (1.0 - E2 * r_e / (r_e + h)));
+    }
+    Vector3::new(lat, lon, h)
+}
+
+/// Rotation from ECEF to the local NED frame at `(lat, lon)`.
+pub fn dcm_ecef_to_ned(lat: f64, lon: f64) -> Matrix3<f64> {
+    let (sl, cl) = lat.sin_cos();
+    let (so, co) = lon.sin_cos();
+    Matrix3::new(
+        -sl * co,
+        -sl * so,
+        cl,
+        -so,
+        co,
+        0.0,
+        -cl * co,
+        -cl * so,
+        -sl,
+    )
+}
+
+/// Offset [m, NED] of the point `lla` from the reference point `origin`, both geodetic.
+/// Exact (through ECEF), valid for any distance.
+pub fn lla_to_ned(origin: &Vector3<f64>, lla: &Vector3<f64>) -> Vector3<f64> {
+    let d = lla_to_ecef(lla) - lla_to_ecef(origin);
+    dcm_ecef_to_ned(origin[0], origin[1]) * d
+}
+
+/// Geodetic position of the point at offset `ned` [m] from `origin`. Inverse of
+/// [`lla_to_ned`].
+pub fn ned_to_lla(origin: &Vector3<f64>, ned: &Vector3<f64>) -> Vector3<f64> {
+    let d = dcm_ecef_to_ned(origin[0], origin[1]).transpose() * ned;
+    ecef_to_lla(&(lla_to_ecef(origin) + d))
+}
+
+/// Small position difference `est - truth` expressed in NED metres with the radii at
+/// `truth` (the filter's δp): `[(φ̂−φ)(R_N+h), (λ̂−λ)(R_E+h)cosφ, −(ĥ−h)]`.
+#[inline]
+pub fn position_error_ned(est: &Vector3<f64>, truth: &Vector3<f64>) -> Vector3<f64> {
+    let (r_n, r_e) = radii(truth[0]);
+    Vector3::new(
+        (est[0] - truth[0]) * (r_n + truth[2]),
+        (est[1] - truth[1]) * (r_e + truth[2]) * truth[0].cos(),
+        -(est[2] - truth[2]),
+    )
+}
+
+/// Geodetic increment `[Δlat, Δlon, Δh]` for a small NED displacement `d` [m] at `lla`.
+#[inline]
+pub fn ned_delta_to_lla_delta(lla: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f64> {
+    let (r_n, r_e) = radii(lla[0]);
+    Vector3::new(
+        d[0] / (r_n + lla[2]),
+        d[1] / ((r_e + lla[2]) * lla[0].cos()),
+        -d[2],
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gravity_matches_wgs84_at_equator_and_pole() {
+        assert!((gravity(0.0, 0.0) - 9.780_325_335_9).abs() < 1e-6);
+        assert!((gravity(std::f64::consts::FRAC_PI_2, 0.0) - 9.832_184_937_8).abs() < 1e-6);
+    }
+
+    #[test]
+    fn gravity_decreases_with_height_by_the_free_air_gradient() {
+        // Free-air gradient is about 3.086e-6 (m/s²)/m.
+        let lat = 32f64.to_radians();
+        let grad = (gravity(lat, 100.0) - gravity(lat, 0.0)) / 100.0;
+        assert!((grad + 3.086e-6).abs() < 0.01e-6, "gradient {grad}");
+    }
+
+    #[test]
+    fn radii_at_equator_and_pole() {
+        let (rn, re) = radii(0.0);
+        assert!((re - A).abs() < 1e-6);
+        assert!((rn - A * (1.0 - E2)).abs() < 1e-6);
+        let (rn, re) = radii(std::f64::consts::FRAC_PI_2);
+        assert!((rn - re).abs() < 1e-6, "radii equal at the pole");
+        assert!((rn - A * A / B).abs() < 1e-6);
+    }
+
+    #[test]
+    fn earth_rate_has_the_earth_rotation_magnitude() {
+        let w = earth_rate_ned(32f64.to_radians());
+        assert!((w.norm() - OMEGA_IE).abs() < 1e-18);
+        assert!(
+            w[2] < 0.0,
+            "points up (negative down) in the northern hemisphere"
+        );
+    }
+
+    #[test]
+    fn transport_rate_of_eastward_motion() {
+        let lat = 0.3;
+        let v = Vector3::new(0.0, 10.0, 0.0);
+        let w = transport_rate_ned(lat, 0.0, &v);
+        let (_, re) = radii(lat);
+        assert!((w[0] - 10.0 / re).abs() < 1e-18);
+        assert_eq!(w[1], 0.0);
+        assert!((w[2] + 10.0 * lat.tan() / re).abs() < 1e-18);
+    }
+
+    #[test]
+    fn ecef_round_trip() {
+        for &(lat, lon, h) in &[
+            (0.0, 0.0, 0.0),
+            (0.558, 0.593, -5.0),
+            (-1.2, -2.9, 8000.0),
+            (1.5, 1.0, 100.0),
+        ] {
+            let lla = Vector3::new(lat, lon, h);
+            let back = ecef_to_lla(&lla_to_ecef(&lla));
+            assert!((back - lla).abs().max() < 1e-8, "{lla:?} -> {back:?}");
+        }
+    }
+
+    #[test]
+    fn ned_offsets_round_trip_and_match_small_difference_formula() {
+        let origin = Vector3::new(32f64.to_radians(), 34f64.to_radians(), -5.0);
+        let ned = Vector3::new(120.0, -45.0, 3.0);
+        let p = ned_to_lla(&origin, &ned);
+        assert!((lla_to_ned(&origin, &p) - ned).norm() < 1e-6);
+        // For a short baseline the curvilinear small-difference formula agrees to mm.
+        let approx = position_error_ned(&p, &origin);
+        assert!((approx - ned).norm() < 5e-3, "{approx:?}");
+        // Same for the increment: angles to 1e-9 rad; the height differs by the Earth's
+        // curvature over the baseline, d²/2R ≈ 1.3 mm.
+        let diff = origin + ned_delta_to_lla_delta(&origin, &ned) - p;
+        assert!(diff[0].abs() < 1e-9 && diff[1].abs() < 1e-9, "{diff:?}");
+        assert!(diff[2].abs() < 2e-3, "{diff:?}");
+    }
+}

@@ -1,0 +1,23 @@
+//! pronet navigation core: WGS-84 Earth model, strapdown mechanization, trajectory and
+//! sensor simulation, the 15-state INS/DVL error-state EKF, process-noise strategies
+//! and a parallel Monte Carlo engine.
+//!
+//! Conventions (see `docs/filter.md`): navigation frame NED, body frame FRD, positions
+//! geodetic `[lat, lon, h]` in rad, rad, m (height positive up), attitude as the
+//! body-to-NED DCM, IMU samples `[f_x, f_y, f_z, ω_x, ω_y, ω_z]` in m/s² and rad/s.
+//! This crate is plain Rust; the Python bindings live behind the `python` feature.
+
+pub mod attitude;
+pub mod earth;
+pub mod ekf;
+pub mod error;
+pub mod mechanization;
+pub mod montecarlo;
+pub mod noise;
+pub mod sensors;
+pub mod trajectory;
+
+#[cfg(feature = "python")]
+mod python;
+
+pub use error::{Error, Result};

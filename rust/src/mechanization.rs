@@ -1,0 +1,222 @@
+//! NED strapdown mechanization: one step per IMU sample, its exact inverse (used to
+//! synthesize the ideal IMU of a trajectory), and integration of an IMU array.
+//!
+//! The step is specified in `docs/filter.md` ("Strapdown step"): attitude by rotation
+//! vectors, velocity with the mid-step attitude and Coriolis/gravity at the start of the
+//! step, position trapezoidal in velocity.
+
+use crate::attitude::{exp_so3, log_so3, orthonormalize};
+use crate::earth;
+use nalgebra::{Matrix3, Vector3};
+
+/// Navigation state: geodetic position `[lat, lon, h]` [rad, rad, m], NED velocity
+/// [m/s] and the body(FRD)-to-NED DCM.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NavState {
+    pub lla: Vector3<f64>,
+    pub vel: Vector3<f64>,
+    pub dcm: Matrix3<f64>,
+}
+
+/// One IMU sample: specific force [m/s²] and angular rate [rad/s], body frame, each the
+/// mean over the sample interval.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImuSample {
+    pub accel: Vector3<f64>,
+    pub gyro: Vector3<f64>,
+}
+
+impl ImuSample {
+    /// From `[f_x, f_y, f_z, ω_x, ω_y, ω_z]`.
+    #[inline]
+    pub fn from_array(a: &[f64; 6]) -> Self {
+        Self {
+            accel: Vector3::new(a[0], a[1], a[2]),
+            gyro: Vector3::new(a[3], a[4], a[5]),
+        }
+    }
+
+    /// As `[f_x, f_y, f_z, ω_x, ω_y, ω_z]`.
+    #[inline]
+    pub fn to_array(&self) -> [f64; 6] {
+        [
+            self.accel[0],
+            self.accel[1],
+            self.accel[2],
+            self.gyro[0],
+            self.gyro[1],
+            self.gyro[2],
+        ]
+    }
+}
+
+/// Rates that the step evaluates at its start: Earth rate and transport rate [rad/s,
+/// NED] and gravity [m/s², NED].
+#[derive(Clone, Copy, Debug)]
+pub struct FrameRates {
+    pub earth: Vector3<f64>,
+    pub transport: Vector3<f64>,
+    pub gravity: Vector3<f64>,
+}
+
+impl FrameRates {
+    #[inline]
+    pub fn at(state: &NavState) -> Self {
+        let (lat, h) = (state.lla[0], state.lla[2]);
+        Self {
+            earth: earth::earth_rate_ned(lat),
+            transport: earth::transport_rate_ned(lat, h, &state.vel),
+            gravity: earth::gravity_ned(lat, h),
+        }
+    }
+
+    /// Rotation rate of NED w.r.t. inertial space, `ω_in = ω_ie + ω_en`.
+    #[inline]
+    pub fn nav_rate(&self) -> Vector3<f64> {
+        self.earth + self.transport
+    }
+
+    /// Gravity minus Coriolis acceleration for velocity `v`: `g − (2ω_ie + ω_en) × v`.
+    #[inline]
+    pub fn kinematic_accel(&self, v: &Vector3<f64>) -> Vector3<f64> {
+        self.gravity - (2.0 * self.earth + self.transport).cross(v)
+    }
+}
+
+/// Advance geodetic position `lla` by the trapezoid of NED velocities `v0`, `v1` over `dt`.
+/// Shared by the mechanization and the trajectory generator, so that truth positions and
+/// mechanized positions follow the same rule.
+#[inline]
+pub fn advance_position(
+    lla: &Vector3<f64>,
+    v0: &Vector3<f64>,
+    v1: &Vector3<f64>,
+    dt: f64,
+) -> Vector3<f64> {
+    let h1 = lla[2] - 0.5 * (v0[2] + v1[2]) * dt;
+    let h_mid = 0.5 * (lla[2] + h1);
+    let (r_n, _) = earth::radii(lla[0]);
+    let lat1 = lla[0] + 0.5 * (v0[0] + v1[0]) * dt / (r_n + h_mid);
+    let lat_mid = 0.5 * (lla[0] + lat1);
+    let (_, r_e) = earth::radii(lat_mid);
+    let lon1 = lla[1] + 0.5 * (v0[1] + v1[1]) * dt / ((r_e + h_mid) * lat_mid.cos());
+    Vector3::new(lat1, lon1, h1)
+}
+
+/// One strapdown step over `dt` [s] with IMU sample `imu`.
+#[inline]
+pub fn step(state: &NavState, imu: &ImuSample, dt: f64) -> NavState {
+    let rates = FrameRates::at(state);
+    step_with_rates(state, imu, dt, &rates)
+}
+
+/// [`step`] with the frame rates at the start of the step already computed (the EKF
+/// needs them for its Jacobian too).
+#[inline]
+pub fn step_with_rates(state: &NavState, imu: &ImuSample, dt: f64, rates: &FrameRates) -> NavState {
+    // C_{k+1} = Exp(−ω_in Δt) C_k Exp(Δθ), split at mid-step where the specific force
+    // is resolved: both half-turns are small-angle series, no trigonometry.
+    let body_half = exp_so3(&(imu.gyro * (0.5 * dt)));
+    let nav_half = exp_so3(&(rates.nav_rate() * (-0.5 * dt)));
+    let c_mid = nav_half * state.dcm * body_half;
+    let dcm = orthonormalize(&(nav_half * c_mid * body_half));
+    let vel = state.vel + c_mid * imu.accel * dt + rates.kinematic_accel(&state.vel) * dt;
+    let lla = advance_position(&state.lla, &state.vel, &vel, dt);
+    NavState { lla, vel, dcm }
+}
+
+/// The IMU sample that [`step`] needs to take `s0` to `s1` in `dt` [s]: the exact inverse
+/// of the attitude and velocity updates. (Position follows from the velocities.)
+pub fn invert_step(s0: &NavState, s1: &NavState, dt: f64) -> ImuSample {
+    let rates = FrameRates::at(s0);
+    let delta = log_so3(&(s0.dcm.transpose() * exp_so3(&(rates.nav_rate() * dt)) * s1.dcm));
+    let c_mid = exp_so3(&(rates.nav_rate() * (-0.5 * dt))) * s0.dcm * exp_so3(&(delta * 0.5));
+    let accel = c_mid.transpose() * ((s1.vel - s0.vel) / dt - rates.kinematic_accel(&s0.vel));
+    ImuSample {
+        accel,
+        gyro: delta / dt,
+    }
+}
+
+/// Mechanize `imu` (samples at a constant step `dt` [s]) from `initial`. Returns n + 1
+/// states: the initial one, then the state after each sample.
+pub fn integrate(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Vec<NavState> {
+    let mut out = Vec::with_capacity(imu.len() + 1);
+    out.push(*initial);
+    let mut s = *initial;
+    for sample in imu {
+        s = step(&s, &ImuSample::from_array(sample), dt);
+        out.push(s);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::attitude::{dcm_from_euler, euler_from_dcm};
+
+    fn at_rest(lat_deg: f64) -> (NavState, [f64; 6]) {
+        let s = NavState {
+            lla: Vector3::new(lat_deg.to_radians(), 34f64.to_radians(), -5.0),
+            vel: Vector3::zeros(),
+            dcm: dcm_from_euler(0.02, -0.03, 1.1),
+        };
+        let rates = FrameRates::at(&s);
+        let f = -(s.dcm.transpose() * rates.gravity);
+        let w = s.dcm.transpose() * rates.earth;
+        (s, [f[0], f[1], f[2], w[0], w[1], w[2]])
+    }
+
+    #[test]
+    fn inverse_of_a_resting_state_is_earth_rate_and_minus_gravity() {
+        let (s, ideal) = at_rest(32.0);
+        let imu = invert_step(&s, &s, 0.01).to_array();
+        for i in 0..6 {
+            assert!(
+                (imu[i] - ideal[i]).abs() < 1e-12,
+                "channel {i}: {imu:?} vs {ideal:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn one_hour_at_rest_stays_put() {
+        let (s0, ideal) = at_rest(32.0);
+        let n = 360_000;
+        let mut s = s0;
+        let sample = ImuSample::from_array(&ideal);
+        for _ in 0..n {
+            s = step(&s, &sample, 0.01);
+        }
+        let dp = earth::position_error_ned(&s.lla, &s0.lla);
+        assert!(dp.norm() < 0.01, "position drift {dp:?} m");
+        assert!(s.vel.norm() < 1e-5, "velocity drift {:?}", s.vel);
+        let de = euler_from_dcm(&s.dcm) - euler_from_dcm(&s0.dcm);
+        assert!(de.abs().max() < 1e-9, "attitude drift {de:?}");
+    }
+
+    #[test]
+    fn step_then_invert_recovers_the_sample() {
+        let s0 = NavState {
+            lla: Vector3::new(0.5, 0.6, -20.0),
+            vel: Vector3::new(1.2, -0.4, 0.1),
+            dcm: dcm_from_euler(0.1, -0.05, 0.7),
+        };
+        let sample = ImuSample::from_array(&[0.3, -0.2, -9.7, 0.01, -0.02, 0.05]);
+        let s1 = step(&s0, &sample, 0.01);
+        let back = invert_step(&s0, &s1, 0.01).to_array();
+        let want = sample.to_array();
+        for i in 0..6 {
+            assert!((back[i] - want[i]).abs() < 1e-10, "{back:?} vs {want:?}");
+        }
+    }
+
+    #[test]
+    fn integrate_returns_initial_plus_one_state_per_sample() {
+        let (s0, ideal) = at_rest(10.0);
+        let out = integrate(&s0, &[ideal; 5], 0.01);
+        assert_eq!(out.len(), 6);
+        assert_eq!(out[0], s0);
+    }
+}

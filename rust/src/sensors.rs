@@ -1,0 +1,290 @@
+//! Sensor error models and their simulation: IMU white noise (per channel, with a
+//! variance that may follow a schedule), constant bias and bias random walk; DVL
+//! body-frame velocity with white noise and a lever arm.
+//!
+//! Random numbers: every run draws from its own ChaCha8 streams, keyed by the
+//! Monte Carlo seed and `4 · run_index + k` (k = 0 IMU, 1 DVL, 2 initial error), so a
+//! run's noise never depends on the thread count, on other runs, or on the filter
+//! strategy (common random numbers across strategies).
+
+use crate::error::{check, Error, Result};
+use crate::mechanization::NavState;
+use nalgebra::Vector3;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+/// Which random stream of a run.
+#[derive(Clone, Copy, Debug)]
+pub enum Stream {
+    Imu = 0,
+    Dvl = 1,
+    InitialError = 2,
+}
+
+/// The RNG of one stream of one run.
+pub fn stream_rng(seed: u64, run_index: u64, stream: Stream) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(run_index * 4 + stream as u64);
+    rng
+}
+
+/// Standard normal draw.
+#[inline]
+pub fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    rng.sample(StandardNormal)
+}
+
+/// Per-channel IMU noise variance, piecewise constant in time: `values[i]` holds from
+/// `times[i]` until `times[i+1]`. The sample covering `(t, t+dt]` uses the value at `t`.
+/// Variances are per sample, in (m/s²)² for the accelerometers and (rad/s)² for the
+/// gyros, channel order `[f_x, f_y, f_z, ω_x, ω_y, ω_z]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VarianceSchedule {
+    times: Vec<f64>,
+    values: Vec<[f64; 6]>,
+}
+
+impl VarianceSchedule {
+    pub fn constant(q: [f64; 6]) -> Self {
+        Self {
+            times: vec![0.0],
+            values: vec![q],
+        }
+    }
+
+    /// A schedule starting at `times[0] = 0` [s], strictly increasing.
+    pub fn new(times: Vec<f64>, values: Vec<[f64; 6]>) -> Result<Self> {
+        if times.is_empty() || times.len() != values.len() {
+            return Err(Error::invalid(
+                "imu_variance",
+                format!(
+                    "needs as many times as rows of variances (got {} and {}), at least one",
+                    times.len(),
+                    values.len()
+                ),
+            ));
+        }
+        check::increasing("imu_variance_times", &times)?;
+        if times[0] != 0.0 {
+            return Err(Error::invalid(
+                "imu_variance_times",
+                format!("the first time must be 0 s, got {}", times[0]),
+            ));
+        }
+        for v in &values {
+            check::non_negative("imu_variance", v)?;
+        }
+        Ok(Self { times, values })
+    }
+
+    /// The variances in force at time `t`, starting the search at `*cursor` (the index
+    /// last returned), so a forward sweep costs O(1) per call.
+    #[inline]
+    pub fn at(&self, t: f64, cursor: &mut usize) -> &[f64; 6] {
+        while *cursor + 1 < self.times.len() && t >= self.times[*cursor + 1] {
+            *cursor += 1;
+        }
+        &self.values[*cursor]
+    }
+
+    pub fn times(&self) -> &[f64] {
+        &self.times
+    }
+
+    pub fn values(&self) -> &[[f64; 6]] {
+        &self.values
+    }
+}
+
+/// IMU error model: white noise, constant bias, bias random walk.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImuErrorModel {
+    pub variance: VarianceSchedule,
+    /// Constant bias `[b_a (m/s²), b_g (rad/s)]`.
+    pub bias: [f64; 6],
+    /// Bias random-walk PSD per channel [(m/s²)²/s, (rad/s)²/s].
+    pub bias_rw_psd: [f64; 6],
+}
+
+/// DVL model: body-frame velocity at the DVL, every `period` seconds, white noise.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DvlModel {
+    /// Per-axis noise variance [(m/s)²].
+    pub variance: [f64; 3],
+    /// Measurement period [s] (1 s in the paper).
+    pub period: f64,
+    /// DVL position relative to the IMU, body frame [m].
+    pub lever_arm: Vector3<f64>,
+}
+
+/// All simulated sensors of a scenario.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SensorConfig {
+    pub imu: ImuErrorModel,
+    pub dvl: DvlModel,
+}
+
+impl SensorConfig {
+    /// The paper's sensors: accelerometer variance 0.01², gyro 0.001², no bias, DVL
+    /// variance 0.01 (m/s)² at 1 Hz, no lever arm.
+    pub fn paper() -> Self {
+        Self {
+            imu: ImuErrorModel {
+                variance: VarianceSchedule::constant([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]),
+                bias: [0.0; 6],
+                bias_rw_psd: [0.0; 6],
+            },
+            dvl: DvlModel {
+                variance: [0.01; 3],
+                period: 1.0,
+                lever_arm: Vector3::zeros(),
+            },
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        check::finite("imu_bias", &self.imu.bias)?;
+        check::non_negative("imu_bias_psd", &self.imu.bias_rw_psd)?;
+        check::non_negative("dvl_variance", &self.dvl.variance)?;
+        check::positive("dvl_period", self.dvl.period)?;
+        check::finite("lever_arm", self.dvl.lever_arm.as_slice())?;
+        Ok(())
+    }
+}
+
+/// Per-run simulator of the noisy sensors, stepping along a truth.
+pub struct SensorSim {
+    imu_rng: ChaCha8Rng,
+    dvl_rng: ChaCha8Rng,
+    bias: [f64; 6],
+    cursor: usize,
+}
+
+impl SensorSim {
+    pub fn new(cfg: &SensorConfig, seed: u64, run_index: u64) -> Self {
+        Self {
+            imu_rng: stream_rng(seed, run_index, Stream::Imu),
+            dvl_rng: stream_rng(seed, run_index, Stream::Dvl),
+            bias: cfg.imu.bias,
+            cursor: 0,
+        }
+    }
+
+    /// The bias that the next IMU sample carries `[b_a, b_g]`.
+    pub fn bias(&self) -> &[f64; 6] {
+        &self.bias
+    }
+
+    /// Noisy IMU sample for the interval starting at `t_start` [s] of length `dt`,
+    /// given the ideal sample. The bias then takes one random-walk step.
+    pub fn imu(
+        &mut self,
+        cfg: &ImuErrorModel,
+        ideal: &[f64; 6],
+        t_start: f64,
+        dt: f64,
+    ) -> [f64; 6] {
+        let q = cfg.variance.at(t_start, &mut self.cursor);
+        let mut out = [0.0; 6];
+        for i in 0..6 {
+            out[i] = ideal[i] + self.bias[i] + q[i].sqrt() * normal(&mut self.imu_rng);
+        }
+        for i in 0..6 {
+            if cfg.bias_rw_psd[i] > 0.0 {
+                self.bias[i] += (cfg.bias_rw_psd[i] * dt).sqrt() * normal(&mut self.imu_rng);
+            }
+        }
+        out
+    }
+
+    /// Noisy DVL reading `C_n^b v^n + ω × r + n` [m/s, body frame] for the true state
+    /// and the true body rate `gyro` [rad/s].
+    pub fn dvl(&mut self, cfg: &DvlModel, truth: &NavState, gyro: &Vector3<f64>) -> Vector3<f64> {
+        let v_b = truth.dcm.transpose() * truth.vel + gyro.cross(&cfg.lever_arm);
+        Vector3::from_fn(|i, _| v_b[i] + cfg.variance[i].sqrt() * normal(&mut self.dvl_rng))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::attitude::dcm_from_euler;
+
+    #[test]
+    fn schedule_lookup_is_piecewise_constant() {
+        let s = VarianceSchedule::new(vec![0.0, 10.0, 20.0], vec![[1.0; 6], [2.0; 6], [3.0; 6]])
+            .unwrap();
+        let mut c = 0;
+        assert_eq!(s.at(0.0, &mut c)[0], 1.0);
+        assert_eq!(s.at(9.99, &mut c)[0], 1.0);
+        assert_eq!(s.at(10.0, &mut c)[0], 2.0);
+        assert_eq!(s.at(25.0, &mut c)[0], 3.0);
+        assert!(VarianceSchedule::new(vec![1.0], vec![[1.0; 6]]).is_err());
+        assert!(VarianceSchedule::new(vec![0.0, 0.0], vec![[1.0; 6]; 2]).is_err());
+        assert!(VarianceSchedule::new(vec![0.0], vec![[-1.0; 6]]).is_err());
+    }
+
+    #[test]
+    fn imu_noise_has_the_scheduled_variance() {
+        let mut cfg = SensorConfig::paper();
+        cfg.imu.variance =
+            VarianceSchedule::new(vec![0.0, 50.0], vec![[0.01; 6], [0.04; 6]]).unwrap();
+        let mut sim = SensorSim::new(&cfg, 7, 3);
+        let n = 20_000;
+        let (mut s1, mut s2) = (0.0, 0.0);
+        for k in 0..n {
+            s1 += sim.imu(&cfg.imu, &[0.0; 6], k as f64 * 0.001, 0.001)[2].powi(2);
+        }
+        for k in 0..n {
+            s2 += sim.imu(&cfg.imu, &[0.0; 6], 50.0 + k as f64 * 0.001, 0.001)[4].powi(2);
+        }
+        let (v1, v2) = (s1 / n as f64, s2 / n as f64);
+        // Sample variance of 20k draws: relative standard error 1 %.
+        assert!((v1 / 0.01 - 1.0).abs() < 0.05, "{v1}");
+        assert!((v2 / 0.04 - 1.0).abs() < 0.05, "{v2}");
+    }
+
+    #[test]
+    fn bias_random_walk_grows_with_the_psd() {
+        let mut cfg = SensorConfig::paper();
+        cfg.imu.variance = VarianceSchedule::constant([0.0; 6]);
+        cfg.imu.bias_rw_psd = [1e-4; 6];
+        // Over 100 s the bias variance is psd·T = 1e-2; average over 400 runs.
+        let mut acc = 0.0;
+        for run in 0..400 {
+            let mut sim = SensorSim::new(&cfg, 1, run);
+            for k in 0..1000 {
+                sim.imu(&cfg.imu, &[0.0; 6], k as f64 * 0.1, 0.1);
+            }
+            acc += sim.bias()[0].powi(2);
+        }
+        let var = acc / 400.0;
+        assert!((var / 1e-2 - 1.0).abs() < 0.25, "{var}");
+    }
+
+    #[test]
+    fn streams_are_fixed_by_seed_and_run() {
+        let cfg = SensorConfig::paper();
+        let draw = |seed, run| SensorSim::new(&cfg, seed, run).imu(&cfg.imu, &[0.0; 6], 0.0, 0.01);
+        assert_eq!(draw(5, 2), draw(5, 2));
+        assert_ne!(draw(5, 2), draw(5, 3));
+        assert_ne!(draw(5, 2), draw(6, 2));
+    }
+
+    #[test]
+    fn dvl_sees_body_velocity_and_lever_arm() {
+        let mut cfg = SensorConfig::paper();
+        cfg.dvl.variance = [0.0; 3];
+        cfg.dvl.lever_arm = Vector3::new(0.0, 0.0, 1.0);
+        let truth = NavState {
+            lla: Vector3::zeros(),
+            vel: Vector3::new(0.0, 2.0, 0.0),
+            dcm: dcm_from_euler(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+        };
+        let mut sim = SensorSim::new(&cfg, 0, 0);
+        // Heading east at 2 m/s, rolling at 0.1 rad/s with the DVL 1 m below: ω × r = [0, −0.1, 0].
+        let z = sim.dvl(&cfg.dvl, &truth, &Vector3::new(0.1, 0.0, 0.0));
+        assert!((z - Vector3::new(2.0, -0.1, 0.0)).norm() < 1e-12, "{z:?}");
+    }
+}

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Create (or reuse) pronet's virtual environment and build pronet into it.
+# The venv lives outside the checkout so that the large wheels (torch) are installed
+# once per machine; override its place with PRONET_VENV.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
+if [ ! -x "$VENV/bin/python" ]; then
+  echo "pronet: creating virtual environment $VENV"
+  python3 -m venv "$VENV"
+  "$VENV/bin/python" -m pip install -q --upgrade pip
+fi
+if ! "$VENV/bin/python" -c "import maturin" 2>/dev/null; then
+  "$VENV/bin/python" -m pip install -q "maturin>=1.9.4,<2"
+fi
+# Build the native core (release) and install pronet with its test extras; pip skips
+# what is already there.
+cd "$ROOT"
+VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH" "$VENV/bin/maturin" develop --release --extras test --quiet

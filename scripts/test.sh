@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Install what is missing and run every check and test: Rust (fmt, clippy, unit tests)
+# and Python (ruff, pytest). Exits non-zero on the first failure.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
+bash "$ROOT/scripts/bootstrap.sh"
+cd "$ROOT"
+echo "== cargo fmt --check"
+cargo fmt --all -- --check
+echo "== cargo clippy (core, then with the Python bindings)"
+cargo clippy --quiet --all-targets -- -D warnings
+cargo clippy --quiet --all-targets --features python -- -D warnings
+echo "== cargo test"
+cargo test --quiet
+echo "== ruff"
+"$VENV/bin/ruff" check python tests benches
+echo "== pytest"
+"$VENV/bin/python" -m pytest -q tests

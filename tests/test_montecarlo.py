@@ -1,0 +1,112 @@
+"""Monte Carlo behaviour: DVL aiding, statistical consistency, determinism, ensemble."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+import pronet
+
+from conftest import PAPER_Q
+
+# A filter whose bias random walk matches an IMU with (almost) no bias drift.
+MATCHED = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14)
+
+
+def test_dvl_aiding_keeps_velocity_error_below_the_dvl_alone(paper_trajectory) -> None:
+    r = pronet.monte_carlo(
+        paper_trajectory, pronet.Strategy.constant(PAPER_Q), config=MATCHED, n_runs=20, seed=3
+    )
+    assert r.n_failed == 0
+    # The DVL alone would give sqrt(3 * 0.01) = 0.17 m/s.
+    assert r.summary()["srmse"].high < 0.1
+    # The paper's epsilon = 0.001 lets the gyro biases wander at 0.03 rad/s/sqrt(s):
+    # the filter trusts its IMU far less and is much worse on the same noise.
+    paper = pronet.monte_carlo(
+        paper_trajectory, pronet.Strategy.constant(PAPER_Q), n_runs=20, seed=3
+    )
+    assert paper.summary()["srmse"].mean > 2 * r.summary()["srmse"].mean
+
+
+def test_filter_is_consistent_when_sensors_match_its_model(paper_trajectory) -> None:
+    """100 runs with white noise q, bias random walk of the filter's epsilon, DVL
+    noise R and initial errors from P0: the run-averaged NIS and velocity NEES lie in
+    their 95 % chi-square bands at >= 90 % of the DVL epochs."""
+    eps_a, eps_g = 1e-8, 1e-12
+    sensors = pronet.SensorConfig(imu_variance=PAPER_Q, imu_bias_psd=[eps_a] * 3 + [eps_g] * 3)
+    config = pronet.FilterConfig(accel_bias_psd=eps_a, gyro_bias_psd=eps_g)
+    n = 100
+    r = pronet.monte_carlo(
+        paper_trajectory,
+        pronet.Strategy.constant(PAPER_Q),
+        sensors=sensors,
+        config=config,
+        n_runs=n,
+        seed=11,
+    )
+    assert r.n_failed == 0
+    lo, hi = chi2.ppf([0.025, 0.975], 3 * n) / n
+    nis = r.nis.mean(axis=0)
+    nees_v = r.nees[:, :, 1].mean(axis=0)
+    inside_nis = np.mean((nis > lo) & (nis < hi))
+    inside_nees = np.mean((nees_v > lo) & (nees_v < hi))
+    assert inside_nis >= 0.9, f"NIS inside band at {inside_nis:.0%} of epochs"
+    assert inside_nees >= 0.9, f"velocity NEES inside band at {inside_nees:.0%} of epochs"
+
+
+def test_same_seed_is_bit_identical_with_one_and_two_threads(paper_trajectory) -> None:
+    strategy = pronet.Strategy.mehra(5, PAPER_Q)
+    a = pronet.monte_carlo(
+        paper_trajectory, strategy, n_runs=4, seed=5, threads=1, record_every=100
+    )
+    b = pronet.monte_carlo(
+        paper_trajectory, strategy, n_runs=4, seed=5, threads=2, record_every=100
+    )
+    for name in ("srmse", "smae", "final_horizontal_error", "nis", "nees", "error", "sigma"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    c = pronet.monte_carlo(paper_trajectory, strategy, n_runs=4, seed=6, threads=2)
+    assert not np.array_equal(a.srmse, c.srmse)
+
+
+def test_histories_have_documented_shapes(paper_trajectory) -> None:
+    r = pronet.monte_carlo(
+        paper_trajectory, pronet.Strategy.constant(PAPER_Q), n_runs=3, seed=0, record_every=100
+    )
+    assert r.record_time.shape == (331,)
+    assert r.error.shape == (3, 331, 15) and r.sigma.shape == (3, 331, 15)
+    np.testing.assert_array_equal(r.q[:, :, 0], 1e-4)
+    assert r.nis.shape == (3, 330) and r.nees.shape == (3, 330, 5)
+    np.testing.assert_allclose(r.dvl_time, np.arange(1, 331))
+
+
+def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
+    ens = pronet.Ensemble(
+        paper_trajectory,
+        pronet.SensorConfig(),
+        MATCHED,
+        PAPER_Q,
+        n_runs=3,
+        seed=2,
+        window=200,
+        tuning_period=10.0,
+        record_every=1000,
+    )
+    first = ens.advance()
+    assert first is not None and first.dtype == np.float32 and first.shape == (3, 6, 200)
+    assert ens.steps == 1000 and ens.time == pytest.approx(10.0)
+    # The windows are the noisy samples: ideal IMU plus noise of the scenario's variance.
+    noise = first - paper_trajectory.imu[800:1000].T[None].astype(np.float32)
+    assert noise[:, :3].std() == pytest.approx(0.01, rel=0.1)
+    ens.set_q(np.full((3, 6), 4e-4))
+    stops = 1
+    while ens.advance() is not None:
+        stops += 1
+    assert stops == 32 and ens.done
+    res = ens.finish()
+    q = res["q"]
+    assert q.shape == (3, 34, 6)
+    np.testing.assert_array_equal(q[:, 1, 0], 1e-4)  # prior until the first tuning
+    np.testing.assert_array_equal(q[:, -1, 0], 4e-4)
+    with pytest.raises(ValueError, match="already finished"):
+        ens.advance()
