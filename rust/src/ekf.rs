@@ -143,28 +143,39 @@ impl ErrorDynamics {
         }
     }
 
-    /// `F · M` using the block sparsity of F (bias rows are zero).
+    /// `F · M` using the block sparsity of F (bias rows are zero), column by column on
+    /// the column-major storage: about 60 multiply-adds per column instead of 225.
     fn mul(&self, m: &Matrix15) -> Matrix15 {
-        let rows = |i: usize| -> Rows3 { m.fixed_view::<3, 15>(i, 0).into_owned() };
-        let (p, v, a, ba, bg) = (
-            rows(POS),
-            rows(VEL),
-            rows(ATT),
-            rows(ACC_BIAS),
-            rows(GYRO_BIAS),
-        );
+        #[inline(always)]
+        fn mv(a: &Matrix3<f64>, x: &[f64]) -> [f64; 3] {
+            let a = a.as_slice(); // column-major
+            [
+                a[0] * x[0] + a[3] * x[1] + a[6] * x[2],
+                a[1] * x[0] + a[4] * x[1] + a[7] * x[2],
+                a[2] * x[0] + a[5] * x[1] + a[8] * x[2],
+            ]
+        }
         let mut out = Matrix15::zeros();
-        out.fixed_view_mut::<3, 15>(POS, 0)
-            .copy_from(&(self.pos_pos * p + v));
-        let mut vel_rows = self.vel_vel * v + self.vel_att * a + self.vel_abias * ba;
-        for i in 0..3 {
-            for j in 0..15 {
-                vel_rows[(i, j)] += self.vel_pos[i] * p[(i, j)];
+        for (x, o) in m
+            .as_slice()
+            .chunks_exact(15)
+            .zip(out.as_mut_slice().chunks_exact_mut(15))
+        {
+            let (xp, xv, xa) = (&x[POS..POS + 3], &x[VEL..VEL + 3], &x[ATT..ATT + 3]);
+            let (xba, xbg) = (&x[ACC_BIAS..ACC_BIAS + 3], &x[GYRO_BIAS..GYRO_BIAS + 3]);
+            let pp = mv(&self.pos_pos, xp);
+            let (vv, va, vb) = (
+                mv(&self.vel_vel, xv),
+                mv(&self.vel_att, xa),
+                mv(&self.vel_abias, xba),
+            );
+            let (aa, ab) = (mv(&self.att_att, xa), mv(&self.att_gbias, xbg));
+            for r in 0..3 {
+                o[POS + r] = pp[r] + xv[r];
+                o[VEL + r] = self.vel_pos[r] * xp[r] + vv[r] + va[r] + vb[r];
+                o[ATT + r] = aa[r] + ab[r];
             }
         }
-        out.fixed_view_mut::<3, 15>(VEL, 0).copy_from(&vel_rows);
-        out.fixed_view_mut::<3, 15>(ATT, 0)
-            .copy_from(&(self.att_att * a + self.att_gbias * bg));
         out
     }
 }
@@ -223,9 +234,18 @@ impl Ekf {
         // Φ P Φᵀ = P + Δt (FP + (FP)ᵀ) + Δt² F (FP)ᵀ, with P symmetric.
         let fp = dynamics.mul(&self.p);
         let fpf = dynamics.mul(&fp.transpose());
-        self.p += (fp + fp.transpose()) * dt + fpf * (dt * dt);
+        let dt2 = dt * dt;
+        // One pass over the upper triangle: the sum, symmetrized.
+        for j in 0..15 {
+            for i in 0..=j {
+                let v = self.p[(i, j)]
+                    + dt * (fp[(i, j)] + fp[(j, i)])
+                    + 0.5 * dt2 * (fpf[(i, j)] + fpf[(j, i)]);
+                self.p[(i, j)] = v;
+                self.p[(j, i)] = v;
+            }
+        }
         self.add_process_noise(noise, dt);
-        self.p = (self.p + self.p.transpose()) * 0.5;
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
     }
@@ -242,9 +262,10 @@ impl Ekf {
                     c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
                 let qg =
                     c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
+                // Added symmetrized, so that P stays exactly symmetric.
                 let mut blk = |at: usize, m: Matrix3<f64>| {
                     let mut view = self.p.fixed_view_mut::<3, 3>(at, at);
-                    view += m;
+                    view += (m + m.transpose()) * 0.5;
                 };
                 blk(VEL, qa * white);
                 blk(ATT, qg * white);
@@ -252,7 +273,7 @@ impl Ekf {
                     self.p[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
                 }
             }
-            ProcessNoise::Discrete(qd) => self.p += qd,
+            ProcessNoise::Discrete(qd) => self.p += (qd + qd.transpose()) * 0.5,
         }
     }
 
