@@ -1,0 +1,17 @@
+"""The README's Python quick start runs as written."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_readme_quick_start_runs() -> None:
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+    assert blocks, "the README has a Python quick start"
+    for code in blocks:
+        namespace: dict[str, object] = {}
+        exec(compile(code, str(README), "exec"), namespace)  # noqa: S102 - our own README
+    assert namespace["res"].summary()["srmse"].mean < 0.1
