@@ -1,0 +1,197 @@
+"""An independent, pure-NumPy implementation of the filter in ``docs/filter.md``.
+
+It shares no code with the Rust core: dense 15x15 matrices, ``Phi = I + F dt`` built as
+a full matrix, ``P = Phi P Phi^T + Qd``, the Joseph update with full matrices. It is
+slow and plain on purpose; the test suite runs both filters on the same arrays.
+Frames: NED navigation, FRD body; positions [lat rad, lon rad, h m].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+A = 6378137.0
+F_FLAT = 1.0 / 298.257223563
+E2 = F_FLAT * (2.0 - F_FLAT)
+B = A * (1.0 - F_FLAT)
+OMEGA = 7.292115e-5
+GM = 3.986004418e14
+GAMMA_E = 9.7803253359
+GAMMA_P = 9.8321849378
+
+
+def radii(lat: float) -> tuple[float, float]:
+    """Meridian and prime-vertical radii of curvature [m]."""
+    d = 1.0 - E2 * math.sin(lat) ** 2
+    return A * (1.0 - E2) / d**1.5, A / math.sqrt(d)
+
+
+def gravity(lat: float, h: float) -> float:
+    """WGS-84 normal gravity with the second-order height correction [m/s²]."""
+    s2 = math.sin(lat) ** 2
+    k = (1.0 - F_FLAT) * GAMMA_P / GAMMA_E - 1.0
+    g0 = GAMMA_E * (1.0 + k * s2) / math.sqrt(1.0 - E2 * s2)
+    m = OMEGA**2 * A**2 * B / GM
+    return g0 * (1.0 - 2.0 * h / A * (1.0 + F_FLAT + m - 2.0 * F_FLAT * s2) + 3.0 * h**2 / A**2)
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def exp_so3(rv: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula."""
+    t = float(np.linalg.norm(rv))
+    k = skew(rv)
+    if t < 1e-12:
+        return np.eye(3) + k + 0.5 * k @ k
+    return np.eye(3) + math.sin(t) / t * k + (1.0 - math.cos(t)) / t**2 * k @ k
+
+
+def dcm_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """C_b^n = Rz(yaw) Ry(pitch) Rx(roll)."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def euler_from_dcm(c: np.ndarray) -> np.ndarray:
+    return np.array(
+        [math.atan2(c[2, 1], c[2, 2]), math.asin(-c[2, 0]), math.atan2(c[1, 0], c[0, 0])]
+    )
+
+
+def rates(lla: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Earth rate, transport rate [rad/s] and gravity [m/s²], NED."""
+    lat, h = lla[0], lla[2]
+    rn, re = radii(lat)
+    w_ie = OMEGA * np.array([math.cos(lat), 0.0, -math.sin(lat)])
+    w_en = np.array([v[1] / (re + h), -v[0] / (rn + h), -v[1] * math.tan(lat) / (re + h)])
+    return w_ie, w_en, np.array([0.0, 0.0, gravity(lat, h)])
+
+
+def strapdown_step(lla, v, c, f, w, dt):
+    """One step of docs/filter.md "Strapdown step"."""
+    w_ie, w_en, g = rates(lla, v)
+    w_in = w_ie + w_en
+    c_mid = exp_so3(-w_in * dt / 2) @ c @ exp_so3(w * dt / 2)
+    c_new = exp_so3(-w_in * dt) @ c @ exp_so3(w * dt)
+    v_new = v + c_mid @ f * dt + (g - np.cross(2 * w_ie + w_en, v)) * dt
+    h_new = lla[2] - (v[2] + v_new[2]) * dt / 2
+    h_bar = (lla[2] + h_new) / 2
+    rn, _ = radii(lla[0])
+    lat_new = lla[0] + (v[0] + v_new[0]) * dt / (2 * (rn + h_bar))
+    lat_bar = (lla[0] + lat_new) / 2
+    _, re = radii(lat_bar)
+    lon_new = lla[1] + (v[1] + v_new[1]) * dt / (2 * (re + h_bar) * math.cos(lat_bar))
+    return np.array([lat_new, lon_new, h_new]), v_new, c_new
+
+
+def run_reference_filter(
+    imu,
+    imu_time,
+    dvl,
+    dvl_time,
+    t0,
+    lla0,
+    vel0,
+    rpy0,
+    *,
+    q,
+    accel_bias_psd,
+    gyro_bias_psd,
+    dvl_variance,
+    p0_sigma,
+    imu_dt,
+    lever_arm=(0.0, 0.0, 0.0),
+    aiding="body",
+):
+    """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
+    innovation, nis (one row per DVL measurement applied, in order)."""
+    lla = np.array(lla0, dtype=float)
+    v = np.array(vel0, dtype=float)
+    c = dcm_from_euler(*rpy0)
+    ba = np.zeros(3)
+    bg = np.zeros(3)
+    p = np.diag(np.asarray(p0_sigma, dtype=float) ** 2)
+    r_arm = np.asarray(lever_arm, dtype=float)
+    rmat = np.diag(dvl_variance)
+    q = np.asarray(q, dtype=float)
+    out = {k: [] for k in ("time", "lla", "vel", "rpy", "bias", "sigma", "innovation", "nis")}
+
+    def record(t):
+        out["time"].append(t)
+        out["lla"].append(lla.copy())
+        out["vel"].append(v.copy())
+        out["rpy"].append(euler_from_dcm(c))
+        out["bias"].append(np.concatenate([ba, bg]))
+        out["sigma"].append(np.sqrt(np.diag(p)))
+
+    record(t0)
+    t_prev = t0
+    j = 0
+    w_hat = np.zeros(3)
+    for k in range(len(imu)):
+        t = imu_time[k]
+        dt = t - t_prev
+        f_hat = imu[k, :3] - ba
+        w_hat = imu[k, 3:] - bg
+        w_ie, w_en, g = rates(lla, v)
+        rn, re = radii(lla[0])
+        big_r = math.sqrt(rn * re) + lla[2]
+        fm = np.zeros((15, 15))
+        fm[0:3, 0:3] = -skew(w_en)
+        fm[0:3, 3:6] = np.eye(3)
+        fm[3:6, 0:3] = g[2] / big_r * np.diag([-1.0, -1.0, 2.0])
+        fm[3:6, 3:6] = -skew(2 * w_ie + w_en)
+        fm[3:6, 6:9] = skew(c @ f_hat)
+        fm[3:6, 9:12] = -c
+        fm[6:9, 6:9] = -skew(w_ie + w_en)
+        fm[6:9, 12:15] = c
+        gam = np.zeros((15, 12))
+        gam[3:6, 0:3] = c
+        gam[6:9, 3:6] = -c
+        gam[9:12, 6:9] = np.eye(3)
+        gam[12:15, 9:12] = np.eye(3)
+        qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
+        phi = np.eye(15) + fm * dt
+        p = phi @ p @ phi.T + gam @ qc @ gam.T * dt
+        p = (p + p.T) / 2
+        lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
+        while j < len(dvl) and dvl_time[j] <= t + dt / 2:
+            h = np.zeros((3, 15))
+            if aiding == "body":
+                pred = c.T @ v + np.cross(w_hat, r_arm)
+                h[:, 3:6] = c.T
+                h[:, 6:9] = -c.T @ skew(v)
+                h[:, 12:15] = skew(r_arm)
+            else:
+                pred = v.copy()
+                h[:, 3:6] = np.eye(3)
+            nu = dvl[j] - pred
+            s = h @ p @ h.T + rmat
+            gain = p @ h.T @ np.linalg.inv(s)
+            ikh = np.eye(15) - gain @ h
+            p = ikh @ p @ ikh.T + gain @ rmat @ gain.T
+            p = (p + p.T) / 2
+            dx = -gain @ nu
+            rn, re = radii(lla[0])
+            lla = lla - np.array(
+                [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
+            )
+            v = v - dx[3:6]
+            c = exp_so3(dx[6:9]) @ c
+            ba = ba - dx[9:12]
+            bg = bg - dx[12:15]
+            out["innovation"].append(nu)
+            out["nis"].append(float(nu @ np.linalg.solve(s, nu)))
+            j += 1
+        record(t)
+        t_prev = t
+    return {k: np.array(val) for k, val in out.items()}
