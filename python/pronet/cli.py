@@ -84,6 +84,24 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _dataset(args: argparse.Namespace) -> int:
+    from pronet import dataset
+
+    out = Path(args.out)
+    if out.exists() and not args.force:
+        print(f"pronet dataset: {out} exists; use --force to replace it", file=sys.stderr)
+        return 2
+    params = dataset.DatasetParams(seed=args.seed)
+    start = time.perf_counter()
+    ds = dataset.build_dataset(params)
+    dataset.save_dataset(ds, out, params)
+    print(
+        f"{ds.q.size} examples ({ds.n_train} train / {ds.n_test} test) written to {out} "
+        f"with card {dataset.card_path(out)} in {time.perf_counter() - start:.1f} s"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pronet", description="INS/DVL navigation with learned, adaptive process noise."
@@ -104,6 +122,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--out", default=None, help="result folder (default results/reproduce-<time>)")
     rep.set_defaults(func=_reproduce)
+    data = sub.add_parser(
+        "dataset", help="generate the 72,000-window noise-regression training set (.npz + card)"
+    )
+    data.add_argument("--out", default="data/dataset.npz", help="output .npz path")
+    data.add_argument("--seed", type=int, default=0, help="noise and split seed (default 0)")
+    data.add_argument("--force", action="store_true", help="replace an existing file")
+    data.set_defaults(func=_dataset)
     return parser
 
 

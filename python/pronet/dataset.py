@@ -1,0 +1,204 @@
+"""The ProNet training set: labelled windows of noisy IMU samples.
+
+Starting from the ideal IMU of the four built-in training trajectories (400 s at 100 Hz),
+each of ``n_levels`` noise variances q, spaced linearly over ``[q_min, q_max]`` (the
+paper's spacing; 15 values in [0.001, 0.05]), is added as zero-mean white Gaussian noise
+to all six channels. Each channel is cut into non-overlapping windows of ``window``
+samples (200 windows of 200 samples per 40,000-sample channel). One example is one
+channel's window, labelled with its q: 4 × 15 × 6 × 200 = 72,000 examples. The split is
+80:20 at random within each trajectory, so every trajectory is on both sides
+(57,600 / 14,400).
+
+The file is an uncompressed ``.npz`` written with fixed zip timestamps, so the same seed
+and parameters give the same bytes; a JSON card beside it holds the seed, the parameters
+and the file's SHA-256. Noise for (trajectory t, level l) comes from
+``numpy.random.default_rng([seed, t, l])``; the split from ``default_rng([seed, 1000])``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import tempfile
+import zipfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet import _core
+from pronet._validate import count, scalar
+
+#: Training trajectories, in the order of the ``trajectory`` index in the metadata.
+TRAINING_TRAJECTORIES = ("train-straight", "train-turns", "train-zigzag", "train-helix")
+CHANNELS = ("f_x", "f_y", "f_z", "w_x", "w_y", "w_z")
+FORMAT = "pronet-dataset"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class DatasetParams:
+    """How a dataset is generated (all recorded in its card)."""
+
+    seed: int = 0
+    n_levels: int = 15
+    q_min: float = 0.001
+    q_max: float = 0.05
+    window: int = 200
+    train_fraction: float = 0.8
+
+    def validate(self) -> None:
+        count(self.seed, "seed")
+        if self.seed < 0:
+            raise ValueError(f"seed: must be >= 0, got {self.seed}")
+        if count(self.n_levels, "n_levels") < 1:
+            raise ValueError(f"n_levels: must be >= 1, got {self.n_levels}")
+        q_min, q_max = scalar(self.q_min, "q_min"), scalar(self.q_max, "q_max")
+        if not (0 < q_min <= q_max and np.isfinite(q_max)):
+            raise ValueError(f"q_min, q_max: need 0 < q_min <= q_max, got {q_min}, {q_max}")
+        if count(self.window, "window") < 2:
+            raise ValueError(f"window: must be >= 2 samples, got {self.window}")
+        if not 0 < scalar(self.train_fraction, "train_fraction") < 1:
+            raise ValueError(f"train_fraction: must be in (0, 1), got {self.train_fraction}")
+
+    def q_levels(self) -> NDArray[np.float64]:
+        """The noise variances, linearly spaced [(m/s²)² or (rad/s)² per sample]."""
+        return np.linspace(self.q_min, self.q_max, self.n_levels)
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Windows, labels, metadata and the split.
+
+    Attributes:
+        windows: ``(M, window)`` float32 raw noisy samples of one channel each.
+        q: ``(M,)`` float64 label: the noise variance added to that window.
+        trajectory: ``(M,)`` index into :data:`TRAINING_TRAJECTORIES`.
+        channel: ``(M,)`` index into :data:`CHANNELS`.
+        start: ``(M,)`` index of the window's first sample in its channel.
+        train: ``(M,)`` bool, True for the training side of the split.
+    """
+
+    windows: NDArray[np.float32]
+    q: NDArray[np.float64]
+    trajectory: NDArray[np.int8]
+    channel: NDArray[np.int8]
+    start: NDArray[np.int32]
+    train: NDArray[np.bool_]
+
+    @property
+    def n_train(self) -> int:
+        return int(self.train.sum())
+
+    @property
+    def n_test(self) -> int:
+        return int((~self.train).sum())
+
+
+def build_dataset(params: DatasetParams | None = None) -> Dataset:
+    """Generate the dataset (deterministic in ``params``)."""
+    params = params or DatasetParams()
+    params.validate()
+    levels = params.q_levels()
+    parts: list[tuple[np.ndarray, ...]] = []
+    for t, name in enumerate(TRAINING_TRAJECTORIES):
+        ideal = _core.builtin_trajectory(name, 0.01).imu
+        n_win = ideal.shape[0] // params.window
+        starts = np.arange(n_win, dtype=np.int32) * params.window
+        for lev, q in enumerate(levels):
+            rng = np.random.default_rng([params.seed, t, lev])
+            noisy = ideal + rng.standard_normal(ideal.shape) * np.sqrt(q)
+            # (samples, channel) -> (channel, window index, sample in window)
+            cut = noisy[: n_win * params.window].T.reshape(6, n_win, params.window)
+            parts.append(
+                (
+                    cut.reshape(-1, params.window).astype(np.float32),
+                    np.full(6 * n_win, q),
+                    np.full(6 * n_win, t, dtype=np.int8),
+                    np.repeat(np.arange(6, dtype=np.int8), n_win),
+                    np.tile(starts, 6),
+                )
+            )
+    windows, q, traj, channel, start = (np.concatenate(c) for c in zip(*parts, strict=True))
+    train = np.zeros(q.shape[0], dtype=bool)
+    rng = np.random.default_rng([params.seed, 1000])
+    for t in range(len(TRAINING_TRAJECTORIES)):
+        idx = np.flatnonzero(traj == t)
+        n_train = int(round(params.train_fraction * idx.size))
+        train[rng.permutation(idx)[:n_train]] = True
+    return Dataset(windows, q, traj, channel, start, train)
+
+
+def _npz_bytes(ds: Dataset) -> bytes:
+    """Uncompressed npz with fixed timestamps: same arrays, same bytes."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
+        for name in ("windows", "q", "trajectory", "channel", "start", "train"):
+            arr = io.BytesIO()
+            np.lib.format.write_array(arr, getattr(ds, name), allow_pickle=False)
+            zf.writestr(
+                zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), arr.getvalue()
+            )
+    return buf.getvalue()
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def card_path(path: Path) -> Path:
+    return path.with_suffix(".json")
+
+
+def save_dataset(ds: Dataset, path: str | os.PathLike[str], params: DatasetParams) -> Path:
+    """Write ``path`` (.npz) and its card ``path.json``, each atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = _npz_bytes(ds)
+    card = {
+        "format": FORMAT,
+        "version": VERSION,
+        "params": asdict(params),
+        "q_levels": params.q_levels().tolist(),
+        "spacing": "linear",
+        "trajectories": list(TRAINING_TRAJECTORIES),
+        "channels": list(CHANNELS),
+        "n_examples": int(ds.q.shape[0]),
+        "n_train": ds.n_train,
+        "n_test": ds.n_test,
+        "sha256": hashlib.sha256(data).hexdigest(),
+    }
+    _atomic_write(path, data)
+    _atomic_write(card_path(path), (json.dumps(card, indent=2) + "\n").encode())
+    return path
+
+
+def load_dataset(path: str | os.PathLike[str]) -> Dataset:
+    """Read a dataset written by :func:`save_dataset`, checking its card and hash first.
+
+    Only plain numeric arrays are read (``allow_pickle=False``).
+    """
+    path = Path(path)
+    try:
+        card = json.loads(card_path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"path: cannot read the dataset card {card_path(path)}: {exc}") from None
+    if card.get("format") != FORMAT or card.get("version") != VERSION:
+        raise ValueError(f"path: {card_path(path)} is not a {FORMAT} v{VERSION} card")
+    data = path.read_bytes()
+    if hashlib.sha256(data).hexdigest() != card.get("sha256"):
+        raise ValueError(f"path: {path} does not match the hash in its card (changed or truncated)")
+    with np.load(io.BytesIO(data), allow_pickle=False) as z:
+        return Dataset(
+            **{k: z[k] for k in ("windows", "q", "trajectory", "channel", "start", "train")}
+        )
