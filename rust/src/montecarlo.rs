@@ -22,7 +22,9 @@ use std::sync::Arc;
 /// A simulated scenario: a truth with its ideal IMU, and the sensor models.
 #[derive(Clone, Debug)]
 pub struct Scenario {
-    pub truth: Truth,
+    /// Shared, so that many scenarios (strategies, sweeps) over one trajectory do not
+    /// copy it.
+    pub truth: Arc<Truth>,
     pub sensors: SensorConfig,
     /// Start each run from the truth plus an error drawn from N(0, P0) (true), or
     /// exactly at the truth (false).
@@ -150,8 +152,9 @@ impl ImuWindow {
 }
 
 /// One simulated run, stepped one IMU sample at a time.
+/// The scenario is passed to every call rather than stored, so stepping touches no
+/// shared reference count.
 pub struct Run {
-    scenario: Arc<Scenario>,
     ekf: Ekf,
     strategy: Box<dyn NoiseStrategy>,
     sim: SensorSim,
@@ -205,7 +208,7 @@ fn block_nees(error: &[f64; 15], p: &Matrix15) -> [f64; 5] {
 
 impl Run {
     pub fn new(
-        scenario: Arc<Scenario>,
+        scenario: &Scenario,
         filter: &FilterConfig,
         strategy: &StrategySpec,
         seed: u64,
@@ -254,16 +257,15 @@ impl Run {
             history: (record_every > 0).then(History::default),
             window: window.map(ImuWindow::new),
             failure: None,
-            scenario,
         };
-        run.record_history();
+        run.record_history(&scenario.truth);
         Ok(run)
     }
 
-    fn record_history(&mut self) {
+    fn record_history(&mut self, truth: &Truth) {
         if let Some(h) = self.history.as_mut() {
             if self.k.is_multiple_of(self.record_every) {
-                let truth = &self.scenario.truth.states[self.k];
+                let truth = &truth.states[self.k];
                 h.error.push(state_error(&self.ekf, truth, &self.true_bias));
                 h.sigma.push(self.ekf.sigma());
                 h.imu_variance
@@ -273,9 +275,8 @@ impl Run {
     }
 
     /// Advance by one IMU sample (and a DVL update when one is due).
-    pub fn step(&mut self) {
-        let scenario = Arc::clone(&self.scenario);
-        let truth = &scenario.truth;
+    pub fn step(&mut self, scenario: &Scenario) {
+        let truth = &*scenario.truth;
         let ideal = &truth.imu[self.k];
         self.true_bias = *self.sim.bias();
         let raw = self
@@ -310,7 +311,7 @@ impl Run {
         let dp = earth::position_error_ned(&self.ekf.nav.lla, &state.lla);
         self.horizontal_error = dp[0].hypot(dp[1]);
         self.max_horizontal_error = self.max_horizontal_error.max(self.horizontal_error);
-        self.record_history();
+        self.record_history(truth);
     }
 
     fn after_update(&mut self, info: &UpdateInfo, state: &NavState) {
@@ -379,7 +380,7 @@ pub fn run_monte_carlo(
         .into_par_iter()
         .map(|i| {
             let mut run = Run::new(
-                Arc::clone(scenario),
+                scenario,
                 filter,
                 strategy,
                 opts.seed,
@@ -388,7 +389,7 @@ pub fn run_monte_carlo(
                 None,
             )?;
             for _ in 0..n_steps {
-                run.step();
+                run.step(scenario);
             }
             Ok(run.finish())
         })
@@ -457,7 +458,7 @@ impl Ensemble {
         let runs = (0..opts.n_runs)
             .map(|i| {
                 Run::new(
-                    Arc::clone(&scenario),
+                    &scenario,
                     filter,
                     &strategy,
                     opts.seed,
@@ -518,9 +519,10 @@ impl Ensemble {
         }
         let stop = self.next_stop();
         let steps = stop - self.k;
+        let scenario = &*self.scenario;
         self.runs.par_iter_mut().for_each(|r| {
             for _ in 0..steps {
-                r.step();
+                r.step(scenario);
             }
         });
         self.k = stop;
@@ -601,7 +603,7 @@ mod tests {
             true
         });
         Arc::new(Scenario {
-            truth: spec.generate().unwrap(),
+            truth: Arc::new(spec.generate().unwrap()),
             sensors: SensorConfig::paper(),
             sample_initial_error: true,
         })
@@ -771,7 +773,7 @@ mod tests {
         sensors.imu.variance =
             VarianceSchedule::new(vec![0.0, 5.0], vec![[1e-4; 6], [4e-2; 6]]).unwrap();
         let sc = Arc::new(Scenario {
-            truth: spec.generate().unwrap(),
+            truth: Arc::new(spec.generate().unwrap()),
             sensors,
             sample_initial_error: false,
         });

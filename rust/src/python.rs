@@ -706,7 +706,7 @@ fn scenario(
     sample_initial_error: bool,
 ) -> Arc<Scenario> {
     Arc::new(Scenario {
-        truth: (*trajectory.truth).clone(),
+        truth: Arc::clone(&trajectory.truth),
         sensors: sensors.inner.clone(),
         sample_initial_error,
     })
