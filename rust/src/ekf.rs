@@ -520,7 +520,7 @@ pub fn filter_recorded(
 mod tests {
     use super::*;
     use crate::attitude::dcm_from_euler;
-    use crate::noise::{ConstantQ, StrategySpec};
+    use crate::noise::StrategySpec;
 
     fn dense_f(d: &ErrorDynamics) -> Matrix15 {
         let mut f = Matrix15::zeros();
@@ -619,7 +619,6 @@ mod tests {
         }
         let eig = ekf.p.symmetric_eigenvalues();
         assert!(eig.min() > 0.0, "min eigenvalue {}", eig.min());
-        let _ = ConstantQ::new([0.0; 6], [0.0; 6]);
     }
 
     #[test]
