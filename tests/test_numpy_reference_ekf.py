@@ -110,3 +110,25 @@ def test_rust_filter_matches_reference(aiding, lever_arm) -> None:
     np.testing.assert_allclose(rust.lla[:, 2], ref["lla"][:, 2], rtol=rtol, atol=1e-8)
     np.testing.assert_allclose(rust.innovation, ref["innovation"], rtol=rtol, atol=1e-8 * 0.1)
     np.testing.assert_allclose(rust.nis, ref["nis"], rtol=rtol)
+
+
+@pytest.mark.parametrize("xi", [1, 5])
+def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
+    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(30.0, np.zeros(3), "body")
+
+    def run(strategy: pronet.Strategy) -> pronet.FilterResult:
+        return pronet.run_filter(
+            imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
+            config=pronet.FilterConfig(p0_sigma=P0), strategy=strategy,
+        )  # fmt: skip
+
+    out = run(pronet.Strategy.mehra(xi, Q))
+    nu, gain = out.innovation, out.gain
+    steps = np.diff(np.concatenate([[0], out.dvl_epoch]))  # IMU steps per DVL interval
+    assert np.all(np.isnan(out.adaptive_q[: xi - 1]))  # prior Q until ξ innovations exist
+    for k in range(xi - 1, len(nu)):
+        c = sum(np.outer(v, v) for v in nu[k - xi + 1 : k + 1]) / xi
+        q_hat = gain[k] @ c @ gain[k].T
+        np.testing.assert_allclose(out.adaptive_q[k] * steps[k], q_hat, rtol=1e-12, atol=1e-30)
+    # Constant Q sets Q^c, never a discrete Q directly.
+    assert np.all(np.isnan(run(pronet.Strategy.constant(Q)).adaptive_q))

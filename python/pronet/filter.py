@@ -32,6 +32,9 @@ class FilterResult:
         innovation_cov: ``(m, 3, 3)`` innovation covariance S [(m/s)²].
         nis: ``(m,)`` normalized innovation squared (χ², 3 dof when consistent).
         gain: ``(m, 15, 3)`` Kalman gains.
+        adaptive_q: ``(m, 15, 15)`` the per-IMU-step discrete Q_d a Mehra strategy set
+            after each update (``K C Kᵀ`` spread over the interval's steps); NaN for
+            other strategies and before Mehra has its ξ innovations.
     """
 
     time: NDArray[np.float64]
@@ -46,6 +49,7 @@ class FilterResult:
     innovation_cov: NDArray[np.float64]
     nis: NDArray[np.float64]
     gain: NDArray[np.float64]
+    adaptive_q: NDArray[np.float64]
 
 
 def run_filter(

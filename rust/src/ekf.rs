@@ -378,6 +378,9 @@ pub struct FilterOutput {
     /// For each DVL row: the epoch index it was applied at (None if outside the run).
     pub dvl_epoch: Vec<Option<usize>>,
     pub updates: Vec<Option<UpdateInfo>>,
+    /// For each DVL row: the per-IMU-step Q_d the strategy set after that update, where
+    /// it sets one directly (Mehra).
+    pub adaptive_q: Vec<Option<Matrix15>>,
     /// Covariance at the last epoch.
     pub final_covariance: Matrix15,
 }
@@ -473,6 +476,7 @@ pub fn filter_recorded(
         sigma: Vec::with_capacity(n + 1),
         dvl_epoch: vec![None; data.dvl.len()],
         updates: vec![None; data.dvl.len()],
+        adaptive_q: vec![None; data.dvl.len()],
         final_covariance: Matrix15::zeros(),
     };
     let record = |out: &mut FilterOutput, ekf: &Ekf, t: f64| {
@@ -504,6 +508,7 @@ pub fn filter_recorded(
                 other => other,
             })?;
             strategy.after_update(&info, steps_since_update);
+            out.adaptive_q[next_dvl] = strategy.discrete_q().copied();
             steps_since_update = 0;
             out.dvl_epoch[next_dvl] = Some(k + 1);
             out.updates[next_dvl] = Some(info);

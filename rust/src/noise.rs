@@ -42,6 +42,12 @@ pub trait NoiseStrategy: Send + Sync {
 
     /// The IMU variances in force, where the strategy has them as such.
     fn imu_variance(&self) -> Option<[f64; 6]>;
+
+    /// The discrete per-IMU-step Q_d in force, where the strategy sets Q_d directly
+    /// (Mehra, once it has its innovations) rather than through Q^c.
+    fn discrete_q(&self) -> Option<&Matrix15> {
+        None
+    }
 }
 
 /// Fixed Q^c.
@@ -133,6 +139,10 @@ impl NoiseStrategy for MehraQ {
             None => self.prior.imu_variance(),
             Some(_) => None,
         }
+    }
+
+    fn discrete_q(&self) -> Option<&Matrix15> {
+        self.per_step.as_ref()
     }
 }
 

@@ -695,6 +695,13 @@ fn run_filter<'py>(
         })
         .into_pyarray(py),
     )?;
+    d.set_item(
+        "adaptive_q",
+        Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
+            out.adaptive_q[k].map_or(f64::NAN, |q| q[(i, j)])
+        })
+        .into_pyarray(py),
+    )?;
     Ok(d)
 }
 
