@@ -3,8 +3,22 @@ float64 arrays, and anything unusable raises ``ValueError`` naming the argument.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+
+def real_array(value: ArrayLike, name: str) -> NDArray[Any]:
+    """``value`` as a NumPy array of integers or floats (any shape, no copy when it
+    already is one), or ``ValueError`` naming the argument."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: cannot be read as a numeric array ({exc})") from None
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"{name}: expected real numbers, got an array of dtype {arr.dtype}")
+    return arr
 
 
 def float_array(value: ArrayLike, name: str, shape: tuple[int | None, ...]) -> NDArray[np.float64]:
@@ -14,12 +28,7 @@ def float_array(value: ArrayLike, name: str, shape: tuple[int | None, ...]) -> N
     and objects are not. Finiteness is checked by the native core, which reports the
     offending row.
     """
-    try:
-        arr = np.asarray(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: cannot be read as a numeric array ({exc})") from None
-    if arr.dtype.kind not in "iuf":
-        raise ValueError(f"{name}: expected real numbers, got an array of dtype {arr.dtype}")
+    arr = real_array(value, name)
     if arr.ndim != len(shape) or any(
         want is not None and got != want for got, want in zip(arr.shape, shape, strict=True)
     ):

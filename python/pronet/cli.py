@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -24,9 +25,18 @@ def _info(_args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from tqdm.auto import tqdm
+
+    from pronet import models, plots, training
+
     n_runs = 10 if args.quick else args.runs
     if n_runs < 1:
         print("pronet reproduce: --runs must be at least 1", file=sys.stderr)
+        return 2
+    if not args.tuning_period > 0:
+        print("pronet reproduce: --tuning-period must be > 0 s", file=sys.stderr)
         return 2
     out = (
         Path(args.out)
@@ -36,51 +46,98 @@ def _reproduce(args: argparse.Namespace) -> int:
     if out.exists():
         print(f"pronet reproduce: {out} exists; choose another --out", file=sys.stderr)
         return 2
-    trajectory = pronet.builtin_trajectory("paper")
-    sensors = _core.SensorConfig()
-    config = experiment.paper_filter_config()
-    strategies = experiment.model_based_strategies()
-    print(
-        f"paper scenario: {trajectory.duration:.0f} s, {n_runs} Monte Carlo runs, "
-        f"seed {args.seed}; {len(strategies)} strategies "
-        "(the learned rows need trained models, not built yet)"
-    )
     start = time.perf_counter()
-    done = [0]
+    ds = None
+    trained_dir = None
+    if args.retrain:
+        from pronet.dataset import DatasetParams, build_dataset
 
-    def progress(label: str) -> None:
-        done[0] += 1
-        print(
-            f"  [{done[0]}/{len(strategies)}] {label}  ({time.perf_counter() - start:.1f} s)",
-            flush=True,
+        trained_dir = Path(tempfile.mkdtemp(prefix="pronet-models-"))
+        params = DatasetParams()
+        ds = build_dataset(params)
+        for kind in training.MODEL_KINDS:
+            training.train_and_save(kind, ds, params, trained_dir, progress=not args.quiet)
+        regressors = {k: models.load(trained_dir / k) for k in training.MODEL_KINDS}
+    else:
+        regressors = {k: models.load(k) for k in models.SHIPPED}
+    scenarios = [experiment.SCENARIOS[name]() for name in experiment.SCENARIOS]
+    jobs = {
+        sc.name: experiment.paper_strategies(sc.q_nominal, regressors, args.tuning_period)
+        for sc in scenarios
+    }
+    print(
+        f"{len(scenarios)} scenarios x {len(jobs['paper'])} strategies, {n_runs} Monte Carlo "
+        f"runs each, seed {args.seed}; weights: {'retrained' if args.retrain else 'shipped'}"
+    )
+    bar = tqdm(total=sum(len(j) for j in jobs.values()), unit="strategy", disable=args.quiet)
+    tables: dict[str, list[experiment.Row]] = {}
+    for sc in scenarios:
+
+        def done(label: str, sc: experiment.Scenario = sc) -> None:
+            bar.set_postfix_str(f"{sc.name}: {label}")
+            bar.update()
+
+        title = f"{sc.name} scenario, {n_runs} runs"
+        tables[title] = experiment.run_strategies(
+            jobs[sc.name],
+            sc,
+            n_runs=n_runs,
+            seed=args.seed,
+            threads=args.threads,
+            record_every=100,
+            on_done=done,
         )
+    bar.close()
+    for title, rows in tables.items():
+        print()
+        print(experiment.markdown_table(rows, title, paper=title.startswith("paper")))
+    if ds is None:
+        from pronet.dataset import DatasetParams, build_dataset
 
-    rows = experiment.run_strategies(
-        strategies,
-        trajectory=trajectory,
-        sensors=sensors,
-        config=config,
-        n_runs=n_runs,
-        seed=args.seed,
-        threads=args.threads,
-        on_done=progress,
-    )
-    title = f"paper scenario, {n_runs} runs"
-    print()
-    print(experiment.markdown_table(rows, title))
-    folder = experiment.write_result_folder(
-        out,
-        {title: rows},
-        {
-            "scenario": "paper",
-            "n_runs": n_runs,
-            "seed": args.seed,
-            "filter": repr(config),
-            "sensors": repr(sensors),
-            "strategies": {k: repr(v) for k, v in strategies.items()},
+        ds = build_dataset(DatasetParams())
+    test = ~ds.train
+
+    def figures(folder: Path) -> None:
+        plots.predicted_vs_true(
+            {
+                experiment.LEARNED_LABELS[k]: (ds.q[test], m.predict(ds.windows[test]))
+                for k, m in regressors.items()
+            },
+            folder / "predicted_vs_true_q.png",
+        )
+        plots.metrics_with_ci(tables, folder / "srmse_smae.png")
+        plots.trajectory(scenarios[0].trajectory, folder / "trajectory.png", "paper trajectory")
+        for sc, (title, rows) in zip(scenarios, tables.items(), strict=True):
+            plots.velocity_error(rows, folder / f"velocity_error_{sc.name}.png", title)
+            plots.q_tracking(
+                rows, sc.schedule_time, sc.schedule_q, folder / f"q_{sc.name}.png", title
+            )
+        if trained_dir is not None:
+            shutil.copytree(trained_dir, folder / "models")
+
+    config = {
+        "n_runs": n_runs,
+        "seed": args.seed,
+        "tuning_period_s": args.tuning_period,
+        "weights": "retrained" if args.retrain else "shipped",
+        "scenarios": {
+            sc.name: {
+                "trajectory": "paper",
+                "filter": repr(sc.config),
+                "sensors": repr(sc.sensors),
+                "q_nominal": list(sc.q_nominal),
+                "schedule_time_s": sc.schedule_time,
+                "schedule_q": sc.schedule_q,
+                "strategies": {k: repr(v) for k, v in jobs[sc.name].items()},
+            }
+            for sc in scenarios
         },
-    )
-    print(f"results written to {folder}")
+        "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
+    }
+    folder = experiment.write_result_folder(out, tables, config, extra=figures)
+    if trained_dir is not None:
+        shutil.rmtree(trained_dir, ignore_errors=True)
+    print(f"results written to {folder} in {time.perf_counter() - start:.0f} s")
     return 0
 
 
@@ -99,6 +156,52 @@ def _dataset(args: argparse.Namespace) -> int:
         f"{ds.q.size} examples ({ds.n_train} train / {ds.n_test} test) written to {out} "
         f"with card {dataset.card_path(out)} in {time.perf_counter() - start:.1f} s"
     )
+    return 0
+
+
+def _dataset_for(args: argparse.Namespace):
+    """The dataset named by ``--dataset``, or the default one regenerated from ``--seed``."""
+    from pronet import dataset
+
+    if args.dataset:
+        ds = dataset.load_dataset(args.dataset)
+        return ds, dataset.load_params(args.dataset)
+    params = dataset.DatasetParams(seed=args.data_seed)
+    print(f"generating the dataset (seed {params.seed}) ...", flush=True)
+    return dataset.build_dataset(params), params
+
+
+def _train(args: argparse.Namespace) -> int:
+    from pronet import training
+
+    kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
+    hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
+    ds, params = _dataset_for(args)
+    reports = {}
+    for kind in kinds:
+        start = time.perf_counter()
+        reports[kind] = training.train_and_save(
+            kind, ds, params, args.out, hp=hp, progress=not args.quiet
+        )
+        print(f"{kind}: trained in {time.perf_counter() - start:.0f} s -> {args.out}/{kind}.*")
+    print(training.scores_table(reports))
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from pronet import models, plots, training
+
+    names = [n.strip() for n in args.models.split(",") if n.strip()]
+    loaded = {n: models.load(n) for n in names}  # fail on a bad file before any work
+    ds, _ = _dataset_for(args)
+    test = ~ds.train
+    reports, panels = {}, {}
+    for name, model in loaded.items():
+        reports[name] = training.test_report(model, ds)
+        panels[name] = (ds.q[test], model.predict(ds.windows[test]))
+    print(training.scores_table(reports))
+    if args.figure:
+        print(f"figure written to {plots.predicted_vs_true(panels, args.figure)}")
     return 0
 
 
@@ -121,6 +224,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--threads", type=int, default=None, help="worker threads (default: all cores)"
     )
     rep.add_argument("--out", default=None, help="result folder (default results/reproduce-<time>)")
+    rep.add_argument(
+        "--retrain", action="store_true", help="train all three regressors first (~15 min)"
+    )
+    rep.add_argument(
+        "--tuning-period",
+        type=float,
+        default=1.0,
+        help="seconds between regressor calls in the learned rows (default 1 s)",
+    )
+    rep.add_argument("--quiet", action="store_true", help="no progress bars")
     rep.set_defaults(func=_reproduce)
     data = sub.add_parser(
         "dataset", help="generate the 72,000-window noise-regression training set (.npz + card)"
@@ -129,6 +242,33 @@ def build_parser() -> argparse.ArgumentParser:
     data.add_argument("--seed", type=int, default=0, help="noise and split seed (default 0)")
     data.add_argument("--force", action="store_true", help="replace an existing file")
     data.set_defaults(func=_dataset)
+    for name, func, text in (
+        ("train", _train, "train a noise regressor and write safetensors weights + JSON card"),
+        ("evaluate", _evaluate, "score noise regressors on the test split; draw Fig. 8"),
+    ):
+        p = sub.add_parser(name, help=text)
+        p.add_argument(
+            "--dataset", default=None, help="dataset .npz (default: regenerate from --data-seed)"
+        )
+        p.add_argument(
+            "--data-seed", type=int, default=0, help="seed of the regenerated dataset (default 0)"
+        )
+        p.set_defaults(func=func)
+        if name == "train":
+            p.add_argument("--model", choices=("baseline", "detrend", "hcf", "all"), default="all")
+            p.add_argument("--out", default="models", help="output folder (default models/)")
+            p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+            p.add_argument(
+                "--max-epochs", type=int, default=20, help="epoch limit for the nets (default 20)"
+            )
+            p.add_argument("--quiet", action="store_true", help="no progress bar")
+        else:
+            p.add_argument(
+                "--models",
+                default="baseline,detrend,hcf",
+                help="comma-separated shipped names or model file paths",
+            )
+            p.add_argument("--figure", default=None, help="write predicted-vs-true q PNG here")
     return parser
 
 

@@ -21,7 +21,6 @@ import hashlib
 import io
 import json
 import os
-import tempfile
 import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -30,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet._files import atomic_write
 from pronet._validate import count, scalar
 
 #: Training trajectories, in the order of the ``trajectory`` index in the metadata.
@@ -145,15 +145,9 @@ def _npz_bytes(ds: Dataset) -> bytes:
     return buf.getvalue()
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+def dataset_sha256(ds: Dataset) -> str:
+    """SHA-256 of the bytes :func:`save_dataset` writes for ``ds``."""
+    return hashlib.sha256(_npz_bytes(ds)).hexdigest()
 
 
 def card_path(path: Path) -> Path:
@@ -178,9 +172,27 @@ def save_dataset(ds: Dataset, path: str | os.PathLike[str], params: DatasetParam
         "n_test": ds.n_test,
         "sha256": hashlib.sha256(data).hexdigest(),
     }
-    _atomic_write(path, data)
-    _atomic_write(card_path(path), (json.dumps(card, indent=2) + "\n").encode())
+    atomic_write(path, data)
+    atomic_write(card_path(path), (json.dumps(card, indent=2) + "\n").encode())
     return path
+
+
+def _read_card(path: Path) -> dict:
+    try:
+        card = json.loads(card_path(path).read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ValueError(f"path: cannot read the dataset card {card_path(path)}: {exc}") from None
+    if not isinstance(card, dict) or card.get("format") != FORMAT or card.get("version") != VERSION:
+        raise ValueError(f"path: {card_path(path)} is not a {FORMAT} v{VERSION} card")
+    return card
+
+
+def load_params(path: str | os.PathLike[str]) -> DatasetParams:
+    """The parameters recorded in the card of the dataset at ``path``."""
+    try:
+        return DatasetParams(**_read_card(Path(path))["params"])
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"path: {card_path(Path(path))} has no valid params ({exc})") from None
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:
@@ -189,12 +201,7 @@ def load_dataset(path: str | os.PathLike[str]) -> Dataset:
     Only plain numeric arrays are read (``allow_pickle=False``).
     """
     path = Path(path)
-    try:
-        card = json.loads(card_path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"path: cannot read the dataset card {card_path(path)}: {exc}") from None
-    if card.get("format") != FORMAT or card.get("version") != VERSION:
-        raise ValueError(f"path: {card_path(path)} is not a {FORMAT} v{VERSION} card")
+    card = _read_card(path)
     data = path.read_bytes()
     if hashlib.sha256(data).hexdigest() != card.get("sha256"):
         raise ValueError(f"path: {path} does not match the hash in its card (changed or truncated)")

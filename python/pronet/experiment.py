@@ -22,8 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from pronet import _core
+from pronet.hybrid import DEFAULT_TUNING_PERIOD, HybridResult, run_hybrid
+from pronet.models import Regressor
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.stats import MeanCI, mean_ci
+from pronet.trajectory import builtin_trajectory
 
 #: True IMU noise of the paper's scenario: per-sample variances [(m/s²)², (rad/s)²].
 PAPER_Q = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6)
@@ -40,14 +43,131 @@ PAPER_TABLE: dict[str, tuple[float, float]] = {
 }
 
 
-def model_based_strategies() -> dict[str, _core.Strategy]:
-    """The four rows of the paper's table that need no learned model."""
+@dataclass(frozen=True)
+class Learned:
+    """A regressor-driven row: the hybrid loop with ``regressor`` (prior ``prior_q``
+    until the first window is full)."""
+
+    regressor: Regressor
+    prior_q: tuple[float, ...]
+    tuning_period: float = DEFAULT_TUNING_PERIOD
+
+
+StrategyLike = _core.Strategy | Learned
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A simulated evaluation scenario.
+
+    Attributes:
+        name: ``"paper"`` or ``"varying-noise"`` (or a user's).
+        trajectory: truth and ideal IMU.
+        sensors: simulated IMU and DVL.
+        config: filter tuning (bias walk, DVL R, P0).
+        q_nominal: 6 per-sample variances the constant rows are told (and every
+            adaptive row starts from): the true q, or its time average when it varies.
+        schedule_time: ``(k,)`` [s] start of each piece of the true noise schedule.
+        schedule_q: ``(k, 6)`` true per-sample variances of each piece.
+    """
+
+    name: str
+    trajectory: _core.Trajectory
+    sensors: _core.SensorConfig
+    config: _core.FilterConfig
+    q_nominal: tuple[float, ...]
+    schedule_time: np.ndarray
+    schedule_q: np.ndarray
+
+
+def paper_scenario() -> Scenario:
+    """The paper's Table I: constant accelerometer 0.01², gyro 0.001² variances."""
+    return Scenario(
+        name="paper",
+        trajectory=builtin_trajectory("paper"),
+        sensors=_core.SensorConfig(imu_variance=PAPER_Q),
+        config=paper_filter_config(),
+        q_nominal=PAPER_Q,
+        schedule_time=np.zeros(1),
+        schedule_q=np.array([PAPER_Q]),
+    )
+
+
+def noise_schedule(
+    duration: float, seed: int, q_range: tuple[float, float] = (0.001, 0.05)
+) -> tuple[np.ndarray, np.ndarray]:
+    """A piecewise-constant variance schedule ``(times (k,), q (k, 6))``: each channel
+    independently holds a value drawn uniformly from ``q_range`` for 30–60 s (drawn
+    uniformly), then changes. ``times`` merges every channel's change instants."""
+    rng = np.random.default_rng([seed, 77])
+    changes, values = [], []
+    for _ in range(6):
+        t = [0.0]
+        while t[-1] + 30.0 < duration:
+            t.append(t[-1] + rng.uniform(30.0, 60.0))
+        t = [x for x in t if x < duration]
+        changes.append(np.array(t))
+        values.append(rng.uniform(*q_range, size=len(t)))
+    times = np.unique(np.concatenate(changes))
+    q = np.stack(
+        [
+            v[np.searchsorted(c, times, side="right") - 1]
+            for c, v in zip(changes, values, strict=True)
+        ],
+        axis=1,
+    )
+    return times, q
+
+
+def varying_noise_scenario(seed: int = 0) -> Scenario:
+    """The paper's trajectory and filter, with each IMU channel's noise variance changing
+    every 30–60 s inside the training range [0.001, 0.05] (:func:`noise_schedule`). The
+    constant rows are told each channel's time-averaged variance."""
+    trajectory = builtin_trajectory("paper")
+    times, q = noise_schedule(trajectory.duration, seed)
+    held = np.diff(np.append(times, trajectory.duration))
+    mean_q = tuple(float(v) for v in (q * held[:, None]).sum(axis=0) / held.sum())
+    return Scenario(
+        name="varying-noise",
+        trajectory=trajectory,
+        sensors=_core.SensorConfig(imu_variance=q, imu_variance_times=times),
+        config=paper_filter_config(),
+        q_nominal=mean_q,
+        schedule_time=times,
+        schedule_q=q,
+    )
+
+
+SCENARIOS: dict[str, Callable[[], Scenario]] = {
+    "paper": paper_scenario,
+    "varying-noise": varying_noise_scenario,
+}
+
+
+def model_based_strategies(q: tuple[float, ...] = PAPER_Q) -> dict[str, _core.Strategy]:
+    """The four rows of the paper's table that need no learned model, around ``q``."""
     return {
-        "constant (true q)": _core.Strategy.constant(PAPER_Q),
-        "constant (20 x q)": _core.Strategy.constant(tuple(20 * q for q in PAPER_Q)),
-        "adaptive xi=1": _core.Strategy.mehra(1, PAPER_Q),
-        "adaptive xi=5": _core.Strategy.mehra(5, PAPER_Q),
+        "constant (true q)": _core.Strategy.constant(q),
+        "constant (20 x q)": _core.Strategy.constant(tuple(20 * v for v in q)),
+        "adaptive xi=1": _core.Strategy.mehra(1, q),
+        "adaptive xi=5": _core.Strategy.mehra(5, q),
     }
+
+
+#: Table label of each learned row, by model name.
+LEARNED_LABELS = {"hcf": "HCF-ensemble", "baseline": "baseline net", "detrend": "detrend net"}
+
+
+def paper_strategies(
+    q: tuple[float, ...], models: dict[str, Regressor], tuning_period: float
+) -> dict[str, StrategyLike]:
+    """The paper's seven rows: the model-based four around ``q``, then the learned
+    rows for the regressors in ``models`` (keys as in :data:`LEARNED_LABELS`)."""
+    rows: dict[str, StrategyLike] = dict(model_based_strategies(q))
+    for name, label in LEARNED_LABELS.items():
+        if name in models:
+            rows[label] = Learned(models[name], q, tuning_period)
+    return rows
 
 
 def paper_filter_config() -> _core.FilterConfig:
@@ -65,35 +185,45 @@ class Row:
     smae: MeanCI
     srmse_diff: MeanCI
     smae_diff: MeanCI
+    hybrid: HybridResult | None = None
 
 
 def run_strategies(
-    strategies: dict[str, _core.Strategy],
+    strategies: dict[str, StrategyLike],
+    scenario: Scenario,
     *,
-    trajectory: _core.Trajectory,
-    sensors: _core.SensorConfig,
-    config: _core.FilterConfig,
     n_runs: int,
     seed: int,
     threads: int | None = None,
+    record_every: int = 0,
     on_done: Callable[[str], None] | None = None,
 ) -> list[Row]:
     """Run every strategy on the same noise realizations (same seed); the first strategy
     is the reference for the paired differences."""
-    results: dict[str, MonteCarloResult] = {}
+    results: dict[str, tuple[MonteCarloResult, HybridResult | None]] = {}
+    common = dict(
+        sensors=scenario.sensors,
+        config=scenario.config,
+        n_runs=n_runs,
+        seed=seed,
+        threads=threads,
+        record_every=record_every,
+    )
     for label, strategy in strategies.items():
-        results[label] = monte_carlo(
-            trajectory,
-            strategy,
-            sensors=sensors,
-            config=config,
-            n_runs=n_runs,
-            seed=seed,
-            threads=threads,
-        )
+        if isinstance(strategy, Learned):
+            h = run_hybrid(
+                strategy.regressor,
+                scenario.trajectory,
+                prior_q=strategy.prior_q,
+                tuning_period=strategy.tuning_period,
+                **common,
+            )
+            results[label] = (h.result, h)
+        else:
+            results[label] = (monte_carlo(scenario.trajectory, strategy, **common), None)
         if on_done is not None:
             on_done(label)
-    ref = next(iter(results.values()))
+    ref = next(iter(results.values()))[0]
     return [
         Row(
             label=label,
@@ -102,28 +232,32 @@ def run_strategies(
             smae=mean_ci(r.smae),
             srmse_diff=mean_ci(r.srmse - ref.srmse),
             smae_diff=mean_ci(r.smae - ref.smae),
+            hybrid=h,
         )
-        for label, r in results.items()
+        for label, (r, h) in results.items()
     ]
 
 
-def markdown_table(rows: list[Row], title: str) -> str:
-    """The results as a Markdown table, the paper's numbers beside ours."""
+def markdown_table(rows: list[Row], title: str, paper: bool = True) -> str:
+    """The results as a Markdown table; with ``paper``, the paper's numbers beside ours."""
     out = io.StringIO()
     out.write(f"### {title}\n\n")
-    out.write(
-        "| approach | SRMSE [m/s] (95 % CI) | SMAE [m/s] (95 % CI)"
-        " | ΔSRMSE vs row 1 (paired 95 % CI) | paper SRMSE | paper SMAE | failed runs |\n"
-        "|---|---|---|---|---|---|---|\n"
-    )
+    head = "| approach | SRMSE [m/s] (95 % CI) | SMAE [m/s] (95 % CI)"
+    head += " | ΔSRMSE vs row 1 (paired 95 % CI)"
+    head += " | paper SRMSE | paper SMAE |" if paper else " |"
+    out.write(head + " failed runs | guardrail events |\n")
+    out.write("|---" * (7 if paper else 5) + "|---|\n")
     for row in rows:
-        paper = PAPER_TABLE.get(row.label)
-        p_srmse, p_smae = (f"{paper[0]:.3f}", f"{paper[1]:.3f}") if paper else ("", "")
         diff = f"{row.srmse_diff.mean:+.4f} [{row.srmse_diff.low:+.4f}, {row.srmse_diff.high:+.4f}]"
-        out.write(
-            f"| {row.label} | {row.srmse} | {row.smae} | {diff} | {p_srmse} | {p_smae} |"
-            f" {row.result.n_failed} |\n"
-        )
+        line = f"| {row.label} | {row.srmse} | {row.smae} | {diff} |"
+        if paper:
+            ref = PAPER_TABLE.get(row.label)
+            line += f" {ref[0]:.3f} | {ref[1]:.3f} |" if ref else " | |"
+        guard = ""
+        if row.hybrid is not None:
+            h = row.hybrid
+            guard = f"{int(h.clipped.sum())} clipped, {int(h.non_finite.sum())} non-finite"
+        out.write(f"{line} {row.result.n_failed} | {guard} |\n")
     return out.getvalue()
 
 
@@ -132,11 +266,15 @@ def _ci_json(ci: MeanCI) -> dict[str, float | int]:
 
 
 def write_result_folder(
-    folder: Path, tables: dict[str, list[Row]], config: dict[str, object]
+    folder: Path,
+    tables: dict[str, list[Row]],
+    config: dict[str, object],
+    extra: Callable[[Path], None] | None = None,
 ) -> Path:
     """Write ``table.md``, ``metrics.json``, ``metrics.csv`` and ``config.json`` into
-    ``folder`` atomically: everything goes to a temporary sibling first, which is renamed
-    into place only when complete. An existing folder is refused, never overwritten."""
+    ``folder``, plus whatever ``extra(tmp_folder)`` writes (plots, models), atomically:
+    everything goes to a temporary sibling first, which is renamed into place only when
+    complete. An existing folder is refused, never overwritten."""
     folder = Path(folder)
     if folder.exists():
         raise FileExistsError(f"out: {folder} exists; choose a new folder")
@@ -144,7 +282,10 @@ def write_result_folder(
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
         (tmp / "table.md").write_text(
-            "\n".join(markdown_table(rows, scenario) for scenario, rows in tables.items())
+            "\n".join(
+                markdown_table(rows, scenario, paper=scenario.startswith("paper"))
+                for scenario, rows in tables.items()
+            )
         )
         metrics = {
             scenario: {
@@ -156,7 +297,8 @@ def write_result_folder(
                     "final_horizontal_error": _ci_json(mean_ci(row.result.final_horizontal_error)),
                     "mean_nis": _ci_json(mean_ci(row.result.mean_nis)),
                     "failed_runs": row.result.n_failed,
-                    "paper": PAPER_TABLE.get(row.label),
+                    "paper": PAPER_TABLE.get(row.label) if scenario.startswith("paper") else None,
+                    **(_hybrid_json(row.hybrid) if row.hybrid is not None else {}),
                 }
                 for row in rows
             }
@@ -196,11 +338,25 @@ def write_result_folder(
                             ]
                         )
         (tmp / "config.json").write_text(json.dumps(config, indent=2, default=_jsonable))
+        if extra is not None:
+            extra(tmp)
+        os.chmod(tmp, 0o755)  # mkdtemp makes it private; a result folder is an ordinary one
         os.replace(tmp, folder)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return folder
+
+
+def _hybrid_json(h: HybridResult) -> dict[str, object]:
+    return {
+        "tunings": h.n_tunings,
+        "guardrail_clipped": int(h.clipped.sum()),
+        "guardrail_non_finite": int(h.non_finite.sum()),
+        "guardrail_range": [h.guardrails.q_min, h.guardrails.q_max],
+        "rust_seconds": h.rust_seconds,
+        "model_seconds": h.model_seconds,
+    }
 
 
 def _jsonable(value: object) -> object:

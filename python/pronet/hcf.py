@@ -1,0 +1,237 @@
+"""The handcrafted-feature (HCF) ensemble regressor, stored as plain arrays.
+
+The 14 statistics of :func:`pronet.windowstats.features` (raw and detrended: variance,
+std, range, mean absolute deviation, RMS of first differences, skewness, kurtosis) feed
+two scikit-learn ensembles whose predictions are averaged: gradient boosting (squared
+error) and a random forest. Only training needs scikit-learn. The fitted trees are
+exported as explicit arrays (children, split feature, threshold, leaf value) into a
+safetensors file, and :meth:`HCFEnsemble.predict` walks them in NumPy, so loading a
+model never unpickles anything.
+
+Split rule, as in scikit-learn: features are rounded to float32, and a sample goes left
+when ``feature <= threshold``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pronet import modelfile
+from pronet.windowstats import FEATURE_NAMES, as_windows, features
+
+_ARRAYS = ("left", "right", "feature", "threshold", "value", "roots")
+
+
+@dataclass(frozen=True)
+class TreeSet:
+    """Many binary regression trees in flat arrays; tree i starts at ``roots[i]``.
+
+    ``left``/``right`` are absolute node indices (-1 at leaves), ``feature`` the split
+    column, ``threshold`` the split value, ``value`` the leaf output.
+    """
+
+    left: NDArray[np.int32]
+    right: NDArray[np.int32]
+    feature: NDArray[np.int32]
+    threshold: NDArray[np.float64]
+    value: NDArray[np.float64]
+    roots: NDArray[np.int32]
+
+    @classmethod
+    def from_sklearn(cls, trees: list[Any]) -> TreeSet:
+        """Flatten fitted ``sklearn.tree`` estimators (single-output regression)."""
+        parts: dict[str, list[NDArray[Any]]] = {k: [] for k in _ARRAYS[:-1]}
+        roots, offset = [], 0
+        for est in trees:
+            t = est.tree_
+            leaf = t.children_left < 0
+            roots.append(offset)
+            parts["left"].append(np.where(leaf, -1, t.children_left + offset))
+            parts["right"].append(np.where(leaf, -1, t.children_right + offset))
+            parts["feature"].append(np.where(leaf, 0, t.feature))
+            parts["threshold"].append(t.threshold)
+            parts["value"].append(t.value[:, 0, 0])
+            offset += t.node_count
+        return cls(
+            left=np.concatenate(parts["left"]).astype(np.int32),
+            right=np.concatenate(parts["right"]).astype(np.int32),
+            feature=np.concatenate(parts["feature"]).astype(np.int32),
+            threshold=np.concatenate(parts["threshold"]).astype(np.float64),
+            value=np.concatenate(parts["value"]).astype(np.float64),
+            roots=np.asarray(roots, dtype=np.int32),
+        )
+
+    def leaf_values(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Each tree's output for each row of ``x`` ``(n, n_features)``: ``(n, n_trees)``."""
+        x32 = x.astype(np.float32).astype(np.float64)
+        node = np.broadcast_to(self.roots, (x.shape[0], self.roots.size)).copy()
+        rows = np.arange(x.shape[0])[:, None]
+        while True:
+            inner = self.left[node] >= 0
+            if not inner.any():
+                return self.value[node]
+            go_left = x32[rows, self.feature[node]] <= self.threshold[node]
+            node = np.where(inner, np.where(go_left, self.left[node], self.right[node]), node)
+
+    def check(self, n_features: int, weights: Path) -> None:
+        """``ModelFileError`` unless the arrays form valid trees over ``n_features``."""
+        n = self.value.size
+        sizes = {self.left.size, self.right.size, self.feature.size, self.threshold.size}
+        if sizes != {n} or self.roots.size == 0:
+            raise modelfile.ModelFileError(f"{weights}: tree arrays of unequal length")
+        ok = (
+            np.all((self.roots >= 0) & (self.roots < n))
+            and np.all((self.left == -1) == (self.right == -1))
+            and np.all((self.left >= -1) & (self.left < n) & (self.right < n))
+            # children come after their parent, so every walk ends at a leaf
+            and np.all((self.left < 0) | (self.left > np.arange(n)))
+            and np.all((self.right < 0) | (self.right > np.arange(n)))
+            and np.all((self.feature >= 0) & (self.feature < n_features))
+        )
+        if not ok:
+            raise modelfile.ModelFileError(f"{weights}: tree arrays are not valid trees")
+
+
+class HCFEnsemble:
+    """Gradient boosting and a random forest on handcrafted window features, averaged.
+
+    ``q = ½·(gb_init + gb_rate·Σ gb trees) + ½·mean(rf trees)``.
+    """
+
+    kind = "hcf"
+
+    def __init__(
+        self, window: int, gb: TreeSet, gb_init: float, gb_rate: float, rf: TreeSet
+    ) -> None:
+        self.window, self.gb, self.rf = int(window), gb, rf
+        self.gb_init, self.gb_rate = float(gb_init), float(gb_rate)
+        self.card: dict[str, Any] = {}
+
+    @classmethod
+    def fit(
+        cls,
+        windows: ArrayLike,
+        q: ArrayLike,
+        *,
+        seed: int = 0,
+        gb_trees: int = 200,
+        gb_depth: int = 3,
+        gb_rate: float = 0.1,
+        rf_trees: int = 50,
+        rf_depth: int = 8,
+        rf_min_leaf: int = 10,
+    ) -> HCFEnsemble:
+        """Fit both ensembles on windows ``(n, N)`` with labels ``q`` ``(n,)``."""
+        from sklearn.ensemble import GradientBoostingRegressor, RandomForestRegressor
+
+        w = as_windows(windows)
+        x, y = features(w), np.asarray(q, dtype=np.float64)
+        gb = GradientBoostingRegressor(
+            n_estimators=gb_trees, max_depth=gb_depth, learning_rate=gb_rate, random_state=seed
+        ).fit(x, y)
+        rf = RandomForestRegressor(
+            n_estimators=rf_trees,
+            max_depth=rf_depth,
+            min_samples_leaf=rf_min_leaf,
+            random_state=seed,
+            n_jobs=1,  # one thread: the same trees on every machine
+        ).fit(x, y)
+        model = cls(
+            w.shape[-1],
+            TreeSet.from_sklearn(list(gb.estimators_[:, 0])),
+            float(gb.init_.constant_.ravel()[0]),
+            gb_rate,
+            TreeSet.from_sklearn(list(rf.estimators_)),
+        )
+        model.hyperparameters = {  # type: ignore[attr-defined]
+            "gb_trees": gb_trees,
+            "gb_depth": gb_depth,
+            "gb_rate": gb_rate,
+            "rf_trees": rf_trees,
+            "rf_depth": rf_depth,
+            "rf_min_leaf": rf_min_leaf,
+            "seed": seed,
+        }
+        return model
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        """q for raw windows ``(..., N)``."""
+        w = as_windows(windows)
+        if w.shape[-1] != self.window:
+            raise ValueError(
+                f"windows: this model reads windows of {self.window} samples, got shape {w.shape}"
+            )
+        x = features(w.reshape(-1, self.window))
+        q = np.full(x.shape[0], np.nan)
+        ok = np.all(np.isfinite(x), axis=1)  # non-finite windows give NaN, as the nets do
+        if ok.any():
+            gb = self.gb_init + self.gb_rate * self.gb.leaf_values(x[ok]).sum(axis=1)
+            q[ok] = 0.5 * gb + 0.5 * self.rf.leaf_values(x[ok]).mean(axis=1)
+        return q.reshape(w.shape[:-1])
+
+    def tensors(self) -> dict[str, NDArray[Any]]:
+        out: dict[str, NDArray[Any]] = {}
+        for prefix, trees in (("gb", self.gb), ("rf", self.rf)):
+            for k in _ARRAYS:
+                out[f"{prefix}.{k}"] = getattr(trees, k)
+        out["gb.init_rate"] = np.array([self.gb_init, self.gb_rate])
+        return out
+
+    def save(self, path: str | os.PathLike[str], card: dict[str, Any]) -> None:
+        """Write the trees as safetensors plus a JSON card."""
+        modelfile.write(
+            path,
+            self.tensors(),
+            {
+                "kind": self.kind,
+                "architecture": {
+                    "window": self.window,
+                    "features": list(FEATURE_NAMES),
+                    "gb_trees": int(self.gb.roots.size),
+                    "rf_trees": int(self.rf.roots.size),
+                },
+                **card,
+            },
+        )
+
+    @classmethod
+    def from_tensors(
+        cls, tensors: dict[str, NDArray[Any]], card: dict[str, Any], weights: Path
+    ) -> HCFEnsemble:
+        """Rebuild from :meth:`tensors` output, checking every array first."""
+        arch = card.get("architecture", {})
+        window = arch.get("window")
+        if not isinstance(window, int) or window < 3:
+            raise modelfile.ModelFileError(f"{weights}: card has no valid window length")
+        if arch.get("features") != list(FEATURE_NAMES):
+            raise modelfile.ModelFileError(f"{weights}: card lists other features than pronet's")
+        names = [f"{p}.{k}" for p in ("gb", "rf") for k in _ARRAYS] + ["gb.init_rate"]
+        missing = sorted(set(names) - set(tensors))
+        extra = sorted(set(tensors) - set(names))
+        if missing or extra:
+            raise modelfile.ModelFileError(
+                f"{weights}: not an HCF ensemble (missing {missing}, unexpected {extra})"
+            )
+        sets = []
+        for p in ("gb", "rf"):
+            arrays = {k: np.asarray(tensors[f"{p}.{k}"]).ravel() for k in _ARRAYS}
+            for k, a in arrays.items():
+                if a.dtype.kind != ("f" if k in ("threshold", "value") else "i"):
+                    raise modelfile.ModelFileError(f"{weights}: {p}.{k} has dtype {a.dtype}")
+                if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+                    raise modelfile.ModelFileError(f"{weights}: {p}.{k} holds non-finite values")
+            trees = TreeSet(**arrays)
+            trees.check(len(FEATURE_NAMES), weights)
+            sets.append(trees)
+        init_rate = np.asarray(tensors["gb.init_rate"], dtype=np.float64)
+        if init_rate.shape != (2,) or not np.all(np.isfinite(init_rate)):
+            raise modelfile.ModelFileError(f"{weights}: bad gb.init_rate")
+        model = cls(window, sets[0], init_rate[0], init_rate[1], sets[1])
+        model.card = card
+        return model

@@ -1,0 +1,194 @@
+"""The ProNet hybrid loop: a regressor sets the process noise of running filters.
+
+The Monte Carlo runs live in Rust, stepped in lockstep by a :class:`pronet.Ensemble`
+(GIL released, threads across runs). At every tuning instant the loop
+
+1. takes the last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, N)``;
+2. runs the regressor once on the whole batch (``regressor.predict``; the nets use
+   float32 under ``torch.inference_mode``);
+3. applies the guardrails and hands q ``(n_runs, 6)`` back to Rust, where it becomes
+   each run's IMU white-noise PSD ``q·Δt_imu`` in Q^c.
+
+Until ``window`` samples exist, every run uses ``prior_q``.
+
+Tuning period: 1 s by default. It matches the DVL rate, so every update interval runs
+on a fresh estimate, and with the 2 s window consecutive estimates overlap by half:
+a noise change shows fully in the estimate within 2 s. A shorter period costs more
+inference calls (330 per 330 s mission at 1 s) without new information per call.
+
+Guardrails: predictions are clipped to ``[q_min, q_max]`` (default 1e-9 to 1 per-sample
+variance, (m/s²)² or (rad/s)²: far outside any IMU this toolkit simulates on both ends,
+so a sane prediction is never changed, while a negative, zero or absurd one cannot
+reach the filter). A non-finite prediction keeps that channel's previous q. Both events
+are counted per run and reported.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pronet import _core
+from pronet._validate import check_type, count, float_array, scalar
+from pronet.models import Regressor
+from pronet.montecarlo import MonteCarloResult
+
+#: Default tuning period [s]; see the module docstring.
+DEFAULT_TUNING_PERIOD = 1.0
+#: Default window length [IMU samples] (the paper's N).
+DEFAULT_WINDOW = 200
+
+
+@dataclass(frozen=True)
+class Guardrails:
+    """Bounds on a regressor's q [(unit)² per sample]; see the module docstring."""
+
+    q_min: float = 1e-9
+    q_max: float = 1.0
+
+    def __post_init__(self) -> None:
+        lo, hi = scalar(self.q_min, "q_min"), scalar(self.q_max, "q_max")
+        if not (0 < lo < hi < np.inf):
+            raise ValueError(f"q_min, q_max: need 0 < q_min < q_max < inf, got {lo}, {hi}")
+
+
+@dataclass(frozen=True)
+class HybridResult:
+    """A hybrid Monte Carlo: the usual metrics plus what the loop did.
+
+    Attributes:
+        result: the Monte Carlo metrics (as :func:`pronet.monte_carlo` returns them).
+        n_tunings: tuning instants (regressor calls).
+        clipped: ``(n_runs,)`` predictions clipped into the guardrail range.
+        non_finite: ``(n_runs,)`` non-finite predictions replaced by the previous q.
+        rust_seconds: wall time stepping the filters (inside the native core).
+        model_seconds: wall time in ``regressor.predict``.
+    """
+
+    result: MonteCarloResult
+    n_tunings: int
+    clipped: NDArray[np.int64]
+    non_finite: NDArray[np.int64]
+    rust_seconds: float
+    model_seconds: float
+    guardrails: Guardrails = field(default_factory=Guardrails)
+
+
+def run_hybrid(
+    regressor: Regressor,
+    trajectory: _core.Trajectory,
+    *,
+    prior_q: ArrayLike,
+    sensors: _core.SensorConfig | None = None,
+    config: _core.FilterConfig | None = None,
+    n_runs: int = 100,
+    seed: int = 0,
+    window: int = DEFAULT_WINDOW,
+    tuning_period: float = DEFAULT_TUNING_PERIOD,
+    guardrails: Guardrails | None = None,
+    record_every: int = 0,
+    sample_initial_error: bool = True,
+    threads: int | None = None,
+) -> HybridResult:
+    """Monte Carlo with the process noise set by ``regressor`` while the filters run.
+
+    Args:
+        regressor: anything with ``predict(windows (n_runs, 6, window)) -> (n_runs, 6)``.
+        trajectory: truth and ideal IMU.
+        prior_q: 6 per-sample IMU variances used until the first prediction.
+        sensors, config: as for :func:`pronet.monte_carlo` (defaults: the paper's).
+        n_runs, seed: runs and Monte Carlo seed; run i sees the same noise as run i of
+            any other strategy with this seed (common random numbers).
+        window: IMU samples per window.
+        tuning_period: seconds between predictions.
+        guardrails: clip range for predictions (default :class:`Guardrails`).
+        record_every: keep error, 1σ and q histories every this many IMU steps.
+        sample_initial_error, threads: as for :func:`pronet.monte_carlo`.
+    """
+    if not callable(getattr(regressor, "predict", None)):
+        raise ValueError(
+            f"regressor: needs a predict(windows) method, got {type(regressor).__name__}"
+        )
+    check_type(trajectory, _core.Trajectory, "trajectory")
+    prior = float_array(prior_q, "prior_q", (6,))
+    guardrails = guardrails or Guardrails()
+    n_runs = count(n_runs, "n_runs")
+    ens = _core.Ensemble(
+        trajectory,
+        sensors if sensors is not None else _core.SensorConfig(),
+        config if config is not None else _core.FilterConfig(),
+        prior,
+        n_runs=n_runs,
+        seed=count(seed, "seed"),
+        window=count(window, "window"),
+        tuning_period=scalar(tuning_period, "tuning_period"),
+        record_every=count(record_every, "record_every"),
+        sample_initial_error=bool(sample_initial_error),
+        threads=None if threads is None else count(threads, "threads"),
+    )
+    q_prev = np.tile(prior, (n_runs, 1))
+    clipped = np.zeros(n_runs, dtype=np.int64)
+    non_finite = np.zeros(n_runs, dtype=np.int64)
+    rust = model = 0.0
+    n_tunings = 0
+    while True:
+        t0 = time.perf_counter()
+        windows = ens.advance()
+        t1 = time.perf_counter()
+        rust += t1 - t0
+        if windows is None:
+            break
+        q = np.asarray(regressor.predict(windows), dtype=np.float64)
+        model += time.perf_counter() - t1
+        if q.shape != (n_runs, 6):
+            raise ValueError(
+                f"regressor: predict returned shape {q.shape} for windows {windows.shape}; "
+                f"expected ({n_runs}, 6)"
+            )
+        q, n_bad, n_clip = apply_guardrails(q, q_prev, guardrails)
+        non_finite += n_bad
+        clipped += n_clip
+        t2 = time.perf_counter()
+        ens.set_q(q)
+        rust += time.perf_counter() - t2
+        q_prev = q
+        n_tunings += 1
+    t3 = time.perf_counter()
+    out = ens.finish()
+    rust += time.perf_counter() - t3
+    return HybridResult(
+        result=MonteCarloResult(**out),
+        n_tunings=n_tunings,
+        clipped=clipped,
+        non_finite=non_finite,
+        rust_seconds=rust,
+        model_seconds=model,
+        guardrails=guardrails,
+    )
+
+
+def apply_guardrails(
+    q: NDArray[np.float64], q_prev: NDArray[np.float64], guardrails: Guardrails
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.int64]]:
+    """``(q, non_finite, clipped)``: non-finite entries replaced by ``q_prev``, then
+    everything clipped into range; the counts are per row."""
+    bad = ~np.isfinite(q)
+    q = np.where(bad, q_prev, q)
+    out_of_range = (q < guardrails.q_min) | (q > guardrails.q_max)
+    q = np.clip(q, guardrails.q_min, guardrails.q_max)
+    return q, bad.sum(axis=1), out_of_range.sum(axis=1)
+
+
+class ConstantRegressor:
+    """Predicts the same q for every window: the boundary check and a user template."""
+
+    def __init__(self, q: Sequence[float]) -> None:
+        self.q = float_array(q, "q", (6,))
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        w = np.asarray(windows)
+        return np.broadcast_to(self.q, (*w.shape[:-2], 6)).copy()

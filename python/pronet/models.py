@@ -1,0 +1,216 @@
+"""Learned noise regressors: a window of raw IMU samples in, its noise variance q out.
+
+Every regressor has ``predict(windows) -> q``: ``windows`` is ``(..., N)`` raw samples of
+one IMU channel each (specific force [m/s²] or angular rate [rad/s], N = 200 at 100 Hz),
+``q`` is ``(...)`` float64, the per-sample noise variance [(m/s²)² or (rad/s)²]. The
+hybrid loop hands ``(n_runs, 6, N)`` and gets ``(n_runs, 6)`` back. Non-finite samples
+give non-finite predictions (the hybrid loop's guardrails deal with those).
+
+The two CNNs (section III of the paper), 12,769 parameters each:
+
+- :class:`BaselineNet`: the window is centred (its mean removed, so a channel's constant
+  level, gravity on f_z included, carries no weight) and divided by ``input_scale``
+  (0.1, a typical noise standard deviation); three blocks of Conv1d → LayerNorm (over
+  the channels at each time step) → LeakyReLU(0.01) with 16/32/32 channels, kernels
+  7/5/5 and strides 1/2/2; global average pooling; four Linear layers 32 → 64 → 32 →
+  16 → 1 with LeakyReLU(0.01) between them. The output z gives ``q = q_scale·exp(z)``
+  (q_scale = 0.01), positive by construction.
+- :class:`DetrendNet`: the same network after each window's least-squares line is
+  subtracted, inside ``forward``, so no caller can forget it.
+
+Also here: :class:`DetrendedVariance`, the statistical reference as a regressor, and
+:func:`load`, which opens a shipped model by name or a user's model file by path.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import torch
+from numpy.typing import ArrayLike, NDArray
+from torch import nn
+
+from pronet import modelfile
+from pronet.windowstats import as_windows, detrended_variance
+
+#: Models shipped inside the package, loadable by name.
+SHIPPED = ("baseline", "detrend", "hcf")
+
+
+@runtime_checkable
+class Regressor(Protocol):
+    """Anything that maps raw windows ``(..., N)`` to noise variances ``(...)``."""
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]: ...
+
+
+class DetrendedVariance:
+    """The reference estimator as a regressor: the unbiased variance of each window
+    after removing its least-squares line (N − 2 degrees of freedom)."""
+
+    name = "detrended variance"
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        return detrended_variance(windows)
+
+
+class _ConvBlock(nn.Module):
+    """Conv1d → LayerNorm over the channels at each time step → LeakyReLU(0.01)."""
+
+    def __init__(self, c_in: int, c_out: int, kernel: int, stride: int) -> None:
+        super().__init__()
+        self.conv = nn.Conv1d(c_in, c_out, kernel, stride=stride, padding=kernel // 2)
+        self.norm = nn.LayerNorm(c_out)
+        self.act = nn.LeakyReLU(0.01)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        y = self.conv(x)
+        return self.act(self.norm(y.transpose(1, 2)).transpose(1, 2))
+
+
+class BaselineNet(nn.Module):
+    """The paper's baseline CNN regressor on centred, scaled raw windows.
+
+    Args:
+        window: samples per window N.
+        channels, kernels, strides: the three convolution blocks.
+        hidden: widths of the three hidden Linear layers (the fourth gives z).
+        input_scale: windows are divided by this [m/s² or rad/s] before the first layer.
+        q_scale: ``q = q_scale·exp(z)`` [(unit)² per sample].
+    """
+
+    kind = "baseline"
+
+    def __init__(
+        self,
+        window: int = 200,
+        channels: tuple[int, int, int] = (16, 32, 32),
+        kernels: tuple[int, int, int] = (7, 5, 5),
+        strides: tuple[int, int, int] = (1, 2, 2),
+        hidden: tuple[int, int, int] = (64, 32, 16),
+        input_scale: float = 0.1,
+        q_scale: float = 0.01,
+    ) -> None:
+        super().__init__()
+        if window < 3:
+            raise ValueError(f"window: must be >= 3 samples, got {window}")
+        self.window = int(window)
+        self.channels, self.kernels, self.strides = tuple(channels), tuple(kernels), tuple(strides)
+        self.hidden = tuple(hidden)
+        self.input_scale, self.q_scale = float(input_scale), float(q_scale)
+        blocks, c_in = [], 1
+        for c_out, k, s in zip(self.channels, self.kernels, self.strides, strict=True):
+            blocks.append(_ConvBlock(c_in, c_out, k, s))
+            c_in = c_out
+        self.features = nn.Sequential(*blocks)
+        layers: list[nn.Module] = []
+        for width in self.hidden:
+            layers += [nn.Linear(c_in, width), nn.LeakyReLU(0.01)]
+            c_in = width
+        layers.append(nn.Linear(c_in, 1))
+        self.head = nn.Sequential(*layers)
+        t = torch.arange(self.window, dtype=torch.float32) - (self.window - 1) / 2.0
+        self.register_buffer("_t", t / torch.sqrt((t * t).sum()), persistent=False)
+
+    def architecture(self) -> dict[str, Any]:
+        """The constructor arguments: what a model card records to rebuild the net."""
+        return {
+            "window": self.window,
+            "channels": list(self.channels),
+            "kernels": list(self.kernels),
+            "strides": list(self.strides),
+            "hidden": list(self.hidden),
+            "input_scale": self.input_scale,
+            "q_scale": self.q_scale,
+        }
+
+    def prepare(self, x: torch.Tensor) -> torch.Tensor:
+        """Remove each window's mean: ``(B, N)`` → ``(B, N)``."""
+        return x - x.mean(dim=-1, keepdim=True)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Raw windows ``(B, N)`` → q ``(B,)``."""
+        z = self.prepare(x) / self.input_scale
+        h = self.features(z.unsqueeze(1)).mean(dim=-1)
+        # exp of a clamped z: positive q, and no overflow from an untrained net
+        return self.q_scale * torch.exp(self.head(h).squeeze(-1).clamp(-20.0, 20.0))
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        """q for raw windows ``(..., N)``, in float32 under ``torch.inference_mode``."""
+        w = as_windows(windows, dtype=np.float32)
+        if w.shape[-1] != self.window:
+            raise ValueError(
+                f"windows: this model reads windows of {self.window} samples, got shape {w.shape}"
+            )
+        x = torch.from_numpy(np.ascontiguousarray(w.reshape(-1, self.window)))
+        was_training = self.training
+        self.eval()
+        try:
+            with torch.inference_mode():
+                q = self(x).numpy().astype(np.float64)
+        finally:
+            self.train(was_training)
+        return q.reshape(w.shape[:-1])
+
+    def n_parameters(self) -> int:
+        return sum(p.numel() for p in self.parameters())
+
+
+class DetrendNet(BaselineNet):
+    """:class:`BaselineNet` after subtracting each window's least-squares line."""
+
+    kind = "detrend"
+
+    def prepare(self, x: torch.Tensor) -> torch.Tensor:
+        """Remove each window's least-squares line: ``(B, N)`` → ``(B, N)``, batched."""
+        centred = x - x.mean(dim=-1, keepdim=True)
+        return centred - (centred @ self._t).unsqueeze(-1) * self._t
+
+
+NETS: dict[str, type[BaselineNet]] = {"baseline": BaselineNet, "detrend": DetrendNet}
+
+
+def save_net(net: BaselineNet, path: str | os.PathLike[str], card: dict[str, Any]) -> None:
+    """Write ``net`` as safetensors plus a JSON card (``card`` adds training records)."""
+    tensors = {k: v.detach().cpu().numpy() for k, v in net.state_dict().items()}
+    modelfile.write(
+        path,
+        tensors,
+        {
+            "kind": net.kind,
+            "architecture": net.architecture(),
+            "n_parameters": net.n_parameters(),
+            **card,
+        },
+    )
+
+
+def load(name_or_path: str | os.PathLike[str]) -> Regressor:
+    """A shipped model by name (``"baseline"``, ``"detrend"``, ``"hcf"``), or a model
+    file by path (either suffix, or none). Raises ``ModelFileError`` (a ``ValueError``)
+    naming the file if it is missing, corrupted, truncated or not what its card says."""
+    if isinstance(name_or_path, str) and name_or_path in SHIPPED:
+        path: str | os.PathLike[str] = modelfile.SHIPPED_DIR / name_or_path
+    else:
+        path = name_or_path
+    tensors, card = modelfile.read(path)
+    weights, card_file = modelfile.paths(path)
+    kind = card.get("kind")
+    if kind == "hcf":
+        from pronet.hcf import HCFEnsemble
+
+        return HCFEnsemble.from_tensors(tensors, card, weights)
+    if kind not in NETS:
+        raise modelfile.ModelFileError(f"{card_file}: unknown model kind {kind!r}")
+    try:
+        net = NETS[kind](**card.get("architecture", {}))
+    except (TypeError, ValueError, RuntimeError) as exc:
+        raise modelfile.ModelFileError(f"{card_file}: bad architecture ({exc})") from None
+    expected = {k: tuple(v.shape) for k, v in net.state_dict().items()}
+    modelfile.check_tensors(weights, tensors, expected)
+    net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in tensors.items()})
+    net.eval()
+    net.card = card  # type: ignore[attr-defined]
+    return net

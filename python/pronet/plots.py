@@ -1,0 +1,188 @@
+"""Figures, one function each, drawn with matplotlib's Agg canvas (no display, no global
+pyplot state) and written as PNG atomically. The CLI uses the same functions."""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from pronet._files import atomic_write
+
+
+def _figure(width: float, height: float):  # -> matplotlib.figure.Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), dpi=120, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_png(fig, path: str | os.PathLike[str]) -> Path:  # fig: matplotlib Figure
+    """Render ``fig`` to ``path`` as PNG, atomically; returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    atomic_write(path, buf.getvalue())
+    return path
+
+
+def predicted_vs_true(
+    panels: Mapping[str, tuple[ArrayLike, ArrayLike]], path: str | os.PathLike[str]
+) -> Path:
+    """The paper's Fig. 8: predicted against true q on the test set, one panel per model.
+
+    Args:
+        panels: model name → ``(q_true, q_pred)``, each ``(n,)`` per-sample variances.
+        path: PNG file to write.
+
+    Test points are grey, the mean prediction per true q blue, the identity line red.
+    """
+    if not panels:
+        raise ValueError("panels: need at least one model")
+    fig = _figure(4.0 * len(panels), 4.0)
+    axes = fig.subplots(1, len(panels), squeeze=False)[0]
+    for ax, (name, (q_true, q_pred)) in zip(axes, panels.items(), strict=True):
+        q_true, q_pred = np.asarray(q_true, float), np.asarray(q_pred, float)
+        if q_true.shape != q_pred.shape or q_true.ndim != 1:
+            raise ValueError(f"panels[{name!r}]: q_true and q_pred must be equal 1-D arrays")
+        levels = np.unique(q_true)
+        means = [np.nanmean(q_pred[q_true == lev]) for lev in levels]
+        ax.scatter(q_true, q_pred, s=3, color="0.6", alpha=0.3, label="test windows")
+        ax.plot(levels, means, "o-", color="tab:blue", ms=4, label="mean per true q")
+        lim = [0.0, 1.1 * float(max(levels.max(), np.nanmax(q_pred)))]
+        ax.plot(lim, lim, color="tab:red", lw=1.2, label="identity")
+        ax.set(xlim=lim, ylim=lim, title=name, xlabel="true q [unit² per sample]")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("predicted q [unit² per sample]")
+    axes[0].legend(loc="upper left", fontsize=8)
+    return save_png(fig, path)
+
+
+def velocity_error(rows, path: str | os.PathLike[str], title: str, run: int = 0) -> Path:
+    """Velocity error of one run against time with the filter's ±3σ, one panel per
+    strategy (``rows``: :class:`pronet.experiment.Row` with histories recorded)."""
+    n = len(rows)
+    cols = 2
+    fig = _figure(11.0, 2.4 * ((n + cols - 1) // cols) + 0.6)
+    axes = fig.subplots((n + cols - 1) // cols, cols, squeeze=False, sharex=True).ravel()
+    for ax, row in zip(axes, rows, strict=False):
+        r = row.result
+        if r.error is None or r.sigma is None:
+            raise ValueError("rows: need error and sigma histories (record_every > 0)")
+        t = r.record_time
+        for axis, (name, color) in enumerate(
+            (("north", "tab:blue"), ("east", "tab:orange"), ("down", "tab:green"))
+        ):
+            ax.plot(t, r.error[run, :, 3 + axis], color=color, lw=0.8, label=f"δv {name}")
+            ax.plot(t, 3 * r.sigma[run, :, 3 + axis], color=color, lw=0.6, ls="--")
+            ax.plot(t, -3 * r.sigma[run, :, 3 + axis], color=color, lw=0.6, ls="--")
+        ax.set_title(row.label, fontsize=9)
+        ax.set_ylabel("velocity error [m/s]")
+        ax.grid(alpha=0.3)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    for ax in axes[max(0, n - cols) : n]:
+        ax.set_xlabel("time [s]")
+    axes[0].legend(loc="upper right", fontsize=7, title="dashed: ±3σ", title_fontsize=7)
+    fig.suptitle(f"{title}: velocity error of run {run}")
+    return save_png(fig, path)
+
+
+def q_tracking(
+    rows,
+    schedule_time: ArrayLike,
+    schedule_q: ArrayLike,
+    path: str | os.PathLike[str],
+    title: str,
+    run: int = 0,
+) -> Path:
+    """The q each adaptive strategy used (run ``run``) against the true noise schedule,
+    one panel per IMU channel, log scale."""
+    names = (
+        "f_x [(m/s²)²]",
+        "f_y [(m/s²)²]",
+        "f_z [(m/s²)²]",
+        "ω_x [(rad/s)²]",
+        "ω_y [(rad/s)²]",
+        "ω_z [(rad/s)²]",
+    )
+    times, sq = np.asarray(schedule_time, float), np.asarray(schedule_q, float)
+    fig = _figure(12.0, 6.5)
+    axes = fig.subplots(2, 3, sharex=True).ravel()
+    for c, ax in enumerate(axes):
+        for row in rows:
+            r = row.result
+            if r.q is None or row.hybrid is None:
+                continue
+            ax.plot(r.record_time, r.q[run, :, c], lw=0.9, label=row.label)
+        end = rows[0].result.record_time[-1]
+        ax.step(
+            np.append(times, end),
+            np.append(sq[:, c], sq[-1, c]),
+            where="post",
+            color="black",
+            lw=1.2,
+            label="true q",
+        )
+        ax.set_yscale("log")
+        ax.set_title(names[c], fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+    for ax in axes[3:]:
+        ax.set_xlabel("time [s]")
+    axes[0].set_ylabel("noise variance per sample")
+    axes[3].set_ylabel("noise variance per sample")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{title}: learned q (run {run}) against the true schedule")
+    return save_png(fig, path)
+
+
+def trajectory(traj, path: str | os.PathLike[str], title: str) -> Path:
+    """North-east track and depth of a trajectory (``pronet.Trajectory``)."""
+    from pronet import earth_radii
+
+    lla = np.asarray(traj.lla)
+    r_n, r_e = earth_radii(float(lla[0, 0]))
+    north = (lla[:, 0] - lla[0, 0]) * (r_n + lla[0, 2])
+    east = (lla[:, 1] - lla[0, 1]) * (r_e + lla[0, 2]) * np.cos(lla[0, 0])
+    fig = _figure(10.0, 4.0)
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.plot(east, north, color="tab:blue")
+    ax1.plot(east[0], north[0], "o", color="tab:green", label="start")
+    ax1.plot(east[-1], north[-1], "s", color="tab:red", label="end")
+    ax1.set(xlabel="east [m]", ylabel="north [m]", title="track")
+    ax1.set_aspect("equal", adjustable="datalim")
+    ax1.legend(fontsize=8)
+    ax1.grid(alpha=0.3)
+    ax2.plot(traj.time, -lla[:, 2], color="tab:blue")
+    ax2.invert_yaxis()
+    ax2.set(xlabel="time [s]", ylabel="depth [m]", title="depth")
+    ax2.grid(alpha=0.3)
+    fig.suptitle(title)
+    return save_png(fig, path)
+
+
+def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
+    """SRMSE and SMAE per strategy with 95 % CIs, one row of panels per scenario
+    (``tables``: scenario title → list of :class:`pronet.experiment.Row`)."""
+    fig = _figure(11.0, 3.2 * len(tables) + 0.4)
+    axes = fig.subplots(len(tables), 2, squeeze=False)
+    for (title, rows), pair in zip(tables.items(), axes, strict=True):
+        for ax, metric in zip(pair, ("srmse", "smae"), strict=True):
+            cis = [getattr(row, metric) for row in rows]
+            y = np.arange(len(rows))[::-1]
+            mean = np.array([c.mean for c in cis])
+            err = np.array([[c.mean - c.low, c.high - c.mean] for c in cis]).T
+            ax.errorbar(mean, y, xerr=err, fmt="o", color="tab:blue", capsize=3)
+            ax.set_yticks(y, [row.label for row in rows], fontsize=8)
+            ax.set_xlabel(f"{metric.upper()} [m/s] (mean, 95 % CI)")
+            ax.set_title(title, fontsize=9)
+            ax.grid(alpha=0.3, axis="x")
+    return save_png(fig, path)

@@ -1,0 +1,92 @@
+"""Statistics of raw IMU windows, in NumPy: the least-squares detrend, the unbiased
+detrended variance (the statistical reference every regressor is compared with), the
+Cramér–Rao floor, and the handcrafted features of the HCF ensemble.
+
+A window is the last ``N`` samples of one IMU channel, ``(..., N)``: specific force
+[m/s²] or angular rate [rad/s]; variances are per sample [(m/s²)² or (rad/s)²].
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pronet._validate import real_array
+
+#: Names of :func:`features` columns, in order: seven statistics of the raw window, then
+#: the same seven of the detrended window.
+FEATURE_NAMES = tuple(
+    f"{stat}_{kind}"
+    for kind in ("raw", "detrended")
+    for stat in ("var", "std", "range", "mad", "rms_diff", "skew", "kurt")
+)
+
+
+def as_windows(windows: ArrayLike, name: str = "windows", dtype: type = np.float64) -> NDArray[Any]:
+    """``windows`` as an array of ``dtype`` ``(..., N)`` with N ≥ 3 (no copy when it
+    already is one), or ``ValueError`` naming the argument."""
+    arr = real_array(windows, name)
+    if arr.ndim < 1 or arr.shape[-1] < 3:
+        raise ValueError(f"{name}: expected shape (..., N) with N >= 3, got {arr.shape}")
+    return arr.astype(dtype, copy=False)
+
+
+def detrend(windows: ArrayLike) -> NDArray[np.float64]:
+    """Each window minus its least-squares line (over the sample index), ``(..., N)``."""
+    w = as_windows(windows)
+    n = w.shape[-1]
+    t = np.arange(n) - (n - 1) / 2.0
+    centred = w - w.mean(axis=-1, keepdims=True)
+    slope = centred @ t / (t @ t)
+    return centred - slope[..., None] * t
+
+
+def detrended_variance(windows: ArrayLike) -> NDArray[np.float64]:
+    """The unbiased variance of each detrended window, ``Σ r² / (N − 2)``, shape ``(...)``.
+
+    For white Gaussian noise of variance q on a signal that is linear over the window
+    this is unbiased with RMSE ``q·√(2/(N − 2))``: the one-line estimator a learned
+    regressor has to beat.
+    """
+    r = detrend(windows)
+    return (r * r).sum(axis=-1) / (r.shape[-1] - 2)
+
+
+def cramer_rao_rmse(q: ArrayLike, n: int) -> float:
+    """The Cramér–Rao floor ``√(mean(2 q² / N))`` for the RMSE of variance estimates
+    from ``n`` Gaussian samples each, over the labels ``q``."""
+    q = np.asarray(q, dtype=np.float64)
+    return float(np.sqrt(np.mean(2.0 * q * q / n)))
+
+
+def features(windows: ArrayLike) -> NDArray[np.float64]:
+    """The 14 handcrafted statistics of each window, ``(..., 14)``, named by
+    :data:`FEATURE_NAMES`: variance (N − 1), standard deviation, range, mean absolute
+    deviation, RMS of first differences, skewness and excess kurtosis, of the raw window
+    and of the detrended one."""
+    w = as_windows(windows)
+    return np.concatenate([_stats(w), _stats(detrend(w))], axis=-1)
+
+
+def _stats(w: NDArray[np.float64]) -> NDArray[np.float64]:
+    centred = w - w.mean(axis=-1, keepdims=True)
+    m2 = (centred**2).mean(axis=-1)
+    var = m2 * w.shape[-1] / (w.shape[-1] - 1)
+    # A constant window has no shape: skewness and kurtosis are 0 there, not NaN.
+    safe = np.where(m2 > 0, m2, 1.0)
+    skew = np.where(m2 > 0, (centred**3).mean(axis=-1) / safe**1.5, 0.0)
+    kurt = np.where(m2 > 0, (centred**4).mean(axis=-1) / safe**2 - 3.0, 0.0)
+    return np.stack(
+        [
+            var,
+            np.sqrt(var),
+            w.max(axis=-1) - w.min(axis=-1),
+            np.abs(centred).mean(axis=-1),
+            np.sqrt((np.diff(w, axis=-1) ** 2).mean(axis=-1)),
+            skew,
+            kurt,
+        ],
+        axis=-1,
+    )
