@@ -11,7 +11,7 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 def test_readme_quick_start_runs() -> None:
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
     assert blocks, "the README has a Python quick start"
+    namespace: dict[str, object] = {}  # the blocks are one session, in order
     for code in blocks:
-        namespace: dict[str, object] = {}
         exec(compile(code, str(README), "exec"), namespace)  # noqa: S102 - our own README
     assert namespace["res"].summary()["srmse"].mean < 0.1

@@ -28,7 +28,7 @@ def save_png(fig, path: str | os.PathLike[str]) -> Path:  # fig: matplotlib Figu
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png")
+    fig.savefig(buf, format="png", bbox_inches="tight", pad_inches=0.1)
     atomic_write(path, buf.getvalue())
     return path
 
