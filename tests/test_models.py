@@ -151,3 +151,12 @@ def test_scores() -> None:
     assert s["rmse"] == pytest.approx(np.sqrt(0.02 / 3))
     assert s["mae"] == pytest.approx(0.2 / 3)
     assert s["r2"] == pytest.approx(1 - 0.02 / 2)
+
+
+def test_training_refuses_bad_hyperparameters_and_leaves_torch_as_it_was(default_dataset) -> None:
+    before = torch.are_deterministic_algorithms_enabled()
+    with pytest.raises(ValueError, match="hp: need max_epochs >= 1"):
+        train_net("detrend", default_dataset, NetTraining(max_epochs=0), progress=False)
+    with pytest.raises(ValueError, match="kind: expected one of"):
+        train_net("cnn", default_dataset, progress=False)
+    assert torch.are_deterministic_algorithms_enabled() == before

@@ -85,13 +85,29 @@ def train_net(
     (``train_loss``, ``val_loss``, ``lr``); losses are MSE of q / q_scale.
     """
     import torch
-    from tqdm.auto import tqdm
 
     if kind not in NETS:
         raise ValueError(f"kind: expected one of {sorted(NETS)}, got {kind!r}")
     hp = hp or NetTraining()
-    torch.manual_seed(hp.seed)
+    if hp.max_epochs < 1 or hp.batch_size < 1 or not 0 < hp.val_fraction < 1:
+        raise ValueError(
+            f"hp: need max_epochs >= 1, batch_size >= 1, 0 < val_fraction < 1; got {hp}"
+        )
+    was_deterministic = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)
+    try:
+        return _train_net(kind, ds, hp, progress)
+    finally:
+        torch.use_deterministic_algorithms(was_deterministic)
+
+
+def _train_net(
+    kind: str, ds: Dataset, hp: NetTraining, progress: bool
+) -> tuple[Any, list[dict[str, float]]]:
+    import torch
+    from tqdm.auto import tqdm
+
+    torch.manual_seed(hp.seed)
     fit_idx, val_idx = _split_validation(ds, hp.val_fraction, hp.seed)
     net = NETS[kind](window=ds.windows.shape[1])
     x = torch.from_numpy(ds.windows[fit_idx])
