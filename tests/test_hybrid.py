@@ -91,6 +91,8 @@ def test_bad_regressors_are_refused(paper_trajectory) -> None:
 
     with pytest.raises(ValueError, match=r"regressor: predict returned shape \(2,\)"):
         run_hybrid(WrongShape(), paper_trajectory, prior_q=PAPER_Q, n_runs=2)
+    with pytest.raises(ValueError, match="seed: must be >= 0"):
+        run_hybrid(ConstantRegressor(PAPER_Q), paper_trajectory, prior_q=PAPER_Q, seed=-1)
     with pytest.raises(ValueError, match="prior_q: expected shape"):
         run_hybrid(ConstantRegressor(PAPER_Q), paper_trajectory, prior_q=[1.0], n_runs=2)
 

@@ -117,6 +117,8 @@ def run_hybrid(
     prior = float_array(prior_q, "prior_q", (6,))
     guardrails = guardrails or Guardrails()
     n_runs = count(n_runs, "n_runs")
+    if count(seed, "seed") < 0:
+        raise ValueError(f"seed: must be >= 0, got {seed}")
     ens = _core.Ensemble(
         trajectory,
         sensors if sensors is not None else _core.SensorConfig(),
