@@ -30,6 +30,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     from tqdm.auto import tqdm
 
     from pronet import models, plots, training
+    from pronet.dataset import DatasetParams, build_dataset
 
     n_runs = 10 if args.quick else args.runs
     if n_runs < 1:
@@ -50,8 +51,6 @@ def _reproduce(args: argparse.Namespace) -> int:
     ds = None
     trained_dir = None
     if args.retrain:
-        from pronet.dataset import DatasetParams, build_dataset
-
         trained_dir = Path(tempfile.mkdtemp(prefix="pronet-models-"))
         params = DatasetParams()
         ds = build_dataset(params)
@@ -92,8 +91,6 @@ def _reproduce(args: argparse.Namespace) -> int:
         print()
         print(experiment.markdown_table(rows, title, paper=title.startswith("paper")))
     if ds is None:
-        from pronet.dataset import DatasetParams, build_dataset
-
         ds = build_dataset(DatasetParams())
     test = ~ds.train
 
@@ -160,7 +157,8 @@ def _dataset(args: argparse.Namespace) -> int:
 
 
 def _dataset_for(args: argparse.Namespace):
-    """The dataset named by ``--dataset``, or the default one regenerated from ``--seed``."""
+    """The dataset named by ``--dataset``, or the default one regenerated from
+    ``--data-seed``."""
     from pronet import dataset
 
     if args.dataset:
@@ -225,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--out", default=None, help="result folder (default results/reproduce-<time>)")
     rep.add_argument(
-        "--retrain", action="store_true", help="train all three regressors first (~15 min)"
+        "--retrain", action="store_true", help="train all three regressors first (~10 min)"
     )
     rep.add_argument(
         "--tuning-period",
