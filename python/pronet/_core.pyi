@@ -168,8 +168,11 @@ def run_filter(
     config: FilterConfig,
     strategy: Strategy,
     bias0: Any | None = None,
+    q_time: F64 | None = None,
+    q: F64 | None = None,
 ) -> dict[str, NDArray[Any]]:
-    """One filter pass; see :class:`pronet.FilterResult` for the keys."""
+    """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
+    [s] and ``q`` (k, 6): a q schedule for an external strategy."""
 
 def monte_carlo(
     trajectory: Trajectory,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import json
 import os
 import shutil
 import sys
@@ -12,6 +13,8 @@ from pathlib import Path
 
 import pronet
 from pronet import _core, experiment
+from pronet._files import atomic_folder
+from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
 
 def _info(_args: argparse.Namespace) -> int:
@@ -203,6 +206,142 @@ def _evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _vector3(text: str) -> tuple[float, float, float]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected x,y,z in metres, got {text!r}") from None
+    if len(values) != 3:
+        raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
+    return values  # type: ignore[return-value]
+
+
+def _real(args: argparse.Namespace) -> int:
+    from tqdm.auto import tqdm
+
+    from pronet import models, plots, realdata
+
+    out = (
+        Path(args.out)
+        if args.out
+        else Path("results") / ("real-" + _dt.datetime.now().strftime("%Y%m%d-%H%M%S"))
+    )
+    if out.exists():
+        print(f"pronet real: {out} exists; choose another --out", file=sys.stderr)
+        return 2
+    if not args.tuning_period > 0:
+        print("pronet real: --tuning-period must be > 0 s", file=sys.stderr)
+        return 2
+    start = time.perf_counter()
+    paths = realdata.find_sections(args.data)
+    if args.sections:
+        wanted = {s.strip() for s in args.sections.split(",")}
+        paths = [p for p in paths if p.name in wanted or p.stem in wanted]
+        if not paths:
+            print(f"pronet real: no section named {args.sections}", file=sys.stderr)
+            return 2
+    regressors = {} if args.no_models else {k: models.load(k) for k in models.SHIPPED}
+    # Read and validate every section before any filtering.
+    loaded = []
+    for path in tqdm(paths, unit="section", desc="reading, aligning", disable=args.quiet):
+        loaded.append(
+            realdata.load_section(
+                path,
+                args.format,
+                imu_lever_arm=args.imu_lever_arm,
+                dvl_lever_arm=args.dvl_lever_arm,
+            )
+        )
+    runs, stamped_runs, inertial, constants = [], [], [], {}
+    n_rows = len(realdata.real_strategies((1.0,) * 6, regressors, 1.0))
+    bar = tqdm(total=len(loaded) * n_rows, unit="run", disable=args.quiet)
+    for aligned, stamped in loaded:
+        q = realdata.white_noise_q(aligned.imu)
+        strategies = realdata.real_strategies(q, regressors, args.tuning_period)
+        constants[aligned.name] = {
+            label: s.q
+            for label, s in strategies.items()
+            if isinstance(s, _core.Strategy) and s.kind == "constant"
+        }
+        config = realdata.real_filter_config(aligned.alignment.filter_lever_arm)
+
+        def done(label: str, name: str = aligned.name) -> None:
+            bar.set_postfix_str(f"{name}: {label}")
+            bar.update()
+
+        section_runs, inertial_run = realdata.evaluate_section(
+            aligned, strategies, config, on_done=done
+        )
+        runs += section_runs
+        inertial.append(inertial_run)
+        first_label, first = next(iter(strategies.items()))
+        stamped_runs.append(
+            realdata.run_section(
+                stamped,
+                first,
+                realdata.real_filter_config(stamped.alignment.filter_lever_arm),
+                label=f"{first_label}, stamps as given, no lever arms",
+                setup="stamps as given, no lever arms",
+            )
+        )
+    bar.close()
+    n = len(loaded)
+    first_label = runs[0].label
+    tables = [
+        realdata.summary_table(runs, "Clocks estimated, lever arms applied"),
+        realdata.per_section_table(runs, "srmse", "Per section"),
+        realdata.per_section_table(runs, "final_horizontal", "Per section"),
+        realdata.summary_table(
+            [r for r in runs if r.label == first_label] + stamped_runs,
+            f"{first_label}: alignment handled against stamps as given",
+        ),
+        realdata.summary_table(inertial, "Sanity: pure inertial, no DVL"),
+    ]
+    text = "\n".join(tables)
+    print(text)
+
+    def write(folder: Path) -> None:
+        (folder / "table.md").write_text(text)
+        realdata.write_metrics(folder, runs + stamped_runs + inertial)
+        config = {
+            "data": str(Path(args.data).resolve()),
+            "format": args.format,
+            "sections": [a.name for a, _ in loaded],
+            "tuning_period_s": args.tuning_period,
+            "filter": repr(realdata.real_filter_config((0.0, 0.0, 0.0))),
+            "imu_lever_arm_m": args.imu_lever_arm,
+            "dvl_lever_arm_m": args.dvl_lever_arm,
+            "clocks": {
+                a.name: {
+                    "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
+                    "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
+                }
+                for a, _ in loaded
+            },
+            "q_estimated": {a.name: realdata.white_noise_q(a.imu) for a, _ in loaded},
+            "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
+        }
+        (folder / "config.json").write_text(json.dumps(config, indent=2))
+        for aligned, _ in tqdm(loaded, unit="section", desc="plots", disable=args.quiet):
+            mine = [r for r in runs if r.section == aligned.name]
+            plots.section_track(aligned, mine, folder / f"track_{aligned.name}.png")
+            plots.section_velocity_error(
+                aligned, mine, folder / f"velocity_error_{aligned.name}.png"
+            )
+            plots.section_q(
+                aligned,
+                mine,
+                constants[aligned.name],
+                realdata.real_filter_config((0.0, 0.0, 0.0)).imu_dt,
+                folder / f"q_{aligned.name}.png",
+            )
+
+    with atomic_folder(out) as tmp:
+        write(tmp)
+    print(f"{n} sections; results written to {out} in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pronet", description="INS/DVL navigation with learned, adaptive process noise."
@@ -267,6 +406,42 @@ def build_parser() -> argparse.ArgumentParser:
                 help="comma-separated shipped names or model file paths",
             )
             p.add_argument("--figure", default=None, help="write predicted-vs-true q PNG here")
+    real = sub.add_parser(
+        "real",
+        help="run every strategy on recorded INS/DVL sections (e.g. the Snapir AUV data)",
+    )
+    real.add_argument(
+        "--data", required=True, help="folder of sections, or one section (never copied)"
+    )
+    real.add_argument(
+        "--format",
+        choices=("snapir", "generic"),
+        default="snapir",
+        help="snapir: the published layout; generic: see pronet.datasets (default snapir)",
+    )
+    real.add_argument("--sections", default=None, help="comma-separated section names")
+    real.add_argument(
+        "--imu-lever-arm",
+        type=_vector3,
+        default=SNAPIR_IMU_LEVER_ARM,
+        help="IMU position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
+    )
+    real.add_argument(
+        "--dvl-lever-arm",
+        type=_vector3,
+        default=SNAPIR_DVL_LEVER_ARM,
+        help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
+    )
+    real.add_argument(
+        "--tuning-period",
+        type=float,
+        default=1.0,
+        help="seconds between regressor calls in the learned rows (default 1 s)",
+    )
+    real.add_argument("--no-models", action="store_true", help="only the model-based rows")
+    real.add_argument("--out", default=None, help="result folder (default results/real-<time>)")
+    real.add_argument("--quiet", action="store_true", help="no progress bars")
+    real.set_defaults(func=_real)
     return parser
 
 

@@ -12,9 +12,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import shutil
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from pronet import _core
+from pronet._files import atomic_folder
 from pronet.hybrid import DEFAULT_TUNING_PERIOD, HybridResult, run_hybrid
 from pronet.models import Regressor
 from pronet.montecarlo import MonteCarloResult, monte_carlo
@@ -275,12 +273,7 @@ def write_result_folder(
     ``folder``, plus whatever ``extra(tmp_folder)`` writes (plots, models), atomically:
     everything goes to a temporary sibling first, which is renamed into place only when
     complete. An existing folder is refused, never overwritten."""
-    folder = Path(folder)
-    if folder.exists():
-        raise FileExistsError(f"out: {folder} exists; choose a new folder")
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
+    with atomic_folder(Path(folder)) as tmp:
         (tmp / "table.md").write_text(
             "\n".join(
                 markdown_table(rows, scenario, paper=scenario.startswith("paper"))
@@ -340,11 +333,6 @@ def write_result_folder(
         (tmp / "config.json").write_text(json.dumps(config, indent=2, default=_jsonable))
         if extra is not None:
             extra(tmp)
-        os.chmod(tmp, 0o755)  # mkdtemp makes it private; a result folder is an ordinary one
-        os.replace(tmp, folder)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return folder
 
 

@@ -65,6 +65,8 @@ def run_filter(
     config: _core.FilterConfig | None = None,
     strategy: _core.Strategy,
     bias0: ArrayLike | None = None,
+    q_time: ArrayLike | None = None,
+    q: ArrayLike | None = None,
 ) -> FilterResult:
     """Run the INS/DVL error-state EKF over sensor arrays.
 
@@ -81,6 +83,13 @@ def run_filter(
         config: filter tuning (defaults: ``FilterConfig()``).
         strategy: process-noise strategy, e.g. ``Strategy.constant(q)``.
         bias0: initial ``[b_a (m/s²), b_g (rad/s)]`` estimate (default zeros).
+        q_time, q: a schedule of per-sample IMU variances for an external strategy,
+            ``(k,)`` times [s] strictly increasing and ``(k, 6)`` variances
+            [(m/s²)², (rad/s)²]; row j is in force from the IMU epoch nearest
+            ``q_time[j]`` on (``Strategy.external(prior_q)`` holds before the first).
+            This is the ProNet loop on recorded data: the windows a regressor reads are
+            raw IMU samples, known before the filter runs (see
+            :func:`pronet.hybrid.q_schedule`).
     """
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
@@ -97,5 +106,7 @@ def run_filter(
         config=config,
         strategy=strategy,
         bias0=None if bias0 is None else float_array(bias0, "bias0", (6,)),
+        q_time=None if q_time is None else float_array(q_time, "q_time", (None,)),
+        q=None if q is None else float_array(q, "q", (None, 6)),
     )
     return FilterResult(**out)

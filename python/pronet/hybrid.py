@@ -194,3 +194,87 @@ class ConstantRegressor:
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         w = np.asarray(windows)
         return np.broadcast_to(self.q, (*w.shape[:-2], 6)).copy()
+
+
+@dataclass(frozen=True)
+class QSchedule:
+    """A regressor's q over a recorded IMU stream (the hybrid loop on recorded data).
+
+    Attributes:
+        time: ``(k,)`` tuning instants [s]: the time of the newest sample of each window.
+        q: ``(k, 6)`` guarded per-sample variances, in force from ``time`` on.
+        clipped, non_finite: guardrail events over the whole stream.
+        model_seconds: wall time in ``regressor.predict``.
+    """
+
+    time: NDArray[np.float64]
+    q: NDArray[np.float64]
+    clipped: int
+    non_finite: int
+    model_seconds: float
+
+
+def q_schedule(
+    regressor: Regressor,
+    imu: ArrayLike,
+    imu_time: ArrayLike,
+    *,
+    prior_q: ArrayLike,
+    window: int = DEFAULT_WINDOW,
+    tuning_period: float = DEFAULT_TUNING_PERIOD,
+    guardrails: Guardrails | None = None,
+) -> QSchedule:
+    """Run ``regressor`` over a recorded IMU stream at the hybrid loop's tuning instants.
+
+    The windows the loop reads are raw IMU samples, which do not depend on the filter,
+    so on recorded data the whole schedule is computed first, in one batched call, and
+    handed to :func:`pronet.run_filter` (``q_time``, ``q``). Instants are every
+    ``round(tuning_period / Δt)`` samples once ``window`` samples exist, exactly as
+    :class:`pronet.Ensemble` places them (Δt: the median sample step).
+
+    Args:
+        regressor: anything with ``predict(windows (k, 6, window)) -> (k, 6)``.
+        imu: ``(n, 6)`` the samples the filter will run on, ``[f (m/s²), ω (rad/s)]``.
+        imu_time: ``(n,)`` their times [s].
+        prior_q: 6 variances standing in for a non-finite first prediction.
+        window, tuning_period, guardrails: as for :func:`run_hybrid`.
+    """
+    if not callable(getattr(regressor, "predict", None)):
+        raise ValueError(
+            f"regressor: needs a predict(windows) method, got {type(regressor).__name__}"
+        )
+    samples = float_array(imu, "imu", (None, 6))
+    times = float_array(imu_time, "imu_time", (len(samples),))
+    prior = float_array(prior_q, "prior_q", (6,))
+    window = count(window, "window")
+    period = scalar(tuning_period, "tuning_period")
+    guardrails = guardrails or Guardrails()
+    if window < 1:
+        raise ValueError(f"window: must be >= 1, got {window}")
+    if len(times) < 2 or not period > 0:
+        raise ValueError("tuning_period: must be > 0 s, with at least two IMU samples")
+    every = max(1, round(period / float(np.median(np.diff(times)))))
+    first = -(-window // every) * every
+    ends = np.arange(first, len(samples), every)  # samples before the instant
+    if ends.size == 0:
+        empty = np.zeros((0, 6))
+        return QSchedule(np.zeros(0), empty, 0, 0, 0.0)
+    strided = np.lib.stride_tricks.sliding_window_view(samples.astype(np.float32), window, 0)
+    windows = np.ascontiguousarray(strided[ends - window])  # (k, 6, window), oldest first
+    t0 = time.perf_counter()
+    q = np.asarray(regressor.predict(windows), dtype=np.float64)
+    seconds = time.perf_counter() - t0
+    if q.shape != (ends.size, 6):
+        raise ValueError(
+            f"regressor: predict returned shape {q.shape} for windows {windows.shape}; "
+            f"expected ({ends.size}, 6)"
+        )
+    guarded = np.empty_like(q)
+    prev = prior
+    clipped = non_finite = 0
+    for i in range(len(q)):  # a non-finite prediction keeps the previous instant's q
+        row, bad, clip = apply_guardrails(q[i : i + 1], prev[None, :], guardrails)
+        guarded[i] = prev = row[0]
+        non_finite += int(bad[0])
+        clipped += int(clip[0])
+    return QSchedule(times[ends - 1], guarded, clipped, non_finite, seconds)

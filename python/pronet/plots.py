@@ -186,3 +186,105 @@ def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
             ax.set_title(title, fontsize=9)
             ax.grid(alpha=0.3, axis="x")
     return save_png(fig, path)
+
+
+def section_track(section, runs, path: str | os.PathLike[str]) -> Path:
+    """North-east track of each strategy's estimate against the truth on one recorded
+    section (``section``: :class:`pronet.alignment.Section`; ``runs``: its
+    :class:`pronet.realdata.SectionRun` list), metres from the start."""
+    from pronet import earth_radii
+
+    lla0 = section.truth_lla[0]
+    r_n, r_e = earth_radii(float(lla0[0]))
+
+    def ne(lla):
+        lla = np.asarray(lla)
+        north = (lla[:, 0] - lla0[0]) * (r_n + lla0[2])
+        return (lla[:, 1] - lla0[1]) * (r_e + lla0[2]) * np.cos(lla0[0]), north
+
+    fig = _figure(7.0, 6.0)
+    ax = fig.subplots()
+    east, north = ne(section.truth_lla)
+    ax.plot(east, north, color="black", lw=2.2, label="ground truth")
+    for run in runs:
+        e, n = ne(run.result.lla)
+        ax.plot(e, n, lw=0.9, label=run.label)
+    ax.plot(east[0], north[0], "o", color="tab:green", label="start")
+    ax.set(xlabel="east [m]", ylabel="north [m]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.suptitle(f"{section.name}: north-east track, estimate against truth")
+    return save_png(fig, path)
+
+
+def section_velocity_error(section, runs, path: str | os.PathLike[str]) -> Path:
+    """Velocity error (north, east, down) against time of each strategy on one
+    recorded section, at the ground-truth rows; the y range follows the first strategy
+    so that a diverging row does not flatten the others."""
+    from pronet.realdata import estimate_at_truth
+
+    fig = _figure(11.0, 7.0)
+    axes = fig.subplots(3, 1, sharex=True)
+    span = 0.0
+    for k, run in enumerate(runs):
+        rows, _, vel = estimate_at_truth(section, run.result)
+        dv = vel - section.truth_vel[rows]
+        if k == 0:
+            span = 3 * float(np.nanmax(np.abs(dv))) or 1.0
+        for axis, ax in enumerate(axes):
+            ax.plot(section.truth_time[rows], dv[:, axis], lw=0.8, label=run.label)
+    for ax, name in zip(axes, ("north", "east", "down"), strict=True):
+        ax.set_ylim(-span, span)
+        ax.set_ylabel(f"δv {name} [m/s]")
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("time [s, IMU clock]")
+    axes[0].legend(fontsize=7, ncol=2)
+    fig.suptitle(f"{section.name}: velocity error against the ground truth")
+    return save_png(fig, path)
+
+
+def section_q(
+    section,
+    runs,
+    constant_q: Mapping[str, ArrayLike],
+    imu_dt: float,
+    path: str | os.PathLike[str],
+) -> Path:
+    """The process noise each strategy used on one recorded section, as the mean
+    per-sample variance of the accelerometer and of the gyro channels, log scale.
+    ``constant_q``: label → 6 variances of the constant rows (drawn flat). Mehra's
+    discrete Q_d is shown as the q that would give the same velocity and attitude
+    blocks (``trace/(3 Δt_imu Δt)``)."""
+    fig = _figure(11.0, 5.5)
+    axes = fig.subplots(2, 1, sharex=True)
+    for run in runs:
+        r = run.result
+        if run.label in constant_q:
+            q = np.asarray(constant_q[run.label], float)
+            t = r.time[[0, -1]]
+            acc, gyro = np.full(2, q[:3].mean()), np.full(2, q[3:].mean())
+        elif run.schedule is not None and len(run.schedule.time):
+            t = run.schedule.time
+            q = run.schedule.q
+            acc, gyro = q[:, :3].mean(axis=1), q[:, 3:].mean(axis=1)
+        elif np.isfinite(r.adaptive_q).any():
+            applied = r.dvl_epoch >= 0
+            t = r.time[r.dvl_epoch[applied]]
+            qd = r.adaptive_q[applied]
+            dt = float(np.median(np.diff(r.time)))
+            scale = 3 * imu_dt * dt
+            acc = np.trace(qd[:, 3:6, 3:6], axis1=1, axis2=2) / scale
+            gyro = np.trace(qd[:, 6:9, 6:9], axis1=1, axis2=2) / scale
+        else:
+            continue
+        axes[0].step(t, acc, where="post", lw=0.9, label=run.label)
+        axes[1].step(t, gyro, where="post", lw=0.9, label=run.label)
+    for ax, unit in zip(axes, ("accelerometer q [(m/s²)²]", "gyro q [(rad/s)²]"), strict=True):
+        ax.set_yscale("log")
+        ax.set_ylabel(unit)
+        ax.grid(alpha=0.3, which="both")
+    axes[-1].set_xlabel("time [s, IMU clock]")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{section.name}: process noise per strategy (mean over 3 channels)")
+    return save_png(fig, path)

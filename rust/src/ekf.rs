@@ -397,6 +397,11 @@ pub struct RecordedData<'a> {
     pub dvl_time: &'a [f64],
     /// Time of the initial state [s].
     pub t0: f64,
+    /// Start times [s] of a per-sample IMU variance schedule for an external strategy
+    /// (the ProNet loop on recorded data); empty for none. Strictly increasing.
+    pub q_time: &'a [f64],
+    /// The schedule's IMU variances, one row per `q_time` [(m/s²)², (rad/s)²].
+    pub q_values: &'a [[f64; 6]],
 }
 
 impl RecordedData<'_> {
@@ -435,6 +440,25 @@ impl RecordedData<'_> {
         check::finite("t0", &[self.t0])?;
         check::increasing("imu_time", self.imu_time)?;
         check::increasing("dvl_time", self.dvl_time)?;
+        if self.q_time.len() != self.q_values.len() {
+            return Err(Error::invalid(
+                "q_time",
+                format!(
+                    "has {} rows but q has {}",
+                    self.q_time.len(),
+                    self.q_values.len()
+                ),
+            ));
+        }
+        check::increasing("q_time", self.q_time)?;
+        for (i, row) in self.q_values.iter().enumerate() {
+            check::non_negative("q", row).map_err(|_| {
+                Error::invalid(
+                    "q",
+                    format!("row {i} must be finite and >= 0 (variances), got {row:?}"),
+                )
+            })?;
+        }
         if self.imu_time[0] <= self.t0 {
             return Err(Error::invalid(
                 "imu_time",
@@ -451,6 +475,8 @@ impl RecordedData<'_> {
 /// Run the filter over recorded arrays from an initial state. A DVL row is applied after
 /// the IMU step that reaches the epoch nearest to its time (first epoch with
 /// `t ≥ t_dvl − Δt/2`); rows outside the run are skipped and reported as `None`.
+/// A q schedule row takes effect from the epoch nearest to its time on (it is set
+/// before the step that starts there), so it needs a strategy that takes q from outside.
 pub fn filter_recorded(
     data: &RecordedData<'_>,
     initial: NavState,
@@ -459,6 +485,12 @@ pub fn filter_recorded(
     strategy: &mut dyn NoiseStrategy,
 ) -> Result<FilterOutput> {
     data.validate()?;
+    if !data.q_time.is_empty() && !strategy.takes_outside_q() {
+        return Err(Error::invalid(
+            "strategy",
+            "a q schedule needs an external strategy (Strategy.external)",
+        ));
+    }
     check::finite("initial state", initial.lla.as_slice())?;
     check::finite("initial state", initial.vel.as_slice())?;
     check::finite("initial bias", &initial_bias)?;
@@ -490,11 +522,20 @@ pub fn filter_recorded(
     let mut next_dvl = 0;
     let mut t_prev = data.t0;
     let mut steps_since_update = 0;
+    let mut next_q = 0;
+    let mut q_in_force: Option<[f64; 6]> = None;
     for (k, (sample, &t)) in data.imu.iter().zip(data.imu_time).enumerate() {
         let dt = t - t_prev;
         // DVL rows that fell before the first epoch cannot be used.
         while next_dvl < data.dvl.len() && data.dvl_time[next_dvl] < data.t0 - 0.5 * dt {
             next_dvl += 1;
+        }
+        while next_q < data.q_time.len() && data.q_time[next_q] <= t_prev + 0.5 * dt {
+            q_in_force = Some(data.q_values[next_q]);
+            next_q += 1;
+        }
+        if let Some(q) = q_in_force.take() {
+            strategy.set_imu_variance(&q)?;
         }
         ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise());
         steps_since_update += 1;
@@ -636,6 +677,8 @@ mod tests {
                 dvl: &[],
                 dvl_time: &[],
                 t0,
+                q_time: &[],
+                q_values: &[],
             }
             .validate()
         };
@@ -654,10 +697,67 @@ mod tests {
             dvl: &[],
             dvl_time: &[],
             t0: 0.0,
+            q_time: &[],
+            q_values: &[],
         }
         .validate()
         .unwrap_err();
         assert!(err.to_string().starts_with("imu_time"), "{err}");
+    }
+
+    /// A q schedule switches an external strategy's q at the epoch nearest each row's
+    /// time, and nothing else: before the switch the run equals the prior's constant
+    /// run bit for bit, from it on the new q's constant run's covariance growth.
+    #[test]
+    fn q_schedule_sets_external_q_from_its_epoch_on() {
+        let n = 300;
+        let imu = vec![[0.01, 0.0, -9.79, 0.0, 1e-4, 0.0]; n];
+        let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
+        let dvl = vec![[0.0; 3]; 3];
+        let dvl_time = [0.995, 2.0, 3.004];
+        let cfg = FilterConfig::default();
+        let init = moving_state();
+        let (qa, qb) = ([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6], [4e-4; 6]);
+        let run = |spec: StrategySpec, q_time: &[f64], q_values: &[[f64; 6]]| {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl: &dvl,
+                dvl_time: &dvl_time,
+                t0: 0.0,
+                q_time,
+                q_values,
+            };
+            filter_recorded(
+                &data,
+                init,
+                [0.0; 6],
+                &cfg,
+                spec.build(cfg.bias_psd()).as_mut(),
+            )
+        };
+        let constant_a = run(StrategySpec::Constant { q: qa }, &[], &[]).unwrap();
+        let external = |q_time: &[f64], q_values: &[[f64; 6]]| {
+            run(StrategySpec::External { prior_q: qa }, q_time, q_values).unwrap()
+        };
+        // Setting the prior's own q at t0 changes nothing.
+        assert_eq!(external(&[0.0], &[qa]).sigma, constant_a.sigma);
+        // Switching at 1.504 s (nearest epoch 1.50): the first 150 steps are the prior's.
+        let switched = external(&[1.504], &[qb]);
+        assert_eq!(switched.sigma[..=150], constant_a.sigma[..=150]);
+        assert!(switched.sigma[151][3] > constant_a.sigma[151][3]);
+        // A schedule with a strategy that does not take q from outside is refused.
+        let err = run(StrategySpec::Constant { q: qa }, &[0.0], &[qa]).unwrap_err();
+        assert!(err.to_string().starts_with("strategy"), "{err}");
+        let err = run(
+            StrategySpec::External { prior_q: qa },
+            &[1.0, 0.5],
+            &[qa, qb],
+        )
+        .unwrap_err();
+        assert!(err.to_string().starts_with("q_time"), "{err}");
+        let err = run(StrategySpec::External { prior_q: qa }, &[1.0], &[[-1.0; 6]]).unwrap_err();
+        assert!(err.to_string().starts_with("q: row 0"), "{err}");
     }
 
     #[test]

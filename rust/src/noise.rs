@@ -40,6 +40,11 @@ pub trait NoiseStrategy: Send + Sync {
         ))
     }
 
+    /// Whether [`NoiseStrategy::set_imu_variance`] is accepted.
+    fn takes_outside_q(&self) -> bool {
+        false
+    }
+
     /// The IMU variances in force, where the strategy has them as such.
     fn imu_variance(&self) -> Option<[f64; 6]>;
 
@@ -91,6 +96,10 @@ impl NoiseStrategy for ExternalQ {
         check::non_negative("q", q)?;
         self.inner.q = *q;
         Ok(())
+    }
+
+    fn takes_outside_q(&self) -> bool {
+        true
     }
 
     fn imu_variance(&self) -> Option<[f64; 6]> {
@@ -273,8 +282,10 @@ mod tests {
         e.set_imu_variance(&[2e-3; 6]).unwrap();
         assert_eq!(e.imu_variance(), Some([2e-3; 6]));
         assert!(e.set_imu_variance(&[-1.0; 6]).is_err());
+        assert!(e.takes_outside_q());
         let mut c = StrategySpec::Constant { q: [1e-3; 6] }.build([0.0; 6]);
         assert!(c.set_imu_variance(&[2e-3; 6]).is_err());
+        assert!(!c.takes_outside_q());
     }
 
     #[test]

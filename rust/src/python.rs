@@ -604,7 +604,7 @@ impl PySensorConfig {
 // ---------------------------------------------------------------- filter pass
 
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None))]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -619,8 +619,20 @@ fn run_filter<'py>(
     config: &PyFilterConfig,
     strategy: &PyStrategy,
     bias0: Option<&Bound<'py, PyAny>>,
+    q_time: Option<&Bound<'py, PyAny>>,
+    q: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let imu = rows::<6>(imu, "imu")?;
+    let (q_time, q_values) = match (q_time, q) {
+        (Some(t), Some(v)) => (column(t, "q_time")?, rows::<6>(v, "q")?),
+        (None, None) => (Vec::new(), Vec::new()),
+        _ => {
+            return Err(invalid(
+                "q_time",
+                "q_time and q go together: give both or neither",
+            ))
+        }
+    };
     let imu_time = column(imu_time, "imu_time")?;
     let dvl = rows::<3>(dvl, "dvl")?;
     let dvl_time = column(dvl_time, "dvl_time")?;
@@ -642,6 +654,8 @@ fn run_filter<'py>(
             dvl: &dvl,
             dvl_time: &dvl_time,
             t0,
+            q_time: &q_time,
+            q_values: &q_values,
         };
         let mut strat = spec.build(cfg.bias_psd());
         filter_recorded(&data, init, bias0, &cfg, strat.as_mut())

@@ -1,0 +1,372 @@
+"""Every strategy on recorded sections: filter runs, metrics against the ground truth,
+tables, plots and the result folder of ``pronet real``.
+
+Each run starts from the ground truth (moved to the IMU) at its first row inside the
+IMU record, with the filter tuning of :func:`real_filter_config`, and the process
+noise of each strategy built around q estimated from the section's own IMU
+(:func:`white_noise_q`). Metrics are taken at the ground-truth rows after the start:
+velocity SRMSE and SMAE, final and maximum horizontal position error, and the final
+error as a percentage of the horizontal distance travelled.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet import _core
+from pronet.alignment import Section
+from pronet.experiment import Learned, StrategyLike, paper_strategies
+from pronet.filter import FilterResult, run_filter
+from pronet.hybrid import QSchedule, q_schedule
+from pronet.models import Regressor
+
+F64 = NDArray[np.float64]
+
+#: Initial 1σ of a run started from the post-processed ground truth: position 0.1 m,
+#: velocity 0.02 m/s, roll and pitch 2e-4 rad (0.01°), yaw 1e-3 rad (0.06°) — the
+#: accuracy class of a post-processed FOG INS solution — then the biases: accelerometer
+#: 5e-4 m/s² (50 µg) and gyro 1e-6 rad/s (0.2°/h), a navigation-grade FOG IMU's
+#: turn-on biases.
+REAL_P0_SIGMA = (0.1,) * 3 + (0.02,) * 3 + (2e-4, 2e-4, 1e-3) + (5e-4,) * 3 + (1e-6,) * 3
+#: Bias random-walk PSDs: accelerometer 1e-9 (m/s²)²/s and gyro 1e-14 (rad/s)²/s, i.e.
+#: 6e-4 m/s² and 2e-6 rad/s (0.4°/h) of drift over a 400 s section: FOG-grade.
+REAL_ACCEL_BIAS_PSD = 1e-9
+REAL_GYRO_BIAS_PSD = 1e-14
+#: DVL velocity variance: (0.02 m/s)², the Workhorse Navigator's specified 1σ.
+REAL_DVL_VARIANCE = 0.02**2
+
+#: Table labels of the real-data rows (q is estimated, not true).
+REAL_LABELS = {
+    "constant (true q)": "constant (estimated q)",
+    "constant (20 x q)": "constant (20 x estimated q)",
+}
+
+
+def real_filter_config(lever_arm: tuple[float, float, float]) -> _core.FilterConfig:
+    """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
+    IMU [m, body FRD]; see :data:`REAL_P0_SIGMA` and the PSD constants for sources."""
+    return _core.FilterConfig(
+        p0_sigma=REAL_P0_SIGMA,
+        accel_bias_psd=REAL_ACCEL_BIAS_PSD,
+        gyro_bias_psd=REAL_GYRO_BIAS_PSD,
+        dvl_variance=(REAL_DVL_VARIANCE,) * 3,
+        lever_arm=lever_arm,
+    )
+
+
+def white_noise_q(imu: F64) -> tuple[float, ...]:
+    """Per-sample white-noise variance of each IMU channel, ``var(first differences)/2``
+    [(m/s²)², (rad/s)²]: differencing removes the slowly varying motion and bias, and
+    doubles the white noise's variance. On a moving vehicle it includes vibration."""
+    return tuple(float(v) for v in np.var(np.diff(imu, axis=0), axis=0) / 2)
+
+
+def real_strategies(
+    q: tuple[float, ...], models: Mapping[str, Regressor], tuning_period: float
+) -> dict[str, StrategyLike]:
+    """The paper's seven rows around the estimated ``q`` (relabelled for real data)."""
+    rows = paper_strategies(q, dict(models), tuning_period)
+    return {REAL_LABELS.get(label, label): s for label, s in rows.items()}
+
+
+@dataclass(frozen=True)
+class SectionMetrics:
+    """Errors of one run against the ground truth at its rows after the start.
+
+    Attributes:
+        srmse, smae: velocity √(mean Σ δv²) and mean Σ|δv| [m/s].
+        final_horizontal, max_horizontal: horizontal position error [m].
+        distance: horizontal distance travelled by the truth [m].
+        final_percent: ``final_horizontal`` as % of ``distance``.
+        mean_nis: mean NIS of the DVL updates (3 when consistent).
+        n_scored: ground-truth rows scored.
+    """
+
+    srmse: float
+    smae: float
+    final_horizontal: float
+    max_horizontal: float
+    distance: float
+    final_percent: float
+    mean_nis: float
+    n_scored: int
+
+
+@dataclass(frozen=True)
+class SectionRun:
+    """One strategy on one section: the filter output, its metrics and its q.
+
+    ``setup`` names how the section was prepared (``"aligned"``: clocks estimated and
+    lever arms applied; or the comparison without them); ``schedule`` is the learned
+    rows' q; ``seconds`` the wall time of the run (inference included)."""
+
+    setup: str
+    section: str
+    label: str
+    result: FilterResult
+    metrics: SectionMetrics
+    schedule: QSchedule | None
+    seconds: float
+
+
+def start_index(section: Section) -> int:
+    """The ground-truth row a run starts from: the first at or after the first IMU
+    sample's time."""
+    inside = np.flatnonzero(section.truth_time >= section.imu_time[0])
+    if inside.size < 2:
+        raise ValueError(f"section {section.name}: the ground truth does not overlap the IMU")
+    return int(inside[0])
+
+
+def run_section(
+    section: Section,
+    strategy: StrategyLike,
+    config: _core.FilterConfig,
+    *,
+    label: str = "",
+    setup: str = "aligned",
+    duration: float | None = None,
+    use_dvl: bool = True,
+) -> SectionRun:
+    """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
+    for ``duration`` seconds (default: to the end), with or without the DVL."""
+    i0 = start_index(section)
+    t0 = float(section.truth_time[i0])
+    take = section.imu_time > t0
+    if duration is not None:
+        take &= section.imu_time <= t0 + duration
+    imu, imu_time = section.imu[take], section.imu_time[take]
+    dvl_take = np.full(len(section.dvl), use_dvl)
+    schedule = None
+    q_args: dict[str, F64] = {}
+    start = time.perf_counter()
+    if isinstance(strategy, Learned):
+        schedule = q_schedule(
+            strategy.regressor,
+            imu,
+            imu_time,
+            prior_q=strategy.prior_q,
+            tuning_period=strategy.tuning_period,
+        )
+        core_strategy = _core.Strategy.external(strategy.prior_q)
+        if len(schedule.time):
+            q_args = {"q_time": schedule.time, "q": schedule.q}
+    else:
+        core_strategy = strategy
+    result = run_filter(
+        imu,
+        imu_time,
+        section.dvl[dvl_take],
+        section.dvl_time[dvl_take],
+        t0=t0,
+        lla0=section.truth_lla[i0],
+        vel0=section.truth_vel[i0],
+        rpy0=section.truth_rpy[i0],
+        config=config,
+        strategy=core_strategy,
+        **q_args,
+    )
+    seconds = time.perf_counter() - start
+    return SectionRun(
+        setup, section.name, label, result, section_metrics(section, result), schedule, seconds
+    )
+
+
+def _horizontal_offsets(lla: F64, ref: F64) -> tuple[F64, F64]:
+    """North and east of ``lla`` from ``ref`` [m], row by row (radii at ``ref``)."""
+    radii = np.array([_core.earth_radii(float(lat)) for lat in ref[:, 0]])
+    north = (lla[:, 0] - ref[:, 0]) * (radii[:, 0] + ref[:, 2])
+    east = (lla[:, 1] - ref[:, 1]) * (radii[:, 1] + ref[:, 2]) * np.cos(ref[:, 0])
+    return north, east
+
+
+def estimate_at_truth(section: Section, result: FilterResult) -> tuple[F64, F64, F64]:
+    """``(rows, lla, vel)``: the truth rows inside the run and the estimate there,
+    linearly interpolated between IMU epochs."""
+    rows = np.flatnonzero(
+        (section.truth_time > result.time[0]) & (section.truth_time <= result.time[-1])
+    )
+    t = section.truth_time[rows]
+
+    def at(values: F64) -> F64:
+        return np.stack([np.interp(t, result.time, values[:, j]) for j in range(3)], axis=1)
+
+    return rows, at(result.lla), at(result.vel)
+
+
+def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
+    """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`)."""
+    rows, lla, vel = estimate_at_truth(section, result)
+    if rows.size == 0:
+        raise ValueError(f"section {section.name}: no ground-truth row inside the run")
+    dv = vel - section.truth_vel[rows]
+    north, east = _horizontal_offsets(lla, section.truth_lla[rows])
+    horizontal = np.hypot(north, east)
+    truth = section.truth_lla[np.concatenate([[rows[0] - 1], rows])]
+    step_n, step_e = _horizontal_offsets(truth[1:], truth[:-1])
+    distance = float(np.sum(np.hypot(step_n, step_e)))
+    nis = result.nis[np.isfinite(result.nis)]
+    return SectionMetrics(
+        srmse=float(np.sqrt(np.mean(np.sum(dv**2, axis=1)))),
+        smae=float(np.mean(np.sum(np.abs(dv), axis=1))),
+        final_horizontal=float(horizontal[-1]),
+        max_horizontal=float(horizontal.max()),
+        distance=distance,
+        final_percent=100 * float(horizontal[-1]) / distance if distance > 0 else math.nan,
+        mean_nis=float(nis.mean()) if nis.size else math.nan,
+        n_scored=int(rows.size),
+    )
+
+
+#: Seconds of the pure-inertial sanity run.
+INERTIAL_SECONDS = 60.0
+
+
+def evaluate_section(
+    section: Section,
+    strategies: Mapping[str, StrategyLike],
+    config: _core.FilterConfig,
+    *,
+    setup: str = "aligned",
+    on_done: Callable[[str], None] | None = None,
+) -> tuple[list[SectionRun], SectionRun]:
+    """Every strategy on ``section``, plus the pure-inertial run over the first
+    :data:`INERTIAL_SECONDS` with the first strategy's noise."""
+    runs = []
+    for label, strategy in strategies.items():
+        runs.append(run_section(section, strategy, config, label=label, setup=setup))
+        if on_done is not None:
+            on_done(label)
+    first = next(iter(strategies.values()))
+    inertial = run_section(
+        section,
+        first,
+        config,
+        label=f"inertial only, first {INERTIAL_SECONDS:g} s",
+        setup=setup,
+        duration=INERTIAL_SECONDS,
+        use_dvl=False,
+    )
+    return runs, inertial
+
+
+# ------------------------------------------------------------------------ report
+
+METRIC_COLUMNS = (
+    ("srmse", "SRMSE [m/s]", "{:.4f}"),
+    ("smae", "SMAE [m/s]", "{:.4f}"),
+    ("final_horizontal", "final horiz. error [m]", "{:.2f}"),
+    ("max_horizontal", "max horiz. error [m]", "{:.2f}"),
+    ("final_percent", "final error [% of distance]", "{:.2f}"),
+    ("mean_nis", "mean NIS", "{:.2f}"),
+)
+
+
+def summary_table(runs: list[SectionRun], title: str) -> str:
+    """Markdown: one row per strategy, each metric's mean over the sections."""
+    labels = list(dict.fromkeys(r.label for r in runs))
+    n = len({r.section for r in runs})
+    out = io.StringIO()
+    out.write(f"### {title}: mean over {n} sections\n\n| strategy |")
+    out.write("".join(f" {head} |" for _, head, _ in METRIC_COLUMNS) + "\n")
+    out.write("|---" * (len(METRIC_COLUMNS) + 1) + "|\n")
+    for label in labels:
+        mine = [r.metrics for r in runs if r.label == label]
+        cells = [
+            fmt.format(float(np.mean([getattr(m, key) for m in mine])))
+            for key, _, fmt in METRIC_COLUMNS
+        ]
+        out.write(f"| {label} | " + " | ".join(cells) + " |\n")
+    return out.getvalue()
+
+
+def per_section_table(runs: list[SectionRun], key: str, title: str) -> str:
+    """Markdown: sections as rows, strategies as columns, one metric."""
+    labels = list(dict.fromkeys(r.label for r in runs))
+    sections = list(dict.fromkeys(r.section for r in runs))
+    head, fmt = next((h, f) for k, h, f in METRIC_COLUMNS if k == key)
+    value = {(r.section, r.label): getattr(r.metrics, key) for r in runs}
+    out = io.StringIO()
+    out.write(f"### {title}: {head}\n\n| section |" + "".join(f" {lb} |" for lb in labels))
+    out.write("\n" + "|---" * (len(labels) + 1) + "|\n")
+    for s in sections:
+        out.write(f"| {s} |" + "".join(f" {fmt.format(value[s, lb])} |" for lb in labels) + "\n")
+    means = [fmt.format(np.mean([value[s, lb] for s in sections])) for lb in labels]
+    out.write("| **mean** |" + "".join(f" **{m}** |" for m in means) + "\n")
+    return out.getvalue()
+
+
+def write_metrics(folder: Path, runs: list[SectionRun]) -> None:
+    """``metrics.csv`` (one row per setup × section × strategy) and ``metrics.json``."""
+    with open(folder / "metrics.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        keys = list(asdict(runs[0].metrics))
+        w.writerow(["setup", "section", "strategy", *keys, "guardrail_clipped", "seconds"])
+        for r in runs:
+            m = asdict(r.metrics)
+            clipped = r.schedule.clipped if r.schedule is not None else ""
+            w.writerow([r.setup, r.section, r.label, *[m[k] for k in keys], clipped, r.seconds])
+    nested: dict[str, dict[str, dict[str, object]]] = {}
+    for r in runs:
+        nested.setdefault(r.setup, {}).setdefault(r.section, {})[r.label] = asdict(r.metrics)
+    (folder / "metrics.json").write_text(json.dumps(nested, indent=2, allow_nan=True))
+
+
+# ------------------------------------------------------------------------ sections
+
+#: Recorded-data layouts ``pronet real`` reads.
+FORMATS = ("snapir", "generic")
+
+
+def find_sections(data: str | Path) -> list[Path]:
+    """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
+    ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
+    from pronet.datasets import RecordingError
+
+    data = Path(data)
+    if not data.is_dir():
+        raise RecordingError(
+            f"{data}: not a folder" + ("" if data.exists() else " (it does not exist)")
+        )
+
+    def is_section(p: Path) -> bool:
+        return p.is_dir() and any((p / n).is_file() for n in ("imu.csv", "imu.csv.gz"))
+
+    if is_section(data):
+        return [data]
+    found = sorted(p for p in data.iterdir() if is_section(p) or p.suffix == ".npz")
+    if not found:
+        raise RecordingError(f"{data}: no sections (folders with imu/dvl/gt CSVs, or .npz files)")
+    return found
+
+
+def load_section(
+    path: Path,
+    fmt: str,
+    *,
+    imu_lever_arm: tuple[float, float, float],
+    dvl_lever_arm: tuple[float, float, float],
+    handle_alignment: bool = True,
+) -> tuple[Section, Section]:
+    """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
+    lever arms applied, and the stamps as given with no lever arms (the comparison)."""
+    from pronet.alignment import Alignment, align, estimate_alignment
+    from pronet.datasets import read_recording, read_snapir
+
+    if fmt not in FORMATS:
+        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
+    stamped = align(rec, Alignment(how="none"))
+    if not handle_alignment:
+        return stamped, stamped
+    return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
