@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -40,7 +41,12 @@ from pronet.datasets import (
 from pronet.experiment import Learned
 from pronet.hybrid import ConstantRegressor, q_schedule
 
-SNAPIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir"
+#: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
+SNAPIR = Path(
+    os.environ.get(
+        "PRONET_SNAPIR_DIR", Path(__file__).resolve().parents[2] / "shared" / "data" / "snapir"
+    )
+)
 REPO = Path(__file__).resolve().parents[1]
 
 
