@@ -342,6 +342,38 @@ def _real(args: argparse.Namespace) -> int:
     return 0
 
 
+def _baselines(args: argparse.Namespace) -> int:
+    from pronet import baselines, realdata
+
+    path, readme = Path(args.file), Path(args.readme)
+    start = time.perf_counter()
+    rows = baselines.simulated_rows()
+    data = Path(args.data)
+    if data.is_dir():
+        loaded = [
+            realdata.load_section(
+                p,
+                "snapir",
+                imu_lever_arm=SNAPIR_IMU_LEVER_ARM,
+                dvl_lever_arm=SNAPIR_DVL_LEVER_ARM,
+            )
+            for p in realdata.find_sections(data)
+        ]
+        rows.update(baselines.real_rows(loaded))
+    else:
+        print(f"no recorded data at {data}: simulated rows only")
+    if args.bless:
+        baselines.save(path, rows)
+        readme.write_text(baselines.readme_with_tables(readme.read_text(), rows))
+        print(f"{path} and the tables in {readme} rewritten from {len(rows)} scenarios")
+        return 0
+    problems = baselines.compare(baselines.load(path), rows)
+    for p in problems:
+        print(p)
+    print(f"{len(problems)} departures from {path} ({time.perf_counter() - start:.0f} s)")
+    return 1 if problems else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pronet", description="INS/DVL navigation with learned, adaptive process noise."
@@ -442,6 +474,17 @@ def build_parser() -> argparse.ArgumentParser:
     real.add_argument("--out", default=None, help="result folder (default results/real-<time>)")
     real.add_argument("--quiet", action="store_true", help="no progress bars")
     real.set_defaults(func=_real)
+    base = sub.add_parser(
+        "baselines",
+        help="check the accuracy baselines, or rewrite them and the README tables (--bless)",
+    )
+    base.add_argument("--bless", action="store_true", help="rewrite the file and README tables")
+    base.add_argument("--file", default="tests/accuracy_baselines.json", help="baselines JSON")
+    base.add_argument("--readme", default="README.md", help="README whose tables to regenerate")
+    base.add_argument(
+        "--data", default="../shared/data/snapir", help="Snapir data folder (used if present)"
+    )
+    base.set_defaults(func=_baselines)
     return parser
 
 

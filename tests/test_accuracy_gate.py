@@ -1,0 +1,77 @@
+"""The accuracy gate: fresh runs against the pinned baselines, in both directions, and
+the README tables generated from the same file."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+from test_realdata import SNAPIR
+
+from pronet import baselines, realdata
+from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+
+ROOT = Path(__file__).resolve().parents[1]
+FILE = ROOT / "tests" / "accuracy_baselines.json"
+
+
+@pytest.fixture(scope="module")
+def fresh() -> baselines.Rows:
+    rows = baselines.simulated_rows()
+    if SNAPIR.is_dir():
+        loaded = [
+            realdata.load_section(
+                p, "snapir", imu_lever_arm=SNAPIR_IMU_LEVER_ARM, dvl_lever_arm=SNAPIR_DVL_LEVER_ARM
+            )
+            for p in realdata.find_sections(SNAPIR)
+        ]
+        rows.update(baselines.real_rows(loaded))
+    return rows
+
+
+def test_fresh_runs_match_the_recorded_baselines(fresh):
+    recorded = baselines.load(FILE)
+    assert {"paper, 8 runs", "varying-noise, 8 runs"} <= set(recorded)
+    assert len(recorded["paper, 8 runs"]) == 7
+    assert baselines.compare(recorded, fresh) == []
+
+
+def test_readme_tables_are_generated_from_the_file():
+    readme = (ROOT / "README.md").read_text()
+    assert baselines.readme_with_tables(readme, baselines.load(FILE)) == readme
+
+
+def test_the_gate_fails_both_ways(fresh):
+    recorded = baselines.load(FILE)
+    row = ("paper, 8 runs", "constant (true q)")
+
+    def with_recorded(key: str, factor: float) -> list[str]:
+        changed = copy.deepcopy(recorded)
+        changed[row[0]][row[1]][key] *= factor
+        return baselines.compare(changed, fresh)
+
+    # Recorded better than now: the fresh run is a regression.
+    (problem,) = with_recorded("srmse", 0.999)
+    assert "srmse worse" in problem and "constant (true q)" in problem
+    # Recorded worse than now: an improvement nobody recorded.
+    (problem,) = with_recorded("max_horizontal", 1.01)
+    assert "improved beyond" in problem
+    # Inside the tolerances nothing is reported.
+    assert with_recorded("srmse", 1 - 1e-7) == []
+    assert with_recorded("smae", 1 + 1e-4) == []
+    # NIS is judged by its distance from 3, the consistent value.
+    nis = recorded[row[0]][row[1]]["mean_nis"]
+    (problem,) = with_recorded("mean_nis", (3 + (3 - nis) * 0.5) / nis)
+    assert "mean_nis worse" in problem
+    # Counts match exactly; a row that is computed but not recorded fails.
+    changed = copy.deepcopy(recorded)
+    changed[row[0]][row[1]]["n_scored"] += 1
+    assert any("n_scored" in p for p in baselines.compare(changed, fresh))
+    del changed[row[0]][row[1]]
+    assert any("not recorded" in p for p in baselines.compare(changed, fresh))
+
+
+def test_baseline_file_is_checked():
+    with pytest.raises(ValueError, match="not a pronet accuracy-baselines file"):
+        baselines.load(ROOT / "python" / "pronet" / "weights" / "detrend.json")
