@@ -27,6 +27,16 @@ def _info(_args: argparse.Namespace) -> int:
     return 0
 
 
+def _new_result_folder(out: str | None, command: str) -> Path | None:
+    """``--out``, or ``results/<command>-<time>``; None (after saying why) if it exists."""
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    folder = Path(out) if out else Path("results") / f"{command}-{stamp}"
+    if folder.exists():
+        print(f"pronet {command}: {folder} exists; choose another --out", file=sys.stderr)
+        return None
+    return folder
+
+
 def _reproduce(args: argparse.Namespace) -> int:
     import tempfile
 
@@ -42,13 +52,8 @@ def _reproduce(args: argparse.Namespace) -> int:
     if not args.tuning_period > 0:
         print("pronet reproduce: --tuning-period must be > 0 s", file=sys.stderr)
         return 2
-    out = (
-        Path(args.out)
-        if args.out
-        else Path("results") / ("reproduce-" + _dt.datetime.now().strftime("%Y%m%d-%H%M%S"))
-    )
-    if out.exists():
-        print(f"pronet reproduce: {out} exists; choose another --out", file=sys.stderr)
+    out = _new_result_folder(args.out, "reproduce")
+    if out is None:
         return 2
     start = time.perf_counter()
     ds = None
@@ -221,13 +226,8 @@ def _real(args: argparse.Namespace) -> int:
 
     from pronet import models, plots, realdata
 
-    out = (
-        Path(args.out)
-        if args.out
-        else Path("results") / ("real-" + _dt.datetime.now().strftime("%Y%m%d-%H%M%S"))
-    )
-    if out.exists():
-        print(f"pronet real: {out} exists; choose another --out", file=sys.stderr)
+    out = _new_result_folder(args.out, "real")
+    if out is None:
         return 2
     if not args.tuning_period > 0:
         print("pronet real: --tuning-period must be > 0 s", file=sys.stderr)
