@@ -83,6 +83,9 @@ impl Truth {
 /// Longest trajectory accepted (samples): 10 hours at 100 Hz, with room.
 const MAX_SAMPLES: usize = 20_000_000;
 
+/// Largest speed a trajectory may reach [m/s].
+pub const MAX_SPEED: f64 = 1000.0;
+
 impl TrajectorySpec {
     pub fn validate(&self) -> Result<()> {
         check::finite("lla0", self.lla0.as_slice())?;
@@ -109,6 +112,23 @@ impl TrajectorySpec {
                     format!("row {i}: duration must be > 0, got {}", s.duration),
                 ));
             }
+        }
+        // Beyond this the NED kinematics and the Earth model stop describing a vehicle
+        // (and huge speeds overflow the ideal IMU).
+        let top_speed = self.speed0.abs()
+            + self
+                .segments
+                .iter()
+                .map(|s| (s.accel * s.duration).abs())
+                .sum::<f64>();
+        if top_speed > MAX_SPEED {
+            return Err(Error::invalid(
+                "speed0",
+                format!(
+                    "speed0 and the segments' accelerations can reach {top_speed:e} m/s; \
+                     at most {MAX_SPEED} m/s is supported"
+                ),
+            ));
         }
         let total: f64 = self.segments.iter().map(|s| s.duration).sum();
         if total / self.dt > MAX_SAMPLES as f64 {
