@@ -10,7 +10,6 @@ import pytest
 from test_realdata import SNAPIR
 
 from pronet import baselines, realdata
-from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
 ROOT = Path(__file__).resolve().parents[1]
 FILE = ROOT / "tests" / "accuracy_baselines.json"
@@ -20,12 +19,7 @@ FILE = ROOT / "tests" / "accuracy_baselines.json"
 def fresh() -> baselines.Rows:
     rows = baselines.simulated_rows()
     if SNAPIR.is_dir():
-        loaded = [
-            realdata.load_section(
-                p, "snapir", imu_lever_arm=SNAPIR_IMU_LEVER_ARM, dvl_lever_arm=SNAPIR_DVL_LEVER_ARM
-            )
-            for p in realdata.find_sections(SNAPIR)
-        ]
+        loaded = realdata.load_snapir_sections(SNAPIR)
         rows.update(baselines.real_rows(loaded))
     return rows
 

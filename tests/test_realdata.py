@@ -24,8 +24,6 @@ from synthetic_recording import (
 import pronet
 from pronet import realdata
 from pronet.alignment import (
-    SNAPIR_DVL_LEVER_ARM,
-    SNAPIR_IMU_LEVER_ARM,
     Alignment,
     align,
     estimate_alignment,
@@ -385,16 +383,10 @@ def test_snapir_accuracy_matches_a_standard_ekf():
     """Constant Q on sections 1–11: mean velocity SRMSE ≤ 0.047 m/s and mean final
     horizontal error ≤ 2.5 m (the open-source reference reaches 0.047 m/s and 2.4 m);
     the same runs on the stamps as given, without lever arms, are measurably worse."""
-    paths = realdata.find_sections(SNAPIR)
-    assert len(paths) == 11
+    loaded = realdata.load_snapir_sections(SNAPIR)
+    assert len(loaded) == 11
     handled, stamped = [], []
-    for path in paths:
-        aligned, as_stamped = realdata.load_section(
-            path,
-            "snapir",
-            imu_lever_arm=SNAPIR_IMU_LEVER_ARM,
-            dvl_lever_arm=SNAPIR_DVL_LEVER_ARM,
-        )
+    for aligned, as_stamped in loaded:
         strategy = pronet.Strategy.constant(realdata.white_noise_q(aligned.imu))
         for section, into in ((aligned, handled), (as_stamped, stamped)):
             config = realdata.real_filter_config(section.alignment.filter_lever_arm)

@@ -252,11 +252,11 @@ def _real(args: argparse.Namespace) -> int:
                 dvl_lever_arm=args.dvl_lever_arm,
             )
         )
-    runs, stamped_runs, inertial, constants = [], [], [], {}
+    runs, stamped_runs, inertial, constants, q_estimated = [], [], [], {}, {}
     n_rows = len(realdata.real_strategies((1.0,) * 6, regressors, 1.0))
     bar = tqdm(total=len(loaded) * n_rows, unit="run", disable=args.quiet)
     for aligned, stamped in loaded:
-        q = realdata.white_noise_q(aligned.imu)
+        q = q_estimated[aligned.name] = realdata.white_noise_q(aligned.imu)
         strategies = realdata.real_strategies(q, regressors, args.tuning_period)
         constants[aligned.name] = {
             label: s.q
@@ -318,7 +318,7 @@ def _real(args: argparse.Namespace) -> int:
                 }
                 for a, _ in loaded
             },
-            "q_estimated": {a.name: realdata.white_noise_q(a.imu) for a, _ in loaded},
+            "q_estimated": q_estimated,
             "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
         }
         (folder / "config.json").write_text(json.dumps(config, indent=2))
@@ -350,15 +350,7 @@ def _baselines(args: argparse.Namespace) -> int:
     rows = baselines.simulated_rows()
     data = Path(args.data)
     if data.is_dir():
-        loaded = [
-            realdata.load_section(
-                p,
-                "snapir",
-                imu_lever_arm=SNAPIR_IMU_LEVER_ARM,
-                dvl_lever_arm=SNAPIR_DVL_LEVER_ARM,
-            )
-            for p in realdata.find_sections(data)
-        ]
+        loaded = realdata.load_snapir_sections(data)
         rows.update(baselines.real_rows(loaded))
     else:
         print(f"no recorded data at {data}: simulated rows only")
@@ -372,6 +364,15 @@ def _baselines(args: argparse.Namespace) -> int:
         print(p)
     print(f"{len(problems)} departures from {path} ({time.perf_counter() - start:.0f} s)")
     return 1 if problems else 0
+
+
+def _add_tuning_period(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--tuning-period",
+        type=float,
+        default=1.0,
+        help="seconds between regressor calls in the learned rows (default 1 s)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -396,12 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument(
         "--retrain", action="store_true", help="train all three regressors first (~10 min)"
     )
-    rep.add_argument(
-        "--tuning-period",
-        type=float,
-        default=1.0,
-        help="seconds between regressor calls in the learned rows (default 1 s)",
-    )
+    _add_tuning_period(rep)
     rep.add_argument("--quiet", action="store_true", help="no progress bars")
     rep.set_defaults(func=_reproduce)
     data = sub.add_parser(
@@ -464,12 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=SNAPIR_DVL_LEVER_ARM,
         help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
     )
-    real.add_argument(
-        "--tuning-period",
-        type=float,
-        default=1.0,
-        help="seconds between regressor calls in the learned rows (default 1 s)",
-    )
+    _add_tuning_period(real)
     real.add_argument("--no-models", action="store_true", help="only the model-based rows")
     real.add_argument("--out", default=None, help="result folder (default results/real-<time>)")
     real.add_argument("--quiet", action="store_true", help="no progress bars")

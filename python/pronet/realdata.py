@@ -370,3 +370,16 @@ def load_section(
     if not handle_alignment:
         return stamped, stamped
     return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
+
+
+def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:
+    """Every Snapir section under ``data``, ``(aligned, as_stamped)`` each, with the
+    lever arms from the data's README."""
+    from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+
+    return [
+        load_section(
+            p, "snapir", imu_lever_arm=SNAPIR_IMU_LEVER_ARM, dvl_lever_arm=SNAPIR_DVL_LEVER_ARM
+        )
+        for p in find_sections(data)
+    ]
