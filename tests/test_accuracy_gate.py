@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from test_realdata import SNAPIR
 
-from pronet import baselines, realdata
+from pronet import baselines
 
 ROOT = Path(__file__).resolve().parents[1]
 FILE = ROOT / "tests" / "accuracy_baselines.json"
@@ -17,11 +17,7 @@ FILE = ROOT / "tests" / "accuracy_baselines.json"
 
 @pytest.fixture(scope="module")
 def fresh() -> baselines.Rows:
-    rows = baselines.simulated_rows()
-    if SNAPIR.is_dir():
-        loaded = realdata.load_snapir_sections(SNAPIR)
-        rows.update(baselines.real_rows(loaded))
-    return rows
+    return baselines.fresh_rows(SNAPIR)
 
 
 def test_fresh_runs_match_the_recorded_baselines(fresh):
@@ -64,6 +60,16 @@ def test_the_gate_fails_both_ways(fresh):
     assert any("n_scored" in p for p in baselines.compare(changed, fresh))
     del changed[row[0]][row[1]]
     assert any("not recorded" in p for p in baselines.compare(changed, fresh))
+
+
+def test_blessing_without_the_data_keeps_the_recorded_real_rows():
+    real = {"real: s1": {"a": {"srmse": 1.0}}}
+    recorded = {"paper, 8 runs": {"a": {}}, **real}
+    simulated = {"paper, 8 runs": {"a": {"srmse": 2.0}}}
+    assert baselines.rows_to_bless(recorded, simulated) == {**simulated, **real}
+    # With the data, the fresh real rows replace the recorded ones; a vanished section goes.
+    fresh = {**simulated, "real: s2": {"a": {"srmse": 3.0}}}
+    assert baselines.rows_to_bless(recorded, fresh) == fresh
 
 
 def test_baseline_file_is_checked():

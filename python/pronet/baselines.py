@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,9 @@ GATE_RUNS = 8
 #: inference across machines), and in the better direction before it must be recorded.
 WORSE_TOLERANCE = 1e-5
 BETTER_TOLERANCE = 1e-3
+#: Figures smaller than this [m, m/s or 1] are judged relative to it instead: the at-rest
+#: row drifts by rounding noise (~1e-12), which floating-point reassociation may move.
+ABSOLUTE_FLOOR = 1e-4
 #: Metrics, each with its "badness": how far from ideal a value is.
 METRICS: dict[str, Callable[[float], float]] = {
     "srmse": abs,
@@ -104,20 +107,95 @@ def _mean(values: np.ndarray) -> float:
     return float(v.mean()) if v.size else math.nan
 
 
-def simulated_rows(n_runs: int = GATE_RUNS, seed: int = 0) -> Rows:
-    """Every strategy of both simulated scenarios, with the shipped models."""
+def simulated_rows(
+    n_runs: int = GATE_RUNS,
+    seed: int = 0,
+    *,
+    scenarios: Collection[str] | None = None,
+    strategies: Collection[str] | None = None,
+) -> Rows:
+    """Every strategy of both simulated scenarios, with the shipped models; or only the
+    named ``scenarios`` and strategy labels (a quick partial gate)."""
     from pronet import experiment, models
 
+    unknown = set(scenarios or ()) - set(experiment.SCENARIOS)
+    if unknown:
+        known = list(experiment.SCENARIOS)
+        raise ValueError(f"scenarios: unknown {sorted(unknown)}; known {known}")
     regressors = {k: models.load(k) for k in models.SHIPPED}
     out: Rows = {}
     for name, build in experiment.SCENARIOS.items():
+        if scenarios is not None and name not in scenarios:
+            continue
         sc = build()
-        strategies = experiment.paper_strategies(sc.q_nominal, regressors, 1.0)
+        chosen = experiment.paper_strategies(sc.q_nominal, regressors, 1.0)
+        if strategies is not None:
+            unknown = set(strategies) - set(chosen)
+            if unknown:
+                raise ValueError(f"strategies: unknown {sorted(unknown)}; known {list(chosen)}")
+            chosen = {k: v for k, v in chosen.items() if k in strategies}
         rows = experiment.run_strategies(
-            strategies, sc, n_runs=n_runs, seed=seed, threads=None, record_every=100
+            chosen, sc, n_runs=n_runs, seed=seed, threads=None, record_every=100
         )
         out[f"{name}, {n_runs} runs"] = {row.label: monte_carlo_row(row.result) for row in rows}
     return out
+
+
+#: WGS-84 defining values and the Somigliana normal gravity, stated here independently
+#: of the Rust core (``rust/src/earth.rs``) on purpose: the at-rest row checks the core's
+#: physics against a separate statement of it. In the simulated scenarios the truth is
+#: generated with the core's own constants, so a mistyped constant cancels there.
+_WGS84_A = 6378137.0  # semi-major axis [m]
+_WGS84_F = 1 / 298.257223563  # flattening
+_WGS84_OMEGA = 7.292115e-5  # Earth rotation rate [rad/s]
+_WGS84_GAMMA = (9.7803253359, 9.8321849378)  # normal gravity at equator, pole [m/s²]
+#: The at-rest row: duration [s], IMU period [s], latitude [deg].
+AT_REST = (600.0, 0.01, 32.0)
+
+
+def at_rest_rows() -> Rows:
+    """Free-inertial navigation of a level IMU at rest on the ellipsoid, heading north,
+    from an ideal IMU computed here from :data:`_WGS84_OMEGA` and normal gravity:
+    ``f_b = [0, 0, −γ(φ)]`` m/s², ``ω_b = Ω [cos φ, 0, −sin φ]`` rad/s (body = NED).
+    Errors are the drift from the start point [m] and from zero velocity [m/s]; the
+    NIS/NEES figures do not apply (NaN)."""
+    from pronet.navigation import mechanize
+
+    duration, dt, lat_deg = AT_REST
+    lat = math.radians(lat_deg)
+    s2 = math.sin(lat) ** 2
+    e2 = _WGS84_F * (2 - _WGS84_F)
+    g_e, g_p = _WGS84_GAMMA
+    gamma = g_e * (1 + ((1 - _WGS84_F) * g_p / g_e - 1) * s2) / math.sqrt(1 - e2 * s2)
+    n = round(duration / dt)
+    imu = np.tile(
+        [0.0, 0.0, -gamma, _WGS84_OMEGA * math.cos(lat), 0.0, -_WGS84_OMEGA * math.sin(lat)],
+        (n, 1),
+    )
+    lla0 = np.array([lat, 0.6, 0.0])
+    nav = mechanize(imu, dt, lla0, np.zeros(3), np.zeros(3))
+    r_n = _WGS84_A * (1 - e2) / (1 - e2 * s2) ** 1.5
+    r_e = _WGS84_A / math.sqrt(1 - e2 * s2)
+    horizontal = np.hypot(
+        (nav.lla[1:, 0] - lat) * r_n, (nav.lla[1:, 1] - lla0[1]) * r_e * math.cos(lat)
+    )
+    dv = nav.vel[1:]
+    row: Row = {
+        "srmse": float(np.sqrt(np.mean(np.sum(dv**2, axis=1)))),
+        "smae": float(np.mean(np.sum(np.abs(dv), axis=1))),
+        "final_horizontal": float(horizontal[-1]),
+        "max_horizontal": float(horizontal.max()),
+        "mean_nis": math.nan,
+        "mean_velocity_nees": math.nan,
+        "inside_3sigma": math.nan,
+        "n_scored": n,
+        "n_dropped": int((~np.isfinite(nav.vel)).sum()),
+    }
+    return {f"at rest, {lat_deg:g}° N, {duration:g} s": {"free inertial": row}}
+
+
+#: How the rows of recorded sections are named: ``"real: <section>"``.
+REAL_PREFIX = "real: "
 
 
 def real_rows(loaded: list) -> Rows:
@@ -134,8 +212,30 @@ def real_rows(loaded: list) -> Rows:
         for label, strategy in realdata.real_strategies(q, regressors, 1.0).items():
             run = realdata.run_section(aligned, strategy, config, label=label)
             rows[label] = section_row(aligned, run)
-        out[f"real: {aligned.name}"] = rows
+        out[f"{REAL_PREFIX}{aligned.name}"] = rows
     return out
+
+
+def fresh_rows(recorded_data: str | Path | None = None) -> Rows:
+    """Every row the gate checks: the at-rest row, both simulated scenarios, and the
+    Snapir sections when ``recorded_data`` is a folder holding them."""
+    from pronet import realdata
+
+    rows = at_rest_rows()
+    rows.update(simulated_rows())
+    if recorded_data is not None and Path(recorded_data).is_dir():
+        rows.update(real_rows(realdata.load_snapir_sections(Path(recorded_data))))
+    return rows
+
+
+def rows_to_bless(recorded: Rows, fresh: Rows) -> Rows:
+    """What ``--bless`` writes: the ``fresh`` rows, plus the recorded real-data rows when
+    ``fresh`` has none (a machine without the data must not drop the rows only a machine
+    with it can make)."""
+    if any(k.startswith(REAL_PREFIX) for k in fresh):
+        return dict(fresh)
+    kept = {k: v for k, v in recorded.items() if k.startswith(REAL_PREFIX)}
+    return {**fresh, **kept}
 
 
 def compare(recorded: Rows, fresh: Rows) -> list[str]:
@@ -160,7 +260,7 @@ def compare(recorded: Rows, fresh: Rows) -> list[str]:
                 if math.isnan(a) != math.isnan(b):
                     problems.append(f"{where}: {key} {b} against recorded {a}")
                     continue
-                scale = max(abs(a), 1e-12)
+                scale = max(abs(a), ABSOLUTE_FLOOR)
                 change = (badness(b) - badness(a)) / scale
                 if change > WORSE_TOLERANCE:
                     problems.append(
@@ -212,6 +312,10 @@ COLUMNS = (
 )
 
 
+def _is_nan(value: float) -> bool:
+    return isinstance(value, float) and math.isnan(value)
+
+
 def markdown(rows: Mapping[str, Mapping[str, Row]]) -> str:
     """The README's accuracy tables, generated from the baselines."""
     out = []
@@ -220,7 +324,9 @@ def markdown(rows: Mapping[str, Mapping[str, Row]]) -> str:
         out.append("| strategy | " + " | ".join(h for _, h, _ in COLUMNS) + " |")
         out.append("|---" * (len(COLUMNS) + 1) + "|")
         for label, row in table.items():
-            cells = [fmt.format(row[key]) for key, _, fmt in COLUMNS]
+            cells = [
+                "—" if _is_nan(row[key]) else fmt.format(row[key]) for key, _, fmt in COLUMNS
+            ]
             out.append(f"| {label} | " + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pronet
 from pronet import _core, experiment
-from pronet._files import atomic_folder
+from pronet._files import atomic_folder, atomic_write
 from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
 
@@ -343,23 +343,22 @@ def _real(args: argparse.Namespace) -> int:
 
 
 def _baselines(args: argparse.Namespace) -> int:
-    from pronet import baselines, realdata
+    from pronet import baselines
 
     path, readme = Path(args.file), Path(args.readme)
     start = time.perf_counter()
-    rows = baselines.simulated_rows()
+    recorded = baselines.load(path) if path.exists() or not args.bless else {}
     data = Path(args.data)
-    if data.is_dir():
-        loaded = realdata.load_snapir_sections(data)
-        rows.update(baselines.real_rows(loaded))
-    else:
-        print(f"no recorded data at {data}: simulated rows only")
+    rows = baselines.fresh_rows(data)
+    if not data.is_dir():
+        print(f"no recorded data at {data}: simulated rows only; recorded real rows are kept")
     if args.bless:
+        rows = baselines.rows_to_bless(recorded, rows)
         baselines.save(path, rows)
-        readme.write_text(baselines.readme_with_tables(readme.read_text(), rows))
+        atomic_write(readme, baselines.readme_with_tables(readme.read_text(), rows).encode())
         print(f"{path} and the tables in {readme} rewritten from {len(rows)} scenarios")
         return 0
-    problems = baselines.compare(baselines.load(path), rows)
+    problems = baselines.compare(recorded, rows)
     for p in problems:
         print(p)
     print(f"{len(problems)} departures from {path} ({time.perf_counter() - start:.0f} s)")

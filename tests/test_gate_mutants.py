@@ -1,0 +1,102 @@
+"""The accuracy gate catches the regressions it exists for: a mistyped physical constant
+(two of them) and one flipped sign in the error-state Jacobian.
+
+Each mutant is the real source with one edit, built as its own native module (its own
+library name, so the project's build is never touched) and run through the gate in a
+subprocess that imports it in place of the installed one. The gate is the same code
+as ``test_accuracy_gate``, on the rows a mutant can be judged by quickly: the at-rest
+row and the constant-Q row of both simulated scenarios. The simulated rows alone cannot
+see the constant (their truth is generated with it; the change there is ~1e-8
+relative), which is why the at-rest row exists.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: name → (file, original text, mutated text). Each original must occur exactly once.
+MUTANTS = {
+    # A dropped digit in the Earth rotation rate (7.292115e-5 rad/s).
+    "earth rate typo": (
+        "rust/src/earth.rs",
+        "pub const OMEGA_IE: f64 = 7.292_115e-5;",
+        "pub const OMEGA_IE: f64 = 7.292_15e-5;",
+    ),
+    # Two digits swapped in normal gravity at the equator (9.7803253359 m/s²).
+    "gravity typo": (
+        "rust/src/earth.rs",
+        "pub const GAMMA_EQUATOR: f64 = 9.780_325_335_9;",
+        "pub const GAMMA_EQUATOR: f64 = 9.780_352_335_9;",
+    ),
+    # The Coriolis block of ∂δv̇/∂δv with its sign flipped.
+    "Jacobian sign (Coriolis)": (
+        "rust/src/ekf.rs",
+        "vel_vel: -skew(&(2.0 * rates.earth + rates.transport)),",
+        "vel_vel: skew(&(2.0 * rates.earth + rates.transport)),",
+    ),
+}
+
+GATE = """
+import json, sys
+import pronet._core
+from pronet import baselines
+rows = baselines.at_rest_rows()
+rows.update(baselines.simulated_rows(strategies=["constant (true q)"]))
+problems = baselines.compare(baselines.load(sys.argv[1]), rows)
+print(json.dumps({"core": pronet._core.__file__, "problems": problems}))
+"""
+
+
+def build_mutant(name: str, tmp: Path) -> Path:
+    """A copy of the package whose native module is built from the mutated source."""
+    file, original, mutated = MUTANTS[name]
+    src = tmp / "src"
+    src.mkdir()
+    shutil.copytree(ROOT / "rust", src / "rust")
+    shutil.copy(ROOT / "Cargo.lock", src)
+    manifest = (ROOT / "Cargo.toml").read_text()
+    lib = 'name = "pronet"\npath'
+    assert manifest.count(lib) == 1, "Cargo.toml: the [lib] name moved"
+    (src / "Cargo.toml").write_text(manifest.replace(lib, 'name = "pronet_mutant"\npath'))
+    text = (src / file).read_text()
+    assert text.count(original) == 1, f"{file}: the mutation site moved; update MUTANTS[{name!r}]"
+    (src / file).write_text(text.replace(original, mutated))
+
+    target = ROOT / "target"  # shared, so the dependencies are built once
+    env = {**os.environ, "PYO3_PYTHON": sys.executable}
+    cmd = ["cargo", "build", "--quiet", "--release", "--lib", "--features", "python"]
+    cmd += ["--manifest-path", str(src / "Cargo.toml"), "--target-dir", str(target)]
+    subprocess.run(cmd, check=True, env=env)
+
+    site = tmp / "site"
+    shutil.copytree(
+        ROOT / "python" / "pronet", site / "pronet", ignore=shutil.ignore_patterns("_core*.so")
+    )
+    shutil.copy(target / "release" / "libpronet_mutant.so", site / "pronet" / "_core.abi3.so")
+    return site
+
+
+@pytest.mark.skipif(shutil.which("cargo") is None, reason="needs cargo to build the mutants")
+@pytest.mark.parametrize("name", list(MUTANTS))
+def test_the_gate_fails_on_a_mutant(name, tmp_path):
+    site = build_mutant(name, tmp_path)
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    out = subprocess.run(
+        [sys.executable, "-c", GATE, str(ROOT / "tests" / "accuracy_baselines.json")],
+        check=True, capture_output=True, text=True, env=env, cwd=tmp_path,
+    )
+    report = json.loads(out.stdout)
+    assert Path(report["core"]).is_relative_to(site), "the mutant was not the module imported"
+    problems = report["problems"]
+    assert problems, f"{name}: the gate passed a mutant"
+    assert all("worse" in p or "improved" in p for p in problems)
+    print(f"{name}: {len(problems)} departures, e.g. {problems[0]}")
