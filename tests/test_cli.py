@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+from pathlib import Path
 
 import pytest
 
@@ -17,11 +20,19 @@ def test_info_lists_trajectories(capsys) -> None:
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def test_reproduce_writes_a_complete_result_folder(tmp_path, capsys) -> None:
-    out = tmp_path / "res"
+@pytest.fixture(scope="module")
+def reproduced(tmp_path_factory) -> tuple[Path, str]:
+    """One uninterrupted ``reproduce --runs 2``: its folder and what it printed."""
+    out = tmp_path_factory.mktemp("reproduce") / "res"
     args = ["reproduce", "--runs", "2", "--out", str(out), "--threads", "2", "--quiet"]
-    assert cli.main(args) == 0
-    printed = capsys.readouterr().out
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert cli.main(args) == 0
+    return out, printed.getvalue()
+
+
+def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
+    out, printed = reproduced
     assert "constant (true q)" in printed and "1.082" in printed and "detrend net" in printed
     names = sorted(p.name for p in out.iterdir())
     assert names == [
@@ -58,7 +69,7 @@ def test_reproduce_writes_a_complete_result_folder(tmp_path, capsys) -> None:
     assert table.count("| detrend net |") == 2
     assert len((out / "metrics.csv").read_text().splitlines()) == 1 + 2 * 7 * 2
     # No temporary folder is left behind, and an existing folder is never overwritten.
-    assert [p.name for p in tmp_path.iterdir()] == ["res"]
+    assert [p.name for p in out.parent.iterdir()] == ["res"]
     assert cli.main(["reproduce", "--runs", "2", "--out", str(out)]) == 2
 
 
@@ -67,3 +78,49 @@ def test_reproduce_rejects_bad_run_count(capsys) -> None:
     assert cli.main(["reproduce", "--tuning-period", "0"]) == 2
     with pytest.raises(SystemExit):
         cli.main(["reproduce", "--runs", "many"])
+
+
+def test_ctrl_c_keeps_finished_shards_and_resume_redoes_none_of_them(
+    tmp_path, capsys, monkeypatch, reproduced
+) -> None:
+    """Ctrl-C after 5 of the 14 Monte Carlos: exit 130, no result folder, the 5 kept in
+    <out>.partial. --resume computes only the other 9, and the results equal an
+    uninterrupted run's."""
+    from pronet import experiment
+
+    calls: list[str] = []
+    real_mc, real_hybrid = experiment.monte_carlo, experiment.run_hybrid
+
+    def counting(real, interrupt_at=None):
+        def wrapped(*a, **kw):
+            if interrupt_at is not None and len(calls) == interrupt_at:
+                raise KeyboardInterrupt
+            calls.append(real.__name__)
+            return real(*a, **kw)
+
+        return wrapped
+
+    monkeypatch.setattr(experiment, "monte_carlo", counting(real_mc, interrupt_at=5))
+    monkeypatch.setattr(experiment, "run_hybrid", counting(real_hybrid, interrupt_at=5))
+    out = tmp_path / "res"
+    args = ["reproduce", "--runs", "2", "--out", str(out), "--quiet"]
+    assert cli.main(args) == 130
+    err = capsys.readouterr().err
+    assert "5 finished Monte Carlos kept" in err and "--resume" in err
+    assert not out.exists()
+    partial = tmp_path / "res.partial"
+    assert len(list(partial.glob("*.npz"))) == 5
+    # Without --resume the interrupted run is not silently overwritten or ignored.
+    assert cli.main(args) == 2
+    assert "--resume" in capsys.readouterr().err
+    # Other settings do not mix with the kept shards.
+    assert cli.main([*args, "--seed", "7", "--resume"]) == 2
+
+    calls.clear()
+    monkeypatch.setattr(experiment, "monte_carlo", counting(real_mc))
+    monkeypatch.setattr(experiment, "run_hybrid", counting(real_hybrid))
+    assert cli.main([*args, "--resume"]) == 0
+    assert len(calls) == 14 - 5
+    assert not partial.exists()
+    whole, _ = reproduced  # the same settings, uninterrupted (2 threads there: same numbers)
+    assert (out / "metrics.csv").read_text() == (whole / "metrics.csv").read_text()

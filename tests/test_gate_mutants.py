@@ -62,6 +62,7 @@ def build_mutant(name: str, tmp: Path) -> Path:
     src = tmp / "src"
     src.mkdir()
     shutil.copytree(ROOT / "rust", src / "rust")
+    shutil.copytree(ROOT / "benches", src / "benches")  # the manifest names its benchmark
     shutil.copy(ROOT / "Cargo.lock", src)
     manifest = (ROOT / "Cargo.toml").read_text()
     lib = 'name = "pronet"\npath'
@@ -92,7 +93,11 @@ def test_the_gate_fails_on_a_mutant(name, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(site)}
     out = subprocess.run(
         [sys.executable, "-c", GATE, str(ROOT / "tests" / "accuracy_baselines.json")],
-        check=True, capture_output=True, text=True, env=env, cwd=tmp_path,
+        check=True,
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
     )
     report = json.loads(out.stdout)
     assert Path(report["core"]).is_relative_to(site), "the mutant was not the module imported"

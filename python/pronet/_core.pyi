@@ -76,7 +76,8 @@ def mechanize(imu: F64, dt: float, lla0: Any, vel0: Any, rpy0: Any) -> dict[str,
 class FilterConfig:
     """EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
     ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
-    ("body" velocity or "nav" NED velocity), nominal IMU period [s]."""
+    ("body" velocity or "nav" NED velocity), nominal IMU period [s], and the chi-square
+    innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate)."""
 
     def __init__(
         self,
@@ -88,6 +89,7 @@ class FilterConfig:
         lever_arm: Any | None = None,
         aiding: Literal["body", "nav"] = "body",
         imu_dt: float = 0.01,
+        innovation_gate: float | None = None,
     ) -> None: ...
     @property
     def p0_sigma(self) -> list[float]: ...
@@ -103,6 +105,8 @@ class FilterConfig:
     def aiding(self) -> str: ...
     @property
     def imu_dt(self) -> float: ...
+    @property
+    def innovation_gate(self) -> float | None: ...
 
 class Strategy:
     """Process-noise strategy: constant Q^c, Mehra innovation-adaptive (window ξ), or
@@ -185,6 +189,7 @@ def monte_carlo(
     record_every: int = 0,
     sample_initial_error: bool = True,
     threads: int | None = None,
+    first_run: int = 0,
 ) -> dict[str, Any]:
     """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys."""
 
@@ -212,6 +217,7 @@ class Ensemble:
         record_every: int = 0,
         sample_initial_error: bool = True,
         threads: int | None = None,
+        first_run: int = 0,
     ) -> None: ...
     def advance(self) -> NDArray[np.float32] | None: ...
     def set_q(self, q: F64) -> None: ...

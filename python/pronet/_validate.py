@@ -8,6 +8,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+#: Largest values the native core takes for its signed (counts) and unsigned (seeds)
+#: 64-bit integer arguments.
+I64_MAX = 2**63 - 1
+U64_MAX = 2**64 - 1
+
 
 def real_array(value: ArrayLike, name: str) -> NDArray[Any]:
     """``value`` as a NumPy array of integers or floats (any shape, no copy when it
@@ -40,19 +45,34 @@ def float_array(value: ArrayLike, name: str, shape: tuple[int | None, ...]) -> N
 
 def scalar(value: object, name: str) -> float:
     """``value`` as a Python float, or ``ValueError`` naming the argument."""
-    if isinstance(value, bool | complex | str | bytes):
+    if isinstance(value, bool | complex | str | bytes) or (
+        isinstance(value, np.ndarray | np.generic) and value.dtype.kind not in "iuf"
+    ):
         raise ValueError(f"{name}: expected a real number, got {type(value).__name__}")
     try:
         return float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         raise ValueError(f"{name}: expected a real number, got {type(value).__name__}") from None
+    except OverflowError:
+        raise ValueError(f"{name}: too large for a float64") from None
 
 
-def count(value: object, name: str) -> int:
-    """``value`` as a Python int (a whole number), or ``ValueError`` naming the argument."""
+def count(value: object, name: str, maximum: int | None = None) -> int:
+    """``value`` as a Python int (a whole number, at most ``maximum`` if given), or
+    ``ValueError`` naming the argument."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         raise ValueError(f"{name}: expected a whole number, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise ValueError(f"{name}: must be at most {maximum}")
     return int(value)
+
+
+def flag(value: object, name: str) -> bool:
+    """``value`` as a Python bool (``True``/``False``, NumPy's included), or ``ValueError``
+    naming the argument: a string such as ``"no"`` is not silently true."""
+    if not isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name}: expected True or False, got {value!r}")
+    return bool(value)
 
 
 def check_type(value: object, kind: type, name: str) -> None:

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._validate import float_array, scalar
+from pronet._validate import check_type, float_array, real_array, scalar
 from pronet.datasets import Recording
 
 F64 = NDArray[np.float64]
@@ -56,7 +56,15 @@ class Clock:
             raise ValueError(f"scale: must be finite and > 0, got {self.scale}")
 
     def __call__(self, stamps: ArrayLike) -> F64:
-        return self.offset + self.scale * np.asarray(stamps, dtype=np.float64)
+        return self.offset + self.scale * real_array(stamps, "stamps").astype(np.float64)
+
+
+def _lever_arm(value: ArrayLike, name: str) -> F64:
+    """A lever arm ``(3,)`` [m] of finite numbers, or ``ValueError`` naming it."""
+    arm = float_array(value, name, (3,))
+    if not np.isfinite(arm).all():
+        raise ValueError(f"{name}: must be finite, got {arm}")
+    return arm
 
 
 @dataclass(frozen=True)
@@ -75,6 +83,12 @@ class Alignment:
     imu_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     dvl_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     how: str = "given"
+
+    def __post_init__(self) -> None:
+        check_type(self.gt_clock, Clock, "gt_clock")
+        check_type(self.dvl_clock, Clock, "dvl_clock")
+        _lever_arm(self.imu_lever_arm, "imu_lever_arm")
+        _lever_arm(self.dvl_lever_arm, "dvl_lever_arm")
 
     @property
     def filter_lever_arm(self) -> tuple[float, float, float]:
@@ -113,7 +127,9 @@ class Section:
 
 def dcm_from_euler(rpy: ArrayLike) -> F64:
     """Body-to-NED DCMs ``(…, 3, 3)`` from roll, pitch, yaw ``(…, 3)`` [rad] (ZYX)."""
-    a = np.asarray(rpy, dtype=np.float64)
+    a = real_array(rpy, "rpy").astype(np.float64)
+    if a.ndim < 1 or a.shape[-1] != 3:
+        raise ValueError(f"rpy: expected shape (..., 3), got {a.shape}")
     cr, sr = np.cos(a[..., 0]), np.sin(a[..., 0])
     cp, sp = np.cos(a[..., 1]), np.sin(a[..., 1])
     cy, sy = np.cos(a[..., 2]), np.sin(a[..., 2])
@@ -195,7 +211,7 @@ def estimate_dvl_clock(
     scale is taken as the ground truth's (one logger stamps both, as in the Snapir
     data): body velocity varies slowly, so it pins an offset well but cannot also
     separate a scale from it over a short section."""
-    r = float_array(dvl_lever_arm, "dvl_lever_arm", (3,))
+    r = _lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     # The truth's velocity moved to the DVL at its own rows, then interpolated: the
@@ -224,8 +240,8 @@ def estimate_alignment(
 ) -> Alignment:
     """Both clocks estimated from the data, with the given lever arms [m, body FRD,
     relative to the ground-truth point]."""
-    imu_arm = float_array(imu_lever_arm, "imu_lever_arm", (3,))
-    dvl_arm = float_array(dvl_lever_arm, "dvl_lever_arm", (3,))
+    imu_arm = _lever_arm(imu_lever_arm, "imu_lever_arm")
+    dvl_arm = _lever_arm(dvl_lever_arm, "dvl_lever_arm")
     gt_clock = estimate_gt_clock(rec)
     return Alignment(
         gt_clock=gt_clock,

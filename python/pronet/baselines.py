@@ -324,9 +324,7 @@ def markdown(rows: Mapping[str, Mapping[str, Row]]) -> str:
         out.append("| strategy | " + " | ".join(h for _, h, _ in COLUMNS) + " |")
         out.append("|---" * (len(COLUMNS) + 1) + "|")
         for label, row in table.items():
-            cells = [
-                "—" if _is_nan(row[key]) else fmt.format(row[key]) for key, _, fmt in COLUMNS
-            ]
+            cells = ["—" if _is_nan(row[key]) else fmt.format(row[key]) for key, _, fmt in COLUMNS]
             out.append(f"| {label} | " + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out)

@@ -15,6 +15,7 @@ import pronet
 from pronet import _core, experiment
 from pronet._files import atomic_folder, atomic_write
 from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+from pronet.shards import ShardStore
 
 
 def _info(_args: argparse.Namespace) -> int:
@@ -52,8 +53,23 @@ def _reproduce(args: argparse.Namespace) -> int:
     if not args.tuning_period > 0:
         print("pronet reproduce: --tuning-period must be > 0 s", file=sys.stderr)
         return 2
+    if args.resume and (not args.out or args.retrain):
+        print(
+            "pronet reproduce: --resume needs the --out of the interrupted run, and "
+            "cannot be used with --retrain",
+            file=sys.stderr,
+        )
+        return 2
     out = _new_result_folder(args.out, "reproduce")
     if out is None:
+        return 2
+    partial = out.with_name(out.name + ".partial")
+    if partial.exists() and not args.resume:
+        print(
+            f"pronet reproduce: {partial} holds an interrupted run of this folder; add "
+            "--resume to continue it, or remove it",
+            file=sys.stderr,
+        )
         return 2
     start = time.perf_counter()
     ds = None
@@ -76,24 +92,41 @@ def _reproduce(args: argparse.Namespace) -> int:
         f"{len(scenarios)} scenarios x {len(jobs['paper'])} strategies, {n_runs} Monte Carlo "
         f"runs each, seed {args.seed}; weights: {'retrained' if args.retrain else 'shipped'}"
     )
+    shards = None
+    if not args.retrain:  # shards of retrained models would not belong together
+        settings = {"n_runs": n_runs, "seed": args.seed, "tuning_period": args.tuning_period}
+        shards = ShardStore(partial, settings)
+        if len(shards):
+            print(f"resuming: {len(shards)} finished Monte Carlos loaded from {partial}")
     bar = tqdm(total=sum(len(j) for j in jobs.values()), unit="strategy", disable=args.quiet)
     tables: dict[str, list[experiment.Row]] = {}
-    for sc in scenarios:
+    try:
+        for sc in scenarios:
 
-        def done(label: str, sc: experiment.Scenario = sc) -> None:
-            bar.set_postfix_str(f"{sc.name}: {label}")
-            bar.update()
+            def done(label: str, sc: experiment.Scenario = sc) -> None:
+                bar.set_postfix_str(f"{sc.name}: {label}")
+                bar.update()
 
-        title = f"{sc.name} scenario, {n_runs} runs"
-        tables[title] = experiment.run_strategies(
-            jobs[sc.name],
-            sc,
-            n_runs=n_runs,
-            seed=args.seed,
-            threads=args.threads,
-            record_every=100,
-            on_done=done,
-        )
+            title = f"{sc.name} scenario, {n_runs} runs"
+            tables[title] = experiment.run_strategies(
+                jobs[sc.name],
+                sc,
+                n_runs=n_runs,
+                seed=args.seed,
+                threads=args.threads,
+                record_every=100,
+                on_done=done,
+                shards=shards,
+            )
+    except KeyboardInterrupt:
+        bar.close()
+        if shards is not None:
+            print(
+                f"\ninterrupted: {len(shards)} finished Monte Carlos kept in {partial}; "
+                f"the same command with --resume continues from there",
+                file=sys.stderr,
+            )
+        raise
     bar.close()
     for title, rows in tables.items():
         print()
@@ -140,6 +173,8 @@ def _reproduce(args: argparse.Namespace) -> int:
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }
     folder = experiment.write_result_folder(out, tables, config, extra=figures)
+    if shards is not None:
+        shards.remove()
     if trained_dir is not None:
         shutil.rmtree(trained_dir, ignore_errors=True)
     print(f"results written to {folder} in {time.perf_counter() - start:.0f} s")
@@ -398,6 +433,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_tuning_period(rep)
     rep.add_argument("--quiet", action="store_true", help="no progress bars")
+    rep.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run of the same --out from its <out>.partial "
+        "folder, without redoing the Monte Carlos it finished",
+    )
     rep.set_defaults(func=_reproduce)
     data = sub.add_parser(
         "dataset", help="generate the 72,000-window noise-regression training set (.npz + card)"

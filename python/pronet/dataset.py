@@ -30,13 +30,15 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._files import atomic_write
-from pronet._validate import count, scalar
+from pronet._validate import I64_MAX, count, scalar
 
 #: Training trajectories, in the order of the ``trajectory`` index in the metadata.
 TRAINING_TRAJECTORIES = ("train-straight", "train-turns", "train-zigzag", "train-helix")
 CHANNELS = ("f_x", "f_y", "f_z", "w_x", "w_y", "w_z")
 FORMAT = "pronet-dataset"
 VERSION = 1
+#: The arrays of a dataset file and the dtype kinds each may have.
+_KINDS = dict(windows="f", q="f", trajectory="iu", channel="iu", start="iu", train="b")
 
 
 @dataclass(frozen=True)
@@ -54,7 +56,7 @@ class DatasetParams:
         count(self.seed, "seed")
         if self.seed < 0:
             raise ValueError(f"seed: must be >= 0, got {self.seed}")
-        if count(self.n_levels, "n_levels") < 1:
+        if count(self.n_levels, "n_levels", I64_MAX) < 1:
             raise ValueError(f"n_levels: must be >= 1, got {self.n_levels}")
         q_min, q_max = scalar(self.q_min, "q_min"), scalar(self.q_max, "q_max")
         if not (0 < q_min <= q_max and np.isfinite(q_max)):
@@ -66,7 +68,7 @@ class DatasetParams:
 
     def q_levels(self) -> NDArray[np.float64]:
         """The noise variances, linearly spaced [(m/s²)² or (rad/s)² per sample]."""
-        return np.linspace(self.q_min, self.q_max, self.n_levels)
+        return np.linspace(float(self.q_min), float(self.q_max), int(self.n_levels))
 
 
 @dataclass(frozen=True)
@@ -107,15 +109,21 @@ def build_dataset(params: DatasetParams | None = None) -> Dataset:
     for t, name in enumerate(TRAINING_TRAJECTORIES):
         ideal = _core.builtin_trajectory(name, 0.01).imu
         n_win = ideal.shape[0] // params.window
+        if n_win == 0:
+            raise ValueError(f"window: longer than the {ideal.shape[0]} samples of {name}")
         starts = np.arange(n_win, dtype=np.int32) * params.window
         for lev, q in enumerate(levels):
             rng = np.random.default_rng([params.seed, t, lev])
             noisy = ideal + rng.standard_normal(ideal.shape) * np.sqrt(q)
             # (samples, channel) -> (channel, window index, sample in window)
             cut = noisy[: n_win * params.window].T.reshape(6, n_win, params.window)
+            with np.errstate(over="ignore"):
+                windows = cut.reshape(-1, params.window).astype(np.float32)
+            if not np.isfinite(windows).all():
+                raise ValueError(f"q_max: noise of variance {q} overflows float32 windows")
             parts.append(
                 (
-                    cut.reshape(-1, params.window).astype(np.float32),
+                    windows,
                     np.full(6 * n_win, q),
                     np.full(6 * n_win, t, dtype=np.int8),
                     np.repeat(np.arange(6, dtype=np.int8), n_win),
@@ -190,9 +198,13 @@ def _read_card(path: Path) -> dict:
 def load_params(path: str | os.PathLike[str]) -> DatasetParams:
     """The parameters recorded in the card of the dataset at ``path``."""
     try:
-        return DatasetParams(**_read_card(Path(path))["params"])
-    except (KeyError, TypeError) as exc:
+        params = DatasetParams(**_read_card(Path(path))["params"])
+        params.validate()
+    except (KeyError, TypeError, ValueError) as exc:
+        if str(exc).startswith("path:"):
+            raise
         raise ValueError(f"path: {card_path(Path(path))} has no valid params ({exc})") from None
+    return params
 
 
 def load_dataset(path: str | os.PathLike[str]) -> Dataset:
@@ -202,10 +214,21 @@ def load_dataset(path: str | os.PathLike[str]) -> Dataset:
     """
     path = Path(path)
     card = _read_card(path)
-    data = path.read_bytes()
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ValueError(f"path: cannot read {path}: {exc}") from None
     if hashlib.sha256(data).hexdigest() != card.get("sha256"):
         raise ValueError(f"path: {path} does not match the hash in its card (changed or truncated)")
-    with np.load(io.BytesIO(data), allow_pickle=False) as z:
-        return Dataset(
-            **{k: z[k] for k in ("windows", "q", "trajectory", "channel", "start", "train")}
-        )
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            arrays = {k: z[k] for k in _KINDS}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"path: {path} is not a readable dataset ({exc})") from None
+    m = arrays["q"].shape[:1]
+    for name, kinds in _KINDS.items():
+        a = arrays[name]
+        ndim = 2 if name == "windows" else 1
+        if a.dtype.kind not in kinds or a.ndim != ndim or a.shape[:1] != m:
+            raise ValueError(f"path: {path} holds a malformed {name} ({a.dtype}, {a.shape})")
+    return Dataset(**arrays)

@@ -20,9 +20,11 @@ import numpy as np
 
 from pronet import _core
 from pronet._files import atomic_folder
+from pronet._validate import float_array
 from pronet.hybrid import DEFAULT_TUNING_PERIOD, HybridResult, run_hybrid
 from pronet.models import Regressor
 from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.shards import ShardStore
 from pronet.stats import MeanCI, mean_ci
 from pronet.trajectory import builtin_trajectory
 
@@ -144,6 +146,7 @@ SCENARIOS: dict[str, Callable[[], Scenario]] = {
 
 def model_based_strategies(q: tuple[float, ...] = PAPER_Q) -> dict[str, _core.Strategy]:
     """The four rows of the paper's table that need no learned model, around ``q``."""
+    q = tuple(float(v) for v in float_array(q, "q", (6,)))  # 20 x q in float64, not q's dtype
     return {
         "constant (true q)": _core.Strategy.constant(q),
         "constant (20 x q)": _core.Strategy.constant(tuple(20 * v for v in q)),
@@ -195,9 +198,11 @@ def run_strategies(
     threads: int | None = None,
     record_every: int = 0,
     on_done: Callable[[str], None] | None = None,
+    shards: ShardStore | None = None,
 ) -> list[Row]:
     """Run every strategy on the same noise realizations (same seed); the first strategy
-    is the reference for the paired differences."""
+    is the reference for the paired differences. With ``shards``, each finished strategy
+    is saved there at once, and one already saved is loaded instead of rerun."""
     results: dict[str, tuple[MonteCarloResult, HybridResult | None]] = {}
     common = dict(
         sensors=scenario.sensors,
@@ -208,7 +213,10 @@ def run_strategies(
         record_every=record_every,
     )
     for label, strategy in strategies.items():
-        if isinstance(strategy, Learned):
+        saved = shards.load(scenario.name, label) if shards is not None else None
+        if saved is not None:
+            results[label] = saved
+        elif isinstance(strategy, Learned):
             h = run_hybrid(
                 strategy.regressor,
                 scenario.trajectory,
@@ -219,6 +227,8 @@ def run_strategies(
             results[label] = (h.result, h)
         else:
             results[label] = (monte_carlo(scenario.trajectory, strategy, **common), None)
+        if shards is not None and saved is None:
+            shards.save(scenario.name, label, *results[label])
         if on_done is not None:
             on_done(label)
     ref = next(iter(results.values()))[0]
@@ -243,7 +253,7 @@ def markdown_table(rows: list[Row], title: str, paper: bool = True) -> str:
     head = "| approach | SRMSE [m/s] (95 % CI) | SMAE [m/s] (95 % CI)"
     head += " | ΔSRMSE vs row 1 (paired 95 % CI)"
     head += " | paper SRMSE | paper SMAE |" if paper else " |"
-    out.write(head + " failed runs | guardrail events |\n")
+    out.write(head + " failed / diverged runs | guardrail events |\n")
     out.write("|---" * (7 if paper else 5) + "|---|\n")
     for row in rows:
         diff = f"{row.srmse_diff.mean:+.4f} [{row.srmse_diff.low:+.4f}, {row.srmse_diff.high:+.4f}]"
@@ -255,7 +265,8 @@ def markdown_table(rows: list[Row], title: str, paper: bool = True) -> str:
         if row.hybrid is not None:
             h = row.hybrid
             guard = f"{int(h.clipped.sum())} clipped, {int(h.non_finite.sum())} non-finite"
-        out.write(f"{line} {row.result.n_failed} | {guard} |\n")
+        r = row.result
+        out.write(f"{line} {r.n_failed} / {r.n_diverged} | {guard} |\n")
     return out.getvalue()
 
 
@@ -290,6 +301,7 @@ def write_result_folder(
                     "final_horizontal_error": _ci_json(mean_ci(row.result.final_horizontal_error)),
                     "mean_nis": _ci_json(mean_ci(row.result.mean_nis)),
                     "failed_runs": row.result.n_failed,
+                    "diverged_runs": row.result.n_diverged,
                     "paper": PAPER_TABLE.get(row.label) if scenario.startswith("paper") else None,
                     **(_hybrid_json(row.hybrid) if row.hybrid is not None else {}),
                 }

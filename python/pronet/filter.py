@@ -32,6 +32,10 @@ class FilterResult:
         innovation_cov: ``(m, 3, 3)`` innovation covariance S [(m/s)²].
         nis: ``(m,)`` normalized innovation squared (χ², 3 dof when consistent).
         gain: ``(m, 15, 3)`` Kalman gains.
+        accepted: ``(m,)`` whether each DVL row was applied (False where the innovation
+            gate rejected it, or the row fell outside the run).
+        diverged_at: time [s] at which the NIS showed divergence (mean over the last 20
+            updates above 25, about 8× the consistent 3), or None.
         adaptive_q: ``(m, 15, 15)`` the per-IMU-step discrete Q_d a Mehra strategy set
             after each update (``K C Kᵀ`` spread over the interval's steps); NaN for
             other strategies and before Mehra has its ξ innovations.
@@ -50,6 +54,8 @@ class FilterResult:
     nis: NDArray[np.float64]
     gain: NDArray[np.float64]
     adaptive_q: NDArray[np.float64]
+    accepted: NDArray[np.bool_]
+    diverged_at: float | None
 
 
 def run_filter(

@@ -33,7 +33,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._validate import check_type, count, float_array, scalar
+from pronet._validate import (
+    I64_MAX,
+    U64_MAX,
+    check_type,
+    count,
+    flag,
+    float_array,
+    real_array,
+    scalar,
+)
 from pronet.models import Regressor
 from pronet.montecarlo import MonteCarloResult
 
@@ -115,10 +124,14 @@ def run_hybrid(
         )
     check_type(trajectory, _core.Trajectory, "trajectory")
     prior = float_array(prior_q, "prior_q", (6,))
-    guardrails = guardrails or Guardrails()
-    n_runs = count(n_runs, "n_runs")
-    if count(seed, "seed") < 0:
+    guardrails = Guardrails() if guardrails is None else guardrails
+    check_type(guardrails, Guardrails, "guardrails")
+    n_runs = count(n_runs, "n_runs", I64_MAX)
+    if count(seed, "seed", U64_MAX) < 0:
         raise ValueError(f"seed: must be >= 0, got {seed}")
+    # A window longer than the trajectory never fills (and its buffer could exhaust memory).
+    if not 1 <= count(window, "window") <= trajectory.n_samples:
+        raise ValueError(f"window: must be 1 to {trajectory.n_samples} samples, got {window}")
     ens = _core.Ensemble(
         trajectory,
         sensors if sensors is not None else _core.SensorConfig(),
@@ -128,9 +141,9 @@ def run_hybrid(
         seed=count(seed, "seed"),
         window=count(window, "window"),
         tuning_period=scalar(tuning_period, "tuning_period"),
-        record_every=count(record_every, "record_every"),
-        sample_initial_error=bool(sample_initial_error),
-        threads=None if threads is None else count(threads, "threads"),
+        record_every=count(record_every, "record_every", I64_MAX),
+        sample_initial_error=flag(sample_initial_error, "sample_initial_error"),
+        threads=None if threads is None else count(threads, "threads", I64_MAX),
     )
     q_prev = np.tile(prior, (n_runs, 1))
     clipped = np.zeros(n_runs, dtype=np.int64)
@@ -144,7 +157,7 @@ def run_hybrid(
         rust += t1 - t0
         if windows is None:
             break
-        q = np.asarray(regressor.predict(windows), dtype=np.float64)
+        q = _predictions(regressor, windows)
         model += time.perf_counter() - t1
         if q.shape != (n_runs, 6):
             raise ValueError(
@@ -171,6 +184,12 @@ def run_hybrid(
         model_seconds=model,
         guardrails=guardrails,
     )
+
+
+def _predictions(regressor: Regressor, windows: NDArray[np.float32]) -> NDArray[np.float64]:
+    """``regressor.predict(windows)`` as float64; real numbers only (no complex parts
+    dropped, no strings parsed), else ``ValueError`` naming the regressor."""
+    return real_array(regressor.predict(windows), "regressor").astype(np.float64)
 
 
 def apply_guardrails(
@@ -248,21 +267,33 @@ def q_schedule(
     prior = float_array(prior_q, "prior_q", (6,))
     window = count(window, "window")
     period = scalar(tuning_period, "tuning_period")
-    guardrails = guardrails or Guardrails()
+    guardrails = Guardrails() if guardrails is None else guardrails
+    check_type(guardrails, Guardrails, "guardrails")
     if window < 1:
         raise ValueError(f"window: must be >= 1, got {window}")
-    if len(times) < 2 or not period > 0:
-        raise ValueError("tuning_period: must be > 0 s, with at least two IMU samples")
-    every = max(1, round(period / float(np.median(np.diff(times)))))
+    if not 0 < period < np.inf:
+        raise ValueError(f"tuning_period: must be finite and > 0 s, got {period}")
+    if len(samples) < 2:
+        raise ValueError(f"imu: needs at least two samples, got {len(samples)}")
+    steps = np.diff(times)
+    if not (np.isfinite(times).all() and (steps > 0).all()):
+        raise ValueError("imu_time: must be finite and strictly increasing")
+    if not (np.isfinite(prior).all() and (prior >= 0).all()):
+        raise ValueError(f"prior_q: must be finite and >= 0, got {prior}")
+    # Capped at len(samples): a longer period has no instant either, and the cap keeps a
+    # huge period (or a tiny sample step) from overflowing round().
+    every = max(1, round(min(period / float(np.median(steps)), len(samples))))
     first = -(-window // every) * every
-    ends = np.arange(first, len(samples), every)  # samples before the instant
+    # samples before each instant (none when the window never fills: a huge window is
+    # a Python int that np.arange cannot take)
+    ends = np.arange(first, len(samples), every) if first < len(samples) else np.zeros(0, int)
     if ends.size == 0:
         empty = np.zeros((0, 6))
         return QSchedule(np.zeros(0), empty, 0, 0, 0.0)
     strided = np.lib.stride_tricks.sliding_window_view(samples.astype(np.float32), window, 0)
     windows = np.ascontiguousarray(strided[ends - window])  # (k, 6, window), oldest first
     t0 = time.perf_counter()
-    q = np.asarray(regressor.predict(windows), dtype=np.float64)
+    q = _predictions(regressor, windows)
     seconds = time.perf_counter() - t0
     if q.shape != (ends.size, 6):
         raise ValueError(

@@ -57,7 +57,14 @@ class DetrendedVariance:
 
 
 class _ConvBlock(nn.Module):
-    """Conv1d → LayerNorm over the channels at each time step → LeakyReLU(0.01)."""
+    """Conv1d → LayerNorm over the channels at each time step → LeakyReLU(0.01), on
+    time-major activations ``(B, L, C)``.
+
+    The convolution is one matrix product over the unfolded windows (im2col) with the
+    ``nn.Conv1d``'s own weights (zero padding ``kernel // 2``, as Conv1d pads): in this
+    layout the LayerNorm needs no transposes, and on CPU it runs about twice as fast as
+    ``Conv1d`` in ``(B, C, L)`` with the transposes around the norm.
+    """
 
     def __init__(self, c_in: int, c_out: int, kernel: int, stride: int) -> None:
         super().__init__()
@@ -66,8 +73,13 @@ class _ConvBlock(nn.Module):
         self.act = nn.LeakyReLU(0.01)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        y = self.conv(x)
-        return self.act(self.norm(y.transpose(1, 2)).transpose(1, 2))
+        (kernel,), (stride,), (pad,) = self.conv.kernel_size, self.conv.stride, self.conv.padding
+        # (B, L_out, C_in, kernel): the same (C_in, kernel) order as the weight's last axes
+        cols = nn.functional.pad(x, (0, 0, pad, pad)).unfold(1, kernel, stride)
+        weight = self.conv.weight.reshape(self.conv.out_channels, -1)
+        batch, length = cols.shape[:2]
+        y = torch.addmm(self.conv.bias, cols.reshape(batch * length, weight.shape[1]), weight.t())
+        return self.act(self.norm(y.reshape(batch, length, self.conv.out_channels)))
 
 
 class BaselineNet(nn.Module):
@@ -133,7 +145,7 @@ class BaselineNet(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Raw windows ``(B, N)`` → q ``(B,)``."""
         z = self.prepare(x) / self.input_scale
-        h = self.features(z.unsqueeze(1)).mean(dim=-1)
+        h = self.features(z.unsqueeze(-1)).mean(dim=1)  # time-major (B, L, C)
         # exp of a clamped z: positive q, and no overflow from an untrained net
         return self.q_scale * torch.exp(self.head(h).squeeze(-1).clamp(-20.0, 20.0))
 

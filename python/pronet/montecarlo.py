@@ -1,9 +1,11 @@
 """Monte Carlo runs of a simulated scenario with one process-noise strategy.
 
-Run i of a Monte Carlo with seed s draws all its noise from random streams keyed by
-(s, i), so results do not depend on the thread count, and every strategy run with the
-same seed sees the same noise realizations (common random numbers): differences between
-strategies are paired.
+Seed scheme: run i of a Monte Carlo with seed s draws all its noise (IMU, DVL and the
+initial error) from its own ChaCha8 streams keyed by (s, i). So results are bit-identical
+whatever the thread count, a run's numbers do not depend on the other runs, a Monte Carlo
+split into shards (``first_run``) equals the same runs computed whole, and every
+strategy run with the same seed sees the same noise realizations (common random
+numbers): differences between strategies are paired.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._validate import check_type, count
+from pronet._validate import I64_MAX, U64_MAX, check_type, count, flag
 from pronet.stats import MeanCI, mean_ci
 
 #: Names of the five 3-blocks of the error state, in order.
@@ -30,11 +32,15 @@ class MonteCarloResult:
         smae: ``(n_runs,)`` velocity SMAE ``mean_k Σ_NED |δv|`` [m/s].
         final_horizontal_error: ``(n_runs,)`` horizontal position error at the end [m].
         max_horizontal_error: ``(n_runs,)`` largest horizontal position error [m].
-        mean_nis: ``(n_runs,)`` mean NIS over the DVL epochs.
+        mean_nis: ``(n_runs,)`` mean NIS over the applied DVL updates.
+        rejected_updates: ``(n_runs,)`` DVL updates the innovation gate rejected
+            (``FilterConfig(innovation_gate=...)``; 0 without a gate).
+        diverged_at: ``(n_runs,)`` time [s] at which the NIS showed divergence (its mean
+            over the last 20 updates above 25), NaN where it never did.
         failure: per run, None or the message of the numerical failure that stopped it
             (its metrics are then NaN).
         dvl_time: ``(m,)`` DVL epoch times [s].
-        nis: ``(n_runs, m)`` NIS at each DVL epoch (3 dof).
+        nis: ``(n_runs, m)`` NIS at each DVL epoch (3 dof), gate-rejected ones included.
         nees: ``(n_runs, m, 5)`` NEES after each update of the blocks in
             :data:`STATE_BLOCKS` (3 dof each).
         record_time: ``(r,)`` history epochs [s] (empty without ``record_every``).
@@ -48,6 +54,8 @@ class MonteCarloResult:
     final_horizontal_error: NDArray[np.float64]
     max_horizontal_error: NDArray[np.float64]
     mean_nis: NDArray[np.float64]
+    rejected_updates: NDArray[np.int64]
+    diverged_at: NDArray[np.float64]
     failure: list[str | None]
     dvl_time: NDArray[np.float64]
     nis: NDArray[np.float64]
@@ -64,6 +72,11 @@ class MonteCarloResult:
     @property
     def n_failed(self) -> int:
         return sum(f is not None for f in self.failure)
+
+    @property
+    def n_diverged(self) -> int:
+        """Runs whose NIS showed divergence (see ``diverged_at``)."""
+        return int(np.isfinite(self.diverged_at).sum())
 
     def summary(self) -> dict[str, MeanCI]:
         """Mean and 95 % CI over runs of every per-run metric."""
@@ -90,6 +103,7 @@ def monte_carlo(
     record_every: int = 0,
     sample_initial_error: bool = True,
     threads: int | None = None,
+    first_run: int = 0,
 ) -> MonteCarloResult:
     """Simulate ``n_runs`` noisy runs along ``trajectory`` and filter each one.
 
@@ -104,6 +118,8 @@ def monte_carlo(
         sample_initial_error: start each run from the truth plus an error drawn from
             the filter's P0 (True) or exactly at the truth (False).
         threads: worker threads (default: all cores).
+        first_run: index of the first run (a shard of a larger Monte Carlo: runs
+            ``first_run .. first_run + n_runs``, identical to those runs of the whole).
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")
@@ -111,18 +127,21 @@ def monte_carlo(
     config = config if config is not None else _core.FilterConfig()
     check_type(sensors, _core.SensorConfig, "sensors")
     check_type(config, _core.FilterConfig, "config")
-    seed = count(seed, "seed")
-    if seed < 0:
-        raise ValueError(f"seed: must be >= 0, got {seed}")
+    seed = count(seed, "seed", U64_MAX)
+    first_run = count(first_run, "first_run", U64_MAX)
+    for name, value in (("seed", seed), ("first_run", first_run)):
+        if value < 0:
+            raise ValueError(f"{name}: must be >= 0, got {value}")
     out = _core.monte_carlo(
         trajectory,
         sensors,
         config,
         strategy,
-        n_runs=count(n_runs, "n_runs"),
+        n_runs=count(n_runs, "n_runs", I64_MAX),
         seed=seed,
-        record_every=count(record_every, "record_every"),
-        sample_initial_error=bool(sample_initial_error),
-        threads=None if threads is None else count(threads, "threads"),
+        record_every=count(record_every, "record_every", I64_MAX),
+        sample_initial_error=flag(sample_initial_error, "sample_initial_error"),
+        threads=None if threads is None else count(threads, "threads", I64_MAX),
+        first_run=first_run,
     )
     return MonteCarloResult(**out)

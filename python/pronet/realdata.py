@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet._validate import flag, float_array, scalar
 from pronet.alignment import Section
 from pronet.experiment import Learned, StrategyLike, paper_strategies
 from pronet.filter import FilterResult, run_filter
@@ -68,7 +69,10 @@ def white_noise_q(imu: F64) -> tuple[float, ...]:
     """Per-sample white-noise variance of each IMU channel, ``var(first differences)/2``
     [(m/s²)², (rad/s)²]: differencing removes the slowly varying motion and bias, and
     doubles the white noise's variance. On a moving vehicle it includes vibration."""
-    return tuple(float(v) for v in np.var(np.diff(imu, axis=0), axis=0) / 2)
+    samples = float_array(imu, "imu", (None, 6))
+    if len(samples) < 2:
+        raise ValueError(f"imu: needs at least two samples, got {len(samples)}")
+    return tuple(float(v) for v in np.var(np.diff(samples, axis=0), axis=0) / 2)
 
 
 def real_strategies(
@@ -140,13 +144,18 @@ def run_section(
 ) -> SectionRun:
     """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
     for ``duration`` seconds (default: to the end), with or without the DVL."""
+    if duration is not None and not scalar(duration, "duration") > 0:
+        raise ValueError(f"duration: must be > 0 s, got {duration}")
     i0 = start_index(section)
     t0 = float(section.truth_time[i0])
     take = section.imu_time > t0
     if duration is not None:
-        take &= section.imu_time <= t0 + duration
+        take &= section.imu_time <= t0 + float(duration)
+        end = section.imu_time[take].max(initial=-np.inf)
+        if not np.any((section.truth_time > t0) & (section.truth_time <= end)):
+            raise ValueError(f"duration: {duration} s from the start reach no ground-truth row")
     imu, imu_time = section.imu[take], section.imu_time[take]
-    dvl_take = np.full(len(section.dvl), use_dvl)
+    dvl_take = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
     schedule = None
     q_args: dict[str, F64] = {}
     start = time.perf_counter()

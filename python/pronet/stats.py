@@ -9,6 +9,8 @@ from statistics import NormalDist
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pronet._validate import count, real_array
+
 _Z975 = NormalDist().inv_cdf(0.975)
 
 
@@ -18,13 +20,14 @@ def t_quantile_975(df: int) -> float:
     Cornish-Fisher expansion around the normal quantile; within 1e-3 of the exact value
     for df >= 3 and exact in the limit (e.g. 2.262 for df = 9, 1.984 for df = 99).
     """
-    if df < 1:
+    if count(df, "df") < 1:
         raise ValueError(f"df: must be >= 1, got {df}")
     if df == 1:
         return 12.706204736174707
     if df == 2:
         return 4.302652729749464
     z = _Z975
+    df = float(min(df, 2**53))  # beyond, the corrections are below float64 resolution
     return (
         z
         + (z**3 + z) / (4 * df)
@@ -48,13 +51,18 @@ class MeanCI:
 
 def mean_ci(values: ArrayLike) -> MeanCI:
     """Mean and 95 % CI of ``values`` over runs (NaN, e.g. failed runs, left out)."""
-    x = np.asarray(values, dtype=np.float64)
+    x = real_array(values, "values").astype(np.float64)
     x = x[np.isfinite(x)]
     n = int(x.size)
     if n == 0:
         return MeanCI(math.nan, math.nan, math.nan, 0)
-    m = float(x.mean())
+    # Scaled by a power of two (exact, so ordinary values give the same bits) to keep
+    # sums and squares of values near the float64 limit from overflowing.
+    e = int(np.frexp(np.abs(x).max())[1])
+    y = np.ldexp(x, -e)
+    m = float(np.ldexp(y.mean(), e))
     if n == 1:
         return MeanCI(m, math.nan, math.nan, 1)
-    half = t_quantile_975(n - 1) * float(x.std(ddof=1)) / math.sqrt(n)
+    with np.errstate(over="ignore"):  # a half-width beyond float64 is inf
+        half = float(np.ldexp(t_quantile_975(n - 1) * float(y.std(ddof=1)) / math.sqrt(n), e))
     return MeanCI(m, m - half, m + half, n)

@@ -13,11 +13,10 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
 from numpy.typing import ArrayLike
 
 from pronet import _core
-from pronet._validate import float_array, scalar
+from pronet._validate import check_type, float_array, scalar
 
 
 @dataclass(frozen=True)
@@ -36,12 +35,17 @@ class Segment:
     yaw_rate: float = 0.0
     pitch_rate: float = 0.0
 
+    def __post_init__(self) -> None:
+        for name in ("duration", "accel", "yaw_rate", "pitch_rate"):
+            scalar(getattr(self, name), name)
+
     @classmethod
     def degrees(
         cls, duration: float, accel: float = 0.0, yaw_rate: float = 0.0, pitch_rate: float = 0.0
     ) -> Segment:
         """A segment with its rates given in degrees per second."""
-        return cls(duration, accel, math.radians(yaw_rate), math.radians(pitch_rate))
+        yaw, pitch = scalar(yaw_rate, "yaw_rate"), scalar(pitch_rate, "pitch_rate")
+        return cls(duration, accel, math.radians(yaw), math.radians(pitch))
 
     def as_row(self) -> tuple[float, float, float, float]:
         return (self.duration, self.accel, self.yaw_rate, self.pitch_rate)
@@ -55,7 +59,14 @@ def builtin_trajectory(name: str, dt: float = 0.01) -> _core.Trajectory:
     p0 = 32°, 34°, −5 m) and the four 400 s training trajectories ``train-straight``,
     ``train-turns``, ``train-zigzag``, ``train-helix``.
     """
-    return _core.builtin_trajectory(name, dt)
+    check_type(name, str, "name")
+    dt = scalar(dt, "dt")
+    try:
+        return _core.builtin_trajectory(name, dt)
+    except ValueError as exc:  # a built-in's segments are fixed: dt does not fit them
+        if str(exc).startswith("segments"):
+            raise ValueError(f"dt: {dt} s does not fit trajectory {name!r} ({exc})") from None
+        raise
 
 
 def trajectory_from_segments(
@@ -78,10 +89,10 @@ def trajectory_from_segments(
         dt: sample period [s].
         name: label carried by the trajectory.
     """
-    if isinstance(segments, Sequence) and segments and isinstance(segments[0], Segment):
-        rows = np.array([s.as_row() for s in segments], dtype=np.float64)
-    else:
-        rows = float_array(segments, "segments", (None, 4))
+    if isinstance(segments, Sequence) and any(isinstance(s, Segment) for s in segments):
+        segments = [s.as_row() if isinstance(s, Segment) else s for s in segments]
+    rows = float_array(segments, "segments", (None, 4))
+    check_type(name, str, "name")
     return _core.trajectory_from_segments(
         rows,
         lla0=float_array(lla0, "lla0", (3,)),

@@ -72,12 +72,14 @@ def features(windows: ArrayLike) -> NDArray[np.float64]:
 
 def _stats(w: NDArray[np.float64]) -> NDArray[np.float64]:
     centred = w - w.mean(axis=-1, keepdims=True)
-    m2 = (centred**2).mean(axis=-1)
+    # Powers as products: numpy's float ** 3 and ** 4 go through pow(), ~100× slower.
+    c2 = centred * centred
+    m2 = c2.mean(axis=-1)
     var = m2 * w.shape[-1] / (w.shape[-1] - 1)
     # A constant window has no shape: skewness and kurtosis are 0 there, not NaN.
     safe = np.where(m2 > 0, m2, 1.0)
-    skew = np.where(m2 > 0, (centred**3).mean(axis=-1) / safe**1.5, 0.0)
-    kurt = np.where(m2 > 0, (centred**4).mean(axis=-1) / safe**2 - 3.0, 0.0)
+    skew = np.where(m2 > 0, (c2 * centred).mean(axis=-1) / safe**1.5, 0.0)
+    kurt = np.where(m2 > 0, (c2 * c2).mean(axis=-1) / safe**2 - 3.0, 0.0)
     return np.stack(
         [
             var,

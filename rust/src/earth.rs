@@ -24,28 +24,87 @@ pub const GAMMA_EQUATOR: f64 = 9.780_325_335_9;
 /// Normal gravity at the poles [m/s²].
 pub const GAMMA_POLE: f64 = 9.832_184_937_8;
 
+/// The terms of one geodetic latitude that every local quantity derives from, computed
+/// once: a step that needs the radii, gravity, Earth rate and transport rate pays for one
+/// `sin_cos` (and a `tan` for the transport rate) instead of five transcendental calls.
+#[derive(Clone, Copy, Debug)]
+pub struct Latitude {
+    /// The latitude itself [rad].
+    pub lat: f64,
+    pub sin: f64,
+    pub cos: f64,
+    /// Meridian (north-south) radius of curvature [m].
+    pub r_n: f64,
+    /// Prime-vertical (east-west) radius of curvature [m].
+    pub r_e: f64,
+}
+
+impl Latitude {
+    /// The terms at geodetic latitude `lat` [rad].
+    #[inline]
+    pub fn new(lat: f64) -> Self {
+        let (sin, cos) = lat.sin_cos();
+        let (r_n, r_e) = radii_from_sin(sin);
+        Self {
+            lat,
+            sin,
+            cos,
+            r_n,
+            r_e,
+        }
+    }
+
+    /// WGS-84 normal gravity magnitude [m/s²] at height `h` [m]: Somigliana's formula
+    /// with the second-order height correction (NIMA TR8350.2, 4-3). It includes the
+    /// centrifugal part, so at rest the accelerometer reads `-gravity`.
+    #[inline]
+    pub fn gravity(&self, h: f64) -> f64 {
+        let s2 = self.sin * self.sin;
+        let k = (1.0 - F) * GAMMA_POLE / GAMMA_EQUATOR - 1.0;
+        let gamma0 = GAMMA_EQUATOR * (1.0 + k * s2) / (1.0 - E2 * s2).sqrt();
+        let m = OMEGA_IE * OMEGA_IE * A * A * B / GM;
+        gamma0 * (1.0 - 2.0 * h / A * (1.0 + F + m - 2.0 * F * s2) + 3.0 * h * h / (A * A))
+    }
+
+    /// Earth rotation rate expressed in NED [rad/s].
+    #[inline]
+    pub fn earth_rate_ned(&self) -> Vector3<f64> {
+        Vector3::new(OMEGA_IE * self.cos, 0.0, -OMEGA_IE * self.sin)
+    }
+
+    /// Transport rate (rotation of NED relative to the Earth) [rad/s] for NED velocity
+    /// `v` [m/s] at height `h` [m].
+    #[inline]
+    pub fn transport_rate_ned(&self, h: f64, v: &Vector3<f64>) -> Vector3<f64> {
+        Vector3::new(
+            v[1] / (self.r_e + h),
+            -v[0] / (self.r_n + h),
+            // f64::tan, not sin / cos: the two differ in the last bit, and a diverging
+            // filter amplifies that into visibly different numbers.
+            -v[1] * self.lat.tan() / (self.r_e + h),
+        )
+    }
+}
+
 /// Meridian (north-south) and prime-vertical (east-west) radii of curvature [m]
 /// at geodetic latitude `lat` [rad]: `(R_N, R_E)`.
 #[inline]
 pub fn radii(lat: f64) -> (f64, f64) {
-    let s = lat.sin();
-    let d = 1.0 - E2 * s * s;
-    let sqrt_d = d.sqrt();
-    let r_e = A / sqrt_d;
-    let r_n = A * (1.0 - E2) / (d * sqrt_d);
-    (r_n, r_e)
+    radii_from_sin(lat.sin())
 }
 
-/// WGS-84 normal gravity magnitude [m/s²] at latitude `lat` [rad] and height `h` [m]:
-/// Somigliana's formula with the second-order height correction (NIMA TR8350.2, 4-3).
-/// It includes the centrifugal part, so at rest the accelerometer reads `-gravity`.
+#[inline]
+fn radii_from_sin(sin: f64) -> (f64, f64) {
+    let d = 1.0 - E2 * sin * sin;
+    let sqrt_d = d.sqrt();
+    (A * (1.0 - E2) / (d * sqrt_d), A / sqrt_d)
+}
+
+/// WGS-84 normal gravity magnitude [m/s²] at latitude `lat` [rad] and height `h` [m]
+/// (see [`Latitude::gravity`]).
 #[inline]
 pub fn gravity(lat: f64, h: f64) -> f64 {
-    let s2 = lat.sin().powi(2);
-    let k = (1.0 - F) * GAMMA_POLE / GAMMA_EQUATOR - 1.0;
-    let gamma0 = GAMMA_EQUATOR * (1.0 + k * s2) / (1.0 - E2 * s2).sqrt();
-    let m = OMEGA_IE * OMEGA_IE * A * A * B / GM;
-    gamma0 * (1.0 - 2.0 * h / A * (1.0 + F + m - 2.0 * F * s2) + 3.0 * h * h / (A * A))
+    Latitude::new(lat).gravity(h)
 }
 
 /// Normal gravity vector in NED [m/s²]: `[0, 0, gravity(lat, h)]`.
@@ -57,19 +116,14 @@ pub fn gravity_ned(lat: f64, h: f64) -> Vector3<f64> {
 /// Earth rotation rate expressed in NED [rad/s].
 #[inline]
 pub fn earth_rate_ned(lat: f64) -> Vector3<f64> {
-    Vector3::new(OMEGA_IE * lat.cos(), 0.0, -OMEGA_IE * lat.sin())
+    Latitude::new(lat).earth_rate_ned()
 }
 
 /// Transport rate (rotation of NED relative to the Earth) [rad/s] for NED velocity
 /// `v` [m/s] at latitude `lat` [rad] and height `h` [m].
 #[inline]
 pub fn transport_rate_ned(lat: f64, h: f64, v: &Vector3<f64>) -> Vector3<f64> {
-    let (r_n, r_e) = radii(lat);
-    Vector3::new(
-        v[1] / (r_e + h),
-        -v[0] / (r_n + h),
-        -v[1] * lat.tan() / (r_e + h),
-    )
+    Latitude::new(lat).transport_rate_ned(h, v)
 }
 
 /// Geodetic `[lat, lon, h]` to Earth-centred Earth-fixed coordinates [m].

@@ -50,6 +50,10 @@ pub struct FilterConfig {
     pub aiding: Aiding,
     /// Nominal IMU period [s]: the white-noise PSD is q·imu_dt.
     pub imu_dt: f64,
+    /// Chi-square innovation gate: a DVL update whose NIS exceeds this is rejected (not
+    /// applied, and unseen by the noise strategy). With 3 dof, 16.27 rejects 0.1 % of
+    /// consistent updates. `None` (the default, as in the paper's table) applies all.
+    pub innovation_gate: Option<f64>,
 }
 
 impl Default for FilterConfig {
@@ -62,6 +66,7 @@ impl Default for FilterConfig {
             lever_arm: Vector3::zeros(),
             aiding: Aiding::Body,
             imu_dt: 0.01,
+            innovation_gate: None,
         }
     }
 }
@@ -86,6 +91,9 @@ impl FilterConfig {
         }
         check::finite("lever_arm", self.lever_arm.as_slice())?;
         check::positive("imu_dt", self.imu_dt)?;
+        if let Some(gate) = self.innovation_gate {
+            check::positive("innovation_gate", gate)?;
+        }
         Ok(())
     }
 
@@ -113,6 +121,42 @@ pub struct UpdateInfo {
     /// Normalized innovation squared `νᵀ S⁻¹ ν` (χ², 3 dof when consistent).
     pub nis: f64,
     pub gain: Gain,
+    /// False when the innovation gate rejected the measurement: the state is unchanged.
+    pub accepted: bool,
+}
+
+/// Mean NIS over the last [`NisMonitor::WINDOW`] updates above which the filter is
+/// declared diverged: about 8× the consistent mean of 3, i.e. innovations some 3× larger
+/// than the filter's own prediction of them, sustained for 20 updates. (For a consistent
+/// filter the 20-update sum is χ² with 60 dof; exceeding 500 has probability < 1e-60.)
+pub const DIVERGENCE_MEAN_NIS: f64 = 25.0;
+
+/// Watches the NIS of every update, accepted or rejected by the gate, and remembers the
+/// first time its windowed mean exceeds [`DIVERGENCE_MEAN_NIS`].
+#[derive(Clone, Debug, Default)]
+pub struct NisMonitor {
+    recent: [f64; NisMonitor::WINDOW],
+    count: usize,
+    /// Time [s] at which divergence was first detected.
+    pub diverged_at: Option<f64>,
+}
+
+impl NisMonitor {
+    pub const WINDOW: usize = 20;
+
+    /// Record the NIS of an update at time `t` [s].
+    pub fn push(&mut self, nis: f64, t: f64) {
+        self.recent[self.count % Self::WINDOW] = nis;
+        self.count += 1;
+        if self.count >= Self::WINDOW && self.diverged_at.is_none() {
+            // Summed afresh, not kept running: one huge NIS must not leave rounding
+            // debris behind. A NaN NIS counts as divergence.
+            let mean = self.recent.iter().sum::<f64>() / Self::WINDOW as f64;
+            if mean.is_nan() || mean > DIVERGENCE_MEAN_NIS {
+                self.diverged_at = Some(t);
+            }
+        }
+    }
 }
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`).
@@ -128,8 +172,7 @@ struct ErrorDynamics {
 
 impl ErrorDynamics {
     fn new(nav: &NavState, rates: &FrameRates, f_body: &Vector3<f64>) -> Self {
-        let (r_n, r_e) = earth::radii(nav.lla[0]);
-        let radius = (r_n * r_e).sqrt() + nav.lla[2];
+        let radius = (rates.latitude.r_n * rates.latitude.r_e).sqrt() + nav.lla[2];
         let schuler = rates.gravity[2] / radius;
         let c = nav.dcm;
         Self {
@@ -143,9 +186,10 @@ impl ErrorDynamics {
         }
     }
 
-    /// `F · M` using the block sparsity of F (bias rows are zero), column by column on
-    /// the column-major storage: about 60 multiply-adds per column instead of 225.
-    fn mul(&self, m: &Matrix15) -> Matrix15 {
+    /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
+    /// multiply-adds instead of 225.
+    #[inline(always)]
+    fn apply(&self, x: &[f64]) -> [f64; 9] {
         #[inline(always)]
         fn mv(a: &Matrix3<f64>, x: &[f64]) -> [f64; 3] {
             let a = a.as_slice(); // column-major
@@ -155,28 +199,53 @@ impl ErrorDynamics {
                 a[2] * x[0] + a[5] * x[1] + a[8] * x[2],
             ]
         }
-        let mut out = Matrix15::zeros();
-        for (x, o) in m
-            .as_slice()
-            .chunks_exact(15)
-            .zip(out.as_mut_slice().chunks_exact_mut(15))
-        {
-            let (xp, xv, xa) = (&x[POS..POS + 3], &x[VEL..VEL + 3], &x[ATT..ATT + 3]);
-            let (xba, xbg) = (&x[ACC_BIAS..ACC_BIAS + 3], &x[GYRO_BIAS..GYRO_BIAS + 3]);
-            let pp = mv(&self.pos_pos, xp);
-            let (vv, va, vb) = (
-                mv(&self.vel_vel, xv),
-                mv(&self.vel_att, xa),
-                mv(&self.vel_abias, xba),
-            );
-            let (aa, ab) = (mv(&self.att_att, xa), mv(&self.att_gbias, xbg));
-            for r in 0..3 {
-                o[POS + r] = pp[r] + xv[r];
-                o[VEL + r] = self.vel_pos[r] * xp[r] + vv[r] + va[r] + vb[r];
-                o[ATT + r] = aa[r] + ab[r];
+        let (xp, xv, xa) = (&x[POS..POS + 3], &x[VEL..VEL + 3], &x[ATT..ATT + 3]);
+        let (xba, xbg) = (&x[ACC_BIAS..ACC_BIAS + 3], &x[GYRO_BIAS..GYRO_BIAS + 3]);
+        let pp = mv(&self.pos_pos, xp);
+        let (vv, va, vb) = (
+            mv(&self.vel_vel, xv),
+            mv(&self.vel_att, xa),
+            mv(&self.vel_abias, xba),
+        );
+        let (aa, ab) = (mv(&self.att_att, xa), mv(&self.att_gbias, xbg));
+        let mut o = [0.0; 9];
+        for r in 0..3 {
+            o[POS + r] = pp[r] + xv[r];
+            o[VEL + r] = self.vel_pos[r] * xp[r] + vv[r] + va[r] + vb[r];
+            o[ATT + r] = aa[r] + ab[r];
+        }
+        o
+    }
+
+    /// `P ← Φ P Φᵀ` with `Φ = I + F Δt`, using that P is symmetric and that the bias
+    /// rows of F are zero: `Φ P Φᵀ = P + Δt (A + Aᵀ) + Δt² F Aᵀ` with `A = F P`, whose
+    /// rows 9..15 vanish, so `F Aᵀ` is needed on its 9×9 navigation block only and the
+    /// bias-bias block of P is unchanged. The result is written symmetrized.
+    fn propagate_covariance(&self, p: &mut Matrix15, dt: f64) {
+        const NAV: usize = 9;
+        // a[j][i] = (F P)[i, j], one column of F P per column of P (column-major).
+        let mut a = [[0.0; NAV]; 15];
+        for (col, x) in a.iter_mut().zip(p.as_slice().chunks_exact(15)) {
+            *col = self.apply(x);
+        }
+        // b[j][i] = (F Aᵀ)[i, j]; column j of Aᵀ is row j of A.
+        let mut b = [[0.0; NAV]; NAV];
+        for (j, col) in b.iter_mut().enumerate() {
+            let row_j: [f64; 15] = std::array::from_fn(|c| a[c][j]);
+            *col = self.apply(&row_j);
+        }
+        let half_dt2 = 0.5 * (dt * dt);
+        for j in 0..15 {
+            for i in 0..=j.min(NAV - 1) {
+                let v = if j < NAV {
+                    p[(i, j)] + dt * (a[j][i] + a[i][j]) + half_dt2 * (b[j][i] + b[i][j])
+                } else {
+                    p[(i, j)] + dt * a[j][i]
+                };
+                p[(i, j)] = v;
+                p[(j, i)] = v;
             }
         }
-        out
     }
 }
 
@@ -217,37 +286,52 @@ impl Ekf {
     }
 
     /// 1σ of each error state, `sqrt(diag P)`.
+    /// A negative rounding residue gives 0; a NaN variance stays NaN (never "known").
     pub fn sigma(&self) -> [f64; 15] {
-        std::array::from_fn(|i| self.p[(i, i)].max(0.0).sqrt())
+        std::array::from_fn(|i| {
+            let v = self.p[(i, i)];
+            if v < 0.0 {
+                0.0
+            } else {
+                v.sqrt()
+            }
+        })
+    }
+
+    /// Whether the navigation solution, the bias estimates and the variances are all
+    /// finite. A non-finite P reaches its diagonal within a step, so the diagonal is
+    /// enough.
+    pub fn is_finite(&self) -> bool {
+        let nav = &self.nav;
+        nav.lla.iter().all(|x| x.is_finite())
+            && nav.vel.iter().all(|x| x.is_finite())
+            && nav.dcm.iter().all(|x| x.is_finite())
+            && self.accel_bias.iter().all(|x| x.is_finite())
+            && self.gyro_bias.iter().all(|x| x.is_finite())
+            && (0..15).all(|i| self.p[(i, i)].is_finite())
     }
 
     /// Propagate over one raw IMU sample (`dt` [s]): covariance with F and Q_d from
     /// the state at the start of the step, then the strapdown step with the
-    /// bias-corrected sample.
-    pub fn propagate(&mut self, raw: &ImuSample, dt: f64, noise: ProcessNoise<'_>) {
+    /// bias-corrected sample. A non-finite result (an overflow from absurd inputs or a
+    /// diverged filter) is an `Error::Numerical`, never a silent NaN.
+    pub fn propagate(&mut self, raw: &ImuSample, dt: f64, noise: ProcessNoise<'_>) -> Result<()> {
         let imu = ImuSample {
             accel: raw.accel - self.accel_bias,
             gyro: raw.gyro - self.gyro_bias,
         };
         let rates = FrameRates::at(&self.nav);
         let dynamics = ErrorDynamics::new(&self.nav, &rates, &imu.accel);
-        // Φ P Φᵀ = P + Δt (FP + (FP)ᵀ) + Δt² F (FP)ᵀ, with P symmetric.
-        let fp = dynamics.mul(&self.p);
-        let fpf = dynamics.mul(&fp.transpose());
-        let dt2 = dt * dt;
-        // One pass over the upper triangle: the sum, symmetrized.
-        for j in 0..15 {
-            for i in 0..=j {
-                let v = self.p[(i, j)]
-                    + dt * (fp[(i, j)] + fp[(j, i)])
-                    + 0.5 * dt2 * (fpf[(i, j)] + fpf[(j, i)]);
-                self.p[(i, j)] = v;
-                self.p[(j, i)] = v;
-            }
-        }
+        dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
+        if !self.is_finite() {
+            return Err(Error::Numerical(
+                "the prediction produced a non-finite state or covariance".into(),
+            ));
+        }
+        Ok(())
     }
 
     fn add_process_noise(&mut self, noise: ProcessNoise<'_>, dt: f64) {
@@ -314,6 +398,15 @@ impl Ekf {
             .inverse();
         let gain: Gain = pht * s_inv;
         let nis = innovation.dot(&(s_inv * innovation));
+        if self.cfg.innovation_gate.is_some_and(|gate| nis > gate) {
+            return Ok(UpdateInfo {
+                innovation,
+                s,
+                nis,
+                gain,
+                accepted: false,
+            });
+        }
         let ikh = Matrix15::identity() - gain * h;
         self.p = ikh * self.p * ikh.transpose() + gain * r * gain.transpose();
         self.p = (self.p + self.p.transpose()) * 0.5;
@@ -329,6 +422,7 @@ impl Ekf {
             s,
             nis,
             gain,
+            accepted: true,
         })
     }
 
@@ -345,7 +439,7 @@ impl Ekf {
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional
-    /// measurement at the end of it; the strategy sees every update.
+    /// measurement at the end of it; the strategy sees every applied update.
     pub fn step(
         &mut self,
         raw: &ImuSample,
@@ -354,12 +448,14 @@ impl Ekf {
         measurement: Option<&Vector3<f64>>,
         steps_since_update: usize,
     ) -> Result<Option<UpdateInfo>> {
-        self.propagate(raw, dt, strategy.process_noise());
+        self.propagate(raw, dt, strategy.process_noise())?;
         match measurement {
             None => Ok(None),
             Some(z) => {
                 let info = self.update(z)?;
-                strategy.after_update(&info, steps_since_update);
+                if info.accepted {
+                    strategy.after_update(&info, steps_since_update);
+                }
                 Ok(Some(info))
             }
         }
@@ -383,6 +479,8 @@ pub struct FilterOutput {
     pub adaptive_q: Vec<Option<Matrix15>>,
     /// Covariance at the last epoch.
     pub final_covariance: Matrix15,
+    /// Divergence watch over every update's NIS.
+    pub nis_monitor: NisMonitor,
 }
 
 /// Inputs of one filter pass over recorded (or user-simulated) sensor arrays.
@@ -510,6 +608,7 @@ pub fn filter_recorded(
         updates: vec![None; data.dvl.len()],
         adaptive_q: vec![None; data.dvl.len()],
         final_covariance: Matrix15::zeros(),
+        nis_monitor: NisMonitor::default(),
     };
     let record = |out: &mut FilterOutput, ekf: &Ekf, t: f64| {
         out.time.push(t);
@@ -537,7 +636,11 @@ pub fn filter_recorded(
         if let Some(q) = q_in_force.take() {
             strategy.set_imu_variance(&q)?;
         }
-        ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise());
+        ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise())
+            .map_err(|e| match e {
+                Error::Numerical(m) => Error::Numerical(format!("{m} (t = {t} s)")),
+                other => other,
+            })?;
         steps_since_update += 1;
         // Apply every DVL row whose nearest epoch is this one.
         while next_dvl < data.dvl.len() && data.dvl_time[next_dvl] <= t + 0.5 * dt {
@@ -548,9 +651,12 @@ pub fn filter_recorded(
                 }
                 other => other,
             })?;
-            strategy.after_update(&info, steps_since_update);
+            out.nis_monitor.push(info.nis, t);
+            if info.accepted {
+                strategy.after_update(&info, steps_since_update);
+                steps_since_update = 0;
+            }
             out.adaptive_q[next_dvl] = strategy.discrete_q().copied();
-            steps_since_update = 0;
             out.dvl_epoch[next_dvl] = Some(k + 1);
             out.updates[next_dvl] = Some(info);
             next_dvl += 1;
@@ -604,9 +710,10 @@ mod tests {
         let dt = 0.01;
         let phi = Matrix15::identity() + f * dt;
         let want = phi * p * phi.transpose();
-        let fp = d.mul(&p);
-        let got = p + (fp + fp.transpose()) * dt + d.mul(&fp.transpose()) * (dt * dt);
+        let mut got = p;
+        d.propagate_covariance(&mut got, dt);
         assert!((got - want).abs().max() < 1e-12 * want.abs().max());
+        assert_eq!(got, got.transpose());
     }
 
     /// Numerical Jacobian of the body-velocity measurement with respect to the error
@@ -648,6 +755,74 @@ mod tests {
     }
 
     /// Covariance stays symmetric and positive definite through propagation and updates.
+    /// A body-frame DVL reading of the filter's own prediction plus `sigmas` standard
+    /// deviations of its innovation on the first axis.
+    fn reading(ekf: &Ekf, sigmas: f64) -> Vector3<f64> {
+        let (predicted, h) = ekf.measurement_model();
+        let s = h * ekf.p * h.transpose()
+            + Matrix3::from_diagonal(&Vector3::from_column_slice(&ekf.cfg.dvl_variance));
+        predicted + Vector3::new(sigmas * s[(0, 0)].sqrt(), 0.0, 0.0)
+    }
+
+    #[test]
+    fn innovation_gate_rejects_a_ten_sigma_reading_and_leaves_the_state_alone() {
+        let cfg = FilterConfig {
+            innovation_gate: Some(16.27),
+            ..FilterConfig::default()
+        };
+        let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+        let before = ekf.clone();
+        let info = ekf.update(&reading(&ekf, 10.0)).unwrap();
+        assert!(!info.accepted);
+        // (S⁻¹)₀₀ ≥ 1/S₀₀ for an SPD S, so the NIS of a 10σ first-axis innovation is ≥ 100.
+        assert!(
+            info.nis >= 100.0 - 1e-9,
+            "NIS of a 10σ innovation: {}",
+            info.nis
+        );
+        assert_eq!((ekf.nav, ekf.p), (before.nav, before.p));
+        // 3σ is inside the gate (NIS 9 < 16.27): applied.
+        let info = ekf.update(&reading(&ekf, 3.0)).unwrap();
+        assert!(info.accepted);
+        assert_ne!(ekf.p, before.p);
+        // Without a gate the 10σ reading is applied.
+        let mut ungated = before.clone();
+        ungated.cfg.innovation_gate = None;
+        assert!(ungated.update(&reading(&ungated, 10.0)).unwrap().accepted);
+        assert_ne!(ungated.nav.vel, before.nav.vel);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let cfg = FilterConfig {
+                innovation_gate: Some(bad),
+                ..FilterConfig::default()
+            };
+            assert!(cfg.validate().is_err(), "gate {bad} accepted");
+        }
+    }
+
+    #[test]
+    fn nis_monitor_flags_a_sustained_large_nis_only() {
+        let mut m = NisMonitor::default();
+        // A consistent filter: mean 3, with single outliers.
+        for k in 0..200 {
+            m.push(if k % 37 == 0 { 60.0 } else { 3.0 }, k as f64);
+        }
+        assert_eq!(m.diverged_at, None);
+        // Innovations 4× their predicted σ (NIS ≈ 48) from t = 200 s on.
+        for k in 200..260 {
+            m.push(48.0, k as f64);
+        }
+        let t = m.diverged_at.expect("a sustained NIS of 48 is divergence");
+        assert!((200.0..220.0).contains(&t), "detected at {t}");
+        // The first detection is kept; a NaN NIS also counts.
+        m.push(f64::NAN, 999.0);
+        assert_eq!(m.diverged_at, Some(t));
+        let mut m = NisMonitor::default();
+        for k in 0..NisMonitor::WINDOW {
+            m.push(if k == 5 { f64::NAN } else { 3.0 }, k as f64);
+        }
+        assert!(m.diverged_at.is_some());
+    }
+
     #[test]
     fn covariance_stays_symmetric_positive_definite() {
         let cfg = FilterConfig::default();

@@ -57,16 +57,20 @@ pub struct FrameRates {
     pub earth: Vector3<f64>,
     pub transport: Vector3<f64>,
     pub gravity: Vector3<f64>,
+    /// The latitude terms they came from (radii of curvature for the EKF's Jacobian).
+    pub latitude: earth::Latitude,
 }
 
 impl FrameRates {
     #[inline]
     pub fn at(state: &NavState) -> Self {
-        let (lat, h) = (state.lla[0], state.lla[2]);
+        let latitude = earth::Latitude::new(state.lla[0]);
+        let h = state.lla[2];
         Self {
-            earth: earth::earth_rate_ned(lat),
-            transport: earth::transport_rate_ned(lat, h, &state.vel),
-            gravity: earth::gravity_ned(lat, h),
+            earth: latitude.earth_rate_ned(),
+            transport: latitude.transport_rate_ned(h, &state.vel),
+            gravity: Vector3::new(0.0, 0.0, latitude.gravity(h)),
+            latitude,
         }
     }
 
@@ -84,22 +88,22 @@ impl FrameRates {
 }
 
 /// Advance geodetic position `lla` by the trapezoid of NED velocities `v0`, `v1` over `dt`.
+/// `r_n` is the meridian radius at `lla`'s latitude [m] (the caller usually has it).
 /// Shared by the mechanization and the trajectory generator, so that truth positions and
 /// mechanized positions follow the same rule.
 #[inline]
 pub fn advance_position(
     lla: &Vector3<f64>,
+    r_n: f64,
     v0: &Vector3<f64>,
     v1: &Vector3<f64>,
     dt: f64,
 ) -> Vector3<f64> {
     let h1 = lla[2] - 0.5 * (v0[2] + v1[2]) * dt;
     let h_mid = 0.5 * (lla[2] + h1);
-    let (r_n, _) = earth::radii(lla[0]);
     let lat1 = lla[0] + 0.5 * (v0[0] + v1[0]) * dt / (r_n + h_mid);
-    let lat_mid = 0.5 * (lla[0] + lat1);
-    let (_, r_e) = earth::radii(lat_mid);
-    let lon1 = lla[1] + 0.5 * (v0[1] + v1[1]) * dt / ((r_e + h_mid) * lat_mid.cos());
+    let mid = earth::Latitude::new(0.5 * (lla[0] + lat1));
+    let lon1 = lla[1] + 0.5 * (v0[1] + v1[1]) * dt / ((mid.r_e + h_mid) * mid.cos);
     Vector3::new(lat1, lon1, h1)
 }
 
@@ -121,7 +125,7 @@ pub fn step_with_rates(state: &NavState, imu: &ImuSample, dt: f64, rates: &Frame
     let c_mid = nav_half * state.dcm * body_half;
     let dcm = orthonormalize(&(nav_half * c_mid * body_half));
     let vel = state.vel + c_mid * imu.accel * dt + rates.kinematic_accel(&state.vel) * dt;
-    let lla = advance_position(&state.lla, &state.vel, &vel, dt);
+    let lla = advance_position(&state.lla, rates.latitude.r_n, &state.vel, &vel, dt);
     NavState { lla, vel, dcm }
 }
 

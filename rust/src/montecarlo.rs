@@ -9,7 +9,9 @@
 
 use crate::attitude::{exp_so3, log_so3};
 use crate::earth;
-use crate::ekf::{Ekf, FilterConfig, Matrix15, UpdateInfo, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::ekf::{
+    Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL,
+};
 use crate::error::{Error, Result};
 use crate::mechanization::{ImuSample, NavState};
 use crate::noise::{NoiseStrategy, StrategySpec};
@@ -60,6 +62,10 @@ pub struct McOptions {
     pub seed: u64,
     /// Record the error and 1σ history every this many IMU steps (0: no history).
     pub record_every: usize,
+    /// Index of the first run: the runs are `first_run .. first_run + n_runs`, each on
+    /// the random streams of `(seed, index)`, so shards of a Monte Carlo computed apart
+    /// are bit-identical to the same runs computed whole.
+    pub first_run: u64,
 }
 
 impl McOptions {
@@ -82,8 +88,12 @@ pub struct RunSummary {
     pub final_horizontal_error: f64,
     /// Largest horizontal position error over the run [m].
     pub max_horizontal_error: f64,
-    /// Mean NIS over the DVL epochs.
+    /// Mean NIS over the applied DVL updates.
     pub mean_nis: f64,
+    /// DVL updates the innovation gate rejected.
+    pub rejected_updates: usize,
+    /// Time [s] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
+    pub diverged_at: Option<f64>,
     /// Set when the filter failed numerically; the run's metrics are then NaN.
     pub failure: Option<String>,
 }
@@ -103,7 +113,7 @@ pub struct History {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunRecord {
     pub summary: RunSummary,
-    /// NIS at each DVL epoch.
+    /// NIS at each DVL epoch (gate-rejected updates included).
     pub nis: Vec<f64>,
     /// NEES of the position, velocity, attitude, accelerometer-bias and gyro-bias
     /// blocks after each DVL update (3 dof each).
@@ -168,6 +178,9 @@ pub struct Run {
     horizontal_error: f64,
     max_horizontal_error: f64,
     nis: Vec<f64>,
+    rejected_updates: usize,
+    accepted_nis_sum: f64,
+    nis_monitor: NisMonitor,
     nees: Vec<[f64; 5]>,
     history: Option<History>,
     window: Option<ImuWindow>,
@@ -253,6 +266,9 @@ impl Run {
             horizontal_error: 0.0,
             max_horizontal_error: 0.0,
             nis: Vec::with_capacity(n_epochs),
+            rejected_updates: 0,
+            accepted_nis_sum: 0.0,
+            nis_monitor: NisMonitor::default(),
             nees: Vec::with_capacity(n_epochs),
             history: (record_every > 0).then(History::default),
             window: window.map(ImuWindow::new),
@@ -300,7 +316,7 @@ impl Run {
                 z.as_ref(),
                 self.steps_since_update,
             ) {
-                Ok(Some(info)) => self.after_update(&info, state),
+                Ok(Some(info)) => self.after_update(&info, state, truth.time[self.k]),
                 Ok(None) => {}
                 Err(e) => self.failure = Some(format!("t = {} s: {e}", truth.time[self.k])),
             }
@@ -314,8 +330,15 @@ impl Run {
         self.record_history(truth);
     }
 
-    fn after_update(&mut self, info: &UpdateInfo, state: &NavState) {
-        self.steps_since_update = 0;
+    fn after_update(&mut self, info: &UpdateInfo, state: &NavState, t: f64) {
+        self.nis_monitor.push(info.nis, t);
+        if info.accepted {
+            self.steps_since_update = 0;
+            self.accepted_nis_sum += info.nis;
+        } else {
+            self.rejected_updates += 1;
+        }
+        // Every epoch is recorded, applied or not, so that the histories stay aligned.
         self.nis.push(info.nis);
         let e = state_error(&self.ekf, state, &self.true_bias);
         self.nees.push(block_nees(&e, &self.ekf.p));
@@ -334,7 +357,8 @@ impl Run {
         let n = self.k.max(1) as f64;
         let failed = self.failure.is_some();
         let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
-        let mean_nis = self.nis.iter().sum::<f64>() / self.nis.len().max(1) as f64;
+        let accepted = self.nis.len() - self.rejected_updates;
+        let mean_nis = self.accepted_nis_sum / accepted.max(1) as f64;
         RunRecord {
             summary: RunSummary {
                 srmse: nan_if_failed((self.sum_sq / n).sqrt()),
@@ -342,6 +366,8 @@ impl Run {
                 final_horizontal_error: nan_if_failed(self.horizontal_error),
                 max_horizontal_error: nan_if_failed(self.max_horizontal_error),
                 mean_nis: nan_if_failed(mean_nis),
+                rejected_updates: self.rejected_updates,
+                diverged_at: self.nis_monitor.diverged_at,
                 failure: self.failure,
             },
             nis: self.nis,
@@ -384,7 +410,7 @@ pub fn run_monte_carlo(
                 filter,
                 strategy,
                 opts.seed,
-                i as u64,
+                opts.first_run + i as u64,
                 opts.record_every,
                 None,
             )?;
@@ -406,10 +432,18 @@ pub fn run_monte_carlo(
 }
 
 /// Run `f` on a rayon pool of `threads` threads, or on the global pool for `None`.
+/// The most worker threads a pool may have: far above any core count this runs on, and
+/// low enough that a mistyped count fails at once instead of spawning for minutes.
+pub const MAX_THREADS: usize = 1024;
+
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
     match threads {
         None => Ok(f()),
         Some(0) => Err(Error::invalid("threads", "must be at least 1")),
+        Some(n) if n > MAX_THREADS => Err(Error::invalid(
+            "threads",
+            format!("must be at most {MAX_THREADS}, got {n}"),
+        )),
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
@@ -445,8 +479,14 @@ impl Ensemble {
     ) -> Result<Self> {
         let strategy = StrategySpec::External { prior_q };
         check_strategy(filter, &strategy, opts)?;
-        if window == 0 {
-            return Err(Error::invalid("window", "must be at least 1 sample"));
+        if window == 0 || window > scenario.truth.len() {
+            return Err(Error::invalid(
+                "window",
+                format!(
+                    "must be 1 to {} samples (the trajectory's length), got {window}",
+                    scenario.truth.len()
+                ),
+            ));
         }
         if tuning_every == 0 {
             return Err(Error::invalid(
@@ -462,7 +502,7 @@ impl Ensemble {
                     filter,
                     &strategy,
                     opts.seed,
-                    i as u64,
+                    opts.first_run + i as u64,
                     opts.record_every,
                     Some(window),
                 )
@@ -624,6 +664,7 @@ mod tests {
             n_runs: 6,
             seed: 42,
             record_every: 50,
+            first_run: 0,
         };
         let strat = StrategySpec::Mehra {
             window: 3,
@@ -651,6 +692,22 @@ mod tests {
         )
         .unwrap();
         assert_eq!(format!("{:?}", three.runs), format!("{:?}", &one.runs[..3]));
+        // Nor on the shard: runs 3..6 computed apart are runs 3..6 of the whole.
+        let last_three = run_monte_carlo(
+            &sc,
+            &tuned_filter(),
+            &strat,
+            &McOptions {
+                n_runs: 3,
+                first_run: 3,
+                ..opts
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            format!("{:?}", last_three.runs),
+            format!("{:?}", &one.runs[3..])
+        );
         assert_eq!(one.dvl_time.len(), 30);
         assert_eq!(one.record_time.len(), 61);
     }
@@ -662,6 +719,7 @@ mod tests {
             n_runs: 4,
             seed: 1,
             record_every: 0,
+            first_run: 0,
         };
         let res = run_monte_carlo(
             &sc,
@@ -705,6 +763,7 @@ mod tests {
             n_runs: 3,
             seed: 9,
             record_every: 100,
+            first_run: 0,
         };
         let mc = run_monte_carlo(
             &sc,
@@ -732,6 +791,7 @@ mod tests {
             n_runs: 2,
             seed: 3,
             record_every: 0,
+            first_run: 0,
         };
         let mut ens =
             Ensemble::new(Arc::clone(&sc), &tuned_filter(), TRUE_Q, &opts, 50, 50).unwrap();
@@ -781,6 +841,7 @@ mod tests {
             n_runs: 1,
             seed: 0,
             record_every: 0,
+            first_run: 0,
         };
         let mut ens = Ensemble::new(sc, &tuned_filter(), TRUE_Q, &opts, 400, 100).unwrap();
         let mut variances = Vec::new();
@@ -805,6 +866,7 @@ mod tests {
             n_runs: 1,
             seed: 0,
             record_every: 0,
+            first_run: 0,
         };
         let err = run_monte_carlo(
             &Arc::new(sc),

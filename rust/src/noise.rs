@@ -184,7 +184,8 @@ impl StrategySpec {
             StrategySpec::Mehra { window, prior_q } => Box::new(MehraQ {
                 window: *window,
                 prior: ConstantQ::new(*prior_q, bias_psd),
-                innovations: VecDeque::with_capacity(*window),
+                // Reserved up to a bound: an absurd window must not allocate terabytes.
+                innovations: VecDeque::with_capacity((*window).min(4096)),
                 per_step: None,
             }),
             StrategySpec::External { prior_q } => Box::new(ExternalQ {
@@ -223,6 +224,7 @@ mod tests {
             s: Matrix3::identity(),
             nis: nu.norm_squared(),
             gain,
+            accepted: true,
         }
     }
 

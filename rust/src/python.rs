@@ -347,7 +347,8 @@ pub struct PyFilterConfig {
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body", imu_dt = 0.01))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body", imu_dt = 0.01, innovation_gate = None))]
+    #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
         p0_sigma: Option<&Bound<'_, PyAny>>,
         accel_bias_psd: f64,
@@ -356,6 +357,7 @@ impl PyFilterConfig {
         lever_arm: Option<&Bound<'_, PyAny>>,
         aiding: &str,
         imu_dt: f64,
+        innovation_gate: Option<f64>,
     ) -> PyResult<Self> {
         let defaults = FilterConfig::default();
         let inner = FilterConfig {
@@ -384,6 +386,7 @@ impl PyFilterConfig {
                 }
             },
             imu_dt,
+            innovation_gate,
         };
         inner.validate().map_err(to_py_err)?;
         Ok(Self { inner })
@@ -419,15 +422,22 @@ impl PyFilterConfig {
     fn imu_dt(&self) -> f64 {
         self.inner.imu_dt
     }
+    #[getter]
+    fn innovation_gate(&self) -> Option<f64> {
+        self.inner.innovation_gate
+    }
     fn __repr__(&self) -> String {
         format!(
-            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={})",
+            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={})",
             self.inner.accel_bias_psd,
             self.inner.gyro_bias_psd,
             self.inner.dvl_variance,
             self.inner.lever_arm.as_slice(),
             self.aiding(),
-            self.inner.imu_dt
+            self.inner.imu_dt,
+            self.inner
+                .innovation_gate
+                .map_or("None".to_string(), |g| g.to_string()),
         )
     }
 }
@@ -703,6 +713,16 @@ fn run_filter<'py>(
         .into_pyarray(py),
     )?;
     d.set_item(
+        "accepted",
+        Array1::from_iter(
+            out.updates
+                .iter()
+                .map(|u| u.as_ref().is_some_and(|u| u.accepted)),
+        )
+        .into_pyarray(py),
+    )?;
+    d.set_item("diverged_at", out.nis_monitor.diverged_at)?;
+    d.set_item(
         "gain",
         Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
             out.updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
@@ -733,7 +753,7 @@ fn scenario(
     })
 }
 
-fn options(n_runs: i64, seed: u64, record_every: i64) -> PyResult<McOptions> {
+fn options(n_runs: i64, seed: u64, record_every: i64, first_run: u64) -> PyResult<McOptions> {
     if n_runs < 1 {
         return Err(invalid(
             "n_runs",
@@ -750,6 +770,7 @@ fn options(n_runs: i64, seed: u64, record_every: i64) -> PyResult<McOptions> {
         n_runs: n_runs as usize,
         seed,
         record_every: record_every as usize,
+        first_run,
     })
 }
 
@@ -778,6 +799,15 @@ fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Bound<'py, PyDi
         col(&|s| s.max_horizontal_error).into_pyarray(py),
     )?;
     d.set_item("mean_nis", col(&|s| s.mean_nis).into_pyarray(py))?;
+    d.set_item(
+        "rejected_updates",
+        Array1::from_iter(res.runs.iter().map(|r| r.summary.rejected_updates as i64))
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "diverged_at",
+        col(&|s| s.diverged_at.unwrap_or(f64::NAN)).into_pyarray(py),
+    )?;
     let failures: Vec<Option<String>> =
         res.runs.iter().map(|r| r.summary.failure.clone()).collect();
     d.set_item("failure", failures)?;
@@ -825,7 +855,7 @@ fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Bound<'py, PyDi
 }
 
 #[pyfunction(name = "monte_carlo")]
-#[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None))]
+#[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
 #[allow(clippy::too_many_arguments)]
 fn py_monte_carlo<'py>(
     py: Python<'py>,
@@ -838,8 +868,9 @@ fn py_monte_carlo<'py>(
     record_every: i64,
     sample_initial_error: bool,
     threads: Option<i64>,
+    first_run: u64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let opts = options(n_runs, seed, record_every)?;
+    let opts = options(n_runs, seed, record_every, first_run)?;
     let threads = threads_arg(threads)?;
     let sc = scenario(trajectory, sensors, sample_initial_error);
     let (cfg, spec) = (config.inner.clone(), strategy.inner.clone());
@@ -884,7 +915,7 @@ impl PyEnsemble {
 #[pymethods]
 impl PyEnsemble {
     #[new]
-    #[pyo3(signature = (trajectory, sensors, config, prior_q, *, n_runs, seed = 0, window = 200, tuning_period = 1.0, record_every = 0, sample_initial_error = true, threads = None))]
+    #[pyo3(signature = (trajectory, sensors, config, prior_q, *, n_runs, seed = 0, window = 200, tuning_period = 1.0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -899,8 +930,9 @@ impl PyEnsemble {
         record_every: i64,
         sample_initial_error: bool,
         threads: Option<i64>,
+        first_run: u64,
     ) -> PyResult<Self> {
-        let opts = options(n_runs, seed, record_every)?;
+        let opts = options(n_runs, seed, record_every, first_run)?;
         let prior_q = fixed::<6>(prior_q, "prior_q")?;
         if window < 1 {
             return Err(invalid(

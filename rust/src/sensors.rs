@@ -144,6 +144,10 @@ impl SensorConfig {
     }
 
     pub fn validate(&self) -> Result<()> {
+        // `VarianceSchedule::constant` builds without checks; `new` checks the same way.
+        for v in &self.imu.variance.values {
+            check::non_negative("imu_variance", v)?;
+        }
         check::finite("imu_bias", &self.imu.bias)?;
         check::non_negative("imu_bias_psd", &self.imu.bias_rw_psd)?;
         check::non_negative("dvl_variance", &self.dvl.variance)?;

@@ -10,6 +10,7 @@
 //! it reproduces the truth to rounding.
 
 use crate::attitude::{dcm_from_euler, wrap_angle};
+use crate::earth;
 use crate::error::{check, Error, Result};
 use crate::mechanization::{advance_position, invert_step, NavState};
 use nalgebra::Vector3;
@@ -203,16 +204,33 @@ impl TrajectorySpec {
             let vel = dcm * Vector3::new(speed, 0.0, 0.0);
             let lla = match states.last() {
                 None => self.lla0,
-                Some(prev) => advance_position(&prev.lla, &prev.vel, &vel, self.dt),
+                Some(prev) => {
+                    let r_n = earth::radii(prev.lla[0]).0;
+                    advance_position(&prev.lla, r_n, &prev.vel, &vel, self.dt)
+                }
             };
             time.push(t);
             states.push(NavState { lla, vel, dcm });
             rpy.push(Vector3::new(roll, p, wrap_angle(y)));
         }
-        let imu = states
+        let imu: Vec<[f64; 6]> = states
             .windows(2)
             .map(|w| invert_step(&w[0], &w[1], self.dt).to_array())
             .collect();
+        // Finite inputs can still overflow (a yaw rate near f64::MAX, a height of 1e300 m).
+        let bad_state = states.iter().position(|s| {
+            !(s.lla.iter().chain(s.vel.iter()).chain(s.dcm.iter())).all(|x| x.is_finite())
+        });
+        let bad_imu = imu.iter().position(|r| !r.iter().all(|x| x.is_finite()));
+        if let Some(k) = bad_state.or(bad_imu) {
+            return Err(Error::invalid(
+                "segments",
+                format!(
+                    "the trajectory overflows to non-finite values at t = {} s",
+                    time[k]
+                ),
+            ));
+        }
         Ok(Truth {
             name: self.name.clone(),
             dt: self.dt,
@@ -352,7 +370,6 @@ pub fn builtin(name: &str, dt: f64) -> Result<TrajectorySpec> {
 mod tests {
     use super::*;
     use crate::attitude::euler_from_dcm;
-    use crate::earth;
     use crate::mechanization::integrate;
 
     #[test]

@@ -1,0 +1,80 @@
+//! Micro-benchmarks of the navigation core's inner steps: one strapdown mechanization
+//! step, one EKF covariance-and-state prediction and one DVL update.
+//!
+//! Run: `cargo bench --bench core` (criterion; HTML under target/criterion). The
+//! performance target for mechanization is ≥ 10 M steps/s per core, i.e. ≤ 100 ns.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use nalgebra::Vector3;
+use pronet::attitude::dcm_from_euler;
+use pronet::ekf::{Ekf, FilterConfig};
+use pronet::mechanization::{step, ImuSample, NavState};
+use pronet::noise::ProcessNoise;
+use std::hint::black_box;
+
+const DT: f64 = 0.01;
+
+fn moving_state() -> NavState {
+    NavState {
+        lla: Vector3::new(0.55, 0.6, -10.0),
+        vel: Vector3::new(1.5, 0.3, 0.05),
+        dcm: dcm_from_euler(0.02, -0.05, 0.8),
+    }
+}
+
+fn imu() -> ImuSample {
+    ImuSample {
+        accel: Vector3::new(0.05, 0.01, -9.79),
+        gyro: Vector3::new(1e-4, -2e-4, 0.01),
+    }
+}
+
+fn ekf() -> Ekf {
+    Ekf::new(
+        &FilterConfig::default(),
+        moving_state(),
+        Vector3::zeros(),
+        Vector3::zeros(),
+    )
+    .expect("the default filter config is valid")
+}
+
+fn benches(c: &mut Criterion) {
+    let (state, sample) = (moving_state(), imu());
+    c.bench_function("mechanization step", |b| {
+        b.iter(|| step(black_box(&state), black_box(&sample), DT))
+    });
+
+    let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+    let bias_psd = FilterConfig::default().bias_psd();
+    let noise = ProcessNoise::Continuous {
+        imu_variance: &q,
+        bias_psd: &bias_psd,
+    };
+    let start = ekf();
+    c.bench_function("ekf predict (covariance + strapdown)", |b| {
+        b.iter_batched_ref(
+            || start.clone(),
+            |f| f.propagate(black_box(&sample), DT, noise),
+            criterion::BatchSize::SmallInput,
+        )
+    });
+
+    let mut predicted = ekf();
+    for _ in 0..100 {
+        predicted
+            .propagate(&sample, DT, noise)
+            .expect("a finite prediction");
+    }
+    let z = Vector3::new(1.4, 0.3, 0.1);
+    c.bench_function("ekf dvl update (Joseph form + feedback)", |b| {
+        b.iter_batched_ref(
+            || predicted.clone(),
+            |f| f.update(black_box(&z)).expect("a consistent update"),
+            criterion::BatchSize::SmallInput,
+        )
+    });
+}
+
+criterion_group!(core, benches);
+criterion_main!(core);

@@ -1,0 +1,388 @@
+"""Every performance figure of pronet beside its target, in one table.
+
+Run:  ~/.cache/pronet-venv/bin/python benches/run.py [--quick] [--only NAME ...]
+
+Each row is printed with the command that reproduces it alone (``--only NAME``). The
+Rust micro-benchmarks of the inner steps are separate: ``cargo bench --bench core``.
+Benchmarks are not tests: nothing here fails on a slow machine; a missed target is
+printed as missed. ``--quick`` scales the long rows down (fewer runs, no reproduce) to
+check that the script works, not to measure.
+
+Definitions:
+- Monte Carlo rows: the evaluation scenario (``paper``, 330 s at 100 Hz, P propagated
+  every IMU step), 100 runs, the paper's filter and sensors, no histories, best of
+  ``--repeat``; "filter steps/s" counts IMU steps over all runs.
+- hybrid: ``run_hybrid`` with the shipped detrend net, tuning every 1 s, split into
+  time inside the native core and time in ``predict`` (torch).
+- NumPy reference: ``tests/numpy_reference_ekf.py`` (dense 15×15 matrices, the same
+  filter) on the first ``--reference-seconds`` of one run, scaled to a whole run, against
+  the 1-thread Monte Carlo time per run.
+- 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
+  runs and at all of them; peak RSS and the time ratio (10 is linear).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import pronet
+from pronet import dataset, experiment, models
+from pronet.hybrid import run_hybrid
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = "python benches/run.py"
+
+
+@dataclass
+class Row:
+    what: str
+    measured: str
+    target: str
+    met: bool | None  # None: no target
+    command: str
+
+
+def best_of(repeat: int, f: Callable[[], object]) -> float:
+    """Smallest wall time [s] of ``repeat`` calls of ``f``."""
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        f()
+        best = min(best, time.perf_counter() - t0)
+    return float(best)
+
+
+def paper_monte_carlo(strategy: pronet.Strategy, n_runs: int, threads: int | None) -> None:
+    sc = experiment.SCENARIOS["paper"]()
+    pronet.monte_carlo(
+        sc.trajectory,
+        strategy,
+        sensors=sc.sensors,
+        config=experiment.paper_filter_config(),
+        n_runs=n_runs,
+        seed=0,
+        threads=threads,
+    )
+
+
+#: Criterion's summary of one benchmark: its name, then "time: [low median high unit]".
+CRITERION_LINE = re.compile(r"^(\S[^\n]*?)\s+time:\s+\[\S+ \S+ (\S+) (\S+) \S+ \S+\]", re.M)
+UNIT_NS = {"ps": 1e-3, "ns": 1.0, "µs": 1e3, "us": 1e3, "ms": 1e6}
+
+
+def bench_rust(args: argparse.Namespace) -> list[Row]:
+    command = "cargo bench --bench core"
+    if shutil.which("cargo") is None:
+        return [Row("Rust micro-benchmarks", "skipped: no cargo", "—", None, command)]
+    extra = ["--warm-up-time", "1", "--measurement-time", "2"] if args.quick else []
+    out = subprocess.run(
+        ["cargo", "bench", "--quiet", "--bench", "core", "--", "--noplot", *extra],
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    rows = []
+    for name, value, unit in CRITERION_LINE.findall(out.replace("\n  ", "  ")):
+        ns = float(value) * UNIT_NS[unit]
+        target, met = "—", None
+        if name.startswith("mechanization"):
+            target, met = "≥ 10 M steps/s per core", ns <= 100
+        measured = f"{ns:.0f} ns ({1e3 / ns:.1f} M/s)"
+        rows.append(Row(f"{name} (Rust)", measured, target, met, command))
+    return rows
+
+
+def bench_mechanization(args: argparse.Namespace) -> list[Row]:
+    traj = pronet.builtin_trajectory("paper")
+    imu = np.tile(traj.imu, (10 if not args.quick else 1, 1))
+    lla0, vel0, rpy0 = traj.lla[0], traj.vel_ned[0], traj.rpy[0]
+    wall = best_of(args.repeat, lambda: pronet.mechanize(imu, traj.dt, lla0, vel0, rpy0))
+    return [
+        Row(
+            "`pronet.mechanize` from Python, with roll/pitch/yaw of every step",
+            f"{len(imu) / wall / 1e6:.1f} M steps/s",
+            "—",
+            None,
+            f"{SCRIPT} --only mechanization",
+        )
+    ]
+
+
+def bench_monte_carlo(args: argparse.Namespace) -> list[Row]:
+    q = experiment.PAPER_Q
+    n = args.runs
+    steps = n * pronet.builtin_trajectory("paper").n_samples
+    rows = []
+    walls = {}
+    for label, strategy, target in [
+        ("constant Q", pronet.Strategy.constant(q), 1.0),
+        ("Mehra ξ = 5", pronet.Strategy.mehra(5, q), 1.5),
+    ]:
+        for threads in (1, 2):
+            wall = best_of(args.repeat, lambda s=strategy, t=threads: paper_monte_carlo(s, n, t))
+            walls[label, threads] = wall
+        wall = walls[label, 2]
+        rows.append(
+            Row(
+                f"{label} Monte Carlo, {n} runs × 330 s, 2 threads",
+                f"{wall:.2f} s ({steps / wall / 1e6:.1f} M filter steps/s)",
+                f"≤ {target * n / 100:g} s",
+                wall <= target * n / 100,
+                f"{SCRIPT} --only monte-carlo --runs {n}",
+            )
+        )
+    speedup = walls["constant Q", 1] / walls["constant Q", 2]
+    rows.append(
+        Row(
+            "1 → 2 threads (constant Q)",
+            f"{speedup:.2f}× ({walls['constant Q', 1]:.2f} s → {walls['constant Q', 2]:.2f} s)",
+            "≥ 1.8×",
+            speedup >= 1.8,
+            f"{SCRIPT} --only monte-carlo --runs {n}",
+        )
+    )
+    return rows
+
+
+def bench_hybrid(args: argparse.Namespace) -> list[Row]:
+    sc = experiment.SCENARIOS["paper"]()
+    net = models.load("detrend")
+    n = args.runs
+    t0 = time.perf_counter()
+    out = run_hybrid(
+        net,
+        sc.trajectory,
+        prior_q=sc.q_nominal,
+        sensors=sc.sensors,
+        config=experiment.paper_filter_config(),
+        n_runs=n,
+        seed=0,
+    )
+    wall = time.perf_counter() - t0
+    return [
+        Row(
+            f"ProNet detrend net, {n} runs, including inference",
+            f"{wall:.2f} s (Rust {out.rust_seconds:.2f} s, torch {out.model_seconds:.2f} s, "
+            f"{out.n_tunings} tunings)",
+            f"≤ {5 * n / 100:g} s",
+            wall <= 5 * n / 100,
+            f"{SCRIPT} --only hybrid --runs {n}",
+        )
+    ]
+
+
+def bench_inference(args: argparse.Namespace) -> list[Row]:
+    windows = (np.random.default_rng(0).standard_normal((100, 6, 200)) * 0.1).astype(np.float32)
+    rows = []
+    for name in ("detrended variance", *models.SHIPPED):
+        model = models.DetrendedVariance() if name == "detrended variance" else models.load(name)
+        model.predict(windows)  # warm-up
+        wall = best_of(args.repeat * 5, lambda m=model: m.predict(windows))
+        rows.append(
+            Row(
+                f"inference, {name}, batch 600",
+                f"{600 / wall:,.0f} windows/s ({wall * 1e3:.1f} ms per call)",
+                "—",
+                None,
+                f"{SCRIPT} --only inference",
+            )
+        )
+    return rows
+
+
+def bench_dataset(args: argparse.Namespace) -> list[Row]:
+    ds: list[dataset.Dataset] = []
+    wall = best_of(args.repeat, lambda: ds.append(dataset.build_dataset()))
+    n = ds[-1].q.size
+    return [
+        Row(
+            f"dataset of {n:,} windows (`build_dataset`)",
+            f"{wall:.2f} s",
+            "≤ 5 s",
+            wall <= 5,
+            f"{SCRIPT} --only dataset",
+        )
+    ]
+
+
+def bench_reference(args: argparse.Namespace) -> list[Row]:
+    sys.path.insert(0, str(ROOT / "tests"))
+    from numpy_reference_ekf import run_reference_filter
+
+    sc = experiment.SCENARIOS["paper"]()
+    cfg = experiment.paper_filter_config()
+    traj = sc.trajectory
+    n = int(round(args.reference_seconds / traj.dt))
+    rng = np.random.default_rng(0)
+    imu = traj.imu[:n] + rng.normal(size=(n, 6)) * np.sqrt(experiment.PAPER_Q)
+    k = np.arange(100, n + 1, 100)
+    dvl = traj.vel_ned[k] + rng.normal(size=(k.size, 3)) * 0.1  # nav aiding: no rotation
+    t0 = time.perf_counter()
+    run_reference_filter(
+        imu,
+        traj.time[1 : n + 1],
+        dvl,
+        traj.time[k],
+        traj.time[0],
+        traj.lla[0],
+        traj.vel_ned[0],
+        traj.rpy[0],
+        q=experiment.PAPER_Q,
+        accel_bias_psd=cfg.accel_bias_psd,
+        gyro_bias_psd=cfg.gyro_bias_psd,
+        dvl_variance=cfg.dvl_variance,
+        p0_sigma=cfg.p0_sigma,
+        imu_dt=traj.dt,
+        aiding="nav",
+    )
+    reference_per_run = (time.perf_counter() - t0) * traj.n_samples / n
+    runs = 10
+    wall = best_of(
+        args.repeat, lambda: paper_monte_carlo(pronet.Strategy.constant(sc.q_nominal), runs, 1)
+    )
+    ratio = reference_per_run / (wall / runs)
+    return [
+        Row(
+            "against the NumPy reference filter, per run, one core",
+            f"{ratio:,.0f}× ({reference_per_run:.1f} s vs {wall / runs * 1e3:.1f} ms; "
+            f"100 runs: {reference_per_run * 100 / 60:.0f} min vs {wall * 10:.1f} s)",
+            "≥ 200×",
+            ratio >= 200,
+            f"{SCRIPT} --only reference --reference-seconds {args.reference_seconds:g}",
+        )
+    ]
+
+
+# Without pronet.experiment, which imports torch (~500 MiB that is not the Monte Carlo's).
+# Peak memory from VmHWM: ru_maxrss would carry over the parent's peak across exec.
+SOAK = """
+import sys, time
+import pronet
+def peak_kib():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
+q = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6)
+traj = pronet.builtin_trajectory("paper")
+config = pronet.FilterConfig(accel_bias_psd=1e-3, gyro_bias_psd=1e-3, dvl_variance=(0.01,) * 3)
+before = peak_kib()
+t0 = time.perf_counter()
+pronet.monte_carlo(traj, pronet.Strategy.constant(q), sensors=pronet.SensorConfig(imu_variance=q),
+                   config=config, n_runs=int(sys.argv[1]), seed=0)
+print(time.perf_counter() - t0, before, peak_kib())
+"""
+
+
+def bench_soak(args: argparse.Namespace) -> list[Row]:
+    big = 1000 if args.quick else 10_000
+    measured = {}
+    for n in (big // 10, big):
+        out = subprocess.run(
+            [sys.executable, "-c", SOAK, str(n)], check=True, capture_output=True, text=True
+        )
+        wall, before_kib, peak_kib = out.stdout.split()
+        measured[n] = float(wall), int(before_kib) / 2**20, int(peak_kib) / 2**20
+    (t_small, _, _), (t_big, before, gib) = measured[big // 10], measured[big]
+    return [
+        Row(
+            f"{big:,}-run Monte Carlo without histories: peak memory",
+            f"{gib * 1024:.0f} MiB (of which {before * 1024:.0f} MiB before it started)",
+            "< 1 GB",
+            gib * 2**30 < 1e9,
+            f"{SCRIPT} --only soak",
+        ),
+        Row(
+            f"{big:,}-run Monte Carlo: time, and its ratio to {big // 10:,} runs",
+            f"{t_big:.0f} s, {t_big / t_small:.1f}× for 10× the runs",
+            "linear in runs (10×)",
+            t_big / t_small <= 10.5,
+            f"{SCRIPT} --only soak",
+        ),
+    ]
+
+
+def bench_reproduce(args: argparse.Namespace) -> list[Row]:
+    pronet_cli = Path(sys.executable).with_name("pronet")
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        subprocess.run(
+            [str(pronet_cli), "reproduce", "--quiet", "--out", str(Path(tmp) / "out")],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+        wall = time.perf_counter() - t0
+    return [
+        Row(
+            "`pronet reproduce`, shipped weights, both scenarios, 100 runs",
+            f"{wall:.0f} s",
+            "≤ 60 s",
+            wall <= 60,
+            f"{SCRIPT} --only reproduce  (or: time pronet reproduce)",
+        )
+    ]
+
+
+BENCHES: dict[str, Callable[[argparse.Namespace], list[Row]]] = {
+    "rust": bench_rust,
+    "mechanization": bench_mechanization,
+    "monte-carlo": bench_monte_carlo,
+    "hybrid": bench_hybrid,
+    "dataset": bench_dataset,
+    "inference": bench_inference,
+    "reference": bench_reference,
+    "soak": bench_soak,
+    "reproduce": bench_reproduce,
+}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", nargs="+", choices=list(BENCHES), help="run these rows only")
+    parser.add_argument("--quick", action="store_true", help="a fast smoke run, not a measurement")
+    parser.add_argument("--runs", type=int, default=100, help="Monte Carlo runs (default 100)")
+    parser.add_argument("--repeat", type=int, default=3, help="best of this many (default 3)")
+    parser.add_argument(
+        "--reference-seconds",
+        type=float,
+        default=20.0,
+        help="seconds of a run the NumPy reference filters (default 20)",
+    )
+    args = parser.parse_args()
+    if args.quick:
+        args.runs, args.repeat, args.reference_seconds = 10, 1, 2.0
+    chosen = args.only or [k for k in BENCHES if not (args.quick and k == "reproduce")]
+    import torch
+
+    print(f"# {SCRIPT} {' '.join(sys.argv[1:])}".rstrip())
+    print(
+        f"# machine: {os.cpu_count()} cores, python {sys.version.split()[0]}, "
+        f"numpy {np.__version__}, torch {torch.__version__} ({torch.get_num_threads()} threads)"
+    )
+    print("| what | measured | target | met | command |")
+    print("|---|---|---|---|---|")
+    for name in chosen:
+        for row in BENCHES[name](args):
+            met = {True: "yes", False: "**no**", None: ""}[row.met]
+            print(f"| {row.what} | {row.measured} | {row.target} | {met} | `{row.command}` |")
+            sys.stdout.flush()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"# this process's peak memory: {peak:.0f} MiB")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
