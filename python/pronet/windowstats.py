@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pronet._validate import real_array
+from pronet._validate import count, real_array
 
 #: Names of :func:`features` columns, in order: seven statistics of the raw window, then
 #: the same seven of the detrended window.
@@ -33,9 +33,24 @@ def as_windows(windows: ArrayLike, name: str = "windows", dtype: type = np.float
     return arr.astype(dtype, copy=False)
 
 
+def _unit_scaled(w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Each window divided by the power of two ``2**e`` that brings its largest magnitude
+    into [0.5, 1), and ``e`` ``(..., 1)``. Exact, so statistics computed on the scaled
+    window and scaled back equal the direct ones bit for bit, except where the direct
+    ones would overflow (|w| ~ 1e80 raised to the 4th power) or underflow."""
+    with np.errstate(invalid="ignore"):
+        peak = np.max(np.abs(w), axis=-1, keepdims=True)
+    e = np.frexp(np.where(np.isfinite(peak), peak, 0.0))[1]
+    return np.ldexp(w, -e), e
+
+
 def detrend(windows: ArrayLike) -> NDArray[np.float64]:
     """Each window minus its least-squares line (over the sample index), ``(..., N)``."""
-    w = as_windows(windows)
+    y, e = _unit_scaled(as_windows(windows))
+    return np.ldexp(_detrend(y), e)
+
+
+def _detrend(w: NDArray[np.float64]) -> NDArray[np.float64]:
     n = w.shape[-1]
     t = np.arange(n) - (n - 1) / 2.0
     centred = w - w.mean(axis=-1, keepdims=True)
@@ -50,14 +65,19 @@ def detrended_variance(windows: ArrayLike) -> NDArray[np.float64]:
     this is unbiased with RMSE ``q·√(2/(N − 2))``: the one-line estimator a learned
     regressor has to beat.
     """
-    r = detrend(windows)
-    return (r * r).sum(axis=-1) / (r.shape[-1] - 2)
+    y, e = _unit_scaled(as_windows(windows))
+    r = _detrend(y)
+    return np.ldexp((r * r).sum(axis=-1) / (r.shape[-1] - 2), 2 * e[..., 0])
 
 
 def cramer_rao_rmse(q: ArrayLike, n: int) -> float:
     """The Cramér–Rao floor ``√(mean(2 q² / N))`` for the RMSE of variance estimates
     from ``n`` Gaussian samples each, over the labels ``q``."""
-    q = np.asarray(q, dtype=np.float64)
+    q = real_array(q, "q").astype(np.float64)
+    if q.size == 0 or not np.isfinite(q).all():
+        raise ValueError(f"q: needs at least one finite variance, got {q.size} values")
+    if count(n, "n") < 1:
+        raise ValueError(f"n: must be at least 1 sample, got {n}")
     return float(np.sqrt(np.mean(2.0 * q * q / n)))
 
 
@@ -66,11 +86,13 @@ def features(windows: ArrayLike) -> NDArray[np.float64]:
     :data:`FEATURE_NAMES`: variance (N − 1), standard deviation, range, mean absolute
     deviation, RMS of first differences, skewness and excess kurtosis, of the raw window
     and of the detrended one."""
-    w = as_windows(windows)
-    return np.concatenate([_stats(w), _stats(detrend(w))], axis=-1)
+    y, e = _unit_scaled(as_windows(windows))
+    return np.concatenate([_stats(y, e[..., 0]), _stats(_detrend(y), e[..., 0])], axis=-1)
 
 
-def _stats(w: NDArray[np.float64]) -> NDArray[np.float64]:
+def _stats(w: NDArray[np.float64], e: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The seven statistics of windows ``w`` scaled by ``2**-e`` (see
+    :func:`_unit_scaled`), scaled back: skewness and kurtosis are scale-free."""
     centred = w - w.mean(axis=-1, keepdims=True)
     # Powers as products: numpy's float ** 3 and ** 4 go through pow(), ~100× slower.
     c2 = centred * centred
@@ -82,11 +104,11 @@ def _stats(w: NDArray[np.float64]) -> NDArray[np.float64]:
     kurt = np.where(m2 > 0, (c2 * c2).mean(axis=-1) / safe**2 - 3.0, 0.0)
     return np.stack(
         [
-            var,
-            np.sqrt(var),
-            w.max(axis=-1) - w.min(axis=-1),
-            np.abs(centred).mean(axis=-1),
-            np.sqrt((np.diff(w, axis=-1) ** 2).mean(axis=-1)),
+            np.ldexp(var, 2 * e),
+            np.ldexp(np.sqrt(var), e),
+            np.ldexp(w.max(axis=-1) - w.min(axis=-1), e),
+            np.ldexp(np.abs(centred).mean(axis=-1), e),
+            np.ldexp(np.sqrt((np.diff(w, axis=-1) ** 2).mean(axis=-1)), e),
             skew,
             kurt,
         ],

@@ -103,7 +103,42 @@ fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
 }
 
 /// Exactly N finite numbers from any sequence or array.
+/// Whether `obj` is a real number: a Python int or float (not a bool), or a NumPy value
+/// of integer or float dtype. Extraction to f64 alone would let bools through as 1.0 and
+/// drop the imaginary part of complex NumPy values.
+fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
+    use pyo3::types::{PyBool, PyFloat, PyInt};
+    if obj.is_instance_of::<PyBool>() {
+        return false;
+    }
+    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
+        return true;
+    }
+    obj.getattr("dtype")
+        .and_then(|d| d.getattr("kind"))
+        .and_then(|k| k.extract::<String>())
+        .is_ok_and(|k| matches!(k.as_str(), "i" | "u" | "f"))
+}
+
 fn fixed<const N: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<[f64; N]> {
+    use pyo3::types::{PyByteArray, PyBytes, PyString};
+    let refuse = || {
+        invalid(
+            arg,
+            format!("expected {N} real numbers, got {}", describe(obj)),
+        )
+    };
+    if obj.is_instance_of::<PyBytes>()
+        || obj.is_instance_of::<PyByteArray>()
+        || obj.is_instance_of::<PyString>()
+    {
+        return Err(refuse());
+    }
+    for item in obj.try_iter().map_err(|_| refuse())? {
+        if !is_real_number(&item?) {
+            return Err(refuse());
+        }
+    }
     let v: Vec<f64> = obj
         .extract()
         .map_err(|_| invalid(arg, format!("expected {N} numbers, got {}", describe(obj))))?;
@@ -330,6 +365,15 @@ fn mechanize<'py>(
         fixed(rpy0, "rpy0")?,
     )?;
     let states = detached(py, move || Ok(integrate(&init, &samples, dt)))?;
+    // Finite but absurd inputs (1e300 m/s², a 1e10 s step) overflow: say so, never NaN.
+    if let Some(k) = states.iter().position(|s| {
+        !(s.lla.iter().chain(s.vel.iter()).chain(s.dcm.iter())).all(|x| x.is_finite())
+    }) {
+        return Err(invalid(
+            "imu, dt, lla0, vel0",
+            format!("the mechanization overflows to non-finite values at sample {k}; the inputs are far outside any vehicle's range"),
+        ));
+    }
     let d = PyDict::new(py);
     nav_arrays(py, &d, &states)?;
     Ok(d)
