@@ -65,7 +65,8 @@ def trajectory_from_segments(
     name: str = "custom",
 ) -> Trajectory: ...
 def normal_gravity(lat: float, h: float = 0.0) -> float:
-    """WGS-84 normal gravity [m/s²] at latitude [rad] and height [m]."""
+    """WGS-84 normal gravity [m/s²] at latitude [rad] and height [m], |h| <= 100 km (a
+    near-surface model; ValueError beyond)."""
 
 def earth_radii(lat: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature [m]."""

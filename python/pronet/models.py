@@ -4,7 +4,8 @@ Every regressor has ``predict(windows) -> q``: ``windows`` is ``(..., N)`` raw s
 one IMU channel each (specific force [m/s²] or angular rate [rad/s], N = 200 at 100 Hz),
 ``q`` is ``(...)`` float64, the per-sample noise variance [(m/s²)² or (rad/s)²]. The
 hybrid loop hands ``(n_runs, 6, N)`` and gets ``(n_runs, 6)`` back. Non-finite samples
-give non-finite predictions (the hybrid loop's guardrails deal with those).
+give non-finite predictions (the hybrid loop's guardrails deal with those); so do, for
+the nets, samples beyond :data:`MAX_SAMPLE`, where their float32 arithmetic overflows.
 
 The two CNNs (section III of the paper), 12,769 parameters each:
 
@@ -34,6 +35,10 @@ from torch import nn
 
 from pronet import modelfile
 from pronet.windowstats import as_windows, detrended_variance
+
+#: Largest |sample| the nets read [m/s² or rad/s]: beyond it their float32 LayerNorm
+#: overflows, so such windows get NaN on purpose rather than by accident.
+MAX_SAMPLE = 1e15
 
 #: Models shipped inside the package, loadable by name.
 SHIPPED = ("baseline", "detrend", "hcf")
@@ -164,6 +169,8 @@ class BaselineNet(nn.Module):
                 q = self(x).numpy().astype(np.float64)
         finally:
             self.train(was_training)
+        with np.errstate(invalid="ignore"):
+            q[~(np.abs(x.numpy()).max(axis=-1, initial=0.0) <= MAX_SAMPLE)] = np.nan
         return q.reshape(w.shape[:-1])
 
     def n_parameters(self) -> int:

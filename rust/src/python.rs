@@ -155,6 +155,120 @@ fn fixed<const N: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<[f64; N]
     Ok(out)
 }
 
+/// A real scalar argument (an int or float, NumPy's included; never a bool, a string or
+/// a complex), or `ValueError` naming it. pyo3's own f64 extraction would raise
+/// `TypeError` for a string and take `True` as 1.0.
+fn real_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<f64> {
+    let refuse = || {
+        invalid(
+            arg,
+            format!("expected a real number, got {}", describe(obj)),
+        )
+    };
+    if !is_real_number(obj) {
+        return Err(refuse());
+    }
+    obj.extract::<f64>().map_err(|_| refuse())
+}
+
+/// A whole-number argument in `T`'s range (an int, NumPy's included, never a bool or a
+/// float), or `ValueError` naming it (pyo3 would raise `TypeError`/`OverflowError`).
+fn whole_arg<T: TryFrom<i128> + std::fmt::Display>(
+    obj: &Bound<'_, PyAny>,
+    arg: &str,
+) -> PyResult<T> {
+    use pyo3::types::{PyBool, PyInt};
+    let is_int = !obj.is_instance_of::<PyBool>()
+        && (obj.is_instance_of::<PyInt>()
+            || obj
+                .getattr("dtype")
+                .and_then(|d| d.getattr("kind"))
+                .and_then(|k| k.extract::<String>())
+                .is_ok_and(|k| matches!(k.as_str(), "i" | "u")));
+    if !is_int {
+        return Err(invalid(
+            arg,
+            format!("expected a whole number, got {}", describe(obj)),
+        ));
+    }
+    obj.extract::<i128>()
+        .ok()
+        .and_then(|v| T::try_from(v).ok())
+        .ok_or_else(|| invalid(arg, format!("{} is out of range", describe(obj))))
+}
+
+/// `True`/`False` (NumPy's included), or `ValueError` naming the argument: a string such
+/// as "no" or a number is not silently taken as a truth value.
+fn flag_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<bool> {
+    use pyo3::types::PyBool;
+    let is_bool = obj.is_instance_of::<PyBool>()
+        || obj
+            .getattr("dtype")
+            .and_then(|d| d.getattr("kind"))
+            .and_then(|k| k.extract::<String>())
+            .is_ok_and(|k| k == "b");
+    if !is_bool {
+        return Err(invalid(
+            arg,
+            format!("expected True or False, got {}", describe(obj)),
+        ));
+    }
+    obj.extract::<bool>().map_err(|_| {
+        invalid(
+            arg,
+            format!("expected True or False, got {}", describe(obj)),
+        )
+    })
+}
+
+fn text_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<String> {
+    obj.extract::<String>()
+        .map_err(|_| invalid(arg, format!("expected a string, got {}", describe(obj))))
+}
+
+/// `from_py_with` converters, one per argument name, so that the error names it.
+macro_rules! arg_converters {
+    ($($fn_name:ident: $t:ty = $conv:ident($name:literal);)*) => {
+        $(fn $fn_name(obj: &Bound<'_, PyAny>) -> PyResult<$t> {
+            $conv(obj, $name)
+        })*
+    };
+}
+
+arg_converters! {
+    arg_lat: f64 = real_arg("lat");
+    arg_h: f64 = real_arg("h");
+    arg_dt: f64 = real_arg("dt");
+    arg_speed0: f64 = real_arg("speed0");
+    arg_t0: f64 = real_arg("t0");
+    arg_accel_bias_psd: f64 = real_arg("accel_bias_psd");
+    arg_gyro_bias_psd: f64 = real_arg("gyro_bias_psd");
+    arg_imu_dt: f64 = real_arg("imu_dt");
+    arg_dvl_period: f64 = real_arg("dvl_period");
+    arg_tuning_period: f64 = real_arg("tuning_period");
+    arg_aiding: String = text_arg("aiding");
+    arg_window: i64 = whole_arg("window");
+    arg_n_runs: i64 = whole_arg("n_runs");
+    arg_record_every: i64 = whole_arg("record_every");
+    arg_seed: u64 = whole_arg("seed");
+    arg_first_run: u64 = whole_arg("first_run");
+    arg_sample_initial_error: bool = flag_arg("sample_initial_error");
+}
+
+fn arg_innovation_gate(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    real_arg(obj, "innovation_gate").map(Some)
+}
+
+fn arg_threads(obj: &Bound<'_, PyAny>) -> PyResult<Option<i64>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    whole_arg(obj, "threads").map(Some)
+}
+
 fn finite_scalar(value: f64, arg: &str) -> PyResult<f64> {
     if value.is_finite() {
         Ok(value)
@@ -283,7 +397,11 @@ fn make_trajectory(py: Python<'_>, spec: TrajectorySpec) -> PyResult<PyTrajector
 
 #[pyfunction]
 #[pyo3(signature = (name, dt = 0.01))]
-fn builtin_trajectory(py: Python<'_>, name: &str, dt: f64) -> PyResult<PyTrajectory> {
+fn builtin_trajectory(
+    py: Python<'_>,
+    name: &str,
+    #[pyo3(from_py_with = arg_dt)] dt: f64,
+) -> PyResult<PyTrajectory> {
     let spec = trajectory::builtin(name, dt).map_err(to_py_err)?;
     make_trajectory(py, spec)
 }
@@ -299,9 +417,9 @@ fn trajectory_from_segments(
     py: Python<'_>,
     segments: &Bound<'_, PyAny>,
     lla0: &Bound<'_, PyAny>,
-    speed0: f64,
+    #[pyo3(from_py_with = arg_speed0)] speed0: f64,
     rpy0: Option<&Bound<'_, PyAny>>,
-    dt: f64,
+    #[pyo3(from_py_with = arg_dt)] dt: f64,
     name: String,
 ) -> PyResult<PyTrajectory> {
     let segs = rows::<4>(segments, "segments")?
@@ -325,17 +443,30 @@ fn trajectory_from_segments(
 
 // ---------------------------------------------------------------- earth, mechanization
 
+/// Heights [m] within which `normal_gravity` answers.
+const MAX_GRAVITY_HEIGHT: f64 = 100_000.0;
+
 #[pyfunction]
 #[pyo3(signature = (lat, h = 0.0))]
-fn normal_gravity(lat: f64, h: f64) -> PyResult<f64> {
-    Ok(earth::gravity(
-        finite_scalar(lat, "lat")?,
-        finite_scalar(h, "h")?,
-    ))
+fn normal_gravity(
+    #[pyo3(from_py_with = arg_lat)] lat: f64,
+    #[pyo3(from_py_with = arg_h)] h: f64,
+) -> PyResult<f64> {
+    let h = finite_scalar(h, "h")?;
+    // The Somigliana series with its second-order height term is a near-surface model.
+    if h.abs() > MAX_GRAVITY_HEIGHT {
+        return Err(invalid(
+            "h",
+            format!(
+                "normal gravity holds within ±{MAX_GRAVITY_HEIGHT} m of the ellipsoid, got {h}"
+            ),
+        ));
+    }
+    Ok(earth::gravity(finite_scalar(lat, "lat")?, h))
 }
 
 #[pyfunction]
-fn earth_radii(lat: f64) -> PyResult<(f64, f64)> {
+fn earth_radii(#[pyo3(from_py_with = arg_lat)] lat: f64) -> PyResult<(f64, f64)> {
     Ok(earth::radii(finite_scalar(lat, "lat")?))
 }
 
@@ -344,7 +475,7 @@ fn earth_radii(lat: f64) -> PyResult<(f64, f64)> {
 fn mechanize<'py>(
     py: Python<'py>,
     imu: &Bound<'py, PyAny>,
-    dt: f64,
+    #[pyo3(from_py_with = arg_dt)] dt: f64,
     lla0: &Bound<'py, PyAny>,
     vel0: &Bound<'py, PyAny>,
     rpy0: &Bound<'py, PyAny>,
@@ -391,17 +522,17 @@ pub struct PyFilterConfig {
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body", imu_dt = 0.01, innovation_gate = None))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None))]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
         p0_sigma: Option<&Bound<'_, PyAny>>,
-        accel_bias_psd: f64,
-        gyro_bias_psd: f64,
+        #[pyo3(from_py_with = arg_accel_bias_psd)] accel_bias_psd: f64,
+        #[pyo3(from_py_with = arg_gyro_bias_psd)] gyro_bias_psd: f64,
         dvl_variance: Option<&Bound<'_, PyAny>>,
         lever_arm: Option<&Bound<'_, PyAny>>,
-        aiding: &str,
-        imu_dt: f64,
-        innovation_gate: Option<f64>,
+        #[pyo3(from_py_with = arg_aiding)] aiding: String,
+        #[pyo3(from_py_with = arg_imu_dt)] imu_dt: f64,
+        #[pyo3(from_py_with = arg_innovation_gate)] innovation_gate: Option<f64>,
     ) -> PyResult<Self> {
         let defaults = FilterConfig::default();
         let inner = FilterConfig {
@@ -419,7 +550,7 @@ impl PyFilterConfig {
                 Some(v) => Vector3::from(fixed::<3>(v, "lever_arm")?),
                 None => defaults.lever_arm,
             },
-            aiding: match aiding {
+            aiding: match aiding.as_str() {
                 "body" => Aiding::Body,
                 "nav" => Aiding::Nav,
                 other => {
@@ -503,7 +634,10 @@ impl PyStrategy {
     }
     #[staticmethod]
     #[pyo3(signature = (window, prior_q))]
-    fn mehra(window: i64, prior_q: &Bound<'_, PyAny>) -> PyResult<Self> {
+    fn mehra(
+        #[pyo3(from_py_with = arg_window)] window: i64,
+        prior_q: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
         if window < 1 {
             return Err(invalid(
                 "window",
@@ -576,7 +710,7 @@ impl PySensorConfig {
         imu_bias: Option<&Bound<'_, PyAny>>,
         imu_bias_psd: Option<&Bound<'_, PyAny>>,
         dvl_variance: Option<&Bound<'_, PyAny>>,
-        dvl_period: f64,
+        #[pyo3(from_py_with = arg_dvl_period)] dvl_period: f64,
         lever_arm: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let paper = SensorConfig::paper();
@@ -666,7 +800,7 @@ fn run_filter<'py>(
     imu_time: &Bound<'py, PyAny>,
     dvl: &Bound<'py, PyAny>,
     dvl_time: &Bound<'py, PyAny>,
-    t0: f64,
+    #[pyo3(from_py_with = arg_t0)] t0: f64,
     lla0: &Bound<'py, PyAny>,
     vel0: &Bound<'py, PyAny>,
     rpy0: &Bound<'py, PyAny>,
@@ -907,12 +1041,12 @@ fn py_monte_carlo<'py>(
     sensors: &PySensorConfig,
     config: &PyFilterConfig,
     strategy: &PyStrategy,
-    n_runs: i64,
-    seed: u64,
-    record_every: i64,
-    sample_initial_error: bool,
-    threads: Option<i64>,
-    first_run: u64,
+    #[pyo3(from_py_with = arg_n_runs)] n_runs: i64,
+    #[pyo3(from_py_with = arg_seed)] seed: u64,
+    #[pyo3(from_py_with = arg_record_every)] record_every: i64,
+    #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
+    #[pyo3(from_py_with = arg_threads)] threads: Option<i64>,
+    #[pyo3(from_py_with = arg_first_run)] first_run: u64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(n_runs, seed, record_every, first_run)?;
     let threads = threads_arg(threads)?;
@@ -967,14 +1101,14 @@ impl PyEnsemble {
         sensors: &PySensorConfig,
         config: &PyFilterConfig,
         prior_q: &Bound<'_, PyAny>,
-        n_runs: i64,
-        seed: u64,
-        window: i64,
-        tuning_period: f64,
-        record_every: i64,
-        sample_initial_error: bool,
-        threads: Option<i64>,
-        first_run: u64,
+        #[pyo3(from_py_with = arg_n_runs)] n_runs: i64,
+        #[pyo3(from_py_with = arg_seed)] seed: u64,
+        #[pyo3(from_py_with = arg_window)] window: i64,
+        #[pyo3(from_py_with = arg_tuning_period)] tuning_period: f64,
+        #[pyo3(from_py_with = arg_record_every)] record_every: i64,
+        #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
+        #[pyo3(from_py_with = arg_threads)] threads: Option<i64>,
+        #[pyo3(from_py_with = arg_first_run)] first_run: u64,
     ) -> PyResult<Self> {
         let opts = options(n_runs, seed, record_every, first_run)?;
         let prior_q = fixed::<6>(prior_q, "prior_q")?;
