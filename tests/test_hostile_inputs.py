@@ -1568,3 +1568,38 @@ def test_cramer_rao_rmse_refuses_bad_input(q, n, arg) -> None:
     with np.errstate(all="ignore"):
         with pytest.raises(ValueError, match=rf"^{arg}\b"):
             windowstats.cramer_rao_rmse(q, n)
+
+
+# ---------------------------------------------------------------- gate, shards
+
+ANY_SCALAR = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=3),
+    st.complex_numbers(max_magnitude=10, allow_nan=False),
+)
+
+
+@settings(max_examples=80, deadline=None)
+@given(gate=ANY_SCALAR)
+def test_innovation_gate_takes_a_positive_real_or_none(gate) -> None:
+    config = attempt(lambda: pronet.FilterConfig(innovation_gate=gate), "innovation_gate")
+    if config is not None:
+        assert config.innovation_gate is None or 0 < config.innovation_gate < math.inf
+
+
+@settings(max_examples=40, deadline=None)
+@given(first_run=ANY_SCALAR)
+def test_first_run_takes_a_whole_number_from_zero(first_run) -> None:
+    traj = short_trajectory()
+    out = attempt(
+        lambda: pronet.monte_carlo(
+            traj, pronet.Strategy.constant(PAPER_Q), n_runs=1, first_run=first_run
+        ),
+        "first_run",
+    )
+    if out is not None:
+        assert isinstance(first_run, int) and 0 <= first_run < 2**64
+        assert finite(out.srmse)

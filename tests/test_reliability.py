@@ -136,3 +136,32 @@ def test_bad_first_run_is_a_value_error(paper_trajectory) -> None:
             pronet.monte_carlo(
                 paper_trajectory, pronet.Strategy.constant(PAPER_Q), n_runs=1, first_run=bad
             )
+
+
+def test_a_shard_round_trips_exactly_and_other_settings_are_refused(
+    tmp_path, paper_trajectory
+) -> None:
+    from pronet.hybrid import ConstantRegressor, run_hybrid
+    from pronet.shards import ShardStore
+
+    store = ShardStore(tmp_path / "s", {"n_runs": 2, "seed": 4})
+    mc = pronet.monte_carlo(
+        paper_trajectory, pronet.Strategy.mehra(1, PAPER_Q), n_runs=2, seed=4, record_every=500
+    )
+    hybrid = run_hybrid(
+        ConstantRegressor(PAPER_Q), paper_trajectory, prior_q=PAPER_Q, n_runs=2, seed=4
+    )
+    store.save("paper", "adaptive xi=1", mc, None)
+    store.save("paper", "net / 1 s", hybrid.result, hybrid)
+    again = ShardStore(tmp_path / "s", {"n_runs": 2, "seed": 4})
+    assert len(again) == 2 and again.load("paper", "other") is None
+    loaded, none = again.load("paper", "adaptive xi=1")
+    assert none is None and loaded.failure == mc.failure
+    for name, value in vars(mc).items():
+        if isinstance(value, np.ndarray):
+            assert np.array_equal(getattr(loaded, name), value, equal_nan=True), name
+    result, h = again.load("paper", "net / 1 s")
+    assert h.n_tunings == hybrid.n_tunings and np.array_equal(h.clipped, hybrid.clipped)
+    assert np.array_equal(result.srmse, hybrid.result.srmse)
+    with pytest.raises(ValueError, match="^resume"):
+        ShardStore(tmp_path / "s", {"n_runs": 3, "seed": 4})
