@@ -12,9 +12,14 @@ import pytest
 from pronet import cli
 
 
-def test_info_lists_trajectories(capsys) -> None:
+def test_info_lists_versions_weights_and_trajectories(capsys) -> None:
     assert cli.main(["info"]) == 0
-    assert "paper" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "paper" in text and "torch" in text and "detrend" in text
+    assert cli.main(["info", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert Path(info["weights"], "detrend.safetensors").is_file()
+    assert "paper" in info["trajectories"] and info["cores"] >= 1
 
 
 PNG = b"\x89PNG\r\n\x1a\n"

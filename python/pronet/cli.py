@@ -18,13 +18,35 @@ from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 from pronet.shards import ShardStore
 
 
-def _info(_args: argparse.Namespace) -> int:
+def _info(args: argparse.Namespace) -> int:
     import numpy
+    import torch
 
-    print(f"pronet {pronet.__version__} (native core {_core.__version__})")
-    print(f"python {sys.version.split()[0]}, numpy {numpy.__version__}")
-    print(f"cores: {os.cpu_count()}  (Monte Carlo threads default to all of them)")
-    print(f"built-in trajectories: {', '.join(_core.builtin_trajectory_names())}")
+    from pronet import modelfile, models
+
+    info = {
+        "pronet": pronet.__version__,
+        "native_core": _core.__version__,
+        "python": sys.version.split()[0],
+        "numpy": numpy.__version__,
+        "torch": torch.__version__,
+        "cores": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "weights": str(modelfile.SHIPPED_DIR),
+        "shipped_models": list(models.SHIPPED),
+        "trajectories": list(_core.builtin_trajectory_names()),
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"pronet {info['pronet']} (native core {info['native_core']})")
+    print(f"python {info['python']}, numpy {info['numpy']}, torch {info['torch']}")
+    print(
+        f"cores: {info['cores']}  (Monte Carlo threads default to all of them; "
+        f"torch uses {info['torch_threads']})"
+    )
+    print(f"shipped models: {', '.join(info['shipped_models'])} in {info['weights']}")
+    print(f"built-in trajectories: {', '.join(info['trajectories'])}")
     return 0
 
 
@@ -414,7 +436,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="pronet", description="INS/DVL navigation with learned, adaptive process noise."
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    info = sub.add_parser("info", help="versions, cores, built-in trajectories")
+    info = sub.add_parser(
+        "info", help="versions, cores and threads, where the weights live, trajectories"
+    )
+    info.add_argument("--json", action="store_true", help="print it as JSON, for scripts")
     info.set_defaults(func=_info)
     rep = sub.add_parser(
         "reproduce", help="run the paper's Monte Carlo experiment and print its table"
