@@ -50,6 +50,10 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
+#: History every this many IMU steps in ``reproduce`` (1 s at 100 Hz), for the plots.
+RECORD_EVERY = 100
+
+
 def _new_result_folder(out: str | None, command: str) -> Path | None:
     """``--out``, or ``results/<command>-<time>``; None (after saying why) if it exists."""
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -116,7 +120,17 @@ def _reproduce(args: argparse.Namespace) -> int:
     )
     shards = None
     if not args.retrain:  # shards of retrained models would not belong together
-        settings = {"n_runs": n_runs, "seed": args.seed, "tuning_period": args.tuning_period}
+        # Everything that shapes a shard's numbers: shards of another version, other
+        # weights or other settings must not be mixed in.
+        settings = {
+            "n_runs": n_runs,
+            "seed": args.seed,
+            "tuning_period": args.tuning_period,
+            "record_every": RECORD_EVERY,
+            "pronet": pronet.__version__,
+            "native_core": _core.__version__,
+            "weights": models.shipped_sha256(),
+        }
         shards = ShardStore(partial, settings)
         if len(shards):
             print(f"resuming: {len(shards)} finished Monte Carlos loaded from {partial}")
@@ -136,7 +150,7 @@ def _reproduce(args: argparse.Namespace) -> int:
                 n_runs=n_runs,
                 seed=args.seed,
                 threads=args.threads,
-                record_every=100,
+                record_every=RECORD_EVERY,
                 on_done=done,
                 shards=shards,
             )

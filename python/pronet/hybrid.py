@@ -25,6 +25,7 @@ are counted per run and reported.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -282,7 +283,9 @@ def q_schedule(
         raise ValueError(f"prior_q: must be finite and >= 0, got {prior}")
     # Capped at len(samples): a longer period has no instant either, and the cap keeps a
     # huge period (or a tiny sample step) from overflowing round().
-    every = max(1, round(min(period / float(np.median(steps)), len(samples))))
+    # floor(x + 0.5): half away from zero, as Rust's f64::round in the Ensemble (Python's
+    # round() takes halves to even, which would put the instants elsewhere).
+    every = max(1, math.floor(min(period / float(np.median(steps)), len(samples)) + 0.5))
     first = -(-window // every) * every
     # samples before each instant (none when the window never fills: a huge window is
     # a Python int that np.arange cannot take)

@@ -25,6 +25,7 @@ Also here: :class:`DetrendedVariance`, the statistical reference as a regressor,
 
 from __future__ import annotations
 
+import hashlib
 import os
 from typing import Any, Protocol, runtime_checkable
 
@@ -204,6 +205,17 @@ def save_net(net: BaselineNet, path: str | os.PathLike[str], card: dict[str, Any
             **card,
         },
     )
+
+
+def shipped_sha256() -> str:
+    """SHA-256 over the shipped models' weight and card files: what a cached result
+    computed with them depends on."""
+    h = hashlib.sha256()
+    for path in sorted(modelfile.SHIPPED_DIR.iterdir()):
+        if path.suffix in (".safetensors", ".json"):
+            h.update(path.name.encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()
 
 
 def load(name_or_path: str | os.PathLike[str]) -> Regressor:

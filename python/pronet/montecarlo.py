@@ -19,6 +19,9 @@ from pronet import _core
 from pronet._validate import I64_MAX, U64_MAX, check_type, count, flag
 from pronet.stats import MeanCI, mean_ci
 
+#: Run indices stay below 2^62: run i's random streams are numbered 4·i + k.
+MAX_RUN_INDEX = 2**62
+
 #: Names of the five 3-blocks of the error state, in order.
 STATE_BLOCKS = ("position", "velocity", "attitude", "accel_bias", "gyro_bias")
 
@@ -128,7 +131,7 @@ def monte_carlo(
     check_type(sensors, _core.SensorConfig, "sensors")
     check_type(config, _core.FilterConfig, "config")
     seed = count(seed, "seed", U64_MAX)
-    first_run = count(first_run, "first_run", U64_MAX)
+    first_run = count(first_run, "first_run", MAX_RUN_INDEX)
     for name, value in (("seed", seed), ("first_run", first_run)):
         if value < 0:
             raise ValueError(f"{name}: must be >= 0, got {value}")

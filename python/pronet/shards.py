@@ -10,6 +10,7 @@ with other settings is refused, since the pieces would not belong together.
 
 from __future__ import annotations
 
+import io
 import json
 import re
 import shutil
@@ -54,7 +55,8 @@ class ShardStore:
         return self.folder / f"{slug}.npz"
 
     def __len__(self) -> int:
-        return len(list(self.folder.glob("*.npz")))
+        # atomic_write's temporaries are hidden (".name.xyz"): not counted.
+        return len([p for p in self.folder.glob("*.npz") if not p.name.startswith(".")])
 
     def load(
         self, scenario: str, label: str
@@ -102,10 +104,9 @@ class ShardStore:
                 "guardrails": vars(hybrid.guardrails),
             },
         }
-        path = self._path(scenario, label)
-        tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
-        tmp.replace(path)
+        buf = io.BytesIO()
+        np.savez(buf, meta=np.array(json.dumps(meta)), **arrays)
+        atomic_write(self._path(scenario, label), buf.getvalue())
 
     def remove(self) -> None:
         """Delete the store (once the experiment's results are written)."""

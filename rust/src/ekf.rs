@@ -398,6 +398,12 @@ impl Ekf {
             .inverse();
         let gain: Gain = pht * s_inv;
         let nis = innovation.dot(&(s_inv * innovation));
+        // Checked before anything is applied: a NaN would slip past the gate's `>`.
+        if !nis.is_finite() {
+            return Err(Error::Numerical(format!(
+                "the DVL update has a non-finite NIS ({nis})"
+            )));
+        }
         if self.cfg.innovation_gate.is_some_and(|gate| nis > gate) {
             return Ok(UpdateInfo {
                 innovation,

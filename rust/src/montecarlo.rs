@@ -55,6 +55,9 @@ impl Scenario {
     }
 }
 
+/// One past the largest run index: run i's random streams are numbered 4·i + k.
+pub const MAX_RUN_INDEX: u64 = 1 << 62;
+
 /// Monte Carlo size and recording options.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct McOptions {
@@ -72,6 +75,18 @@ impl McOptions {
     pub fn validate(&self) -> Result<()> {
         if self.n_runs == 0 {
             return Err(Error::invalid("n_runs", "must be at least 1"));
+        }
+        // Run i's random streams are numbered 4·i + k (sensors::stream_rng): indices
+        // beyond 2^62 would wrap onto other runs' noise.
+        let last = self.first_run.checked_add(self.n_runs as u64);
+        if last.is_none_or(|last| last > MAX_RUN_INDEX) {
+            return Err(Error::invalid(
+                "first_run",
+                format!(
+                    "first_run + n_runs must be at most 2^62, got {} + {}",
+                    self.first_run, self.n_runs
+                ),
+            ));
         }
         Ok(())
     }
@@ -358,7 +373,12 @@ impl Run {
         let failed = self.failure.is_some();
         let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
         let accepted = self.nis.len() - self.rejected_updates;
-        let mean_nis = self.accepted_nis_sum / accepted.max(1) as f64;
+        // Every update rejected by the gate: no NIS to average (0 would look healthy).
+        let mean_nis = if accepted == 0 && self.rejected_updates > 0 {
+            f64::NAN
+        } else {
+            self.accepted_nis_sum / accepted.max(1) as f64
+        };
         RunRecord {
             summary: RunSummary {
                 srmse: nan_if_failed((self.sum_sq / n).sqrt()),
@@ -431,11 +451,11 @@ pub fn run_monte_carlo(
     })
 }
 
-/// Run `f` on a rayon pool of `threads` threads, or on the global pool for `None`.
 /// The most worker threads a pool may have: far above any core count this runs on, and
 /// low enough that a mistyped count fails at once instead of spawning for minutes.
 pub const MAX_THREADS: usize = 1024;
 
+/// Run `f` on a rayon pool of `threads` threads, or on the global pool for `None`.
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
     match threads {
         None => Ok(f()),
@@ -692,6 +712,22 @@ mod tests {
         )
         .unwrap();
         assert_eq!(format!("{:?}", three.runs), format!("{:?}", &one.runs[..3]));
+        // Run indices stop short of wrapping onto other runs' random streams.
+        for (first_run, n_runs) in [(MAX_RUN_INDEX, 1), (u64::MAX, 2), (MAX_RUN_INDEX - 1, 2)] {
+            let bad = McOptions {
+                n_runs,
+                first_run,
+                ..opts
+            };
+            assert!(bad.validate().is_err(), "{first_run} + {n_runs} accepted");
+        }
+        assert!(McOptions {
+            n_runs: 1,
+            first_run: MAX_RUN_INDEX - 1,
+            ..opts
+        }
+        .validate()
+        .is_ok());
         // Nor on the shard: runs 3..6 computed apart are runs 3..6 of the whole.
         let last_three = run_monte_carlo(
             &sc,

@@ -7,7 +7,9 @@ use crate::attitude::{dcm_from_euler, euler_from_dcm};
 use crate::ekf::{filter_recorded, Aiding, FilterConfig, FilterOutput, RecordedData};
 use crate::error::Error;
 use crate::mechanization::{integrate, NavState};
-use crate::montecarlo::{run_monte_carlo, with_threads, Ensemble, McOptions, McResult, Scenario};
+use crate::montecarlo::{
+    run_monte_carlo, with_threads, Ensemble, McOptions, McResult, Scenario, MAX_THREADS,
+};
 use crate::noise::StrategySpec;
 use crate::sensors::{DvlModel, ImuErrorModel, SensorConfig, VarianceSchedule};
 use crate::trajectory::{self, Segment, TrajectorySpec, Truth};
@@ -102,7 +104,6 @@ fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
     Ok(arr.as_array().to_vec())
 }
 
-/// Exactly N finite numbers from any sequence or array.
 /// Whether `obj` is a real number: a Python int or float (not a bool), or a NumPy value
 /// of integer or float dtype. Extraction to f64 alone would let bools through as 1.0 and
 /// drop the imaginary part of complex NumPy values.
@@ -120,6 +121,7 @@ fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
         .is_ok_and(|k| matches!(k.as_str(), "i" | "u" | "f"))
 }
 
+/// Exactly N finite real numbers from any sequence or array.
 fn fixed<const N: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<[f64; N]> {
     use pyo3::types::{PyByteArray, PyBytes, PyString};
     let refuse = || {
@@ -955,8 +957,11 @@ fn options(n_runs: i64, seed: u64, record_every: i64, first_run: u64) -> PyResul
 fn threads_arg(threads: Option<i64>) -> PyResult<Option<usize>> {
     match threads {
         None => Ok(None),
-        Some(n) if n >= 1 => Ok(Some(n as usize)),
-        Some(n) => Err(invalid("threads", format!("must be at least 1, got {n}"))),
+        Some(n) if (1..=MAX_THREADS as i64).contains(&n) => Ok(Some(n as usize)),
+        Some(n) => Err(invalid(
+            "threads",
+            format!("must be 1 to {MAX_THREADS}, got {n}"),
+        )),
     }
 }
 
