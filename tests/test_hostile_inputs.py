@@ -1603,3 +1603,27 @@ def test_first_run_takes_a_whole_number_from_zero(first_run) -> None:
     if out is not None:
         assert isinstance(first_run, int) and 0 <= first_run < 2**64
         assert finite(out.srmse)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    field=st.sampled_from(
+        [
+            "max_epochs",
+            "batch_size",
+            "learning_rate",
+            "patience",
+            "min_improvement",
+            "val_fraction",
+            "seed",
+        ]
+    ),
+    value=ANY_SCALAR,
+)
+def test_training_hyperparameters_are_checked_when_made(field, value) -> None:
+    from pronet.training import NetTraining
+
+    hp = attempt(lambda: NetTraining(**{field: value}), field)
+    if hp is not None:
+        v = getattr(hp, field)
+        assert not isinstance(v, bool | str | complex) and v is not None and math.isfinite(v)

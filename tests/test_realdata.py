@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from synthetic_recording import (
     DVL_CLOCK,
     DVL_LEVER_ARM,
@@ -423,3 +425,27 @@ def test_run_filter_checks_its_q_schedule(synthetic):
         pronet.run_filter(
             **args, strategy=pronet.Strategy.external(q), q_time=[2.0], q=[[np.nan] * 6]
         )
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    kind=st.sampled_from(["imu", "dvl", "gt"]),
+    cut=st.floats(0.0, 1.0),
+    noise=st.binary(max_size=64),
+)
+def test_hostile_files_read_or_raise_naming_the_file(tmp_path_factory, synthetic, kind, cut, noise):
+    """A CSV truncated anywhere and followed by arbitrary bytes: read correctly, or a
+    RecordingError (a ValueError) naming the file; never another exception."""
+    folder = csv_folder(tmp_path_factory.mktemp("hostile"), synthetic)
+    path = folder / f"{kind}.csv"
+    data = path.read_bytes()
+    path.write_bytes(data[: int(cut * len(data))] + noise)
+    try:
+        rec = read_recording(folder)
+    except RecordingError as exc:
+        assert f"{kind}.csv" in str(exc), str(exc)
+        return
+    for arr in (rec.imu, rec.dvl, rec.gt_lla):
+        assert np.isfinite(arr).all()

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet._validate import count, scalar
 from pronet.dataset import Dataset, DatasetParams, dataset_sha256
 from pronet.models import NETS, DetrendedVariance, Regressor, save_net
 from pronet.windowstats import cramer_rao_rmse
@@ -41,6 +42,19 @@ class NetTraining:
     min_improvement: float = 1e-3
     val_fraction: float = 0.1
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("max_epochs", "batch_size", "patience"):
+            if count(getattr(self, name), name) < 1:
+                raise ValueError(f"{name}: must be at least 1, got {getattr(self, name)}")
+        if count(self.seed, "seed") < 0:
+            raise ValueError(f"seed: must be >= 0, got {self.seed}")
+        if not 0 < scalar(self.learning_rate, "learning_rate") < np.inf:
+            raise ValueError(f"learning_rate: must be finite and > 0, got {self.learning_rate}")
+        if not 0 <= scalar(self.min_improvement, "min_improvement") < 1:
+            raise ValueError(f"min_improvement: must be in [0, 1), got {self.min_improvement}")
+        if not 0 < scalar(self.val_fraction, "val_fraction") < 1:
+            raise ValueError(f"val_fraction: must be in (0, 1), got {self.val_fraction}")
 
 
 def scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, float]:
@@ -88,11 +102,7 @@ def train_net(
 
     if kind not in NETS:
         raise ValueError(f"kind: expected one of {sorted(NETS)}, got {kind!r}")
-    hp = hp or NetTraining()
-    if hp.max_epochs < 1 or hp.batch_size < 1 or not 0 < hp.val_fraction < 1:
-        raise ValueError(
-            f"hp: need max_epochs >= 1, batch_size >= 1, 0 < val_fraction < 1; got {hp}"
-        )
+    hp = hp or NetTraining()  # NetTraining checks its fields when it is made
     was_deterministic = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)
     try:
