@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from pronet._files import atomic_write
+from pronet._validate import real_array
 
 
 def _figure(width: float, height: float):  # -> matplotlib.figure.Figure
@@ -46,17 +47,31 @@ def predicted_vs_true(
     """
     if not panels:
         raise ValueError("panels: need at least one model")
-    fig = _figure(4.0 * len(panels), 4.0)
-    axes = fig.subplots(1, len(panels), squeeze=False)[0]
-    for ax, (name, (q_true, q_pred)) in zip(axes, panels.items(), strict=True):
-        q_true, q_pred = np.asarray(q_true, float), np.asarray(q_pred, float)
-        if q_true.shape != q_pred.shape or q_true.ndim != 1:
-            raise ValueError(f"panels[{name!r}]: q_true and q_pred must be equal 1-D arrays")
+    checked = {}
+    for name, pair in panels.items():
+        where = f"panels[{name!r}]"
+        if not (isinstance(pair, tuple | list) and len(pair) == 2):
+            raise ValueError(f"{where}: expected a pair (q_true, q_pred)")
+        q_true = real_array(pair[0], where).astype(float)
+        q_pred = real_array(pair[1], where).astype(float)
+        if q_true.shape != q_pred.shape or q_true.ndim != 1 or q_true.size == 0:
+            raise ValueError(f"{where}: q_true and q_pred must be equal, non-empty 1-D arrays")
+        if not (np.isfinite(q_true).all() and np.isfinite(q_pred).any()):
+            raise ValueError(f"{where}: q_true must be finite and q_pred finite somewhere")
+        checked[name] = (q_true, q_pred)
+    fig = _figure(4.0 * len(checked), 4.0)
+    axes = fig.subplots(1, len(checked), squeeze=False)[0]
+    for ax, (name, (q_true, q_pred)) in zip(axes, checked.items(), strict=True):
         levels = np.unique(q_true)
         means = [np.nanmean(q_pred[q_true == lev]) for lev in levels]
         ax.scatter(q_true, q_pred, s=3, color="0.6", alpha=0.3, label="test windows")
         ax.plot(levels, means, "o-", color="tab:blue", ms=4, label="mean per true q")
-        lim = [0.0, 1.1 * float(max(levels.max(), np.nanmax(q_pred)))]
+        finite = q_pred[np.isfinite(q_pred)]
+        low = min(0.0, float(levels.min()), float(finite.min()))
+        high = float(max(levels.max(), finite.max()))
+        # a margin above the data; a span that is empty or overflows gets a usable one
+        high = high + 0.1 * (high - low) if np.isfinite(high - low) else high
+        lim = [low, high] if high > low else [low, low + 1.0]
         ax.plot(lim, lim, color="tab:red", lw=1.2, label="identity")
         ax.set(xlim=lim, ylim=lim, title=name, xlabel="true q [unit² per sample]")
         ax.set_aspect("equal")
