@@ -38,8 +38,15 @@ use std::sync::{Arc, OnceLock};
 
 /// 64 cases per property, unless `PROPTEST_CASES` asks for more (longer bug hunts).
 fn config() -> ProptestConfig {
+    // A fixed seed: CI runs the same cases every time (no flaky failures); set
+    // PROPTEST_RNG_SEED or raise PROPTEST_CASES to explore more.
+    let seed = std::env::var("PROPTEST_RNG_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0x5eed);
     let mut c = ProptestConfig {
         failure_persistence: None,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(seed),
         ..ProptestConfig::default()
     };
     if std::env::var_os("PROPTEST_CASES").is_none() {
@@ -812,8 +819,15 @@ fn mc_case(
                 );
             }
             None => {
+                // Mean NIS is NaN, by design, when the gate rejected every update.
+                let all_rejected = s.rejected_updates > 0 && s.rejected_updates == run.nis.len();
+                let checked = if all_rejected {
+                    &metrics[..4]
+                } else {
+                    &metrics[..]
+                };
                 prop_assert!(
-                    all_finite(&metrics),
+                    all_finite(checked),
                     "run {}: metrics {:?} with no failure reported",
                     i,
                     metrics
