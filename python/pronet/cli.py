@@ -422,7 +422,10 @@ def _baselines(args: argparse.Namespace) -> int:
     data = Path(args.data)
     rows = baselines.fresh_rows(data)
     if not data.is_dir():
-        print(f"no recorded data at {data}: simulated rows only; recorded real rows are kept")
+        print(
+            f"no recorded data at {data}: simulated rows only (the recorded real rows are "
+            "not compared, and --bless keeps them as they are)"
+        )
     if args.bless:
         rows = baselines.rows_to_bless(recorded, rows)
         baselines.save(path, rows)

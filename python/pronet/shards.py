@@ -10,6 +10,7 @@ with other settings is refused, since the pieces would not belong together.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import re
@@ -51,8 +52,11 @@ class ShardStore:
             atomic_write(path, json.dumps(want, indent=2).encode())
 
     def _path(self, scenario: str, label: str) -> Path:
-        slug = re.sub(r"[^A-Za-z0-9_.=-]+", "_", f"{scenario}--{label}")
-        return self.folder / f"{slug}.npz"
+        key = f"{scenario}--{label}"
+        slug = re.sub(r"[^A-Za-z0-9_.=-]+", "_", key)
+        # the slug is for people; the hash keeps labels that differ only in punctuation apart
+        digest = hashlib.sha256(key.encode()).hexdigest()[:10]
+        return self.folder / f"{slug}-{digest}.npz"
 
     def __len__(self) -> int:
         # atomic_write's temporaries are hidden (".name.xyz"): not counted.
