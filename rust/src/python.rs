@@ -115,10 +115,15 @@ fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
     if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
         return true;
     }
+    numpy_kind_in(obj, &["i", "u", "f"])
+}
+
+/// Whether `obj` is a NumPy value (scalar or array) whose dtype kind is one of `kinds`.
+fn numpy_kind_in(obj: &Bound<'_, PyAny>, kinds: &[&str]) -> bool {
     obj.getattr("dtype")
         .and_then(|d| d.getattr("kind"))
         .and_then(|k| k.extract::<String>())
-        .is_ok_and(|k| matches!(k.as_str(), "i" | "u" | "f"))
+        .is_ok_and(|k| kinds.contains(&k.as_str()))
 }
 
 /// Exactly N finite real numbers from any sequence or array.
@@ -181,12 +186,7 @@ fn whole_arg<T: TryFrom<i128> + std::fmt::Display>(
 ) -> PyResult<T> {
     use pyo3::types::{PyBool, PyInt};
     let is_int = !obj.is_instance_of::<PyBool>()
-        && (obj.is_instance_of::<PyInt>()
-            || obj
-                .getattr("dtype")
-                .and_then(|d| d.getattr("kind"))
-                .and_then(|k| k.extract::<String>())
-                .is_ok_and(|k| matches!(k.as_str(), "i" | "u")));
+        && (obj.is_instance_of::<PyInt>() || numpy_kind_in(obj, &["i", "u"]));
     if !is_int {
         return Err(invalid(
             arg,
@@ -203,12 +203,7 @@ fn whole_arg<T: TryFrom<i128> + std::fmt::Display>(
 /// as "no" or a number is not silently taken as a truth value.
 fn flag_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<bool> {
     use pyo3::types::PyBool;
-    let is_bool = obj.is_instance_of::<PyBool>()
-        || obj
-            .getattr("dtype")
-            .and_then(|d| d.getattr("kind"))
-            .and_then(|k| k.extract::<String>())
-            .is_ok_and(|k| k == "b");
+    let is_bool = obj.is_instance_of::<PyBool>() || numpy_kind_in(obj, &["b"]);
     if !is_bool {
         return Err(invalid(
             arg,

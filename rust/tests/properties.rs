@@ -28,7 +28,7 @@
 use nalgebra::Vector3;
 use pronet::ekf::{filter_recorded, Aiding, Ekf, FilterConfig, FilterOutput, RecordedData};
 use pronet::mechanization::NavState;
-use pronet::montecarlo::{run_monte_carlo, McOptions, Scenario};
+use pronet::montecarlo::{run_monte_carlo, McOptions, RunSummary, Scenario};
 use pronet::noise::StrategySpec;
 use pronet::sensors::{SensorConfig, SensorSim, VarianceSchedule};
 use pronet::trajectory::{paper_origin, Segment, TrajectorySpec, Truth, MAX_SPEED};
@@ -347,6 +347,18 @@ fn config_is_valid(c: &FilterConfig) -> bool {
         && c.imu_dt.is_finite()
         && c.imu_dt > 0.0
         && c.innovation_gate.is_none_or(|g| g.is_finite() && g > 0.0)
+}
+
+/// The scalar metrics of a run summary: SRMSE, SMAE, final and max horizontal error,
+/// mean NIS.
+fn summary_metrics(s: &RunSummary) -> [f64; 5] {
+    [
+        s.srmse,
+        s.smae,
+        s.final_horizontal_error,
+        s.max_horizontal_error,
+        s.mean_nis,
+    ]
 }
 
 fn q_row() -> impl Strategy<Value = [f64; 6]> {
@@ -801,13 +813,7 @@ fn mc_case(
     prop_assert!(all_finite(&mc.dvl_time) && all_finite(&mc.record_time));
     for (i, run) in mc.runs.iter().enumerate() {
         let s = &run.summary;
-        let metrics = [
-            s.srmse,
-            s.smae,
-            s.final_horizontal_error,
-            s.max_horizontal_error,
-            s.mean_nis,
-        ];
+        let metrics = summary_metrics(s);
         match &s.failure {
             Some(msg) => {
                 prop_assert!(!msg.is_empty());
@@ -1069,13 +1075,7 @@ fn one_short_run(sensors: SensorConfig) -> pronet::Result<pronet::montecarlo::Ru
 
 fn assert_err_failure_or_finite(result: pronet::Result<pronet::montecarlo::RunSummary>) {
     if let Ok(s) = result {
-        let metrics = [
-            s.srmse,
-            s.smae,
-            s.final_horizontal_error,
-            s.max_horizontal_error,
-            s.mean_nis,
-        ];
+        let metrics = summary_metrics(&s);
         assert!(
             s.failure.is_some() || all_finite(&metrics),
             "NaN metrics without a reported failure: {s:?}"
