@@ -6,9 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from numpy_reference_ekf import dcm_from_euler, gravity, rates, run_reference_filter, strapdown_step
 
 import pronet
+
+from numpy_reference_ekf import dcm_from_euler, gravity, rates, run_reference_filter, strapdown_step
 
 Q = np.array([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6])
 P0 = np.array([1, 1, 1, 0.1, 0.1, 0.1, 1e-3, 1e-3, 5e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4])

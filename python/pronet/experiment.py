@@ -12,9 +12,11 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,11 +24,13 @@ from pronet import _core
 from pronet._files import atomic_folder
 from pronet._validate import float_array
 from pronet.hybrid import DEFAULT_TUNING_PERIOD, HybridResult, run_hybrid
-from pronet.models import Regressor
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.shards import ShardStore
 from pronet.stats import MeanCI, mean_ci
 from pronet.trajectory import builtin_trajectory
+
+if TYPE_CHECKING:  # torch loads only when a model does
+    from pronet.models import Regressor
 
 #: True IMU noise of the paper's scenario: per-sample variances [(m/s²)², (rad/s)²].
 PAPER_Q = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6)
@@ -125,8 +129,7 @@ def varying_noise_scenario(seed: int = 0) -> Scenario:
     constant rows are told each channel's time-averaged variance."""
     trajectory = builtin_trajectory("paper")
     times, q = noise_schedule(trajectory.duration, seed)
-    held = np.diff(np.append(times, trajectory.duration))
-    mean_q = tuple(float(v) for v in (q * held[:, None]).sum(axis=0) / held.sum())
+    mean_q = time_average_q(times, q, trajectory.duration)
     return Scenario(
         name="varying-noise",
         trajectory=trajectory,
@@ -138,25 +141,129 @@ def varying_noise_scenario(seed: int = 0) -> Scenario:
     )
 
 
+def time_average_q(
+    times: np.ndarray, q: np.ndarray, duration: float
+) -> tuple[float, float, float, float, float, float]:
+    """Each channel's time-averaged variance over ``[0, duration]`` s of the
+    piecewise-constant schedule ``times (k,)`` [s, from 0], ``q (k, 6)``."""
+    times = np.asarray(times, dtype=np.float64)
+    inside = times < duration
+    held = np.diff(np.append(times[inside], duration))
+    mean = (np.asarray(q, dtype=np.float64)[inside] * held[:, None]).sum(axis=0) / held.sum()
+    return tuple(float(v) for v in mean)  # type: ignore[return-value]
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "paper": paper_scenario,
     "varying-noise": varying_noise_scenario,
 }
 
 
-def model_based_strategies(q: tuple[float, ...] = PAPER_Q) -> dict[str, _core.Strategy]:
-    """The four rows of the paper's table that need no learned model, around ``q``."""
-    q = tuple(float(v) for v in float_array(q, "q", (6,)))  # 20 x q in float64, not q's dtype
-    return {
-        "constant (true q)": _core.Strategy.constant(q),
-        "constant (20 x q)": _core.Strategy.constant(tuple(20 * v for v in q)),
-        "adaptive xi=1": _core.Strategy.mehra(1, q),
-        "adaptive xi=5": _core.Strategy.mehra(5, q),
-    }
-
+#: The paper's rows, by table label: the strategy spec of each (see :class:`StrategySpec`).
+PAPER_ROWS = {
+    "constant (true q)": "constant",
+    "constant (20 x q)": "constant:20",
+    "adaptive xi=1": "mehra:1",
+    "adaptive xi=5": "mehra:5",
+    "HCF-ensemble": "learned:hcf",
+    "baseline net": "learned:baseline",
+    "detrend net": "learned:detrend",
+}
 
 #: Table label of each learned row, by model name.
-LEARNED_LABELS = {"hcf": "HCF-ensemble", "baseline": "baseline net", "detrend": "detrend net"}
+LEARNED_LABELS = {
+    spec.removeprefix("learned:"): label
+    for label, spec in PAPER_ROWS.items()
+    if spec.startswith("learned:")
+}
+
+
+@dataclass(frozen=True)
+class StrategySpec:
+    """A strategy named in text, as configs and the command line give it:
+
+    - ``constant`` or ``constant:S``: constant Q, the scenario's nominal q times S
+      (default 1);
+    - ``mehra:W``: Mehra's innovation-adaptive Q over a window of W DVL updates;
+    - ``learned:MODEL``: the hybrid loop with a regressor: a shipped model name
+      (``baseline``, ``detrend``, ``hcf``) or the path of a model file.
+
+    Attributes:
+        text: the spec as written (the row label in simulations and sweeps).
+        kind: ``"constant"``, ``"mehra"`` or ``"learned"``.
+        factor: constant: the factor on q; mehra: the window; learned: 0.
+        model: learned: the model name or path; otherwise ``""``.
+    """
+
+    text: str
+    kind: str
+    factor: float = 0.0
+    model: str = ""
+
+    @classmethod
+    def parse(cls, text: object) -> StrategySpec:
+        """The spec in ``text``, or ``ValueError`` saying what is wrong with it."""
+        if not isinstance(text, str):
+            raise ValueError(f"strategy: expected text such as 'mehra:5', got {text!r}")
+        kind, _, arg = text.strip().partition(":")
+        arg = arg.strip()
+        if kind == "constant":
+            factor = _spec_number(arg, text) if arg else 1.0
+            if not 0 < factor < math.inf:
+                raise ValueError(f"strategy {text!r}: the factor on q must be finite and > 0")
+            return cls(text, kind, factor)
+        if kind == "mehra":
+            if not arg.isdigit() or int(arg) < 1:
+                raise ValueError(f"strategy {text!r}: mehra needs a window >= 1, e.g. mehra:5")
+            return cls(text, kind, float(int(arg)))
+        if kind == "learned":
+            if not arg:
+                raise ValueError(f"strategy {text!r}: learned needs a model, e.g. learned:detrend")
+            return cls(text, kind, model=arg)
+        raise ValueError(f"strategy {text!r}: expected constant[:S], mehra:W or learned:MODEL")
+
+    @property
+    def uses_tuning_period(self) -> bool:
+        """Whether the tuning period changes this strategy (only learned ones)."""
+        return self.kind == "learned"
+
+
+def _spec_number(text: str, spec: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"strategy {spec!r}: {text!r} is not a number") from None
+
+
+def strategy(
+    spec: StrategySpec,
+    q: tuple[float, ...],
+    tuning_period: float = DEFAULT_TUNING_PERIOD,
+    regressor: Regressor | None = None,
+) -> StrategyLike:
+    """The strategy ``spec`` describes around the nominal ``q`` (6 per-sample
+    variances [(m/s²)², (rad/s)²]); a learned one runs ``regressor`` (default:
+    ``models.load(spec.model)``) every ``tuning_period`` seconds."""
+    q = tuple(float(v) for v in float_array(q, "q", (6,)))  # factor x q in float64
+    if spec.kind == "constant":
+        return _core.Strategy.constant(q if spec.factor == 1 else tuple(spec.factor * v for v in q))
+    if spec.kind == "mehra":
+        return _core.Strategy.mehra(int(spec.factor), q)
+    if regressor is None:
+        from pronet import models
+
+        regressor = models.load(spec.model)
+    return Learned(regressor, q, tuning_period)
+
+
+def model_based_strategies(q: tuple[float, ...] = PAPER_Q) -> dict[str, _core.Strategy]:
+    """The four rows of the paper's table that need no learned model, around ``q``."""
+    specs = {label: StrategySpec.parse(text) for label, text in PAPER_ROWS.items()}
+    return {
+        label: strategy(spec, q)  # type: ignore[misc]
+        for label, spec in specs.items()
+        if spec.kind != "learned"
+    }
 
 
 def paper_strategies(
@@ -279,15 +386,17 @@ def write_result_folder(
     tables: dict[str, list[Row]],
     config: dict[str, object],
     extra: Callable[[Path], None] | None = None,
+    paper_columns: bool = True,
 ) -> Path:
     """Write ``table.md``, ``metrics.json``, ``metrics.csv`` and ``config.json`` into
     ``folder``, plus whatever ``extra(tmp_folder)`` writes (plots, models), atomically:
     everything goes to a temporary sibling first, which is renamed into place only when
-    complete. An existing folder is refused, never overwritten."""
+    complete. An existing folder is refused, never overwritten. With ``paper_columns``,
+    tables titled ``paper ...`` show the paper's numbers beside ours."""
     with atomic_folder(Path(folder)) as tmp:
         (tmp / "table.md").write_text(
             "\n".join(
-                markdown_table(rows, scenario, paper=scenario.startswith("paper"))
+                markdown_table(rows, scenario, paper=paper_columns and scenario.startswith("paper"))
                 for scenario, rows in tables.items()
             )
         )
@@ -302,7 +411,9 @@ def write_result_folder(
                     "mean_nis": _ci_json(mean_ci(row.result.mean_nis)),
                     "failed_runs": row.result.n_failed,
                     "diverged_runs": row.result.n_diverged,
-                    "paper": PAPER_TABLE.get(row.label) if scenario.startswith("paper") else None,
+                    "paper": PAPER_TABLE.get(row.label)
+                    if paper_columns and scenario.startswith("paper")
+                    else None,
                     **(_hybrid_json(row.hybrid) if row.hybrid is not None else {}),
                 }
                 for row in rows

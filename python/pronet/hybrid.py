@@ -14,7 +14,8 @@ Until ``window`` samples exist, every run uses ``prior_q``.
 Tuning period: 1 s by default. It matches the DVL rate, so every update interval runs
 on a fresh estimate, and with the 2 s window consecutive estimates overlap by half:
 a noise change shows fully in the estimate within 2 s. A shorter period costs more
-inference calls (330 per 330 s mission at 1 s) without new information per call.
+inference calls (328 per 330 s mission at 1 s: the first comes once the 2 s window is
+full) without new information per call.
 
 Guardrails: predictions are clipped to ``[q_min, q_max]`` (default 1e-9 to 1 per-sample
 variance, (m/s²)² or (rad/s)²: far outside any IMU this toolkit simulates on both ends,
@@ -29,6 +30,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -44,8 +46,10 @@ from pronet._validate import (
     real_array,
     scalar,
 )
-from pronet.models import Regressor
-from pronet.montecarlo import MonteCarloResult
+from pronet.montecarlo import MAX_RUN_INDEX, MonteCarloResult
+
+if TYPE_CHECKING:  # torch loads only when a model does
+    from pronet.models import Regressor
 
 #: Default tuning period [s]; see the module docstring.
 DEFAULT_TUNING_PERIOD = 1.0
@@ -88,6 +92,23 @@ class HybridResult:
     guardrails: Guardrails = field(default_factory=Guardrails)
 
 
+    @classmethod
+    def concat(cls, parts: Sequence[HybridResult]) -> HybridResult:
+        """Shards of one hybrid Monte Carlo (in run order) as one result: runs and
+        guardrail counts joined, wall times summed."""
+        if not parts:
+            raise ValueError("parts: need at least one shard")
+        return cls(
+            result=MonteCarloResult.concat([p.result for p in parts]),
+            n_tunings=parts[0].n_tunings,
+            clipped=np.concatenate([p.clipped for p in parts]),
+            non_finite=np.concatenate([p.non_finite for p in parts]),
+            rust_seconds=sum(p.rust_seconds for p in parts),
+            model_seconds=sum(p.model_seconds for p in parts),
+            guardrails=parts[0].guardrails,
+        )
+
+
 def run_hybrid(
     regressor: Regressor,
     trajectory: _core.Trajectory,
@@ -103,6 +124,7 @@ def run_hybrid(
     record_every: int = 0,
     sample_initial_error: bool = True,
     threads: int | None = None,
+    first_run: int = 0,
 ) -> HybridResult:
     """Monte Carlo with the process noise set by ``regressor`` while the filters run.
 
@@ -117,7 +139,8 @@ def run_hybrid(
         tuning_period: seconds between predictions.
         guardrails: clip range for predictions (default :class:`Guardrails`).
         record_every: keep error, 1σ and q histories every this many IMU steps.
-        sample_initial_error, threads: as for :func:`pronet.monte_carlo`.
+        sample_initial_error, threads, first_run: as for :func:`pronet.monte_carlo`
+            (a shard of runs ``first_run .. first_run + n_runs`` sees their noise).
     """
     if not callable(getattr(regressor, "predict", None)):
         raise ValueError(
@@ -128,8 +151,9 @@ def run_hybrid(
     guardrails = Guardrails() if guardrails is None else guardrails
     check_type(guardrails, Guardrails, "guardrails")
     n_runs = count(n_runs, "n_runs", I64_MAX)
-    if count(seed, "seed", U64_MAX) < 0:
-        raise ValueError(f"seed: must be >= 0, got {seed}")
+    for name, value, top in (("seed", seed, U64_MAX), ("first_run", first_run, MAX_RUN_INDEX)):
+        if count(value, name, top) < 0:
+            raise ValueError(f"{name}: must be >= 0, got {value}")
     # A window longer than the trajectory never fills (and its buffer could exhaust memory).
     if not 1 <= count(window, "window") <= trajectory.n_samples:
         raise ValueError(f"window: must be 1 to {trajectory.n_samples} samples, got {window}")
@@ -145,6 +169,7 @@ def run_hybrid(
         record_every=count(record_every, "record_every", I64_MAX),
         sample_initial_error=flag(sample_initial_error, "sample_initial_error"),
         threads=None if threads is None else count(threads, "threads", I64_MAX),
+        first_run=count(first_run, "first_run"),
     )
     q_prev = np.tile(prior, (n_runs, 1))
     clipped = np.zeros(n_runs, dtype=np.int64)

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -205,6 +207,20 @@ def save_net(net: BaselineNet, path: str | os.PathLike[str], card: dict[str, Any
             **card,
         },
     )
+
+
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """Run the block with torch on ``n`` intra-op threads, restoring the count after.
+
+    torch's float32 kernels may round differently with another thread count, so code
+    whose numbers must not depend on the machine (sweep shards) pins it."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 def shipped_sha256() -> str:

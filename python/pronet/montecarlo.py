@@ -10,7 +10,8 @@ numbers): differences between strategies are paired.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,6 +81,54 @@ class MonteCarloResult:
     def n_diverged(self) -> int:
         """Runs whose NIS showed divergence (see ``diverged_at``)."""
         return int(np.isfinite(self.diverged_at).sum())
+
+    @classmethod
+    def concat(cls, parts: Sequence[MonteCarloResult]) -> MonteCarloResult:
+        """The runs of ``parts`` (shards of one Monte Carlo, in run order) as one result.
+
+        The shards must share their DVL epochs and history epochs; ``ValueError`` if not."""
+        if not parts:
+            raise ValueError("parts: need at least one shard")
+        first = parts[0]
+        for p in parts[1:]:
+            if not (
+                np.array_equal(p.dvl_time, first.dvl_time)
+                and np.array_equal(p.record_time, first.record_time)
+            ):
+                raise ValueError("parts: shards of different scenarios or histories")
+        joined: dict[str, object] = {}
+        for f in fields(cls):
+            values = [getattr(p, f.name) for p in parts]
+            if f.name in ("dvl_time", "record_time"):
+                joined[f.name] = values[0]
+            elif f.name == "failure":
+                joined[f.name] = [msg for v in values for msg in v]
+            elif values[0] is None:
+                joined[f.name] = None
+            else:
+                joined[f.name] = np.concatenate(values, axis=0)
+        return cls(**joined)  # type: ignore[arg-type]
+
+    #: Per-run metrics, in the order of :meth:`to_dataframe`'s columns.
+    PER_RUN = (
+        "srmse",
+        "smae",
+        "final_horizontal_error",
+        "max_horizontal_error",
+        "mean_nis",
+        "rejected_updates",
+        "diverged_at",
+    )
+
+    def to_dataframe(self):  # -> pandas.DataFrame
+        """One row per run: ``run`` and the per-run metrics (SI units, as the
+        attributes), and ``failure`` (None or the message)."""
+        import pandas as pd
+
+        data: dict[str, object] = {"run": np.arange(self.n_runs)}
+        data.update({name: getattr(self, name) for name in self.PER_RUN})
+        data["failure"] = list(self.failure)
+        return pd.DataFrame(data)
 
     def summary(self) -> dict[str, MeanCI]:
         """Mean and 95 % CI over runs of every per-run metric."""

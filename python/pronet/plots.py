@@ -106,6 +106,7 @@ def velocity_error(rows, path: str | os.PathLike[str], title: str, run: int = 0)
         ax.set_visible(False)
     for ax in axes[max(0, n - cols) : n]:
         ax.set_xlabel("time [s]")
+        ax.tick_params(labelbottom=True)  # shared x hides them above an empty panel
     axes[0].legend(loc="upper right", fontsize=7, title="dashed: ±3σ", title_fontsize=7)
     fig.suptitle(f"{title}: velocity error of run {run}")
     return save_png(fig, path)
@@ -194,10 +195,20 @@ def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
             cis = [getattr(row, metric) for row in rows]
             y = np.arange(len(rows))[::-1]
             mean = np.array([c.mean for c in cis])
-            err = np.array([[c.mean - c.low, c.high - c.mean] for c in cis]).T
+            low = np.array([c.low for c in cis])
+            high = np.array([c.high for c in cis])
+            scale = ""
+            finite = mean[np.isfinite(mean) & (mean > 0)]
+            # one diverging strategy would squash the others into a dot: log scale,
+            # with a lower bound at or below zero drawn to the axis edge
+            if finite.size and finite.max() > 20 * finite.min():
+                ax.set_xscale("log")
+                low = np.where(low > 0, low, finite.min() / 10)
+                scale = ", log scale"
+            err = np.stack([mean - low, high - mean])
             ax.errorbar(mean, y, xerr=err, fmt="o", color="tab:blue", capsize=3)
             ax.set_yticks(y, [row.label for row in rows], fontsize=8)
-            ax.set_xlabel(f"{metric.upper()} [m/s] (mean, 95 % CI)")
+            ax.set_xlabel(f"{metric.upper()} [m/s] (mean, 95 % CI{scale})")
             ax.set_title(title, fontsize=9)
             ax.grid(alpha=0.3, axis="x")
     return save_png(fig, path)
@@ -300,6 +311,72 @@ def section_q(
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3, which="both")
     axes[-1].set_xlabel("time [s, IMU clock]")
-    axes[0].legend(fontsize=7)
+    fig.legend(
+        *axes[0].get_legend_handles_labels(), loc="outside right upper", fontsize=7
+    )  # beside the panels: inside, it would hide the adaptive rows
     fig.suptitle(f"{section.name}: process noise per strategy (mean over 3 channels)")
+    return save_png(fig, path)
+
+
+def sweep_metric(
+    summary, x: str, path: str | os.PathLike[str], metric: str = "srmse"
+) -> Path:
+    """A sweep's ``metric`` (mean and 95 % CI over runs) against one grid axis, one
+    panel per scenario, one line per other grid setting (drawn slightly apart
+    sideways, so that lines with equal values stay visible).
+
+    Args:
+        summary: :meth:`pronet.sweep.SweepResult.to_dataframe` (or its ``summary.csv``).
+        x: ``"noise_level"`` (every strategy) or ``"tuning_period_s"`` (the learned
+            strategies, one line per noise level).
+        path: PNG file to write.
+        metric: a per-run metric column (``srmse`` [m/s], ``smae`` [m/s],
+            ``final_horizontal_error`` [m] ...).
+    """
+    units = {"srmse": "m/s", "smae": "m/s", "mean_nis": "-"}
+    axes_names = {
+        "noise_level": "IMU noise level [x true variance]",
+        "tuning_period_s": "tuning period [s]",
+    }
+    if x not in axes_names:
+        raise ValueError(f"x: expected one of {', '.join(axes_names)}, got {x!r}")
+    if metric not in summary.columns:
+        raise ValueError(f"metric: {metric!r} is not a column of the summary")
+    data = summary if x == "noise_level" else summary[summary["tuning_period_s"].notna()]
+    if data.empty:
+        raise ValueError(f"summary: no rows to plot against {x}")
+    scenarios = list(dict.fromkeys(data["scenario"]))
+    fig = _figure(5.5 * len(scenarios), 4.0)
+    axes = fig.subplots(1, len(scenarios), squeeze=False)[0]
+    other = "tuning_period_s" if x == "noise_level" else "noise_level"
+    markers = "osD^vP*X"
+    for ax, scenario in zip(axes, scenarios, strict=True):
+        mine = data[data["scenario"] == scenario]
+        lines = list(mine.groupby(["strategy", other], sort=False, dropna=False))
+        for i, ((strategy, setting), line) in enumerate(lines):
+            line = line.sort_values(x)
+            # lines side by side (x ±2 % each), so equal values do not hide each other
+            dodge = 1 + 0.02 * (i - (len(lines) - 1) / 2)
+            label = str(strategy)
+            if setting == setting:  # not NaN: the line's fixed value of the other axis
+                label += f", tuning {setting:g} s" if other == "tuning_period_s" else (
+                    f", noise x{setting:g}"
+                )
+            mean = line[metric].to_numpy(float)
+            err = np.stack([mean - line[f"{metric}_low"], line[f"{metric}_high"] - mean])
+            ax.errorbar(
+                line[x].to_numpy(float) * dodge,
+                mean,
+                yerr=err,
+                marker=markers[i % len(markers)],
+                capsize=3,
+                label=label,
+            )
+        if x == "noise_level" and mine[x].max() / mine[x].min() >= 10:
+            ax.set_xscale("log")
+        unit = units.get(metric, "m")
+        ax.set(xlabel=axes_names[x], ylabel=f"{metric.upper()} [{unit}] (mean, 95 % CI)")
+        ax.set_title(scenario)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
     return save_png(fig, path)

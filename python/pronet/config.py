@@ -1,0 +1,443 @@
+"""TOML configuration files: a scenario, a filter configuration, a sweep grid.
+
+Each file is read and checked completely before any computation. A mistake raises
+:class:`ConfigError` (a ``ValueError``) that names the file, the table and the key, e.g.
+``my.toml: [filter] dvl_variance: expected shape (3,), got (2,)``; unknown keys are
+mistakes too, so a misspelt key never silently falls back to a default.
+
+**Scenario** (``pronet simulate --scenario FILE``, or listed in a sweep)::
+
+    name = "fast-turns"        # default: the file name without .toml
+    base = "paper"             # built-in scenario it starts from: paper, varying-noise
+    q_nominal = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]   # optional, see below
+
+    [trajectory]               # optional; replaces the base's trajectory
+    builtin = "paper"          # a built-in trajectory ... or segments:
+    # segments = [[60, 0, 0, 0], [30, 0, 3, 0]]  # rows: duration [s], forward
+    #                            # acceleration [m/s²], yaw rate [deg/s, + turns right],
+    #                            # pitch rate [deg/s, + noses up]
+    # lat_deg = 32.0, lon_deg = 34.0, height_m = -5.0 (height positive up),
+    # speed_mps = 1.0, roll_deg = pitch_deg = heading_deg = 0.0
+    dt_s = 0.01                # IMU period [s]
+
+    [sensors]                  # optional; keys of pronet.SensorConfig, overriding the base's
+    imu_variance = [4e-4, 4e-4, 4e-4, 4e-6, 4e-6, 4e-6]   # per sample, (m/s²)², (rad/s)²
+    # imu_variance_times = [0, 100]  with imu_variance a list of 6-lists: a schedule [s]
+    # imu_bias, imu_bias_psd (6 each), dvl_variance (3) [(m/s)²], dvl_period [s],
+    # lever_arm (3) [m, body FRD]
+
+    [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
+    dvl_variance = [0.01, 0.01, 0.01]
+    # p0_sigma (15), accel_bias_psd [(m/s²)²/s], gyro_bias_psd [(rad/s)²/s],
+    # lever_arm (3) [m], aiding ("body" or "nav"), imu_dt [s], innovation_gate (NIS)
+
+``q_nominal`` is what the constant rows are told and every adaptive row starts from.
+Without it: the base's, unless ``[sensors]`` sets ``imu_variance``, in which case it is
+that variance (or its time average over the trajectory, for a schedule).
+
+**Filter configuration** (``pronet simulate --filter FILE``): the keys of a scenario's
+``[filter]`` table, at the top level of their own file.
+
+**Sweep grid** (``pronet sweep FILE``)::
+
+    scenarios = ["paper", "my-scenario.toml"]   # built-in names or scenario files
+                                                 # (relative to the sweep file)
+    strategies = ["constant", "mehra:5", "learned:detrend"]  # see StrategySpec
+    tuning_periods_s = [1.0, 2.0]  # seconds between regressor calls (learned rows only)
+    noise_levels = [1.0, 4.0]      # factor on the scenario's true IMU noise variance
+    runs = 100                     # Monte Carlo runs per grid point
+    shard_runs = 25                # runs per shard (one native Monte Carlo call)
+    seed = 0
+
+A noise level multiplies the variance the simulated IMU draws from, not the q the
+strategies are told: at level 4 the constant rows are mistuned by 4x, which is what an
+adaptive strategy should notice.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pronet import _core
+from pronet._validate import real_array
+from pronet.experiment import (
+    SCENARIOS,
+    Scenario,
+    StrategySpec,
+    time_average_q,
+)
+from pronet.trajectory import builtin_trajectory, trajectory_from_segments
+
+
+class ConfigError(ValueError):
+    """A configuration file that cannot be used; the message says where and why."""
+
+
+#: Keys of a ``[filter]`` table (the keyword arguments of ``pronet.FilterConfig``).
+FILTER_KEYS = (
+    "p0_sigma",
+    "accel_bias_psd",
+    "gyro_bias_psd",
+    "dvl_variance",
+    "lever_arm",
+    "aiding",
+    "imu_dt",
+    "innovation_gate",
+)
+#: Keys of a ``[sensors]`` table (the keyword arguments of ``pronet.SensorConfig``).
+SENSOR_KEYS = (
+    "imu_variance",
+    "imu_variance_times",
+    "imu_bias",
+    "imu_bias_psd",
+    "dvl_variance",
+    "dvl_period",
+    "lever_arm",
+)
+#: Keys of a ``[trajectory]`` table with their defaults (``builtin`` excludes the rest
+#: but ``dt_s``); the defaults are the paper trajectory's start.
+TRAJECTORY_DEFAULTS: dict[str, Any] = {
+    "builtin": None,
+    "segments": None,
+    "lat_deg": 32.0,
+    "lon_deg": 34.0,
+    "height_m": -5.0,
+    "speed_mps": 1.0,
+    "roll_deg": 0.0,
+    "pitch_deg": 0.0,
+    "heading_deg": 0.0,
+    "dt_s": 0.01,
+    "name": None,
+}
+SCENARIO_KEYS = ("name", "base", "q_nominal", "trajectory", "sensors", "filter")
+SWEEP_KEYS = (
+    "scenarios",
+    "strategies",
+    "tuning_periods_s",
+    "noise_levels",
+    "runs",
+    "shard_runs",
+    "seed",
+)
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The TOML document at ``path``; ``ConfigError`` for a missing or malformed file."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot be read: {exc}") from None
+
+
+def _check_keys(table: object, allowed: tuple[str, ...], where: str) -> dict[str, Any]:
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}: expected a table, got {type(table).__name__}")
+    unknown = sorted(set(table) - set(allowed))
+    if unknown:
+        raise ConfigError(
+            f"{where} {unknown[0]}: unknown key; expected one of {', '.join(allowed)}"
+        )
+    return table
+
+
+def _native(where: str, make: Callable[[], Any]) -> Any:
+    """``make()``, its ``ValueError`` (which starts with the key) prefixed by ``where``."""
+    try:
+        return make()
+    except ValueError as exc:
+        raise ConfigError(f"{where} {exc}") from None
+
+
+def filter_config(
+    table: Mapping[str, Any], where: str, base: _core.FilterConfig | None = None
+) -> _core.FilterConfig:
+    """A ``FilterConfig`` from the keys of ``table`` over ``base``'s values (default:
+    ``FilterConfig()``'s). ``where`` prefixes errors, e.g. ``"my.toml: [filter]"``."""
+    _check_keys(table, FILTER_KEYS, where)
+    base = base if base is not None else _core.FilterConfig()
+    kwargs = {key: getattr(base, key) for key in FILTER_KEYS}
+    kwargs.update(table)
+    return _native(where, lambda: _core.FilterConfig(**kwargs))
+
+
+def load_filter_config(path: str | Path) -> _core.FilterConfig:
+    """The filter configuration file at ``path`` (the keys of ``FilterConfig``)."""
+    return filter_config(read_toml(path), f"{path}:")
+
+
+def sensor_config(
+    table: Mapping[str, Any], where: str, base: _core.SensorConfig
+) -> _core.SensorConfig:
+    """A ``SensorConfig`` from the keys of ``table`` over ``base``'s. Setting
+    ``imu_variance`` replaces the base's noise schedule: ``imu_variance_times`` then
+    comes from ``table`` only."""
+    _check_keys(table, SENSOR_KEYS, where)
+    kwargs = {key: getattr(base, key) for key in SENSOR_KEYS}
+    if len(kwargs["imu_variance_times"]) == 1:  # a constant variance: 6 values, no times
+        kwargs["imu_variance"] = kwargs["imu_variance"][0]
+        kwargs["imu_variance_times"] = None
+    if "imu_variance" in table:
+        kwargs["imu_variance_times"] = None
+    elif "imu_variance_times" in table:
+        raise ConfigError(f"{where} imu_variance_times: needs imu_variance beside it")
+    kwargs.update(table)
+
+    def make() -> _core.SensorConfig:
+        for key in ("imu_variance", "imu_variance_times"):  # the native core takes arrays
+            if kwargs[key] is not None:
+                kwargs[key] = real_array(kwargs[key], key).astype(np.float64)
+        return _core.SensorConfig(**kwargs)
+
+    return _native(where, make)
+
+
+def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
+    """A trajectory from a ``[trajectory]`` table (see the module docstring)."""
+    _check_keys(table, tuple(TRAJECTORY_DEFAULTS), where)
+    t = {**TRAJECTORY_DEFAULTS, **table}
+    if (t["builtin"] is None) == (t["segments"] is None):
+        raise ConfigError(f"{where}: give either builtin or segments")
+    if t["builtin"] is not None:
+        extra = sorted(set(table) - {"builtin", "dt_s"})
+        if extra:
+            raise ConfigError(f"{where} {extra[0]}: not used with builtin; remove it")
+        if t["builtin"] not in _core.builtin_trajectory_names():
+            raise ConfigError(
+                f"{where} builtin: {t['builtin']!r} is not one of "
+                f"{', '.join(_core.builtin_trajectory_names())}"
+            )
+        return _native(where, lambda: builtin_trajectory(t["builtin"], t["dt_s"]))
+    rows = _native(where, lambda: np.array(t["segments"], dtype=np.float64))
+    if rows.ndim != 2 or rows.shape[1] != 4 or len(rows) == 0:
+        raise ConfigError(
+            f"{where} segments: expected rows of [duration s, accel m/s², yaw rate deg/s, "
+            f"pitch rate deg/s], got shape {rows.shape}"
+        )
+    rows[:, 2:] = np.radians(rows[:, 2:])
+    deg = {k: _number(t[k], f"{where} {k}") for k in TRAJECTORY_DEFAULTS if k.endswith("_deg")}
+    return _native(
+        where,
+        lambda: trajectory_from_segments(
+            rows,
+            lla0=(math.radians(deg["lat_deg"]), math.radians(deg["lon_deg"]), t["height_m"]),
+            speed0=t["speed_mps"],
+            rpy0=tuple(math.radians(deg[k]) for k in ("roll_deg", "pitch_deg", "heading_deg")),
+            dt=t["dt_s"],
+            name=t["name"] if t["name"] is not None else "custom",
+        ),
+    )
+
+
+def _number(value: object, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    return float(value)
+
+
+def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario:
+    """A :class:`~pronet.experiment.Scenario` from a scenario document (the module
+    docstring); ``where`` (the file) prefixes errors."""
+    _check_keys(data, SCENARIO_KEYS, f"{where}:")
+    base_name = data.get("base", "paper")
+    if base_name not in SCENARIOS:
+        raise ConfigError(f"{where}: base: {base_name!r} is not one of {', '.join(SCENARIOS)}")
+    base = SCENARIOS[base_name]()
+    name = data.get("name", default_name)
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f"{where}: name: expected non-empty text, got {name!r}")
+    traj = base.trajectory
+    if "trajectory" in data:
+        traj = trajectory(data["trajectory"], f"{where}: [trajectory]")
+    sensors = base.sensors
+    if "sensors" in data:
+        sensors = sensor_config(data["sensors"], f"{where}: [sensors]", base.sensors)
+    config = base.config
+    if "filter" in data:
+        config = filter_config(data["filter"], f"{where}: [filter]", base.config)
+    times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
+    schedule = np.asarray(sensors.imu_variance, dtype=np.float64)
+    if "q_nominal" in data:
+        q = data["q_nominal"]
+        if (
+            not isinstance(q, list)
+            or len(q) != 6
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in q)
+            or not all(0 <= v < math.inf for v in q)
+        ):
+            raise ConfigError(f"{where}: q_nominal: expected 6 finite variances >= 0, got {q!r}")
+        q_nominal = tuple(float(v) for v in q)
+    elif "imu_variance" in data.get("sensors", {}):
+        q_nominal = time_average_q(times, schedule, traj.duration)
+    else:
+        q_nominal = base.q_nominal
+    return Scenario(
+        name=name,
+        trajectory=traj,
+        sensors=sensors,
+        config=config,
+        q_nominal=q_nominal,
+        schedule_time=times,
+        schedule_q=schedule,
+    )
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """A built-in scenario by name (``paper``, ``varying-noise``) or a scenario file."""
+    if str(name_or_path) in SCENARIOS:
+        return SCENARIOS[str(name_or_path)]()
+    path = Path(name_or_path)
+    if path.suffix != ".toml" and not path.exists():
+        raise ConfigError(
+            f"scenario: {str(name_or_path)!r} is neither a built-in scenario "
+            f"({', '.join(SCENARIOS)}) nor a .toml file"
+        )
+    return scenario(read_toml(path), str(path), path.stem)
+
+
+@dataclass(frozen=True)
+class ScenarioSource:
+    """Where a sweep's scenario comes from, as plain data that can travel to another
+    process or machine: a built-in name, or a scenario file's parsed contents."""
+
+    name: str
+    builtin: str | None = None
+    document: str = ""  # the scenario file's TOML text (when not built in)
+    origin: str = ""  # the file it was read from, for error messages
+
+    def build(self) -> Scenario:
+        if self.builtin is not None:
+            return SCENARIOS[self.builtin]()
+        return scenario(tomllib.loads(self.document), self.origin, self.name)
+
+
+@dataclass(frozen=True)
+class SweepGrid:
+    """A validated sweep grid (see the module docstring).
+
+    Attributes:
+        scenarios: the scenarios, by name.
+        strategies: the strategy specs.
+        tuning_periods: seconds between regressor calls (learned strategies only).
+        noise_levels: factors on each scenario's true IMU noise variance.
+        runs: Monte Carlo runs per grid point.
+        shard_runs: runs per shard.
+        seed: Monte Carlo seed.
+    """
+
+    scenarios: tuple[ScenarioSource, ...]
+    strategies: tuple[StrategySpec, ...]
+    tuning_periods: tuple[float, ...] = (1.0,)
+    noise_levels: tuple[float, ...] = (1.0,)
+    runs: int = 100
+    shard_runs: int = 25
+    seed: int = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        """The grid as plain data (the sweep's ``config.json``; also what a resumed
+        sweep must match)."""
+        return {
+            "scenarios": {
+                s.name: s.builtin if s.builtin is not None else s.document
+                for s in self.scenarios
+            },
+            "strategies": [s.text for s in self.strategies],
+            "tuning_periods_s": list(self.tuning_periods),
+            "noise_levels": list(self.noise_levels),
+            "runs": self.runs,
+            "shard_runs": self.shard_runs,
+            "seed": self.seed,
+        }
+
+
+def _list(doc: Mapping[str, Any], key: str, where: str, default: list[Any] | None = None):
+    value = doc.get(key, default)
+    if value is None:
+        raise ConfigError(f"{where} {key}: missing; it is required")
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{where} {key}: expected a non-empty list, got {value!r}")
+    if len(set(map(repr, value))) != len(value):
+        raise ConfigError(f"{where} {key}: lists a value twice")
+    return value
+
+
+def _whole(doc: Mapping[str, Any], key: str, where: str, default: int, low: int) -> int:
+    value = doc.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value < 2**62:
+        raise ConfigError(f"{where} {key}: expected a whole number >= {low}, got {value!r}")
+    return value
+
+
+def _positive(values: list[Any], key: str, where: str) -> tuple[float, ...]:
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v < math.inf:
+            raise ConfigError(f"{where} {key}: expected finite numbers > 0, got {v!r}")
+    return tuple(float(v) for v in values)
+
+
+def sweep_grid(doc: Mapping[str, Any], path: str | Path) -> SweepGrid:
+    """A :class:`SweepGrid` from a sweep document read from ``path`` (scenario files
+    are found relative to it). Every scenario file, strategy spec and learned model is
+    checked here, before anything runs."""
+    where = f"{path}:"
+    _check_keys(doc, SWEEP_KEYS, where)
+    sources = []
+    for entry in _list(doc, "scenarios", where):
+        if not isinstance(entry, str):
+            raise ConfigError(f"{where} scenarios: expected names or paths, got {entry!r}")
+        if entry in SCENARIOS:
+            sources.append(ScenarioSource(entry, builtin=entry))
+            continue
+        file = Path(path).parent / entry
+        if file.suffix != ".toml":
+            raise ConfigError(
+                f"{where} scenarios: {entry!r} is neither a built-in scenario "
+                f"({', '.join(SCENARIOS)}) nor a .toml file"
+            )
+        read_toml(file)  # exists and parses
+        source = ScenarioSource(file.stem, document=file.read_text(), origin=str(file))
+        built = source.build()  # every key checked now, not on a worker later
+        sources.append(ScenarioSource(built.name, None, source.document, str(file)))
+    names = [s.name for s in sources]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"{where} scenarios: two scenarios are named alike: {names}")
+    specs = []
+    for text in _list(doc, "strategies", where):
+        spec = _native(f"{where} strategies:", lambda text=text: StrategySpec.parse(text))
+        if spec.kind == "learned":
+            from pronet import models
+
+            if spec.model not in models.SHIPPED:  # a model file, relative to the sweep file
+                model = Path(path).parent / spec.model
+                spec = StrategySpec(spec.text, spec.kind, spec.factor, str(model.resolve()))
+            _native(f"{where} strategies: {text!r}:", lambda spec=spec: models.load(spec.model))
+        specs.append(spec)
+    runs = _whole(doc, "runs", where, 100, 1)
+    return SweepGrid(
+        scenarios=tuple(sources),
+        strategies=tuple(specs),
+        tuning_periods=_positive(
+            _list(doc, "tuning_periods_s", where, [1.0]), "tuning_periods_s", where
+        ),
+        noise_levels=_positive(_list(doc, "noise_levels", where, [1.0]), "noise_levels", where),
+        runs=runs,
+        shard_runs=min(_whole(doc, "shard_runs", where, 25, 1), runs),
+        seed=_whole(doc, "seed", where, 0, 0),
+    )
+
+
+def load_sweep(path: str | Path) -> SweepGrid:
+    """The sweep grid file at ``path``, checked (see :func:`sweep_grid`)."""
+    return sweep_grid(read_toml(path), path)

@@ -1,0 +1,387 @@
+"""Sweeps: a grid of Monte Carlos (scenario × strategy × noise level × tuning period ×
+runs), run as shards on this machine or on a Ray cluster, merged into one result.
+
+A shard is one native Monte Carlo call: runs ``first_run .. first_run + n`` of one grid
+point. By the seed scheme (:mod:`pronet.montecarlo`) a run's numbers depend only on the
+seed and its index, so the shards of a grid point joined in run order equal the whole
+Monte Carlo, and where a shard ran (which process, which machine, how many threads)
+changes nothing: the Ray engine gives exactly the local engine's numbers. (Learned
+strategies run their regressor on one torch thread in a shard, since torch's float32
+kernels can round differently with other thread counts; machines whose CPUs have
+different vector units could still differ in the last bits of those rows.)
+
+Every grid point with the same scenario and noise level sees the same noise
+realizations (common random numbers), so strategies are compared on paired runs. The
+tuning period only applies to learned strategies; the others appear once per noise
+level, with ``tuning_period`` None.
+
+Ray: ``engine="ray"`` with ``address=None`` starts a private Ray on this machine (one
+CPU per shard by default); ``address="auto"`` or ``"ray://HEAD:10001"`` joins a running
+cluster, whose every node must have the same version of pronet installed (and any model
+file a learned strategy names, at the same path).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import io
+import json
+import os
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import pronet
+from pronet import _core
+from pronet._files import atomic_folder
+from pronet.config import ScenarioSource, SweepGrid
+from pronet.experiment import Learned, Scenario, StrategySpec, strategy
+from pronet.hybrid import HybridResult, run_hybrid
+from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.shards import ShardStore
+from pronet.stats import MeanCI
+
+#: Engines :func:`run_sweep` knows.
+ENGINES = ("local", "ray")
+
+
+@dataclass(frozen=True)
+class GridPoint:
+    """One cell of the grid.
+
+    Attributes:
+        scenario: scenario name.
+        strategy: strategy spec text (``constant``, ``mehra:5``, ``learned:detrend`` ...).
+        noise_level: factor on the scenario's true IMU noise variance.
+        tuning_period: seconds between regressor calls; None for non-learned strategies.
+    """
+
+    scenario: str
+    strategy: str
+    noise_level: float
+    tuning_period: float | None
+
+    @property
+    def key(self) -> str:
+        """A readable unique name (shard files, messages)."""
+        tp = "" if self.tuning_period is None else f", tuning {self.tuning_period:g} s"
+        return f"{self.scenario}: {self.strategy}, noise x{self.noise_level:g}{tp}"
+
+
+@dataclass(frozen=True)
+class Shard:
+    """Runs ``first_run .. first_run + n_runs`` of one grid point: plain data, so it can
+    be sent to another process or machine and run there by :func:`run_shard`."""
+
+    point: GridPoint
+    source: ScenarioSource
+    spec: StrategySpec
+    first_run: int
+    n_runs: int
+    seed: int
+
+    @property
+    def label(self) -> str:
+        return f"runs {self.first_run}-{self.first_run + self.n_runs - 1}"
+
+
+def plan(grid: SweepGrid) -> list[Shard]:
+    """Every shard of ``grid``, grid point by grid point (scenario, noise level,
+    strategy, tuning period), each point's shards in run order."""
+    shards = []
+    for source in grid.scenarios:
+        for level in grid.noise_levels:
+            for spec in grid.strategies:
+                periods: Sequence[float | None] = (
+                    grid.tuning_periods if spec.uses_tuning_period else (None,)
+                )
+                for period in periods:
+                    point = GridPoint(source.name, spec.text, level, period)
+                    for first in range(0, grid.runs, grid.shard_runs):
+                        n = min(grid.shard_runs, grid.runs - first)
+                        shards.append(Shard(point, source, spec, first, n, grid.seed))
+    return shards
+
+
+@functools.lru_cache(maxsize=8)
+def _scenario(source: ScenarioSource) -> Scenario:
+    return source.build()
+
+
+@functools.lru_cache(maxsize=8)
+def _model(name_or_path: str):  # -> Regressor
+    from pronet import models
+
+    return models.load(name_or_path)
+
+
+def noisier(sensors: _core.SensorConfig, level: float) -> _core.SensorConfig:
+    """``sensors`` with every IMU noise variance multiplied by ``level`` (the schedule,
+    if any, keeps its times); everything else unchanged."""
+    times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
+    q = np.asarray(sensors.imu_variance) * level
+    return _core.SensorConfig(
+        imu_variance=q[0] if len(times) == 1 else q,
+        imu_variance_times=None if len(times) == 1 else times,
+        imu_bias=sensors.imu_bias,
+        imu_bias_psd=sensors.imu_bias_psd,
+        dvl_variance=sensors.dvl_variance,
+        dvl_period=sensors.dvl_period,
+        lever_arm=sensors.lever_arm,
+    )
+
+
+def run_shard(
+    shard: Shard, threads: int | None = None
+) -> tuple[MonteCarloResult, HybridResult | None]:
+    """Run one shard (in this process); ``threads`` for the native core (default: all
+    cores). The scenario and learned models are built once per process."""
+    sc = _scenario(shard.source)
+    p = shard.point
+    regressor = _model(shard.spec.model) if shard.spec.kind == "learned" else None
+    period = p.tuning_period if p.tuning_period is not None else 1.0
+    chosen = strategy(shard.spec, sc.q_nominal, period, regressor)
+    common: dict[str, Any] = dict(
+        sensors=noisier(sc.sensors, p.noise_level),
+        config=sc.config,
+        n_runs=shard.n_runs,
+        seed=shard.seed,
+        threads=threads,
+        first_run=shard.first_run,
+    )
+    if isinstance(chosen, Learned):
+        from pronet.models import torch_threads
+
+        with torch_threads(1):  # the same rounding wherever the shard runs
+            h = run_hybrid(
+                chosen.regressor,
+                sc.trajectory,
+                prior_q=chosen.prior_q,
+                tuning_period=chosen.tuning_period,
+                **common,
+            )
+        return h.result, h
+    return monte_carlo(sc.trajectory, chosen, **common), None
+
+
+ShardResult = tuple[MonteCarloResult, HybridResult | None]
+
+
+def _local(shards: Sequence[Shard], threads: int | None) -> Iterator[tuple[Shard, ShardResult]]:
+    for shard in shards:
+        yield shard, run_shard(shard, threads)
+
+
+def _ray(
+    shards: Sequence[Shard], address: str | None, cpus_per_shard: int
+) -> Iterator[tuple[Shard, ShardResult]]:
+    try:
+        import ray
+    except ImportError:
+        raise ValueError(
+            "engine: ray is not installed; pip install 'pronet[ray]' (or ray) first"
+        ) from None
+    started = not ray.is_initialized()
+    if started:
+        ray.init(
+            address=address,
+            include_dashboard=False,
+            log_to_driver=False,
+            configure_logging=False,
+        )
+    try:
+        remote = ray.remote(num_cpus=cpus_per_shard, max_retries=0)(run_shard)
+        pending = {remote.remote(s, cpus_per_shard): s for s in shards}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            shard = pending.pop(done[0])
+            try:
+                yield shard, ray.get(done[0])
+            except ray.exceptions.RayTaskError as exc:
+                cause = exc.as_instanceof_cause()
+                raise ValueError(f"shard {shard.point.key}, {shard.label}: {cause}") from None
+    finally:
+        if started:
+            ray.shutdown()
+
+
+@dataclass(frozen=True)
+class PointResult:
+    """A grid point's merged Monte Carlo (``hybrid`` for learned strategies)."""
+
+    point: GridPoint
+    result: MonteCarloResult
+    hybrid: HybridResult | None
+
+    def summary(self) -> dict[str, MeanCI]:
+        return self.result.summary()
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """Every grid point's result, in :func:`plan` order."""
+
+    grid: SweepGrid
+    points: list[PointResult]
+
+    def to_dataframe(self, per_run: bool = False):  # -> pandas.DataFrame
+        """One row per grid point: the grid columns, then mean and 95 % CI bounds of
+        each per-run metric (``srmse``, ``srmse_low``, ``srmse_high`` ... in m/s, m),
+        ``runs``, ``failed_runs`` and ``diverged_runs``. With ``per_run``: one row per
+        run, the grid columns and that run's metrics."""
+        import pandas as pd
+
+        frames = []
+        for pr in self.points:
+            grid = {
+                "scenario": pr.point.scenario,
+                "strategy": pr.point.strategy,
+                "noise_level": pr.point.noise_level,
+                "tuning_period_s": pr.point.tuning_period,
+            }
+            if per_run:
+                df = pr.result.to_dataframe()
+                for i, (k, v) in enumerate(grid.items()):
+                    df.insert(i, k, v)
+                frames.append(df)
+                continue
+            row: dict[str, Any] = dict(grid)
+            for name, ci in pr.summary().items():
+                row.update({name: ci.mean, f"{name}_low": ci.low, f"{name}_high": ci.high})
+            row.update(
+                runs=pr.result.n_runs,
+                failed_runs=pr.result.n_failed,
+                diverged_runs=pr.result.n_diverged,
+            )
+            frames.append(pd.DataFrame([row]))
+        return pd.concat(frames, ignore_index=True)
+
+    def markdown(self) -> str:
+        """The summary as a Markdown table, one block per scenario."""
+        out = io.StringIO()
+        for scenario in dict.fromkeys(p.point.scenario for p in self.points):
+            out.write(f"### {scenario}: {self.grid.runs} runs per row, seed {self.grid.seed}\n\n")
+            out.write(
+                "| strategy | noise level | tuning period [s] | SRMSE [m/s] (95 % CI) "
+                "| SMAE [m/s] (95 % CI) | final horizontal error [m] (95 % CI) "
+                "| failed / diverged runs |\n"
+            )
+            out.write("|---|---|---|---|---|---|---|\n")
+            for pr in self.points:
+                if pr.point.scenario != scenario:
+                    continue
+                p, s = pr.point, pr.summary()
+                tp = "" if p.tuning_period is None else f"{p.tuning_period:g}"
+                out.write(
+                    f"| {p.strategy} | {p.noise_level:g} | {tp} | {s['srmse']} | {s['smae']} "
+                    f"| {s['final_horizontal_error']} "
+                    f"| {pr.result.n_failed} / {pr.result.n_diverged} |\n"
+                )
+            out.write("\n")
+        return out.getvalue()
+
+
+def settings(grid: SweepGrid) -> dict[str, Any]:
+    """What a sweep's numbers depend on: the grid, the versions and the weights of
+    every model it uses (a resumed sweep must match all of it)."""
+    from pronet import modelfile, models
+
+    weights = {}
+    for spec in grid.strategies:
+        if spec.kind == "learned":
+            if spec.model in models.SHIPPED:
+                weights["shipped"] = models.shipped_sha256()
+            else:
+                file = modelfile.paths(spec.model)[0]
+                weights[spec.model] = hashlib.sha256(file.read_bytes()).hexdigest()
+    return {
+        "grid": grid.as_dict(),
+        "pronet": pronet.__version__,
+        "native_core": _core.__version__,
+        "weights": weights,
+    }
+
+
+def run_sweep(
+    grid: SweepGrid,
+    *,
+    engine: str = "local",
+    address: str | None = None,
+    threads: int | None = None,
+    store: ShardStore | None = None,
+    on_shard: Callable[[Shard], None] | None = None,
+) -> SweepResult:
+    """Run every shard of ``grid`` and merge them.
+
+    Args:
+        grid: the sweep (see :func:`pronet.config.load_sweep`).
+        engine: ``"local"`` (this process, shard after shard) or ``"ray"``.
+        address: Ray only: a running cluster (``"auto"``, ``"ray://HEAD:10001"``);
+            None starts a private Ray on this machine.
+        threads: local: native threads per shard (default all cores). Ray: CPUs each
+            shard asks for and uses (default 1).
+        store: finished shards are saved there as they arrive, and shards already
+            there are loaded instead of run (resume).
+        on_shard: called after each shard, loaded or run (progress).
+    """
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
+    if address is not None and engine != "ray":
+        raise ValueError("address: only the ray engine connects to a cluster")
+    if threads is not None and (isinstance(threads, bool) or not 1 <= threads <= 1024):
+        raise ValueError(f"threads: expected 1 to 1024, got {threads!r}")
+    shards = plan(grid)
+    results: dict[tuple[GridPoint, int], ShardResult] = {}
+    todo = []
+    for shard in shards:
+        saved = store.load(shard.point.key, shard.label) if store is not None else None
+        if saved is None:
+            todo.append(shard)
+            continue
+        results[(shard.point, shard.first_run)] = saved
+        if on_shard is not None:
+            on_shard(shard)
+    ran = _local(todo, threads) if engine == "local" else _ray(todo, address, threads or 1)
+    for shard, result in ran:
+        results[(shard.point, shard.first_run)] = result
+        if store is not None:
+            store.save(shard.point.key, shard.label, *result)
+        if on_shard is not None:
+            on_shard(shard)
+    points = []
+    for point in dict.fromkeys(s.point for s in shards):
+        parts = [results[(s.point, s.first_run)] for s in shards if s.point == point]
+        hybrids = [h for _, h in parts if h is not None]
+        points.append(
+            PointResult(
+                point,
+                MonteCarloResult.concat([r for r, _ in parts]),
+                HybridResult.concat(hybrids) if hybrids else None,
+            )
+        )
+    return SweepResult(grid, points)
+
+
+def write_result_folder(
+    folder: str | os.PathLike[str], result: SweepResult, config: dict[str, Any]
+) -> Path:
+    """Write the sweep's ``table.md``, ``summary.csv`` (one row per grid point),
+    ``metrics.csv`` (one row per run), ``config.json`` and its figures into ``folder``,
+    atomically (nothing appears until all of it is written)."""
+    from pronet import plots
+
+    folder = Path(folder)
+    summary = result.to_dataframe()
+    with atomic_folder(folder) as tmp:
+        (tmp / "table.md").write_text(result.markdown())
+        summary.to_csv(tmp / "summary.csv", index=False)
+        result.to_dataframe(per_run=True).to_csv(tmp / "metrics.csv", index=False)
+        (tmp / "config.json").write_text(json.dumps(config, indent=2))
+        plots.sweep_metric(summary, "noise_level", tmp / "srmse_vs_noise_level.png")
+        if len(result.grid.tuning_periods) > 1 and summary["tuning_period_s"].notna().any():
+            plots.sweep_metric(summary, "tuning_period_s", tmp / "srmse_vs_tuning_period.png")
+    return folder

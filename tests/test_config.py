@@ -1,0 +1,260 @@
+"""TOML configs (scenario, filter, sweep grid) and strategy specs: what they build, and
+errors that name the file, the table and the key before anything runs."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pronet
+from pronet import config, experiment
+from pronet.config import ConfigError
+from pronet.experiment import StrategySpec
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_a_scenario_file_builds_its_trajectory_sensors_and_filter(tmp_path) -> None:
+    path = write(
+        tmp_path,
+        "turns.toml",
+        """
+        [trajectory]
+        segments = [[20, 0.1, 0, 0], [30, 0, 3, -0.5]]
+        lat_deg = 10.0
+        heading_deg = 90.0
+        speed_mps = 2.0
+        [sensors]
+        imu_variance = [4e-4, 4e-4, 4e-4, 4e-6, 4e-6, 4e-6]
+        dvl_period = 0.5
+        [filter]
+        dvl_variance = [0.02, 0.02, 0.03]
+        innovation_gate = 16.27
+        """,
+    )
+    sc = config.load_scenario(path)
+    assert sc.name == "turns"  # the file name
+    assert sc.trajectory.duration == pytest.approx(50.0)
+    assert sc.trajectory.lla[0, 0] == pytest.approx(math.radians(10.0))
+    assert sc.trajectory.rpy[0, 2] == pytest.approx(math.radians(90.0))
+    assert sc.trajectory.vel_ned[0] == pytest.approx([0.0, 2.0, 0.0], abs=1e-12)  # east
+    expect = pronet.trajectory_from_segments(
+        [
+            pronet.Segment(20, 0.1),
+            pronet.Segment.degrees(30, 0, 3, -0.5),
+        ],
+        lla0=(math.radians(10), math.radians(34), -5.0),
+        speed0=2.0,
+        rpy0=(0, 0, math.radians(90)),
+    )
+    np.testing.assert_array_equal(sc.trajectory.imu, expect.imu)
+    assert sc.sensors.dvl_period == 0.5
+    assert sc.sensors.dvl_variance == [0.01] * 3  # the base's, not overridden
+    assert sc.config.dvl_variance == [0.02, 0.02, 0.03]
+    assert sc.config.innovation_gate == 16.27
+    assert sc.config.accel_bias_psd == experiment.paper_filter_config().accel_bias_psd
+    # a constant variance set in [sensors] is what the constant rows are told
+    assert sc.q_nominal == (4e-4,) * 3 + (4e-6,) * 3
+
+
+def test_a_schedule_is_told_as_its_time_average_unless_q_nominal_is_given(tmp_path) -> None:
+    text = """
+        [trajectory]
+        builtin = "paper"
+        [sensors]
+        imu_variance_times = [0, 110]
+        imu_variance = [[1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6], [4e-4, 4e-4, 4e-4, 4e-6, 4e-6, 4e-6]]
+        """
+    sc = config.load_scenario(write(tmp_path, "s.toml", text))
+    # 110 s at q, 220 s at 4q over the 330 s trajectory: a mean of 3q
+    assert sc.q_nominal == pytest.approx((3e-4,) * 3 + (3e-6,) * 3)
+    assert sc.schedule_time.tolist() == [0, 110]
+    told = write(tmp_path, "t.toml", "q_nominal = [1, 1, 1, 2, 2, 2]\n" + text)
+    told = config.load_scenario(told)
+    assert told.q_nominal == (1, 1, 1, 2, 2, 2)
+
+
+def test_a_scenario_starts_from_its_base() -> None:
+    doc = {"base": "varying-noise", "filter": {"gyro_bias_psd": 1e-5}}
+    sc = config.scenario(doc, "inline", "mine")
+    base = experiment.varying_noise_scenario()
+    assert sc.name == "mine"
+    assert sc.q_nominal == base.q_nominal
+    np.testing.assert_array_equal(sc.schedule_q, base.schedule_q)
+    assert sc.config.gyro_bias_psd == 1e-5 and sc.config.accel_bias_psd == 1e-3
+    assert config.load_scenario("paper").name == "paper"
+
+
+def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
+    cfg = config.load_filter_config(
+        write(tmp_path, "f.toml", 'aiding = "nav"\nimu_dt = 0.02\nlever_arm = [0.5, 0, 0]\n')
+    )
+    assert cfg.aiding == "nav" and cfg.imu_dt == 0.02 and cfg.lever_arm == [0.5, 0.0, 0.0]
+    assert cfg.dvl_variance == pronet.FilterConfig().dvl_variance
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[filter]\ndvl_variance = [0.02, 0.02]\n", "[filter] dvl_variance: expected 3"),
+        ("[filter]\ndvl_varience = 1\n", "[filter] dvl_varience: unknown key"),
+        ("[filter]\naccel_bias_psd = 'small'\n", "[filter] accel_bias_psd: expected a real"),
+        ("[filter]\naccel_bias_psd = -1.0\n", "[filter] accel_bias_psd"),
+        ("[filter]\naiding = 'ned'\n", "[filter] aiding"),
+        ("[sensors]\ndvl_period = true\n", "[sensors] dvl_period"),
+        ("[sensors]\nimu_variance_times = [0, 10]\n", "[sensors] imu_variance_times: needs"),
+        ("[sensors]\nimu_variance = [1, 2, 3]\n", "[sensors] imu_variance"),
+        ("[trajectory]\nbuiltin = 'circle'\n", "[trajectory] builtin: 'circle' is not one"),
+        ("[trajectory]\nbuiltin = 'paper'\nlat_deg = 3\n", "[trajectory] lat_deg: not used"),
+        ("[trajectory]\nspeed_mps = 3\n", "[trajectory]: give either builtin or segments"),
+        ("[trajectory]\nsegments = [[1, 2]]\n", "[trajectory] segments: expected rows"),
+        ("[trajectory]\nsegments = [[10, 0, 0, 0]]\nlat_deg = 'n'\n", "[trajectory] lat_deg"),
+        ("[trajectory]\nsegments = [[-10, 0, 0, 0]]\n", "[trajectory] segments"),
+        ("base = 'lake'\n", "base: 'lake' is not one of paper, varying-noise"),
+        ("colour = 'red'\n", "colour: unknown key"),
+        ("q_nominal = [1, 2]\n", "q_nominal: expected 6"),
+        ("q_nominal = [1, 1, 1, 1, 1, -1]\n", "q_nominal: expected 6"),
+        ("name = ''\n", "name: expected non-empty"),
+        ("filter = 3\n", "[filter]: expected a table"),
+        ("[filter\n", "not valid TOML"),
+    ],
+)
+def test_scenario_errors_name_the_file_and_key(tmp_path, text, message) -> None:
+    path = write(tmp_path, "bad.toml", text)
+    with pytest.raises(ConfigError) as err:
+        config.load_scenario(path)
+    assert message in str(err.value)
+    assert str(err.value).startswith(str(path))
+
+
+def test_a_missing_or_unknown_scenario_says_so(tmp_path) -> None:
+    with pytest.raises(ConfigError, match="no such file"):
+        config.load_scenario(tmp_path / "none.toml")
+    with pytest.raises(ConfigError, match="neither a built-in scenario"):
+        config.load_scenario("lake")
+
+
+@pytest.mark.parametrize(
+    ("text", "kind", "factor", "model"),
+    [
+        ("constant", "constant", 1.0, ""),
+        ("constant:20", "constant", 20.0, ""),
+        ("constant:0.5", "constant", 0.5, ""),
+        ("mehra:5", "mehra", 5.0, ""),
+        ("learned:detrend", "learned", 0.0, "detrend"),
+        ("learned:models/my net", "learned", 0.0, "models/my net"),
+    ],
+)
+def test_strategy_specs_parse(text, kind, factor, model) -> None:
+    spec = StrategySpec.parse(text)
+    assert (spec.text, spec.kind, spec.factor, spec.model) == (text, kind, factor, model)
+    assert spec.uses_tuning_period == (kind == "learned")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("mehra", "mehra needs a window"),
+        ("mehra:0", "mehra needs a window"),
+        ("mehra:2.5", "mehra needs a window"),
+        ("constant:0", "must be finite and > 0"),
+        ("constant:inf", "must be finite and > 0"),
+        ("constant:x", "'x' is not a number"),
+        ("learned:", "learned needs a model"),
+        ("kalman", "expected constant[:S], mehra:W or learned:MODEL"),
+        (5, "expected text"),
+    ],
+)
+def test_bad_strategy_specs_say_what_is_wrong(text, message) -> None:
+    with pytest.raises(ValueError, match=message.replace("[", r"\[")):
+        StrategySpec.parse(text)
+
+
+def test_the_paper_rows_are_built_from_specs() -> None:
+    rows = experiment.model_based_strategies((1e-4,) * 3 + (1e-6,) * 3)
+    assert list(rows) == list(experiment.PAPER_ROWS)[:4]
+    assert list(rows)[:2] == ["constant (true q)", "constant (20 x q)"]
+    assert rows["constant (20 x q)"].q == [20 * 1e-4] * 3 + [20 * 1e-6] * 3
+    assert rows["adaptive xi=5"].window == 5
+    assert experiment.LEARNED_LABELS == {
+        "hcf": "HCF-ensemble",
+        "baseline": "baseline net",
+        "detrend": "detrend net",
+    }
+
+
+GRID = """
+scenarios = ["paper", "short.toml"]
+strategies = ["constant", "mehra:5", "learned:detrend"]
+tuning_periods_s = [1.0, 2.0]
+noise_levels = [1, 4]
+runs = 10
+shard_runs = 4
+seed = 3
+"""
+
+
+def test_a_sweep_file_is_checked_whole(tmp_path) -> None:
+    write(tmp_path, "short.toml", "[trajectory]\nsegments = [[30, 0, 0, 0]]\n")
+    grid = config.load_sweep(write(tmp_path, "grid.toml", GRID))
+    assert [s.name for s in grid.scenarios] == ["paper", "short"]
+    assert [s.text for s in grid.strategies] == ["constant", "mehra:5", "learned:detrend"]
+    assert (grid.tuning_periods, grid.noise_levels) == ((1.0, 2.0), (4.0 / 4, 4.0))
+    assert (grid.runs, grid.shard_runs, grid.seed) == (10, 4, 3)
+    assert grid.scenarios[1].build().trajectory.duration == pytest.approx(30.0)
+    plain = grid.as_dict()
+    assert plain["scenarios"]["paper"] == "paper" and "segments" in plain["scenarios"]["short"]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (("runs = 10", "runs = 0"), "runs: expected a whole number >= 1"),
+        (("runs = 10", "runs = 2.5"), "runs: expected a whole number"),
+        (("seed = 3", "seed = -1"), "seed: expected a whole number >= 0"),
+        (("noise_levels = [1, 4]", "noise_levels = [1, -4]"), "noise_levels: expected finite"),
+        (("noise_levels = [1, 4]", "noise_levels = []"), "noise_levels: expected a non-empty"),
+        (("noise_levels = [1, 4]", "noise_levels = [1, 1]"), "noise_levels: lists a value twice"),
+        (('"mehra:5"', '"mehra:five"'), "strategies: strategy 'mehra:five'"),
+        (('"learned:detrend"', '"learned:nowhere"'), "strategies: 'learned:nowhere': "),
+        (('"short.toml"', '"lake"'), "scenarios: 'lake' is neither"),
+        (('"short.toml"', '"gone.toml"'), "gone.toml: no such file"),
+        (('"short.toml"', '"bad.toml"'), "bad.toml: [filter] imu_dt"),
+        (('"short.toml"', '"paper.toml"'), "two scenarios are named alike"),
+        (("seed = 3", "seeds = 3"), "seeds: unknown key"),
+        (('strategies = ["constant", "mehra:5", "learned:detrend"]', ""), "strategies: missing"),
+    ],
+)
+def test_sweep_errors_point_at_the_key(tmp_path, change, message) -> None:
+    write(tmp_path, "short.toml", "[trajectory]\nsegments = [[30, 0, 0, 0]]\n")
+    write(tmp_path, "bad.toml", "[filter]\nimu_dt = 0\n")
+    write(tmp_path, "paper.toml", "")  # a scenario file named like the built-in
+    old, new = change
+    assert old in GRID
+    path = write(tmp_path, "grid.toml", GRID.replace(old, new))
+    with pytest.raises(ConfigError) as err:
+        config.load_sweep(path)
+    assert message in str(err.value)
+
+
+def test_a_sweep_finds_model_files_beside_it(tmp_path) -> None:
+    import shutil
+
+    from pronet import modelfile
+
+    (tmp_path / "nets").mkdir()
+    for suffix in (".safetensors", ".json"):
+        shutil.copy(modelfile.SHIPPED_DIR / f"baseline{suffix}", tmp_path / "nets")
+    grid = 'scenarios = ["paper"]\nstrategies = ["learned:nets/baseline"]\n'
+    path = write(tmp_path, "grid.toml", grid)
+    (spec,) = config.load_sweep(path).strategies
+    assert spec.text == "learned:nets/baseline"
+    assert Path(spec.model) == (tmp_path / "nets" / "baseline").resolve()
+
