@@ -75,3 +75,28 @@ def test_blessing_without_the_data_keeps_the_recorded_real_rows():
 def test_baseline_file_is_checked():
     with pytest.raises(ValueError, match="not a pronet accuracy-baselines file"):
         baselines.load(ROOT / "python" / "pronet" / "weights" / "detrend.json")
+
+
+def test_the_baselines_command_checks_and_blesses(fresh, tmp_path, monkeypatch, capsys):
+    """`pronet baselines` on the rows computed above: it passes against the file, fails
+    (exit 1) against an altered copy, and --bless rewrites the file and the README's
+    tables from fresh rows."""
+    from pronet import cli
+
+    monkeypatch.setattr(baselines, "fresh_rows", lambda data: fresh)
+    data = ["--data", str(SNAPIR)]
+    assert cli.main(["baselines", "--file", str(FILE), *data]) == 0
+    assert "0 departures" in capsys.readouterr().out
+    altered = baselines.load(FILE)
+    altered["paper, 8 runs"]["constant (true q)"]["srmse"] *= 0.9
+    copy_file, readme = tmp_path / "baselines.json", tmp_path / "README.md"
+    baselines.save(copy_file, altered)
+    assert cli.main(["baselines", "--file", str(copy_file), *data]) == 1
+    assert "srmse worse" in capsys.readouterr().out
+    readme.write_text((ROOT / "README.md").read_text())
+    bless = ["baselines", "--bless", "--file", str(copy_file), "--readme", str(readme)]
+    assert cli.main([*bless, *data]) == 0
+    assert cli.main(["baselines", "--file", str(copy_file), *data]) == 0
+    assert readme.read_text() == baselines.readme_with_tables(
+        readme.read_text(), baselines.load(copy_file)
+    )

@@ -129,3 +129,158 @@ def test_ctrl_c_keeps_finished_shards_and_resume_redoes_none_of_them(
     assert not partial.exists()
     whole, _ = reproduced  # the same settings, uninterrupted (2 threads there: same numbers)
     assert (out / "metrics.csv").read_text() == (whole / "metrics.csv").read_text()
+
+
+SHORT_SCENARIO = """
+name = "short"
+[trajectory]
+segments = [[20, 0, 0, 0], [20, 0, 3, 0]]
+[filter]
+innovation_gate = 16.27
+"""
+
+
+def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) -> None:
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(SHORT_SCENARIO)
+    out = tmp_path / "sim"
+    args = ["simulate", "--scenario", str(scenario), "--runs", "3", "--out", str(out)]
+    strategies = ["--strategies", "constant,constant:20,mehra:5,learned:detrend"]
+    assert cli.main([*args, *strategies, "--json", "--quiet"]) == 0
+    captured = capsys.readouterr()
+    printed = json.loads(captured.out)  # stdout is exactly one JSON document
+    assert captured.err == ""
+    assert printed["folder"] == str(out)
+    rows = printed["metrics"]["short scenario, 3 runs"]
+    assert list(rows) == ["constant", "constant:20", "mehra:5", "learned:detrend"]
+    assert rows["mehra:5"]["srmse"]["n"] == 3 and rows["learned:detrend"]["tunings"] == 38
+    assert rows["constant"]["paper"] is None  # not the paper's scenario
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [
+        "config.json",
+        "metrics.csv",
+        "metrics.json",
+        "q.png",
+        "srmse_smae.png",
+        "table.md",
+        "trajectory.png",
+        "velocity_error.png",
+    ]
+    config = json.loads((out / "config.json").read_text())
+    assert "16.27" in config["filter"] and config["strategies"][2] == "mehra:5"
+    # without --json: the table for people
+    again = tmp_path / "again"
+    assert cli.main([*args[:-1], str(again), "--strategies", "mehra:5", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "| mehra:5 |" in text and f"results written to {again}" in text
+    # the same seed and strategy: the same numbers
+    assert rows["mehra:5"]["srmse"] == json.loads((again / "metrics.json").read_text())[
+        "short scenario, 3 runs"
+    ]["mehra:5"]["srmse"]
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--strategies", "mehra:0"], "mehra needs a window >= 1"),
+        (["--strategies", "constant,constant"], "distinct"),
+        (["--strategies", "learned:no/such/model"], "no/such/model"),
+        (["--scenario", "lake"], "neither a built-in scenario"),
+        (["--filter", "missing.toml"], "missing.toml: no such file"),
+    ],
+)
+def test_simulate_refuses_bad_input_before_any_work(tmp_path, capsys, extra, message) -> None:
+    out = tmp_path / "sim"
+    assert cli.main(["simulate", "--runs", "2", "--out", str(out), *extra]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+SWEEP_GRID = """
+scenarios = ["short.toml"]
+strategies = ["constant", "mehra:5"]
+noise_levels = [1, 9]
+runs = 3
+shard_runs = 2
+"""
+
+
+def test_sweep_writes_one_merged_result_folder_and_resumes(tmp_path, capsys, monkeypatch) -> None:
+    from pronet import sweep
+
+    (tmp_path / "short.toml").write_text(SHORT_SCENARIO)
+    (tmp_path / "grid.toml").write_text(SWEEP_GRID)
+    out = tmp_path / "sweep"
+    args = ["sweep", str(tmp_path / "grid.toml"), "--out", str(out), "--quiet", "--threads", "2"]
+    real = sweep.run_shard
+    calls: list[str] = []
+
+    def interrupt_after_three(shard, threads=None):
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        calls.append(shard.label)
+        return real(shard, threads)
+
+    monkeypatch.setattr(sweep, "run_shard", interrupt_after_three)
+    assert cli.main(args) == 130
+    assert "3 finished shards kept" in capsys.readouterr().err and not out.exists()
+    assert cli.main(args) == 2  # the interrupted sweep is not silently replaced
+    assert "--resume" in capsys.readouterr().err
+    calls.clear()
+    monkeypatch.setattr(sweep, "run_shard", lambda shard, threads=None: real(shard, threads))
+    assert cli.main([*args, "--resume", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    summary = printed["summary"]
+    assert [(r["strategy"], r["noise_level"]) for r in summary] == [
+        ("constant", 1.0),
+        ("mehra:5", 1.0),
+        ("constant", 9.0),
+        ("mehra:5", 9.0),
+    ]
+    assert all(r["runs"] == 3 and r["tuning_period_s"] is None for r in summary)
+    assert sorted(p.name for p in out.iterdir()) == [
+        "config.json",
+        "metrics.csv",
+        "srmse_vs_noise_level.png",
+        "summary.csv",
+        "table.md",
+    ]
+    assert not (tmp_path / "sweep.partial").exists()
+    # the same grid uninterrupted gives the same numbers
+    assert cli.main([*args[:3], str(tmp_path / "whole"), "--quiet"]) == 0
+    assert "| mehra:5 | 9 |" in capsys.readouterr().out
+    assert (tmp_path / "whole" / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
+
+
+def test_sweep_errors_name_the_file_and_key(tmp_path, capsys) -> None:
+    (tmp_path / "short.toml").write_text(SHORT_SCENARIO)
+    grid = tmp_path / "grid.toml"
+    grid.write_text(SWEEP_GRID.replace("runs = 3", "runs = 'three'"))
+    assert cli.main(["sweep", str(grid), "--out", str(tmp_path / "o")]) == 2
+    assert f"{grid}: runs: expected a whole number" in capsys.readouterr().err
+    grid.write_text('scenarios = ["paper"]\nstrategies = ["constant"]\n')
+    assert cli.main(["sweep", str(grid), "--address", "auto"]) == 2
+    assert "--address: only with --engine ray" in capsys.readouterr().err
+
+
+def test_dataset_train_and_evaluate_on_a_small_dataset(tmp_path, capsys) -> None:
+    data = tmp_path / "small.npz"
+    assert cli.main(["dataset", "--out", str(data), "--levels", "1", "--json"]) == 0
+    made = json.loads(capsys.readouterr().out)
+    assert made["examples"] == 4800 and made["train"] + made["test"] == 4800
+    models = tmp_path / "models"
+    train = ["train", "--dataset", str(data), "--model", "baseline", "--max-epochs", "1"]
+    assert cli.main([*train, "--out", str(models), "--quiet", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)["models"]["baseline"]
+    assert report["n_test"] == made["test"] and report["model"]["rmse"] > 0
+    assert (models / "baseline.safetensors").is_file() and (models / "baseline.json").is_file()
+    figure = tmp_path / "fig.png"
+    evaluate = ["evaluate", "--dataset", str(data), "--figure", str(figure)]
+    assert cli.main([*evaluate, "--models", f"{models / 'baseline'},hcf"]) == 0
+    text = capsys.readouterr().out
+    assert "hcf" in text and "figure written" in text
+    assert figure.read_bytes()[:4] == b"\x89PNG"
+    # a bad model file fails before any work, naming the file
+    (tmp_path / "bad.json").write_text("{")
+    assert cli.main([*evaluate, "--models", str(tmp_path / "bad")]) == 2
+    assert "bad" in capsys.readouterr().err

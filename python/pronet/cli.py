@@ -3,19 +3,59 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime as _dt
 import json
+import math
 import os
 import shutil
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pronet
 from pronet import _core, experiment
 from pronet._files import atomic_folder, atomic_write
 from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 from pronet.shards import ShardStore
+
+
+class _Output:
+    """Where a command's words go. ``--quiet``: no progress bars, no messages (results
+    still print). ``--json``: stdout holds only the final JSON document; messages go to
+    stderr."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.quiet = bool(getattr(args, "quiet", False))
+        self.json = bool(getattr(args, "json", False))
+
+    def say(self, text: str = "") -> None:
+        if not self.quiet:
+            print(text, file=sys.stderr if self.json else sys.stdout, flush=True)
+
+    def result(self, text: str, data: object) -> None:
+        """The command's result: ``text`` for people, or ``data`` as JSON."""
+        if self.json:
+            print(json.dumps(_strict_json(data), indent=2))
+        else:
+            print(text)
+
+    def bar(self, **kwargs: Any):  # -> tqdm
+        from tqdm.auto import tqdm
+
+        return tqdm(disable=self.quiet, **kwargs)
+
+
+def _strict_json(value: object) -> object:
+    """``value`` with NaN and infinities as null: strict JSON, which every reader takes."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): _strict_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_strict_json(v) for v in value]
+    return value
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -67,11 +107,10 @@ def _new_result_folder(out: str | None, command: str) -> Path | None:
 def _reproduce(args: argparse.Namespace) -> int:
     import tempfile
 
-    from tqdm.auto import tqdm
-
     from pronet import models, plots, training
     from pronet.dataset import DatasetParams, build_dataset
 
+    show = _Output(args)
     n_runs = 10 if args.quick else args.runs
     if n_runs < 1:
         print("pronet reproduce: --runs must be at least 1", file=sys.stderr)
@@ -114,7 +153,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         sc.name: experiment.paper_strategies(sc.q_nominal, regressors, args.tuning_period)
         for sc in scenarios
     }
-    print(
+    show.say(
         f"{len(scenarios)} scenarios x {len(jobs['paper'])} strategies, {n_runs} Monte Carlo "
         f"runs each, seed {args.seed}; weights: {'retrained' if args.retrain else 'shipped'}"
     )
@@ -133,8 +172,8 @@ def _reproduce(args: argparse.Namespace) -> int:
         }
         shards = ShardStore(partial, settings)
         if len(shards):
-            print(f"resuming: {len(shards)} finished Monte Carlos loaded from {partial}")
-    bar = tqdm(total=sum(len(j) for j in jobs.values()), unit="strategy", disable=args.quiet)
+            show.say(f"resuming: {len(shards)} finished Monte Carlos loaded from {partial}")
+    bar = show.bar(total=sum(len(j) for j in jobs.values()), unit="strategy")
     tables: dict[str, list[experiment.Row]] = {}
     try:
         for sc in scenarios:
@@ -164,9 +203,6 @@ def _reproduce(args: argparse.Namespace) -> int:
             )
         raise
     bar.close()
-    for title, rows in tables.items():
-        print()
-        print(experiment.markdown_table(rows, title, paper=title.startswith("paper")))
     if ds is None:
         ds = build_dataset(DatasetParams())
     test = ~ds.train
@@ -213,8 +249,17 @@ def _reproduce(args: argparse.Namespace) -> int:
         shards.remove()
     if trained_dir is not None:
         shutil.rmtree(trained_dir, ignore_errors=True)
-    print(f"results written to {folder} in {time.perf_counter() - start:.0f} s")
+    _experiment_result(show, folder, start)
     return 0
+
+
+def _experiment_result(show: _Output, folder: Path, start: float) -> None:
+    """Print a written experiment folder's tables (or, with --json, its metrics)."""
+    show.result(
+        (folder / "table.md").read_text()
+        + f"\nresults written to {folder} in {time.perf_counter() - start:.0f} s",
+        {"folder": str(folder), "metrics": json.loads((folder / "metrics.json").read_text())},
+    )
 
 
 def _dataset(args: argparse.Namespace) -> int:
@@ -224,13 +269,21 @@ def _dataset(args: argparse.Namespace) -> int:
     if out.exists() and not args.force:
         print(f"pronet dataset: {out} exists; use --force to replace it", file=sys.stderr)
         return 2
-    params = dataset.DatasetParams(seed=args.seed)
+    params = dataset.DatasetParams(seed=args.seed, n_levels=args.levels)
+    params.validate()
     start = time.perf_counter()
     ds = dataset.build_dataset(params)
     dataset.save_dataset(ds, out, params)
-    print(
+    _Output(args).result(
         f"{ds.q.size} examples ({ds.n_train} train / {ds.n_test} test) written to {out} "
-        f"with card {dataset.card_path(out)} in {time.perf_counter() - start:.1f} s"
+        f"with card {dataset.card_path(out)} in {time.perf_counter() - start:.1f} s",
+        {
+            "file": str(out),
+            "card": str(dataset.card_path(out)),
+            "examples": int(ds.q.size),
+            "train": int(ds.n_train),
+            "test": int(ds.n_test),
+        },
     )
     return 0
 
@@ -244,7 +297,7 @@ def _dataset_for(args: argparse.Namespace):
         ds = dataset.load_dataset(args.dataset)
         return ds, dataset.load_params(args.dataset)
     params = dataset.DatasetParams(seed=args.data_seed)
-    print(f"generating the dataset (seed {params.seed}) ...", flush=True)
+    _Output(args).say(f"generating the dataset (seed {params.seed}) ...")
     return dataset.build_dataset(params), params
 
 
@@ -254,14 +307,15 @@ def _train(args: argparse.Namespace) -> int:
     kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
     ds, params = _dataset_for(args)
+    out = _Output(args)
     reports = {}
     for kind in kinds:
         start = time.perf_counter()
         reports[kind] = training.train_and_save(
-            kind, ds, params, args.out, hp=hp, progress=not args.quiet
+            kind, ds, params, args.out, hp=hp, progress=not out.quiet
         )
-        print(f"{kind}: trained in {time.perf_counter() - start:.0f} s -> {args.out}/{kind}.*")
-    print(training.scores_table(reports))
+        out.say(f"{kind}: trained in {time.perf_counter() - start:.0f} s -> {args.out}/{kind}.*")
+    out.result(training.scores_table(reports), {"folder": str(args.out), "models": reports})
     return 0
 
 
@@ -276,9 +330,10 @@ def _evaluate(args: argparse.Namespace) -> int:
     for name, model in loaded.items():
         reports[name] = training.test_report(model, ds)
         panels[name] = (ds.q[test], model.predict(ds.windows[test]))
-    print(training.scores_table(reports))
+    out = _Output(args)
     if args.figure:
-        print(f"figure written to {plots.predicted_vs_true(panels, args.figure)}")
+        out.say(f"figure written to {plots.predicted_vs_true(panels, args.figure)}")
+    out.result(training.scores_table(reports), {"models": reports, "figure": args.figure})
     return 0
 
 
@@ -293,10 +348,9 @@ def _vector3(text: str) -> tuple[float, float, float]:
 
 
 def _real(args: argparse.Namespace) -> int:
-    from tqdm.auto import tqdm
-
     from pronet import models, plots, realdata
 
+    show = _Output(args)
     out = _new_result_folder(args.out, "real")
     if out is None:
         return 2
@@ -314,7 +368,7 @@ def _real(args: argparse.Namespace) -> int:
     regressors = {} if args.no_models else {k: models.load(k) for k in models.SHIPPED}
     # Read and validate every section before any filtering.
     loaded = []
-    for path in tqdm(paths, unit="section", desc="reading, aligning", disable=args.quiet):
+    for path in show.bar(iterable=paths, unit="section", desc="reading, aligning"):
         loaded.append(
             realdata.load_section(
                 path,
@@ -325,7 +379,7 @@ def _real(args: argparse.Namespace) -> int:
         )
     runs, stamped_runs, inertial, constants, q_estimated = [], [], [], {}, {}
     n_rows = len(realdata.real_strategies((1.0,) * 6, regressors, 1.0))
-    bar = tqdm(total=len(loaded) * n_rows, unit="run", disable=args.quiet)
+    bar = show.bar(total=len(loaded) * n_rows, unit="run")
     for aligned, stamped in loaded:
         q = q_estimated[aligned.name] = realdata.white_noise_q(aligned.imu)
         strategies = realdata.real_strategies(q, regressors, args.tuning_period)
@@ -369,7 +423,6 @@ def _real(args: argparse.Namespace) -> int:
         realdata.summary_table(inertial, "Sanity: pure inertial, no DVL"),
     ]
     text = "\n".join(tables)
-    print(text)
 
     def write(folder: Path) -> None:
         (folder / "table.md").write_text(text)
@@ -393,7 +446,7 @@ def _real(args: argparse.Namespace) -> int:
             "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
         }
         (folder / "config.json").write_text(json.dumps(config, indent=2))
-        for aligned, _ in tqdm(loaded, unit="section", desc="plots", disable=args.quiet):
+        for aligned, _ in show.bar(iterable=loaded, unit="section", desc="plots"):
             mine = [r for r in runs if r.section == aligned.name]
             plots.section_track(aligned, mine, folder / f"track_{aligned.name}.png")
             plots.section_velocity_error(
@@ -409,7 +462,142 @@ def _real(args: argparse.Namespace) -> int:
 
     with atomic_folder(out) as tmp:
         write(tmp)
-    print(f"{n} sections; results written to {out} in {time.perf_counter() - start:.0f} s")
+    show.result(
+        f"{text}\n{n} sections; results written to {out} in {time.perf_counter() - start:.0f} s",
+        {"folder": str(out), "metrics": json.loads((out / "metrics.json").read_text())},
+    )
+    return 0
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from pronet import config, plots
+
+    show = _Output(args)
+    # everything the run needs is read and checked before anything runs
+    scenario = config.load_scenario(args.scenario)
+    if args.filter:
+        scenario = dataclasses.replace(scenario, config=config.load_filter_config(args.filter))
+    texts = [t.strip() for t in args.strategies.split(",") if t.strip()]
+    if not texts or len(set(texts)) != len(texts):
+        raise ValueError(f"strategies: expected distinct comma-separated specs, got {texts}")
+    specs = [experiment.StrategySpec.parse(t) for t in texts]
+    strategies = {
+        spec.text: experiment.strategy(spec, scenario.q_nominal, args.tuning_period)
+        for spec in specs
+    }
+    out = _new_result_folder(args.out, "simulate")
+    if out is None:
+        return 2
+    start = time.perf_counter()
+    show.say(
+        f"scenario {scenario.name} ({scenario.trajectory.duration:g} s): "
+        f"{len(strategies)} strategies, {args.runs} Monte Carlo runs each, seed {args.seed}"
+    )
+    bar = show.bar(total=len(strategies), unit="strategy")
+
+    def done(label: str) -> None:
+        bar.set_postfix_str(label)
+        bar.update()
+
+    title = f"{scenario.name} scenario, {args.runs} runs"
+    rows = experiment.run_strategies(
+        strategies,
+        scenario,
+        n_runs=args.runs,
+        seed=args.seed,
+        threads=args.threads,
+        record_every=max(1, round(args.record_every / scenario.trajectory.dt)),
+        on_done=done,
+    )
+    bar.close()
+
+    def figures(folder: Path) -> None:
+        plots.metrics_with_ci({title: rows}, folder / "srmse_smae.png")
+        plots.trajectory(scenario.trajectory, folder / "trajectory.png", scenario.name)
+        plots.velocity_error(rows, folder / "velocity_error.png", title)
+        plots.q_tracking(
+            rows, scenario.schedule_time, scenario.schedule_q, folder / "q.png", title
+        )
+
+    settings = {
+        "scenario": str(args.scenario),
+        "filter": repr(scenario.config),
+        "sensors": repr(scenario.sensors),
+        "trajectory": scenario.trajectory.name,
+        "q_nominal": list(scenario.q_nominal),
+        "strategies": texts,
+        "n_runs": args.runs,
+        "seed": args.seed,
+        "tuning_period_s": args.tuning_period,
+    }
+    folder = experiment.write_result_folder(
+        out, {title: rows}, settings, extra=figures, paper_columns=False
+    )
+    _experiment_result(show, folder, start)
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from pronet import config, sweep
+
+    show = _Output(args)
+    grid = config.load_sweep(args.grid)  # every file, spec and model checked first
+    if args.address is not None and args.engine != "ray":
+        raise ValueError("--address: only with --engine ray")
+    if args.resume and not args.out:
+        raise ValueError("--resume: needs the --out of the interrupted sweep")
+    out = _new_result_folder(args.out, "sweep")
+    if out is None:
+        return 2
+    partial = out.with_name(out.name + ".partial")
+    if partial.exists() and not args.resume:
+        raise ValueError(
+            f"{partial} holds an interrupted sweep of this folder; add --resume to "
+            "continue it, or remove it"
+        )
+    settings = sweep.settings(grid)
+    store = ShardStore(partial, settings)
+    shards = sweep.plan(grid)
+    points = len({s.point for s in shards})
+    show.say(
+        f"{points} grid points x {grid.runs} runs = {len(shards)} shards of up to "
+        f"{grid.shard_runs} runs, engine {args.engine}"
+        + (f", {len(store)} already finished in {partial}" if len(store) else "")
+    )
+    start = time.perf_counter()
+    bar = show.bar(total=len(shards), unit="shard")
+
+    def done(shard: sweep.Shard) -> None:
+        bar.set_postfix_str(shard.point.key, refresh=False)
+        bar.update()
+
+    try:
+        result = sweep.run_sweep(
+            grid,
+            engine=args.engine,
+            address=args.address,
+            threads=args.threads,
+            store=store,
+            on_shard=done,
+        )
+    except KeyboardInterrupt:
+        bar.close()
+        print(
+            f"\ninterrupted: {len(store)} finished shards kept in {partial}; the same "
+            "command with --resume continues from there",
+            file=sys.stderr,
+        )
+        raise
+    bar.close()
+    seconds = time.perf_counter() - start
+    config_json = {**settings, "engine": args.engine, "seconds": seconds}
+    sweep.write_result_folder(out, result, config_json)
+    store.remove()
+    summary = result.to_dataframe()
+    show.result(
+        result.markdown() + f"results written to {out} in {seconds:.0f} s",
+        {"folder": str(out), "summary": summary.to_dict(orient="records")},
+    )
     return 0
 
 
@@ -437,6 +625,15 @@ def _baselines(args: argparse.Namespace) -> int:
         print(p)
     print(f"{len(problems)} departures from {path} ({time.perf_counter() - start:.0f} s)")
     return 1 if problems else 0
+
+
+def _add_output_flags(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quiet", action="store_true", help="no progress bars or messages")
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print the result as one JSON document on stdout (messages go to stderr)",
+    )
 
 
 def _add_tuning_period(parser: argparse.ArgumentParser) -> None:
@@ -474,7 +671,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--retrain", action="store_true", help="train all three regressors first (~10 min)"
     )
     _add_tuning_period(rep)
-    rep.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_output_flags(rep)
     rep.add_argument(
         "--resume",
         action="store_true",
@@ -482,12 +679,23 @@ def build_parser() -> argparse.ArgumentParser:
         "folder, without redoing the Monte Carlos it finished",
     )
     rep.set_defaults(func=_reproduce)
+    from pronet.dataset import DatasetParams
+
+    dataset_defaults = DatasetParams()
     data = sub.add_parser(
         "dataset", help="generate the 72,000-window noise-regression training set (.npz + card)"
     )
     data.add_argument("--out", default="data/dataset.npz", help="output .npz path")
     data.add_argument("--seed", type=int, default=0, help="noise and split seed (default 0)")
+    data.add_argument(
+        "--levels",
+        type=int,
+        default=dataset_defaults.n_levels,
+        help="noise variances, evenly spaced from 0.001 to 0.05 (m/s²)² or (rad/s)² per "
+        f"sample; 4,800 windows each (default {dataset_defaults.n_levels}, the paper's)",
+    )
     data.add_argument("--force", action="store_true", help="replace an existing file")
+    _add_output_flags(data)
     data.set_defaults(func=_dataset)
     for name, func, text in (
         ("train", _train, "train a noise regressor and write safetensors weights + JSON card"),
@@ -501,6 +709,7 @@ def build_parser() -> argparse.ArgumentParser:
             "--data-seed", type=int, default=0, help="seed of the regenerated dataset (default 0)"
         )
         p.set_defaults(func=func)
+        _add_output_flags(p)
         if name == "train":
             p.add_argument("--model", choices=("baseline", "detrend", "hcf", "all"), default="all")
             p.add_argument("--out", default="models", help="output folder (default models/)")
@@ -508,7 +717,6 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument(
                 "--max-epochs", type=int, default=20, help="epoch limit for the nets (default 20)"
             )
-            p.add_argument("--quiet", action="store_true", help="no progress bar")
         else:
             p.add_argument(
                 "--models",
@@ -545,8 +753,84 @@ def build_parser() -> argparse.ArgumentParser:
     _add_tuning_period(real)
     real.add_argument("--no-models", action="store_true", help="only the model-based rows")
     real.add_argument("--out", default=None, help="result folder (default results/real-<time>)")
-    real.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_output_flags(real)
     real.set_defaults(func=_real)
+    sim = sub.add_parser(
+        "simulate",
+        help="Monte Carlo of chosen strategies on one scenario (built-in or TOML file)",
+        description="Run strategies on the same simulated noise realizations and write "
+        "a result folder (table, metrics, plots). Scenario and filter files: see "
+        "pronet.config (docs/api.md).",
+    )
+    sim.add_argument(
+        "--scenario",
+        default="paper",
+        help="built-in scenario (paper, varying-noise) or a scenario .toml file "
+        "(default paper)",
+    )
+    sim.add_argument(
+        "--filter", default=None, help="filter configuration .toml replacing the scenario's"
+    )
+    sim.add_argument(
+        "--strategies",
+        default=",".join(experiment.PAPER_ROWS.values()),
+        help="comma-separated specs: constant[:FACTOR on q], mehra:WINDOW [DVL updates], "
+        "learned:MODEL (shipped name or model file) (default: the paper's seven rows)",
+    )
+    sim.add_argument(
+        "--runs", type=int, default=100, help="Monte Carlo runs per strategy (default 100)"
+    )
+    sim.add_argument("--seed", type=int, default=0, help="Monte Carlo seed (default 0)")
+    sim.add_argument(
+        "--threads", type=int, default=None, help="worker threads (default: all cores)"
+    )
+    sim.add_argument(
+        "--record-every",
+        type=float,
+        default=1.0,
+        help="seconds between the saved history samples the plots use (default 1 s)",
+    )
+    _add_tuning_period(sim)
+    sim.add_argument("--out", default=None, help="result folder (default results/simulate-<time>)")
+    _add_output_flags(sim)
+    sim.set_defaults(func=_simulate)
+    swp = sub.add_parser(
+        "sweep",
+        help="a grid of Monte Carlos (scenario x strategy x noise level x tuning period), "
+        "as shards, on this machine or a Ray cluster",
+        description="Run the grid of a sweep .toml file (see pronet.config) as shards "
+        "of runs, each one native Monte Carlo call, and merge them into one result "
+        "folder (table.md, summary.csv, metrics.csv, plots). The Ray engine gives "
+        "exactly the local engine's numbers.",
+    )
+    swp.add_argument("grid", help="sweep grid .toml file")
+    swp.add_argument(
+        "--engine",
+        choices=("local", "ray"),
+        default="local",
+        help="local: shard after shard in this process; ray: shards as Ray tasks",
+    )
+    swp.add_argument(
+        "--address",
+        default=None,
+        help="Ray cluster to join (auto, HOST:6379 or ray://HOST:10001); default: start "
+        "a private Ray on this machine",
+    )
+    swp.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="local: threads per shard (default all cores); ray: CPUs per shard (default 1)",
+    )
+    swp.add_argument("--out", default=None, help="result folder (default results/sweep-<time>)")
+    swp.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted sweep of the same --out, without redoing its "
+        "finished shards",
+    )
+    _add_output_flags(swp)
+    swp.set_defaults(func=_sweep)
     base = sub.add_parser(
         "baselines",
         help="check the accuracy baselines, or rewrite them and the README tables (--bless)",
