@@ -14,6 +14,6 @@ cargo clippy --quiet --all-targets --features python -- -D warnings
 echo "== cargo test"
 cargo test --quiet
 echo "== ruff"
-"$VENV/bin/ruff" check python tests benches examples
+"$VENV/bin/ruff" check python tests benches examples scripts
 echo "== pytest"
 "$VENV/bin/python" -m pytest -q tests

@@ -258,3 +258,36 @@ def test_a_sweep_finds_model_files_beside_it(tmp_path) -> None:
     assert spec.text == "learned:nets/baseline"
     assert Path(spec.model) == (tmp_path / "nets" / "baseline").resolve()
 
+
+def test_the_readme_toml_examples_load(tmp_path) -> None:
+    """The scenario and sweep files shown in the README are valid as written."""
+    import re
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    blocks = dict(
+        (m.group(1), m.group(2))
+        for m in re.finditer(r"```toml\n# (\S+)\n(.*?)```", readme, flags=re.S)
+    )
+    assert set(blocks) == {"my-scenario.toml", "grid.toml"}
+    for name, text in blocks.items():
+        write(tmp_path, name, text)
+    sc = config.load_scenario(tmp_path / "my-scenario.toml")
+    assert sc.name == "fast-turns" and sc.trajectory.duration == pytest.approx(165.0)
+    grid = config.load_sweep(tmp_path / "grid.toml")
+    assert [s.name for s in grid.scenarios] == ["paper", "fast-turns"]
+
+
+def test_the_docstring_examples_load() -> None:
+    """The scenario and sweep shown in pronet.config's docstring are valid as written."""
+    import re
+    import textwrap
+    import tomllib
+
+    scenario_text, sweep_text = (
+        textwrap.dedent(b) for b in re.findall(r"::\n\n(.*?)\n\n(?=\S)", config.__doc__, re.S)
+    )
+    sc = config.scenario(tomllib.loads(scenario_text), "docstring", "x")
+    assert sc.name == "fast-turns" and sc.config.dvl_variance == [0.01] * 3
+    doc = tomllib.loads(sweep_text)
+    doc["scenarios"] = ["paper"]  # the example's my-scenario.toml is not on disk
+    assert config.sweep_grid(doc, "docstring").shard_runs == 25

@@ -354,6 +354,12 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     assert config["clocks"]["run1"]["gt"][0] == pytest.approx(GT_CLOCK.offset, abs=0.01)
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no leftovers
     assert main(argv) == 2  # the folder exists: refused, not overwritten
+    capsys.readouterr()
+    as_json = [*argv[:5], "--sections", "run2", "--out", str(tmp_path / "js"), "--json"]
+    assert main(as_json) == 0
+    printed = json.loads(capsys.readouterr().out)  # stdout: one JSON document
+    assert printed["folder"] == str(tmp_path / "js")
+    assert set(printed["metrics"]["aligned"]) == {"run2"}
 
 
 def test_pronet_real_refuses_bad_data_before_any_work(tmp_path, capsys):

@@ -54,7 +54,8 @@ class Trajectory:
         """Initial forward speed [m/s]."""
 
 def builtin_trajectory(name: str, dt: float = 0.01) -> Trajectory: ...
-def builtin_trajectory_names() -> list[str]: ...
+def builtin_trajectory_names() -> list[str]:
+    """Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`)."""
 def trajectory_from_segments(
     segments: F64,
     *,
@@ -114,11 +115,16 @@ class Strategy:
     external (q set by the caller through an :class:`Ensemble`)."""
 
     @staticmethod
-    def constant(q: Any) -> Strategy: ...
+    def constant(q: Any) -> Strategy:
+        """Constant Q^c from 6 per-sample IMU variances q [(m/s²)², (rad/s)²]."""
     @staticmethod
-    def mehra(window: int, prior_q: Any) -> Strategy: ...
+    def mehra(window: int, prior_q: Any) -> Strategy:
+        """Mehra's innovation-adaptive Q over the last ``window`` DVL innovations
+        (``window`` >= 1); constant ``prior_q`` until that many exist."""
     @staticmethod
-    def external(prior_q: Any) -> Strategy: ...
+    def external(prior_q: Any) -> Strategy:
+        """q set from outside (the hybrid loop, through an :class:`Ensemble`);
+        ``prior_q`` until the first setting."""
     @property
     def kind(self) -> Literal["constant", "mehra", "external"]: ...
     @property
@@ -220,10 +226,14 @@ class Ensemble:
         threads: int | None = None,
         first_run: int = 0,
     ) -> None: ...
-    def advance(self) -> NDArray[np.float32] | None: ...
-    def set_q(self, q: F64) -> None: ...
+    def advance(self) -> NDArray[np.float32] | None:
+        """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
+        float32, oldest sample first, or None at the end."""
+    def set_q(self, q: F64) -> None:
+        """Set each run's IMU variances: ``q`` float64 ``(n_runs, 6)``."""
     def finish(self) -> dict[str, Any]:
-        """Run to the end; the results as :func:`monte_carlo` returns them."""
+        """Run to the end; the results as :func:`monte_carlo` returns them. The
+        ensemble cannot be used afterwards."""
     @property
     def n_runs(self) -> int: ...
     @property

@@ -2,7 +2,7 @@
 
 Each file is read and checked completely before any computation. A mistake raises
 :class:`ConfigError` (a ``ValueError``) that names the file, the table and the key, e.g.
-``my.toml: [filter] dvl_variance: expected shape (3,), got (2,)``; unknown keys are
+``my.toml: [filter] dvl_variance: expected 3 numbers, got 2``; unknown keys are
 mistakes too, so a misspelt key never silently falls back to a default.
 
 **Scenario** (``pronet simulate --scenario FILE``, or listed in a sweep)::

@@ -1,0 +1,175 @@
+#!/usr/bin/env bash
+# Check that the release wheel is complete and works on its own: build it with
+# `maturin build --release` (or take one with --wheel PATH), install that one file into a
+# brand-new virtual environment (dependencies from PyPI), and from a folder outside the
+# checkout import it, look for the files it must ship (py.typed, _core.pyi, the native
+# module, the shipped weights), run `pronet info` and `pronet reproduce --quick`.
+#
+#   bash scripts/check_wheel.sh                  # build, install, check
+#   bash scripts/check_wheel.sh --wheel FILE.whl # check a wheel built before
+#   KEEP=1 bash scripts/check_wheel.sh           # keep the temporary folder to look into
+#
+# maturin comes from pronet's venv (PRONET_VENV, default ~/.cache/pronet-venv) when it
+# is there, otherwise it is installed into a temporary venv. Nothing is installed into
+# pronet's venv and nothing in the checkout is changed (the wheel goes to the temp folder).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
+PYTHON="${PYTHON:-python3}"
+
+usage() { sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+WHEEL=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --wheel) [ $# -ge 2 ] || { echo "check_wheel: --wheel needs a path" >&2; exit 2; }
+             [ -f "$2" ] || { echo "check_wheel: no wheel file at $2" >&2; exit 2; }
+             WHEEL="$(realpath "$2")"; shift 2 ;;
+    -h|--help) usage; exit 0 ;;
+    *) echo "check_wheel: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+
+TMP="$(mktemp -d "${TMPDIR:-/tmp}/pronet-wheel.XXXXXX")"
+cleanup() {
+  local rc=$?
+  if [ "${KEEP:-0}" = 1 ]; then
+    echo "check_wheel: KEEP=1, leaving $TMP"
+  else
+    rm -rf "$TMP"
+  fi
+  exit "$rc"
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+fail() { echo "check_wheel: FAIL: $*" >&2; exit 1; }
+now() { date +%s; }
+declare -A TIME=()
+
+# --- build ---------------------------------------------------------------------------
+if [ -z "$WHEEL" ]; then
+  if [ -x "$VENV/bin/maturin" ]; then
+    MATURIN="$VENV/bin/maturin"
+  else
+    echo "check_wheel: no maturin in $VENV; installing it into a temporary venv"
+    "$PYTHON" -m venv "$TMP/tools"
+    "$TMP/tools/bin/python" -m pip install -q "maturin>=1.9.4,<2"
+    MATURIN="$TMP/tools/bin/maturin"
+  fi
+  echo "== build: $("$MATURIN" --version) build --release (log: $TMP/build.log)"
+  t=$(now)
+  if ! (cd "$ROOT" && "$MATURIN" build --release --interpreter "$PYTHON" \
+          --out "$TMP/dist") >"$TMP/build.log" 2>&1; then
+    tail -n 40 "$TMP/build.log" >&2
+    fail "maturin build failed (KEEP=1 keeps the whole log)"
+  fi
+  TIME[build]=$(( $(now) - t ))
+  shopt -s nullglob
+  wheels=("$TMP"/dist/*.whl)
+  shopt -u nullglob
+  [ "${#wheels[@]}" -eq 1 ] || fail "expected one wheel in $TMP/dist, found ${#wheels[@]}"
+  WHEEL="${wheels[0]}"
+fi
+[ -f "$WHEEL" ] || fail "no wheel at $WHEEL"
+WHEEL_NAME="$(basename "$WHEEL")"
+WHEEL_SIZE="$(du -h "$WHEEL" | cut -f1)"
+echo "   wheel: $WHEEL_NAME ($WHEEL_SIZE)"
+
+# --- install into a brand-new venv -----------------------------------------------------
+NEW="$TMP/venv"
+echo "== install: fresh venv $NEW, pip install $WHEEL_NAME (dependencies from PyPI)"
+t=$(now)
+"$PYTHON" -m venv "$NEW"
+# Only the wheel file is named: pip takes pronet from it and its dependencies from PyPI.
+"$NEW/bin/python" -m pip install -q --disable-pip-version-check "$WHEEL" \
+  >"$TMP/install.log" 2>&1 || { tail -n 40 "$TMP/install.log" >&2; fail "pip install failed"; }
+TIME[install]=$(( $(now) - t ))
+
+# Everything below runs from a folder outside the checkout, with no PYTHONPATH and no
+# other venv active, so that only the installed package can be imported.
+OUTSIDE="$TMP/outside"
+mkdir -p "$OUTSIDE"
+cd "$OUTSIDE"
+run() { env -u PYTHONPATH -u VIRTUAL_ENV -u PYTHONHOME -u PYTHONSTARTUP \
+          PATH="$NEW/bin:/usr/local/bin:/usr/bin:/bin" "$@"; }
+
+# --- the installed package -------------------------------------------------------------
+echo "== import"
+SITE="$(run "$NEW/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+PKG_INIT="$(run "$NEW/bin/python" -c 'import pronet, pronet._core; print(pronet.__file__)')" \
+  || fail "import pronet, pronet._core failed in the new venv"
+echo "   pronet.__file__ = $PKG_INIT"
+SITE="$(realpath "$SITE")"
+PKG="$(dirname "$(realpath "$PKG_INIT")")"
+case "$PKG/" in
+  "$SITE"/*) ;;
+  *) fail "pronet was imported from $PKG, not from the new venv's $SITE" ;;
+esac
+CORE="$(run "$NEW/bin/python" -c 'import pronet._core as c; print(c.__file__)')"
+case "$(realpath "$CORE")" in
+  "$SITE"/*) ;;
+  *) fail "pronet._core was imported from $CORE, not from $SITE" ;;
+esac
+
+echo "== files in the installed package ($PKG)"
+missing=()
+for f in py.typed _core.pyi; do
+  [ -f "$PKG/$f" ] || missing+=("pronet/$f")
+done
+shopt -s nullglob
+so=("$PKG"/_core*.so)
+[ "${#so[@]}" -ge 1 ] || missing+=("pronet/_core*.so")
+# The shipped weights: every .safetensors and .json that the source tree has, byte for
+# byte, and at least one of each kind.
+src_weights=("$ROOT"/python/pronet/weights/*.safetensors "$ROOT"/python/pronet/weights/*.json)
+inst_st=("$PKG"/weights/*.safetensors)
+inst_js=("$PKG"/weights/*.json)
+shopt -u nullglob
+[ "${#inst_st[@]}" -ge 1 ] || missing+=("pronet/weights/*.safetensors")
+[ "${#inst_js[@]}" -ge 1 ] || missing+=("pronet/weights/*.json")
+for src in "${src_weights[@]}"; do
+  name="weights/$(basename "$src")"
+  if [ ! -f "$PKG/$name" ]; then
+    missing+=("pronet/$name")
+  elif ! cmp -s "$src" "$PKG/$name"; then
+    missing+=("pronet/$name (differs from the source tree's)")
+  fi
+done
+[ "${#missing[@]}" -eq 0 ] || fail "missing from the installed package: ${missing[*]}"
+echo "   py.typed, _core.pyi, $(basename "${so[0]}"), ${#inst_st[@]} .safetensors + ${#inst_js[@]} .json weights"
+# Nothing the wheel should not carry: byte code or a second native module.
+stray="$(run "$NEW/bin/python" - "$WHEEL" <<'EOF'
+import sys, zipfile
+names = zipfile.ZipFile(sys.argv[1]).namelist()
+bad = [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".pyo"))]
+so = [n for n in names if n.startswith("pronet/") and n.endswith((".so", ".pyd"))]
+if len(so) != 1:
+    bad += so
+print(" ".join(bad))
+EOF
+)"
+[ -z "$stray" ] || fail "the wheel carries files it should not: $stray"
+
+# --- the command line ------------------------------------------------------------------
+echo "== pronet info"
+[ -x "$NEW/bin/pronet" ] || fail "the wheel installed no 'pronet' command"
+run "$NEW/bin/pronet" info || fail "pronet info failed"
+
+echo "== pronet reproduce --quick"
+RESULTS="$TMP/results"
+t=$(now)
+run "$NEW/bin/pronet" reproduce --quick --out "$RESULTS" --quiet >"$TMP/reproduce.log" 2>&1 \
+  || { tail -n 40 "$TMP/reproduce.log" >&2; fail "pronet reproduce --quick failed"; }
+TIME[reproduce]=$(( $(now) - t ))
+for f in table.md metrics.json metrics.csv config.json; do
+  [ -s "$RESULTS/$f" ] || fail "reproduce wrote no $f in $RESULTS"
+done
+shopt -s nullglob
+pngs=("$RESULTS"/*.png)
+shopt -u nullglob
+[ "${#pngs[@]}" -ge 1 ] || fail "reproduce wrote no .png in $RESULTS"
+echo "   $RESULTS: table.md metrics.json metrics.csv config.json and ${#pngs[@]} PNGs"
+
+times="install ${TIME[install]}s, reproduce ${TIME[reproduce]}s"
+[ -n "${TIME[build]:-}" ] && times="build ${TIME[build]}s, $times"
+echo "check_wheel: PASS $WHEEL_NAME ($WHEEL_SIZE; $times)"
