@@ -11,7 +11,7 @@ import numpy as np
 
 import pronet
 from pronet.alignment import Clock, dcm_from_euler
-from pronet.datasets import Recording
+from pronet.recordings import Recording
 
 GT_CLOCK = Clock(offset=-0.45, scale=0.9975)
 DVL_CLOCK = Clock(offset=1.0, scale=0.9975)

@@ -31,15 +31,15 @@ from pronet.alignment import (
     estimate_alignment,
 )
 from pronet.cli import main
-from pronet.datasets import (
+from pronet.experiment import Learned
+from pronet.hybrid import ConstantRegressor, q_schedule
+from pronet.recordings import (
     Recording,
     RecordingError,
     read_recording,
     read_snapir,
     write_recording,
 )
-from pronet.experiment import Learned
-from pronet.hybrid import ConstantRegressor, q_schedule
 
 #: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
 SNAPIR = Path(

@@ -1,4 +1,4 @@
-"""Clocks and lever arms: turn a :class:`~pronet.datasets.Recording` into a filter-ready
+"""Clocks and lever arms: turn a :class:`~pronet.recordings.Recording` into a filter-ready
 :class:`Section` on the IMU's clock, with the ground truth moved to the IMU.
 
 Clocks. Each stream's stamps map to IMU time by ``t_imu = offset + scale · t_stamp``
@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._validate import check_type, float_array, real_array, scalar
-from pronet.datasets import Recording
+from pronet.recordings import Recording
 
 F64 = NDArray[np.float64]
 

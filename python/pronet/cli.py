@@ -735,7 +735,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--format",
         choices=("snapir", "generic"),
         default="snapir",
-        help="snapir: the published layout; generic: see pronet.datasets (default snapir)",
+        help="snapir: the published layout; generic: see pronet.recordings (default snapir)",
     )
     real.add_argument("--sections", default=None, help="comma-separated section names")
     real.add_argument(

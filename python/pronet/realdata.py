@@ -340,7 +340,7 @@ FORMATS = ("snapir", "generic")
 def find_sections(data: str | Path) -> list[Path]:
     """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
     ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
-    from pronet.datasets import RecordingError
+    from pronet.recordings import RecordingError
 
     data = Path(data)
     if not data.is_dir():
@@ -370,7 +370,7 @@ def load_section(
     """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
     lever arms applied, and the stamps as given with no lever arms (the comparison)."""
     from pronet.alignment import Alignment, align, estimate_alignment
-    from pronet.datasets import read_recording, read_snapir
+    from pronet.recordings import read_recording, read_snapir
 
     if fmt not in FORMATS:
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
