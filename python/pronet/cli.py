@@ -515,9 +515,7 @@ def _simulate(args: argparse.Namespace) -> int:
         plots.metrics_with_ci({title: rows}, folder / "srmse_smae.png")
         plots.trajectory(scenario.trajectory, folder / "trajectory.png", scenario.name)
         plots.velocity_error(rows, folder / "velocity_error.png", title)
-        plots.q_tracking(
-            rows, scenario.schedule_time, scenario.schedule_q, folder / "q.png", title
-        )
+        plots.q_tracking(rows, scenario.schedule_time, scenario.schedule_q, folder / "q.png", title)
 
     settings = {
         "scenario": str(args.scenario),
@@ -639,6 +637,7 @@ def _add_output_flags(parser: argparse.ArgumentParser) -> None:
 def _add_tuning_period(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--tuning-period",
+        metavar="SECONDS",
         type=float,
         default=1.0,
         help="seconds between regressor calls in the learned rows (default 1 s)",
@@ -659,14 +658,25 @@ def build_parser() -> argparse.ArgumentParser:
         "reproduce", help="run the paper's Monte Carlo experiment and print its table"
     )
     rep.add_argument(
-        "--runs", type=int, default=100, help="Monte Carlo runs per strategy (default 100)"
+        "--runs",
+        metavar="N",
+        type=int,
+        default=100,
+        help="Monte Carlo runs per strategy (default 100)",
     )
     rep.add_argument("--quick", action="store_true", help="10 runs per strategy")
-    rep.add_argument("--seed", type=int, default=0, help="Monte Carlo seed (default 0)")
     rep.add_argument(
-        "--threads", type=int, default=None, help="worker threads (default: all cores)"
+        "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
     )
-    rep.add_argument("--out", default=None, help="result folder (default results/reproduce-<time>)")
+    rep.add_argument(
+        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
+    )
+    rep.add_argument(
+        "--out",
+        metavar="PATH",
+        default=None,
+        help="result folder (default results/reproduce-<time>)",
+    )
     rep.add_argument(
         "--retrain", action="store_true", help="train all three regressors first (~10 min)"
     )
@@ -685,10 +695,13 @@ def build_parser() -> argparse.ArgumentParser:
     data = sub.add_parser(
         "dataset", help="generate the 72,000-window noise-regression training set (.npz + card)"
     )
-    data.add_argument("--out", default="data/dataset.npz", help="output .npz path")
-    data.add_argument("--seed", type=int, default=0, help="noise and split seed (default 0)")
+    data.add_argument("--out", metavar="PATH", default="data/dataset.npz", help="output .npz path")
+    data.add_argument(
+        "--seed", metavar="N", type=int, default=0, help="noise and split seed (default 0)"
+    )
     data.add_argument(
         "--levels",
+        metavar="N",
         type=int,
         default=dataset_defaults.n_levels,
         help="noise variances, evenly spaced from 0.001 to 0.05 (m/s²)² or (rad/s)² per "
@@ -703,33 +716,59 @@ def build_parser() -> argparse.ArgumentParser:
     ):
         p = sub.add_parser(name, help=text)
         p.add_argument(
-            "--dataset", default=None, help="dataset .npz (default: regenerate from --data-seed)"
+            "--dataset",
+            metavar="FILE",
+            default=None,
+            help="dataset .npz (default: regenerate from --data-seed)",
         )
         p.add_argument(
-            "--data-seed", type=int, default=0, help="seed of the regenerated dataset (default 0)"
+            "--data-seed",
+            metavar="N",
+            type=int,
+            default=0,
+            help="seed of the regenerated dataset (default 0)",
         )
         p.set_defaults(func=func)
         _add_output_flags(p)
         if name == "train":
-            p.add_argument("--model", choices=("baseline", "detrend", "hcf", "all"), default="all")
-            p.add_argument("--out", default="models", help="output folder (default models/)")
-            p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
             p.add_argument(
-                "--max-epochs", type=int, default=20, help="epoch limit for the nets (default 20)"
+                "--model",
+                choices=("baseline", "detrend", "hcf", "all"),
+                default="all",
+                help="which regressor to train (default all three)",
+            )
+            p.add_argument(
+                "--out", metavar="PATH", default="models", help="output folder (default models/)"
+            )
+            p.add_argument(
+                "--seed", metavar="N", type=int, default=0, help="training seed (default 0)"
+            )
+            p.add_argument(
+                "--max-epochs",
+                metavar="N",
+                type=int,
+                default=20,
+                help="epoch limit for the nets (default 20)",
             )
         else:
             p.add_argument(
                 "--models",
+                metavar="LIST",
                 default="baseline,detrend,hcf",
                 help="comma-separated shipped names or model file paths",
             )
-            p.add_argument("--figure", default=None, help="write predicted-vs-true q PNG here")
+            p.add_argument(
+                "--figure", metavar="PNG", default=None, help="write predicted-vs-true q PNG here"
+            )
     real = sub.add_parser(
         "real",
         help="run every strategy on recorded INS/DVL sections (e.g. the Snapir AUV data)",
     )
     real.add_argument(
-        "--data", required=True, help="folder of sections, or one section (never copied)"
+        "--data",
+        metavar="DIR",
+        required=True,
+        help="folder of sections, or one section (never copied)",
     )
     real.add_argument(
         "--format",
@@ -737,22 +776,28 @@ def build_parser() -> argparse.ArgumentParser:
         default="snapir",
         help="snapir: the published layout; generic: see pronet.recordings (default snapir)",
     )
-    real.add_argument("--sections", default=None, help="comma-separated section names")
+    real.add_argument(
+        "--sections", metavar="LIST", default=None, help="comma-separated section names"
+    )
     real.add_argument(
         "--imu-lever-arm",
+        metavar="X,Y,Z",
         type=_vector3,
         default=SNAPIR_IMU_LEVER_ARM,
         help="IMU position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
     )
     real.add_argument(
         "--dvl-lever-arm",
+        metavar="X,Y,Z",
         type=_vector3,
         default=SNAPIR_DVL_LEVER_ARM,
         help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
     )
     _add_tuning_period(real)
     real.add_argument("--no-models", action="store_true", help="only the model-based rows")
-    real.add_argument("--out", default=None, help="result folder (default results/real-<time>)")
+    real.add_argument(
+        "--out", metavar="PATH", default=None, help="result folder (default results/real-<time>)"
+    )
     _add_output_flags(real)
     real.set_defaults(func=_real)
     sim = sub.add_parser(
@@ -764,34 +809,50 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.add_argument(
         "--scenario",
+        metavar="NAME|FILE",
         default="paper",
-        help="built-in scenario (paper, varying-noise) or a scenario .toml file "
-        "(default paper)",
+        help="built-in scenario (paper, varying-noise) or a scenario .toml file (default paper)",
     )
     sim.add_argument(
-        "--filter", default=None, help="filter configuration .toml replacing the scenario's"
+        "--filter",
+        metavar="FILE",
+        default=None,
+        help="filter configuration .toml replacing the scenario's",
     )
     sim.add_argument(
         "--strategies",
+        metavar="SPECS",
         default=",".join(experiment.PAPER_ROWS.values()),
         help="comma-separated specs: constant[:FACTOR on q], mehra:WINDOW [DVL updates], "
         "learned:MODEL (shipped name or model file) (default: the paper's seven rows)",
     )
     sim.add_argument(
-        "--runs", type=int, default=100, help="Monte Carlo runs per strategy (default 100)"
+        "--runs",
+        metavar="N",
+        type=int,
+        default=100,
+        help="Monte Carlo runs per strategy (default 100)",
     )
-    sim.add_argument("--seed", type=int, default=0, help="Monte Carlo seed (default 0)")
     sim.add_argument(
-        "--threads", type=int, default=None, help="worker threads (default: all cores)"
+        "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
+    )
+    sim.add_argument(
+        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
     )
     sim.add_argument(
         "--record-every",
+        metavar="SECONDS",
         type=float,
         default=1.0,
         help="seconds between the saved history samples the plots use (default 1 s)",
     )
     _add_tuning_period(sim)
-    sim.add_argument("--out", default=None, help="result folder (default results/simulate-<time>)")
+    sim.add_argument(
+        "--out",
+        metavar="PATH",
+        default=None,
+        help="result folder (default results/simulate-<time>)",
+    )
     _add_output_flags(sim)
     sim.set_defaults(func=_simulate)
     swp = sub.add_parser(
@@ -812,22 +873,25 @@ def build_parser() -> argparse.ArgumentParser:
     )
     swp.add_argument(
         "--address",
+        metavar="ADDR",
         default=None,
         help="Ray cluster to join (auto, HOST:6379 or ray://HOST:10001); default: start "
         "a private Ray on this machine",
     )
     swp.add_argument(
         "--threads",
+        metavar="N",
         type=int,
         default=None,
         help="local: threads per shard (default all cores); ray: CPUs per shard (default 1)",
     )
-    swp.add_argument("--out", default=None, help="result folder (default results/sweep-<time>)")
+    swp.add_argument(
+        "--out", metavar="PATH", default=None, help="result folder (default results/sweep-<time>)"
+    )
     swp.add_argument(
         "--resume",
         action="store_true",
-        help="continue an interrupted sweep of the same --out, without redoing its "
-        "finished shards",
+        help="continue an interrupted sweep of the same --out, without redoing its finished shards",
     )
     _add_output_flags(swp)
     swp.set_defaults(func=_sweep)
@@ -836,10 +900,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="check the accuracy baselines, or rewrite them and the README tables (--bless)",
     )
     base.add_argument("--bless", action="store_true", help="rewrite the file and README tables")
-    base.add_argument("--file", default="tests/accuracy_baselines.json", help="baselines JSON")
-    base.add_argument("--readme", default="README.md", help="README whose tables to regenerate")
     base.add_argument(
-        "--data", default="../shared/data/snapir", help="Snapir data folder (used if present)"
+        "--file", metavar="JSON", default="tests/accuracy_baselines.json", help="baselines JSON"
+    )
+    base.add_argument(
+        "--readme", metavar="MD", default="README.md", help="README whose tables to regenerate"
+    )
+    base.add_argument(
+        "--data",
+        metavar="DIR",
+        default="../shared/data/snapir",
+        help="Snapir data folder (used if present)",
     )
     base.set_defaults(func=_baselines)
     return parser
