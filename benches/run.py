@@ -19,6 +19,8 @@ Definitions:
   on the first ``--reference-seconds`` of one run, scaled to a whole run, against the
   1-thread Monte Carlo time per run (which also simulates the sensors and aids with body
   velocity, so the ratio is conservative).
+- sweep: 2 strategies x 4 noise levels on ``paper`` in shards of a quarter of the runs,
+  on the local engine (all cores per shard) and on a private Ray (one CPU per shard).
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
 """
@@ -338,6 +340,45 @@ def bench_reproduce(args: argparse.Namespace) -> list[Row]:
     ]
 
 
+def bench_sweep(args: argparse.Namespace) -> list[Row]:
+    from pronet import config, sweep
+
+    runs = 20 if args.quick else args.runs
+    grid = config.sweep_grid(
+        {
+            "scenarios": ["paper"],
+            "strategies": ["constant", "mehra:5"],
+            "noise_levels": [1, 2, 4, 8],
+            "runs": runs,
+            "shard_runs": max(1, runs // 4),
+        },
+        "bench",
+    )
+    n_shards = len(sweep.plan(grid))
+    t0 = time.perf_counter()
+    local = sweep.run_sweep(grid, engine="local")
+    t_local = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    on_ray = sweep.run_sweep(grid, engine="ray")  # starts a private Ray: counted
+    t_ray = time.perf_counter() - t0
+    same = all(
+        np.array_equal(a.result.srmse, b.result.srmse)
+        for a, b in zip(local.points, on_ray.points, strict=True)
+    )
+    what = f"sweep, 8 grid points x {runs} runs in {n_shards} shards"
+    return [
+        Row(f"{what}, local engine", f"{t_local:.2f} s", "", None, f"{SCRIPT} --only sweep"),
+        Row(
+            f"{what}, Ray engine (a private Ray on this machine, start-up included)",
+            f"{t_ray:.2f} s ({t_ray / t_local:.2f}x local), numbers "
+            + ("identical" if same else "DIFFERENT"),
+            "identical numbers",
+            same,
+            f"{SCRIPT} --only sweep",
+        ),
+    ]
+
+
 BENCHES: dict[str, Callable[[argparse.Namespace], list[Row]]] = {
     "rust": bench_rust,
     "mechanization": bench_mechanization,
@@ -347,6 +388,7 @@ BENCHES: dict[str, Callable[[argparse.Namespace], list[Row]]] = {
     "inference": bench_inference,
     "reference": bench_reference,
     "soak": bench_soak,
+    "sweep": bench_sweep,
     "reproduce": bench_reproduce,
 }
 

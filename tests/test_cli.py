@@ -20,6 +20,7 @@ def test_info_lists_versions_weights_and_trajectories(capsys) -> None:
     info = json.loads(capsys.readouterr().out)
     assert Path(info["weights"], "detrend.safetensors").is_file()
     assert "paper" in info["trajectories"] and info["cores"] >= 1
+    assert info["ray"]  # the test extras install it
 
 
 PNG = b"\x89PNG\r\n\x1a\n"

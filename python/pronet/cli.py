@@ -58,6 +58,16 @@ def _strict_json(value: object) -> object:
     return value
 
 
+def _version_of(package: str) -> str | None:
+    """The installed version of ``package``, or None; without importing it."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return None
+
+
 def _info(args: argparse.Namespace) -> int:
     import numpy
     import torch
@@ -72,6 +82,7 @@ def _info(args: argparse.Namespace) -> int:
         "torch": torch.__version__,
         "cores": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
+        "ray": _version_of("ray"),
         "weights": str(modelfile.SHIPPED_DIR),
         "shipped_models": list(models.SHIPPED),
         "trajectories": list(_core.builtin_trajectory_names()),
@@ -85,6 +96,7 @@ def _info(args: argparse.Namespace) -> int:
         f"cores: {info['cores']}  (Monte Carlo threads default to all of them; "
         f"torch uses {info['torch_threads']})"
     )
+    print(f"ray: {info['ray'] or 'not installed (pronet sweep --engine ray needs it)'}")
     print(f"shipped models: {', '.join(info['shipped_models'])} in {info['weights']}")
     print(f"built-in trajectories: {', '.join(info['trajectories'])}")
     return 0
