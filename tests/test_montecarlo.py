@@ -110,3 +110,40 @@ def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
     np.testing.assert_array_equal(q[:, -1, 0], 4e-4)
     with pytest.raises(ValueError, match="already finished"):
         ens.advance()
+
+
+def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> None:
+    from pronet import experiment
+
+    strategy = pronet.Strategy.mehra(5, PAPER_Q)
+    whole = pronet.monte_carlo(paper_trajectory, strategy, n_runs=5, seed=2, record_every=500)
+    parts = [
+        pronet.monte_carlo(
+            paper_trajectory, strategy, n_runs=n, seed=2, first_run=first, record_every=500
+        )
+        for first, n in ((0, 2), (2, 3))
+    ]
+    joined = pronet.MonteCarloResult.concat(parts)
+    for name in ("srmse", "nis", "nees", "error", "sigma", "q", "diverged_at"):
+        np.testing.assert_array_equal(getattr(joined, name), getattr(whole, name))
+    assert joined.failure == whole.failure
+    other = pronet.monte_carlo(paper_trajectory, strategy, n_runs=1, seed=2)  # no history
+    with pytest.raises(ValueError, match="different scenarios or histories"):
+        pronet.MonteCarloResult.concat([parts[0], other])
+
+    runs = whole.to_dataframe()
+    assert list(runs.columns) == ["run", *pronet.MonteCarloResult.PER_RUN, "failure"]
+    np.testing.assert_array_equal(runs["srmse"], whole.srmse)
+    row = whole.summary_row()
+    assert row["srmse"] == pytest.approx(whole.srmse.mean())
+    assert row["srmse_low"] < row["srmse"] < row["srmse_high"] and row["runs"] == 5
+
+    sc = experiment.paper_scenario()
+    rows = experiment.run_strategies(
+        experiment.model_based_strategies(sc.q_nominal), sc, n_runs=3, seed=1
+    )
+    table = experiment.to_dataframe({"paper, 3 runs": rows})
+    assert list(table["strategy"]) == [r.label for r in rows]
+    assert table.loc[2, "srmse"] == pytest.approx(rows[2].srmse.mean)
+    per_run = experiment.to_dataframe({"paper, 3 runs": rows}, per_run=True)
+    assert len(per_run) == 4 * 3 and list(per_run.columns[:3]) == ["scenario", "strategy", "run"]

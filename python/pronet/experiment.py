@@ -24,7 +24,7 @@ from pronet import _core
 from pronet._files import atomic_folder
 from pronet._validate import float_array
 from pronet.hybrid import DEFAULT_TUNING_PERIOD, HybridResult, run_hybrid
-from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.montecarlo import MonteCarloResult, monte_carlo, results_dataframe
 from pronet.shards import ShardStore
 from pronet.stats import MeanCI, mean_ci
 from pronet.trajectory import builtin_trajectory
@@ -351,6 +351,19 @@ def run_strategies(
         )
         for label, (r, h) in results.items()
     ]
+
+
+def to_dataframe(tables: dict[str, list[Row]], per_run: bool = False):  # -> pandas.DataFrame
+    """Experiment results (title → rows, as ``pronet reproduce`` and ``simulate`` make
+    them) as one DataFrame: per strategy, ``scenario``, ``strategy`` and
+    :meth:`~pronet.MonteCarloResult.summary_row`'s columns; with ``per_run``, one row
+    per run with :meth:`~pronet.MonteCarloResult.to_dataframe`'s columns."""
+    labelled = (
+        ({"scenario": title, "strategy": row.label}, row.result)
+        for title, rows in tables.items()
+        for row in rows
+    )
+    return results_dataframe(labelled, per_run)
 
 
 def markdown_table(rows: list[Row], title: str, paper: bool = True) -> str:

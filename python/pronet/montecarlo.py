@@ -10,8 +10,9 @@ numbers): differences between strategies are paired.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -130,6 +131,16 @@ class MonteCarloResult:
         data["failure"] = list(self.failure)
         return pd.DataFrame(data)
 
+    def summary_row(self) -> dict[str, float | int]:
+        """:meth:`summary` flattened for a table: ``srmse``, ``srmse_low``,
+        ``srmse_high`` ... (mean and 95 % CI bounds, units as the attributes), then
+        ``runs``, ``failed_runs`` and ``diverged_runs``."""
+        row: dict[str, float | int] = {}
+        for name, ci in self.summary().items():
+            row.update({name: ci.mean, f"{name}_low": ci.low, f"{name}_high": ci.high})
+        row.update(runs=self.n_runs, failed_runs=self.n_failed, diverged_runs=self.n_diverged)
+        return row
+
     def summary(self) -> dict[str, MeanCI]:
         """Mean and 95 % CI over runs of every per-run metric."""
         return {
@@ -142,6 +153,26 @@ class MonteCarloResult:
                 "mean_nis",
             )
         }
+
+
+def results_dataframe(
+    labelled: Iterable[tuple[dict[str, Any], MonteCarloResult]], per_run: bool = False
+):  # -> pandas.DataFrame
+    """Several results as one DataFrame: each result's label columns (e.g. scenario,
+    strategy) first, then :meth:`MonteCarloResult.summary_row` (one row per result), or
+    with ``per_run`` :meth:`MonteCarloResult.to_dataframe` (one row per run)."""
+    import pandas as pd
+
+    frames = []
+    for labels, result in labelled:
+        if per_run:
+            df = result.to_dataframe()
+            for i, (key, value) in enumerate(labels.items()):
+                df.insert(i, key, value)
+            frames.append(df)
+        else:
+            frames.append(pd.DataFrame([{**labels, **result.summary_row()}]))
+    return pd.concat(frames, ignore_index=True)
 
 
 def monte_carlo(

@@ -41,7 +41,7 @@ from pronet._files import atomic_folder
 from pronet.config import ScenarioSource, SweepGrid
 from pronet.experiment import Learned, Scenario, StrategySpec, strategy
 from pronet.hybrid import HybridResult, run_hybrid
-from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.montecarlo import MonteCarloResult, monte_carlo, results_dataframe
 from pronet.shards import ShardStore
 from pronet.stats import MeanCI
 
@@ -233,32 +233,21 @@ class SweepResult:
         each per-run metric (``srmse``, ``srmse_low``, ``srmse_high`` ... in m/s, m),
         ``runs``, ``failed_runs`` and ``diverged_runs``. With ``per_run``: one row per
         run, the grid columns and that run's metrics."""
-        import pandas as pd
-
-        frames = []
-        for pr in self.points:
-            grid = {
-                "scenario": pr.point.scenario,
-                "strategy": pr.point.strategy,
-                "noise_level": pr.point.noise_level,
-                "tuning_period_s": pr.point.tuning_period,
-            }
-            if per_run:
-                df = pr.result.to_dataframe()
-                for i, (k, v) in enumerate(grid.items()):
-                    df.insert(i, k, v)
-                frames.append(df)
-                continue
-            row: dict[str, Any] = dict(grid)
-            for name, ci in pr.summary().items():
-                row.update({name: ci.mean, f"{name}_low": ci.low, f"{name}_high": ci.high})
-            row.update(
-                runs=pr.result.n_runs,
-                failed_runs=pr.result.n_failed,
-                diverged_runs=pr.result.n_diverged,
-            )
-            frames.append(pd.DataFrame([row]))
-        return pd.concat(frames, ignore_index=True)
+        return results_dataframe(
+            (
+                (
+                    {
+                        "scenario": pr.point.scenario,
+                        "strategy": pr.point.strategy,
+                        "noise_level": pr.point.noise_level,
+                        "tuning_period_s": pr.point.tuning_period,
+                    },
+                    pr.result,
+                )
+                for pr in self.points
+            ),
+            per_run,
+        )
 
     def markdown(self) -> str:
         """The summary as a Markdown table, one block per scenario."""
