@@ -1,18 +1,19 @@
 """How often should the regressor retune Q? A sweep over the tuning period.
 
-Run:  python examples/sweep_tuning_period.py [--runs N] [--periods 0.5 1 2 5]
+Run:  python examples/sweep_tuning_period.py [--runs N] [--periods 0.5 1 2 5] [--engine ray]
 
-The shipped detrend net on the varying-noise scenario, the same noise realizations for
-every period (same seed), so the differences are paired. Prints one row per period and
-the result as CSV rows a spreadsheet or pandas reads directly.
+The shipped detrend net on the varying-noise scenario, as a pronet sweep grid (the
+same grid a `pronet sweep` TOML file gives): every period sees the same noise
+realizations (same seed), so the differences are paired, and `--engine ray` gives the
+same numbers from Ray tasks. Prints the result as CSV that a spreadsheet or pandas
+reads directly.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from pronet import experiment, models
-from pronet.hybrid import run_hybrid
+from pronet import config, sweep
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -21,26 +22,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--periods", type=float, nargs="+", default=[0.5, 1.0, 2.0, 5.0], help="seconds"
     )
+    parser.add_argument("--engine", choices=sweep.ENGINES, default="local")
     args = parser.parse_args(argv)
-    sc = experiment.SCENARIOS["varying-noise"]()
-    net = models.load("detrend")
-    print("tuning_period_s,tunings,srmse_mean,srmse_low,srmse_high,model_seconds")
-    for period in args.periods:
-        out = run_hybrid(
-            net,
-            sc.trajectory,
-            prior_q=sc.q_nominal,
-            sensors=sc.sensors,
-            config=sc.config,
-            n_runs=args.runs,
-            seed=0,
-            tuning_period=period,
-        )
-        s = out.result.summary()["srmse"]
-        print(
-            f"{period:g},{out.n_tunings},{s.mean:.5f},{s.low:.5f},{s.high:.5f},"
-            f"{out.model_seconds:.2f}"
-        )
+    grid = config.sweep_grid(
+        {
+            "scenarios": ["varying-noise"],
+            "strategies": ["learned:detrend"],
+            "tuning_periods_s": args.periods,
+            "runs": args.runs,
+            "shard_runs": args.runs,
+        },
+        "example",
+    )
+    result = sweep.run_sweep(grid, engine=args.engine)
+    table = result.to_dataframe()[["tuning_period_s", "srmse", "srmse_low", "srmse_high"]]
+    table.insert(1, "tunings", [p.hybrid.n_tunings for p in result.points])
+    table["model_seconds"] = [p.hybrid.model_seconds for p in result.points]
+    print(table.to_csv(index=False, float_format="%.5g"), end="")
     return 0
 
 

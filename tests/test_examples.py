@@ -47,7 +47,8 @@ def test_own_regressor() -> None:
 @pytest.mark.parametrize("periods", [["1", "5"]])
 def test_sweep_tuning_period(periods) -> None:
     out = run("sweep_tuning_period.py", "--runs", "2", "--periods", *periods).splitlines()
-    assert out[0].startswith("tuning_period_s,tunings,srmse_mean")
+    assert out[0] == "tuning_period_s,tunings,srmse,srmse_low,srmse_high,model_seconds"
     rows = [line.split(",") for line in out[1:]]
     assert [r[0] for r in rows] == periods
     assert [int(r[1]) for r in rows] == [328, 65]
+    assert all(float(r[3]) <= float(r[2]) <= float(r[4]) for r in rows)
