@@ -188,6 +188,10 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
         (["--strategies", "learned:no/such/model"], "no/such/model"),
         (["--scenario", "lake"], "neither a built-in scenario"),
         (["--filter", "missing.toml"], "missing.toml: no such file"),
+        (["--runs", "0"], "--runs: must be at least 1"),
+        (["--tuning-period", "-1"], "--tuning-period: must be a finite number of seconds"),
+        (["--record-every", "nan"], "--record-every: must be a finite number of seconds"),
+        (["--threads", "0"], "--threads: expected 1 to 1024"),
     ],
 )
 def test_simulate_refuses_bad_input_before_any_work(tmp_path, capsys, extra, message) -> None:

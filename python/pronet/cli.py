@@ -486,6 +486,13 @@ def _simulate(args: argparse.Namespace) -> int:
 
     show = _Output(args)
     # everything the run needs is read and checked before anything runs
+    if args.runs < 1:
+        raise ValueError(f"--runs: must be at least 1, got {args.runs}")
+    for name, value in (("tuning-period", args.tuning_period), ("record-every", args.record_every)):
+        if not 0 < value < math.inf:
+            raise ValueError(f"--{name}: must be a finite number of seconds > 0, got {value}")
+    if args.threads is not None and not 1 <= args.threads <= 1024:
+        raise ValueError(f"--threads: expected 1 to 1024, got {args.threads}")
     scenario = config.load_scenario(args.scenario)
     if args.filter:
         scenario = dataclasses.replace(scenario, config=config.load_filter_config(args.filter))
