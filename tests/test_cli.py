@@ -194,7 +194,15 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
         (["--threads", "0"], "--threads: expected 1 to 1024"),
     ],
 )
-def test_simulate_refuses_bad_input_before_any_work(tmp_path, capsys, extra, message) -> None:
+def test_simulate_refuses_bad_input_before_any_work(
+    tmp_path, capsys, monkeypatch, extra, message
+) -> None:
+    from pronet import experiment
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("a Monte Carlo ran")
+
+    monkeypatch.setattr(experiment, "run_strategies", must_not_run)
     out = tmp_path / "sim"
     assert cli.main(["simulate", "--runs", "2", "--out", str(out), *extra]) == 2
     assert message in capsys.readouterr().err
@@ -266,6 +274,11 @@ def test_sweep_errors_name_the_file_and_key(tmp_path, capsys) -> None:
     grid.write_text('scenarios = ["paper"]\nstrategies = ["constant"]\n')
     assert cli.main(["sweep", str(grid), "--address", "auto"]) == 2
     assert "--address: only with --engine ray" in capsys.readouterr().err
+    # a bad thread count is refused before anything is saved: the next run is not blocked
+    out = tmp_path / "sw"
+    assert cli.main(["sweep", str(grid), "--out", str(out), "--threads", "0"]) == 2
+    assert "threads: expected 1 to 1024" in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "sw.partial").exists()
 
 
 def test_dataset_train_and_evaluate_on_a_small_dataset(tmp_path, capsys) -> None:

@@ -117,6 +117,11 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
         ("[trajectory]\nsegments = [[1, 2]]\n", "[trajectory] segments: expected rows"),
         ("[trajectory]\nsegments = [[10, 0, 0, 0]]\nlat_deg = 'n'\n", "[trajectory] lat_deg"),
         ("[trajectory]\nsegments = [[-10, 0, 0, 0]]\n", "[trajectory] segments"),
+        ("[trajectory]\nsegments = [[10, 0, 0, 0]]\ndt_s = '0.01'\n", "[trajectory] dt_s:"),
+        ("[trajectory]\nsegments = [[10, 0, 0, 0]]\ndt_s = 0\n", "[trajectory] dt_s: must"),
+        ("[trajectory]\nsegments = [[10, 0, 0, 0]]\nheight_m = 'a'\n", "height_m: expected"),
+        ("[trajectory]\nsegments = [[10, 0, 0, 0]]\nspeed_mps = true\n", "speed_mps: expected"),
+        ("[trajectory]\nbuiltin = 'paper'\ndt_s = 'x'\n", "[trajectory] dt_s: expected"),
         ("base = 'lake'\n", "base: 'lake' is not one of paper, varying-noise"),
         ("colour = 'red'\n", "colour: unknown key"),
         ("q_nominal = [1, 2]\n", "q_nominal: expected 6"),
@@ -222,6 +227,9 @@ def test_a_sweep_file_is_checked_whole(tmp_path) -> None:
         (("noise_levels = [1, 4]", "noise_levels = [1, -4]"), "noise_levels: expected finite"),
         (("noise_levels = [1, 4]", "noise_levels = []"), "noise_levels: expected a non-empty"),
         (("noise_levels = [1, 4]", "noise_levels = [1, 1]"), "noise_levels: lists a value twice"),
+        (("noise_levels = [1, 4]", "noise_levels = [1, 1.0]"), "noise_levels: lists a value"),
+        (("[1.0, 2.0]", "[2, 2.0]"), "tuning_periods_s: lists a value twice"),
+        (('"mehra:5"', '"mehra:99999999999999999999999"'), "strategies: window"),
         (('"mehra:5"', '"mehra:five"'), "strategies: strategy 'mehra:five'"),
         (('"learned:detrend"', '"learned:nowhere"'), "strategies: 'learned:nowhere': "),
         (('"short.toml"', '"lake"'), "scenarios: 'lake' is neither"),
@@ -291,3 +299,20 @@ def test_the_docstring_examples_load() -> None:
     doc = tomllib.loads(sweep_text)
     doc["scenarios"] = ["paper"]  # the example's my-scenario.toml is not on disk
     assert config.sweep_grid(doc, "docstring").shard_runs == 25
+
+
+def test_a_new_trajectory_carries_its_period_and_noise_average_into_the_filter(tmp_path) -> None:
+    """The filter's Q_d = q·imu_dt·Δt equals the sample variance only with imu_dt the IMU
+    period, and the constant rows must be told the average over this trajectory."""
+    path = write(
+        tmp_path,
+        "s.toml",
+        'base = "varying-noise"\n[trajectory]\nsegments = [[40, 0, 0, 0]]\ndt_s = 0.02\n',
+    )
+    sc = config.load_scenario(path)
+    assert sc.trajectory.dt == 0.02 and sc.config.imu_dt == 0.02
+    times, q = experiment.noise_schedule(330.0, 0)
+    assert sc.q_nominal == pytest.approx(experiment.time_average_q(times, q, 40.0))
+    assert sc.q_nominal != experiment.varying_noise_scenario().q_nominal
+    told = write(tmp_path, "t.toml", path.read_text() + "[filter]\nimu_dt = 0.01\n")
+    assert config.load_scenario(told).config.imu_dt == 0.01  # said outright: kept

@@ -164,13 +164,38 @@ def test_the_result_folder_holds_tables_csvs_and_plots(grid, local, tmp_path) ->
         sweep.write_result_folder(out, local, {})
 
 
-def test_bad_engine_arguments_fail_before_any_run(grid) -> None:
+def test_bad_engine_arguments_fail_before_any_run(grid, monkeypatch) -> None:
+    def must_not_run(shard, threads=None):
+        raise AssertionError("a shard ran")
+
+    monkeypatch.setattr(sweep, "run_shard", must_not_run)
     with pytest.raises(ValueError, match="engine: expected one of local, ray"):
         sweep.run_sweep(grid, engine="dask")
     with pytest.raises(ValueError, match="address: only the ray engine"):
         sweep.run_sweep(grid, address="auto")
     with pytest.raises(ValueError, match="threads: expected 1 to 1024"):
         sweep.run_sweep(grid, threads=0)
+
+
+def test_close_grid_values_stay_separate_points(grid, tmp_path) -> None:
+    """Levels that print alike with a few digits are still two points with two sets of
+    shards, also through a resume (shard files are named by the full numbers)."""
+    close = config.SweepGrid(
+        grid.scenarios, grid.strategies[:1], noise_levels=(1.0000001, 1.0000004), runs=2
+    )
+    points = {s.point for s in sweep.plan(close)}
+    assert len(points) == 2 and len({p.key for p in points}) == 2
+    store = ShardStore(tmp_path / "p", sweep.settings(close))
+    first = sweep.run_sweep(close, threads=2, store=store)
+    assert len(store) == 2
+    again = sweep.run_sweep(close, threads=2, store=store)  # all loaded
+    a, b = (p.result.srmse for p in again.points)
+    assert not np.array_equal(a, b)
+    for x, y in zip(first.points, again.points, strict=True):
+        np.testing.assert_array_equal(x.result.srmse, y.result.srmse)
+    twice = config.SweepGrid(grid.scenarios, grid.strategies[:1], noise_levels=(1.0, 1.0))
+    with pytest.raises(ValueError, match="two grid points are the same"):
+        sweep.plan(twice)
 
 
 def test_the_ray_engine_gives_exactly_the_local_numbers(grid, local) -> None:
@@ -187,7 +212,7 @@ def test_the_ray_engine_gives_exactly_the_local_numbers(grid, local) -> None:
 
 def test_a_failing_shard_on_ray_names_the_shard(tmp_path) -> None:
     """A model file the workers cannot read (say, absent on a cluster node): the error
-    names the shard, and the finished shards stay in the store for a resume."""
+    names the shard, and finished shards stay in the store for a resume."""
     import pickle
     import shutil
 
@@ -202,7 +227,12 @@ def test_a_failing_shard_on_ray_names_the_shard(tmp_path) -> None:
     shard = sweep.plan(grid)[0]
     assert pickle.loads(pickle.dumps(shard)) == shard  # plain data, fit to travel
     (tmp_path / "baseline.safetensors").unlink()
+    message = r"shard short: learned:baseline.json, noise x1.0, tuning 1.0 s, runs 0-1: .*baseline"
+    with pytest.raises(ValueError, match=message) as err:
+        sweep.run_sweep(grid, engine="ray")
+    assert "\x1b[" not in str(err.value)  # the task's error, not Ray's coloured report
+    # shard after shard here: the constant row's shard finishes first and is kept
     store = ShardStore(tmp_path / "partial", {"test": 1})
-    with pytest.raises(ValueError, match=r"shard short: learned:baseline.json, noise x1, "):
-        sweep.run_sweep(grid, engine="ray", store=store)
-    assert len(store) == 1  # the constant row's shard
+    with pytest.raises(ValueError, match="baseline"):
+        sweep.run_sweep(grid, engine="local", store=store)
+    assert len(store) == 1

@@ -12,6 +12,8 @@ from numpy.typing import ArrayLike, NDArray
 #: 64-bit integer arguments.
 I64_MAX = 2**63 - 1
 U64_MAX = 2**64 - 1
+#: Most worker threads the native core takes (``montecarlo::MAX_THREADS`` in Rust).
+MAX_THREADS = 1024
 
 
 def real_array(value: ArrayLike, name: str) -> NDArray[Any]:
@@ -65,6 +67,17 @@ def count(value: object, name: str, maximum: int | None = None) -> int:
     if maximum is not None and value > maximum:
         raise ValueError(f"{name}: must be at most {maximum}")
     return int(value)
+
+
+def threads(value: object, name: str) -> int | None:
+    """A thread count: None (all cores) or a whole number from 1 to :data:`MAX_THREADS`,
+    else ``ValueError`` naming the argument."""
+    if value is None:
+        return None
+    n = count(value, name)
+    if not 1 <= n <= MAX_THREADS:
+        raise ValueError(f"{name}: expected 1 to {MAX_THREADS}, got {n}")
+    return n
 
 
 def flag(value: object, name: str) -> bool:

@@ -17,6 +17,7 @@ from typing import Any
 import pronet
 from pronet import _core, experiment
 from pronet._files import atomic_folder, atomic_write
+from pronet._validate import threads as threads_arg
 from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 from pronet.shards import ShardStore
 
@@ -116,6 +117,18 @@ def _new_result_folder(out: str | None, command: str) -> Path | None:
     return folder
 
 
+def _partial_folder(out: Path, resume: bool) -> Path:
+    """Where the finished pieces of a run into ``out`` are kept (``<out>.partial``);
+    ``ValueError`` if an interrupted run left some there and ``resume`` is not set."""
+    partial = out.with_name(out.name + ".partial")
+    if partial.exists() and not resume:
+        raise ValueError(
+            f"{partial} holds an interrupted run of this folder; add --resume to continue "
+            "it, or remove it"
+        )
+    return partial
+
+
 def _reproduce(args: argparse.Namespace) -> int:
     import tempfile
 
@@ -140,14 +153,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     out = _new_result_folder(args.out, "reproduce")
     if out is None:
         return 2
-    partial = out.with_name(out.name + ".partial")
-    if partial.exists() and not args.resume:
-        print(
-            f"pronet reproduce: {partial} holds an interrupted run of this folder; add "
-            "--resume to continue it, or remove it",
-            file=sys.stderr,
-        )
-        return 2
+    partial = _partial_folder(out, args.resume)
     start = time.perf_counter()
     ds = None
     trained_dir = None
@@ -491,8 +497,7 @@ def _simulate(args: argparse.Namespace) -> int:
     for name, value in (("tuning-period", args.tuning_period), ("record-every", args.record_every)):
         if not 0 < value < math.inf:
             raise ValueError(f"--{name}: must be a finite number of seconds > 0, got {value}")
-    if args.threads is not None and not 1 <= args.threads <= 1024:
-        raise ValueError(f"--threads: expected 1 to 1024, got {args.threads}")
+    threads_arg(args.threads, "--threads")
     scenario = config.load_scenario(args.scenario)
     if args.filter:
         scenario = dataclasses.replace(scenario, config=config.load_filter_config(args.filter))
@@ -561,17 +566,13 @@ def _sweep(args: argparse.Namespace) -> int:
     grid = config.load_sweep(args.grid)  # every file, spec and model checked first
     if args.address is not None and args.engine != "ray":
         raise ValueError("--address: only with --engine ray")
+    sweep.check_engine(args.engine, args.address, args.threads)  # before any .partial
     if args.resume and not args.out:
         raise ValueError("--resume: needs the --out of the interrupted sweep")
     out = _new_result_folder(args.out, "sweep")
     if out is None:
         return 2
-    partial = out.with_name(out.name + ".partial")
-    if partial.exists() and not args.resume:
-        raise ValueError(
-            f"{partial} holds an interrupted sweep of this folder; add --resume to "
-            "continue it, or remove it"
-        )
+    partial = _partial_folder(out, args.resume)
     settings = sweep.settings(grid)
     store = ShardStore(partial, settings)
     shards = sweep.plan(grid)

@@ -68,9 +68,11 @@ import numpy as np
 from pronet import _core
 from pronet._validate import real_array
 from pronet.experiment import (
+    PAPER_Q,
     SCENARIOS,
     Scenario,
     StrategySpec,
+    strategy,
     time_average_q,
 )
 from pronet.trajectory import builtin_trajectory, trajectory_from_segments
@@ -178,6 +180,19 @@ def load_filter_config(path: str | Path) -> _core.FilterConfig:
     return filter_config(read_toml(path), f"{path}:")
 
 
+def sensor_kwargs(sensors: _core.SensorConfig) -> dict[str, Any]:
+    """The keyword arguments that rebuild ``sensors`` (``SensorConfig(**kwargs)``): a
+    constant IMU variance as 6 values without times, a schedule as ``(k, 6)`` with its
+    ``(k,)`` times [s]."""
+    kwargs = {key: getattr(sensors, key) for key in SENSOR_KEYS}
+    times = np.asarray(kwargs["imu_variance_times"], dtype=np.float64)
+    variance = np.asarray(kwargs["imu_variance"], dtype=np.float64)
+    constant = len(times) == 1
+    kwargs["imu_variance"] = variance[0] if constant else variance
+    kwargs["imu_variance_times"] = None if constant else times
+    return kwargs
+
+
 def sensor_config(
     table: Mapping[str, Any], where: str, base: _core.SensorConfig
 ) -> _core.SensorConfig:
@@ -185,10 +200,7 @@ def sensor_config(
     ``imu_variance`` replaces the base's noise schedule: ``imu_variance_times`` then
     comes from ``table`` only."""
     _check_keys(table, SENSOR_KEYS, where)
-    kwargs = {key: getattr(base, key) for key in SENSOR_KEYS}
-    if len(kwargs["imu_variance_times"]) == 1:  # a constant variance: 6 values, no times
-        kwargs["imu_variance"] = kwargs["imu_variance"][0]
-        kwargs["imu_variance_times"] = None
+    kwargs = sensor_kwargs(base)
     if "imu_variance" in table:
         kwargs["imu_variance_times"] = None
     elif "imu_variance_times" in table:
@@ -219,7 +231,8 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
                 f"{where} builtin: {t['builtin']!r} is not one of "
                 f"{', '.join(_core.builtin_trajectory_names())}"
             )
-        return _native(where, lambda: builtin_trajectory(t["builtin"], t["dt_s"]))
+        dt = _number(t["dt_s"], f"{where} dt_s")
+        return _native(where, lambda: builtin_trajectory(t["builtin"], dt))
     rows = _native(where, lambda: np.array(t["segments"], dtype=np.float64))
     if rows.ndim != 2 or rows.shape[1] != 4 or len(rows) == 0:
         raise ConfigError(
@@ -227,18 +240,24 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
             f"pitch rate deg/s], got shape {rows.shape}"
         )
     rows[:, 2:] = np.radians(rows[:, 2:])
-    deg = {k: _number(t[k], f"{where} {k}") for k in TRAJECTORY_DEFAULTS if k.endswith("_deg")}
+    # numbers checked under their own (unit-carrying) names, not the native arguments'
+    v = {k: _number(t[k], f"{where} {k}") for k in TRAJECTORY_DEFAULTS if k.endswith(_UNITS)}
+    if not 0 < v["dt_s"] < math.inf:
+        raise ConfigError(f"{where} dt_s: must be a finite period > 0 s, got {v['dt_s']}")
     return _native(
         where,
         lambda: trajectory_from_segments(
             rows,
-            lla0=(math.radians(deg["lat_deg"]), math.radians(deg["lon_deg"]), t["height_m"]),
-            speed0=t["speed_mps"],
-            rpy0=tuple(math.radians(deg[k]) for k in ("roll_deg", "pitch_deg", "heading_deg")),
-            dt=t["dt_s"],
+            lla0=(math.radians(v["lat_deg"]), math.radians(v["lon_deg"]), v["height_m"]),
+            speed0=v["speed_mps"],
+            rpy0=tuple(math.radians(v[k]) for k in ("roll_deg", "pitch_deg", "heading_deg")),
+            dt=v["dt_s"],
             name=t["name"] if t["name"] is not None else "custom",
         ),
     )
+
+
+_UNITS = ("_deg", "_m", "_mps", "_s")
 
 
 def _number(value: object, where: str) -> float:
@@ -265,8 +284,13 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario
     if "sensors" in data:
         sensors = sensor_config(data["sensors"], f"{where}: [sensors]", base.sensors)
     config = base.config
+    filter_table = data.get("filter", {})
     if "filter" in data:
-        config = filter_config(data["filter"], f"{where}: [filter]", base.config)
+        config = filter_config(filter_table, f"{where}: [filter]", base.config)
+    if "imu_dt" not in filter_table and config.imu_dt != traj.dt:
+        # the filter's Q_d = q·imu_dt·Δt is the sample variance only when imu_dt is the
+        # IMU period: a new trajectory's period carries over unless [filter] says otherwise
+        config = filter_config({"imu_dt": traj.dt}, f"{where}: [trajectory] dt_s", config)
     times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
     schedule = np.asarray(sensors.imu_variance, dtype=np.float64)
     if "q_nominal" in data:
@@ -279,8 +303,13 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario
         ):
             raise ConfigError(f"{where}: q_nominal: expected 6 finite variances >= 0, got {q!r}")
         q_nominal = tuple(float(v) for v in q)
-    elif "imu_variance" in data.get("sensors", {}):
-        q_nominal = time_average_q(times, schedule, traj.duration)
+    elif "imu_variance" in data.get("sensors", {}) or "trajectory" in data:
+        # what the IMU draws over this trajectory (the base's average was over its own)
+        q_nominal = (
+            tuple(float(v) for v in schedule[0])
+            if len(times) == 1
+            else time_average_q(times, schedule, traj.duration)
+        )
     else:
         q_nominal = base.q_nominal
     return Scenario(
@@ -384,7 +413,10 @@ def _positive(values: list[Any], key: str, where: str) -> tuple[float, ...]:
     for v in values:
         if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v < math.inf:
             raise ConfigError(f"{where} {key}: expected finite numbers > 0, got {v!r}")
-    return tuple(float(v) for v in values)
+    numbers = tuple(float(v) for v in values)
+    if len(set(numbers)) != len(numbers):  # 1 and 1.0 are one grid point
+        raise ConfigError(f"{where} {key}: lists a value twice")
+    return numbers
 
 
 def sweep_grid(doc: Mapping[str, Any], path: str | Path) -> SweepGrid:
@@ -423,6 +455,8 @@ def sweep_grid(doc: Mapping[str, Any], path: str | Path) -> SweepGrid:
                 model = Path(path).parent / spec.model
                 spec = StrategySpec(spec.text, spec.kind, spec.factor, str(model.resolve()))
             _native(f"{where} strategies: {text!r}:", lambda spec=spec: models.load(spec.model))
+        else:  # e.g. a window the native core cannot take fails here, not in a shard
+            _native(f"{where} strategies:", lambda spec=spec: strategy(spec, PAPER_Q))
         specs.append(spec)
     runs = _whole(doc, "runs", where, 100, 1)
     return SweepGrid(

@@ -203,9 +203,10 @@ def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
             # with a lower bound at or below zero drawn to the axis edge
             if finite.size and finite.max() > 20 * finite.min():
                 ax.set_xscale("log")
-                low = np.where(low > 0, low, finite.min() / 10)
+                low = np.where(low <= 0, finite.min() / 10, low)  # NaN stays NaN
                 scale = ", log scale"
-            err = np.stack([mean - low, high - mean])
+            # a CI that could not be computed (a single run): the point alone
+            err = np.nan_to_num(np.stack([mean - low, high - mean]), nan=0.0)
             ax.errorbar(mean, y, xerr=err, fmt="o", color="tab:blue", capsize=3)
             ax.set_yticks(y, [row.label for row in rows], fontsize=8)
             ax.set_xlabel(f"{metric.upper()} [m/s] (mean, 95 % CI{scale})")

@@ -23,6 +23,7 @@ file a learned strategy names, at the same path).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import io
@@ -33,12 +34,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 import pronet
 from pronet import _core
 from pronet._files import atomic_folder
-from pronet.config import ScenarioSource, SweepGrid
+from pronet._validate import threads as threads_arg
+from pronet.config import ScenarioSource, SweepGrid, sensor_kwargs
 from pronet.experiment import Learned, Scenario, StrategySpec, strategy
 from pronet.hybrid import HybridResult, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo, results_dataframe
@@ -67,9 +67,10 @@ class GridPoint:
 
     @property
     def key(self) -> str:
-        """A readable unique name (shard files, messages)."""
-        tp = "" if self.tuning_period is None else f", tuning {self.tuning_period:g} s"
-        return f"{self.scenario}: {self.strategy}, noise x{self.noise_level:g}{tp}"
+        """A readable name, unique for every point (shard files, messages): the numbers
+        in full, so that close values never share a name."""
+        tp = "" if self.tuning_period is None else f", tuning {self.tuning_period!r} s"
+        return f"{self.scenario}: {self.strategy}, noise x{self.noise_level!r}{tp}"
 
 
 @dataclass(frozen=True)
@@ -104,6 +105,11 @@ def plan(grid: SweepGrid) -> list[Shard]:
                     for first in range(0, grid.runs, grid.shard_runs):
                         n = min(grid.shard_runs, grid.runs - first)
                         shards.append(Shard(point, source, spec, first, n, grid.seed))
+    # a SweepGrid made by hand may list a value twice; shards must never be merged twice
+    pieces = [(s.point, s.first_run) for s in shards]
+    points = {s.point for s in shards}
+    if len(set(pieces)) != len(pieces) or len({p.key for p in points}) != len(points):
+        raise ValueError("grid: two grid points are the same (a value listed twice?)")
     return shards
 
 
@@ -122,17 +128,9 @@ def _model(name_or_path: str):  # -> Regressor
 def noisier(sensors: _core.SensorConfig, level: float) -> _core.SensorConfig:
     """``sensors`` with every IMU noise variance multiplied by ``level`` (the schedule,
     if any, keeps its times); everything else unchanged."""
-    times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
-    q = np.asarray(sensors.imu_variance) * level
-    return _core.SensorConfig(
-        imu_variance=q[0] if len(times) == 1 else q,
-        imu_variance_times=None if len(times) == 1 else times,
-        imu_bias=sensors.imu_bias,
-        imu_bias_psd=sensors.imu_bias_psd,
-        dvl_variance=sensors.dvl_variance,
-        dvl_period=sensors.dvl_period,
-        lever_arm=sensors.lever_arm,
-    )
+    kwargs = sensor_kwargs(sensors)
+    kwargs["imu_variance"] = kwargs["imu_variance"] * level
+    return _core.SensorConfig(**kwargs)
 
 
 def run_shard(
@@ -176,15 +174,28 @@ def _local(shards: Sequence[Shard], threads: int | None) -> Iterator[tuple[Shard
         yield shard, run_shard(shard, threads)
 
 
+def check_engine(engine: str, address: str | None, threads: int | None) -> None:
+    """``ValueError`` for an engine, address or thread count :func:`run_sweep` cannot
+    use (Ray not installed included), before anything is started or saved."""
+    if engine not in ENGINES:
+        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
+    if address is not None and engine != "ray":
+        raise ValueError("address: only the ray engine connects to a cluster")
+    threads_arg(threads, "threads")
+    if engine == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError(
+                "engine: ray is not installed; pip install 'pronet[ray]' (or ray) first"
+            ) from None
+
+
 def _ray(
     shards: Sequence[Shard], address: str | None, cpus_per_shard: int
 ) -> Iterator[tuple[Shard, ShardResult]]:
-    try:
-        import ray
-    except ImportError:
-        raise ValueError(
-            "engine: ray is not installed; pip install 'pronet[ray]' (or ray) first"
-        ) from None
+    import ray
+
     started = not ray.is_initialized()
     if started:
         ray.init(
@@ -200,11 +211,15 @@ def _ray(
             done, _ = ray.wait(list(pending), num_returns=1)
             shard = pending.pop(done[0])
             try:
-                yield shard, ray.get(done[0])
-            except ray.exceptions.RayTaskError as exc:
-                cause = exc.as_instanceof_cause()
+                result = ray.get(done[0])
+            except ray.exceptions.RayError as exc:
+                # the task's own exception (a RayTaskError's cause), not Ray's report of it
+                cause = getattr(exc, "cause", None) or exc
                 raise ValueError(f"shard {shard.point.key}, {shard.label}: {cause}") from None
+            yield shard, result
     finally:
+        for ref in pending:  # on a cluster they would run on after an error or Ctrl-C
+            ray.cancel(ref, force=True)
         if started:
             ray.shutdown()
 
@@ -284,9 +299,11 @@ def settings(grid: SweepGrid) -> dict[str, Any]:
         if spec.kind == "learned":
             if spec.model in models.SHIPPED:
                 weights["shipped"] = models.shipped_sha256()
-            else:
-                file = modelfile.paths(spec.model)[0]
-                weights[spec.model] = hashlib.sha256(file.read_bytes()).hexdigest()
+            else:  # the card too: its kind and architecture choose the network
+                h = hashlib.sha256()
+                for file in modelfile.paths(spec.model):
+                    h.update(file.read_bytes())
+                weights[spec.model] = h.hexdigest()
     return {
         "grid": grid.as_dict(),
         "pronet": pronet.__version__,
@@ -317,12 +334,7 @@ def run_sweep(
             there are loaded instead of run (resume).
         on_shard: called after each shard, loaded or run (progress).
     """
-    if engine not in ENGINES:
-        raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
-    if address is not None and engine != "ray":
-        raise ValueError("address: only the ray engine connects to a cluster")
-    if threads is not None and (isinstance(threads, bool) or not 1 <= threads <= 1024):
-        raise ValueError(f"threads: expected 1 to 1024, got {threads!r}")
+    check_engine(engine, address, threads)
     shards = plan(grid)
     results: dict[tuple[GridPoint, int], ShardResult] = {}
     todo = []
@@ -334,13 +346,15 @@ def run_sweep(
         results[(shard.point, shard.first_run)] = saved
         if on_shard is not None:
             on_shard(shard)
-    ran = _local(todo, threads) if engine == "local" else _ray(todo, address, threads or 1)
-    for shard, result in ran:
-        results[(shard.point, shard.first_run)] = result
-        if store is not None:
-            store.save(shard.point.key, shard.label, *result)
-        if on_shard is not None:
-            on_shard(shard)
+    if todo:  # nothing to run (a finished resume): no Ray to start
+        ran = _local(todo, threads) if engine == "local" else _ray(todo, address, threads or 1)
+        with contextlib.closing(ran):  # an error here still shuts Ray down
+            for shard, result in ran:
+                results[(shard.point, shard.first_run)] = result
+                if store is not None:
+                    store.save(shard.point.key, shard.label, *result)
+                if on_shard is not None:
+                    on_shard(shard)
     points = []
     for point in dict.fromkeys(s.point for s in shards):
         parts = [results[(s.point, s.first_run)] for s in shards if s.point == point]
