@@ -198,12 +198,17 @@ def _ray(
 
     started = not ray.is_initialized()
     if started:
-        ray.init(
-            address=address,
-            include_dashboard=False,
-            log_to_driver=False,
-            configure_logging=False,
-        )
+        try:
+            ray.init(
+                address=address,
+                include_dashboard=False,
+                log_to_driver=False,
+                configure_logging=False,
+            )
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            where = "a private Ray" if address is None else f"Ray at {address!r}"
+            raise ValueError(f"address: cannot start or join {where}: {exc}") from None
+    pending: dict[Any, Shard] = {}
     try:
         remote = ray.remote(num_cpus=cpus_per_shard, max_retries=0)(run_shard)
         pending = {remote.remote(s, cpus_per_shard): s for s in shards}
