@@ -654,6 +654,23 @@ def _add_output_flags(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_monte_carlo_args(parser: argparse.ArgumentParser) -> None:
+    """--runs, --seed and --threads, as reproduce and simulate take them."""
+    parser.add_argument(
+        "--runs",
+        metavar="N",
+        type=int,
+        default=100,
+        help="Monte Carlo runs per strategy (default 100)",
+    )
+    parser.add_argument(
+        "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
+    )
+    parser.add_argument(
+        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
+    )
+
+
 def _add_tuning_period(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--tuning-period",
@@ -677,20 +694,8 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser(
         "reproduce", help="run the paper's Monte Carlo experiment and print its table"
     )
-    rep.add_argument(
-        "--runs",
-        metavar="N",
-        type=int,
-        default=100,
-        help="Monte Carlo runs per strategy (default 100)",
-    )
+    _add_monte_carlo_args(rep)
     rep.add_argument("--quick", action="store_true", help="10 runs per strategy")
-    rep.add_argument(
-        "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
-    )
-    rep.add_argument(
-        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
-    )
     rep.add_argument(
         "--out",
         metavar="PATH",
@@ -846,19 +851,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="comma-separated specs: constant[:FACTOR on q], mehra:WINDOW [DVL updates], "
         "learned:MODEL (shipped name or model file) (default: the paper's seven rows)",
     )
-    sim.add_argument(
-        "--runs",
-        metavar="N",
-        type=int,
-        default=100,
-        help="Monte Carlo runs per strategy (default 100)",
-    )
-    sim.add_argument(
-        "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
-    )
-    sim.add_argument(
-        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
-    )
+    _add_monte_carlo_args(sim)
     sim.add_argument(
         "--record-every",
         metavar="SECONDS",
