@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 import pronet
-from pronet import dataset, experiment, models
+from pronet import dataset, models, paper, scenarios
 from pronet.hybrid import run_hybrid
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,12 +70,12 @@ def best_of(repeat: int, f: Callable[[], object]) -> float:
 
 
 def paper_monte_carlo(strategy: pronet.Strategy, n_runs: int, threads: int | None) -> None:
-    sc = experiment.SCENARIOS["paper"]()
+    sc = scenarios.SCENARIOS["paper"]()
     pronet.monte_carlo(
         sc.trajectory,
         strategy,
         sensors=sc.sensors,
-        config=experiment.paper_filter_config(),
+        config=paper.paper_filter_config(),
         n_runs=n_runs,
         seed=0,
         threads=threads,
@@ -127,7 +127,7 @@ def bench_mechanization(args: argparse.Namespace) -> list[Row]:
 
 
 def bench_monte_carlo(args: argparse.Namespace) -> list[Row]:
-    q = experiment.PAPER_Q
+    q = paper.PAPER_Q
     n = args.runs
     steps = n * pronet.builtin_trajectory("paper").n_samples
     rows = []
@@ -163,7 +163,7 @@ def bench_monte_carlo(args: argparse.Namespace) -> list[Row]:
 
 
 def bench_hybrid(args: argparse.Namespace) -> list[Row]:
-    sc = experiment.SCENARIOS["paper"]()
+    sc = scenarios.SCENARIOS["paper"]()
     net = models.load("detrend")
     n = args.runs
     t0 = time.perf_counter()
@@ -172,7 +172,7 @@ def bench_hybrid(args: argparse.Namespace) -> list[Row]:
         sc.trajectory,
         prior_q=sc.q_nominal,
         sensors=sc.sensors,
-        config=experiment.paper_filter_config(),
+        config=paper.paper_filter_config(),
         n_runs=n,
         seed=0,
     )
@@ -227,12 +227,12 @@ def bench_reference(args: argparse.Namespace) -> list[Row]:
     sys.path.insert(0, str(ROOT / "tests"))
     from numpy_reference_ekf import run_reference_filter
 
-    sc = experiment.SCENARIOS["paper"]()
-    cfg = experiment.paper_filter_config()
+    sc = scenarios.SCENARIOS["paper"]()
+    cfg = paper.paper_filter_config()
     traj = sc.trajectory
     n = int(round(args.reference_seconds / traj.dt))
     rng = np.random.default_rng(0)
-    imu = traj.imu[:n] + rng.normal(size=(n, 6)) * np.sqrt(experiment.PAPER_Q)
+    imu = traj.imu[:n] + rng.normal(size=(n, 6)) * np.sqrt(paper.PAPER_Q)
     k = np.arange(100, n + 1, 100)
     dvl = traj.vel_ned[k] + rng.normal(size=(k.size, 3)) * 0.1  # nav aiding: no rotation
     t0 = time.perf_counter()
@@ -245,7 +245,7 @@ def bench_reference(args: argparse.Namespace) -> list[Row]:
         traj.lla[0],
         traj.vel_ned[0],
         traj.rpy[0],
-        q=experiment.PAPER_Q,
+        q=paper.PAPER_Q,
         accel_bias_psd=cfg.accel_bias_psd,
         gyro_bias_psd=cfg.gyro_bias_psd,
         dvl_variance=cfg.dvl_variance,
@@ -271,7 +271,7 @@ def bench_reference(args: argparse.Namespace) -> list[Row]:
     ]
 
 
-# Without pronet.experiment, which imports torch (~500 MiB that is not the Monte Carlo's).
+# Without pronet.scenarios, which imports torch (~500 MiB that is not the Monte Carlo's).
 # Peak memory from VmHWM: ru_maxrss would carry over the parent's peak across exec.
 SOAK = """
 import sys, time

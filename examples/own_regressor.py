@@ -17,7 +17,7 @@ import argparse
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pronet import experiment, models
+from pronet import models, scenarios
 from pronet.hybrid import run_hybrid
 
 
@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20, help="Monte Carlo runs (default 20)")
     args = parser.parse_args(argv)
-    sc = experiment.SCENARIOS["varying-noise"]()
+    sc = scenarios.SCENARIOS["varying-noise"]()
     for label, regressor in [
         ("difference MAD", DifferenceMAD()),
         ("detrend net", models.load("detrend")),

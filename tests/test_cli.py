@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from pronet import cli
+from pronet.results import RUN_COLUMNS
 
 
 def test_info_lists_versions_weights_and_trajectories(capsys) -> None:
@@ -49,6 +50,7 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
         "q_paper.png",
         "q_varying-noise.png",
         "srmse_smae.png",
+        "summary.csv",
         "table.md",
         "trajectory.png",
         "velocity_error_paper.png",
@@ -57,8 +59,10 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
     for png in out.glob("*.png"):
         assert png.read_bytes()[:8] == PNG and png.stat().st_size > 20_000, png.name
     metrics = json.loads((out / "metrics.json").read_text())
-    assert len(metrics) == 2  # both scenarios
-    for rows in metrics.values():
+    scenarios = list(dict.fromkeys(r["scenario"] for r in metrics))
+    assert scenarios == ["paper scenario, 2 runs", "varying-noise scenario, 2 runs"]
+    for scenario in scenarios:
+        rows = {r["strategy"]: r for r in metrics if r["scenario"] == scenario}
         assert list(rows) == [
             "constant (true q)",
             "constant (20 x q)",
@@ -68,12 +72,15 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
             "baseline net",
             "detrend net",
         ]
-        assert rows["constant (true q)"]["srmse"]["n"] == 2
-        assert rows["detrend net"]["tunings"] == 328
-        assert rows["detrend net"]["srmse_diff_vs_first"]["n"] == 2
+        assert rows["constant (true q)"]["runs"] == 2
+        assert rows["detrend net"]["tunings"] == 328 and rows["detrend net"]["tuning_period_s"] == 1
+        diff = rows["detrend net"]
+        assert diff["srmse_diff_low"] <= diff["srmse_diff"] <= diff["srmse_diff_high"]
+        assert rows["constant (true q)"]["srmse_diff"] == 0
     table = (out / "table.md").read_text()
     assert table.count("| detrend net |") == 2
-    assert len((out / "metrics.csv").read_text().splitlines()) == 1 + 2 * 7 * 2
+    lines = (out / "metrics.csv").read_text().splitlines()
+    assert lines[0] == ",".join(RUN_COLUMNS) and len(lines) == 1 + 2 * 7 * 2
     # No temporary folder is left behind, and an existing folder is never overwritten.
     assert [p.name for p in out.parent.iterdir()] == ["res"]
     assert cli.main(["reproduce", "--runs", "2", "--out", str(out)]) == 2
@@ -92,10 +99,10 @@ def test_ctrl_c_keeps_finished_shards_and_resume_redoes_none_of_them(
     """Ctrl-C after 5 of the 14 Monte Carlos: exit 130, no result folder, the 5 kept in
     <out>.partial. --resume computes only the other 9, and the results equal an
     uninterrupted run's."""
-    from pronet import experiment
+    from pronet import run
 
     calls: list[str] = []
-    real_mc, real_hybrid = experiment.monte_carlo, experiment.run_hybrid
+    real_mc, real_hybrid = run.monte_carlo, run.run_hybrid
 
     def counting(real, interrupt_at=None):
         def wrapped(*a, **kw):
@@ -106,8 +113,8 @@ def test_ctrl_c_keeps_finished_shards_and_resume_redoes_none_of_them(
 
         return wrapped
 
-    monkeypatch.setattr(experiment, "monte_carlo", counting(real_mc, interrupt_at=5))
-    monkeypatch.setattr(experiment, "run_hybrid", counting(real_hybrid, interrupt_at=5))
+    monkeypatch.setattr(run, "monte_carlo", counting(real_mc, interrupt_at=5))
+    monkeypatch.setattr(run, "run_hybrid", counting(real_hybrid, interrupt_at=5))
     out = tmp_path / "res"
     args = ["reproduce", "--runs", "2", "--out", str(out), "--quiet"]
     assert cli.main(args) == 130
@@ -123,8 +130,8 @@ def test_ctrl_c_keeps_finished_shards_and_resume_redoes_none_of_them(
     assert cli.main([*args, "--seed", "7", "--resume"]) == 2
 
     calls.clear()
-    monkeypatch.setattr(experiment, "monte_carlo", counting(real_mc))
-    monkeypatch.setattr(experiment, "run_hybrid", counting(real_hybrid))
+    monkeypatch.setattr(run, "monte_carlo", counting(real_mc))
+    monkeypatch.setattr(run, "run_hybrid", counting(real_hybrid))
     assert cli.main([*args, "--resume"]) == 0
     assert len(calls) == 14 - 5
     assert not partial.exists()
@@ -152,10 +159,10 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     printed = json.loads(captured.out)  # stdout is exactly one JSON document
     assert captured.err == ""
     assert printed["folder"] == str(out)
-    rows = printed["metrics"]["short scenario, 3 runs"]
+    rows = {r["strategy"]: r for r in printed["metrics"]}
     assert list(rows) == ["constant", "constant:20", "mehra:5", "learned:detrend"]
-    assert rows["mehra:5"]["srmse"]["n"] == 3 and rows["learned:detrend"]["tunings"] == 38
-    assert rows["constant"]["paper"] is None  # not the paper's scenario
+    assert rows["mehra:5"]["runs"] == 3 and rows["learned:detrend"]["tunings"] == 38
+    assert {r["scenario"] for r in printed["metrics"]} == {"short scenario, 3 runs"}
     names = sorted(p.name for p in out.iterdir())
     assert names == [
         "config.json",
@@ -163,6 +170,7 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
         "metrics.json",
         "q.png",
         "srmse_smae.png",
+        "summary.csv",
         "table.md",
         "trajectory.png",
         "velocity_error.png",
@@ -175,9 +183,9 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     text = capsys.readouterr().out
     assert "| mehra:5 |" in text and f"results written to {again}" in text
     # the same seed and strategy: the same numbers
-    assert rows["mehra:5"]["srmse"] == json.loads((again / "metrics.json").read_text())[
-        "short scenario, 3 runs"
-    ]["mehra:5"]["srmse"]
+    (repeat,) = json.loads((again / "metrics.json").read_text())
+    for key in ("srmse", "srmse_low", "srmse_high", "smae"):
+        assert rows["mehra:5"][key] == repeat[key]
 
 
 @pytest.mark.parametrize(
@@ -197,12 +205,12 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
 def test_simulate_refuses_bad_input_before_any_work(
     tmp_path, capsys, monkeypatch, extra, message
 ) -> None:
-    from pronet import experiment
+    from pronet import run
 
     def must_not_run(*args, **kwargs):
         raise AssertionError("a Monte Carlo ran")
 
-    monkeypatch.setattr(experiment, "run_strategies", must_not_run)
+    monkeypatch.setattr(run, "run", must_not_run)
     out = tmp_path / "sim"
     assert cli.main(["simulate", "--runs", "2", "--out", str(out), *extra]) == 2
     assert message in capsys.readouterr().err
@@ -254,6 +262,7 @@ def test_sweep_writes_one_merged_result_folder_and_resumes(tmp_path, capsys, mon
     assert sorted(p.name for p in out.iterdir()) == [
         "config.json",
         "metrics.csv",
+        "metrics.json",
         "srmse_vs_noise_level.png",
         "summary.csv",
         "table.md",

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import pronet
-from pronet import config, experiment
+from pronet import config, paper, scenarios
 from pronet.config import ConfigError
-from pronet.experiment import StrategySpec
+from pronet.strategies import StrategySpec
 
 
 def write(tmp_path: Path, name: str, text: str) -> Path:
@@ -59,7 +59,7 @@ def test_a_scenario_file_builds_its_trajectory_sensors_and_filter(tmp_path) -> N
     assert sc.sensors.dvl_variance == [0.01] * 3  # the base's, not overridden
     assert sc.config.dvl_variance == [0.02, 0.02, 0.03]
     assert sc.config.innovation_gate == 16.27
-    assert sc.config.accel_bias_psd == experiment.paper_filter_config().accel_bias_psd
+    assert sc.config.accel_bias_psd == paper.paper_filter_config().accel_bias_psd
     # a constant variance set in [sensors] is what the constant rows are told
     assert sc.q_nominal == (4e-4,) * 3 + (4e-6,) * 3
 
@@ -84,7 +84,7 @@ def test_a_schedule_is_told_as_its_time_average_unless_q_nominal_is_given(tmp_pa
 def test_a_scenario_starts_from_its_base() -> None:
     doc = {"base": "varying-noise", "filter": {"gyro_bias_psd": 1e-5}}
     sc = config.scenario(doc, "inline", "mine")
-    base = experiment.varying_noise_scenario()
+    base = scenarios.varying_noise_scenario()
     assert sc.name == "mine"
     assert sc.q_nominal == base.q_nominal
     np.testing.assert_array_equal(sc.schedule_q, base.schedule_q)
@@ -183,12 +183,12 @@ def test_bad_strategy_specs_say_what_is_wrong(text, message) -> None:
 
 
 def test_the_paper_rows_are_built_from_specs() -> None:
-    rows = experiment.model_based_strategies((1e-4,) * 3 + (1e-6,) * 3)
-    assert list(rows) == list(experiment.PAPER_ROWS)[:4]
+    rows = paper.model_based_strategies((1e-4,) * 3 + (1e-6,) * 3)
+    assert list(rows) == list(paper.PAPER_ROWS)[:4]
     assert list(rows)[:2] == ["constant (true q)", "constant (20 x q)"]
     assert rows["constant (20 x q)"].q == [20 * 1e-4] * 3 + [20 * 1e-6] * 3
     assert rows["adaptive xi=5"].window == 5
-    assert experiment.LEARNED_LABELS == {
+    assert paper.LEARNED_LABELS == {
         "hcf": "HCF-ensemble",
         "baseline": "baseline net",
         "detrend": "detrend net",
@@ -311,8 +311,8 @@ def test_a_new_trajectory_carries_its_period_and_noise_average_into_the_filter(t
     )
     sc = config.load_scenario(path)
     assert sc.trajectory.dt == 0.02 and sc.config.imu_dt == 0.02
-    times, q = experiment.noise_schedule(330.0, 0)
-    assert sc.q_nominal == pytest.approx(experiment.time_average_q(times, q, 40.0))
-    assert sc.q_nominal != experiment.varying_noise_scenario().q_nominal
+    times, q = scenarios.noise_schedule(330.0, 0)
+    assert sc.q_nominal == pytest.approx(scenarios.time_average_q(times, q, 40.0))
+    assert sc.q_nominal != scenarios.varying_noise_scenario().q_nominal
     told = write(tmp_path, "t.toml", path.read_text() + "[filter]\nimu_dt = 0.01\n")
     assert config.load_scenario(told).config.imu_dt == 0.01  # said outright: kept

@@ -43,7 +43,7 @@ from hypothesis.extra import numpy as hnp
 
 import pronet
 from pronet import alignment, dataset, hybrid, realdata, stats, windowstats
-from pronet.experiment import Learned
+from pronet.strategies import Learned
 
 from conftest import PAPER_Q
 

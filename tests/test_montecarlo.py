@@ -113,7 +113,7 @@ def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
 
 
 def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> None:
-    from pronet import experiment
+    from pronet import paper, results, run, scenarios
 
     strategy = pronet.Strategy.mehra(5, PAPER_Q)
     whole = pronet.monte_carlo(paper_trajectory, strategy, n_runs=5, seed=2, record_every=500)
@@ -138,12 +138,10 @@ def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> No
     assert row["srmse"] == pytest.approx(whole.srmse.mean())
     assert row["srmse_low"] < row["srmse"] < row["srmse_high"] and row["runs"] == 5
 
-    sc = experiment.paper_scenario()
-    rows = experiment.run_strategies(
-        experiment.model_based_strategies(sc.q_nominal), sc, n_runs=3, seed=1
-    )
-    table = experiment.to_dataframe({"paper, 3 runs": rows})
+    sc = scenarios.paper_scenario()
+    rows = run.run_strategies(paper.model_based_strategies(sc.q_nominal), sc, n_runs=3, seed=1)
+    table = results.rows_dataframe({"paper, 3 runs": rows})
     assert list(table["strategy"]) == [r.label for r in rows]
     assert table.loc[2, "srmse"] == pytest.approx(rows[2].srmse.mean)
-    per_run = experiment.to_dataframe({"paper, 3 runs": rows}, per_run=True)
-    assert len(per_run) == 4 * 3 and list(per_run.columns[:3]) == ["scenario", "strategy", "run"]
+    per_run = results.rows_dataframe({"paper, 3 runs": rows}, per_run=True)
+    assert len(per_run) == 4 * 3 and tuple(per_run.columns) == results.RUN_COLUMNS

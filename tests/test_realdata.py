@@ -31,7 +31,6 @@ from pronet.alignment import (
     estimate_alignment,
 )
 from pronet.cli import main
-from pronet.experiment import Learned
 from pronet.hybrid import ConstantRegressor, q_schedule
 from pronet.recordings import (
     Recording,
@@ -40,6 +39,8 @@ from pronet.recordings import (
     read_snapir,
     write_recording,
 )
+from pronet.results import RUN_COLUMNS
+from pronet.strategies import Learned
 
 #: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
 SNAPIR = Path(
@@ -349,7 +350,10 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     for name in ("run1", "run2"):
         assert {f"track_{name}.png", f"velocity_error_{name}.png", f"q_{name}.png"} <= files
     metrics = json.loads((out / "metrics.json").read_text())
-    assert set(metrics["aligned"]) == {"run1", "run2"} and len(metrics["aligned"]["run1"]) == 8
+    aligned = [r for r in metrics if r["scenario"] in ("run1", "run2")]
+    assert sum(r["scenario"] == "run1" for r in aligned) == 8 and len(aligned) == 16
+    header = (out / "metrics.csv").read_text().splitlines()[0]
+    assert header == ",".join(RUN_COLUMNS)
     config = json.loads((out / "config.json").read_text())
     assert config["clocks"]["run1"]["gt"][0] == pytest.approx(GT_CLOCK.offset, abs=0.01)
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no leftovers
@@ -359,7 +363,7 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     assert main(as_json) == 0
     printed = json.loads(capsys.readouterr().out)  # stdout: one JSON document
     assert printed["folder"] == str(tmp_path / "js")
-    assert set(printed["metrics"]["aligned"]) == {"run2"}
+    assert {r["scenario"].split(" ")[0] for r in printed["metrics"]} == {"run2"}
 
 
 def test_pronet_real_refuses_bad_data_before_any_work(tmp_path, capsys):

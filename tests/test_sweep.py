@@ -92,7 +92,7 @@ def test_noise_levels_scale_what_the_imu_draws_not_what_the_filter_is_told(local
 
 
 def test_noisier_keeps_a_schedule_and_everything_else() -> None:
-    base = pronet.experiment.varying_noise_scenario().sensors
+    base = pronet.scenarios.varying_noise_scenario().sensors
     louder = sweep.noisier(base, 3.0)
     np.testing.assert_allclose(louder.imu_variance, 3.0 * np.asarray(base.imu_variance))
     assert louder.imu_variance_times == base.imu_variance_times
@@ -148,6 +148,7 @@ def test_the_result_folder_holds_tables_csvs_and_plots(grid, local, tmp_path) ->
     assert names == [
         "config.json",
         "metrics.csv",
+        "metrics.json",
         "srmse_vs_noise_level.png",
         "srmse_vs_tuning_period.png",
         "summary.csv",

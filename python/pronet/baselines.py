@@ -116,25 +116,26 @@ def simulated_rows(
 ) -> Rows:
     """Every strategy of both simulated scenarios, with the shipped models; or only the
     named ``scenarios`` and strategy labels (a quick partial gate)."""
-    from pronet import experiment, models
+    from pronet import models, paper, run
+    from pronet.scenarios import SCENARIOS
 
-    unknown = set(scenarios or ()) - set(experiment.SCENARIOS)
+    unknown = set(scenarios or ()) - set(SCENARIOS)
     if unknown:
-        known = list(experiment.SCENARIOS)
+        known = list(SCENARIOS)
         raise ValueError(f"scenarios: unknown {sorted(unknown)}; known {known}")
     regressors = {k: models.load(k) for k in models.SHIPPED}
     out: Rows = {}
-    for name, build in experiment.SCENARIOS.items():
+    for name, build in SCENARIOS.items():
         if scenarios is not None and name not in scenarios:
             continue
         sc = build()
-        chosen = experiment.paper_strategies(sc.q_nominal, regressors, 1.0)
+        chosen = paper.paper_strategies(sc.q_nominal, regressors, 1.0)
         if strategies is not None:
             unknown = set(strategies) - set(chosen)
             if unknown:
                 raise ValueError(f"strategies: unknown {sorted(unknown)}; known {list(chosen)}")
             chosen = {k: v for k, v in chosen.items() if k in strategies}
-        rows = experiment.run_strategies(
+        rows = run.run_strategies(
             chosen, sc, n_runs=n_runs, seed=seed, threads=None, record_every=100
         )
         out[f"{name}, {n_runs} runs"] = {row.label: monte_carlo_row(row.result) for row in rows}

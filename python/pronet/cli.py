@@ -15,11 +15,14 @@ from pathlib import Path
 from typing import Any
 
 import pronet
-from pronet import _core, experiment
+from pronet import _core, paper, results, run
 from pronet._files import atomic_folder, atomic_write
 from pronet._validate import threads as threads_arg
 from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+from pronet.scenarios import SCENARIOS, Scenario
 from pronet.shards import ShardStore
+from pronet.strategies import StrategySpec
+from pronet.strategies import strategy as spec_strategy
 
 
 class _Output:
@@ -166,9 +169,9 @@ def _reproduce(args: argparse.Namespace) -> int:
         regressors = {k: models.load(trained_dir / k) for k in training.MODEL_KINDS}
     else:
         regressors = {k: models.load(k) for k in models.SHIPPED}
-    scenarios = [experiment.SCENARIOS[name]() for name in experiment.SCENARIOS]
+    scenarios = [SCENARIOS[name]() for name in SCENARIOS]
     jobs = {
-        sc.name: experiment.paper_strategies(sc.q_nominal, regressors, args.tuning_period)
+        sc.name: paper.paper_strategies(sc.q_nominal, regressors, args.tuning_period)
         for sc in scenarios
     }
     show.say(
@@ -192,16 +195,16 @@ def _reproduce(args: argparse.Namespace) -> int:
         if len(shards):
             show.say(f"resuming: {len(shards)} finished Monte Carlos loaded from {partial}")
     bar = show.bar(total=sum(len(j) for j in jobs.values()), unit="strategy")
-    tables: dict[str, list[experiment.Row]] = {}
+    tables: dict[str, list[run.Row]] = {}
     try:
         for sc in scenarios:
 
-            def done(label: str, sc: experiment.Scenario = sc) -> None:
+            def done(label: str, sc: Scenario = sc) -> None:
                 bar.set_postfix_str(f"{sc.name}: {label}")
                 bar.update()
 
             title = f"{sc.name} scenario, {n_runs} runs"
-            tables[title] = experiment.run_strategies(
+            tables[title] = run.run_strategies(
                 jobs[sc.name],
                 sc,
                 n_runs=n_runs,
@@ -228,7 +231,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     def figures(folder: Path) -> None:
         plots.predicted_vs_true(
             {
-                experiment.LEARNED_LABELS[k]: (ds.q[test], m.predict(ds.windows[test]))
+                paper.LEARNED_LABELS[k]: (ds.q[test], m.predict(ds.windows[test]))
                 for k, m in regressors.items()
             },
             folder / "predicted_vs_true_q.png",
@@ -262,7 +265,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         },
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }
-    folder = experiment.write_result_folder(out, tables, config, extra=figures)
+    folder = results.write_result_folder(out, tables, config, extra=figures)
     if shards is not None:
         shards.remove()
     if trained_dir is not None:
@@ -443,8 +446,7 @@ def _real(args: argparse.Namespace) -> int:
     text = "\n".join(tables)
 
     def write(folder: Path) -> None:
-        (folder / "table.md").write_text(text)
-        realdata.write_metrics(folder, runs + stamped_runs + inertial)
+        realdata.write_metrics(folder, runs + stamped_runs + inertial, text)
         config = {
             "data": str(Path(args.data).resolve()),
             "format": args.format,
@@ -504,10 +506,9 @@ def _simulate(args: argparse.Namespace) -> int:
     texts = [t.strip() for t in args.strategies.split(",") if t.strip()]
     if not texts or len(set(texts)) != len(texts):
         raise ValueError(f"strategies: expected distinct comma-separated specs, got {texts}")
-    specs = [experiment.StrategySpec.parse(t) for t in texts]
+    specs = [StrategySpec.parse(t) for t in texts]
     strategies = {
-        spec.text: experiment.strategy(spec, scenario.q_nominal, args.tuning_period)
-        for spec in specs
+        spec.text: spec_strategy(spec, scenario.q_nominal, args.tuning_period) for spec in specs
     }
     out = _new_result_folder(args.out, "simulate")
     if out is None:
@@ -524,7 +525,7 @@ def _simulate(args: argparse.Namespace) -> int:
         bar.update()
 
     title = f"{scenario.name} scenario, {args.runs} runs"
-    rows = experiment.run_strategies(
+    rows = run.run_strategies(
         strategies,
         scenario,
         n_runs=args.runs,
@@ -552,7 +553,7 @@ def _simulate(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "tuning_period_s": args.tuning_period,
     }
-    folder = experiment.write_result_folder(
+    folder = results.write_result_folder(
         out, {title: rows}, settings, extra=figures, paper_columns=False
     )
     _experiment_result(show, folder, start)
@@ -847,7 +848,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument(
         "--strategies",
         metavar="SPECS",
-        default=",".join(experiment.PAPER_ROWS.values()),
+        default=",".join(paper.PAPER_ROWS.values()),
         help="comma-separated specs: constant[:FACTOR on q], mehra:WINDOW [DVL updates], "
         "learned:MODEL (shipped name or model file) (default: the paper's seven rows)",
     )

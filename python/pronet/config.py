@@ -67,14 +67,9 @@ import numpy as np
 
 from pronet import _core
 from pronet._validate import real_array
-from pronet.experiment import (
-    PAPER_Q,
-    SCENARIOS,
-    Scenario,
-    StrategySpec,
-    strategy,
-    time_average_q,
-)
+from pronet.paper import PAPER_Q
+from pronet.scenarios import SCENARIOS, Scenario, time_average_q
+from pronet.strategies import StrategySpec, strategy
 from pronet.trajectory import builtin_trajectory, trajectory_from_segments
 
 
@@ -267,7 +262,7 @@ def _number(value: object, where: str) -> float:
 
 
 def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario:
-    """A :class:`~pronet.experiment.Scenario` from a scenario document (the module
+    """A :class:`~pronet.scenarios.Scenario` from a scenario document (the module
     docstring); ``where`` (the file) prefixes errors."""
     _check_keys(data, SCENARIO_KEYS, f"{where}:")
     base_name = data.get("base", "paper")
@@ -379,8 +374,7 @@ class SweepGrid:
         sweep must match)."""
         return {
             "scenarios": {
-                s.name: s.builtin if s.builtin is not None else s.document
-                for s in self.scenarios
+                s.name: s.builtin if s.builtin is not None else s.document for s in self.scenarios
             },
             "strategies": [s.text for s in self.strategies],
             "tuning_periods_s": list(self.tuning_periods),

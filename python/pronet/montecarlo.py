@@ -10,9 +10,8 @@ numbers): differences between strategies are paired.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -153,26 +152,6 @@ class MonteCarloResult:
                 "mean_nis",
             )
         }
-
-
-def results_dataframe(
-    labelled: Iterable[tuple[dict[str, Any], MonteCarloResult]], per_run: bool = False
-):  # -> pandas.DataFrame
-    """Several results as one DataFrame: each result's label columns (e.g. scenario,
-    strategy) first, then :meth:`MonteCarloResult.summary_row` (one row per result), or
-    with ``per_run`` :meth:`MonteCarloResult.to_dataframe` (one row per run)."""
-    import pandas as pd
-
-    frames = []
-    for labels, result in labelled:
-        if per_run:
-            df = result.to_dataframe()
-            for i, (key, value) in enumerate(labels.items()):
-                df.insert(i, key, value)
-            frames.append(df)
-        else:
-            frames.append(pd.DataFrame([{**labels, **result.summary_row()}]))
-    return pd.concat(frames, ignore_index=True)
 
 
 def monte_carlo(

@@ -83,7 +83,7 @@ def predicted_vs_true(
 
 def velocity_error(rows, path: str | os.PathLike[str], title: str, run: int = 0) -> Path:
     """Velocity error of one run against time with the filter's ±3σ, one panel per
-    strategy (``rows``: :class:`pronet.experiment.Row` with histories recorded)."""
+    strategy (``rows``: :class:`pronet.run.Row` with histories recorded)."""
     n = len(rows)
     cols = 2
     fig = _figure(11.0, 2.4 * ((n + cols - 1) // cols) + 0.6)
@@ -187,7 +187,7 @@ def trajectory(traj, path: str | os.PathLike[str], title: str) -> Path:
 
 def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
     """SRMSE and SMAE per strategy with 95 % CIs, one row of panels per scenario
-    (``tables``: scenario title → list of :class:`pronet.experiment.Row`)."""
+    (``tables``: scenario title → list of :class:`pronet.run.Row`)."""
     fig = _figure(11.0, 3.2 * len(tables) + 0.4)
     axes = fig.subplots(len(tables), 2, squeeze=False)
     for (title, rows), pair in zip(tables.items(), axes, strict=True):

@@ -11,13 +11,9 @@ error as a percentage of the horizontal distance travelled.
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
-import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,10 +22,19 @@ from numpy.typing import NDArray
 from pronet import _core
 from pronet._validate import flag, float_array, scalar
 from pronet.alignment import Section
-from pronet.experiment import Learned, StrategyLike, paper_strategies
-from pronet.filter import FilterResult, run_filter
-from pronet.hybrid import QSchedule, q_schedule
+from pronet.filter import FilterResult
+from pronet.hybrid import QSchedule
 from pronet.models import Regressor
+from pronet.paper import paper_strategies
+from pronet.results import (
+    RUN_COLUMNS,
+    SUMMARIZED,
+    SUMMARY_COLUMNS,
+    markdown,
+    write_tables,
+)
+from pronet.run import Recorded, run
+from pronet.strategies import StrategyLike
 
 F64 = NDArray[np.float64]
 
@@ -121,6 +126,7 @@ class SectionRun:
     metrics: SectionMetrics
     schedule: QSchedule | None
     seconds: float
+    tuning_period: float | None = None
 
 
 def start_index(section: Section) -> int:
@@ -154,40 +160,29 @@ def run_section(
         end = section.imu_time[take].max(initial=-np.inf)
         if not np.any((section.truth_time > t0) & (section.truth_time <= end)):
             raise ValueError(f"duration: {duration} s from the start reach no ground-truth row")
-    imu, imu_time = section.imu[take], section.imu_time[take]
-    dvl_take = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
-    schedule = None
-    q_args: dict[str, F64] = {}
-    start = time.perf_counter()
-    if isinstance(strategy, Learned):
-        schedule = q_schedule(
-            strategy.regressor,
-            imu,
-            imu_time,
-            prior_q=strategy.prior_q,
-            tuning_period=strategy.tuning_period,
-        )
-        core_strategy = _core.Strategy.external(strategy.prior_q)
-        if len(schedule.time):
-            q_args = {"q_time": schedule.time, "q": schedule.q}
-    else:
-        core_strategy = strategy
-    result = run_filter(
-        imu,
-        imu_time,
-        section.dvl[dvl_take],
-        section.dvl_time[dvl_take],
+    keep = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
+    recorded = Recorded(
+        imu=section.imu[take],
+        imu_time=section.imu_time[take],
+        dvl=section.dvl[keep],
+        dvl_time=section.dvl_time[keep],
         t0=t0,
         lla0=section.truth_lla[i0],
         vel0=section.truth_vel[i0],
         rpy0=section.truth_rpy[i0],
         config=config,
-        strategy=core_strategy,
-        **q_args,
     )
-    seconds = time.perf_counter() - start
+    done = run(strategy, recorded)
+    metrics = section_metrics(section, done.result)
     return SectionRun(
-        setup, section.name, label, result, section_metrics(section, result), schedule, seconds
+        setup,
+        section.name,
+        label,
+        done.result,
+        metrics,
+        done.schedule,
+        done.seconds,
+        done.tuning_period,
     )
 
 
@@ -285,18 +280,16 @@ def summary_table(runs: list[SectionRun], title: str) -> str:
     """Markdown: one row per strategy, each metric's mean over the sections."""
     labels = list(dict.fromkeys(r.label for r in runs))
     n = len({r.section for r in runs})
-    out = io.StringIO()
-    out.write(f"### {title}: mean over {n} sections\n\n| strategy |")
-    out.write("".join(f" {head} |" for _, head, _ in METRIC_COLUMNS) + "\n")
-    out.write("|---" * (len(METRIC_COLUMNS) + 1) + "|\n")
+    lines = []
     for label in labels:
         mine = [r.metrics for r in runs if r.label == label]
         cells = [
             fmt.format(float(np.mean([getattr(m, key) for m in mine])))
             for key, _, fmt in METRIC_COLUMNS
         ]
-        out.write(f"| {label} | " + " | ".join(cells) + " |\n")
-    return out.getvalue()
+        lines.append([label, *cells])
+    header = ["strategy", *(head for _, head, _ in METRIC_COLUMNS)]
+    return markdown(header, lines, f"{title}: mean over {n} sections")
 
 
 def per_section_table(runs: list[SectionRun], key: str, title: str) -> str:
@@ -305,30 +298,65 @@ def per_section_table(runs: list[SectionRun], key: str, title: str) -> str:
     sections = list(dict.fromkeys(r.section for r in runs))
     head, fmt = next((h, f) for k, h, f in METRIC_COLUMNS if k == key)
     value = {(r.section, r.label): getattr(r.metrics, key) for r in runs}
-    out = io.StringIO()
-    out.write(f"### {title}: {head}\n\n| section |" + "".join(f" {lb} |" for lb in labels))
-    out.write("\n" + "|---" * (len(labels) + 1) + "|\n")
-    for s in sections:
-        out.write(f"| {s} |" + "".join(f" {fmt.format(value[s, lb])} |" for lb in labels) + "\n")
+    lines: list[list[object]] = [
+        [s, *(fmt.format(value[s, lb]) for lb in labels)] for s in sections
+    ]
     means = [fmt.format(np.mean([value[s, lb] for s in sections])) for lb in labels]
-    out.write("| **mean** |" + "".join(f" **{m}** |" for m in means) + "\n")
-    return out.getvalue()
+    lines.append(["**mean**", *(f"**{m}**" for m in means)])
+    return markdown(["section", *labels], lines, f"{title}: {head}")
 
 
-def write_metrics(folder: Path, runs: list[SectionRun]) -> None:
-    """``metrics.csv`` (one row per setup × section × strategy) and ``metrics.json``."""
-    with open(folder / "metrics.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        keys = list(asdict(runs[0].metrics))
-        w.writerow(["setup", "section", "strategy", *keys, "guardrail_clipped", "seconds"])
-        for r in runs:
-            m = asdict(r.metrics)
-            clipped = r.schedule.clipped if r.schedule is not None else ""
-            w.writerow([r.setup, r.section, r.label, *[m[k] for k in keys], clipped, r.seconds])
-    nested: dict[str, dict[str, dict[str, object]]] = {}
-    for r in runs:
-        nested.setdefault(r.setup, {}).setdefault(r.section, {})[r.label] = asdict(r.metrics)
-    (folder / "metrics.json").write_text(json.dumps(nested, indent=2, allow_nan=True))
+def _scenario_label(run: SectionRun) -> str:
+    return run.section if run.setup == "aligned" else f"{run.section} ({run.setup})"
+
+
+def run_record(run: SectionRun) -> dict[str, object]:
+    """One :data:`pronet.results.RUN_COLUMNS` row: the section (with its setup unless
+    aligned) as scenario, the strategy label, the run's metrics."""
+    r, m = run.result, run.metrics
+    applied = r.dvl_epoch >= 0
+    return {
+        "scenario": _scenario_label(run),
+        "strategy": run.label,
+        "noise_level": 1.0,
+        "tuning_period_s": math.nan if run.tuning_period is None else run.tuning_period,
+        "run": 0,
+        "srmse": m.srmse,
+        "smae": m.smae,
+        "final_horizontal_error": m.final_horizontal,
+        "max_horizontal_error": m.max_horizontal,
+        "mean_nis": m.mean_nis,
+        "rejected_updates": int((applied & ~r.accepted).sum()),
+        "diverged_at": math.nan if r.diverged_at is None else r.diverged_at,
+        "failure": None,
+    }
+
+
+def summary_record(run: SectionRun) -> dict[str, object]:
+    """One :data:`pronet.results.SUMMARY_COLUMNS` row for a single section run (its
+    confidence bounds NaN: one run)."""
+    rec = run_record(run)
+    out: dict[str, object] = {k: rec[k] for k in ("scenario", "strategy", "noise_level")}
+    out["tuning_period_s"] = rec["tuning_period_s"]
+    for name in SUMMARIZED:
+        out.update({name: rec[name], f"{name}_low": math.nan, f"{name}_high": math.nan})
+    out.update(runs=1, failed_runs=0, diverged_runs=int(run.result.diverged_at is not None))
+    out.update(srmse_diff=math.nan, srmse_diff_low=math.nan, srmse_diff_high=math.nan)
+    sched = run.schedule
+    out["tunings"] = len(sched.time) if sched is not None else 0
+    out["guardrail_clipped"] = sched.clipped if sched is not None else 0
+    out["guardrail_non_finite"] = sched.non_finite if sched is not None else 0
+    return out
+
+
+def write_metrics(folder: Path, runs: list[SectionRun], table_md: str) -> None:
+    """The result tables of recorded runs (:func:`pronet.results.write_tables`): one
+    ``metrics.csv`` row per setup × section × strategy, the same in ``summary.csv``."""
+    import pandas as pd
+
+    per_run = pd.DataFrame([run_record(r) for r in runs], columns=list(RUN_COLUMNS))
+    summary = pd.DataFrame([summary_record(r) for r in runs], columns=list(SUMMARY_COLUMNS))
+    write_tables(folder, summary, per_run, table_md)
 
 
 # ------------------------------------------------------------------------ sections

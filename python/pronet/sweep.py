@@ -24,26 +24,40 @@ file a learned strategy names, at the same path).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import hashlib
-import io
 import json
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pronet
 from pronet import _core
 from pronet._files import atomic_folder
 from pronet._validate import threads as threads_arg
 from pronet.config import ScenarioSource, SweepGrid, sensor_kwargs
-from pronet.experiment import Learned, Scenario, StrategySpec, strategy
-from pronet.hybrid import HybridResult, run_hybrid
-from pronet.montecarlo import MonteCarloResult, monte_carlo, results_dataframe
+from pronet.hybrid import HybridResult
+from pronet.montecarlo import MonteCarloResult
+from pronet.results import (
+    SUMMARY_COLUMNS,
+    markdown,
+    results_dataframe,
+    summary_row,
+    write_tables,
+)
+from pronet.run import run
+from pronet.scenarios import Scenario
 from pronet.shards import ShardStore
 from pronet.stats import MeanCI
+from pronet.strategies import StrategySpec, strategy
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from pronet.models import Regressor
 
 #: Engines :func:`run_sweep` knows.
 ENGINES = ("local", "ray")
@@ -119,7 +133,7 @@ def _scenario(source: ScenarioSource) -> Scenario:
 
 
 @functools.lru_cache(maxsize=8)
-def _model(name_or_path: str):  # -> Regressor
+def _model(name_or_path: str) -> Regressor:
     from pronet import models
 
     return models.load(name_or_path)
@@ -137,33 +151,30 @@ def run_shard(
     shard: Shard, threads: int | None = None
 ) -> tuple[MonteCarloResult, HybridResult | None]:
     """Run one shard (in this process); ``threads`` for the native core (default: all
-    cores). The scenario and learned models are built once per process."""
-    sc = _scenario(shard.source)
+    cores). The scenario and learned models are built once per process; a learned
+    strategy's torch runs on one thread, so that a shard's numbers do not depend on
+    the machine it runs on."""
     p = shard.point
+    base = _scenario(shard.source)
+    scenario = dataclasses.replace(base, sensors=noisier(base.sensors, p.noise_level))
     regressor = _model(shard.spec.model) if shard.spec.kind == "learned" else None
     period = p.tuning_period if p.tuning_period is not None else 1.0
-    chosen = strategy(shard.spec, sc.q_nominal, period, regressor)
-    common: dict[str, Any] = dict(
-        sensors=noisier(sc.sensors, p.noise_level),
-        config=sc.config,
-        n_runs=shard.n_runs,
-        seed=shard.seed,
-        threads=threads,
-        first_run=shard.first_run,
-    )
-    if isinstance(chosen, Learned):
+    chosen = strategy(shard.spec, scenario.q_nominal, period, regressor)
+    pinned: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+    if regressor is not None:
         from pronet.models import torch_threads
 
-        with torch_threads(1):  # the same rounding wherever the shard runs
-            h = run_hybrid(
-                chosen.regressor,
-                sc.trajectory,
-                prior_q=chosen.prior_q,
-                tuning_period=chosen.tuning_period,
-                **common,
-            )
-        return h.result, h
-    return monte_carlo(sc.trajectory, chosen, **common), None
+        pinned = torch_threads(1)
+    with pinned:
+        done = run(
+            chosen,
+            scenario,
+            n_runs=shard.n_runs,
+            seed=shard.seed,
+            threads=threads,
+            first_run=shard.first_run,
+        )
+    return done.result, done.hybrid
 
 
 ShardResult = tuple[MonteCarloResult, HybridResult | None]
@@ -248,50 +259,56 @@ class SweepResult:
     grid: SweepGrid
     points: list[PointResult]
 
-    def to_dataframe(self, per_run: bool = False):  # -> pandas.DataFrame
-        """One row per grid point: the grid columns, then mean and 95 % CI bounds of
-        each per-run metric (``srmse``, ``srmse_low``, ``srmse_high`` ... in m/s, m),
-        ``runs``, ``failed_runs`` and ``diverged_runs``. With ``per_run``: one row per
-        run, the grid columns and that run's metrics."""
-        return results_dataframe(
-            (
-                (
-                    {
-                        "scenario": pr.point.scenario,
-                        "strategy": pr.point.strategy,
-                        "noise_level": pr.point.noise_level,
-                        "tuning_period_s": pr.point.tuning_period,
-                    },
-                    pr.result,
-                )
-                for pr in self.points
-            ),
-            per_run,
-        )
+    def _labels(self, pr: PointResult) -> dict[str, object]:
+        p = pr.point
+        return {
+            "scenario": p.scenario,
+            "strategy": p.strategy,
+            "noise_level": p.noise_level,
+            "tuning_period_s": p.tuning_period,
+        }
+
+    def to_dataframe(self, per_run: bool = False) -> pd.DataFrame:
+        """One row per grid point (:data:`pronet.results.SUMMARY_COLUMNS`: the grid
+        columns, then mean and 95 % CI bounds of each per-run metric in m/s, m, the run
+        counts and the learned loop's guardrail counts). With ``per_run``: one row per
+        run (:data:`pronet.results.RUN_COLUMNS`)."""
+        import pandas as pd
+
+        if per_run:
+            return results_dataframe(((self._labels(pr), pr.result) for pr in self.points), True)
+        records = [summary_row(self._labels(pr), pr.result, hybrid=pr.hybrid) for pr in self.points]
+        return pd.DataFrame(records, columns=list(SUMMARY_COLUMNS))
 
     def markdown(self) -> str:
         """The summary as a Markdown table, one block per scenario."""
-        out = io.StringIO()
+        header = [
+            "strategy",
+            "noise level",
+            "tuning period [s]",
+            "SRMSE [m/s] (95 % CI)",
+            "SMAE [m/s] (95 % CI)",
+            "final horizontal error [m] (95 % CI)",
+            "failed / diverged runs",
+        ]
+        blocks = []
         for scenario in dict.fromkeys(p.point.scenario for p in self.points):
-            out.write(f"### {scenario}: {self.grid.runs} runs per row, seed {self.grid.seed}\n\n")
-            out.write(
-                "| strategy | noise level | tuning period [s] | SRMSE [m/s] (95 % CI) "
-                "| SMAE [m/s] (95 % CI) | final horizontal error [m] (95 % CI) "
-                "| failed / diverged runs |\n"
-            )
-            out.write("|---|---|---|---|---|---|---|\n")
+            lines = []
             for pr in self.points:
-                if pr.point.scenario != scenario:
-                    continue
                 p, s = pr.point, pr.summary()
+                if p.scenario != scenario:
+                    continue
                 tp = "" if p.tuning_period is None else f"{p.tuning_period:g}"
-                out.write(
-                    f"| {p.strategy} | {p.noise_level:g} | {tp} | {s['srmse']} | {s['smae']} "
-                    f"| {s['final_horizontal_error']} "
-                    f"| {pr.result.n_failed} / {pr.result.n_diverged} |\n"
+                lines.append(
+                    [p.strategy, f"{p.noise_level:g}", tp, s["srmse"], s["smae"]]
+                    + [
+                        s["final_horizontal_error"],
+                        f"{pr.result.n_failed} / {pr.result.n_diverged}",
+                    ]
                 )
-            out.write("\n")
-        return out.getvalue()
+            title = f"{scenario}: {self.grid.runs} runs per row, seed {self.grid.seed}"
+            blocks.append(markdown(header, lines, title) + "\n")
+        return "".join(blocks)
 
 
 def settings(grid: SweepGrid) -> dict[str, Any]:
@@ -377,17 +394,15 @@ def run_sweep(
 def write_result_folder(
     folder: str | os.PathLike[str], result: SweepResult, config: dict[str, Any]
 ) -> Path:
-    """Write the sweep's ``table.md``, ``summary.csv`` (one row per grid point),
-    ``metrics.csv`` (one row per run), ``config.json`` and its figures into ``folder``,
-    atomically (nothing appears until all of it is written)."""
+    """Write the sweep's tables (:func:`pronet.results.write_tables`: ``table.md``,
+    ``summary.csv``, ``metrics.json``, ``metrics.csv``), ``config.json`` and its
+    figures into ``folder``, atomically (nothing appears until all of it is written)."""
     from pronet import plots
 
     folder = Path(folder)
     summary = result.to_dataframe()
     with atomic_folder(folder) as tmp:
-        (tmp / "table.md").write_text(result.markdown())
-        summary.to_csv(tmp / "summary.csv", index=False)
-        result.to_dataframe(per_run=True).to_csv(tmp / "metrics.csv", index=False)
+        write_tables(tmp, summary, result.to_dataframe(per_run=True), result.markdown())
         (tmp / "config.json").write_text(json.dumps(config, indent=2))
         plots.sweep_metric(summary, "noise_level", tmp / "srmse_vs_noise_level.png")
         if len(result.grid.tuning_periods) > 1 and summary["tuning_period_s"].notna().any():

@@ -1,0 +1,255 @@
+"""The one run path: any strategy on a simulated scenario or on recorded sensors.
+
+Every command and experiment runs a strategy through :func:`run`; it is the only place
+that tells a native strategy (constant, Mehra: the whole run in the Rust core) from a
+learned one (:class:`~pronet.strategies.Learned`: the ProNet hybrid loop, the regressor
+in Python every tuning period). :func:`run_strategies` runs several strategies on the
+same noise realizations (common random numbers) so that their differences are paired.
+
+- On a :class:`~pronet.scenarios.Scenario`: a Monte Carlo of ``n_runs`` simulated runs
+  (run i draws its noise from the streams of ``(seed, first_run + i)``), returned as a
+  :class:`SimulatedRun`.
+- On :class:`Recorded` sensors (one recorded stretch with its initial state): one filter
+  pass, returned as a :class:`RecordedRun`. A learned strategy's q is computed from the
+  raw IMU windows first (:func:`pronet.hybrid.q_schedule`), then handed to the filter.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import overload
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet import _core
+from pronet.filter import FilterResult, run_filter
+from pronet.hybrid import HybridResult, QSchedule, q_schedule, run_hybrid
+from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.scenarios import Scenario
+from pronet.shards import ShardStore
+from pronet.stats import MeanCI, mean_ci
+from pronet.strategies import Learned, StrategyLike
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """One stretch of recorded sensors, ready to filter from a known initial state.
+
+    Attributes:
+        imu: ``(n, 6)`` raw IMU samples ``[f (m/s²), ω (rad/s)]``, body FRD.
+        imu_time: ``(n,)`` sample end times [s], all after ``t0``.
+        dvl: ``(m, 3)`` DVL body velocities [m/s] (empty: pure inertial).
+        dvl_time: ``(m,)`` DVL times [s] on the IMU clock.
+        t0: time of the initial state [s].
+        lla0, vel0, rpy0: initial latitude, longitude [rad], height [m, up]; NED
+            velocity [m/s]; roll, pitch, yaw [rad].
+        config: the filter's tuning.
+    """
+
+    imu: F64
+    imu_time: F64
+    dvl: F64
+    dvl_time: F64
+    t0: float
+    lla0: F64
+    vel0: F64
+    rpy0: F64
+    config: _core.FilterConfig
+
+
+@dataclass(frozen=True)
+class SimulatedRun:
+    """A strategy's Monte Carlo on a scenario; ``hybrid`` holds the learned loop's
+    record (tunings, guardrail events, timing), None for native strategies."""
+
+    result: MonteCarloResult
+    hybrid: HybridResult | None = None
+    #: the learned loop's tuning period [s]; None for native strategies
+    tuning_period: float | None = None
+
+
+@dataclass(frozen=True)
+class RecordedRun:
+    """A strategy's filter pass over recorded sensors: the filter output, the learned
+    q schedule and tuning period [s] (None for native strategies) and the wall time
+    [s], inference included."""
+
+    result: FilterResult
+    schedule: QSchedule | None
+    seconds: float
+    tuning_period: float | None = None
+
+
+@overload
+def run(
+    strategy: StrategyLike,
+    target: Scenario,
+    *,
+    n_runs: int = ...,
+    seed: int = ...,
+    record_every: int = ...,
+    first_run: int = ...,
+    threads: int | None = ...,
+) -> SimulatedRun: ...
+
+
+@overload
+def run(strategy: StrategyLike, target: Recorded) -> RecordedRun: ...
+
+
+def run(
+    strategy: StrategyLike,
+    target: Scenario | Recorded,
+    *,
+    n_runs: int = 100,
+    seed: int = 0,
+    record_every: int = 0,
+    first_run: int = 0,
+    threads: int | None = None,
+) -> SimulatedRun | RecordedRun:
+    """Run ``strategy`` on a simulated scenario or on recorded sensors.
+
+    Args:
+        strategy: a native :class:`pronet._core.Strategy` or a
+            :class:`~pronet.strategies.Learned` regressor.
+        target: a :class:`~pronet.scenarios.Scenario` (Monte Carlo) or
+            :class:`Recorded` sensors (one filter pass).
+        n_runs, seed, record_every, first_run, threads: the Monte Carlo on a scenario
+            (see :func:`pronet.monte_carlo`); a recorded run takes none of them.
+    """
+    if isinstance(target, Recorded):
+        if (n_runs, seed, record_every, first_run, threads) != (100, 0, 0, 0, None):
+            raise ValueError(
+                "run: n_runs, seed, record_every, first_run and threads are "
+                "for simulated scenarios; a recorded run takes none of them"
+            )
+        return _recorded(strategy, target)
+    if not isinstance(target, Scenario):
+        raise ValueError(f"target: expected a Scenario or Recorded, got {type(target).__name__}")
+    common = dict(
+        sensors=target.sensors,
+        config=target.config,
+        n_runs=n_runs,
+        seed=seed,
+        threads=threads,
+        record_every=record_every,
+        first_run=first_run,
+    )
+    if isinstance(strategy, Learned):
+        h = run_hybrid(
+            strategy.regressor,
+            target.trajectory,
+            prior_q=strategy.prior_q,
+            tuning_period=strategy.tuning_period,
+            **common,  # type: ignore[arg-type]
+        )
+        return SimulatedRun(h.result, h, strategy.tuning_period)
+    return SimulatedRun(monte_carlo(target.trajectory, strategy, **common))  # type: ignore[arg-type]
+
+
+def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
+    start = time.perf_counter()
+    schedule, period = None, None
+    q_args: dict[str, F64] = {}
+    core_strategy = strategy
+    if isinstance(strategy, Learned):
+        period = strategy.tuning_period
+        schedule = q_schedule(
+            strategy.regressor,
+            rec.imu,
+            rec.imu_time,
+            prior_q=strategy.prior_q,
+            tuning_period=strategy.tuning_period,
+        )
+        core_strategy = _core.Strategy.external(strategy.prior_q)
+        if len(schedule.time):
+            q_args = {"q_time": schedule.time, "q": schedule.q}
+    result = run_filter(
+        rec.imu,
+        rec.imu_time,
+        rec.dvl,
+        rec.dvl_time,
+        t0=rec.t0,
+        lla0=rec.lla0,
+        vel0=rec.vel0,
+        rpy0=rec.rpy0,
+        config=rec.config,
+        strategy=core_strategy,  # type: ignore[arg-type]
+        **q_args,
+    )
+    return RecordedRun(result, schedule, time.perf_counter() - start, period)
+
+
+def _tuning_period(strategy: StrategyLike) -> float | None:
+    return strategy.tuning_period if isinstance(strategy, Learned) else None
+
+
+@dataclass(frozen=True)
+class Row:
+    """One strategy's Monte Carlo and its paired difference from the reference row."""
+
+    label: str
+    result: MonteCarloResult
+    srmse: MeanCI
+    smae: MeanCI
+    srmse_diff: MeanCI
+    smae_diff: MeanCI
+    hybrid: HybridResult | None = None
+    #: the learned strategy's tuning period [s] (None for native strategies)
+    tuning_period: float | None = None
+
+
+def run_strategies(
+    strategies: dict[str, StrategyLike],
+    scenario: Scenario,
+    *,
+    n_runs: int,
+    seed: int,
+    threads: int | None = None,
+    record_every: int = 0,
+    on_done: Callable[[str], None] | None = None,
+    shards: ShardStore | None = None,
+) -> list[Row]:
+    """Run every strategy on the same noise realizations (same seed); the first strategy
+    is the reference for the paired differences. With ``shards``, each finished strategy
+    is saved there at once, and one already saved is loaded instead of rerun."""
+    results: dict[str, tuple[MonteCarloResult, HybridResult | None]] = {}
+    periods: dict[str, float | None] = {}
+    for label, strategy in strategies.items():
+        saved = shards.load(scenario.name, label) if shards is not None else None
+        periods[label] = _tuning_period(strategy)
+        if saved is not None:
+            results[label] = saved
+        else:
+            done = run(
+                strategy,
+                scenario,
+                n_runs=n_runs,
+                seed=seed,
+                threads=threads,
+                record_every=record_every,
+            )
+            results[label] = (done.result, done.hybrid)
+            if shards is not None:
+                shards.save(scenario.name, label, *results[label])
+        if on_done is not None:
+            on_done(label)
+    ref = next(iter(results.values()))[0]
+    return [
+        Row(
+            label=label,
+            result=r,
+            srmse=mean_ci(r.srmse),
+            smae=mean_ci(r.smae),
+            srmse_diff=mean_ci(r.srmse - ref.srmse),
+            smae_diff=mean_ci(r.smae - ref.smae),
+            hybrid=h,
+            tuning_period=periods[label],
+        )
+        for label, (r, h) in results.items()
+    ]

@@ -1,0 +1,112 @@
+"""Process-noise strategies named in text, and the learned wrapper.
+
+A strategy decides the filter's IMU process noise q (six per-sample variances
+[(m/s²)², (rad/s)²], see ``docs/concepts.md``). Native strategies (constant, Mehra) run
+entirely in the Rust core as a :class:`pronet._core.Strategy`; a :class:`Learned` one
+runs a regressor in Python every tuning period (the hybrid loop). :func:`strategy` turns
+a :class:`StrategySpec` (``constant:S``, ``mehra:W``, ``learned:MODEL``) into either.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from pronet import _core
+from pronet._validate import float_array
+from pronet.hybrid import DEFAULT_TUNING_PERIOD
+
+if TYPE_CHECKING:  # torch loads only when a model does
+    from pronet.models import Regressor
+
+
+@dataclass(frozen=True)
+class Learned:
+    """A regressor-driven row: the hybrid loop with ``regressor`` (prior ``prior_q``
+    until the first window is full)."""
+
+    regressor: Regressor
+    prior_q: tuple[float, ...]
+    tuning_period: float = DEFAULT_TUNING_PERIOD
+
+
+StrategyLike = _core.Strategy | Learned
+
+
+@dataclass(frozen=True)
+class StrategySpec:
+    """A strategy named in text, as configs and the command line give it:
+
+    - ``constant`` or ``constant:S``: constant Q, the scenario's nominal q times S
+      (default 1);
+    - ``mehra:W``: Mehra's innovation-adaptive Q over a window of W DVL updates;
+    - ``learned:MODEL``: the hybrid loop with a regressor: a shipped model name
+      (``baseline``, ``detrend``, ``hcf``) or the path of a model file.
+
+    Attributes:
+        text: the spec as written (the row label in simulations and sweeps).
+        kind: ``"constant"``, ``"mehra"`` or ``"learned"``.
+        factor: constant: the factor on q; mehra: the window; learned: 0.
+        model: learned: the model name or path; otherwise ``""``.
+    """
+
+    text: str
+    kind: str
+    factor: float = 0.0
+    model: str = ""
+
+    @classmethod
+    def parse(cls, text: object) -> StrategySpec:
+        """The spec in ``text``, or ``ValueError`` saying what is wrong with it."""
+        if not isinstance(text, str):
+            raise ValueError(f"strategy: expected text such as 'mehra:5', got {text!r}")
+        kind, _, arg = text.strip().partition(":")
+        arg = arg.strip()
+        if kind == "constant":
+            factor = _spec_number(arg, text) if arg else 1.0
+            if not 0 < factor < math.inf:
+                raise ValueError(f"strategy {text!r}: the factor on q must be finite and > 0")
+            return cls(text, kind, factor)
+        if kind == "mehra":
+            if not arg.isdigit() or int(arg) < 1:
+                raise ValueError(f"strategy {text!r}: mehra needs a window >= 1, e.g. mehra:5")
+            return cls(text, kind, float(int(arg)))
+        if kind == "learned":
+            if not arg:
+                raise ValueError(f"strategy {text!r}: learned needs a model, e.g. learned:detrend")
+            return cls(text, kind, model=arg)
+        raise ValueError(f"strategy {text!r}: expected constant[:S], mehra:W or learned:MODEL")
+
+    @property
+    def uses_tuning_period(self) -> bool:
+        """Whether the tuning period changes this strategy (only learned ones)."""
+        return self.kind == "learned"
+
+
+def _spec_number(text: str, spec: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"strategy {spec!r}: {text!r} is not a number") from None
+
+
+def strategy(
+    spec: StrategySpec,
+    q: tuple[float, ...],
+    tuning_period: float = DEFAULT_TUNING_PERIOD,
+    regressor: Regressor | None = None,
+) -> StrategyLike:
+    """The strategy ``spec`` describes around the nominal ``q`` (6 per-sample
+    variances [(m/s²)², (rad/s)²]); a learned one runs ``regressor`` (default:
+    ``models.load(spec.model)``) every ``tuning_period`` seconds."""
+    q = tuple(float(v) for v in float_array(q, "q", (6,)))  # factor x q in float64
+    if spec.kind == "constant":
+        return _core.Strategy.constant(q if spec.factor == 1 else tuple(spec.factor * v for v in q))
+    if spec.kind == "mehra":
+        return _core.Strategy.mehra(int(spec.factor), q)
+    if regressor is None:
+        from pronet import models
+
+        regressor = models.load(spec.model)
+    return Learned(regressor, q, tuning_period)
