@@ -14,8 +14,12 @@ from __future__ import annotations
 import argparse
 import math
 
+import numpy as np
+
 import pronet
 from pronet import Segment
+from pronet.run import run
+from pronet.scenarios import Scenario
 
 Q = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6)  # per-sample IMU variances [(m/s²)², (rad/s)²]
 EPS_A, EPS_G = 1e-8, 1e-12  # bias random-walk PSDs [(m/s²)²/s], [(rad/s)²/s]
@@ -41,13 +45,20 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{traj.name}: {traj.duration:.0f} s, {traj.n_samples} IMU samples")
     sensors = pronet.SensorConfig(imu_variance=Q, imu_bias_psd=[EPS_A] * 3 + [EPS_G] * 3)
     config = pronet.FilterConfig(accel_bias_psd=EPS_A, gyro_bias_psd=EPS_G)
+    scenario = Scenario(
+        name="survey",
+        trajectory=traj,
+        sensors=sensors,
+        config=config,
+        q_nominal=Q,
+        schedule_time=np.zeros(1),  # one piece: the noise is constant
+        schedule_q=np.array([Q]),
+    )
     for label, strategy in [
         ("constant Q", pronet.Strategy.constant(Q)),
         ("Mehra xi=5", pronet.Strategy.mehra(5, Q)),
     ]:
-        r = pronet.monte_carlo(
-            traj, strategy, sensors=sensors, config=config, n_runs=args.runs, seed=1
-        )
+        r = run(strategy, scenario, n_runs=args.runs, seed=1).result
         s = r.summary()
         print(
             f"{label:12s} SRMSE {s['srmse']} m/s, final horizontal error "

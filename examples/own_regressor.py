@@ -18,7 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import models, scenarios
-from pronet.hybrid import run_hybrid
+from pronet.run import run
+from pronet.strategies import Learned
 
 
 class DifferenceMAD:
@@ -39,16 +40,9 @@ def main(argv: list[str] | None = None) -> int:
         ("difference MAD", DifferenceMAD()),
         ("detrend net", models.load("detrend")),
     ]:
-        out = run_hybrid(
-            regressor,
-            sc.trajectory,
-            prior_q=sc.q_nominal,
-            sensors=sc.sensors,
-            config=sc.config,
-            n_runs=args.runs,
-            seed=0,
-        )
-        s = out.result.summary()
+        done = run(Learned(regressor, sc.q_nominal), sc, n_runs=args.runs, seed=0)
+        out, s = done.hybrid, done.result.summary()
+        assert out is not None  # a learned strategy's run records the loop
         print(
             f"{label:15s} SRMSE {s['srmse']} m/s; {out.n_tunings} tunings, "
             f"model {out.model_seconds:.1f} s, {int(out.clipped.sum())} clipped"
