@@ -56,6 +56,7 @@ adaptive strategy should notice.
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from collections.abc import Callable, Mapping
@@ -441,16 +442,16 @@ def sweep_grid(doc: Mapping[str, Any], path: str | Path) -> SweepGrid:
         raise ConfigError(f"{where} scenarios: two scenarios are named alike: {names}")
     specs = []
     for text in _list(doc, "strategies", where):
-        spec = _native(f"{where} strategies:", lambda text=text: StrategySpec.parse(text))
+        spec = _native(f"{where} strategies:", functools.partial(StrategySpec.parse, text))
         if spec.kind == "learned":
             from pronet import models
 
             if spec.model not in models.SHIPPED:  # a model file, relative to the sweep file
                 model = Path(path).parent / spec.model
                 spec = StrategySpec(spec.text, spec.kind, spec.factor, str(model.resolve()))
-            _native(f"{where} strategies: {text!r}:", lambda spec=spec: models.load(spec.model))
+            _native(f"{where} strategies: {text!r}:", functools.partial(models.load, spec.model))
         else:  # e.g. a window the native core cannot take fails here, not in a shard
-            _native(f"{where} strategies:", lambda spec=spec: strategy(spec, PAPER_Q))
+            _native(f"{where} strategies:", functools.partial(strategy, spec, PAPER_Q))
         specs.append(spec)
     runs = _whole(doc, "runs", where, 100, 1)
     return SweepGrid(

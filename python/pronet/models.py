@@ -29,7 +29,7 @@ import hashlib
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
 import torch
@@ -81,11 +81,13 @@ class _ConvBlock(nn.Module):
         self.act = nn.LeakyReLU(0.01)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        (kernel,), (stride,), (pad,) = self.conv.kernel_size, self.conv.stride, self.conv.padding
+        (kernel,), (stride,) = self.conv.kernel_size, self.conv.stride
+        pad = int(self.conv.padding[0])  # an int padding: Conv1d keeps it as a 1-tuple
         # (B, L_out, C_in, kernel): the same (C_in, kernel) order as the weight's last axes
         cols = nn.functional.pad(x, (0, 0, pad, pad)).unfold(1, kernel, stride)
         weight = self.conv.weight.reshape(self.conv.out_channels, -1)
         batch, length = cols.shape[:2]
+        assert self.conv.bias is not None  # made with bias=True
         y = torch.addmm(self.conv.bias, cols.reshape(batch * length, weight.shape[1]), weight.t())
         return self.act(self.norm(y.reshape(batch, length, self.conv.out_channels)))
 
@@ -188,7 +190,8 @@ class DetrendNet(BaselineNet):
     def prepare(self, x: torch.Tensor) -> torch.Tensor:
         """Remove each window's least-squares line: ``(B, N)`` → ``(B, N)``, batched."""
         centred = x - x.mean(dim=-1, keepdim=True)
-        return centred - (centred @ self._t).unsqueeze(-1) * self._t
+        t = cast(torch.Tensor, self._t)
+        return centred - (centred @ t).unsqueeze(-1) * t
 
 
 NETS: dict[str, type[BaselineNet]] = {"baseline": BaselineNet, "detrend": DetrendNet}
@@ -259,5 +262,5 @@ def load(name_or_path: str | os.PathLike[str]) -> Regressor:
     modelfile.check_tensors(weights, tensors, expected)
     net.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in tensors.items()})
     net.eval()
-    net.card = card  # type: ignore[attr-defined]
+    net.card = card  # type: ignore[assignment]
     return net

@@ -194,7 +194,7 @@ def _horizontal_offsets(lla: F64, ref: F64) -> tuple[F64, F64]:
     return north, east
 
 
-def estimate_at_truth(section: Section, result: FilterResult) -> tuple[F64, F64, F64]:
+def estimate_at_truth(section: Section, result: FilterResult) -> tuple[NDArray[np.intp], F64, F64]:
     """``(rows, lla, vel)``: the truth rows inside the run and the estimate there,
     linearly interpolated between IMU epochs."""
     rows = np.flatnonzero(

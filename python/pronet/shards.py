@@ -109,7 +109,7 @@ class ShardStore:
             },
         }
         buf = io.BytesIO()
-        np.savez(buf, meta=np.array(json.dumps(meta)), **arrays)
+        np.savez(buf, meta=np.array(json.dumps(meta)), **arrays)  # type: ignore[arg-type]
         atomic_write(self._path(scenario, label), buf.getvalue())
 
     def remove(self) -> None:

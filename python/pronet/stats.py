@@ -27,12 +27,12 @@ def t_quantile_975(df: int) -> float:
     if df == 2:
         return 4.302652729749464
     z = _Z975
-    df = float(min(df, 2**53))  # beyond, the corrections are below float64 resolution
+    n = float(min(df, 2**53))  # beyond, the corrections are below float64 resolution
     return (
         z
-        + (z**3 + z) / (4 * df)
-        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
-        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * df**3)
+        + (z**3 + z) / (4 * n)
+        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * n**2)
+        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * n**3)
     )
 
 

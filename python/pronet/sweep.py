@@ -29,7 +29,7 @@ import functools
 import hashlib
 import json
 import os
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -180,7 +180,9 @@ def run_shard(
 ShardResult = tuple[MonteCarloResult, HybridResult | None]
 
 
-def _local(shards: Sequence[Shard], threads: int | None) -> Iterator[tuple[Shard, ShardResult]]:
+def _local(
+    shards: Sequence[Shard], threads: int | None
+) -> Generator[tuple[Shard, ShardResult], None, None]:
     for shard in shards:
         yield shard, run_shard(shard, threads)
 
@@ -204,7 +206,7 @@ def check_engine(engine: str, address: str | None, threads: int | None) -> None:
 
 def _ray(
     shards: Sequence[Shard], address: str | None, cpus_per_shard: int
-) -> Iterator[tuple[Shard, ShardResult]]:
+) -> Generator[tuple[Shard, ShardResult], None, None]:
     import ray
 
     started = not ray.is_initialized()
@@ -222,7 +224,7 @@ def _ray(
     pending: dict[Any, Shard] = {}
     try:
         remote = ray.remote(num_cpus=cpus_per_shard, max_retries=0)(run_shard)
-        pending = {remote.remote(s, cpus_per_shard): s for s in shards}
+        pending = {remote.remote(s, cpus_per_shard): s for s in shards}  # type: ignore[call-arg]
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             shard = pending.pop(done[0])
