@@ -392,3 +392,198 @@ def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:
         )
         for p in find_sections(data)
     ]
+
+
+# ------------------------------------------------------------------------ pronet real
+
+
+@dataclass(frozen=True)
+class RealRuns:
+    """Every run of :func:`run_real`.
+
+    Attributes:
+        sections: ``(aligned, as_stamped)`` per section (see :func:`load_section`).
+        runs: every strategy on every aligned section.
+        stamped: the first strategy on each section as stamped, without lever arms.
+        inertial: the pure-inertial sanity run of each section.
+        q_estimated: per section, the IMU noise q of :func:`white_noise_q`.
+        constants: per section, the q of each constant strategy (for the q plots).
+    """
+
+    sections: list[tuple[Section, Section]]
+    runs: list[SectionRun]
+    stamped: list[SectionRun]
+    inertial: list[SectionRun]
+    q_estimated: dict[str, tuple[float, ...]]
+    constants: dict[str, dict[str, tuple[float, ...]]]
+
+
+def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
+    """The sections under ``data`` (:func:`find_sections`), only those whose folder or
+    file name, or name without suffix, is in ``names`` when it is given."""
+    paths = find_sections(data)
+    if names:
+        wanted = {n.strip() for n in names}
+        paths = [p for p in paths if p.name in wanted or p.stem in wanted]
+        if not paths:
+            raise ValueError(f"no section named {','.join(names)}")
+    return paths
+
+
+def run_sections(
+    sections: list[tuple[Section, Section]],
+    models: Mapping[str, Regressor],
+    tuning_period: float,
+    on_done: Callable[[str], None] | None = None,
+) -> RealRuns:
+    """Every strategy of :func:`real_strategies` on each aligned section (with its own
+    estimated q), the first one on the section as stamped, and the inertial run;
+    ``on_done("<section>: <strategy>")`` after each strategy."""
+    runs: list[SectionRun] = []
+    stamped_runs: list[SectionRun] = []
+    inertial: list[SectionRun] = []
+    q_estimated: dict[str, tuple[float, ...]] = {}
+    constants: dict[str, dict[str, tuple[float, ...]]] = {}
+    for aligned, stamped in sections:
+        q = q_estimated[aligned.name] = white_noise_q(aligned.imu)
+        strategies = real_strategies(q, models, tuning_period)
+        constants[aligned.name] = {
+            label: s.q
+            for label, s in strategies.items()
+            if isinstance(s, _core.Strategy) and s.kind == "constant"
+        }
+
+        def done(label: str, name: str = aligned.name) -> None:
+            if on_done is not None:
+                on_done(f"{name}: {label}")
+
+        config = real_filter_config(aligned.alignment.filter_lever_arm)
+        section_runs, inertial_run = evaluate_section(aligned, strategies, config, on_done=done)
+        runs += section_runs
+        inertial.append(inertial_run)
+        first_label, first = next(iter(strategies.items()))
+        stamped_runs.append(
+            run_section(
+                stamped,
+                first,
+                real_filter_config(stamped.alignment.filter_lever_arm),
+                label=f"{first_label}, stamps as given, no lever arms",
+                setup="stamps as given, no lever arms",
+            )
+        )
+    return RealRuns(sections, runs, stamped_runs, inertial, q_estimated, constants)
+
+
+def real_tables(done: RealRuns) -> str:
+    """The Markdown of ``table.md``: the summary, per-section SRMSE and final error, the
+    alignment comparison and the inertial sanity check."""
+    first_label = done.runs[0].label
+    return "\n".join(
+        [
+            summary_table(done.runs, "Clocks estimated, lever arms applied"),
+            per_section_table(done.runs, "srmse", "Per section"),
+            per_section_table(done.runs, "final_horizontal", "Per section"),
+            summary_table(
+                [r for r in done.runs if r.label == first_label] + done.stamped,
+                f"{first_label}: alignment handled against stamps as given",
+            ),
+            summary_table(done.inertial, "Sanity: pure inertial, no DVL"),
+        ]
+    )
+
+
+def write_real_plots(
+    folder: Path, done: RealRuns, on_done: Callable[[str], None] | None = None
+) -> None:
+    """Track, velocity error and q plots of each section into ``folder``."""
+    from pronet import plots
+
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    for aligned, _ in done.sections:
+        name = aligned.name
+        mine = [r for r in done.runs if r.section == name]
+        plots.section_track(aligned, mine, folder / f"track_{name}.png")
+        plots.section_velocity_error(aligned, mine, folder / f"velocity_error_{name}.png")
+        plots.section_q(aligned, mine, done.constants[name], imu_dt, folder / f"q_{name}.png")
+        if on_done is not None:
+            on_done(name)
+
+
+def run_real(
+    data: str | Path,
+    out: str | Path | None = None,
+    *,
+    fmt: str = "snapir",
+    sections: list[str] | tuple[str, ...] | None = None,
+    imu_lever_arm: tuple[float, float, float] | None = None,
+    dvl_lever_arm: tuple[float, float, float] | None = None,
+    tuning_period: float = 1.0,
+    use_models: bool = True,
+    on_start: Callable[[int, str, str | None], None] | None = None,
+    on_done: Callable[[str], None] | None = None,
+) -> Path:
+    """Every strategy on the recorded sections under ``data`` (read where they lie, never
+    copied), written as one result folder (``table.md``, ``metrics.csv``/``.json``,
+    ``config.json``, plots per section); returns the folder. Every section is read and
+    checked before any filter runs.
+
+    Args:
+        out: the result folder to create (default ``results/real-<time>``).
+        fmt: one of :data:`FORMATS`; sections: only these section names.
+        imu_lever_arm, dvl_lever_arm: sensor positions from the ground-truth point
+            [m, body FRD] (default: the Snapir AUV's).
+        tuning_period: seconds between regressor calls in the learned rows (> 0).
+        use_models: False: only the model-based rows.
+        on_start, on_done: progress callbacks (see :mod:`pronet._outputs`): stages
+            ``reading, aligning`` (a step per section), the runs (a step per section
+            and strategy) and ``plots`` (a step per section).
+    """
+    from pronet import models
+    from pronet._files import atomic_folder
+    from pronet._outputs import new_result_folder
+    from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+
+    folder = new_result_folder(out, "real")
+    if not tuning_period > 0:
+        raise ValueError("--tuning-period must be > 0 s")
+    imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
+    dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
+    paths = select_sections(data, sections)
+    regressors = {k: models.load(k) for k in models.SHIPPED} if use_models else {}
+    if on_start is not None:
+        on_start(len(paths), "section", "reading, aligning")
+    loaded = []
+    for path in paths:
+        loaded.append(load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm))
+        if on_done is not None:
+            on_done(path.name)
+    if on_start is not None:
+        n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0))
+        on_start(len(loaded) * n_rows, "run", None)
+    done = run_sections(loaded, regressors, tuning_period, on_done)
+    config = {
+        "data": str(Path(data).resolve()),
+        "format": fmt,
+        "sections": [a.name for a, _ in loaded],
+        "tuning_period_s": tuning_period,
+        "filter": repr(real_filter_config((0.0, 0.0, 0.0))),
+        "imu_lever_arm_m": imu_arm,
+        "dvl_lever_arm_m": dvl_arm,
+        "clocks": {
+            a.name: {
+                "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
+                "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
+            }
+            for a, _ in loaded
+        },
+        "q_estimated": done.q_estimated,
+        "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
+    }
+    with atomic_folder(folder) as tmp:
+        (tmp / "table.md").write_text(real_tables(done))
+        write_metrics(tmp, done.runs + done.stamped + done.inertial)
+        (tmp / "config.json").write_text(json.dumps(config, indent=2))
+        if on_start is not None:
+            on_start(len(loaded), "section", "plots")
+        write_real_plots(tmp, done, on_done)
+    return folder
