@@ -552,7 +552,7 @@ def run_real(
     regressors = {k: models.load(k) for k in models.SHIPPED} if use_models else {}
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
-    loaded = []
+    loaded: list[tuple[Section, Section]] = []
     for path in paths:
         loaded.append(load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm))
         if on_done is not None:

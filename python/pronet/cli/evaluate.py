@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
 
@@ -32,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     loaded = {n: models.load(n) for n in names}  # fail on a bad file before any work
     ds, _ = dataset_for(args)
     test = ~ds.train
-    reports, panels = {}, {}
+    reports: dict[str, dict[str, Any]] = {}
+    panels: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
     for name, model in loaded.items():
         reports[name] = training.test_report(model, ds)
         panels[name] = (ds.q[test], model.predict(ds.windows[test]))

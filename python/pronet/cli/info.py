@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     from pronet import modelfile, models
 
-    info = {
+    info: dict[str, object] = {
         "pronet": pronet.__version__,
         "native_core": _core.__version__,
         "python": sys.version.split()[0],
@@ -59,6 +59,6 @@ def run(args: argparse.Namespace) -> int:
         f"torch uses {info['torch_threads']})"
     )
     print(f"ray: {info['ray'] or 'not installed (pronet sweep --engine ray needs it)'}")
-    print(f"shipped models: {', '.join(info['shipped_models'])} in {info['weights']}")
-    print(f"built-in trajectories: {', '.join(info['trajectories'])}")
+    print(f"shipped models: {', '.join(models.SHIPPED)} in {info['weights']}")
+    print(f"built-in trajectories: {', '.join(_core.builtin_trajectory_names())}")
     return 0

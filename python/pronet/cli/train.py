@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
 
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
     ds, params = dataset_for(args)
     out = Output(args)
-    reports = {}
+    reports: dict[str, dict[str, Any]] = {}
     for kind in kinds:
         start = time.perf_counter()
         reports[kind] = training.train_and_save(
