@@ -311,3 +311,58 @@ def test_dataset_train_and_evaluate_on_a_small_dataset(tmp_path, capsys) -> None
     (tmp_path / "bad.json").write_text("{")
     assert cli.main([*evaluate, "--models", str(tmp_path / "bad")]) == 2
     assert "bad" in capsys.readouterr().err
+
+
+def test_simulate_library_reports_through_callbacks_and_never_prints(tmp_path, capsys) -> None:
+    from pronet import config
+    from pronet.simulation import simulate
+
+    (tmp_path / "short.toml").write_text(SHORT_SCENARIO)
+    events: list[tuple[object, ...]] = []
+    folder = simulate(
+        config.load_scenario(tmp_path / "short.toml"),
+        ["constant", " mehra:5 "],
+        tmp_path / "out",
+        n_runs=2,
+        say=lambda text: events.append(("say", text)),
+        on_start=lambda total, unit, desc: events.append(("start", total, unit, desc)),
+        on_done=lambda label: events.append(("done", label)),
+    )
+    assert folder == tmp_path / "out" and (folder / "table.md").is_file()
+    assert [e[0] for e in events] == ["say", "start", "done", "done"]
+    assert events[1:] == [("start", 2, "strategy", None), ("done", "constant"), ("done", "mehra:5")]
+    assert capsys.readouterr() == ("", "")
+    settings = json.loads((folder / "config.json").read_text())
+    assert settings["scenario"] == "short" and settings["strategies"] == ["constant", "mehra:5"]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"n_runs": 0}, "--runs must be at least 1"),
+        ({"tuning_period": float("nan")}, "--tuning-period must be > 0"),
+        ({"threads": 0}, "--threads: expected 1 to 1024"),
+        ({"resume": True, "retrain": True}, "--resume needs the --out"),
+        ({"exists": True}, "exists; choose another --out"),
+        ({"partial": True}, "add --resume to continue"),
+    ],
+)
+def test_reproduce_library_checks_arguments_before_any_work(
+    tmp_path, monkeypatch, kwargs, message
+) -> None:
+    from pronet import models, run
+    from pronet.reproduce import reproduce
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("work started")
+
+    monkeypatch.setattr(run, "run", must_not_run)
+    monkeypatch.setattr(models, "load", must_not_run)
+    out = tmp_path / "res"
+    if kwargs.pop("exists", False):
+        out.mkdir()
+    if kwargs.pop("partial", False):
+        (tmp_path / "res.partial").mkdir()
+    with pytest.raises(ValueError, match=message):
+        reproduce(out, **kwargs)
+    assert not (tmp_path / "res.partial").exists() or message.startswith("add --resume")

@@ -24,7 +24,7 @@ from synthetic_recording import (
 )
 
 import pronet
-from pronet import realdata
+from pronet import alignment, realdata
 from pronet.alignment import (
     Alignment,
     align,
@@ -395,7 +395,7 @@ def test_snapir_accuracy_matches_a_standard_ekf():
     """Constant Q on sections 1–11: mean velocity SRMSE ≤ 0.047 m/s and mean final
     horizontal error ≤ 2.5 m (the open-source reference reaches 0.047 m/s and 2.4 m);
     the same runs on the stamps as given, without lever arms, are measurably worse."""
-    loaded = realdata.load_snapir_sections(SNAPIR)
+    loaded = alignment.load_snapir_sections(SNAPIR)
     assert len(loaded) == 11
     handled, stamped = [], []
     for aligned, as_stamped in loaded:

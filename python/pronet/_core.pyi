@@ -56,6 +56,7 @@ class Trajectory:
 def builtin_trajectory(name: str, dt: float = 0.01) -> Trajectory: ...
 def builtin_trajectory_names() -> list[str]:
     """Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`)."""
+
 def trajectory_from_segments(
     segments: F64,
     *,

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -281,3 +282,63 @@ def align(rec: Recording, alignment: Alignment) -> Section:
         truth_rpy=rec.gt_rpy,
         alignment=alignment,
     )
+
+
+# ------------------------------------------------------------------------ sections
+
+#: Recorded-data layouts :func:`load_section` reads.
+FORMATS = ("snapir", "generic")
+
+
+def find_sections(data: str | Path) -> list[Path]:
+    """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
+    ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
+    from pronet.recordings import RecordingError
+
+    data = Path(data)
+    if not data.is_dir():
+        raise RecordingError(
+            f"{data}: not a folder" + ("" if data.exists() else " (it does not exist)")
+        )
+
+    def is_section(p: Path) -> bool:
+        return p.is_dir() and any((p / n).is_file() for n in ("imu.csv", "imu.csv.gz"))
+
+    if is_section(data):
+        return [data]
+    found = sorted(p for p in data.iterdir() if is_section(p) or p.suffix == ".npz")
+    if not found:
+        raise RecordingError(f"{data}: no sections (folders with imu/dvl/gt CSVs, or .npz files)")
+    return found
+
+
+def load_section(
+    path: Path,
+    fmt: str,
+    *,
+    imu_lever_arm: tuple[float, float, float],
+    dvl_lever_arm: tuple[float, float, float],
+    handle_alignment: bool = True,
+) -> tuple[Section, Section]:
+    """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
+    lever arms applied, and the stamps as given with no lever arms (the comparison)."""
+    from pronet.recordings import read_recording, read_snapir
+
+    if fmt not in FORMATS:
+        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
+    stamped = align(rec, Alignment(how="none"))
+    if not handle_alignment:
+        return stamped, stamped
+    return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
+
+
+def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:
+    """Every Snapir section under ``data``, ``(aligned, as_stamped)`` each, with the
+    lever arms from the data's README."""
+    return [
+        load_section(
+            p, "snapir", imu_lever_arm=SNAPIR_IMU_LEVER_ARM, dvl_lever_arm=SNAPIR_DVL_LEVER_ARM
+        )
+        for p in find_sections(data)
+    ]

@@ -201,7 +201,7 @@ REAL_PREFIX = "real: "
 
 def real_rows(loaded: list) -> Rows:
     """Every strategy on each aligned recorded section (``loaded``: ``(aligned, _)``
-    pairs from :func:`pronet.realdata.load_section`)."""
+    pairs from :func:`pronet.alignment.load_section`)."""
     from pronet import models, realdata
 
     regressors = {k: models.load(k) for k in models.SHIPPED}
@@ -220,12 +220,12 @@ def real_rows(loaded: list) -> Rows:
 def fresh_rows(recorded_data: str | Path | None = None) -> Rows:
     """Every row the gate checks: the at-rest row, both simulated scenarios, and the
     Snapir sections when ``recorded_data`` is a folder holding them."""
-    from pronet import realdata
+    from pronet import alignment
 
     rows = at_rest_rows()
     rows.update(simulated_rows())
     if recorded_data is not None and Path(recorded_data).is_dir():
-        rows.update(real_rows(realdata.load_snapir_sections(Path(recorded_data))))
+        rows.update(real_rows(alignment.load_snapir_sections(Path(recorded_data))))
     return rows
 
 

@@ -91,7 +91,6 @@ class HybridResult:
     model_seconds: float
     guardrails: Guardrails = field(default_factory=Guardrails)
 
-
     @classmethod
     def concat(cls, parts: Sequence[HybridResult]) -> HybridResult:
         """Shards of one hybrid Monte Carlo (in run order) as one result: runs and

@@ -323,9 +323,7 @@ def section_q(
     return save_png(fig, path)
 
 
-def sweep_metric(
-    summary, x: str, path: str | os.PathLike[str], metric: str = "srmse"
-) -> Path:
+def sweep_metric(summary, x: str, path: str | os.PathLike[str], metric: str = "srmse") -> Path:
     """A sweep's ``metric`` (mean and 95 % CI over runs) against one grid axis, one
     panel per scenario, one line per other grid setting (drawn slightly apart
     sideways, so that lines with equal values stay visible).
@@ -364,8 +362,10 @@ def sweep_metric(
             dodge = 1 + 0.02 * (i - (len(lines) - 1) / 2)
             label = str(strategy)
             if setting == setting:  # not NaN: the line's fixed value of the other axis
-                label += f", tuning {setting:g} s" if other == "tuning_period_s" else (
-                    f", noise x{setting:g}"
+                label += (
+                    f", tuning {setting:g} s"
+                    if other == "tuning_period_s"
+                    else (f", noise x{setting:g}")
                 )
             mean = line[metric].to_numpy(float)
             err = np.stack([mean - line[f"{metric}_low"], line[f"{metric}_high"] - mean])

@@ -11,6 +11,7 @@ error as a percentage of the horizontal distance travelled.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._validate import flag, float_array, scalar
-from pronet.alignment import Section
+from pronet.alignment import Section, find_sections, load_section
 from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.models import Regressor
@@ -359,64 +360,195 @@ def write_metrics(folder: Path, runs: list[SectionRun], table_md: str) -> None:
     write_tables(folder, summary, per_run, table_md)
 
 
-# ------------------------------------------------------------------------ sections
-
-#: Recorded-data layouts ``pronet real`` reads.
-FORMATS = ("snapir", "generic")
+# ------------------------------------------------------------------------ pronet real
 
 
-def find_sections(data: str | Path) -> list[Path]:
-    """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
-    ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
-    from pronet.recordings import RecordingError
+@dataclass(frozen=True)
+class RealRuns:
+    """Every run of :func:`run_real`.
 
-    data = Path(data)
-    if not data.is_dir():
-        raise RecordingError(
-            f"{data}: not a folder" + ("" if data.exists() else " (it does not exist)")
+    Attributes:
+        sections: ``(aligned, as_stamped)`` per section (see :func:`pronet.alignment.load_section`).
+        runs: every strategy on every aligned section.
+        stamped: the first strategy on each section as stamped, without lever arms.
+        inertial: the pure-inertial sanity run of each section.
+        q_estimated: per section, the IMU noise q of :func:`white_noise_q`.
+        constants: per section, the q of each constant strategy (for the q plots).
+    """
+
+    sections: list[tuple[Section, Section]]
+    runs: list[SectionRun]
+    stamped: list[SectionRun]
+    inertial: list[SectionRun]
+    q_estimated: dict[str, tuple[float, ...]]
+    constants: dict[str, dict[str, tuple[float, ...]]]
+
+
+def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
+    """The sections under ``data`` (:func:`pronet.alignment.find_sections`), only those
+    whose folder or file name, or name without suffix, is in ``names`` when given."""
+    paths = find_sections(data)
+    if names:
+        wanted = {n.strip() for n in names}
+        paths = [p for p in paths if p.name in wanted or p.stem in wanted]
+        if not paths:
+            raise ValueError(f"no section named {','.join(names)}")
+    return paths
+
+
+def run_sections(
+    sections: list[tuple[Section, Section]],
+    models: Mapping[str, Regressor],
+    tuning_period: float,
+    on_done: Callable[[str], None] | None = None,
+) -> RealRuns:
+    """Every strategy of :func:`real_strategies` on each aligned section (with its own
+    estimated q), the first one on the section as stamped, and the inertial run;
+    ``on_done("<section>: <strategy>")`` after each strategy."""
+    runs: list[SectionRun] = []
+    stamped_runs: list[SectionRun] = []
+    inertial: list[SectionRun] = []
+    q_estimated: dict[str, tuple[float, ...]] = {}
+    constants: dict[str, dict[str, tuple[float, ...]]] = {}
+    for aligned, stamped in sections:
+        q = q_estimated[aligned.name] = white_noise_q(aligned.imu)
+        strategies = real_strategies(q, models, tuning_period)
+        constants[aligned.name] = {
+            label: tuple(s.q)
+            for label, s in strategies.items()
+            if isinstance(s, _core.Strategy) and s.kind == "constant"
+        }
+
+        def done(label: str, name: str = aligned.name) -> None:
+            if on_done is not None:
+                on_done(f"{name}: {label}")
+
+        config = real_filter_config(aligned.alignment.filter_lever_arm)
+        section_runs, inertial_run = evaluate_section(aligned, strategies, config, on_done=done)
+        runs += section_runs
+        inertial.append(inertial_run)
+        first_label, first = next(iter(strategies.items()))
+        stamped_runs.append(
+            run_section(
+                stamped,
+                first,
+                real_filter_config(stamped.alignment.filter_lever_arm),
+                label=f"{first_label}, stamps as given, no lever arms",
+                setup="stamps as given, no lever arms",
+            )
         )
-
-    def is_section(p: Path) -> bool:
-        return p.is_dir() and any((p / n).is_file() for n in ("imu.csv", "imu.csv.gz"))
-
-    if is_section(data):
-        return [data]
-    found = sorted(p for p in data.iterdir() if is_section(p) or p.suffix == ".npz")
-    if not found:
-        raise RecordingError(f"{data}: no sections (folders with imu/dvl/gt CSVs, or .npz files)")
-    return found
+    return RealRuns(sections, runs, stamped_runs, inertial, q_estimated, constants)
 
 
-def load_section(
-    path: Path,
-    fmt: str,
+def real_tables(done: RealRuns) -> str:
+    """The Markdown of ``table.md``: the summary, per-section SRMSE and final error, the
+    alignment comparison and the inertial sanity check."""
+    first_label = done.runs[0].label
+    return "\n".join(
+        [
+            summary_table(done.runs, "Clocks estimated, lever arms applied"),
+            per_section_table(done.runs, "srmse", "Per section"),
+            per_section_table(done.runs, "final_horizontal", "Per section"),
+            summary_table(
+                [r for r in done.runs if r.label == first_label] + done.stamped,
+                f"{first_label}: alignment handled against stamps as given",
+            ),
+            summary_table(done.inertial, "Sanity: pure inertial, no DVL"),
+        ]
+    )
+
+
+def write_real_plots(
+    folder: Path, done: RealRuns, on_done: Callable[[str], None] | None = None
+) -> None:
+    """Track, velocity error and q plots of each section into ``folder``."""
+    from pronet import plots
+
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    for aligned, _ in done.sections:
+        name = aligned.name
+        mine = [r for r in done.runs if r.section == name]
+        plots.section_track(aligned, mine, folder / f"track_{name}.png")
+        plots.section_velocity_error(aligned, mine, folder / f"velocity_error_{name}.png")
+        plots.section_q(aligned, mine, done.constants[name], imu_dt, folder / f"q_{name}.png")
+        if on_done is not None:
+            on_done(name)
+
+
+def run_real(
+    data: str | Path,
+    out: str | Path | None = None,
     *,
-    imu_lever_arm: tuple[float, float, float],
-    dvl_lever_arm: tuple[float, float, float],
-    handle_alignment: bool = True,
-) -> tuple[Section, Section]:
-    """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
-    lever arms applied, and the stamps as given with no lever arms (the comparison)."""
-    from pronet.alignment import Alignment, align, estimate_alignment
-    from pronet.recordings import read_recording, read_snapir
+    fmt: str = "snapir",
+    sections: list[str] | tuple[str, ...] | None = None,
+    imu_lever_arm: tuple[float, float, float] | None = None,
+    dvl_lever_arm: tuple[float, float, float] | None = None,
+    tuning_period: float = 1.0,
+    use_models: bool = True,
+    on_start: Callable[[int, str, str | None], None] | None = None,
+    on_done: Callable[[str], None] | None = None,
+) -> Path:
+    """Every strategy on the recorded sections under ``data`` (read where they lie, never
+    copied), written as one result folder (``table.md``, ``metrics.csv``/``.json``,
+    ``config.json``, plots per section); returns the folder. Every section is read and
+    checked before any filter runs.
 
-    if fmt not in FORMATS:
-        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
-    rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
-    stamped = align(rec, Alignment(how="none"))
-    if not handle_alignment:
-        return stamped, stamped
-    return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
-
-
-def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:
-    """Every Snapir section under ``data``, ``(aligned, as_stamped)`` each, with the
-    lever arms from the data's README."""
+    Args:
+        out: the result folder to create (default ``results/real-<time>``).
+        fmt: one of :data:`pronet.alignment.FORMATS`; sections: only these section names.
+        imu_lever_arm, dvl_lever_arm: sensor positions from the ground-truth point
+            [m, body FRD] (default: the Snapir AUV's).
+        tuning_period: seconds between regressor calls in the learned rows (> 0).
+        use_models: False: only the model-based rows.
+        on_start, on_done: progress callbacks (see :mod:`pronet._outputs`): stages
+            ``reading, aligning`` (a step per section), the runs (a step per section
+            and strategy) and ``plots`` (a step per section).
+    """
+    from pronet import models
+    from pronet._files import atomic_folder
+    from pronet._outputs import new_result_folder
     from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
-    return [
-        load_section(
-            p, "snapir", imu_lever_arm=SNAPIR_IMU_LEVER_ARM, dvl_lever_arm=SNAPIR_DVL_LEVER_ARM
-        )
-        for p in find_sections(data)
-    ]
+    folder = new_result_folder(out, "real")
+    if not tuning_period > 0:
+        raise ValueError("--tuning-period must be > 0 s")
+    imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
+    dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
+    paths = select_sections(data, sections)
+    regressors = {k: models.load(k) for k in models.SHIPPED} if use_models else {}
+    if on_start is not None:
+        on_start(len(paths), "section", "reading, aligning")
+    loaded: list[tuple[Section, Section]] = []
+    for path in paths:
+        loaded.append(load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm))
+        if on_done is not None:
+            on_done(path.name)
+    if on_start is not None:
+        n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0))
+        on_start(len(loaded) * n_rows, "run", None)
+    done = run_sections(loaded, regressors, tuning_period, on_done)
+    config = {
+        "data": str(Path(data).resolve()),
+        "format": fmt,
+        "sections": [a.name for a, _ in loaded],
+        "tuning_period_s": tuning_period,
+        "filter": repr(real_filter_config((0.0, 0.0, 0.0))),
+        "imu_lever_arm_m": imu_arm,
+        "dvl_lever_arm_m": dvl_arm,
+        "clocks": {
+            a.name: {
+                "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
+                "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
+            }
+            for a, _ in loaded
+        },
+        "q_estimated": done.q_estimated,
+        "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
+    }
+    with atomic_folder(folder) as tmp:
+        write_metrics(tmp, done.runs + done.stamped + done.inertial, real_tables(done))
+        (tmp / "config.json").write_text(json.dumps(config, indent=2))
+        if on_start is not None:
+            on_start(len(loaded), "section", "plots")
+        write_real_plots(tmp, done, on_done)
+    return folder

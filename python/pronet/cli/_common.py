@@ -1,0 +1,173 @@
+"""What the commands share: where their words go (``--quiet``, ``--json``), progress
+bars over the library's callbacks, and the options several commands take."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, NoReturn, TypeAlias
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
+
+    from pronet.dataset import Dataset, DatasetParams
+
+#: What ``add_subparsers`` returns: each command module adds its parser to it.
+Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+
+
+class Output:
+    """Where a command's words go. ``--quiet``: no progress bars, no messages (results
+    still print). ``--json``: stdout holds only the final JSON document; messages go to
+    stderr."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.quiet = bool(getattr(args, "quiet", False))
+        self.json = bool(getattr(args, "json", False))
+
+    def say(self, text: str = "") -> None:
+        if not self.quiet:
+            print(text, file=sys.stderr if self.json else sys.stdout, flush=True)
+
+    def result(self, text: str, data: object) -> None:
+        """The command's result: ``text`` for people, or ``data`` as JSON."""
+        if self.json:
+            print(json.dumps(strict_json(data), indent=2))
+        else:
+            print(text)
+
+    def bar(self, total: int, unit: str, desc: str | None = None) -> tqdm[NoReturn]:
+        """A progress bar of ``total`` steps (hidden with ``--quiet``)."""
+        from tqdm.auto import tqdm
+
+        return tqdm(total=total, unit=unit, desc=desc, disable=self.quiet)
+
+
+class Bars:
+    """The library's progress callbacks (``say``, ``on_start``, ``on_done``) as one tqdm
+    bar per stage; used as a context manager, the last bar is closed on the way out
+    (before any interrupt or error is reported)."""
+
+    def __init__(self, show: Output) -> None:
+        self.show = show
+        self._bar: tqdm[NoReturn] | None = None
+
+    def say(self, text: str) -> None:
+        self.show.say(text)
+
+    def start(self, total: int, unit: str, desc: str | None) -> None:
+        self.close()
+        self._bar = self.show.bar(total, unit, desc)
+
+    def done(self, label: str) -> None:
+        if self._bar is not None:
+            self._bar.set_postfix_str(label)
+            self._bar.update()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self) -> Bars:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def strict_json(value: object) -> object:
+    """``value`` with NaN and infinities as null: strict JSON, which every reader takes."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): strict_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [strict_json(v) for v in value]
+    return value
+
+
+def experiment_result(show: Output, folder: Path, start: float) -> None:
+    """Print a written experiment folder's tables (or, with --json, its metrics)."""
+    show.result(
+        (folder / "table.md").read_text()
+        + f"\nresults written to {folder} in {time.perf_counter() - start:.0f} s",
+        {"folder": str(folder), "metrics": json.loads((folder / "metrics.json").read_text())},
+    )
+
+
+def add_output_flags(parser: argparse.ArgumentParser) -> None:
+    """--quiet and --json."""
+    parser.add_argument("--quiet", action="store_true", help="no progress bars or messages")
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print the result as one JSON document on stdout (messages go to stderr)",
+    )
+
+
+def add_monte_carlo_args(parser: argparse.ArgumentParser) -> None:
+    """--runs, --seed and --threads, as reproduce and simulate take them."""
+    parser.add_argument(
+        "--runs",
+        metavar="N",
+        type=int,
+        default=100,
+        help="Monte Carlo runs per strategy (default 100)",
+    )
+    parser.add_argument(
+        "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
+    )
+    parser.add_argument(
+        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
+    )
+
+
+def add_tuning_period(parser: argparse.ArgumentParser) -> None:
+    """--tuning-period."""
+    parser.add_argument(
+        "--tuning-period",
+        metavar="SECONDS",
+        type=float,
+        default=1.0,
+        help="seconds between regressor calls in the learned rows (default 1 s)",
+    )
+
+
+def add_dataset_args(parser: argparse.ArgumentParser) -> None:
+    """--dataset and --data-seed, as train and evaluate take them."""
+    parser.add_argument(
+        "--dataset",
+        metavar="FILE",
+        default=None,
+        help="dataset .npz (default: regenerate from --data-seed)",
+    )
+    parser.add_argument(
+        "--data-seed",
+        metavar="N",
+        type=int,
+        default=0,
+        help="seed of the regenerated dataset (default 0)",
+    )
+
+
+def dataset_for(args: argparse.Namespace) -> tuple[Dataset, DatasetParams]:
+    """The dataset named by ``--dataset``, or the default one regenerated from
+    ``--data-seed``."""
+    from pronet import dataset
+
+    if args.dataset:
+        return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
+    params = dataset.DatasetParams(seed=args.data_seed)
+    Output(args).say(f"generating the dataset (seed {params.seed}) ...")
+    return dataset.build_dataset(params), params

@@ -1,0 +1,64 @@
+"""``pronet info``: versions, cores and threads, where the weights live, trajectories."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+import pronet
+from pronet import _core
+from pronet.cli._common import Subparsers
+
+
+def add_parser(sub: Subparsers) -> None:
+    parser = sub.add_parser(
+        "info", help="versions, cores and threads, where the weights live, trajectories"
+    )
+    parser.add_argument("--json", action="store_true", help="print it as JSON, for scripts")
+    parser.set_defaults(func=run)
+
+
+def _version_of(package: str) -> str | None:
+    """The installed version of ``package``, or None; without importing it."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return None
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy
+    import torch
+
+    from pronet import modelfile, models
+
+    info: dict[str, object] = {
+        "pronet": pronet.__version__,
+        "native_core": _core.__version__,
+        "python": sys.version.split()[0],
+        "numpy": numpy.__version__,
+        "torch": torch.__version__,
+        "cores": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "ray": _version_of("ray"),
+        "weights": str(modelfile.SHIPPED_DIR),
+        "shipped_models": list(models.SHIPPED),
+        "trajectories": list(_core.builtin_trajectory_names()),
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"pronet {info['pronet']} (native core {info['native_core']})")
+    print(f"python {info['python']}, numpy {info['numpy']}, torch {info['torch']}")
+    print(
+        f"cores: {info['cores']}  (Monte Carlo threads default to all of them; "
+        f"torch uses {info['torch_threads']})"
+    )
+    print(f"ray: {info['ray'] or 'not installed (pronet sweep --engine ray needs it)'}")
+    print(f"shipped models: {', '.join(models.SHIPPED)} in {info['weights']}")
+    print(f"built-in trajectories: {', '.join(_core.builtin_trajectory_names())}")
+    return 0

@@ -1,0 +1,92 @@
+"""``pronet real``: every strategy on recorded INS/DVL sections
+(:func:`pronet.realdata.run_real`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from pronet.alignment import FORMATS, SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+from pronet.cli._common import Bars, Output, Subparsers, add_output_flags, add_tuning_period
+
+
+def _vector3(text: str) -> tuple[float, float, float]:
+    """``x,y,z`` as three floats [m], or the error argparse reports."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected x,y,z in metres, got {text!r}") from None
+    if len(values) != 3:
+        raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
+    return values[0], values[1], values[2]
+
+
+def add_parser(sub: Subparsers) -> None:
+    parser = sub.add_parser(
+        "real",
+        help="run every strategy on recorded INS/DVL sections (e.g. the Snapir AUV data)",
+    )
+    parser.add_argument(
+        "--data",
+        metavar="DIR",
+        required=True,
+        help="folder of sections, or one section (never copied)",
+    )
+    parser.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="snapir",
+        help="snapir: the published layout; generic: see pronet.recordings (default snapir)",
+    )
+    parser.add_argument(
+        "--sections", metavar="LIST", default=None, help="comma-separated section names"
+    )
+    parser.add_argument(
+        "--imu-lever-arm",
+        metavar="X,Y,Z",
+        type=_vector3,
+        default=SNAPIR_IMU_LEVER_ARM,
+        help="IMU position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
+    )
+    parser.add_argument(
+        "--dvl-lever-arm",
+        metavar="X,Y,Z",
+        type=_vector3,
+        default=SNAPIR_DVL_LEVER_ARM,
+        help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
+    )
+    add_tuning_period(parser)
+    parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
+    parser.add_argument(
+        "--out", metavar="PATH", default=None, help="result folder (default results/real-<time>)"
+    )
+    add_output_flags(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pronet.realdata import run_real
+
+    show = Output(args)
+    start = time.perf_counter()
+    with Bars(show) as bars:
+        out = run_real(
+            args.data,
+            args.out,
+            fmt=args.format,
+            sections=args.sections.split(",") if args.sections else None,
+            imu_lever_arm=args.imu_lever_arm,
+            dvl_lever_arm=args.dvl_lever_arm,
+            tuning_period=args.tuning_period,
+            use_models=not args.no_models,
+            on_start=bars.start,
+            on_done=bars.done,
+        )
+    n = len(json.loads((out / "config.json").read_text())["sections"])
+    show.result(
+        f"{(out / 'table.md').read_text()}\n{n} sections; results written to {out} in "
+        f"{time.perf_counter() - start:.0f} s",
+        {"folder": str(out), "metrics": json.loads((out / "metrics.json").read_text())},
+    )
+    return 0

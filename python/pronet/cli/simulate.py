@@ -1,0 +1,87 @@
+"""``pronet simulate``: chosen strategies on one scenario (:mod:`pronet.simulation`)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from pronet.cli._common import (
+    Bars,
+    Output,
+    Subparsers,
+    add_monte_carlo_args,
+    add_output_flags,
+    add_tuning_period,
+    experiment_result,
+)
+from pronet.paper import PAPER_ROWS
+
+
+def add_parser(sub: Subparsers) -> None:
+    parser = sub.add_parser(
+        "simulate",
+        help="Monte Carlo of chosen strategies on one scenario (built-in or TOML file)",
+        description="Run strategies on the same simulated noise realizations and write "
+        "a result folder (table, metrics, plots). Scenario and filter files: see "
+        "pronet.config (docs/api.md).",
+    )
+    parser.add_argument(
+        "--scenario",
+        metavar="NAME|FILE",
+        default="paper",
+        help="built-in scenario (paper, varying-noise) or a scenario .toml file (default paper)",
+    )
+    parser.add_argument(
+        "--filter",
+        metavar="FILE",
+        default=None,
+        help="filter configuration .toml replacing the scenario's",
+    )
+    parser.add_argument(
+        "--strategies",
+        metavar="SPECS",
+        default=",".join(PAPER_ROWS.values()),
+        help="comma-separated specs: constant[:FACTOR on q], mehra:WINDOW [DVL updates], "
+        "learned:MODEL (shipped name or model file) (default: the paper's seven rows)",
+    )
+    add_monte_carlo_args(parser)
+    parser.add_argument(
+        "--record-every",
+        metavar="SECONDS",
+        type=float,
+        default=1.0,
+        help="seconds between the saved history samples the plots use (default 1 s)",
+    )
+    add_tuning_period(parser)
+    parser.add_argument(
+        "--out",
+        metavar="PATH",
+        default=None,
+        help="result folder (default results/simulate-<time>)",
+    )
+    add_output_flags(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pronet.simulation import simulate
+
+    show = Output(args)
+    start = time.perf_counter()
+    with Bars(show) as bars:
+        folder = simulate(
+            args.scenario,
+            args.strategies.split(","),
+            args.out,
+            filter_config=args.filter,
+            n_runs=args.runs,
+            seed=args.seed,
+            threads=args.threads,
+            record_every=args.record_every,
+            tuning_period=args.tuning_period,
+            say=bars.say,
+            on_start=bars.start,
+            on_done=bars.done,
+        )
+    experiment_result(show, folder, start)
+    return 0

@@ -1,0 +1,55 @@
+"""``pronet train``: train noise regressors; safetensors weights + JSON card each."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
+
+
+def add_parser(sub: Subparsers) -> None:
+    parser = sub.add_parser(
+        "train", help="train a noise regressor and write safetensors weights + JSON card"
+    )
+    add_dataset_args(parser)
+    parser.set_defaults(func=run)
+    add_output_flags(parser)
+    parser.add_argument(
+        "--model",
+        choices=("baseline", "detrend", "hcf", "all"),
+        default="all",
+        help="which regressor to train (default all three)",
+    )
+    parser.add_argument(
+        "--out", metavar="PATH", default="models", help="output folder (default models/)"
+    )
+    parser.add_argument(
+        "--seed", metavar="N", type=int, default=0, help="training seed (default 0)"
+    )
+    parser.add_argument(
+        "--max-epochs",
+        metavar="N",
+        type=int,
+        default=20,
+        help="epoch limit for the nets (default 20)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from pronet import training
+
+    kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
+    hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
+    ds, params = dataset_for(args)
+    out = Output(args)
+    reports: dict[str, dict[str, Any]] = {}
+    for kind in kinds:
+        start = time.perf_counter()
+        reports[kind] = training.train_and_save(
+            kind, ds, params, args.out, hp=hp, progress=not out.quiet
+        )
+        out.say(f"{kind}: trained in {time.perf_counter() - start:.0f} s -> {args.out}/{kind}.*")
+    out.result(training.scores_table(reports), {"folder": str(args.out), "models": reports})
+    return 0
