@@ -46,8 +46,8 @@ def test_the_docs_pages_have_python_to_run() -> None:
 
 
 def _python_md(ns: dict) -> None:
-    n_epochs = len(ns["mine"].time)
-    assert ns["res"].error.shape == (10, n_epochs, 15)  # record_every=100: every second
+    assert ns["mine"].time[-1] == 75.0  # 30 s + 45 s of segments
+    assert ns["res"].error.shape == ns["res"].sigma.shape == (10, 76, 15)  # every 1 s
     assert ns["out"].nis.shape == (10,)  # one NIS per DVL reading
 
 
