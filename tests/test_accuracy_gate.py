@@ -28,7 +28,7 @@ def test_fresh_runs_match_the_recorded_baselines(fresh):
 
 
 def test_readme_tables_are_generated_from_the_file():
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "accuracy.md").read_text()
     assert baselines.readme_with_tables(readme, baselines.load(FILE)) == readme
 
 
@@ -93,7 +93,7 @@ def test_the_baselines_command_checks_and_blesses(fresh, tmp_path, monkeypatch, 
     baselines.save(copy_file, altered)
     assert cli.main(["baselines", "--file", str(copy_file), *data]) == 1
     assert "srmse worse" in capsys.readouterr().out
-    readme.write_text((ROOT / "README.md").read_text())
+    readme.write_text((ROOT / "docs" / "accuracy.md").read_text())
     bless = ["baselines", "--bless", "--file", str(copy_file), "--readme", str(readme)]
     assert cli.main([*bless, *data]) == 0
     assert cli.main(["baselines", "--file", str(copy_file), *data]) == 0

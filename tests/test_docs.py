@@ -1,5 +1,6 @@
-"""The documentation: docs/api.md matches the docstrings, and every relative link in
-the Markdown pages points to a file that exists."""
+"""The documentation: docs/api.md matches the docstrings, every relative link in the
+Markdown pages points to a file that exists (and to a heading that exists, when it
+names one), and every page is reachable from the README."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ import pronet
 
 ROOT = Path(__file__).resolve().parents[1]
 API = ROOT / "docs" / "api.md"
-PAGES = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+#: Every Markdown page of the project: the top-level ones and everything under docs/.
+PAGES = sorted(ROOT.glob("*.md")) + sorted((ROOT / "docs").rglob("*.md"))
 #: ``[text](target)`` or ``[text](target "title")``; images (``![alt](…)``) included.
 LINK = re.compile(r"\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
 FENCE = re.compile(r"^(```|~~~).*?^\1", flags=re.S | re.M)
@@ -56,6 +58,39 @@ def relative_links(text: str) -> list[str]:
     return targets
 
 
+def link_targets(text: str) -> list[tuple[str, str]]:
+    """``(path, anchor)`` of every link of a Markdown text that is not a web or mail
+    address, outside code: path "" for an anchor on the same page, anchor "" for none."""
+    prose = INLINE_CODE.sub("", FENCE.sub("", text))
+    targets = []
+    for target in LINK.findall(prose):
+        if re.match(r"[a-zA-Z][a-zA-Z0-9+.-]*:", target):
+            continue
+        path, _, anchor = re.split(r"\?", target, maxsplit=1)[0].partition("#")
+        targets.append((path, anchor))
+    return targets
+
+
+def slug(heading: str) -> str:
+    """GitHub's anchor for a heading: lower case, Markdown emphasis and code marks and
+    punctuation dropped (letters, digits, ``_`` and ``-`` kept), spaces to hyphens."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading)  # a link: its text
+    text = re.sub(r"[^\w\- ]", "", text.lower())
+    return text.replace(" ", "-")
+
+
+def anchors(text: str) -> set[str]:
+    """The anchors of a Markdown page's headings; a repeated one gets -1, -2, …"""
+    seen: dict[str, int] = {}
+    found = set()
+    for m in re.finditer(r"^#{1,6}\s+(.+?)\s*#*\s*$", FENCE.sub("", text), flags=re.M):
+        base = slug(m.group(1))
+        n = seen.get(base, 0)
+        seen[base] = n + 1
+        found.add(base if n == 0 else f"{base}-{n}")
+    return found
+
+
 def test_api_reference_is_up_to_date() -> None:
     expected = _api_docs().generate()
     assert API.exists(), "docs/api.md is missing; run python scripts/api_docs.py"
@@ -84,11 +119,51 @@ def test_relative_links_point_to_existing_files(page: Path) -> None:
     assert not broken, f"{page.relative_to(ROOT)}: broken links {broken}"
 
 
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_anchors_point_to_existing_headings(page: Path) -> None:
+    broken = []
+    for path, anchor in link_targets(page.read_text(encoding="utf-8")):
+        target = page if not path else page.parent / path
+        if anchor and target.suffix == ".md" and target.exists():
+            if anchor not in anchors(target.read_text(encoding="utf-8")):
+                broken.append(f"{path}#{anchor}")
+    assert not broken, f"{page.relative_to(ROOT)}: links to missing headings {broken}"
+
+
+def test_every_page_is_reachable_from_the_readme() -> None:
+    readme = ROOT / "README.md"
+    reached, todo = {readme}, [readme]
+    while todo:
+        page = todo.pop()
+        for path, _ in link_targets(page.read_text(encoding="utf-8")):
+            target = (page.parent / path).resolve()
+            if path and target.suffix == ".md" and target.exists() and target not in reached:
+                reached.add(target)
+                todo.append(target)
+    unreached = [str(p.relative_to(ROOT)) for p in PAGES if p.resolve() not in reached]
+    assert not unreached, f"no link path from README.md to {unreached}"
+
+
+def test_anchors() -> None:
+    assert (
+        slug("`pronet reproduce` and `pronet simulate`") == "pronet-reproduce-and-pronet-simulate"
+    )
+    assert slug("Error state (15), closed loop") == "error-state-15-closed-loop"
+    assert slug("Real AUV data (Snapir)") == "real-auv-data-snapir"
+    text = "# A\n## Notes\n```\n# not a heading\n```\n### Notes\n"
+    assert anchors(text) == {"a", "notes", "notes-1"}
+    links = "[a](x.md#part) [b](#here) [c](y.md) [d](https://e.org/#x) `[e](z.md#q)`"
+    assert link_targets(links) == [("x.md", "part"), ("", "here"), ("y.md", "")]
+
+
 def test_the_pages_have_relative_links_to_check() -> None:
     # The link check must see real links, or it passes vacuously.
     assert "docs/filter.md" in relative_links((ROOT / "README.md").read_text(encoding="utf-8"))
     concepts = relative_links((ROOT / "docs" / "concepts.md").read_text(encoding="utf-8"))
     assert {"filter.md", "api.md", "../README.md"} <= set(concepts)
+    anchored = link_targets((ROOT / "README.md").read_text(encoding="utf-8"))
+    assert ("docs/concepts.md", "frames-and-units") in anchored
+    assert {p.name for p in PAGES} >= {"README.md", "index.md", "accuracy.md", "cli.md"}
 
 
 def test_link_parser() -> None:
