@@ -15,13 +15,6 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from synthetic_recording import (
-    DVL_CLOCK,
-    DVL_LEVER_ARM,
-    GT_CLOCK,
-    IMU_LEVER_ARM,
-    synthetic_recording,
-)
 
 import pronet
 from pronet import realdata
@@ -39,6 +32,14 @@ from pronet.recordings import (
     read_recording,
     read_snapir,
     write_recording,
+)
+
+from synthetic_recording import (
+    DVL_CLOCK,
+    DVL_LEVER_ARM,
+    GT_CLOCK,
+    IMU_LEVER_ARM,
+    synthetic_recording,
 )
 
 #: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.

@@ -16,7 +16,7 @@ from typing import Any
 
 import pronet
 from pronet import _core, experiment
-from pronet._files import atomic_folder, atomic_write
+from pronet._files import atomic_folder
 from pronet._validate import threads as threads_arg
 from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 from pronet.shards import ShardStore
@@ -619,32 +619,6 @@ def _sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def _baselines(args: argparse.Namespace) -> int:
-    from pronet import baselines
-
-    path, readme = Path(args.file), Path(args.readme)
-    start = time.perf_counter()
-    recorded = baselines.load(path) if path.exists() or not args.bless else {}
-    data = Path(args.data)
-    rows = baselines.fresh_rows(data)
-    if not data.is_dir():
-        print(
-            f"no recorded data at {data}: simulated rows only (the recorded real rows are "
-            "not compared, and --bless keeps them as they are)"
-        )
-    if args.bless:
-        rows = baselines.rows_to_bless(recorded, rows)
-        baselines.save(path, rows)
-        atomic_write(readme, baselines.readme_with_tables(readme.read_text(), rows).encode())
-        print(f"{path} and the tables in {readme} rewritten from {len(rows)} scenarios")
-        return 0
-    problems = baselines.compare(recorded, rows)
-    for p in problems:
-        print(p)
-    print(f"{len(problems)} departures from {path} ({time.perf_counter() - start:.0f} s)")
-    return 1 if problems else 0
-
-
 def _add_output_flags(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars or messages")
     parser.add_argument(
@@ -908,24 +882,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_output_flags(swp)
     swp.set_defaults(func=_sweep)
-    base = sub.add_parser(
-        "baselines",
-        help="check the accuracy baselines, or rewrite them and the README tables (--bless)",
-    )
-    base.add_argument("--bless", action="store_true", help="rewrite the file and README tables")
-    base.add_argument(
-        "--file", metavar="JSON", default="tests/accuracy_baselines.json", help="baselines JSON"
-    )
-    base.add_argument(
-        "--readme", metavar="MD", default="README.md", help="README whose tables to regenerate"
-    )
-    base.add_argument(
-        "--data",
-        metavar="DIR",
-        default="../shared/data/snapir",
-        help="Snapir data folder (used if present)",
-    )
-    base.set_defaults(func=_baselines)
     return parser
 
 
