@@ -1,18 +1,20 @@
-"""The accuracy gate: fresh runs against the pinned baselines, in both directions, and
-the README tables generated from the same file."""
+"""The accuracy gate (``tests/accuracy_gate.py``): fresh runs against the pinned
+baselines, in both directions, and the tables of ``docs/accuracy.md`` generated from the
+same file."""
 
 from __future__ import annotations
 
 import copy
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
-from test_realdata import SNAPIR
 
-from pronet import baselines
+import accuracy_gate as baselines
+from accuracy_gate import FILE, PAGE, SNAPIR
 
 ROOT = Path(__file__).resolve().parents[1]
-FILE = ROOT / "tests" / "accuracy_baselines.json"
 
 
 @pytest.fixture(scope="module")
@@ -20,6 +22,7 @@ def fresh() -> baselines.Rows:
     return baselines.fresh_rows(SNAPIR)
 
 
+@pytest.mark.slow
 def test_fresh_runs_match_the_recorded_baselines(fresh):
     recorded = baselines.load(FILE)
     assert {"paper, 8 runs", "varying-noise, 8 runs"} <= set(recorded)
@@ -27,11 +30,18 @@ def test_fresh_runs_match_the_recorded_baselines(fresh):
     assert baselines.compare(recorded, fresh) == []
 
 
-def test_readme_tables_are_generated_from_the_file():
-    readme = (ROOT / "docs" / "accuracy.md").read_text()
-    assert baselines.readme_with_tables(readme, baselines.load(FILE)) == readme
+def test_the_accuracy_page_tables_are_generated_from_the_file():
+    page = PAGE.read_text()
+    assert baselines.BEGIN in page and baselines.END in page
+    assert baselines.page_with_tables(page, baselines.load(FILE)) == page
 
 
+def test_a_page_without_markers_is_refused():
+    with pytest.raises(ValueError, match="^page: has no accuracy-baselines markers"):
+        baselines.page_with_tables("# no tables here\n", baselines.load(FILE))
+
+
+@pytest.mark.slow
 def test_the_gate_fails_both_ways(fresh):
     recorded = baselines.load(FILE)
     row = ("paper, 8 runs", "constant (true q)")
@@ -77,26 +87,47 @@ def test_baseline_file_is_checked():
         baselines.load(ROOT / "python" / "pronet" / "weights" / "detrend.json")
 
 
-def test_the_baselines_command_checks_and_blesses(fresh, tmp_path, monkeypatch, capsys):
-    """`pronet baselines` on the rows computed above: it passes against the file, fails
-    (exit 1) against an altered copy, and --bless rewrites the file and the README's
-    tables from fresh rows."""
-    from pronet import cli
-
+@pytest.mark.slow
+def test_the_gate_script_checks_and_blesses(fresh, tmp_path, monkeypatch, capsys):
+    """``main`` on the rows computed above: it passes against the file, fails (exit 1)
+    against an altered copy, and --bless rewrites the file and the page's tables from
+    fresh rows."""
     monkeypatch.setattr(baselines, "fresh_rows", lambda data: fresh)
     data = ["--data", str(SNAPIR)]
-    assert cli.main(["baselines", "--file", str(FILE), *data]) == 0
+    assert baselines.main(["--file", str(FILE), *data]) == 0
     assert "0 departures" in capsys.readouterr().out
     altered = baselines.load(FILE)
     altered["paper, 8 runs"]["constant (true q)"]["srmse"] *= 0.9
-    copy_file, readme = tmp_path / "baselines.json", tmp_path / "README.md"
+    copy_file, page = tmp_path / "baselines.json", tmp_path / "accuracy.md"
     baselines.save(copy_file, altered)
-    assert cli.main(["baselines", "--file", str(copy_file), *data]) == 1
+    assert baselines.main(["--file", str(copy_file), *data]) == 1
     assert "srmse worse" in capsys.readouterr().out
-    readme.write_text((ROOT / "docs" / "accuracy.md").read_text())
-    bless = ["baselines", "--bless", "--file", str(copy_file), "--readme", str(readme)]
-    assert cli.main([*bless, *data]) == 0
-    assert cli.main(["baselines", "--file", str(copy_file), *data]) == 0
-    assert readme.read_text() == baselines.readme_with_tables(
-        readme.read_text(), baselines.load(copy_file)
+    page.write_text(PAGE.read_text())
+    bless = ["--bless", "--file", str(copy_file), "--page", str(page)]
+    assert baselines.main([*bless, *data]) == 0
+    assert baselines.main(["--file", str(copy_file), *data]) == 0
+    assert page.read_text() == baselines.page_with_tables(
+        page.read_text(), baselines.load(copy_file)
     )
+    row = ("paper, 8 runs", "constant (true q)")
+    assert baselines.load(copy_file)[row[0]][row[1]]["srmse"] == fresh[row[0]][row[1]]["srmse"]
+
+
+def test_bless_takes_no_partial_gate(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        baselines.main(["--bless", "--strategies", "constant (true q)"])
+    assert exit_.value.code == 2
+    assert "takes no --strategies" in capsys.readouterr().err
+
+
+def test_the_gate_runs_as_a_script():
+    """``python tests/accuracy_gate.py`` is the documented entry point: it parses its
+    arguments there (and the package no longer ships the gate)."""
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "tests" / "accuracy_gate.py"), "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert "--bless" in out.stdout and "docs/accuracy.md" in out.stdout
+    assert not (ROOT / "python" / "pronet" / "baselines.py").exists()

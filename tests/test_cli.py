@@ -38,6 +38,7 @@ def reproduced(tmp_path_factory) -> tuple[Path, str]:
     return out, printed.getvalue()
 
 
+@pytest.mark.slow
 def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
     out, printed = reproduced
     assert "constant (true q)" in printed and "1.082" in printed and "detrend net" in printed
@@ -93,6 +94,7 @@ def test_reproduce_rejects_bad_run_count(capsys) -> None:
         cli.main(["reproduce", "--runs", "many"])
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_finished_shards_and_resume_redoes_none_of_them(
     tmp_path, capsys, monkeypatch, reproduced
 ) -> None:
@@ -148,6 +150,7 @@ innovation_gate = 16.27
 """
 
 
+@pytest.mark.slow
 def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) -> None:
     scenario = tmp_path / "short.toml"
     scenario.write_text(SHORT_SCENARIO)
@@ -290,6 +293,7 @@ def test_sweep_errors_name_the_file_and_key(tmp_path, capsys) -> None:
     assert not out.exists() and not (tmp_path / "sw.partial").exists()
 
 
+@pytest.mark.slow
 def test_dataset_train_and_evaluate_on_a_small_dataset(tmp_path, capsys) -> None:
     data = tmp_path / "small.npz"
     assert cli.main(["dataset", "--out", str(data), "--levels", "1", "--json"]) == 0

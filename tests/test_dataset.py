@@ -54,6 +54,7 @@ def test_windows_are_ideal_imu_plus_noise_of_the_label_variance(ds) -> None:
         assert (resid**2).sum(axis=1).mean() / 198 == pytest.approx(q, rel=0.02)
 
 
+@pytest.mark.slow
 def test_same_seed_same_bytes_and_different_seed_differs(tmp_path) -> None:
     a = save_dataset(
         build_dataset(DatasetParams(seed=3)), tmp_path / "a.npz", DatasetParams(seed=3)

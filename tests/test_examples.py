@@ -30,6 +30,7 @@ def test_every_example_is_tested() -> None:
     ]
 
 
+@pytest.mark.slow
 def test_custom_trajectory() -> None:
     out = run("custom_trajectory.py", "--runs", "3").splitlines()
     assert out[0].startswith("survey: 404 s, 40400 IMU samples")
@@ -38,12 +39,14 @@ def test_custom_trajectory() -> None:
     assert "failed 0, diverged 0" in out[1]
 
 
+@pytest.mark.slow
 def test_own_regressor() -> None:
     out = run("own_regressor.py", "--runs", "2").splitlines()
     assert [line.split()[0] for line in out] == ["difference", "detrend"]
     assert all("328 tunings" in line for line in out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("periods", [["1", "5"]])
 def test_sweep_tuning_period(periods) -> None:
     out = run("sweep_tuning_period.py", "--runs", "2", "--periods", *periods).splitlines()

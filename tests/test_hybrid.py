@@ -97,6 +97,7 @@ def test_bad_regressors_are_refused(paper_trajectory) -> None:
         run_hybrid(ConstantRegressor(PAPER_Q), paper_trajectory, prior_q=[1.0], n_runs=2)
 
 
+@pytest.mark.slow
 def test_shipped_models_plug_in(paper_trajectory) -> None:
     from pronet import models
 

@@ -130,6 +130,7 @@ def _subset(ds: Dataset, idx: np.ndarray) -> Dataset:
     return Dataset(*(getattr(ds, f.name)[idx] for f in dataclasses.fields(Dataset)))
 
 
+@pytest.mark.slow
 def test_small_training_run_lowers_the_loss(default_dataset) -> None:
     rng = np.random.default_rng(5)
     small = _subset(
@@ -153,6 +154,7 @@ def test_scores() -> None:
     assert s["r2"] == pytest.approx(1 - 0.02 / 2)
 
 
+@pytest.mark.slow
 def test_training_refuses_bad_hyperparameters_and_leaves_torch_as_it_was(default_dataset) -> None:
     before = torch.are_deterministic_algorithms_enabled()
     with pytest.raises(ValueError, match="max_epochs: must be at least 1"):

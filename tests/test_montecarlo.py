@@ -29,6 +29,7 @@ def test_dvl_aiding_keeps_velocity_error_below_the_dvl_alone(paper_trajectory) -
     assert paper.summary()["srmse"].mean > 2 * r.summary()["srmse"].mean
 
 
+@pytest.mark.slow
 def test_filter_is_consistent_when_sensors_match_its_model(paper_trajectory) -> None:
     """100 runs with white noise q, bias random walk of the filter's epsilon, DVL
     noise R and initial errors from P0: the run-averaged NIS and velocity NEES lie in

@@ -34,6 +34,7 @@ def pages_with_python() -> list[Path]:
     ]
 
 
+@pytest.mark.slow
 def test_readme_quick_start_runs() -> None:
     namespace = run_blocks(README)
     assert namespace["res"].summary()["srmse"].mean < 0.1

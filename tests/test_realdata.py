@@ -15,13 +15,6 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from synthetic_recording import (
-    DVL_CLOCK,
-    DVL_LEVER_ARM,
-    GT_CLOCK,
-    IMU_LEVER_ARM,
-    synthetic_recording,
-)
 
 import pronet
 from pronet import alignment, realdata
@@ -41,6 +34,14 @@ from pronet.recordings import (
 )
 from pronet.results import RUN_COLUMNS
 from pronet.strategies import Learned
+
+from synthetic_recording import (
+    DVL_CLOCK,
+    DVL_LEVER_ARM,
+    GT_CLOCK,
+    IMU_LEVER_ARM,
+    synthetic_recording,
+)
 
 #: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
 SNAPIR = Path(
@@ -332,6 +333,7 @@ def test_learned_row_with_a_constant_regressor_equals_the_constant_row(synthetic
 # ---------------------------------------------------------------- the CLI
 
 
+@pytest.mark.slow
 def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     data = tmp_path / "data"
     for i in (1, 2):
@@ -390,6 +392,7 @@ def test_recorded_data_never_enters_the_project():
     assert tracked == []
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not SNAPIR.is_dir(), reason="the Snapir data is not on this machine")
 def test_snapir_accuracy_matches_a_standard_ekf():
     """Constant Q on sections 1–11: mean velocity SRMSE ≤ 0.047 m/s and mean final
@@ -445,6 +448,7 @@ def test_run_filter_checks_its_q_schedule(synthetic):
     cut=st.floats(0.0, 1.0),
     noise=st.binary(max_size=64),
 )
+@pytest.mark.slow
 def test_hostile_files_read_or_raise_naming_the_file(tmp_path_factory, synthetic, kind, cut, noise):
     """A CSV truncated anywhere and followed by arbitrary bytes: read correctly, or a
     RecordingError (a ValueError) naming the file; never another exception."""

@@ -9,6 +9,9 @@ import pytest
 from pronet import models, training
 from pronet.dataset import DatasetParams, dataset_sha256
 
+#: Every test here scores the shipped nets on the regenerated default dataset (~20 s).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def reports(default_dataset):

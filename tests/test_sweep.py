@@ -199,6 +199,7 @@ def test_close_grid_values_stay_separate_points(grid, tmp_path) -> None:
         sweep.plan(twice)
 
 
+@pytest.mark.slow
 def test_the_ray_engine_gives_exactly_the_local_numbers(grid, local) -> None:
     on_ray = sweep.run_sweep(grid, engine="ray", threads=1)
     assert [p.point for p in on_ray.points] == [p.point for p in local.points]
@@ -211,6 +212,7 @@ def test_the_ray_engine_gives_exactly_the_local_numbers(grid, local) -> None:
     pd.testing.assert_frame_equal(on_ray.to_dataframe(), local.to_dataframe())
 
 
+@pytest.mark.slow
 def test_a_failing_shard_on_ray_names_the_shard(tmp_path) -> None:
     """A model file the workers cannot read (say, absent on a cluster node): the error
     names the shard, and finished shards stay in the store for a resume."""

@@ -1,4 +1,10 @@
-"""Accuracy baselines: pinned accuracy and consistency figures, checked in both directions.
+"""The accuracy gate: pinned accuracy and consistency figures, checked in both directions.
+
+A developer tool beside the tests, not part of the package: ``tests/test_accuracy_gate.py``
+runs it, and so can you::
+
+    python tests/accuracy_gate.py            # check; exit 1 on any departure
+    python tests/accuracy_gate.py --bless    # rewrite the JSON and docs/accuracy.md's tables
 
 Each row (scenario × strategy) records velocity SRMSE and SMAE, final and maximum
 horizontal position error, mean NIS, mean velocity NEES, the fraction of velocity
@@ -14,22 +20,33 @@ from their consistent values (3 and 0.9973). With fixed seeds on one machine the
 repeat to floating-point noise (the Rust core is deterministic across thread counts;
 the nets run in float32), so the tolerances are small.
 
-Re-blessing (``pronet baselines --bless``) rewrites the file and the README's tables;
-it is legitimate only when a change is *meant* to move the numbers (a fixed bug, a
-better discretization, a new scenario), and the commit says why.
+Re-blessing (``--bless``) rewrites the file and the tables in ``docs/accuracy.md``; it
+is legitimate only when a change is *meant* to move the numbers (a fixed bug, a better
+discretization, a new scenario), and the commit says why.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import os
 import re
+import sys
+import time
 from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from pronet._files import atomic_write
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The pinned figures, and the page whose tables are generated from them.
+FILE = ROOT / "tests" / "accuracy_baselines.json"
+PAGE = ROOT / "docs" / "accuracy.md"
+#: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
+SNAPIR = Path(os.environ.get("PRONET_SNAPIR_DIR", ROOT.parent / "shared" / "data" / "snapir"))
 
 #: Monte Carlo runs per simulated row in the gate.
 GATE_RUNS = 8
@@ -290,7 +307,7 @@ def save(path: str | Path, rows: Rows) -> Path:
     doc = {
         "format": "pronet-accuracy-baselines",
         "version": 1,
-        "about": "pinned accuracy figures; regenerate with `pronet baselines --bless`",
+        "about": "pinned accuracy figures; regenerate with `python tests/accuracy_gate.py --bless`",
         "gate_runs": GATE_RUNS,
         "worse_tolerance": WORSE_TOLERANCE,
         "better_tolerance": BETTER_TOLERANCE,
@@ -318,7 +335,7 @@ def _is_nan(value: float) -> bool:
 
 
 def markdown(rows: Mapping[str, Mapping[str, Row]]) -> str:
-    """The README's accuracy tables, generated from the baselines."""
+    """The accuracy tables of ``docs/accuracy.md``, generated from the baselines."""
     out = []
     for scenario, table in rows.items():
         out.append(f"#### {scenario}\n")
@@ -334,9 +351,82 @@ def markdown(rows: Mapping[str, Mapping[str, Row]]) -> str:
 BEGIN, END = "<!-- accuracy-baselines:begin -->", "<!-- accuracy-baselines:end -->"
 
 
-def readme_with_tables(readme: str, rows: Rows) -> str:
-    """``readme`` with the text between the baseline markers replaced by the tables."""
+def page_with_tables(page: str, rows: Rows) -> str:
+    """``page`` (Markdown text) with the text between the baseline markers replaced by the
+    tables."""
     pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
-    if not pattern.search(readme):
-        raise ValueError("readme: has no accuracy-baselines markers")
-    return pattern.sub(lambda _: f"{BEGIN}\n{markdown(rows)}{END}", readme)
+    if not pattern.search(page):
+        raise ValueError("page: has no accuracy-baselines markers")
+    return pattern.sub(lambda _: f"{BEGIN}\n{markdown(rows)}{END}", page)
+
+
+def partial_rows(strategies: Collection[str]) -> Rows:
+    """A quick partial gate: the at-rest row and the named strategy labels of both
+    simulated scenarios (no recorded data)."""
+    rows = at_rest_rows()
+    rows.update(simulated_rows(strategies=strategies))
+    return rows
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python tests/accuracy_gate.py",
+        description="Check fresh runs against the pinned accuracy baselines (exit 1 on any "
+        "departure), or rewrite the baselines and the tables of docs/accuracy.md (--bless).",
+    )
+    p.add_argument("--bless", action="store_true", help="rewrite the file and the page's tables")
+    p.add_argument("--file", metavar="JSON", type=Path, default=FILE, help="baselines JSON")
+    p.add_argument(
+        "--page", metavar="MD", type=Path, default=PAGE, help="page whose tables to regenerate"
+    )
+    p.add_argument(
+        "--data",
+        metavar="DIR",
+        type=Path,
+        default=SNAPIR,
+        help="Snapir data folder, used if present (default: $PRONET_SNAPIR_DIR, else "
+        "../shared/data/snapir beside the project)",
+    )
+    p.add_argument(
+        "--strategies",
+        metavar="LABELS",
+        help="comma-separated strategy labels: check only these on the simulated scenarios, "
+        "plus the at-rest row, without recorded data (a quick partial gate; not with --bless)",
+    )
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the gate; 0 when nothing departs (or after --bless), 1 otherwise."""
+    import pronet._core
+
+    args = parser().parse_args(argv)
+    if args.bless and args.strategies:
+        parser().error("--bless rewrites every row; it takes no --strategies")
+    start = time.perf_counter()
+    print(f"native core: {pronet._core.__file__}")
+    recorded = load(args.file) if args.file.exists() or not args.bless else {}
+    if args.strategies:
+        rows = partial_rows([s.strip() for s in args.strategies.split(",") if s.strip()])
+    else:
+        rows = fresh_rows(args.data)
+        if not args.data.is_dir():
+            print(
+                f"no recorded data at {args.data}: simulated rows only (the recorded real rows "
+                "are not compared, and --bless keeps them as they are)"
+            )
+    if args.bless:
+        rows = rows_to_bless(recorded, rows)
+        save(args.file, rows)
+        atomic_write(args.page, page_with_tables(args.page.read_text(), rows).encode())
+        print(f"{args.file} and the tables in {args.page} rewritten from {len(rows)} scenarios")
+        return 0
+    problems = compare(recorded, rows)
+    for problem in problems:
+        print(problem)
+    print(f"{len(problems)} departures from {args.file} ({time.perf_counter() - start:.0f} s)")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
