@@ -15,5 +15,7 @@ echo "== cargo test"
 cargo test --quiet
 echo "== ruff"
 "$VENV/bin/ruff" check python tests benches examples scripts
+echo "== mypy (the package's types)"
+"$VENV/bin/python" -m mypy
 echo "== pytest"
 "$VENV/bin/python" -m pytest -q tests

@@ -131,3 +131,14 @@ def test_the_gate_runs_as_a_script():
     )
     assert "--bless" in out.stdout and "docs/accuracy.md" in out.stdout
     assert not (ROOT / "python" / "pronet" / "baselines.py").exists()
+
+
+def test_the_gate_is_a_developer_tool_not_a_user_command(capsys):
+    from pronet import cli
+
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    listed = capsys.readouterr().out
+    assert "reproduce" in listed and "baselines" not in listed
+    package = ROOT / "python" / "pronet"
+    assert not list(package.rglob("baselines.py")) and not list(package.rglob("*gate*.py"))

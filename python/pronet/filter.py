@@ -115,4 +115,4 @@ def run_filter(
         q_time=None if q_time is None else float_array(q_time, "q_time", (None,)),
         q=None if q is None else float_array(q, "q", (None, 6)),
     )
-    return FilterResult(**out)
+    return FilterResult(**out)  # type: ignore[arg-type]  # the stub's dict: arrays and a float

@@ -91,7 +91,7 @@ def trajectory_from_segments(
     """
     if isinstance(segments, Sequence) and any(isinstance(s, Segment) for s in segments):
         segments = [s.as_row() if isinstance(s, Segment) else s for s in segments]
-    rows = float_array(segments, "segments", (None, 4))
+    rows = float_array(segments, "segments", (None, 4))  # type: ignore[arg-type]
     check_type(name, str, "name")
     return _core.trajectory_from_segments(
         rows,
