@@ -15,5 +15,7 @@ echo "== cargo test"
 cargo test --quiet
 echo "== ruff"
 "$VENV/bin/ruff" check python tests benches examples scripts
+echo "== stubtest (python/pronet/_core.pyi against the built module)"
+"$VENV/bin/python" -m mypy.stubtest pronet._core
 echo "== pytest"
 "$VENV/bin/python" -m pytest -q tests
