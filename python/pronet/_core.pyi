@@ -8,7 +8,7 @@ convert array-likes). Every error raises ``ValueError`` starting with the argume
 Heavy calls release the GIL.
 """
 
-from typing import Any, Literal, TypeAlias, final
+from typing import Any, Literal, final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,8 +46,6 @@ MAX_GRAVITY_HEIGHT: float
 #: Largest |latitude| [°] a navigation state may start at (``earth::MAX_LATITUDE_DEG``).
 MAX_LATITUDE_DEG: float
 
-_F64: TypeAlias = NDArray[np.float64]
-
 @final
 class Trajectory:
     """Truth of a trajectory at n + 1 epochs and the ideal IMU over the n intervals."""
@@ -64,22 +62,22 @@ class Trajectory:
     def n_samples(self) -> int:
         """Number of IMU samples n."""
     @property
-    def time(self) -> _F64:
+    def time(self) -> NDArray[np.float64]:
         """``(n+1,)`` epoch times [s], starting at 0."""
     @property
-    def lla(self) -> _F64:
+    def lla(self) -> NDArray[np.float64]:
         """``(n+1, 3)`` latitude, longitude [rad], height [m]."""
     @property
-    def vel_ned(self) -> _F64:
+    def vel_ned(self) -> NDArray[np.float64]:
         """``(n+1, 3)`` NED velocity [m/s]."""
     @property
-    def rpy(self) -> _F64:
+    def rpy(self) -> NDArray[np.float64]:
         """``(n+1, 3)`` roll, pitch, yaw [rad]."""
     @property
-    def imu(self) -> _F64:
+    def imu(self) -> NDArray[np.float64]:
         """``(n, 6)`` ideal IMU; row k covers ``(time[k], time[k+1]]``."""
     @property
-    def segments(self) -> _F64:
+    def segments(self) -> NDArray[np.float64]:
         """``(k, 4)`` rows ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]``."""
     @property
     def speed0(self) -> float:
@@ -90,7 +88,7 @@ def builtin_trajectory_names() -> list[str]:
     """Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`)."""
 
 def trajectory_from_segments(
-    segments: _F64,
+    segments: NDArray[np.float64],
     *,
     lla0: Any,
     speed0: float,
@@ -105,7 +103,9 @@ def normal_gravity(lat: float, h: float = 0.0) -> float:
 def earth_radii(lat: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature [m]."""
 
-def mechanize(imu: _F64, dt: float, lla0: Any, vel0: Any, rpy0: Any) -> dict[str, _F64]:
+def mechanize(
+    imu: NDArray[np.float64], dt: float, lla0: Any, vel0: Any, rpy0: Any
+) -> dict[str, NDArray[np.float64]]:
     """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
     IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
     ValueError naming ``imu, dt, lla0, vel0``."""
@@ -192,7 +192,7 @@ class SensorConfig:
     @property
     def imu_variance_times(self) -> list[float]: ...
     @property
-    def imu_variance(self) -> _F64: ...
+    def imu_variance(self) -> NDArray[np.float64]: ...
     @property
     def imu_bias(self) -> list[float]: ...
     @property
@@ -205,10 +205,10 @@ class SensorConfig:
     def lever_arm(self) -> list[float]: ...
 
 def run_filter(
-    imu: _F64,
-    imu_time: _F64,
-    dvl: _F64,
-    dvl_time: _F64,
+    imu: NDArray[np.float64],
+    imu_time: NDArray[np.float64],
+    dvl: NDArray[np.float64],
+    dvl_time: NDArray[np.float64],
     *,
     t0: float,
     lla0: Any,
@@ -217,8 +217,8 @@ def run_filter(
     config: FilterConfig,
     strategy: Strategy,
     bias0: Any | None = None,
-    q_time: _F64 | None = None,
-    q: _F64 | None = None,
+    q_time: NDArray[np.float64] | None = None,
+    q: NDArray[np.float64] | None = None,
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
     [s] and ``q`` (k, 6): a q schedule for an external strategy. ``|lla0[0]|`` <= 89°."""
@@ -270,7 +270,7 @@ class Ensemble:
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""
-    def set_q(self, q: _F64) -> None:
+    def set_q(self, q: NDArray[np.float64]) -> None:
         """Set each run's IMU variances: ``q`` float64 ``(n_runs, 6)``."""
     def finish(self) -> dict[str, Any]:
         """Run to the end; the results as :func:`monte_carlo` returns them. The
