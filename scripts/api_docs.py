@@ -120,8 +120,9 @@ def read_stub(path: Path) -> dict[str, StubEntry]:
                 for item in node.body
                 if isinstance(item, ast.FunctionDef)
             ]
-            init = next((m for m in members if m.name == "__init__"), None)
-            signature = init.signature.removesuffix(" -> None") if init else ""
+            # The constructor: __init__, or __new__ (native classes, as stubtest wants).
+            init = next((m for m in members if m.name in ("__init__", "__new__")), None)
+            signature = init.signature.rsplit(" -> ", 1)[0] if init else ""
             public = [m for m in members if not m.name.startswith("_")]
             out[node.name] = StubEntry(node.name, "class", signature, _doc_of(node), public)
         elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):

@@ -15,6 +15,8 @@ echo "== cargo test"
 cargo test --quiet
 echo "== ruff"
 "$VENV/bin/ruff" check python tests benches examples scripts
+echo "== stubtest (python/pronet/_core.pyi against the built module)"
+"$VENV/bin/python" -m mypy.stubtest pronet._core
 echo "== mypy (the package's types)"
 "$VENV/bin/python" -m mypy
 echo "== pytest"

@@ -8,15 +8,45 @@ convert array-likes). Every error raises ``ValueError`` starting with the argume
 Heavy calls release the GIL.
 """
 
-from typing import Any, Literal
+from typing import Any, Literal, final
 
 import numpy as np
 from numpy.typing import NDArray
 
+__all__ = [
+    "__version__",
+    "MAX_THREADS",
+    "MAX_RUN_INDEX",
+    "MAX_GRAVITY_HEIGHT",
+    "MAX_LATITUDE_DEG",
+    "Trajectory",
+    "builtin_trajectory",
+    "builtin_trajectory_names",
+    "trajectory_from_segments",
+    "normal_gravity",
+    "earth_radii",
+    "mechanize",
+    "FilterConfig",
+    "Strategy",
+    "SensorConfig",
+    "run_filter",
+    "monte_carlo",
+    "Ensemble",
+    "tuning_instants",
+]
+
 __version__: str
+#: Most worker threads a pool may have (``montecarlo::MAX_THREADS``).
+MAX_THREADS: int
+#: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
+#: streams are numbered 4·i + k.
+MAX_RUN_INDEX: int
+#: Heights [m] within which :func:`normal_gravity` answers (``earth::MAX_GRAVITY_HEIGHT``).
+MAX_GRAVITY_HEIGHT: float
+#: Largest |latitude| [°] a navigation state may start at (``earth::MAX_LATITUDE_DEG``).
+MAX_LATITUDE_DEG: float
 
-F64 = NDArray[np.float64]
-
+@final
 class Trajectory:
     """Truth of a trajectory at n + 1 epochs and the ideal IMU over the n intervals."""
 
@@ -32,22 +62,22 @@ class Trajectory:
     def n_samples(self) -> int:
         """Number of IMU samples n."""
     @property
-    def time(self) -> F64:
+    def time(self) -> NDArray[np.float64]:
         """``(n+1,)`` epoch times [s], starting at 0."""
     @property
-    def lla(self) -> F64:
+    def lla(self) -> NDArray[np.float64]:
         """``(n+1, 3)`` latitude, longitude [rad], height [m]."""
     @property
-    def vel_ned(self) -> F64:
+    def vel_ned(self) -> NDArray[np.float64]:
         """``(n+1, 3)`` NED velocity [m/s]."""
     @property
-    def rpy(self) -> F64:
+    def rpy(self) -> NDArray[np.float64]:
         """``(n+1, 3)`` roll, pitch, yaw [rad]."""
     @property
-    def imu(self) -> F64:
+    def imu(self) -> NDArray[np.float64]:
         """``(n, 6)`` ideal IMU; row k covers ``(time[k], time[k+1]]``."""
     @property
-    def segments(self) -> F64:
+    def segments(self) -> NDArray[np.float64]:
         """``(k, 4)`` rows ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]``."""
     @property
     def speed0(self) -> float:
@@ -58,7 +88,7 @@ def builtin_trajectory_names() -> list[str]:
     """Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`)."""
 
 def trajectory_from_segments(
-    segments: F64,
+    segments: NDArray[np.float64],
     *,
     lla0: Any,
     speed0: float,
@@ -73,17 +103,22 @@ def normal_gravity(lat: float, h: float = 0.0) -> float:
 def earth_radii(lat: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature [m]."""
 
-def mechanize(imu: F64, dt: float, lla0: Any, vel0: Any, rpy0: Any) -> dict[str, F64]:
-    """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``."""
+def mechanize(
+    imu: NDArray[np.float64], dt: float, lla0: Any, vel0: Any, rpy0: Any
+) -> dict[str, NDArray[np.float64]]:
+    """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
+    IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
+    ValueError naming ``imu, dt, lla0, vel0``."""
 
+@final
 class FilterConfig:
     """EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
     ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
     ("body" velocity or "nav" NED velocity), nominal IMU period [s], and the chi-square
     innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         p0_sigma: Any | None = None,
         accel_bias_psd: float = 1e-3,
@@ -93,7 +128,7 @@ class FilterConfig:
         aiding: Literal["body", "nav"] = "body",
         imu_dt: float = 0.01,
         innovation_gate: float | None = None,
-    ) -> None: ...
+    ) -> FilterConfig: ...
     @property
     def p0_sigma(self) -> list[float]: ...
     @property
@@ -111,6 +146,7 @@ class FilterConfig:
     @property
     def innovation_gate(self) -> float | None: ...
 
+@final
 class Strategy:
     """Process-noise strategy: constant Q^c, Mehra innovation-adaptive (window ξ), or
     external (q set by the caller through an :class:`Ensemble`)."""
@@ -135,14 +171,15 @@ class Strategy:
     @property
     def window(self) -> int | None: ...
 
+@final
 class SensorConfig:
     """Simulated sensors. ``imu_variance``: 6 per-sample variances, or with
     ``imu_variance_times`` (k,) [s, starting at 0] a ``(k, 6)`` piecewise-constant
     schedule. Constant bias, bias random-walk PSD, DVL variance [(m/s)²], DVL period [s]
     (a whole number of IMU steps), DVL lever arm [m, body]. Defaults: the paper's."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         imu_variance: Any | None = None,
         imu_variance_times: Any | None = None,
@@ -151,11 +188,11 @@ class SensorConfig:
         dvl_variance: Any | None = None,
         dvl_period: float = 1.0,
         lever_arm: Any | None = None,
-    ) -> None: ...
+    ) -> SensorConfig: ...
     @property
     def imu_variance_times(self) -> list[float]: ...
     @property
-    def imu_variance(self) -> F64: ...
+    def imu_variance(self) -> NDArray[np.float64]: ...
     @property
     def imu_bias(self) -> list[float]: ...
     @property
@@ -168,10 +205,10 @@ class SensorConfig:
     def lever_arm(self) -> list[float]: ...
 
 def run_filter(
-    imu: F64,
-    imu_time: F64,
-    dvl: F64,
-    dvl_time: F64,
+    imu: NDArray[np.float64],
+    imu_time: NDArray[np.float64],
+    dvl: NDArray[np.float64],
+    dvl_time: NDArray[np.float64],
     *,
     t0: float,
     lla0: Any,
@@ -180,11 +217,11 @@ def run_filter(
     config: FilterConfig,
     strategy: Strategy,
     bias0: Any | None = None,
-    q_time: F64 | None = None,
-    q: F64 | None = None,
+    q_time: NDArray[np.float64] | None = None,
+    q: NDArray[np.float64] | None = None,
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
-    [s] and ``q`` (k, 6): a q schedule for an external strategy."""
+    [s] and ``q`` (k, 6): a q schedule for an external strategy. ``|lla0[0]|`` <= 89°."""
 
 def monte_carlo(
     trajectory: Trajectory,
@@ -199,20 +236,23 @@ def monte_carlo(
     threads: int | None = None,
     first_run: int = 0,
 ) -> dict[str, Any]:
-    """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys."""
+    """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
+    ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :data:`MAX_THREADS`
+    (None: all cores)."""
 
+@final
 class Ensemble:
     """All runs of a Monte Carlo stepped in lockstep for outside tuning.
 
-    ``advance()`` steps every run to the next tuning instant (every ``tuning_period``
-    seconds once ``window`` samples exist) and returns the last ``window`` raw IMU
-    samples of every run, float32 ``(n_runs, 6, window)`` oldest first, or None at the
-    end; ``set_q(q)`` with ``q`` float64 ``(n_runs, 6)`` sets each run's IMU variances.
-    Until the first ``set_q`` every run uses ``prior_q``.
+    ``advance()`` steps every run to the next tuning instant (see
+    :func:`tuning_instants`; ``window`` 1 to the trajectory's length) and returns the
+    last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, window)`` oldest
+    first, or None at the end; ``set_q(q)`` with ``q`` float64 ``(n_runs, 6)`` sets each
+    run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
     """
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         trajectory: Trajectory,
         sensors: SensorConfig,
         config: FilterConfig,
@@ -226,11 +266,11 @@ class Ensemble:
         sample_initial_error: bool = True,
         threads: int | None = None,
         first_run: int = 0,
-    ) -> None: ...
+    ) -> Ensemble: ...
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""
-    def set_q(self, q: F64) -> None:
+    def set_q(self, q: NDArray[np.float64]) -> None:
         """Set each run's IMU variances: ``q`` float64 ``(n_runs, 6)``."""
     def finish(self) -> dict[str, Any]:
         """Run to the end; the results as :func:`monte_carlo` returns them. The
@@ -247,3 +287,13 @@ class Ensemble:
         """Current time [s]."""
     @property
     def done(self) -> bool: ...
+
+def tuning_instants(
+    n_samples: int, dt: float, window: int, tuning_period: float
+) -> NDArray[np.int64]:
+    """The hybrid loop's tuning instants over ``n_samples`` IMU samples of step ``dt``
+    [s], each as the number of samples before it: every ``round(tuning_period / dt)``
+    samples (at least one; halves round away from zero), from the first such multiple at
+    which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
+    there; :func:`pronet.hybrid.q_schedule` evaluates its regressor there.
+    ``dt`` and ``tuning_period`` finite and > 0, ``window`` >= 1."""

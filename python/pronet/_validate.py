@@ -8,12 +8,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-#: Largest values the native core takes for its signed (counts) and unsigned (seeds)
-#: 64-bit integer arguments.
+from pronet import _core
+
+#: Largest values of signed (counts) and unsigned (seeds) 64-bit integer arguments.
 I64_MAX = 2**63 - 1
 U64_MAX = 2**64 - 1
 #: Most worker threads the native core takes (``montecarlo::MAX_THREADS`` in Rust).
-MAX_THREADS = 1024
+MAX_THREADS = _core.MAX_THREADS
 
 
 def real_array(value: ArrayLike, name: str) -> NDArray[Any]:

@@ -26,7 +26,6 @@ are counted per run and reported.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -36,17 +35,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._validate import (
-    I64_MAX,
-    U64_MAX,
-    check_type,
-    count,
-    flag,
-    float_array,
-    real_array,
-    scalar,
-)
-from pronet.montecarlo import MAX_RUN_INDEX, MonteCarloResult
+from pronet._validate import check_type, float_array, real_array, scalar
+from pronet.montecarlo import MonteCarloResult
 
 if TYPE_CHECKING:  # torch loads only when a model does
     from pronet.models import Regressor
@@ -149,27 +139,23 @@ def run_hybrid(
     prior = float_array(prior_q, "prior_q", (6,))
     guardrails = Guardrails() if guardrails is None else guardrails
     check_type(guardrails, Guardrails, "guardrails")
-    n_runs = count(n_runs, "n_runs", I64_MAX)
-    for name, value, top in (("seed", seed, U64_MAX), ("first_run", first_run, MAX_RUN_INDEX)):
-        if count(value, name, top) < 0:
-            raise ValueError(f"{name}: must be >= 0, got {value}")
-    # A window longer than the trajectory never fills (and its buffer could exhaust memory).
-    if not 1 <= count(window, "window") <= trajectory.n_samples:
-        raise ValueError(f"window: must be 1 to {trajectory.n_samples} samples, got {window}")
+    # The native Ensemble checks the counts, the seed, the window (1 to the trajectory's
+    # length), the tuning period and the thread count, naming each.
     ens = _core.Ensemble(
         trajectory,
         sensors if sensors is not None else _core.SensorConfig(),
         config if config is not None else _core.FilterConfig(),
         prior,
         n_runs=n_runs,
-        seed=count(seed, "seed"),
-        window=count(window, "window"),
-        tuning_period=scalar(tuning_period, "tuning_period"),
-        record_every=count(record_every, "record_every", I64_MAX),
-        sample_initial_error=flag(sample_initial_error, "sample_initial_error"),
-        threads=None if threads is None else count(threads, "threads", I64_MAX),
-        first_run=count(first_run, "first_run"),
+        seed=seed,
+        window=window,
+        tuning_period=tuning_period,
+        record_every=record_every,
+        sample_initial_error=sample_initial_error,
+        threads=threads,
+        first_run=first_run,
     )
+    n_runs = ens.n_runs
     q_prev = np.tile(prior, (n_runs, 1))
     clipped = np.zeros(n_runs, dtype=np.int64)
     non_finite = np.zeros(n_runs, dtype=np.int64)
@@ -273,8 +259,9 @@ def q_schedule(
     The windows the loop reads are raw IMU samples, which do not depend on the filter,
     so on recorded data the whole schedule is computed first, in one batched call, and
     handed to :func:`pronet.run_filter` (``q_time``, ``q``). Instants are every
-    ``round(tuning_period / Δt)`` samples once ``window`` samples exist, exactly as
-    :class:`pronet.Ensemble` places them (Δt: the median sample step).
+    ``round(tuning_period / Δt)`` samples (at least one; halves round away from zero)
+    once ``window`` samples exist, exactly as :class:`pronet.Ensemble` places them
+    (Δt: the median sample step): both take them from ``_core.tuning_instants``.
 
     Args:
         regressor: anything with ``predict(windows (k, 6, window)) -> (k, 6)``.
@@ -290,14 +277,8 @@ def q_schedule(
     samples = float_array(imu, "imu", (None, 6))
     times = float_array(imu_time, "imu_time", (len(samples),))
     prior = float_array(prior_q, "prior_q", (6,))
-    window = count(window, "window")
-    period = scalar(tuning_period, "tuning_period")
     guardrails = Guardrails() if guardrails is None else guardrails
     check_type(guardrails, Guardrails, "guardrails")
-    if window < 1:
-        raise ValueError(f"window: must be >= 1, got {window}")
-    if not 0 < period < np.inf:
-        raise ValueError(f"tuning_period: must be finite and > 0 s, got {period}")
     if len(samples) < 2:
         raise ValueError(f"imu: needs at least two samples, got {len(samples)}")
     steps = np.diff(times)
@@ -305,15 +286,10 @@ def q_schedule(
         raise ValueError("imu_time: must be finite and strictly increasing")
     if not (np.isfinite(prior).all() and (prior >= 0).all()):
         raise ValueError(f"prior_q: must be finite and >= 0, got {prior}")
-    # Capped at len(samples): a longer period has no instant either, and the cap keeps a
-    # huge period (or a tiny sample step) from overflowing round().
-    # floor(x + 0.5): half away from zero, as Rust's f64::round in the Ensemble (Python's
-    # round() takes halves to even, which would put the instants elsewhere).
-    every = max(1, math.floor(min(period / float(np.median(steps)), len(samples)) + 0.5))
-    first = -(-window // every) * every
-    # samples before each instant (none when the window never fills: a huge window is
-    # a Python int that np.arange cannot take)
-    ends = np.arange(first, len(samples), every) if first < len(samples) else np.zeros(0, int)
+    # The instants come from the native core, the same rule the Ensemble stops at; it
+    # checks window and tuning_period, naming each. Samples before each instant:
+    ends = _core.tuning_instants(len(samples), float(np.median(steps)), window, tuning_period)
+    window = int(window)
     if ends.size == 0:
         empty = np.zeros((0, 6))
         return QSchedule(np.zeros(0), empty, 0, 0, 0.0)

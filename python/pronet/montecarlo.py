@@ -17,11 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._validate import I64_MAX, U64_MAX, check_type, count, flag
+from pronet._validate import check_type
 from pronet.stats import MeanCI, mean_ci
 
-#: Run indices stay below 2^62: run i's random streams are numbered 4·i + k.
-MAX_RUN_INDEX = 2**62
+#: Run indices stay below 2^62: run i's random streams are numbered 4·i + k
+#: (``montecarlo::MAX_RUN_INDEX`` in Rust).
+MAX_RUN_INDEX = _core.MAX_RUN_INDEX
 
 #: Names of the five 3-blocks of the error state, in order.
 STATE_BLOCKS = ("position", "velocity", "attitude", "accel_bias", "gyro_bias")
@@ -189,21 +190,17 @@ def monte_carlo(
     config = config if config is not None else _core.FilterConfig()
     check_type(sensors, _core.SensorConfig, "sensors")
     check_type(config, _core.FilterConfig, "config")
-    seed = count(seed, "seed", U64_MAX)
-    first_run = count(first_run, "first_run", MAX_RUN_INDEX)
-    for name, value in (("seed", seed), ("first_run", first_run)):
-        if value < 0:
-            raise ValueError(f"{name}: must be >= 0, got {value}")
+    # The native core checks the counts, the seed and the thread count, naming each.
     out = _core.monte_carlo(
         trajectory,
         sensors,
         config,
         strategy,
-        n_runs=count(n_runs, "n_runs", I64_MAX),
+        n_runs=n_runs,
         seed=seed,
-        record_every=count(record_every, "record_every", I64_MAX),
-        sample_initial_error=flag(sample_initial_error, "sample_initial_error"),
-        threads=None if threads is None else count(threads, "threads", I64_MAX),
+        record_every=record_every,
+        sample_initial_error=sample_initial_error,
+        threads=threads,
         first_run=first_run,
     )
     return MonteCarloResult(**out)

@@ -5,6 +5,7 @@
 //! above the ellipsoid in metres (positive up). Vectors in the navigation frame are
 //! NED (north, east, down).
 
+use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
 
 /// Semi-major axis [m].
@@ -105,6 +106,55 @@ fn radii_from_sin(sin: f64) -> (f64, f64) {
 #[inline]
 pub fn gravity(lat: f64, h: f64) -> f64 {
     Latitude::new(lat).gravity(h)
+}
+
+/// Heights [m] within which [`checked_gravity`] answers: the Somigliana series with its
+/// second-order height term is a near-surface model.
+pub const MAX_GRAVITY_HEIGHT: f64 = 100_000.0;
+
+/// Largest |latitude| [°] a navigation state may start at. Nearer a pole the NED frame
+/// turns singular: the east axis and the transport rate's `tan(lat)` blow up.
+pub const MAX_LATITUDE_DEG: f64 = 89.0;
+
+/// `Err` naming `arg` unless `value` is finite.
+fn finite_scalar(arg: &str, value: f64) -> Result<f64> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::invalid(arg, format!("must be finite, got {value}")))
+    }
+}
+
+/// The latitude rule of every navigation entry point: `|lat| <= 89°` (`lat` in rad), else
+/// an error naming `arg` (the argument holding the position, e.g. `lla0`).
+pub fn check_latitude(arg: &str, lat: f64) -> Result<()> {
+    if lat.abs() > MAX_LATITUDE_DEG.to_radians() {
+        return Err(Error::invalid(
+            arg,
+            "latitude must be within ±89° (given in radians; NED is singular at the poles)",
+        ));
+    }
+    Ok(())
+}
+
+/// [`gravity`] for outside callers: finite `lat` [rad] and `h` [m] with
+/// `|h| <= MAX_GRAVITY_HEIGHT`, else an error naming the argument.
+pub fn checked_gravity(lat: f64, h: f64) -> Result<f64> {
+    let h = finite_scalar("h", h)?;
+    if h.abs() > MAX_GRAVITY_HEIGHT {
+        return Err(Error::invalid(
+            "h",
+            format!(
+                "normal gravity holds within ±{MAX_GRAVITY_HEIGHT} m of the ellipsoid, got {h}"
+            ),
+        ));
+    }
+    Ok(gravity(finite_scalar("lat", lat)?, h))
+}
+
+/// [`radii`] for outside callers: a finite `lat` [rad], else an error naming it.
+pub fn checked_radii(lat: f64) -> Result<(f64, f64)> {
+    Ok(radii(finite_scalar("lat", lat)?))
 }
 
 /// Normal gravity vector in NED [m/s²]: `[0, 0, gravity(lat, h)]`.
@@ -215,6 +265,33 @@ pub fn ned_delta_to_lla_delta(lla: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The texts `tests/test_core_rules.py` expects from Python: the same error from
+    /// either side.
+    #[test]
+    fn latitude_and_gravity_height_rules_name_their_argument() {
+        assert!(check_latitude("lla0", 89f64.to_radians()).is_ok());
+        assert_eq!(
+            check_latitude("lla0", 1.56).unwrap_err().to_string(),
+            "lla0: latitude must be within ±89° (given in radians; NED is singular at the poles)"
+        );
+        assert_eq!(
+            checked_gravity(0.5, 100_001.0).unwrap_err().to_string(),
+            "h: normal gravity holds within ±100000 m of the ellipsoid, got 100001"
+        );
+        assert_eq!(
+            checked_gravity(0.5, -100_000.0).unwrap(),
+            gravity(0.5, -1e5)
+        );
+        assert_eq!(
+            checked_gravity(f64::NAN, 0.0).unwrap_err().to_string(),
+            "lat: must be finite, got NaN"
+        );
+        assert_eq!(
+            checked_radii(f64::INFINITY).unwrap_err().to_string(),
+            "lat: must be finite, got inf"
+        );
+    }
 
     #[test]
     fn gravity_matches_wgs84_at_equator_and_pole() {

@@ -10,10 +10,12 @@
 pub mod attitude;
 pub mod earth;
 pub mod ekf;
+pub mod ensemble;
 pub mod error;
 pub mod mechanization;
 pub mod montecarlo;
 pub mod noise;
+pub mod run;
 pub mod sensors;
 pub mod trajectory;
 

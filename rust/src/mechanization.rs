@@ -7,6 +7,7 @@
 
 use crate::attitude::{exp_so3, log_so3, orthonormalize};
 use crate::earth;
+use crate::error::{check, Error, Result};
 use nalgebra::{Matrix3, Vector3};
 
 /// Navigation state: geodetic position `[lat, lon, h]` [rad, rad, m], NED velocity
@@ -142,6 +143,28 @@ pub fn invert_step(s0: &NavState, s1: &NavState, dt: f64) -> ImuSample {
     }
 }
 
+/// [`integrate`] for outside callers, with the rules of the `mechanize` entry point:
+/// finite IMU rows, `dt > 0` [s], a start within [`earth::MAX_LATITUDE_DEG`] of the
+/// equator, and no overflow: finite but absurd inputs (1e300 m/s², a 1e10 s step) are an
+/// error, never NaN states.
+pub fn mechanize(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Result<Vec<NavState>> {
+    if let Some(i) = imu.iter().position(|r| r.iter().any(|x| !x.is_finite())) {
+        return Err(Error::invalid("imu", format!("row {i} is not finite")));
+    }
+    check::positive("dt", dt)?;
+    earth::check_latitude("lla0", initial.lla[0])?;
+    let states = integrate(initial, imu, dt);
+    if let Some(k) = states.iter().position(|s| {
+        !(s.lla.iter().chain(s.vel.iter()).chain(s.dcm.iter())).all(|x| x.is_finite())
+    }) {
+        return Err(Error::invalid(
+            "imu, dt, lla0, vel0",
+            format!("the mechanization overflows to non-finite values at sample {k}; the inputs are far outside any vehicle's range"),
+        ));
+    }
+    Ok(states)
+}
+
 /// Mechanize `imu` (samples at a constant step `dt` [s]) from `initial`. Returns n + 1
 /// states: the initial one, then the state after each sample.
 pub fn integrate(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Vec<NavState> {
@@ -222,5 +245,36 @@ mod tests {
         let out = integrate(&s0, &[ideal; 5], 0.01);
         assert_eq!(out.len(), 6);
         assert_eq!(out[0], s0);
+    }
+
+    #[test]
+    fn mechanize_checks_its_inputs_and_overflow() {
+        let (s0, ideal) = at_rest(10.0);
+        assert_eq!(
+            mechanize(&s0, &[ideal; 5], 0.01).unwrap(),
+            integrate(&s0, &[ideal; 5], 0.01)
+        );
+        let mut bad = [ideal; 3];
+        bad[2][4] = f64::NAN;
+        let err = mechanize(&s0, &bad, 0.01).unwrap_err().to_string();
+        assert_eq!(err, "imu: row 2 is not finite");
+        let err = mechanize(&s0, &[ideal], 0.0).unwrap_err().to_string();
+        assert_eq!(err, "dt: must be finite and > 0, got 0");
+        let polar = NavState {
+            lla: Vector3::new(89.5f64.to_radians(), 0.0, 0.0),
+            ..s0
+        };
+        let err = mechanize(&polar, &[ideal], 0.01).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            "lla0: latitude must be within ±89° (given in radians; NED is singular at the poles)"
+        );
+        let err = mechanize(&s0, &[[1e300; 6]; 3], 0.01)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("imu, dt, lla0, vel0: the mechanization overflows"),
+            "{err}"
+        );
     }
 }

@@ -169,7 +169,7 @@ impl StrategySpec {
             StrategySpec::Constant { q } => check::non_negative("q", q),
             StrategySpec::Mehra { window, prior_q } => {
                 if *window == 0 {
-                    return Err(Error::invalid("window", "must be at least 1"));
+                    return Err(Error::invalid("window", "must be at least 1, got 0"));
                 }
                 check::non_negative("prior_q", prior_q)
             }

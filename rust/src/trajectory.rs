@@ -90,12 +90,7 @@ pub const MAX_SPEED: f64 = 1000.0;
 impl TrajectorySpec {
     pub fn validate(&self) -> Result<()> {
         check::finite("lla0", self.lla0.as_slice())?;
-        if self.lla0[0].abs() > 89f64.to_radians() {
-            return Err(Error::invalid(
-                "lla0",
-                "latitude must be within ±89° (NED is singular at the poles)",
-            ));
-        }
+        earth::check_latitude("lla0", self.lla0[0])?;
         check::finite("speed0", &[self.speed0])?;
         check::finite("rpy0", self.rpy0.as_slice())?;
         check::positive("dt", self.dt)?;

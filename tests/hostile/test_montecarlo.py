@@ -127,7 +127,7 @@ def test_ensemble(args, data) -> None:
     n_runs, window = refs["n_runs"], refs["window"]
     prior = refs["prior_q"]
     assert prior.shape == (6,) and finite(prior) and (prior >= 0).all()
-    assert n_runs >= 1 and window >= 1 and 0.01 <= refs["tuning_period"] < INF
+    assert n_runs >= 1 and window >= 1 and 0 < refs["tuning_period"] < INF
     assert refs["record_every"] >= 0
     windows = ens.advance()
     if windows is not None:

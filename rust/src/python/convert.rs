@@ -1,0 +1,287 @@
+//! Argument converters: each takes a Python object and the argument's name and returns
+//! the Rust value, or a `ValueError` naming the argument. They check types and shapes
+//! only (and finiteness of fixed-size vectors); the core checks the values.
+
+use super::invalid;
+use crate::attitude::{dcm_from_euler, euler_from_dcm};
+use crate::mechanization::NavState;
+use nalgebra::Vector3;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString};
+
+/// The type (and for arrays dtype and shape) of `obj`, for error messages.
+pub fn describe(obj: &Bound<'_, PyAny>) -> String {
+    let ty = obj
+        .get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_else(|_| "?".into());
+    match (obj.getattr("dtype"), obj.getattr("shape")) {
+        (Ok(d), Ok(s)) => format!(
+            "{ty} of dtype {} and shape {}",
+            d.str().map(|x| x.to_string()).unwrap_or_default(),
+            s.str().map(|x| x.to_string()).unwrap_or_default()
+        ),
+        _ => ty,
+    }
+}
+
+/// A float64 array of shape (n, C) as rows.
+pub fn rows<const C: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<[f64; C]>> {
+    let arr: PyReadonlyArray2<f64> = obj.extract().map_err(|_| {
+        invalid(
+            arg,
+            format!(
+                "expected a float64 numpy array of shape (n, {C}), got {}",
+                describe(obj)
+            ),
+        )
+    })?;
+    let view = arr.as_array();
+    if view.ncols() != C {
+        return Err(invalid(
+            arg,
+            format!("expected shape (n, {C}), got {:?}", view.shape()),
+        ));
+    }
+    Ok(view
+        .outer_iter()
+        .map(|r| std::array::from_fn(|j| r[j]))
+        .collect())
+}
+
+/// A float64 array of shape (n,).
+pub fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
+    let arr: PyReadonlyArray1<f64> = obj.extract().map_err(|_| {
+        invalid(
+            arg,
+            format!(
+                "expected a float64 numpy array of shape (n,), got {}",
+                describe(obj)
+            ),
+        )
+    })?;
+    Ok(arr.as_array().to_vec())
+}
+
+/// Whether `obj` is a real number: a Python int or float (not a bool), or a NumPy value
+/// of integer or float dtype. Extraction to f64 alone would let bools through as 1.0 and
+/// drop the imaginary part of complex NumPy values.
+fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
+    if obj.is_instance_of::<PyBool>() {
+        return false;
+    }
+    if obj.is_instance_of::<PyFloat>() || obj.is_instance_of::<PyInt>() {
+        return true;
+    }
+    numpy_kind_in(obj, &["i", "u", "f"])
+}
+
+/// Whether `obj` is a NumPy value (scalar or array) whose dtype kind is one of `kinds`.
+fn numpy_kind_in(obj: &Bound<'_, PyAny>, kinds: &[&str]) -> bool {
+    obj.getattr("dtype")
+        .and_then(|d| d.getattr("kind"))
+        .and_then(|k| k.extract::<String>())
+        .is_ok_and(|k| kinds.contains(&k.as_str()))
+}
+
+/// Exactly N finite real numbers from any sequence or array.
+pub fn fixed<const N: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<[f64; N]> {
+    let refuse = || {
+        invalid(
+            arg,
+            format!("expected {N} real numbers, got {}", describe(obj)),
+        )
+    };
+    if obj.is_instance_of::<PyBytes>()
+        || obj.is_instance_of::<PyByteArray>()
+        || obj.is_instance_of::<PyString>()
+    {
+        return Err(refuse());
+    }
+    for item in obj.try_iter().map_err(|_| refuse())? {
+        if !is_real_number(&item?) {
+            return Err(refuse());
+        }
+    }
+    let v: Vec<f64> = obj
+        .extract()
+        .map_err(|_| invalid(arg, format!("expected {N} numbers, got {}", describe(obj))))?;
+    let out: [f64; N] = v
+        .as_slice()
+        .try_into()
+        .map_err(|_| invalid(arg, format!("expected {N} numbers, got {}", v.len())))?;
+    if let Some(i) = out.iter().position(|x| !x.is_finite()) {
+        return Err(invalid(
+            arg,
+            format!("must be finite, element {i} is {}", out[i]),
+        ));
+    }
+    Ok(out)
+}
+
+/// `fixed` for an optional argument, `default` when it is not given.
+pub fn fixed_or<const N: usize>(
+    obj: Option<&Bound<'_, PyAny>>,
+    arg: &str,
+    default: [f64; N],
+) -> PyResult<[f64; N]> {
+    obj.map_or(Ok(default), |o| fixed(o, arg))
+}
+
+/// A real scalar argument (an int or float, NumPy's included; never a bool, a string or
+/// a complex), or `ValueError` naming it. pyo3's own f64 extraction would raise
+/// `TypeError` for a string and take `True` as 1.0.
+pub fn real_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<f64> {
+    let refuse = || {
+        invalid(
+            arg,
+            format!("expected a real number, got {}", describe(obj)),
+        )
+    };
+    if !is_real_number(obj) {
+        return Err(refuse());
+    }
+    obj.extract::<f64>().map_err(|_| refuse())
+}
+
+/// The unsigned integer types a whole-number argument converts to.
+pub trait Whole: TryFrom<u128> {
+    const MAX: u128;
+}
+impl Whole for u64 {
+    const MAX: u128 = u64::MAX as u128;
+}
+impl Whole for usize {
+    const MAX: u128 = usize::MAX as u128;
+}
+
+/// A whole-number argument in `0..=T::MAX` (an int, NumPy's included, never a bool or a
+/// float), or `ValueError` naming it (pyo3 would raise `TypeError`/`OverflowError`).
+pub fn whole_arg<T: Whole>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<T> {
+    let is_int = !obj.is_instance_of::<PyBool>()
+        && (obj.is_instance_of::<PyInt>() || numpy_kind_in(obj, &["i", "u"]));
+    if !is_int {
+        return Err(invalid(
+            arg,
+            format!("expected a whole number, got {}", describe(obj)),
+        ));
+    }
+    let text = obj.str().map(|s| s.to_string()).unwrap_or_default();
+    if obj.extract::<i128>().is_ok_and(|v| v < 0) {
+        return Err(invalid(arg, format!("must be >= 0, got {text}")));
+    }
+    obj.extract::<u128>()
+        .ok()
+        .filter(|v| *v <= T::MAX)
+        .and_then(|v| T::try_from(v).ok())
+        .ok_or_else(|| invalid(arg, format!("must be at most {}, got {text}", T::MAX)))
+}
+
+/// `True`/`False` (NumPy's included), or `ValueError` naming the argument: a string such
+/// as "no" or a number is not silently taken as a truth value.
+pub fn flag_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<bool> {
+    let refuse = || {
+        invalid(
+            arg,
+            format!("expected True or False, got {}", describe(obj)),
+        )
+    };
+    if !(obj.is_instance_of::<PyBool>() || numpy_kind_in(obj, &["b"])) {
+        return Err(refuse());
+    }
+    obj.extract::<bool>().map_err(|_| refuse())
+}
+
+fn text_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<String> {
+    obj.extract::<String>()
+        .map_err(|_| invalid(arg, format!("expected a string, got {}", describe(obj))))
+}
+
+/// `from_py_with` converters, one per argument name, so that the error names it.
+macro_rules! arg_converters {
+    ($($fn_name:ident: $t:ty = $conv:ident($name:literal);)*) => {
+        $(pub fn $fn_name(obj: &Bound<'_, PyAny>) -> PyResult<$t> {
+            $conv(obj, $name)
+        })*
+    };
+}
+
+arg_converters! {
+    arg_lat: f64 = real_arg("lat");
+    arg_h: f64 = real_arg("h");
+    arg_dt: f64 = real_arg("dt");
+    arg_speed0: f64 = real_arg("speed0");
+    arg_t0: f64 = real_arg("t0");
+    arg_accel_bias_psd: f64 = real_arg("accel_bias_psd");
+    arg_gyro_bias_psd: f64 = real_arg("gyro_bias_psd");
+    arg_imu_dt: f64 = real_arg("imu_dt");
+    arg_dvl_period: f64 = real_arg("dvl_period");
+    arg_tuning_period: f64 = real_arg("tuning_period");
+    arg_aiding: String = text_arg("aiding");
+    arg_window: usize = whole_arg("window");
+    arg_n_runs: usize = whole_arg("n_runs");
+    arg_n_samples: usize = whole_arg("n_samples");
+    arg_record_every: usize = whole_arg("record_every");
+    arg_seed: u64 = whole_arg("seed");
+    arg_first_run: u64 = whole_arg("first_run");
+    arg_sample_initial_error: bool = flag_arg("sample_initial_error");
+}
+
+pub fn arg_innovation_gate(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    real_arg(obj, "innovation_gate").map(Some)
+}
+
+pub fn arg_threads(obj: &Bound<'_, PyAny>) -> PyResult<Option<usize>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    whole_arg(obj, "threads").map(Some)
+}
+
+/// A navigation state from `lla0`, `vel0`, `rpy0` (3 finite numbers each).
+pub fn nav_state(
+    lla0: &Bound<'_, PyAny>,
+    vel0: &Bound<'_, PyAny>,
+    rpy0: &Bound<'_, PyAny>,
+) -> PyResult<NavState> {
+    let (lla, vel, rpy) = (
+        fixed::<3>(lla0, "lla0")?,
+        fixed::<3>(vel0, "vel0")?,
+        fixed::<3>(rpy0, "rpy0")?,
+    );
+    Ok(NavState {
+        lla: Vector3::from(lla),
+        vel: Vector3::from(vel),
+        dcm: dcm_from_euler(rpy[0], rpy[1], rpy[2]),
+    })
+}
+
+/// Rows of C values as a float64 array of shape (n, C).
+pub fn matrix<const C: usize>(
+    py: Python<'_>,
+    rows: impl Iterator<Item = [f64; C]>,
+) -> Bound<'_, PyArray2<f64>> {
+    let rows: Vec<[f64; C]> = rows.collect();
+    Array2::from_shape_fn((rows.len(), C), |(i, j)| rows[i][j]).into_pyarray(py)
+}
+
+/// `lla`, `vel` and `rpy` arrays of the states into `d`.
+pub fn nav_arrays<'py>(
+    py: Python<'py>,
+    d: &Bound<'py, PyDict>,
+    states: &[NavState],
+) -> PyResult<()> {
+    d.set_item("lla", matrix(py, states.iter().map(|s| s.lla.into())))?;
+    d.set_item("vel", matrix(py, states.iter().map(|s| s.vel.into())))?;
+    d.set_item(
+        "rpy",
+        matrix(py, states.iter().map(|s| euler_from_dcm(&s.dcm).into())),
+    )?;
+    Ok(())
+}

@@ -1,0 +1,141 @@
+//! `monte_carlo` and the result dict it shares with `Ensemble.finish`.
+
+use super::config::PyFilterConfig;
+use super::convert::{
+    arg_first_run, arg_n_runs, arg_record_every, arg_sample_initial_error, arg_seed, arg_threads,
+};
+use super::detached;
+use super::sensors::PySensorConfig;
+use super::strategy::PyStrategy;
+use super::trajectory::PyTrajectory;
+use crate::montecarlo::{run_monte_carlo, with_threads, McOptions, McResult, RunSummary, Scenario};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::IntoPyArray;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::sync::Arc;
+
+pub(super) fn scenario(
+    trajectory: &PyTrajectory,
+    sensors: &PySensorConfig,
+    sample_initial_error: bool,
+) -> Arc<Scenario> {
+    Arc::new(Scenario {
+        truth: Arc::clone(&trajectory.truth),
+        sensors: sensors.inner.clone(),
+        sample_initial_error,
+    })
+}
+
+pub(super) fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let n = res.runs.len();
+    let col = |f: &dyn Fn(&RunSummary) -> f64| {
+        Array1::from_iter(res.runs.iter().map(|r| f(&r.summary))).into_pyarray(py)
+    };
+    d.set_item("srmse", col(&|s| s.srmse))?;
+    d.set_item("smae", col(&|s| s.smae))?;
+    d.set_item("final_horizontal_error", col(&|s| s.final_horizontal_error))?;
+    d.set_item("max_horizontal_error", col(&|s| s.max_horizontal_error))?;
+    d.set_item("mean_nis", col(&|s| s.mean_nis))?;
+    d.set_item(
+        "rejected_updates",
+        Array1::from_iter(res.runs.iter().map(|r| r.summary.rejected_updates as i64))
+            .into_pyarray(py),
+    )?;
+    d.set_item("diverged_at", col(&|s| s.diverged_at.unwrap_or(f64::NAN)))?;
+    let failures: Vec<Option<String>> =
+        res.runs.iter().map(|r| r.summary.failure.clone()).collect();
+    d.set_item("failure", failures)?;
+    let m = res.dvl_time.len();
+    d.set_item("dvl_time", res.dvl_time.clone().into_pyarray(py))?;
+    // Failed runs stop early: pad their epoch series with NaN.
+    d.set_item(
+        "nis",
+        Array2::from_shape_fn((n, m), |(i, k)| {
+            res.runs[i].nis.get(k).copied().unwrap_or(f64::NAN)
+        })
+        .into_pyarray(py),
+    )?;
+    d.set_item(
+        "nees",
+        Array3::from_shape_fn((n, m, 5), |(i, k, b)| {
+            res.runs[i].nees.get(k).map_or(f64::NAN, |e| e[b])
+        })
+        .into_pyarray(py),
+    )?;
+    if !res.record_time.is_empty() {
+        history_arrays(py, &d, res)?;
+    }
+    Ok(d)
+}
+
+/// `record_time` and the `error`, `sigma` and `q` histories (NaN where a run has none).
+fn history_arrays<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, res: &McResult) -> PyResult<()> {
+    let (n, r) = (res.runs.len(), res.record_time.len());
+    d.set_item("record_time", res.record_time.clone().into_pyarray(py))?;
+    let at = |i: usize, pick: &dyn Fn(&crate::montecarlo::History) -> Option<f64>| {
+        res.runs[i]
+            .history
+            .as_ref()
+            .and_then(pick)
+            .unwrap_or(f64::NAN)
+    };
+    d.set_item(
+        "error",
+        Array3::from_shape_fn((n, r, 15), |(i, k, s)| {
+            at(i, &|h| h.error.get(k).map(|e| e[s]))
+        })
+        .into_pyarray(py),
+    )?;
+    d.set_item(
+        "sigma",
+        Array3::from_shape_fn((n, r, 15), |(i, k, s)| {
+            at(i, &|h| h.sigma.get(k).map(|e| e[s]))
+        })
+        .into_pyarray(py),
+    )?;
+    d.set_item(
+        "q",
+        Array3::from_shape_fn((n, r, 6), |(i, k, s)| {
+            at(i, &|h| h.imu_variance.get(k).map(|e| e[s]))
+        })
+        .into_pyarray(py),
+    )?;
+    Ok(())
+}
+
+#[pyfunction(name = "monte_carlo")]
+#[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
+#[allow(clippy::too_many_arguments)]
+fn py_monte_carlo<'py>(
+    py: Python<'py>,
+    trajectory: &PyTrajectory,
+    sensors: &PySensorConfig,
+    config: &PyFilterConfig,
+    strategy: &PyStrategy,
+    #[pyo3(from_py_with = arg_n_runs)] n_runs: usize,
+    #[pyo3(from_py_with = arg_seed)] seed: u64,
+    #[pyo3(from_py_with = arg_record_every)] record_every: usize,
+    #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
+    #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
+    #[pyo3(from_py_with = arg_first_run)] first_run: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let opts = McOptions {
+        n_runs,
+        seed,
+        record_every,
+        first_run,
+    };
+    let sc = scenario(trajectory, sensors, sample_initial_error);
+    let (cfg, spec) = (config.inner.clone(), strategy.inner.clone());
+    let res = detached(py, move || {
+        opts.validate()?;
+        with_threads(threads, || run_monte_carlo(&sc, &cfg, &spec, &opts))?
+    })?;
+    result_dict(py, &res)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(py_monte_carlo, m)?)
+}

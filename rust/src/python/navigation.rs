@@ -1,0 +1,46 @@
+//! Earth model and strapdown mechanization: `normal_gravity`, `earth_radii`, `mechanize`.
+
+use super::convert::{arg_dt, arg_h, arg_lat, nav_arrays, nav_state, rows};
+use super::{detached, to_py_err};
+use crate::{earth, mechanization};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+#[pyfunction]
+#[pyo3(signature = (lat, h = 0.0))]
+fn normal_gravity(
+    #[pyo3(from_py_with = arg_lat)] lat: f64,
+    #[pyo3(from_py_with = arg_h)] h: f64,
+) -> PyResult<f64> {
+    earth::checked_gravity(lat, h).map_err(to_py_err)
+}
+
+#[pyfunction]
+fn earth_radii(#[pyo3(from_py_with = arg_lat)] lat: f64) -> PyResult<(f64, f64)> {
+    earth::checked_radii(lat).map_err(to_py_err)
+}
+
+#[pyfunction]
+#[pyo3(signature = (imu, dt, lla0, vel0, rpy0))]
+fn mechanize<'py>(
+    py: Python<'py>,
+    imu: &Bound<'py, PyAny>,
+    #[pyo3(from_py_with = arg_dt)] dt: f64,
+    lla0: &Bound<'py, PyAny>,
+    vel0: &Bound<'py, PyAny>,
+    rpy0: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let samples = rows::<6>(imu, "imu")?;
+    let init = nav_state(lla0, vel0, rpy0)?;
+    let states = detached(py, move || mechanization::mechanize(&init, &samples, dt))?;
+    let d = PyDict::new(py);
+    nav_arrays(py, &d, &states)?;
+    Ok(d)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(normal_gravity, m)?)?;
+    m.add_function(wrap_pyfunction!(earth_radii, m)?)?;
+    m.add_function(wrap_pyfunction!(mechanize, m)?)?;
+    Ok(())
+}

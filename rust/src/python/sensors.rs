@@ -1,0 +1,102 @@
+//! `SensorConfig`: the simulated IMU and DVL.
+
+use super::convert::{arg_dvl_period, column, fixed, fixed_or, matrix, rows};
+use super::{invalid, to_py_err};
+use crate::sensors::{DvlModel, ImuErrorModel, SensorConfig, VarianceSchedule};
+use nalgebra::Vector3;
+use numpy::PyArray2;
+use pyo3::prelude::*;
+
+/// Simulated sensor models (see `_core.pyi`).
+#[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
+#[derive(Clone)]
+pub struct PySensorConfig {
+    pub(super) inner: SensorConfig,
+}
+
+/// The IMU variance: the paper's, one row of 6, or a schedule over `times`.
+fn variance(
+    values: Option<&Bound<'_, PyAny>>,
+    times: Option<&Bound<'_, PyAny>>,
+) -> PyResult<VarianceSchedule> {
+    match (values, times) {
+        (None, None) => Ok(SensorConfig::paper().imu.variance),
+        (Some(v), None) => VarianceSchedule::new(vec![0.0], vec![fixed::<6>(v, "imu_variance")?])
+            .map_err(to_py_err),
+        (Some(v), Some(t)) => {
+            let times = column(t, "imu_variance_times")?;
+            let values = rows::<6>(v, "imu_variance")?;
+            VarianceSchedule::new(times, values).map_err(to_py_err)
+        }
+        (None, Some(_)) => Err(invalid("imu_variance_times", "given without imu_variance")),
+    }
+}
+
+#[pymethods]
+impl PySensorConfig {
+    #[new]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None))]
+    fn new(
+        imu_variance: Option<&Bound<'_, PyAny>>,
+        imu_variance_times: Option<&Bound<'_, PyAny>>,
+        imu_bias: Option<&Bound<'_, PyAny>>,
+        imu_bias_psd: Option<&Bound<'_, PyAny>>,
+        dvl_variance: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_dvl_period)] dvl_period: f64,
+        lever_arm: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let inner = SensorConfig {
+            imu: ImuErrorModel {
+                variance: variance(imu_variance, imu_variance_times)?,
+                bias: fixed_or(imu_bias, "imu_bias", [0.0; 6])?,
+                bias_rw_psd: fixed_or(imu_bias_psd, "imu_bias_psd", [0.0; 6])?,
+            },
+            dvl: DvlModel {
+                variance: fixed_or(
+                    dvl_variance,
+                    "dvl_variance",
+                    SensorConfig::paper().dvl.variance,
+                )?,
+                period: dvl_period,
+                lever_arm: Vector3::from(fixed_or::<3>(lever_arm, "lever_arm", [0.0; 3])?),
+            },
+        };
+        inner.validate().map_err(to_py_err)?;
+        Ok(Self { inner })
+    }
+    #[getter]
+    fn imu_variance_times(&self) -> Vec<f64> {
+        self.inner.imu.variance.times().to_vec()
+    }
+    #[getter]
+    fn imu_variance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(py, self.inner.imu.variance.values().iter().copied())
+    }
+    #[getter]
+    fn imu_bias(&self) -> Vec<f64> {
+        self.inner.imu.bias.to_vec()
+    }
+    #[getter]
+    fn imu_bias_psd(&self) -> Vec<f64> {
+        self.inner.imu.bias_rw_psd.to_vec()
+    }
+    #[getter]
+    fn dvl_variance(&self) -> Vec<f64> {
+        self.inner.dvl.variance.to_vec()
+    }
+    #[getter]
+    fn dvl_period(&self) -> f64 {
+        self.inner.dvl.period
+    }
+    #[getter]
+    fn lever_arm(&self) -> Vec<f64> {
+        self.inner.dvl.lever_arm.as_slice().to_vec()
+    }
+    fn __repr__(&self) -> String {
+        format!("SensorConfig({:?})", self.inner)
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySensorConfig>()
+}

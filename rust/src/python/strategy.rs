@@ -1,0 +1,81 @@
+//! `Strategy`: a process-noise strategy.
+
+use super::convert::{arg_window, fixed};
+use super::to_py_err;
+use crate::noise::StrategySpec;
+use pyo3::prelude::*;
+
+/// A process-noise strategy (see `_core.pyi`).
+#[pyclass(name = "Strategy", module = "pronet._core", frozen)]
+#[derive(Clone)]
+pub struct PyStrategy {
+    pub(super) inner: StrategySpec,
+}
+
+impl PyStrategy {
+    fn checked(spec: StrategySpec) -> PyResult<Self> {
+        spec.validate().map_err(to_py_err)?;
+        Ok(Self { inner: spec })
+    }
+}
+
+#[pymethods]
+impl PyStrategy {
+    #[staticmethod]
+    fn constant(q: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Self::checked(StrategySpec::Constant { q: fixed(q, "q")? })
+    }
+    #[staticmethod]
+    #[pyo3(signature = (window, prior_q))]
+    fn mehra(
+        #[pyo3(from_py_with = arg_window)] window: usize,
+        prior_q: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        Self::checked(StrategySpec::Mehra {
+            window,
+            prior_q: fixed(prior_q, "prior_q")?,
+        })
+    }
+    #[staticmethod]
+    fn external(prior_q: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Self::checked(StrategySpec::External {
+            prior_q: fixed(prior_q, "prior_q")?,
+        })
+    }
+    #[getter]
+    fn kind(&self) -> &'static str {
+        match self.inner {
+            StrategySpec::Constant { .. } => "constant",
+            StrategySpec::Mehra { .. } => "mehra",
+            StrategySpec::External { .. } => "external",
+        }
+    }
+    #[getter]
+    fn label(&self) -> String {
+        self.inner.label()
+    }
+    /// q of a constant strategy, or the prior q of the others.
+    #[getter]
+    fn q(&self) -> Vec<f64> {
+        match &self.inner {
+            StrategySpec::Constant { q } => q.to_vec(),
+            StrategySpec::Mehra { prior_q, .. } | StrategySpec::External { prior_q } => {
+                prior_q.to_vec()
+            }
+        }
+    }
+    #[getter]
+    fn window(&self) -> Option<usize> {
+        match self.inner {
+            StrategySpec::Mehra { window, .. } => Some(window),
+            _ => None,
+        }
+    }
+    fn __repr__(&self) -> String {
+        format!("Strategy({:?})", self.inner)
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyStrategy>()
+}

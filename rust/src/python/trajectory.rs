@@ -1,0 +1,142 @@
+//! `Trajectory` and the functions that make one.
+
+use super::convert::{arg_dt, arg_speed0, fixed, fixed_or, matrix, rows};
+use super::{detached, to_py_err};
+use crate::trajectory::{self, Segment, TrajectorySpec, Truth};
+use nalgebra::Vector3;
+use numpy::{IntoPyArray, PyArray1, PyArray2};
+use pyo3::prelude::*;
+use std::sync::Arc;
+
+/// A trajectory's truth and ideal IMU (see `_core.pyi`).
+#[pyclass(name = "Trajectory", module = "pronet._core", frozen)]
+pub struct PyTrajectory {
+    pub(super) truth: Arc<Truth>,
+    spec: TrajectorySpec,
+}
+
+#[pymethods]
+impl PyTrajectory {
+    #[getter]
+    fn name(&self) -> String {
+        self.truth.name.clone()
+    }
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.truth.dt
+    }
+    #[getter]
+    fn duration(&self) -> f64 {
+        self.truth.duration()
+    }
+    #[getter]
+    fn n_samples(&self) -> usize {
+        self.truth.len()
+    }
+    #[getter]
+    fn time<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.truth.time.clone().into_pyarray(py)
+    }
+    #[getter]
+    fn lla<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(py, self.truth.states.iter().map(|s| s.lla.into()))
+    }
+    #[getter]
+    fn vel_ned<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(py, self.truth.states.iter().map(|s| s.vel.into()))
+    }
+    #[getter]
+    fn rpy<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(py, self.truth.rpy.iter().map(|r| (*r).into()))
+    }
+    #[getter]
+    fn imu<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(py, self.truth.imu.iter().copied())
+    }
+    #[getter]
+    fn segments<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(
+            py,
+            self.spec
+                .segments
+                .iter()
+                .map(|s| [s.duration, s.accel, s.yaw_rate, s.pitch_rate]),
+        )
+    }
+    #[getter]
+    fn speed0(&self) -> f64 {
+        self.spec.speed0
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Trajectory(name={:?}, duration={} s, dt={} s, samples={})",
+            self.truth.name,
+            self.truth.duration(),
+            self.truth.dt,
+            self.truth.len()
+        )
+    }
+}
+
+fn make_trajectory(py: Python<'_>, spec: TrajectorySpec) -> PyResult<PyTrajectory> {
+    let truth = {
+        let spec = spec.clone();
+        detached(py, move || spec.generate())?
+    };
+    Ok(PyTrajectory {
+        truth: Arc::new(truth),
+        spec,
+    })
+}
+
+#[pyfunction]
+#[pyo3(signature = (name, dt = 0.01))]
+fn builtin_trajectory(
+    py: Python<'_>,
+    name: &str,
+    #[pyo3(from_py_with = arg_dt)] dt: f64,
+) -> PyResult<PyTrajectory> {
+    let spec = trajectory::builtin(name, dt).map_err(to_py_err)?;
+    make_trajectory(py, spec)
+}
+
+#[pyfunction]
+fn builtin_trajectory_names() -> Vec<&'static str> {
+    trajectory::BUILTIN_NAMES.to_vec()
+}
+
+#[pyfunction]
+#[pyo3(signature = (segments, *, lla0, speed0, rpy0 = None, dt = 0.01, name = "custom".to_string()))]
+#[pyo3(text_signature = "(segments, *, lla0, speed0, rpy0=None, dt=0.01, name='custom')")]
+fn trajectory_from_segments(
+    py: Python<'_>,
+    segments: &Bound<'_, PyAny>,
+    lla0: &Bound<'_, PyAny>,
+    #[pyo3(from_py_with = arg_speed0)] speed0: f64,
+    rpy0: Option<&Bound<'_, PyAny>>,
+    #[pyo3(from_py_with = arg_dt)] dt: f64,
+    name: String,
+) -> PyResult<PyTrajectory> {
+    let segs = rows::<4>(segments, "segments")?
+        .into_iter()
+        .map(|r| Segment::new(r[0], r[1], r[2], r[3]))
+        .collect();
+    let rpy0 = fixed_or::<3>(rpy0, "rpy0", [0.0; 3])?;
+    let spec = TrajectorySpec {
+        name,
+        lla0: Vector3::from(fixed::<3>(lla0, "lla0")?),
+        speed0,
+        rpy0: Vector3::from(rpy0),
+        segments: segs,
+        dt,
+    };
+    make_trajectory(py, spec)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyTrajectory>()?;
+    m.add_function(wrap_pyfunction!(builtin_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(builtin_trajectory_names, m)?)?;
+    m.add_function(wrap_pyfunction!(trajectory_from_segments, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,318 @@
+//! One simulated run of a scenario, stepped one IMU sample at a time: the sensor
+//! simulation, the filter, and the metrics, NIS/NEES and histories it reports.
+
+use crate::attitude::{exp_so3, log_so3};
+use crate::earth;
+use crate::ekf::{
+    Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL,
+};
+use crate::error::Result;
+use crate::mechanization::{ImuSample, NavState};
+use crate::montecarlo::Scenario;
+use crate::noise::{NoiseStrategy, StrategySpec};
+use crate::sensors::{normal, stream_rng, SensorSim, Stream};
+use crate::trajectory::Truth;
+use nalgebra::Vector3;
+
+/// Per-run scalar metrics. Velocity errors are taken at every IMU epoch.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunSummary {
+    /// `sqrt(mean_k Σ_{N,E,D} δv²)` [m/s].
+    pub srmse: f64,
+    /// `mean_k Σ_{N,E,D} |δv|` [m/s].
+    pub smae: f64,
+    /// Horizontal position error at the end [m].
+    pub final_horizontal_error: f64,
+    /// Largest horizontal position error over the run [m].
+    pub max_horizontal_error: f64,
+    /// Mean NIS over the applied DVL updates.
+    pub mean_nis: f64,
+    /// DVL updates the innovation gate rejected.
+    pub rejected_updates: usize,
+    /// Time [s] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
+    pub diverged_at: Option<f64>,
+    /// Set when the filter failed numerically; the run's metrics are then NaN.
+    pub failure: Option<String>,
+}
+
+/// Recorded histories of one run, at `record_time` epochs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct History {
+    /// True estimation error `[δp, δv, ψ, δb_a, δb_g]` (estimate minus truth).
+    pub error: Vec<[f64; 15]>,
+    /// Filter 1σ of the same states.
+    pub sigma: Vec<[f64; 15]>,
+    /// IMU variances q the strategy used (NaN where it has none, e.g. Mehra).
+    pub imu_variance: Vec<[f64; 6]>,
+}
+
+/// Everything one run reports.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunRecord {
+    pub summary: RunSummary,
+    /// NIS at each DVL epoch (gate-rejected updates included).
+    pub nis: Vec<f64>,
+    /// NEES of the position, velocity, attitude, accelerometer-bias and gyro-bias
+    /// blocks after each DVL update (3 dof each).
+    pub nees: Vec<[f64; 5]>,
+    pub history: Option<History>,
+}
+
+/// The last N raw IMU samples of a run, as the regressor reads them.
+struct ImuWindow {
+    buf: Vec<[f32; 6]>,
+    head: usize,
+}
+
+impl ImuWindow {
+    fn new(n: usize) -> Self {
+        Self {
+            buf: vec![[0.0; 6]; n],
+            head: 0,
+        }
+    }
+
+    fn push(&mut self, s: &[f64; 6]) {
+        self.buf[self.head] = s.map(|x| x as f32);
+        self.head = (self.head + 1) % self.buf.len();
+    }
+
+    /// Write the window channel-major, oldest sample first, into `out` (6·N values).
+    fn write_channels(&self, out: &mut [f32]) {
+        let n = self.buf.len();
+        for c in 0..6 {
+            for j in 0..n {
+                out[c * n + j] = self.buf[(self.head + j) % n][c];
+            }
+        }
+    }
+}
+
+/// One simulated run, stepped one IMU sample at a time.
+/// The scenario is passed to every call rather than stored, so stepping touches no
+/// shared reference count.
+pub struct Run {
+    ekf: Ekf,
+    strategy: Box<dyn NoiseStrategy>,
+    sim: SensorSim,
+    dvl_every: usize,
+    record_every: usize,
+    k: usize,
+    steps_since_update: usize,
+    true_bias: [f64; 6],
+    sum_sq: f64,
+    sum_abs: f64,
+    horizontal_error: f64,
+    max_horizontal_error: f64,
+    nis: Vec<f64>,
+    rejected_updates: usize,
+    accepted_nis_sum: f64,
+    nis_monitor: NisMonitor,
+    nees: Vec<[f64; 5]>,
+    history: Option<History>,
+    window: Option<ImuWindow>,
+    failure: Option<String>,
+}
+
+/// Estimate-minus-truth error of the full state.
+fn state_error(ekf: &Ekf, truth: &NavState, true_bias: &[f64; 6]) -> [f64; 15] {
+    let dp = earth::position_error_ned(&ekf.nav.lla, &truth.lla);
+    let dv = ekf.nav.vel - truth.vel;
+    // Ĉ = (I − [ψ×]) C ≈ Exp(−ψ) C.
+    let psi = -log_so3(&(ekf.nav.dcm * truth.dcm.transpose()));
+    let ba = ekf.accel_bias - Vector3::new(true_bias[0], true_bias[1], true_bias[2]);
+    let bg = ekf.gyro_bias - Vector3::new(true_bias[3], true_bias[4], true_bias[5]);
+    let mut e = [0.0; 15];
+    for (offset, v) in [
+        (POS, dp),
+        (VEL, dv),
+        (ATT, psi),
+        (ACC_BIAS, ba),
+        (GYRO_BIAS, bg),
+    ] {
+        e[offset..offset + 3].copy_from_slice(v.as_slice());
+    }
+    e
+}
+
+/// NEES of each 3-block: `e_bᵀ P_bb⁻¹ e_b` (NaN where the block is singular).
+fn block_nees(error: &[f64; 15], p: &Matrix15) -> [f64; 5] {
+    [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS].map(|b| {
+        let e = Vector3::new(error[b], error[b + 1], error[b + 2]);
+        match p.fixed_view::<3, 3>(b, b).into_owned().cholesky() {
+            Some(ch) => e.dot(&ch.solve(&e)),
+            None => f64::NAN,
+        }
+    })
+}
+
+impl Run {
+    pub fn new(
+        scenario: &Scenario,
+        filter: &FilterConfig,
+        strategy: &StrategySpec,
+        seed: u64,
+        run_index: u64,
+        record_every: usize,
+        window: Option<usize>,
+    ) -> Result<Self> {
+        let dvl_every = scenario.dvl_every()?;
+        let truth0 = scenario.truth.states[0];
+        let true_bias = scenario.sensors.imu.bias;
+        let mut nav = truth0;
+        let mut bias = true_bias;
+        if scenario.sample_initial_error {
+            let mut rng = stream_rng(seed, run_index, Stream::InitialError);
+            let dx: [f64; 15] = std::array::from_fn(|i| filter.p0_sigma[i] * normal(&mut rng));
+            let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
+            nav.lla += earth::ned_delta_to_lla_delta(&nav.lla, &block(POS));
+            nav.vel += block(VEL);
+            nav.dcm = exp_so3(&(-block(ATT))) * nav.dcm;
+            for i in 0..6 {
+                bias[i] += dx[ACC_BIAS + i];
+            }
+        }
+        let ekf = Ekf::new(
+            filter,
+            nav,
+            Vector3::new(bias[0], bias[1], bias[2]),
+            Vector3::new(bias[3], bias[4], bias[5]),
+        )?;
+        let n_epochs = scenario.truth.len() / dvl_every;
+        let mut run = Self {
+            sim: SensorSim::new(&scenario.sensors, seed, run_index),
+            ekf,
+            strategy: strategy.build(filter.bias_psd()),
+            dvl_every,
+            record_every,
+            k: 0,
+            steps_since_update: 0,
+            true_bias,
+            sum_sq: 0.0,
+            sum_abs: 0.0,
+            horizontal_error: 0.0,
+            max_horizontal_error: 0.0,
+            nis: Vec::with_capacity(n_epochs),
+            rejected_updates: 0,
+            accepted_nis_sum: 0.0,
+            nis_monitor: NisMonitor::default(),
+            nees: Vec::with_capacity(n_epochs),
+            history: (record_every > 0).then(History::default),
+            window: window.map(ImuWindow::new),
+            failure: None,
+        };
+        run.record_history(&scenario.truth);
+        Ok(run)
+    }
+
+    fn record_history(&mut self, truth: &Truth) {
+        if let Some(h) = self.history.as_mut() {
+            if self.k.is_multiple_of(self.record_every) {
+                let truth = &truth.states[self.k];
+                h.error.push(state_error(&self.ekf, truth, &self.true_bias));
+                h.sigma.push(self.ekf.sigma());
+                h.imu_variance
+                    .push(self.strategy.imu_variance().unwrap_or([f64::NAN; 6]));
+            }
+        }
+    }
+
+    /// Advance by one IMU sample (and a DVL update when one is due).
+    pub fn step(&mut self, scenario: &Scenario) {
+        let truth = &*scenario.truth;
+        let ideal = &truth.imu[self.k];
+        self.true_bias = *self.sim.bias();
+        let raw = self
+            .sim
+            .imu(&scenario.sensors.imu, ideal, truth.time[self.k], truth.dt);
+        if let Some(w) = self.window.as_mut() {
+            w.push(&raw);
+        }
+        self.k += 1;
+        self.steps_since_update += 1;
+        let state = &truth.states[self.k];
+        if self.failure.is_none() {
+            let z = self.k.is_multiple_of(self.dvl_every).then(|| {
+                let gyro = Vector3::new(ideal[3], ideal[4], ideal[5]);
+                self.sim.dvl(&scenario.sensors.dvl, state, &gyro)
+            });
+            match self.ekf.step(
+                &ImuSample::from_array(&raw),
+                truth.dt,
+                self.strategy.as_mut(),
+                z.as_ref(),
+                self.steps_since_update,
+            ) {
+                Ok(Some(info)) => self.after_update(&info, state, truth.time[self.k]),
+                Ok(None) => {}
+                Err(e) => self.failure = Some(format!("t = {} s: {e}", truth.time[self.k])),
+            }
+        }
+        let dv = self.ekf.nav.vel - state.vel;
+        self.sum_sq += dv.norm_squared();
+        self.sum_abs += dv.abs().sum();
+        let dp = earth::position_error_ned(&self.ekf.nav.lla, &state.lla);
+        self.horizontal_error = dp[0].hypot(dp[1]);
+        self.max_horizontal_error = self.max_horizontal_error.max(self.horizontal_error);
+        self.record_history(truth);
+    }
+
+    fn after_update(&mut self, info: &UpdateInfo, state: &NavState, t: f64) {
+        self.nis_monitor.push(info.nis, t);
+        if info.accepted {
+            self.steps_since_update = 0;
+            self.accepted_nis_sum += info.nis;
+        } else {
+            self.rejected_updates += 1;
+        }
+        // Every epoch is recorded, applied or not, so that the histories stay aligned.
+        self.nis.push(info.nis);
+        let e = state_error(&self.ekf, state, &self.true_bias);
+        self.nees.push(block_nees(&e, &self.ekf.p));
+    }
+
+    /// Write the last `window` raw IMU samples channel-major, oldest first, into `out`
+    /// (6·window values); nothing for a run made without a window.
+    pub(crate) fn write_window(&self, out: &mut [f32]) {
+        if let Some(w) = self.window.as_ref() {
+            w.write_channels(out);
+        }
+    }
+
+    /// Steps taken so far.
+    pub fn steps(&self) -> usize {
+        self.k
+    }
+
+    pub fn strategy_mut(&mut self) -> &mut dyn NoiseStrategy {
+        self.strategy.as_mut()
+    }
+
+    pub fn finish(self) -> RunRecord {
+        let n = self.k.max(1) as f64;
+        let failed = self.failure.is_some();
+        let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
+        let accepted = self.nis.len() - self.rejected_updates;
+        // Every update rejected by the gate: no NIS to average (0 would look healthy).
+        let mean_nis = if accepted == 0 && self.rejected_updates > 0 {
+            f64::NAN
+        } else {
+            self.accepted_nis_sum / accepted.max(1) as f64
+        };
+        RunRecord {
+            summary: RunSummary {
+                srmse: nan_if_failed((self.sum_sq / n).sqrt()),
+                smae: nan_if_failed(self.sum_abs / n),
+                final_horizontal_error: nan_if_failed(self.horizontal_error),
+                max_horizontal_error: nan_if_failed(self.max_horizontal_error),
+                mean_nis: nan_if_failed(mean_nis),
+                rejected_updates: self.rejected_updates,
+                diverged_at: self.nis_monitor.diverged_at,
+                failure: self.failure,
+            },
+            nis: self.nis,
+            nees: self.nees,
+            history: self.history,
+        }
+    }
+}
