@@ -155,6 +155,14 @@ def run_hybrid(
         threads=threads,
         first_run=first_run,
     )
+    return _drive(ens, regressor, prior, guardrails)
+
+
+def _drive(
+    ens: _core.Ensemble, regressor: Regressor, prior: NDArray[np.float64], guardrails: Guardrails
+) -> HybridResult:
+    """Step ``ens`` to the end, setting the guarded predictions of ``regressor`` as its
+    q at every tuning instant; the wall time inside the core and the model is kept."""
     n_runs = ens.n_runs
     q_prev = np.tile(prior, (n_runs, 1))
     clipped = np.zeros(n_runs, dtype=np.int64)
