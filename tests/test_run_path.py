@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 
-from pronet import cli, config, results
-from pronet.run import run
+from pronet import _core, cli, config, results
+from pronet.run import Recorded, run
 from pronet.strategies import StrategySpec, strategy
 
 PACKAGE = Path(__file__).resolve().parents[1] / "python" / "pronet"
@@ -92,3 +93,24 @@ def test_one_module_tells_learned_from_native_strategies() -> None:
         if _dispatches_on_learned(ast.parse(p.read_text()))
     )
     assert dispatching == ["run.py"]
+
+
+def test_run_refuses_what_its_target_cannot_take() -> None:
+    q = (1e-4,) * 3 + (1e-6,) * 3
+    native = _core.Strategy.constant(q)
+    with pytest.raises(ValueError, match="^target: expected a Scenario or Recorded, got str$"):
+        run(native, "paper")  # type: ignore[call-overload]
+    rec = Recorded(
+        imu=np.zeros((3, 6)),
+        imu_time=np.array([0.01, 0.02, 0.03]),
+        dvl=np.zeros((0, 3)),
+        dvl_time=np.zeros(0),
+        t0=0.0,
+        lla0=np.array([0.5, 0.6, 0.0]),
+        vel0=np.zeros(3),
+        rpy0=np.zeros(3),
+        config=_core.FilterConfig(),
+    )
+    with pytest.raises(ValueError, match="a recorded run takes none of them"):
+        run(native, rec, n_runs=5)  # type: ignore[call-overload]
+    assert run(native, rec).result.time.shape == (4,)
