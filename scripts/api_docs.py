@@ -443,9 +443,7 @@ class Page:
                 (k, v)
                 for k, v in vars(obj).items()
                 if not k.startswith("_")
-                and (
-                    inspect.isfunction(v) or isinstance(v, (property, classmethod, staticmethod))
-                )
+                and (inspect.isfunction(v) or isinstance(v, (property, classmethod, staticmethod)))
             ]
             members.sort(key=lambda kv: _line(kv[1]))
             for k, v in members:

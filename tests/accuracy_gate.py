@@ -9,8 +9,10 @@ runs it, and so can you::
 Each row (scenario × strategy) records velocity SRMSE and SMAE, final and maximum
 horizontal position error, mean NIS, mean velocity NEES, the fraction of velocity
 errors inside ±3σ, and two counts that must match exactly: the epochs scored and the
-non-finite samples dropped. Rows cover the ``paper`` and ``varying-noise`` scenarios at
-:data:`GATE_RUNS` runs (seed 0) and, where the Snapir data is present, its sections.
+non-finite samples dropped. Rows cover the paper's seven rows on the ``paper`` and
+``varying-noise`` scenarios, the study's rows (:data:`pronet.study.STUDY_ROWS`) on the
+study scenarios, at :data:`GATE_RUNS` runs (seed 0), and, where the Snapir data is
+present, its sections (the real-data rows with ``detvar`` and ``adaptive``).
 
 :func:`compare` fails a row when a metric gets worse by more than
 :data:`WORSE_TOLERANCE` (relative), and also when it gets *better* by more than
@@ -131,10 +133,11 @@ def simulated_rows(
     scenarios: Collection[str] | None = None,
     strategies: Collection[str] | None = None,
 ) -> Rows:
-    """Every strategy of both simulated scenarios, with the shipped models; or only the
-    named ``scenarios`` and strategy labels (a quick partial gate)."""
-    from pronet import models, paper, run
-    from pronet.scenarios import SCENARIOS
+    """The paper's rows on the paper's scenarios and the study's rows on the study's
+    scenarios, with the shipped models; or only the named ``scenarios`` and strategy
+    labels (a quick partial gate)."""
+    from pronet import models, paper, run, study
+    from pronet.scenarios import PAPER_SCENARIOS, SCENARIOS
 
     unknown = set(scenarios or ()) - set(SCENARIOS)
     if unknown:
@@ -145,8 +148,11 @@ def simulated_rows(
     for name, build in SCENARIOS.items():
         if scenarios is not None and name not in scenarios:
             continue
-        sc = build()
-        chosen = paper.paper_strategies(sc.q_nominal, regressors, 1.0)
+        sc = build(seed)
+        if name in PAPER_SCENARIOS:
+            chosen = paper.paper_strategies(sc.q_nominal, regressors, 1.0)
+        else:
+            chosen = study.study_strategies(sc.q_nominal, regressors, 1.0)
         if strategies is not None:
             unknown = set(strategies) - set(chosen)
             if unknown:

@@ -155,12 +155,17 @@ def test_a_missing_or_unknown_scenario_says_so(tmp_path) -> None:
         ("mehra:5", "mehra", 5.0, ""),
         ("learned:detrend", "learned", 0.0, "detrend"),
         ("learned:models/my net", "learned", 0.0, "models/my net"),
+        ("oracle", "oracle", 0.0, ""),
+        ("adaptive", "adaptive", 60.0, ""),
+        ("adaptive:30", "adaptive", 30.0, ""),
+        ("detvar", "detvar", 0.0, ""),
+        ("learned:detvar", "detvar", 0.0, ""),
     ],
 )
 def test_strategy_specs_parse(text, kind, factor, model) -> None:
     spec = StrategySpec.parse(text)
     assert (spec.text, spec.kind, spec.factor, spec.model) == (text, kind, factor, model)
-    assert spec.uses_tuning_period == (kind == "learned")
+    assert spec.uses_tuning_period == (kind in ("learned", "detvar"))
 
 
 @pytest.mark.parametrize(
@@ -173,7 +178,11 @@ def test_strategy_specs_parse(text, kind, factor, model) -> None:
         ("constant:inf", "must be finite and > 0"),
         ("constant:x", "'x' is not a number"),
         ("learned:", "learned needs a model"),
-        ("kalman", "expected constant[:S], mehra:W or learned:MODEL"),
+        ("adaptive:0", "adaptive needs a window"),
+        ("adaptive:x", "adaptive needs a window"),
+        ("oracle:2", "oracle takes no argument"),
+        ("detvar:200", "detvar takes no argument"),
+        ("kalman", "expected constant[:S], oracle, adaptive[:W], mehra:W, detvar or learned"),
         (5, "expected text"),
     ],
 )

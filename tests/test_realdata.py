@@ -344,7 +344,8 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     code = main(argv + ["--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))])
     assert code == 0
     text = capsys.readouterr().out
-    for label in ("constant (estimated q)", "adaptive xi=5", "detrend net", "HCF-ensemble"):
+    labels = ("constant (estimated q)", "adaptive xi=5", "detrend net", "HCF-ensemble")
+    for label in (*labels, "detvar", "adaptive"):
         assert label in text
     assert "stamps as given, no lever arms" in text and "inertial only, first 60 s" in text
     files = {p.name for p in out.iterdir()}
@@ -353,7 +354,8 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
         assert {f"track_{name}.png", f"velocity_error_{name}.png", f"q_{name}.png"} <= files
     metrics = json.loads((out / "metrics.json").read_text())
     aligned = [r for r in metrics if r["scenario"] in ("run1", "run2")]
-    assert sum(r["scenario"] == "run1" for r in aligned) == 8 and len(aligned) == 16
+    # the paper's seven rows, detvar, adaptive and the inertial-only run
+    assert sum(r["scenario"] == "run1" for r in aligned) == 10 and len(aligned) == 20
     header = (out / "metrics.csv").read_text().splitlines()[0]
     assert header == ",".join(RUN_COLUMNS)
     config = json.loads((out / "config.json").read_text())

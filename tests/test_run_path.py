@@ -22,9 +22,10 @@ name = "short"
 segments = [[20, 0, 0, 0], [20, 0, 3, 0]]
 """
 
+SPECS = ["constant:3", "mehra:5", "oracle", "adaptive:20", "detvar"]
 GRID = """
 scenarios = ["short.toml"]
-strategies = ["constant:3", "mehra:5"]
+strategies = ["constant:3", "mehra:5", "oracle", "adaptive:20", "detvar"]
 runs = 5
 shard_runs = 2
 seed = 4
@@ -39,7 +40,7 @@ def test_api_simulate_and_sweep_give_the_same_bits(tmp_path) -> None:
     (tmp_path / "short.toml").write_text(SCENARIO)
     (tmp_path / "grid.toml").write_text(GRID)
     scenario = config.load_scenario(tmp_path / "short.toml")
-    specs = ["constant:3", "mehra:5"]
+    specs = SPECS
     api = {
         spec: run(
             strategy(StrategySpec.parse(spec), scenario.q_nominal), scenario, n_runs=5, seed=4
@@ -114,3 +115,7 @@ def test_run_refuses_what_its_target_cannot_take() -> None:
     with pytest.raises(ValueError, match="a recorded run takes none of them"):
         run(native, rec, n_runs=5)  # type: ignore[call-overload]
     assert run(native, rec).result.time.shape == (4,)
+    with pytest.raises(ValueError, match="^strategy: oracle needs the simulated IMU's true var"):
+        run(strategy(StrategySpec.parse("oracle"), q), rec)
+    adaptive = strategy(StrategySpec.parse("adaptive"), q)
+    assert run(adaptive, rec).result.time.shape == (4,)

@@ -148,8 +148,9 @@ class FilterConfig:
 
 @final
 class Strategy:
-    """Process-noise strategy: constant Q^c, Mehra innovation-adaptive (window ξ), or
-    external (q set by the caller through an :class:`Ensemble`)."""
+    """Process-noise strategy: constant Q^c, Mehra innovation-adaptive (window ξ),
+    robust adaptive (covariance matching of a scale on q), the oracle (the simulated
+    IMU's true variance), or external (q set by the caller through an :class:`Ensemble`)."""
 
     @staticmethod
     def constant(q: Any) -> Strategy:
@@ -159,11 +160,20 @@ class Strategy:
         """Mehra's innovation-adaptive Q over the last ``window`` DVL innovations
         (``window`` >= 1); constant ``prior_q`` until that many exist."""
     @staticmethod
+    def adaptive(window: int, prior_q: Any) -> Strategy:
+        """q = λ·prior_q with the scale λ estimated by matching the DVL innovations'
+        NIS over an exponentially forgetting window of ``window`` updates (>= 1);
+        structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/filter.md``."""
+    @staticmethod
+    def oracle() -> Strategy:
+        """The simulated IMU's true variance at every IMU step: the ceiling. Simulation
+        only; recorded data has no truth to give it."""
+    @staticmethod
     def external(prior_q: Any) -> Strategy:
         """q set from outside (the hybrid loop, through an :class:`Ensemble`);
         ``prior_q`` until the first setting."""
     @property
-    def kind(self) -> Literal["constant", "mehra", "external"]: ...
+    def kind(self) -> Literal["constant", "mehra", "adaptive", "oracle", "external"]: ...
     @property
     def label(self) -> str: ...
     @property
@@ -176,7 +186,9 @@ class SensorConfig:
     """Simulated sensors. ``imu_variance``: 6 per-sample variances, or with
     ``imu_variance_times`` (k,) [s, starting at 0] a ``(k, 6)`` piecewise-constant
     schedule. Constant bias, bias random-walk PSD, DVL variance [(m/s)²], DVL period [s]
-    (a whole number of IMU steps), DVL lever arm [m, body]. Defaults: the paper's."""
+    (a whole number of IMU steps), DVL lever arm [m, body], DVL outages ``(k, 2)``
+    ``[start, end)`` [s] (sorted, not overlapping; no reading inside one). Defaults: the
+    paper's."""
 
     def __new__(
         cls,
@@ -188,6 +200,7 @@ class SensorConfig:
         dvl_variance: Any | None = None,
         dvl_period: float = 1.0,
         lever_arm: Any | None = None,
+        dvl_outages: Any | None = None,
     ) -> SensorConfig: ...
     @property
     def imu_variance_times(self) -> list[float]: ...
@@ -197,6 +210,8 @@ class SensorConfig:
     def imu_bias(self) -> list[float]: ...
     @property
     def imu_bias_psd(self) -> list[float]: ...
+    @property
+    def dvl_outages(self) -> NDArray[np.float64]: ...
     @property
     def dvl_variance(self) -> list[float]: ...
     @property

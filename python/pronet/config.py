@@ -8,8 +8,11 @@ mistakes too, so a misspelt key never silently falls back to a default.
 **Scenario** (``pronet simulate --scenario FILE``, or listed in a sweep)::
 
     name = "fast-turns"        # default: the file name without .toml
-    base = "paper"             # built-in scenario it starts from: paper, varying-noise
+    base = "paper"             # built-in scenario it starts from (pronet.scenarios.SCENARIOS):
+                               # paper, varying-noise, matched, varying-matched, regimes, outage
     q_nominal = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]   # optional, see below
+    schedule_seed = 3          # optional: the seed of a drawn noise schedule (varying-noise,
+                               # varying-matched, regimes, outage); default: the run's seed
 
     [trajectory]               # optional; replaces the base's trajectory
     builtin = "paper"          # a built-in trajectory ... or segments:
@@ -24,7 +27,7 @@ mistakes too, so a misspelt key never silently falls back to a default.
     imu_variance = [4e-4, 4e-4, 4e-4, 4e-6, 4e-6, 4e-6]   # per sample, (m/s²)², (rad/s)²
     # imu_variance_times = [0, 100]  with imu_variance a list of 6-lists: a schedule [s]
     # imu_bias, imu_bias_psd (6 each), dvl_variance (3) [(m/s)²], dvl_period [s],
-    # lever_arm (3) [m, body FRD]
+    # lever_arm (3) [m, body FRD], dvl_outages = [[60, 120], [150, 210]]  ([start, end) [s])
 
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
     dvl_variance = [0.01, 0.01, 0.01]
@@ -36,7 +39,8 @@ Without it: the base's, unless ``[sensors]`` sets ``imu_variance``, in which cas
 that variance (or its time average over the trajectory, for a schedule).
 
 **Filter configuration** (``pronet simulate --filter FILE``): the keys of a scenario's
-``[filter]`` table, at the top level of their own file.
+``[filter]`` table, at the top level of their own file. It overrides the keys it names
+and keeps the scenario's filter for the rest.
 
 **Sweep grid** (``pronet sweep FILE``)::
 
@@ -98,6 +102,7 @@ SENSOR_KEYS = (
     "dvl_variance",
     "dvl_period",
     "lever_arm",
+    "dvl_outages",
 )
 #: Keys of a ``[trajectory]`` table with their defaults (``builtin`` excludes the rest
 #: but ``dt_s``); the defaults are the paper trajectory's start.
@@ -114,7 +119,15 @@ TRAJECTORY_DEFAULTS: dict[str, Any] = {
     "dt_s": 0.01,
     "name": None,
 }
-SCENARIO_KEYS = ("name", "base", "q_nominal", "trajectory", "sensors", "filter")
+SCENARIO_KEYS = (
+    "name",
+    "base",
+    "q_nominal",
+    "schedule_seed",
+    "trajectory",
+    "sensors",
+    "filter",
+)
 SWEEP_KEYS = (
     "scenarios",
     "strategies",
@@ -171,9 +184,13 @@ def filter_config(
     return _native(where, lambda: _core.FilterConfig(**kwargs))
 
 
-def load_filter_config(path: str | Path) -> _core.FilterConfig:
-    """The filter configuration file at ``path`` (the keys of ``FilterConfig``)."""
-    return filter_config(read_toml(path), f"{path}:")
+def load_filter_config(
+    path: str | Path, base: _core.FilterConfig | None = None
+) -> _core.FilterConfig:
+    """The filter configuration file at ``path`` (the keys of ``FilterConfig``) over
+    ``base`` (default ``FilterConfig()``): the keys the file does not name keep
+    ``base``'s values."""
+    return filter_config(read_toml(path), f"{path}:", base)
 
 
 def sensor_kwargs(sensors: _core.SensorConfig) -> dict[str, Any]:
@@ -204,9 +221,11 @@ def sensor_config(
     kwargs.update(table)
 
     def make() -> _core.SensorConfig:
-        for key in ("imu_variance", "imu_variance_times"):  # the native core takes arrays
+        for key in ("imu_variance", "imu_variance_times", "dvl_outages"):  # arrays, natively
             if kwargs[key] is not None:
                 kwargs[key] = real_array(kwargs[key], key).astype(np.float64)
+        if kwargs["dvl_outages"] is not None and kwargs["dvl_outages"].size == 0:
+            kwargs["dvl_outages"] = kwargs["dvl_outages"].reshape(0, 2)
         return _core.SensorConfig(**kwargs)
 
     return _native(where, make)
@@ -262,14 +281,17 @@ def _number(value: object, where: str) -> float:
     return float(value)
 
 
-def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario:
+def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int = 0) -> Scenario:
     """A :class:`~pronet.scenarios.Scenario` from a scenario document (the module
-    docstring); ``where`` (the file) prefixes errors."""
+    docstring); ``where`` (the file) prefixes errors. A drawn noise schedule comes from
+    the document's ``schedule_seed``, else from ``seed`` (the run's)."""
     _check_keys(data, SCENARIO_KEYS, f"{where}:")
     base_name = data.get("base", "paper")
     if base_name not in SCENARIOS:
         raise ConfigError(f"{where}: base: {base_name!r} is not one of {', '.join(SCENARIOS)}")
-    base = SCENARIOS[base_name]()
+    if "schedule_seed" in data:
+        seed = _whole(data, "schedule_seed", f"{where}:", 0, 0)
+    base = SCENARIOS[base_name](seed)
     name = data.get("name", default_name)
     if not isinstance(name, str) or not name.strip():
         raise ConfigError(f"{where}: name: expected non-empty text, got {name!r}")
@@ -308,6 +330,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario
         )
     else:
         q_nominal = base.q_nominal
+    drawn = "imu_variance" not in data.get("sensors", {})
     return Scenario(
         name=name,
         trajectory=traj,
@@ -316,20 +339,23 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str) -> Scenario
         q_nominal=q_nominal,
         schedule_time=times,
         schedule_q=schedule,
+        schedule_seed=base.schedule_seed if drawn else None,
     )
 
 
-def load_scenario(name_or_path: str | Path) -> Scenario:
-    """A built-in scenario by name (``paper``, ``varying-noise``) or a scenario file."""
+def load_scenario(name_or_path: str | Path, seed: int = 0) -> Scenario:
+    """A built-in scenario by name (:data:`pronet.scenarios.SCENARIOS`) or a scenario
+    file; a drawn noise schedule comes from ``seed`` unless the file sets
+    ``schedule_seed``."""
     if str(name_or_path) in SCENARIOS:
-        return SCENARIOS[str(name_or_path)]()
+        return SCENARIOS[str(name_or_path)](seed)
     path = Path(name_or_path)
     if path.suffix != ".toml" and not path.exists():
         raise ConfigError(
             f"scenario: {str(name_or_path)!r} is neither a built-in scenario "
             f"({', '.join(SCENARIOS)}) nor a .toml file"
         )
-    return scenario(read_toml(path), str(path), path.stem)
+    return scenario(read_toml(path), str(path), path.stem, seed)
 
 
 @dataclass(frozen=True)
@@ -342,10 +368,12 @@ class ScenarioSource:
     document: str = ""  # the scenario file's TOML text (when not built in)
     origin: str = ""  # the file it was read from, for error messages
 
-    def build(self) -> Scenario:
+    def build(self, seed: int = 0) -> Scenario:
+        """The scenario, its drawn noise schedule (if any) from ``seed`` unless the
+        file sets ``schedule_seed``."""
         if self.builtin is not None:
-            return SCENARIOS[self.builtin]()
-        return scenario(tomllib.loads(self.document), self.origin, self.name)
+            return SCENARIOS[self.builtin](seed)
+        return scenario(tomllib.loads(self.document), self.origin, self.name, seed)
 
 
 @dataclass(frozen=True)

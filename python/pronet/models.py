@@ -37,7 +37,8 @@ from numpy.typing import ArrayLike, NDArray
 from torch import nn
 
 from pronet import modelfile
-from pronet.windowstats import as_windows, detrended_variance
+from pronet.windowstats import DetrendedVariance as DetrendedVariance  # re-exported
+from pronet.windowstats import as_windows
 
 #: Largest |sample| the nets read [m/s² or rad/s]: beyond it their float32 LayerNorm
 #: overflows, so such windows get NaN on purpose rather than by accident.
@@ -52,16 +53,6 @@ class Regressor(Protocol):
     """Anything that maps raw windows ``(..., N)`` to noise variances ``(...)``."""
 
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]: ...
-
-
-class DetrendedVariance:
-    """The reference estimator as a regressor: the unbiased variance of each window
-    after removing its least-squares line (N − 2 degrees of freedom)."""
-
-    name = "detrended variance"
-
-    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
-        return detrended_variance(windows)
 
 
 class _ConvBlock(nn.Module):

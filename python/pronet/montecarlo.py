@@ -27,6 +27,10 @@ MAX_RUN_INDEX = _core.MAX_RUN_INDEX
 #: Names of the five 3-blocks of the error state, in order.
 STATE_BLOCKS = ("position", "velocity", "attitude", "accel_bias", "gyro_bias")
 
+#: The χ² (3 dof) quantile of probability 0.9973 (a Gaussian's ±3σ share): a consistent
+#: filter's 3-dof NEES lies below it at 99.73 % of epochs.
+CHI2_3DOF_3SIGMA = 14.1563
+
 
 @dataclass(frozen=True)
 class MonteCarloResult:
@@ -83,6 +87,22 @@ class MonteCarloResult:
         """Runs whose NIS showed divergence (see ``diverged_at``)."""
         return int(np.isfinite(self.diverged_at).sum())
 
+    @property
+    def velocity_nees(self) -> NDArray[np.float64]:
+        """``(n_runs,)`` mean velocity NEES over the DVL epochs (3 when consistent; NaN
+        for a failed run or one without epochs)."""
+        v = self.nees[:, :, 1] if self.nees.ndim == 3 else np.empty((self.n_runs, 0))
+        return _row_mean(v)
+
+    @property
+    def velocity_nees_3sigma(self) -> NDArray[np.float64]:
+        """``(n_runs,)`` share of DVL epochs whose velocity NEES is inside the 3σ bound
+        :data:`CHI2_3DOF_3SIGMA` (0.9973 when consistent)."""
+        v = self.nees[:, :, 1] if self.nees.ndim == 3 else np.empty((self.n_runs, 0))
+        with np.errstate(invalid="ignore"):
+            inside = np.where(np.isfinite(v), (v <= CHI2_3DOF_3SIGMA).astype(np.float64), np.nan)
+        return _row_mean(inside)
+
     @classmethod
     def concat(cls, parts: Sequence[MonteCarloResult]) -> MonteCarloResult:
         """The runs of ``parts`` (shards of one Monte Carlo, in run order) as one result.
@@ -117,6 +137,8 @@ class MonteCarloResult:
         "final_horizontal_error",
         "max_horizontal_error",
         "mean_nis",
+        "velocity_nees",
+        "velocity_nees_3sigma",
         "rejected_updates",
         "diverged_at",
     )
@@ -151,8 +173,18 @@ class MonteCarloResult:
                 "final_horizontal_error",
                 "max_horizontal_error",
                 "mean_nis",
+                "velocity_nees",
+                "velocity_nees_3sigma",
             )
         }
+
+
+def _row_mean(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each row's mean over its finite entries; NaN for a row with none (a failed run)."""
+    finite = np.isfinite(v)
+    n = finite.sum(axis=1)
+    total = np.where(finite, v, 0.0).sum(axis=1)
+    return np.where(n > 0, total / np.maximum(n, 1), np.nan)
 
 
 def monte_carlo(

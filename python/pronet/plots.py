@@ -385,3 +385,44 @@ def sweep_metric(summary, x: str, path: str | os.PathLike[str], metric: str = "s
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     return save_png(fig, path)
+
+
+def study_figure(table, path: str | os.PathLike[str]) -> Path:
+    """The study at a glance: per scenario, each strategy's SRMSE difference from the
+    constant told the truth [% of its SRMSE] with the paired 95 % CI; the oracle's as a
+    dashed line (the ceiling), diverged runs in the labels (``table``: ``study.csv``)."""
+    names = list(dict.fromkeys(table["scenario"]))
+    fig = _figure(3.4 * len(names) + 1.6, 4.2)
+    axes = fig.subplots(1, len(names), squeeze=False, sharey=True)[0]
+    for ax, name in zip(axes, names, strict=True):
+        part = table[table["scenario"] == name]
+        ref = float(part["srmse"].iloc[0])
+        y = np.arange(len(part))[::-1]
+        pct = 100 * part["srmse_diff"].to_numpy() / ref
+        low = 100 * part["srmse_diff_low"].to_numpy() / ref
+        high = 100 * part["srmse_diff_high"].to_numpy() / ref
+        err = np.nan_to_num(np.stack([pct - low, high - pct]), nan=0.0)
+        oracle = part["strategy"].to_numpy() == "oracle"
+        colours = np.where(oracle, "tab:green", "tab:blue")
+        for i in range(len(part)):
+            ax.errorbar(pct[i], y[i], xerr=err[:, i : i + 1], fmt="o", color=colours[i], capsize=3)
+        if oracle.any():
+            ax.axvline(pct[oracle][0], color="tab:green", ls="--", lw=1, label="oracle")
+        ax.axvline(0.0, color="k", lw=0.8)
+        finite = pct[np.isfinite(pct)]
+        if finite.size and np.abs(finite).max() > 100:  # one diverging row squashes the rest
+            ax.set_xscale("symlog", linthresh=10)
+        labels = [
+            f"{s} ({d} div.)" if d else s
+            for s, d in zip(part["strategy"], part["diverged_runs"], strict=True)
+        ]
+        ax.set_yticks(y, labels, fontsize=8)
+        ax.set_xlabel("ΔSRMSE vs constant (true q) [%]\n(mean, paired 95 % CI)", fontsize=8)
+        ax.set_title(f"{name} (ref. {ref:.3g} m/s)", fontsize=9)
+        ax.grid(alpha=0.3, axis="x")
+    axes[0].legend(fontsize=7, loc="lower right")
+    fig.suptitle(
+        "When does adaptive Q pay? (left of 0: better than the constant told the truth)",
+        fontsize=10,
+    )
+    return save_png(fig, path)

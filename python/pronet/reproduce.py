@@ -23,7 +23,7 @@ from pronet.dataset import Dataset, DatasetParams, build_dataset
 from pronet.paper import LEARNED_LABELS, paper_strategies
 from pronet.results import write_result_folder
 from pronet.run import Row, run_strategies
-from pronet.scenarios import SCENARIOS, Scenario
+from pronet.scenarios import PAPER_SCENARIOS, SCENARIOS, Scenario
 from pronet.shards import ShardStore
 from pronet.strategies import StrategyLike
 
@@ -102,7 +102,7 @@ def reproduce(
     trained_dir = Path(tempfile.mkdtemp(prefix="pronet-models-")) if retrain else None
     try:
         ds, regressors = _regressors(trained_dir, train_progress)
-        scenarios = [SCENARIOS[name]() for name in SCENARIOS]
+        scenarios = [SCENARIOS[name](seed) for name in PAPER_SCENARIOS]
         jobs = {
             sc.name: paper_strategies(sc.q_nominal, regressors, tuning_period) for sc in scenarios
         }
@@ -230,6 +230,7 @@ def _config(
                 "q_nominal": list(sc.q_nominal),
                 "schedule_time_s": sc.schedule_time,
                 "schedule_q": sc.schedule_q,
+                "schedule_seed": sc.schedule_seed,
                 "strategies": {k: repr(v) for k, v in jobs[sc.name].items()},
             }
             for sc in scenarios

@@ -39,12 +39,21 @@ if TYPE_CHECKING:  # pandas loads only when a table is made
 #: (a factor on the scenario's variances) and the learned loop's tuning period [s]
 #: (NaN for native strategies).
 LABELS = ("scenario", "strategy", "noise_level", "tuning_period_s")
-#: The per-run metrics [m/s, m, -, count, s] in :class:`~pronet.MonteCarloResult` order.
+#: The per-run metrics [m/s, m, -, share, count, s] in :class:`~pronet.MonteCarloResult`
+#: order (velocity NEES and its 3σ share: NaN on recorded sections).
 METRICS = MonteCarloResult.PER_RUN
 #: Columns of every ``metrics.csv``.
 RUN_COLUMNS = (*LABELS, "run", *METRICS, "failure")
 #: The metrics summarised as mean and 95 % CI in :data:`SUMMARY_COLUMNS`.
-SUMMARIZED = ("srmse", "smae", "final_horizontal_error", "max_horizontal_error", "mean_nis")
+SUMMARIZED = (
+    "srmse",
+    "smae",
+    "final_horizontal_error",
+    "max_horizontal_error",
+    "mean_nis",
+    "velocity_nees",
+    "velocity_nees_3sigma",
+)
 #: Columns of every ``summary.csv`` / ``metrics.json`` record.
 SUMMARY_COLUMNS = (
     *LABELS,
@@ -154,6 +163,21 @@ def markdown(
     return out + "".join("| " + " | ".join(str(c) for c in r) + " |\n" for r in rows)
 
 
+#: Table columns of a filter's consistency (see :func:`consistency_cells`).
+CONSISTENCY_HEADER = ("vel. NEES (in 3σ)", "NIS")
+
+
+def consistency_cells(result: MonteCarloResult) -> list[str]:
+    """The :data:`CONSISTENCY_HEADER` cells of ``result``: the mean velocity NEES (3 when
+    consistent) with the share of epochs inside its 3σ bound (99.7 % when consistent),
+    and the mean NIS (3 when consistent); means over the runs that did not fail."""
+    nees = np.nanmean(result.velocity_nees) if np.isfinite(result.velocity_nees).any() else np.nan
+    share = result.velocity_nees_3sigma
+    inside = np.nanmean(share) if np.isfinite(share).any() else np.nan
+    nis = np.nanmean(result.mean_nis) if np.isfinite(result.mean_nis).any() else np.nan
+    return [f"{nees:.2f} ({100 * inside:.1f} %)", f"{nis:.2f}"]
+
+
 def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
     """Experiment rows as a Markdown table; with ``paper``, the paper's numbers beside
     ours (:data:`pronet.paper.PAPER_TABLE`)."""
@@ -161,7 +185,7 @@ def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
     header.append("ΔSRMSE vs row 1 (paired 95 % CI)")
     if paper:
         header += ["paper SRMSE", "paper SMAE"]
-    header += ["failed / diverged runs", "guardrail events"]
+    header += [*CONSISTENCY_HEADER, "failed / diverged runs", "guardrail events"]
     lines = []
     for row in rows:
         d = row.srmse_diff
@@ -170,6 +194,7 @@ def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
         if paper:
             ref = PAPER_TABLE.get(row.label)
             cells += [f"{ref[0]:.3f}", f"{ref[1]:.3f}"] if ref else ["", ""]
+        cells += consistency_cells(row.result)
         cells.append(f"{row.result.n_failed} / {row.result.n_diverged}")
         h = row.hybrid
         guard = f"{int(h.clipped.sum())} clipped, {int(h.non_finite.sum())} non-finite" if h else ""

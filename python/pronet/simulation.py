@@ -18,15 +18,19 @@ from pronet.scenarios import Scenario
 from pronet.strategies import StrategySpec, strategy
 
 
-def _scenario(scenario: str | Path | Scenario, filter_config: str | Path | None) -> Scenario:
-    """``scenario`` (built-in name, ``.toml`` file or object), with the filter of the
-    ``filter_config`` file if given."""
+def _scenario(
+    scenario: str | Path | Scenario, filter_config: str | Path | None, seed: int
+) -> Scenario:
+    """``scenario`` (built-in name or ``.toml`` file, its noise schedule drawn from
+    ``seed``; or an object), with the keys of the ``filter_config`` file, if given,
+    overriding its filter's."""
     from pronet import config
 
     if not isinstance(scenario, Scenario):
-        scenario = config.load_scenario(scenario)
+        scenario = config.load_scenario(scenario, seed)
     if filter_config:
-        scenario = dataclasses.replace(scenario, config=config.load_filter_config(filter_config))
+        tuned = config.load_filter_config(filter_config, base=scenario.config)
+        scenario = dataclasses.replace(scenario, config=tuned)
     return scenario
 
 
@@ -72,13 +76,16 @@ def simulate(
     returns the folder. Everything is read and checked before anything runs.
 
     Args:
-        scenario: a built-in scenario name (``paper``, ``varying-noise``), a scenario
-            ``.toml`` file (see :mod:`pronet.config`) or a :class:`~pronet.scenarios.Scenario`.
+        scenario: a built-in scenario name (:data:`pronet.scenarios.SCENARIOS`), a
+            scenario ``.toml`` file (see :mod:`pronet.config`) or a
+            :class:`~pronet.scenarios.Scenario`; a drawn noise schedule comes from
+            ``seed`` unless the file sets ``schedule_seed``.
         specs: distinct strategy specs (see :class:`~pronet.strategies.StrategySpec`);
             the first is the reference of the paired differences.
         out: the result folder to create (default ``results/simulate-<time>``); an
             existing one is refused.
-        filter_config: a filter ``.toml`` file replacing the scenario's filter.
+        filter_config: a filter ``.toml`` file; the keys it names override the
+            scenario's filter, the rest stay.
         n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
         threads: worker threads (default: all cores).
         record_every: seconds between the saved history samples the plots use (> 0).
@@ -90,7 +97,7 @@ def simulate(
         ValueError: a bad argument, file or spec, before any computation.
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
-    sc = _scenario(scenario, filter_config)
+    sc = _scenario(scenario, filter_config, seed)
     parsed = _specs(specs)
     strategies = {spec.text: strategy(spec, sc.q_nominal, tuning_period) for spec in parsed}
     out = new_result_folder(out, "simulate")
@@ -111,12 +118,13 @@ def simulate(
         record_every=max(1, round(record_every / sc.trajectory.dt)),
         on_done=on_done,
     )
-    settings = {
+    settings: dict[str, object] = {
         "scenario": scenario.name if isinstance(scenario, Scenario) else str(scenario),
         "filter": repr(sc.config),
         "sensors": repr(sc.sensors),
         "trajectory": sc.trajectory.name,
         "q_nominal": list(sc.q_nominal),
+        "schedule_seed": sc.schedule_seed,
         "strategies": [spec.text for spec in parsed],
         "n_runs": n_runs,
         "seed": seed,

@@ -1,10 +1,11 @@
 """Process-noise strategies named in text, and the learned wrapper.
 
 A strategy decides the filter's IMU process noise q (six per-sample variances
-[(m/s²)², (rad/s)²], see ``docs/concepts.md``). Native strategies (constant, Mehra) run
-entirely in the Rust core as a :class:`pronet._core.Strategy`; a :class:`Learned` one
-runs a regressor in Python every tuning period (the hybrid loop). :func:`strategy` turns
-a :class:`StrategySpec` (``constant:S``, ``mehra:W``, ``learned:MODEL``) into either.
+[(m/s²)², (rad/s)²], see ``docs/concepts.md``). Native strategies (constant, Mehra,
+adaptive, oracle) run entirely in the Rust core as a :class:`pronet._core.Strategy`; a
+:class:`Learned` one runs a regressor in Python every tuning period (the hybrid loop;
+``detvar`` is the detrended-variance estimator in that loop). :func:`strategy` turns a
+:class:`StrategySpec` into either.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import TYPE_CHECKING
 from pronet import _core
 from pronet._validate import float_array
 from pronet.hybrid import DEFAULT_TUNING_PERIOD
+from pronet.windowstats import DetrendedVariance
 
 if TYPE_CHECKING:  # torch loads only when a model does
     from pronet.models import Regressor
@@ -33,6 +35,10 @@ class Learned:
 
 StrategyLike = _core.Strategy | Learned
 
+#: Default window of the ``adaptive`` strategy [DVL updates]: one minute at 1 Hz, the
+#: time scale over which the simulated noise regimes hold (30–90 s).
+ADAPTIVE_WINDOW = 60
+
 
 @dataclass(frozen=True)
 class StrategySpec:
@@ -40,14 +46,20 @@ class StrategySpec:
 
     - ``constant`` or ``constant:S``: constant Q, the scenario's nominal q times S
       (default 1);
+    - ``oracle``: the simulated IMU's true variance at every step (simulation only);
+    - ``adaptive`` or ``adaptive:W``: robust covariance matching of a scale on the
+      nominal q over W DVL updates (default :data:`ADAPTIVE_WINDOW`);
     - ``mehra:W``: Mehra's innovation-adaptive Q over a window of W DVL updates;
+    - ``detvar`` (also ``learned:detvar``): the detrended-variance estimator on the
+      learned rows' windows and instants; needs no torch;
     - ``learned:MODEL``: the hybrid loop with a regressor: a shipped model name
       (``baseline``, ``detrend``, ``hcf``) or the path of a model file.
 
     Attributes:
         text: the spec as written (the row label in simulations and sweeps).
-        kind: ``"constant"``, ``"mehra"`` or ``"learned"``.
-        factor: constant: the factor on q; mehra: the window; learned: 0.
+        kind: ``"constant"``, ``"oracle"``, ``"adaptive"``, ``"mehra"``, ``"detvar"``
+            or ``"learned"``.
+        factor: constant: the factor on q; adaptive, mehra: the window; otherwise 0.
         model: learned: the model name or path; otherwise ``""``.
     """
 
@@ -68,20 +80,34 @@ class StrategySpec:
             if not 0 < factor < math.inf:
                 raise ValueError(f"strategy {text!r}: the factor on q must be finite and > 0")
             return cls(text, kind, factor)
-        if kind == "mehra":
+        if kind == "adaptive" and not arg:
+            return cls(text, kind, float(ADAPTIVE_WINDOW))
+        if kind in ("mehra", "adaptive"):
             if not arg.isdigit() or int(arg) < 1:
-                raise ValueError(f"strategy {text!r}: mehra needs a window >= 1, e.g. mehra:5")
+                raise ValueError(
+                    f"strategy {text!r}: {kind} needs a window >= 1 [DVL updates], e.g. {kind}:5"
+                )
             return cls(text, kind, float(int(arg)))
+        if kind in ("oracle", "detvar"):
+            if arg:
+                raise ValueError(f"strategy {text!r}: {kind} takes no argument")
+            return cls(text, kind)
         if kind == "learned":
             if not arg:
                 raise ValueError(f"strategy {text!r}: learned needs a model, e.g. learned:detrend")
+            if arg == "detvar":  # the statistical estimator, not a model file
+                return cls(text, "detvar")
             return cls(text, kind, model=arg)
-        raise ValueError(f"strategy {text!r}: expected constant[:S], mehra:W or learned:MODEL")
+        raise ValueError(
+            f"strategy {text!r}: expected constant[:S], oracle, adaptive[:W], mehra:W, "
+            "detvar or learned:MODEL"
+        )
 
     @property
     def uses_tuning_period(self) -> bool:
-        """Whether the tuning period changes this strategy (only learned ones)."""
-        return self.kind == "learned"
+        """Whether the tuning period changes this strategy (the hybrid loop's: learned
+        and detvar)."""
+        return self.kind in ("learned", "detvar")
 
 
 def _spec_number(text: str, spec: str) -> float:
@@ -105,6 +131,12 @@ def strategy(
         return _core.Strategy.constant(q if spec.factor == 1 else tuple(spec.factor * v for v in q))
     if spec.kind == "mehra":
         return _core.Strategy.mehra(int(spec.factor), q)
+    if spec.kind == "adaptive":
+        return _core.Strategy.adaptive(int(spec.factor), q)
+    if spec.kind == "oracle":
+        return _core.Strategy.oracle()
+    if spec.kind == "detvar":
+        return Learned(DetrendedVariance() if regressor is None else regressor, q, tuning_period)
     if regressor is None:
         from pronet import models
 

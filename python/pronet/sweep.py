@@ -42,7 +42,9 @@ from pronet.config import ScenarioSource, SweepGrid, sensor_kwargs
 from pronet.hybrid import HybridResult
 from pronet.montecarlo import MonteCarloResult
 from pronet.results import (
+    CONSISTENCY_HEADER,
     SUMMARY_COLUMNS,
+    consistency_cells,
     markdown,
     results_dataframe,
     summary_row,
@@ -128,8 +130,8 @@ def plan(grid: SweepGrid) -> list[Shard]:
 
 
 @functools.lru_cache(maxsize=8)
-def _scenario(source: ScenarioSource) -> Scenario:
-    return source.build()
+def _scenario(source: ScenarioSource, seed: int) -> Scenario:
+    return source.build(seed)
 
 
 @functools.lru_cache(maxsize=8)
@@ -155,7 +157,7 @@ def run_shard(
     strategy's torch runs on one thread, so that a shard's numbers do not depend on
     the machine it runs on."""
     p = shard.point
-    base = _scenario(shard.source)
+    base = _scenario(shard.source, shard.seed)
     scenario = dataclasses.replace(base, sensors=noisier(base.sensors, p.noise_level))
     regressor = _model(shard.spec.model) if shard.spec.kind == "learned" else None
     period = p.tuning_period if p.tuning_period is not None else 1.0
@@ -291,6 +293,7 @@ class SweepResult:
             "SRMSE [m/s] (95 % CI)",
             "SMAE [m/s] (95 % CI)",
             "final horizontal error [m] (95 % CI)",
+            *CONSISTENCY_HEADER,
             "failed / diverged runs",
         ]
         blocks = []
@@ -303,10 +306,8 @@ class SweepResult:
                 tp = "" if p.tuning_period is None else f"{p.tuning_period:g}"
                 lines.append(
                     [p.strategy, f"{p.noise_level:g}", tp, s["srmse"], s["smae"]]
-                    + [
-                        s["final_horizontal_error"],
-                        f"{pr.result.n_failed} / {pr.result.n_diverged}",
-                    ]
+                    + [s["final_horizontal_error"], *consistency_cells(pr.result)]
+                    + [f"{pr.result.n_failed} / {pr.result.n_diverged}"]
                 )
             title = f"{scenario}: {self.grid.runs} runs per row, seed {self.grid.seed}"
             blocks.append(markdown(header, lines, title) + "\n")

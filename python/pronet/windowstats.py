@@ -70,6 +70,17 @@ def detrended_variance(windows: ArrayLike) -> NDArray[np.float64]:
     return np.ldexp((r * r).sum(axis=-1) / (r.shape[-1] - 2), 2 * e[..., 0])
 
 
+class DetrendedVariance:
+    """The reference estimator as a regressor (``predict(windows) -> q``, as the learned
+    models): the unbiased variance of each window after removing its least-squares line
+    (N − 2 degrees of freedom). Needs no torch; the ``detvar`` strategy runs it."""
+
+    name = "detrended variance"
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        return detrended_variance(windows)
+
+
 def cramer_rao_rmse(q: ArrayLike, n: int) -> float:
     """The Cramér–Rao floor ``√(mean(2 q² / N))`` for the RMSE of variance estimates
     from ``n`` Gaussian samples each, over the labels ``q``."""

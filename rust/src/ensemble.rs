@@ -234,7 +234,7 @@ impl Ensemble {
         while self.advance().is_some() {}
         let truth = &self.scenario.truth;
         McResult {
-            dvl_time: epoch_times(truth, self.dvl_every, false),
+            dvl_time: self.scenario.dvl_epoch_times(self.dvl_every),
             record_time: if self.record_every > 0 {
                 epoch_times(truth, self.record_every, true)
             } else {

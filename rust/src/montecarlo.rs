@@ -48,6 +48,13 @@ impl Scenario {
         }
         Ok(steps as usize)
     }
+
+    /// Times [s] of the DVL epochs (every `dvl_every` IMU steps) outside the outages.
+    pub fn dvl_epoch_times(&self, dvl_every: usize) -> Vec<f64> {
+        let mut times = epoch_times(&self.truth, dvl_every, false);
+        times.retain(|&t| self.sensors.dvl.available(t));
+        times
+    }
 }
 
 /// One past the largest run index: run i's random streams are numbered 4·i + k.
@@ -152,7 +159,7 @@ pub fn run_monte_carlo(
         .collect::<Result<Vec<_>>>()?;
     Ok(McResult {
         runs,
-        dvl_time: epoch_times(&scenario.truth, dvl_every, false),
+        dvl_time: scenario.dvl_epoch_times(dvl_every),
         record_time: if opts.record_every > 0 {
             epoch_times(&scenario.truth, opts.record_every, true)
         } else {

@@ -1,6 +1,7 @@
 //! Process-noise strategies behind one trait: constant Q^c, Mehra's
-//! innovation-adaptive Q, and external Q set from outside at tuning instants (the
-//! ProNet loop).
+//! innovation-adaptive Q, the robust covariance-matching [`AdaptiveQ`], the simulation's
+//! true variance ([`StrategySpec::Oracle`], the ceiling), and external Q set from outside
+//! at tuning instants (the ProNet loop).
 //!
 //! `q` is always the per-sample variance of each IMU channel `[f_x, f_y, f_z, ω_x, ω_y,
 //! ω_z]` in (m/s²)² and (rad/s)²; the filter turns it into the PSD `q·Δt_imu`.
@@ -43,6 +44,23 @@ pub trait NoiseStrategy: Send + Sync {
     /// Whether [`NoiseStrategy::set_imu_variance`] is accepted.
     fn takes_outside_q(&self) -> bool {
         false
+    }
+
+    /// Whether the strategy is told the simulated IMU's true variance before every
+    /// step ([`NoiseStrategy::set_true_variance`]); only the oracle is.
+    fn wants_true_variance(&self) -> bool {
+        false
+    }
+
+    /// The true IMU variances of the next sample (called only when
+    /// [`NoiseStrategy::wants_true_variance`]).
+    fn set_true_variance(&mut self, _q: &[f64; 6]) {}
+
+    /// The IMU variances `q` whose common scale λ the filter should carry the
+    /// sensitivity `∂P/∂λ` of (see `Ekf::track_sensitivity`); None for all but
+    /// [`AdaptiveQ`].
+    fn sensitivity_q(&self) -> Option<[f64; 6]> {
+        None
     }
 
     /// The IMU variances in force, where the strategy has them as such.
@@ -155,25 +173,152 @@ impl NoiseStrategy for MehraQ {
     }
 }
 
+/// The simulation's true IMU variance, set before every step: the ceiling of any
+/// strategy that estimates q (only a simulation knows it).
+#[derive(Clone, Debug)]
+pub struct OracleQ {
+    inner: ConstantQ,
+}
+
+impl NoiseStrategy for OracleQ {
+    fn process_noise(&self) -> ProcessNoise<'_> {
+        self.inner.process_noise()
+    }
+
+    fn wants_true_variance(&self) -> bool {
+        true
+    }
+
+    fn set_true_variance(&mut self, q: &[f64; 6]) {
+        self.inner.q = *q;
+    }
+
+    fn imu_variance(&self) -> Option<[f64; 6]> {
+        Some(self.inner.q)
+    }
+}
+
+/// Bounds of the adaptive scale λ on the prior q: three decades either way.
+pub const ADAPTIVE_SCALE_MIN: f64 = 1e-3;
+pub const ADAPTIVE_SCALE_MAX: f64 = 1e3;
+
+/// Robust innovation-adaptive IMU noise by covariance matching, with Q's structure kept:
+/// the six IMU variances are `q = λ·prior_q` (full rank; the bias PSDs stay as
+/// configured), and λ is estimated from the DVL innovations.
+///
+/// With `S_k = H P⁻ Hᵀ + R` the filter's innovation covariance at update k and
+/// `M_k = ∂P⁻/∂λ` the sensitivity the filter carries beside P (`Ekf::track_sensitivity`),
+/// `S(λ) ≈ S_k + (λ − λ_k) H M_k Hᵀ`. Matching the expected NIS of a filter with the
+/// true λ, `E[ν_kᵀ S_k⁻¹ ν_k] ≈ tr(S_k⁻¹ S(λ))`, gives one linear equation per update,
+/// `a_k := NIS_k − 3 + λ_k b_k = λ b_k + e_k` with `b_k = tr(S_k⁻¹ H M_k Hᵀ)` and `e_k`
+/// of variance 6 (the NIS is χ² with 3 dof). Its least-squares solution over an
+/// exponentially forgetting window (factor `1 − 1/window`) is `λ̂ = Σ b_k a_k / Σ b_k²`
+/// with standard error `σ = √(6 / Σ b_k²)`.
+///
+/// Robustness: where the innovations say little about q (the process noise's share of S
+/// is small, so σ is large), λ̂ wanders far from the truth. The estimate is therefore
+/// shrunk towards the prior by its own evidence (positive-part James–Stein): with
+/// `d = λ̂ − 1`, `λ = 1 + d·max(0, 1 − σ²/d²)`, so the prior holds unless the data
+/// depart from it by more than one standard error. λ is then projected onto
+/// [[`ADAPTIVE_SCALE_MIN`], [`ADAPTIVE_SCALE_MAX`]]. Until `window` updates have been
+/// seen the prior holds.
+#[derive(Clone, Debug)]
+pub struct AdaptiveQ {
+    prior: [f64; 6],
+    current: ConstantQ,
+    lambda: f64,
+    window: usize,
+    forget: f64,
+    /// Forgetting sums `Σ b_k a_k` and `Σ b_k²`.
+    sum_ba: f64,
+    sum_bb: f64,
+    updates: usize,
+}
+
+impl AdaptiveQ {
+    /// The scale λ on the prior q in force.
+    pub fn scale(&self) -> f64 {
+        self.lambda
+    }
+}
+
+impl NoiseStrategy for AdaptiveQ {
+    fn process_noise(&self) -> ProcessNoise<'_> {
+        self.current.process_noise()
+    }
+
+    fn after_update(&mut self, update: &UpdateInfo, _steps: usize) {
+        let Some(hmh) = update.sensitivity else {
+            return;
+        };
+        let Some(s_inv) = update.s.cholesky().map(|c| c.inverse()) else {
+            return;
+        };
+        let b = (s_inv * hmh).trace();
+        if !(b.is_finite() && update.nis.is_finite()) {
+            return;
+        }
+        let a = update.nis - 3.0 + self.lambda * b;
+        self.sum_ba = self.forget * self.sum_ba + b * a;
+        self.sum_bb = self.forget * self.sum_bb + b * b;
+        self.updates += 1;
+        if self.updates >= self.window && self.sum_bb > 0.0 {
+            let d = self.sum_ba / self.sum_bb - 1.0;
+            let variance = 6.0 / self.sum_bb;
+            let shrink = if d * d > variance {
+                1.0 - variance / (d * d)
+            } else {
+                0.0
+            };
+            self.lambda = (1.0 + d * shrink).clamp(ADAPTIVE_SCALE_MIN, ADAPTIVE_SCALE_MAX);
+            self.current.q = self.prior.map(|v| v * self.lambda);
+        }
+    }
+
+    fn sensitivity_q(&self) -> Option<[f64; 6]> {
+        Some(self.prior)
+    }
+
+    fn imu_variance(&self) -> Option<[f64; 6]> {
+        Some(self.current.q)
+    }
+}
+
 /// A strategy by value: what a Monte Carlo builds one of per run.
 #[derive(Clone, Debug, PartialEq)]
 pub enum StrategySpec {
-    Constant { q: [f64; 6] },
-    Mehra { window: usize, prior_q: [f64; 6] },
-    External { prior_q: [f64; 6] },
+    Constant {
+        q: [f64; 6],
+    },
+    Mehra {
+        window: usize,
+        prior_q: [f64; 6],
+    },
+    External {
+        prior_q: [f64; 6],
+    },
+    /// The simulated IMU's true variance at every step.
+    Oracle,
+    /// [`AdaptiveQ`] over `window` DVL updates, starting from `prior_q`.
+    Adaptive {
+        window: usize,
+        prior_q: [f64; 6],
+    },
 }
 
 impl StrategySpec {
     pub fn validate(&self) -> Result<()> {
         match self {
             StrategySpec::Constant { q } => check::non_negative("q", q),
-            StrategySpec::Mehra { window, prior_q } => {
+            StrategySpec::Mehra { window, prior_q }
+            | StrategySpec::Adaptive { window, prior_q } => {
                 if *window == 0 {
                     return Err(Error::invalid("window", "must be at least 1, got 0"));
                 }
                 check::non_negative("prior_q", prior_q)
             }
             StrategySpec::External { prior_q } => check::non_negative("prior_q", prior_q),
+            StrategySpec::Oracle => Ok(()),
         }
     }
 
@@ -191,6 +336,19 @@ impl StrategySpec {
             StrategySpec::External { prior_q } => Box::new(ExternalQ {
                 inner: ConstantQ::new(*prior_q, bias_psd),
             }),
+            StrategySpec::Oracle => Box::new(OracleQ {
+                inner: ConstantQ::new([0.0; 6], bias_psd),
+            }),
+            StrategySpec::Adaptive { window, prior_q } => Box::new(AdaptiveQ {
+                prior: *prior_q,
+                current: ConstantQ::new(*prior_q, bias_psd),
+                lambda: 1.0,
+                window: *window,
+                forget: 1.0 - 1.0 / *window as f64,
+                sum_ba: 0.0,
+                sum_bb: 0.0,
+                updates: 0,
+            }),
         }
     }
 
@@ -204,6 +362,8 @@ impl StrategySpec {
             StrategySpec::Constant { .. } => "constant".into(),
             StrategySpec::Mehra { window, .. } => format!("mehra({window})"),
             StrategySpec::External { .. } => "external".into(),
+            StrategySpec::Oracle => "oracle".into(),
+            StrategySpec::Adaptive { window, .. } => format!("adaptive({window})"),
         }
     }
 }
@@ -225,6 +385,7 @@ mod tests {
             nis: nu.norm_squared(),
             gain,
             accepted: true,
+            sensitivity: None,
         }
     }
 
@@ -291,7 +452,130 @@ mod tests {
     }
 
     #[test]
+    fn oracle_takes_the_true_variance_and_nothing_from_outside() {
+        let mut s = StrategySpec::Oracle.build([0.0; 6]);
+        assert!(s.wants_true_variance());
+        s.set_true_variance(&[3e-4; 6]);
+        assert_eq!(s.imu_variance(), Some([3e-4; 6]));
+        assert!(s.set_imu_variance(&[1.0; 6]).is_err());
+    }
+
+    #[test]
+    fn adaptive_solves_the_linearised_nis_matching_and_shrinks_by_its_evidence() {
+        let prior = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+        let mut s = StrategySpec::Adaptive {
+            window: 2,
+            prior_q: prior,
+        }
+        .build([0.0; 6]);
+        assert_eq!(s.sensitivity_q(), Some(prior));
+        // S = I and H M Hᵀ = 2 I: b = 6 at every update. NIS 40 then 31 (λ_k = 1):
+        // a = 43, 34; β = 1/2: λ̂ = (β·6·43 + 6·34) / (β·36 + 36) = 333 / 54,
+        // σ² = 6 / 54, d = λ̂ − 1: λ = 1 + d (1 − σ²/d²).
+        let mut u = update(Vector3::new(40f64.sqrt(), 0.0, 0.0));
+        u.sensitivity = Some(Matrix3::identity() * 2.0);
+        s.after_update(&u, 100);
+        assert_eq!(s.imu_variance(), Some(prior), "the window is not full yet");
+        u.nis = 31.0;
+        s.after_update(&u, 100);
+        let d = 333.0 / 54.0 - 1.0;
+        let lambda = 1.0 + d * (1.0 - 6.0 / 54.0 / (d * d));
+        let q = s.imu_variance().unwrap();
+        assert!((q[0] / prior[0] - lambda).abs() < 1e-12, "{q:?} {lambda}");
+        assert!((q[5] / prior[5] - lambda).abs() < 1e-12, "structure kept");
+        // Innovations far smaller than predicted: λ is held at its floor, never 0.
+        u.nis = 0.0;
+        for _ in 0..50 {
+            s.after_update(&u, 100);
+        }
+        assert_eq!(s.imu_variance().unwrap()[0], prior[0] * ADAPTIVE_SCALE_MIN);
+        // Without a sensitivity (an untracked filter) nothing changes.
+        u.sensitivity = None;
+        u.nis = 1e6;
+        s.after_update(&u, 100);
+        assert_eq!(s.imu_variance().unwrap()[0], prior[0] * ADAPTIVE_SCALE_MIN);
+    }
+
+    #[test]
+    fn adaptive_keeps_the_prior_where_the_innovations_say_little() {
+        let prior = [1e-4; 6];
+        let mut s = StrategySpec::Adaptive {
+            window: 10,
+            prior_q: prior,
+        }
+        .build([0.0; 6]);
+        // b = 0.03, so λ̂ over the window has σ ≈ 25; the NIS alternates between 5.5
+        // and 0.5 (mean 3), which moves λ̂ by up to ±10: no evidence, the prior holds.
+        let mut u = update(Vector3::new(1.0, 0.0, 0.0));
+        u.sensitivity = Some(Matrix3::identity() * 0.01);
+        for k in 0..40 {
+            u.nis = if k % 2 == 0 { 5.5 } else { 0.5 };
+            s.after_update(&u, 100);
+            assert_eq!(s.imu_variance(), Some(prior), "update {k}");
+        }
+    }
+
+    /// The sensitivity M the filter carries for the adaptive strategy is the derivative
+    /// of P with respect to the scale λ on q: central differences of P over a run with
+    /// updates (innovations kept at zero, so that the state, and with it Φ, is the same
+    /// for every λ) agree with M, before and after updates.
+    #[test]
+    fn carried_sensitivity_is_the_derivative_of_p_in_the_scale() {
+        use crate::ekf::{Ekf, FilterConfig};
+        use crate::mechanization::ImuSample;
+        let cfg = FilterConfig::default();
+        let q = [1e-4, 2e-4, 1e-4, 1e-6, 3e-6, 1e-6];
+        let bias = [1e-3; 6];
+        let run = |lambda: f64, track: bool| {
+            let nav = crate::ekf::tests::moving_state();
+            let mut ekf = Ekf::new(&cfg, nav, Vector3::zeros(), Vector3::zeros()).unwrap();
+            if track {
+                ekf.track_sensitivity(q);
+            }
+            let scaled = q.map(|v| v * lambda);
+            let sample = ImuSample::from_array(&[0.05, -0.02, -9.79, 0.01, 0.002, 0.03]);
+            let mut hmh = None;
+            for k in 1..=250 {
+                let noise = ProcessNoise::Continuous {
+                    imu_variance: &scaled,
+                    bias_psd: &bias,
+                };
+                ekf.propagate(&sample, 0.01, noise).unwrap();
+                if k % 100 == 0 {
+                    let z = ekf.nav.dcm.transpose() * ekf.nav.vel; // zero innovation
+                    hmh = ekf.update(&z).unwrap().sensitivity;
+                }
+            }
+            (ekf, hmh)
+        };
+        let (tracked, hmh) = run(1.3, true);
+        let eps = 1e-3;
+        let (up, _) = run(1.3 + eps, false);
+        let (down, _) = run(1.3 - eps, false);
+        let fd = (up.p - down.p) / (2.0 * eps);
+        let m = tracked.sensitivity_matrix().unwrap();
+        let scale = fd.abs().max();
+        assert!(scale > 0.0);
+        assert!(
+            (m - fd).abs().max() < 1e-6 * scale,
+            "{}",
+            (m - fd).abs().max() / scale
+        );
+        assert!(
+            hmh.is_some(),
+            "a tracking filter reports H M Hᵀ at its updates"
+        );
+        assert!(run(1.0, false).1.is_none(), "an untracked one does not");
+    }
+
+    #[test]
     fn specs_validate() {
+        assert!(StrategySpec::Adaptive {
+            window: 0,
+            prior_q: [1.0; 6]
+        }
+        .validate()
+        .is_err());
         assert!(StrategySpec::Mehra {
             window: 0,
             prior_q: [0.0; 6]

@@ -94,6 +94,8 @@ impl ImuWindow {
 pub struct Run {
     ekf: Ekf,
     strategy: Box<dyn NoiseStrategy>,
+    /// Whether the strategy is told the true IMU variance before every step.
+    oracle: bool,
     sim: SensorSim,
     dvl_every: usize,
     record_every: usize,
@@ -172,17 +174,22 @@ impl Run {
                 bias[i] += dx[ACC_BIAS + i];
             }
         }
-        let ekf = Ekf::new(
+        let mut ekf = Ekf::new(
             filter,
             nav,
             Vector3::new(bias[0], bias[1], bias[2]),
             Vector3::new(bias[3], bias[4], bias[5]),
         )?;
+        let strategy = strategy.build(filter.bias_psd());
+        if let Some(q) = strategy.sensitivity_q() {
+            ekf.track_sensitivity(q);
+        }
         let n_epochs = scenario.truth.len() / dvl_every;
         let mut run = Self {
             sim: SensorSim::new(&scenario.sensors, seed, run_index),
             ekf,
-            strategy: strategy.build(filter.bias_psd()),
+            oracle: strategy.wants_true_variance(),
+            strategy,
             dvl_every,
             record_every,
             k: 0,
@@ -201,6 +208,13 @@ impl Run {
             window: window.map(ImuWindow::new),
             failure: None,
         };
+        if run.oracle {
+            // the q in force at the start, as the histories report it
+            let q = run
+                .sim
+                .variance(&scenario.sensors.imu, scenario.truth.time[0]);
+            run.strategy.set_true_variance(&q);
+        }
         run.record_history(&scenario.truth);
         Ok(run)
     }
@@ -222,6 +236,10 @@ impl Run {
         let truth = &*scenario.truth;
         let ideal = &truth.imu[self.k];
         self.true_bias = *self.sim.bias();
+        if self.oracle {
+            let q = self.sim.variance(&scenario.sensors.imu, truth.time[self.k]);
+            self.strategy.set_true_variance(&q);
+        }
         let raw = self
             .sim
             .imu(&scenario.sensors.imu, ideal, truth.time[self.k], truth.dt);
@@ -232,7 +250,9 @@ impl Run {
         self.steps_since_update += 1;
         let state = &truth.states[self.k];
         if self.failure.is_none() {
-            let z = self.k.is_multiple_of(self.dvl_every).then(|| {
+            let due = self.k.is_multiple_of(self.dvl_every)
+                && scenario.sensors.dvl.available(truth.time[self.k]);
+            let z = due.then(|| {
                 let gyro = Vector3::new(ideal[3], ideal[4], ideal[5]);
                 self.sim.dvl(&scenario.sensors.dvl, state, &gyro)
             });

@@ -116,6 +116,17 @@ pub struct DvlModel {
     pub period: f64,
     /// DVL position relative to the IMU, body frame [m].
     pub lever_arm: Vector3<f64>,
+    /// Outages `[start, end)` [s]: no reading is due inside one (bottom lock lost,
+    /// acoustic dropouts). Sorted, not overlapping.
+    pub outages: Vec<[f64; 2]>,
+}
+
+impl DvlModel {
+    /// Whether a reading due at time `t` [s] exists (`t` is in no outage).
+    #[inline]
+    pub fn available(&self, t: f64) -> bool {
+        !self.outages.iter().any(|o| t >= o[0] && t < o[1])
+    }
 }
 
 /// All simulated sensors of a scenario.
@@ -139,6 +150,7 @@ impl SensorConfig {
                 variance: [0.01; 3],
                 period: 1.0,
                 lever_arm: Vector3::zeros(),
+                outages: Vec::new(),
             },
         }
     }
@@ -153,6 +165,21 @@ impl SensorConfig {
         check::non_negative("dvl_variance", &self.dvl.variance)?;
         check::positive("dvl_period", self.dvl.period)?;
         check::finite("lever_arm", self.dvl.lever_arm.as_slice())?;
+        let mut previous_end = f64::NEG_INFINITY;
+        for o in &self.dvl.outages {
+            check::finite("dvl_outages", o)?;
+            if !(o[0] < o[1] && o[0] >= previous_end) {
+                return Err(Error::invalid(
+                    "dvl_outages",
+                    format!(
+                        "need [start, end] rows with start < end [s], sorted and not \
+                         overlapping; got [{}, {}] after an outage ending at {previous_end}",
+                        o[0], o[1]
+                    ),
+                ));
+            }
+            previous_end = o[1];
+        }
         Ok(())
     }
 }
@@ -173,6 +200,11 @@ impl SensorSim {
             bias: cfg.imu.bias,
             cursor: 0,
         }
+    }
+
+    /// The true IMU variances of the sample covering `(t_start, t_start + dt]`.
+    pub fn variance(&mut self, cfg: &ImuErrorModel, t_start: f64) -> [f64; 6] {
+        *cfg.variance.at(t_start, &mut self.cursor)
     }
 
     /// The bias that the next IMU sample carries `[b_a, b_g]`.
@@ -247,6 +279,25 @@ mod tests {
         // Sample variance of 20k draws: relative standard error 1 %.
         assert!((v1 / 0.01 - 1.0).abs() < 0.05, "{v1}");
         assert!((v2 / 0.04 - 1.0).abs() < 0.05, "{v2}");
+    }
+
+    #[test]
+    fn dvl_outages_are_half_open_and_checked() {
+        let mut cfg = SensorConfig::paper();
+        cfg.dvl.outages = vec![[10.0, 20.0], [30.0, 40.0]];
+        cfg.validate().unwrap();
+        assert!(cfg.dvl.available(9.99) && !cfg.dvl.available(10.0));
+        assert!(!cfg.dvl.available(19.99) && cfg.dvl.available(20.0));
+        assert!(!cfg.dvl.available(35.0) && cfg.dvl.available(40.0));
+        for bad in [
+            vec![[20.0, 10.0]],
+            vec![[10.0, 20.0], [15.0, 25.0]],
+            vec![[f64::NAN, 1.0]],
+        ] {
+            cfg.dvl.outages = bad;
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.starts_with("dvl_outages"), "{err}");
+        }
     }
 
     #[test]

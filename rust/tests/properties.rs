@@ -380,6 +380,8 @@ fn strategy_spec() -> impl Strategy<Value = StrategySpec> {
         q_row().prop_map(|q| StrategySpec::Constant { q }),
         (0..5usize, q_row()).prop_map(|(window, prior_q)| StrategySpec::Mehra { window, prior_q }),
         q_row().prop_map(|prior_q| StrategySpec::External { prior_q }),
+        (0..5usize, q_row())
+            .prop_map(|(window, prior_q)| StrategySpec::Adaptive { window, prior_q }),
     ]
 }
 
@@ -387,8 +389,11 @@ fn strategy_is_valid(s: &StrategySpec) -> bool {
     let ok = |q: &[f64; 6]| q.iter().all(|v| v.is_finite() && *v >= 0.0);
     match s {
         StrategySpec::Constant { q } => ok(q),
-        StrategySpec::Mehra { window, prior_q } => *window > 0 && ok(prior_q),
+        StrategySpec::Mehra { window, prior_q } | StrategySpec::Adaptive { window, prior_q } => {
+            *window > 0 && ok(prior_q)
+        }
         StrategySpec::External { prior_q } => ok(prior_q),
+        StrategySpec::Oracle => true,
     }
 }
 
@@ -528,7 +533,10 @@ const ABSURD_DATA: f64 = 1e6;
 fn huge_tuning(cfg: &FilterConfig, spec: &StrategySpec) -> bool {
     let q = match spec {
         StrategySpec::Constant { q } => q,
-        StrategySpec::Mehra { prior_q, .. } | StrategySpec::External { prior_q } => prior_q,
+        StrategySpec::Mehra { prior_q, .. }
+        | StrategySpec::Adaptive { prior_q, .. }
+        | StrategySpec::External { prior_q } => prior_q,
+        StrategySpec::Oracle => &[0.0; 6],
     };
     cfg.p0_sigma
         .iter()

@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import pronet
-from pronet import alignment, hybrid, realdata
+from pronet import _core, alignment, hybrid, realdata
 from pronet.strategies import Learned
 
 from .contract import (
@@ -49,11 +49,14 @@ def test_real_filter_config_and_strategies(lever, q) -> None:
     value, ref = q
 
     def rows(v):
-        return [(k, s.kind, s.q) for k, s in realdata.real_strategies(v, {}, 1.0).items()]
+        return [
+            (k, s.kind, s.q) if isinstance(s, _core.Strategy) else (k, "learned", s.prior_q)
+            for k, s in realdata.real_strategies(v, {}, 1.0).items()
+        ]
 
     out = check(rows, value, ref, ("q", "prior_q"))
-    if out is not None:
-        assert len(out) == 4 and finite(ref) and (ref >= 0).all()
+    if out is not None:  # the paper's four model-based rows, detvar and adaptive
+        assert len(out) == 6 and finite(ref) and (ref >= 0).all()
 
 
 @functools.cache

@@ -13,10 +13,20 @@ from __future__ import annotations
 import argparse
 import sys
 
-from pronet.cli import dataset, evaluate, info, real, reproduce, simulate, sweep, train
+from pronet.cli import (
+    dataset,
+    evaluate,
+    info,
+    real,
+    reproduce,
+    simulate,
+    study,
+    sweep,
+    train,
+)
 
 #: The commands, in the order ``pronet --help`` lists them.
-COMMANDS = (info, reproduce, dataset, train, evaluate, real, simulate, sweep)
+COMMANDS = (info, reproduce, study, dataset, train, evaluate, real, simulate, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:

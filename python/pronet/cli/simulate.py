@@ -29,20 +29,23 @@ def add_parser(sub: Subparsers) -> None:
         "--scenario",
         metavar="NAME|FILE",
         default="paper",
-        help="built-in scenario (paper, varying-noise) or a scenario .toml file (default paper)",
+        help="built-in scenario (paper, varying-noise, matched, varying-matched, regimes, "
+        "outage) or a scenario .toml file (default paper); a drawn noise schedule follows "
+        "--seed",
     )
     parser.add_argument(
         "--filter",
         metavar="FILE",
         default=None,
-        help="filter configuration .toml replacing the scenario's",
+        help="filter configuration .toml: the keys it names override the scenario's filter",
     )
     parser.add_argument(
         "--strategies",
         metavar="SPECS",
         default=",".join(PAPER_ROWS.values()),
-        help="comma-separated specs: constant[:FACTOR on q], mehra:WINDOW [DVL updates], "
-        "learned:MODEL (shipped name or model file) (default: the paper's seven rows)",
+        help="comma-separated specs: constant[:FACTOR on q], oracle, adaptive[:WINDOW], "
+        "mehra:WINDOW [DVL updates], detvar, learned:MODEL (shipped name or model file) "
+        "(default: the paper's seven rows)",
     )
     add_monte_carlo_args(parser)
     parser.add_argument(

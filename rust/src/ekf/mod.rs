@@ -43,6 +43,8 @@ pub struct UpdateInfo {
     pub gain: Gain,
     /// False when the innovation gate rejected the measurement: the state is unchanged.
     pub accepted: bool,
+    /// `H M Hᵀ` with `M = ∂P⁻/∂λ` (see [`Ekf::track_sensitivity`]); None when untracked.
+    pub sensitivity: Option<Matrix3<f64>>,
 }
 
 /// Mean NIS over the last [`NisMonitor::WINDOW`] updates above which the filter is
@@ -169,6 +171,20 @@ impl ErrorDynamics {
     }
 }
 
+/// Add the IMU white noise of one step to the velocity and attitude blocks of `p`:
+/// `C diag(q_a) Cᵀ·white` and `C diag(q_g) Cᵀ·white` (`white = Δt_imu·Δt`), each added
+/// symmetrized so that `p` stays exactly symmetric.
+fn add_imu_noise(p: &mut Matrix15, c: &Matrix3<f64>, q: &[f64; 6], white: f64) {
+    let qa = c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
+    let qg = c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
+    let mut blk = |at: usize, m: Matrix3<f64>| {
+        let mut view = p.fixed_view_mut::<3, 3>(at, at);
+        view += (m + m.transpose()) * 0.5;
+    };
+    blk(VEL, qa * white);
+    blk(ATT, qg * white);
+}
+
 /// Filter state: navigation solution, bias estimates, covariance.
 #[derive(Clone, Debug)]
 pub struct Ekf {
@@ -181,6 +197,9 @@ pub struct Ekf {
     /// Last bias-corrected gyro sample [rad/s] (for the lever-arm term).
     last_gyro: Vector3<f64>,
     cfg: FilterConfig,
+    /// `M = ∂P/∂λ` and the IMU variances `q` it is taken for (see
+    /// [`Ekf::track_sensitivity`]).
+    sensitivity: Option<(Matrix15, [f64; 6])>,
 }
 
 impl Ekf {
@@ -198,7 +217,23 @@ impl Ekf {
             p: cfg.p0(),
             last_gyro: Vector3::zeros(),
             cfg: cfg.clone(),
+            sensitivity: None,
         })
+    }
+
+    /// Carry `M = ∂P/∂λ` beside P from now on: the derivative of the covariance with
+    /// respect to a common scale λ on the IMU variances (the IMU part of Q^c being
+    /// `λ·q·Δt_imu`). M starts at 0, is propagated as P is with the IMU noise of `q`
+    /// alone, and goes through each applied update as `(I − K H) M (I − K H)ᵀ`, which is
+    /// exact to first order because ∂P⁺/∂K vanishes at the Kalman gain. Each update then
+    /// reports `H M Hᵀ` ([`UpdateInfo::sensitivity`]); the adaptive strategy reads it.
+    pub fn track_sensitivity(&mut self, q: [f64; 6]) {
+        self.sensitivity = Some((Matrix15::zeros(), q));
+    }
+
+    /// The sensitivity `M = ∂P/∂λ` carried since [`Ekf::track_sensitivity`], if any.
+    pub fn sensitivity_matrix(&self) -> Option<&Matrix15> {
+        self.sensitivity.as_ref().map(|(m, _)| m)
     }
 
     pub fn config(&self) -> &FilterConfig {
@@ -244,6 +279,10 @@ impl Ekf {
         let dynamics = ErrorDynamics::new(&self.nav, &rates, &imu.accel);
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
+        if let Some((m, q)) = self.sensitivity.as_mut() {
+            dynamics.propagate_covariance(m, dt);
+            add_imu_noise(m, &self.nav.dcm, q, self.cfg.imu_dt * dt);
+        }
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
         if !self.is_finite() {
@@ -260,19 +299,7 @@ impl Ekf {
                 imu_variance: q,
                 bias_psd,
             } => {
-                let c = self.nav.dcm;
-                let white = self.cfg.imu_dt * dt;
-                let qa =
-                    c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
-                let qg =
-                    c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
-                // Added symmetrized, so that P stays exactly symmetric.
-                let mut blk = |at: usize, m: Matrix3<f64>| {
-                    let mut view = self.p.fixed_view_mut::<3, 3>(at, at);
-                    view += (m + m.transpose()) * 0.5;
-                };
-                blk(VEL, qa * white);
-                blk(ATT, qg * white);
+                add_imu_noise(&mut self.p, &self.nav.dcm, q, self.cfg.imu_dt * dt);
                 for (i, psd) in bias_psd.iter().enumerate() {
                     self.p[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
                 }
@@ -317,6 +344,10 @@ impl Ekf {
             })?
             .inverse();
         let gain: Gain = pht * s_inv;
+        let sensitivity = self
+            .sensitivity
+            .as_ref()
+            .map(|(m, _)| h * m * h.transpose());
         let nis = innovation.dot(&(s_inv * innovation));
         // Checked before anything is applied: a NaN would slip past the gate's `>`.
         if !nis.is_finite() {
@@ -331,11 +362,16 @@ impl Ekf {
                 nis,
                 gain,
                 accepted: false,
+                sensitivity,
             });
         }
         let ikh = Matrix15::identity() - gain * h;
         self.p = ikh * self.p * ikh.transpose() + gain * r * gain.transpose();
         self.p = (self.p + self.p.transpose()) * 0.5;
+        if let Some((m, _)) = self.sensitivity.as_mut() {
+            *m = ikh * *m * ikh.transpose();
+            *m = (*m + m.transpose()) * 0.5;
+        }
         let dx: Vector15 = -(gain * innovation);
         self.feedback(&dx);
         if !nis.is_finite() || !self.p[(0, 0)].is_finite() {
@@ -349,6 +385,7 @@ impl Ekf {
             nis,
             gain,
             accepted: true,
+            sensitivity,
         })
     }
 

@@ -171,6 +171,12 @@ pub fn filter_recorded(
             "a q schedule needs an external strategy (Strategy.external)",
         ));
     }
+    if strategy.wants_true_variance() {
+        return Err(Error::invalid(
+            "strategy",
+            "oracle needs the simulated IMU's true variance, which recorded data does not have",
+        ));
+    }
     check::finite("initial state", initial.lla.as_slice())?;
     check::finite("initial state", initial.vel.as_slice())?;
     check::finite("initial bias", &initial_bias)?;
@@ -180,6 +186,9 @@ pub fn filter_recorded(
         Vector3::new(initial_bias[0], initial_bias[1], initial_bias[2]),
         Vector3::new(initial_bias[3], initial_bias[4], initial_bias[5]),
     )?;
+    if let Some(q) = strategy.sensitivity_q() {
+        ekf.track_sensitivity(q);
+    }
     let mut out = FilterOutput::with_capacity(data.imu.len(), data.dvl.len());
     out.record(&ekf, data.t0);
     let mut at = Cursor::default();

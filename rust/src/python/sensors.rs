@@ -35,7 +35,8 @@ fn variance(
 #[pymethods]
 impl PySensorConfig {
     #[new]
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None))]
+    #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -44,6 +45,7 @@ impl PySensorConfig {
         dvl_variance: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = arg_dvl_period)] dvl_period: f64,
         lever_arm: Option<&Bound<'_, PyAny>>,
+        dvl_outages: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let inner = SensorConfig {
             imu: ImuErrorModel {
@@ -59,6 +61,10 @@ impl PySensorConfig {
                 )?,
                 period: dvl_period,
                 lever_arm: Vector3::from(fixed_or::<3>(lever_arm, "lever_arm", [0.0; 3])?),
+                outages: match dvl_outages {
+                    Some(o) => rows::<2>(o, "dvl_outages")?,
+                    None => Vec::new(),
+                },
             },
         };
         inner.validate().map_err(to_py_err)?;
@@ -91,6 +97,11 @@ impl PySensorConfig {
     #[getter]
     fn lever_arm(&self) -> Vec<f64> {
         self.inner.dvl.lever_arm.as_slice().to_vec()
+    }
+    /// `(k, 2)` DVL outages `[start, end)` [s].
+    #[getter]
+    fn dvl_outages<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        matrix(py, self.inner.dvl.outages.iter().copied())
     }
     fn __repr__(&self) -> String {
         format!("SensorConfig({:?})", self.inner)

@@ -37,6 +37,23 @@ impl PyStrategy {
         })
     }
     #[staticmethod]
+    #[pyo3(signature = (window, prior_q))]
+    fn adaptive(
+        #[pyo3(from_py_with = arg_window)] window: usize,
+        prior_q: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        Self::checked(StrategySpec::Adaptive {
+            window,
+            prior_q: fixed(prior_q, "prior_q")?,
+        })
+    }
+    #[staticmethod]
+    fn oracle() -> Self {
+        Self {
+            inner: StrategySpec::Oracle,
+        }
+    }
+    #[staticmethod]
     fn external(prior_q: &Bound<'_, PyAny>) -> PyResult<Self> {
         Self::checked(StrategySpec::External {
             prior_q: fixed(prior_q, "prior_q")?,
@@ -48,26 +65,31 @@ impl PyStrategy {
             StrategySpec::Constant { .. } => "constant",
             StrategySpec::Mehra { .. } => "mehra",
             StrategySpec::External { .. } => "external",
+            StrategySpec::Oracle => "oracle",
+            StrategySpec::Adaptive { .. } => "adaptive",
         }
     }
     #[getter]
     fn label(&self) -> String {
         self.inner.label()
     }
-    /// q of a constant strategy, or the prior q of the others.
+    /// q of a constant strategy, the prior q of the others; empty for the oracle.
     #[getter]
     fn q(&self) -> Vec<f64> {
         match &self.inner {
             StrategySpec::Constant { q } => q.to_vec(),
-            StrategySpec::Mehra { prior_q, .. } | StrategySpec::External { prior_q } => {
-                prior_q.to_vec()
-            }
+            StrategySpec::Mehra { prior_q, .. }
+            | StrategySpec::Adaptive { prior_q, .. }
+            | StrategySpec::External { prior_q } => prior_q.to_vec(),
+            StrategySpec::Oracle => Vec::new(),
         }
     }
     #[getter]
     fn window(&self) -> Option<usize> {
         match self.inner {
-            StrategySpec::Mehra { window, .. } => Some(window),
+            StrategySpec::Mehra { window, .. } | StrategySpec::Adaptive { window, .. } => {
+                Some(window)
+            }
             _ => None,
         }
     }

@@ -1,0 +1,66 @@
+"""``pronet study``: when does adaptive process noise pay? (:mod:`pronet.study`)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from pronet.cli._common import (
+    Bars,
+    Output,
+    Subparsers,
+    add_monte_carlo_args,
+    add_output_flags,
+    experiment_result,
+)
+from pronet.scenarios import STUDY_SCENARIOS
+
+
+def add_parser(sub: Subparsers) -> None:
+    parser = sub.add_parser(
+        "study",
+        help="the study: every estimator of q on the study scenarios (oracle ceiling, "
+        "statistics, adaptive, learned)",
+        description="Run every study strategy (pronet.study.STUDY_ROWS) on the study "
+        "scenarios with common random numbers and write table, metrics, figure and "
+        "config (docs/study.md).",
+    )
+    parser.add_argument(
+        "--scenarios",
+        metavar="LIST",
+        default=",".join(STUDY_SCENARIOS),
+        help=f"comma-separated built-in scenarios (default {','.join(STUDY_SCENARIOS)})",
+    )
+    parser.add_argument(
+        "--strategies",
+        metavar="LABELS",
+        default=None,
+        help="comma-separated row labels of pronet.study.STUDY_ROWS (default: all)",
+    )
+    add_monte_carlo_args(parser)
+    parser.add_argument(
+        "--out", metavar="PATH", default=None, help="result folder (default results/study-<time>)"
+    )
+    add_output_flags(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pronet.study import study
+
+    show = Output(args)
+    start = time.perf_counter()
+    with Bars(show) as bars:
+        folder = study(
+            args.out,
+            n_runs=args.runs,
+            seed=args.seed,
+            scenarios=[s.strip() for s in args.scenarios.split(",") if s.strip()],
+            labels=args.strategies.split(",") if args.strategies else None,
+            threads=args.threads,
+            say=bars.say,
+            on_start=bars.start,
+            on_done=bars.done,
+        )
+    experiment_result(show, folder, start)
+    return 0
