@@ -183,3 +183,17 @@ def test_check_mode_reports_a_stale_page(tmp_path: Path, capsys, monkeypatch) ->
     assert api_docs.main(["--check"]) == 1
     assert "docs/api.md is out of date; run python scripts/api_docs.py" in capsys.readouterr().err
     assert stale.read_text(encoding="utf-8") == "# stale\n"  # --check never writes
+
+
+def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
+    spec = importlib.util.spec_from_file_location("study_docs", ROOT / "scripts" / "study_docs.py")
+    assert spec is not None and spec.loader is not None
+    study_docs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study_docs)
+    page = study_docs.PAGE.read_text()
+    assert study_docs.render(page, study_docs.tables()) == page, (
+        "docs/study.md's tables differ from docs/study/study.csv; "
+        "run python scripts/study_docs.py RESULT_FOLDER"
+    )
+    with pytest.raises(ValueError, match="no study-tables markers"):
+        study_docs.render("# no markers\n", "x")

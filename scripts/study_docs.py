@@ -1,0 +1,60 @@
+"""Regenerate ``docs/study.md``'s tables and figure from a study's result folder.
+
+    pronet study --out results/study            # 100 runs, about four minutes
+    python scripts/study_docs.py results/study  # copies study.csv and study.png into
+                                                # docs/study/ and rewrites the tables
+
+The tables between the ``study`` markers of ``docs/study.md`` are rendered from
+``docs/study/study.csv`` by :func:`pronet.study.study_markdown`, never typed;
+``tests/test_docs.py`` checks that they match.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "study.md"
+DATA = ROOT / "docs" / "study"
+BEGIN, END = "<!-- study-tables:begin -->", "<!-- study-tables:end -->"
+
+
+def render(page: str, tables: str) -> str:
+    """``page`` with the text between the study markers replaced by ``tables``."""
+    pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
+    if not pattern.search(page):
+        raise ValueError(f"{PAGE}: has no study-tables markers")
+    return pattern.sub(lambda _: f"{BEGIN}\n{tables}{END}", page)
+
+
+def tables() -> str:
+    """The tables of ``docs/study/study.csv``."""
+    import pandas as pd
+
+    from pronet.study import study_markdown
+
+    return study_markdown(pd.read_csv(DATA / "study.csv"))
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 1:
+        print("usage: python scripts/study_docs.py RESULT_FOLDER", file=sys.stderr)
+        return 2
+    folder = Path(argv[0])
+    for name in ("study.csv", "study.png", "config.json"):
+        if not (folder / name).is_file():
+            print(f"{folder}: no {name}; is it a pronet study folder?", file=sys.stderr)
+            return 2
+    DATA.mkdir(exist_ok=True)
+    for name in ("study.csv", "study.png", "config.json"):
+        shutil.copyfile(folder / name, DATA / name)
+    PAGE.write_text(render(PAGE.read_text(), tables()))
+    print(f"{PAGE} and {DATA} updated from {folder}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
