@@ -106,6 +106,6 @@ def test_shipped_models_plug_in(paper_trajectory) -> None:
             models.load(name), paper_trajectory, prior_q=PAPER_Q, n_runs=2, record_every=1000
         )
         assert out.result.n_failed == 0 and out.non_finite.sum() == 0
-        # The paper's IMU noise (1e-4, 1e-6) lies below the training range [1e-3, 5e-2]:
-        # a regressor trained there answers near its lower end, never negative.
+        # The paper's IMU noise (1e-4, 1e-6) lies below the paper models' training range
+        # [1e-3, 5e-2]: they answer near its lower end; every model answers q > 0.
         assert np.all(out.result.q[:, -1] > 0)

@@ -354,8 +354,8 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
         assert {f"track_{name}.png", f"velocity_error_{name}.png", f"q_{name}.png"} <= files
     metrics = json.loads((out / "metrics.json").read_text())
     aligned = [r for r in metrics if r["scenario"] in ("run1", "run2")]
-    # the paper's seven rows, detvar, adaptive and the inertial-only run
-    assert sum(r["scenario"] == "run1" for r in aligned) == 10 and len(aligned) == 20
+    # the paper's seven rows, detvar, adaptive, the three grade models, inertial only
+    assert sum(r["scenario"] == "run1" for r in aligned) == 13 and len(aligned) == 26
     header = (out / "metrics.csv").read_text().splitlines()[0]
     assert header == ",".join(RUN_COLUMNS)
     config = json.loads((out / "config.json").read_text())

@@ -1,5 +1,6 @@
-"""The weights shipped inside the package: they load by name, were trained on the dataset
-their card names, and reproduce their card's test scores on a regenerated test split."""
+"""The paper's weights shipped inside the package: they load by name, were trained on
+the dataset their card names, and reproduce their card's test scores on a regenerated
+test split (the grade-* models: ``test_grade_models.py``)."""
 
 from __future__ import annotations
 
@@ -16,11 +17,12 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def reports(default_dataset):
     return {
-        name: training.test_report(models.load(name), default_dataset) for name in models.SHIPPED
+        name: training.test_report(models.load(name), default_dataset)
+        for name in models.PAPER_MODELS
     }
 
 
-@pytest.mark.parametrize("name", models.SHIPPED)
+@pytest.mark.parametrize("name", models.PAPER_MODELS)
 def test_shipped_model_reproduces_its_card(name, default_dataset, reports) -> None:
     model = models.load(name)
     card = model.card
@@ -47,7 +49,7 @@ def test_detrend_net_meets_the_reference(reports) -> None:
 
 def test_predictions_track_the_labels(default_dataset) -> None:
     test = ~default_dataset.train
-    for name in models.SHIPPED:
+    for name in models.PAPER_MODELS:
         pred = models.load(name).predict(default_dataset.windows[test])
         for level in np.unique(default_dataset.q)[[0, 7, 14]]:
             mean = pred[default_dataset.q[test] == level].mean()

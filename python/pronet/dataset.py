@@ -9,6 +9,12 @@ channel's window, labelled with its q: 4 × 15 × 6 × 200 = 72,000 examples. Th
 80:20 at random within each trajectory, so every trajectory is on both sides
 (57,600 / 14,400).
 
+With ``spacing="log-uniform"`` (:data:`GRADES`, the training set of the ``grade-*``
+models) every window of every channel instead gets its own q, drawn log-uniformly from
+its sensor's range: accelerometer ``[q_min, q_max]``, gyro ``[gyro_q_min, gyro_q_max]``
+(nine and eight decades covering consumer to navigation grade); ``n_levels`` is then
+the number of draws per trajectory, each a fresh noise realization.
+
 The file is an uncompressed ``.npz`` written with fixed zip timestamps, so the same seed
 and parameters give the same bytes; a JSON card beside it holds the seed, the parameters
 and the file's SHA-256. Noise for (trajectory t, level l) comes from
@@ -51,6 +57,12 @@ class DatasetParams:
     q_max: float = 0.05
     window: int = 200
     train_fraction: float = 0.8
+    #: ``"linear"``: the paper's levels, one q for all six channels; ``"log-uniform"``:
+    #: one q per window and channel, drawn log-uniformly from its sensor's range.
+    spacing: str = "linear"
+    #: The gyro's range for ``"log-uniform"`` [(rad/s)²] (None: ``q_min``, ``q_max``).
+    gyro_q_min: float | None = None
+    gyro_q_max: float | None = None
 
     def validate(self) -> None:
         count(self.seed, "seed")
@@ -65,10 +77,33 @@ class DatasetParams:
             raise ValueError(f"window: must be >= 2 samples, got {self.window}")
         if not 0 < scalar(self.train_fraction, "train_fraction") < 1:
             raise ValueError(f"train_fraction: must be in (0, 1), got {self.train_fraction}")
+        if self.spacing not in ("linear", "log-uniform"):
+            raise ValueError(f"spacing: 'linear' or 'log-uniform', got {self.spacing!r}")
+        lo, hi = self.gyro_range()
+        if not (0 < scalar(lo, "gyro_q_min") <= scalar(hi, "gyro_q_max") < np.inf):
+            raise ValueError(f"gyro_q_min, gyro_q_max: need 0 < min <= max, got {lo}, {hi}")
+
+    def gyro_range(self) -> tuple[float, float]:
+        """The gyro's variance range [(rad/s)²] of a log-uniform set."""
+        lo = self.q_min if self.gyro_q_min is None else self.gyro_q_min
+        hi = self.q_max if self.gyro_q_max is None else self.gyro_q_max
+        return float(lo), float(hi)
+
+    def channel_ranges(self) -> list[tuple[float, float]]:
+        """Each channel's variance range ``(low, high)``, in :data:`CHANNELS` order."""
+        return [(float(self.q_min), float(self.q_max))] * 3 + [self.gyro_range()] * 3
 
     def q_levels(self) -> NDArray[np.float64]:
         """The noise variances, linearly spaced [(m/s²)² or (rad/s)² per sample]."""
         return np.linspace(float(self.q_min), float(self.q_max), int(self.n_levels))
+
+
+#: The training set of the ``grade-*`` models: per-window variances log-uniform over
+#: accelerometer 1e-7 … 1e-1 (m/s²)² and gyro 1e-10 … 1e-2 (rad/s)² (100 Hz samples: from
+#: a navigation-grade IMU in a quiet survey to a consumer MEMS under heavy vibration).
+GRADES = DatasetParams(
+    spacing="log-uniform", q_min=1e-7, q_max=1e-1, gyro_q_min=1e-10, gyro_q_max=1e-2
+)
 
 
 @dataclass(frozen=True)
@@ -112,19 +147,17 @@ def build_dataset(params: DatasetParams | None = None) -> Dataset:
         if n_win == 0:
             raise ValueError(f"window: longer than the {ideal.shape[0]} samples of {name}")
         starts = np.arange(n_win, dtype=np.int32) * params.window
-        for lev, q in enumerate(levels):
+        for lev, q_level in enumerate(levels):
             rng = np.random.default_rng([params.seed, t, lev])
-            noisy = ideal + rng.standard_normal(ideal.shape) * np.sqrt(q)
-            # (samples, channel) -> (channel, window index, sample in window)
-            cut = noisy[: n_win * params.window].T.reshape(6, n_win, params.window)
+            cut, q = _noisy_windows(params, ideal, q_level, n_win, rng)
             with np.errstate(over="ignore"):
                 windows = cut.reshape(-1, params.window).astype(np.float32)
             if not np.isfinite(windows).all():
-                raise ValueError(f"q_max: noise of variance {q} overflows float32 windows")
+                raise ValueError(f"q_max: noise of variance {q.max()} overflows float32 windows")
             parts.append(
                 (
                     windows,
-                    np.full(6 * n_win, q),
+                    q.reshape(-1),
                     np.full(6 * n_win, t, dtype=np.int8),
                     np.repeat(np.arange(6, dtype=np.int8), n_win),
                     np.tile(starts, 6),
@@ -138,6 +171,27 @@ def build_dataset(params: DatasetParams | None = None) -> Dataset:
         n_train = int(round(params.train_fraction * idx.size))
         train[rng.permutation(idx)[:n_train]] = True
     return Dataset(windows, q, traj, channel, start, train)
+
+
+def _noisy_windows(
+    params: DatasetParams,
+    ideal: NDArray[np.float64],
+    level: float,
+    n_win: int,
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One draw's noisy windows ``(6, n_win, window)`` of the ideal samples ``(n, 6)``
+    and their variances ``(6, n_win)``: ``level`` everywhere (linear), or one log-uniform
+    draw per channel and window from the channel's range."""
+    n = n_win * params.window
+    if params.spacing == "linear":
+        noisy = ideal + rng.standard_normal(ideal.shape) * np.sqrt(level)
+        # (samples, channel) -> (channel, window index, sample in window)
+        return noisy[:n].T.reshape(6, n_win, params.window), np.full((6, n_win), level)
+    lows, highs = np.log(np.array(params.channel_ranges())).T
+    q = np.exp(rng.uniform(lows[:, None], highs[:, None], (6, n_win)))
+    cut = ideal[:n].T.reshape(6, n_win, params.window)
+    return cut + rng.standard_normal(cut.shape) * np.sqrt(q)[..., None], q
 
 
 def _npz_bytes(ds: Dataset) -> bytes:
@@ -171,8 +225,9 @@ def save_dataset(ds: Dataset, path: str | os.PathLike[str], params: DatasetParam
         "format": FORMAT,
         "version": VERSION,
         "params": asdict(params),
-        "q_levels": params.q_levels().tolist(),
-        "spacing": "linear",
+        "q_levels": params.q_levels().tolist() if params.spacing == "linear" else None,
+        "q_ranges": params.channel_ranges(),
+        "spacing": params.spacing,
         "trajectories": list(TRAINING_TRAJECTORIES),
         "channels": list(CHANNELS),
         "n_examples": int(ds.q.shape[0]),

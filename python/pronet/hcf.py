@@ -10,6 +10,12 @@ model never unpickles anything.
 
 Split rule, as in scikit-learn: features are rounded to float32, and a sample goes left
 when ``feature <= threshold``.
+
+``target="log-ratio"`` (the ``grade-hcf`` model, trained over nine decades of q) makes
+the ensemble scale-free: the scale features are divided by the window's detrended
+variance ``d`` (or its square root), ``var_detrended`` itself becomes ``log10 d`` (the
+level, so that the trees can correct differently per decade), and the trees regress
+``ln(q / d)``: ``q = d·exp(½ gb + ½ rf)``.
 """
 
 from __future__ import annotations
@@ -23,7 +29,29 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import modelfile
-from pronet.windowstats import FEATURE_NAMES, as_windows, features
+from pronet.windowstats import FEATURE_NAMES, as_windows, detrended_variance, features
+
+#: Targets an ensemble can regress: q itself (the paper's) or ``ln(q / d)``.
+TARGETS = ("q", "log-ratio")
+#: Columns of :data:`FEATURE_NAMES` in units of the window (std, range, MAD, RMS of
+#: differences) and in its units squared (the variances).
+_LINEAR = [
+    i for i, n in enumerate(FEATURE_NAMES) if n.split("_")[0] in ("std", "range", "mad", "rms")
+]
+_SQUARED = [i for i, n in enumerate(FEATURE_NAMES) if n.startswith("var_")]
+_LEVEL = FEATURE_NAMES.index("var_detrended")
+
+
+def scale_free_features(w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(x, d)``: the features of windows ``(n, N)`` made scale-free as the module
+    docstring says, and each window's detrended variance ``d``."""
+    x, d = features(w), detrended_variance(w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x[:, _LINEAR] /= np.sqrt(d)[:, None]
+        x[:, _SQUARED] /= d[:, None]
+        x[:, _LEVEL] = np.log10(d)
+    return x, d
+
 
 _ARRAYS = ("left", "right", "feature", "threshold", "value", "roots")
 
@@ -107,10 +135,19 @@ class HCFEnsemble:
     kind = "hcf"
 
     def __init__(
-        self, window: int, gb: TreeSet, gb_init: float, gb_rate: float, rf: TreeSet
+        self,
+        window: int,
+        gb: TreeSet,
+        gb_init: float,
+        gb_rate: float,
+        rf: TreeSet,
+        target: str = "q",
     ) -> None:
+        if target not in TARGETS:
+            raise ValueError(f"target: one of {TARGETS}, got {target!r}")
         self.window, self.gb, self.rf = int(window), gb, rf
         self.gb_init, self.gb_rate = float(gb_init), float(gb_rate)
+        self.target = target
         self.card: dict[str, Any] = {}
 
     @classmethod
@@ -126,12 +163,20 @@ class HCFEnsemble:
         rf_trees: int = 50,
         rf_depth: int = 8,
         rf_min_leaf: int = 10,
+        target: str = "q",
     ) -> HCFEnsemble:
-        """Fit both ensembles on windows ``(n, N)`` with labels ``q`` ``(n,)``."""
+        """Fit both ensembles on windows ``(n, N)`` with labels ``q`` ``(n,)``, regressing
+        ``target`` (see :data:`TARGETS`)."""
         from sklearn.ensemble import GradientBoostingRegressor, RandomForestRegressor
 
+        if target not in TARGETS:
+            raise ValueError(f"target: one of {TARGETS}, got {target!r}")
         w = as_windows(windows)
-        x, y = features(w), np.asarray(q, dtype=np.float64)
+        if target == "q":
+            x, y = features(w), np.asarray(q, dtype=np.float64)
+        else:
+            x, d = scale_free_features(w)
+            y = np.log(np.asarray(q, dtype=np.float64) / d)
         gb = GradientBoostingRegressor(
             n_estimators=gb_trees, max_depth=gb_depth, learning_rate=gb_rate, random_state=seed
         ).fit(x, y)
@@ -148,6 +193,7 @@ class HCFEnsemble:
             float(gb.init_.constant_.ravel()[0]),
             gb_rate,
             TreeSet.from_sklearn(list(rf.estimators_)),
+            target,
         )
         model.hyperparameters = {  # type: ignore[attr-defined]
             "gb_trees": gb_trees,
@@ -157,6 +203,7 @@ class HCFEnsemble:
             "rf_depth": rf_depth,
             "rf_min_leaf": rf_min_leaf,
             "seed": seed,
+            "target": target,
         }
         return model
 
@@ -167,12 +214,17 @@ class HCFEnsemble:
             raise ValueError(
                 f"windows: this model reads windows of {self.window} samples, got shape {w.shape}"
             )
-        x = features(w.reshape(-1, self.window))
+        flat = w.reshape(-1, self.window)
+        if self.target == "q":
+            x, d = features(flat), np.ones(flat.shape[0])
+        else:
+            x, d = scale_free_features(flat)
         q = np.full(x.shape[0], np.nan)
         ok = np.all(np.isfinite(x), axis=1)  # non-finite windows give NaN, as the nets do
         if ok.any():
             gb = self.gb_init + self.gb_rate * self.gb.leaf_values(x[ok]).sum(axis=1)
-            q[ok] = 0.5 * gb + 0.5 * self.rf.leaf_values(x[ok]).mean(axis=1)
+            out = 0.5 * gb + 0.5 * self.rf.leaf_values(x[ok]).mean(axis=1)
+            q[ok] = out if self.target == "q" else d[ok] * np.exp(np.minimum(out, 700.0))
         return q.reshape(w.shape[:-1])
 
     def tensors(self) -> dict[str, NDArray[Any]]:
@@ -195,6 +247,7 @@ class HCFEnsemble:
                     "features": list(FEATURE_NAMES),
                     "gb_trees": int(self.gb.roots.size),
                     "rf_trees": int(self.rf.roots.size),
+                    "target": self.target,
                 },
                 **card,
             },
@@ -232,6 +285,9 @@ class HCFEnsemble:
         init_rate = np.asarray(tensors["gb.init_rate"], dtype=np.float64)
         if init_rate.shape != (2,) or not np.all(np.isfinite(init_rate)):
             raise modelfile.ModelFileError(f"{weights}: bad gb.init_rate")
-        model = cls(window, sets[0], init_rate[0], init_rate[1], sets[1])
+        target = arch.get("target", "q")  # files from before targets existed regress q
+        if target not in TARGETS:
+            raise modelfile.ModelFileError(f"{weights}: unknown target {target!r}")
+        model = cls(window, sets[0], init_rate[0], init_rate[1], sets[1], target)
         model.card = card
         return model

@@ -19,6 +19,12 @@ The two CNNs (section III of the paper), 12,769 parameters each:
 - :class:`DetrendNet`: the same network after each window's least-squares line is
   subtracted, inside ``forward``, so no caller can forget it.
 
+With ``scaling="spread"`` (the ``grade-*`` models, trained over nine decades of q) a net
+is scale-free instead: the prepared window is divided by its own RMS s, and the head
+gives ``ln q = ln s² + z``, so that multiplying a window by c multiplies q by c², and an
+untrained net (z = 0, the last layer starts at zero) predicts the window's own
+variance. Such nets are trained on ln q.
+
 Also here: :class:`DetrendedVariance`, the statistical reference as a regressor, and
 :func:`load`, which opens a shipped model by name or a user's model file by path.
 """
@@ -44,8 +50,13 @@ from pronet.windowstats import as_windows
 #: overflows, so such windows get NaN on purpose rather than by accident.
 MAX_SAMPLE = 1e15
 
+#: The paper's three, trained on its range [0.001, 0.05] for every channel (its table).
+PAPER_MODELS = ("baseline", "detrend", "hcf")
+#: The same three retrained scale-free over nine decades of q
+#: (:data:`pronet.dataset.GRADES`): what to use on a real sensor.
+GRADE_MODELS = ("grade-baseline", "grade-detrend", "grade-hcf")
 #: Models shipped inside the package, loadable by name.
-SHIPPED = ("baseline", "detrend", "hcf")
+SHIPPED = PAPER_MODELS + GRADE_MODELS
 
 
 @runtime_checkable
@@ -92,6 +103,8 @@ class BaselineNet(nn.Module):
         hidden: widths of the three hidden Linear layers (the fourth gives z).
         input_scale: windows are divided by this [m/s² or rad/s] before the first layer.
         q_scale: ``q = q_scale·exp(z)`` [(unit)² per sample].
+        scaling: ``"fixed"`` (the paper's: ``input_scale`` and ``q_scale``) or
+            ``"spread"`` (scale-free: the window's own RMS; see the module docstring).
     """
 
     kind = "baseline"
@@ -105,10 +118,14 @@ class BaselineNet(nn.Module):
         hidden: tuple[int, int, int] = (64, 32, 16),
         input_scale: float = 0.1,
         q_scale: float = 0.01,
+        scaling: str = "fixed",
     ) -> None:
         super().__init__()
         if window < 3:
             raise ValueError(f"window: must be >= 3 samples, got {window}")
+        if scaling not in ("fixed", "spread"):
+            raise ValueError(f"scaling: 'fixed' or 'spread', got {scaling!r}")
+        self.scaling = scaling
         self.window = int(window)
         self.channels, self.kernels, self.strides = tuple(channels), tuple(kernels), tuple(strides)
         self.hidden = tuple(hidden)
@@ -122,8 +139,11 @@ class BaselineNet(nn.Module):
         for width in self.hidden:
             layers += [nn.Linear(c_in, width), nn.LeakyReLU(0.01)]
             c_in = width
-        layers.append(nn.Linear(c_in, 1))
-        self.head = nn.Sequential(*layers)
+        last = nn.Linear(c_in, 1)
+        if scaling == "spread":  # start at the window's own variance
+            nn.init.zeros_(last.weight)
+            nn.init.zeros_(last.bias)
+        self.head = nn.Sequential(*layers, last)
         t = torch.arange(self.window, dtype=torch.float32) - (self.window - 1) / 2.0
         self.register_buffer("_t", t / torch.sqrt((t * t).sum()), persistent=False)
 
@@ -137,6 +157,7 @@ class BaselineNet(nn.Module):
             "hidden": list(self.hidden),
             "input_scale": self.input_scale,
             "q_scale": self.q_scale,
+            "scaling": self.scaling,
         }
 
     def prepare(self, x: torch.Tensor) -> torch.Tensor:
@@ -145,10 +166,22 @@ class BaselineNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Raw windows ``(B, N)`` → q ``(B,)``."""
+        if self.scaling == "spread":
+            return torch.exp(self.log_q(x))
         z = self.prepare(x) / self.input_scale
         h = self.features(z.unsqueeze(-1)).mean(dim=1)  # time-major (B, L, C)
         # exp of a clamped z: positive q, and no overflow from an untrained net
         return self.q_scale * torch.exp(self.head(h).squeeze(-1).clamp(-20.0, 20.0))
+
+    def log_q(self, x: torch.Tensor) -> torch.Tensor:
+        """Raw windows ``(B, N)`` → ln q ``(B,)`` (what a spread net is trained on)."""
+        if self.scaling != "spread":
+            return torch.log(self(x))
+        p = self.prepare(x)
+        # the RMS of a constant window is 0: floored, so its q is tiny rather than NaN
+        s2 = (p * p).mean(dim=-1, keepdim=True).clamp_min(torch.finfo(p.dtype).tiny)
+        h = self.features((p / torch.sqrt(s2)).unsqueeze(-1)).mean(dim=1)
+        return torch.log(s2.squeeze(-1)) + self.head(h).squeeze(-1).clamp(-20.0, 20.0)
 
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         """q for raw windows ``(..., N)``, in float32 under ``torch.inference_mode``."""

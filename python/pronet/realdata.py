@@ -83,18 +83,28 @@ def white_noise_q(imu: F64) -> tuple[float, ...]:
 
 #: The study's estimators beside the paper's rows on recorded data, by label: their specs
 #: (:class:`~pronet.strategies.StrategySpec`); the oracle has no place here (no truth q).
-REAL_EXTRA_ROWS = {"detvar": "detvar", "adaptive": "adaptive"}
+REAL_EXTRA_ROWS = {
+    "detvar": "detvar",
+    "adaptive": "adaptive",
+    "HCF-ensemble (grades)": "learned:grade-hcf",
+    "baseline net (grades)": "learned:grade-baseline",
+    "detrend net (grades)": "learned:grade-detrend",
+}
 
 
 def real_strategies(
     q: tuple[float, ...], models: Mapping[str, Regressor], tuning_period: float
 ) -> dict[str, StrategyLike]:
     """The paper's seven rows around the estimated ``q`` (relabelled for real data), then
-    :data:`REAL_EXTRA_ROWS`."""
+    :data:`REAL_EXTRA_ROWS`; learned rows only for the regressors in ``models`` (by
+    shipped name)."""
     rows = paper_strategies(q, dict(models), tuning_period)
     out = {REAL_LABELS.get(label, label): s for label, s in rows.items()}
-    for label, spec in REAL_EXTRA_ROWS.items():
-        out[label] = strategy(StrategySpec.parse(spec), q, tuning_period)
+    for label, text in REAL_EXTRA_ROWS.items():
+        spec = StrategySpec.parse(text)
+        if spec.kind == "learned" and spec.model not in models:
+            continue  # as the paper's learned rows: only with the models given
+        out[label] = strategy(spec, q, tuning_period, models.get(spec.model))
     return out
 
 

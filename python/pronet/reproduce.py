@@ -140,7 +140,7 @@ def _regressors(
     from pronet import models, training
 
     if trained_dir is None:
-        return None, {k: models.load(k) for k in models.SHIPPED}
+        return None, {k: models.load(k) for k in models.PAPER_MODELS}
     params = DatasetParams()
     ds = build_dataset(params)
     for kind in training.MODEL_KINDS:

@@ -49,7 +49,8 @@ if TYPE_CHECKING:  # pandas and torch load only when used
 
 #: The study's rows by label: their strategy specs (see
 #: :class:`~pronet.strategies.StrategySpec`). The first is the reference of the paired
-#: differences; ``oracle`` is the ceiling of the oracle-gain share.
+#: differences; ``oracle`` is the ceiling of the oracle-gain share. The learned rows run
+#: the regressors trained for real sensor grades (:data:`pronet.models.GRADE_MODELS`).
 STUDY_ROWS = {
     "constant (true q)": "constant",
     "constant (0.1 x q)": "constant:0.1",
@@ -58,9 +59,9 @@ STUDY_ROWS = {
     "adaptive": "adaptive",
     "mehra xi=5": "mehra:5",
     "detvar": "detvar",
-    "HCF-ensemble": "learned:hcf",
-    "baseline net": "learned:baseline",
-    "detrend net": "learned:detrend",
+    "HCF-ensemble": "learned:grade-hcf",
+    "baseline net": "learned:grade-baseline",
+    "detrend net": "learned:grade-detrend",
 }
 REFERENCE = "constant (true q)"
 ORACLE = "oracle"

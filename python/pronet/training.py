@@ -1,13 +1,16 @@
 """Training and scoring the noise regressors on the ProNet dataset.
 
-Nets: MSE on q (scaled by ``q_scale``², the same minimiser), Adam, the learning rate
+Nets: MSE on q (scaled by ``q_scale``², the same minimiser) for the paper's nets, MSE
+on ln q for scale-free ones (trained on a log-uniform dataset, :data:`pronet.dataset.GRADES`;
+``scaling="spread"``, and the HCF ensemble's ``target="log-ratio"``), Adam, the learning rate
 cut by 3 when the validation loss stalls for an epoch, early stopping after ``patience``
 epochs without a 0.1 % improvement (the weights of the best epoch are kept). The validation part is
 ``val_fraction`` of the training split, drawn with the seed; the test split is never
 seen. Fixed seeds and ``torch.use_deterministic_algorithms`` make a run repeat on CPU.
 
 Scores: RMSE, MAE and R² on the test split, beside the detrended-variance reference and
-the Cramér–Rao floor (:mod:`pronet.windowstats`).
+the Cramér–Rao floor (:mod:`pronet.windowstats`); and the RMSE of log10 q, overall and
+per decade of q, beside the reference's (what matters over many decades).
 """
 
 from __future__ import annotations
@@ -67,14 +70,31 @@ def scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, float
     }
 
 
+def log_scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, Any]:
+    """RMSE of log10 q overall (``log10_rmse``) and per decade of the label
+    (``log10_rmse_by_decade``: ``{"-7": ...}`` for q in [1e-7, 1e-6)); a non-positive or
+    non-finite prediction counts as a miss of 10 decades."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.log10(pred) - np.log10(q)
+    err = np.where(np.isfinite(err), err, 10.0)
+    decade = np.floor(np.log10(q)).astype(int)
+    return {
+        "log10_rmse": float(np.sqrt(np.mean(err**2))),
+        "log10_rmse_by_decade": {
+            str(d): float(np.sqrt(np.mean(err[decade == d] ** 2))) for d in np.unique(decade)
+        },
+    }
+
+
 def test_report(model: Regressor, ds: Dataset) -> dict[str, Any]:
     """``model``'s scores on the test split, beside the reference and the floor."""
     test = ~ds.train
     w, q = ds.windows[test], ds.q[test]
+    pred, ref = model.predict(w), DetrendedVariance().predict(w)
     return {
         "n_test": int(q.size),
-        "model": scores(model.predict(w), q),
-        "detrended_variance": scores(DetrendedVariance().predict(w), q),
+        "model": {**scores(pred, q), **log_scores(pred, q)},
+        "detrended_variance": {**scores(ref, q), **log_scores(ref, q)},
         "cramer_rao_rmse": cramer_rao_rmse(q, w.shape[-1]),
     }
 
@@ -92,11 +112,14 @@ def train_net(
     hp: NetTraining | None = None,
     *,
     progress: bool = True,
+    scaling: str = "fixed",
 ) -> tuple[Any, list[dict[str, float]]]:
-    """Train a ``"baseline"`` or ``"detrend"`` net on ``ds``'s training split.
+    """Train a ``"baseline"`` or ``"detrend"`` net with ``scaling`` (see
+    :class:`pronet.models.BaselineNet`) on ``ds``'s training split.
 
     Returns the net (best validation epoch) and the per-epoch history
-    (``train_loss``, ``val_loss``, ``lr``); losses are MSE of q / q_scale.
+    (``train_loss``, ``val_loss``, ``lr``); losses are MSE of q / q_scale (fixed) or
+    of ln q (spread).
     """
     import torch
 
@@ -106,24 +129,36 @@ def train_net(
     was_deterministic = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)
     try:
-        return _train_net(kind, ds, hp, progress)
+        return _train_net(kind, ds, hp, progress, scaling)
     finally:
         torch.use_deterministic_algorithms(was_deterministic)
 
 
 def _train_net(
-    kind: str, ds: Dataset, hp: NetTraining, progress: bool
+    kind: str, ds: Dataset, hp: NetTraining, progress: bool, scaling: str
 ) -> tuple[Any, list[dict[str, float]]]:
     import torch
     from tqdm.auto import tqdm
 
     torch.manual_seed(hp.seed)
     fit_idx, val_idx = _split_validation(ds, hp.val_fraction, hp.seed)
-    net = NETS[kind](window=ds.windows.shape[1])
-    x = torch.from_numpy(ds.windows[fit_idx])
-    y = torch.from_numpy((ds.q[fit_idx] / net.q_scale).astype(np.float32))
-    xv = torch.from_numpy(ds.windows[val_idx])
-    yv = torch.from_numpy((ds.q[val_idx] / net.q_scale).astype(np.float32))
+    net = NETS[kind](window=ds.windows.shape[1], scaling=scaling)
+    if scaling == "spread":  # MSE of ln q
+
+        def label_of(q: NDArray[np.float64]) -> Any:
+            return torch.from_numpy(np.log(q).astype(np.float32))
+
+        output = net.log_q
+    else:  # MSE of q / q_scale
+
+        def label_of(q: NDArray[np.float64]) -> Any:
+            return torch.from_numpy((q / net.q_scale).astype(np.float32))
+
+        def output(x: Any) -> Any:
+            return net(x) / net.q_scale
+
+    x, y = torch.from_numpy(ds.windows[fit_idx]), label_of(ds.q[fit_idx])
+    xv, yv = torch.from_numpy(ds.windows[val_idx]), label_of(ds.q[val_idx])
     opt = torch.optim.Adam(net.parameters(), lr=hp.learning_rate)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=1 / 3, patience=0)
     gen = torch.Generator().manual_seed(hp.seed)
@@ -134,14 +169,14 @@ def _train_net(
         net.train()
         total = 0.0
         for batch in torch.randperm(y.numel(), generator=gen).split(hp.batch_size):
-            loss = (net(x[batch]) / net.q_scale - y[batch]).pow(2).mean()
+            loss = (output(x[batch]) - y[batch]).pow(2).mean()
             opt.zero_grad()
             loss.backward()
             opt.step()
             total += loss.item() * batch.numel()
         net.eval()
         with torch.inference_mode():
-            val = float((net(xv) / net.q_scale - yv).pow(2).mean())
+            val = float((output(xv) - yv).pow(2).mean())
         lr = opt.param_groups[0]["lr"]
         history.append({"epoch": epoch, "train_loss": total / y.numel(), "val_loss": val, "lr": lr})
         bar.set_postfix(train=f"{total / y.numel():.4f}", val=f"{val:.4f}", lr=f"{lr:.1e}")
@@ -177,11 +212,14 @@ def train_and_save(
     start = time.perf_counter()
     dataset_card = {"params": asdict(params), "sha256": dataset_sha256(ds)}
     path = Path(out) / kind
+    # over many decades, a model must be scale-free and learn ln q (the module docstring)
+    log_uniform = params.spacing == "log-uniform"
     if kind == "hcf":
         from pronet.hcf import HCFEnsemble
 
         seed = (hp or NetTraining()).seed
-        model: Any = HCFEnsemble.fit(ds.windows[ds.train], ds.q[ds.train], seed=seed)
+        target = "log-ratio" if log_uniform else "q"
+        model: Any = HCFEnsemble.fit(ds.windows[ds.train], ds.q[ds.train], seed=seed, target=target)
         seconds = time.perf_counter() - start
         report = test_report(model, ds)
         model.save(
@@ -195,7 +233,8 @@ def train_and_save(
         )
         return report
     hp = hp or NetTraining()
-    net, history = train_net(kind, ds, hp, progress=progress)
+    scaling = "spread" if log_uniform else "fixed"
+    net, history = train_net(kind, ds, hp, progress=progress, scaling=scaling)
     seconds = time.perf_counter() - start
     report = test_report(net, ds)
     save_net(
@@ -203,7 +242,7 @@ def train_and_save(
         path,
         {
             "hyperparameters": asdict(hp),
-            "loss": "MSE of q / q_scale",
+            "loss": "MSE of ln q" if log_uniform else "MSE of q / q_scale",
             "dataset": dataset_card,
             "history": history,
             "test": report,

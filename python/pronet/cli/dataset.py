@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -30,6 +31,13 @@ def add_parser(sub: Subparsers) -> None:
         help="noise variances, evenly spaced from 0.001 to 0.05 (m/s²)² or (rad/s)² per "
         f"sample; 4,800 windows each (default {defaults.n_levels}, the paper's)",
     )
+    parser.add_argument(
+        "--grades",
+        action="store_true",
+        help="per-window variances log-uniform over 1e-7..1e-1 (m/s²)² and 1e-10..1e-2 "
+        "(rad/s)² (pronet.dataset.GRADES; --levels draws per trajectory), the training set "
+        "of the grade-* models",
+    )
     parser.add_argument("--force", action="store_true", help="replace an existing file")
     add_output_flags(parser)
     parser.set_defaults(func=run)
@@ -41,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not args.force:
         raise ValueError(f"{out} exists; use --force to replace it")
-    params = dataset.DatasetParams(seed=args.seed, n_levels=args.levels)
+    base = dataset.GRADES if args.grades else dataset.DatasetParams()
+    params = dataclasses.replace(base, seed=args.seed, n_levels=args.levels)
     params.validate()
     start = time.perf_counter()
     ds = dataset.build_dataset(params)
