@@ -198,9 +198,9 @@ def test_the_paper_rows_are_built_from_specs() -> None:
     assert rows["constant (20 x q)"].q == [20 * 1e-4] * 3 + [20 * 1e-6] * 3
     assert rows["adaptive xi=5"].window == 5
     assert paper.LEARNED_LABELS == {
-        "hcf": "HCF-ensemble",
-        "baseline": "baseline net",
-        "detrend": "detrend net",
+        "paper-hcf": "HCF-ensemble",
+        "paper-baseline": "baseline net",
+        "paper-detrend": "detrend net",
     }
 
 

@@ -1,6 +1,6 @@
 """Regressors for real sensor grades: the log-uniform dataset, scale-free nets and HCF
-ensemble, log10 scores, and the shipped grade-* models against the detrended variance
-in every decade."""
+ensemble, log10 scores, and the shipped models (``baseline``, ``detrend``, ``hcf``)
+against the detrended variance in every decade."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def test_the_grade_dataset_spans_each_sensors_decades(grades) -> None:
 
 
 def test_the_paper_dataset_is_unchanged() -> None:
-    card = models.load("detrend").card
+    card = models.load("paper-detrend").card
     assert dataset_sha256(build_dataset(DatasetParams())) == card["dataset"]["sha256"]
 
 
@@ -76,7 +76,7 @@ def test_a_log_ratio_hcf_regresses_over_decades_and_round_trips(tmp_path, grades
     back = models.load(tmp_path / "h")
     assert back.target == "log-ratio"
     np.testing.assert_array_equal(back.predict(grades.windows[test]), pred)
-    assert models.load("hcf").target == "q"  # a card without a target regresses q
+    assert models.load("paper-hcf").target == "q"  # a card without a target regresses q
 
 
 @pytest.mark.slow

@@ -1,6 +1,6 @@
 """The paper's weights shipped inside the package: they load by name, were trained on
 the dataset their card names, and reproduce their card's test scores on a regenerated
-test split (the grade-* models: ``test_grade_models.py``)."""
+test split (the models for real sensor grades: ``test_grade_models.py``)."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ def reports(default_dataset):
 def test_shipped_model_reproduces_its_card(name, default_dataset, reports) -> None:
     model = models.load(name)
     card = model.card
-    assert card["kind"] == name
+    assert card["kind"] == name.removeprefix("paper-")
     # The card names the dataset by parameters and hash; regenerating it gives those bytes.
     assert DatasetParams(**card["dataset"]["params"]) == DatasetParams()
     assert dataset_sha256(default_dataset) == card["dataset"]["sha256"]
@@ -41,8 +41,8 @@ def test_shipped_model_reproduces_its_card(name, default_dataset, reports) -> No
 
 
 def test_detrend_net_meets_the_reference(reports) -> None:
-    detrend, baseline = reports["detrend"]["model"], reports["baseline"]["model"]
-    reference = reports["detrend"]["detrended_variance"]
+    detrend, baseline = reports["paper-detrend"]["model"], reports["paper-baseline"]["model"]
+    reference = reports["paper-detrend"]["detrended_variance"]
     assert detrend["rmse"] <= 1.2 * reference["rmse"]
     assert detrend["rmse"] < baseline["rmse"]
 

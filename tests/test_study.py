@@ -65,6 +65,7 @@ def test_the_study_table_pairs_every_row_with_the_reference() -> None:
         (["--scenarios", "lake"], "--scenarios: unknown"),
         (["--strategies", "kalman"], "--strategies: unknown"),
         (["--runs", "0"], "--runs: must be at least 1"),
+        (["--strategies", "oracle,oracle"], "listed twice"),
     ],
 )
 def test_pronet_study_refuses_bad_arguments(tmp_path, capsys, args, message) -> None:

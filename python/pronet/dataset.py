@@ -9,8 +9,9 @@ channel's window, labelled with its q: 4 × 15 × 6 × 200 = 72,000 examples. Th
 80:20 at random within each trajectory, so every trajectory is on both sides
 (57,600 / 14,400).
 
-With ``spacing="log-uniform"`` (:data:`GRADES`, the training set of the ``grade-*``
-models) every window of every channel instead gets its own q, drawn log-uniformly from
+With ``spacing="log-uniform"`` (:data:`GRADES`, the training set of the shipped
+``baseline``, ``detrend`` and ``hcf``; the paper's ``paper-*`` models were trained on the
+linear default) every window of every channel instead gets its own q, drawn log-uniformly from
 its sensor's range: accelerometer ``[q_min, q_max]``, gyro ``[gyro_q_min, gyro_q_max]``
 (nine and eight decades covering consumer to navigation grade); ``n_levels`` is then
 the number of draws per trajectory, each a fresh noise realization.
@@ -98,9 +99,10 @@ class DatasetParams:
         return np.linspace(float(self.q_min), float(self.q_max), int(self.n_levels))
 
 
-#: The training set of the ``grade-*`` models: per-window variances log-uniform over
-#: accelerometer 1e-7 … 1e-1 (m/s²)² and gyro 1e-10 … 1e-2 (rad/s)² (100 Hz samples: from
-#: a navigation-grade IMU in a quiet survey to a consumer MEMS under heavy vibration).
+#: The training set of the shipped models (``baseline``, ``detrend``, ``hcf``): per-window
+#: variances log-uniform over accelerometer 1e-7 … 1e-1 (m/s²)² and gyro 1e-10 … 1e-2
+#: (rad/s)² (100 Hz samples: from a navigation-grade IMU in a quiet survey to a consumer
+#: MEMS under heavy vibration).
 GRADES = DatasetParams(
     spacing="log-uniform", q_min=1e-7, q_max=1e-1, gyro_q_min=1e-10, gyro_q_max=1e-2
 )

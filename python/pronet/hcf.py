@@ -11,7 +11,8 @@ model never unpickles anything.
 Split rule, as in scikit-learn: features are rounded to float32, and a sample goes left
 when ``feature <= threshold``.
 
-``target="log-ratio"`` (the ``grade-hcf`` model, trained over nine decades of q) makes
+``target="log-ratio"`` (the shipped ``hcf``, trained over nine decades of q; the paper's
+``paper-hcf`` regresses q) makes
 the ensemble scale-free: the scale features are divided by the window's detrended
 variance ``d`` (or its square root), ``var_detrended`` itself becomes ``log10 d`` (the
 level, so that the trees can correct differently per decade), and the trees regress

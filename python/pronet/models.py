@@ -19,7 +19,8 @@ The two CNNs (section III of the paper), 12,769 parameters each:
 - :class:`DetrendNet`: the same network after each window's least-squares line is
   subtracted, inside ``forward``, so no caller can forget it.
 
-With ``scaling="spread"`` (the ``grade-*`` models, trained over nine decades of q) a net
+With ``scaling="spread"`` (the shipped ``baseline`` and ``detrend``, trained over nine
+decades of q; the paper's are ``paper-baseline`` and ``paper-detrend``) a net
 is scale-free instead: the prepared window is divided by its own RMS s, and the head
 gives ``ln q = ln s² + z``, so that multiplying a window by c multiplies q by c², and an
 untrained net (z = 0, the last layer starts at zero) predicts the window's own
@@ -50,13 +51,14 @@ from pronet.windowstats import as_windows
 #: overflows, so such windows get NaN on purpose rather than by accident.
 MAX_SAMPLE = 1e15
 
-#: The paper's three, trained on its range [0.001, 0.05] for every channel (its table).
-PAPER_MODELS = ("baseline", "detrend", "hcf")
-#: The same three retrained scale-free over nine decades of q
-#: (:data:`pronet.dataset.GRADES`): what to use on a real sensor.
-GRADE_MODELS = ("grade-baseline", "grade-detrend", "grade-hcf")
+#: The three regressors trained scale-free over nine decades of q, for real sensor grades
+#: (:data:`pronet.dataset.GRADES`): what ``learned:baseline`` etc. run.
+GRADE_MODELS = ("baseline", "detrend", "hcf")
+#: The paper's three, trained on its range [0.001, 0.05] for every channel: the
+#: reproduction of its table (``pronet reproduce``) runs them.
+PAPER_MODELS = ("paper-baseline", "paper-detrend", "paper-hcf")
 #: Models shipped inside the package, loadable by name.
-SHIPPED = PAPER_MODELS + GRADE_MODELS
+SHIPPED = GRADE_MODELS + PAPER_MODELS
 
 
 @runtime_checkable
@@ -262,9 +264,10 @@ def shipped_sha256() -> str:
 
 
 def load(name_or_path: str | os.PathLike[str]) -> Regressor:
-    """A shipped model by name (``"baseline"``, ``"detrend"``, ``"hcf"``), or a model
-    file by path (either suffix, or none). Raises ``ModelFileError`` (a ``ValueError``)
-    naming the file if it is missing, corrupted, truncated or not what its card says."""
+    """A shipped model by name (:data:`SHIPPED`: ``"baseline"``, ``"detrend"``,
+    ``"hcf"`` and the paper's ``"paper-baseline"`` …), or a model file by path (either
+    suffix, or none). Raises ``ModelFileError`` (a ``ValueError``) naming the file if it
+    is missing, corrupted, truncated or not what its card says."""
     if isinstance(name_or_path, str) and name_or_path in SHIPPED:
         path: str | os.PathLike[str] = modelfile.SHIPPED_DIR / name_or_path
     else:

@@ -39,9 +39,9 @@ PAPER_ROWS = {
     "constant (20 x q)": "constant:20",
     "adaptive xi=1": "mehra:1",
     "adaptive xi=5": "mehra:5",
-    "HCF-ensemble": "learned:hcf",
-    "baseline net": "learned:baseline",
-    "detrend net": "learned:detrend",
+    "HCF-ensemble": "learned:paper-hcf",
+    "baseline net": "learned:paper-baseline",
+    "detrend net": "learned:paper-detrend",
 }
 
 #: Table label of each learned row, by model name.

@@ -86,9 +86,9 @@ def white_noise_q(imu: F64) -> tuple[float, ...]:
 REAL_EXTRA_ROWS = {
     "detvar": "detvar",
     "adaptive": "adaptive",
-    "HCF-ensemble (grades)": "learned:grade-hcf",
-    "baseline net (grades)": "learned:grade-baseline",
-    "detrend net (grades)": "learned:grade-detrend",
+    "HCF-ensemble (grades)": "learned:hcf",
+    "baseline net (grades)": "learned:baseline",
+    "detrend net (grades)": "learned:detrend",
 }
 
 

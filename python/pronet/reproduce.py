@@ -135,8 +135,9 @@ def reproduce(
 def _regressors(
     trained_dir: Path | None, train_progress: bool
 ) -> tuple[Dataset | None, dict[str, Regressor]]:
-    """The shipped regressors, or (with ``trained_dir``) three trained there on the
-    default dataset, which is returned too."""
+    """The paper's shipped regressors (:data:`pronet.models.PAPER_MODELS`), or (with
+    ``trained_dir``) three trained there on the paper's dataset, which is returned too;
+    keyed by shipped name either way."""
     from pronet import models, training
 
     if trained_dir is None:
@@ -145,7 +146,7 @@ def _regressors(
     ds = build_dataset(params)
     for kind in training.MODEL_KINDS:
         training.train_and_save(kind, ds, params, trained_dir, progress=train_progress)
-    return ds, {k: models.load(trained_dir / k) for k in training.MODEL_KINDS}
+    return ds, {f"paper-{k}": models.load(trained_dir / k) for k in training.MODEL_KINDS}
 
 
 def _shard_store(partial: Path, settings: dict[str, int | float], say: Say | None) -> ShardStore:

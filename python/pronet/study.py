@@ -59,9 +59,9 @@ STUDY_ROWS = {
     "adaptive": "adaptive",
     "mehra xi=5": "mehra:5",
     "detvar": "detvar",
-    "HCF-ensemble": "learned:grade-hcf",
-    "baseline net": "learned:grade-baseline",
-    "detrend net": "learned:grade-detrend",
+    "HCF-ensemble": "learned:hcf",
+    "baseline net": "learned:baseline",
+    "detrend net": "learned:detrend",
 }
 REFERENCE = "constant (true q)"
 ORACLE = "oracle"
@@ -130,6 +130,8 @@ def run_study(
     bad = [label for label in chosen if label not in STUDY_ROWS]
     if bad or not chosen:
         raise ValueError(f"--strategies: unknown {bad}; known {list(STUDY_ROWS)}")
+    if len(set(chosen)) != len(chosen) or len(set(scenarios)) != len(scenarios):
+        raise ValueError("--strategies, --scenarios: a value is listed twice")
     if chosen[0] != REFERENCE:
         chosen = [REFERENCE, *(label for label in chosen if label != REFERENCE)]
     regressors = _regressors(chosen)

@@ -169,11 +169,16 @@ impl SensorConfig {
         for o in &self.dvl.outages {
             check::finite("dvl_outages", o)?;
             if !(o[0] < o[1] && o[0] >= previous_end) {
+                let after = if previous_end.is_finite() {
+                    format!(" after an outage ending at {previous_end} s")
+                } else {
+                    String::new()
+                };
                 return Err(Error::invalid(
                     "dvl_outages",
                     format!(
                         "need [start, end] rows with start < end [s], sorted and not \
-                         overlapping; got [{}, {}] after an outage ending at {previous_end}",
+                         overlapping; got [{}, {}]{after}",
                         o[0], o[1]
                     ),
                 ));

@@ -36,7 +36,7 @@ def add_parser(sub: Subparsers) -> None:
         action="store_true",
         help="per-window variances log-uniform over 1e-7..1e-1 (m/s²)² and 1e-10..1e-2 "
         "(rad/s)² (pronet.dataset.GRADES; --levels draws per trajectory), the training set "
-        "of the grade-* models",
+        "of the shipped models (the paper's paper-* used the default)",
     )
     parser.add_argument("--force", action="store_true", help="replace an existing file")
     add_output_flags(parser)

@@ -21,8 +21,9 @@ def add_parser(sub: Subparsers) -> None:
     parser.add_argument(
         "--models",
         metavar="LIST",
-        default="baseline,detrend,hcf",
-        help="comma-separated shipped names or model file paths",
+        default="paper-baseline,paper-detrend,paper-hcf",
+        help="comma-separated shipped names or model file paths (default: the paper's "
+        "three, for Fig. 8 on the paper's dataset)",
     )
     parser.add_argument(
         "--figure", metavar="PNG", default=None, help="write predicted-vs-true q PNG here"
