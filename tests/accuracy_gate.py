@@ -143,6 +143,12 @@ def simulated_rows(
     if unknown:
         known = list(SCENARIOS)
         raise ValueError(f"scenarios: unknown {sorted(unknown)}; known {known}")
+    labels = [*paper.PAPER_ROWS, *study.STUDY_ROWS]
+    unknown = set(strategies or ()) - set(labels)
+    if unknown:
+        raise ValueError(
+            f"strategies: unknown {sorted(unknown)}; known {list(dict.fromkeys(labels))}"
+        )
     regressors = {k: models.load(k) for k in models.SHIPPED}
     out: Rows = {}
     for name, build in SCENARIOS.items():
@@ -153,11 +159,10 @@ def simulated_rows(
             chosen = paper.paper_strategies(sc.q_nominal, regressors, 1.0)
         else:
             chosen = study.study_strategies(sc.q_nominal, regressors, 1.0)
-        if strategies is not None:
-            unknown = set(strategies) - set(chosen)
-            if unknown:
-                raise ValueError(f"strategies: unknown {sorted(unknown)}; known {list(chosen)}")
+        if strategies is not None:  # a label a scenario's rows do not have is skipped there
             chosen = {k: v for k, v in chosen.items() if k in strategies}
+            if not chosen:
+                continue
         rows = run.run_strategies(
             chosen, sc, n_runs=n_runs, seed=seed, threads=None, record_every=100
         )

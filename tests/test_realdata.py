@@ -416,6 +416,33 @@ def test_snapir_accuracy_matches_a_standard_ekf():
     assert np.mean([m.final_horizontal for m in stamped]) > 2 * final
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not SNAPIR.is_dir(), reason="the Snapir data is not on this machine")
+def test_the_regressors_for_real_sensor_grades_hold_the_constant_row_on_snapir():
+    """Sections 1–11: each shipped regressor (trained for real sensor grades) keeps the
+    mean SRMSE within 1.05x and the mean final horizontal error within 1.10x of the
+    constant row's (the paper's regressors lose 2–7x here)."""
+    from pronet import models
+
+    regressors = {k: models.load(k) for k in models.GRADE_MODELS}
+    metrics: dict[str, list] = {}
+    for aligned, _ in alignment.load_snapir_sections(SNAPIR):
+        q = realdata.white_noise_q(aligned.imu)
+        config = realdata.real_filter_config(aligned.alignment.filter_lever_arm)
+        rows = realdata.real_strategies(q, regressors, 1.0)
+        for label in ("constant (estimated q)", *(f"{n} (grades)" for n in _GRADE_LABELS)):
+            run = realdata.run_section(aligned, rows[label], config, label=label)
+            metrics.setdefault(label, []).append(run.metrics)
+    const = metrics.pop("constant (estimated q)")
+    srmse, final = np.mean([m.srmse for m in const]), np.mean([m.final_horizontal for m in const])
+    for label, ms in metrics.items():
+        assert np.mean([m.srmse for m in ms]) <= 1.05 * srmse, label
+        assert np.mean([m.final_horizontal for m in ms]) <= 1.10 * final, label
+
+
+_GRADE_LABELS = ("HCF-ensemble", "baseline net", "detrend net")
+
+
 def test_run_filter_checks_its_q_schedule(synthetic):
     section = align(synthetic.recording, Alignment(how="none"))
     i0 = realdata.start_index(section)

@@ -79,3 +79,22 @@ def test_every_study_row_is_a_spec() -> None:
 
     for spec in STUDY_ROWS.values():
         StrategySpec.parse(spec)
+
+
+@pytest.mark.slow
+def test_the_adaptive_and_learned_rows_meet_the_study_bars() -> None:
+    """At the study's 100 runs, adaptive never diverges on a study scenario and is no
+    worse than the constant told 10x the truth on matched and regimes; on 30 paired runs
+    (the study's 100 take a minute of inference) the regressors for real sensor grades
+    stay within 5 % of the constant told the truth on matched."""
+    labels = ["constant (10 x q)", "adaptive"]
+    for name in ("matched", "varying-matched", "regimes", "outage"):
+        rows = {r.label: r.result for r in run_study(100, 0, scenarios=[name], labels=labels)}
+        assert rows["adaptive"].n_diverged == 0 and rows["adaptive"].n_failed == 0, name
+        if name in ("matched", "regimes"):
+            assert np.mean(rows["adaptive"].srmse) <= np.mean(rows["constant (10 x q)"].srmse)
+    learned = ["HCF-ensemble", "baseline net", "detrend net"]
+    rows = {r.label: r.result for r in run_study(30, 0, scenarios=["matched"], labels=learned)}
+    reference = np.mean(rows["constant (true q)"].srmse)
+    for label in learned:
+        assert np.mean(rows[label].srmse) <= 1.05 * reference, label

@@ -181,3 +181,12 @@ def test_consistency_metrics_are_the_velocity_nees_and_its_3sigma_share() -> Non
     np.testing.assert_allclose(done.velocity_nees_3sigma, (vel <= x).mean(axis=1))
     row = done.summary_row()
     assert row["velocity_nees"] == pytest.approx(vel.mean(axis=1).mean())
+
+
+def test_a_sweeps_noise_level_keeps_the_outages() -> None:
+    from pronet.sweep import noisier
+
+    sc = scenarios.outage_scenario(0)
+    louder = noisier(sc.sensors, 4.0)
+    np.testing.assert_array_equal(louder.dvl_outages, scenarios.OUTAGES)
+    np.testing.assert_allclose(louder.imu_variance, 4.0 * sc.schedule_q)

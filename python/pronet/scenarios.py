@@ -20,7 +20,6 @@ seed unless a scenario file sets its own. A user's scenario comes from a TOML fi
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -162,12 +161,15 @@ def matched_filter_config(dvl_variance: float = 0.01) -> _core.FilterConfig:
 def matched_scenario(seed: int = 0) -> Scenario:
     """``paper`` with the bias random walk matched (:data:`MATCHED_BIAS_PSD`, in the
     IMU and the filter): the paper's constant IMU noise, nothing drawn."""
-    trajectory = builtin_trajectory("paper")
-    sc = _scheduled(
-        "matched", trajectory, np.zeros(1), np.array([PAPER_Q]), matched_filter_config(), None
+    return Scenario(
+        name="matched",
+        trajectory=builtin_trajectory("paper"),
+        sensors=_core.SensorConfig(imu_variance=PAPER_Q, imu_bias_psd=MATCHED_BIAS_PSD),
+        config=matched_filter_config(),
+        q_nominal=PAPER_Q,
+        schedule_time=np.zeros(1),
+        schedule_q=np.array([PAPER_Q]),
     )
-    sensors = _core.SensorConfig(imu_variance=PAPER_Q, imu_bias_psd=MATCHED_BIAS_PSD)
-    return dataclasses.replace(sc, sensors=sensors)
 
 
 def varying_matched_scenario(seed: int = 0) -> Scenario:
