@@ -130,29 +130,19 @@ def test_the_seed_draws_the_schedule_unless_the_file_fixes_it(tmp_path) -> None:
     np.testing.assert_array_equal(
         fixed.schedule_q, scenarios.SCENARIOS["varying-matched"](7).schedule_q
     )
-    outs = []
-    for seed in ("1", "2"):
-        out = tmp_path / f"sim{seed}"
-        args = ["simulate", "--scenario", str(tmp_path / "short.toml"), "--runs", "1"]
-        assert (
-            cli.main(
-                [*args, "--seed", seed, "--strategies", "constant", "--out", str(out), "--quiet"]
-            )
-            == 0
-        )
-        outs.append(json.loads((out / "config.json").read_text()))
-    assert [c["schedule_seed"] for c in outs] == [7, 7]  # the file fixes it
+    fixed_seeds = [_simulated_schedule_seed(tmp_path, seed) for seed in (1, 2)]
+    assert fixed_seeds == [7, 7]  # the file fixes it
     (tmp_path / "short.toml").write_text(SHORT_VARYING)
-    for seed in ("1", "2"):
-        out = tmp_path / f"free{seed}"
-        args = ["simulate", "--scenario", str(tmp_path / "short.toml"), "--runs", "1"]
-        assert (
-            cli.main(
-                [*args, "--seed", seed, "--strategies", "constant", "--out", str(out), "--quiet"]
-            )
-            == 0
-        )
-        assert json.loads((out / "config.json").read_text())["schedule_seed"] == int(seed)
+    assert [_simulated_schedule_seed(tmp_path, seed) for seed in (1, 2)] == [1, 2]
+
+
+def _simulated_schedule_seed(tmp_path: Path, seed: int) -> int:
+    """``pronet simulate --seed SEED`` on ``short.toml``: the schedule seed it records."""
+    out = tmp_path / f"sim-{seed}-{len(list(tmp_path.iterdir()))}"
+    args = ["simulate", "--scenario", str(tmp_path / "short.toml"), "--runs", "1"]
+    args += ["--seed", str(seed), "--strategies", "constant", "--out", str(out), "--quiet"]
+    assert cli.main(args) == 0
+    return json.loads((out / "config.json").read_text())["schedule_seed"]
 
 
 def test_a_filter_file_overrides_only_the_keys_it_names(tmp_path) -> None:

@@ -163,20 +163,13 @@ class MonteCarloResult:
         row.update(runs=self.n_runs, failed_runs=self.n_failed, diverged_runs=self.n_diverged)
         return row
 
+    #: The per-run metrics :meth:`summary` gives a mean and 95 % CI of (all but the counts
+    #: and times: ``rejected_updates``, ``diverged_at``).
+    SUMMARIZED = tuple(m for m in PER_RUN if m not in ("rejected_updates", "diverged_at"))
+
     def summary(self) -> dict[str, MeanCI]:
-        """Mean and 95 % CI over runs of every per-run metric."""
-        return {
-            name: mean_ci(getattr(self, name))
-            for name in (
-                "srmse",
-                "smae",
-                "final_horizontal_error",
-                "max_horizontal_error",
-                "mean_nis",
-                "velocity_nees",
-                "velocity_nees_3sigma",
-            )
-        }
+        """Mean and 95 % CI over runs of every metric in :data:`SUMMARIZED`."""
+        return {name: mean_ci(getattr(self, name)) for name in self.SUMMARIZED}
 
 
 def _row_mean(v: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -28,7 +28,7 @@ from pronet._files import atomic_folder
 from pronet.hybrid import HybridResult
 from pronet.montecarlo import MonteCarloResult
 from pronet.paper import PAPER_TABLE
-from pronet.stats import MeanCI
+from pronet.stats import MeanCI, mean_ci
 
 if TYPE_CHECKING:  # pandas loads only when a table is made
     import pandas as pd
@@ -45,15 +45,7 @@ METRICS = MonteCarloResult.PER_RUN
 #: Columns of every ``metrics.csv``.
 RUN_COLUMNS = (*LABELS, "run", *METRICS, "failure")
 #: The metrics summarised as mean and 95 % CI in :data:`SUMMARY_COLUMNS`.
-SUMMARIZED = (
-    "srmse",
-    "smae",
-    "final_horizontal_error",
-    "max_horizontal_error",
-    "mean_nis",
-    "velocity_nees",
-    "velocity_nees_3sigma",
-)
+SUMMARIZED = MonteCarloResult.SUMMARIZED
 #: Columns of every ``summary.csv`` / ``metrics.json`` record.
 SUMMARY_COLUMNS = (
     *LABELS,
@@ -171,10 +163,10 @@ def consistency_cells(result: MonteCarloResult) -> list[str]:
     """The :data:`CONSISTENCY_HEADER` cells of ``result``: the mean velocity NEES (3 when
     consistent) with the share of epochs inside its 3σ bound (99.7 % when consistent),
     and the mean NIS (3 when consistent); means over the runs that did not fail."""
-    nees = np.nanmean(result.velocity_nees) if np.isfinite(result.velocity_nees).any() else np.nan
-    share = result.velocity_nees_3sigma
-    inside = np.nanmean(share) if np.isfinite(share).any() else np.nan
-    nis = np.nanmean(result.mean_nis) if np.isfinite(result.mean_nis).any() else np.nan
+    nees, inside, nis = (
+        mean_ci(getattr(result, name)).mean
+        for name in ("velocity_nees", "velocity_nees_3sigma", "mean_nis")
+    )
     return [f"{nees:.2f} ({100 * inside:.1f} %)", f"{nis:.2f}"]
 
 
