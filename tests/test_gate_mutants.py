@@ -40,7 +40,7 @@ MUTANTS = {
     ),
     # The Coriolis block of ∂δv̇/∂δv with its sign flipped.
     "Jacobian sign (Coriolis)": (
-        "rust/src/ekf/mod.rs",
+        "rust/src/ekf/dynamics.rs",
         "vel_vel: -skew(&(2.0 * rates.earth + rates.transport)),",
         "vel_vel: skew(&(2.0 * rates.earth + rates.transport)),",
     ),
