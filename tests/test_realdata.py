@@ -492,3 +492,27 @@ def test_hostile_files_read_or_raise_naming_the_file(tmp_path_factory, synthetic
         return
     for arr in (rec.imu, rec.dvl, rec.gt_lla):
         assert np.isfinite(arr).all()
+
+
+def test_the_fast_csv_path_reads_what_the_careful_reader_reads(tmp_path, synthetic):
+    from pronet import recordings
+
+    folder = csv_folder(tmp_path, synthetic)
+    path = folder / "imu.csv"
+    text = path.read_text()
+    width = len(text.partition("\n")[0].split(","))
+    fast = recordings._parse_numbers(text, width)
+    assert fast is not None  # a plain table: pandas' parser read it
+    lines = text.splitlines()
+    careful = np.array([[float(c) for c in line.split(",")] for line in lines[1:] if line])
+    assert np.array_equal(fast.view(np.int64), careful.view(np.int64))  # bit for bit
+    # anything else goes to the careful reader: a short row (named), an extra text
+    # column the file does not need (read as before)
+    edit_line(path, 4, lambda s: s[: s.rindex(",")])
+    with pytest.raises(RecordingError, match=r"imu.csv, row 4: has 6 fields, the header 7"):
+        read_recording(folder)
+    path.write_text("\n".join([lines[0] + ",note"] + [f"{s},ok" for s in lines[1:]]) + "\n")
+    assert recordings._parse_numbers(path.read_text(), width + 1) is None
+    np.testing.assert_array_equal(
+        read_recording(folder).imu, read_recording(csv_folder(tmp_path / "b", synthetic)).imu
+    )

@@ -33,6 +33,9 @@ __all__ = [
     "monte_carlo",
     "Ensemble",
     "tuning_instants",
+    "ConvNet",
+    "HcfEnsemble",
+    "attitude_increment_costs",
 ]
 
 __version__: str
@@ -312,3 +315,79 @@ def tuning_instants(
     which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
     there; :func:`pronet.hybrid.q_schedule` evaluates its regressor there.
     ``dt`` and ``tuning_period`` finite and > 0, ``window`` >= 1."""
+
+@final
+class ConvNet:
+    """The forward pass of a ProNet CNN regressor (``pronet.models.BaselineNet`` or
+    ``DetrendNet``) from its torch weights; build it with
+    :meth:`pronet.models.BaselineNet.native`.
+
+    ``prepare``: ``"centre"`` or ``"detrend"``; ``scaling``: ``"fixed"`` (uses
+    ``input_scale`` and ``q_scale``) or ``"spread"``. ``blocks``: per convolution block
+    ``(weight (c_out, c_in, kernel), bias, norm_weight, norm_bias, stride, eps)``;
+    ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays float32.
+    ``ramp``: the ``(window,)`` ramp a ``"detrend"`` net projects out, as the torch
+    model stores it (None: the exact unit-norm centred ramp). ``threads``: worker
+    threads for ``predict`` (None: all cores). Computes in float64.
+    """
+
+    def __new__(
+        cls,
+        *,
+        window: int,
+        prepare: str,
+        scaling: str,
+        blocks: list[tuple[Any, Any, Any, Any, int, float]],
+        head: list[tuple[Any, Any]],
+        input_scale: float = 0.1,
+        q_scale: float = 0.01,
+        negative_slope: float = 0.01,
+        ramp: NDArray[np.float32] | None = None,
+        threads: int | None = None,
+    ) -> ConvNet: ...
+    def predict(self, windows: NDArray[np.float32]) -> NDArray[np.float64]:
+        """q ``(n,)`` [(unit)² per sample] for windows float32 ``(n, window)``."""
+    @property
+    def window(self) -> int: ...
+
+@final
+class HcfEnsemble:
+    """The handcrafted-feature ensemble's prediction (``pronet.hcf.HCFEnsemble``) from
+    its exported trees; build it with :meth:`pronet.hcf.HCFEnsemble.frozen`.
+
+    ``gb``, ``rf``: ``(left, right, feature, roots)`` int32 and ``threshold``, ``value``
+    float64 arrays, in the order ``(left, right, feature, threshold, value, roots)``;
+    ``target``: ``"q"`` or ``"log-ratio"``. ``threads``: worker threads for ``predict``
+    (None: all cores).
+    """
+
+    def __new__(
+        cls,
+        *,
+        window: int,
+        gb: tuple[Any, ...],
+        gb_init: float,
+        gb_rate: float,
+        rf: tuple[Any, ...],
+        target: str,
+        threads: int | None = None,
+    ) -> HcfEnsemble: ...
+    def predict(self, windows: NDArray[np.float64]) -> NDArray[np.float64]:
+        """q ``(n,)`` for windows float64 ``(n, window)``."""
+    @property
+    def window(self) -> int: ...
+
+def attitude_increment_costs(
+    edges: NDArray[np.float64],
+    cum: NDArray[np.float64],
+    gt_time: NDArray[np.float64],
+    gt_step: NDArray[np.float64],
+    offsets: NDArray[np.float64],
+    scale: float,
+) -> NDArray[np.float64]:
+    """The clock-alignment cost of ``pronet.alignment.estimate_gt_clock`` for the clocks
+    ``(offset, scale)``, one per offset: the mean squared difference between the
+    truth's Euler-angle steps ``gt_step (R - 1, 3)`` [rad] and the integrated gyro Euler
+    rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at
+    ``offset + scale·gt_time``, over the pairs of rows mapped inside the edges; inf
+    with fewer than 10 such pairs."""

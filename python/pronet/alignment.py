@@ -194,13 +194,8 @@ def estimate_gt_clock(rec: Recording) -> Clock:
     gt_step = np.diff(euler, axis=0)
 
     def cost(offsets: F64, scale: float) -> F64:
-        t = offsets[:, None] + scale * rec.gt_time  # (offsets, rows)
-        inside = (t >= edges[0]) & (t <= edges[-1])
-        pair = inside[:, 1:] & inside[:, :-1]
-        step = np.diff(np.stack([np.interp(t, edges, cum[:, j]) for j in range(3)], -1), axis=1)
-        sq = np.where(pair, np.sum((step - gt_step) ** 2, axis=-1), 0.0)
-        n = pair.sum(axis=1)
-        return np.where(n >= 10, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
+        # in the core: the same interpolation as numpy.interp, one walk over the edges
+        return _core.attitude_increment_costs(edges, cum, rec.gt_time, gt_step, offsets, scale)
 
     return _fit(cost)
 

@@ -5,8 +5,9 @@ std, range, mean absolute deviation, RMS of first differences, skewness, kurtosi
 two scikit-learn ensembles whose predictions are averaged: gradient boosting (squared
 error) and a random forest. Only training needs scikit-learn. The fitted trees are
 exported as explicit arrays (children, split feature, threshold, leaf value) into a
-safetensors file, and :meth:`HCFEnsemble.predict` walks them in NumPy, so loading a
-model never unpickles anything.
+safetensors file; :meth:`HCFEnsemble.predict` computes the features and walks the
+trees in pronet's core (:meth:`HCFEnsemble.frozen`; ``native=False``: in NumPy, the
+reference), so loading a model never unpickles anything.
 
 Split rule, as in scikit-learn: features are rounded to float32, and a sample goes left
 when ``feature <= threshold``.
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pronet import modelfile
+from pronet import _core, modelfile
 from pronet.windowstats import FEATURE_NAMES, as_windows, detrended_variance, features
 
 #: Targets an ensemble can regress: q itself (the paper's) or ``ln(q / d)``.
@@ -208,14 +209,17 @@ class HCFEnsemble:
         }
         return model
 
-    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
-        """q for raw windows ``(..., N)``."""
+    def predict(self, windows: ArrayLike, *, native: bool = True) -> NDArray[np.float64]:
+        """q for raw windows ``(..., N)``; ``native``: in pronet's core (:meth:`frozen`),
+        else in NumPy (the reference the core is tested against)."""
         w = as_windows(windows)
         if w.shape[-1] != self.window:
             raise ValueError(
                 f"windows: this model reads windows of {self.window} samples, got shape {w.shape}"
             )
-        flat = w.reshape(-1, self.window)
+        flat = np.ascontiguousarray(w.reshape(-1, self.window))
+        if native:
+            return self.frozen().core.predict(flat).reshape(w.shape[:-1])
         if self.target == "q":
             x, d = features(flat), np.ones(flat.shape[0])
         else:
@@ -227,6 +231,21 @@ class HCFEnsemble:
             out = 0.5 * gb + 0.5 * self.rf.leaf_values(x[ok]).mean(axis=1)
             q[ok] = out if self.target == "q" else d[ok] * np.exp(np.minimum(out, 700.0))
         return q.reshape(w.shape[:-1])
+
+    def frozen(self, threads: int | None = None) -> FrozenHCF:
+        """This ensemble's prediction in pronet's core: the same features (to rounding,
+        ~1e-15), the same float32 split rule, ~10× faster than the NumPy walk.
+        ``threads``: its worker threads (default: all cores)."""
+        core = _core.HcfEnsemble(
+            window=self.window,
+            gb=tuple(getattr(self.gb, k) for k in _ARRAYS),
+            gb_init=self.gb_init,
+            gb_rate=self.gb_rate,
+            rf=tuple(getattr(self.rf, k) for k in _ARRAYS),
+            target=self.target,
+            threads=threads,
+        )
+        return FrozenHCF(core)
 
     def tensors(self) -> dict[str, NDArray[Any]]:
         out: dict[str, NDArray[Any]] = {}
@@ -292,3 +311,24 @@ class HCFEnsemble:
         model = cls(window, sets[0], init_rate[0], init_rate[1], sets[1], target)
         model.card = card
         return model
+
+
+class FrozenHCF:
+    """An HCF ensemble's prediction in pronet's core (:meth:`HCFEnsemble.frozen`):
+    ``predict(windows (..., N)) -> q (...)`` as the ensemble's."""
+
+    def __init__(self, core: _core.HcfEnsemble) -> None:
+        self.core = core
+
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        w = as_windows(windows)
+        if w.shape[-1] != self.core.window:
+            raise ValueError(
+                f"windows: this model reads windows of {self.core.window} samples, "
+                f"got shape {w.shape}"
+            )
+        flat = np.ascontiguousarray(w.reshape(-1, self.core.window))
+        return self.core.predict(flat).reshape(w.shape[:-1])
+
+    def frozen(self, threads: int | None = None) -> FrozenHCF:
+        return self

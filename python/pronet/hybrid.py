@@ -4,8 +4,9 @@ The Monte Carlo runs live in Rust, stepped in lockstep by a :class:`pronet.Ensem
 (GIL released, threads across runs). At every tuning instant the loop
 
 1. takes the last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, N)``;
-2. runs the regressor once on the whole batch (``regressor.predict``; the nets use
-   float32 under ``torch.inference_mode``);
+2. runs the regressor once on the whole batch (``regressor.predict``; for the shipped
+   CNNs the loop calls their forward pass frozen in pronet's core, see
+   :func:`for_loop`);
 3. applies the guardrails and hands q ``(n_runs, 6)`` back to Rust, where it becomes
    each run's IMU white-noise PSD ``q·Δt_imu`` in Q^c.
 
@@ -29,7 +30,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -155,7 +156,20 @@ def run_hybrid(
         threads=threads,
         first_run=first_run,
     )
-    return _drive(ens, regressor, prior, guardrails)
+    return _drive(ens, for_loop(regressor, threads), prior, guardrails)
+
+
+def for_loop(regressor: Regressor, threads: int | None = None) -> Regressor:
+    """What a loop calls many times: ``regressor.frozen(threads)`` where the regressor
+    offers it (the shipped CNNs: their forward pass in pronet's core, same predictions
+    to ~1e-7, no torch threads competing with the filters), else ``regressor``."""
+    frozen = getattr(regressor, "frozen", None)
+    if not callable(frozen):
+        return regressor
+    try:
+        return cast("Regressor", frozen(threads))
+    except NotImplementedError:  # e.g. a subclass of a shipped net with its own forward
+        return regressor
 
 
 def _drive(
@@ -304,7 +318,7 @@ def q_schedule(
     strided = np.lib.stride_tricks.sliding_window_view(samples.astype(np.float32), window, 0)
     windows = np.ascontiguousarray(strided[ends - window])  # (k, 6, window), oldest first
     t0 = time.perf_counter()
-    q = _predictions(regressor, windows)
+    q = _predictions(for_loop(regressor), windows)
     seconds = time.perf_counter() - t0
     if q.shape != (ends.size, 6):
         raise ValueError(

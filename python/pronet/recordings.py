@@ -44,6 +44,7 @@ import csv
 import gzip
 import io
 import zipfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -247,31 +248,68 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
             text = fh.read()
     except (OSError, EOFError, UnicodeDecodeError) as exc:
         raise RecordingError(f"{path}: cannot be read ({exc})") from None
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows or not any(cell.strip() for cell in rows[0]):
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, [])
+    if not any(cell.strip() for cell in header):
         raise RecordingError(f"{path}: is empty (no header row)")
-    if len(rows[0]) == 1 and (sep := next((d for d in ";\t|" if d in rows[0][0]), None)):
+    if len(header) == 1 and (sep := next((d for d in ";\t|" if d in header[0]), None)):
         raise RecordingError(
             f"{path}: the header is one column separated by {sep!r}; "
             "the file must be comma-separated"
         )
-    picks = _select_columns(str(path), rows[0], kind, names)
-    body = [r for r in rows[1:] if r]
+    picks = _select_columns(str(path), header, kind, names)
+    columns = [i for i, _ in picks]
+    table = _parse_numbers(text, len(header))
+    if table is not None:
+        out = np.ascontiguousarray(table[:, columns])
+    else:  # not a plain table of numbers: the careful reader names the row and cell
+        out = _parse_rows(path, header, reader, columns)
+    return _finish(str(path), out, picks, [header[i].strip() for i, _ in picks], kind)
+
+
+def _parse_numbers(text: str, width: int) -> F64 | None:
+    """The data rows of ``text`` (after its one-line header) as a ``(rows, width)``
+    float array, with pandas' C parser (exact, as ``float()``); None unless every row
+    is ``width`` finite-or-infinite numbers (a NaN, a short or long row, a cell that is
+    not a number, a quoted header: the careful reader then decides)."""
+    import pandas as pd
+
+    first = text.partition("\n")[0]
+    if '"' in first:
+        return None
+    try:
+        table = pd.read_csv(
+            io.StringIO(text), header=None, skiprows=1, dtype=np.float64, na_filter=False
+        ).to_numpy(dtype=np.float64)
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        return None
+    if table.ndim != 2 or table.shape[1] != width or table.shape[0] == 0 or np.isnan(table).any():
+        return None
+    return table
+
+
+def _parse_rows(
+    path: Path, header: list[str], reader: Iterator[list[str]], columns: list[int]
+) -> F64:
+    """The ``columns`` of the data rows, cell by cell: a row of the wrong width or a
+    cell of those columns that ``float()`` refuses is a :class:`RecordingError` naming
+    the row and the column."""
+    body = [r for r in reader if r]
     if not body:
         raise RecordingError(f"{path}: has a header but no data rows")
-    out = np.empty((len(body), len(picks)))
-    width = len(rows[0])
+    out = np.empty((len(body), len(columns)))
+    width = len(header)
     for r, row in enumerate(body, start=1):
         if len(row) != width:
             raise RecordingError(f"{path}, row {r}: has {len(row)} fields, the header {width}")
-        for j, (i, _) in enumerate(picks):
+        for j, i in enumerate(columns):
             try:
                 out[r - 1, j] = float(row[i])
             except ValueError:
                 raise RecordingError(
-                    f"{path}, row {r}: {rows[0][i].strip()!r} is {row[i]!r}, not a number"
+                    f"{path}, row {r}: {header[i].strip()!r} is {row[i]!r}, not a number"
                 ) from None
-    return _finish(str(path), out, picks, [rows[0][i].strip() for i, _ in picks], kind)
+    return out
 
 
 def _read_npz(path: Path) -> dict[str, F64]:

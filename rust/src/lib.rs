@@ -1,6 +1,7 @@
 //! pronet navigation core: WGS-84 Earth model, strapdown mechanization, trajectory and
-//! sensor simulation, the 15-state INS/DVL error-state EKF, process-noise strategies
-//! and a parallel Monte Carlo engine.
+//! sensor simulation, the 15-state INS/DVL error-state EKF, process-noise strategies,
+//! a parallel Monte Carlo engine, and the forward passes of the learned noise
+//! regressors.
 //!
 //! Conventions (see `docs/filter.md`): navigation frame NED, body frame FRD, positions
 //! geodetic `[lat, lon, h]` in rad, rad, m (height positive up), attitude as the
@@ -8,6 +9,7 @@
 //! This crate is plain Rust; the Python bindings live behind the `python` feature.
 
 pub mod attitude;
+pub mod clocks;
 pub mod earth;
 pub mod ekf;
 pub mod ensemble;
@@ -15,6 +17,7 @@ pub mod error;
 pub mod mechanization;
 pub mod montecarlo;
 pub mod noise;
+pub mod regressors;
 pub mod run;
 pub mod sensors;
 pub mod trajectory;

@@ -195,7 +195,7 @@ pub fn flag_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<bool> {
     obj.extract::<bool>().map_err(|_| refuse())
 }
 
-fn text_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<String> {
+pub fn text_arg(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<String> {
     obj.extract::<String>()
         .map_err(|_| invalid(arg, format!("expected a string, got {}", describe(obj))))
 }

@@ -5,10 +5,13 @@
 //! caught and raised as `RuntimeError`, never as a `PanicException`. The domain rules
 //! (latitude, gravity height, overflow, tuning instants, counts) live in the core.
 
+mod clocks;
 mod config;
 mod convert;
+mod convnet;
 mod ensemble;
 mod filter;
+mod hcf;
 mod montecarlo;
 mod navigation;
 mod sensors;
@@ -69,5 +72,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     filter::register(m)?;
     montecarlo::register(m)?;
     ensemble::register(m)?;
+    convnet::register(m)?;
+    clocks::register(m)?;
+    hcf::register(m)?;
     Ok(())
 }

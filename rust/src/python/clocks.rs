@@ -1,0 +1,35 @@
+//! `attitude_increment_costs`: the clock-alignment cost of recorded data (the grid search
+//! around it is `pronet.alignment`).
+
+use super::convert::{column, real_arg, rows};
+use super::detached;
+use crate::clocks;
+use numpy::{IntoPyArray, PyArray1};
+use pyo3::prelude::*;
+
+#[pyfunction]
+#[pyo3(signature = (edges, cum, gt_time, gt_step, offsets, scale))]
+fn attitude_increment_costs<'py>(
+    py: Python<'py>,
+    edges: &Bound<'py, PyAny>,
+    cum: &Bound<'py, PyAny>,
+    gt_time: &Bound<'py, PyAny>,
+    gt_step: &Bound<'py, PyAny>,
+    offsets: &Bound<'py, PyAny>,
+    scale: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let edges = column(edges, "edges")?;
+    let cum = rows::<3>(cum, "cum")?;
+    let gt_time = column(gt_time, "gt_time")?;
+    let gt_step = rows::<3>(gt_step, "gt_step")?;
+    let offsets = column(offsets, "offsets")?;
+    let scale = real_arg(scale, "scale")?;
+    let costs = detached(py, move || {
+        clocks::attitude_increment_costs(&edges, &cum, &gt_time, &gt_step, &offsets, scale)
+    })?;
+    Ok(costs.into_pyarray(py))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(attitude_increment_costs, m)?)
+}

@@ -1,0 +1,214 @@
+//! `ConvNet`: the forward pass of a ProNet CNN regressor in the core, built from the
+//! torch model's weights (`pronet.models.BaselineNet.native`).
+
+use super::convert::{arg_threads, describe, text_arg};
+use super::{detached, invalid};
+use crate::montecarlo::thread_pool;
+use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
+use numpy::{
+    IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+use std::sync::Arc;
+
+/// A CNN regressor's forward pass (see `_core.pyi`).
+#[pyclass(name = "ConvNet", module = "pronet._core", frozen)]
+pub struct PyConvNet {
+    inner: Arc<ConvNet>,
+    pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+fn vector(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f32>> {
+    let arr: PyReadonlyArray1<f32> = obj.extract().map_err(|_| {
+        invalid(
+            arg,
+            format!(
+                "expected a float32 array of shape (n,), got {}",
+                describe(obj)
+            ),
+        )
+    })?;
+    Ok(arr.as_array().to_vec())
+}
+
+fn block(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<ConvBlockWeights> {
+    let arg = format!("blocks[{i}]");
+    let parts: (
+        Bound<PyAny>,
+        Bound<PyAny>,
+        Bound<PyAny>,
+        Bound<PyAny>,
+        usize,
+        f32,
+    ) = obj.extract().map_err(|_| {
+        invalid(
+            &arg,
+            "expected (weight, bias, norm_weight, norm_bias, stride, eps) with float32 arrays",
+        )
+    })?;
+    let (weight, bias, gamma, beta, stride, eps) = parts;
+    let w: PyReadonlyArray3<f32> = weight.extract().map_err(|_| {
+        invalid(
+            &arg,
+            format!(
+                "weight: expected a float32 array (c_out, c_in, kernel), got {}",
+                describe(&weight)
+            ),
+        )
+    })?;
+    let &[c_out, c_in, kernel] = w.shape() else {
+        unreachable!("a 3-d array")
+    };
+    Ok(ConvBlockWeights {
+        weight: w.as_array().iter().copied().collect(),
+        bias: vector(&bias, &format!("{arg}.bias"))?,
+        c_in,
+        c_out,
+        kernel,
+        stride,
+        norm_weight: vector(&gamma, &format!("{arg}.norm_weight"))?,
+        norm_bias: vector(&beta, &format!("{arg}.norm_bias"))?,
+        norm_eps: eps,
+    })
+}
+
+fn dense(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<DenseWeights> {
+    let arg = format!("head[{i}]");
+    let (weight, bias): (Bound<PyAny>, Bound<PyAny>) = obj
+        .extract()
+        .map_err(|_| invalid(&arg, "expected (weight, bias) with float32 arrays"))?;
+    let w: PyReadonlyArray2<f32> = weight.extract().map_err(|_| {
+        invalid(
+            &arg,
+            format!(
+                "weight: expected a float32 array (n_out, n_in), got {}",
+                describe(&weight)
+            ),
+        )
+    })?;
+    let &[n_out, n_in] = w.shape() else {
+        unreachable!("a 2-d array")
+    };
+    Ok(DenseWeights {
+        weight: w.as_array().iter().copied().collect(),
+        bias: vector(&bias, &format!("{arg}.bias"))?,
+        n_in,
+        n_out,
+    })
+}
+
+#[pymethods]
+impl PyConvNet {
+    #[new]
+    #[pyo3(signature = (*, window, prepare, scaling, blocks, head, input_scale = 0.1, q_scale = 0.01, negative_slope = 0.01, ramp = None, threads = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        window: usize,
+        prepare: &Bound<'_, PyAny>,
+        scaling: &Bound<'_, PyAny>,
+        blocks: Vec<Bound<'_, PyAny>>,
+        head: Vec<Bound<'_, PyAny>>,
+        input_scale: f64,
+        q_scale: f64,
+        negative_slope: f64,
+        ramp: Option<Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
+    ) -> PyResult<Self> {
+        let prepare = match text_arg(prepare, "prepare")?.as_str() {
+            "centre" => Prepare::Centre,
+            "detrend" => Prepare::Detrend,
+            other => {
+                return Err(invalid(
+                    "prepare",
+                    format!("'centre' or 'detrend', got {other:?}"),
+                ))
+            }
+        };
+        let scaling = match text_arg(scaling, "scaling")?.as_str() {
+            "fixed" => Scaling::Fixed {
+                input_scale,
+                q_scale,
+            },
+            "spread" => Scaling::Spread,
+            other => {
+                return Err(invalid(
+                    "scaling",
+                    format!("'fixed' or 'spread', got {other:?}"),
+                ))
+            }
+        };
+        let blocks = blocks
+            .iter()
+            .enumerate()
+            .map(|(i, b)| block(b, i))
+            .collect::<PyResult<Vec<_>>>()?;
+        let head = head
+            .iter()
+            .enumerate()
+            .map(|(i, d)| dense(d, i))
+            .collect::<PyResult<Vec<_>>>()?;
+        let ramp = ramp.map(|r| vector(&r, "ramp")).transpose()?;
+        let (net, pool) = detached(py, move || {
+            let mut net = ConvNet::new(window, prepare, scaling, negative_slope, blocks, head)?;
+            if let Some(ramp) = ramp {
+                net = net.with_ramp(&ramp)?;
+            }
+            let pool = threads.map(thread_pool).transpose()?.map(Arc::new);
+            Ok((net, pool))
+        })?;
+        Ok(Self {
+            inner: Arc::new(net),
+            pool,
+        })
+    }
+
+    /// q `(n,)` float64 for windows `(n, window)` float32.
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        windows: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let w: PyReadonlyArray2<f32> = windows.extract().map_err(|_| {
+            invalid(
+                "windows",
+                format!(
+                    "expected a float32 array of shape (n, {}), got {}",
+                    self.inner.window(),
+                    describe(windows)
+                ),
+            )
+        })?;
+        if w.shape()[1] != self.inner.window() {
+            return Err(invalid(
+                "windows",
+                format!(
+                    "expected shape (n, {}), got {:?}",
+                    self.inner.window(),
+                    w.shape()
+                ),
+            ));
+        }
+        let samples: Vec<f32> = match w.as_slice() {
+            Ok(s) => s.to_vec(),
+            Err(_) => w.as_array().iter().copied().collect(),
+        };
+        let net = Arc::clone(&self.inner);
+        let pool = self.pool.clone();
+        let q = detached(py, move || match pool {
+            Some(p) => p.install(|| net.predict(&samples)),
+            None => net.predict(&samples),
+        })?;
+        Ok(q.into_pyarray(py))
+    }
+
+    #[getter]
+    fn window(&self) -> usize {
+        self.inner.window()
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyConvNet>()
+}

@@ -1,0 +1,140 @@
+//! `HcfEnsemble`: the handcrafted-feature ensemble's prediction in the core, built from
+//! the exported trees (`pronet.hcf.HCFEnsemble.frozen`).
+
+use super::convert::{arg_threads, describe, text_arg};
+use super::{detached, invalid};
+use crate::montecarlo::thread_pool;
+use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use std::sync::Arc;
+
+/// The HCF ensemble's prediction (see `_core.pyi`).
+#[pyclass(name = "HcfEnsemble", module = "pronet._core", frozen)]
+pub struct PyHcfEnsemble {
+    inner: Arc<HcfEnsemble>,
+    pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+fn array<T: numpy::Element + Copy>(
+    obj: &Bound<'_, PyAny>,
+    arg: &str,
+    dtype: &str,
+) -> PyResult<Vec<T>> {
+    let arr: PyReadonlyArray1<T> = obj.extract().map_err(|_| {
+        invalid(
+            arg,
+            format!(
+                "expected a {dtype} array of shape (n,), got {}",
+                describe(obj)
+            ),
+        )
+    })?;
+    Ok(arr.as_array().to_vec())
+}
+
+fn trees(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<TreeSet> {
+    let parts: Vec<Bound<PyAny>> = obj.extract().map_err(|_| {
+        invalid(
+            arg,
+            "expected (left, right, feature, threshold, value, roots)",
+        )
+    })?;
+    let [left, right, feature, threshold, value, roots] = parts.as_slice() else {
+        return Err(invalid(
+            arg,
+            "expected (left, right, feature, threshold, value, roots)",
+        ));
+    };
+    TreeSet::new(
+        array(left, &format!("{arg}.left"), "int32")?,
+        array(right, &format!("{arg}.right"), "int32")?,
+        array(feature, &format!("{arg}.feature"), "int32")?,
+        array(threshold, &format!("{arg}.threshold"), "float64")?,
+        array(value, &format!("{arg}.value"), "float64")?,
+        array(roots, &format!("{arg}.roots"), "int32")?,
+    )
+    .map_err(|e| invalid(arg, e.to_string()))
+}
+
+#[pymethods]
+impl PyHcfEnsemble {
+    #[new]
+    #[pyo3(signature = (*, window, gb, gb_init, gb_rate, rf, target, threads = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        window: usize,
+        gb: &Bound<'_, PyAny>,
+        gb_init: f64,
+        gb_rate: f64,
+        rf: &Bound<'_, PyAny>,
+        target: &Bound<'_, PyAny>,
+        #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
+    ) -> PyResult<Self> {
+        let target = match text_arg(target, "target")?.as_str() {
+            "q" => Target::Q,
+            "log-ratio" => Target::LogRatio,
+            other => {
+                return Err(invalid(
+                    "target",
+                    format!("'q' or 'log-ratio', got {other:?}"),
+                ))
+            }
+        };
+        let (gb, rf) = (trees(gb, "gb")?, trees(rf, "rf")?);
+        let (model, pool) = detached(py, move || {
+            let model = HcfEnsemble::new(window, gb, gb_init, gb_rate, rf, target)?;
+            let pool = threads.map(thread_pool).transpose()?.map(Arc::new);
+            Ok((model, pool))
+        })?;
+        Ok(Self {
+            inner: Arc::new(model),
+            pool,
+        })
+    }
+
+    /// q `(n,)` float64 for windows `(n, window)` float64.
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        windows: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let n = self.inner.window();
+        let w: PyReadonlyArray2<f64> = windows.extract().map_err(|_| {
+            invalid(
+                "windows",
+                format!(
+                    "expected a float64 array of shape (n, {n}), got {}",
+                    describe(windows)
+                ),
+            )
+        })?;
+        if w.shape()[1] != n {
+            return Err(invalid(
+                "windows",
+                format!("expected shape (n, {n}), got {:?}", w.shape()),
+            ));
+        }
+        let samples: Vec<f64> = match w.as_slice() {
+            Ok(s) => s.to_vec(),
+            Err(_) => w.as_array().iter().copied().collect(),
+        };
+        let model = Arc::clone(&self.inner);
+        let pool = self.pool.clone();
+        let q = detached(py, move || match pool {
+            Some(p) => p.install(|| model.predict(&samples)),
+            None => model.predict(&samples),
+        })?;
+        Ok(q.into_pyarray(py))
+    }
+
+    #[getter]
+    fn window(&self) -> usize {
+        self.inner.window()
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyHcfEnsemble>()
+}

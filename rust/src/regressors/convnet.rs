@@ -1,0 +1,961 @@
+//! The forward pass of the ProNet CNN noise regressors (`pronet.models.BaselineNet` and
+//! `DetrendNet`), with weights exported from the torch model: one window of raw IMU
+//! samples of one channel in, its per-sample noise variance q out.
+//!
+//! The network (see `pronet/models.py` for the training side):
+//!
+//! 1. prepare: remove the window's mean (`Centre`) or its least-squares line
+//!    (`Detrend`); then divide by `input_scale` (`Scaling::Fixed`) or by the prepared
+//!    window's own RMS s (`Scaling::Spread`, s² floored at the smallest normal f32);
+//! 2. blocks of Conv1d (zero padding `kernel / 2`, stride) → LayerNorm over the channels
+//!    at each time step → LeakyReLU;
+//! 3. the mean over time, then Linear layers with LeakyReLU between them, giving z,
+//!    clamped to [-20, 20];
+//! 4. q = `q_scale`·exp(z) (`Fixed`) or q = exp(ln s² + z) (`Spread`).
+//!
+//! Everything runs in float64 from the float32 weights and samples: the predictions are
+//! the torch model's function evaluated in float64 (to ~1e-12 relative), whatever the
+//! batch, thread count or CPU. Torch's float32 pass is an approximation of it, ~1e-6
+//! relative for the paper's nets but up to ~1e-2 for the nets trained over nine
+//! decades, whose output amplifies float32 rounding; it also varies with the batch
+//! size. A non-finite sample gives a NaN prediction.
+//!
+//! Speed: activations are time-major, so the im2col row of output step t is the
+//! contiguous slice of the padded input that starts at `t·stride·c_in`; the convolution
+//! is a register-tiled product over those slices, with AVX2 and FMA where the CPU has
+//! them. Windows are spread over rayon's threads.
+
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+
+/// Output channels per SIMD vector (4 float64 lanes of AVX) in the convolution tiles.
+const LANES: usize = 4;
+/// Output time steps per tile (with 4 vectors of channels: 8 accumulators).
+const TILE_T: usize = 2;
+
+/// How a window is prepared before the first convolution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Prepare {
+    /// Remove the window's mean.
+    Centre,
+    /// Remove the window's least-squares line.
+    Detrend,
+}
+
+/// How the prepared window and the output are scaled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scaling {
+    /// Divide by `input_scale`; q = `q_scale`·exp(z).
+    Fixed { input_scale: f64, q_scale: f64 },
+    /// Divide by the window's RMS s; q = s²·exp(z).
+    Spread,
+}
+
+/// One Conv1d → LayerNorm → LeakyReLU block, in torch's layouts.
+#[derive(Clone, Debug)]
+pub struct ConvBlockWeights {
+    /// `(c_out, c_in, kernel)` row-major (`nn.Conv1d.weight`).
+    pub weight: Vec<f32>,
+    /// `(c_out,)`.
+    pub bias: Vec<f32>,
+    pub c_in: usize,
+    pub c_out: usize,
+    pub kernel: usize,
+    pub stride: usize,
+    /// LayerNorm's `weight`, `bias` (`(c_out,)` each) and `eps`.
+    pub norm_weight: Vec<f32>,
+    pub norm_bias: Vec<f32>,
+    pub norm_eps: f32,
+}
+
+/// One Linear layer, in torch's layout.
+#[derive(Clone, Debug)]
+pub struct DenseWeights {
+    /// `(n_out, n_in)` row-major (`nn.Linear.weight`).
+    pub weight: Vec<f32>,
+    /// `(n_out,)`.
+    pub bias: Vec<f32>,
+    pub n_in: usize,
+    pub n_out: usize,
+}
+
+/// A block laid out for the tiled convolution.
+#[derive(Clone, Debug)]
+struct Block {
+    /// `(kernel·c_in) × c_pad`: row `k·c_in + i`, column o is torch's `weight[o, i, k]`;
+    /// columns beyond `c_out` are zero.
+    w: Vec<f64>,
+    bias: Vec<f64>,
+    gamma: Vec<f64>,
+    beta: Vec<f64>,
+    eps: f64,
+    c_in: usize,
+    c_out: usize,
+    c_pad: usize,
+    kernel: usize,
+    stride: usize,
+    pad: usize,
+    l_in: usize,
+    l_out: usize,
+}
+
+/// A ProNet CNN regressor's forward pass; see the module docs.
+#[derive(Clone, Debug)]
+pub struct ConvNet {
+    window: usize,
+    prepare: Prepare,
+    scaling: Scaling,
+    slope: f64,
+    blocks: Vec<Block>,
+    head: Vec<DenseWeights>,
+    /// The unit-norm centred time ramp the detrending projects on.
+    ramp: Vec<f64>,
+}
+
+/// Per-thread buffers of one forward pass.
+struct Scratch {
+    /// Each block's zero-padded, time-major input `(pad + l_in + pad) × c_in`.
+    inputs: Vec<Vec<f64>>,
+    /// One block's convolution output `l_out × c_pad`.
+    conv: Vec<f64>,
+    prepared: Vec<f64>,
+    /// Each step's LayerNorm mean and 1/σ in one block.
+    mean: Vec<f64>,
+    rstd: Vec<f64>,
+    /// The last block's output at one time step, and its sum over time.
+    last: Vec<f64>,
+    pooled: Vec<f64>,
+}
+
+fn sized(arg: &str, what: &str, got: usize, want: usize) -> Result<()> {
+    if got == want {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            arg,
+            format!("{what} has {got} values, expected {want}"),
+        ))
+    }
+}
+
+impl ConvNet {
+    /// The network from torch's weights; checks every shape and that each block leaves
+    /// at least one time step.
+    pub fn new(
+        window: usize,
+        prepare: Prepare,
+        scaling: Scaling,
+        negative_slope: f64,
+        blocks: Vec<ConvBlockWeights>,
+        head: Vec<DenseWeights>,
+    ) -> Result<Self> {
+        if window < 3 {
+            return Err(Error::invalid(
+                "window",
+                format!("must be >= 3 samples, got {window}"),
+            ));
+        }
+        if let Scaling::Fixed {
+            input_scale,
+            q_scale,
+        } = scaling
+        {
+            for (arg, v) in [("input_scale", input_scale), ("q_scale", q_scale)] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(Error::invalid(
+                        arg,
+                        format!("must be finite and > 0, got {v}"),
+                    ));
+                }
+            }
+        }
+        if !negative_slope.is_finite() {
+            return Err(Error::invalid("negative_slope", "must be finite"));
+        }
+        if blocks.is_empty() {
+            return Err(Error::invalid("blocks", "need at least one block"));
+        }
+        let (mut c_prev, mut l_prev) = (1, window);
+        let mut laid = Vec::with_capacity(blocks.len());
+        for (i, b) in blocks.into_iter().enumerate() {
+            let arg = format!("blocks[{i}]");
+            if b.kernel == 0 || b.stride == 0 {
+                return Err(Error::invalid(&arg, "kernel and stride must be >= 1"));
+            }
+            if b.c_in != c_prev || b.c_out == 0 {
+                return Err(Error::invalid(
+                    &arg,
+                    format!(
+                        "takes {} channels and gives {}; the previous layer gives {c_prev}",
+                        b.c_in, b.c_out
+                    ),
+                ));
+            }
+            sized(&arg, "weight", b.weight.len(), b.c_out * b.c_in * b.kernel)?;
+            sized(&arg, "bias", b.bias.len(), b.c_out)?;
+            sized(&arg, "norm_weight", b.norm_weight.len(), b.c_out)?;
+            sized(&arg, "norm_bias", b.norm_bias.len(), b.c_out)?;
+            if !(b.norm_eps.is_finite() && b.norm_eps >= 0.0) {
+                return Err(Error::invalid(&arg, "eps must be finite and >= 0"));
+            }
+            let pad = b.kernel / 2;
+            if l_prev + 2 * pad < b.kernel {
+                return Err(Error::invalid(
+                    &arg,
+                    format!("kernel {} is longer than its padded input", b.kernel),
+                ));
+            }
+            let l_out = (l_prev + 2 * pad - b.kernel) / b.stride + 1;
+            let c_pad = b.c_out.div_ceil(LANES) * LANES;
+            let mut w = vec![0.0; b.kernel * b.c_in * c_pad];
+            for o in 0..b.c_out {
+                for ci in 0..b.c_in {
+                    for k in 0..b.kernel {
+                        w[(k * b.c_in + ci) * c_pad + o] =
+                            f64::from(b.weight[(o * b.c_in + ci) * b.kernel + k]);
+                    }
+                }
+            }
+            let mut bias = vec![0.0; c_pad];
+            for (dst, &v) in bias.iter_mut().zip(&b.bias) {
+                *dst = f64::from(v);
+            }
+            laid.push(Block {
+                w,
+                bias,
+                gamma: b.norm_weight.iter().map(|&v| f64::from(v)).collect(),
+                beta: b.norm_bias.iter().map(|&v| f64::from(v)).collect(),
+                eps: f64::from(b.norm_eps),
+                c_in: b.c_in,
+                c_out: b.c_out,
+                c_pad,
+                kernel: b.kernel,
+                stride: b.stride,
+                pad,
+                l_in: l_prev,
+                l_out,
+            });
+            (c_prev, l_prev) = (b.c_out, l_out);
+        }
+        if head.is_empty() {
+            return Err(Error::invalid("head", "need at least one Linear layer"));
+        }
+        for (i, d) in head.iter().enumerate() {
+            let arg = format!("head[{i}]");
+            if d.n_in != c_prev || d.n_out == 0 {
+                return Err(Error::invalid(
+                    &arg,
+                    format!(
+                        "takes {} inputs and gives {}; the previous layer gives {c_prev}",
+                        d.n_in, d.n_out
+                    ),
+                ));
+            }
+            sized(&arg, "weight", d.weight.len(), d.n_out * d.n_in)?;
+            sized(&arg, "bias", d.bias.len(), d.n_out)?;
+            c_prev = d.n_out;
+        }
+        if c_prev != 1 {
+            return Err(Error::invalid(
+                "head",
+                format!("the last layer must give 1 output, gives {c_prev}"),
+            ));
+        }
+        let centre = (window as f64 - 1.0) / 2.0;
+        let ramp: Vec<f64> = (0..window).map(|i| i as f64 - centre).collect();
+        let norm = ramp.iter().map(|t| t * t).sum::<f64>().sqrt();
+        Ok(Self {
+            window,
+            prepare,
+            scaling,
+            slope: negative_slope,
+            blocks: laid,
+            head,
+            ramp: ramp.into_iter().map(|t| t / norm).collect(),
+        })
+    }
+
+    /// Detrend with `ramp` (`window` values) instead of the exact unit-norm centred time
+    /// ramp: the one the torch model stores, computed in float32, so that its
+    /// detrending (which leaves ~1e-7 of a line) is reproduced too.
+    pub fn with_ramp(mut self, ramp: &[f32]) -> Result<Self> {
+        sized("ramp", "ramp", ramp.len(), self.window)?;
+        if !ramp.iter().all(|t| t.is_finite()) {
+            return Err(Error::invalid("ramp", "must be finite"));
+        }
+        self.ramp = ramp.iter().map(|&t| f64::from(t)).collect();
+        Ok(self)
+    }
+
+    /// Samples per window.
+    pub fn window(&self) -> usize {
+        self.window
+    }
+
+    /// q `(n,)` [(unit)² per sample] for `n` windows of [`Self::window`] samples each,
+    /// `windows` row-major `(n, window)`; windows run in parallel on rayon's threads.
+    pub fn predict(&self, windows: &[f32]) -> Result<Vec<f64>> {
+        if !windows.len().is_multiple_of(self.window) {
+            return Err(Error::invalid(
+                "windows",
+                format!(
+                    "{} samples are not whole windows of {}",
+                    windows.len(),
+                    self.window
+                ),
+            ));
+        }
+        let mut q = vec![0.0; windows.len() / self.window];
+        q.par_iter_mut()
+            .zip(windows.par_chunks_exact(self.window))
+            .with_min_len(8)
+            .for_each_init(|| self.scratch(), |s, (q, w)| *q = self.forward(w, s));
+        Ok(q)
+    }
+
+    fn scratch(&self) -> Scratch {
+        let conv = self.blocks.iter().map(|b| b.l_out * b.c_pad).max();
+        let c_last = self.blocks.last().map_or(0, |b| b.c_out);
+        let steps = self.blocks.iter().map(|b| b.l_out).max().unwrap_or(0);
+        Scratch {
+            inputs: self
+                .blocks
+                .iter()
+                .map(|b| vec![0.0; (b.l_in + 2 * b.pad) * b.c_in])
+                .collect(),
+            conv: vec![0.0; conv.unwrap_or(0)],
+            prepared: vec![0.0; self.window],
+            mean: vec![0.0; steps],
+            rstd: vec![0.0; steps],
+            last: vec![0.0; c_last],
+            pooled: vec![0.0; c_last],
+        }
+    }
+
+    /// q of one window (see the module docs); the whole pass is compiled for AVX where
+    /// the CPU has it, with the same arithmetic in every lane (no fused multiply-add,
+    /// the same order of operations), so both builds agree bit for bit.
+    fn forward(&self, x: &[f32], s: &mut Scratch) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX, checked just above.
+            return unsafe { self.forward_avx(x, s) };
+        }
+        self.forward_body(x, s)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn forward_avx(&self, x: &[f32], s: &mut Scratch) -> f64 {
+        self.forward_body(x, s)
+    }
+
+    #[inline(always)]
+    fn forward_body(&self, x: &[f32], s: &mut Scratch) -> f64 {
+        let n = self.window as f64;
+        let mean = x.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+        for (p, &v) in s.prepared.iter_mut().zip(x) {
+            *p = f64::from(v) - mean;
+        }
+        if self.prepare == Prepare::Detrend {
+            let slope: f64 = s.prepared.iter().zip(&self.ramp).map(|(p, t)| p * t).sum();
+            for (p, t) in s.prepared.iter_mut().zip(&self.ramp) {
+                *p -= slope * t;
+            }
+        }
+        let (scale, log_s2) = match self.scaling {
+            Scaling::Fixed { input_scale, .. } => (1.0 / input_scale, 0.0),
+            Scaling::Spread => {
+                let s2 = s.prepared.iter().map(|p| p * p).sum::<f64>() / n;
+                // torch's clamp_min keeps a NaN; f64::max would drop it
+                let s2 = if s2.is_nan() {
+                    s2
+                } else {
+                    s2.max(f64::from(f32::MIN_POSITIVE))
+                };
+                (1.0 / s2.sqrt(), s2.ln())
+            }
+        };
+        let first = &self.blocks[0];
+        let start = first.pad; // c_in = 1
+        for (dst, p) in s.inputs[0][start..start + self.window]
+            .iter_mut()
+            .zip(&s.prepared)
+        {
+            *dst = p * scale;
+        }
+        s.pooled.iter_mut().for_each(|v| *v = 0.0);
+        for (i, b) in self.blocks.iter().enumerate() {
+            let (done, rest) = s.inputs.split_at_mut(i + 1);
+            let input = &done[i];
+            let conv = &mut s.conv[..b.l_out * b.c_pad];
+            convolve(
+                input,
+                b.stride * b.c_in,
+                b.kernel * b.c_in,
+                &b.w,
+                b.c_pad,
+                &b.bias,
+                conv,
+            );
+            // LayerNorm statistics of every step first, so that the square roots and
+            // divisions of successive steps overlap
+            let (mean, rstd) = (&mut s.mean[..b.l_out], &mut s.rstd[..b.l_out]);
+            let c = b.c_out as f64;
+            for ((row, m), r) in conv
+                .chunks_exact(b.c_pad)
+                .zip(mean.iter_mut())
+                .zip(rstd.iter_mut())
+            {
+                let row = &row[..b.c_out];
+                *m = lane_sum(row, |v| v) / c;
+                *r = lane_sum(row, |v| (v - *m) * (v - *m)) / c + b.eps;
+            }
+            for r in rstd.iter_mut() {
+                *r = 1.0 / r.sqrt();
+            }
+            let steps = conv.chunks_exact(b.c_pad).zip(mean.iter().zip(rstd.iter()));
+            match rest.first_mut() {
+                Some(next) => {
+                    let off = self.blocks[i + 1].pad * b.c_out;
+                    let out = &mut next[off..off + b.l_out * b.c_out];
+                    for ((row, (&m, &r)), dst) in steps.zip(out.chunks_exact_mut(b.c_out)) {
+                        self.norm_act(b, &row[..b.c_out], m, r, dst);
+                    }
+                }
+                None => {
+                    for (row, (&m, &r)) in steps {
+                        self.norm_act(b, &row[..b.c_out], m, r, &mut s.last);
+                        for (acc, &v) in s.pooled.iter_mut().zip(&s.last) {
+                            *acc += v;
+                        }
+                    }
+                }
+            }
+        }
+        let l = self.blocks.last().map_or(1, |b| b.l_out) as f64;
+        let pooled = s.pooled.iter().map(|v| v / l).collect();
+        let z = self.head_output(pooled).clamp(-20.0, 20.0);
+        match self.scaling {
+            Scaling::Fixed { q_scale, .. } => q_scale * z.exp(),
+            Scaling::Spread => (log_s2 + z).exp(),
+        }
+    }
+
+    /// LayerNorm over the channels of one time step (its mean and 1/σ given), then
+    /// LeakyReLU, into `dst`.
+    #[inline(always)]
+    fn norm_act(&self, b: &Block, row: &[f64], mean: f64, rstd: f64, dst: &mut [f64]) {
+        for (((d, &v), &g), &bt) in dst.iter_mut().zip(row).zip(&b.gamma).zip(&b.beta) {
+            let y = (v - mean) * rstd * g + bt;
+            *d = if y >= 0.0 { y } else { y * self.slope };
+        }
+    }
+
+    /// The Linear layers (LeakyReLU between them) on the pooled features: z.
+    fn head_output(&self, mut h: Vec<f64>) -> f64 {
+        let last = self.head.len() - 1;
+        for (i, d) in self.head.iter().enumerate() {
+            let slope = self.slope;
+            h = d
+                .weight
+                .chunks_exact(d.n_in)
+                .zip(&d.bias)
+                .map(|(w, &b)| {
+                    let y = f64::from(b)
+                        + w.iter()
+                            .zip(&h)
+                            .map(|(&w, x)| f64::from(w) * x)
+                            .sum::<f64>();
+                    if i == last || y >= 0.0 {
+                        y
+                    } else {
+                        y * slope
+                    }
+                })
+                .collect();
+        }
+        h[0]
+    }
+}
+
+/// Σ f(v) over `values`, in [`LANES`] partial sums (so that it vectorises).
+#[inline(always)]
+fn lane_sum(values: &[f64], f: impl Fn(f64) -> f64) -> f64 {
+    let mut acc = [0.0f64; LANES];
+    let chunks = values.chunks_exact(LANES);
+    let tail: f64 = chunks.remainder().iter().map(|&v| f(v)).sum();
+    for chunk in chunks {
+        for (a, &v) in acc.iter_mut().zip(chunk) {
+            *a += f(v);
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
+/// `y[t, o] = bias[o] + Σ_j a[t·step + j]·w[j, o]` for every output step t and every
+/// column o of `w` (`kdim × c_pad`, `c_pad` a multiple of [`LANES`]); `y` is
+/// `l_out × c_pad`. Tiles of [`TILE_T`] steps × up to 4·[`LANES`] channels accumulate
+/// in registers, with AVX2 and FMA where the CPU has them. Both paths add the products
+/// in the same order, each with one fused multiply-add (`f32::mul_add` in the portable
+/// path: correctly rounded, slow only on a CPU without FMA), so they agree bit for bit.
+fn convolve(
+    a: &[f64],
+    step: usize,
+    kdim: usize,
+    w: &[f64],
+    c_pad: usize,
+    bias: &[f64],
+    y: &mut [f64],
+) {
+    let l_out = y.len() / c_pad;
+    assert!(
+        l_out == 0 || (l_out - 1) * step + kdim <= a.len(),
+        "convolution input too short"
+    );
+    assert!(w.len() == kdim * c_pad && bias.len() == c_pad && c_pad.is_multiple_of(LANES));
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has AVX2 and FMA (checked just above), and the slices are long
+        // enough for every tile (asserted above).
+        unsafe { avx::convolve(a, step, kdim, w, c_pad, bias, y) };
+        return;
+    }
+    convolve_portable(a, step, kdim, w, c_pad, bias, y);
+}
+
+/// The channel blocks and time tiles of [`convolve`]: calls `tile(t0, c0, T, NV)`.
+#[inline(always)]
+fn for_each_tile(l_out: usize, c_pad: usize, mut tile: impl FnMut(usize, usize, usize, usize)) {
+    let mut c0 = 0;
+    while c0 < c_pad {
+        let nv = ((c_pad - c0) / LANES).min(4);
+        let mut t = 0;
+        while t + TILE_T <= l_out {
+            tile(t, c0, TILE_T, nv);
+            t += TILE_T;
+        }
+        while t < l_out {
+            tile(t, c0, 1, nv);
+            t += 1;
+        }
+        c0 += nv * LANES;
+    }
+}
+
+fn convolve_portable(
+    a: &[f64],
+    step: usize,
+    kdim: usize,
+    w: &[f64],
+    c_pad: usize,
+    bias: &[f64],
+    y: &mut [f64],
+) {
+    for_each_tile(y.len() / c_pad, c_pad, |t0, c0, t_n, nv| {
+        for t in t0..t0 + t_n {
+            let out = &mut y[t * c_pad + c0..][..nv * LANES];
+            out.copy_from_slice(&bias[c0..c0 + nv * LANES]);
+            let row = &a[t * step..][..kdim];
+            for (x, wrow) in row.iter().zip(w.chunks_exact(c_pad)) {
+                for (o, wv) in out.iter_mut().zip(&wrow[c0..c0 + nv * LANES]) {
+                    *o = x.mul_add(*wv, *o);
+                }
+            }
+        }
+    });
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::{for_each_tile, LANES, TILE_T};
+    use std::arch::x86_64::*;
+
+    /// [`super::convolve`] with 4-lane AVX registers and fused multiply-adds.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and FMA, and the slices must satisfy `convolve`'s
+    /// assertions.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn convolve(
+        a: &[f64],
+        step: usize,
+        kdim: usize,
+        w: &[f64],
+        c_pad: usize,
+        bias: &[f64],
+        y: &mut [f64],
+    ) {
+        let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
+        for_each_tile(y.len() / c_pad, c_pad, |t0, c0, t_n, nv| {
+            // SAFETY: every index below stays inside the slices `convolve` checked.
+            unsafe {
+                match (t_n, nv) {
+                    (TILE_T, 4) => tile::<TILE_T, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    (TILE_T, 3) => tile::<TILE_T, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    (TILE_T, 2) => tile::<TILE_T, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    (TILE_T, _) => tile::<TILE_T, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    (_, 4) => tile::<1, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    (_, 3) => tile::<1, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    (_, 2) => tile::<1, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                    _ => tile::<1, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                }
+            }
+        });
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn tile<const T: usize, const NV: usize>(
+        a: *const f64,
+        step: usize,
+        kdim: usize,
+        w: *const f64,
+        c_pad: usize,
+        bias: *const f64,
+        y: *mut f64,
+        t0: usize,
+        c0: usize,
+    ) {
+        // SAFETY (whole body): the caller keeps t0 + T <= l_out and c0 + NV·LANES <= c_pad.
+        unsafe {
+            let mut acc = [[_mm256_setzero_pd(); NV]; T];
+            for row in acc.iter_mut() {
+                for (v, r) in row.iter_mut().enumerate() {
+                    *r = _mm256_loadu_pd(bias.add(c0 + v * LANES));
+                }
+            }
+            for j in 0..kdim {
+                let wp = w.add(j * c_pad + c0);
+                let wv: [__m256d; NV] = std::array::from_fn(|v| _mm256_loadu_pd(wp.add(v * LANES)));
+                for (tt, row) in acc.iter_mut().enumerate() {
+                    let x = _mm256_set1_pd(*a.add((t0 + tt) * step + j));
+                    for (r, wv) in row.iter_mut().zip(&wv) {
+                        *r = _mm256_fmadd_pd(x, *wv, *r);
+                    }
+                }
+            }
+            for (tt, row) in acc.iter().enumerate() {
+                for (v, r) in row.iter().enumerate() {
+                    _mm256_storeu_pd(y.add((t0 + tt) * c_pad + c0 + v * LANES), *r);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn random64(rng: &mut ChaCha8Rng, n: usize, scale: f64) -> Vec<f64> {
+        random(rng, n, scale as f32)
+            .into_iter()
+            .map(f64::from)
+            .collect()
+    }
+
+    fn random(rng: &mut ChaCha8Rng, n: usize, scale: f32) -> Vec<f32> {
+        (0..n)
+            .map(|_| (rng.random::<f32>() - 0.5) * 2.0 * scale)
+            .collect()
+    }
+
+    /// The shipped architecture with random weights (kernels 7/5/5, strides 1/2/2).
+    fn net(
+        prepare: Prepare,
+        scaling: Scaling,
+        seed: u64,
+    ) -> (ConvNet, Vec<ConvBlockWeights>, Vec<DenseWeights>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut blocks = Vec::new();
+        let mut c_in = 1;
+        for (c_out, kernel, stride) in [(16, 7, 1), (32, 5, 2), (32, 5, 2)] {
+            blocks.push(ConvBlockWeights {
+                weight: random(&mut rng, c_out * c_in * kernel, 0.5),
+                bias: random(&mut rng, c_out, 0.1),
+                c_in,
+                c_out,
+                kernel,
+                stride,
+                norm_weight: random(&mut rng, c_out, 1.0)
+                    .iter()
+                    .map(|g| 1.0 + g * 0.2)
+                    .collect(),
+                norm_bias: random(&mut rng, c_out, 0.1),
+                norm_eps: 1e-5,
+            });
+            c_in = c_out;
+        }
+        let mut head = Vec::new();
+        for n_out in [64, 32, 16, 1] {
+            head.push(DenseWeights {
+                weight: random(&mut rng, n_out * c_in, 0.3),
+                bias: random(&mut rng, n_out, 0.1),
+                n_in: c_in,
+                n_out,
+            });
+            c_in = n_out;
+        }
+        let built =
+            ConvNet::new(200, prepare, scaling, 0.01, blocks.clone(), head.clone()).unwrap();
+        (built, blocks, head)
+    }
+
+    /// The same network written the plain way, in float64 with index loops as the
+    /// formulas read: Conv1d with zero padding over `(C, L)` activations, LayerNorm,
+    /// LeakyReLU, mean, Linear layers.
+    #[allow(clippy::needless_range_loop)]
+    fn naive(
+        x: &[f32],
+        prepare: Prepare,
+        scaling: Scaling,
+        blocks: &[ConvBlockWeights],
+        head: &[DenseWeights],
+    ) -> f64 {
+        let n = x.len() as f64;
+        let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n;
+        let mut p: Vec<f64> = x.iter().map(|&v| v as f64 - mean).collect();
+        if prepare == Prepare::Detrend {
+            let t: Vec<f64> = (0..x.len()).map(|i| i as f64 - (n - 1.0) / 2.0).collect();
+            let tt: f64 = t.iter().map(|v| v * v).sum();
+            let b: f64 = p.iter().zip(&t).map(|(a, b)| a * b).sum::<f64>() / tt;
+            p.iter_mut().zip(&t).for_each(|(v, t)| *v -= b * t);
+        }
+        let s2 = p.iter().map(|v| v * v).sum::<f64>() / n;
+        let scale = match scaling {
+            Scaling::Fixed { input_scale, .. } => input_scale,
+            Scaling::Spread => s2.sqrt(),
+        };
+        let mut act: Vec<Vec<f64>> = vec![p.iter().map(|v| v / scale).collect()];
+        for b in blocks {
+            let (l_in, pad) = (act[0].len() as isize, (b.kernel / 2) as isize);
+            let l_out = ((l_in + 2 * pad - b.kernel as isize) / b.stride as isize + 1) as usize;
+            let mut out = vec![vec![0.0; l_out]; b.c_out];
+            for (o, row) in out.iter_mut().enumerate() {
+                for (t, y) in row.iter_mut().enumerate() {
+                    *y = b.bias[o] as f64;
+                    for ci in 0..b.c_in {
+                        for k in 0..b.kernel {
+                            let src = (t * b.stride) as isize + k as isize - pad;
+                            if (0..l_in).contains(&src) {
+                                *y += b.weight[(o * b.c_in + ci) * b.kernel + k] as f64
+                                    * act[ci][src as usize];
+                            }
+                        }
+                    }
+                }
+            }
+            for t in 0..l_out {
+                let m = (0..b.c_out).map(|o| out[o][t]).sum::<f64>() / b.c_out as f64;
+                let v = (0..b.c_out).map(|o| (out[o][t] - m).powi(2)).sum::<f64>() / b.c_out as f64;
+                for o in 0..b.c_out {
+                    let y = (out[o][t] - m) / (v + b.norm_eps as f64).sqrt()
+                        * b.norm_weight[o] as f64
+                        + b.norm_bias[o] as f64;
+                    out[o][t] = if y >= 0.0 { y } else { 0.01 * y };
+                }
+            }
+            act = out;
+        }
+        let mut h: Vec<f64> = act
+            .iter()
+            .map(|r| r.iter().sum::<f64>() / r.len() as f64)
+            .collect();
+        for (i, d) in head.iter().enumerate() {
+            h = (0..d.n_out)
+                .map(|o| {
+                    let y = d.bias[o] as f64
+                        + (0..d.n_in)
+                            .map(|j| d.weight[o * d.n_in + j] as f64 * h[j])
+                            .sum::<f64>();
+                    if i + 1 == head.len() || y >= 0.0 {
+                        y
+                    } else {
+                        0.01 * y
+                    }
+                })
+                .collect();
+        }
+        let z = h[0].clamp(-20.0, 20.0);
+        match scaling {
+            Scaling::Fixed { q_scale, .. } => q_scale * z.exp(),
+            Scaling::Spread => s2 * z.exp(),
+        }
+    }
+
+    #[test]
+    fn the_tiled_pass_equals_the_plain_network() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let fixed = Scaling::Fixed {
+            input_scale: 0.1,
+            q_scale: 0.01,
+        };
+        for (seed, prepare, scaling) in [
+            (1, Prepare::Centre, fixed),
+            (2, Prepare::Detrend, fixed),
+            (3, Prepare::Centre, Scaling::Spread),
+            (4, Prepare::Detrend, Scaling::Spread),
+        ] {
+            let (built, blocks, head) = net(prepare, scaling, seed);
+            let mut windows = Vec::new();
+            for i in 0..20 {
+                let amp = 10f32.powi(-(i % 5));
+                let drift: f32 = rng.random::<f32>();
+                let w = random(&mut rng, 200, amp);
+                windows.extend(
+                    w.iter()
+                        .enumerate()
+                        .map(|(k, v)| v + 9.8 + drift * k as f32 * 1e-3),
+                );
+            }
+            let q = built.predict(&windows).unwrap();
+            for (w, q) in windows.chunks_exact(200).zip(&q) {
+                let want = naive(w, prepare, scaling, &blocks, &head);
+                assert!(
+                    (q / want - 1.0).abs() < 1e-11,
+                    "{prepare:?} {scaling:?}: {q} vs {want}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_spread_net_scales_with_its_input_and_the_detrending_ignores_a_line() {
+        let (built, _, _) = net(Prepare::Detrend, Scaling::Spread, 5);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let w = random(&mut rng, 200, 0.01);
+        let scaled: Vec<f32> = w.iter().map(|v| v * 4.0).collect();
+        let tilted: Vec<f32> = w
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.5 + 1e-3 * k as f32)
+            .collect();
+        let q = built
+            .predict(&[w.clone(), scaled, tilted].concat())
+            .unwrap();
+        assert!((q[1] / q[0] / 16.0 - 1.0).abs() < 1e-5, "{q:?}");
+        assert!((q[2] / q[0] - 1.0).abs() < 1e-3, "{q:?}");
+    }
+
+    #[test]
+    fn a_stored_ramp_replaces_the_exact_one() {
+        let (built, _, _) = net(Prepare::Detrend, Scaling::Spread, 13);
+        let mut rng = ChaCha8Rng::seed_from_u64(14);
+        let w = random(&mut rng, 200, 0.01);
+        let exact = built.ramp.clone();
+        let ramp32: Vec<f32> = exact.iter().map(|&t| t as f32).collect();
+        let stored = built.clone().with_ramp(&ramp32).unwrap();
+        let (a, b) = (
+            built.predict(&w).unwrap()[0],
+            stored.predict(&w).unwrap()[0],
+        );
+        assert!(a != b && (a / b - 1.0).abs() < 1e-5, "{a} {b}");
+        let err = built
+            .clone()
+            .with_ramp(&ramp32[..10])
+            .unwrap_err()
+            .to_string();
+        assert_eq!(err, "ramp: ramp has 10 values, expected 200");
+    }
+
+    #[test]
+    fn a_non_finite_sample_gives_nan_and_bad_shapes_are_named() {
+        let (built, blocks, head) = net(Prepare::Centre, Scaling::Spread, 6);
+        let mut w = vec![0.1f32; 400];
+        w[3] = f32::NAN;
+        w[250] = f32::INFINITY;
+        let q = built.predict(&w).unwrap();
+        assert!(q[0].is_nan() && q[1].is_nan());
+        let err = built.predict(&w[..399]).unwrap_err().to_string();
+        assert!(err.starts_with("windows: 399 samples"), "{err}");
+        let mut bad = blocks.clone();
+        bad[1].c_in = 8;
+        let err = ConvNet::new(
+            200,
+            Prepare::Centre,
+            Scaling::Spread,
+            0.01,
+            bad,
+            head.clone(),
+        );
+        assert!(err
+            .unwrap_err()
+            .to_string()
+            .starts_with("blocks[1]: takes 8 channels"));
+        let mut bad = head.clone();
+        bad[3].bias.push(0.0);
+        let err = ConvNet::new(
+            200,
+            Prepare::Centre,
+            Scaling::Spread,
+            0.01,
+            blocks.clone(),
+            bad,
+        );
+        assert!(err
+            .unwrap_err()
+            .to_string()
+            .starts_with("head[3]: bias has 2 values"));
+        let err = ConvNet::new(2, Prepare::Centre, Scaling::Spread, 0.01, blocks, head);
+        assert!(err
+            .unwrap_err()
+            .to_string()
+            .starts_with("window: must be >= 3"));
+    }
+
+    #[test]
+    fn the_avx_and_portable_builds_agree_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let fixed = Scaling::Fixed {
+            input_scale: 0.1,
+            q_scale: 0.01,
+        };
+        for (seed, prepare, scaling) in [
+            (10, Prepare::Detrend, Scaling::Spread),
+            (11, Prepare::Centre, fixed),
+        ] {
+            let (built, _, _) = net(prepare, scaling, seed);
+            let mut s = built.scratch();
+            for _ in 0..10 {
+                let w = random(&mut rng, 200, 0.3);
+                let fast = built.forward(&w, &mut s);
+                assert_eq!(fast.to_bits(), built.forward_body(&w, &mut s).to_bits());
+            }
+        }
+    }
+
+    #[test]
+    fn the_convolution_covers_every_step_and_channel_on_both_paths() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        for (c_in, c_out, kernel, stride, l_out) in [
+            (1usize, 16usize, 7usize, 1usize, 200usize),
+            (16, 32, 5, 2, 100),
+            (3, 20, 3, 1, 7),
+            (2, 40, 3, 3, 5),
+        ] {
+            let c_pad = c_out.div_ceil(LANES) * LANES;
+            let kdim = kernel * c_in;
+            let a = random64(&mut rng, ((l_out - 1) * stride + kernel) * c_in, 1.0);
+            let w = random64(&mut rng, kdim * c_pad, 1.0);
+            let bias = random64(&mut rng, c_pad, 1.0);
+            let mut y = vec![f64::NAN; l_out * c_pad];
+            let mut plain = vec![f64::NAN; l_out * c_pad];
+            convolve(&a, stride * c_in, kdim, &w, c_pad, &bias, &mut y);
+            convolve_portable(&a, stride * c_in, kdim, &w, c_pad, &bias, &mut plain);
+            assert_eq!(y, plain, "the AVX and portable paths differ");
+            for t in 0..l_out {
+                for o in 0..c_pad {
+                    let want: f64 = bias[o]
+                        + (0..kdim)
+                            .map(|j| a[t * stride * c_in + j] * w[j * c_pad + o])
+                            .sum::<f64>();
+                    assert!((y[t * c_pad + o] - want).abs() < 1e-12, "{t} {o}");
+                }
+            }
+        }
+    }
+}
