@@ -368,6 +368,27 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     printed = json.loads(capsys.readouterr().out)  # stdout: one JSON document
     assert printed["folder"] == str(tmp_path / "js")
     assert {r["scenario"].split(" ")[0] for r in printed["metrics"]} == {"run2"}
+    # --no-plots: the same tables and metrics, no figures
+    bare = tmp_path / "bare"
+    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
+    assert main([*argv[:5], "--out", str(bare), "--quiet", "--no-plots", arm]) == 0
+    assert not list(bare.glob("*.png"))
+    assert (bare / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
+
+
+def test_sections_run_side_by_side_give_the_numbers_of_one_thread(synthetic):
+    section = align(synthetic.recording, estimate_alignment(synthetic.recording))
+    stamped = align(synthetic.recording, alignment.Alignment(how="none"))
+    other = replace(section, name="copy")
+    pairs = [(section, stamped), (other, stamped)]
+    one = realdata.run_sections(pairs, {}, 1.0, threads=1)
+    two = realdata.run_sections(pairs, {}, 1.0, threads=2)
+    assert [r.label for r in one.runs] == [r.label for r in two.runs]
+    for a, b in zip(one.runs + one.inertial, two.runs + two.inertial, strict=True):
+        assert a.section == b.section
+        np.testing.assert_array_equal(a.result.vel, b.result.vel)
+    assert one.q_estimated == two.q_estimated
+    assert list(two.constants) == [section.name, "copy"]  # in the order given
 
 
 def test_pronet_real_refuses_bad_data_before_any_work(tmp_path, capsys):

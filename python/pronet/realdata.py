@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import threading
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -422,43 +425,71 @@ def run_sections(
     models: Mapping[str, Regressor],
     tuning_period: float,
     on_done: Callable[[str], None] | None = None,
+    threads: int | None = None,
 ) -> RealRuns:
     """Every strategy of :func:`real_strategies` on each aligned section (with its own
     estimated q), the first one on the section as stamped, and the inertial run;
-    ``on_done("<section>: <strategy>")`` after each strategy."""
-    runs: list[SectionRun] = []
-    stamped_runs: list[SectionRun] = []
-    inertial: list[SectionRun] = []
-    q_estimated: dict[str, tuple[float, ...]] = {}
-    constants: dict[str, dict[str, tuple[float, ...]]] = {}
-    for aligned, stamped in sections:
-        q = q_estimated[aligned.name] = white_noise_q(aligned.imu)
-        strategies = real_strategies(q, models, tuning_period)
-        constants[aligned.name] = {
-            label: tuple(s.q)
-            for label, s in strategies.items()
-            if isinstance(s, _core.Strategy) and s.kind == "constant"
-        }
+    ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
+    on ``threads`` threads (default: one per core; each filter is one native call
+    without the GIL), and the results do not depend on it."""
+    workers = threads if threads is not None else (os.cpu_count() or 1)
+    lock = threading.Lock()
 
-        def done(label: str, name: str = aligned.name) -> None:
-            if on_done is not None:
-                on_done(f"{name}: {label}")
+    def done(text: str) -> None:
+        if on_done is not None:
+            with lock:
+                on_done(text)
 
-        config = real_filter_config(aligned.alignment.filter_lever_arm)
-        section_runs, inertial_run = evaluate_section(aligned, strategies, config, on_done=done)
-        runs += section_runs
-        inertial.append(inertial_run)
-        first_label, first = next(iter(strategies.items()))
-        stamped_runs.append(
-            run_section(
-                stamped,
-                first,
-                real_filter_config(stamped.alignment.filter_lever_arm),
-                label=f"{first_label}, stamps as given, no lever arms",
-                setup="stamps as given, no lever arms",
-            )
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        parts = list(
+            pool.map(lambda p: _run_one_section(p[0], p[1], models, tuning_period, done), sections)
         )
-    return RealRuns(sections, runs, stamped_runs, inertial, q_estimated, constants)
+    return RealRuns(
+        sections,
+        [r for p in parts for r in p.runs],
+        [p.stamped for p in parts],
+        [p.inertial for p in parts],
+        {a.name: p.q for (a, _), p in zip(sections, parts, strict=True)},
+        {a.name: p.constants for (a, _), p in zip(sections, parts, strict=True)},
+    )
+
+
+@dataclass(frozen=True)
+class _SectionRuns:
+    q: tuple[float, ...]
+    constants: dict[str, tuple[float, ...]]
+    runs: list[SectionRun]
+    stamped: SectionRun
+    inertial: SectionRun
+
+
+def _run_one_section(
+    aligned: Section,
+    stamped: Section,
+    models: Mapping[str, Regressor],
+    tuning_period: float,
+    on_done: Callable[[str], None],
+) -> _SectionRuns:
+    q = white_noise_q(aligned.imu)
+    strategies = real_strategies(q, models, tuning_period)
+    constants = {
+        label: tuple(s.q)
+        for label, s in strategies.items()
+        if isinstance(s, _core.Strategy) and s.kind == "constant"
+    }
+    config = real_filter_config(aligned.alignment.filter_lever_arm)
+    section_runs, inertial_run = evaluate_section(
+        aligned, strategies, config, on_done=lambda label: on_done(f"{aligned.name}: {label}")
+    )
+    first_label, first = next(iter(strategies.items()))
+    stamped_run = run_section(
+        stamped,
+        first,
+        real_filter_config(stamped.alignment.filter_lever_arm),
+        label=f"{first_label}, stamps as given, no lever arms",
+        setup="stamps as given, no lever arms",
+    )
+    return _SectionRuns(q, constants, section_runs, stamped_run, inertial_run)
 
 
 def real_tables(done: RealRuns) -> str:
@@ -506,6 +537,7 @@ def run_real(
     dvl_lever_arm: tuple[float, float, float] | None = None,
     tuning_period: float = 1.0,
     use_models: bool = True,
+    plots: bool = True,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -521,6 +553,8 @@ def run_real(
             [m, body FRD] (default: the Snapir AUV's).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         use_models: False: only the model-based rows.
+        plots: False: no plots (the tables and metrics only; the plots take most of
+            the time of a run on the Snapir data).
         on_start, on_done: progress callbacks (see :mod:`pronet._outputs`): stages
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
@@ -539,11 +573,16 @@ def run_real(
     regressors = {k: models.load(k) for k in models.SHIPPED} if use_models else {}
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
+
+    def read(path: Path) -> tuple[Section, Section]:
+        return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+
     loaded: list[tuple[Section, Section]] = []
-    for path in paths:
-        loaded.append(load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm))
-        if on_done is not None:
-            on_done(path.name)
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        for path, section in zip(paths, pool.map(read, paths), strict=True):  # in order
+            loaded.append(section)
+            if on_done is not None:
+                on_done(path.name)
     if on_start is not None:
         n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0))
         on_start(len(loaded) * n_rows, "run", None)
@@ -569,7 +608,8 @@ def run_real(
     with atomic_folder(folder) as tmp:
         write_metrics(tmp, done.runs + done.stamped + done.inertial, real_tables(done))
         (tmp / "config.json").write_text(json.dumps(config, indent=2))
-        if on_start is not None:
-            on_start(len(loaded), "section", "plots")
-        write_real_plots(tmp, done, on_done)
+        if plots:
+            if on_start is not None:
+                on_start(len(loaded), "section", "plots")
+            write_real_plots(tmp, done, on_done)
     return folder

@@ -59,6 +59,11 @@ def add_parser(sub: Subparsers) -> None:
     add_tuning_period(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     parser.add_argument(
+        "--no-plots",
+        action="store_true",
+        help="tables and metrics only (plots take most of the time)",
+    )
+    parser.add_argument(
         "--out", metavar="PATH", default=None, help="result folder (default results/real-<time>)"
     )
     add_output_flags(parser)
@@ -80,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
             dvl_lever_arm=args.dvl_lever_arm,
             tuning_period=args.tuning_period,
             use_models=not args.no_models,
+            plots=not args.no_plots,
             on_start=bars.start,
             on_done=bars.done,
         )
