@@ -471,6 +471,9 @@ def bench_real(args: argparse.Namespace) -> list[Row]:
     worst = max(per_section)
     with tempfile.TemporaryDirectory() as tmp:
         wall = _cli("real", "--data", str(data), "--quiet", "--out", str(Path(tmp) / "out"))
+        bare = _cli(
+            "real", "--data", str(data), "--quiet", "--no-plots", "--out", str(Path(tmp) / "b")
+        )
     return [
         Row(
             f"reading a Snapir section and estimating its clocks ({len(paths)} sections)",
@@ -479,6 +482,14 @@ def bench_real(args: argparse.Namespace) -> list[Row]:
             worst <= 0.2,
             f"{SCRIPT} --only real",
             worst,
+        ),
+        Row(
+            f"`pronet real --no-plots`, {len(paths)} Snapir sections, every strategy",
+            f"{bare:.1f} s",
+            "≤ 10 s",
+            bare <= 10,
+            f"{SCRIPT} --only real  (or: time pronet real --data DIR --no-plots)",
+            bare,
         ),
         Row(
             f"`pronet real`, {len(paths)} Snapir sections, every strategy, plots",

@@ -5,12 +5,15 @@ and on untrained nets, and what loops call."""
 from __future__ import annotations
 
 import copy
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 import torch
 
-from pronet import _core, hybrid, models, scenarios
+from pronet import _core, frozen, hybrid, models, scenarios
 from pronet.hcf import HCFEnsemble
 from pronet.models import BaselineNet, DetrendNet
 
@@ -182,3 +185,40 @@ def test_a_frozen_hcf_names_bad_trees_and_windows() -> None:
         _core.HcfEnsemble(gb=tuple(arrays), **{**kwargs, "rf": tuple(arrays)})
     with pytest.raises(ValueError, match="target: 'q' or 'log-ratio'"):
         _core.HcfEnsemble(gb=tuple(arrays), **{**kwargs, "target": "ratio"})
+
+
+@pytest.mark.parametrize("name", models.SHIPPED)
+def test_a_model_frozen_from_its_file_without_torch_equals_the_frozen_torch_model(name) -> None:
+    w = hard_windows(300, seed=5)
+    from_file = frozen.load_frozen(name).predict(w)
+    np.testing.assert_array_equal(from_file, models.load(name).frozen().predict(w))
+
+
+def test_the_detrend_ramp_is_the_torch_models_buffer() -> None:
+    for window in (3, 4, 17, 64, 199, 200, 201, 300):
+        net = DetrendNet(window=window, kernels=(3, 3, 3))
+        np.testing.assert_array_equal(frozen.detrend_ramp(window), net._t.numpy())
+
+
+def test_frozen_loading_needs_no_torch_and_names_bad_files(tmp_path) -> None:
+    code = (
+        "import sys, numpy as np; from pronet import frozen, realdata, study, reproduce;"
+        "q = frozen.load_frozen('detrend').predict(np.ones((2, 200), np.float32) * 0.1);"
+        "print('torch' in sys.modules, q.shape)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "(2,)"]
+    net = models.load("detrend")
+    assert isinstance(net, BaselineNet)
+    card = {**net.card, "architecture": {**net.architecture(), "channels": [16, 32, 8]}}
+    models.save_net(net, tmp_path / "m", {})
+    (tmp_path / "m.json").write_text(json.dumps(card))
+    with pytest.raises(
+        ValueError, match=r"m.safetensors: tensor 'features.2.conv.weight' has shape"
+    ):
+        frozen.load_frozen(tmp_path / "m")
+    (tmp_path / "m.json").write_text(json.dumps({**card, "architecture": {"layers": 3}}))
+    with pytest.raises(ValueError, match=r"m.json: bad architecture \(unknown \['layers'\]\)"):
+        frozen.load_frozen(tmp_path / "m")
+    with pytest.raises(ValueError, match="no_such"):
+        frozen.load_frozen(tmp_path / "no_such")

@@ -245,7 +245,7 @@ class HCFEnsemble:
             target=self.target,
             threads=threads,
         )
-        return FrozenHCF(core)
+        return FrozenHCF(core, self.card)
 
     def tensors(self) -> dict[str, NDArray[Any]]:
         out: dict[str, NDArray[Any]] = {}
@@ -317,8 +317,9 @@ class FrozenHCF:
     """An HCF ensemble's prediction in pronet's core (:meth:`HCFEnsemble.frozen`):
     ``predict(windows (..., N)) -> q (...)`` as the ensemble's."""
 
-    def __init__(self, core: _core.HcfEnsemble) -> None:
+    def __init__(self, core: _core.HcfEnsemble, card: dict[str, Any] | None = None) -> None:
         self.core = core
+        self.card: dict[str, Any] = card or {}
 
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         w = as_windows(windows)

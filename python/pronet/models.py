@@ -32,7 +32,6 @@ Also here: :class:`DetrendedVariance`, the statistical reference as a regressor,
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -43,22 +42,15 @@ import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import nn
 
-from pronet import _core, modelfile
+from pronet import modelfile
+from pronet.frozen import GRADE_MODELS as GRADE_MODELS  # the names, without torch too
+from pronet.frozen import MAX_SAMPLE as MAX_SAMPLE
+from pronet.frozen import PAPER_MODELS as PAPER_MODELS
+from pronet.frozen import SHIPPED as SHIPPED
+from pronet.frozen import FrozenNet, conv_net, mark_overflow
+from pronet.frozen import shipped_sha256 as shipped_sha256
 from pronet.windowstats import DetrendedVariance as DetrendedVariance  # re-exported
 from pronet.windowstats import as_windows
-
-#: Largest |sample| the nets read [m/s² or rad/s]: beyond it their float32 LayerNorm
-#: overflows, so such windows get NaN on purpose rather than by accident.
-MAX_SAMPLE = 1e15
-
-#: The three regressors trained scale-free over nine decades of q, for real sensor grades
-#: (:data:`pronet.dataset.GRADES`): what ``learned:baseline`` etc. run.
-GRADE_MODELS = ("baseline", "detrend", "hcf")
-#: The paper's three, trained on its range [0.001, 0.05] for every channel: the
-#: reproduction of its table (``pronet reproduce``) runs them.
-PAPER_MODELS = ("paper-baseline", "paper-detrend", "paper-hcf")
-#: Models shipped inside the package, loadable by name.
-SHIPPED = GRADE_MODELS + PAPER_MODELS
 
 
 @runtime_checkable
@@ -206,7 +198,7 @@ class BaselineNet(nn.Module):
         if native:
             return self.frozen().predict(windows)
         flat, shape = self._flat(windows)
-        return _mark_overflow(self._torch_predict(flat), flat).reshape(shape)
+        return mark_overflow(self._torch_predict(flat), flat).reshape(shape)
 
     def _flat(self, windows: ArrayLike) -> tuple[NDArray[np.float32], tuple[int, ...]]:
         """``windows`` as a contiguous float32 ``(n, N)`` and the leading shape."""
@@ -239,67 +231,14 @@ class BaselineNet(nn.Module):
             raise NotImplementedError(
                 f"frozen: the core implements BaselineNet and DetrendNet, not {type(self).__name__}"
             )
-        blocks = []
-        for block in self.features:
-            assert isinstance(block, _ConvBlock)
-            (stride,) = block.conv.stride
-            blocks.append(
-                (
-                    _f32(block.conv.weight),
-                    _f32(block.conv.bias),
-                    _f32(block.norm.weight),
-                    _f32(block.norm.bias),
-                    int(stride),
-                    float(block.norm.eps),
-                )
-            )
-        head = [(_f32(m.weight), _f32(m.bias)) for m in self.head if isinstance(m, nn.Linear)]
-        detrends = isinstance(self, DetrendNet)
-        core = _core.ConvNet(
-            window=self.window,
-            prepare="detrend" if detrends else "centre",
-            ramp=_f32(cast(torch.Tensor, self._t)) if detrends else None,
-            scaling=self.scaling,
-            blocks=blocks,
-            head=head,
-            input_scale=self.input_scale,
-            q_scale=self.q_scale,
-            negative_slope=0.01,
-            threads=threads,
-        )
-        return FrozenNet(core, self)
+        if any(block.norm.eps != 1e-5 for block in self.features):  # type: ignore[union-attr]
+            raise NotImplementedError("frozen: LayerNorm eps other than 1e-5")
+        tensors = {k: v.detach().cpu().numpy() for k, v in self.state_dict().items()}
+        core = conv_net(self.kind, self.architecture(), tensors, threads)
+        return FrozenNet(core, getattr(self, "card", None))
 
     def n_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
-
-
-class FrozenNet:
-    """A CNN regressor's forward pass frozen in pronet's core
-    (:meth:`BaselineNet.frozen`): ``predict(windows (..., N)) -> q (...)`` as the net's,
-    without torch."""
-
-    def __init__(self, core: _core.ConvNet, net: BaselineNet) -> None:
-        self.core = core
-        self._flat = net._flat
-
-    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
-        flat, shape = self._flat(windows)
-        return _mark_overflow(self.core.predict(flat), flat).reshape(shape)
-
-    def frozen(self, threads: int | None = None) -> FrozenNet:
-        return self
-
-
-def _mark_overflow(q: NDArray[np.float64], flat: NDArray[np.float32]) -> NDArray[np.float64]:
-    """NaN where a window holds a sample beyond :data:`MAX_SAMPLE` (or a NaN)."""
-    with np.errstate(invalid="ignore"):
-        q[~(np.abs(flat).max(axis=-1, initial=0.0) <= MAX_SAMPLE)] = np.nan
-    return q
-
-
-def _f32(t: torch.Tensor | None) -> NDArray[np.float32]:
-    assert t is not None  # every layer here has its bias and affine norm
-    return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=np.float32)
 
 
 class DetrendNet(BaselineNet):
@@ -344,17 +283,6 @@ def torch_threads(n: int) -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(before)
-
-
-def shipped_sha256() -> str:
-    """SHA-256 over the shipped models' weight and card files: what a cached result
-    computed with them depends on."""
-    h = hashlib.sha256()
-    for path in sorted(modelfile.SHIPPED_DIR.iterdir()):
-        if path.suffix in (".safetensors", ".json"):
-            h.update(path.name.encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()
 
 
 def load(name_or_path: str | os.PathLike[str]) -> Regressor:

@@ -19,6 +19,7 @@ from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,7 +29,6 @@ from pronet._validate import flag, float_array, scalar
 from pronet.alignment import Section, find_sections, load_section
 from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
-from pronet.models import Regressor
 from pronet.paper import paper_strategies
 from pronet.results import (
     RUN_COLUMNS,
@@ -39,6 +39,9 @@ from pronet.results import (
 )
 from pronet.run import Recorded, run
 from pronet.strategies import StrategyLike, StrategySpec, strategy
+
+if TYPE_CHECKING:  # torch loads only when a net is trained or run through torch
+    from pronet.models import Regressor
 
 F64 = NDArray[np.float64]
 
@@ -559,10 +562,10 @@ def run_real(
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
     """
-    from pronet import models
     from pronet._files import atomic_folder
     from pronet._outputs import new_result_folder
     from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+    from pronet.frozen import SHIPPED, load_frozen
 
     folder = new_result_folder(out, "real")
     if not tuning_period > 0:
@@ -570,7 +573,8 @@ def run_real(
     imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
     dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
     paths = select_sections(data, sections)
-    regressors = {k: models.load(k) for k in models.SHIPPED} if use_models else {}
+    # frozen in the core, loaded without torch
+    regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
 

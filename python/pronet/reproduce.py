@@ -138,21 +138,23 @@ def _regressors(
     """The paper's shipped regressors (:data:`pronet.models.PAPER_MODELS`), or (with
     ``trained_dir``) three trained there on the paper's dataset, which is returned too;
     keyed by shipped name either way."""
-    from pronet import models, training
+    from pronet.frozen import PAPER_MODELS, load_frozen  # frozen in the core
 
     if trained_dir is None:
-        return None, {k: models.load(k) for k in models.PAPER_MODELS}
+        return None, {k: load_frozen(k) for k in PAPER_MODELS}
+    from pronet import training  # training needs torch
+
     params = DatasetParams()
     ds = build_dataset(params)
     for kind in training.MODEL_KINDS:
         training.train_and_save(kind, ds, params, trained_dir, progress=train_progress)
-    return ds, {f"paper-{k}": models.load(trained_dir / k) for k in training.MODEL_KINDS}
+    return ds, {f"paper-{k}": load_frozen(trained_dir / k) for k in training.MODEL_KINDS}
 
 
 def _shard_store(partial: Path, settings: dict[str, int | float], say: Say | None) -> ShardStore:
     """The store of finished Monte Carlos, keyed by everything that shapes their numbers:
     shards of another version, other weights or other settings must not be mixed in."""
-    from pronet import models
+    from pronet.frozen import shipped_sha256
 
     store = ShardStore(
         partial,
@@ -163,7 +165,7 @@ def _shard_store(partial: Path, settings: dict[str, int | float], say: Say | Non
             "record_every": RECORD_EVERY,
             "pronet": pronet.__version__,
             "native_core": _core.__version__,
-            "weights": models.shipped_sha256(),
+            "weights": shipped_sha256(),
         },
     )
     if len(store) and say is not None:

@@ -125,7 +125,8 @@ def strategy(
 ) -> StrategyLike:
     """The strategy ``spec`` describes around the nominal ``q`` (6 per-sample
     variances [(m/s²)², (rad/s)²]); a learned one runs ``regressor`` (default:
-    ``models.load(spec.model)``) every ``tuning_period`` seconds."""
+    ``frozen.load_frozen(spec.model)``, the model frozen in the core) every
+    ``tuning_period`` seconds."""
     q = tuple(float(v) for v in float_array(q, "q", (6,)))  # factor x q in float64
     if spec.kind == "constant":
         return _core.Strategy.constant(q if spec.factor == 1 else tuple(spec.factor * v for v in q))
@@ -137,8 +138,8 @@ def strategy(
         return _core.Strategy.oracle()
     if spec.kind == "detvar":
         return Learned(DetrendedVariance() if regressor is None else regressor, q, tuning_period)
-    if regressor is None:
-        from pronet import models
+    if regressor is None:  # frozen in the core: no torch
+        from pronet.frozen import load_frozen
 
-        regressor = models.load(spec.model)
+        regressor = load_frozen(spec.model)
     return Learned(regressor, q, tuning_period)

@@ -164,9 +164,9 @@ def _regressors(labels: Sequence[str]) -> dict[str, Regressor]:
     names = [s.model for s in specs if s.kind == "learned"]
     if not names:
         return {}
-    from pronet import models
+    from pronet.frozen import load_frozen  # frozen in the core: no torch
 
-    return {name: models.load(name) for name in names}
+    return {name: load_frozen(name) for name in names}
 
 
 def _outage_error(sc: Scenario, result: MonteCarloResult) -> NDArray[np.float64]:
