@@ -222,3 +222,13 @@ def test_frozen_loading_needs_no_torch_and_names_bad_files(tmp_path) -> None:
         frozen.load_frozen(tmp_path / "m")
     with pytest.raises(ValueError, match="no_such"):
         frozen.load_frozen(tmp_path / "no_such")
+
+
+@pytest.mark.parametrize("name", ["detrend", "hcf"])
+def test_a_frozen_model_moves_to_the_loops_threads_with_the_same_numbers(name) -> None:
+    w = hard_windows(100, seed=6)
+    loaded = frozen.load_frozen(name)
+    assert loaded.frozen() is loaded
+    one = hybrid.for_loop(loaded, threads=1)
+    assert one is not loaded and one.card == loaded.card
+    np.testing.assert_array_equal(one.predict(w), loaded.predict(w))

@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -56,10 +59,16 @@ class FrozenNet:
     """A CNN regressor's forward pass in pronet's core: ``predict(windows (..., N)) ->
     q (...)`` [(unit)² per sample], as the net's; ``card``: its model card."""
 
-    def __init__(self, core: _core.ConvNet, card: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        core: _core.ConvNet,
+        card: dict[str, Any] | None = None,
+        build: Callable[[int | None], _core.ConvNet] | None = None,
+    ) -> None:
         self.core = core
         self.window = core.window
         self.card: dict[str, Any] = card or {}
+        self._build = build  # the same net on other threads
 
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         w = as_windows(windows, dtype=np.float32)
@@ -71,7 +80,10 @@ class FrozenNet:
         return mark_overflow(self.core.predict(flat), flat).reshape(w.shape[:-1])
 
     def frozen(self, threads: int | None = None) -> FrozenNet:
-        return self
+        """This net on ``threads`` worker threads (None: as it is)."""
+        if threads is None or self._build is None:
+            return self
+        return FrozenNet(self._build(threads), self.card, self._build)
 
 
 def mark_overflow(q: NDArray[np.float64], flat: NDArray[np.float32]) -> NDArray[np.float64]:
@@ -162,6 +174,20 @@ def shipped_sha256() -> str:
     return h.hexdigest()
 
 
+def read_model(
+    name_or_path: str | os.PathLike[str],
+) -> tuple[dict[str, NDArray[Any]], dict[str, Any], Path, Path]:
+    """``(tensors, card, weights file, card file)`` of a shipped model by name
+    (:data:`SHIPPED`) or of a model file by path (either suffix, or none)."""
+    if isinstance(name_or_path, str) and name_or_path in SHIPPED:
+        path: str | os.PathLike[str] = modelfile.SHIPPED_DIR / name_or_path
+    else:
+        path = name_or_path
+    tensors, card = modelfile.read(path)
+    weights, card_file = modelfile.paths(path)
+    return tensors, card, weights, card_file
+
+
 def load_frozen(
     name_or_path: str | os.PathLike[str], threads: int | None = None
 ) -> FrozenNet | FrozenHCF:
@@ -170,12 +196,7 @@ def load_frozen(
     naming the file if it is missing, corrupted, truncated or not what its card says."""
     from pronet.hcf import HCFEnsemble
 
-    if isinstance(name_or_path, str) and name_or_path in SHIPPED:
-        path: str | os.PathLike[str] = modelfile.SHIPPED_DIR / name_or_path
-    else:
-        path = name_or_path
-    tensors, card = modelfile.read(path)
-    weights, card_file = modelfile.paths(path)
+    tensors, card, weights, card_file = read_model(name_or_path)
     kind = card.get("kind")
     if kind == "hcf":
         return HCFEnsemble.from_tensors(tensors, card, weights).frozen(threads)
@@ -189,10 +210,11 @@ def load_frozen(
     try:
         modelfile.check_tensors(weights, tensors, net_shapes(arch))
         core = conv_net(kind, arch, tensors, threads)
+        build = partial(conv_net, kind, arch, tensors)
     except (TypeError, KeyError) as exc:
         raise modelfile.ModelFileError(f"{card_file}: bad architecture ({exc})") from None
     except ValueError as exc:
         if isinstance(exc, modelfile.ModelFileError):
             raise
         raise modelfile.ModelFileError(f"{card_file}: bad architecture ({exc})") from None
-    return FrozenNet(core, card)
+    return FrozenNet(core, card, build)

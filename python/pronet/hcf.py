@@ -245,7 +245,7 @@ class HCFEnsemble:
             target=self.target,
             threads=threads,
         )
-        return FrozenHCF(core, self.card)
+        return FrozenHCF(core, self)
 
     def tensors(self) -> dict[str, NDArray[Any]]:
         out: dict[str, NDArray[Any]] = {}
@@ -317,9 +317,10 @@ class FrozenHCF:
     """An HCF ensemble's prediction in pronet's core (:meth:`HCFEnsemble.frozen`):
     ``predict(windows (..., N)) -> q (...)`` as the ensemble's."""
 
-    def __init__(self, core: _core.HcfEnsemble, card: dict[str, Any] | None = None) -> None:
+    def __init__(self, core: _core.HcfEnsemble, model: HCFEnsemble) -> None:
         self.core = core
-        self.card: dict[str, Any] = card or {}
+        self.card: dict[str, Any] = model.card
+        self._model = model  # to rebuild on other threads
 
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         w = as_windows(windows)
@@ -332,4 +333,5 @@ class FrozenHCF:
         return self.core.predict(flat).reshape(w.shape[:-1])
 
     def frozen(self, threads: int | None = None) -> FrozenHCF:
-        return self
+        """This ensemble on ``threads`` worker threads (None: as it is)."""
+        return self if threads is None else self._model.frozen(threads)

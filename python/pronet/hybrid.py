@@ -161,8 +161,9 @@ def run_hybrid(
 
 def for_loop(regressor: Regressor, threads: int | None = None) -> Regressor:
     """What a loop calls many times: ``regressor.frozen(threads)`` where the regressor
-    offers it (the shipped CNNs: their forward pass in pronet's core, same predictions
-    to ~1e-7, no torch threads competing with the filters), else ``regressor``."""
+    offers it (the shipped models: their prediction in pronet's core, the torch model's
+    function in float64, on ``threads`` worker threads, no torch threads competing with
+    the filters), else ``regressor``."""
     frozen = getattr(regressor, "frozen", None)
     if not callable(frozen):
         return regressor

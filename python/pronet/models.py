@@ -35,6 +35,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import partial
 from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
@@ -47,7 +48,7 @@ from pronet.frozen import GRADE_MODELS as GRADE_MODELS  # the names, without tor
 from pronet.frozen import MAX_SAMPLE as MAX_SAMPLE
 from pronet.frozen import PAPER_MODELS as PAPER_MODELS
 from pronet.frozen import SHIPPED as SHIPPED
-from pronet.frozen import FrozenNet, conv_net, mark_overflow
+from pronet.frozen import FrozenNet, conv_net, mark_overflow, read_model
 from pronet.frozen import shipped_sha256 as shipped_sha256
 from pronet.windowstats import DetrendedVariance as DetrendedVariance  # re-exported
 from pronet.windowstats import as_windows
@@ -234,8 +235,9 @@ class BaselineNet(nn.Module):
         if any(block.norm.eps != 1e-5 for block in self.features):  # type: ignore[union-attr]
             raise NotImplementedError("frozen: LayerNorm eps other than 1e-5")
         tensors = {k: v.detach().cpu().numpy() for k, v in self.state_dict().items()}
-        core = conv_net(self.kind, self.architecture(), tensors, threads)
-        return FrozenNet(core, getattr(self, "card", None))
+        build = partial(conv_net, self.kind, self.architecture(), tensors)
+        core = build(threads)
+        return FrozenNet(core, getattr(self, "card", None), build)
 
     def n_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
@@ -290,12 +292,7 @@ def load(name_or_path: str | os.PathLike[str]) -> Regressor:
     ``"hcf"`` and the paper's ``"paper-baseline"`` …), or a model file by path (either
     suffix, or none). Raises ``ModelFileError`` (a ``ValueError``) naming the file if it
     is missing, corrupted, truncated or not what its card says."""
-    if isinstance(name_or_path, str) and name_or_path in SHIPPED:
-        path: str | os.PathLike[str] = modelfile.SHIPPED_DIR / name_or_path
-    else:
-        path = name_or_path
-    tensors, card = modelfile.read(path)
-    weights, card_file = modelfile.paths(path)
+    tensors, card, weights, card_file = read_model(name_or_path)
     kind = card.get("kind")
     if kind == "hcf":
         from pronet.hcf import HCFEnsemble

@@ -285,3 +285,32 @@ pub fn nav_arrays<'py>(
     )?;
     Ok(())
 }
+
+/// Windows `(n, window)` of dtype `T` (`dtype` names it in the error) as one row-major
+/// vector.
+pub fn window_rows<T: numpy::Element + Copy>(
+    obj: &Bound<'_, PyAny>,
+    window: usize,
+    dtype: &str,
+) -> PyResult<Vec<T>> {
+    let w: PyReadonlyArray2<T> = obj.extract().map_err(|_| {
+        invalid(
+            "windows",
+            format!(
+                "expected a {dtype} array of shape (n, {window}), got {}",
+                describe(obj)
+            ),
+        )
+    })?;
+    let view = w.as_array();
+    if view.ncols() != window {
+        return Err(invalid(
+            "windows",
+            format!("expected shape (n, {window}), got {:?}", view.shape()),
+        ));
+    }
+    Ok(match view.as_slice() {
+        Some(s) => s.to_vec(),
+        None => view.iter().copied().collect(),
+    })
+}

@@ -1,7 +1,7 @@
 //! `ConvNet`: the forward pass of a ProNet CNN regressor in the core, built from the
 //! torch model's weights (`pronet.models.BaselineNet.native`).
 
-use super::convert::{arg_threads, describe, text_arg};
+use super::convert::{arg_threads, describe, text_arg, window_rows};
 use super::{detached, invalid};
 use crate::montecarlo::thread_pool;
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
@@ -170,30 +170,7 @@ impl PyConvNet {
         py: Python<'py>,
         windows: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let w: PyReadonlyArray2<f32> = windows.extract().map_err(|_| {
-            invalid(
-                "windows",
-                format!(
-                    "expected a float32 array of shape (n, {}), got {}",
-                    self.inner.window(),
-                    describe(windows)
-                ),
-            )
-        })?;
-        if w.shape()[1] != self.inner.window() {
-            return Err(invalid(
-                "windows",
-                format!(
-                    "expected shape (n, {}), got {:?}",
-                    self.inner.window(),
-                    w.shape()
-                ),
-            ));
-        }
-        let samples: Vec<f32> = match w.as_slice() {
-            Ok(s) => s.to_vec(),
-            Err(_) => w.as_array().iter().copied().collect(),
-        };
+        let samples: Vec<f32> = window_rows(windows, self.inner.window(), "float32")?;
         let net = Arc::clone(&self.inner);
         let pool = self.pool.clone();
         let q = detached(py, move || match pool {

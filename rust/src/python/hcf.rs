@@ -1,11 +1,11 @@
 //! `HcfEnsemble`: the handcrafted-feature ensemble's prediction in the core, built from
 //! the exported trees (`pronet.hcf.HCFEnsemble.frozen`).
 
-use super::convert::{arg_threads, describe, text_arg};
+use super::convert::{arg_threads, describe, text_arg, window_rows};
 use super::{detached, invalid};
 use crate::montecarlo::thread_pool;
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use std::sync::Arc;
 
@@ -100,26 +100,7 @@ impl PyHcfEnsemble {
         py: Python<'py>,
         windows: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let n = self.inner.window();
-        let w: PyReadonlyArray2<f64> = windows.extract().map_err(|_| {
-            invalid(
-                "windows",
-                format!(
-                    "expected a float64 array of shape (n, {n}), got {}",
-                    describe(windows)
-                ),
-            )
-        })?;
-        if w.shape()[1] != n {
-            return Err(invalid(
-                "windows",
-                format!("expected shape (n, {n}), got {:?}", w.shape()),
-            ));
-        }
-        let samples: Vec<f64> = match w.as_slice() {
-            Ok(s) => s.to_vec(),
-            Err(_) => w.as_array().iter().copied().collect(),
-        };
+        let samples: Vec<f64> = window_rows(windows, self.inner.window(), "float64")?;
         let model = Arc::clone(&self.inner);
         let pool = self.pool.clone();
         let q = detached(py, move || match pool {

@@ -25,13 +25,9 @@
 //! is a register-tiled product over those slices, with AVX2 and FMA where the CPU has
 //! them. Windows are spread over rayon's threads.
 
+use super::conv1d::{convolve, lane_sum, LANES};
+use super::per_window;
 use crate::error::{Error, Result};
-use rayon::prelude::*;
-
-/// Output channels per SIMD vector (4 float64 lanes of AVX) in the convolution tiles.
-const LANES: usize = 4;
-/// Output time steps per tile (with 4 vectors of channels: 8 accumulators).
-const TILE_T: usize = 2;
 
 /// How a window is prepared before the first convolution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -138,6 +134,98 @@ fn sized(arg: &str, what: &str, got: usize, want: usize) -> Result<()> {
     }
 }
 
+impl Block {
+    /// Block `b` checked against its input (`c_in` channels, `l_in` steps) and laid out
+    /// for the tiled convolution; errors name `arg`.
+    fn lay_out(b: ConvBlockWeights, c_in: usize, l_in: usize, arg: &str) -> Result<Self> {
+        if b.kernel == 0 || b.stride == 0 {
+            return Err(Error::invalid(arg, "kernel and stride must be >= 1"));
+        }
+        if b.c_in != c_in || b.c_out == 0 {
+            return Err(Error::invalid(
+                arg,
+                format!(
+                    "takes {} channels and gives {}; the previous layer gives {c_in}",
+                    b.c_in, b.c_out
+                ),
+            ));
+        }
+        sized(arg, "weight", b.weight.len(), b.c_out * b.c_in * b.kernel)?;
+        sized(arg, "bias", b.bias.len(), b.c_out)?;
+        sized(arg, "norm_weight", b.norm_weight.len(), b.c_out)?;
+        sized(arg, "norm_bias", b.norm_bias.len(), b.c_out)?;
+        if !(b.norm_eps.is_finite() && b.norm_eps >= 0.0) {
+            return Err(Error::invalid(arg, "eps must be finite and >= 0"));
+        }
+        let pad = b.kernel / 2;
+        if l_in + 2 * pad < b.kernel {
+            return Err(Error::invalid(
+                arg,
+                format!("kernel {} is longer than its padded input", b.kernel),
+            ));
+        }
+        let c_pad = b.c_out.div_ceil(LANES) * LANES;
+        let mut w = vec![0.0; b.kernel * b.c_in * c_pad];
+        for o in 0..b.c_out {
+            for ci in 0..b.c_in {
+                for k in 0..b.kernel {
+                    w[(k * b.c_in + ci) * c_pad + o] =
+                        f64::from(b.weight[(o * b.c_in + ci) * b.kernel + k]);
+                }
+            }
+        }
+        let mut bias = vec![0.0; c_pad];
+        for (dst, &v) in bias.iter_mut().zip(&b.bias) {
+            *dst = f64::from(v);
+        }
+        Ok(Self {
+            w,
+            bias,
+            gamma: b.norm_weight.iter().map(|&v| f64::from(v)).collect(),
+            beta: b.norm_bias.iter().map(|&v| f64::from(v)).collect(),
+            eps: f64::from(b.norm_eps),
+            c_in: b.c_in,
+            c_out: b.c_out,
+            c_pad,
+            kernel: b.kernel,
+            stride: b.stride,
+            pad,
+            l_in,
+            l_out: (l_in + 2 * pad - b.kernel) / b.stride + 1,
+        })
+    }
+}
+
+/// The Linear layers chain from `c_in` features to one output.
+fn check_head(head: &[DenseWeights], c_in: usize) -> Result<()> {
+    if head.is_empty() {
+        return Err(Error::invalid("head", "need at least one Linear layer"));
+    }
+    let mut c_prev = c_in;
+    for (i, d) in head.iter().enumerate() {
+        let arg = format!("head[{i}]");
+        if d.n_in != c_prev || d.n_out == 0 {
+            return Err(Error::invalid(
+                &arg,
+                format!(
+                    "takes {} inputs and gives {}; the previous layer gives {c_prev}",
+                    d.n_in, d.n_out
+                ),
+            ));
+        }
+        sized(&arg, "weight", d.weight.len(), d.n_out * d.n_in)?;
+        sized(&arg, "bias", d.bias.len(), d.n_out)?;
+        c_prev = d.n_out;
+    }
+    if c_prev != 1 {
+        return Err(Error::invalid(
+            "head",
+            format!("the last layer must give 1 output, gives {c_prev}"),
+        ));
+    }
+    Ok(())
+}
+
 impl ConvNet {
     /// The network from torch's weights; checks every shape and that each block leaves
     /// at least one time step.
@@ -178,89 +266,11 @@ impl ConvNet {
         let (mut c_prev, mut l_prev) = (1, window);
         let mut laid = Vec::with_capacity(blocks.len());
         for (i, b) in blocks.into_iter().enumerate() {
-            let arg = format!("blocks[{i}]");
-            if b.kernel == 0 || b.stride == 0 {
-                return Err(Error::invalid(&arg, "kernel and stride must be >= 1"));
-            }
-            if b.c_in != c_prev || b.c_out == 0 {
-                return Err(Error::invalid(
-                    &arg,
-                    format!(
-                        "takes {} channels and gives {}; the previous layer gives {c_prev}",
-                        b.c_in, b.c_out
-                    ),
-                ));
-            }
-            sized(&arg, "weight", b.weight.len(), b.c_out * b.c_in * b.kernel)?;
-            sized(&arg, "bias", b.bias.len(), b.c_out)?;
-            sized(&arg, "norm_weight", b.norm_weight.len(), b.c_out)?;
-            sized(&arg, "norm_bias", b.norm_bias.len(), b.c_out)?;
-            if !(b.norm_eps.is_finite() && b.norm_eps >= 0.0) {
-                return Err(Error::invalid(&arg, "eps must be finite and >= 0"));
-            }
-            let pad = b.kernel / 2;
-            if l_prev + 2 * pad < b.kernel {
-                return Err(Error::invalid(
-                    &arg,
-                    format!("kernel {} is longer than its padded input", b.kernel),
-                ));
-            }
-            let l_out = (l_prev + 2 * pad - b.kernel) / b.stride + 1;
-            let c_pad = b.c_out.div_ceil(LANES) * LANES;
-            let mut w = vec![0.0; b.kernel * b.c_in * c_pad];
-            for o in 0..b.c_out {
-                for ci in 0..b.c_in {
-                    for k in 0..b.kernel {
-                        w[(k * b.c_in + ci) * c_pad + o] =
-                            f64::from(b.weight[(o * b.c_in + ci) * b.kernel + k]);
-                    }
-                }
-            }
-            let mut bias = vec![0.0; c_pad];
-            for (dst, &v) in bias.iter_mut().zip(&b.bias) {
-                *dst = f64::from(v);
-            }
-            laid.push(Block {
-                w,
-                bias,
-                gamma: b.norm_weight.iter().map(|&v| f64::from(v)).collect(),
-                beta: b.norm_bias.iter().map(|&v| f64::from(v)).collect(),
-                eps: f64::from(b.norm_eps),
-                c_in: b.c_in,
-                c_out: b.c_out,
-                c_pad,
-                kernel: b.kernel,
-                stride: b.stride,
-                pad,
-                l_in: l_prev,
-                l_out,
-            });
-            (c_prev, l_prev) = (b.c_out, l_out);
+            let block = Block::lay_out(b, c_prev, l_prev, &format!("blocks[{i}]"))?;
+            (c_prev, l_prev) = (block.c_out, block.l_out);
+            laid.push(block);
         }
-        if head.is_empty() {
-            return Err(Error::invalid("head", "need at least one Linear layer"));
-        }
-        for (i, d) in head.iter().enumerate() {
-            let arg = format!("head[{i}]");
-            if d.n_in != c_prev || d.n_out == 0 {
-                return Err(Error::invalid(
-                    &arg,
-                    format!(
-                        "takes {} inputs and gives {}; the previous layer gives {c_prev}",
-                        d.n_in, d.n_out
-                    ),
-                ));
-            }
-            sized(&arg, "weight", d.weight.len(), d.n_out * d.n_in)?;
-            sized(&arg, "bias", d.bias.len(), d.n_out)?;
-            c_prev = d.n_out;
-        }
-        if c_prev != 1 {
-            return Err(Error::invalid(
-                "head",
-                format!("the last layer must give 1 output, gives {c_prev}"),
-            ));
-        }
+        check_head(&head, c_prev)?;
         let centre = (window as f64 - 1.0) / 2.0;
         let ramp: Vec<f64> = (0..window).map(|i| i as f64 - centre).collect();
         let norm = ramp.iter().map(|t| t * t).sum::<f64>().sqrt();
@@ -295,22 +305,13 @@ impl ConvNet {
     /// q `(n,)` [(unit)² per sample] for `n` windows of [`Self::window`] samples each,
     /// `windows` row-major `(n, window)`; windows run in parallel on rayon's threads.
     pub fn predict(&self, windows: &[f32]) -> Result<Vec<f64>> {
-        if !windows.len().is_multiple_of(self.window) {
-            return Err(Error::invalid(
-                "windows",
-                format!(
-                    "{} samples are not whole windows of {}",
-                    windows.len(),
-                    self.window
-                ),
-            ));
-        }
-        let mut q = vec![0.0; windows.len() / self.window];
-        q.par_iter_mut()
-            .zip(windows.par_chunks_exact(self.window))
-            .with_min_len(8)
-            .for_each_init(|| self.scratch(), |s, (q, w)| *q = self.forward(w, s));
-        Ok(q)
+        per_window(
+            windows,
+            self.window,
+            8,
+            || self.scratch(),
+            |w, s| self.forward(w, s),
+        )
     }
 
     fn scratch(&self) -> Scratch {
@@ -352,6 +353,31 @@ impl ConvNet {
 
     #[inline(always)]
     fn forward_body(&self, x: &[f32], s: &mut Scratch) -> f64 {
+        let (scale, log_s2) = self.prepare_window(x, s);
+        let start = self.blocks[0].pad; // c_in = 1
+        for (dst, p) in s.inputs[0][start..start + self.window]
+            .iter_mut()
+            .zip(&s.prepared)
+        {
+            *dst = p * scale;
+        }
+        s.pooled.iter_mut().for_each(|v| *v = 0.0);
+        for i in 0..self.blocks.len() {
+            self.run_block(i, s);
+        }
+        let l = self.blocks.last().map_or(1, |b| b.l_out) as f64;
+        let pooled = s.pooled.iter().map(|v| v / l).collect();
+        let z = self.head_output(pooled).clamp(-20.0, 20.0);
+        match self.scaling {
+            Scaling::Fixed { q_scale, .. } => q_scale * z.exp(),
+            Scaling::Spread => (log_s2 + z).exp(),
+        }
+    }
+
+    /// The window minus its mean (and line) into `s.prepared`; the factor that scales
+    /// it for the first block and ln s² (0 for `Fixed`).
+    #[inline(always)]
+    fn prepare_window(&self, x: &[f32], s: &mut Scratch) -> (f64, f64) {
         let n = self.window as f64;
         let mean = x.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
         for (p, &v) in s.prepared.iter_mut().zip(x) {
@@ -363,7 +389,7 @@ impl ConvNet {
                 *p -= slope * t;
             }
         }
-        let (scale, log_s2) = match self.scaling {
+        match self.scaling {
             Scaling::Fixed { input_scale, .. } => (1.0 / input_scale, 0.0),
             Scaling::Spread => {
                 let s2 = s.prepared.iter().map(|p| p * p).sum::<f64>() / n;
@@ -375,70 +401,51 @@ impl ConvNet {
                 };
                 (1.0 / s2.sqrt(), s2.ln())
             }
-        };
-        let first = &self.blocks[0];
-        let start = first.pad; // c_in = 1
-        for (dst, p) in s.inputs[0][start..start + self.window]
-            .iter_mut()
-            .zip(&s.prepared)
+        }
+    }
+
+    /// Block `i`: convolution, LayerNorm, LeakyReLU, into the next block's padded input
+    /// or (the last block) summed over time into `s.pooled`.
+    #[inline(always)]
+    fn run_block(&self, i: usize, s: &mut Scratch) {
+        let b = &self.blocks[i];
+        let (done, rest) = s.inputs.split_at_mut(i + 1);
+        let conv = &mut s.conv[..b.l_out * b.c_pad];
+        let (step, kdim) = (b.stride * b.c_in, b.kernel * b.c_in);
+        convolve(&done[i], step, kdim, &b.w, b.c_pad, &b.bias, conv);
+        // LayerNorm statistics of every step first, so that the square roots and
+        // divisions of successive steps overlap
+        let (mean, rstd) = (&mut s.mean[..b.l_out], &mut s.rstd[..b.l_out]);
+        let c = b.c_out as f64;
+        for ((row, m), r) in conv
+            .chunks_exact(b.c_pad)
+            .zip(mean.iter_mut())
+            .zip(rstd.iter_mut())
         {
-            *dst = p * scale;
+            let row = &row[..b.c_out];
+            *m = lane_sum(row, |v| v) / c;
+            *r = lane_sum(row, |v| (v - *m) * (v - *m)) / c + b.eps;
         }
-        s.pooled.iter_mut().for_each(|v| *v = 0.0);
-        for (i, b) in self.blocks.iter().enumerate() {
-            let (done, rest) = s.inputs.split_at_mut(i + 1);
-            let input = &done[i];
-            let conv = &mut s.conv[..b.l_out * b.c_pad];
-            convolve(
-                input,
-                b.stride * b.c_in,
-                b.kernel * b.c_in,
-                &b.w,
-                b.c_pad,
-                &b.bias,
-                conv,
-            );
-            // LayerNorm statistics of every step first, so that the square roots and
-            // divisions of successive steps overlap
-            let (mean, rstd) = (&mut s.mean[..b.l_out], &mut s.rstd[..b.l_out]);
-            let c = b.c_out as f64;
-            for ((row, m), r) in conv
-                .chunks_exact(b.c_pad)
-                .zip(mean.iter_mut())
-                .zip(rstd.iter_mut())
-            {
-                let row = &row[..b.c_out];
-                *m = lane_sum(row, |v| v) / c;
-                *r = lane_sum(row, |v| (v - *m) * (v - *m)) / c + b.eps;
-            }
-            for r in rstd.iter_mut() {
-                *r = 1.0 / r.sqrt();
-            }
-            let steps = conv.chunks_exact(b.c_pad).zip(mean.iter().zip(rstd.iter()));
-            match rest.first_mut() {
-                Some(next) => {
-                    let off = self.blocks[i + 1].pad * b.c_out;
-                    let out = &mut next[off..off + b.l_out * b.c_out];
-                    for ((row, (&m, &r)), dst) in steps.zip(out.chunks_exact_mut(b.c_out)) {
-                        self.norm_act(b, &row[..b.c_out], m, r, dst);
-                    }
+        for r in rstd.iter_mut() {
+            *r = 1.0 / r.sqrt();
+        }
+        let steps = conv.chunks_exact(b.c_pad).zip(mean.iter().zip(rstd.iter()));
+        match rest.first_mut() {
+            Some(next) => {
+                let off = self.blocks[i + 1].pad * b.c_out;
+                let out = &mut next[off..off + b.l_out * b.c_out];
+                for ((row, (&m, &r)), dst) in steps.zip(out.chunks_exact_mut(b.c_out)) {
+                    self.norm_act(b, &row[..b.c_out], m, r, dst);
                 }
-                None => {
-                    for (row, (&m, &r)) in steps {
-                        self.norm_act(b, &row[..b.c_out], m, r, &mut s.last);
-                        for (acc, &v) in s.pooled.iter_mut().zip(&s.last) {
-                            *acc += v;
-                        }
+            }
+            None => {
+                for (row, (&m, &r)) in steps {
+                    self.norm_act(b, &row[..b.c_out], m, r, &mut s.last);
+                    for (acc, &v) in s.pooled.iter_mut().zip(&s.last) {
+                        *acc += v;
                     }
                 }
             }
-        }
-        let l = self.blocks.last().map_or(1, |b| b.l_out) as f64;
-        let pooled = s.pooled.iter().map(|v| v / l).collect();
-        let z = self.head_output(pooled).clamp(-20.0, 20.0);
-        match self.scaling {
-            Scaling::Fixed { q_scale, .. } => q_scale * z.exp(),
-            Scaling::Spread => (log_s2 + z).exp(),
         }
     }
 
@@ -479,184 +486,11 @@ impl ConvNet {
     }
 }
 
-/// Σ f(v) over `values`, in [`LANES`] partial sums (so that it vectorises).
-#[inline(always)]
-fn lane_sum(values: &[f64], f: impl Fn(f64) -> f64) -> f64 {
-    let mut acc = [0.0f64; LANES];
-    let chunks = values.chunks_exact(LANES);
-    let tail: f64 = chunks.remainder().iter().map(|&v| f(v)).sum();
-    for chunk in chunks {
-        for (a, &v) in acc.iter_mut().zip(chunk) {
-            *a += f(v);
-        }
-    }
-    acc.iter().sum::<f64>() + tail
-}
-
-/// `y[t, o] = bias[o] + Σ_j a[t·step + j]·w[j, o]` for every output step t and every
-/// column o of `w` (`kdim × c_pad`, `c_pad` a multiple of [`LANES`]); `y` is
-/// `l_out × c_pad`. Tiles of [`TILE_T`] steps × up to 4·[`LANES`] channels accumulate
-/// in registers, with AVX2 and FMA where the CPU has them. Both paths add the products
-/// in the same order, each with one fused multiply-add (`f32::mul_add` in the portable
-/// path: correctly rounded, slow only on a CPU without FMA), so they agree bit for bit.
-fn convolve(
-    a: &[f64],
-    step: usize,
-    kdim: usize,
-    w: &[f64],
-    c_pad: usize,
-    bias: &[f64],
-    y: &mut [f64],
-) {
-    let l_out = y.len() / c_pad;
-    assert!(
-        l_out == 0 || (l_out - 1) * step + kdim <= a.len(),
-        "convolution input too short"
-    );
-    assert!(w.len() == kdim * c_pad && bias.len() == c_pad && c_pad.is_multiple_of(LANES));
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU has AVX2 and FMA (checked just above), and the slices are long
-        // enough for every tile (asserted above).
-        unsafe { avx::convolve(a, step, kdim, w, c_pad, bias, y) };
-        return;
-    }
-    convolve_portable(a, step, kdim, w, c_pad, bias, y);
-}
-
-/// The channel blocks and time tiles of [`convolve`]: calls `tile(t0, c0, T, NV)`.
-#[inline(always)]
-fn for_each_tile(l_out: usize, c_pad: usize, mut tile: impl FnMut(usize, usize, usize, usize)) {
-    let mut c0 = 0;
-    while c0 < c_pad {
-        let nv = ((c_pad - c0) / LANES).min(4);
-        let mut t = 0;
-        while t + TILE_T <= l_out {
-            tile(t, c0, TILE_T, nv);
-            t += TILE_T;
-        }
-        while t < l_out {
-            tile(t, c0, 1, nv);
-            t += 1;
-        }
-        c0 += nv * LANES;
-    }
-}
-
-fn convolve_portable(
-    a: &[f64],
-    step: usize,
-    kdim: usize,
-    w: &[f64],
-    c_pad: usize,
-    bias: &[f64],
-    y: &mut [f64],
-) {
-    for_each_tile(y.len() / c_pad, c_pad, |t0, c0, t_n, nv| {
-        for t in t0..t0 + t_n {
-            let out = &mut y[t * c_pad + c0..][..nv * LANES];
-            out.copy_from_slice(&bias[c0..c0 + nv * LANES]);
-            let row = &a[t * step..][..kdim];
-            for (x, wrow) in row.iter().zip(w.chunks_exact(c_pad)) {
-                for (o, wv) in out.iter_mut().zip(&wrow[c0..c0 + nv * LANES]) {
-                    *o = x.mul_add(*wv, *o);
-                }
-            }
-        }
-    });
-}
-
-#[cfg(target_arch = "x86_64")]
-mod avx {
-    use super::{for_each_tile, LANES, TILE_T};
-    use std::arch::x86_64::*;
-
-    /// [`super::convolve`] with 4-lane AVX registers and fused multiply-adds.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2 and FMA, and the slices must satisfy `convolve`'s
-    /// assertions.
-    #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn convolve(
-        a: &[f64],
-        step: usize,
-        kdim: usize,
-        w: &[f64],
-        c_pad: usize,
-        bias: &[f64],
-        y: &mut [f64],
-    ) {
-        let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
-        for_each_tile(y.len() / c_pad, c_pad, |t0, c0, t_n, nv| {
-            // SAFETY: every index below stays inside the slices `convolve` checked.
-            unsafe {
-                match (t_n, nv) {
-                    (TILE_T, 4) => tile::<TILE_T, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (TILE_T, 3) => tile::<TILE_T, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (TILE_T, 2) => tile::<TILE_T, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (TILE_T, _) => tile::<TILE_T, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 4) => tile::<1, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 3) => tile::<1, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 2) => tile::<1, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    _ => tile::<1, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                }
-            }
-        });
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn tile<const T: usize, const NV: usize>(
-        a: *const f64,
-        step: usize,
-        kdim: usize,
-        w: *const f64,
-        c_pad: usize,
-        bias: *const f64,
-        y: *mut f64,
-        t0: usize,
-        c0: usize,
-    ) {
-        // SAFETY (whole body): the caller keeps t0 + T <= l_out and c0 + NV·LANES <= c_pad.
-        unsafe {
-            let mut acc = [[_mm256_setzero_pd(); NV]; T];
-            for row in acc.iter_mut() {
-                for (v, r) in row.iter_mut().enumerate() {
-                    *r = _mm256_loadu_pd(bias.add(c0 + v * LANES));
-                }
-            }
-            for j in 0..kdim {
-                let wp = w.add(j * c_pad + c0);
-                let wv: [__m256d; NV] = std::array::from_fn(|v| _mm256_loadu_pd(wp.add(v * LANES)));
-                for (tt, row) in acc.iter_mut().enumerate() {
-                    let x = _mm256_set1_pd(*a.add((t0 + tt) * step + j));
-                    for (r, wv) in row.iter_mut().zip(&wv) {
-                        *r = _mm256_fmadd_pd(x, *wv, *r);
-                    }
-                }
-            }
-            for (tt, row) in acc.iter().enumerate() {
-                for (v, r) in row.iter().enumerate() {
-                    _mm256_storeu_pd(y.add((t0 + tt) * c_pad + c0 + v * LANES), *r);
-                }
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-
-    fn random64(rng: &mut ChaCha8Rng, n: usize, scale: f64) -> Vec<f64> {
-        random(rng, n, scale as f32)
-            .into_iter()
-            .map(f64::from)
-            .collect()
-    }
 
     fn random(rng: &mut ChaCha8Rng, n: usize, scale: f32) -> Vec<f32> {
         (0..n)
@@ -924,37 +758,6 @@ mod tests {
                 let w = random(&mut rng, 200, 0.3);
                 let fast = built.forward(&w, &mut s);
                 assert_eq!(fast.to_bits(), built.forward_body(&w, &mut s).to_bits());
-            }
-        }
-    }
-
-    #[test]
-    fn the_convolution_covers_every_step_and_channel_on_both_paths() {
-        let mut rng = ChaCha8Rng::seed_from_u64(12);
-        for (c_in, c_out, kernel, stride, l_out) in [
-            (1usize, 16usize, 7usize, 1usize, 200usize),
-            (16, 32, 5, 2, 100),
-            (3, 20, 3, 1, 7),
-            (2, 40, 3, 3, 5),
-        ] {
-            let c_pad = c_out.div_ceil(LANES) * LANES;
-            let kdim = kernel * c_in;
-            let a = random64(&mut rng, ((l_out - 1) * stride + kernel) * c_in, 1.0);
-            let w = random64(&mut rng, kdim * c_pad, 1.0);
-            let bias = random64(&mut rng, c_pad, 1.0);
-            let mut y = vec![f64::NAN; l_out * c_pad];
-            let mut plain = vec![f64::NAN; l_out * c_pad];
-            convolve(&a, stride * c_in, kdim, &w, c_pad, &bias, &mut y);
-            convolve_portable(&a, stride * c_in, kdim, &w, c_pad, &bias, &mut plain);
-            assert_eq!(y, plain, "the AVX and portable paths differ");
-            for t in 0..l_out {
-                for o in 0..c_pad {
-                    let want: f64 = bias[o]
-                        + (0..kdim)
-                            .map(|j| a[t * stride * c_in + j] * w[j * c_pad + o])
-                            .sum::<f64>();
-                    assert!((y[t * c_pad + o] - want).abs() < 1e-12, "{t} {o}");
-                }
             }
         }
     }

@@ -16,8 +16,8 @@
 //! float32 and goes left when `feature <= threshold`. A window with a non-finite
 //! feature gives NaN.
 
+use super::per_window;
 use crate::error::{Error, Result};
-use rayon::prelude::*;
 
 /// Number of handcrafted features.
 pub const N_FEATURES: usize = 14;
@@ -163,25 +163,13 @@ impl HcfEnsemble {
 
     /// q `(n,)` for `n` windows `(n, window)` row-major, in parallel on rayon's threads.
     pub fn predict(&self, windows: &[f64]) -> Result<Vec<f64>> {
-        if !windows.len().is_multiple_of(self.window) {
-            return Err(Error::invalid(
-                "windows",
-                format!(
-                    "{} samples are not whole windows of {}",
-                    windows.len(),
-                    self.window
-                ),
-            ));
-        }
-        let mut q = vec![0.0; windows.len() / self.window];
-        q.par_iter_mut()
-            .zip(windows.par_chunks_exact(self.window))
-            .with_min_len(16)
-            .for_each_init(
-                || vec![0.0; self.window],
-                |buf, (q, w)| *q = self.predict_one(w, buf),
-            );
-        Ok(q)
+        per_window(
+            windows,
+            self.window,
+            16,
+            || vec![0.0; self.window],
+            |w, buf| self.predict_one(w, buf),
+        )
     }
 
     fn predict_one(&self, w: &[f64], buf: &mut [f64]) -> f64 {

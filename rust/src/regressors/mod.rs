@@ -6,5 +6,36 @@
 //! - [`convnet`]: the ProNet CNNs (`BaselineNet`, `DetrendNet`);
 //! - [`hcf`]: the handcrafted-feature ensemble (gradient boosting and a random forest).
 
+mod conv1d;
 pub mod convnet;
 pub mod hcf;
+
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+
+/// `f(w, scratch)` for each window `w` of `windows` (`(n, window)` row-major), in
+/// parallel on rayon's threads, each thread with its own `scratch()`; at least
+/// `min_len` windows per task.
+pub(crate) fn per_window<T: Sync, S>(
+    windows: &[T],
+    window: usize,
+    min_len: usize,
+    scratch: impl Fn() -> S + Sync + Send,
+    f: impl Fn(&[T], &mut S) -> f64 + Sync + Send,
+) -> Result<Vec<f64>> {
+    if window == 0 || !windows.len().is_multiple_of(window) {
+        return Err(Error::invalid(
+            "windows",
+            format!(
+                "{} samples are not whole windows of {window}",
+                windows.len()
+            ),
+        ));
+    }
+    let mut q = vec![0.0; windows.len() / window];
+    q.par_iter_mut()
+        .zip(windows.par_chunks_exact(window))
+        .with_min_len(min_len)
+        .for_each_init(scratch, |s, (q, w)| *q = f(w, s));
+    Ok(q)
+}
