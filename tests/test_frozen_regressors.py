@@ -232,3 +232,13 @@ def test_a_frozen_model_moves_to_the_loops_threads_with_the_same_numbers(name) -
     one = hybrid.for_loop(loaded, threads=1)
     assert one is not loaded and one.card == loaded.card
     np.testing.assert_array_equal(one.predict(w), loaded.predict(w))
+
+
+def test_the_frozen_defaults_are_the_torch_constructors() -> None:
+    import inspect
+
+    params = inspect.signature(BaselineNet.__init__).parameters
+    defaults = {k: p.default for k, p in params.items() if k != "self"}
+    as_lists = {k: list(v) if isinstance(v, tuple) else v for k, v in defaults.items()}
+    assert as_lists == frozen.NET_DEFAULTS
+    assert set(frozen.NET_KINDS) == set(models.NETS)
