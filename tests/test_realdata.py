@@ -529,6 +529,7 @@ def test_the_fast_csv_path_reads_what_the_careful_reader_reads(tmp_path, synthet
     assert np.array_equal(fast.view(np.int64), careful.view(np.int64))  # bit for bit
     # anything else goes to the careful reader: a short row (named), an extra text
     # column the file does not need (read as before)
+    assert recordings._parse_numbers("a,b\n1,2\n  \n3,4\n", 2) is None  # a line of blanks
     edit_line(path, 4, lambda s: s[: s.rindex(",")])
     with pytest.raises(RecordingError, match=r"imu.csv, row 4: has 6 fields, the header 7"):
         read_recording(folder)

@@ -43,6 +43,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+import re
 import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -267,6 +268,9 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
     return _finish(str(path), out, picks, [header[i].strip() for i, _ in picks], kind)
 
 
+_BLANK_LINE = re.compile(r"^[ \t\f\v]+\r?$", re.M)
+
+
 def _parse_numbers(text: str, width: int) -> F64 | None:
     """The data rows of ``text`` (after its one-line header) as a ``(rows, width)``
     float array, with pandas' C parser (exact, as ``float()``); None unless every row
@@ -275,7 +279,8 @@ def _parse_numbers(text: str, width: int) -> F64 | None:
     import pandas as pd
 
     first = text.partition("\n")[0]
-    if '"' in first:
+    # pandas would skip a line of blanks that the careful reader reports as a short row
+    if '"' in first or _BLANK_LINE.search(text):
         return None
     try:
         table = pd.read_csv(
