@@ -268,7 +268,7 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
     return _finish(str(path), out, picks, [header[i].strip() for i, _ in picks], kind)
 
 
-_BLANK_LINE = re.compile(r"^[ \t\f\v]+\r?$", re.M)
+_LINE_STARTING_BLANK = re.compile(r"\n[ \t\f\v]")
 
 
 def _parse_numbers(text: str, width: int) -> F64 | None:
@@ -279,8 +279,9 @@ def _parse_numbers(text: str, width: int) -> F64 | None:
     import pandas as pd
 
     first = text.partition("\n")[0]
-    # pandas would skip a line of blanks that the careful reader reports as a short row
-    if '"' in first or _BLANK_LINE.search(text):
+    # pandas would skip a line of blanks that the careful reader reports as a short row:
+    # any line starting with a blank goes to the careful reader (a quick scan)
+    if '"' in first or _LINE_STARTING_BLANK.search(text):
         return None
     try:
         table = pd.read_csv(
