@@ -26,8 +26,21 @@ pub fn exp_so3(rv: &Vector3<f64>) -> Matrix3<f64> {
         let t = t2.sqrt();
         (t.sin() / t, (1.0 - t.cos()) / t2)
     };
-    let k = skew(rv);
-    Matrix3::identity() + k * a + k * k * b
+    // I + a K + b K², written out with K² = v vᵀ − |v|² I (K = skew(v)).
+    let (x, y, z) = (rv[0], rv[1], rv[2]);
+    let (ax, ay, az) = (a * x, a * y, a * z);
+    let (bxy, bxz, byz) = (b * x * y, b * x * z, b * y * z);
+    Matrix3::new(
+        1.0 - b * (y * y + z * z),
+        bxy - az,
+        bxz + ay,
+        bxy + az,
+        1.0 - b * (x * x + z * z),
+        byz - ax,
+        bxz - ay,
+        byz + ax,
+        1.0 - b * (x * x + y * y),
+    )
 }
 
 /// Rotation-vector logarithm of a proper rotation matrix (inverse of [`exp_so3`]).

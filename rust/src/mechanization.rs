@@ -89,21 +89,21 @@ impl FrameRates {
 }
 
 /// Advance geodetic position `lla` by the trapezoid of NED velocities `v0`, `v1` over `dt`.
-/// `r_n` is the meridian radius at `lla`'s latitude [m] (the caller usually has it).
+/// `start` holds the terms of `lla`'s latitude (the caller usually has them).
 /// Shared by the mechanization and the trajectory generator, so that truth positions and
 /// mechanized positions follow the same rule.
 #[inline]
 pub fn advance_position(
     lla: &Vector3<f64>,
-    r_n: f64,
+    start: &earth::Latitude,
     v0: &Vector3<f64>,
     v1: &Vector3<f64>,
     dt: f64,
 ) -> Vector3<f64> {
     let h1 = lla[2] - 0.5 * (v0[2] + v1[2]) * dt;
     let h_mid = 0.5 * (lla[2] + h1);
-    let lat1 = lla[0] + 0.5 * (v0[0] + v1[0]) * dt / (r_n + h_mid);
-    let mid = earth::Latitude::new(0.5 * (lla[0] + lat1));
+    let lat1 = lla[0] + 0.5 * (v0[0] + v1[0]) * dt / (start.r_n + h_mid);
+    let mid = start.near(0.5 * (lla[0] + lat1));
     let lon1 = lla[1] + 0.5 * (v0[1] + v1[1]) * dt / ((mid.r_e + h_mid) * mid.cos);
     Vector3::new(lat1, lon1, h1)
 }
@@ -126,7 +126,7 @@ pub fn step_with_rates(state: &NavState, imu: &ImuSample, dt: f64, rates: &Frame
     let c_mid = nav_half * state.dcm * body_half;
     let dcm = orthonormalize(&(nav_half * c_mid * body_half));
     let vel = state.vel + c_mid * imu.accel * dt + rates.kinematic_accel(&state.vel) * dt;
-    let lla = advance_position(&state.lla, rates.latitude.r_n, &state.vel, &vel, dt);
+    let lla = advance_position(&state.lla, &rates.latitude, &state.vel, &vel, dt);
     NavState { lla, vel, dcm }
 }
 

@@ -200,8 +200,8 @@ impl TrajectorySpec {
             let lla = match states.last() {
                 None => self.lla0,
                 Some(prev) => {
-                    let r_n = earth::radii(prev.lla[0]).0;
-                    advance_position(&prev.lla, r_n, &prev.vel, &vel, self.dt)
+                    let start = earth::Latitude::new(prev.lla[0]);
+                    advance_position(&prev.lla, &start, &prev.vel, &vel, self.dt)
                 }
             };
             time.push(t);

@@ -69,31 +69,118 @@ impl ErrorDynamics {
     /// rows of F are zero: `Φ P Φᵀ = P + Δt (A + Aᵀ) + Δt² F Aᵀ` with `A = F P`, whose
     /// rows 9..15 vanish, so `F Aᵀ` is needed on its 9×9 navigation block only and the
     /// bias-bias block of P is unchanged. The result is written symmetrized.
+    ///
+    /// Each row of A is a short combination of whole columns of P (row k of a symmetric
+    /// P is its column k), so A is built from contiguous 15-vectors that the compiler
+    /// vectorizes; an AVX2 copy of the same code is chosen at run time where the CPU
+    /// has it. Both copies do the same additions in the same order (no FMA), so the
+    /// result does not depend on the CPU.
     pub(super) fn propagate_covariance(&self, p: &mut Matrix15, dt: f64) {
-        const NAV: usize = 9;
-        // a[j][i] = (F P)[i, j], one column of F P per column of P (column-major).
-        let mut a = [[0.0; NAV]; 15];
-        for (col, x) in a.iter_mut().zip(p.as_slice().chunks_exact(15)) {
-            *col = self.apply(x);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.propagate_covariance_avx2(p, dt) };
         }
+        self.propagate_covariance_portable(p, dt)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn propagate_covariance_avx2(&self, p: &mut Matrix15, dt: f64) {
+        self.propagate_covariance_portable(p, dt)
+    }
+
+    #[inline(always)]
+    fn propagate_covariance_portable(&self, p: &mut Matrix15, dt: f64) {
+        const NAV: usize = 9;
+        let a = self.times(p);
         // b[j][i] = (F Aᵀ)[i, j]; column j of Aᵀ is row j of A.
         let mut b = [[0.0; NAV]; NAV];
-        for (j, col) in b.iter_mut().enumerate() {
-            let row_j: [f64; 15] = std::array::from_fn(|c| a[c][j]);
-            *col = self.apply(&row_j);
+        for (col, row) in b.iter_mut().zip(a.iter()) {
+            *col = self.apply(row);
         }
+        // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j]; the block
+        // gains M + Mᵀ, which is exactly symmetric since addition commutes.
         let half_dt2 = 0.5 * (dt * dt);
-        for j in 0..15 {
-            for i in 0..=j.min(NAV - 1) {
-                let v = if j < NAV {
-                    p[(i, j)] + dt * (a[j][i] + a[i][j]) + half_dt2 * (b[j][i] + b[i][j])
-                } else {
-                    p[(i, j)] + dt * a[j][i]
-                };
-                p[(i, j)] = v;
-                p[(j, i)] = v;
+        let mut m = [[0.0; NAV]; NAV];
+        for (j, col) in m.iter_mut().enumerate() {
+            for (i, v) in col.iter_mut().enumerate() {
+                *v = dt * a[i][j] + half_dt2 * b[j][i];
             }
         }
+        let mut mt = [[0.0; NAV]; NAV];
+        for (j, col) in mt.iter_mut().enumerate() {
+            for (i, v) in col.iter_mut().enumerate() {
+                *v = m[i][j];
+            }
+        }
+        let s = p.as_mut_slice(); // column-major
+        for j in 0..NAV {
+            let col = &mut s[15 * j..15 * j + 15];
+            for i in 0..NAV {
+                col[i] += m[j][i] + mt[j][i];
+            }
+            // Rows 9..15 of a navigation column: P[bias, j] + Δt A[j, bias].
+            for (v, a) in col[NAV..].iter_mut().zip(&a[j][NAV..]) {
+                *v += dt * a;
+            }
+        }
+        // The bias columns' navigation rows mirror them; the bias-bias block is unchanged.
+        for j in NAV..15 {
+            for i in 0..NAV {
+                s[15 * j + i] = s[15 * i + j];
+            }
+        }
+    }
+
+    /// Rows 0..9 of `A = F P` for a symmetric P, each row a 15-array:
+    /// `A[i, :] = Σ_k F[i, k] P[:, k]`.
+    #[inline(always)]
+    fn times(&self, p: &Matrix15) -> [[f64; 15]; 9] {
+        #[inline(always)]
+        fn col(p: &Matrix15, k: usize) -> &[f64; 15] {
+            p.as_slice()[15 * k..15 * k + 15] // column-major
+                .try_into()
+                .expect("a 15x15 matrix has 15-long columns")
+        }
+        #[inline(always)]
+        fn add(out: &mut [f64; 15], coef: f64, x: &[f64; 15]) {
+            for (o, x) in out.iter_mut().zip(x) {
+                *o += coef * x;
+            }
+        }
+        // Σ over the three columns of row r of a 3x3 block of F starting at column `at`.
+        #[inline(always)]
+        fn block(out: &mut [f64; 15], m: &Matrix3<f64>, r: usize, p: &Matrix15, at: usize) {
+            for c in 0..3 {
+                add(out, m[(r, c)], col(p, at + c));
+            }
+        }
+        // The same for a skew-symmetric block, whose diagonal is zero.
+        #[inline(always)]
+        fn skew_block(out: &mut [f64; 15], m: &Matrix3<f64>, r: usize, p: &Matrix15, at: usize) {
+            let (c1, c2) = ((r + 1) % 3, (r + 2) % 3);
+            add(out, m[(r, c1)], col(p, at + c1));
+            add(out, m[(r, c2)], col(p, at + c2));
+        }
+        // Each row starts as its first term (so the zeroing is a dead store).
+        let mut a = [[0.0; 15]; 9];
+        for r in 0..3 {
+            let row = &mut a[POS + r];
+            *row = *col(p, VEL + r);
+            skew_block(row, &self.pos_pos, r, p, POS);
+            let row = &mut a[VEL + r];
+            *row = col(p, POS + r).map(|x| self.vel_pos[r] * x);
+            skew_block(row, &self.vel_vel, r, p, VEL);
+            skew_block(row, &self.vel_att, r, p, ATT);
+            block(row, &self.vel_abias, r, p, ACC_BIAS);
+            let row = &mut a[ATT + r];
+            *row = col(p, GYRO_BIAS).map(|x| self.att_gbias[(r, 0)] * x);
+            add(row, self.att_gbias[(r, 1)], col(p, GYRO_BIAS + 1));
+            add(row, self.att_gbias[(r, 2)], col(p, GYRO_BIAS + 2));
+            skew_block(row, &self.att_att, r, p, ATT);
+        }
+        a
     }
 }
 
