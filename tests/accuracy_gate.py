@@ -328,6 +328,23 @@ def save(path: str | Path, rows: Rows) -> Path:
     return path
 
 
+def bless(file: Path, page: Path, rows: Rows) -> None:
+    """Rewrite the baselines ``file`` and the tables of ``page`` together: the page's new
+    text is made before anything is written (a page without markers changes nothing),
+    and the file is put back as it was if the page cannot be written."""
+    page_text = page_with_tables(page.read_text(), rows).encode()
+    before = file.read_bytes() if file.exists() else None
+    save(file, rows)
+    try:
+        atomic_write(page, page_text)
+    except BaseException:
+        if before is None:
+            file.unlink(missing_ok=True)
+        else:
+            atomic_write(file, before)
+        raise
+
+
 COLUMNS = (
     ("srmse", "SRMSE [m/s]", "{:.4f}"),
     ("smae", "SMAE [m/s]", "{:.4f}"),
@@ -428,8 +445,7 @@ def main(argv: list[str] | None = None) -> int:
             )
     if args.bless:
         rows = rows_to_bless(recorded, rows)
-        save(args.file, rows)
-        atomic_write(args.page, page_with_tables(args.page.read_text(), rows).encode())
+        bless(args.file, args.page, rows)
         print(f"{args.file} and the tables in {args.page} rewritten from {len(rows)} scenarios")
         return 0
     problems = compare(recorded, rows)

@@ -113,6 +113,39 @@ def test_the_gate_script_checks_and_blesses(fresh, tmp_path, monkeypatch, capsys
     assert baselines.load(copy_file)[row[0]][row[1]]["srmse"] == fresh[row[0]][row[1]]["srmse"]
 
 
+def test_bless_changes_both_files_or_neither(tmp_path, monkeypatch):
+    """A page that cannot take the tables, or cannot be written, leaves the baselines
+    file as it was."""
+    file, page = tmp_path / "baselines.json", tmp_path / "accuracy.md"
+    recorded = baselines.load(FILE)
+    baselines.save(file, recorded)
+    before = file.read_bytes()
+    changed = copy.deepcopy(recorded)
+    changed["paper, 8 runs"]["constant (true q)"]["srmse"] *= 0.5
+    page.write_text("no markers here\n")
+    with pytest.raises(ValueError, match="no accuracy-baselines markers"):
+        baselines.bless(file, page, changed)
+    assert file.read_bytes() == before and page.read_text() == "no markers here\n"
+
+    page.write_text(PAGE.read_text())
+    real_write = baselines.atomic_write
+
+    def failing_page(path, data):
+        if Path(path) == page:
+            raise OSError(28, "No space left on device", str(path))
+        real_write(path, data)
+
+    monkeypatch.setattr(baselines, "atomic_write", failing_page)
+    with pytest.raises(OSError, match="No space left"):
+        baselines.bless(file, page, changed)
+    assert file.read_bytes() == before and page.read_text() == PAGE.read_text()
+    monkeypatch.undo()
+    baselines.bless(file, page, changed)
+    srmse = changed["paper, 8 runs"]["constant (true q)"]["srmse"]
+    assert baselines.load(file)["paper, 8 runs"]["constant (true q)"]["srmse"] == srmse
+    assert "| constant (true q) |" in page.read_text() and page.read_text() != PAGE.read_text()
+
+
 def test_bless_takes_no_partial_gate(capsys):
     with pytest.raises(SystemExit) as exit_:
         baselines.main(["--bless", "--strategies", "constant (true q)"])

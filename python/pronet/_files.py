@@ -1,13 +1,22 @@
-"""Crash-safe file writing shared by every module that saves something."""
+"""Crash-safe file writing shared by every module that saves something: atomic files
+and folders, strict JSON, and the checks and reservation of a result folder before a
+run computes anything into it."""
 
 from __future__ import annotations
 
+import atexit
+import fcntl
+import glob
+import json
+import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 
 def atomic_write(path: Path, data: bytes) -> None:
@@ -33,7 +42,7 @@ def atomic_folder(folder: Path) -> Iterator[Path]:
     if folder.exists():
         raise FileExistsError(f"out: {folder} exists; choose a new folder")
     folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=_temp_prefix(folder), dir=folder.parent))
     try:
         yield tmp
         os.chmod(tmp, 0o755)  # mkdtemp makes it private; a result folder is an ordinary one
@@ -41,3 +50,118 @@ def atomic_folder(folder: Path) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    finally:
+        release_folder(folder)
+
+
+def _temp_prefix(folder: Path) -> str:
+    """The name prefix of :func:`atomic_folder`'s temporary sibling of ``folder``."""
+    return f".{folder.name}."
+
+
+def json_bytes(data: object) -> bytes:
+    """``data`` as strict JSON (indented, newline-terminated UTF-8), the one way pronet
+    writes JSON: NaN and infinities become ``null``, NumPy arrays and scalars lists and
+    numbers, paths strings. Anything else is a ``TypeError``: an object's ``repr`` can
+    hold its address, and two identical runs must write identical files."""
+    return (json.dumps(_plain(data), indent=2, allow_nan=False) + "\n").encode()
+
+
+def _plain(value: object) -> object:
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float | np.floating):
+        number = float(value)
+        return number if math.isfinite(number) else None
+    if isinstance(value, np.integer | np.bool_):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    raise TypeError(f"JSON output: a {type(value).__name__} is not a plain value")
+
+
+def write_json(path: Path, data: object) -> None:
+    """Write ``data`` to ``path`` as :func:`json_bytes`, atomically."""
+    atomic_write(Path(path), json_bytes(data))
+
+
+#: Lock files of the result folders this process has reserved, by folder.
+_RESERVED: dict[Path, int] = {}
+
+
+def check_writable(path: Path, option: str) -> None:
+    """``ValueError`` naming ``option`` unless ``path`` can be written: its nearest
+    existing ancestor (``path`` itself if it is a folder) is a writable folder, not a
+    file."""
+    path = Path(path)
+    ancestor = path.absolute() if path.is_dir() else path.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ValueError(f"{option}: {path}: {ancestor} is a file, not a folder")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise ValueError(f"{option}: {path}: {ancestor} is not writable")
+
+
+def check_out_folder(folder: Path, option: str = "--out") -> None:
+    """``ValueError`` naming ``option`` unless a new result folder can be made at
+    ``folder``: it does not exist and :func:`check_writable` holds. Checked before a
+    run computes anything."""
+    folder = Path(folder)
+    if folder.exists() or folder.is_symlink():
+        raise ValueError(f"{option}: {folder} exists; choose another {option}")
+    check_writable(folder, option)
+
+
+def reserve_folder(folder: Path, option: str = "--out") -> None:
+    """Reserve ``folder`` for this process's run until :func:`atomic_folder` has written
+    it (or the process ends): an exclusive lock on ``.<name>.lock`` beside it. A second
+    run into the same folder is refused (``ValueError`` naming ``option``) before it
+    computes anything. Temporary folders that an earlier, killed run left beside it
+    (``.<name>.XXXX``) are removed: nobody else can be writing them."""
+    folder = Path(folder)
+    key = folder.absolute()
+    if key in _RESERVED:
+        return
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        lock = folder.parent / f".{folder.name}.lock"
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise ValueError(f"{option}: {folder}: {exc.strerror or exc}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
+        os.close(fd)
+        raise ValueError(
+            f"{option}: {folder} is being written by another run (process {holder})"
+        ) from None
+    os.ftruncate(fd, 0)
+    os.write(fd, str(os.getpid()).encode())
+    _RESERVED[key] = fd
+    for left in folder.parent.glob(f"{glob.escape(_temp_prefix(folder))}*"):
+        if left.is_dir() and not left.is_symlink():
+            shutil.rmtree(left, ignore_errors=True)
+
+
+def release_folder(folder: Path) -> None:
+    """End :func:`reserve_folder`'s reservation of ``folder`` (nothing if it has none)."""
+    folder = Path(folder)
+    fd = _RESERVED.pop(folder.absolute(), None)
+    if fd is not None:
+        (folder.parent / f".{folder.name}.lock").unlink(missing_ok=True)
+        os.close(fd)
+
+
+@atexit.register
+def _release_all() -> None:
+    """At exit, the lock files of reservations no run finished (a run that failed)."""
+    for key in list(_RESERVED):
+        release_folder(key)

@@ -11,6 +11,8 @@ import datetime as _dt
 from collections.abc import Callable
 from pathlib import Path
 
+from pronet._files import check_out_folder, reserve_folder
+
 #: ``say(text)``: a message for people (the library never prints).
 Say = Callable[[str], None]
 #: ``on_start(total, unit, description)``: a stage of ``total`` steps begins.
@@ -21,11 +23,14 @@ OnDone = Callable[[str], None]
 
 def new_result_folder(out: str | Path | None, command: str) -> Path:
     """``out``, or ``results/<command>-<YYYYmmdd-HHMMSS>`` (local time) when it is None or
-    empty; ``ValueError`` if that folder exists (it is never overwritten)."""
+    empty, checked and reserved for this run before it computes anything
+    (:func:`pronet._files.check_out_folder`, :func:`pronet._files.reserve_folder`):
+    ``ValueError`` if that folder exists (it is never overwritten), cannot be created
+    there, or another run is writing it."""
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
     folder = Path(out) if out else Path("results") / f"{command}-{stamp}"
-    if folder.exists():
-        raise ValueError(f"{folder} exists; choose another --out")
+    check_out_folder(folder)
+    reserve_folder(folder)
     return folder
 
 

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._files import atomic_write
+from pronet._files import atomic_write, json_bytes
 from pronet._validate import I64_MAX, count, scalar
 
 #: Training trajectories, in the order of the ``trajectory`` index in the metadata.
@@ -238,7 +238,7 @@ def save_dataset(ds: Dataset, path: str | os.PathLike[str], params: DatasetParam
         "sha256": hashlib.sha256(data).hexdigest(),
     }
     atomic_write(path, data)
-    atomic_write(card_path(path), (json.dumps(card, indent=2) + "\n").encode())
+    atomic_write(card_path(path), json_bytes(card))
     return path
 
 
@@ -270,6 +270,8 @@ def load_dataset(path: str | os.PathLike[str]) -> Dataset:
     Only plain numeric arrays are read (``allow_pickle=False``).
     """
     path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"path: {path}: no such dataset file")
     card = _read_card(path)
     try:
         data = path.read_bytes()

@@ -11,7 +11,6 @@ error as a percentage of the horizontal distance travelled.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import threading
@@ -441,7 +440,7 @@ def run_real(
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
     """
-    from pronet._files import atomic_folder
+    from pronet._files import atomic_folder, json_bytes
     from pronet._outputs import new_result_folder
     from pronet.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
     from pronet.frozen import SHIPPED, load_frozen
@@ -490,7 +489,7 @@ def run_real(
     }
     with atomic_folder(folder) as tmp:
         write_metrics(tmp, done.runs + done.stamped + done.inertial, real_tables(done))
-        (tmp / "config.json").write_text(json.dumps(config, indent=2))
+        (tmp / "config.json").write_bytes(json_bytes(config))
         if plots:
             if on_start is not None:
                 on_start(len(loaded), "section", "plots")

@@ -16,15 +16,12 @@ its confidence bounds are NaN.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
-from pronet._files import atomic_folder
+from pronet._files import atomic_folder, json_bytes
 from pronet.hybrid import HybridResult
 from pronet.montecarlo import MonteCarloResult
 from pronet.paper import PAPER_TABLE
@@ -204,7 +201,7 @@ def write_tables(folder: Path, summary: pd.DataFrame, per_run: pd.DataFrame, tab
     summary.to_csv(folder / "summary.csv", index=False)
     per_run.to_csv(folder / "metrics.csv", index=False)
     records = summary.to_dict(orient="records")
-    (folder / "metrics.json").write_text(json.dumps(records, indent=2, allow_nan=True))
+    (folder / "metrics.json").write_bytes(json_bytes(records))
 
 
 def write_result_folder(
@@ -225,13 +222,7 @@ def write_result_folder(
     )
     with atomic_folder(Path(folder)) as tmp:
         write_tables(tmp, rows_dataframe(tables), rows_dataframe(tables, per_run=True), text)
-        (tmp / "config.json").write_text(json.dumps(config, indent=2, default=_jsonable))
+        (tmp / "config.json").write_bytes(json_bytes(config))
         if extra is not None:
             extra(tmp)
     return Path(folder)
-
-
-def _jsonable(value: object) -> object:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return repr(value)

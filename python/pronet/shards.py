@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from pronet._files import atomic_write
+from pronet._files import atomic_write, json_bytes
 from pronet.hybrid import Guardrails, HybridResult
 from pronet.montecarlo import MonteCarloResult
 
@@ -38,7 +38,7 @@ class ShardStore:
 
     def __init__(self, folder: str | Path, settings: dict[str, Any]) -> None:
         self.folder = Path(folder)
-        want = json.loads(json.dumps(settings))  # as it reads back
+        want = json.loads(json_bytes(settings))  # as it reads back
         path = self.folder / _SETTINGS
         if path.exists():
             have = json.loads(path.read_text())
@@ -49,7 +49,7 @@ class ShardStore:
                 )
         else:
             self.folder.mkdir(parents=True, exist_ok=True)
-            atomic_write(path, json.dumps(want, indent=2).encode())
+            atomic_write(path, json_bytes(want))
 
     def _path(self, scenario: str, label: str) -> Path:
         key = f"{scenario}--{label}"
@@ -65,15 +65,22 @@ class ShardStore:
     def load(
         self, scenario: str, label: str
     ) -> tuple[MonteCarloResult, HybridResult | None] | None:
-        """The saved shard, or None if it was not finished."""
+        """The saved shard, or None if it was not finished. ``ValueError`` naming the file
+        if it cannot be read back (truncated or altered since it was written)."""
         path = self._path(scenario, label)
         if not path.exists():
             return None
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-        meta = json.loads(str(arrays.pop("meta")))
-        optional = {k: arrays.pop(k, None) for k in ("error", "sigma", "q")}
-        result = MonteCarloResult(**arrays, failure=meta["failure"], **optional)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                arrays = {k: z[k] for k in z.files}
+            meta = json.loads(str(arrays.pop("meta")))
+            optional = {k: arrays.pop(k, None) for k in ("error", "sigma", "q")}
+            result = MonteCarloResult(**arrays, failure=meta["failure"], **optional)
+        except Exception as exc:  # a damaged zip, array or record: say which file
+            raise ValueError(
+                f"resume: {path} is damaged ({type(exc).__name__}: {exc}); remove it and "
+                "--resume again to redo that shard"
+            ) from None
         hybrid = None
         if meta["hybrid"] is not None:
             h = meta["hybrid"]

@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # torch loads only when a model does
     from pronet.models import Regressor
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Learned:
     """A regressor-driven row: the hybrid loop with ``regressor`` (prior ``prior_q``
     until the first window is full)."""
@@ -31,6 +31,18 @@ class Learned:
     regressor: Regressor
     prior_q: tuple[float, ...]
     tuning_period: float = DEFAULT_TUNING_PERIOD
+
+    def __repr__(self) -> str:
+        """Stable, as result files need it (identical runs write identical files): the
+        regressor's kind and its weights' SHA-256 where its card has them, never the
+        object's address."""
+        card = getattr(self.regressor, "card", None) or {}
+        name = card.get("kind") or type(self.regressor).__name__
+        sha = card.get("weights_sha256")
+        weights = f", weights sha256 {sha[:16]}" if isinstance(sha, str) else ""
+        prior = ", ".join(repr(float(v)) for v in self.prior_q)
+        period = float(self.tuning_period)
+        return f"Learned({name}{weights}, prior_q=[{prior}], tuning_period={period!r} s)"
 
 
 StrategyLike = _core.Strategy | Learned

@@ -14,7 +14,6 @@ constant told the truth, and the share of the oracle's gain with a bootstrap CI.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -25,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet._files import atomic_folder
+from pronet._files import atomic_folder, json_bytes
 from pronet._outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._validate import threads as threads_arg
 from pronet.hybrid import HybridResult
@@ -352,7 +351,7 @@ def write_study(folder: Path, rows: Sequence[StudyRow], config: dict[str, object
     with atomic_folder(Path(folder)) as tmp:
         write_tables(tmp, summary, results_dataframe(labelled, per_run=True), study_markdown(table))
         table.to_csv(tmp / "study.csv", index=False)
-        (tmp / "config.json").write_text(json.dumps(config, indent=2))
+        (tmp / "config.json").write_bytes(json_bytes(config))
         plots.study_figure(table, tmp / "study.png")
     return Path(folder)
 

@@ -27,7 +27,6 @@ import contextlib
 import dataclasses
 import functools
 import hashlib
-import json
 import os
 from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
@@ -36,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import pronet
 from pronet import _core
-from pronet._files import atomic_folder
+from pronet._files import atomic_folder, json_bytes
 from pronet._validate import threads as threads_arg
 from pronet.config import ScenarioSource, SweepGrid, sensor_kwargs
 from pronet.hybrid import HybridResult
@@ -406,7 +405,7 @@ def write_result_folder(
     summary = result.to_dataframe()
     with atomic_folder(folder) as tmp:
         write_tables(tmp, summary, result.to_dataframe(per_run=True), result.markdown())
-        (tmp / "config.json").write_text(json.dumps(config, indent=2))
+        (tmp / "config.json").write_bytes(json_bytes(config))
         plots.sweep_metric(summary, "noise_level", tmp / "srmse_vs_noise_level.png")
         if len(result.grid.tuning_periods) > 1 and summary["tuning_period_s"].notna().any():
             plots.sweep_metric(summary, "tuning_period_s", tmp / "srmse_vs_tuning_period.png")

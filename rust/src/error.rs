@@ -10,6 +10,8 @@ pub enum Error {
     InvalidArgument { arg: String, reason: String },
     /// The numerics failed (for example a singular innovation covariance).
     Numerical(String),
+    /// The caller cancelled the call ([`crate::cancel::Cancel`]).
+    Cancelled,
 }
 
 impl Error {
@@ -26,6 +28,7 @@ impl fmt::Display for Error {
         match self {
             Error::InvalidArgument { arg, reason } => write!(f, "{arg}: {reason}"),
             Error::Numerical(msg) => write!(f, "numerical failure: {msg}"),
+            Error::Cancelled => write!(f, "cancelled"),
         }
     }
 }

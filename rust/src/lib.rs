@@ -9,6 +9,7 @@
 //! This crate is plain Rust; the Python bindings live behind the `python` feature.
 
 pub mod attitude;
+pub mod cancel;
 pub mod clocks;
 pub mod earth;
 pub mod ekf;

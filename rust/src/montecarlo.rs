@@ -7,6 +7,7 @@
 //! count, whichever other runs are in the batch, and whatever the strategy: every
 //! strategy sees the same noise (common random numbers).
 
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::FilterConfig;
 use crate::error::{Error, Result};
 use crate::noise::StrategySpec;
@@ -136,12 +137,25 @@ pub fn run_monte_carlo(
     strategy: &StrategySpec,
     opts: &McOptions,
 ) -> Result<McResult> {
+    run_monte_carlo_until(scenario, filter, strategy, opts, &Cancel::default())
+}
+
+/// [`run_monte_carlo`] that stops with [`Error::Cancelled`] soon after `cancel` is set:
+/// it is checked before each run and every [`STEPS_PER_CHECK`] steps within one.
+pub fn run_monte_carlo_until(
+    scenario: &Arc<Scenario>,
+    filter: &FilterConfig,
+    strategy: &StrategySpec,
+    opts: &McOptions,
+    cancel: &Cancel,
+) -> Result<McResult> {
     check_strategy(filter, strategy, opts)?;
     let dvl_every = scenario.dvl_every()?;
     let n_steps = scenario.truth.len();
     let runs = (0..opts.n_runs)
         .into_par_iter()
         .map(|i| {
+            cancel.check()?;
             let mut run = Run::new(
                 scenario,
                 filter,
@@ -151,7 +165,10 @@ pub fn run_monte_carlo(
                 opts.record_every,
                 None,
             )?;
-            for _ in 0..n_steps {
+            for k in 0..n_steps {
+                if k % STEPS_PER_CHECK == 0 {
+                    cancel.check()?;
+                }
                 run.step(scenario);
             }
             Ok(run.finish())

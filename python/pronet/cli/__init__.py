@@ -3,15 +3,22 @@
 Each command is one module holding its parser beside its handler
 (``add_parser(sub)`` and ``run(args) -> exit code``); the work itself is done by the
 library (:mod:`pronet.reproduce`, :mod:`pronet.simulation`, :mod:`pronet.realdata`,
-:mod:`pronet.sweep`, ...). A ``ValueError`` from anywhere is printed as one line,
-``pronet <command>: <message>``, with exit code 2; Ctrl-C exits with 130 after saying
-what was kept.
+:mod:`pronet.sweep`, ...).
+
+One rule for every failure the user can cause (a bad argument or file, an unwritable,
+full or busy output, a size beyond memory): one line ``pronet: <path or argument>:
+<reason>`` on stderr, exit code 2, no traceback (:func:`user_error`). Ctrl-C exits
+with 130 and SIGTERM with 143 after saying what was kept, also from inside a long
+native call (the core polls for signals).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
+import signal
 import sys
+import threading
 
 from pronet.cli import (
     dataset,
@@ -40,19 +47,52 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Python's handlers run (between bytecodes, and inside
+    long native calls, which poll for signals) and handled as Ctrl-C is: finished
+    shards are kept, nothing half-written is left; exit code 143."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command of ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     args = build_parser().parse_args(argv)
+    on_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if on_main_thread else None
     try:
         return int(args.func(args))
     except KeyboardInterrupt as exc:
         for note in getattr(exc, "__notes__", ()):
             print(f"\n{note}", file=sys.stderr)
-        print("interrupted; no result folder was written", file=sys.stderr)
-        return 130
-    except ValueError as exc:
-        print(f"pronet {args.command}: {exc}", file=sys.stderr)
+        stopped = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        print(f"{stopped}; no result folder was written", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
+    except (ValueError, OSError, MemoryError) as exc:
+        print(f"pronet: {user_error(exc)}", file=sys.stderr)
         return 2
+    finally:
+        if on_main_thread:
+            signal.signal(signal.SIGTERM, previous)
 
 
-__all__ = ["build_parser", "main"]
+def user_error(exc: ValueError | OSError | MemoryError) -> str:
+    """The one line ``main`` prints for a failure the user caused: the message of a
+    ``ValueError`` (which names its argument or file), the file and the system's
+    reason for an ``OSError``, what to do about a ``MemoryError``."""
+    if isinstance(exc, MemoryError):
+        return "out of memory: the requested sizes (runs, grid, windows) do not fit; ask for less"
+    if isinstance(exc, OSError):
+        reason = exc.strerror or str(exc)
+        if exc.errno == errno.ENOSPC:
+            reason += "; free some space and run again"
+        where = exc.filename if exc.filename is not None else "output"
+        if exc.filename2 is not None:
+            where = f"{where} -> {exc.filename2}"
+        return f"{where}: {reason}"
+    return " ".join(str(exc).split("\n")).strip()
+
+
+__all__ = ["build_parser", "main", "user_error"]

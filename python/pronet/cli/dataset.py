@@ -7,6 +7,7 @@ import dataclasses
 import time
 from pathlib import Path
 
+from pronet._files import check_writable
 from pronet.cli._common import Output, Subparsers, add_output_flags
 
 
@@ -48,7 +49,10 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     if out.exists() and not args.force:
-        raise ValueError(f"{out} exists; use --force to replace it")
+        raise ValueError(f"--out: {out} exists; use --force to replace it")
+    if out.is_dir():
+        raise ValueError(f"--out: {out} is a folder; name the .npz file to write")
+    check_writable(out, "--out")
     base = dataset.GRADES if args.grades else dataset.DatasetParams()
     params = dataclasses.replace(base, seed=args.seed, n_levels=args.levels)
     params.validate()

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 from typing import Any
 
+from pronet._files import check_writable
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
 
 
@@ -42,6 +44,10 @@ def run(args: argparse.Namespace) -> int:
 
     kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
+    folder = Path(args.out)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"--out: {folder} is a file, not a folder")
+    check_writable(folder, "--out")
     ds, params = dataset_for(args)
     out = Output(args)
     reports: dict[str, dict[str, Any]] = {}

@@ -18,11 +18,13 @@ mod sensors;
 mod strategy;
 mod trajectory;
 
+use crate::cancel::Cancel;
 use crate::error::Error;
 use crate::Result as CoreResult;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::time::Duration;
 
 fn to_py_err(e: Error) -> PyErr {
     PyValueError::new_err(e.to_string())
@@ -57,8 +59,58 @@ fn detached<T: Send>(py: Python<'_>, f: impl FnOnce() -> CoreResult<T> + Send) -
     }
 }
 
+/// How often a waiting [`interruptible`] call runs Python's signal handlers.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// [`detached`] for long calls that signals must be able to end: the work runs on a
+/// scoped thread while the calling thread waits without the GIL and, every
+/// [`SIGNAL_POLL`], takes the GIL to run Python's signal handlers. When a handler
+/// raises (Ctrl-C's `KeyboardInterrupt`, the CLI's SIGTERM handler), the core is asked
+/// to stop at its next check ([`Cancel`]) and that exception is raised once it has.
+/// Handlers run on the main thread only, so from another Python thread this is
+/// [`detached`] with one more thread.
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    f: impl FnOnce(&Cancel) -> CoreResult<T> + Send,
+) -> PyResult<T> {
+    let cancel = Cancel::default();
+    let mut raised: Option<PyErr> = None;
+    let outcome = py.detach(|| {
+        std::thread::scope(|scope| {
+            let waiter = std::thread::current();
+            let cancel = &cancel;
+            let worker = scope.spawn(move || {
+                let out = catch_unwind(AssertUnwindSafe(|| f(cancel)));
+                waiter.unpark();
+                out
+            });
+            while !worker.is_finished() {
+                std::thread::park_timeout(SIGNAL_POLL);
+                if raised.is_none() && !worker.is_finished() {
+                    if let Err(e) = Python::attach(|py| py.check_signals()) {
+                        raised = Some(e);
+                        cancel.cancel();
+                    }
+                }
+            }
+            worker.join()
+        })
+    });
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    match outcome {
+        Ok(Ok(result)) => result.map_err(to_py_err),
+        Ok(Err(payload)) | Err(payload) => Err(internal_error(payload.as_ref())),
+    }
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // Load NumPy's C API now, at import: loaded lazily by the first array a call
+    // returns, it runs Python code that a pending Ctrl-C would interrupt, and
+    // rust-numpy panics when that happens.
+    numpy::PyArray1::<f64>::zeros(m.py(), [0], false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("MAX_THREADS", crate::montecarlo::MAX_THREADS)?;
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;

@@ -4,11 +4,13 @@ use super::config::PyFilterConfig;
 use super::convert::{
     arg_first_run, arg_n_runs, arg_record_every, arg_sample_initial_error, arg_seed, arg_threads,
 };
-use super::detached;
+use super::interruptible;
 use super::sensors::PySensorConfig;
 use super::strategy::PyStrategy;
 use super::trajectory::PyTrajectory;
-use crate::montecarlo::{run_monte_carlo, with_threads, McOptions, McResult, RunSummary, Scenario};
+use crate::montecarlo::{
+    run_monte_carlo_until, with_threads, McOptions, McResult, RunSummary, Scenario,
+};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
@@ -129,9 +131,11 @@ fn py_monte_carlo<'py>(
     };
     let sc = scenario(trajectory, sensors, sample_initial_error);
     let (cfg, spec) = (config.inner.clone(), strategy.inner.clone());
-    let res = detached(py, move || {
+    let res = interruptible(py, move |cancel| {
         opts.validate()?;
-        with_threads(threads, || run_monte_carlo(&sc, &cfg, &spec, &opts))?
+        with_threads(threads, || {
+            run_monte_carlo_until(&sc, &cfg, &spec, &opts, cancel)
+        })?
     })?;
     result_dict(py, &res)
 }

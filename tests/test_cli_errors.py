@@ -1,0 +1,209 @@
+"""One rule for every failure a user can cause: ``pronet: <path or argument>: <reason>``
+on one line, exit code 2, no traceback, and the output checked before any computing.
+Also: every JSON pronet writes is strict, and identical runs write identical files."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pronet import _files, cli, simulation
+
+SHORT = """
+name = "short"
+[trajectory]
+segments = [[20, 0, 0, 0]]
+"""
+
+
+@pytest.fixture
+def scenario(tmp_path: Path) -> Path:
+    path = tmp_path / "short.toml"
+    path.write_text(SHORT)
+    return path
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """Fail the test if a Monte Carlo starts."""
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("work started before the output was checked")
+
+    monkeypatch.setattr(simulation, "run_strategies", must_not_run)
+
+
+def simulate(scenario: Path, out: Path, *extra: str) -> list[str]:
+    return ["simulate", "--scenario", str(scenario), "--runs", "2", "--out", str(out), *extra]
+
+
+def one_line(capsys) -> str:
+    """The error the command printed: exactly one line on stderr, no traceback."""
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("pronet: "), err
+    return lines[0]
+
+
+def test_out_below_a_file_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):
+    (tmp_path / "file").write_text("x")
+    assert cli.main(simulate(scenario, tmp_path / "file" / "res")) == 2
+    line = one_line(capsys)
+    assert line.startswith("pronet: --out: ") and "is a file, not a folder" in line
+
+
+def test_an_existing_out_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):
+    (tmp_path / "res").mkdir()
+    assert cli.main(simulate(scenario, tmp_path / "res")) == 2
+    assert "exists; choose another --out" in one_line(capsys)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_an_unwritable_out_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    assert cli.main(simulate(scenario, locked / "res")) == 2
+    assert "is not writable" in one_line(capsys)
+
+
+def test_an_out_another_run_is_writing_is_refused(tmp_path, scenario, no_work, capsys):
+    out = tmp_path / "res"
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            textwrap.dedent(
+                f"""
+                import sys, time
+                from pathlib import Path
+                from pronet import _files
+                _files.reserve_folder(Path({str(out)!r}))
+                print("reserved", flush=True)
+                sys.stdin.read()
+                """
+            ),
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "reserved"
+        assert cli.main(simulate(scenario, out)) == 2
+        line = one_line(capsys)
+        assert f"being written by another run (process {holder.pid})" in line
+    finally:
+        holder.communicate("")
+    assert holder.returncode == 0
+    # Once the other run is gone, the folder is free again, and its lock file goes too.
+    assert not (tmp_path / ".res.lock").exists()
+
+
+def test_a_left_over_temporary_folder_of_a_killed_run_is_removed(tmp_path, scenario, capsys):
+    left = tmp_path / ".res.k1ll3d"  # what atomic_folder leaves when the process is killed
+    left.mkdir()
+    (left / "table.md").write_text("half")
+    out = tmp_path / "res"
+    assert cli.main(simulate(scenario, out, "--strategies", "constant", "--quiet")) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["res", "short.toml"]
+
+
+def test_a_missing_input_file_is_one_line(tmp_path, capsys):
+    missing = tmp_path / "missing.npz"
+    assert cli.main(["evaluate", "--dataset", str(missing)]) == 2
+    line = one_line(capsys)
+    assert str(missing) in line
+
+
+def test_a_full_disk_is_one_line_naming_the_file(tmp_path, scenario, monkeypatch, capsys):
+    def full(folder, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(folder / "table.md"))
+
+    monkeypatch.setattr("pronet.results.write_tables", full)
+    out = tmp_path / "res"
+    assert cli.main(simulate(scenario, out, "--strategies", "constant", "--quiet")) == 2
+    line = one_line(capsys)
+    assert "table.md: No space left on device; free some space" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]  # nothing half-written
+
+
+def test_running_out_of_memory_is_one_line(tmp_path, scenario, monkeypatch, capsys):
+    def huge(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(simulation, "run_strategies", huge)
+    assert cli.main(simulate(scenario, tmp_path / "res", "--quiet")) == 2
+    assert one_line(capsys).startswith("pronet: out of memory")
+
+
+def test_a_damaged_shard_on_resume_is_one_line(tmp_path, capsys):
+    from pronet.shards import ShardStore
+
+    store = ShardStore(tmp_path / "res.partial", {"n_runs": 2})
+    path = store._path("paper", "constant")
+    path.write_bytes(b"PK\x03\x04 truncated")
+    with pytest.raises(ValueError, match=r"res\.partial/.*is damaged .*remove it"):
+        store.load("paper", "constant")
+
+
+def test_user_error_formats_each_kind() -> None:
+    assert cli.user_error(ValueError("--runs: must be at least 1")) == "--runs: must be at least 1"
+    assert cli.user_error(ValueError("a\nb")) == "a b"
+    err = OSError(errno.EACCES, "Permission denied", "/x/y")
+    assert cli.user_error(err) == "/x/y: Permission denied"
+    assert cli.user_error(OSError(errno.ENOSPC, "No space left on device")).startswith(
+        "output: No space left on device; free"
+    )
+    assert cli.user_error(MemoryError()).startswith("out of memory")
+
+
+def test_json_is_strict_and_plain() -> None:
+    import numpy as np
+
+    data = {"a": float("nan"), "b": [np.float32(1.5), np.int64(2), np.inf], "c": Path("p")}
+    text = _files.json_bytes(data).decode()
+    assert json.loads(text) == {"a": None, "b": [1.5, 2, None], "c": "p"}
+    assert "NaN" not in text and "Infinity" not in text and text.endswith("\n")
+    with pytest.raises(TypeError, match="object is not a plain value"):
+        _files.json_bytes({"x": object()})
+
+
+def test_identical_runs_write_identical_json(tmp_path, scenario, capsys) -> None:
+    """Two runs with the same settings (a learned row included, whose description once
+    held an object's address) write the same config.json and metrics.json, both strict."""
+    folders = []
+    for name in ("one", "two"):
+        out = tmp_path / name
+        args = simulate(scenario, out, "--strategies", "constant,detvar", "--quiet")
+        assert cli.main(args) == 0
+        folders.append(out)
+
+    def not_strict(token: str) -> None:
+        pytest.fail(f"a JSON file holds {token}")
+
+    for file in ("config.json", "metrics.json"):
+        texts = [(f / file).read_text() for f in folders]
+        assert texts[0] == texts[1], file
+        json.loads(texts[0], parse_constant=not_strict)
+
+
+def test_a_learned_strategy_is_described_without_an_address() -> None:
+    """What reproduce's config.json records for a learned row: the model's kind and
+    weights, the same for two loads of the same model."""
+    from pronet.frozen import load_frozen
+    from pronet.strategies import Learned
+    from pronet.windowstats import DetrendedVariance
+
+    q = (1e-4,) * 3 + (1e-6,) * 3
+    one, two = (repr(Learned(load_frozen("detrend"), q)) for _ in range(2))
+    assert one == two and " at 0x" not in one
+    assert one.startswith("Learned(detrend, weights sha256 ") and "tuning_period=1.0 s" in one
+    assert repr(Learned(DetrendedVariance(), q)).startswith("Learned(DetrendedVariance, prior_q=")
