@@ -207,3 +207,92 @@ def test_a_learned_strategy_is_described_without_an_address() -> None:
     assert one == two and " at 0x" not in one
     assert one.startswith("Learned(detrend, weights sha256 ") and "tuning_period=1.0 s" in one
     assert repr(Learned(DetrendedVariance(), q)).startswith("Learned(DetrendedVariance, prior_q=")
+
+
+# ------------------------------------------- degenerate settings are errors, never silent
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (
+            ["--strategies", "constant,detvar", "--tuning-period", "500"],
+            "detvar: tuning_period: 500 s leaves no tuning instant in the 20 s run",
+        ),
+        (
+            ["--strategies", "constant,mehra:500"],
+            "mehra:500: window: mehra over 500 DVL updates never fills in the 20 s run (20 ",
+        ),
+        (
+            ["--strategies", "adaptive:21"],
+            "adaptive:21: window: adaptive over 21 DVL updates never fills",
+        ),
+    ],
+)
+def test_a_strategy_that_could_never_act_is_refused_before_any_run(
+    tmp_path, scenario, capsys, monkeypatch, extra, message
+) -> None:
+    from pronet import run as run_module
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("a row ran")
+
+    monkeypatch.setattr(run_module, "run", must_not_run)
+    assert cli.main(simulate(scenario, tmp_path / "res", *extra, "--quiet")) == 2
+    assert message in one_line(capsys)
+    assert not (tmp_path / "res").exists()
+
+
+def test_the_longest_window_that_fills_is_accepted(tmp_path, scenario) -> None:
+    """20 DVL updates in the 20 s scenario: a window of 20 fills at the last one."""
+    out = tmp_path / "res"
+    assert cli.main(simulate(scenario, out, "--strategies", "mehra:20", "--quiet")) == 0
+
+
+def test_a_recorded_run_too_short_to_tune_is_refused() -> None:
+    import numpy as np
+
+    from pronet import _core
+    from pronet.run import Recorded, run
+    from pronet.strategies import Learned
+    from pronet.windowstats import DetrendedVariance
+
+    n = 150  # fewer samples than the 200-sample window
+    rec = Recorded(
+        imu=np.tile([0.0, 0.0, -9.8, 0.0, 0.0, 0.0], (n, 1)),
+        imu_time=np.arange(1, n + 1) * 0.01,
+        dvl=np.zeros((1, 3)),
+        dvl_time=np.array([1.0]),
+        t0=0.0,
+        lla0=np.array([0.5, 0.6, 0.0]),
+        vel0=np.zeros(3),
+        rpy0=np.zeros(3),
+        config=_core.FilterConfig(),
+    )
+    learned = Learned(DetrendedVariance(), (1e-4,) * 3 + (1e-6,) * 3)
+    too_short = r"^tuning_period: 1 s leaves no tuning instant in the 1\.5 s"
+    with pytest.raises(ValueError, match=too_short):
+        run(learned, rec)
+    with pytest.raises(ValueError, match="^window: mehra over 2 DVL updates never fills"):
+        run(_core.Strategy.mehra(2, learned.prior_q), rec)
+
+
+def test_a_turn_rate_beyond_any_vehicle_is_refused(tmp_path, capsys) -> None:
+    fast = tmp_path / "fast.toml"
+    fast.write_text('name = "fast"\n[trajectory]\nsegments = [[20, 0, 1e4, 0]]\n')
+    assert cli.main(simulate(fast, tmp_path / "res", "--quiet")) == 2
+    line = one_line(capsys)
+    assert "segments: row 0: a yaw rate of 174.5" in line  # the file gives °/s
+    assert "rad/s (10000°/s) is beyond any vehicle; at most 10 rad/s (573°/s)" in line
+
+
+@pytest.mark.parametrize("strategies", ["constant", "detvar"])
+def test_a_run_count_beyond_memory_is_one_line_before_any_allocation(
+    tmp_path, scenario, capsys, strategies
+) -> None:
+    args = simulate(scenario, tmp_path / "res", "--strategies", strategies, "--quiet")
+    args[args.index("--runs") + 1] = "1000000000000"
+    assert cli.main(args) == 2
+    line = one_line(capsys)
+    assert line.startswith("pronet: n_runs: 1000000000000 runs of this scenario would hold ")
+    assert "split them into shards" in line

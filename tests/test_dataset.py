@@ -109,3 +109,19 @@ def test_cli_writes_dataset_and_card(tmp_path, capsys) -> None:
     assert out.exists() and out.with_suffix(".json").exists()
     assert "72000 examples" in capsys.readouterr().out
     assert cli.main(["dataset", "--out", str(out)]) == 2  # never overwrites
+
+
+def test_dataset_size_is_bounded_before_anything_is_built(monkeypatch) -> None:
+    from pronet import _core, dataset
+
+    for name in dataset.TRAINING_TRAJECTORIES:  # the bound's arithmetic holds
+        assert _core.builtin_trajectory(name, 0.01).n_samples == dataset.TRAJECTORY_SAMPLES
+
+    def must_not_build(*args, **kwargs):
+        raise AssertionError("a trajectory was generated")
+
+    monkeypatch.setattr(dataset._core, "builtin_trajectory", must_not_build)
+    too_many = r"^n_levels: 100000 levels make 357\.6 GiB .* \(1118 levels\)"
+    with pytest.raises(ValueError, match=too_many):
+        dataset.build_dataset(dataset.DatasetParams(n_levels=100_000))
+    dataset.DatasetParams(n_levels=1118).validate()

@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from pronet import modelfile, models
+from pronet.frozen import load_frozen
 from pronet.hcf import HCFEnsemble
 from pronet.modelfile import ModelFileError
 
@@ -133,6 +134,24 @@ def test_wrong_shape_and_wrong_architecture(saved_net, tmp_path) -> None:
     _rehash(path)
     with pytest.raises(ModelFileError, match="non-finite"):
         models.load(path)
+
+
+def test_a_card_claiming_a_huge_net_fails_before_the_net_is_built(saved_net, monkeypatch) -> None:
+    """Four million channels over small weights: the shapes are compared before torch
+    allocates the net the card describes (that took 3 GB and 9 s)."""
+    _, path = saved_net
+    card_file = path.with_suffix(".json")
+    card = json.loads(card_file.read_text())
+    huge = {**card, "architecture": {"channels": [4_000_000, 32, 64]}}
+    card_file.write_text(json.dumps(huge))
+
+    def must_not_build(*args, **kwargs):
+        raise AssertionError("the net was built")
+
+    monkeypatch.setitem(models.NETS, "detrend", must_not_build)
+    for load in (models.load, load_frozen):
+        with pytest.raises(ModelFileError, match=r"net\.safetensors: tensor .* has shape"):
+            load(path)
 
 
 class _Payload:

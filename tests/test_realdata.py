@@ -211,6 +211,38 @@ def test_implausible_rates_and_missing_files(tmp_path, synthetic):
         read_snapir(tmp_path / "nowhere")
 
 
+@pytest.mark.parametrize(
+    ("mistake", "message"),
+    [
+        ("accel in g", r"imu: the mean specific force is (0\.99|1\.0)\d* m/s², not near gravity"),
+        ("gyro in deg/s", r"imu: 1 % of the angular rates exceed .* rad/s, beyond any vehicle"),
+        ("dvl in cm/s", r"dvl: its median speed .* m/s against the ground truth's"),
+        ("imu gap", r"imu\.csv, row 3001: a gap of 2\.01 s after"),
+    ],
+)
+def test_implausible_data_is_caught_before_filtering(tmp_path, synthetic, mistake, message):
+    rec = synthetic.recording
+    imu, imu_time, dvl = rec.imu.copy(), rec.imu_time.copy(), rec.dvl.copy()
+    if mistake == "accel in g":
+        imu[:, :3] /= 9.80665
+    elif mistake == "gyro in deg/s":
+        imu[:, 3:] = np.degrees(imu[:, 3:]) * 20  # a brisk turn, read as rad/s
+    elif mistake == "dvl in cm/s":
+        dvl *= 100
+    else:
+        imu_time[3000:] += 2.0
+    write_recording(tmp_path / "bad", replace(rec, imu=imu, imu_time=imu_time, dvl=dvl))
+    with pytest.raises(RecordingError, match=message):
+        read_recording(tmp_path / "bad")
+
+
+def test_two_files_for_one_stream_are_refused(tmp_path, synthetic):
+    folder = csv_folder(tmp_path, synthetic)
+    (folder / "imu.csv.gz").write_bytes(gzip.compress((folder / "imu.csv").read_bytes()))
+    with pytest.raises(RecordingError, match=r"both imu\.csv and imu\.csv\.gz"):
+        read_recording(folder)
+
+
 def test_malformed_npz_gives_a_clear_error(tmp_path, synthetic):
     good = write_recording(tmp_path / "good.npz", synthetic.recording)
     arrays = dict(np.load(good))
@@ -538,3 +570,24 @@ def test_the_fast_csv_path_reads_what_the_careful_reader_reads(tmp_path, synthet
     np.testing.assert_array_equal(
         read_recording(folder).imu, read_recording(csv_folder(tmp_path / "b", synthetic)).imu
     )
+
+
+def test_a_misspelt_section_name_is_refused_not_dropped(tmp_path, synthetic):
+    data = tmp_path / "data"
+    for name in ("run1", "run2"):
+        write_recording(data / f"{name}.npz", synthetic.recording)
+    assert [p.stem for p in realdata.select_sections(data, ["run2"])] == ["run2"]
+    with pytest.raises(ValueError, match=r"^--sections: no section named rn2 in .*; there are "):
+        realdata.select_sections(data, ["run1", "rn2"])
+
+
+def test_a_failing_section_is_named(synthetic, monkeypatch):
+    section = align(synthetic.recording, estimate_alignment(synthetic.recording))
+    stamped = align(synthetic.recording, alignment.Alignment(how="none"))
+
+    def fails(*args, **kwargs):
+        raise ValueError("numerical failure: S is not positive definite")
+
+    monkeypatch.setattr(realdata, "evaluate_section", fails)
+    with pytest.raises(ValueError, match=r"^section synthetic: numerical failure"):
+        realdata.run_sections([(section, stamped)], {}, 1.0, threads=1)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import ast
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -117,5 +118,9 @@ def test_run_refuses_what_its_target_cannot_take() -> None:
     assert run(native, rec).result.time.shape == (4,)
     with pytest.raises(ValueError, match="^strategy: oracle needs the simulated IMU's true var"):
         run(strategy(StrategySpec.parse("oracle"), q), rec)
+    # Adaptive runs on recorded data, once its window can fill: never a silent prior.
     adaptive = strategy(StrategySpec.parse("adaptive"), q)
-    assert run(adaptive, rec).result.time.shape == (4,)
+    with pytest.raises(ValueError, match="^window: adaptive over 60 DVL updates never fills"):
+        run(adaptive, rec)
+    one = dataclasses.replace(rec, dvl=np.zeros((1, 3)), dvl_time=np.array([0.02]))
+    assert run(strategy(StrategySpec.parse("adaptive:1"), q), one).result.time.shape == (4,)

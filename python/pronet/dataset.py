@@ -41,6 +41,11 @@ from pronet._validate import I64_MAX, count, scalar
 
 #: Training trajectories, in the order of the ``trajectory`` index in the metadata.
 TRAINING_TRAJECTORIES = ("train-straight", "train-turns", "train-zigzag", "train-helix")
+#: IMU samples of each training trajectory (400 s at 100 Hz).
+TRAJECTORY_SAMPLES = 40_000
+#: The most memory [bytes] a dataset's windows may take (4 GiB; building it holds about
+#: as much again): ``n_levels`` up to about 1,100.
+MAX_DATASET_BYTES = 4 << 30
 CHANNELS = ("f_x", "f_y", "f_z", "w_x", "w_y", "w_z")
 FORMAT = "pronet-dataset"
 VERSION = 1
@@ -71,6 +76,13 @@ class DatasetParams:
             raise ValueError(f"seed: must be >= 0, got {self.seed}")
         if count(self.n_levels, "n_levels", I64_MAX) < 1:
             raise ValueError(f"n_levels: must be >= 1, got {self.n_levels}")
+        size = len(TRAINING_TRAJECTORIES) * self.n_levels * 6 * TRAJECTORY_SAMPLES * 4
+        if size > MAX_DATASET_BYTES:
+            most = MAX_DATASET_BYTES // (len(TRAINING_TRAJECTORIES) * 6 * TRAJECTORY_SAMPLES * 4)
+            raise ValueError(
+                f"n_levels: {self.n_levels} levels make {size / 2**30:.1f} GiB of windows; at "
+                f"most {MAX_DATASET_BYTES / 2**30:.0f} GiB ({most} levels)"
+            )
         q_min, q_max = scalar(self.q_min, "q_min"), scalar(self.q_max, "q_max")
         if not (0 < q_min <= q_max and np.isfinite(q_max)):
             raise ValueError(f"q_min, q_max: need 0 < q_min <= q_max, got {q_min}, {q_max}")

@@ -174,6 +174,25 @@ def shipped_sha256() -> str:
     return h.hexdigest()
 
 
+def checked_architecture(
+    card: dict[str, Any], tensors: dict[str, NDArray[Any]], weights: Path, card_file: Path
+) -> dict[str, Any]:
+    """The net architecture of a model card (its keys over :data:`NET_DEFAULTS`),
+    checked against the tensors of the weights file before anything is built, so that
+    a card claiming a huge net over small weights fails at once (``ModelFileError``),
+    never after allocating the net it describes."""
+    given = card.get("architecture", {})
+    unknown = sorted(set(given) - set(NET_DEFAULTS)) if isinstance(given, dict) else ["?"]
+    if unknown:
+        raise modelfile.ModelFileError(f"{card_file}: bad architecture (unknown {unknown})")
+    arch = {**NET_DEFAULTS, **given}
+    try:
+        modelfile.check_tensors(weights, tensors, net_shapes(arch))
+    except (TypeError, KeyError) as exc:
+        raise modelfile.ModelFileError(f"{card_file}: bad architecture ({exc})") from None
+    return arch
+
+
 def read_model(
     name_or_path: str | os.PathLike[str],
 ) -> tuple[dict[str, NDArray[Any]], dict[str, Any], Path, Path]:
@@ -202,13 +221,8 @@ def load_frozen(
         return HCFEnsemble.from_tensors(tensors, card, weights).frozen(threads)
     if kind not in NET_KINDS:
         raise modelfile.ModelFileError(f"{card_file}: unknown model kind {kind!r}")
-    given = card.get("architecture", {})
-    unknown = sorted(set(given) - set(NET_DEFAULTS)) if isinstance(given, dict) else ["?"]
-    if unknown:
-        raise modelfile.ModelFileError(f"{card_file}: bad architecture (unknown {unknown})")
-    arch = {**NET_DEFAULTS, **given}
+    arch = checked_architecture(card, tensors, weights, card_file)
     try:
-        modelfile.check_tensors(weights, tensors, net_shapes(arch))
         core = conv_net(kind, arch, tensors, threads)
         build = partial(conv_net, kind, arch, tensors)
     except (TypeError, KeyError) as exc:

@@ -48,7 +48,7 @@ from pronet.frozen import GRADE_MODELS as GRADE_MODELS  # the names, without tor
 from pronet.frozen import MAX_SAMPLE as MAX_SAMPLE
 from pronet.frozen import PAPER_MODELS as PAPER_MODELS
 from pronet.frozen import SHIPPED as SHIPPED
-from pronet.frozen import FrozenNet, conv_net, mark_overflow, read_model
+from pronet.frozen import FrozenNet, checked_architecture, conv_net, mark_overflow, read_model
 from pronet.frozen import shipped_sha256 as shipped_sha256
 from pronet.windowstats import DetrendedVariance as DetrendedVariance  # re-exported
 from pronet.windowstats import as_windows
@@ -300,6 +300,7 @@ def load(name_or_path: str | os.PathLike[str]) -> Regressor:
         return HCFEnsemble.from_tensors(tensors, card, weights)
     if kind not in NETS:
         raise modelfile.ModelFileError(f"{card_file}: unknown model kind {kind!r}")
+    checked_architecture(card, tensors, weights, card_file)  # before the net is allocated
     try:
         net = NETS[kind](**card.get("architecture", {}))
     except (TypeError, ValueError, RuntimeError) as exc:

@@ -313,9 +313,14 @@ def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None)
     paths = find_sections(data)
     if names:
         wanted = {n.strip() for n in names}
+        known = {p.name for p in paths} | {p.stem for p in paths}
+        unknown = sorted(wanted - known)
+        if unknown:  # a misspelt name must not silently drop its section
+            raise ValueError(
+                f"--sections: no section named {', '.join(unknown)} in {data}; there are "
+                f"{', '.join(p.name for p in paths)}"
+            )
         paths = [p for p in paths if p.name in wanted or p.stem in wanted]
-        if not paths:
-            raise ValueError(f"no section named {','.join(names)}")
     return paths
 
 
@@ -339,10 +344,14 @@ def run_sections(
             with lock:
                 on_done(text)
 
+    def one(pair: tuple[Section, Section]) -> _SectionRuns:
+        try:
+            return _run_one_section(pair[0], pair[1], models, tuning_period, done)
+        except ValueError as exc:  # say which section
+            raise ValueError(f"section {pair[0].name}: {exc}") from None
+
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        parts = list(
-            pool.map(lambda p: _run_one_section(p[0], p[1], models, tuning_period, done), sections)
-        )
+        parts = list(pool.map(one, sections))
     return RealRuns(
         sections,
         [r for p in parts for r in p.runs],
@@ -457,7 +466,12 @@ def run_real(
         on_start(len(paths), "section", "reading, aligning")
 
     def read(path: Path) -> tuple[Section, Section]:
-        return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+        try:
+            return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+        except ValueError as exc:  # say which section, unless the message names its file
+            if str(path) in str(exc):
+                raise
+            raise ValueError(f"section {path}: {exc}") from None
 
     loaded: list[tuple[Section, Section]] = []
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:

@@ -30,9 +30,13 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
 Checks (each failure raises :class:`RecordingError`, a ``ValueError``, naming the file
 and, where there is one, the row): the file exists and is not empty, the columns are
 comma-separated and every required one is present with a known unit, every value is a
-finite number, time increases strictly, and the sample rate is plausible for the sensor
-(IMU 10 Hz–10 kHz, DVL and ground truth 0.05–100 Hz). Row numbers count data rows from
-1 (the header is row 0).
+finite number, time increases strictly, the sample rate is plausible for the sensor
+(IMU 10 Hz–10 kHz, DVL and ground truth 0.05–100 Hz), the IMU time has no gap longer
+than five median steps, and the magnitudes fit their units (the mean specific force
+near gravity, angular rates within 10 rad/s, the DVL's speed within a factor 2 of the
+ground truth's; see :data:`GRAVITY_RANGE` and beside it). A folder holding both a
+``.csv`` and a ``.csv.gz`` of one stream is ambiguous and refused. Row numbers count
+data rows from 1 (the header is row 0).
 
 Timestamps are kept as recorded: clock offsets and lever arms are the business of
 :mod:`pronet.alignment`.
@@ -82,6 +86,16 @@ COLUMNS: dict[str, dict[str, dict[str, float]]] = {
 
 #: Plausible sample rates [Hz] of each table.
 RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 100.0)}
+#: Plausible magnitudes. The mean specific force over a section within this range of
+#: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
+#: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
+#: the DVL's median speed within this ratio of the ground truth's (when that is above
+#: 0.2 m/s); no IMU step longer than this many median steps.
+STANDARD_GRAVITY = 9.80665
+GRAVITY_RANGE = (0.8, 1.2)
+MAX_RECORDED_RATE = 10.0
+DVL_SPEED_RATIO = (0.5, 2.0)
+MAX_IMU_GAP = 5.0
 
 #: The Snapir publisher's column names, by our name.
 SNAPIR_NAMES = {
@@ -205,10 +219,14 @@ def _find(folder: Path, kind: str) -> Path:
     if not folder.is_dir():
         missing = "" if folder.exists() else " (it does not exist)"
         raise RecordingError(f"{folder}: not a folder{missing}")
-    for name in (f"{kind}.csv", f"{kind}.csv.gz"):
-        if (folder / name).is_file():
-            return folder / name
-    raise RecordingError(f"{folder}: no {kind}.csv or {kind}.csv.gz")
+    found = [folder / n for n in (f"{kind}.csv", f"{kind}.csv.gz") if (folder / n).is_file()]
+    if len(found) > 1:
+        raise RecordingError(
+            f"{folder}: both {kind}.csv and {kind}.csv.gz; keep the one that holds the data"
+        )
+    if not found:
+        raise RecordingError(f"{folder}: no {kind}.csv or {kind}.csv.gz")
+    return found[0]
 
 
 def _parse_header(cell: str) -> tuple[str, str]:
@@ -349,6 +367,31 @@ def _read_npz(path: Path) -> dict[str, F64]:
     return tables
 
 
+def _check_plausible(imu: F64, dvl: F64, gt_vel: F64, source: str) -> None:
+    """Magnitudes that fit their units, checked before anything is filtered (a unit
+    mix-up otherwise runs to the end and only shows as a huge error)."""
+    specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
+    lo, hi = GRAVITY_RANGE
+    if not lo <= specific_force / STANDARD_GRAVITY <= hi:
+        raise RecordingError(
+            f"{source} imu: the mean specific force is {specific_force:.4g} m/s², not near "
+            f"gravity ({STANDARD_GRAVITY} m/s²); are the accelerations in g, or mis-scaled?"
+        )
+    rate = float(np.percentile(np.linalg.norm(imu[:, 3:], axis=1), 99))
+    if rate > MAX_RECORDED_RATE:
+        raise RecordingError(
+            f"{source} imu: 1 % of the angular rates exceed {rate:.4g} rad/s, beyond any "
+            f"vehicle (at most {MAX_RECORDED_RATE:g}); are they in deg/s under a rad/s header?"
+        )
+    truth, dvl_speed = (float(np.median(np.linalg.norm(v, axis=1))) for v in (gt_vel, dvl))
+    lo, hi = DVL_SPEED_RATIO
+    if truth > 0.2 and len(dvl) and not lo <= dvl_speed / truth <= hi:
+        raise RecordingError(
+            f"{source} dvl: its median speed {dvl_speed:.4g} m/s against the ground truth's "
+            f"{truth:.4g} m/s; are the DVL velocities in m/s?"
+        )
+
+
 def _finish(
     where: str, values: F64, picks: list[tuple[int, float]], labels: list[str], kind: str
 ) -> F64:
@@ -372,6 +415,13 @@ def _finish(
                 f"{where}: sample rate {rate:.4g} Hz is implausible for {kind} "
                 f"(expected {lo:g}–{hi:g} Hz); is the time column in seconds?"
             )
+        gap = step > MAX_IMU_GAP * np.median(step)
+        if kind == "imu" and gap.any():  # the strapdown would integrate across it
+            r = int(np.argmax(gap)) + 2
+            raise RecordingError(
+                f"{where}, row {r}: a gap of {step[r - 2]:.4g} s after {t[r - 2]} s (the "
+                f"median step is {np.median(step):.4g} s); cut the section there"
+            )
     return values * np.array([factor for _, factor in picks])
 
 
@@ -381,6 +431,7 @@ def _recording(name: str, tables: dict[str, F64], source: str) -> Recording:
     if (np.abs(lat) > np.pi / 2).any():
         r = int(np.argmax(np.abs(lat) > np.pi / 2)) + 1
         raise RecordingError(f"{source} gt, row {r}: latitude {lat[r - 1]} rad is outside ±π/2")
+    _check_plausible(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source)
     return Recording(
         name=name,
         imu_time=imu[:, 0].copy(),

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet.filter import FilterResult, run_filter
-from pronet.hybrid import HybridResult, QSchedule, q_schedule, run_hybrid
+from pronet.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.scenarios import Scenario
 from pronet.shards import ShardStore
@@ -131,6 +131,7 @@ def run(
         return _recorded(strategy, target)
     if not isinstance(target, Scenario):
         raise ValueError(f"target: expected a Scenario or Recorded, got {type(target).__name__}")
+    check_acts(strategy, target)
     common = dict(
         sensors=target.sensors,
         config=target.config,
@@ -152,7 +153,38 @@ def run(
     return SimulatedRun(monte_carlo(target.trajectory, strategy, **common))  # type: ignore[arg-type]
 
 
+def check_acts(strategy: StrategyLike, target: Scenario | Recorded, label: str = "") -> None:
+    """``ValueError`` when ``strategy`` could never act on ``target``, so that its row
+    would silently equal its prior q: a learned strategy whose tuning period leaves no
+    tuning instant (the first needs a full window of ``DEFAULT_WINDOW`` samples), or a
+    Mehra or adaptive window longer than the run's DVL updates (on a scenario: its
+    duration over the DVL period, outages ignored). ``label`` prefixes the message."""
+    if isinstance(target, Recorded):
+        n_samples, n_updates = len(target.imu), len(target.dvl_time)
+        dt = float(np.median(np.diff(target.imu_time))) if n_samples > 1 else 1.0
+    else:
+        traj = target.trajectory
+        n_samples, dt = traj.n_samples, traj.dt
+        n_updates = int(traj.duration / target.sensors.dvl_period + 1e-9)
+    where = f"{label}: " if label else ""
+    span = f"the {n_samples * dt:g} s run"
+    if isinstance(strategy, Learned):
+        period = strategy.tuning_period
+        if not len(_core.tuning_instants(n_samples, dt, DEFAULT_WINDOW, period)):
+            raise ValueError(
+                f"{where}tuning_period: {period:g} s leaves no tuning instant in {span} "
+                f"(the first needs a full window of {DEFAULT_WINDOW} samples); the row "
+                "would only ever use its prior q"
+            )
+    elif strategy.window is not None and strategy.window > n_updates:
+        raise ValueError(
+            f"{where}window: {strategy.kind} over {strategy.window} DVL updates never fills "
+            f"in {span} ({n_updates} updates); the row would only ever use its prior q"
+        )
+
+
 def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
+    check_acts(strategy, rec)
     start = time.perf_counter()
     schedule, period = None, None
     q_args: dict[str, F64] = {}
@@ -218,6 +250,8 @@ def run_strategies(
     """Run every strategy on the same noise realizations (same seed); the first strategy
     is the reference for the paired differences. With ``shards``, each finished strategy
     is saved there at once, and one already saved is loaded instead of rerun."""
+    for label, strategy in strategies.items():  # all of them before any computing
+        check_acts(strategy, scenario, label)
     results: dict[str, tuple[MonteCarloResult, HybridResult | None]] = {}
     periods: dict[str, float | None] = {}
     for label, strategy in strategies.items():

@@ -128,6 +128,8 @@ impl Ensemble {
         let truth = &scenario.truth;
         let tuning = TuningSchedule::new(truth.len(), truth.dt, window, tuning_period)?;
         let dvl_every = scenario.dvl_every()?;
+        // Each run keeps its last `window` raw samples, and hands them out as float32.
+        scenario.check_result_size(opts, dvl_every, window * 6 * (8 + 4))?;
         let runs = (0..opts.n_runs)
             .map(|i| {
                 Run::new(

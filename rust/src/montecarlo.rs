@@ -50,6 +50,42 @@ impl Scenario {
         Ok(steps as usize)
     }
 
+    /// `Err` naming `n_runs` when the records of `opts` on this scenario would take more
+    /// than [`MAX_RESULT_BYTES`], checked before anything is allocated. Per run: the
+    /// NIS and five NEES blocks of every DVL epoch, the error, 1σ and q (36 values) of
+    /// every recorded epoch, `state_bytes` of running state, and 4 KiB of filter.
+    pub fn check_result_size(
+        &self,
+        opts: &McOptions,
+        dvl_every: usize,
+        state_bytes: usize,
+    ) -> Result<()> {
+        let steps = self.truth.len() as f64;
+        let epochs = (steps / dvl_every.max(1) as f64).floor();
+        let records = match opts.record_every {
+            0 => 0.0,
+            every => (steps / every as f64).floor() + 1.0,
+        };
+        let per_run = 8.0 * (6.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
+        let total = per_run * opts.n_runs as f64;
+        if total > MAX_RESULT_BYTES as f64 {
+            let gib = |b: f64| b / (1u64 << 30) as f64;
+            return Err(Error::invalid(
+                "n_runs",
+                format!(
+                    "{} runs of this scenario would hold {:.1} GiB of results; at most {:.0} \
+                     GiB per call (here about {} runs): split them into shards (first_run, \
+                     or a sweep's shard_runs), or record less",
+                    opts.n_runs,
+                    gib(total),
+                    gib(MAX_RESULT_BYTES as f64),
+                    (MAX_RESULT_BYTES as f64 / per_run).floor()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Times [s] of the DVL epochs (every `dvl_every` IMU steps) outside the outages.
     pub fn dvl_epoch_times(&self, dvl_every: usize) -> Vec<f64> {
         let mut times = epoch_times(&self.truth, dvl_every, false);
@@ -57,6 +93,11 @@ impl Scenario {
         times
     }
 }
+
+/// The most memory [bytes] the records of one Monte Carlo call may take (4 GiB; the
+/// Python arrays made from them take as much again). About 260,000 runs of the `paper`
+/// scenario without histories.
+pub const MAX_RESULT_BYTES: u64 = 4 << 30;
 
 /// One past the largest run index: run i's random streams are numbered 4·i + k.
 pub const MAX_RUN_INDEX: u64 = 1 << 62;
@@ -151,6 +192,7 @@ pub fn run_monte_carlo_until(
 ) -> Result<McResult> {
     check_strategy(filter, strategy, opts)?;
     let dvl_every = scenario.dvl_every()?;
+    scenario.check_result_size(opts, dvl_every, 0)?;
     let n_steps = scenario.truth.len();
     let runs = (0..opts.n_runs)
         .into_par_iter()
@@ -243,6 +285,33 @@ pub(crate) mod tests {
             gyro_bias_psd: 1e-14,
             ..FilterConfig::default()
         }
+    }
+
+    #[test]
+    fn a_monte_carlo_too_big_for_memory_is_refused_before_it_allocates() {
+        let sc = short_scenario(30.0);
+        let dvl_every = sc.dvl_every().unwrap();
+        let opts = |n_runs, record_every| McOptions {
+            n_runs,
+            seed: 0,
+            record_every,
+            first_run: 0,
+        };
+        assert!(sc.check_result_size(&opts(1000, 100), dvl_every, 0).is_ok());
+        // A trillion runs: refused at once (the runs would take petabytes).
+        let err = run_monte_carlo(
+            &sc,
+            &tuned_filter(),
+            &StrategySpec::Constant { q: TRUE_Q },
+            &opts(1_000_000_000_000, 0),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.starts_with("n_runs: 1000000000000 runs of this scenario would hold "));
+        assert!(err.contains("GiB per call (here about "), "{err}");
+        // The limit is on bytes: recording every step makes fewer runs fit.
+        let fits = |n, every| sc.check_result_size(&opts(n, every), dvl_every, 0).is_ok();
+        assert!(fits(100_000, 0) && !fits(100_000, 1));
     }
 
     #[test]

@@ -87,6 +87,12 @@ const MAX_SAMPLES: usize = 20_000_000;
 /// Largest speed a trajectory may reach [m/s].
 pub const MAX_SPEED: f64 = 1000.0;
 
+/// Largest yaw or pitch rate of a segment [rad/s]: 10 rad/s (573°/s) is far beyond any
+/// vehicle (an AUV turns at a few °/s, an agile drone at a few hundred), and keeps a
+/// step's rotation far below the half turn at which the ideal gyro would alias (a
+/// 1e4 rad/s segment at 100 Hz would read as −53 rad/s).
+pub const MAX_TURN_RATE: f64 = 10.0;
+
 impl TrajectorySpec {
     pub fn validate(&self) -> Result<()> {
         check::finite("lla0", self.lla0.as_slice())?;
@@ -107,6 +113,19 @@ impl TrajectorySpec {
                     "segments",
                     format!("row {i}: duration must be > 0, got {}", s.duration),
                 ));
+            }
+            for (what, rate) in [("yaw", s.yaw_rate), ("pitch", s.pitch_rate)] {
+                if rate.abs() > MAX_TURN_RATE {
+                    return Err(Error::invalid(
+                        "segments",
+                        format!(
+                            "row {i}: a {what} rate of {rate} rad/s ({:.0}°/s) is beyond any \
+                             vehicle; at most {MAX_TURN_RATE} rad/s ({:.0}°/s) is supported",
+                            rate.to_degrees(),
+                            MAX_TURN_RATE.to_degrees()
+                        ),
+                    ));
+                }
             }
         }
         // Beyond this the NED kinematics and the Earth model stop describing a vehicle
@@ -477,5 +496,15 @@ mod tests {
         let mut spec = builtin("paper", 0.01).unwrap();
         spec.segments[0].pitch_rate = 1.0;
         assert!(spec.generate().is_err(), "pitch beyond 80° is refused");
+        for rate in [1e4, -10.5] {
+            let mut spec = builtin("paper", 0.01).unwrap();
+            spec.segments[1].yaw_rate = rate;
+            let err = spec.generate().unwrap_err().to_string();
+            assert!(err.starts_with("segments: row 1: a yaw rate of"), "{err}");
+        }
+        let mut spec = builtin("paper", 0.01).unwrap();
+        spec.segments[1].yaw_rate = MAX_TURN_RATE;
+        spec.segments[1].duration = 0.5;
+        assert!(spec.generate().is_ok(), "the bound itself is allowed");
     }
 }
