@@ -108,12 +108,14 @@ def test_an_out_another_run_is_writing_is_refused(tmp_path, scenario, no_work, c
 
 
 def test_a_left_over_temporary_folder_of_a_killed_run_is_removed(tmp_path, scenario, capsys):
-    left = tmp_path / ".res.k1ll3d"  # what atomic_folder leaves when the process is killed
+    left = tmp_path / ".res.k1ll3d_x"  # what atomic_folder leaves when the process is killed
     left.mkdir()
     (left / "table.md").write_text("half")
+    other = tmp_path / ".res.v2.abcd1234"  # another folder's (res.v2): not touched
+    other.mkdir()
     out = tmp_path / "res"
     assert cli.main(simulate(scenario, out, "--strategies", "constant", "--quiet")) == 0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["res", "short.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".res.v2.abcd1234", "res", "short.toml"]
 
 
 def test_a_missing_input_file_is_one_line(tmp_path, capsys):

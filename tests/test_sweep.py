@@ -3,6 +3,7 @@ folder and DataFrames, and the Ray engine giving exactly the local engine's numb
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -47,6 +48,13 @@ def local(grid) -> sweep.SweepResult:
 def arrays_equal(a: pronet.MonteCarloResult, b: pronet.MonteCarloResult) -> bool:
     names = ("srmse", "smae", "final_horizontal_error", "mean_nis", "nis", "nees", "diverged_at")
     return all(np.array_equal(getattr(a, n), getattr(b, n), equal_nan=True) for n in names)
+
+
+def test_a_grid_too_big_for_memory_is_refused_before_it_is_planned(grid) -> None:
+    huge = dataclasses.replace(grid, runs=10**9, shard_runs=1)  # 8e9 shards if planned
+    with pytest.raises(ValueError, match=r"^grid: 8 grid points x 1000000000 runs of short: "):
+        sweep.plan(huge)
+    sweep.check_size(dataclasses.replace(grid, runs=1000))  # a big but sane grid passes
 
 
 def test_the_plan_covers_every_grid_point_and_run_once(grid) -> None:

@@ -31,6 +31,7 @@ __all__ = [
     "SensorConfig",
     "run_filter",
     "monte_carlo",
+    "check_result_size",
     "Ensemble",
     "tuning_instants",
     "ConvNet",
@@ -257,6 +258,13 @@ def monte_carlo(
     """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
     ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :data:`MAX_THREADS`
     (None: all cores)."""
+
+def check_result_size(
+    trajectory: Trajectory, sensors: SensorConfig, *, n_runs: int, record_every: int = 0
+) -> None:
+    """``ValueError`` naming ``n_runs`` if the records of ``n_runs`` runs of
+    ``trajectory`` would exceed the core's memory limit (4 GiB), as :func:`monte_carlo`
+    checks before it allocates; nothing is run."""
 
 @final
 class Ensemble:

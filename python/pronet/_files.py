@@ -10,6 +10,7 @@ import glob
 import json
 import math
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator, Mapping
@@ -86,10 +87,8 @@ def _plain(value: object) -> object:
     raise TypeError(f"JSON output: a {type(value).__name__} is not a plain value")
 
 
-def write_json(path: Path, data: object) -> None:
-    """Write ``data`` to ``path`` as :func:`json_bytes`, atomically."""
-    atomic_write(Path(path), json_bytes(data))
-
+#: What ``tempfile.mkdtemp`` appends to a prefix.
+_MKDTEMP_SUFFIX = re.compile(r"[a-z0-9_]{8}")
 
 #: Lock files of the result folders this process has reserved, by folder.
 _RESERVED: dict[Path, int] = {}
@@ -146,9 +145,13 @@ def reserve_folder(folder: Path, option: str = "--out") -> None:
     os.ftruncate(fd, 0)
     os.write(fd, str(os.getpid()).encode())
     _RESERVED[key] = fd
-    for left in folder.parent.glob(f"{glob.escape(_temp_prefix(folder))}*"):
-        if left.is_dir() and not left.is_symlink():
-            shutil.rmtree(left, ignore_errors=True)
+    prefix = _temp_prefix(folder)
+    for left in folder.parent.glob(f"{glob.escape(prefix)}*"):
+        # Exactly mkdtemp's eight characters after the prefix: ".res.v2.XXXXXXXX", the
+        # temporary folder of a run into "res.v2", is not this folder's.
+        if _MKDTEMP_SUFFIX.fullmatch(left.name[len(prefix) :]) and left.is_dir():
+            if not left.is_symlink():
+                shutil.rmtree(left, ignore_errors=True)
 
 
 def release_folder(folder: Path) -> None:

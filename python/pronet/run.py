@@ -16,6 +16,7 @@ same noise realizations (common random numbers) so that their differences are pa
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -162,6 +163,8 @@ def check_acts(strategy: StrategyLike, target: Scenario | Recorded, label: str =
     if isinstance(target, Recorded):
         n_samples, n_updates = len(target.imu), len(target.dvl_time)
         dt = float(np.median(np.diff(target.imu_time))) if n_samples > 1 else 1.0
+        if not (math.isfinite(dt) and dt > 0):
+            return  # bad stamps: run_filter names them
     else:
         traj = target.trajectory
         n_samples, dt = traj.n_samples, traj.dt

@@ -105,9 +105,29 @@ class Shard:
         return f"runs {self.first_run}-{self.first_run + self.n_runs - 1}"
 
 
+def check_size(grid: SweepGrid) -> None:
+    """``ValueError`` naming the grid when its merged results would exceed the core's
+    memory limit for one Monte Carlo (:func:`pronet._core.check_result_size`): every
+    grid point of a scenario holds ``runs`` runs of it until the sweep is written.
+    Checked before any shard is planned, so a huge grid never builds its shard list."""
+    per_scenario = len(grid.noise_levels) * sum(
+        len(grid.tuning_periods) if spec.uses_tuning_period else 1 for spec in grid.strategies
+    )
+    for source in grid.scenarios:
+        sc = _scenario(source, grid.seed)
+        try:
+            _core.check_result_size(sc.trajectory, sc.sensors, n_runs=per_scenario * grid.runs)
+        except ValueError as exc:
+            raise ValueError(
+                f"grid: {per_scenario} grid points x {grid.runs} runs of {source.name}: {exc}"
+            ) from None
+
+
 def plan(grid: SweepGrid) -> list[Shard]:
     """Every shard of ``grid``, grid point by grid point (scenario, noise level,
-    strategy, tuning period), each point's shards in run order."""
+    strategy, tuning period), each point's shards in run order (after
+    :func:`check_size`)."""
+    check_size(grid)
     shards = []
     for source in grid.scenarios:
         for level in grid.noise_levels:

@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"pronet: {user_error(exc)}", file=sys.stderr)
         return 2
     finally:
-        if on_main_thread:
+        if previous is not None:  # None: not set here, or set outside Python
             signal.signal(signal.SIGTERM, previous)
 
 

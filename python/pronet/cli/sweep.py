@@ -94,7 +94,8 @@ def run(args: argparse.Namespace) -> int:
             )
             raise
     seconds = time.perf_counter() - start
-    sweep.write_result_folder(out, result, {**settings, "engine": args.engine, "seconds": seconds})
+    # no wall time in config.json: identical sweeps write identical files
+    sweep.write_result_folder(out, result, {**settings, "engine": args.engine})
     store.remove()
     show.result(
         result.markdown() + f"results written to {out} in {seconds:.0f} s",

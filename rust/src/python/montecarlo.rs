@@ -4,10 +4,10 @@ use super::config::PyFilterConfig;
 use super::convert::{
     arg_first_run, arg_n_runs, arg_record_every, arg_sample_initial_error, arg_seed, arg_threads,
 };
-use super::interruptible;
 use super::sensors::PySensorConfig;
 use super::strategy::PyStrategy;
 use super::trajectory::PyTrajectory;
+use super::{interruptible, to_py_err};
 use crate::montecarlo::{
     run_monte_carlo_until, with_threads, McOptions, McResult, RunSummary, Scenario,
 };
@@ -140,6 +140,29 @@ fn py_monte_carlo<'py>(
     result_dict(py, &res)
 }
 
+/// The core's memory rule for `n_runs` runs of `trajectory` (see
+/// `Scenario::check_result_size`), without running anything: a sweep checks its whole
+/// grid with it before it plans a shard.
+#[pyfunction(name = "check_result_size")]
+#[pyo3(signature = (trajectory, sensors, *, n_runs, record_every = 0))]
+fn py_check_result_size(
+    trajectory: &PyTrajectory,
+    sensors: &PySensorConfig,
+    #[pyo3(from_py_with = arg_n_runs)] n_runs: usize,
+    #[pyo3(from_py_with = arg_record_every)] record_every: usize,
+) -> PyResult<()> {
+    let sc = scenario(trajectory, sensors, true);
+    let opts = McOptions {
+        n_runs,
+        seed: 0,
+        record_every,
+        first_run: 0,
+    };
+    let dvl_every = sc.dvl_every().map_err(to_py_err)?;
+    sc.check_result_size(&opts, dvl_every, 0).map_err(to_py_err)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(py_monte_carlo, m)?)
+    m.add_function(wrap_pyfunction!(py_monte_carlo, m)?)?;
+    m.add_function(wrap_pyfunction!(py_check_result_size, m)?)
 }
