@@ -235,5 +235,9 @@ mod tests {
         d.propagate_covariance(&mut got, dt);
         assert!((got - want).abs().max() < 1e-12 * want.abs().max());
         assert_eq!(got, got.transpose());
+        // The AVX2 copy and the portable one give the same bits (no FMA, same order).
+        let mut portable = p;
+        d.propagate_covariance_portable(&mut portable, dt);
+        assert_eq!(portable, got);
     }
 }
