@@ -1,7 +1,7 @@
 //! Micro-benchmarks of the navigation core's inner steps: one strapdown mechanization
 //! step, one EKF covariance-and-state prediction and one DVL update.
 //!
-//! Run: `cargo bench --bench core` (criterion; HTML under target/criterion). The
+//! Run: `cargo bench --features bench --bench core` (criterion; HTML under target/criterion). The
 //! performance target for mechanization is ≥ 10 M steps/s per core, i.e. ≤ 100 ns.
 
 use criterion::{criterion_group, criterion_main, Criterion};

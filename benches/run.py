@@ -5,8 +5,8 @@ Run:  ~/.cache/pronet-venv/bin/python benches/run.py [--quick] [--only NAME ...]
 Each row is printed with the command that reproduces it alone (``--only NAME``).
 ``--json FILE`` also writes every row (with its number in seconds where it has one) and
 the machine to FILE; ``--compare OLD.json NEW.json`` prints two such files side by side
-(two commits, two machines). The
-Rust micro-benchmarks of the inner steps are separate: ``cargo bench --bench core``.
+(two commits, two machines). The Rust micro-benchmarks of the inner steps are
+separate: ``cargo bench --features bench --bench core``.
 Benchmarks are not tests: nothing here fails on a slow machine; a missed target is
 printed as missed. ``--quick`` scales the long rows down (fewer runs, no reproduce) to
 check that the script works, not to measure.
@@ -104,12 +104,13 @@ UNIT_NS = {"ps": 1e-3, "ns": 1.0, "µs": 1e3, "us": 1e3, "ms": 1e6, "s": 1e9}
 
 
 def bench_rust(args: argparse.Namespace) -> list[Row]:
-    command = "cargo bench --bench core"
+    command = "cargo bench --features bench --bench core"
     if shutil.which("cargo") is None:
         return [Row("Rust micro-benchmarks", "skipped: no cargo", "—", None, command)]
     extra = ["--warm-up-time", "1", "--measurement-time", "2"] if args.quick else []
     out = subprocess.run(
-        ["cargo", "bench", "--quiet", "--bench", "core", "--", "--noplot", *extra],
+        ["cargo", "bench", "--quiet", "--features", "bench", "--bench", "core", "--", "--noplot"]
+        + extra,
         cwd=ROOT,
         check=True,
         capture_output=True,

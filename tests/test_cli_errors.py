@@ -7,6 +7,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -135,6 +136,32 @@ def test_a_full_disk_is_one_line_naming_the_file(tmp_path, scenario, monkeypatch
     line = one_line(capsys)
     assert "table.md: No space left on device; free some space" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]  # nothing half-written
+
+
+def test_a_write_the_system_refuses_is_one_line_and_leaves_nothing(tmp_path, scenario):
+    """A real refusal from the operating system, also when running as root: the file
+    size limit (``ulimit -f``, 64 bytes) lets the lock file be written but not the
+    tables, after the Monte Carlo has run. One line naming the result folder, exit 2,
+    nothing half-written beside the scenario."""
+    import resource
+
+    def small_files() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64, 64))
+
+    out = tmp_path / "res"
+    args = simulate(scenario, out, "--strategies", "constant", "--quiet")
+    done = subprocess.run(
+        [sys.executable, "-m", "pronet.cli", *args],
+        capture_output=True,
+        text=True,
+        preexec_fn=small_files,
+        env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+    )
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr and len(done.stderr.splitlines()) == 1, done.stderr
+    expected = f"pronet: {out}: File too large; " + r".*\(ulimit -f\).*\n"
+    assert re.fullmatch(expected, done.stderr), done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["short.toml"]
 
 
 def test_running_out_of_memory_is_one_line(tmp_path, scenario, monkeypatch, capsys):

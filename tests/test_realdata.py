@@ -581,6 +581,60 @@ def test_a_misspelt_section_name_is_refused_not_dropped(tmp_path, synthetic):
         realdata.select_sections(data, ["run1", "rn2"])
 
 
+@pytest.mark.slow
+def test_a_failing_section_is_reported_and_the_others_still_run(tmp_path, capsys):
+    """One section's accelerations in g (caught while reading): ``pronet real`` runs the
+    other, exits 0, and reports the failure on stderr, in table.md, metrics.csv,
+    metrics.json and config.json; when every section fails nothing is written."""
+    data = tmp_path / "data"
+    good = synthetic_recording(seed=1, duration=70.0, name="good").recording
+    write_recording(data / "good.npz", good)
+    in_g = good.imu / np.r_[[9.80665] * 3, [1.0] * 3]
+    write_recording(data / "bad.npz", replace(good, name="bad", imu=in_g))
+    argv = ["real", "--data", str(data), "--format", "generic", "--no-models", "--no-plots"]
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert re.search(r"^pronet: section bad: .*imu: the mean specific force", err, re.M), err
+    table = (out / "table.md").read_text()
+    assert "### Sections not run" in table and "| bad | " in table
+    assert "mean over 1 sections" in table
+    config = json.loads((out / "config.json").read_text())
+    assert config["sections"] == ["good"] and list(config["failed_sections"]) == ["bad"]
+    rows = (out / "metrics.csv").read_text().splitlines()
+    lines = [line for line in rows if line.startswith("bad,")]
+    records = json.loads((out / "metrics.json").read_text())
+    strategies = [r["strategy"] for r in records if r["scenario"] == "good"]
+    n_rows = sum(not s.startswith("inertial only") for s in strategies)  # one per strategy
+    assert len(lines) == n_rows > 0 and all("mean specific force" in line for line in lines)
+    failed = [r for r in records if r["scenario"] == "bad"]
+    assert all(r["failed_runs"] == 1 and r["srmse"] is None for r in failed)
+    # every section failing: one line, exit 2, no folder
+    none = tmp_path / "none"
+    assert main([*argv, "--sections", "bad", "--out", str(none), "--quiet"]) == 2
+    assert re.fullmatch(r"pronet: section bad: .*\n", capsys.readouterr().err)
+    assert not none.exists()
+
+
+def test_a_section_failing_in_the_filter_is_left_out(synthetic, monkeypatch):
+    section = align(synthetic.recording, estimate_alignment(synthetic.recording))
+    stamped = align(synthetic.recording, alignment.Alignment(how="none"))
+    real_evaluate = realdata.evaluate_section
+
+    def fails_on_copy(aligned, *args, **kwargs):
+        if aligned.name == "copy":
+            raise ValueError("numerical failure: S is not positive definite")
+        return real_evaluate(aligned, *args, **kwargs)
+
+    monkeypatch.setattr(realdata, "evaluate_section", fails_on_copy)
+    pairs = [(replace(section, name="copy"), stamped), (section, stamped)]
+    done = realdata.run_sections(pairs, {}, 1.0, threads=2, failed={"unread": "imu: empty"})
+    reason = "numerical failure: S is not positive definite"
+    assert done.failed == {"unread": "imu: empty", "copy": reason}
+    assert [a.name for a, _ in done.sections] == [section.name]
+    assert {r.section for r in done.runs} == {section.name}
+
+
 def test_a_failing_section_is_named(synthetic, monkeypatch):
     section = align(synthetic.recording, estimate_alignment(synthetic.recording))
     stamped = align(synthetic.recording, alignment.Alignment(how="none"))

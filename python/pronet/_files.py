@@ -29,16 +29,28 @@ def atomic_write(path: Path, data: bytes) -> None:
             fh.write(data)
         os.chmod(tmp, 0o644)  # mkstemp makes it private; a saved file is an ordinary one
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise _naming(exc, path) from exc
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """``exc`` itself if it names a file, else the same error naming ``path`` (a failed
+    ``write`` on a full disk names no file)."""
+    if exc.filename is not None or exc.errno is None:
+        return exc
+    return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
 
 
 @contextmanager
 def atomic_folder(folder: Path) -> Iterator[Path]:
     """Yield a temporary sibling of ``folder`` to fill; on success it is renamed to
     ``folder``, on any error (or Ctrl-C) it is removed. An existing ``folder`` is
-    refused, never overwritten."""
+    refused, never overwritten. An ``OSError`` that names no file (a write on a full
+    disk) is raised naming ``folder``."""
     folder = Path(folder)
     if folder.exists():
         raise FileExistsError(f"out: {folder} exists; choose a new folder")
@@ -48,6 +60,9 @@ def atomic_folder(folder: Path) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o755)  # mkdtemp makes it private; a result folder is an ordinary one
         os.replace(tmp, folder)
+    except OSError as exc:  # named after the folder asked for, not the removed sibling
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise _naming(exc, folder) from exc
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

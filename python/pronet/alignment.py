@@ -307,6 +307,12 @@ def find_sections(data: str | Path) -> list[Path]:
     return found
 
 
+def section_name(path: Path) -> str:
+    """The name of the section at ``path`` (from :func:`find_sections`): a folder's
+    name, an ``.npz`` file's stem."""
+    return path.stem if path.suffix == ".npz" else path.name
+
+
 def load_section(
     path: Path,
     fmt: str,

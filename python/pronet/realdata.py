@@ -16,7 +16,7 @@ import os
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,11 +25,11 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._validate import flag, float_array, scalar
-from pronet.alignment import Section, find_sections, load_section
+from pronet.alignment import Section, find_sections, load_section, section_name
 from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.paper import paper_strategies
-from pronet.realtables import real_tables, write_metrics
+from pronet.realtables import failed_records, real_tables, write_metrics
 from pronet.run import Recorded, run
 from pronet.strategies import StrategyLike, StrategySpec, strategy
 
@@ -297,6 +297,8 @@ class RealRuns:
         inertial: the pure-inertial sanity run of each section.
         q_estimated: per section, the IMU noise q of :func:`white_noise_q`.
         constants: per section, the q of each constant strategy (for the q plots).
+        failed: per section that could not be read or filtered, the reason (one line);
+            the other sections' runs are complete without it.
     """
 
     sections: list[tuple[Section, Section]]
@@ -305,6 +307,7 @@ class RealRuns:
     inertial: list[SectionRun]
     q_estimated: dict[str, tuple[float, ...]]
     constants: dict[str, dict[str, tuple[float, ...]]]
+    failed: dict[str, str] = field(default_factory=dict)
 
 
 def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
@@ -330,12 +333,18 @@ def run_sections(
     tuning_period: float,
     on_done: Callable[[str], None] | None = None,
     threads: int | None = None,
+    failed: Mapping[str, str] | None = None,
 ) -> RealRuns:
     """Every strategy of :func:`real_strategies` on each aligned section (with its own
     estimated q), the first one on the section as stamped, and the inertial run;
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core; each filter is one native call
-    without the GIL), and the results do not depend on it."""
+    without the GIL), and the results do not depend on it.
+
+    A section whose filter raises ValueError is left out and its reason kept in
+    :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
+    read); the others still run. Raises ValueError naming the section when none is left.
+    """
     workers = threads if threads is not None else (os.cpu_count() or 1)
     lock = threading.Lock()
 
@@ -344,22 +353,42 @@ def run_sections(
             with lock:
                 on_done(text)
 
-    def one(pair: tuple[Section, Section]) -> _SectionRuns:
+    def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
         try:
             return _run_one_section(pair[0], pair[1], models, tuning_period, done)
-        except ValueError as exc:  # say which section
-            raise ValueError(f"section {pair[0].name}: {exc}") from None
+        except ValueError as exc:  # the reason, kept beside the section's name
+            return str(exc)
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        parts = list(pool.map(one, sections))
+        outcomes = list(pool.map(one, sections))
+    reasons = dict(failed or {})
+    ran: list[tuple[tuple[Section, Section], _SectionRuns]] = []
+    for pair, outcome in zip(sections, outcomes, strict=True):
+        if isinstance(outcome, str):
+            reasons[pair[0].name] = outcome
+        else:
+            ran.append((pair, outcome))
+    if not ran:
+        raise ValueError(_no_section_left(reasons))
+    parts = [p for _, p in ran]
     return RealRuns(
-        sections,
+        [pair for pair, _ in ran],
         [r for p in parts for r in p.runs],
         [p.stamped for p in parts],
         [p.inertial for p in parts],
-        {a.name: p.q for (a, _), p in zip(sections, parts, strict=True)},
-        {a.name: p.constants for (a, _), p in zip(sections, parts, strict=True)},
+        {a.name: p.q for (a, _), p in ran},
+        {a.name: p.constants for (a, _), p in ran},
+        reasons,
     )
+
+
+def _no_section_left(reasons: Mapping[str, str]) -> str:
+    """The error when every section failed: the first one's reason, and how many more."""
+    if not reasons:
+        return "no sections to run"
+    name, reason = next(iter(reasons.items()))
+    more = f" (and {len(reasons) - 1} more sections failed)" if len(reasons) > 1 else ""
+    return f"section {name}: {reason}{more}"
 
 
 @dataclass(frozen=True)
@@ -434,7 +463,10 @@ def run_real(
     """Every strategy on the recorded sections under ``data`` (read where they lie, never
     copied), written as one result folder (``table.md``, ``metrics.csv``/``.json``,
     ``config.json``, plots per section); returns the folder. Every section is read and
-    checked before any filter runs.
+    checked before any filter runs. A section that cannot be read or filtered is left
+    out and reported (``table.md``'s "Sections not run", ``failure`` in
+    ``metrics.csv``, ``failed_sections`` in ``config.json``); the others still run.
+    Raises ValueError, naming the section, when no section can be run.
 
     Args:
         out: the result folder to create (default ``results/real-<time>``).
@@ -465,28 +497,33 @@ def run_real(
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
 
-    def read(path: Path) -> tuple[Section, Section]:
+    def read(path: Path) -> tuple[Section, Section] | str:
         try:
             return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
-        except ValueError as exc:  # say which section, unless the message names its file
-            if str(path) in str(exc):
-                raise
-            raise ValueError(f"section {path}: {exc}") from None
+        except (ValueError, OSError) as exc:  # the reason (it names the file)
+            return str(exc)
 
     loaded: list[tuple[Section, Section]] = []
+    unread: dict[str, str] = {}
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
         for path, section in zip(paths, pool.map(read, paths), strict=True):  # in order
-            loaded.append(section)
+            if isinstance(section, str):
+                unread[section_name(path)] = section
+            else:
+                loaded.append(section)
             if on_done is not None:
                 on_done(path.name)
+    if not loaded:  # nothing to run: the first reason, before any filter
+        raise ValueError(_no_section_left(unread))
     if on_start is not None:
         n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0))
         on_start(len(loaded) * n_rows, "run", None)
-    done = run_sections(loaded, regressors, tuning_period, on_done)
+    done = run_sections(loaded, regressors, tuning_period, on_done, failed=unread)
     config = {
         "data": str(Path(data).resolve()),
         "format": fmt,
-        "sections": [a.name for a, _ in loaded],
+        "sections": [a.name for a, _ in done.sections],
+        "failed_sections": done.failed,
         "tuning_period_s": tuning_period,
         "filter": repr(real_filter_config((0.0, 0.0, 0.0))),
         "imu_lever_arm_m": imu_arm,
@@ -496,13 +533,14 @@ def run_real(
                 "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
                 "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
             }
-            for a, _ in loaded
+            for a, _ in done.sections
         },
         "q_estimated": done.q_estimated,
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }
     with atomic_folder(folder) as tmp:
-        write_metrics(tmp, done.runs + done.stamped + done.inertial, real_tables(done))
+        runs = done.runs + done.stamped + done.inertial
+        write_metrics(tmp, runs, real_tables(done), failed_records(done))
         (tmp / "config.json").write_bytes(json_bytes(config))
         if plots:
             if on_start is not None:

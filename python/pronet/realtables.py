@@ -99,19 +99,57 @@ def summary_record(run: SectionRun) -> dict[str, object]:
     return out
 
 
-def write_metrics(folder: Path, runs: list[SectionRun], table_md: str) -> None:
+def failed_records(done: RealRuns) -> tuple[list[dict[str, object]], list[dict[str, object]]]:
+    """The ``metrics.csv`` and ``summary.csv`` rows of the sections that failed
+    (:attr:`pronet.realdata.RealRuns.failed`): one per strategy of the aligned setup,
+    every metric NaN, the reason in ``failure`` and ``failed_runs`` = 1."""
+    first = done.runs[0].section
+    template = [r for r in done.runs if r.section == first]
+    per_run: list[dict[str, object]] = []
+    summary: list[dict[str, object]] = []
+    for name, reason in done.failed.items():
+        for run in template:
+            rec = {**run_record(run), "scenario": name, "failure": reason}
+            rec.update({k: math.nan for k in (*SUMMARIZED, "velocity_nees_3sigma")})
+            rec.update(rejected_updates=0, diverged_at=math.nan)
+            per_run.append(rec)
+            row = {**summary_record(run), "scenario": name, "failed_runs": 1}
+            row.update({k: math.nan for k in row if k.startswith(SUMMARIZED)})
+            row.update(diverged_runs=0, tunings=0, guardrail_clipped=0, guardrail_non_finite=0)
+            summary.append(row)
+    return per_run, summary
+
+
+def write_metrics(
+    folder: Path,
+    runs: list[SectionRun],
+    table_md: str,
+    failed: tuple[list[dict[str, object]], list[dict[str, object]]] = ([], []),
+) -> None:
     """The result tables of recorded runs (:func:`pronet.results.write_tables`): one
-    ``metrics.csv`` row per setup × section × strategy, the same in ``summary.csv``."""
+    ``metrics.csv`` row per setup × section × strategy, the same in ``summary.csv``,
+    then the rows of the sections that failed (:func:`failed_records`)."""
     import pandas as pd
 
-    per_run = pd.DataFrame([run_record(r) for r in runs], columns=list(RUN_COLUMNS))
-    summary = pd.DataFrame([summary_record(r) for r in runs], columns=list(SUMMARY_COLUMNS))
-    write_tables(folder, summary, per_run, table_md)
+    per_run = [run_record(r) for r in runs] + failed[0]
+    summary = [summary_record(r) for r in runs] + failed[1]
+    write_tables(
+        folder,
+        pd.DataFrame(summary, columns=list(SUMMARY_COLUMNS)),
+        pd.DataFrame(per_run, columns=list(RUN_COLUMNS)),
+        table_md,
+    )
+
+
+def failed_table(failed: dict[str, str]) -> str:
+    """Markdown: the sections that could not be read or filtered, with the reason."""
+    lines: list[list[object]] = [[name, reason] for name, reason in failed.items()]
+    return markdown(["section", "reason"], lines, "Sections not run")
 
 
 def real_tables(done: RealRuns) -> str:
     """The Markdown of ``table.md``: the summary, per-section SRMSE and final error, the
-    alignment comparison and the inertial sanity check."""
+    alignment comparison, the inertial sanity check and the sections that failed."""
     first_label = done.runs[0].label
     return "\n".join(
         [
@@ -123,5 +161,6 @@ def real_tables(done: RealRuns) -> str:
                 f"{first_label}: alignment handled against stamps as given",
             ),
             summary_table(done.inertial, "Sanity: pure inertial, no DVL"),
+            *([failed_table(done.failed)] if done.failed else []),
         ]
     )

@@ -86,8 +86,10 @@ def user_error(exc: ValueError | OSError | MemoryError) -> str:
         return "out of memory: the requested sizes (runs, grid, windows) do not fit; ask for less"
     if isinstance(exc, OSError):
         reason = exc.strerror or str(exc)
-        if exc.errno == errno.ENOSPC:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
             reason += "; free some space and run again"
+        elif exc.errno == errno.EFBIG:
+            reason += "; the file system or the file size limit (ulimit -f) refuses it"
         where = exc.filename if exc.filename is not None else "output"
         if exc.filename2 is not None:
             where = f"{where} -> {exc.filename2}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 from pronet.alignment import FORMATS, SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
@@ -89,10 +90,14 @@ def run(args: argparse.Namespace) -> int:
             on_start=bars.start,
             on_done=bars.done,
         )
-    n = len(json.loads((out / "config.json").read_text())["sections"])
+    config = json.loads((out / "config.json").read_text())
+    n, failed = len(config["sections"]), config["failed_sections"]
+    for name, reason in failed.items():  # a warning, also with --quiet and --json
+        print(f"pronet: section {name}: {reason} (left out; see table.md)", file=sys.stderr)
+    left_out = f" ({len(failed)} left out)" if failed else ""
     show.result(
-        f"{(out / 'table.md').read_text()}\n{n} sections; results written to {out} in "
-        f"{time.perf_counter() - start:.0f} s",
+        f"{(out / 'table.md').read_text()}\n{n} sections{left_out}; results written to {out} "
+        f"in {time.perf_counter() - start:.0f} s",
         {"folder": str(out), "metrics": json.loads((out / "metrics.json").read_text())},
     )
     return 0
