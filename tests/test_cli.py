@@ -180,11 +180,13 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     ]
     config = json.loads((out / "config.json").read_text())
     assert "16.27" in config["filter"] and config["strategies"][2] == "mehra:5"
-    # without --json: the table for people
+    # without --json: the table for people; --no-plots: no figures, the same tables
     again = tmp_path / "again"
-    assert cli.main([*args[:-1], str(again), "--strategies", "mehra:5", "--quiet"]) == 0
+    bare = [*args[:-1], str(again), "--strategies", "mehra:5", "--quiet", "--no-plots"]
+    assert cli.main(bare) == 0
     text = capsys.readouterr().out
     assert "| mehra:5 |" in text and f"results written to {again}" in text
+    assert not list(again.glob("*.png")) and (again / "summary.csv").exists()
     # the same seed and strategy: the same numbers
     (repeat,) = json.loads((again / "metrics.json").read_text())
     for key in ("srmse", "srmse_low", "srmse_high", "smae"):

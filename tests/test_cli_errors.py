@@ -42,7 +42,9 @@ def no_work(monkeypatch):
 
 
 def simulate(scenario: Path, out: Path, *extra: str) -> list[str]:
-    return ["simulate", "--scenario", str(scenario), "--runs", "2", "--out", str(out), *extra]
+    """``pronet simulate`` of two runs into ``out`` (no plots: only the files matter)."""
+    args = ["simulate", "--scenario", str(scenario), "--runs", "2", "--out", str(out)]
+    return [*args, "--no-plots", *extra]
 
 
 def one_line(capsys) -> str:

@@ -23,10 +23,10 @@ name = "short"
 segments = [[20, 0, 0, 0], [20, 0, 3, 0]]
 """
 
-SPECS = ["constant:3", "mehra:5", "oracle", "adaptive:20", "detvar"]
+SPECS = ["constant:3", "mehra:5", "oracle", "adaptive:20", "detvar", "learned:detrend"]
 GRID = """
 scenarios = ["short.toml"]
-strategies = ["constant:3", "mehra:5", "oracle", "adaptive:20", "detvar"]
+strategies = ["constant:3", "mehra:5", "oracle", "adaptive:20", "detvar", "learned:detrend"]
 runs = 5
 shard_runs = 2
 seed = 4
@@ -50,9 +50,10 @@ def test_api_simulate_and_sweep_give_the_same_bits(tmp_path) -> None:
     }
     sim, swp = tmp_path / "sim", tmp_path / "swp"
     common = ["--quiet", "--threads", "2"]
+    simulate_only = ["--no-plots"]
     simulate = ["simulate", "--scenario", str(tmp_path / "short.toml"), "--runs", "5"]
     simulate += ["--seed", "4", "--strategies", ",".join(specs), "--out", str(sim)]
-    assert cli.main([*simulate, *common]) == 0
+    assert cli.main([*simulate, *common, *simulate_only]) == 0
     assert cli.main(["sweep", str(tmp_path / "grid.toml"), "--out", str(swp), *common]) == 0
     by_sim, by_sweep = _csv(sim / "metrics.csv"), _csv(swp / "metrics.csv")
     for spec in specs:
@@ -70,7 +71,8 @@ def test_every_result_folder_has_the_same_columns(tmp_path) -> None:
     (tmp_path / "grid.toml").write_text(GRID)
     sim, swp = tmp_path / "sim", tmp_path / "swp"
     simulate = ["simulate", "--scenario", str(tmp_path / "short.toml"), "--runs", "2"]
-    assert cli.main([*simulate, "--strategies", "constant", "--out", str(sim), "--quiet"]) == 0
+    simulate += ["--strategies", "constant", "--out", str(sim), "--quiet", "--no-plots"]
+    assert cli.main(simulate) == 0
     assert cli.main(["sweep", str(tmp_path / "grid.toml"), "--out", str(swp), "--quiet"]) == 0
     for folder in (sim, swp):
         assert tuple(_csv(folder / "metrics.csv").columns) == results.RUN_COLUMNS

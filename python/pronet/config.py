@@ -472,12 +472,13 @@ def sweep_grid(doc: Mapping[str, Any], path: str | Path) -> SweepGrid:
     for text in _list(doc, "strategies", where):
         spec = _native(f"{where} strategies:", functools.partial(StrategySpec.parse, text))
         if spec.kind == "learned":
-            from pronet import models
+            from pronet import frozen
 
-            if spec.model not in models.SHIPPED:  # a model file, relative to the sweep file
+            if spec.model not in frozen.SHIPPED:  # a model file, relative to the sweep file
                 model = Path(path).parent / spec.model
                 spec = StrategySpec(spec.text, spec.kind, spec.factor, str(model.resolve()))
-            _native(f"{where} strategies: {text!r}:", functools.partial(models.load, spec.model))
+            load = functools.partial(frozen.load_frozen, spec.model)
+            _native(f"{where} strategies: {text!r}:", load)
         else:  # e.g. a window the native core cannot take fails here, not in a shard
             _native(f"{where} strategies:", functools.partial(strategy, spec, PAPER_Q))
         specs.append(spec)

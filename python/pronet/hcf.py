@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core, modelfile
+from pronet._extras import missing
 from pronet.windowstats import FEATURE_NAMES, as_windows, detrended_variance, features
 
 #: Targets an ensemble can regress: q itself (the paper's) or ``ln(q / d)``.
@@ -169,7 +170,10 @@ class HCFEnsemble:
     ) -> HCFEnsemble:
         """Fit both ensembles on windows ``(n, N)`` with labels ``q`` ``(n,)``, regressing
         ``target`` (see :data:`TARGETS`)."""
-        from sklearn.ensemble import GradientBoostingRegressor, RandomForestRegressor
+        try:
+            from sklearn.ensemble import GradientBoostingRegressor, RandomForestRegressor
+        except ImportError as exc:
+            raise missing("sklearn", "training the HCF ensemble") from exc
 
         if target not in TARGETS:
             raise ValueError(f"target: one of {TARGETS}, got {target!r}")

@@ -33,15 +33,19 @@ Also here: :class:`DetrendedVariance`, the statistical reference as a regressor,
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 from functools import partial
 from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
-import torch
 from numpy.typing import ArrayLike, NDArray
-from torch import nn
+
+from pronet._extras import missing
+
+try:
+    import torch
+    from torch import nn
+except ImportError as exc:  # one error that names the extra
+    raise missing("torch", "training or evaluating the nets (pronet.models)") from exc
 
 from pronet import modelfile
 from pronet.frozen import GRADE_MODELS as GRADE_MODELS  # the names, without torch too
@@ -271,20 +275,6 @@ def save_net(net: BaselineNet, path: str | os.PathLike[str], card: dict[str, Any
             **card,
         },
     )
-
-
-@contextmanager
-def torch_threads(n: int) -> Iterator[None]:
-    """Run the block with torch on ``n`` intra-op threads, restoring the count after.
-
-    torch's float32 kernels may round differently with another thread count, so code
-    whose numbers must not depend on the machine (sweep shards) pins it."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 def load(name_or_path: str | os.PathLike[str]) -> Regressor:

@@ -68,6 +68,7 @@ def simulate(
     threads: int | None = None,
     record_every: float = 1.0,
     tuning_period: float = 1.0,
+    plots: bool = True,
     say: Say | None = None,
     on_start: OnStart | None = None,
     on_done: OnDone | None = None,
@@ -90,6 +91,8 @@ def simulate(
         threads: worker threads (default: all cores).
         record_every: seconds between the saved history samples the plots use (> 0).
         tuning_period: seconds between regressor calls of learned strategies (> 0).
+        plots: False: the tables, metrics and config only (the plots take most of the
+            time of a short run).
         say, on_start, on_done: progress callbacks (see :mod:`pronet._outputs`); one
             stage, a step per strategy labelled with its spec.
 
@@ -134,7 +137,7 @@ def simulate(
         out,
         {title: rows},
         settings,
-        extra=lambda folder: _figures(folder, sc, title, rows),
+        extra=(lambda folder: _figures(folder, sc, title, rows)) if plots else None,
         paper_columns=False,
     )
 

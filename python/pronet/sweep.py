@@ -5,10 +5,8 @@ A shard is one native Monte Carlo call: runs ``first_run .. first_run + n`` of o
 point. By the seed scheme (:mod:`pronet.montecarlo`) a run's numbers depend only on the
 seed and its index, so the shards of a grid point joined in run order equal the whole
 Monte Carlo, and where a shard ran (which process, which machine, how many threads)
-changes nothing: the Ray engine gives exactly the local engine's numbers. (Learned
-strategies run their regressor on one torch thread in a shard, since torch's float32
-kernels can round differently with other thread counts; machines whose CPUs have
-different vector units could still differ in the last bits of those rows.)
+changes nothing: the Ray engine gives exactly the local engine's numbers. Learned
+strategies run their model frozen in the core, as ``pronet simulate`` does (no torch).
 
 Every grid point with the same scenario and noise level sees the same noise
 realizations (common random numbers), so strategies are compared on paired runs. The
@@ -18,7 +16,9 @@ level, with ``tuning_period`` None.
 Ray: ``engine="ray"`` with ``address=None`` starts a private Ray on this machine (one
 CPU per shard by default); ``address="auto"`` or ``"ray://HEAD:10001"`` joins a running
 cluster, whose every node must have the same version of pronet installed (and any model
-file a learned strategy names, at the same path).
+file a learned strategy names, at the same path). A shard whose worker process or node
+dies is run again (up to :data:`RAY_RETRIES` times; it gives the same numbers); an
+error the shard itself raises ends the sweep, naming the shard.
 """
 
 from __future__ import annotations
@@ -62,6 +62,10 @@ if TYPE_CHECKING:
 
 #: Engines :func:`run_sweep` knows.
 ENGINES = ("local", "ray")
+#: How often Ray reruns a shard whose worker process or node died. Shards are
+#: deterministic, so a rerun gives the numbers the lost one would have; a Python error
+#: raised by the shard is not retried.
+RAY_RETRIES = 3
 
 
 @dataclass(frozen=True)
@@ -155,9 +159,10 @@ def _scenario(source: ScenarioSource, seed: int) -> Scenario:
 
 @functools.lru_cache(maxsize=8)
 def _model(name_or_path: str) -> Regressor:
-    from pronet import models
+    """A learned strategy's model, frozen in the core (no torch), as ``simulate`` runs it."""
+    from pronet.frozen import load_frozen
 
-    return models.load(name_or_path)
+    return load_frozen(name_or_path)
 
 
 def noisier(sensors: _core.SensorConfig, level: float) -> _core.SensorConfig:
@@ -173,28 +178,22 @@ def run_shard(
 ) -> tuple[MonteCarloResult, HybridResult | None]:
     """Run one shard (in this process); ``threads`` for the native core (default: all
     cores). The scenario and learned models are built once per process; a learned
-    strategy's torch runs on one thread, so that a shard's numbers do not depend on
-    the machine it runs on."""
+    strategy runs its model frozen in the core, as ``pronet simulate`` does, so that a
+    shard's numbers do not depend on the machine or the thread count."""
     p = shard.point
     base = _scenario(shard.source, shard.seed)
     scenario = dataclasses.replace(base, sensors=noisier(base.sensors, p.noise_level))
     regressor = _model(shard.spec.model) if shard.spec.kind == "learned" else None
     period = p.tuning_period if p.tuning_period is not None else 1.0
     chosen = strategy(shard.spec, scenario.q_nominal, period, regressor)
-    pinned: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
-    if regressor is not None:
-        from pronet.models import torch_threads
-
-        pinned = torch_threads(1)
-    with pinned:
-        done = run(
-            chosen,
-            scenario,
-            n_runs=shard.n_runs,
-            seed=shard.seed,
-            threads=threads,
-            first_run=shard.first_run,
-        )
+    done = run(
+        chosen,
+        scenario,
+        n_runs=shard.n_runs,
+        seed=shard.seed,
+        threads=threads,
+        first_run=shard.first_run,
+    )
     return done.result, done.hybrid
 
 
@@ -244,7 +243,7 @@ def _ray(
             raise ValueError(f"address: cannot start or join {where}: {exc}") from None
     pending: dict[Any, Shard] = {}
     try:
-        remote = ray.remote(num_cpus=cpus_per_shard, max_retries=0)(run_shard)
+        remote = ray.remote(num_cpus=cpus_per_shard, max_retries=RAY_RETRIES)(run_shard)
         pending = {remote.remote(s, cpus_per_shard): s for s in shards}  # type: ignore[call-arg]
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
@@ -336,13 +335,13 @@ class SweepResult:
 def settings(grid: SweepGrid) -> dict[str, Any]:
     """What a sweep's numbers depend on: the grid, the versions and the weights of
     every model it uses (a resumed sweep must match all of it)."""
-    from pronet import modelfile, models
+    from pronet import frozen, modelfile
 
     weights = {}
     for spec in grid.strategies:
         if spec.kind == "learned":
-            if spec.model in models.SHIPPED:
-                weights["shipped"] = models.shipped_sha256()
+            if spec.model in frozen.SHIPPED:
+                weights["shipped"] = frozen.shipped_sha256()
             else:  # the card too: its kind and architecture choose the network
                 h = hashlib.sha256()
                 for file in modelfile.paths(spec.model):

@@ -6,7 +6,8 @@ library (:mod:`pronet.reproduce`, :mod:`pronet.simulation`, :mod:`pronet.realdat
 :mod:`pronet.sweep`, ...).
 
 One rule for every failure the user can cause (a bad argument or file, an unwritable,
-full or busy output, a size beyond memory): one line ``pronet: <path or argument>:
+full or busy output, a size beyond memory, a command that needs an extra that is not
+installed): one line ``pronet: <path or argument>:
 <reason>`` on stderr, exit code 2, no traceback (:func:`user_error`). Ctrl-C exits
 with 130 and SIGTERM with 143 after saying what was kept, also from inside a long
 native call (the core polls for signals).
@@ -20,6 +21,7 @@ import signal
 import sys
 import threading
 
+from pronet._extras import MissingExtra
 from pronet.cli import (
     dataset,
     evaluate,
@@ -70,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         stopped = "terminated" if isinstance(exc, Terminated) else "interrupted"
         print(f"{stopped}; no result folder was written", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
-    except (ValueError, OSError, MemoryError) as exc:
+    except (ValueError, OSError, MemoryError, MissingExtra) as exc:
         print(f"pronet: {user_error(exc)}", file=sys.stderr)
         return 2
     finally:
@@ -78,10 +80,11 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-def user_error(exc: ValueError | OSError | MemoryError) -> str:
+def user_error(exc: ValueError | OSError | MemoryError | MissingExtra) -> str:
     """The one line ``main`` prints for a failure the user caused: the message of a
-    ``ValueError`` (which names its argument or file), the file and the system's
-    reason for an ``OSError``, what to do about a ``MemoryError``."""
+    ``ValueError`` (which names its argument or file) or of a missing optional
+    dependency (which names the extra), the file and the system's reason for an
+    ``OSError``, what to do about a ``MemoryError``."""
     if isinstance(exc, MemoryError):
         return "out of memory: the requested sizes (runs, grid, windows) do not fit; ask for less"
     if isinstance(exc, OSError):

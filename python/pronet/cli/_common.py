@@ -144,6 +144,15 @@ def add_tuning_period(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_no_plots(parser: argparse.ArgumentParser) -> None:
+    """--no-plots."""
+    parser.add_argument(
+        "--no-plots",
+        action="store_true",
+        help="tables and metrics only (the plots take most of the time of a short run)",
+    )
+
+
 def add_dataset_args(parser: argparse.ArgumentParser) -> None:
     """--dataset and --data-seed, as train and evaluate take them."""
     parser.add_argument(

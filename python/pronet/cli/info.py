@@ -32,33 +32,38 @@ def _version_of(package: str) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     import numpy
-    import torch
 
-    from pronet import modelfile, models
+    from pronet import frozen, modelfile
 
+    torch_version, torch_threads = None, None
+    try:
+        import torch
+
+        torch_version, torch_threads = str(torch.__version__), torch.get_num_threads()
+    except ImportError:  # the light install: everything but training and torch nets
+        pass
     info: dict[str, object] = {
         "pronet": pronet.__version__,
         "native_core": _core.__version__,
         "python": sys.version.split()[0],
         "numpy": numpy.__version__,
-        "torch": torch.__version__,
+        "torch": torch_version,
         "cores": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
+        "torch_threads": torch_threads,
         "ray": _version_of("ray"),
         "weights": str(modelfile.SHIPPED_DIR),
-        "shipped_models": list(models.SHIPPED),
+        "shipped_models": list(frozen.SHIPPED),
         "trajectories": list(_core.builtin_trajectory_names()),
     }
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
+    no_torch = "not installed (training needs it: pip install 'pronet[torch]')"
     print(f"pronet {info['pronet']} (native core {info['native_core']})")
-    print(f"python {info['python']}, numpy {info['numpy']}, torch {info['torch']}")
-    print(
-        f"cores: {info['cores']}  (Monte Carlo threads default to all of them; "
-        f"torch uses {info['torch_threads']})"
-    )
+    print(f"python {info['python']}, numpy {info['numpy']}, torch {info['torch'] or no_torch}")
+    threads = f"; torch uses {torch_threads}" if torch_threads is not None else ""
+    print(f"cores: {info['cores']}  (Monte Carlo threads default to all of them{threads})")
     print(f"ray: {info['ray'] or 'not installed (pronet sweep --engine ray needs it)'}")
-    print(f"shipped models: {', '.join(models.SHIPPED)} in {info['weights']}")
+    print(f"shipped models: {', '.join(frozen.SHIPPED)} in {info['weights']}")
     print(f"built-in trajectories: {', '.join(_core.builtin_trajectory_names())}")
     return 0

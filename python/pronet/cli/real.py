@@ -9,7 +9,14 @@ import sys
 import time
 
 from pronet.alignment import FORMATS, SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
-from pronet.cli._common import Bars, Output, Subparsers, add_output_flags, add_tuning_period
+from pronet.cli._common import (
+    Bars,
+    Output,
+    Subparsers,
+    add_no_plots,
+    add_output_flags,
+    add_tuning_period,
+)
 
 
 def _vector3(text: str) -> tuple[float, float, float]:
@@ -59,11 +66,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     add_tuning_period(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
-    parser.add_argument(
-        "--no-plots",
-        action="store_true",
-        help="tables and metrics only (plots take most of the time)",
-    )
+    add_no_plots(parser)
     parser.add_argument(
         "--out", metavar="PATH", default=None, help="result folder (default results/real-<time>)"
     )

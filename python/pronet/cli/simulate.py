@@ -10,6 +10,7 @@ from pronet.cli._common import (
     Output,
     Subparsers,
     add_monte_carlo_args,
+    add_no_plots,
     add_output_flags,
     add_tuning_period,
     experiment_result,
@@ -56,6 +57,7 @@ def add_parser(sub: Subparsers) -> None:
         help="seconds between the saved history samples the plots use (default 1 s)",
     )
     add_tuning_period(parser)
+    add_no_plots(parser)
     parser.add_argument(
         "--out",
         metavar="PATH",
@@ -82,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
             threads=args.threads,
             record_every=args.record_every,
             tuning_period=args.tuning_period,
+            plots=not args.no_plots,
             say=bars.say,
             on_start=bars.start,
             on_done=bars.done,
