@@ -10,8 +10,10 @@ if [ ! -x "$VENV/bin/python" ]; then
   python3 -m venv "$VENV"
   "$VENV/bin/python" -m pip install -q --upgrade pip
 fi
-if ! "$VENV/bin/python" -c "import maturin" 2>/dev/null; then
-  "$VENV/bin/python" -m pip install -q "maturin>=1.9.4,<2"
+# The build tools: maturin, and zig, auditwheel and uv for the portable wheel that
+# scripts/check_wheel.sh builds, checks and installs into a fresh venv.
+if ! "$VENV/bin/python" -c "import maturin, ziglang, auditwheel, uv" 2>/dev/null; then
+  "$VENV/bin/python" -m pip install -q "maturin>=1.9.4,<2" "ziglang>=0.13" "auditwheel>=6" uv
 fi
 # Build the native core (release) and install pronet with its test extras; pip skips
 # what is already there.

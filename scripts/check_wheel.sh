@@ -1,26 +1,34 @@
 #!/usr/bin/env bash
-# Check that the release wheel is complete and works on its own: build it with
-# `maturin build --release` (or take one with --wheel PATH), install that one file into a
-# brand-new virtual environment (dependencies from PyPI), and from a folder outside the
-# checkout import it, look for the files it must ship (py.typed, _core.pyi, the native
-# module, the shipped weights), run `pronet info` and `pronet reproduce --quick`.
+# Check that the release wheel is portable, complete and works on its own: build it with
+# `maturin build --release --zig` for manylinux2014 (glibc >= 2.17), or take one with
+# --wheel PATH; check its platform tag with `auditwheel show`; install that one file
+# into a brand-new virtual environment (dependencies from PyPI) and, from a folder
+# outside the checkout, import it, look for the files it must ship (py.typed, _core.pyi,
+# the native module, the shipped weights) and run the CLI.
 #
-#   bash scripts/check_wheel.sh                  # build, install, check
+#   bash scripts/check_wheel.sh                  # the light install (no torch): pronet info,
+#                                                # simulate (native strategies and shipped
+#                                                # models), sweep; train names the extra
+#   bash scripts/check_wheel.sh --full           # then the torch extra and reproduce --quick
 #   bash scripts/check_wheel.sh --wheel FILE.whl # check a wheel built before
 #   KEEP=1 bash scripts/check_wheel.sh           # keep the temporary folder to look into
 #
-# maturin comes from pronet's venv (PRONET_VENV, default ~/.cache/pronet-venv) when it
-# is there, otherwise it is installed into a temporary venv. Nothing is installed into
-# pronet's venv and nothing in the checkout is changed (the wheel goes to the temp folder).
+# `.ci/run` runs the light check (about 2 minutes, most of it the build). maturin, ziglang,
+# auditwheel and uv come from pronet's venv (PRONET_VENV, default ~/.cache/pronet-venv) when
+# they are there, otherwise they are installed into a temporary venv. Nothing is
+# installed into pronet's venv and nothing in the checkout is changed (the wheel goes to
+# the temp folder; the build to target/x86_64-unknown-linux-gnu).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
 PYTHON="${PYTHON:-python3}"
 
-usage() { sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,20p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 WHEEL=""
+FULL=0
 while [ $# -gt 0 ]; do
   case "$1" in
+    --full) FULL=1; shift ;;
     --wheel) [ $# -ge 2 ] || { echo "check_wheel: --wheel needs a path" >&2; exit 2; }
              [ -f "$2" ] || { echo "check_wheel: no wheel file at $2" >&2; exit 2; }
              WHEEL="$(realpath "$2")"; shift 2 ;;
@@ -47,19 +55,21 @@ now() { date +%s; }
 declare -A TIME=()
 
 # --- build ---------------------------------------------------------------------------
+TOOLS="$VENV/bin"
+if ! { [ -x "$TOOLS/maturin" ] && [ -x "$TOOLS/auditwheel" ] \
+       && "$TOOLS/python" -c "import ziglang" 2>/dev/null; }; then
+  echo "check_wheel: no maturin, ziglang and auditwheel in $VENV; installing them into a temporary venv"
+  "$PYTHON" -m venv "$TMP/tools"
+  "$TMP/tools/bin/python" -m pip install -q "maturin>=1.9.4,<2" "ziglang>=0.13" "auditwheel>=6" uv
+  TOOLS="$TMP/tools/bin"
+fi
 if [ -z "$WHEEL" ]; then
-  if [ -x "$VENV/bin/maturin" ]; then
-    MATURIN="$VENV/bin/maturin"
-  else
-    echo "check_wheel: no maturin in $VENV; installing it into a temporary venv"
-    "$PYTHON" -m venv "$TMP/tools"
-    "$TMP/tools/bin/python" -m pip install -q "maturin>=1.9.4,<2"
-    MATURIN="$TMP/tools/bin/maturin"
-  fi
-  echo "== build: $("$MATURIN" --version) build --release (log: $TMP/build.log)"
+  echo "== build: $("$TOOLS/maturin" --version) build --release --zig --compatibility manylinux2014 (log: $TMP/build.log)"
   t=$(now)
-  if ! (cd "$ROOT" && "$MATURIN" build --release --interpreter "$PYTHON" \
-          --out "$TMP/dist") >"$TMP/build.log" 2>&1; then
+  # maturin finds zig as `python -m ziglang` of the first python on PATH: the tools'.
+  if ! (cd "$ROOT" && PATH="$TOOLS:$PATH" "$TOOLS/maturin" build --release --zig \
+          --compatibility manylinux2014 --interpreter "$PYTHON" --out "$TMP/dist") \
+          >"$TMP/build.log" 2>&1; then
     tail -n 40 "$TMP/build.log" >&2
     fail "maturin build failed (KEEP=1 keeps the whole log)"
   fi
@@ -75,14 +85,32 @@ WHEEL_NAME="$(basename "$WHEEL")"
 WHEEL_SIZE="$(du -h "$WHEEL" | cut -f1)"
 echo "   wheel: $WHEEL_NAME ($WHEEL_SIZE)"
 
+# --- portable: manylinux2014 (glibc 2.17) or older, by auditwheel ----------------------
+echo "== auditwheel show"
+"$TOOLS/auditwheel" show "$WHEEL" >"$TMP/auditwheel.log" 2>&1 \
+  || { cat "$TMP/auditwheel.log" >&2; fail "auditwheel show failed"; }
+tag="$(grep -oE 'manylinux_2_[0-9]+_x86_64' "$TMP/auditwheel.log" | head -n 1)"
+[ -n "$tag" ] || { cat "$TMP/auditwheel.log" >&2; fail "auditwheel found no manylinux tag"; }
+minor="${tag#manylinux_2_}"; minor="${minor%%_*}"
+[ "$minor" -le 17 ] || fail "the wheel needs $tag; manylinux2014 (manylinux_2_17) or older expected"
+echo "   $tag (manylinux2014 or older)"
+
 # --- install into a brand-new venv -----------------------------------------------------
 NEW="$TMP/venv"
 echo "== install: fresh venv $NEW, pip install $WHEEL_NAME (dependencies from PyPI)"
 t=$(now)
-"$PYTHON" -m venv "$NEW"
-# Only the wheel file is named: pip takes pronet from it and its dependencies from PyPI.
-"$NEW/bin/python" -m pip install -q --disable-pip-version-check "$WHEEL" \
-  >"$TMP/install.log" 2>&1 || { tail -n 40 "$TMP/install.log" >&2; fail "pip install failed"; }
+# Only the wheel file is named: pronet comes from it and its dependencies from PyPI.
+# The light install: no extra. uv (when the tools have it) does what pip does, faster.
+if [ -x "$TOOLS/uv" ]; then
+  install() { "$TOOLS/uv" pip install -q --python "$NEW/bin/python" "$@"; }
+  "$TOOLS/uv" venv -q --python "$PYTHON" "$NEW" >"$TMP/venv.log" 2>&1 \
+    || { cat "$TMP/venv.log" >&2; fail "uv venv failed"; }
+else
+  install() { "$NEW/bin/python" -m pip install -q --disable-pip-version-check "$@"; }
+  "$PYTHON" -m venv "$NEW"
+fi
+install "$WHEEL" >"$TMP/install.log" 2>&1 \
+  || { tail -n 40 "$TMP/install.log" >&2; fail "installing the wheel failed"; }
 TIME[install]=$(( $(now) - t ))
 
 # Everything below runs from a folder outside the checkout, with no PYTHONPATH and no
@@ -155,21 +183,71 @@ echo "== pronet info"
 [ -x "$NEW/bin/pronet" ] || fail "the wheel installed no 'pronet' command"
 run "$NEW/bin/pronet" info || fail "pronet info failed"
 
-echo "== pronet reproduce --quick"
-RESULTS="$TMP/results"
+# --- the light install ------------------------------------------------------------------
+echo "== the light install: no torch, no scikit-learn"
+run "$NEW/bin/python" -c "
+import importlib.util, sys
+found = [m for m in ('torch', 'sklearn') if importlib.util.find_spec(m)]
+sys.exit(f'installed without the extra: {found}' if found else 0)" \
+  || fail "the plain install pulled in torch or scikit-learn"
+cat > short.toml <<'TOML'
+name = "short"
+[trajectory]
+segments = [[20, 0, 0, 0], [20, 0, 3, 0]]
+TOML
+cat > grid.toml <<'TOML'
+scenarios = ["short.toml"]
+strategies = ["constant", "mehra:5", "learned:detrend"]
+noise_levels = [1, 4]
+runs = 4
+shard_runs = 2
+TOML
+STRATEGIES="constant,mehra:5,adaptive:20,oracle,detvar,learned:hcf,learned:detrend"
 t=$(now)
-run "$NEW/bin/pronet" reproduce --quick --out "$RESULTS" --quiet >"$TMP/reproduce.log" 2>&1 \
-  || { tail -n 40 "$TMP/reproduce.log" >&2; fail "pronet reproduce --quick failed"; }
-TIME[reproduce]=$(( $(now) - t ))
-for f in table.md metrics.json metrics.csv config.json; do
-  [ -s "$RESULTS/$f" ] || fail "reproduce wrote no $f in $RESULTS"
+echo "== pronet simulate --strategies $STRATEGIES"
+run "$NEW/bin/pronet" simulate --scenario short.toml --runs 2 --strategies "$STRATEGIES" \
+  --out sim --quiet >"$TMP/simulate.log" 2>&1 \
+  || { tail -n 20 "$TMP/simulate.log" >&2; fail "pronet simulate failed"; }
+for f in table.md metrics.csv config.json q.png; do
+  [ -s "sim/$f" ] || fail "simulate wrote no $f"
 done
-shopt -s nullglob
-pngs=("$RESULTS"/*.png)
-shopt -u nullglob
-[ "${#pngs[@]}" -ge 1 ] || fail "reproduce wrote no .png in $RESULTS"
-echo "   $RESULTS: table.md metrics.json metrics.csv config.json and ${#pngs[@]} PNGs"
+echo "== pronet sweep (2 noise levels x 3 strategies, shards of 2 runs)"
+run "$NEW/bin/pronet" sweep grid.toml --out swp --quiet >"$TMP/sweep.log" 2>&1 \
+  || { tail -n 20 "$TMP/sweep.log" >&2; fail "pronet sweep failed"; }
+[ -s swp/metrics.csv ] || fail "sweep wrote no metrics.csv"
+echo "== pronet train without torch: one line naming the extra"
+set +e
+run "$NEW/bin/pronet" train --model detrend --quiet >"$TMP/train.log" 2>&1
+rc=$?
+set -e
+[ "$rc" -eq 2 ] && [ "$(wc -l <"$TMP/train.log")" -eq 1 ] \
+  && grep -q "pip install 'pronet\[torch\]'" "$TMP/train.log" \
+  || { cat "$TMP/train.log" >&2; fail "pronet train without torch: exit $rc, expected one line naming the extra"; }
+TIME[light]=$(( $(now) - t ))
 
-times="install ${TIME[install]}s, reproduce ${TIME[reproduce]}s"
+if [ "$FULL" = 1 ]; then
+  echo "== the torch extra: pip install '$WHEEL_NAME[torch]'"
+  t=$(now)
+  install "$WHEEL[torch]" >"$TMP/install-torch.log" 2>&1 \
+    || { tail -n 40 "$TMP/install-torch.log" >&2; fail "installing the torch extra failed"; }
+  TIME[torch]=$(( $(now) - t ))
+  echo "== pronet reproduce --quick"
+  RESULTS="$TMP/results"
+  t=$(now)
+  run "$NEW/bin/pronet" reproduce --quick --out "$RESULTS" --quiet >"$TMP/reproduce.log" 2>&1 \
+    || { tail -n 40 "$TMP/reproduce.log" >&2; fail "pronet reproduce --quick failed"; }
+  TIME[reproduce]=$(( $(now) - t ))
+  for f in table.md metrics.json metrics.csv config.json; do
+    [ -s "$RESULTS/$f" ] || fail "reproduce wrote no $f in $RESULTS"
+  done
+  shopt -s nullglob
+  pngs=("$RESULTS"/*.png)
+  shopt -u nullglob
+  [ "${#pngs[@]}" -ge 1 ] || fail "reproduce wrote no .png in $RESULTS"
+  echo "   $RESULTS: table.md metrics.json metrics.csv config.json and ${#pngs[@]} PNGs"
+fi
+
+times="install ${TIME[install]}s, light commands ${TIME[light]}s"
 [ -n "${TIME[build]:-}" ] && times="build ${TIME[build]}s, $times"
-echo "check_wheel: PASS $WHEEL_NAME ($WHEEL_SIZE; $times)"
+[ -n "${TIME[reproduce]:-}" ] && times="$times, torch extra ${TIME[torch]}s, reproduce ${TIME[reproduce]}s"
+echo "check_wheel: PASS $WHEEL_NAME ($WHEEL_SIZE, $tag; $times)"

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Install what is missing and run every check and test: Rust (fmt, clippy, unit tests)
-# and Python (ruff, pytest). Exits non-zero on the first failure.
+# Install what is missing and run every check and test: Rust (fmt, clippy, unit tests),
+# Python (ruff, stubtest, mypy), the wheel (scripts/check_wheel.sh: manylinux2014, the
+# light install) and pytest. Exits non-zero on the first failure.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
@@ -20,6 +21,10 @@ echo "== ruff"
 echo "== stubtest (python/pronet/_core.pyi against the built module)"
 "$VENV/bin/python" -m mypy.stubtest pronet._core
 echo "== mypy (the package's types)"
-"$VENV/bin/python" -m mypy
+# Its cache lives beside the venv, outside the checkout: a fresh clone does not redo
+# the third-party modules (mypy re-checks every file whose contents changed).
+"$VENV/bin/python" -m mypy --cache-dir "${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
+echo "== the wheel: manylinux2014, installed without extras into a fresh venv"
+bash "$ROOT/scripts/check_wheel.sh"
 echo "== pytest"
 "$VENV/bin/python" -m pytest -q tests

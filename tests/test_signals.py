@@ -1,6 +1,7 @@
 """Signals reach inside the native core: Ctrl-C (SIGINT) and SIGTERM sent to a running
 ``pronet`` end a long Monte Carlo call within about a second, with exit 130 or 143, a
-one-line message, no panic or traceback, and nothing half-written left behind."""
+one-line message, no panic or traceback, and nothing half-written left behind; a long
+filter pass or mechanization from Python ends as soon."""
 
 from __future__ import annotations
 
@@ -47,3 +48,43 @@ def test_a_signal_ends_a_long_native_call_at_once(tmp_path, sig, code, word) -> 
     print(f"stopped {took:.2f} s after the signal")
     assert took < 1.5, f"the process took {took:.2f} s to stop"
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # no folder, no lock, no temp
+
+
+def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
+    """The other long native calls poll too: Ctrl-C 0.3 s into a filter pass over two
+    million IMU samples or the mechanization of eight million (each about 4 s here)
+    raises KeyboardInterrupt within a fraction of a second."""
+    import os
+    import threading
+
+    import numpy as np
+
+    import pronet
+
+    n = 2_000_000
+    imu = np.tile([0.01, 0.0, -9.79, 0.0, 1e-4, 0.0], (n, 1))
+    imu_time = np.arange(1, n + 1) * 0.01
+    longer = np.tile(imu, (4, 1))
+    start = dict(lla0=[0.5, 0.6, -10.0], vel0=[1.0, 0.0, 0.0], rpy0=[0.0, 0.0, 0.3])
+    calls = {
+        "run_filter": lambda: pronet.run_filter(
+            imu,
+            imu_time,
+            np.zeros((0, 3)),
+            np.zeros(0),
+            t0=0.0,
+            strategy=pronet.Strategy.constant([1e-4] * 3 + [1e-6] * 3),
+            **start,
+        ),
+        "mechanize": lambda: pronet.mechanize(longer, 0.01, **start),
+    }
+    for name, call in calls.items():
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+        began = time.monotonic()
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        took = time.monotonic() - began
+        timer.join()
+        print(f"{name}: stopped {took - 0.3:.2f} s after the signal")
+        assert took < 0.3 + 0.5, f"{name} took {took:.2f} s"

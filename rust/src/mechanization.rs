@@ -6,6 +6,7 @@
 //! step, position trapezoidal in velocity.
 
 use crate::attitude::{exp_so3, log_so3, orthonormalize};
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
 use crate::error::{check, Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -148,12 +149,29 @@ pub fn invert_step(s0: &NavState, s1: &NavState, dt: f64) -> ImuSample {
 /// equator, and no overflow: finite but absurd inputs (1e300 m/s², a 1e10 s step) are an
 /// error, never NaN states.
 pub fn mechanize(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Result<Vec<NavState>> {
+    mechanize_until(initial, imu, dt, &Cancel::default())
+}
+
+/// [`mechanize`] that stops with [`Error::Cancelled`] soon after `cancel` is set (it is
+/// checked every [`STEPS_PER_CHECK`] samples); the states are [`integrate`]'s.
+pub fn mechanize_until(
+    initial: &NavState,
+    imu: &[[f64; 6]],
+    dt: f64,
+    cancel: &Cancel,
+) -> Result<Vec<NavState>> {
     if let Some(i) = imu.iter().position(|r| r.iter().any(|x| !x.is_finite())) {
         return Err(Error::invalid("imu", format!("row {i} is not finite")));
     }
     check::positive("dt", dt)?;
     earth::check_latitude("lla0", initial.lla[0])?;
-    let states = integrate(initial, imu, dt);
+    let mut states = Vec::with_capacity(imu.len() + 1);
+    states.push(*initial);
+    for chunk in imu.chunks(STEPS_PER_CHECK) {
+        cancel.check()?;
+        let last = states[states.len() - 1];
+        states.extend(integrate(&last, chunk, dt).into_iter().skip(1));
+    }
     if let Some(k) = states.iter().position(|s| {
         !(s.lla.iter().chain(s.vel.iter()).chain(s.dcm.iter())).all(|x| x.is_finite())
     }) {
@@ -205,6 +223,30 @@ mod tests {
                 "channel {i}: {imu:?} vs {ideal:?}"
             );
         }
+    }
+
+    /// Chunked for cancellation, `mechanize` gives `integrate`'s states bit for bit; a
+    /// set flag stops it before the first chunk.
+    #[test]
+    fn mechanize_equals_integrate_and_stops_when_cancelled() {
+        let (s0, ideal) = at_rest(32.0);
+        let imu: Vec<[f64; 6]> = (0..2 * STEPS_PER_CHECK + 7)
+            .map(|k| {
+                let mut row = ideal;
+                row[0] += 1e-3 * (k as f64 * 0.01).sin();
+                row
+            })
+            .collect();
+        let whole = integrate(&s0, &imu, 0.01);
+        let states = mechanize(&s0, &imu, 0.01).unwrap();
+        assert_eq!(states.len(), whole.len());
+        for (a, b) in states.iter().zip(&whole) {
+            assert_eq!((a.lla, a.vel, a.dcm), (b.lla, b.vel, b.dcm));
+        }
+        let cancel = Cancel::default();
+        cancel.cancel();
+        let err = mechanize_until(&s0, &imu, 0.01, &cancel).unwrap_err();
+        assert_eq!(err, Error::Cancelled);
     }
 
     #[test]

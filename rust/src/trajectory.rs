@@ -10,6 +10,7 @@
 //! it reproduces the truth to rounding.
 
 use crate::attitude::{dcm_from_euler, wrap_angle};
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
 use crate::error::{check, Error, Result};
 use crate::mechanization::{advance_position, invert_step, NavState};
@@ -186,6 +187,12 @@ impl TrajectorySpec {
     /// Generate the truth and the ideal IMU. Samples are taken at `k·dt` for
     /// `k = 0..=floor(duration/dt)`.
     pub fn generate(&self) -> Result<Truth> {
+        self.generate_until(&Cancel::default())
+    }
+
+    /// [`Self::generate`] that stops with [`Error::Cancelled`] soon after `cancel` is set
+    /// (checked every [`STEPS_PER_CHECK`] samples).
+    pub fn generate_until(&self, cancel: &Cancel) -> Result<Truth> {
         self.validate()?;
         let n = (self.duration() / self.dt + 1e-9).floor() as usize;
         // Closed-form speed, pitch and yaw at the start of each segment.
@@ -204,6 +211,9 @@ impl TrajectorySpec {
         let mut states: Vec<NavState> = Vec::with_capacity(n + 1);
         let mut rpy = Vec::with_capacity(n + 1);
         for k in 0..=n {
+            if k % STEPS_PER_CHECK == 0 {
+                cancel.check()?;
+            }
             let t = k as f64 * self.dt;
             while seg + 1 < self.segments.len() && t >= starts[seg + 1].0 {
                 seg += 1;
@@ -227,10 +237,13 @@ impl TrajectorySpec {
             states.push(NavState { lla, vel, dcm });
             rpy.push(Vector3::new(roll, p, wrap_angle(y)));
         }
-        let imu: Vec<[f64; 6]> = states
-            .windows(2)
-            .map(|w| invert_step(&w[0], &w[1], self.dt).to_array())
-            .collect();
+        let mut imu: Vec<[f64; 6]> = Vec::with_capacity(n);
+        for (k, w) in states.windows(2).enumerate() {
+            if k % STEPS_PER_CHECK == 0 {
+                cancel.check()?;
+            }
+            imu.push(invert_step(&w[0], &w[1], self.dt).to_array());
+        }
         // Finite inputs can still overflow (a yaw rate near f64::MAX, a height of 1e300 m).
         let bad_state = states.iter().position(|s| {
             !(s.lla.iter().chain(s.vel.iter()).chain(s.dcm.iter())).all(|x| x.is_finite())
@@ -393,6 +406,15 @@ mod tests {
             assert_eq!(builtin(name, 0.01).unwrap().duration(), 400.0, "{name}");
         }
         assert!(builtin("nope", 0.01).is_err());
+    }
+
+    #[test]
+    fn a_set_cancel_flag_stops_the_generation() {
+        let spec = builtin("paper", 0.01).unwrap();
+        let cancel = Cancel::default();
+        assert_eq!(spec.generate_until(&cancel).unwrap().time.len(), 33_001);
+        cancel.cancel();
+        assert_eq!(spec.generate_until(&cancel).unwrap_err(), Error::Cancelled);
     }
 
     #[test]

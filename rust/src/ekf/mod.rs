@@ -31,7 +31,7 @@ mod recorded;
 
 pub use config::{Aiding, FilterConfig};
 use dynamics::{add_imu_noise, ErrorDynamics};
-pub use recorded::{filter_recorded, FilterOutput, RecordedData};
+pub use recorded::{filter_recorded, filter_recorded_until, FilterOutput, RecordedData};
 
 /// Result of one DVL update.
 #[derive(Clone, Debug)]

@@ -1,6 +1,7 @@
 //! One filter pass over recorded (or user-simulated) IMU and DVL arrays.
 
 use super::{Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo};
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
 use crate::error::{check, Error, Result};
 use crate::mechanization::{ImuSample, NavState};
@@ -163,6 +164,26 @@ pub fn filter_recorded(
     cfg: &FilterConfig,
     strategy: &mut dyn NoiseStrategy,
 ) -> Result<FilterOutput> {
+    filter_recorded_until(
+        data,
+        initial,
+        initial_bias,
+        cfg,
+        strategy,
+        &Cancel::default(),
+    )
+}
+
+/// [`filter_recorded`] that stops with [`Error::Cancelled`] soon after `cancel` is set:
+/// it is checked every [`STEPS_PER_CHECK`] IMU samples.
+pub fn filter_recorded_until(
+    data: &RecordedData<'_>,
+    initial: NavState,
+    initial_bias: [f64; 6],
+    cfg: &FilterConfig,
+    strategy: &mut dyn NoiseStrategy,
+    cancel: &Cancel,
+) -> Result<FilterOutput> {
     earth::check_latitude("lla0", initial.lla[0])?;
     data.validate()?;
     if !data.q_time.is_empty() && !strategy.takes_outside_q() {
@@ -194,6 +215,9 @@ pub fn filter_recorded(
     let mut at = Cursor::default();
     let mut t_prev = data.t0;
     for (k, (sample, &t)) in data.imu.iter().zip(data.imu_time).enumerate() {
+        if k % STEPS_PER_CHECK == 0 {
+            cancel.check()?;
+        }
         let dt = t - t_prev;
         // DVL rows that fell before the first epoch cannot be used.
         while at.next_dvl < data.dvl.len() && data.dvl_time[at.next_dvl] < data.t0 - 0.5 * dt {
@@ -294,6 +318,31 @@ mod tests {
         .validate()
         .unwrap_err();
         assert!(err.to_string().starts_with("imu_time"), "{err}");
+    }
+
+    #[test]
+    fn a_set_cancel_flag_stops_a_pass() {
+        let imu = vec![[0.01, 0.0, -9.79, 0.0, 1e-4, 0.0]; 10];
+        let imu_time: Vec<f64> = (1..=10).map(|k| k as f64 * 0.01).collect();
+        let data = RecordedData {
+            imu: &imu,
+            imu_time: &imu_time,
+            dvl: &[],
+            dvl_time: &[],
+            t0: 0.0,
+            q_time: &[],
+            q_values: &[],
+        };
+        let cfg = FilterConfig::default();
+        let pass = |cancel: &Cancel| {
+            let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
+            let bias = [0.0; 6];
+            filter_recorded_until(&data, moving_state(), bias, &cfg, strategy.as_mut(), cancel)
+        };
+        assert_eq!(pass(&Cancel::default()).unwrap().time.len(), 11);
+        let cancel = Cancel::default();
+        cancel.cancel();
+        assert_eq!(pass(&cancel).unwrap_err(), Error::Cancelled);
     }
 
     /// A q schedule switches an external strategy's q at the epoch nearest each row's

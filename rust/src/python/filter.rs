@@ -3,8 +3,8 @@
 use super::config::PyFilterConfig;
 use super::convert::{arg_t0, column, fixed_or, matrix, nav_arrays, nav_state, rows};
 use super::strategy::PyStrategy;
-use super::{detached, invalid};
-use crate::ekf::{filter_recorded, FilterOutput, RecordedData};
+use super::{interruptible, invalid};
+use crate::ekf::{filter_recorded_until, FilterOutput, RecordedData};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
@@ -55,7 +55,7 @@ fn run_filter<'py>(
     let bias0 = fixed_or::<6>(bias0, "bias0", [0.0; 6])?;
     let cfg = config.inner.clone();
     let spec = strategy.inner.clone();
-    let out: FilterOutput = detached(py, move || {
+    let out: FilterOutput = interruptible(py, move |cancel| {
         let data = RecordedData {
             imu: &imu,
             imu_time: &imu_time,
@@ -66,7 +66,7 @@ fn run_filter<'py>(
             q_values: &q_values,
         };
         let mut strat = spec.build(cfg.bias_psd());
-        filter_recorded(&data, init, bias0, &cfg, strat.as_mut())
+        filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), cancel)
     })?;
     output_dict(py, &out)
 }

@@ -1,7 +1,7 @@
 //! Earth model and strapdown mechanization: `normal_gravity`, `earth_radii`, `mechanize`.
 
 use super::convert::{arg_dt, arg_h, arg_lat, nav_arrays, nav_state, rows};
-use super::{detached, to_py_err};
+use super::{interruptible, to_py_err};
 use crate::{earth, mechanization};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -32,7 +32,9 @@ fn mechanize<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let samples = rows::<6>(imu, "imu")?;
     let init = nav_state(lla0, vel0, rpy0)?;
-    let states = detached(py, move || mechanization::mechanize(&init, &samples, dt))?;
+    let states = interruptible(py, move |cancel| {
+        mechanization::mechanize_until(&init, &samples, dt, cancel)
+    })?;
     let d = PyDict::new(py);
     nav_arrays(py, &d, &states)?;
     Ok(d)

@@ -1,7 +1,7 @@
 //! `Trajectory` and the functions that make one.
 
 use super::convert::{arg_dt, arg_speed0, fixed, fixed_or, matrix, rows};
-use super::{detached, to_py_err};
+use super::{interruptible, to_py_err};
 use crate::trajectory::{self, Segment, TrajectorySpec, Truth};
 use nalgebra::Vector3;
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -81,7 +81,7 @@ impl PyTrajectory {
 fn make_trajectory(py: Python<'_>, spec: TrajectorySpec) -> PyResult<PyTrajectory> {
     let truth = {
         let spec = spec.clone();
-        detached(py, move || spec.generate())?
+        interruptible(py, move |cancel| spec.generate_until(cancel))?
     };
     Ok(PyTrajectory {
         truth: Arc::new(truth),
