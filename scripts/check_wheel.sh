@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Check that the release wheel is portable, complete and works on its own: build it with
 # `maturin build --release --zig` for manylinux2014 (glibc >= 2.17), or take one with
-# --wheel PATH; check its platform tag with `auditwheel show`; install that one file
-# into a brand-new virtual environment (dependencies from PyPI) and, from a folder
-# outside the checkout, import it, look for the files it must ship (py.typed, _core.pyi,
-# the native module, the shipped weights) and run the CLI.
+# --wheel PATH; build the sdist and look for the sources in it; check the wheel's
+# platform tag with `auditwheel show`; install that one file into a brand-new virtual
+# environment (dependencies from PyPI) and, from a folder outside the checkout, import
+# it, look for the files it must ship (py.typed, _core.pyi, the native module, the
+# shipped weights) and run the CLI.
 #
 #   bash scripts/check_wheel.sh                  # the light install (no torch): pronet info,
 #                                                # simulate (native strategies and shipped
@@ -23,7 +24,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
 PYTHON="${PYTHON:-python3}"
 
-usage() { sed -n '2,20p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,/^set -euo/{/^set -euo/d;p}' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 WHEEL=""
 FULL=0
 while [ $# -gt 0 ]; do
@@ -85,6 +86,18 @@ WHEEL_NAME="$(basename "$WHEEL")"
 WHEEL_SIZE="$(du -h "$WHEEL" | cut -f1)"
 echo "   wheel: $WHEEL_NAME ($WHEEL_SIZE)"
 
+# --- the sdist: the sources a wheel is built from ---------------------------------------
+echo "== sdist"
+(cd "$ROOT" && "$TOOLS/maturin" sdist --out "$TMP/sdist") >"$TMP/sdist.log" 2>&1 \
+  || { tail -n 20 "$TMP/sdist.log" >&2; fail "maturin sdist failed"; }
+SDIST="$(ls "$TMP"/sdist/pronet-*.tar.gz)"
+tar tzf "$SDIST" >"$TMP/sdist.files"
+for f in pyproject.toml Cargo.toml Cargo.lock rust/src/lib.rs python/pronet/__init__.py \
+         python/pronet/_core.pyi python/pronet/weights/detrend.safetensors; do
+  grep -qx "pronet-[^/]*/$f" "$TMP/sdist.files" || fail "the sdist has no $f"
+done
+echo "   $(basename "$SDIST"): the crate, the package and the weights"
+
 # --- portable: manylinux2014 (glibc 2.17) or older, by auditwheel ----------------------
 echo "== auditwheel show"
 "$TOOLS/auditwheel" show "$WHEEL" >"$TMP/auditwheel.log" 2>&1 \
@@ -97,7 +110,7 @@ echo "   $tag (manylinux2014 or older)"
 
 # --- install into a brand-new venv -----------------------------------------------------
 NEW="$TMP/venv"
-echo "== install: fresh venv $NEW, pip install $WHEEL_NAME (dependencies from PyPI)"
+echo "== install: fresh venv $NEW, $WHEEL_NAME without extras (dependencies from PyPI)"
 t=$(now)
 # Only the wheel file is named: pronet comes from it and its dependencies from PyPI.
 # The light install: no extra. uv (when the tools have it) does what pip does, faster.

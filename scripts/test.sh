@@ -26,5 +26,5 @@ echo "== mypy (the package's types)"
 "$VENV/bin/python" -m mypy --cache-dir "${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
 echo "== the wheel: manylinux2014, installed without extras into a fresh venv"
 bash "$ROOT/scripts/check_wheel.sh"
-echo "== pytest"
-"$VENV/bin/python" -m pytest -q tests
+echo "== pytest (a worker per core, up to 4; each test file in one worker)"
+"$VENV/bin/python" -m pytest -q -n auto --maxprocesses 4 --dist loadfile tests
