@@ -53,7 +53,7 @@ def test_a_signal_ends_a_long_native_call_at_once(tmp_path, sig, code, word) -> 
 def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
     """The other long native calls poll too: Ctrl-C 0.3 s into a filter pass over two
     million IMU samples or the mechanization of eight million (each about 4 s here)
-    raises KeyboardInterrupt within a fraction of a second."""
+    raises KeyboardInterrupt within a second."""
     import os
     import threading
 
@@ -86,5 +86,8 @@ def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
             call()
         took = time.monotonic() - began
         timer.join()
+        # Uninterrupted, each call takes about 4 s here (more under load). The promise is
+        # a stop within a second of the signal; it is usually a tenth of that, the rest
+        # is the input check and copy before the native call, which signals wait for.
         print(f"{name}: stopped {took - 0.3:.2f} s after the signal")
-        assert took < 0.3 + 0.5, f"{name} took {took:.2f} s"
+        assert took - 0.3 < 1.0, f"{name} stopped {took - 0.3:.2f} s after the signal"

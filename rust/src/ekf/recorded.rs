@@ -320,19 +320,24 @@ mod tests {
         assert!(err.to_string().starts_with("imu_time"), "{err}");
     }
 
-    #[test]
-    fn a_set_cancel_flag_stops_a_pass() {
-        let imu = vec![[0.01, 0.0, -9.79, 0.0, 1e-4, 0.0]; 10];
-        let imu_time: Vec<f64> = (1..=10).map(|k| k as f64 * 0.01).collect();
-        let data = RecordedData {
-            imu: &imu,
-            imu_time: &imu_time,
+    /// IMU rows alone from `t0` = 0: no DVL, no q schedule.
+    fn imu_only<'a>(imu: &'a [[f64; 6]], imu_time: &'a [f64]) -> RecordedData<'a> {
+        RecordedData {
+            imu,
+            imu_time,
             dvl: &[],
             dvl_time: &[],
             t0: 0.0,
             q_time: &[],
             q_values: &[],
-        };
+        }
+    }
+
+    #[test]
+    fn a_set_cancel_flag_stops_a_pass() {
+        let imu = vec![[0.01, 0.0, -9.79, 0.0, 1e-4, 0.0]; 10];
+        let imu_time: Vec<f64> = (1..=10).map(|k| k as f64 * 0.01).collect();
+        let data = imu_only(&imu, &imu_time);
         let cfg = FilterConfig::default();
         let pass = |cancel: &Cancel| {
             let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
@@ -404,15 +409,7 @@ mod tests {
     #[test]
     fn a_start_beyond_89_degrees_is_refused_naming_lla0() {
         let imu = [[0.0, 0.0, -9.8, 0.0, 0.0, 0.0]; 2];
-        let data = RecordedData {
-            imu: &imu,
-            imu_time: &[0.01, 0.02],
-            dvl: &[],
-            dvl_time: &[],
-            t0: 0.0,
-            q_time: &[],
-            q_values: &[],
-        };
+        let data = imu_only(&imu, &[0.01, 0.02]);
         let cfg = FilterConfig::default();
         let init = NavState {
             lla: Vector3::new(-1.56, 0.0, 0.0),
