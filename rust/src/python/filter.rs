@@ -1,7 +1,9 @@
 //! `run_filter`: one filter pass over given IMU and DVL arrays.
 
 use super::config::PyFilterConfig;
-use super::convert::{arg_t0, column, fixed_or, matrix, nav_arrays, nav_state, rows};
+use super::convert::{
+    arg_t0, as_rows, column, fixed_or, matrix, nav_arrays, nav_state, readonly_rows, rows,
+};
 use super::strategy::PyStrategy;
 use super::{interruptible, invalid};
 use crate::ekf::{filter_recorded_until, FilterOutput, RecordedData};
@@ -46,10 +48,14 @@ fn run_filter<'py>(
     q_time: Option<&Bound<'py, PyAny>>,
     q: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let imu = rows::<6>(imu, "imu")?;
+    let imu_array = readonly_rows::<6>(imu, "imu")?;
+    let imu_rows = as_rows::<6>(&imu_array);
+    let imu = &*imu_rows;
     let (q_time, q_values) = q_schedule(q_time, q)?;
     let imu_time = column(imu_time, "imu_time")?;
-    let dvl = rows::<3>(dvl, "dvl")?;
+    let dvl_array = readonly_rows::<3>(dvl, "dvl")?;
+    let dvl_rows = as_rows::<3>(&dvl_array);
+    let dvl = &*dvl_rows;
     let dvl_time = column(dvl_time, "dvl_time")?;
     let init = nav_state(lla0, vel0, rpy0)?;
     let bias0 = fixed_or::<6>(bias0, "bias0", [0.0; 6])?;
@@ -57,9 +63,9 @@ fn run_filter<'py>(
     let spec = strategy.inner.clone();
     let out: FilterOutput = interruptible(py, move |cancel| {
         let data = RecordedData {
-            imu: &imu,
+            imu,
             imu_time: &imu_time,
-            dvl: &dvl,
+            dvl,
             dvl_time: &dvl_time,
             t0,
             q_time: &q_time,

@@ -1,6 +1,6 @@
 //! Earth model and strapdown mechanization: `normal_gravity`, `earth_radii`, `mechanize`.
 
-use super::convert::{arg_dt, arg_h, arg_lat, nav_arrays, nav_state, rows};
+use super::convert::{arg_dt, arg_h, arg_lat, as_rows, nav_arrays, nav_state, readonly_rows};
 use super::{interruptible, to_py_err};
 use crate::{earth, mechanization};
 use pyo3::prelude::*;
@@ -30,10 +30,12 @@ fn mechanize<'py>(
     vel0: &Bound<'py, PyAny>,
     rpy0: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let samples = rows::<6>(imu, "imu")?;
+    let imu = readonly_rows::<6>(imu, "imu")?;
+    let rows = as_rows::<6>(&imu);
+    let samples = &*rows;
     let init = nav_state(lla0, vel0, rpy0)?;
     let states = interruptible(py, move |cancel| {
-        mechanization::mechanize_until(&init, &samples, dt, cancel)
+        mechanization::mechanize_until(&init, samples, dt, cancel)
     })?;
     let d = PyDict::new(py);
     nav_arrays(py, &d, &states)?;
