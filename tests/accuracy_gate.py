@@ -99,7 +99,7 @@ def monte_carlo_row(result) -> Row:  # result: pronet.MonteCarloResult with hist
 def section_row(section, run) -> Row:  # pronet.alignment.Section, pronet.realdata.SectionRun
     """The gate's figures of one recorded-section run, at its ground-truth rows. The
     velocity NEES uses the filter's per-axis σ (the recorded diagonal)."""
-    from pronet.realdata import estimate_at_truth
+    from pronet.realmetrics import estimate_at_truth
 
     r = run.result
     rows, _, vel = estimate_at_truth(section, r)
@@ -228,20 +228,19 @@ REAL_PREFIX = "real: "
 
 
 def real_rows(loaded: list) -> Rows:
-    """Every strategy on each aligned recorded section (``loaded``: ``(aligned, _)``
+    """Every row of ``pronet real`` (:func:`pronet.realdata.plan_section`: the strategies
+    and the variant rows) on each aligned recorded section (``loaded``: ``(aligned, _)``
     pairs from :func:`pronet.alignment.load_section`)."""
     from pronet import models, realdata
 
     regressors = {k: models.load(k) for k in models.SHIPPED}
     out: Rows = {}
     for aligned, _ in loaded:
-        q = realdata.white_noise_q(aligned.imu)
-        config = realdata.real_filter_config(aligned.alignment.filter_lever_arm)
-        rows: dict[str, Row] = {}
-        for label, strategy in realdata.real_strategies(q, regressors, 1.0).items():
-            run = realdata.run_section(aligned, strategy, config, label=label)
-            rows[label] = section_row(aligned, run)
-        out[f"{REAL_PREFIX}{aligned.name}"] = rows
+        plan = realdata.plan_section(aligned, regressors, 1.0)
+        runs, _ = realdata.evaluate_section(
+            aligned, plan.strategies, plan.config, variants=plan.variants
+        )
+        out[f"{REAL_PREFIX}{aligned.name}"] = {r.label: section_row(aligned, r) for r in runs}
     return out
 
 

@@ -31,10 +31,14 @@ def _at(t: np.ndarray, tp: np.ndarray, fp: np.ndarray) -> np.ndarray:
 
 
 def synthetic_recording(
-    seed: int = 0, duration: float = 80.0, name: str = "synthetic"
+    seed: int = 0,
+    duration: float = 80.0,
+    name: str = "synthetic",
+    dvl_sigma: float | tuple[float, float, float] = 0.01,
 ) -> Synthetic:
     """An AUV-like section: turns and depth changes at 1.5–2 m/s, 100 Hz IMU with
-    white noise, 1 Hz DVL and ground truth on their own clocks."""
+    white noise (variance 1e-4 (m/s²)² and 1e-8 (rad/s)²), 1 Hz DVL with white noise of
+    ``dvl_sigma`` [m/s] per body axis, and ground truth on their own clocks."""
     # Smoothly varying turn rate, speed and pitch (one-second segments), as an AUV
     # manoeuvres: 1 Hz rows interpolate such motion well.
     t = np.arange(int(duration)) + 0.5
@@ -79,7 +83,7 @@ def synthetic_recording(
     cd = dcm_from_euler(_at(t_dvl, t_epoch, rpy))
     v_body = np.einsum("kji,kj->ki", cd, _at(t_dvl, t_epoch, traj.vel_ned))
     v_body += np.cross(_at(t_dvl, imu_time, traj.imu[:, 3:6]), r_dvl - r_imu)
-    dvl = v_body + rng.normal(scale=0.01, size=v_body.shape)
+    dvl = v_body + rng.normal(scale=dvl_sigma, size=v_body.shape)
 
     def stamps(clock: Clock, t: np.ndarray) -> np.ndarray:
         return (t - clock.offset) / clock.scale

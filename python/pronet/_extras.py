@@ -24,4 +24,3 @@ def missing(module: str, what: str) -> MissingExtra:
         f"{what} needs {module}, which is not installed: pip install 'pronet[{EXTRAS[module]}]'",
         name=module,
     )
-

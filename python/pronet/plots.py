@@ -270,7 +270,7 @@ def section_velocity_error(section, runs, path: str | os.PathLike[str]) -> Path:
     """Velocity error (north, east, down) against time of each strategy on one
     recorded section, at the ground-truth rows; the y range follows the first strategy
     so that a diverging row does not flatten the others."""
-    from pronet.realdata import estimate_at_truth
+    from pronet.realmetrics import estimate_at_truth
 
     fig = _figure(11.0, 7.0)
     axes = fig.subplots(3, 1, sharex=True)

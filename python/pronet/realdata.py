@@ -11,7 +11,6 @@ error as a percentage of the horizontal distance travelled.
 
 from __future__ import annotations
 
-import math
 import os
 import threading
 from collections.abc import Callable, Mapping
@@ -26,9 +25,16 @@ from numpy.typing import NDArray
 from pronet import _core
 from pronet._validate import flag, float_array, scalar
 from pronet.alignment import Section, find_sections, load_section, section_name
+from pronet.dvlnoise import (
+    DVL_NOISE_SOURCES,
+    MatchedVariance,
+    match_innovations,
+    second_difference_variance,
+)
 from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.paper import paper_strategies
+from pronet.realmetrics import SectionMetrics, section_metrics
 from pronet.realtables import failed_records, real_tables, write_metrics
 from pronet.run import Recorded, run
 from pronet.strategies import StrategyLike, StrategySpec, strategy
@@ -58,14 +64,25 @@ REAL_LABELS = {
 }
 
 
-def real_filter_config(lever_arm: tuple[float, float, float]) -> _core.FilterConfig:
+def _check_dvl_noise(source: str) -> None:
+    if source not in DVL_NOISE_SOURCES:
+        choices = ", ".join(DVL_NOISE_SOURCES)
+        raise ValueError(f"--dvl-noise: must be one of {choices}, got {source!r}")
+
+
+def real_filter_config(
+    lever_arm: tuple[float, float, float],
+    dvl_variance: tuple[float, float, float] | None = None,
+) -> _core.FilterConfig:
     """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
-    IMU [m, body FRD]; see :data:`REAL_P0_SIGMA` and the PSD constants for sources."""
+    IMU [m, body FRD] and the DVL noise ``dvl_variance`` per body axis [(m/s)²]
+    (default: the datasheet's, :data:`REAL_DVL_VARIANCE`); see :data:`REAL_P0_SIGMA`
+    and the PSD constants for sources."""
     return _core.FilterConfig(
         p0_sigma=REAL_P0_SIGMA,
         accel_bias_psd=REAL_ACCEL_BIAS_PSD,
         gyro_bias_psd=REAL_GYRO_BIAS_PSD,
-        dvl_variance=(REAL_DVL_VARIANCE,) * 3,
+        dvl_variance=(REAL_DVL_VARIANCE,) * 3 if dvl_variance is None else dvl_variance,
         lever_arm=lever_arm,
     )
 
@@ -91,6 +108,11 @@ REAL_EXTRA_ROWS = {
 }
 
 
+#: Rows beside the strategies: the first strategy (constant, estimated q) under another
+#: filter tuning, by label: the DVL noise R from the recording instead of the datasheet.
+REAL_VARIANT_ROWS = ("constant (estimated q), R from data",)
+
+
 def real_strategies(
     q: tuple[float, ...], models: Mapping[str, Regressor], tuning_period: float
 ) -> dict[str, StrategyLike]:
@@ -105,29 +127,6 @@ def real_strategies(
             continue  # as the paper's learned rows: only with the models given
         out[label] = strategy(spec, q, tuning_period, models.get(spec.model))
     return out
-
-
-@dataclass(frozen=True)
-class SectionMetrics:
-    """Errors of one run against the ground truth at its rows after the start.
-
-    Attributes:
-        srmse, smae: velocity √(mean Σ δv²) and mean Σ|δv| [m/s].
-        final_horizontal, max_horizontal: horizontal position error [m].
-        distance: horizontal distance travelled by the truth [m].
-        final_percent: ``final_horizontal`` as % of ``distance``.
-        mean_nis: mean NIS of the DVL updates (3 when consistent).
-        n_scored: ground-truth rows scored.
-    """
-
-    srmse: float
-    smae: float
-    final_horizontal: float
-    max_horizontal: float
-    distance: float
-    final_percent: float
-    mean_nis: float
-    n_scored: int
 
 
 @dataclass(frozen=True)
@@ -205,52 +204,6 @@ def run_section(
     )
 
 
-def _horizontal_offsets(lla: F64, ref: F64) -> tuple[F64, F64]:
-    """North and east of ``lla`` from ``ref`` [m], row by row (radii at ``ref``)."""
-    radii = np.array([_core.earth_radii(float(lat)) for lat in ref[:, 0]])
-    north = (lla[:, 0] - ref[:, 0]) * (radii[:, 0] + ref[:, 2])
-    east = (lla[:, 1] - ref[:, 1]) * (radii[:, 1] + ref[:, 2]) * np.cos(ref[:, 0])
-    return north, east
-
-
-def estimate_at_truth(section: Section, result: FilterResult) -> tuple[NDArray[np.intp], F64, F64]:
-    """``(rows, lla, vel)``: the truth rows inside the run and the estimate there,
-    linearly interpolated between IMU epochs."""
-    rows = np.flatnonzero(
-        (section.truth_time > result.time[0]) & (section.truth_time <= result.time[-1])
-    )
-    t = section.truth_time[rows]
-
-    def at(values: F64) -> F64:
-        return np.stack([np.interp(t, result.time, values[:, j]) for j in range(3)], axis=1)
-
-    return rows, at(result.lla), at(result.vel)
-
-
-def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
-    """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`)."""
-    rows, lla, vel = estimate_at_truth(section, result)
-    if rows.size == 0:
-        raise ValueError(f"section {section.name}: no ground-truth row inside the run")
-    dv = vel - section.truth_vel[rows]
-    north, east = _horizontal_offsets(lla, section.truth_lla[rows])
-    horizontal = np.hypot(north, east)
-    truth = section.truth_lla[np.concatenate([[rows[0] - 1], rows])]
-    step_n, step_e = _horizontal_offsets(truth[1:], truth[:-1])
-    distance = float(np.sum(np.hypot(step_n, step_e)))
-    nis = result.nis[np.isfinite(result.nis)]
-    return SectionMetrics(
-        srmse=float(np.sqrt(np.mean(np.sum(dv**2, axis=1)))),
-        smae=float(np.mean(np.sum(np.abs(dv), axis=1))),
-        final_horizontal=float(horizontal[-1]),
-        max_horizontal=float(horizontal.max()),
-        distance=distance,
-        final_percent=100 * float(horizontal[-1]) / distance if distance > 0 else math.nan,
-        mean_nis=float(nis.mean()) if nis.size else math.nan,
-        n_scored=int(rows.size),
-    )
-
-
 #: Seconds of the pure-inertial sanity run.
 INERTIAL_SECONDS = 60.0
 
@@ -260,17 +213,21 @@ def evaluate_section(
     strategies: Mapping[str, StrategyLike],
     config: _core.FilterConfig,
     *,
+    variants: Mapping[str, _core.FilterConfig] | None = None,
     setup: str = "aligned",
     on_done: Callable[[str], None] | None = None,
 ) -> tuple[list[SectionRun], SectionRun]:
-    """Every strategy on ``section``, plus the pure-inertial run over the first
+    """Every strategy on ``section`` with ``config``, the first strategy with each of
+    ``variants``' configs (by row label), and the pure-inertial run over the first
     :data:`INERTIAL_SECONDS` with the first strategy's noise."""
+    first = next(iter(strategies.values()))
+    rows = [(label, chosen, config) for label, chosen in strategies.items()]
+    rows += [(label, first, cfg) for label, cfg in (variants or {}).items()]
     runs = []
-    for label, chosen in strategies.items():
-        runs.append(run_section(section, chosen, config, label=label, setup=setup))
+    for label, chosen, cfg in rows:
+        runs.append(run_section(section, chosen, cfg, label=label, setup=setup))
         if on_done is not None:
             on_done(label)
-    first = next(iter(strategies.values()))
     inertial = run_section(
         section,
         first,
@@ -281,6 +238,82 @@ def evaluate_section(
         use_dvl=False,
     )
     return runs, inertial
+
+
+@dataclass(frozen=True)
+class SectionDvlNoise:
+    """The DVL noise of one section, per body axis [(m/s)²] (:mod:`pronet.dvlnoise`).
+
+    Attributes:
+        second_difference: from the DVL's own readings, filter-free.
+        matched: innovation-matched for the constant (estimated q) filter, starting
+            from ``second_difference``.
+    """
+
+    second_difference: tuple[float, float, float]
+    matched: MatchedVariance
+
+
+def estimate_dvl_noise(
+    section: Section, strategy: StrategyLike, lever_arm: tuple[float, float, float]
+) -> SectionDvlNoise:
+    """The DVL noise of ``section``: its second-difference R, then the R that matches
+    the innovations of ``strategy`` under :func:`real_filter_config` (a pass per step
+    of :func:`pronet.dvlnoise.match_innovations`)."""
+    start = second_difference_variance(section.dvl)
+
+    def one_pass(r: tuple[float, float, float]) -> FilterResult:
+        return run_section(section, strategy, real_filter_config(lever_arm, r)).result
+
+    try:
+        return SectionDvlNoise(start, match_innovations(one_pass, start))
+    except ValueError as exc:
+        raise ValueError(f"section {section.name}: DVL noise: {exc}") from None
+
+
+@dataclass(frozen=True)
+class SectionPlan:
+    """What runs on one section: the strategy rows with ``config``, and the first
+    strategy with each of ``variants``' configs (:data:`REAL_VARIANT_ROWS`).
+
+    Attributes:
+        q: the section's IMU noise (:func:`white_noise_q`).
+        dvl_noise: the section's DVL noise estimates.
+        dvl_variance: the R of the strategy rows [(m/s)²] (the datasheet's or the data's).
+    """
+
+    q: tuple[float, ...]
+    strategies: dict[str, StrategyLike]
+    config: _core.FilterConfig
+    variants: dict[str, _core.FilterConfig]
+    dvl_noise: SectionDvlNoise
+    dvl_variance: tuple[float, float, float]
+
+
+def plan_section(
+    section: Section,
+    models: Mapping[str, Regressor],
+    tuning_period: float,
+    dvl_noise: str = "datasheet",
+) -> SectionPlan:
+    """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
+    its estimated q, with the DVL noise of ``dvl_noise`` (one of
+    :data:`DVL_NOISE_SOURCES`), and the variant rows."""
+    _check_dvl_noise(dvl_noise)
+    q = white_noise_q(section.imu)
+    strategies = real_strategies(q, models, tuning_period)
+    arm = section.alignment.filter_lever_arm
+    noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm)
+    used = noise.matched.variance if dvl_noise == "data" else (REAL_DVL_VARIANCE,) * 3
+    (from_data,) = REAL_VARIANT_ROWS
+    return SectionPlan(
+        q,
+        strategies,
+        real_filter_config(arm, used),
+        {from_data: real_filter_config(arm, noise.matched.variance)},
+        noise,
+        used,
+    )
 
 
 # ------------------------------------------------------------------------ pronet real
@@ -299,6 +332,8 @@ class RealRuns:
         constants: per section, the q of each constant strategy (for the q plots).
         failed: per section that could not be read or filtered, the reason (one line);
             the other sections' runs are complete without it.
+        dvl_noise: per section, the DVL noise estimates and the R the strategy rows
+            used ``(estimates, used)``.
     """
 
     sections: list[tuple[Section, Section]]
@@ -308,6 +343,9 @@ class RealRuns:
     q_estimated: dict[str, tuple[float, ...]]
     constants: dict[str, dict[str, tuple[float, ...]]]
     failed: dict[str, str] = field(default_factory=dict)
+    dvl_noise: dict[str, tuple[SectionDvlNoise, tuple[float, float, float]]] = field(
+        default_factory=dict
+    )
 
 
 def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
@@ -334,9 +372,11 @@ def run_sections(
     on_done: Callable[[str], None] | None = None,
     threads: int | None = None,
     failed: Mapping[str, str] | None = None,
+    dvl_noise: str = "datasheet",
 ) -> RealRuns:
-    """Every strategy of :func:`real_strategies` on each aligned section (with its own
-    estimated q), the first one on the section as stamped, and the inertial run;
+    """The rows of :func:`plan_section` on each aligned section (with its own estimated
+    q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
+    the inertial run;
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core; each filter is one native call
     without the GIL), and the results do not depend on it.
@@ -355,7 +395,8 @@ def run_sections(
 
     def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
         try:
-            return _run_one_section(pair[0], pair[1], models, tuning_period, done)
+            plan = plan_section(pair[0], models, tuning_period, dvl_noise)
+            return _run_one_section(pair[0], pair[1], plan, done)
         except ValueError as exc:  # the reason, kept beside the section's name
             return str(exc)
 
@@ -379,6 +420,7 @@ def run_sections(
         {a.name: p.q for (a, _), p in ran},
         {a.name: p.constants for (a, _), p in ran},
         reasons,
+        {a.name: (p.plan.dvl_noise, p.plan.dvl_variance) for (a, _), p in ran},
     )
 
 
@@ -393,40 +435,41 @@ def _no_section_left(reasons: Mapping[str, str]) -> str:
 
 @dataclass(frozen=True)
 class _SectionRuns:
-    q: tuple[float, ...]
+    plan: SectionPlan
     constants: dict[str, tuple[float, ...]]
     runs: list[SectionRun]
     stamped: SectionRun
     inertial: SectionRun
 
+    @property
+    def q(self) -> tuple[float, ...]:
+        return self.plan.q
+
 
 def _run_one_section(
-    aligned: Section,
-    stamped: Section,
-    models: Mapping[str, Regressor],
-    tuning_period: float,
-    on_done: Callable[[str], None],
+    aligned: Section, stamped: Section, plan: SectionPlan, on_done: Callable[[str], None]
 ) -> _SectionRuns:
-    q = white_noise_q(aligned.imu)
-    strategies = real_strategies(q, models, tuning_period)
     constants = {
         label: tuple(s.q)
-        for label, s in strategies.items()
+        for label, s in plan.strategies.items()
         if isinstance(s, _core.Strategy) and s.kind == "constant"
     }
-    config = real_filter_config(aligned.alignment.filter_lever_arm)
     section_runs, inertial_run = evaluate_section(
-        aligned, strategies, config, on_done=lambda label: on_done(f"{aligned.name}: {label}")
+        aligned,
+        plan.strategies,
+        plan.config,
+        variants=plan.variants,
+        on_done=lambda label: on_done(f"{aligned.name}: {label}"),
     )
-    first_label, first = next(iter(strategies.items()))
+    first_label, first = next(iter(plan.strategies.items()))
     stamped_run = run_section(
         stamped,
         first,
-        real_filter_config(stamped.alignment.filter_lever_arm),
+        real_filter_config(stamped.alignment.filter_lever_arm, plan.dvl_variance),
         label=f"{first_label}, stamps as given, no lever arms",
         setup="stamps as given, no lever arms",
     )
-    return _SectionRuns(q, constants, section_runs, stamped_run, inertial_run)
+    return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run)
 
 
 def write_real_plots(
@@ -457,6 +500,7 @@ def run_real(
     tuning_period: float = 1.0,
     use_models: bool = True,
     plots: bool = True,
+    dvl_noise: str = "datasheet",
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -477,6 +521,10 @@ def run_real(
         use_models: False: only the model-based rows.
         plots: False: no plots (the tables and metrics only; the plots take most of
             the time of a run on the Snapir data).
+        dvl_noise: the DVL noise R of the strategy rows, one of
+            :data:`DVL_NOISE_SOURCES`: ``"datasheet"`` (:data:`REAL_DVL_VARIANCE`) or
+            ``"data"`` (each section's innovation-matched R, :func:`estimate_dvl_noise`).
+            Either way the table has the variant rows and reports each section's R.
         on_start, on_done: progress callbacks (see :mod:`pronet._outputs`): stages
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
@@ -489,6 +537,7 @@ def run_real(
     folder = new_result_folder(out, "real")
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
+    _check_dvl_noise(dvl_noise)
     imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
     dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
     paths = select_sections(data, sections)
@@ -516,9 +565,11 @@ def run_real(
     if not loaded:  # nothing to run: the first reason, before any filter
         raise ValueError(_no_section_left(unread))
     if on_start is not None:
-        n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0))
+        n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0)) + len(REAL_VARIANT_ROWS)
         on_start(len(loaded) * n_rows, "run", None)
-    done = run_sections(loaded, regressors, tuning_period, on_done, failed=unread)
+    done = run_sections(
+        loaded, regressors, tuning_period, on_done, failed=unread, dvl_noise=dvl_noise
+    )
     config = {
         "data": str(Path(data).resolve()),
         "format": fmt,
@@ -536,6 +587,17 @@ def run_real(
             for a, _ in done.sections
         },
         "q_estimated": done.q_estimated,
+        "dvl_noise": dvl_noise,
+        "dvl_variance": {
+            name: {
+                "used": list(used),
+                "second_difference": list(noise.second_difference),
+                "matched": list(noise.matched.variance),
+                "matched_passes": noise.matched.passes,
+                "matched_converged": noise.matched.converged,
+            }
+            for name, (noise, used) in done.dvl_noise.items()
+        },
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }
     with atomic_folder(folder) as tmp:

@@ -147,15 +147,34 @@ def failed_table(failed: dict[str, str]) -> str:
     return markdown(["section", "reason"], lines, "Sections not run")
 
 
+def dvl_noise_table(done: RealRuns) -> str:
+    """Markdown: each section's DVL noise 1σ per body axis [m/s]: the R its strategy
+    rows used, the second-difference estimate and the innovation-matched one."""
+
+    def sigma(v: tuple[float, float, float]) -> str:
+        return " / ".join(f"{math.sqrt(x):.4f}" for x in v)
+
+    lines: list[list[object]] = []
+    for name, (noise, used) in done.dvl_noise.items():
+        m = noise.matched
+        state = f"{m.passes} passes" + ("" if m.converged else ", not converged")
+        lines.append([name, sigma(used), sigma(noise.second_difference), sigma(m.variance), state])
+    header = ["section", "used", "second differences", "matched to innovations", "matching"]
+    return markdown(header, lines, "DVL noise 1σ, x / y / z [m/s]")
+
+
 def real_tables(done: RealRuns) -> str:
-    """The Markdown of ``table.md``: the summary, per-section SRMSE and final error, the
-    alignment comparison, the inertial sanity check and the sections that failed."""
+    """The Markdown of ``table.md``: the summary, per-section SRMSE, final error and
+    mean NIS, the DVL noise per section, the alignment comparison, the inertial sanity
+    check and the sections that failed."""
     first_label = done.runs[0].label
     return "\n".join(
         [
             summary_table(done.runs, "Clocks estimated, lever arms applied"),
             per_section_table(done.runs, "srmse", "Per section"),
             per_section_table(done.runs, "final_horizontal", "Per section"),
+            per_section_table(done.runs, "mean_nis", "Per section"),
+            *([dvl_noise_table(done)] if done.dvl_noise else []),
             summary_table(
                 [r for r in done.runs if r.label == first_label] + done.stamped,
                 f"{first_label}: alignment handled against stamps as given",

@@ -17,6 +17,7 @@ from pronet.cli._common import (
     add_output_flags,
     add_tuning_period,
 )
+from pronet.dvlnoise import DVL_NOISE_SOURCES
 
 
 def _vector3(text: str) -> tuple[float, float, float]:
@@ -65,6 +66,14 @@ def add_parser(sub: Subparsers) -> None:
         help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
     )
     add_tuning_period(parser)
+    parser.add_argument(
+        "--dvl-noise",
+        choices=DVL_NOISE_SOURCES,
+        default="datasheet",
+        help="the DVL noise R of the strategy rows: the datasheet's (0.02 m/s) or each "
+        "section's, matched to the filter's innovations (default datasheet; the table "
+        "has a row with R from the data and each section's R either way)",
+    )
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
     parser.add_argument(
@@ -90,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
             tuning_period=args.tuning_period,
             use_models=not args.no_models,
             plots=not args.no_plots,
+            dvl_noise=args.dvl_noise,
             on_start=bars.start,
             on_done=bars.done,
         )
