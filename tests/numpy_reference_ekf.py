@@ -1,8 +1,9 @@
 """An independent, pure-NumPy implementation of the filter in ``docs/filter.md``.
 
-It shares no code with the Rust core: dense 15x15 matrices, ``Phi = I + F dt`` built as
-a full matrix, ``P = Phi P Phi^T + Qd``, the Joseph update with full matrices. It is
-slow and plain on purpose; the test suite runs both filters on the same arrays.
+It shares no code with the Rust core: dense 15x15 matrices (19x19 with the DVL
+calibration states), ``Phi = I + F dt`` built as a full matrix, ``P = Phi P Phi^T + Qd``,
+the Joseph update with full matrices. It is slow and plain on purpose; the test suite
+runs both filters on the same arrays.
 Frames: NED navigation, FRD body; positions [lat rad, lon rad, h m].
 """
 
@@ -111,19 +112,35 @@ def run_reference_filter(
     imu_dt,
     lever_arm=(0.0, 0.0, 0.0),
     aiding="body",
+    calibration=None,
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
-    innovation, nis (one row per DVL measurement applied, in order)."""
+    innovation, nis (one row per DVL measurement applied, in order).
+
+    ``calibration``: None, or ``(scale_sigma, misalignment_sigma (3,), scale_psd,
+    misalignment_psd)`` for the DVL scale-factor and misalignment states 15..19; the
+    output then also has ``calibration`` (k, roll, pitch, yaw of the DVL in the body)
+    and ``calibration_sigma`` per epoch, ``sigma`` keeping the first 15."""
     lla = np.array(lla0, dtype=float)
     v = np.array(vel0, dtype=float)
     c = dcm_from_euler(*rpy0)
     ba = np.zeros(3)
     bg = np.zeros(3)
-    p = np.diag(np.asarray(p0_sigma, dtype=float) ** 2)
+    n_x = 15 if calibration is None else 19
+    p0 = np.asarray(p0_sigma, dtype=float) ** 2
+    cal_noise = np.zeros(0)
+    if calibration is not None:
+        scale_sigma, mis_sigma, scale_psd, mis_psd = calibration
+        p0 = np.concatenate([p0, [scale_sigma**2], np.asarray(mis_sigma, dtype=float) ** 2])
+        cal_noise = np.array([scale_psd, mis_psd, mis_psd, mis_psd])
+    p = np.diag(p0)
+    k_scale = 0.0  # DVL scale-factor error estimate
+    m_dvl = np.eye(3)  # body -> DVL rotation estimate
     r_arm = np.asarray(lever_arm, dtype=float)
     rmat = np.diag(dvl_variance)
     q = np.asarray(q, dtype=float)
-    out = {k: [] for k in ("time", "lla", "vel", "rpy", "bias", "sigma", "innovation", "nis")}
+    keys = ("time", "lla", "vel", "rpy", "bias", "sigma", "innovation", "nis")
+    out = {k: [] for k in (*keys, "calibration", "calibration_sigma")}
 
     def record(t):
         out["time"].append(t)
@@ -131,7 +148,10 @@ def run_reference_filter(
         out["vel"].append(v.copy())
         out["rpy"].append(euler_from_dcm(c))
         out["bias"].append(np.concatenate([ba, bg]))
-        out["sigma"].append(np.sqrt(np.diag(p)))
+        out["sigma"].append(np.sqrt(np.diag(p))[:15])
+        if calibration is not None:
+            out["calibration"].append(np.concatenate([[k_scale], euler_from_dcm(m_dvl.T)]))
+            out["calibration_sigma"].append(np.sqrt(np.diag(p))[15:])
 
     record(t0)
     t_prev = t0
@@ -160,8 +180,12 @@ def run_reference_filter(
         gam[9:12, 6:9] = np.eye(3)
         gam[12:15, 9:12] = np.eye(3)
         qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
-        phi = np.eye(15) + fm * dt
-        p = phi @ p @ phi.T + gam @ qc @ gam.T * dt
+        phi = np.eye(n_x)
+        phi[:15, :15] += fm * dt
+        qd = np.zeros((n_x, n_x))
+        qd[:15, :15] = gam @ qc @ gam.T * dt
+        qd[15:, 15:] = np.diag(cal_noise * dt)
+        p = phi @ p @ phi.T + qd
         p = (p + p.T) / 2
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:
@@ -174,10 +198,20 @@ def run_reference_filter(
             else:
                 pred = v.copy()
                 h[:, 3:6] = np.eye(3)
+            if calibration is not None:  # z = (1 + k) M v_b
+                v_b = pred
+                pred = (1 + k_scale) * m_dvl @ v_b
+                h = np.hstack(
+                    [
+                        (1 + k_scale) * m_dvl @ h,
+                        (m_dvl @ v_b)[:, None],
+                        -(1 + k_scale) * m_dvl @ skew(v_b),
+                    ]
+                )
             nu = dvl[j] - pred
             s = h @ p @ h.T + rmat
             gain = p @ h.T @ np.linalg.inv(s)
-            ikh = np.eye(15) - gain @ h
+            ikh = np.eye(n_x) - gain @ h
             p = ikh @ p @ ikh.T + gain @ rmat @ gain.T
             p = (p + p.T) / 2
             dx = -gain @ nu
@@ -189,6 +223,9 @@ def run_reference_filter(
             c = exp_so3(dx[6:9]) @ c
             ba = ba - dx[9:12]
             bg = bg - dx[12:15]
+            if calibration is not None:
+                k_scale = k_scale - dx[15]
+                m_dvl = m_dvl @ exp_so3(-dx[16:19])
             out["innovation"].append(nu)
             out["nis"].append(float(nu @ np.linalg.solve(s, nu)))
             j += 1

@@ -69,11 +69,17 @@ def _fake_pass(true_r: np.ndarray, share: float, rng: np.random.Generator):
         s[:, [0, 1, 2], [0, 1, 2]] = hph + np.asarray(r)
         nis = np.einsum("ki,ki->k", nu, nu / np.diagonal(s, axis1=1, axis2=2))
         empty = np.zeros((0,))
+        unused = ("time", "lla", "vel", "rpy", "bias", "sigma", "calibration",
+                  "calibration_sigma", "covariance", "gain", "adaptive_q")  # fmt: skip
         return FilterResult(
-            empty, empty, empty, empty, empty, empty, empty,
-            np.zeros(m, dtype=np.int64), nu, s, nis, empty, empty,
-            np.ones(m, dtype=bool), None,
-        )  # fmt: skip
+            **dict.fromkeys(unused, empty),
+            dvl_epoch=np.zeros(m, dtype=np.int64),
+            innovation=nu,
+            innovation_cov=s,
+            nis=nis,
+            accepted=np.ones(m, dtype=bool),
+            diverged_at=None,
+        )
 
     return one_pass
 
@@ -141,9 +147,20 @@ def test_both_estimates_find_a_known_dvl_noise_and_the_rows_use_it(known_noise) 
     datasheet = realdata.plan_section(section, {}, 1.0)
     assert datasheet.dvl_variance == (realdata.REAL_DVL_VARIANCE,) * 3
     assert tuple(datasheet.config.dvl_variance) == datasheet.dvl_variance
-    (label,) = realdata.REAL_VARIANT_ROWS
-    variant = datasheet.variants[label]
-    assert tuple(variant.dvl_variance) == datasheet.dvl_noise.matched.variance
+    variants = datasheet.variants
+    assert list(variants) == list(realdata.REAL_VARIANT_ROWS)
+    noise = datasheet.dvl_noise
+    from_data = variants[realdata.R_FROM_DATA]
+    assert tuple(from_data.dvl_variance) == noise.matched.variance
+    assert not from_data.dvl_calibration
+    calibrated = variants[realdata.DVL_CALIBRATION]
+    assert calibrated.dvl_calibration
+    assert tuple(calibrated.dvl_variance) == datasheet.dvl_variance
+    both = variants[realdata.BOTH]
+    assert both.dvl_calibration
+    assert tuple(both.dvl_variance) == noise.matched_calibrated.variance
+    # An ideal simulated DVL: the states explain nothing, R comes out alike.
+    np.testing.assert_allclose(noise.matched_calibrated.variance, true_r, rtol=0.25)
     from_data = realdata.plan_section(section, {}, 1.0, dvl_noise="data")
     assert from_data.dvl_variance == from_data.dvl_noise.matched.variance
     assert tuple(from_data.config.dvl_variance) == from_data.dvl_variance

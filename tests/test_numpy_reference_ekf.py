@@ -113,6 +113,60 @@ def test_rust_filter_matches_reference(aiding, lever_arm) -> None:
     np.testing.assert_allclose(rust.nis, ref["nis"], rtol=rtol)
 
 
+def test_rust_filter_with_dvl_calibration_states_matches_reference() -> None:
+    """The 19-state filter (DVL scale factor and misalignment) against the dense NumPy
+    one, on readings of a DVL with a 0.5 % scale error and a mounting of (0.1°, −0.2°,
+    0.5°), lever arm and random-walk PSDs included: equal to 1e-8 relative."""
+    arm = np.array([0.5, -0.2, 1.0])
+    imu, imu_time, dvl_body, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, arm, "body")
+    mounting = np.radians([0.1, -0.2, 0.5])
+    m_true = dcm_from_euler(*mounting).T  # body -> DVL
+    dvl = (1.005 * (m_true @ dvl_body.T)).T
+    calibration = (0.01, (0.02, 0.02, 0.03), 1e-8, 1e-9)
+    cfg = pronet.FilterConfig(
+        p0_sigma=P0,
+        accel_bias_psd=1e-6,
+        gyro_bias_psd=1e-8,
+        dvl_variance=(0.01,) * 3,
+        lever_arm=arm,
+        dvl_calibration=True,
+        dvl_scale_sigma=calibration[0],
+        dvl_misalignment_sigma=calibration[1],
+        dvl_scale_psd=calibration[2],
+        dvl_misalignment_psd=calibration[3],
+    )
+    args = (imu, imu_time, dvl, dvl_time)
+    start = dict(lla0=lla0, vel0=vel0, rpy0=rpy0)
+    rust = pronet.run_filter(
+        *args, t0=0.0, **start, config=cfg, strategy=pronet.Strategy.constant(Q)
+    )
+    ref = run_reference_filter(
+        *args, 0.0, lla0, vel0, rpy0, q=Q, accel_bias_psd=1e-6, gyro_bias_psd=1e-8,
+        dvl_variance=(0.01,) * 3, p0_sigma=P0, imu_dt=0.01, lever_arm=arm,
+        calibration=calibration,
+    )  # fmt: skip
+    assert len(ref["nis"]) == 60 and rust.calibration.shape == (len(imu) + 1, 4)
+    rtol = 1e-8
+    np.testing.assert_allclose(rust.vel, ref["vel"], rtol=rtol, atol=1e-8 * 1.0)
+    np.testing.assert_allclose(rust.rpy, ref["rpy"], rtol=rtol, atol=1e-8 * 1e-2)
+    np.testing.assert_allclose(rust.bias, ref["bias"], rtol=rtol, atol=1e-8 * 1e-3)
+    np.testing.assert_allclose(rust.sigma, ref["sigma"], rtol=rtol, atol=0.0)
+    np.testing.assert_allclose(rust.lla[:, :2], ref["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6)
+    np.testing.assert_allclose(rust.innovation, ref["innovation"], rtol=rtol, atol=1e-8 * 0.1)
+    np.testing.assert_allclose(rust.nis, ref["nis"], rtol=rtol)
+    # Scale ~0.005 and angles ~0.01 rad: 1e-8 relative of those scales.
+    np.testing.assert_allclose(rust.calibration, ref["calibration"], rtol=rtol, atol=1e-10)
+    np.testing.assert_allclose(rust.calibration_sigma, ref["calibration_sigma"], rtol=rtol)
+    # The updates moved the states (how well they learn: test_dvl_calibration.py).
+    assert np.abs(rust.calibration[-1] - rust.calibration[0]).max() > 1e-4
+    # Without the states the arrays are empty.
+    plain = pronet.run_filter(
+        *args, t0=0.0, **start, config=pronet.FilterConfig(p0_sigma=P0),
+        strategy=pronet.Strategy.constant(Q),
+    )  # fmt: skip
+    assert plain.calibration.shape == plain.calibration_sigma.shape == (0, 4)
+
+
 @pytest.mark.parametrize("xi", [1, 5])
 def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(30.0, np.zeros(3), "body")

@@ -386,10 +386,12 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
         assert {f"track_{name}.png", f"velocity_error_{name}.png", f"q_{name}.png"} <= files
     metrics = json.loads((out / "metrics.json").read_text())
     aligned = [r for r in metrics if r["scenario"] in ("run1", "run2")]
-    # the paper's seven rows, detvar, adaptive, the three grade models, R from the data,
-    # inertial only
-    assert sum(r["scenario"] == "run1" for r in aligned) == 14 and len(aligned) == 28
-    assert "constant (estimated q), R from data" in text
+    # the paper's seven rows, detvar, adaptive, the three grade models, the three variant
+    # rows (R from the data, the DVL calibration states, both), inertial only
+    assert sum(r["scenario"] == "run1" for r in aligned) == 16 and len(aligned) == 32
+    for label in realdata.REAL_VARIANT_ROWS:
+        assert label in text
+    assert "DVL calibration: final estimate ± 1σ" in text
     header = (out / "metrics.csv").read_text().splitlines()[0]
     assert header == ",".join(RUN_COLUMNS)
     config = json.loads((out / "config.json").read_text())
@@ -398,8 +400,11 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     # synthetic DVL's σ is 0.01 m/s; 70 rows say it to within a factor of two).
     noise = config["dvl_variance"]["run1"]
     assert config["dvl_noise"] == "datasheet" and noise["used"] == [0.02**2] * 3
-    for key in ("second_difference", "matched"):
+    for key in ("second_difference", "matched", "matched_calibrated"):
         assert all(0.25e-4 < v < 4e-4 for v in noise[key]), (key, noise[key])
+    # The calibrated rows' final DVL scale and mounting, with 1σ, per section.
+    calibration = config["dvl_calibration"][f"run1: {realdata.DVL_CALIBRATION}"]
+    assert len(calibration["scale_roll_pitch_yaw"]) == len(calibration["sigma"]) == 4
     assert "DVL noise 1σ, x / y / z [m/s]" in text
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]  # no leftovers
     assert main(argv) == 2  # the folder exists: refused, not overwritten
@@ -483,13 +488,17 @@ def test_snapir_accuracy_matches_a_standard_ekf():
 def test_snapir_r_from_the_data_makes_every_section_consistent():
     """Sections 1–11: with the DVL noise matched to each section's innovations, the
     constant row's mean NIS lies between 1.5 and 6 on every section (with the
-    datasheet's 0.02 m/s it spans about 0.6–25), and the matching converges. The
-    accuracy of the row is pinned by the accuracy gate, whatever it is."""
+    datasheet's 0.02 m/s it spans about 0.6–25), with or without the DVL calibration
+    states, and the matching converges. The accuracy of the rows is pinned by the
+    accuracy gate, whatever it is."""
     for aligned, _ in alignment.load_snapir_sections(SNAPIR):
         plan = realdata.plan_section(aligned, {}, 1.0, dvl_noise="data")
-        run = realdata.run_section(aligned, next(iter(plan.strategies.values())), plan.config)
-        assert plan.dvl_noise.matched.converged, aligned.name
-        assert 1.5 <= run.metrics.mean_nis <= 6.0, (aligned.name, run.metrics.mean_nis)
+        first = next(iter(plan.strategies.values()))
+        noise = plan.dvl_noise
+        assert noise.matched.converged and noise.matched_calibrated.converged, aligned.name
+        for config in (plan.config, plan.variants[realdata.BOTH]):
+            run = realdata.run_section(aligned, first, config)
+            assert 1.5 <= run.metrics.mean_nis <= 6.0, (aligned.name, run.metrics.mean_nis)
 
 
 @pytest.mark.slow

@@ -118,8 +118,12 @@ def mechanize(
 class FilterConfig:
     """EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
     ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
-    ("body" velocity or "nav" NED velocity), nominal IMU period [s], and the chi-square
-    innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate)."""
+    ("body" velocity or "nav" NED velocity), nominal IMU period [s], the chi-square
+    innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate), and
+    the opt-in DVL calibration states (``dvl_calibration=True``, body aiding only): the
+    DVL's scale-factor error and mounting misalignment appended to the 15 error states,
+    with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
+    [1/s, rad²/s] (default 0: constants). See ``docs/filter.md``."""
 
     def __new__(
         cls,
@@ -132,6 +136,11 @@ class FilterConfig:
         aiding: Literal["body", "nav"] = "body",
         imu_dt: float = 0.01,
         innovation_gate: float | None = None,
+        dvl_calibration: bool = False,
+        dvl_scale_sigma: float | None = None,
+        dvl_misalignment_sigma: Any | None = None,
+        dvl_scale_psd: float | None = None,
+        dvl_misalignment_psd: float | None = None,
     ) -> FilterConfig: ...
     @property
     def p0_sigma(self) -> list[float]: ...
@@ -149,6 +158,16 @@ class FilterConfig:
     def imu_dt(self) -> float: ...
     @property
     def innovation_gate(self) -> float | None: ...
+    @property
+    def dvl_calibration(self) -> bool: ...
+    @property
+    def dvl_scale_sigma(self) -> float | None: ...
+    @property
+    def dvl_misalignment_sigma(self) -> list[float] | None: ...
+    @property
+    def dvl_scale_psd(self) -> float | None: ...
+    @property
+    def dvl_misalignment_psd(self) -> float | None: ...
 
 @final
 class Strategy:
@@ -191,8 +210,10 @@ class SensorConfig:
     ``imu_variance_times`` (k,) [s, starting at 0] a ``(k, 6)`` piecewise-constant
     schedule. Constant bias, bias random-walk PSD, DVL variance [(m/s)²], DVL period [s]
     (a whole number of IMU steps), DVL lever arm [m, body], DVL outages ``(k, 2)``
-    ``[start, end)`` [s] (sorted, not overlapping; no reading inside one). Defaults: the
-    paper's."""
+    ``[start, end)`` [s] (sorted, not overlapping; no reading inside one), and the
+    DVL's scale-factor error k (it reads ``1 + k`` times the velocity, k > −1) and
+    mounting misalignment (its roll, pitch, yaw in the body frame [rad]). Defaults: the
+    paper's (an ideal DVL)."""
 
     def __new__(
         cls,
@@ -205,6 +226,8 @@ class SensorConfig:
         dvl_period: float = 1.0,
         lever_arm: Any | None = None,
         dvl_outages: Any | None = None,
+        dvl_scale: float = 0.0,
+        dvl_misalignment: Any | None = None,
     ) -> SensorConfig: ...
     @property
     def imu_variance_times(self) -> list[float]: ...
@@ -222,6 +245,10 @@ class SensorConfig:
     def dvl_period(self) -> float: ...
     @property
     def lever_arm(self) -> list[float]: ...
+    @property
+    def dvl_scale(self) -> float: ...
+    @property
+    def dvl_misalignment(self) -> list[float]: ...
 
 def run_filter(
     imu: NDArray[np.float64],

@@ -26,6 +26,11 @@ class FilterResult:
         rpy: ``(n+1, 3)`` roll, pitch, yaw [rad].
         bias: ``(n+1, 6)`` accelerometer [m/s²] and gyro [rad/s] bias estimates.
         sigma: ``(n+1, 15)`` filter 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a, δb_g]``.
+        calibration: ``(n+1, 4)`` with ``FilterConfig(dvl_calibration=True)``, the DVL's
+            estimated scale-factor error k (it reads ``1 + k`` times the velocity) and
+            its mounting roll, pitch, yaw in the body frame [rad]; ``(0, 4)`` without.
+        calibration_sigma: ``(n+1, 4)`` the filter's 1σ of the same (the angles' as
+            small rotations about the body axes); ``(0, 4)`` without.
         covariance: ``(15, 15)`` covariance at the last epoch.
         dvl_epoch: ``(m,)`` epoch index each DVL row was applied at.
         innovation: ``(m, 3)`` ``z − h(x̂)`` [m/s].
@@ -47,6 +52,8 @@ class FilterResult:
     rpy: NDArray[np.float64]
     bias: NDArray[np.float64]
     sigma: NDArray[np.float64]
+    calibration: NDArray[np.float64]
+    calibration_sigma: NDArray[np.float64]
     covariance: NDArray[np.float64]
     dvl_epoch: NDArray[np.int64]
     innovation: NDArray[np.float64]

@@ -56,6 +56,13 @@ class MonteCarloResult:
         error: ``(n_runs, r, 15)`` true error ``[δp (NED m), δv (m/s), ψ (rad), δb_a, δb_g]``.
         sigma: ``(n_runs, r, 15)`` filter 1σ of the same.
         q: ``(n_runs, r, 6)`` IMU variances the strategy used (NaN where it has none).
+        calibration_error: with ``FilterConfig(dvl_calibration=True)``, ``(n_runs, 4)``
+            the final error of the DVL calibration states ``[δk, δμ_x, δμ_y, δμ_z]``
+            (estimate minus the simulated DVL's; scale, rad about the body axes);
+            None without the states.
+        calibration_sigma: ``(n_runs, 4)`` the filter's final 1σ of the same.
+        calibration_nees: ``(n_runs, m)`` NEES of the four calibration states after
+            each update (4 dof).
     """
 
     srmse: NDArray[np.float64]
@@ -73,6 +80,9 @@ class MonteCarloResult:
     error: NDArray[np.float64] | None = None
     sigma: NDArray[np.float64] | None = None
     q: NDArray[np.float64] | None = None
+    calibration_error: NDArray[np.float64] | None = None
+    calibration_sigma: NDArray[np.float64] | None = None
+    calibration_nees: NDArray[np.float64] | None = None
 
     @property
     def n_runs(self) -> int:

@@ -35,7 +35,7 @@ from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.paper import paper_strategies
 from pronet.realmetrics import SectionMetrics, section_metrics
-from pronet.realtables import failed_records, real_tables, write_metrics
+from pronet.realtables import failed_records, final_calibration, real_tables, write_metrics
 from pronet.run import Recorded, run
 from pronet.strategies import StrategyLike, StrategySpec, strategy
 
@@ -73,17 +73,20 @@ def _check_dvl_noise(source: str) -> None:
 def real_filter_config(
     lever_arm: tuple[float, float, float],
     dvl_variance: tuple[float, float, float] | None = None,
+    calibration: bool = False,
 ) -> _core.FilterConfig:
     """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
-    IMU [m, body FRD] and the DVL noise ``dvl_variance`` per body axis [(m/s)²]
-    (default: the datasheet's, :data:`REAL_DVL_VARIANCE`); see :data:`REAL_P0_SIGMA`
-    and the PSD constants for sources."""
+    IMU [m, body FRD], the DVL noise ``dvl_variance`` per body axis [(m/s)²] (default:
+    the datasheet's, :data:`REAL_DVL_VARIANCE`) and, with ``calibration``, the DVL
+    scale-factor and misalignment states (their default prior: 1 %, 1° per axis); see
+    :data:`REAL_P0_SIGMA` and the PSD constants for sources."""
     return _core.FilterConfig(
         p0_sigma=REAL_P0_SIGMA,
         accel_bias_psd=REAL_ACCEL_BIAS_PSD,
         gyro_bias_psd=REAL_GYRO_BIAS_PSD,
         dvl_variance=(REAL_DVL_VARIANCE,) * 3 if dvl_variance is None else dvl_variance,
         lever_arm=lever_arm,
+        dvl_calibration=calibration,
     )
 
 
@@ -109,8 +112,12 @@ REAL_EXTRA_ROWS = {
 
 
 #: Rows beside the strategies: the first strategy (constant, estimated q) under another
-#: filter tuning, by label: the DVL noise R from the recording instead of the datasheet.
-REAL_VARIANT_ROWS = ("constant (estimated q), R from data",)
+#: filter tuning, by label: the DVL noise R from the recording instead of the
+#: datasheet's, the DVL calibration states, and both (R matched with the states on).
+R_FROM_DATA = "constant (estimated q), R from data"
+DVL_CALIBRATION = "constant (estimated q), DVL calibration"
+BOTH = "constant (estimated q), R from data, DVL calibration"
+REAL_VARIANT_ROWS = (R_FROM_DATA, DVL_CALIBRATION, BOTH)
 
 
 def real_strategies(
@@ -248,25 +255,34 @@ class SectionDvlNoise:
         second_difference: from the DVL's own readings, filter-free.
         matched: innovation-matched for the constant (estimated q) filter, starting
             from ``second_difference``.
+        matched_calibrated: the same with the DVL calibration states on, starting from
+            ``matched``.
     """
 
     second_difference: tuple[float, float, float]
     matched: MatchedVariance
+    matched_calibrated: MatchedVariance
 
 
 def estimate_dvl_noise(
     section: Section, strategy: StrategyLike, lever_arm: tuple[float, float, float]
 ) -> SectionDvlNoise:
     """The DVL noise of ``section``: its second-difference R, then the R that matches
-    the innovations of ``strategy`` under :func:`real_filter_config` (a pass per step
-    of :func:`pronet.dvlnoise.match_innovations`)."""
+    the innovations of ``strategy`` under :func:`real_filter_config`, without and with
+    the calibration states (a pass per step of :func:`pronet.dvlnoise.match_innovations`)."""
     start = second_difference_variance(section.dvl)
 
-    def one_pass(r: tuple[float, float, float]) -> FilterResult:
-        return run_section(section, strategy, real_filter_config(lever_arm, r)).result
+    def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
+        def one_pass(r: tuple[float, float, float]) -> FilterResult:
+            config = real_filter_config(lever_arm, r, calibration)
+            return run_section(section, strategy, config).result
+
+        return match_innovations(one_pass, first)
 
     try:
-        return SectionDvlNoise(start, match_innovations(one_pass, start))
+        without = matched(False, start)
+        # With the states, R comes out close to the R without them: start from there.
+        return SectionDvlNoise(start, without, matched(True, without.variance))
     except ValueError as exc:
         raise ValueError(f"section {section.name}: DVL noise: {exc}") from None
 
@@ -305,15 +321,12 @@ def plan_section(
     arm = section.alignment.filter_lever_arm
     noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm)
     used = noise.matched.variance if dvl_noise == "data" else (REAL_DVL_VARIANCE,) * 3
-    (from_data,) = REAL_VARIANT_ROWS
-    return SectionPlan(
-        q,
-        strategies,
-        real_filter_config(arm, used),
-        {from_data: real_filter_config(arm, noise.matched.variance)},
-        noise,
-        used,
-    )
+    variants = {
+        R_FROM_DATA: real_filter_config(arm, noise.matched.variance),
+        DVL_CALIBRATION: real_filter_config(arm, calibration=True),
+        BOTH: real_filter_config(arm, noise.matched_calibrated.variance, calibration=True),
+    }
+    return SectionPlan(q, strategies, real_filter_config(arm, used), variants, noise, used)
 
 
 # ------------------------------------------------------------------------ pronet real
@@ -595,8 +608,19 @@ def run_real(
                 "matched": list(noise.matched.variance),
                 "matched_passes": noise.matched.passes,
                 "matched_converged": noise.matched.converged,
+                "matched_calibrated": list(noise.matched_calibrated.variance),
+                "matched_calibrated_passes": noise.matched_calibrated.passes,
+                "matched_calibrated_converged": noise.matched_calibrated.converged,
             }
             for name, (noise, used) in done.dvl_noise.items()
+        },
+        "dvl_calibration": {
+            f"{r.section}: {r.label}": {
+                "scale_roll_pitch_yaw": c[0].tolist(),
+                "sigma": c[1].tolist(),
+            }
+            for r in done.runs
+            if (c := final_calibration(r)) is not None
         },
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }

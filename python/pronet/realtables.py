@@ -158,9 +158,71 @@ def dvl_noise_table(done: RealRuns) -> str:
     for name, (noise, used) in done.dvl_noise.items():
         m = noise.matched
         state = f"{m.passes} passes" + ("" if m.converged else ", not converged")
-        lines.append([name, sigma(used), sigma(noise.second_difference), sigma(m.variance), state])
-    header = ["section", "used", "second differences", "matched to innovations", "matching"]
+        both = sigma(noise.matched_calibrated.variance)
+        lines.append(
+            [name, sigma(used), sigma(noise.second_difference), sigma(m.variance), both, state]
+        )
+    header = [
+        "section",
+        "used",
+        "second differences",
+        "matched to innovations",
+        "matched, with calibration states",
+        "matching (without)",
+    ]
     return markdown(header, lines, "DVL noise 1σ, x / y / z [m/s]")
+
+
+#: Units of the reported DVL calibration ``[k, roll, pitch, yaw]``: % and degrees.
+_CALIBRATION_UNITS = (100.0, 180.0 / math.pi, 180.0 / math.pi, 180.0 / math.pi)
+_CALIBRATION_NAMES = ("scale [%]", "roll [°]", "pitch [°]", "yaw [°]")
+
+
+def final_calibration(run: SectionRun) -> tuple[np.ndarray, np.ndarray] | None:
+    """The run's final DVL calibration ``[k, roll, pitch, yaw]`` and its 1σ (scale;
+    rad), or None for a run without the states."""
+    r = run.result
+    if r.calibration.shape[0] == 0:
+        return None
+    return r.calibration[-1], r.calibration_sigma[-1]
+
+
+def calibration_agreement(values: np.ndarray, sigmas: np.ndarray) -> tuple[float, float, int]:
+    """The inverse-variance weighted mean of one quantity over sections, its 1σ, and
+    how many sections lie more than 3σ from it (σ of the difference: each section's
+    own and the mean's, taken as independent)."""
+    w = 1.0 / sigmas**2
+    mean = float(np.sum(w * values) / np.sum(w))
+    sigma = float(1.0 / math.sqrt(np.sum(w)))
+    off = np.abs(values - mean) > 3 * np.sqrt(sigmas**2 + sigma**2)
+    return mean, sigma, int(np.sum(off))
+
+
+def calibration_table(runs: list[SectionRun]) -> str:
+    """Markdown: each calibrated row's final DVL scale and mounting angles per section
+    with 1σ, then per row the weighted mean over sections and how many sections lie
+    beyond 3σ of it (one vehicle, one installation: they should agree)."""
+    found = [(r, c) for r in runs if (c := final_calibration(r)) is not None]
+    labels = list(dict.fromkeys(r.label for r, _ in found))
+    units = np.array(_CALIBRATION_UNITS)
+
+    def cell(v: float, s: float, unit: float) -> str:
+        return f"{v * unit:+.3f} ± {s * unit:.3f}"
+
+    lines: list[list[object]] = []
+    for label in labels:
+        mine = [(r, c) for r, c in found if r.label == label]
+        for r, (v, s) in mine:
+            lines.append([r.section, label, *(cell(*x) for x in zip(v, s, units, strict=True))])
+        values = np.array([c[0] for _, c in mine])
+        sigmas = np.array([c[1] for _, c in mine])
+        summary = []
+        for j in range(4):
+            mean, sigma, off = calibration_agreement(values[:, j], sigmas[:, j])
+            summary.append(f"**{cell(mean, sigma, units[j])}** ({off} beyond 3σ)")
+        lines.append(["**weighted mean**", label, *summary])
+    header = ["section", "row", *_CALIBRATION_NAMES]
+    return markdown(header, lines, "DVL calibration: final estimate ± 1σ")
 
 
 def real_tables(done: RealRuns) -> str:
@@ -175,6 +237,11 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "final_horizontal", "Per section"),
             per_section_table(done.runs, "mean_nis", "Per section"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
+            *(
+                [calibration_table(done.runs)]
+                if any(final_calibration(r) is not None for r in done.runs)
+                else []
+            ),
             summary_table(
                 [r for r in done.runs if r.label == first_label] + done.stamped,
                 f"{first_label}: alignment handled against stamps as given",

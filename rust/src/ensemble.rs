@@ -242,7 +242,11 @@ impl Ensemble {
             } else {
                 Vec::new()
             },
-            runs: self.runs.into_iter().map(Run::finish).collect(),
+            runs: self
+                .runs
+                .into_iter()
+                .map(|r| r.finish(&self.scenario))
+                .collect(),
         }
     }
 }

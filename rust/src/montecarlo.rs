@@ -213,7 +213,7 @@ pub fn run_monte_carlo_until(
                 }
                 run.step(scenario);
             }
-            Ok(run.finish())
+            Ok(run.finish(scenario))
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(McResult {

@@ -10,9 +10,9 @@ use crate::error::Result;
 use crate::mechanization::{ImuSample, NavState};
 use crate::montecarlo::Scenario;
 use crate::noise::{NoiseStrategy, StrategySpec};
-use crate::sensors::{normal, stream_rng, SensorSim, Stream};
+use crate::sensors::{normal, stream_rng, DvlMounting, SensorSim, Stream};
 use crate::trajectory::Truth;
-use nalgebra::Vector3;
+use nalgebra::{Vector3, Vector4};
 
 /// Per-run scalar metrics. Velocity errors are taken at every IMU epoch.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,6 +33,18 @@ pub struct RunSummary {
     pub diverged_at: Option<f64>,
     /// Set when the filter failed numerically; the run's metrics are then NaN.
     pub failure: Option<String>,
+    /// With the DVL calibration states: the final `[δk, δμ]` error (estimate minus
+    /// the simulated DVL's truth) and its 1σ.
+    pub calibration: Option<CalibrationSummary>,
+}
+
+/// The DVL calibration states at the end of a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CalibrationSummary {
+    /// `[δk, δμ_x, δμ_y, δμ_z]`, estimate minus truth (scale; rad, body axes).
+    pub error: [f64; 4],
+    /// The filter's 1σ of the same.
+    pub sigma: [f64; 4],
 }
 
 /// Recorded histories of one run, at `record_time` epochs.
@@ -55,6 +67,9 @@ pub struct RunRecord {
     /// NEES of the position, velocity, attitude, accelerometer-bias and gyro-bias
     /// blocks after each DVL update (3 dof each).
     pub nees: Vec<[f64; 5]>,
+    /// NEES of the DVL calibration states `[δk, δμ]` after each DVL update (4 dof);
+    /// empty without them.
+    pub calibration_nees: Vec<f64>,
     pub history: Option<History>,
 }
 
@@ -111,6 +126,7 @@ pub struct Run {
     accepted_nis_sum: f64,
     nis_monitor: NisMonitor,
     nees: Vec<[f64; 5]>,
+    calibration_nees: Vec<f64>,
     history: Option<History>,
     window: Option<ImuWindow>,
     failure: Option<String>,
@@ -135,6 +151,16 @@ fn state_error(ekf: &Ekf, truth: &NavState, true_bias: &[f64; 6]) -> [f64; 15] {
         e[offset..offset + 3].copy_from_slice(v.as_slice());
     }
     e
+}
+
+/// `[δk, δμ]` of the filter's DVL calibration against the simulated DVL's, with its
+/// NEES `eᵀ P_cc⁻¹ e` (NaN where P_cc is singular); None without the states.
+fn calibration_error(ekf: &Ekf, truth: &DvlMounting) -> Option<([f64; 4], [f64; 4], f64)> {
+    let c = ekf.calibration.as_ref()?;
+    let e = c.estimate.error_from(truth);
+    let v = Vector4::from(e);
+    let nees = c.cov.cholesky().map_or(f64::NAN, |ch| v.dot(&ch.solve(&v)));
+    Some((e, c.sigma(), nees))
 }
 
 /// NEES of each 3-block: `e_bᵀ P_bb⁻¹ e_b` (NaN where the block is singular).
@@ -204,6 +230,7 @@ impl Run {
             accepted_nis_sum: 0.0,
             nis_monitor: NisMonitor::default(),
             nees: Vec::with_capacity(n_epochs),
+            calibration_nees: Vec::new(),
             history: (record_every > 0).then(History::default),
             window: window.map(ImuWindow::new),
             failure: None,
@@ -263,7 +290,12 @@ impl Run {
                 z.as_ref(),
                 self.steps_since_update,
             ) {
-                Ok(Some(info)) => self.after_update(&info, state, truth.time[self.k]),
+                Ok(Some(info)) => self.after_update(
+                    &info,
+                    state,
+                    truth.time[self.k],
+                    &scenario.sensors.dvl.mounting,
+                ),
                 Ok(None) => {}
                 Err(e) => self.failure = Some(format!("t = {} s: {e}", truth.time[self.k])),
             }
@@ -277,7 +309,13 @@ impl Run {
         self.record_history(truth);
     }
 
-    fn after_update(&mut self, info: &UpdateInfo, state: &NavState, t: f64) {
+    fn after_update(
+        &mut self,
+        info: &UpdateInfo,
+        state: &NavState,
+        t: f64,
+        mounting: &DvlMounting,
+    ) {
         self.nis_monitor.push(info.nis, t);
         if info.accepted {
             self.steps_since_update = 0;
@@ -289,6 +327,9 @@ impl Run {
         self.nis.push(info.nis);
         let e = state_error(&self.ekf, state, &self.true_bias);
         self.nees.push(block_nees(&e, &self.ekf.p));
+        if let Some((_, _, nees)) = calibration_error(&self.ekf, mounting) {
+            self.calibration_nees.push(nees);
+        }
     }
 
     /// Write the last `window` raw IMU samples channel-major, oldest first, into `out`
@@ -308,7 +349,9 @@ impl Run {
         self.strategy.as_mut()
     }
 
-    pub fn finish(self) -> RunRecord {
+    /// The run's record (the DVL calibration judged against the scenario's DVL).
+    pub fn finish(self, scenario: &Scenario) -> RunRecord {
+        let mounting = &scenario.sensors.dvl.mounting;
         let n = self.k.max(1) as f64;
         let failed = self.failure.is_some();
         let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
@@ -328,10 +371,14 @@ impl Run {
                 mean_nis: nan_if_failed(mean_nis),
                 rejected_updates: self.rejected_updates,
                 diverged_at: self.nis_monitor.diverged_at,
+                calibration: calibration_error(&self.ekf, mounting)
+                    .filter(|_| !failed)
+                    .map(|(error, sigma, _)| CalibrationSummary { error, sigma }),
                 failure: self.failure,
             },
             nis: self.nis,
             nees: self.nees,
+            calibration_nees: self.calibration_nees,
             history: self.history,
         }
     }

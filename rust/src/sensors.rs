@@ -7,9 +7,10 @@
 //! run's noise never depends on the thread count, on other runs, or on the filter
 //! strategy (common random numbers across strategies).
 
+use crate::attitude::{dcm_from_euler, euler_from_dcm, log_so3};
 use crate::error::{check, Error, Result};
 use crate::mechanization::NavState;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -107,6 +108,74 @@ pub struct ImuErrorModel {
     pub bias_rw_psd: [f64; 6],
 }
 
+/// A DVL's scale factor and mounting, as the truth of a simulation or an estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DvlMounting {
+    /// Scale-factor error k: the DVL reads `(1 + k)` times the true velocity.
+    pub scale: f64,
+    /// Rotation from the body axes to the DVL's, `M = C_b^d`.
+    pub body_to_dvl: Matrix3<f64>,
+}
+
+impl Default for DvlMounting {
+    fn default() -> Self {
+        Self {
+            scale: 0.0,
+            body_to_dvl: Matrix3::identity(),
+        }
+    }
+}
+
+impl DvlMounting {
+    /// A mounting from the scale error and the DVL's roll, pitch, yaw in the body frame
+    /// [rad] (ZYX, the DVL's axes rotated from the body's: `C_d^b = R(roll, pitch, yaw)`).
+    pub fn from_angles(scale: f64, rpy: [f64; 3]) -> Self {
+        Self {
+            scale,
+            body_to_dvl: dcm_from_euler(rpy[0], rpy[1], rpy[2]).transpose(),
+        }
+    }
+
+    /// The DVL's roll, pitch, yaw in the body frame [rad].
+    pub fn angles(&self) -> [f64; 3] {
+        let e = euler_from_dcm(&self.body_to_dvl.transpose());
+        [e[0], e[1], e[2]]
+    }
+
+    /// `Err` naming `dvl_scale` or `dvl_misalignment` unless the scale error is finite
+    /// and above −1 (a DVL reading zero or reversed) and the rotation finite.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.scale.is_finite() && self.scale > -1.0) {
+            return Err(Error::invalid(
+                "dvl_scale",
+                format!(
+                    "must be finite and > -1 (a factor 1 + k > 0), got {}",
+                    self.scale
+                ),
+            ));
+        }
+        check::finite("dvl_misalignment", self.body_to_dvl.as_slice())
+    }
+
+    /// Whether this is the identity mounting (no scale error, aligned axes).
+    pub fn is_ideal(&self) -> bool {
+        self.scale == 0.0 && self.body_to_dvl == Matrix3::identity()
+    }
+
+    /// What the DVL reads of the body-frame velocity `v_b` at its position [m/s], in
+    /// its own axes: `(1 + k) M v_b`.
+    pub fn reading(&self, v_b: &Vector3<f64>) -> Vector3<f64> {
+        (1.0 + self.scale) * (self.body_to_dvl * v_b)
+    }
+
+    /// `[δk, δμ]` of this mounting as an estimate of `truth` (estimate minus truth):
+    /// `δμ = log(Mᵀ M̂)`.
+    pub fn error_from(&self, truth: &DvlMounting) -> [f64; 4] {
+        let mu = log_so3(&(truth.body_to_dvl.transpose() * self.body_to_dvl));
+        [self.scale - truth.scale, mu[0], mu[1], mu[2]]
+    }
+}
+
 /// DVL model: body-frame velocity at the DVL, every `period` seconds, white noise.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DvlModel {
@@ -119,6 +188,9 @@ pub struct DvlModel {
     /// Outages `[start, end)` [s]: no reading is due inside one (bottom lock lost,
     /// acoustic dropouts). Sorted, not overlapping.
     pub outages: Vec<[f64; 2]>,
+    /// The true scale factor and mounting of the DVL (ideal by default): it reads
+    /// `(1 + k) M v_b` in its own axes (estimated by [`crate::ekf::calibration`]).
+    pub mounting: DvlMounting,
 }
 
 impl DvlModel {
@@ -151,6 +223,7 @@ impl SensorConfig {
                 period: 1.0,
                 lever_arm: Vector3::zeros(),
                 outages: Vec::new(),
+                mounting: DvlMounting::default(),
             },
         }
     }
@@ -165,6 +238,7 @@ impl SensorConfig {
         check::non_negative("dvl_variance", &self.dvl.variance)?;
         check::positive("dvl_period", self.dvl.period)?;
         check::finite("lever_arm", self.dvl.lever_arm.as_slice())?;
+        self.dvl.mounting.validate()?;
         let mut previous_end = f64::NEG_INFINITY;
         for o in &self.dvl.outages {
             check::finite("dvl_outages", o)?;
@@ -239,10 +313,14 @@ impl SensorSim {
         out
     }
 
-    /// Noisy DVL reading `C_n^b v^n + ω × r + n` [m/s, body frame] for the true state
-    /// and the true body rate `gyro` [rad/s].
+    /// Noisy DVL reading `(1 + k) M (C_n^b v^n + ω × r) + n` [m/s, the DVL's axes] for
+    /// the true state and the true body rate `gyro` [rad/s]; with the ideal mounting
+    /// (the default) `C_n^b v^n + ω × r + n`, in the body axes.
     pub fn dvl(&mut self, cfg: &DvlModel, truth: &NavState, gyro: &Vector3<f64>) -> Vector3<f64> {
-        let v_b = truth.dcm.transpose() * truth.vel + gyro.cross(&cfg.lever_arm);
+        let mut v_b = truth.dcm.transpose() * truth.vel + gyro.cross(&cfg.lever_arm);
+        if !cfg.mounting.is_ideal() {
+            v_b = cfg.mounting.reading(&v_b);
+        }
         Vector3::from_fn(|i, _| v_b[i] + cfg.variance[i].sqrt() * normal(&mut self.dvl_rng))
     }
 }
@@ -250,6 +328,23 @@ impl SensorSim {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn mounting_angles_round_trip_and_the_reading_rotates_into_the_dvl() {
+        let m = DvlMounting::from_angles(0.005, [0.01, -0.02, 0.5f64.to_radians()]);
+        let a = m.angles();
+        assert!((a[0] - 0.01).abs() < 1e-12 && (a[1] + 0.02).abs() < 1e-12);
+        assert!((a[2] - 0.5f64.to_radians()).abs() < 1e-12);
+        // Yaw only: a forward body velocity has a negative DVL y in the DVL's axes
+        // (its x axis is turned right, towards the body's +y).
+        let yaw = DvlMounting::from_angles(0.0, [0.0, 0.0, 0.1]);
+        let z = yaw.reading(&Vector3::new(1.0, 0.0, 0.0));
+        assert!((z[0] - 0.1f64.cos()).abs() < 1e-15 && (z[1] + 0.1f64.sin()).abs() < 1e-15);
+        let scaled = DvlMounting::from_angles(0.01, [0.0; 3]);
+        assert_eq!(scaled.reading(&Vector3::new(2.0, 0.0, 0.0))[0], 2.02);
+        assert!(DvlMounting::default().is_ideal() && !scaled.is_ideal());
+    }
+
     use crate::attitude::dcm_from_euler;
 
     #[test]

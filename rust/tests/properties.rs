@@ -319,6 +319,7 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
                 aiding: if body { Aiding::Body } else { Aiding::Nav },
                 imu_dt: if dt == 0.05 { dt } else { 10f64.powf(dt) },
                 innovation_gate: None,
+                dvl_calibration: None,
             };
             for (field, v) in bad {
                 match field {

@@ -1,6 +1,7 @@
 //! The EKF's tuning: initial 1σ, bias random-walk PSDs, DVL noise and lever arm, aiding
 //! and the innovation gate.
 
+use super::calibration::{check_aiding, CalibrationConfig};
 use super::{Matrix15, Vector15};
 use crate::error::{check, Error, Result};
 use nalgebra::Vector3;
@@ -34,6 +35,9 @@ pub struct FilterConfig {
     /// applied, and unseen by the noise strategy). With 3 dof, 16.27 rejects 0.1 % of
     /// consistent updates. `None` (the default, as in the paper's table) applies all.
     pub innovation_gate: Option<f64>,
+    /// DVL scale-factor and misalignment states appended to the 15 (body-frame aiding
+    /// only); `None` (the default): the 15-state filter.
+    pub dvl_calibration: Option<CalibrationConfig>,
 }
 
 impl Default for FilterConfig {
@@ -47,6 +51,7 @@ impl Default for FilterConfig {
             aiding: Aiding::Body,
             imu_dt: 0.01,
             innovation_gate: None,
+            dvl_calibration: None,
         }
     }
 }
@@ -73,6 +78,10 @@ impl FilterConfig {
         check::positive("imu_dt", self.imu_dt)?;
         if let Some(gate) = self.innovation_gate {
             check::positive("innovation_gate", gate)?;
+        }
+        if let Some(c) = &self.dvl_calibration {
+            c.validate()?;
+            check_aiding(self.aiding == Aiding::Body)?;
         }
         Ok(())
     }

@@ -37,7 +37,7 @@ impl ErrorDynamics {
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
     /// multiply-adds instead of 225.
     #[inline(always)]
-    fn apply(&self, x: &[f64]) -> [f64; 9] {
+    pub(super) fn apply(&self, x: &[f64]) -> [f64; 9] {
         #[inline(always)]
         fn mv(a: &Matrix3<f64>, x: &[f64]) -> [f64; 3] {
             let a = a.as_slice(); // column-major

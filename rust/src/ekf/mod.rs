@@ -25,10 +25,12 @@ pub const ATT: usize = 6;
 pub const ACC_BIAS: usize = 9;
 pub const GYRO_BIAS: usize = 12;
 
+pub mod calibration;
 mod config;
 mod dynamics;
 mod recorded;
 
+use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
 use dynamics::{add_imu_noise, ErrorDynamics};
 pub use recorded::{filter_recorded, filter_recorded_until, FilterOutput, RecordedData};
@@ -98,6 +100,10 @@ pub struct Ekf {
     /// `M = ∂P/∂λ` and the IMU variances `q` it is taken for (see
     /// [`Ekf::track_sensitivity`]).
     sensitivity: Option<(Matrix15, [f64; 6])>,
+    /// The DVL calibration states, when [`FilterConfig::dvl_calibration`] asks for them.
+    pub calibration: Option<Calibration>,
+    /// The calibration blocks of `M` (with [`Ekf::track_sensitivity`] and calibration).
+    sensitivity_calibration: Option<Calibration>,
 }
 
 impl Ekf {
@@ -116,6 +122,8 @@ impl Ekf {
             last_gyro: Vector3::zeros(),
             cfg: cfg.clone(),
             sensitivity: None,
+            calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
+            sensitivity_calibration: None,
         })
     }
 
@@ -127,6 +135,7 @@ impl Ekf {
     /// reports `H M Hᵀ` ([`UpdateInfo::sensitivity`]); the adaptive strategy reads it.
     pub fn track_sensitivity(&mut self, q: [f64; 6]) {
         self.sensitivity = Some((Matrix15::zeros(), q));
+        self.sensitivity_calibration = self.calibration.as_ref().map(Calibration::zeroed_like);
     }
 
     /// The sensitivity `M = ∂P/∂λ` carried since [`Ekf::track_sensitivity`], if any.
@@ -162,6 +171,7 @@ impl Ekf {
             && self.accel_bias.iter().all(|x| x.is_finite())
             && self.gyro_bias.iter().all(|x| x.is_finite())
             && (0..15).all(|i| self.p[(i, i)].is_finite())
+            && self.calibration.as_ref().is_none_or(Calibration::is_finite)
     }
 
     /// Propagate over one raw IMU sample (`dt` [s]): covariance with F and Q_d from
@@ -177,9 +187,15 @@ impl Ekf {
         let dynamics = ErrorDynamics::new(&self.nav, &rates, &imu.accel);
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
+        if let Some(c) = self.calibration.as_mut() {
+            c.propagate(&dynamics, dt, true);
+        }
         if let Some((m, q)) = self.sensitivity.as_mut() {
             dynamics.propagate_covariance(m, dt);
             add_imu_noise(m, &self.nav.dcm, q, self.cfg.imu_dt * dt);
+            if let Some(c) = self.sensitivity_calibration.as_mut() {
+                c.propagate(&dynamics, dt, false);
+            }
         }
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
@@ -228,63 +244,58 @@ impl Ekf {
     }
 
     /// DVL update with measurement `z` [m/s] (body or NED per the aiding), Joseph form,
-    /// then feedback of the error estimate and reset.
+    /// then feedback of the error estimate and reset. With the DVL calibration states
+    /// the update runs on the 19-state covariance (see [`calibration`]).
     pub fn update(&mut self, z: &Vector3<f64>) -> Result<UpdateInfo> {
-        let (predicted, h) = self.measurement_model();
-        let innovation = z - predicted;
         let r = Matrix3::from_diagonal(&Vector3::from_column_slice(&self.cfg.dvl_variance));
-        let pht = self.p * h.transpose();
-        let s = h * pht + r;
-        let s_inv = s
-            .cholesky()
-            .ok_or_else(|| {
-                Error::Numerical("innovation covariance S is not positive definite".into())
-            })?
-            .inverse();
-        let gain: Gain = pht * s_inv;
-        let sensitivity = self
-            .sensitivity
-            .as_ref()
-            .map(|(m, _)| h * m * h.transpose());
-        let nis = innovation.dot(&(s_inv * innovation));
-        // Checked before anything is applied: a NaN would slip past the gate's `>`.
-        if !nis.is_finite() {
-            return Err(Error::Numerical(format!(
-                "the DVL update has a non-finite NIS ({nis})"
-            )));
+        let gate = self.cfg.innovation_gate;
+        let (predicted, h) = self.measurement_model();
+        let (info, dx) = match self.calibration.as_mut() {
+            None => {
+                let m = self.sensitivity.as_mut().map(|(m, _)| m);
+                let out = kalman_update(&mut self.p, m, &h, &(z - predicted), &r, gate)?;
+                (out.info, out.dx.map(|d| (d, None)))
+            }
+            Some(calibration) => {
+                let (predicted, h) = calibration.measurement(&predicted, &h);
+                let mut p = calibration.assemble(&self.p);
+                let sensitivity = self.sensitivity.as_mut().map(|(m, _)| m);
+                let mut m = match (&sensitivity, self.sensitivity_calibration.as_ref()) {
+                    (Some(m15), Some(c)) => Some(c.assemble(m15)),
+                    _ => None,
+                };
+                let out = kalman_update(&mut p, m.as_mut(), &h, &(z - predicted), &r, gate)?;
+                calibration.split(&p, &mut self.p);
+                if let (Some(full), Some(m15), Some(c)) = (
+                    m.as_ref(),
+                    sensitivity,
+                    self.sensitivity_calibration.as_mut(),
+                ) {
+                    c.split(full, m15);
+                }
+                let dx = out.dx.map(|d: SVector<f64, N_CALIBRATED>| {
+                    let nav: Vector15 = d.fixed_rows::<15>(0).into_owned();
+                    (
+                        nav,
+                        Some([d[SCALE], d[SCALE + 1], d[SCALE + 2], d[SCALE + 3]]),
+                    )
+                });
+                (out.info, dx)
+            }
+        };
+        if let Some((dx, cal)) = dx {
+            self.feedback(&dx);
+            if let (Some(c), Some(cal)) = (self.calibration.as_mut(), cal) {
+                c.feedback(&cal);
+            }
+            let calibration_finite = self.calibration.as_ref().is_none_or(Calibration::is_finite);
+            if !self.p[(0, 0)].is_finite() || !calibration_finite {
+                return Err(Error::Numerical(
+                    "the update produced a non-finite state".into(),
+                ));
+            }
         }
-        if self.cfg.innovation_gate.is_some_and(|gate| nis > gate) {
-            return Ok(UpdateInfo {
-                innovation,
-                s,
-                nis,
-                gain,
-                accepted: false,
-                sensitivity,
-            });
-        }
-        let ikh = Matrix15::identity() - gain * h;
-        self.p = ikh * self.p * ikh.transpose() + gain * r * gain.transpose();
-        self.p = (self.p + self.p.transpose()) * 0.5;
-        if let Some((m, _)) = self.sensitivity.as_mut() {
-            *m = ikh * *m * ikh.transpose();
-            *m = (*m + m.transpose()) * 0.5;
-        }
-        let dx: Vector15 = -(gain * innovation);
-        self.feedback(&dx);
-        if !nis.is_finite() || !self.p[(0, 0)].is_finite() {
-            return Err(Error::Numerical(
-                "the update produced a non-finite state".into(),
-            ));
-        }
-        Ok(UpdateInfo {
-            innovation,
-            s,
-            nis,
-            gain,
-            accepted: true,
-            sensitivity,
-        })
+        Ok(info)
     }
 
     /// Apply an error estimate `δx̂` (estimate minus truth) to the navigation solution
@@ -323,6 +334,68 @@ impl Ekf {
     }
 }
 
+/// What [`kalman_update`] did: the update's report (its gain the first 15 rows) and
+/// the error estimate `δx̂ = −K ν` to feed back, None when the gate rejected it.
+struct Outcome<const N: usize> {
+    info: UpdateInfo,
+    dx: Option<SVector<f64, N>>,
+}
+
+/// The EKF update of an `N`-state covariance `p` (and of the sensitivity `m`, if
+/// tracked) by a 3-vector measurement with Jacobian `h`, innovation `ν` and noise `r`:
+/// `S = H P Hᵀ + R`, `K = P Hᵀ S⁻¹`, NIS `νᵀ S⁻¹ ν`; unless the gate rejects it,
+/// `P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ` symmetrized and `M ← (I − K H) M (I − K H)ᵀ`.
+fn kalman_update<const N: usize>(
+    p: &mut SMatrix<f64, N, N>,
+    m: Option<&mut SMatrix<f64, N, N>>,
+    h: &SMatrix<f64, 3, N>,
+    innovation: &Vector3<f64>,
+    r: &Matrix3<f64>,
+    gate: Option<f64>,
+) -> Result<Outcome<N>> {
+    let pht = *p * h.transpose();
+    let s = h * pht + r;
+    let s_inv = s
+        .cholesky()
+        .ok_or_else(|| Error::Numerical("innovation covariance S is not positive definite".into()))?
+        .inverse();
+    let gain: SMatrix<f64, N, 3> = pht * s_inv;
+    let sensitivity = m.as_ref().map(|m| h * **m * h.transpose());
+    let nis = innovation.dot(&(s_inv * innovation));
+    // Checked before anything is applied: a NaN would slip past the gate's `>`.
+    if !nis.is_finite() {
+        return Err(Error::Numerical(format!(
+            "the DVL update has a non-finite NIS ({nis})"
+        )));
+    }
+    let accepted = gate.is_none_or(|gate| nis <= gate);
+    let report = UpdateInfo {
+        innovation: *innovation,
+        s,
+        nis,
+        gain: gain.fixed_rows::<15>(0).into_owned(),
+        accepted,
+        sensitivity,
+    };
+    if !accepted {
+        return Ok(Outcome {
+            info: report,
+            dx: None,
+        });
+    }
+    let ikh = SMatrix::<f64, N, N>::identity() - gain * h;
+    *p = ikh * *p * ikh.transpose() + gain * r * gain.transpose();
+    *p = (*p + p.transpose()) * 0.5;
+    if let Some(m) = m {
+        *m = ikh * *m * ikh.transpose();
+        *m = (*m + m.transpose()) * 0.5;
+    }
+    Ok(Outcome {
+        info: report,
+        dx: Some(-(gain * innovation)),
+    })
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -334,6 +407,18 @@ pub(crate) mod tests {
             lla: Vector3::new(0.55, 0.6, -10.0),
             vel: Vector3::new(1.0, 0.5, 0.1),
             dcm: dcm_from_euler(0.05, -0.1, 0.8),
+        }
+    }
+
+    /// Column `j` of `h` equals the finite difference `numeric` to 1e-5.
+    fn assert_column<const N: usize>(numeric: &Vector3<f64>, h: &SMatrix<f64, 3, N>, j: usize) {
+        for i in 0..3 {
+            assert!(
+                (numeric[i] - h[(i, j)]).abs() < 1e-5,
+                "H[{i},{j}] = {} vs numeric {}",
+                h[(i, j)],
+                numeric[i]
+            );
         }
     }
 
@@ -363,16 +448,124 @@ pub(crate) mod tests {
                     Vector3::zeros()
                 };
             let (h1, _) = e.measurement_model();
-            let col = (h0 - h1) / eps;
-            for i in 0..3 {
-                assert!(
-                    (col[i] - h[(i, j)]).abs() < 1e-5,
-                    "H[{i},{j}] = {} vs numeric {}",
-                    h[(i, j)],
-                    col[i]
-                );
+            assert_column(&((h0 - h1) / eps), &h, j);
+        }
+    }
+
+    fn calibrated() -> FilterConfig {
+        FilterConfig {
+            lever_arm: Vector3::new(0.5, -0.3, 1.2),
+            dvl_calibration: Some(calibration::CalibrationConfig::default()),
+            ..FilterConfig::default()
+        }
+    }
+
+    /// With the calibration states, the 19 columns of H agree with finite differences
+    /// of the predicted reading, away from the ideal mounting.
+    #[test]
+    fn calibrated_measurement_jacobian_matches_finite_differences() {
+        let mut ekf = Ekf::new(
+            &calibrated(),
+            moving_state(),
+            Vector3::zeros(),
+            Vector3::zeros(),
+        )
+        .unwrap();
+        ekf.last_gyro = Vector3::new(0.01, -0.02, 0.05);
+        ekf.calibration.as_mut().unwrap().estimate =
+            calibration::DvlMounting::from_angles(0.004, [0.01, -0.02, 0.03]);
+        let predict = |e: &Ekf| {
+            let (v_b, h_body) = e.measurement_model();
+            e.calibration.as_ref().unwrap().measurement(&v_b, &h_body)
+        };
+        let (z0, h) = predict(&ekf);
+        let eps = 1e-6;
+        for j in 0..calibration::N_CALIBRATED {
+            let mut e = ekf.clone();
+            let mut dx = SVector::<f64, { calibration::N_CALIBRATED }>::zeros();
+            dx[j] = eps;
+            e.feedback(&dx.fixed_rows::<15>(0).into_owned());
+            let c = e.calibration.as_mut().unwrap();
+            c.feedback(&[dx[SCALE], dx[SCALE + 1], dx[SCALE + 2], dx[SCALE + 3]]);
+            if (GYRO_BIAS..GYRO_BIAS + 3).contains(&j) {
+                e.last_gyro[j - GYRO_BIAS] += eps;
+            }
+            let (z1, _) = predict(&e);
+            assert_column(&((z0 - z1) / eps), &h, j);
+        }
+    }
+
+    /// Calibration states with a zero prior and no walk change nothing: the 19-state
+    /// filter follows the 15-state one, and its cross-covariance stays zero.
+    #[test]
+    fn calibration_states_with_a_zero_prior_leave_the_filter_unchanged() {
+        let mut cfg = calibrated();
+        cfg.dvl_calibration = Some(calibration::CalibrationConfig {
+            scale_sigma: 0.0,
+            misalignment_sigma: [0.0; 3],
+            ..calibration::CalibrationConfig::default()
+        });
+        let plain_cfg = FilterConfig {
+            dvl_calibration: None,
+            ..cfg.clone()
+        };
+        let mut a = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+        let mut b = Ekf::new(
+            &plain_cfg,
+            moving_state(),
+            Vector3::zeros(),
+            Vector3::zeros(),
+        )
+        .unwrap();
+        let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+        let mut sa = StrategySpec::Constant { q }.build(cfg.bias_psd());
+        let mut sb = StrategySpec::Constant { q }.build(cfg.bias_psd());
+        let sample = ImuSample::from_array(&[0.1, 0.02, -9.79, 0.001, -0.002, 0.01]);
+        for k in 1..=500 {
+            let z = (k % 100 == 0).then(|| Vector3::new(1.0, 0.1, 0.05));
+            let ia = a.step(&sample, 0.01, sa.as_mut(), z.as_ref(), 100).unwrap();
+            let ib = b.step(&sample, 0.01, sb.as_mut(), z.as_ref(), 100).unwrap();
+            if let (Some(ia), Some(ib)) = (ia, ib) {
+                assert!((ia.nis - ib.nis).abs() <= 1e-12 * ib.nis.abs().max(1.0));
             }
         }
+        assert!((a.p - b.p).abs().max() <= 1e-12 * b.p.abs().max());
+        assert!((a.nav.vel - b.nav.vel).abs().max() <= 1e-12);
+        let c = a.calibration.as_ref().unwrap();
+        assert_eq!((c.cross.abs().max(), c.estimate.scale), (0.0, 0.0));
+    }
+
+    #[test]
+    fn calibrated_covariance_stays_symmetric_positive_definite() {
+        let cfg = calibrated();
+        let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+        let mut strat = StrategySpec::Constant {
+            q: [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6],
+        }
+        .build(cfg.bias_psd());
+        let sample = ImuSample::from_array(&[0.0, 0.0, -9.79, 0.0, 0.0, 0.01]);
+        let prior = ekf.calibration.as_ref().unwrap().sigma();
+        for k in 1..=3000 {
+            let z = (k % 100 == 0).then(|| Vector3::new(1.0, 0.0, 0.0));
+            ekf.step(&sample, 0.01, strat.as_mut(), z.as_ref(), 100)
+                .unwrap();
+        }
+        let c = ekf.calibration.as_ref().unwrap();
+        let full = c.assemble(&ekf.p);
+        assert_eq!(full, full.transpose());
+        let eig = full.symmetric_eigenvalues();
+        assert!(eig.min() > 0.0, "min eigenvalue {}", eig.min());
+        // Constants without a walk: the updates never make them less certain.
+        assert!((0..4).all(|i| c.sigma()[i] <= prior[i]), "{:?}", c.sigma());
+        let nav = FilterConfig {
+            aiding: Aiding::Nav,
+            ..calibrated()
+        };
+        assert!(nav
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("body-frame aiding"));
     }
 
     /// Covariance stays symmetric and positive definite through propagation and updates.

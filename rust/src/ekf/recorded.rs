@@ -23,6 +23,11 @@ pub struct FilterOutput {
     /// For each DVL row: the per-IMU-step Q_d the strategy set after that update, where
     /// it sets one directly (Mehra).
     pub adaptive_q: Vec<Option<Matrix15>>,
+    /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
+    /// error and the DVL's mounting angles [rad] (empty without the states).
+    pub calibration: Vec<[f64; 4]>,
+    /// 1σ of `[δk, δμ]` per epoch (empty without the calibration states).
+    pub calibration_sigma: Vec<[f64; 4]>,
     /// Covariance at the last epoch.
     pub final_covariance: Matrix15,
     /// Divergence watch over every update's NIS.
@@ -127,6 +132,8 @@ impl FilterOutput {
             dvl_epoch: vec![None; m],
             updates: vec![None; m],
             adaptive_q: vec![None; m],
+            calibration: Vec::new(),
+            calibration_sigma: Vec::new(),
             final_covariance: Matrix15::zeros(),
             nis_monitor: NisMonitor::default(),
         }
@@ -139,6 +146,10 @@ impl FilterOutput {
         let (a, g) = (ekf.accel_bias, ekf.gyro_bias);
         self.bias.push([a[0], a[1], a[2], g[0], g[1], g[2]]);
         self.sigma.push(ekf.sigma());
+        if let Some(c) = &ekf.calibration {
+            self.calibration.push(c.reported());
+            self.calibration_sigma.push(c.sigma());
+        }
     }
 }
 

@@ -1,9 +1,12 @@
 //! `FilterConfig`: the EKF's tuning.
 
 use super::convert::{
-    arg_accel_bias_psd, arg_aiding, arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate, fixed_or,
+    arg_accel_bias_psd, arg_aiding, arg_dvl_calibration, arg_dvl_misalignment_psd,
+    arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate,
+    fixed, fixed_or,
 };
 use super::{invalid, to_py_err};
+use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::{Aiding, FilterConfig};
 use nalgebra::Vector3;
 use pyo3::prelude::*;
@@ -29,9 +32,9 @@ fn parse_aiding(text: &str) -> PyResult<Aiding> {
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None))]
     #[pyo3(
-        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None)"
+        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None)"
     )]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
@@ -43,8 +46,39 @@ impl PyFilterConfig {
         #[pyo3(from_py_with = arg_aiding)] aiding: String,
         #[pyo3(from_py_with = arg_imu_dt)] imu_dt: f64,
         #[pyo3(from_py_with = arg_innovation_gate)] innovation_gate: Option<f64>,
+        #[pyo3(from_py_with = arg_dvl_calibration)] dvl_calibration: bool,
+        #[pyo3(from_py_with = arg_dvl_scale_sigma)] dvl_scale_sigma: Option<f64>,
+        dvl_misalignment_sigma: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_dvl_scale_psd)] dvl_scale_psd: Option<f64>,
+        #[pyo3(from_py_with = arg_dvl_misalignment_psd)] dvl_misalignment_psd: Option<f64>,
     ) -> PyResult<Self> {
         let defaults = FilterConfig::default();
+        let misalignment_sigma = dvl_misalignment_sigma
+            .map(|v| fixed::<3>(v, "dvl_misalignment_sigma"))
+            .transpose()?;
+        let calibration = if dvl_calibration {
+            let d = CalibrationConfig::default();
+            Some(CalibrationConfig {
+                scale_sigma: dvl_scale_sigma.unwrap_or(d.scale_sigma),
+                misalignment_sigma: misalignment_sigma.unwrap_or(d.misalignment_sigma),
+                scale_psd: dvl_scale_psd.unwrap_or(d.scale_psd),
+                misalignment_psd: dvl_misalignment_psd.unwrap_or(d.misalignment_psd),
+            })
+        } else {
+            let given = [
+                ("dvl_scale_sigma", dvl_scale_sigma.is_some()),
+                ("dvl_misalignment_sigma", misalignment_sigma.is_some()),
+                ("dvl_scale_psd", dvl_scale_psd.is_some()),
+                ("dvl_misalignment_psd", dvl_misalignment_psd.is_some()),
+            ];
+            if let Some((name, _)) = given.iter().find(|(_, set)| *set) {
+                return Err(invalid(
+                    name,
+                    "describes the DVL calibration states: give it with dvl_calibration=True",
+                ));
+            }
+            None
+        };
         let inner = FilterConfig {
             p0_sigma: fixed_or(p0_sigma, "p0_sigma", defaults.p0_sigma)?,
             accel_bias_psd,
@@ -54,6 +88,7 @@ impl PyFilterConfig {
             aiding: parse_aiding(&aiding)?,
             imu_dt,
             innovation_gate,
+            dvl_calibration: calibration,
         };
         inner.validate().map_err(to_py_err)?;
         Ok(Self { inner })
@@ -93,9 +128,43 @@ impl PyFilterConfig {
     fn innovation_gate(&self) -> Option<f64> {
         self.inner.innovation_gate
     }
+    /// Whether the DVL scale-factor and misalignment states are estimated (19 states).
+    #[getter]
+    fn dvl_calibration(&self) -> bool {
+        self.inner.dvl_calibration.is_some()
+    }
+    /// Initial 1σ of the DVL scale-factor error (None without the calibration states).
+    #[getter]
+    fn dvl_scale_sigma(&self) -> Option<f64> {
+        self.inner.dvl_calibration.map(|c| c.scale_sigma)
+    }
+    /// Initial 1σ of the DVL misalignment about body x, y, z [rad] (None without them).
+    #[getter]
+    fn dvl_misalignment_sigma(&self) -> Option<Vec<f64>> {
+        self.inner
+            .dvl_calibration
+            .map(|c| c.misalignment_sigma.to_vec())
+    }
+    /// Random-walk PSD of the DVL scale factor [1/s] (None without the states).
+    #[getter]
+    fn dvl_scale_psd(&self) -> Option<f64> {
+        self.inner.dvl_calibration.map(|c| c.scale_psd)
+    }
+    /// Random-walk PSD of each misalignment angle [rad²/s] (None without the states).
+    #[getter]
+    fn dvl_misalignment_psd(&self) -> Option<f64> {
+        self.inner.dvl_calibration.map(|c| c.misalignment_psd)
+    }
     fn __repr__(&self) -> String {
+        let calibration = match &self.inner.dvl_calibration {
+            None => String::new(),
+            Some(c) => format!(
+                ", dvl_calibration=True, dvl_scale_sigma={}, dvl_misalignment_sigma={:?}, dvl_scale_psd={}, dvl_misalignment_psd={}",
+                c.scale_sigma, c.misalignment_sigma, c.scale_psd, c.misalignment_psd
+            ),
+        };
         format!(
-            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={})",
+            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}{calibration})",
             self.inner.accel_bias_psd,
             self.inner.gyro_bias_psd,
             self.inner.dvl_variance,

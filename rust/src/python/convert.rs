@@ -253,13 +253,26 @@ arg_converters! {
     arg_seed: u64 = whole_arg("seed");
     arg_first_run: u64 = whole_arg("first_run");
     arg_sample_initial_error: bool = flag_arg("sample_initial_error");
+    arg_dvl_calibration: bool = flag_arg("dvl_calibration");
+    arg_dvl_scale: f64 = real_arg("dvl_scale");
 }
 
-pub fn arg_innovation_gate(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+/// An optional real argument (None stays None).
+fn optional_real(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Option<f64>> {
     if obj.is_none() {
         return Ok(None);
     }
-    real_arg(obj, "innovation_gate").map(Some)
+    real_arg(obj, arg).map(Some)
+}
+
+arg_converters! {
+    arg_dvl_scale_sigma: Option<f64> = optional_real("dvl_scale_sigma");
+    arg_dvl_scale_psd: Option<f64> = optional_real("dvl_scale_psd");
+    arg_dvl_misalignment_psd: Option<f64> = optional_real("dvl_misalignment_psd");
+}
+
+pub fn arg_innovation_gate(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {
+    optional_real(obj, "innovation_gate")
 }
 
 pub fn arg_threads(obj: &Bound<'_, PyAny>) -> PyResult<Option<usize>> {

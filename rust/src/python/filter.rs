@@ -84,6 +84,12 @@ fn output_dict<'py>(py: Python<'py>, out: &FilterOutput) -> PyResult<Bound<'py, 
     nav_arrays(py, &d, &out.nav)?;
     d.set_item("bias", matrix(py, out.bias.iter().copied()))?;
     d.set_item("sigma", matrix(py, out.sigma.iter().copied()))?;
+    // (0, 4) without the DVL calibration states
+    d.set_item("calibration", matrix(py, out.calibration.iter().copied()))?;
+    d.set_item(
+        "calibration_sigma",
+        matrix(py, out.calibration_sigma.iter().copied()),
+    )?;
     let p = out.final_covariance;
     d.set_item(
         "covariance",

@@ -69,7 +69,43 @@ pub(super) fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Boun
     if !res.record_time.is_empty() {
         history_arrays(py, &d, res)?;
     }
+    if res.runs.iter().any(|r| !r.calibration_nees.is_empty()) {
+        calibration_arrays(py, &d, res)?;
+    }
     Ok(d)
+}
+
+/// The DVL calibration states' final error and 1σ `(n, 4)` and NEES `(n, m)` (NaN
+/// where a run has none: it failed).
+fn calibration_arrays<'py>(
+    py: Python<'py>,
+    d: &Bound<'py, PyDict>,
+    res: &McResult,
+) -> PyResult<()> {
+    let (n, m) = (res.runs.len(), res.dvl_time.len());
+    let summary = |i: usize| res.runs[i].summary.calibration;
+    d.set_item(
+        "calibration_error",
+        Array2::from_shape_fn((n, 4), |(i, j)| summary(i).map_or(f64::NAN, |c| c.error[j]))
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "calibration_sigma",
+        Array2::from_shape_fn((n, 4), |(i, j)| summary(i).map_or(f64::NAN, |c| c.sigma[j]))
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "calibration_nees",
+        Array2::from_shape_fn((n, m), |(i, k)| {
+            res.runs[i]
+                .calibration_nees
+                .get(k)
+                .copied()
+                .unwrap_or(f64::NAN)
+        })
+        .into_pyarray(py),
+    )?;
+    Ok(())
 }
 
 /// `record_time` and the `error`, `sigma` and `q` histories (NaN where a run has none).

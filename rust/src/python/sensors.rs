@@ -1,8 +1,8 @@
 //! `SensorConfig`: the simulated IMU and DVL.
 
-use super::convert::{arg_dvl_period, column, fixed, fixed_or, matrix, rows};
+use super::convert::{arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, rows};
 use super::{invalid, to_py_err};
-use crate::sensors::{DvlModel, ImuErrorModel, SensorConfig, VarianceSchedule};
+use crate::sensors::{DvlModel, DvlMounting, ImuErrorModel, SensorConfig, VarianceSchedule};
 use nalgebra::Vector3;
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -36,7 +36,7 @@ fn variance(
 impl PySensorConfig {
     #[new]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None))]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -46,7 +46,10 @@ impl PySensorConfig {
         #[pyo3(from_py_with = arg_dvl_period)] dvl_period: f64,
         lever_arm: Option<&Bound<'_, PyAny>>,
         dvl_outages: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_dvl_scale)] dvl_scale: f64,
+        dvl_misalignment: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let angles = fixed_or::<3>(dvl_misalignment, "dvl_misalignment", [0.0; 3])?;
         let inner = SensorConfig {
             imu: ImuErrorModel {
                 variance: variance(imu_variance, imu_variance_times)?,
@@ -64,6 +67,11 @@ impl PySensorConfig {
                 outages: match dvl_outages {
                     Some(o) => rows::<2>(o, "dvl_outages")?,
                     None => Vec::new(),
+                },
+                mounting: if dvl_scale == 0.0 && angles == [0.0; 3] {
+                    DvlMounting::default() // exactly the identity, not a rounded one
+                } else {
+                    DvlMounting::from_angles(dvl_scale, angles)
                 },
             },
         };
@@ -97,6 +105,16 @@ impl PySensorConfig {
     #[getter]
     fn lever_arm(&self) -> Vec<f64> {
         self.inner.dvl.lever_arm.as_slice().to_vec()
+    }
+    /// The DVL's scale-factor error k: it reads `(1 + k)` times the true velocity.
+    #[getter]
+    fn dvl_scale(&self) -> f64 {
+        self.inner.dvl.mounting.scale
+    }
+    /// The DVL's roll, pitch, yaw in the body frame [rad] (its mounting misalignment).
+    #[getter]
+    fn dvl_misalignment(&self) -> Vec<f64> {
+        self.inner.dvl.mounting.angles().to_vec()
     }
     /// `(k, 2)` DVL outages `[start, end)` [s].
     #[getter]
