@@ -166,3 +166,20 @@ def test_both_estimates_find_a_known_dvl_noise_and_the_rows_use_it(known_noise) 
     assert tuple(from_data.config.dvl_variance) == from_data.dvl_variance
     with pytest.raises(ValueError, match="--dvl-noise: must be one of datasheet, data"):
         realdata.plan_section(section, {}, 1.0, dvl_noise="sheet")
+
+
+def test_a_section_too_short_for_the_dvl_noise_runs_without_the_variant_rows() -> None:
+    """Eleven DVL rows give nine second differences, too few to estimate R: the
+    strategy rows still run with the datasheet R, the variant rows are left out and
+    the reason is kept; asked to use R from the data, the section fails, naming why."""
+    synthetic = synthetic_recording(seed=6, duration=12.0)
+    section = align(synthetic.recording, Alignment(how="none"))
+    assert len(section.dvl) == 11
+    plan = realdata.plan_section(section, {}, 1.0)
+    assert plan.variants == {} and isinstance(plan.dvl_noise, str)
+    assert "dvl: needs at least ten" in plan.dvl_noise
+    constant = dict(list(plan.strategies.items())[:1])  # the adaptive rows need longer
+    runs, _ = realdata.evaluate_section(section, constant, plan.config, variants=plan.variants)
+    assert [r.label for r in runs] == list(constant)
+    with pytest.raises(ValueError, match="DVL noise: dvl: needs at least ten"):
+        realdata.plan_section(section, {}, 1.0, dvl_noise="data")

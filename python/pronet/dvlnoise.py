@@ -16,6 +16,7 @@ Two estimators, per body axis [(m/s)²]:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -107,9 +108,15 @@ def match_innovations(
         max_passes: most passes (≥ 1).
         floor: smallest R per axis [(m/s)²].
 
-    Each pass multiplies R_a by :func:`innovation_ratio`; the map's fixed point is
-    ``mean ν_a² = mean S_aa``. It converges because P grows with R more slowly than
-    R does, so a too-small R gives a ratio above 1 and a too-large one below 1.
+    The fixed point is ``mean ν_a² = mean S_aa``: per axis, the root of
+    ``f(x) = log ratio`` in ``x = log R_a`` (:func:`innovation_ratio`). It exists and
+    is unique because P grows with R more slowly than R does, so a too-small R gives a
+    ratio above 1 and a too-large one below 1. The first step multiplies R_a by its
+    ratio; later steps take the secant through the last two passes, which converges
+    in a few passes where the plain step crawls (where the filter's own share of S
+    dominates, f is flat), falling back to the plain step whenever the secant would
+    step the other way or more than 10 times as far. The result is the last R times
+    its ratio (within the tolerance of the last R when converged).
     """
     r = float_array(start, "start", (3,))
     if not (np.all(np.isfinite(r)) and np.all(r > 0)):
@@ -123,15 +130,32 @@ def match_innovations(
         raise ValueError(f"floor: must be > 0 (m/s)², got {floor}")
     first = _variance(r)
     made, converged, mean_nis = 0, False, float("nan")
+    x, previous = np.log(r), None
     while made < passes and not converged:
-        result = run_pass(_variance(r))
+        result = run_pass(_variance(np.maximum(np.exp(x), floor)))
         made += 1
         nis = result.nis[result.accepted]
         mean_nis = float(np.mean(nis)) if nis.size else float("nan")
-        new = np.maximum(r * innovation_ratio(result), floor)
-        converged = bool(np.all(np.abs(new / r - 1) < tolerance))
-        r = new
-    return MatchedVariance(_variance(r), first, made, converged, mean_nis)
+        f = np.log(innovation_ratio(result))
+        plain = np.maximum(x + f, math.log(floor))
+        converged = bool(np.all(np.abs(np.exp(plain - x) - 1) < tolerance))
+        step = _secant(x, f, previous) if previous is not None else f
+        previous = (x, f)
+        x = plain if converged else np.maximum(x + step, math.log(floor))
+    return MatchedVariance(
+        _variance(np.maximum(np.exp(x), floor)), first, made, converged, mean_nis
+    )
+
+
+def _secant(x: F64, f: F64, previous: tuple[F64, F64]) -> F64:
+    """Per axis, the secant step towards the root of f through ``previous`` and
+    ``(x, f)``; the plain step ``f`` where the secant is undefined, points the other
+    way or is more than 10 times as long."""
+    x0, f0 = previous
+    with np.errstate(divide="ignore", invalid="ignore"):
+        secant = -f * (x - x0) / (f - f0)
+    good = np.isfinite(secant) & (secant * f > 0) & (np.abs(secant) <= 10 * np.abs(f))
+    return np.where(good, secant, f)
 
 
 def _variance(r: F64) -> Variance:

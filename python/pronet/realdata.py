@@ -270,7 +270,6 @@ def estimate_dvl_noise(
     """The DVL noise of ``section``: its second-difference R, then the R that matches
     the innovations of ``strategy`` under :func:`real_filter_config`, without and with
     the calibration states (a pass per step of :func:`pronet.dvlnoise.match_innovations`)."""
-    start = second_difference_variance(section.dvl)
 
     def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
         def one_pass(r: tuple[float, float, float]) -> FilterResult:
@@ -280,6 +279,7 @@ def estimate_dvl_noise(
         return match_innovations(one_pass, first)
 
     try:
+        start = second_difference_variance(section.dvl)
         without = matched(False, start)
         # With the states, R comes out close to the R without them: start from there.
         return SectionDvlNoise(start, without, matched(True, without.variance))
@@ -294,7 +294,8 @@ class SectionPlan:
 
     Attributes:
         q: the section's IMU noise (:func:`white_noise_q`).
-        dvl_noise: the section's DVL noise estimates.
+        dvl_noise: the section's DVL noise estimates, or why they could not be made
+            (then the section has no variant rows).
         dvl_variance: the R of the strategy rows [(m/s)²] (the datasheet's or the data's).
     """
 
@@ -302,7 +303,7 @@ class SectionPlan:
     strategies: dict[str, StrategyLike]
     config: _core.FilterConfig
     variants: dict[str, _core.FilterConfig]
-    dvl_noise: SectionDvlNoise
+    dvl_noise: SectionDvlNoise | str
     dvl_variance: tuple[float, float, float]
 
 
@@ -319,8 +320,15 @@ def plan_section(
     q = white_noise_q(section.imu)
     strategies = real_strategies(q, models, tuning_period)
     arm = section.alignment.filter_lever_arm
-    noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm)
-    used = noise.matched.variance if dvl_noise == "data" else (REAL_DVL_VARIANCE,) * 3
+    datasheet = (REAL_DVL_VARIANCE,) * 3
+    try:
+        noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm)
+    except ValueError as exc:
+        if dvl_noise == "data":  # the strategy rows need it
+            raise
+        # The strategy rows do not: they run, the variant rows are left out.
+        return SectionPlan(q, strategies, real_filter_config(arm), {}, str(exc), datasheet)
+    used = noise.matched.variance if dvl_noise == "data" else datasheet
     variants = {
         R_FROM_DATA: real_filter_config(arm, noise.matched.variance),
         DVL_CALIBRATION: real_filter_config(arm, calibration=True),
@@ -345,8 +353,8 @@ class RealRuns:
         constants: per section, the q of each constant strategy (for the q plots).
         failed: per section that could not be read or filtered, the reason (one line);
             the other sections' runs are complete without it.
-        dvl_noise: per section, the DVL noise estimates and the R the strategy rows
-            used ``(estimates, used)``.
+        dvl_noise: per section, the DVL noise estimates (or why there are none) and
+            the R the strategy rows used ``(estimates, used)``.
     """
 
     sections: list[tuple[Section, Section]]
@@ -356,7 +364,7 @@ class RealRuns:
     q_estimated: dict[str, tuple[float, ...]]
     constants: dict[str, dict[str, tuple[float, ...]]]
     failed: dict[str, str] = field(default_factory=dict)
-    dvl_noise: dict[str, tuple[SectionDvlNoise, tuple[float, float, float]]] = field(
+    dvl_noise: dict[str, tuple[SectionDvlNoise | str, tuple[float, float, float]]] = field(
         default_factory=dict
     )
 
@@ -485,6 +493,17 @@ def _run_one_section(
     return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run)
 
 
+def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
+    """A section's DVL noise estimates for ``config.json`` (or why there are none)."""
+    if isinstance(noise, str):
+        return {"failure": noise}
+    out: dict[str, object] = {"second_difference": list(noise.second_difference)}
+    for key, m in (("matched", noise.matched), ("matched_calibrated", noise.matched_calibrated)):
+        out.update({key: list(m.variance), f"{key}_passes": m.passes})
+        out[f"{key}_converged"] = m.converged
+    return out
+
+
 def write_real_plots(
     folder: Path, done: RealRuns, on_done: Callable[[str], None] | None = None
 ) -> None:
@@ -602,16 +621,7 @@ def run_real(
         "q_estimated": done.q_estimated,
         "dvl_noise": dvl_noise,
         "dvl_variance": {
-            name: {
-                "used": list(used),
-                "second_difference": list(noise.second_difference),
-                "matched": list(noise.matched.variance),
-                "matched_passes": noise.matched.passes,
-                "matched_converged": noise.matched.converged,
-                "matched_calibrated": list(noise.matched_calibrated.variance),
-                "matched_calibrated_passes": noise.matched_calibrated.passes,
-                "matched_calibrated_converged": noise.matched_calibrated.converged,
-            }
+            name: {"used": list(used), **_noise_record(noise)}
             for name, (noise, used) in done.dvl_noise.items()
         },
         "dvl_calibration": {

@@ -46,10 +46,14 @@ def per_section_table(runs: list[SectionRun], key: str, title: str) -> str:
     sections = list(dict.fromkeys(r.section for r in runs))
     head, fmt = next((h, f) for k, h, f in METRIC_COLUMNS if k == key)
     value = {(r.section, r.label): getattr(r.metrics, key) for r in runs}
-    lines: list[list[object]] = [
-        [s, *(fmt.format(value[s, lb]) for lb in labels)] for s in sections
+
+    def cell(s: str, lb: str) -> str:  # "—" where a section has no such row
+        return fmt.format(value[s, lb]) if (s, lb) in value else "—"
+
+    lines: list[list[object]] = [[s, *(cell(s, lb) for lb in labels)] for s in sections]
+    means = [
+        fmt.format(np.mean([value[s, lb] for s in sections if (s, lb) in value])) for lb in labels
     ]
-    means = [fmt.format(np.mean([value[s, lb] for s in sections])) for lb in labels]
     lines.append(["**mean**", *(f"**{m}**" for m in means)])
     return markdown(["section", *labels], lines, f"{title}: {head}")
 
@@ -156,6 +160,9 @@ def dvl_noise_table(done: RealRuns) -> str:
 
     lines: list[list[object]] = []
     for name, (noise, used) in done.dvl_noise.items():
+        if isinstance(noise, str):
+            lines.append([name, sigma(used), f"not estimated: {noise}", "", "", ""])
+            continue
         m = noise.matched
         state = f"{m.passes} passes" + ("" if m.converged else ", not converged")
         both = sigma(noise.matched_calibrated.variance)
