@@ -26,6 +26,7 @@
 //! this one.
 
 use nalgebra::Vector3;
+use pronet::ekf::calibration::CalibrationConfig;
 use pronet::ekf::{filter_recorded, Aiding, Ekf, FilterConfig, FilterOutput, RecordedData};
 use pronet::mechanization::NavState;
 use pronet::montecarlo::{run_monte_carlo, McOptions, RunSummary, Scenario};
@@ -304,11 +305,14 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
         prop::collection::vec(-2.0..2.0f64, 3),
         any::<bool>(),
         prop_oneof![4 => Just(0.05), 1 => -3.0..0.0f64],
+        // The DVL calibration states: off, or with 1σ and a scale walk of 10^e.
+        prop_oneof![3 => Just(None), 1 => prop::collection::vec(-5.0..-1.0f64, 5).prop_map(Some)],
         // Corruptions: 0..15 p0_sigma, 15 accel psd, 16 gyro psd, 17..20 dvl variance,
-        // 20..23 lever arm, 23 imu_dt, 24 innovation gate.
-        rarely((0..25usize, wild()), 2),
+        // 20..23 lever arm, 23 imu_dt, 24 innovation gate, 25..30 the calibration's
+        // scale σ, misalignment σ (3) and scale walk (where the states are on).
+        rarely((0..30usize, wild()), 2),
     )
-        .prop_map(|(p0, psd_a, psd_g, r, arm, body, dt, bad)| {
+        .prop_map(|(p0, psd_a, psd_g, r, arm, body, dt, cal, bad)| {
             let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
             let mut c = FilterConfig {
                 p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
@@ -319,17 +323,26 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
                 aiding: if body { Aiding::Body } else { Aiding::Nav },
                 imu_dt: if dt == 0.05 { dt } else { 10f64.powf(dt) },
                 innovation_gate: None,
-                dvl_calibration: None,
+                dvl_calibration: cal.map(|e| CalibrationConfig {
+                    scale_sigma: 10f64.powf(e[0]),
+                    misalignment_sigma: [10f64.powf(e[1]), 10f64.powf(e[2]), 10f64.powf(e[3])],
+                    scale_psd: 10f64.powf(e[4]),
+                    misalignment_psd: 0.0,
+                }),
             };
             for (field, v) in bad {
-                match field {
-                    0..=14 => c.p0_sigma[field] = v,
-                    15 => c.accel_bias_psd = v,
-                    16 => c.gyro_bias_psd = v,
-                    17..=19 => c.dvl_variance[field - 17] = v,
-                    20..=22 => c.lever_arm[field - 20] = v,
-                    23 => c.imu_dt = v,
-                    _ => c.innovation_gate = Some(v),
+                match (field, c.dvl_calibration.as_mut()) {
+                    (0..=14, _) => c.p0_sigma[field] = v,
+                    (15, _) => c.accel_bias_psd = v,
+                    (16, _) => c.gyro_bias_psd = v,
+                    (17..=19, _) => c.dvl_variance[field - 17] = v,
+                    (20..=22, _) => c.lever_arm[field - 20] = v,
+                    (23, _) => c.imu_dt = v,
+                    (24, _) => c.innovation_gate = Some(v),
+                    (25, Some(k)) => k.scale_sigma = v,
+                    (26..=28, Some(k)) => k.misalignment_sigma[field - 26] = v,
+                    (29, Some(k)) => k.scale_psd = v,
+                    _ => {}
                 }
             }
             c
@@ -348,6 +361,13 @@ fn config_is_valid(c: &FilterConfig) -> bool {
         && c.imu_dt.is_finite()
         && c.imu_dt > 0.0
         && c.innovation_gate.is_none_or(|g| g.is_finite() && g > 0.0)
+        && c.dvl_calibration.is_none_or(|k| {
+            c.aiding == Aiding::Body
+                && nonneg(k.scale_sigma)
+                && k.misalignment_sigma.iter().all(|v| nonneg(*v))
+                && nonneg(k.scale_psd)
+                && nonneg(k.misalignment_psd)
+        })
 }
 
 /// The scalar metrics of a run summary: SRMSE, SMAE, final and max horizontal error,
@@ -539,11 +559,23 @@ fn huge_tuning(cfg: &FilterConfig, spec: &StrategySpec) -> bool {
         | StrategySpec::External { prior_q } => prior_q,
         StrategySpec::Oracle => &[0.0; 6],
     };
-    cfg.p0_sigma
+    let calibration: Vec<f64> = cfg
+        .dvl_calibration
+        .iter()
+        .flat_map(|k| {
+            [k.scale_sigma, k.scale_psd, k.misalignment_psd]
+                .into_iter()
+                .chain(k.misalignment_sigma)
+        })
+        .collect();
+    let huge = cfg
+        .p0_sigma
         .iter()
         .chain(q)
         .chain([&cfg.accel_bias_psd, &cfg.gyro_bias_psd, &cfg.imu_dt])
-        .any(|v| v.is_finite() && v.abs() >= HUGE)
+        .chain(&calibration)
+        .any(|v| v.is_finite() && v.abs() >= HUGE);
+    huge
 }
 
 /// One case of the filter-pass property (known overflow cases are left out).
