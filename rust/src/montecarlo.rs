@@ -52,8 +52,10 @@ impl Scenario {
 
     /// `Err` naming `n_runs` when the records of `opts` on this scenario would take more
     /// than [`MAX_RESULT_BYTES`], checked before anything is allocated. Per run: the
-    /// NIS and five NEES blocks of every DVL epoch, the error, 1σ and q (36 values) of
-    /// every recorded epoch, `state_bytes` of running state, and 4 KiB of filter.
+    /// NIS, five NEES blocks and the DVL calibration states' NEES of every DVL epoch
+    /// (counted whether or not the filter has those states: the check does not know the
+    /// filter), the error, 1σ and q (36 values) of every recorded epoch, `state_bytes`
+    /// of running state, and 4 KiB of filter (the calibration summary included).
     pub fn check_result_size(
         &self,
         opts: &McOptions,
@@ -66,7 +68,7 @@ impl Scenario {
             0 => 0.0,
             every => (steps / every as f64).floor() + 1.0,
         };
-        let per_run = 8.0 * (6.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
+        let per_run = 8.0 * (7.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
         let total = per_run * opts.n_runs as f64;
         if total > MAX_RESULT_BYTES as f64 {
             let gib = |b: f64| b / (1u64 << 30) as f64;
@@ -95,7 +97,7 @@ impl Scenario {
 }
 
 /// The most memory [bytes] the records of one Monte Carlo call may take (4 GiB; the
-/// Python arrays made from them take as much again). About 260,000 runs of the `paper`
+/// Python arrays made from them take as much again). About 190,000 runs of the `paper`
 /// scenario without histories.
 pub const MAX_RESULT_BYTES: u64 = 4 << 30;
 

@@ -1,7 +1,7 @@
 //! `attitude_increment_costs`: the clock-alignment cost of recorded data (the grid search
 //! around it is `pronet.alignment`).
 
-use super::convert::{column, real_arg, rows};
+use super::convert::{as_rows, as_values, column, readonly_column, readonly_rows, real_arg, rows};
 use super::detached;
 use crate::clocks;
 use numpy::{IntoPyArray, PyArray1};
@@ -18,14 +18,18 @@ fn attitude_increment_costs<'py>(
     offsets: &Bound<'py, PyAny>,
     scale: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let edges = column(edges, "edges")?;
-    let cum = rows::<3>(cum, "cum")?;
+    // Read in place: a clock search calls this ~90 times per section with the same
+    // 40,000 edges, which copying took a fifth of the search's time.
+    let edges = readonly_column(edges, "edges")?;
+    let cum = readonly_rows::<3>(cum, "cum")?;
     let gt_time = column(gt_time, "gt_time")?;
     let gt_step = rows::<3>(gt_step, "gt_step")?;
     let offsets = column(offsets, "offsets")?;
     let scale = real_arg(scale, "scale")?;
+    let (edges, cum) = (as_values(&edges), as_rows::<3>(&cum));
+    let (edges, cum) = (&*edges, &*cum);
     let costs = detached(py, move || {
-        clocks::attitude_increment_costs(&edges, &cum, &gt_time, &gt_step, &offsets, scale)
+        clocks::attitude_increment_costs(edges, cum, &gt_time, &gt_step, &offsets, scale)
     })?;
     Ok(costs.into_pyarray(py))
 }

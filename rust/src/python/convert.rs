@@ -79,7 +79,24 @@ pub fn readonly_rows<'py, const C: usize>(
 
 /// A float64 array of shape (n,).
 pub fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
-    let arr: PyReadonlyArray1<f64> = obj.extract().map_err(|_| {
+    Ok(as_values(&readonly_column(obj, arg)?).into_owned())
+}
+
+/// The values of an array checked by [`readonly_column`]: borrowed when contiguous,
+/// copied otherwise (see [`as_rows`]).
+pub fn as_values<'a>(arr: &'a PyReadonlyArray1<'_, f64>) -> Cow<'a, [f64]> {
+    match arr.as_slice() {
+        Ok(values) => Cow::Borrowed(values),
+        Err(_) => Cow::Owned(arr.as_array().to_vec()),
+    }
+}
+
+/// `obj` as a read-only float64 array of shape (n,), or a `ValueError` naming `arg`.
+pub fn readonly_column<'py>(
+    obj: &Bound<'py, PyAny>,
+    arg: &str,
+) -> PyResult<PyReadonlyArray1<'py, f64>> {
+    obj.extract().map_err(|_| {
         invalid(
             arg,
             format!(
@@ -87,8 +104,7 @@ pub fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
                 describe(obj)
             ),
         )
-    })?;
-    Ok(arr.as_array().to_vec())
+    })
 }
 
 /// Whether `obj` is a real number: a Python int or float (not a bool), or a NumPy value
