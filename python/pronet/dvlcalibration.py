@@ -4,7 +4,7 @@
 One experiment per training trajectory (:data:`TRAJECTORIES`): a DVL reading 0.5 %
 fast and turned 0.5° in yaw (:data:`TRUE_SCALE`, :data:`TRUE_MISALIGNMENT`), the IMU
 and the filter's tuning those of the recorded sections (a navigation-grade FOG INS,
-:func:`pronet.realdata.real_filter_config`'s P0 and bias walks; IMU noise
+:func:`pronet.realtuning.real_filter_config`'s P0 and bias walks; IMU noise
 :data:`IMU_Q`), both filters told the true q. All runs of both filters see the same
 noise (common random numbers). Reported per trajectory (:class:`CalibrationRow`): mean
 final horizontal error and SRMSE of each filter, the share of runs whose four
@@ -28,7 +28,7 @@ import numpy as np
 
 from pronet import _core
 from pronet.montecarlo import monte_carlo
-from pronet.realdata import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
+from pronet.realtuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
 from pronet.results import markdown
 from pronet.stats import chi2_mean_band
 from pronet.trajectory import builtin_trajectory

@@ -1,0 +1,260 @@
+//! Unit tests of the EKF: Jacobians against finite differences, the gate, the
+//! divergence watch, covariance health, and the DVL calibration states.
+
+use super::*;
+use crate::attitude::dcm_from_euler;
+use crate::noise::StrategySpec;
+
+pub(crate) fn moving_state() -> NavState {
+    NavState {
+        lla: Vector3::new(0.55, 0.6, -10.0),
+        vel: Vector3::new(1.0, 0.5, 0.1),
+        dcm: dcm_from_euler(0.05, -0.1, 0.8),
+    }
+}
+
+/// Column `j` of `h` equals the finite difference `numeric` to 1e-5.
+fn assert_column<const N: usize>(numeric: &Vector3<f64>, h: &SMatrix<f64, 3, N>, j: usize) {
+    for i in 0..3 {
+        assert!(
+            (numeric[i] - h[(i, j)]).abs() < 1e-5,
+            "H[{i},{j}] = {} vs numeric {}",
+            h[(i, j)],
+            numeric[i]
+        );
+    }
+}
+
+/// Numerical Jacobian of the body-velocity measurement with respect to the error
+/// state agrees with H.
+#[test]
+fn measurement_jacobian_matches_finite_differences() {
+    let cfg = FilterConfig {
+        lever_arm: Vector3::new(0.5, -0.3, 1.2),
+        ..FilterConfig::default()
+    };
+    let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+    ekf.last_gyro = Vector3::new(0.01, -0.02, 0.05);
+    let (h0, h) = ekf.measurement_model();
+    let eps = 1e-6;
+    for j in 0..15 {
+        let mut e = ekf.clone();
+        let mut dx = Vector15::zeros();
+        dx[j] = eps;
+        // feedback applies −δx: the state moves to "truth" = estimate − δx, so
+        // h(estimate) − h(estimate − δx) ≈ H δx.
+        e.feedback(&dx);
+        e.last_gyro = ekf.last_gyro
+            + if j >= GYRO_BIAS {
+                Vector3::from_fn(|i, _| if i == j - GYRO_BIAS { eps } else { 0.0 })
+            } else {
+                Vector3::zeros()
+            };
+        let (h1, _) = e.measurement_model();
+        assert_column(&((h0 - h1) / eps), &h, j);
+    }
+}
+
+fn calibrated() -> FilterConfig {
+    FilterConfig {
+        lever_arm: Vector3::new(0.5, -0.3, 1.2),
+        dvl_calibration: Some(calibration::CalibrationConfig::default()),
+        ..FilterConfig::default()
+    }
+}
+
+/// With the calibration states, the 19 columns of H agree with finite differences
+/// of the predicted reading, away from the ideal mounting.
+#[test]
+fn calibrated_measurement_jacobian_matches_finite_differences() {
+    let mut ekf = Ekf::new(
+        &calibrated(),
+        moving_state(),
+        Vector3::zeros(),
+        Vector3::zeros(),
+    )
+    .unwrap();
+    ekf.last_gyro = Vector3::new(0.01, -0.02, 0.05);
+    ekf.calibration.as_mut().unwrap().estimate =
+        calibration::DvlMounting::from_angles(0.004, [0.01, -0.02, 0.03]);
+    let predict = |e: &Ekf| {
+        let (v_b, h_body) = e.measurement_model();
+        e.calibration.as_ref().unwrap().measurement(&v_b, &h_body)
+    };
+    let (z0, h) = predict(&ekf);
+    let eps = 1e-6;
+    for j in 0..calibration::N_CALIBRATED {
+        let mut e = ekf.clone();
+        let mut dx = SVector::<f64, { calibration::N_CALIBRATED }>::zeros();
+        dx[j] = eps;
+        e.feedback(&dx.fixed_rows::<15>(0).into_owned());
+        let c = e.calibration.as_mut().unwrap();
+        c.feedback(&[dx[SCALE], dx[SCALE + 1], dx[SCALE + 2], dx[SCALE + 3]]);
+        if (GYRO_BIAS..GYRO_BIAS + 3).contains(&j) {
+            e.last_gyro[j - GYRO_BIAS] += eps;
+        }
+        let (z1, _) = predict(&e);
+        assert_column(&((z0 - z1) / eps), &h, j);
+    }
+}
+
+/// Calibration states with a zero prior and no walk change nothing: the 19-state
+/// filter follows the 15-state one, and its cross-covariance stays zero.
+#[test]
+fn calibration_states_with_a_zero_prior_leave_the_filter_unchanged() {
+    let mut cfg = calibrated();
+    cfg.dvl_calibration = Some(calibration::CalibrationConfig {
+        scale_sigma: 0.0,
+        misalignment_sigma: [0.0; 3],
+        ..calibration::CalibrationConfig::default()
+    });
+    let plain_cfg = FilterConfig {
+        dvl_calibration: None,
+        ..cfg.clone()
+    };
+    let mut a = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+    let mut b = Ekf::new(
+        &plain_cfg,
+        moving_state(),
+        Vector3::zeros(),
+        Vector3::zeros(),
+    )
+    .unwrap();
+    let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+    let mut sa = StrategySpec::Constant { q }.build(cfg.bias_psd());
+    let mut sb = StrategySpec::Constant { q }.build(cfg.bias_psd());
+    let sample = ImuSample::from_array(&[0.1, 0.02, -9.79, 0.001, -0.002, 0.01]);
+    for k in 1..=500 {
+        let z = (k % 100 == 0).then(|| Vector3::new(1.0, 0.1, 0.05));
+        let ia = a.step(&sample, 0.01, sa.as_mut(), z.as_ref(), 100).unwrap();
+        let ib = b.step(&sample, 0.01, sb.as_mut(), z.as_ref(), 100).unwrap();
+        if let (Some(ia), Some(ib)) = (ia, ib) {
+            assert!((ia.nis - ib.nis).abs() <= 1e-12 * ib.nis.abs().max(1.0));
+        }
+    }
+    assert!((a.p - b.p).abs().max() <= 1e-12 * b.p.abs().max());
+    assert!((a.nav.vel - b.nav.vel).abs().max() <= 1e-12);
+    let c = a.calibration.as_ref().unwrap();
+    assert_eq!((c.cross.abs().max(), c.estimate.scale), (0.0, 0.0));
+}
+
+#[test]
+fn calibrated_covariance_stays_symmetric_positive_definite() {
+    let cfg = calibrated();
+    let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+    let mut strat = StrategySpec::Constant {
+        q: [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6],
+    }
+    .build(cfg.bias_psd());
+    let sample = ImuSample::from_array(&[0.0, 0.0, -9.79, 0.0, 0.0, 0.01]);
+    let prior = ekf.calibration.as_ref().unwrap().sigma();
+    for k in 1..=3000 {
+        let z = (k % 100 == 0).then(|| Vector3::new(1.0, 0.0, 0.0));
+        ekf.step(&sample, 0.01, strat.as_mut(), z.as_ref(), 100)
+            .unwrap();
+    }
+    let c = ekf.calibration.as_ref().unwrap();
+    let full = c.assemble(&ekf.p);
+    assert_eq!(full, full.transpose());
+    let eig = full.symmetric_eigenvalues();
+    assert!(eig.min() > 0.0, "min eigenvalue {}", eig.min());
+    // Constants without a walk: the updates never make them less certain.
+    assert!((0..4).all(|i| c.sigma()[i] <= prior[i]), "{:?}", c.sigma());
+    let nav = FilterConfig {
+        aiding: Aiding::Nav,
+        ..calibrated()
+    };
+    assert!(nav
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("body-frame aiding"));
+}
+
+/// Covariance stays symmetric and positive definite through propagation and updates.
+/// A body-frame DVL reading of the filter's own prediction plus `sigmas` standard
+/// deviations of its innovation on the first axis.
+fn reading(ekf: &Ekf, sigmas: f64) -> Vector3<f64> {
+    let (predicted, h) = ekf.measurement_model();
+    let s = h * ekf.p * h.transpose()
+        + Matrix3::from_diagonal(&Vector3::from_column_slice(&ekf.cfg.dvl_variance));
+    predicted + Vector3::new(sigmas * s[(0, 0)].sqrt(), 0.0, 0.0)
+}
+
+#[test]
+fn innovation_gate_rejects_a_ten_sigma_reading_and_leaves_the_state_alone() {
+    let cfg = FilterConfig {
+        innovation_gate: Some(16.27),
+        ..FilterConfig::default()
+    };
+    let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+    let before = ekf.clone();
+    let info = ekf.update(&reading(&ekf, 10.0)).unwrap();
+    assert!(!info.accepted);
+    // (S⁻¹)₀₀ ≥ 1/S₀₀ for an SPD S, so the NIS of a 10σ first-axis innovation is ≥ 100.
+    assert!(
+        info.nis >= 100.0 - 1e-9,
+        "NIS of a 10σ innovation: {}",
+        info.nis
+    );
+    assert_eq!((ekf.nav, ekf.p), (before.nav, before.p));
+    // 3σ is inside the gate (NIS 9 < 16.27): applied.
+    let info = ekf.update(&reading(&ekf, 3.0)).unwrap();
+    assert!(info.accepted);
+    assert_ne!(ekf.p, before.p);
+    // Without a gate the 10σ reading is applied.
+    let mut ungated = before.clone();
+    ungated.cfg.innovation_gate = None;
+    assert!(ungated.update(&reading(&ungated, 10.0)).unwrap().accepted);
+    assert_ne!(ungated.nav.vel, before.nav.vel);
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let cfg = FilterConfig {
+            innovation_gate: Some(bad),
+            ..FilterConfig::default()
+        };
+        assert!(cfg.validate().is_err(), "gate {bad} accepted");
+    }
+}
+
+#[test]
+fn nis_monitor_flags_a_sustained_large_nis_only() {
+    let mut m = NisMonitor::default();
+    // A consistent filter: mean 3, with single outliers.
+    for k in 0..200 {
+        m.push(if k % 37 == 0 { 60.0 } else { 3.0 }, k as f64);
+    }
+    assert_eq!(m.diverged_at, None);
+    // Innovations 4× their predicted σ (NIS ≈ 48) from t = 200 s on.
+    for k in 200..260 {
+        m.push(48.0, k as f64);
+    }
+    let t = m.diverged_at.expect("a sustained NIS of 48 is divergence");
+    assert!((200.0..220.0).contains(&t), "detected at {t}");
+    // The first detection is kept; a NaN NIS also counts.
+    m.push(f64::NAN, 999.0);
+    assert_eq!(m.diverged_at, Some(t));
+    let mut m = NisMonitor::default();
+    for k in 0..NisMonitor::WINDOW {
+        m.push(if k == 5 { f64::NAN } else { 3.0 }, k as f64);
+    }
+    assert!(m.diverged_at.is_some());
+}
+
+#[test]
+fn covariance_stays_symmetric_positive_definite() {
+    let cfg = FilterConfig::default();
+    let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+    let mut strat = StrategySpec::Constant {
+        q: [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6],
+    }
+    .build(cfg.bias_psd());
+    let sample = ImuSample::from_array(&[0.0, 0.0, -9.79, 0.0, 0.0, 0.0]);
+    for k in 1..=2000 {
+        let z = (k % 100 == 0).then(|| Vector3::new(1.0, 0.0, 0.0));
+        ekf.step(&sample, 0.01, strat.as_mut(), z.as_ref(), 100)
+            .unwrap();
+        assert_eq!(ekf.p, ekf.p.transpose());
+    }
+    let eig = ekf.p.symmetric_eigenvalues();
+    assert!(eig.min() > 0.0, "min eigenvalue {}", eig.min());
+}
