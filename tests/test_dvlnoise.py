@@ -183,3 +183,17 @@ def test_a_section_too_short_for_the_dvl_noise_runs_without_the_variant_rows() -
     assert [r.label for r in runs] == list(constant)
     with pytest.raises(ValueError, match="DVL noise: dvl: needs at least ten"):
         realdata.plan_section(section, {}, 1.0, dvl_noise="data")
+
+
+def test_calibration_agreement_weights_by_variance_and_counts_outliers() -> None:
+    from pronet.realtables import calibration_agreement
+
+    values = np.array([1.0, 1.2, 0.9, 5.0, 7.0])
+    sigmas = np.array([0.1, 0.2, 0.1, 0.1, 0.0])  # the last: no σ, left out
+    mean, sigma, off = calibration_agreement(values, sigmas)
+    w = 1 / sigmas[:4] ** 2
+    assert mean == pytest.approx(np.sum(w * values[:4]) / np.sum(w))
+    assert sigma == pytest.approx(1 / np.sqrt(np.sum(w)))
+    assert off == 4  # the weighted mean sits between the two clusters; none within 3σ
+    assert calibration_agreement(np.array([1.0, 1.1]), np.array([0.1, 0.1]))[2] == 0
+    assert np.isnan(calibration_agreement(np.array([1.0]), np.array([0.0]))[0])

@@ -197,11 +197,16 @@ def final_calibration(run: SectionRun) -> tuple[np.ndarray, np.ndarray] | None:
 def calibration_agreement(values: np.ndarray, sigmas: np.ndarray) -> tuple[float, float, int]:
     """The inverse-variance weighted mean of one quantity over sections, its 1σ, and
     how many sections lie more than 3σ from it (σ of the difference: each section's
-    own and the mean's, taken as independent)."""
-    w = 1.0 / sigmas**2
-    mean = float(np.sum(w * values) / np.sum(w))
+    own and the mean's, taken as independent). Sections with a zero or non-finite σ
+    or value are left out (NaN and 0 when none is left)."""
+    ok = np.isfinite(values) & np.isfinite(sigmas) & (sigmas > 0)
+    if not ok.any():
+        return math.nan, math.nan, 0
+    v, s = values[ok], sigmas[ok]
+    w = 1.0 / s**2
+    mean = float(np.sum(w * v) / np.sum(w))
     sigma = float(1.0 / math.sqrt(np.sum(w)))
-    off = np.abs(values - mean) > 3 * np.sqrt(sigmas**2 + sigma**2)
+    off = np.abs(v - mean) > 3 * np.sqrt(s**2 + sigma**2)
     return mean, sigma, int(np.sum(off))
 
 
