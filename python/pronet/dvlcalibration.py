@@ -124,9 +124,10 @@ def calibration_check(
     rows = []
     strategy = _core.Strategy.constant(IMU_Q)
     for name in trajectories:
-        plain, calibrated, ideal = (
+        traj = builtin_trajectory(name)
+        plain, calibrated, ideal = [
             monte_carlo(
-                builtin_trajectory(name),
+                traj,
                 strategy,
                 sensors=sensors(0.0, (0.0, 0.0, 0.0)) if ideal_dvl else sensors(),
                 config=filter_config(calibration),
@@ -134,7 +135,7 @@ def calibration_check(
                 seed=seed,
             )
             for ideal_dvl, calibration in ((False, False), (False, True), (True, False))
-        )
+        ]
         error, sigma = calibrated.calibration_error, calibrated.calibration_sigma
         nees = calibrated.calibration_nees
         if error is None or sigma is None or nees is None:

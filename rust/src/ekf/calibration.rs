@@ -168,7 +168,7 @@ impl Calibration {
     }
 
     /// Apply `[δk̂, δμ̂]` (estimate minus truth): `k̂ ← k̂ − δk̂`, `M̂ ← M̂ exp(−[δμ̂×])`.
-    pub fn feedback(&mut self, dc: &[f64]) {
+    pub fn feedback(&mut self, dc: &[f64; 4]) {
         self.estimate.scale -= dc[0];
         let mu = Vector3::new(dc[1], dc[2], dc[3]);
         self.estimate.body_to_dvl *= exp_so3(&(-mu));

@@ -345,6 +345,8 @@ struct Outcome<const N: usize> {
 /// tracked) by a 3-vector measurement with Jacobian `h`, innovation `ν` and noise `r`:
 /// `S = H P Hᵀ + R`, `K = P Hᵀ S⁻¹`, NIS `νᵀ S⁻¹ ν`; unless the gate rejects it,
 /// `P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ` symmetrized and `M ← (I − K H) M (I − K H)ᵀ`.
+/// For the 15 states and the 19 with the DVL calibration (N ≥ 15: the report's gain
+/// is the first 15 rows).
 fn kalman_update<const N: usize>(
     p: &mut SMatrix<f64, N, N>,
     m: Option<&mut SMatrix<f64, N, N>>,
