@@ -69,12 +69,24 @@ def test_an_existing_out_is_refused_before_any_work(tmp_path, scenario, no_work,
     assert "exists; choose another --out" in one_line(capsys)
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def _unwritable_folder(tmp_path: Path) -> Path:
+    """A folder this process may not write into: a read-only one of its own, or, for
+    root (who writes into those), one the kernel refuses even to root (/proc/sys)."""
+    if os.geteuid() != 0:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        return locked
+    refused = Path("/proc/sys")
+    if os.access(refused, os.W_OK):
+        pytest.skip("root, and /proc/sys is writable here: no folder refuses root")
+    return refused
+
+
 def test_an_unwritable_out_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):
-    locked = tmp_path / "locked"
-    locked.mkdir(mode=0o500)
+    locked = _unwritable_folder(tmp_path)
     assert cli.main(simulate(scenario, locked / "res")) == 2
-    assert "is not writable" in one_line(capsys)
+    line = one_line(capsys)
+    assert line.startswith(f"pronet: --out: {locked / 'res'}: ") and "is not writable" in line
 
 
 def test_an_out_another_run_is_writing_is_refused(tmp_path, scenario, no_work, capsys):
@@ -327,3 +339,41 @@ def test_a_run_count_beyond_memory_is_one_line_before_any_allocation(
     line = one_line(capsys)
     assert line.startswith("pronet: n_runs: 1000000000000 runs of this scenario would hold ")
     assert "split them into shards" in line
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["simulate", "--runs", "1e12"], "pronet: --runs: invalid int value: '1e12'"),
+        (["simulate", "--no-such-option"], "pronet: unrecognized arguments: --no-such-option"),
+        (["real"], "pronet: the following arguments are required: --data"),
+        (["no-such-command"], "pronet: command: invalid choice: 'no-such-command'"),
+    ],
+)
+def test_a_malformed_command_line_is_one_line(args, expected, capsys) -> None:
+    with pytest.raises(SystemExit) as stop:
+        cli.main(args)
+    assert stop.value.code == 2
+    line = one_line(capsys)
+    assert line.startswith(expected) and line.endswith("--help)"), line
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--levels", "0"], "pronet: --levels: must be >= 1, got 0"),
+        (["--levels", "100000000"], "pronet: --levels: 100000000 levels make "),
+        (["--seed", "-1"], "pronet: --seed: must be >= 0, got -1"),
+    ],
+)
+def test_dataset_sizes_name_the_option(tmp_path, args, expected, capsys) -> None:
+    assert cli.main(["dataset", *args, "--out", str(tmp_path / "d.npz"), "--quiet"]) == 2
+    assert one_line(capsys).startswith(expected)
+    assert not list(tmp_path.iterdir())
+
+
+def test_study_checks_its_arguments_before_saying_anything(tmp_path, capsys) -> None:
+    assert cli.main(["study", "--runs", "0", "--out", str(tmp_path / "s")]) == 2
+    assert capsys.readouterr().out == ""  # no "study: ... 0 runs each" first
+    assert cli.main(["study", "--runs", "0", "--out", str(tmp_path / "s")]) == 2
+    assert one_line(capsys) == "pronet: --runs: must be at least 1, got 0"

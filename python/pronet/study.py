@@ -105,20 +105,11 @@ class StudyRow:
     outage_error: NDArray[np.float64]
 
 
-def run_study(
-    n_runs: int = 100,
-    seed: int = 0,
-    *,
-    scenarios: Sequence[str] = STUDY_SCENARIOS,
-    labels: Sequence[str] | None = None,
-    threads: int | None = None,
-    tuning_period: float = 1.0,
-    on_start: OnStart | None = None,
-    on_done: OnDone | None = None,
-) -> list[StudyRow]:
-    """Every row of :data:`STUDY_ROWS` (or ``labels``; the reference first) on every
-    scenario, ``n_runs`` runs each from ``seed`` (the noise schedules too). Everything
-    is checked before anything runs; ``on_done("<scenario>: <label>")`` after each."""
+def _chosen_rows(
+    n_runs: int, scenarios: Sequence[str], labels: Sequence[str] | None, threads: int | None
+) -> list[str]:
+    """The study's rows, the reference first, after checking every argument (ValueError
+    naming the option)."""
     if n_runs < 1:
         raise ValueError(f"--runs: must be at least 1, got {n_runs}")
     threads_arg(threads, "--threads")
@@ -133,6 +124,24 @@ def run_study(
         raise ValueError("--strategies, --scenarios: a value is listed twice")
     if chosen[0] != REFERENCE:
         chosen = [REFERENCE, *(label for label in chosen if label != REFERENCE)]
+    return chosen
+
+
+def run_study(
+    n_runs: int = 100,
+    seed: int = 0,
+    *,
+    scenarios: Sequence[str] = STUDY_SCENARIOS,
+    labels: Sequence[str] | None = None,
+    threads: int | None = None,
+    tuning_period: float = 1.0,
+    on_start: OnStart | None = None,
+    on_done: OnDone | None = None,
+) -> list[StudyRow]:
+    """Every row of :data:`STUDY_ROWS` (or ``labels``; the reference first) on every
+    scenario, ``n_runs`` runs each from ``seed`` (the noise schedules too). Everything
+    is checked before anything runs; ``on_done("<scenario>: <label>")`` after each."""
+    chosen = _chosen_rows(n_runs, scenarios, labels, threads)
     regressors = _regressors(chosen)
     if on_start is not None:
         on_start(len(scenarios) * len(chosen), "run", None)
@@ -371,8 +380,8 @@ def study(
     """Run the study (:func:`run_study`) and write its folder (:func:`write_study`,
     default ``results/study-<time>``; an existing one is refused); returns the folder."""
     folder = new_result_folder(out, "study")
+    n_rows = len(_chosen_rows(n_runs, scenarios, labels, threads))  # checked before a word
     if say is not None:
-        n_rows = len(labels) if labels is not None else len(STUDY_ROWS)
         say(
             f"study: {len(scenarios)} scenarios x {n_rows} strategies, {n_runs} runs "
             f"each, seed {seed}"

@@ -20,6 +20,7 @@ import errno
 import signal
 import sys
 import threading
+from typing import NoReturn
 
 from pronet._extras import MissingExtra
 from pronet.cli import (
@@ -38,9 +39,19 @@ from pronet.cli import (
 COMMANDS = (info, reproduce, study, dataset, train, evaluate, real, simulate, sweep)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the CLI's one rule for a user's mistake: one line
+    ``pronet: <argument>: <reason>`` and exit code 2, instead of the usage block."""
+
+    def error(self, message: str) -> NoReturn:
+        if message.startswith("argument "):  # "argument --runs: invalid int value: '1e12'"
+            message = message.removeprefix("argument ")
+        self.exit(2, f"pronet: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The parser of every command (each module adds its own)."""
-    parser = argparse.ArgumentParser(
+    """The parser of every command (each module adds its own; they share its class)."""
+    parser = _Parser(
         prog="pronet", description="INS/DVL navigation with learned, adaptive process noise."
     )
     sub = parser.add_subparsers(dest="command", required=True)

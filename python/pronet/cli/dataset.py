@@ -55,7 +55,12 @@ def run(args: argparse.Namespace) -> int:
     check_writable(out, "--out")
     base = dataset.GRADES if args.grades else dataset.DatasetParams()
     params = dataclasses.replace(base, seed=args.seed, n_levels=args.levels)
-    params.validate()
+    try:
+        params.validate()
+    except ValueError as exc:  # the options' names, not the fields'
+        field, sep, reason = str(exc).partition(": ")
+        option = {"n_levels": "--levels", "seed": "--seed"}.get(field)
+        raise ValueError(f"{option}: {reason}" if sep and option else str(exc)) from None
     start = time.perf_counter()
     ds = dataset.build_dataset(params)
     dataset.save_dataset(ds, out, params)
