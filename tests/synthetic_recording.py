@@ -35,10 +35,13 @@ def synthetic_recording(
     duration: float = 80.0,
     name: str = "synthetic",
     dvl_sigma: float | tuple[float, float, float] = 0.01,
+    dvl_mounting: tuple[float, tuple[float, float, float]] = (0.0, (0.0, 0.0, 0.0)),
 ) -> Synthetic:
     """An AUV-like section: turns and depth changes at 1.5–2 m/s, 100 Hz IMU with
     white noise (variance 1e-4 (m/s²)² and 1e-8 (rad/s)²), 1 Hz DVL with white noise of
-    ``dvl_sigma`` [m/s] per body axis, and ground truth on their own clocks."""
+    ``dvl_sigma`` [m/s] per body axis, and ground truth on their own clocks.
+    ``dvl_mounting = (k, (roll, pitch, yaw))``: the DVL reads ``(1 + k) C_b^d v_b`` with
+    ``C_d^b = R(roll, pitch, yaw)`` [rad] (as the core's ``DvlMounting``)."""
     # Smoothly varying turn rate, speed and pitch (one-second segments), as an AUV
     # manoeuvres: 1 Hz rows interpolate such motion well.
     t = np.arange(int(duration)) + 0.5
@@ -83,6 +86,10 @@ def synthetic_recording(
     cd = dcm_from_euler(_at(t_dvl, t_epoch, rpy))
     v_body = np.einsum("kji,kj->ki", cd, _at(t_dvl, t_epoch, traj.vel_ned))
     v_body += np.cross(_at(t_dvl, imu_time, traj.imu[:, 3:6]), r_dvl - r_imu)
+    scale, angles = dvl_mounting
+    if scale != 0.0 or any(angles):
+        body_to_dvl = dcm_from_euler(np.asarray(angles, dtype=np.float64)).T
+        v_body = (1.0 + scale) * v_body @ body_to_dvl.T
     dvl = v_body + rng.normal(scale=dvl_sigma, size=v_body.shape)
 
     def stamps(clock: Clock, t: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from pronet import _core
 from pronet._validate import flag, scalar
 from pronet.alignment import Section, find_sections, load_section, section_name
 from pronet.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
+from pronet.dvltruth import TruthCalibration, truth_calibration
 from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.realmetrics import SectionMetrics, section_metrics
@@ -269,6 +270,9 @@ class RealRuns:
             the other sections' runs are complete without it.
         dvl_noise: per section, the DVL noise estimates (or why there are none) and
             the R the strategy rows used ``(estimates, used)``.
+        truth_calibration: per section, the DVL scale and mounting its ground truth
+            implies without a filter (:func:`pronet.dvltruth.truth_calibration`), or why
+            there is none.
     """
 
     sections: list[tuple[Section, Section]]
@@ -281,6 +285,7 @@ class RealRuns:
     dvl_noise: dict[str, tuple[SectionDvlNoise | str, tuple[float, float, float]]] = field(
         default_factory=dict
     )
+    truth_calibration: dict[str, TruthCalibration | str] = field(default_factory=dict)
 
 
 def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
@@ -356,6 +361,7 @@ def run_sections(
         {a.name: p.constants for (a, _), p in ran},
         reasons,
         {a.name: (p.plan.dvl_noise, p.plan.dvl_variance) for (a, _), p in ran},
+        {a.name: p.truth_calibration for (a, _), p in ran},
     )
 
 
@@ -375,6 +381,7 @@ class _SectionRuns:
     runs: list[SectionRun]
     stamped: SectionRun
     inertial: SectionRun
+    truth_calibration: TruthCalibration | str
 
     @property
     def q(self) -> tuple[float, ...]:
@@ -404,7 +411,11 @@ def _run_one_section(
         label=f"{first_label}, stamps as given, no lever arms",
         setup="stamps as given, no lever arms",
     )
-    return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run)
+    try:
+        truth: TruthCalibration | str = truth_calibration(aligned)
+    except ValueError as exc:  # a section too short or too still: the reason, in the table
+        truth = str(exc)
+    return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run, truth)
 
 
 def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
@@ -546,6 +557,19 @@ def run_real(
             }
             for r in done.runs
             if (c := final_calibration(r)) is not None
+        },
+        "dvl_calibration_from_truth": {
+            name: (
+                {"failure": t}
+                if isinstance(t, str)
+                else {
+                    "scale_roll_pitch_yaw": t.estimate.tolist(),
+                    "sigma": t.sigma.tolist(),
+                    "rms_residual": t.rms_residual,
+                    "rows": t.rows,
+                }
+            )
+            for name, t in done.truth_calibration.items()
         },
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }

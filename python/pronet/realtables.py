@@ -4,6 +4,7 @@ the section runs' metrics, and their rows in ``metrics.csv`` / ``summary.csv``."
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -12,6 +13,7 @@ import numpy as np
 from pronet.results import RUN_COLUMNS, SUMMARIZED, SUMMARY_COLUMNS, markdown, write_tables
 
 if TYPE_CHECKING:
+    from pronet.dvltruth import TruthCalibration
     from pronet.realdata import RealRuns, SectionRun
 
 METRIC_COLUMNS = (
@@ -210,12 +212,27 @@ def calibration_agreement(values: np.ndarray, sigmas: np.ndarray) -> tuple[float
     return mean, sigma, int(np.sum(off))
 
 
-def calibration_table(runs: list[SectionRun]) -> str:
+#: The label of the calibration the ground truth implies, in :func:`calibration_table`.
+TRUTH_LABEL = "ground truth, least squares (no filter)"
+
+
+def calibration_table(
+    runs: list[SectionRun], truth: Mapping[str, TruthCalibration | str] | None = None
+) -> str:
     """Markdown: each calibrated row's final DVL scale and mounting angles per section
-    with 1σ, then per row the weighted mean over sections and how many sections lie
-    beyond 3σ of it (one vehicle, one installation: they should agree)."""
-    found = [(r, c) for r in runs if (c := final_calibration(r)) is not None]
-    labels = list(dict.fromkeys(r.label for r, _ in found))
+    with 1σ, and (``truth``) the calibration each section's ground truth implies without
+    a filter (:func:`pronet.dvltruth.truth_calibration`); then per row the weighted mean
+    over sections and how many sections lie beyond 3σ of it (one vehicle, one
+    installation: they should agree)."""
+    found: list[tuple[str, str, np.ndarray, np.ndarray]] = [
+        (r.section, r.label, *c) for r in runs if (c := final_calibration(r)) is not None
+    ]
+    found += [
+        (name, TRUTH_LABEL, t.estimate, t.sigma)
+        for name, t in (truth or {}).items()
+        if not isinstance(t, str)
+    ]
+    labels = list(dict.fromkeys(label for _, label, _, _ in found))
     units = np.array(_CALIBRATION_UNITS)
 
     def cell(v: float, s: float, unit: float) -> str:
@@ -223,11 +240,11 @@ def calibration_table(runs: list[SectionRun]) -> str:
 
     lines: list[list[object]] = []
     for label in labels:
-        mine = [(r, c) for r, c in found if r.label == label]
-        for r, (v, s) in mine:
-            lines.append([r.section, label, *(cell(*x) for x in zip(v, s, units, strict=True))])
-        values = np.array([c[0] for _, c in mine])
-        sigmas = np.array([c[1] for _, c in mine])
+        mine = [(name, v, s) for name, lb, v, s in found if lb == label]
+        for name, v, s in mine:
+            lines.append([name, label, *(cell(*x) for x in zip(v, s, units, strict=True))])
+        values = np.array([v for _, v, _ in mine])
+        sigmas = np.array([s for _, _, s in mine])
         summary = []
         for j in range(4):
             mean, sigma, off = calibration_agreement(values[:, j], sigmas[:, j])
@@ -250,7 +267,7 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "mean_nis", "Per section"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
-                [calibration_table(done.runs)]
+                [calibration_table(done.runs, done.truth_calibration)]
                 if any(final_calibration(r) is not None for r in done.runs)
                 else []
             ),
