@@ -141,3 +141,13 @@ def test_on_a_steady_leg_the_scale_drifts_low_and_the_exact_posterior_agrees() -
     assert len(rows) == 5 and rows[0][1] == ""  # the 15-state row has no scale
     scale = float(rows[1][1].split(" ± ")[0])
     assert scale < -0.2  # % : below the truth's 0, as the doc's -0.65 % at 60 runs
+
+
+def test_the_calibration_prior_can_be_chosen() -> None:
+    """``calibration_check(prior=)`` reaches the filter: the states start from it, and
+    on a straight run (scale barely observable) they end near its σ, not the default's."""
+    straight = ("train-straight",)
+    tight = dvlcalibration.calibration_check(8, trajectories=straight, prior=(0.003, 0.005))
+    default_scale = dvlcalibration.filter_config(True).dvl_scale_sigma
+    assert default_scale is not None and tight[0].sigma_scale < 0.003 < 0.5 * default_scale
+    assert tight[0].sigma_yaw < 0.005

@@ -62,17 +62,22 @@ def sensors(
     )
 
 
-def filter_config(calibration: bool) -> _core.FilterConfig:
-    """The recorded sections' tuning, with or without the calibration states (their
-    default prior: 1 % and 1° per axis, constants)."""
+def filter_config(
+    calibration: bool, prior: tuple[float, float] | None = None
+) -> _core.FilterConfig:
+    """The recorded sections' tuning, with or without the calibration states; their
+    prior ``(scale σ, angle σ [rad])`` per axis, constants (default: the core's 1 % and
+    1°)."""
+    scale, angle = (None, None) if prior is None or not calibration else prior
     return _core.FilterConfig(
         p0_sigma=REAL_P0_SIGMA,
         accel_bias_psd=REAL_ACCEL_BIAS_PSD,
         gyro_bias_psd=REAL_GYRO_BIAS_PSD,
         dvl_variance=(DVL_VARIANCE,) * 3,
         dvl_calibration=calibration,
+        dvl_scale_sigma=scale,
+        dvl_misalignment_sigma=None if angle is None else (angle,) * 3,
     )
-
 
 @dataclass(frozen=True)
 class CalibrationRow:
@@ -117,10 +122,14 @@ def _in_band(values: np.ndarray, dof: int, runs: int) -> float:
 
 
 def calibration_check(
-    n_runs: int = 100, seed: int = 0, trajectories: tuple[str, ...] = TRAJECTORIES
+    n_runs: int = 100,
+    seed: int = 0,
+    trajectories: tuple[str, ...] = TRAJECTORIES,
+    prior: tuple[float, float] | None = None,
 ) -> list[CalibrationRow]:
     """Both filters on each trajectory, ``n_runs`` runs each from ``seed``, and the
-    15-state filter with an ideal DVL (see the module docstring)."""
+    15-state filter with an ideal DVL (see the module docstring); ``prior``: the
+    calibration states' ``(scale σ, angle σ [rad])`` (default 1 %, 1°)."""
     rows = []
     strategy = _core.Strategy.constant(IMU_Q)
     for name in trajectories:
@@ -130,7 +139,7 @@ def calibration_check(
                 traj,
                 strategy,
                 sensors=sensors(0.0, (0.0, 0.0, 0.0)) if ideal_dvl else sensors(),
-                config=filter_config(calibration),
+                config=filter_config(calibration, prior),
                 n_runs=n_runs,
                 seed=seed,
             )
