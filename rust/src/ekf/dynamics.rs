@@ -94,31 +94,22 @@ impl ErrorDynamics {
     fn propagate_covariance_portable(&self, p: &mut Matrix15, dt: f64) {
         const NAV: usize = 9;
         let a = self.times(p);
-        // b[j][i] = (F Aᵀ)[i, j]; column j of Aᵀ is row j of A.
-        let mut b = [[0.0; NAV]; NAV];
-        for (col, row) in b.iter_mut().zip(a.iter()) {
-            *col = self.apply(row);
-        }
-        // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j]; the block
-        // gains M + Mᵀ, which is exactly symmetric since addition commutes.
+        // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j] (column j of
+        // F Aᵀ is F times row j of A); the block gains M + Mᵀ, which is exactly
+        // symmetric since addition commutes.
         let half_dt2 = 0.5 * (dt * dt);
         let mut m = [[0.0; NAV]; NAV];
         for (j, col) in m.iter_mut().enumerate() {
+            let b = self.apply(&a[j]);
             for (i, v) in col.iter_mut().enumerate() {
-                *v = dt * a[i][j] + half_dt2 * b[j][i];
-            }
-        }
-        let mut mt = [[0.0; NAV]; NAV];
-        for (j, col) in mt.iter_mut().enumerate() {
-            for (i, v) in col.iter_mut().enumerate() {
-                *v = m[i][j];
+                *v = dt * a[i][j] + half_dt2 * b[i];
             }
         }
         let s = p.as_mut_slice(); // column-major
         for j in 0..NAV {
             let col = &mut s[15 * j..15 * j + 15];
             for i in 0..NAV {
-                col[i] += m[j][i] + mt[j][i];
+                col[i] += m[j][i] + m[i][j];
             }
             // Rows 9..15 of a navigation column: P[bias, j] + Δt A[j, bias].
             for (v, a) in col[NAV..].iter_mut().zip(&a[j][NAV..]) {
