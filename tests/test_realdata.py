@@ -512,14 +512,14 @@ def test_snapir_r_from_the_data_makes_every_section_consistent():
 def test_snapir_ground_truth_sees_a_dvl_within_tenths_of_a_percent_and_degree():
     """Sections 1–11, no filter: the DVL against the post-processed truth (docs/realdata.md)
     is within 0.6 % in scale and 0.5° in pitch and yaw on every section, each to within
-    0.25 % and 0.15° (1σ), with residuals under 0.1 m/s. The filter's calibration states,
+    0.25 % and 0.2° (1σ), with residuals under 0.1 m/s. The filter's calibration states,
     which land far from these, are judged against them there."""
     for aligned, _ in alignment.load_snapir_sections(SNAPIR):
         fit = truth_calibration(aligned)
         k, _, pitch, yaw = fit.estimate
         assert abs(k) < 0.006 and fit.sigma[0] < 0.0025, (aligned.name, fit)
         assert max(abs(pitch), abs(yaw)) < np.radians(0.5), (aligned.name, fit)
-        assert max(fit.sigma[2], fit.sigma[3]) < np.radians(0.15), (aligned.name, fit)
+        assert max(fit.sigma[2], fit.sigma[3]) < np.radians(0.2), (aligned.name, fit)
         assert fit.rms_residual < 0.1, (aligned.name, fit)
 
 

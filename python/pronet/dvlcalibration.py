@@ -79,6 +79,7 @@ def filter_config(
         dvl_misalignment_sigma=None if angle is None else (angle,) * 3,
     )
 
+
 @dataclass(frozen=True)
 class CalibrationRow:
     """One trajectory of :func:`calibration_check`.

@@ -12,11 +12,19 @@ and ``(k, θ)`` is the least-squares fit over every DVL row of the section.
 
 What the truth can tell: an AUV moves mostly forward, so the fit sees the scale in the
 forward axis, the yaw in the lateral and the pitch in the vertical axis; the roll needs
-lateral or vertical motion and is weakly determined (its σ says so). The residuals are
-the DVL's noise plus the truth's own errors, which are correlated from row to row; the
-1σ is the least-squares one widened by ``√((1 + ρ) / (1 − ρ))`` for the residuals'
-lag-one autocorrelation ``ρ`` (an AR(1) effective sample size), and is still a lower
-bound when the truth has slow errors of its own.
+lateral or vertical motion and is weakly determined (its σ says so; with no such
+motion at all it is not fitted: NaN, σ infinite). The residuals of the three axes
+differ in size and in how they are correlated from row to row (the DVL's noise plus the
+truth's own errors), so the fit is weighted per axis: a first unweighted pass gives each
+axis its residual variance ``s²`` and lag-one autocorrelation ``ρ`` (floored at 0), and
+the second pass weights the axis by ``(1 − ρ) / ((1 + ρ) s²)``, an AR(1) effective
+sample size; the 1σ is that weighted fit's. It is still a lower bound when the truth
+has slow errors of its own.
+
+What the truth is: on the Snapir data a post-processed INS solution (iXblue's Delph
+INS), which may itself rest on this DVL. A fit near zero then says that the DVL and the
+post-processing agree, not that the DVL is right; it is still the reference the
+filter's states are scored against.
 """
 
 from __future__ import annotations
@@ -32,6 +40,8 @@ F64 = NDArray[np.float64]
 
 #: Fewest DVL rows inside the truth's time span that a fit is made from.
 MIN_ROWS = 10
+#: Slowest median speed through the water [m/s] that a calibration fit is made from.
+MIN_SPEED = 0.1
 
 
 @dataclass(frozen=True)
@@ -41,7 +51,8 @@ class TruthCalibration:
     Attributes:
         estimate: ``[k, roll, pitch, yaw]`` (scale error; rad), as the filter reports it
             (:attr:`pronet.FilterResult.calibration`).
-        sigma: their 1σ (least squares widened for correlated residuals, see the module).
+        sigma: their 1σ (the per-axis weighted fit's, see the module); the roll is NaN
+            with an infinite σ where the motion cannot show it.
         rms_residual: RMS of ``z − (1 + k) C_b^d v_b`` per axis after the fit [m/s].
         rows: DVL rows used.
     """
@@ -75,8 +86,8 @@ def truth_body_velocity(section: Section) -> tuple[NDArray[np.intp], F64]:
 def truth_calibration(section: Section) -> TruthCalibration:
     """The DVL scale error and mounting angles of ``section`` fitted against its ground
     truth (see the module docstring). Raises ValueError naming the section when fewer
-    than :data:`MIN_ROWS` DVL rows fall inside the truth, or the motion cannot
-    separate the four (for example a vehicle at rest)."""
+    than :data:`MIN_ROWS` DVL rows fall inside the truth, or its median speed is not
+    above :data:`MIN_SPEED`."""
     rows, v_b = truth_body_velocity(section)
     if len(rows) < MIN_ROWS:
         raise ValueError(
@@ -95,24 +106,46 @@ def truth_calibration(section: Section) -> TruthCalibration:
         ],
         axis=1,
     )  # (rows, 3 axes, 4 unknowns)
-    a = design.reshape(-1, 4)
-    normal = a.T @ a
-    if np.linalg.cond(normal) > 1e12:
+    speed = float(np.median(np.linalg.norm(v_b, axis=1)))
+    if not speed > MIN_SPEED:
         raise ValueError(
-            f"{section.name}: the truth's motion cannot separate the DVL's scale and "
-            "mounting angles (too little speed)"
+            f"{section.name}: the truth's median speed is {speed:.3g} m/s; a calibration "
+            f"fit needs more than {MIN_SPEED} m/s"
         )
-    coef = np.linalg.solve(normal, a.T @ d.reshape(-1))
-    resid = (d - design @ coef).reshape(len(rows), 3)
-    dof = resid.size - 4
-    s2 = float(np.sum(resid**2) / dof)
-    lag = float(np.sum(resid[1:] * resid[:-1]) / np.sum(resid**2)) if len(rows) > 1 else 0.0
-    rho = min(max(lag, 0.0), 0.95)
-    widen = (1.0 + rho) / (1.0 - rho)
-    sigma = np.sqrt(np.diag(np.linalg.inv(normal)) * s2 * widen)
+    # Roll is fitted only where the motion shows it (lateral or vertical velocity).
+    fitted = [0, 1, 2, 3] if np.linalg.cond(_normal(design)) < 1e10 else [0, 2, 3]
+    a = design[:, :, fitted]
+    weights = np.ones(3)
+    for _ in range(2):  # unweighted, then weighted per axis
+        info = _normal(a, weights)
+        coef = np.linalg.solve(info, np.einsum("kaj,ka,a->j", a, d, weights))
+        resid = d - a @ coef
+        weights = _axis_weights(resid)
+    info = _normal(a, weights)
+    estimate = np.full(4, np.nan)
+    sigma = np.full(4, np.inf)
+    estimate[fitted] = coef
+    sigma[fitted] = np.sqrt(np.diag(np.linalg.inv(info)))
     return TruthCalibration(
-        estimate=coef.astype(np.float64),
+        estimate=estimate,
         sigma=sigma,
         rms_residual=float(np.sqrt(np.mean(resid**2))),
         rows=len(rows),
     )
+
+
+def _normal(design: F64, weights: F64 | None = None) -> F64:
+    """``Σ_rows Σ_axes w_a A_aᵀ A_a`` of a ``(rows, 3, n)`` design."""
+    w = np.ones(3) if weights is None else weights
+    return np.einsum("kai,a,kaj->ij", design, w, design)
+
+
+def _axis_weights(resid: F64) -> F64:
+    """Per axis ``(1 − ρ) / ((1 + ρ) s²)`` from residuals ``(rows, 3)``: ``s²`` their
+    mean square, ``ρ`` their lag-one autocorrelation floored at 0 and capped at 0.95
+    (see the module docstring); a perfect fit gets the smallest positive ``s²``."""
+    sq = np.sum(resid**2, axis=0)
+    s2 = np.maximum(sq / max(len(resid) - 1, 1), np.finfo(np.float64).tiny)
+    lag = np.sum(resid[1:] * resid[:-1], axis=0)
+    rho = np.clip(np.divide(lag, sq, out=np.zeros(3), where=sq > 0), 0.0, 0.95)
+    return (1.0 - rho) / ((1.0 + rho) * s2)

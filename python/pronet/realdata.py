@@ -413,7 +413,7 @@ def _run_one_section(
     )
     try:
         truth: TruthCalibration | str = truth_calibration(aligned)
-    except ValueError as exc:  # a section too short or too still: the reason, in the table
+    except ValueError as exc:  # a section too short or too slow: the reason, in config.json
         truth = str(exc)
     return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run, truth)
 

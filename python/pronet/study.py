@@ -379,8 +379,8 @@ def study(
 ) -> Path:
     """Run the study (:func:`run_study`) and write its folder (:func:`write_study`,
     default ``results/study-<time>``; an existing one is refused); returns the folder."""
+    n_rows = len(_chosen_rows(n_runs, scenarios, labels, threads))  # checked before anything
     folder = new_result_folder(out, "study")
-    n_rows = len(_chosen_rows(n_runs, scenarios, labels, threads))  # checked before a word
     if say is not None:
         say(
             f"study: {len(scenarios)} scenarios x {n_rows} strategies, {n_runs} runs "

@@ -72,7 +72,11 @@ def _terminate(signum: int, frame: object) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command of ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # named with the command they were given to, not pronet's top level
+        unknown, command = " ".join(extra), f"pronet {args.command}"
+        parser.exit(2, f"pronet: unrecognized arguments: {unknown} (see {command} --help)\n")
     on_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminate) if on_main_thread else None
     try:
