@@ -5,7 +5,11 @@ loopback only. ``pronet sweep --engine ray --address`` gives the local engine's
 shard (Ray runs the shard again; shards are deterministic).
 
 The nodes run with ``--block``, so that stopping their ``ray start`` processes stops
-every process they started and no other Ray on the machine is touched. Ray ≥ 2.59
+every process they started and no other Ray on the machine is touched. Where the
+machine allows it (root, ``unshare``), the nodes and the sweep run in a network
+namespace of their own whose only interface is the loopback: Ray binds its GCS and
+raylet ports on every interface whatever ``--node-ip-address`` says, and there every
+interface is the loopback. Elsewhere they run in the machine's namespace. Ray ≥ 2.59
 turns token authentication on for such clusters: the nodes and the sweep share a token
 of this test's own (``RAY_AUTH_MODE=token``, ``RAY_AUTH_TOKEN``), as every client of a
 real cluster must (docs/cli.md#pronet-sweep)."""
@@ -14,6 +18,7 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
 import signal
 import socket
 import subprocess
@@ -52,7 +57,32 @@ def free_port() -> int:
 ENV = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16)}
 
 
-def start_node(args: list[str], log: Path) -> subprocess.Popen[bytes]:
+@pytest.fixture
+def inside() -> Iterator[list[str]]:
+    """The prefix that runs a command in a network namespace with only the loopback
+    (``nsenter`` into one held by a sleeping process), or ``[]`` where namespaces
+    cannot be made here."""
+    tools = all(shutil.which(t) for t in ("unshare", "nsenter", "ip"))
+    if not tools or subprocess.run(["unshare", "-n", "true"], capture_output=True).returncode:
+        yield []
+        return
+    hold = "ip link set lo up && exec sleep 3600"
+    holder = subprocess.Popen(["unshare", "-n", "--", "sh", "-c", hold])
+    prefix = ["nsenter", "-t", str(holder.pid), "-n", "--"]
+
+    def lo_up() -> bool:
+        shown = subprocess.run([*prefix, "ip", "link", "show", "lo"], capture_output=True)
+        return b"UP" in shown.stdout
+
+    try:
+        wait_for(lo_up, 10, "the loopback of the test's network namespace did not come up")
+        yield prefix
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def start_node(args: list[str], log: Path, inside: list[str]) -> subprocess.Popen[bytes]:
     """``ray start --block ARGS`` on the loopback, one CPU, its own agent ports."""
     ports = [
         f"--dashboard-agent-listen-port={free_port()}",
@@ -60,7 +90,7 @@ def start_node(args: list[str], log: Path) -> subprocess.Popen[bytes]:
         f"--runtime-env-agent-port={free_port()}",
         f"--metrics-export-port={free_port()}",
     ]
-    cmd = [str(RAY), "start", "--block", "--node-ip-address=127.0.0.1", "--num-cpus=1"]
+    cmd = [*inside, str(RAY), "start", "--block", "--node-ip-address=127.0.0.1", "--num-cpus=1"]
     cmd += ["--disable-usage-stats", *ports, *args]
     with log.open("wb") as out:
         return subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=ENV)
@@ -101,19 +131,22 @@ def wait_for(what, timeout: float, message: str):
 
 
 @pytest.fixture
-def cluster(tmp_path) -> Iterator[str]:
+def cluster(tmp_path, inside) -> Iterator[str]:
     """A head and a second node on this machine; yields the head's address."""
     port = free_port()
     temp = Path(os.environ.get("TMPDIR", "/tmp")) / f"pronet-ray-{port}"  # short: socket paths
     head = start_node(
         ["--head", f"--port={port}", "--include-dashboard=false", f"--temp-dir={temp}"],
         tmp_path / "head.log",
+        inside,
     )
     nodes = [head]
     try:
         address = f"127.0.0.1:{port}"
-        wait_for(lambda: _reachable(port), 60, f"the head did not start: {tmp_path / 'head.log'}")
-        nodes.append(start_node([f"--address={address}"], tmp_path / "node.log"))
+        wait_for(
+            lambda: _reachable(port, inside), 60, f"the head did not start: {tmp_path / 'head.log'}"
+        )
+        nodes.append(start_node([f"--address={address}"], tmp_path / "node.log", inside))
         yield address
     finally:
         for node in reversed(nodes):
@@ -121,20 +154,27 @@ def cluster(tmp_path) -> Iterator[str]:
         subprocess.run(["rm", "-rf", str(temp)], check=False)
 
 
-def _reachable(port: int) -> bool:
-    with socket.socket() as s:
-        return s.connect_ex(("127.0.0.1", port)) == 0
+def _reachable(port: int, inside: list[str]) -> bool:
+    """Whether something listens on 127.0.0.1:port, seen from where the nodes run."""
+    if not inside:
+        with socket.socket() as s:
+            return s.connect_ex(("127.0.0.1", port)) == 0
+    probe = f"import socket, sys; sys.exit(socket.socket().connect_ex(('127.0.0.1', {port})))"
+    return subprocess.run([*inside, sys.executable, "-c", probe]).returncode == 0
 
 
 @pytest.mark.slow
-def test_a_sweep_on_a_real_cluster_survives_a_killed_worker(tmp_path, cluster) -> None:
+def test_a_sweep_on_a_real_cluster_survives_a_killed_worker(tmp_path, cluster, inside) -> None:
     (tmp_path / "long.toml").write_text(SCENARIO)
     (tmp_path / "grid.toml").write_text(GRID)
     sweep = [sys.executable, "-m", "pronet.cli", "sweep", "grid.toml", "--quiet"]
     local = subprocess.run([*sweep, "--out", "local"], cwd=tmp_path, capture_output=True, env=ENV)
     assert local.returncode == 0, local.stderr
+    if inside:  # the nodes' namespace has no interface but the loopback
+        addresses = subprocess.run([*inside, "ip", "-o", "addr"], capture_output=True, text=True)
+        assert {line.split()[1] for line in addresses.stdout.splitlines()} == {"lo"}
     on_ray = subprocess.Popen(
-        [*sweep, "--engine", "ray", "--address", cluster, "--out", "ray"],
+        [*inside, *sweep, "--engine", "ray", "--address", cluster, "--out", "ray"],
         cwd=tmp_path,
         stderr=subprocess.PIPE,
         text=True,
