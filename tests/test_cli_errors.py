@@ -200,6 +200,9 @@ def test_a_damaged_shard_on_resume_is_one_line(tmp_path, capsys):
 def test_user_error_formats_each_kind() -> None:
     assert cli.user_error(ValueError("--runs: must be at least 1")) == "--runs: must be at least 1"
     assert cli.user_error(ValueError("a\nb")) == "a b"
+    # the library's argument names become the options that set them
+    assert cli.user_error(ValueError("n_runs: too many")) == "--runs: too many"
+    assert cli.user_error(ValueError("n_levelsx: y")) == "n_levelsx: y"
     err = OSError(errno.EACCES, "Permission denied", "/x/y")
     assert cli.user_error(err) == "/x/y: Permission denied"
     assert cli.user_error(OSError(errno.ENOSPC, "No space left on device")).startswith(
@@ -337,7 +340,7 @@ def test_a_run_count_beyond_memory_is_one_line_before_any_allocation(
     args[args.index("--runs") + 1] = "1000000000000"
     assert cli.main(args) == 2
     line = one_line(capsys)
-    assert line.startswith("pronet: n_runs: 1000000000000 runs of this scenario would hold ")
+    assert line.startswith("pronet: --runs: 1000000000000 runs of this scenario would hold ")
     assert "split them into shards" in line
 
 

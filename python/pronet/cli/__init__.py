@@ -112,7 +112,14 @@ def user_error(exc: ValueError | OSError | MemoryError | MissingExtra) -> str:
         if exc.filename2 is not None:
             where = f"{where} -> {exc.filename2}"
         return f"{where}: {reason}"
-    return " ".join(str(exc).split("\n")).strip()
+    line = " ".join(str(exc).split("\n")).strip()
+    field, sep, reason = line.partition(": ")
+    option = _OPTIONS.get(field)  # the library's argument, as the command line spells it
+    return f"{option}: {reason}" if sep and option else line
+
+
+#: Library arguments whose errors reach the command line, and the options that set them.
+_OPTIONS = {"n_runs": "--runs", "n_levels": "--levels", "seed": "--seed"}
 
 
 __all__ = ["build_parser", "main", "user_error"]

@@ -55,12 +55,7 @@ def run(args: argparse.Namespace) -> int:
     check_writable(out, "--out")
     base = dataset.GRADES if args.grades else dataset.DatasetParams()
     params = dataclasses.replace(base, seed=args.seed, n_levels=args.levels)
-    try:
-        params.validate()
-    except ValueError as exc:  # the options' names, not the fields'
-        field, sep, reason = str(exc).partition(": ")
-        option = {"n_levels": "--levels", "seed": "--seed"}.get(field)
-        raise ValueError(f"{option}: {reason}" if sep and option else str(exc)) from None
+    params.validate()  # an error names the field; cli.user_error names its option
     start = time.perf_counter()
     ds = dataset.build_dataset(params)
     dataset.save_dataset(ds, out, params)
