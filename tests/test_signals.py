@@ -93,6 +93,54 @@ def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
         assert took - 0.3 < 1.0, f"{name} stopped {took - 0.3:.2f} s after the signal"
 
 
+def test_ctrl_c_ends_long_predictions_and_ensemble_steps_at_once() -> None:
+    """The frozen nets' ``predict`` over a few hundred thousand windows and an
+    ``Ensemble`` stepping hundreds of runs to a far tuning instant (or to its end) poll
+    too: Ctrl-C 0.3 s in raises KeyboardInterrupt within a second, and an interrupted
+    ensemble refuses further use instead of going on with runs at different steps."""
+    import os
+    import threading
+
+    import numpy as np
+
+    import pronet
+    from pronet.frozen import load_frozen
+
+    net = load_frozen("detrend")
+    windows = np.random.default_rng(0).normal(size=(200_000, 200)).astype(np.float32)
+    traj = pronet.builtin_trajectory("paper")
+    q = [1e-4] * 3 + [1e-6] * 3
+
+    def ensemble() -> pronet.Ensemble:
+        return pronet.Ensemble(
+            traj,
+            pronet.SensorConfig(imu_variance=q),
+            pronet.FilterConfig(),
+            q,
+            n_runs=300,
+            tuning_period=1e4,  # one instant beyond the end: a single long advance
+        )
+
+    interrupted = ensemble()
+    calls = {
+        "ConvNet.predict": lambda: net.predict(windows),
+        "Ensemble.advance": interrupted.advance,
+        "Ensemble.finish": lambda: ensemble().finish(),
+    }
+    for name, call in calls.items():
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+        began = time.monotonic()
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        took = time.monotonic() - began
+        timer.join()
+        print(f"{name}: stopped {took - 0.3:.2f} s after the signal")
+        assert took - 0.3 < 1.0, f"{name} stopped {took - 0.3:.2f} s after the signal"
+    with pytest.raises(ValueError, match="interrupted; create a new Ensemble"):
+        interrupted.advance()
+
+
 def test_the_core_reads_any_memory_layout_alike() -> None:
     """Long inputs are read in place when C-contiguous (no copy while the GIL is held,
     so Ctrl-C is seen at once) and copied otherwise: a Fortran-ordered or strided array

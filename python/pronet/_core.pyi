@@ -302,6 +302,8 @@ class Ensemble:
     last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, window)`` oldest
     first, or None at the end; ``set_q(q)`` with ``q`` float64 ``(n_runs, 6)`` sets each
     run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
+    ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
+    (KeyboardInterrupt); the ensemble is then unusable (ValueError).
     """
 
     def __new__(

@@ -3,6 +3,7 @@
 //! raw IMU samples and set its IMU noise variances; and the tuning-instant rule it shares
 //! with the hybrid loop on recorded data ([`TuningSchedule`]).
 
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::FilterConfig;
 use crate::error::{check, Error, Result};
 use crate::montecarlo::{check_strategy, epoch_times, McOptions, McResult, Scenario};
@@ -180,20 +181,32 @@ impl Ensemble {
     /// a flat `(n_runs, 6, window)` float32 buffer, oldest sample first, or `None` once
     /// the end of the trajectory is reached.
     pub fn advance(&mut self) -> Option<Vec<f32>> {
+        // A flag nobody sets: the call cannot be cancelled, so it cannot fail.
+        self.advance_until(&Cancel::default()).unwrap_or(None)
+    }
+
+    /// [`Self::advance`] that stops with [`Error::Cancelled`] soon after `cancel` is
+    /// set (every run checks it each [`STEPS_PER_CHECK`] steps). The runs are then left
+    /// at different steps: the ensemble must not be used again.
+    pub fn advance_until(&mut self, cancel: &Cancel) -> Result<Option<Vec<f32>>> {
         if self.is_done() {
-            return None;
+            return Ok(None);
         }
         let stop = self.tuning.next_after(self.k);
         let steps = stop - self.k;
         let scenario = &*self.scenario;
         self.runs.par_iter_mut().for_each(|r| {
-            for _ in 0..steps {
+            for i in 0..steps {
+                if i % STEPS_PER_CHECK == 0 && cancel.is_cancelled() {
+                    return;
+                }
                 r.step(scenario);
             }
         });
+        cancel.check()?;
         self.k = stop;
         if self.is_done() {
-            return None;
+            return Ok(None);
         }
         let per_run = 6 * self.window;
         let mut out = vec![0f32; self.runs.len() * per_run];
@@ -202,7 +215,7 @@ impl Ensemble {
             .for_each(|(chunk, run)| {
                 run.write_window(chunk);
             });
-        Some(out)
+        Ok(Some(out))
     }
 
     /// Set each run's IMU noise variances q (one row of 6 per run).
@@ -232,10 +245,15 @@ impl Ensemble {
     }
 
     /// Run to the end (if not there yet) and collect the results.
-    pub fn finish(mut self) -> McResult {
-        while self.advance().is_some() {}
+    pub fn finish(self) -> Result<McResult> {
+        self.finish_until(&Cancel::default())
+    }
+
+    /// [`Self::finish`] that stops with [`Error::Cancelled`] soon after `cancel` is set.
+    pub fn finish_until(mut self, cancel: &Cancel) -> Result<McResult> {
+        while self.advance_until(cancel)?.is_some() {}
         let truth = &self.scenario.truth;
-        McResult {
+        Ok(McResult {
             dvl_time: self.scenario.dvl_epoch_times(self.dvl_every),
             record_time: if self.record_every > 0 {
                 epoch_times(truth, self.record_every, true)
@@ -247,7 +265,7 @@ impl Ensemble {
                 .into_iter()
                 .map(|r| r.finish(&self.scenario))
                 .collect(),
-        }
+        })
     }
 }
 
@@ -285,7 +303,31 @@ mod tests {
         }
         assert_eq!(stops.first(), Some(&200));
         assert_eq!(stops.last(), Some(&1900));
-        assert_eq!(format!("{:?}", ens.finish()), format!("{mc:?}"));
+        assert_eq!(format!("{:?}", ens.finish().unwrap()), format!("{mc:?}"));
+    }
+
+    #[test]
+    fn a_cancelled_ensemble_stops_at_its_next_check() {
+        let sc = short_scenario(5.0);
+        let opts = McOptions {
+            n_runs: 2,
+            seed: 3,
+            record_every: 0,
+            first_run: 0,
+        };
+        let make = || Ensemble::new(Arc::clone(&sc), &tuned_filter(), TRUE_Q, &opts, 50, 0.5);
+        let cancel = Cancel::default();
+        let mut ens = make().unwrap();
+        assert!(ens.advance_until(&cancel).unwrap().is_some());
+        let steps = ens.steps();
+        cancel.cancel();
+        assert_eq!(ens.advance_until(&cancel), Err(Error::Cancelled));
+        assert_eq!(
+            ens.steps(),
+            steps,
+            "the step count does not move past a cancel"
+        );
+        assert!(make().unwrap().finish_until(&cancel).is_err());
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! torch model's weights (`pronet.models.BaselineNet.native`).
 
 use super::convert::{arg_threads, describe, text_arg, window_rows};
-use super::{detached, invalid};
+use super::{detached, interruptible, invalid};
 use crate::montecarlo::thread_pool;
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
 use numpy::{
@@ -173,9 +173,9 @@ impl PyConvNet {
         let samples: Vec<f32> = window_rows(windows, self.inner.window(), "float32")?;
         let net = Arc::clone(&self.inner);
         let pool = self.pool.clone();
-        let q = detached(py, move || match pool {
-            Some(p) => p.install(|| net.predict(&samples)),
-            None => net.predict(&samples),
+        let q = interruptible(py, move |cancel| match pool {
+            Some(p) => p.install(|| net.predict_until(&samples, cancel)),
+            None => net.predict_until(&samples, cancel),
         })?;
         Ok(q.into_pyarray(py))
     }

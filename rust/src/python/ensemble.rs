@@ -9,7 +9,8 @@ use super::convert::{
 use super::montecarlo::{result_dict, scenario};
 use super::sensors::PySensorConfig;
 use super::trajectory::PyTrajectory;
-use super::{detached, invalid};
+use super::{detached, interruptible, invalid};
+use crate::cancel::Cancel;
 use crate::ensemble::{Ensemble, TuningSchedule};
 use crate::error::Error;
 use crate::montecarlo::{thread_pool, McOptions};
@@ -34,23 +35,40 @@ fn poisoned<T>(_: T) -> Error {
 }
 
 impl PyEnsemble {
+    /// `f` on the ensemble without the GIL; with `long`, ended by Ctrl-C or SIGTERM
+    /// within a fraction of a second ([`interruptible`]), and an interrupted ensemble is
+    /// dropped, since its runs were left at different steps. Quick calls (`set_q`, the
+    /// getters) skip the signal wait and its extra thread.
     fn with<T: Send>(
         &self,
         py: Python<'_>,
-        f: impl FnOnce(&mut Ensemble) -> CoreResult<T> + Send,
+        long: bool,
+        f: impl FnOnce(&mut Ensemble, &Cancel) -> CoreResult<T> + Send,
     ) -> PyResult<T> {
         let inner = Arc::clone(&self.inner);
         let pool = self.pool.clone();
-        detached(py, move || {
+        let call = move |cancel: &Cancel| {
             let mut guard = inner.lock().map_err(poisoned)?;
             let ens = guard.as_mut().ok_or_else(|| {
-                Error::invalid("ensemble", "already finished; create a new Ensemble")
+                Error::invalid(
+                    "ensemble",
+                    "already finished or interrupted; create a new Ensemble",
+                )
             })?;
-            match pool {
-                Some(p) => p.install(|| f(ens)),
-                None => f(ens),
+            let out = match pool {
+                Some(p) => p.install(|| f(ens, cancel)),
+                None => f(ens, cancel),
+            };
+            if cancel.is_cancelled() {
+                guard.take();
             }
-        })
+            out
+        };
+        if long {
+            interruptible(py, call)
+        } else {
+            detached(py, move || call(&Cancel::default()))
+        }
     }
 }
 
@@ -100,7 +118,7 @@ impl PyEnsemble {
     /// Step all runs to the next tuning instant; the windows `(n_runs, 6, window)`
     /// float32, or None at the end.
     fn advance<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray3<f32>>>> {
-        let Some(flat) = self.with(py, |e| Ok(e.advance()))? else {
+        let Some(flat) = self.with(py, true, |e, cancel| e.advance_until(cancel))? else {
             return Ok(None);
         };
         let windows = Array3::from_shape_vec((self.n_runs, 6, self.window), flat)
@@ -111,7 +129,7 @@ impl PyEnsemble {
     /// Set each run's IMU variances, `q` of shape (n_runs, 6), float64.
     fn set_q(&self, py: Python<'_>, q: &Bound<'_, PyAny>) -> PyResult<()> {
         let q = rows::<6>(q, "q")?;
-        self.with(py, move |e| e.set_q(&q))
+        self.with(py, false, move |e, _| e.set_q(&q))
     }
 
     /// Run to the end and return the results (as `monte_carlo`). The ensemble cannot be
@@ -119,16 +137,16 @@ impl PyEnsemble {
     fn finish<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let inner = Arc::clone(&self.inner);
         let pool = self.pool.clone();
-        let res = detached(py, move || {
+        let res = interruptible(py, move |cancel| {
             let ens = inner
                 .lock()
                 .map_err(poisoned)?
                 .take()
-                .ok_or_else(|| Error::invalid("ensemble", "already finished"))?;
-            Ok(match pool {
-                Some(p) => p.install(|| ens.finish()),
-                None => ens.finish(),
-            })
+                .ok_or_else(|| Error::invalid("ensemble", "already finished or interrupted"))?;
+            match pool {
+                Some(p) => p.install(|| ens.finish_until(cancel)),
+                None => ens.finish_until(cancel),
+            }
         })?;
         result_dict(py, &res)
     }
@@ -144,12 +162,12 @@ impl PyEnsemble {
     /// IMU steps taken so far.
     #[getter]
     fn steps(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with(py, |e| Ok(e.steps()))
+        self.with(py, false, |e, _| Ok(e.steps()))
     }
     /// Current time [s].
     #[getter]
     fn time(&self, py: Python<'_>) -> PyResult<f64> {
-        self.with(py, |e| Ok(e.time()))
+        self.with(py, false, |e, _| Ok(e.time()))
     }
     #[getter]
     fn done(&self) -> bool {

@@ -2,7 +2,7 @@
 //! the exported trees (`pronet.hcf.HCFEnsemble.frozen`).
 
 use super::convert::{arg_threads, describe, text_arg, window_rows};
-use super::{detached, invalid};
+use super::{detached, interruptible, invalid};
 use crate::montecarlo::thread_pool;
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
@@ -103,9 +103,9 @@ impl PyHcfEnsemble {
         let samples: Vec<f64> = window_rows(windows, self.inner.window(), "float64")?;
         let model = Arc::clone(&self.inner);
         let pool = self.pool.clone();
-        let q = detached(py, move || match pool {
-            Some(p) => p.install(|| model.predict(&samples)),
-            None => model.predict(&samples),
+        let q = interruptible(py, move |cancel| match pool {
+            Some(p) => p.install(|| model.predict_until(&samples, cancel)),
+            None => model.predict_until(&samples, cancel),
         })?;
         Ok(q.into_pyarray(py))
     }

@@ -24,6 +24,7 @@ use crate::Result as CoreResult;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 fn to_py_err(e: Error) -> PyErr {
@@ -74,19 +75,25 @@ fn interruptible<T: Send>(
     f: impl FnOnce(&Cancel) -> CoreResult<T> + Send,
 ) -> PyResult<T> {
     let cancel = Cancel::default();
+    let done = AtomicBool::new(false);
     let mut raised: Option<PyErr> = None;
     let outcome = py.detach(|| {
         std::thread::scope(|scope| {
             let waiter = std::thread::current();
             let cancel = &cancel;
+            // Set before the worker wakes the waiter: `is_finished` turns true only once
+            // the thread has exited, a moment after the wake-up, and a waiter that read
+            // it too early slept a whole poll (50 ms per call) before seeing the result.
+            let done = &done;
             let worker = scope.spawn(move || {
                 let out = catch_unwind(AssertUnwindSafe(|| f(cancel)));
+                done.store(true, Ordering::Release);
                 waiter.unpark();
                 out
             });
-            while !worker.is_finished() {
+            while !done.load(Ordering::Acquire) {
                 std::thread::park_timeout(SIGNAL_POLL);
-                if raised.is_none() && !worker.is_finished() {
+                if raised.is_none() && !done.load(Ordering::Acquire) {
                     if let Err(e) = Python::attach(|py| py.check_signals()) {
                         raised = Some(e);
                         cancel.cancel();

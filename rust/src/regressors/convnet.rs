@@ -27,6 +27,7 @@
 
 use super::conv1d::{convolve, lane_sum, LANES};
 use super::per_window;
+use crate::cancel::Cancel;
 use crate::error::{Error, Result};
 
 /// How a window is prepared before the first convolution.
@@ -305,10 +306,17 @@ impl ConvNet {
     /// q `(n,)` [(unit)² per sample] for `n` windows of [`Self::window`] samples each,
     /// `windows` row-major `(n, window)`; windows run in parallel on rayon's threads.
     pub fn predict(&self, windows: &[f32]) -> Result<Vec<f64>> {
+        self.predict_until(windows, &Cancel::default())
+    }
+
+    /// [`Self::predict`] that stops with [`crate::error::Error::Cancelled`] soon after
+    /// `cancel` is set.
+    pub fn predict_until(&self, windows: &[f32], cancel: &Cancel) -> Result<Vec<f64>> {
         per_window(
             windows,
             self.window,
             8,
+            cancel,
             || self.scratch(),
             |w, s| self.forward(w, s),
         )

@@ -17,6 +17,7 @@
 //! feature gives NaN.
 
 use super::per_window;
+use crate::cancel::Cancel;
 use crate::error::{Error, Result};
 
 /// Number of handcrafted features.
@@ -163,10 +164,17 @@ impl HcfEnsemble {
 
     /// q `(n,)` for `n` windows `(n, window)` row-major, in parallel on rayon's threads.
     pub fn predict(&self, windows: &[f64]) -> Result<Vec<f64>> {
+        self.predict_until(windows, &Cancel::default())
+    }
+
+    /// [`Self::predict`] that stops with [`crate::error::Error::Cancelled`] soon after
+    /// `cancel` is set.
+    pub fn predict_until(&self, windows: &[f64], cancel: &Cancel) -> Result<Vec<f64>> {
         per_window(
             windows,
             self.window,
             16,
+            cancel,
             || vec![0.0; self.window],
             |w, buf| self.predict_one(w, buf),
         )
@@ -413,6 +421,12 @@ mod tests {
         let mut bad = w.clone();
         bad[9] = f64::NAN;
         assert!(m.predict(&bad).unwrap()[0].is_nan());
+        let cancel = Cancel::default();
+        cancel.cancel();
+        assert!(
+            m.predict_until(&[1.0; 200], &cancel).is_err(),
+            "a set flag stops it"
+        );
         assert!(m.predict(&[1.0; 200]).unwrap()[0].is_nan());
     }
 

@@ -10,16 +10,19 @@ mod conv1d;
 pub mod convnet;
 pub mod hcf;
 
+use crate::cancel::Cancel;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
 
 /// `f(w, scratch)` for each window `w` of `windows` (`(n, window)` row-major), in
 /// parallel on rayon's threads, each thread with its own `scratch()`; at least
-/// `min_len` windows per task.
+/// `min_len` windows per task. Stops with [`Error::Cancelled`] soon after `cancel` is
+/// set (each window is checked before it is computed).
 pub(crate) fn per_window<T: Sync, S>(
     windows: &[T],
     window: usize,
     min_len: usize,
+    cancel: &Cancel,
     scratch: impl Fn() -> S + Sync + Send,
     f: impl Fn(&[T], &mut S) -> f64 + Sync + Send,
 ) -> Result<Vec<f64>> {
@@ -36,6 +39,11 @@ pub(crate) fn per_window<T: Sync, S>(
     q.par_iter_mut()
         .zip(windows.par_chunks_exact(window))
         .with_min_len(min_len)
-        .for_each_init(scratch, |s, (q, w)| *q = f(w, s));
+        .for_each_init(scratch, |s, (q, w)| {
+            if !cancel.is_cancelled() {
+                *q = f(w, s);
+            }
+        });
+    cancel.check()?;
     Ok(q)
 }
