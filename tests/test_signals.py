@@ -5,15 +5,35 @@ filter pass or mechanization from Python ends as soon."""
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
+import threading
 import time
+from collections.abc import Callable
 
 import pytest
 
 #: One strategy, many runs on one thread: one native call of a minute or more.
 LONG = ["simulate", "--strategies", "constant", "--runs", "3000", "--threads", "1"]
+
+
+def stops_at_once(calls: dict[str, Callable[[], object]]) -> None:
+    """Each call, sent Ctrl-C (SIGINT to this process) 0.3 s in, raises
+    KeyboardInterrupt within a second of the signal. Uninterrupted each takes seconds
+    (more under load); the stop is usually a tenth of that, the rest is the input check
+    and copy before the native call, which signals wait for."""
+    for name, call in calls.items():
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+        began = time.monotonic()
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        took = time.monotonic() - began
+        timer.join()
+        print(f"{name}: stopped {took - 0.3:.2f} s after the signal")
+        assert took - 0.3 < 1.0, f"{name} stopped {took - 0.3:.2f} s after the signal"
 
 
 @pytest.mark.parametrize(
@@ -54,9 +74,6 @@ def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
     """The other long native calls poll too: Ctrl-C 0.3 s into a filter pass over two
     million IMU samples or the mechanization of eight million (each about 4 s here)
     raises KeyboardInterrupt within a second."""
-    import os
-    import threading
-
     import numpy as np
 
     import pronet
@@ -78,19 +95,7 @@ def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
         ),
         "mechanize": lambda: pronet.mechanize(longer, 0.01, **start),
     }
-    for name, call in calls.items():
-        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-        began = time.monotonic()
-        timer.start()
-        with pytest.raises(KeyboardInterrupt):
-            call()
-        took = time.monotonic() - began
-        timer.join()
-        # Uninterrupted, each call takes about 4 s here (more under load). The promise is
-        # a stop within a second of the signal; it is usually a tenth of that, the rest
-        # is the input check and copy before the native call, which signals wait for.
-        print(f"{name}: stopped {took - 0.3:.2f} s after the signal")
-        assert took - 0.3 < 1.0, f"{name} stopped {took - 0.3:.2f} s after the signal"
+    stops_at_once(calls)
 
 
 def test_ctrl_c_ends_long_predictions_and_ensemble_steps_at_once() -> None:
@@ -98,9 +103,6 @@ def test_ctrl_c_ends_long_predictions_and_ensemble_steps_at_once() -> None:
     ``Ensemble`` stepping hundreds of runs to a far tuning instant (or to its end) poll
     too: Ctrl-C 0.3 s in raises KeyboardInterrupt within a second, and an interrupted
     ensemble refuses further use instead of going on with runs at different steps."""
-    import os
-    import threading
-
     import numpy as np
 
     import pronet
@@ -127,16 +129,7 @@ def test_ctrl_c_ends_long_predictions_and_ensemble_steps_at_once() -> None:
         "Ensemble.advance": interrupted.advance,
         "Ensemble.finish": lambda: ensemble().finish(),
     }
-    for name, call in calls.items():
-        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-        began = time.monotonic()
-        timer.start()
-        with pytest.raises(KeyboardInterrupt):
-            call()
-        took = time.monotonic() - began
-        timer.join()
-        print(f"{name}: stopped {took - 0.3:.2f} s after the signal")
-        assert took - 0.3 < 1.0, f"{name} stopped {took - 0.3:.2f} s after the signal"
+    stops_at_once(calls)
     with pytest.raises(ValueError, match="interrupted; create a new Ensemble"):
         interrupted.advance()
 

@@ -278,15 +278,20 @@ mod tests {
     use crate::trajectory::{Segment, TrajectorySpec};
     use nalgebra::Vector3;
 
+    /// Monte Carlo options from the first run.
+    fn options(n_runs: usize, seed: u64, record_every: usize) -> McOptions {
+        McOptions {
+            n_runs,
+            seed,
+            record_every,
+            first_run: 0,
+        }
+    }
+
     #[test]
     fn ensemble_without_outside_tuning_equals_the_monte_carlo_with_the_prior() {
         let sc = short_scenario(20.0);
-        let opts = McOptions {
-            n_runs: 3,
-            seed: 9,
-            record_every: 100,
-            first_run: 0,
-        };
+        let opts = options(3, 9, 100);
         let mc = run_monte_carlo(
             &sc,
             &tuned_filter(),
@@ -309,12 +314,7 @@ mod tests {
     #[test]
     fn a_cancelled_ensemble_stops_at_its_next_check() {
         let sc = short_scenario(5.0);
-        let opts = McOptions {
-            n_runs: 2,
-            seed: 3,
-            record_every: 0,
-            first_run: 0,
-        };
+        let opts = options(2, 3, 0);
         let make = || Ensemble::new(Arc::clone(&sc), &tuned_filter(), TRUE_Q, &opts, 50, 0.5);
         let cancel = Cancel::default();
         let mut ens = make().unwrap();
@@ -333,12 +333,7 @@ mod tests {
     #[test]
     fn ensemble_windows_hold_the_raw_samples_oldest_first() {
         let sc = short_scenario(5.0);
-        let opts = McOptions {
-            n_runs: 2,
-            seed: 3,
-            record_every: 0,
-            first_run: 0,
-        };
+        let opts = options(2, 3, 0);
         let mut ens =
             Ensemble::new(Arc::clone(&sc), &tuned_filter(), TRUE_Q, &opts, 50, 0.5).unwrap();
         let w = ens.advance().unwrap();
@@ -383,12 +378,7 @@ mod tests {
             sensors,
             sample_initial_error: false,
         });
-        let opts = McOptions {
-            n_runs: 1,
-            seed: 0,
-            record_every: 0,
-            first_run: 0,
-        };
+        let opts = options(1, 0, 0);
         let mut ens = Ensemble::new(sc, &tuned_filter(), TRUE_Q, &opts, 400, 1.0).unwrap();
         let mut variances = Vec::new();
         while let Some(w) = ens.advance() {
