@@ -27,8 +27,10 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import os
 import zipfile
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -202,10 +204,18 @@ def _noisy_windows(
         noisy = ideal + rng.standard_normal(ideal.shape) * np.sqrt(level)
         # (samples, channel) -> (channel, window index, sample in window)
         return noisy[:n].T.reshape(6, n_win, params.window), np.full((6, n_win), level)
-    lows, highs = np.log(np.array(params.channel_ranges())).T
-    q = np.exp(rng.uniform(lows[:, None], highs[:, None], (6, n_win)))
+    lows, highs = _libm(math.log, np.array(params.channel_ranges())).T
+    q = _libm(math.exp, rng.uniform(lows[:, None], highs[:, None], (6, n_win)))
     cut = ideal[:n].T.reshape(6, n_win, params.window)
     return cut + rng.standard_normal(cut.shape) * np.sqrt(q)[..., None], q
+
+
+def _libm(f: Callable[[float], float], x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``f`` (``math.exp`` or ``math.log``) of every element of ``x``, through the C
+    library: NumPy's own ``exp`` and ``log`` take an AVX-512 path on CPUs that have it,
+    whose last bits differ from the C library's (on ~5 % of values), and a dataset's
+    bytes, hence its SHA-256 on the model cards, must not depend on the CPU."""
+    return np.array([f(v) for v in x.ravel().tolist()], dtype=np.float64).reshape(x.shape)
 
 
 def _npz_bytes(ds: Dataset) -> bytes:
