@@ -22,8 +22,9 @@
 //!
 //! Speed: activations are time-major, so the im2col row of output step t is the
 //! contiguous slice of the padded input that starts at `t·stride·c_in`; the convolution
-//! is a register-tiled product over those slices, with AVX2 and FMA where the CPU has
-//! them. Windows are spread over rayon's threads.
+//! is a register-tiled product over those slices, with AVX-512, or AVX2 and FMA, where
+//! the CPU has them (the same bits on every path). Windows are spread over rayon's
+//! threads.
 
 use super::conv1d::{convolve, lane_sum, LANES};
 use super::per_window;
@@ -104,9 +105,36 @@ pub struct ConvNet {
     scaling: Scaling,
     slope: f64,
     blocks: Vec<Block>,
-    head: Vec<DenseWeights>,
+    head: Vec<Dense>,
     /// The unit-norm centred time ramp the detrending projects on.
     ramp: Vec<f64>,
+}
+
+/// A Linear layer laid out for the forward pass: float64 weights, input-major, so that
+/// every output's sum runs in the input's order while the outputs go side by side in
+/// vector lanes.
+#[derive(Clone, Debug)]
+struct Dense {
+    /// `n_in × n_out`: row i, column o is torch's `weight[o, i]`.
+    wt: Vec<f64>,
+    bias: Vec<f64>,
+    n_out: usize,
+}
+
+impl Dense {
+    fn lay_out(d: &DenseWeights) -> Self {
+        let mut wt = vec![0.0; d.n_in * d.n_out];
+        for (o, row) in d.weight.chunks_exact(d.n_in).enumerate() {
+            for (i, &w) in row.iter().enumerate() {
+                wt[i * d.n_out + o] = f64::from(w);
+            }
+        }
+        Self {
+            wt,
+            bias: d.bias.iter().map(|&b| f64::from(b)).collect(),
+            n_out: d.n_out,
+        }
+    }
 }
 
 /// Per-thread buffers of one forward pass.
@@ -122,6 +150,9 @@ struct Scratch {
     /// The last block's output at one time step, and its sum over time.
     last: Vec<f64>,
     pooled: Vec<f64>,
+    /// The Linear layers' input and output.
+    features: Vec<f64>,
+    dense: Vec<f64>,
 }
 
 fn sized(arg: &str, what: &str, got: usize, want: usize) -> Result<()> {
@@ -272,6 +303,7 @@ impl ConvNet {
             laid.push(block);
         }
         check_head(&head, c_prev)?;
+        let head = head.iter().map(Dense::lay_out).collect();
         let centre = (window as f64 - 1.0) / 2.0;
         let ramp: Vec<f64> = (0..window).map(|i| i as f64 - centre).collect();
         let norm = ramp.iter().map(|t| t * t).sum::<f64>().sqrt();
@@ -326,6 +358,13 @@ impl ConvNet {
         let conv = self.blocks.iter().map(|b| b.l_out * b.c_pad).max();
         let c_last = self.blocks.last().map_or(0, |b| b.c_out);
         let steps = self.blocks.iter().map(|b| b.l_out).max().unwrap_or(0);
+        let width = self
+            .head
+            .iter()
+            .map(|d| d.n_out)
+            .max()
+            .unwrap_or(0)
+            .max(c_last);
         Scratch {
             inputs: self
                 .blocks
@@ -338,6 +377,8 @@ impl ConvNet {
             rstd: vec![0.0; steps],
             last: vec![0.0; c_last],
             pooled: vec![0.0; c_last],
+            features: Vec::with_capacity(width),
+            dense: Vec::with_capacity(width),
         }
     }
 
@@ -374,8 +415,9 @@ impl ConvNet {
             self.run_block(i, s);
         }
         let l = self.blocks.last().map_or(1, |b| b.l_out) as f64;
-        let pooled = s.pooled.iter().map(|v| v / l).collect();
-        let z = self.head_output(pooled).clamp(-20.0, 20.0);
+        s.features.clear();
+        s.features.extend(s.pooled.iter().map(|v| v / l));
+        let z = self.head_output(s).clamp(-20.0, 20.0);
         match self.scaling {
             Scaling::Fixed { q_scale, .. } => q_scale * z.exp(),
             Scaling::Spread => (log_s2 + z).exp(),
@@ -467,30 +509,32 @@ impl ConvNet {
         }
     }
 
-    /// The Linear layers (LeakyReLU between them) on the pooled features: z.
-    fn head_output(&self, mut h: Vec<f64>) -> f64 {
+    /// The Linear layers (LeakyReLU between them) on the pooled features in
+    /// `s.features`: z. Each output is its bias plus the products summed in the
+    /// inputs' order, as the plain loop over one output adds them.
+    #[inline(always)]
+    fn head_output(&self, s: &mut Scratch) -> f64 {
         let last = self.head.len() - 1;
         for (i, d) in self.head.iter().enumerate() {
-            let slope = self.slope;
-            h = d
-                .weight
-                .chunks_exact(d.n_in)
-                .zip(&d.bias)
-                .map(|(w, &b)| {
-                    let y = f64::from(b)
-                        + w.iter()
-                            .zip(&h)
-                            .map(|(&w, x)| f64::from(w) * x)
-                            .sum::<f64>();
-                    if i == last || y >= 0.0 {
-                        y
-                    } else {
-                        y * slope
-                    }
-                })
-                .collect();
+            let acc = &mut s.dense;
+            acc.clear();
+            acc.resize(d.n_out, 0.0);
+            for (&x, row) in s.features.iter().zip(d.wt.chunks_exact(d.n_out)) {
+                for (a, &w) in acc.iter_mut().zip(row) {
+                    *a += w * x;
+                }
+            }
+            for (a, &b) in acc.iter_mut().zip(&d.bias) {
+                let y = b + *a;
+                *a = if i == last || y >= 0.0 {
+                    y
+                } else {
+                    y * self.slope
+                };
+            }
+            std::mem::swap(&mut s.features, &mut s.dense);
         }
-        h[0]
+        s.features[0]
     }
 }
 
