@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -20,6 +21,7 @@ if TYPE_CHECKING:  # matplotlib loads only when a figure is drawn
 
 
 def _figure(width: float, height: float) -> Figure:
+    """A ``width`` × ``height`` [in] figure whose panels constrained layout places."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -28,21 +30,51 @@ def _figure(width: float, height: float) -> Figure:
     return fig
 
 
-#: Points per line beyond which a long series is drawn thinned (every k-th point, the
-#: last one kept): a 40,000-sample track drawn at ~800 pixels looks the same, and
-#: takes a fifth of the time.
-MAX_LINE_POINTS = 4000
+#: matplotlib's default ten line colours ("tab10").
+TAB10 = tuple(f"tab:{c}" for c in "blue orange green red purple brown pink gray olive cyan".split())
+
+#: Width [in] kept right of the panels of :func:`_legend_figure` for the legend: the
+#: longest label of ``pronet real``'s rows at 7 pt, and its line.
+LEGEND_WIDTH = 3.3
 
 
-def _thin(*series: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Every k-th sample of equally long ``series`` (and the last), at most about
-    :data:`MAX_LINE_POINTS` of them."""
-    n = len(series[0])
-    k = -(-n // MAX_LINE_POINTS)
-    if k <= 1:
-        return series
-    keep = np.r_[np.arange(0, n - 1, k), n - 1]
-    return tuple(np.asarray(s)[keep] for s in series)
+def _legend_figure(width: float, height: float, rows: int) -> tuple[Figure, list]:
+    """A figure of ``rows`` panels sharing x, ``width`` × ``height`` [in] plus
+    :data:`LEGEND_WIDTH` on the right for :func:`_legend_beside`, with fixed margins
+    (room for tick labels down to 1e-12, a y label, a title): constrained layout's
+    solver would take a third of the drawing time of each of ``pronet real``'s 33
+    figures."""
+    from cycler import cycler
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    total = width + LEGEND_WIDTH
+    fig = Figure(figsize=(total, height), dpi=120)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(
+        left=0.9 / total,
+        right=(width - 0.1) / total,
+        bottom=0.55 / height,
+        top=1 - 0.45 / height,
+        hspace=0.08,
+    )
+    axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
+    for ax in axes:  # ten colours solid, then the same ten dashed: no two rows alike
+        ax.set_prop_cycle(cycler(linestyle=["-", "--"]) * cycler(color=TAB10))
+    return fig, list(axes)
+
+
+def _legend_beside(fig, ax) -> None:  # fig: matplotlib Figure, ax: its Axes
+    """``ax``'s legend right of the panels of a :func:`_legend_figure`: inside, a legend
+    of many rows hides lines, and matplotlib's search for the emptiest corner ("best")
+    is a third of a figure's drawing time."""
+    fig.legend(
+        *ax.get_legend_handles_labels(),
+        loc="upper left",
+        bbox_to_anchor=(fig.subplotpars.right + 0.08 / fig.get_figwidth(), fig.subplotpars.top),
+        borderaxespad=0.0,
+        fontsize=7,
+    )
 
 
 def save_png(fig, path: str | os.PathLike[str]) -> Path:  # fig: matplotlib Figure
@@ -50,7 +82,7 @@ def save_png(fig, path: str | os.PathLike[str]) -> Path:  # fig: matplotlib Figu
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", bbox_inches="tight", pad_inches=0.1)
+    fig.savefig(buf, format="png", pil_kwargs={"compress_level": 1})
     atomic_write(path, buf.getvalue())
     return path
 
@@ -236,107 +268,80 @@ def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
     return save_png(fig, path)
 
 
-def section_track(section, runs, path: str | os.PathLike[str]) -> Path:
-    """North-east track of each strategy's estimate against the truth on one recorded
-    section (``section``: :class:`pronet.alignment.Section`; ``runs``: its
-    :class:`pronet.realdata.SectionRun` list), metres from the start."""
-    from pronet import earth_radii
+@dataclass(frozen=True)
+class SectionCurves:
+    """What the three figures of one recorded section show, as small arrays
+    (:func:`pronet.realplots.section_curves` takes them from the runs; long series
+    are thinned).
 
-    lla0 = section.truth_lla[0]
-    r_n, r_e = earth_radii(float(lla0[0]))
+    Attributes:
+        name: the section.
+        track: ``(label, east, north)`` [m from the start], the ground truth first.
+        velocity_error: ``(label, time, δv)``: time [s, IMU clock] ``(n,)`` and the NED
+            velocity error [m/s] ``(n, 3)`` of each strategy at the truth rows.
+        q: ``(label, time, accelerometer q, gyro q)``: the mean per-sample variance of
+            the three channels [(m/s²)², (rad/s)²] from each time [s] on.
+    """
 
-    def ne(lla):
-        lla = np.asarray(lla)
-        north = (lla[:, 0] - lla0[0]) * (r_n + lla0[2])
-        return (lla[:, 1] - lla0[1]) * (r_e + lla0[2]) * np.cos(lla0[0]), north
+    name: str
+    track: list[tuple[str, np.ndarray, np.ndarray]]
+    velocity_error: list[tuple[str, np.ndarray, np.ndarray]]
+    q: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]
 
-    fig = _figure(7.0, 6.0)
-    ax = fig.subplots()
-    east, north = ne(section.truth_lla)
-    ax.plot(*_thin(east, north), color="black", lw=2.2, label="ground truth")
-    for run in runs:
-        e, n = ne(run.result.lla)
-        ax.plot(*_thin(e, n), lw=0.9, label=run.label)
+
+def section_track(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
+    """North-east track of each strategy's estimate against the truth (black, thick) on
+    one recorded section, metres from the start."""
+    fig, (ax,) = _legend_figure(7.0, 6.0, 1)
+    (_, east, north), *runs = curves.track
+    ax.plot(east, north, color="black", lw=2.2, label="ground truth")
+    for label, e, n in runs:
+        ax.plot(e, n, lw=0.9, label=label)
     ax.plot(east[0], north[0], "o", color="tab:green", label="start")
     ax.set(xlabel="east [m]", ylabel="north [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.suptitle(f"{section.name}: north-east track, estimate against truth")
+    _legend_beside(fig, ax)
+    fig.suptitle(f"{curves.name}: north-east track, estimate against truth")
     return save_png(fig, path)
 
 
-def section_velocity_error(section, runs, path: str | os.PathLike[str]) -> Path:
+def section_velocity_error(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
     """Velocity error (north, east, down) against time of each strategy on one
     recorded section, at the ground-truth rows; the y range follows the first strategy
     so that a diverging row does not flatten the others."""
-    from pronet.realmetrics import estimate_at_truth
-
-    fig = _figure(11.0, 7.0)
-    axes = fig.subplots(3, 1, sharex=True)
+    fig, axes = _legend_figure(11.0, 7.0, 3)
     span = 0.0
-    for k, run in enumerate(runs):
-        rows, _, vel = estimate_at_truth(section, run.result)
-        dv = vel - section.truth_vel[rows]
+    for k, (label, time, dv) in enumerate(curves.velocity_error):
         if k == 0:
-            span = 3 * float(np.nanmax(np.abs(dv))) or 1.0
+            span = 3 * float(np.nanmax(np.abs(dv), initial=0.0)) or 1.0
         for axis, ax in enumerate(axes):
-            ax.plot(section.truth_time[rows], dv[:, axis], lw=0.8, label=run.label)
+            ax.plot(time, dv[:, axis], lw=0.8, label=label)
     for ax, name in zip(axes, ("north", "east", "down"), strict=True):
         ax.set_ylim(-span, span)
         ax.set_ylabel(f"δv {name} [m/s]")
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time [s, IMU clock]")
-    axes[0].legend(fontsize=7, ncol=2)
-    fig.suptitle(f"{section.name}: velocity error against the ground truth")
+    _legend_beside(fig, axes[0])
+    fig.suptitle(f"{curves.name}: velocity error against the ground truth")
     return save_png(fig, path)
 
 
-def section_q(
-    section,
-    runs,
-    constant_q: Mapping[str, ArrayLike],
-    imu_dt: float,
-    path: str | os.PathLike[str],
-) -> Path:
+def section_q(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
     """The process noise each strategy used on one recorded section, as the mean
-    per-sample variance of the accelerometer and of the gyro channels, log scale.
-    ``constant_q``: label → 6 variances of the constant rows (drawn flat). Mehra's
-    discrete Q_d is shown as the q that would give the same velocity and attitude
-    blocks (``trace/(3 Δt_imu Δt)``)."""
-    fig = _figure(11.0, 5.5)
-    axes = fig.subplots(2, 1, sharex=True)
-    for run in runs:
-        r = run.result
-        if run.label in constant_q:
-            q = np.asarray(constant_q[run.label], float)
-            t = r.time[[0, -1]]
-            acc, gyro = np.full(2, q[:3].mean()), np.full(2, q[3:].mean())
-        elif run.schedule is not None and len(run.schedule.time):
-            t = run.schedule.time
-            q = run.schedule.q
-            acc, gyro = q[:, :3].mean(axis=1), q[:, 3:].mean(axis=1)
-        elif np.isfinite(r.adaptive_q).any():
-            applied = r.dvl_epoch >= 0
-            t = r.time[r.dvl_epoch[applied]]
-            qd = r.adaptive_q[applied]
-            dt = float(np.median(np.diff(r.time)))
-            scale = 3 * imu_dt * dt
-            acc = np.trace(qd[:, 3:6, 3:6], axis1=1, axis2=2) / scale
-            gyro = np.trace(qd[:, 6:9, 6:9], axis1=1, axis2=2) / scale
-        else:
-            continue
-        axes[0].step(t, acc, where="post", lw=0.9, label=run.label)
-        axes[1].step(t, gyro, where="post", lw=0.9, label=run.label)
+    per-sample variance of the accelerometer and of the gyro channels, log scale;
+    constant rows are flat lines."""
+    fig, axes = _legend_figure(11.0, 5.5, 2)
+    for label, t, acc, gyro in curves.q:
+        axes[0].step(t, acc, where="post", lw=0.9, label=label)
+        axes[1].step(t, gyro, where="post", lw=0.9, label=label)
     for ax, unit in zip(axes, ("accelerometer q [(m/s²)²]", "gyro q [(rad/s)²]"), strict=True):
         ax.set_yscale("log")
         ax.set_ylabel(unit)
         ax.grid(alpha=0.3, which="both")
     axes[-1].set_xlabel("time [s, IMU clock]")
-    fig.legend(
-        *axes[0].get_legend_handles_labels(), loc="outside right upper", fontsize=7
-    )  # beside the panels: inside, it would hide the adaptive rows
-    fig.suptitle(f"{section.name}: process noise per strategy (mean over 3 channels)")
+    _legend_beside(fig, axes[0])
+    fig.suptitle(f"{curves.name}: process noise per strategy (mean over 3 channels)")
     return save_png(fig, path)
 
 

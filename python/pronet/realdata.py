@@ -15,6 +15,7 @@ import os
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -30,6 +31,7 @@ from pronet.dvltruth import TruthCalibration, truth_calibration
 from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.realmetrics import SectionMetrics, section_metrics
+from pronet.realplots import FigurePool, section_curves
 from pronet.realtables import failed_records, final_calibration, real_tables, write_metrics
 from pronet.realtuning import (
     BOTH,
@@ -313,6 +315,8 @@ def run_sections(
     threads: int | None = None,
     failed: Mapping[str, str] | None = None,
     dvl_noise: str = "datasheet",
+    on_section: Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]
+    | None = None,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
@@ -320,6 +324,10 @@ def run_sections(
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core; each filter is one native call
     without the GIL), and the results do not depend on it.
+
+    ``on_section(aligned, runs, constants)`` is called (on the section's thread) as
+    soon as a section's strategy rows are done, with the q of its constant rows (the
+    figures start from it).
 
     A section whose filter raises ValueError is left out and its reason kept in
     :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
@@ -336,9 +344,12 @@ def run_sections(
     def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
         try:
             plan = plan_section(pair[0], models, tuning_period, dvl_noise)
-            return _run_one_section(pair[0], pair[1], plan, done)
+            ran = _run_one_section(pair[0], pair[1], plan, done)
         except ValueError as exc:  # the reason, kept beside the section's name
             return str(exc)
+        if on_section is not None:
+            on_section(pair[0], ran.runs, ran.constants)
+        return ran
 
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
         outcomes = list(pool.map(one, sections))
@@ -429,23 +440,6 @@ def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
     return out
 
 
-def write_real_plots(
-    folder: Path, done: RealRuns, on_done: Callable[[str], None] | None = None
-) -> None:
-    """Track, velocity error and q plots of each section into ``folder``."""
-    from pronet import plots
-
-    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
-    for aligned, _ in done.sections:
-        name = aligned.name
-        mine = [r for r in done.runs if r.section == name]
-        plots.section_track(aligned, mine, folder / f"track_{name}.png")
-        plots.section_velocity_error(aligned, mine, folder / f"velocity_error_{name}.png")
-        plots.section_q(aligned, mine, done.constants[name], imu_dt, folder / f"q_{name}.png")
-        if on_done is not None:
-            on_done(name)
-
-
 def run_real(
     data: str | Path,
     out: str | Path | None = None,
@@ -476,8 +470,10 @@ def run_real(
             [m, body FRD] (default: the Snapir AUV's).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         use_models: False: only the model-based rows.
-        plots: False: no plots (the tables and metrics only; the plots take most of
-            the time of a run on the Snapir data).
+        plots: False: no plots (the tables and metrics only). The figures are drawn
+            in worker processes (:class:`pronet.realplots.FigurePool`) while the other
+            sections are filtered; on the Snapir data they add about a third to the
+            run time.
         dvl_noise: the DVL noise R of the strategy rows, one of
             :data:`pronet.dvlnoise.DVL_NOISE_SOURCES`: ``"datasheet"``
             (:data:`pronet.realtuning.REAL_DVL_VARIANCE`) or ``"data"`` (each section's
@@ -525,10 +521,44 @@ def run_real(
     if on_start is not None:
         n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0)) + len(REAL_VARIANT_ROWS)
         on_start(len(loaded) * n_rows, "run", None)
-    done = run_sections(
-        loaded, regressors, tuning_period, on_done, failed=unread, dvl_noise=dvl_noise
-    )
-    config = {
+    # the figures are drawn in worker processes as the sections finish
+    with FigurePool() if plots else nullcontext(None) as figures:
+        done = run_sections(
+            loaded,
+            regressors,
+            tuning_period,
+            on_done,
+            failed=unread,
+            dvl_noise=dvl_noise,
+            on_section=None if figures is None else _drawn_by(figures),
+        )
+        config = _real_config(
+            data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors
+        )
+        with atomic_folder(folder) as tmp:
+            runs = done.runs + done.stamped + done.inertial
+            write_metrics(tmp, runs, real_tables(done), failed_records(done))
+            (tmp / "config.json").write_bytes(json_bytes(config))
+            if figures is not None:
+                if on_start is not None:
+                    on_start(len(done.sections), "section", "plots")
+                figures.write(tmp, [a.name for a, _ in done.sections], on_done)
+    return folder
+
+
+def _real_config(
+    data: str | Path,
+    fmt: str,
+    tuning_period: float,
+    arms: tuple[tuple[float, float, float], tuple[float, float, float]],
+    dvl_noise: str,
+    done: RealRuns,
+    regressors: Mapping[str, Regressor],
+) -> dict[str, object]:
+    """``config.json`` of a ``pronet real`` folder: what ran, on what, and the
+    per-section estimates (clocks, q, DVL noise and calibration)."""
+    imu_arm, dvl_arm = arms
+    return {
         "data": str(Path(data).resolve()),
         "format": fmt,
         "sections": [a.name for a, _ in done.sections],
@@ -573,12 +603,18 @@ def run_real(
         },
         "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
     }
-    with atomic_folder(folder) as tmp:
-        runs = done.runs + done.stamped + done.inertial
-        write_metrics(tmp, runs, real_tables(done), failed_records(done))
-        (tmp / "config.json").write_bytes(json_bytes(config))
-        if plots:
-            if on_start is not None:
-                on_start(len(loaded), "section", "plots")
-            write_real_plots(tmp, done, on_done)
-    return folder
+
+
+def _drawn_by(
+    figures: FigurePool,
+) -> Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]:
+    """The ``on_section`` hook of :func:`run_sections` that hands each finished section's
+    curves to ``figures``."""
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+
+    def submit(
+        aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
+    ) -> None:
+        figures.submit(section_curves(aligned, runs, constants, imu_dt))
+
+    return submit

@@ -1,0 +1,190 @@
+"""The figures of ``pronet real``: what each section's three figures show, taken from
+its runs as small arrays (:class:`pronet.plots.SectionCurves`), and drawn in worker
+processes while the other sections are still being filtered.
+
+matplotlib holds the GIL for nearly all of a figure's drawing, so figures drawn on a
+thread would wait for the filters' Python steps and the other way round; a worker
+process draws beside them and hands back the PNG bytes, which the caller writes into
+its result folder. Only the thinned curves cross to the worker (a few MB per section,
+against ~200 MB of runs).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+from collections.abc import Callable, Mapping
+from multiprocessing.pool import AsyncResult
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pronet._files import atomic_write
+
+if TYPE_CHECKING:
+    from pronet.alignment import Section
+    from pronet.plots import SectionCurves
+    from pronet.realdata import SectionRun
+
+#: Points per line beyond which a long series is drawn thinned (every k-th point, the
+#: last one kept): a 40,000-sample track drawn at ~800 pixels looks the same, and
+#: takes a fifth of the time.
+MAX_LINE_POINTS = 4000
+
+#: The files each section's figures go to, by kind.
+FIGURES = ("track", "velocity_error", "q")
+
+
+def _thin(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every k-th sample of equally long ``x`` and ``y`` (and the last), at most about
+    :data:`MAX_LINE_POINTS` of them."""
+    n = len(x)
+    k = -(-n // MAX_LINE_POINTS)
+    if k <= 1:
+        return np.asarray(x), np.asarray(y)
+    keep = np.r_[np.arange(0, n - 1, k), n - 1]
+    return np.asarray(x)[keep], np.asarray(y)[keep]
+
+
+def section_curves(
+    section: Section,
+    runs: list[SectionRun],
+    constant_q: Mapping[str, tuple[float, ...]],
+    imu_dt: float,
+) -> SectionCurves:
+    """What the figures of ``section`` show for its strategy ``runs``.
+
+    Args:
+        section: the aligned section (truth in geodetic lla [rad, rad, m] and NED
+            velocity [m/s]).
+        runs: its strategy rows, in table order.
+        constant_q: label → the 6 variances of each constant row (drawn flat).
+        imu_dt: the IMU sample interval [s] the filter assumed: Mehra's discrete Q_d
+            is shown as the q that would give the same velocity and attitude blocks,
+            ``trace / (3 Δt_imu Δt)``.
+    """
+    from pronet import earth_radii
+    from pronet.plots import SectionCurves
+    from pronet.realmetrics import estimate_at_truth
+
+    lla0 = section.truth_lla[0]
+    r_n, r_e = earth_radii(float(lla0[0]))
+
+    def east_north(label: str, lla: np.ndarray) -> tuple[str, np.ndarray, np.ndarray]:
+        lla = np.asarray(lla)
+        north = (lla[:, 0] - lla0[0]) * (r_n + lla0[2])
+        east = (lla[:, 1] - lla0[1]) * (r_e + lla0[2]) * np.cos(lla0[0])
+        east, north = _thin(east, north)
+        return label, east, north
+
+    track = [east_north("ground truth", section.truth_lla)]
+    velocity: list[tuple[str, np.ndarray, np.ndarray]] = []
+    q: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] = []
+    for run in runs:
+        track.append(east_north(run.label, run.result.lla))
+        rows, _, vel = estimate_at_truth(section, run.result)
+        dv = vel - section.truth_vel[rows]
+        time, dv = _thin(section.truth_time[rows], dv)
+        velocity.append((run.label, time, dv))
+        used = _q_used(run, constant_q, imu_dt)
+        if used is not None:
+            q.append((run.label, *used))
+    return SectionCurves(section.name, track, velocity, q)
+
+
+def _q_used(
+    run: SectionRun, constant_q: Mapping[str, tuple[float, ...]], imu_dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(time, accelerometer q, gyro q)`` of one strategy row, each the mean over its
+    three channels; None for a row without a q (an estimator that never set one)."""
+    r = run.result
+    if run.label in constant_q:
+        qc = np.asarray(constant_q[run.label], float)
+        return r.time[[0, -1]], np.full(2, qc[:3].mean()), np.full(2, qc[3:].mean())
+    if run.schedule is not None and len(run.schedule.time):
+        qs = run.schedule.q
+        return run.schedule.time, qs[:, :3].mean(axis=1), qs[:, 3:].mean(axis=1)
+    if np.isfinite(r.adaptive_q).any():
+        applied = r.dvl_epoch >= 0
+        qd = r.adaptive_q[applied]
+        scale = 3 * imu_dt * float(np.median(np.diff(r.time)))
+        return (
+            r.time[r.dvl_epoch[applied]],
+            np.trace(qd[:, 3:6, 3:6], axis1=1, axis2=2) / scale,
+            np.trace(qd[:, 6:9, 6:9], axis1=1, axis2=2) / scale,
+        )
+    return None
+
+
+def draw_figure(kind: str, curves: SectionCurves) -> bytes:
+    """One of the figures of a section (``kind`` in :data:`FIGURES`), as PNG bytes."""
+    import tempfile
+
+    from pronet import plots
+
+    draw = {
+        "track": plots.section_track,
+        "velocity_error": plots.section_velocity_error,
+        "q": plots.section_q,
+    }[kind]
+    with tempfile.TemporaryDirectory() as tmp:
+        return draw(curves, Path(tmp) / "figure.png").read_bytes()
+
+
+def figure_name(kind: str, section: str) -> str:
+    """The file of one figure of a section: ``<kind>_<section>.png``."""
+    return f"{kind}_{section}.png"
+
+
+def _worker_start() -> None:
+    """A drawing worker leaves Ctrl-C to its parent (which stops the pool) and loads
+    matplotlib before its first figure."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import matplotlib.backends.backend_agg  # noqa: F401
+
+
+class FigurePool:
+    """Draws sections' figures in worker processes (``spawn``: safe beside the
+    filters' threads) as the sections are handed in; :meth:`write` collects them into
+    a folder. Use as a context manager: leaving it normally waits for the workers to
+    exit; leaving it on an error or Ctrl-C stops them at once, mid-figure."""
+
+    def __init__(self, workers: int | None = None) -> None:
+        n = workers if workers is not None else (os.cpu_count() or 1)
+        context = multiprocessing.get_context("spawn")
+        self._pool = context.Pool(max(1, n), initializer=_worker_start)
+        self._figures: dict[str, list[AsyncResult[bytes]]] = {}
+
+    def __enter__(self) -> FigurePool:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        if kind is None:
+            self._pool.close()
+        else:
+            self._pool.terminate()
+        self._pool.join()
+
+    def submit(self, curves: SectionCurves) -> None:
+        """Start drawing one section's figures (each its own task, so that the last
+        section's three are drawn side by side too)."""
+        self._figures[curves.name] = [
+            self._pool.apply_async(draw_figure, (kind, curves)) for kind in FIGURES
+        ]
+
+    def write(
+        self,
+        folder: Path,
+        names: list[str],
+        on_done: Callable[[str], None] | None = None,
+    ) -> None:
+        """Wait for the figures of the sections ``names`` (each handed in) and write them
+        into ``folder``, in that order; ``on_done(name)`` after each section. A
+        worker's error is raised here."""
+        for name in names:
+            for kind, png in zip(FIGURES, self._figures[name], strict=True):
+                atomic_write(folder / figure_name(kind, name), png.get())
+            if on_done is not None:
+                on_done(name)

@@ -1,0 +1,100 @@
+"""The figures of ``pronet real``: the curves taken from a section's runs, and their
+drawing in worker processes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pronet import alignment, realdata, realplots
+from pronet.alignment import align, estimate_alignment
+from pronet.hybrid import ConstantRegressor
+from pronet.realtuning import real_filter_config
+
+from synthetic_recording import synthetic_recording
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def ran():
+    """A 70 s synthetic section and every row of ``pronet real`` on it (a constant
+    regressor stands in for the learned ones), with the figures' curves."""
+    rec = synthetic_recording(seed=3, duration=70.0, name="sec").recording
+    pairs = [(align(rec, estimate_alignment(rec)), align(rec, alignment.Alignment(how="none")))]
+    seen = []
+    model = ConstantRegressor([1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8])
+    done = realdata.run_sections(
+        pairs, {"detrend": model}, 1.0, on_section=lambda *args: seen.append(args)
+    )
+    return pairs[0][0], done, seen
+
+
+def test_each_section_is_handed_over_once_with_its_rows_and_constants(ran):
+    section, done, seen = ran
+    assert len(seen) == 1
+    aligned, runs, constants = seen[0]
+    assert aligned is section and runs == done.runs
+    assert constants == done.constants[section.name] and constants
+
+
+def test_the_curves_hold_what_the_figures_show(ran):
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    assert curves.name == section.name
+    labels = [r.label for r in done.runs]
+    assert [c[0] for c in curves.track] == ["ground truth", *labels]
+    assert [c[0] for c in curves.velocity_error] == labels
+    (_, east, north), *_ = curves.track
+    assert east[0] == north[0] == 0.0  # metres from the start
+    for _, e, n in curves.track:  # 7,000 IMU samples thinned to at most ~MAX_LINE_POINTS
+        assert len(e) == len(n) <= realplots.MAX_LINE_POINTS + 1
+    first = done.runs[0]
+    _, time, dv = curves.velocity_error[0]
+    rows = (section.truth_time > first.result.time[0]) & (
+        section.truth_time <= first.result.time[-1]
+    )
+    assert dv.shape == (len(time), 3) and len(time) == rows.sum()
+    # the velocity error is the one section_metrics scores
+    assert np.sqrt(np.mean(np.sum(dv**2, axis=1))) == pytest.approx(first.metrics.srmse)
+    q = {label: (t, acc, gyro) for label, t, acc, gyro in curves.q}
+    constant = done.constants[section.name]
+    for label, values in constant.items():  # constant rows: flat over the run
+        t, acc, gyro = q[label]
+        assert acc == pytest.approx([np.mean(values[:3])] * 2)
+        assert gyro == pytest.approx([np.mean(values[3:])] * 2)
+    learned = [r for r in done.runs if r.schedule is not None]
+    for r in learned:  # the q each tuning instant set, from then on
+        t, acc, gyro = q[r.label]
+        np.testing.assert_array_equal(t, r.schedule.time)
+        assert acc == pytest.approx(r.schedule.q[:, :3].mean(axis=1))
+    stand_in = [q[r.label] for r in learned if np.all(r.schedule.q == r.schedule.q[0])]
+    assert stand_in and all(c[1] == pytest.approx(1e-4) for c in stand_in)
+    adaptive = [r for r in done.runs if np.isfinite(r.result.adaptive_q).any()]
+    for r in adaptive:  # Mehra's Q_d at each applied update, as the equivalent q
+        t, acc, gyro = q[r.label]
+        assert len(t) == np.sum(r.result.dvl_epoch >= 0) == len(acc) == len(gyro)
+        filled = np.isfinite(acc)  # NaN (not drawn) until the window fills, then q >= 0
+        assert filled.any() and np.all(filled[np.argmax(filled) :])
+        assert np.all(acc[filled] >= 0) and np.all(gyro[filled] >= 0)
+    assert adaptive
+
+
+def test_figures_drawn_in_a_worker_are_the_ones_drawn_here(ran, tmp_path):
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    here = {
+        realplots.figure_name(kind, "sec"): realplots.draw_figure(kind, curves)
+        for kind in realplots.FIGURES
+    }
+    assert sorted(here) == ["q_sec.png", "track_sec.png", "velocity_error_sec.png"]
+    assert all(png.startswith(PNG) for png in here.values())
+    steps = []
+    with realplots.FigurePool(1) as pool:
+        pool.submit(curves)
+        pool.write(tmp_path, ["sec"], steps.append)
+    assert steps == ["sec"]
+    for name, png in here.items():  # Agg draws the same pixels in any process
+        assert (tmp_path / name).read_bytes() == png
