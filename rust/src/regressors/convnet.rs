@@ -463,18 +463,20 @@ impl ConvNet {
         let conv = &mut s.conv[..b.l_out * b.c_pad];
         let (step, kdim) = (b.stride * b.c_in, b.kernel * b.c_in);
         convolve(&done[i], step, kdim, &b.w, b.c_pad, &b.bias, conv);
-        // LayerNorm statistics of every step first, so that the square roots and
-        // divisions of successive steps overlap
+        // LayerNorm statistics of every step first, each in its own pass over the steps
+        // (means, variances, 1/σ), so that the sums, divisions and square roots of
+        // successive steps overlap instead of waiting on one another
         let (mean, rstd) = (&mut s.mean[..b.l_out], &mut s.rstd[..b.l_out]);
         let c = b.c_out as f64;
-        for ((row, m), r) in conv
+        for (row, m) in conv.chunks_exact(b.c_pad).zip(mean.iter_mut()) {
+            *m = lane_sum(&row[..b.c_out], |v| v) / c;
+        }
+        for ((row, &m), r) in conv
             .chunks_exact(b.c_pad)
-            .zip(mean.iter_mut())
+            .zip(mean.iter())
             .zip(rstd.iter_mut())
         {
-            let row = &row[..b.c_out];
-            *m = lane_sum(row, |v| v) / c;
-            *r = lane_sum(row, |v| (v - *m) * (v - *m)) / c + b.eps;
+            *r = lane_sum(&row[..b.c_out], |v| (v - m) * (v - m)) / c + b.eps;
         }
         for r in rstd.iter_mut() {
             *r = 1.0 / r.sqrt();
