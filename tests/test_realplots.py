@@ -3,6 +3,9 @@ drawing in worker processes."""
 
 from __future__ import annotations
 
+import signal
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -98,3 +101,30 @@ def test_figures_drawn_in_a_worker_are_the_ones_drawn_here(ran, tmp_path):
     assert steps == ["sec"]
     for name, png in here.items():  # Agg draws the same pixels in any process
         assert (tmp_path / name).read_bytes() == png
+
+
+def test_a_worker_error_is_raised_with_its_traceback(ran, tmp_path):
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    broken = replace(curves, name="broken", track=[])  # no truth line to draw
+    with realplots.FigurePool(1) as pool:
+        pool.submit(broken)
+        with pytest.raises(RuntimeError, match="ValueError"):
+            pool.write(tmp_path, ["broken"])
+        pool.submit(curves)  # the worker goes on with the next figure
+        pool.write(tmp_path, ["sec"])
+    assert (tmp_path / "q_sec.png").read_bytes().startswith(PNG)
+    assert not (tmp_path / "track_broken.png").exists()
+
+
+def test_leaving_on_an_error_kills_the_workers_mid_queue(ran):
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    pool = realplots.FigurePool(2)
+    with pytest.raises(KeyboardInterrupt), pool:
+        for i in range(20):  # 60 figures queued, seconds of drawing
+            pool.submit(replace(curves, name=f"s{i}"))
+        raise KeyboardInterrupt
+    assert all(w.returncode == -signal.SIGKILL for w in pool._workers)

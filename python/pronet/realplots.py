@@ -11,13 +11,18 @@ against ~200 MB of runs).
 
 from __future__ import annotations
 
-import multiprocessing
 import os
+import pickle
+import queue
 import signal
+import struct
+import subprocess
+import sys
+import threading
 from collections.abc import Callable, Mapping
-from multiprocessing.pool import AsyncResult
+from concurrent.futures import Future
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
@@ -138,41 +143,86 @@ def figure_name(kind: str, section: str) -> str:
     return f"{kind}_{section}.png"
 
 
-def _worker_start() -> None:
-    """A drawing worker leaves Ctrl-C to its parent (which stops the pool) and loads
-    matplotlib before its first figure."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    import matplotlib.backends.backend_agg  # noqa: F401
-
-
 class FigurePool:
-    """Draws sections' figures in worker processes (``spawn``: safe beside the
-    filters' threads) as the sections are handed in; :meth:`write` collects them into
-    a folder. Use as a context manager: leaving it normally waits for the workers to
-    exit; leaving it on an error or Ctrl-C stops them at once, mid-figure."""
+    """Draws sections' figures in worker processes as the sections are handed in;
+    :meth:`write` collects them into a folder. Use as a context manager: leaving it
+    normally lets the workers finish and exit; leaving it on an error or Ctrl-C kills
+    them at once, mid-figure.
+
+    Each worker is ``python -m pronet.realplots`` on a pipe: it is told a figure (the
+    pickled curves) and answers its PNG bytes. Not :mod:`multiprocessing`: its spawned
+    workers import the caller's main script again (an unguarded script would run
+    twice), forked ones copy the caller's memory page by page as it writes, and a
+    worker killed inside its pool's queue lock can hang the pool's shutdown.
+    """
 
     def __init__(self, workers: int | None = None) -> None:
-        n = workers if workers is not None else (os.cpu_count() or 1)
-        context = multiprocessing.get_context("spawn")
-        self._pool = context.Pool(max(1, n), initializer=_worker_start)
-        self._figures: dict[str, list[AsyncResult[bytes]]] = {}
+        import pronet
+
+        n = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        env = dict(os.environ)  # the workers import this pronet, wherever it lies
+        here = str(Path(pronet.__file__).resolve().parents[1])
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (here, env.get("PYTHONPATH")) if p)
+        self._tasks: queue.SimpleQueue[tuple[str, SectionCurves, Future[bytes]] | None]
+        self._tasks = queue.SimpleQueue()
+        self._figures: dict[str, list[Future[bytes]]] = {}
+        self._workers = [
+            subprocess.Popen(
+                [sys.executable, "-m", "pronet.realplots"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                env=env,
+            )
+            for _ in range(n)
+        ]
+        self._feeders = [
+            threading.Thread(target=self._feed, args=(w,), daemon=True) for w in self._workers
+        ]
+        for t in self._feeders:
+            t.start()
 
     def __enter__(self) -> FigurePool:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
-        if kind is None:
-            self._pool.close()
-        else:
-            self._pool.terminate()
-        self._pool.join()
+        if kind is not None:
+            for w in self._workers:
+                w.kill()
+        for _ in self._feeders:
+            self._tasks.put(None)
+        for t in self._feeders:
+            t.join()
+        for w in self._workers:
+            w.wait()
+
+    def _feed(self, worker: subprocess.Popen[bytes]) -> None:
+        """Hand ``worker`` one figure at a time from the shared queue (so that the
+        workers share the load) until told to stop; then close its pipe."""
+        assert worker.stdin is not None and worker.stdout is not None
+        while (task := self._tasks.get()) is not None:
+            kind, curves, figure = task
+            try:
+                _send(worker.stdin, pickle.dumps((kind, curves), pickle.HIGHEST_PROTOCOL))
+                ok, body = _receive(worker.stdout)
+            except (OSError, EOFError) as exc:
+                figure.set_exception(RuntimeError(f"the figure worker stopped ({exc})"))
+                continue
+            if ok:
+                figure.set_result(body)
+            else:
+                figure.set_exception(RuntimeError(body.decode("utf-8", "replace")))
+        try:
+            worker.stdin.close()
+        except OSError:  # a killed worker's pipe
+            pass
 
     def submit(self, curves: SectionCurves) -> None:
-        """Start drawing one section's figures (each its own task, so that the last
-        section's three are drawn side by side too)."""
-        self._figures[curves.name] = [
-            self._pool.apply_async(draw_figure, (kind, curves)) for kind in FIGURES
-        ]
+        """Queue one section's figures (each its own task, so that the last section's
+        three are drawn side by side too); returns at once."""
+        figures = [Future[bytes]() for _ in FIGURES]
+        for kind, figure in zip(FIGURES, figures, strict=True):
+            self._tasks.put((kind, curves, figure))
+        self._figures[curves.name] = figures
 
     def write(
         self,
@@ -182,9 +232,58 @@ class FigurePool:
     ) -> None:
         """Wait for the figures of the sections ``names`` (each handed in) and write them
         into ``folder``, in that order; ``on_done(name)`` after each section. A
-        worker's error is raised here."""
+        worker's error is raised here (RuntimeError with its traceback)."""
         for name in names:
             for kind, png in zip(FIGURES, self._figures[name], strict=True):
-                atomic_write(folder / figure_name(kind, name), png.get())
+                atomic_write(folder / figure_name(kind, name), png.result())
             if on_done is not None:
                 on_done(name)
+
+
+def _send(pipe: IO[bytes], payload: bytes, ok: bool = True) -> None:
+    """One message: a status byte, the length (8 bytes, little-endian), the payload."""
+    pipe.write(struct.pack("<?Q", ok, len(payload)))
+    pipe.write(payload)
+    pipe.flush()
+
+
+def _receive(pipe: IO[bytes]) -> tuple[bool, bytes]:
+    """One message written by :func:`_send`; EOFError when the pipe ends first."""
+    head = pipe.read(struct.calcsize("<?Q"))
+    if len(head) < struct.calcsize("<?Q"):
+        raise EOFError("the pipe closed")
+    ok, n = struct.unpack("<?Q", head)
+    body = pipe.read(n)
+    if len(body) < n:
+        raise EOFError("the pipe closed mid-message")
+    return bool(ok), body
+
+
+def _serve() -> None:
+    """The worker (``python -m pronet.realplots``): draws each figure its stdin asks
+    for and answers its PNG bytes, or the traceback of what went wrong, until stdin
+    ends. Ctrl-C is its parent's to handle."""
+    import traceback
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    os.nice(10)  # the filters first: a worker takes the cores they leave idle
+    import matplotlib.backends.backend_agg  # noqa: F401  # before the first request
+
+    source = sys.stdin.buffer
+    # the answers get their own copy of stdout; anything else printed goes to stderr
+    sink = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    while True:
+        try:
+            _, request = _receive(source)
+        except EOFError:
+            return
+        try:
+            kind, curves = pickle.loads(request)
+            _send(sink, draw_figure(kind, curves))
+        except Exception:  # the parent raises it, with this traceback
+            _send(sink, traceback.format_exc().encode(), ok=False)
+
+
+if __name__ == "__main__":
+    _serve()
