@@ -166,15 +166,25 @@ class FigurePool:
         self._tasks: queue.SimpleQueue[tuple[str, SectionCurves, Future[bytes]] | None]
         self._tasks = queue.SimpleQueue()
         self._figures: dict[str, list[Future[bytes]]] = {}
-        self._workers = [
-            subprocess.Popen(
-                [sys.executable, "-m", "pronet.realplots"],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                env=env,
-            )
-            for _ in range(n)
-        ]
+        self._workers: list[subprocess.Popen[bytes]] = []
+        try:
+            for _ in range(n):
+                # a session of its own: a terminal's Ctrl-C reaches the caller alone,
+                # which kills the workers; a worker whose caller died ends with its stdin
+                self._workers.append(
+                    subprocess.Popen(
+                        [sys.executable, "-m", "pronet.realplots"],
+                        stdin=subprocess.PIPE,
+                        stdout=subprocess.PIPE,
+                        env=env,
+                        start_new_session=True,
+                    )
+                )
+        except OSError:
+            for w in self._workers:
+                w.kill()
+                w.wait()
+            raise
         self._feeders = [
             threading.Thread(target=self._feed, args=(w,), daemon=True) for w in self._workers
         ]
@@ -262,7 +272,8 @@ def _receive(pipe: IO[bytes]) -> tuple[bool, bytes]:
 def _serve() -> None:
     """The worker (``python -m pronet.realplots``): draws each figure its stdin asks
     for and answers its PNG bytes, or the traceback of what went wrong, until stdin
-    ends. Ctrl-C is its parent's to handle."""
+    ends. Ctrl-C is its parent's to handle (it runs in a session of its own, and
+    ignores the signal if it comes anyway)."""
     import traceback
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
