@@ -15,6 +15,10 @@ from collections.abc import Callable
 
 import pytest
 
+from pronet import alignment, realdata
+
+from synthetic_recording import synthetic_recording
+
 #: One strategy, many runs on one thread: one native call of a minute or more.
 LONG = ["simulate", "--strategies", "constant", "--runs", "3000", "--threads", "1"]
 
@@ -132,6 +136,18 @@ def test_ctrl_c_ends_long_predictions_and_ensemble_steps_at_once() -> None:
     stops_at_once(calls)
     with pytest.raises(ValueError, match="interrupted; create a new Ensemble"):
         interrupted.advance()
+
+
+def test_ctrl_c_ends_sections_filtered_side_by_side_at_once() -> None:
+    """pronet real's sections run on threads, whose native calls signals do not reach:
+    each thread stops at its next filter pass (~0.1 s here) instead of finishing its
+    section (~3 s for these)."""
+    rec = synthetic_recording(seed=1, duration=2400.0, name="long").recording
+    pair = (
+        alignment.align(rec, alignment.estimate_alignment(rec)),
+        alignment.align(rec, alignment.Alignment(how="none")),
+    )
+    stops_at_once({"run_sections": lambda: realdata.run_sections([pair] * 4, {}, 1.0, threads=2)})
 
 
 def test_the_core_reads_any_memory_layout_alike() -> None:
