@@ -321,8 +321,14 @@ pub fn matrix<const C: usize>(
     py: Python<'_>,
     rows: impl Iterator<Item = [f64; C]>,
 ) -> Bound<'_, PyArray2<f64>> {
-    let rows: Vec<[f64; C]> = rows.collect();
-    Array2::from_shape_fn((rows.len(), C), |(i, j)| rows[i][j]).into_pyarray(py)
+    rows_array(rows).into_pyarray(py)
+}
+
+/// Rows of C values as an owned (n, C) array, built without Python (so without the
+/// GIL where the caller has released it); handing it to Python does not copy it.
+pub fn rows_array<const C: usize>(rows: impl Iterator<Item = [f64; C]>) -> Array2<f64> {
+    let flat: Vec<f64> = rows.flatten().collect();
+    Array2::from_shape_vec((flat.len() / C, C), flat).expect("whole rows of C values")
 }
 
 /// `lla`, `vel` and `rpy` arrays of the states into `d`.

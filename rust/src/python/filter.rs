@@ -2,10 +2,11 @@
 
 use super::config::PyFilterConfig;
 use super::convert::{
-    arg_t0, as_rows, column, fixed_or, matrix, nav_arrays, nav_state, readonly_rows, rows,
+    arg_t0, as_rows, column, fixed_or, nav_state, readonly_rows, rows, rows_array,
 };
 use super::strategy::PyStrategy;
 use super::{interruptible, invalid};
+use crate::attitude::euler_from_dcm;
 use crate::ekf::{filter_recorded_until, FilterOutput, RecordedData};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
@@ -61,7 +62,10 @@ fn run_filter<'py>(
     let bias0 = fixed_or::<6>(bias0, "bias0", [0.0; 6])?;
     let cfg = config.inner.clone();
     let spec = strategy.inner.clone();
-    let out: FilterOutput = interruptible(py, move |cancel| {
+    // The arrays are built on the worker thread too, without the GIL: pronet real
+    // runs sections on threads, which would otherwise queue for it while one of them
+    // copies its ~40 MB of results.
+    let arrays = interruptible(py, move |cancel| {
         let data = RecordedData {
             imu,
             imu_time: &imu_time,
@@ -73,86 +77,105 @@ fn run_filter<'py>(
         };
         let mut strat = spec.build(cfg.bias_psd());
         filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), cancel)
+            .map(|out| OutputArrays::new(&out))
     })?;
-    output_dict(py, &out)
+    arrays.into_dict(py)
 }
 
-/// The pass's epochs and updates as the dict `pronet.FilterResult` takes.
-fn output_dict<'py>(py: Python<'py>, out: &FilterOutput) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("time", out.time.clone().into_pyarray(py))?;
-    nav_arrays(py, &d, &out.nav)?;
-    d.set_item("bias", matrix(py, out.bias.iter().copied()))?;
-    d.set_item("sigma", matrix(py, out.sigma.iter().copied()))?;
-    // (0, 4) without the DVL calibration states
-    d.set_item("calibration", matrix(py, out.calibration.iter().copied()))?;
-    d.set_item(
-        "calibration_sigma",
-        matrix(py, out.calibration_sigma.iter().copied()),
-    )?;
-    let p = out.final_covariance;
-    d.set_item(
-        "covariance",
-        Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]).into_pyarray(py),
-    )?;
-    d.set_item(
-        "dvl_epoch",
-        Array1::from_iter(out.dvl_epoch.iter().map(|e| e.map_or(-1, |k| k as i64)))
-            .into_pyarray(py),
-    )?;
-    d.set_item("diverged_at", out.nis_monitor.diverged_at)?;
-    update_arrays(py, &d, out)?;
-    Ok(d)
+/// The pass's epochs and updates as the arrays of the dict `pronet.FilterResult`
+/// takes, owned by Rust until they are handed over.
+struct OutputArrays {
+    time: Array1<f64>,
+    lla: Array2<f64>,
+    vel: Array2<f64>,
+    rpy: Array2<f64>,
+    bias: Array2<f64>,
+    sigma: Array2<f64>,
+    /// (0, 4) without the DVL calibration states.
+    calibration: Array2<f64>,
+    calibration_sigma: Array2<f64>,
+    covariance: Array2<f64>,
+    dvl_epoch: Array1<i64>,
+    diverged_at: Option<f64>,
+    /// Per DVL row: NaN (and not accepted) where a row fell outside the run.
+    innovation: Array2<f64>,
+    innovation_cov: Array3<f64>,
+    nis: Array1<f64>,
+    accepted: Array1<bool>,
+    gain: Array3<f64>,
+    adaptive_q: Array3<f64>,
 }
 
-/// The per-DVL-row arrays: NaN (and not accepted) where a row fell outside the run.
-fn update_arrays<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, out: &FilterOutput) -> PyResult<()> {
-    let m = out.updates.len();
-    let each = |f: &dyn Fn(&crate::ekf::UpdateInfo) -> f64| {
-        Array1::from_iter(out.updates.iter().map(|u| u.as_ref().map_or(f64::NAN, f)))
-    };
-    let nan3 = [f64::NAN; 3];
-    d.set_item(
-        "innovation",
-        matrix(
-            py,
-            out.updates
+impl OutputArrays {
+    fn new(out: &FilterOutput) -> Self {
+        let m = out.updates.len();
+        let p = out.final_covariance;
+        let nan3 = [f64::NAN; 3];
+        Self {
+            time: Array1::from(out.time.clone()),
+            lla: rows_array(out.nav.iter().map(|s| s.lla.into())),
+            vel: rows_array(out.nav.iter().map(|s| s.vel.into())),
+            rpy: rows_array(out.nav.iter().map(|s| euler_from_dcm(&s.dcm).into())),
+            bias: rows_array(out.bias.iter().copied()),
+            sigma: rows_array(out.sigma.iter().copied()),
+            calibration: rows_array(out.calibration.iter().copied()),
+            calibration_sigma: rows_array(out.calibration_sigma.iter().copied()),
+            covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
+            dvl_epoch: out
+                .dvl_epoch
                 .iter()
-                .map(|u| u.as_ref().map_or(nan3, |u| u.innovation.into())),
-        ),
-    )?;
-    d.set_item(
-        "innovation_cov",
-        Array3::from_shape_fn((m, 3, 3), |(k, i, j)| {
-            out.updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
-        })
-        .into_pyarray(py),
-    )?;
-    d.set_item("nis", each(&|u| u.nis).into_pyarray(py))?;
-    d.set_item(
-        "accepted",
-        Array1::from_iter(
-            out.updates
+                .map(|e| e.map_or(-1, |k| k as i64))
+                .collect(),
+            diverged_at: out.nis_monitor.diverged_at,
+            innovation: rows_array(
+                out.updates
+                    .iter()
+                    .map(|u| u.as_ref().map_or(nan3, |u| u.innovation.into())),
+            ),
+            innovation_cov: Array3::from_shape_fn((m, 3, 3), |(k, i, j)| {
+                out.updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
+            }),
+            nis: out
+                .updates
                 .iter()
-                .map(|u| u.as_ref().is_some_and(|u| u.accepted)),
-        )
-        .into_pyarray(py),
-    )?;
-    d.set_item(
-        "gain",
-        Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
-            out.updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
-        })
-        .into_pyarray(py),
-    )?;
-    d.set_item(
-        "adaptive_q",
-        Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
-            out.adaptive_q[k].map_or(f64::NAN, |q| q[(i, j)])
-        })
-        .into_pyarray(py),
-    )?;
-    Ok(())
+                .map(|u| u.as_ref().map_or(f64::NAN, |u| u.nis))
+                .collect(),
+            accepted: out
+                .updates
+                .iter()
+                .map(|u| u.as_ref().is_some_and(|u| u.accepted))
+                .collect(),
+            gain: Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
+                out.updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
+            }),
+            adaptive_q: Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
+                out.adaptive_q[k].map_or(f64::NAN, |q| q[(i, j)])
+            }),
+        }
+    }
+
+    /// The dict, each array handed to NumPy without a copy.
+    fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("time", self.time.into_pyarray(py))?;
+        d.set_item("lla", self.lla.into_pyarray(py))?;
+        d.set_item("vel", self.vel.into_pyarray(py))?;
+        d.set_item("rpy", self.rpy.into_pyarray(py))?;
+        d.set_item("bias", self.bias.into_pyarray(py))?;
+        d.set_item("sigma", self.sigma.into_pyarray(py))?;
+        d.set_item("calibration", self.calibration.into_pyarray(py))?;
+        d.set_item("calibration_sigma", self.calibration_sigma.into_pyarray(py))?;
+        d.set_item("covariance", self.covariance.into_pyarray(py))?;
+        d.set_item("dvl_epoch", self.dvl_epoch.into_pyarray(py))?;
+        d.set_item("diverged_at", self.diverged_at)?;
+        d.set_item("innovation", self.innovation.into_pyarray(py))?;
+        d.set_item("innovation_cov", self.innovation_cov.into_pyarray(py))?;
+        d.set_item("nis", self.nis.into_pyarray(py))?;
+        d.set_item("accepted", self.accepted.into_pyarray(py))?;
+        d.set_item("gain", self.gain.into_pyarray(py))?;
+        d.set_item("adaptive_q", self.adaptive_q.into_pyarray(py))?;
+        Ok(d)
+    }
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
