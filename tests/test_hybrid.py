@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 import pronet
-from pronet.hybrid import ConstantRegressor, Guardrails, apply_guardrails, run_hybrid
+from pronet.hybrid import (
+    ConstantRegressor,
+    Guardrails,
+    apply_guardrails,
+    guard_schedule,
+    run_hybrid,
+)
 from pronet.montecarlo import MonteCarloResult
 
 from conftest import PAPER_Q
@@ -79,6 +85,25 @@ def test_apply_guardrails_unit() -> None:
     assert bad.tolist() == [1] and clip.tolist() == [1]
     with pytest.raises(ValueError, match="q_min, q_max"):
         Guardrails(1.0, 0.1)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_a_whole_schedule_is_guarded_as_instant_after_instant(seed) -> None:
+    """guard_schedule (recorded data, whole arrays) equals apply_guardrails applied one
+    instant after another, the previous guarded row as q_prev, bit for bit and in its
+    counts: NaN and inf runs, values out of range, a prior out of range."""
+    rng = np.random.default_rng(seed)
+    g = Guardrails(1e-6, 1.0)
+    q = 10.0 ** rng.uniform(-8, 2, (rng.integers(1, 40), 6))
+    q[rng.random(q.shape) < 0.3] = rng.choice([np.nan, np.inf, -np.inf])
+    prior = 10.0 ** rng.uniform(-8, 2, 6)
+    guarded, non_finite, clipped = guard_schedule(q, prior, g)
+    prev, want_bad, want_clip = prior, 0, 0
+    for i in range(len(q)):
+        row, bad, clip = apply_guardrails(q[i : i + 1], prev[None, :], g)
+        np.testing.assert_array_equal(guarded[i], row[0])
+        prev, want_bad, want_clip = row[0], want_bad + int(bad[0]), want_clip + int(clip[0])
+    assert (non_finite, clipped) == (want_bad, want_clip)
 
 
 def test_bad_regressors_are_refused(paper_trajectory) -> None:

@@ -326,12 +326,27 @@ def q_schedule(
             f"regressor: predict returned shape {q.shape} for windows {windows.shape}; "
             f"expected ({ends.size}, 6)"
         )
-    guarded = np.empty_like(q)
-    prev = prior
-    clipped = non_finite = 0
-    for i in range(len(q)):  # a non-finite prediction keeps the previous instant's q
-        row, bad, clip = apply_guardrails(q[i : i + 1], prev[None, :], guardrails)
-        guarded[i] = prev = row[0]
-        non_finite += int(bad[0])
-        clipped += int(clip[0])
+    guarded, non_finite, clipped = guard_schedule(q, prior, guardrails)
     return QSchedule(times[ends - 1], guarded, clipped, non_finite, seconds)
+
+
+def guard_schedule(
+    q: NDArray[np.float64], prior: NDArray[np.float64], guardrails: Guardrails
+) -> tuple[NDArray[np.float64], int, int]:
+    """``(guarded, non_finite, clipped)``: :func:`apply_guardrails` instant after instant
+    down the rows of ``q`` ``(k, 6)``, each row's ``q_prev`` the previous guarded row
+    (``prior`` before the first), in whole-array operations: a non-finite entry takes
+    the channel's last guarded value, every other is clipped. The counts are over the
+    whole schedule; a filled entry counts as clipped only where it is the first row's
+    and ``prior`` is out of range (later ones take an in-range value)."""
+    lo, hi = guardrails.q_min, guardrails.q_max
+    bad = ~np.isfinite(q)
+    with np.errstate(invalid="ignore"):
+        out_of_range = ((q < lo) | (q > hi)) & ~bad  # ±inf is non-finite, not clipped
+    rows = np.arange(1, len(q) + 1)[:, None]
+    last_good = np.maximum.accumulate(np.where(bad, 0, rows), axis=0)  # 0: none yet
+    values = np.vstack([np.clip(prior, lo, hi)[None, :], np.clip(q, lo, hi)])
+    guarded = np.take_along_axis(values, last_good, axis=0)
+    prior_out = (prior < lo) | (prior > hi)
+    clipped = int(out_of_range.sum()) + int(np.sum(bad[:1] & prior_out))
+    return guarded, int(bad.sum()), clipped
