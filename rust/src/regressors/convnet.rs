@@ -382,15 +382,27 @@ impl ConvNet {
         }
     }
 
-    /// q of one window (see the module docs); the whole pass is compiled for AVX where
-    /// the CPU has it, with the same arithmetic in every lane (no fused multiply-add,
-    /// the same order of operations), so both builds agree bit for bit.
+    /// q of one window (see the module docs); the whole pass is compiled for AVX-512 or
+    /// AVX where the CPU has them, with the same arithmetic in every lane (no fused
+    /// multiply-add outside the convolution's explicit ones, the same order of
+    /// operations), so every build agrees bit for bit.
     fn forward(&self, x: &[f32], s: &mut Scratch) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            return unsafe { self.forward_avx512(x, s) };
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {
             // SAFETY: the CPU has AVX, checked just above.
             return unsafe { self.forward_avx(x, s) };
         }
+        self.forward_body(x, s)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn forward_avx512(&self, x: &[f32], s: &mut Scratch) -> f64 {
         self.forward_body(x, s)
     }
 
