@@ -494,8 +494,8 @@ def run_real(
         use_models: False: only the model-based rows.
         plots: False: no plots (the tables and metrics only). The figures are drawn
             in worker processes (:class:`pronet.realplots.FigurePool`) while the other
-            sections are filtered; on the Snapir data they add about a third to the
-            run time.
+            sections are filtered; on the Snapir data they add about half to the run
+            time (9.4 s against 6.3 s on 2 cores).
         dvl_noise: the DVL noise R of the strategy rows, one of
             :data:`pronet.dvlnoise.DVL_NOISE_SOURCES`: ``"datasheet"``
             (:data:`pronet.realtuning.REAL_DVL_VARIANCE`) or ``"data"`` (each section's
