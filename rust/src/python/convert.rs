@@ -327,8 +327,7 @@ pub fn matrix<const C: usize>(
 /// Rows of C values as an owned (n, C) array, built without Python (so without the
 /// GIL where the caller has released it); handing it to Python does not copy it.
 pub fn rows_array<const C: usize>(rows: impl Iterator<Item = [f64; C]>) -> Array2<f64> {
-    let flat: Vec<f64> = rows.flatten().collect();
-    Array2::from_shape_vec((flat.len() / C, C), flat).expect("whole rows of C values")
+    Array2::from(rows.collect::<Vec<[f64; C]>>())
 }
 
 /// `lla`, `vel` and `rpy` arrays of the states into `d`.

@@ -117,166 +117,125 @@ pub(super) fn convolve_portable(
     });
 }
 
-#[cfg(target_arch = "x86_64")]
-mod avx {
-    use super::{for_each_tile, LANES, TILE_T};
-    use std::arch::x86_64::*;
+/// A SIMD copy of [`convolve`] in module `$name`: vectors `$vec` of `$lanes` float64
+/// lanes, tiles of `$tile_t` steps × up to 4 vectors, compiled for `$feature`; the
+/// intrinsics that load, broadcast, fuse-multiply-add and store such a vector.
+macro_rules! simd_kernel {
+    (
+        $name:ident, $doc:literal, $feature:literal, $lanes:ident, $tile_t:ident, $vec:ident,
+        $setzero:ident, $loadu:ident, $set1:ident, $fmadd:ident, $storeu:ident
+    ) => {
+        #[cfg(target_arch = "x86_64")]
+        mod $name {
+            use super::{for_each_tile, $lanes, $tile_t};
+            use std::arch::x86_64::*;
 
-    /// [`super::convolve`] with 4-lane AVX registers and fused multiply-adds.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2 and FMA, and the slices must satisfy `convolve`'s
-    /// assertions.
-    #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn convolve(
-        a: &[f64],
-        step: usize,
-        kdim: usize,
-        w: &[f64],
-        c_pad: usize,
-        bias: &[f64],
-        y: &mut [f64],
-    ) {
-        let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
-        for_each_tile(y.len() / c_pad, c_pad, LANES, TILE_T, |t0, c0, t_n, nv| {
-            // SAFETY: every index below stays inside the slices `convolve` checked.
-            unsafe {
-                match (t_n, nv) {
-                    (TILE_T, 4) => tile::<TILE_T, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (TILE_T, 3) => tile::<TILE_T, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (TILE_T, 2) => tile::<TILE_T, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (TILE_T, _) => tile::<TILE_T, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 4) => tile::<1, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 3) => tile::<1, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 2) => tile::<1, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    _ => tile::<1, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                }
+            #[doc = $doc]
+            ///
+            /// # Safety
+            /// The CPU must have the target features this copy is compiled for, `c_pad`
+            /// must be a whole number of its vectors, and the slices must satisfy
+            /// `convolve`'s assertions.
+            #[target_feature(enable = $feature)]
+            pub unsafe fn convolve(
+                a: &[f64],
+                step: usize,
+                kdim: usize,
+                w: &[f64],
+                c_pad: usize,
+                bias: &[f64],
+                y: &mut [f64],
+            ) {
+                const T: usize = $tile_t;
+                let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
+                for_each_tile(y.len() / c_pad, c_pad, $lanes, T, |t0, c0, t_n, nv| {
+                    // SAFETY: every index below stays inside the slices `convolve` checked.
+                    unsafe {
+                        match (t_n, nv) {
+                            (T, 4) => tile::<T, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (T, 3) => tile::<T, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (T, 2) => tile::<T, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (T, _) => tile::<T, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (_, 4) => tile::<1, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (_, 3) => tile::<1, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (_, 2) => tile::<1, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            _ => tile::<1, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                        }
+                    }
+                });
             }
-        });
-    }
 
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn tile<const T: usize, const NV: usize>(
-        a: *const f64,
-        step: usize,
-        kdim: usize,
-        w: *const f64,
-        c_pad: usize,
-        bias: *const f64,
-        y: *mut f64,
-        t0: usize,
-        c0: usize,
-    ) {
-        // SAFETY (whole body): the caller keeps t0 + T <= l_out and c0 + NV·LANES <= c_pad.
-        unsafe {
-            let mut acc = [[_mm256_setzero_pd(); NV]; T];
-            for row in acc.iter_mut() {
-                for (v, r) in row.iter_mut().enumerate() {
-                    *r = _mm256_loadu_pd(bias.add(c0 + v * LANES));
-                }
-            }
-            for j in 0..kdim {
-                let wp = w.add(j * c_pad + c0);
-                let wv: [__m256d; NV] = std::array::from_fn(|v| _mm256_loadu_pd(wp.add(v * LANES)));
-                for (tt, row) in acc.iter_mut().enumerate() {
-                    let x = _mm256_set1_pd(*a.add((t0 + tt) * step + j));
-                    for (r, wv) in row.iter_mut().zip(&wv) {
-                        *r = _mm256_fmadd_pd(x, *wv, *r);
+            #[inline]
+            #[target_feature(enable = $feature)]
+            #[allow(clippy::too_many_arguments)]
+            unsafe fn tile<const T: usize, const NV: usize>(
+                a: *const f64,
+                step: usize,
+                kdim: usize,
+                w: *const f64,
+                c_pad: usize,
+                bias: *const f64,
+                y: *mut f64,
+                t0: usize,
+                c0: usize,
+            ) {
+                // SAFETY (whole body): the caller keeps t0 + T <= l_out and
+                // c0 + NV·lanes <= c_pad.
+                unsafe {
+                    let mut acc = [[$setzero(); NV]; T];
+                    for row in acc.iter_mut() {
+                        for (v, r) in row.iter_mut().enumerate() {
+                            *r = $loadu(bias.add(c0 + v * $lanes));
+                        }
+                    }
+                    for j in 0..kdim {
+                        let wp = w.add(j * c_pad + c0);
+                        let wv: [$vec; NV] = std::array::from_fn(|v| $loadu(wp.add(v * $lanes)));
+                        for (tt, row) in acc.iter_mut().enumerate() {
+                            let x = $set1(*a.add((t0 + tt) * step + j));
+                            for (r, wv) in row.iter_mut().zip(&wv) {
+                                *r = $fmadd(x, *wv, *r);
+                            }
+                        }
+                    }
+                    for (tt, row) in acc.iter().enumerate() {
+                        for (v, r) in row.iter().enumerate() {
+                            $storeu(y.add((t0 + tt) * c_pad + c0 + v * $lanes), *r);
+                        }
                     }
                 }
             }
-            for (tt, row) in acc.iter().enumerate() {
-                for (v, r) in row.iter().enumerate() {
-                    _mm256_storeu_pd(y.add((t0 + tt) * c_pad + c0 + v * LANES), *r);
-                }
-            }
         }
-    }
+    };
 }
 
-#[cfg(target_arch = "x86_64")]
-mod avx512 {
-    use super::{for_each_tile, LANES_512, TILE_T_512};
-    use std::arch::x86_64::*;
+simd_kernel!(
+    avx,
+    "[`super::convolve`] with 4-lane AVX registers and fused multiply-adds.",
+    "avx2,fma",
+    LANES,
+    TILE_T,
+    __m256d,
+    _mm256_setzero_pd,
+    _mm256_loadu_pd,
+    _mm256_set1_pd,
+    _mm256_fmadd_pd,
+    _mm256_storeu_pd
+);
 
-    /// [`super::convolve`] with 8-lane AVX-512 registers and fused multiply-adds.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F, `c_pad` must be a multiple of [`LANES_512`], and the
-    /// slices must satisfy `convolve`'s assertions.
-    #[target_feature(enable = "avx512f")]
-    pub unsafe fn convolve(
-        a: &[f64],
-        step: usize,
-        kdim: usize,
-        w: &[f64],
-        c_pad: usize,
-        bias: &[f64],
-        y: &mut [f64],
-    ) {
-        const T: usize = TILE_T_512;
-        let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
-        for_each_tile(y.len() / c_pad, c_pad, LANES_512, T, |t0, c0, t_n, nv| {
-            // SAFETY: every index below stays inside the slices `convolve` checked.
-            unsafe {
-                match (t_n, nv) {
-                    (T, 4) => tile::<T, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (T, 3) => tile::<T, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (T, 2) => tile::<T, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (T, _) => tile::<T, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 4) => tile::<1, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 3) => tile::<1, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    (_, 2) => tile::<1, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                    _ => tile::<1, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                }
-            }
-        });
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn tile<const T: usize, const NV: usize>(
-        a: *const f64,
-        step: usize,
-        kdim: usize,
-        w: *const f64,
-        c_pad: usize,
-        bias: *const f64,
-        y: *mut f64,
-        t0: usize,
-        c0: usize,
-    ) {
-        // SAFETY (whole body): the caller keeps t0 + T <= l_out and
-        // c0 + NV·LANES_512 <= c_pad.
-        unsafe {
-            let mut acc = [[_mm512_setzero_pd(); NV]; T];
-            for row in acc.iter_mut() {
-                for (v, r) in row.iter_mut().enumerate() {
-                    *r = _mm512_loadu_pd(bias.add(c0 + v * LANES_512));
-                }
-            }
-            for j in 0..kdim {
-                let wp = w.add(j * c_pad + c0);
-                let wv: [__m512d; NV] =
-                    std::array::from_fn(|v| _mm512_loadu_pd(wp.add(v * LANES_512)));
-                for (tt, row) in acc.iter_mut().enumerate() {
-                    let x = _mm512_set1_pd(*a.add((t0 + tt) * step + j));
-                    for (r, wv) in row.iter_mut().zip(&wv) {
-                        *r = _mm512_fmadd_pd(x, *wv, *r);
-                    }
-                }
-            }
-            for (tt, row) in acc.iter().enumerate() {
-                for (v, r) in row.iter().enumerate() {
-                    _mm512_storeu_pd(y.add((t0 + tt) * c_pad + c0 + v * LANES_512), *r);
-                }
-            }
-        }
-    }
-}
+simd_kernel!(
+    avx512,
+    "[`super::convolve`] with 8-lane AVX-512 registers and fused multiply-adds.",
+    "avx512f",
+    LANES_512,
+    TILE_T_512,
+    __m512d,
+    _mm512_setzero_pd,
+    _mm512_loadu_pd,
+    _mm512_set1_pd,
+    _mm512_fmadd_pd,
+    _mm512_storeu_pd
+);
 
 #[cfg(test)]
 mod tests {
