@@ -33,7 +33,7 @@ from pronet.filter import FilterResult
 from pronet.hybrid import QSchedule
 from pronet.realmetrics import SectionMetrics, section_metrics
 from pronet.realplots import FigurePool, section_curves
-from pronet.realtables import failed_records, final_calibration, real_tables, write_metrics
+from pronet.realtables import failed_records, real_config, real_tables, write_metrics
 from pronet.realtuning import (
     BOTH,
     DVL_CALIBRATION,
@@ -451,17 +451,6 @@ def _run_one_section(
     return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run, truth)
 
 
-def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
-    """A section's DVL noise estimates for ``config.json`` (or why there are none)."""
-    if isinstance(noise, str):
-        return {"failure": noise}
-    out: dict[str, object] = {"second_difference": list(noise.second_difference)}
-    for key, m in (("matched", noise.matched), ("matched_calibrated", noise.matched_calibrated)):
-        out.update({key: list(m.variance), f"{key}_passes": m.passes})
-        out[f"{key}_converged"] = m.converged
-    return out
-
-
 def run_real(
     data: str | Path,
     out: str | Path | None = None,
@@ -554,7 +543,7 @@ def run_real(
             dvl_noise=dvl_noise,
             on_section=None if figures is None else _drawn_by(figures),
         )
-        config = _real_config(
+        config = real_config(
             data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors
         )
         with atomic_folder(folder) as tmp:
@@ -566,65 +555,6 @@ def run_real(
                     on_start(len(done.sections), "section", "plots")
                 figures.write(tmp, [a.name for a, _ in done.sections], on_done)
     return folder
-
-
-def _real_config(
-    data: str | Path,
-    fmt: str,
-    tuning_period: float,
-    arms: tuple[tuple[float, float, float], tuple[float, float, float]],
-    dvl_noise: str,
-    done: RealRuns,
-    regressors: Mapping[str, Regressor],
-) -> dict[str, object]:
-    """``config.json`` of a ``pronet real`` folder: what ran, on what, and the
-    per-section estimates (clocks, q, DVL noise and calibration)."""
-    imu_arm, dvl_arm = arms
-    return {
-        "data": str(Path(data).resolve()),
-        "format": fmt,
-        "sections": [a.name for a, _ in done.sections],
-        "failed_sections": done.failed,
-        "tuning_period_s": tuning_period,
-        "filter": repr(real_filter_config((0.0, 0.0, 0.0))),
-        "imu_lever_arm_m": imu_arm,
-        "dvl_lever_arm_m": dvl_arm,
-        "clocks": {
-            a.name: {
-                "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
-                "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
-            }
-            for a, _ in done.sections
-        },
-        "q_estimated": done.q_estimated,
-        "dvl_noise": dvl_noise,
-        "dvl_variance": {
-            name: {"used": list(used), **_noise_record(noise)}
-            for name, (noise, used) in done.dvl_noise.items()
-        },
-        "dvl_calibration": {
-            f"{r.section}: {r.label}": {
-                "scale_roll_pitch_yaw": c[0].tolist(),
-                "sigma": c[1].tolist(),
-            }
-            for r in done.runs
-            if (c := final_calibration(r)) is not None
-        },
-        "dvl_calibration_from_truth": {
-            name: (
-                {"failure": t}
-                if isinstance(t, str)
-                else {
-                    "scale_roll_pitch_yaw": t.estimate.tolist(),
-                    "sigma": t.sigma.tolist(),
-                    "rms_residual": t.rms_residual,
-                    "rows": t.rows,
-                }
-            )
-            for name, t in done.truth_calibration.items()
-        },
-        "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
-    }
 
 
 def _drawn_by(

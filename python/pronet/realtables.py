@@ -1,5 +1,6 @@
 """The tables and records of ``pronet real`` (:mod:`pronet.realdata`): Markdown tables of
-the section runs' metrics, and their rows in ``metrics.csv`` / ``summary.csv``."""
+the section runs' metrics, their rows in ``metrics.csv`` / ``summary.csv``, and the
+run's ``config.json`` (:func:`real_config`)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pronet.realtuning import real_filter_config
 from pronet.results import RUN_COLUMNS, SUMMARIZED, SUMMARY_COLUMNS, markdown, write_tables
 
 if TYPE_CHECKING:
     from pronet.dvltruth import TruthCalibration
-    from pronet.realdata import RealRuns, SectionRun
+    from pronet.models import Regressor
+    from pronet.realdata import RealRuns, SectionDvlNoise, SectionRun
 
 METRIC_COLUMNS = (
     ("srmse", "SRMSE [m/s]", "{:.4f}"),
@@ -279,3 +282,73 @@ def real_tables(done: RealRuns) -> str:
             *([failed_table(done.failed)] if done.failed else []),
         ]
     )
+
+
+def real_config(
+    data: str | Path,
+    fmt: str,
+    tuning_period: float,
+    arms: tuple[tuple[float, float, float], tuple[float, float, float]],
+    dvl_noise: str,
+    done: RealRuns,
+    regressors: Mapping[str, Regressor],
+) -> dict[str, object]:
+    """``config.json`` of a ``pronet real`` folder: what ran, on what, and the
+    per-section estimates (clocks, q, DVL noise and calibration)."""
+    imu_arm, dvl_arm = arms
+    return {
+        "data": str(Path(data).resolve()),
+        "format": fmt,
+        "sections": [a.name for a, _ in done.sections],
+        "failed_sections": done.failed,
+        "tuning_period_s": tuning_period,
+        "filter": repr(real_filter_config((0.0, 0.0, 0.0))),
+        "imu_lever_arm_m": imu_arm,
+        "dvl_lever_arm_m": dvl_arm,
+        "clocks": {
+            a.name: {
+                "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
+                "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
+            }
+            for a, _ in done.sections
+        },
+        "q_estimated": done.q_estimated,
+        "dvl_noise": dvl_noise,
+        "dvl_variance": {
+            name: {"used": list(used), **_noise_record(noise)}
+            for name, (noise, used) in done.dvl_noise.items()
+        },
+        "dvl_calibration": {
+            f"{r.section}: {r.label}": {
+                "scale_roll_pitch_yaw": c[0].tolist(),
+                "sigma": c[1].tolist(),
+            }
+            for r in done.runs
+            if (c := final_calibration(r)) is not None
+        },
+        "dvl_calibration_from_truth": {
+            name: (
+                {"failure": t}
+                if isinstance(t, str)
+                else {
+                    "scale_roll_pitch_yaw": t.estimate.tolist(),
+                    "sigma": t.sigma.tolist(),
+                    "rms_residual": t.rms_residual,
+                    "rows": t.rows,
+                }
+            )
+            for name, t in done.truth_calibration.items()
+        },
+        "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
+    }
+
+
+def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
+    """A section's DVL noise estimates for ``config.json`` (or why there are none)."""
+    if isinstance(noise, str):
+        return {"failure": noise}
+    out: dict[str, object] = {"second_difference": list(noise.second_difference)}
+    for key, m in (("matched", noise.matched), ("matched_calibrated", noise.matched_calibrated)):
+        out.update({key: list(m.variance), f"{key}_passes": m.passes})
+        out[f"{key}_converged"] = m.converged
+    return out
