@@ -167,6 +167,32 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference() -> None:
     assert plain.calibration.shape == plain.calibration_sigma.shape == (0, 4)
 
 
+@pytest.mark.parametrize("calibration", [False, True])
+def test_a_pass_keeping_the_last_epoch_is_the_same_pass(calibration) -> None:
+    """``epochs="last"`` keeps the full pass's last epoch and every update bit for bit,
+    with and without the calibration states; an unknown value names the argument."""
+    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(30.0, np.zeros(3), "body")
+    cfg = pronet.FilterConfig(p0_sigma=P0, dvl_calibration=calibration)
+
+    def run(epochs: str) -> pronet.FilterResult:
+        return pronet.run_filter(
+            imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
+            config=cfg, strategy=pronet.Strategy.mehra(5, Q), epochs=epochs,  # type: ignore[arg-type]
+        )  # fmt: skip
+
+    full, last = run("all"), run("last")
+    assert len(full.time) == len(imu) + 1 and len(last.time) == 1
+    for name in ("time", "lla", "vel", "rpy", "bias", "sigma", "calibration", "calibration_sigma"):
+        kept = getattr(full, name)[-1:]  # (0, 4) stays (0, 4) without the states
+        np.testing.assert_array_equal(getattr(last, name), kept)
+    assert last.calibration.shape == ((1, 4) if calibration else (0, 4))
+    updates = ("dvl_epoch", "innovation", "innovation_cov", "nis", "gain", "accepted")
+    for name in ("covariance", "adaptive_q", *updates):
+        np.testing.assert_array_equal(getattr(last, name), getattr(full, name))
+    with pytest.raises(ValueError, match="^epochs: must be 'all' or 'last', got \"every\""):
+        run("every")
+
+
 @pytest.mark.parametrize("xi", [1, 5])
 def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(30.0, np.zeros(3), "body")

@@ -265,9 +265,11 @@ def run_filter(
     bias0: Any | None = None,
     q_time: NDArray[np.float64] | None = None,
     q: NDArray[np.float64] | None = None,
+    epochs: str = "all",
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
-    [s] and ``q`` (k, 6): a q schedule for an external strategy. ``|lla0[0]|`` <= 89°."""
+    [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
+    or ``"last"`` (the epoch arrays keep only the last epoch). ``|lla0[0]|`` <= 89°."""
 
 def monte_carlo(
     trajectory: Trajectory,

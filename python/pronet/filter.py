@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -16,8 +17,9 @@ class FilterResult:
     """The estimate at every IMU epoch and every DVL update.
 
     Epoch arrays have n + 1 rows: the initial state at ``t0``, then one per IMU sample
-    (after the DVL update applied there, if any). Update arrays have one row per DVL
-    row; rows that fell outside the run hold NaN and ``dvl_epoch = -1``.
+    (after the DVL update applied there, if any); a pass run with ``epochs="last"``
+    keeps only the last of them (one row). Update arrays have one row per DVL row;
+    rows that fell outside the run hold NaN and ``dvl_epoch = -1``.
 
     Attributes:
         time: ``(n+1,)`` epoch times [s].
@@ -80,6 +82,7 @@ def run_filter(
     bias0: ArrayLike | None = None,
     q_time: ArrayLike | None = None,
     q: ArrayLike | None = None,
+    epochs: Literal["all", "last"] = "all",
 ) -> FilterResult:
     """Run the INS/DVL error-state EKF over sensor arrays.
 
@@ -103,6 +106,10 @@ def run_filter(
             This is the ProNet loop on recorded data: the windows a regressor reads are
             raw IMU samples, known before the filter runs (see
             :func:`pronet.hybrid.q_schedule`).
+        epochs: ``"all"`` keeps the estimate at every epoch; ``"last"`` only at the
+            last one, for a pass whose updates alone are read (matching R to the
+            innovations): it skips storing the estimate (~370 bytes) at every IMU
+            sample. ``dvl_epoch`` still counts every epoch.
     """
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
@@ -121,5 +128,6 @@ def run_filter(
         bias0=None if bias0 is None else float_array(bias0, "bias0", (6,)),
         q_time=None if q_time is None else float_array(q_time, "q_time", (None,)),
         q=None if q is None else float_array(q, "q", (None, 6)),
+        epochs=epochs,
     )
     return FilterResult(**out)  # type: ignore[arg-type]  # the stub's dict: arrays and a float

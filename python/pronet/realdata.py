@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -105,6 +105,32 @@ def run_section(
 ) -> SectionRun:
     """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
     for ``duration`` seconds (default: to the end), with or without the DVL."""
+    done = run(strategy, section_recorded(section, config, duration=duration, use_dvl=use_dvl))
+    metrics = section_metrics(section, done.result)
+    return SectionRun(
+        setup,
+        section.name,
+        label,
+        done.result,
+        metrics,
+        done.schedule,
+        done.seconds,
+        done.tuning_period,
+    )
+
+
+def section_recorded(
+    section: Section,
+    config: _core.FilterConfig,
+    *,
+    duration: float | None = None,
+    use_dvl: bool = True,
+    epochs: Literal["all", "last"] = "all",
+) -> Recorded:
+    """``section``'s sensors from the ground truth at :func:`start_index` on, for
+    ``duration`` seconds (default: to the end), with or without the DVL, ready to
+    filter with ``config`` (``epochs``: see :class:`pronet.run.Recorded`). Inside
+    :func:`run_sections`, it stops the section's thread once the run is told to stop."""
     stop = _STOP.get()
     if stop is not None and stop.is_set():
         raise _Stopped
@@ -119,7 +145,7 @@ def run_section(
         if not np.any((section.truth_time > t0) & (section.truth_time <= end)):
             raise ValueError(f"duration: {duration} s from the start reach no ground-truth row")
     keep = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
-    recorded = Recorded(
+    return Recorded(
         imu=section.imu[take],
         imu_time=section.imu_time[take],
         dvl=section.dvl[keep],
@@ -129,18 +155,7 @@ def run_section(
         vel0=section.truth_vel[i0],
         rpy0=section.truth_rpy[i0],
         config=config,
-    )
-    done = run(strategy, recorded)
-    metrics = section_metrics(section, done.result)
-    return SectionRun(
-        setup,
-        section.name,
-        label,
-        done.result,
-        metrics,
-        done.schedule,
-        done.seconds,
-        done.tuning_period,
+        epochs=epochs,
     )
 
 
@@ -207,7 +222,8 @@ def estimate_dvl_noise(
     def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
         def one_pass(r: tuple[float, float, float]) -> FilterResult:
             config = real_filter_config(lever_arm, r, calibration)
-            return run_section(section, strategy, config).result
+            # the matching reads the updates only: no epoch arrays, no metrics
+            return run(strategy, section_recorded(section, config, epochs="last")).result
 
         return match_innovations(one_pass, first)
 

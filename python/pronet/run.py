@@ -20,7 +20,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import overload
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,6 +50,8 @@ class Recorded:
         lla0, vel0, rpy0: initial latitude, longitude [rad], height [m, up]; NED
             velocity [m/s]; roll, pitch, yaw [rad].
         config: the filter's tuning.
+        epochs: which epochs the result keeps: ``"all"``, or ``"last"`` for a pass
+            whose updates alone are read (see :func:`pronet.run_filter`).
     """
 
     imu: F64
@@ -61,6 +63,7 @@ class Recorded:
     vel0: F64
     rpy0: F64
     config: _core.FilterConfig
+    epochs: Literal["all", "last"] = "all"
 
 
 @dataclass(frozen=True)
@@ -215,6 +218,7 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
         rpy0=rec.rpy0,
         config=rec.config,
         strategy=core_strategy,  # type: ignore[arg-type]
+        epochs=rec.epochs,
         **q_args,
     )
     return RecordedRun(result, schedule, time.perf_counter() - start, period)

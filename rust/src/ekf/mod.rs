@@ -33,7 +33,7 @@ mod recorded;
 use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
 use dynamics::{add_imu_noise, ErrorDynamics};
-pub use recorded::{filter_recorded, filter_recorded_until, FilterOutput, RecordedData};
+pub use recorded::{filter_recorded, filter_recorded_until, Epochs, FilterOutput, RecordedData};
 
 /// Result of one DVL update.
 #[derive(Clone, Debug)]

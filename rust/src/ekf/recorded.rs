@@ -122,13 +122,13 @@ impl RecordedData<'_> {
 }
 
 impl FilterOutput {
-    /// Room for `n` IMU samples and `m` DVL rows.
+    /// Room for `n` epochs and `m` DVL rows.
     fn with_capacity(n: usize, m: usize) -> Self {
         Self {
-            time: Vec::with_capacity(n + 1),
-            nav: Vec::with_capacity(n + 1),
-            bias: Vec::with_capacity(n + 1),
-            sigma: Vec::with_capacity(n + 1),
+            time: Vec::with_capacity(n),
+            nav: Vec::with_capacity(n),
+            bias: Vec::with_capacity(n),
+            sigma: Vec::with_capacity(n),
             dvl_epoch: vec![None; m],
             updates: vec![None; m],
             adaptive_q: vec![None; m],
@@ -181,18 +181,33 @@ pub fn filter_recorded(
         initial_bias,
         cfg,
         strategy,
+        Epochs::All,
         &Cancel::default(),
     )
 }
 
-/// [`filter_recorded`] that stops with [`Error::Cancelled`] soon after `cancel` is set:
-/// it is checked every [`STEPS_PER_CHECK`] IMU samples.
+/// Which epochs a pass keeps in its [`FilterOutput`] (the updates are always kept).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Epochs {
+    /// The initial state and the estimate after every IMU sample.
+    #[default]
+    All,
+    /// The estimate after the last IMU sample only (the initial state if there is
+    /// none): for passes whose updates alone are read, such as matching R to the
+    /// innovations, which then neither compute nor store the estimate (~300 bytes) at
+    /// every IMU sample. `dvl_epoch` still counts every epoch.
+    Last,
+}
+
+/// [`filter_recorded`] that keeps `epochs` and stops with [`Error::Cancelled`] soon
+/// after `cancel` is set: it is checked every [`STEPS_PER_CHECK`] IMU samples.
 pub fn filter_recorded_until(
     data: &RecordedData<'_>,
     initial: NavState,
     initial_bias: [f64; 6],
     cfg: &FilterConfig,
     strategy: &mut dyn NoiseStrategy,
+    epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
     earth::check_latitude("lla0", initial.lla[0])?;
@@ -221,8 +236,16 @@ pub fn filter_recorded_until(
     if let Some(q) = strategy.sensitivity_q() {
         ekf.track_sensitivity(q);
     }
-    let mut out = FilterOutput::with_capacity(data.imu.len(), data.dvl.len());
-    out.record(&ekf, data.t0);
+    let every = epochs == Epochs::All;
+    let kept = if every { data.imu.len() + 1 } else { 1 };
+    let mut out = FilterOutput::with_capacity(kept, data.dvl.len());
+    if ekf.calibration.is_some() {
+        out.calibration.reserve_exact(kept);
+        out.calibration_sigma.reserve_exact(kept);
+    }
+    if every {
+        out.record(&ekf, data.t0);
+    }
     let mut at = Cursor::default();
     let mut t_prev = data.t0;
     for (k, (sample, &t)) in data.imu.iter().zip(data.imu_time).enumerate() {
@@ -249,8 +272,13 @@ pub fn filter_recorded_until(
             })?;
         at.steps_since_update += 1;
         apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
-        out.record(&ekf, t);
+        if every {
+            out.record(&ekf, t);
+        }
         t_prev = t;
+    }
+    if !every {
+        out.record(&ekf, t_prev);
     }
     out.final_covariance = ekf.p;
     Ok(out)
@@ -353,12 +381,82 @@ mod tests {
         let pass = |cancel: &Cancel| {
             let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
             let bias = [0.0; 6];
-            filter_recorded_until(&data, moving_state(), bias, &cfg, strategy.as_mut(), cancel)
+            filter_recorded_until(
+                &data,
+                moving_state(),
+                bias,
+                &cfg,
+                strategy.as_mut(),
+                Epochs::All,
+                cancel,
+            )
         };
         assert_eq!(pass(&Cancel::default()).unwrap().time.len(), 11);
         let cancel = Cancel::default();
         cancel.cancel();
         assert_eq!(pass(&cancel).unwrap_err(), Error::Cancelled);
+    }
+
+    /// A pass that keeps only the last epoch makes the same updates and ends in the same
+    /// estimate as one that keeps every epoch, with and without the calibration states.
+    #[test]
+    fn keeping_the_last_epoch_changes_no_update_and_no_final_estimate() {
+        let n = 250;
+        let imu = vec![[0.02, -0.01, -9.79, 1e-4, 0.0, 2e-4]; n];
+        let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
+        let dvl = vec![[0.5, 0.01, 0.0]; 4];
+        let dvl_time = [0.5, 1.0, 1.5, 2.0];
+        let data = RecordedData {
+            imu: &imu,
+            imu_time: &imu_time,
+            dvl: &dvl,
+            dvl_time: &dvl_time,
+            t0: 0.0,
+            q_time: &[],
+            q_values: &[],
+        };
+        for calibration in [
+            None,
+            Some(super::super::calibration::CalibrationConfig::default()),
+        ] {
+            let cfg = FilterConfig {
+                dvl_calibration: calibration,
+                ..FilterConfig::default()
+            };
+            let pass = |epochs| {
+                let spec = StrategySpec::Constant { q: [1e-4; 6] };
+                let mut strategy = spec.build(cfg.bias_psd());
+                filter_recorded_until(
+                    &data,
+                    moving_state(),
+                    [0.0; 6],
+                    &cfg,
+                    strategy.as_mut(),
+                    epochs,
+                    &Cancel::default(),
+                )
+                .unwrap()
+            };
+            let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
+            assert_eq!(all.time.len(), n + 1);
+            assert_eq!(last.time, [all.time[n]]);
+            assert_eq!(last.nav, [all.nav[n]]);
+            assert_eq!(last.bias, [all.bias[n]]);
+            assert_eq!(last.sigma, [all.sigma[n]]);
+            let k = usize::from(calibration.is_some());
+            assert_eq!(last.calibration.len(), k);
+            assert_eq!(
+                last.calibration,
+                all.calibration[all.calibration.len() - k..]
+            );
+            assert_eq!(last.calibration_sigma.len(), k);
+            assert_eq!(last.final_covariance, all.final_covariance);
+            assert_eq!(last.dvl_epoch, all.dvl_epoch);
+            for (a, b) in all.updates.iter().zip(&last.updates) {
+                let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
+                assert_eq!((a.innovation, a.s, a.nis), (b.innovation, b.s, b.nis));
+            }
+        }
     }
 
     /// A q schedule switches an external strategy's q at the epoch nearest each row's

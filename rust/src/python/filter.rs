@@ -7,7 +7,7 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::{interruptible, invalid};
 use crate::attitude::euler_from_dcm;
-use crate::ekf::{filter_recorded_until, FilterOutput, RecordedData};
+use crate::ekf::{filter_recorded_until, Epochs, FilterOutput, RecordedData};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
@@ -31,7 +31,7 @@ fn q_schedule(
 }
 
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None))]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all"))]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -48,7 +48,18 @@ fn run_filter<'py>(
     bias0: Option<&Bound<'py, PyAny>>,
     q_time: Option<&Bound<'py, PyAny>>,
     q: Option<&Bound<'py, PyAny>>,
+    epochs: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let epochs = match epochs {
+        "all" => Epochs::All,
+        "last" => Epochs::Last,
+        other => {
+            return Err(invalid(
+                "epochs",
+                format!("must be 'all' or 'last', got {other:?}"),
+            ))
+        }
+    };
     let imu_array = readonly_rows::<6>(imu, "imu")?;
     let imu_rows = as_rows::<6>(&imu_array);
     let imu = &*imu_rows;
@@ -76,8 +87,8 @@ fn run_filter<'py>(
             q_values: &q_values,
         };
         let mut strat = spec.build(cfg.bias_psd());
-        filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), cancel)
-            .map(|out| OutputArrays::new(&out))
+        filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
+            .map(OutputArrays::new)
     })?;
     arrays.into_dict(py)
 }
@@ -107,19 +118,21 @@ struct OutputArrays {
 }
 
 impl OutputArrays {
-    fn new(out: &FilterOutput) -> Self {
+    /// The epochs' time, bias, sigma and calibration arrays take over the output's
+    /// vectors without a copy.
+    fn new(out: FilterOutput) -> Self {
         let m = out.updates.len();
         let p = out.final_covariance;
         let nan3 = [f64::NAN; 3];
         Self {
-            time: Array1::from(out.time.clone()),
+            time: Array1::from(out.time),
             lla: rows_array(out.nav.iter().map(|s| s.lla.into())),
             vel: rows_array(out.nav.iter().map(|s| s.vel.into())),
             rpy: rows_array(out.nav.iter().map(|s| euler_from_dcm(&s.dcm).into())),
-            bias: rows_array(out.bias.iter().copied()),
-            sigma: rows_array(out.sigma.iter().copied()),
-            calibration: rows_array(out.calibration.iter().copied()),
-            calibration_sigma: rows_array(out.calibration_sigma.iter().copied()),
+            bias: Array2::from(out.bias),
+            sigma: Array2::from(out.sigma),
+            calibration: Array2::from(out.calibration),
+            calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
             dvl_epoch: out
                 .dvl_epoch
