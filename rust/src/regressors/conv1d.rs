@@ -14,7 +14,10 @@ const LANES_512: usize = 8;
 /// the 32 registers, so that 4 weight loads feed 24 fused multiply-adds).
 const TILE_T_512: usize = 6;
 
-/// Σ f(v) over `values`, in [`LANES`] partial sums (so that it vectorises).
+/// Σ f(v) over `values`, in [`LANES`] partial sums (so that it vectorises): partial
+/// sum j adds `f(values[j])`, `f(values[j + LANES])`, … in order from 0.0, and
+/// [`lane_total`] adds them up. The fused AVX-512 LayerNorm
+/// ([`avx512_norm::convolve_norm`]) keeps this order.
 #[inline(always)]
 pub(super) fn lane_sum(values: &[f64], f: impl Fn(f64) -> f64) -> f64 {
     let mut acc = [0.0f64; LANES];
@@ -25,6 +28,13 @@ pub(super) fn lane_sum(values: &[f64], f: impl Fn(f64) -> f64) -> f64 {
             *a += f(v);
         }
     }
+    lane_total(acc, tail)
+}
+
+/// The partial sums of [`lane_sum`] added up, then the values left over beyond the
+/// last whole chunk (`tail`).
+#[inline(always)]
+fn lane_total(acc: [f64; LANES], tail: f64) -> f64 {
     acc.iter().sum::<f64>() + tail
 }
 
@@ -148,39 +158,63 @@ macro_rules! simd_kernel {
             ) {
                 const T: usize = $tile_t;
                 let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
+                let g = Geometry {
+                    a,
+                    step,
+                    kdim,
+                    w,
+                    c_pad,
+                    bias,
+                };
                 for_each_tile(y.len() / c_pad, c_pad, $lanes, T, |t0, c0, t_n, nv| {
                     // SAFETY: every index below stays inside the slices `convolve` checked.
                     unsafe {
                         match (t_n, nv) {
-                            (T, 4) => tile::<T, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            (T, 3) => tile::<T, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            (T, 2) => tile::<T, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            (T, _) => tile::<T, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            (_, 4) => tile::<1, 4>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            (_, 3) => tile::<1, 3>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            (_, 2) => tile::<1, 2>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
-                            _ => tile::<1, 1>(a, step, kdim, w, c_pad, bias, yp, t0, c0),
+                            (T, 4) => store(tile::<T, 4>(&g, t0, c0), yp, c_pad, t0, c0),
+                            (T, 3) => store(tile::<T, 3>(&g, t0, c0), yp, c_pad, t0, c0),
+                            (T, 2) => store(tile::<T, 2>(&g, t0, c0), yp, c_pad, t0, c0),
+                            (T, _) => store(tile::<T, 1>(&g, t0, c0), yp, c_pad, t0, c0),
+                            (_, 4) => store(tile::<1, 4>(&g, t0, c0), yp, c_pad, t0, c0),
+                            (_, 3) => store(tile::<1, 3>(&g, t0, c0), yp, c_pad, t0, c0),
+                            (_, 2) => store(tile::<1, 2>(&g, t0, c0), yp, c_pad, t0, c0),
+                            _ => store(tile::<1, 1>(&g, t0, c0), yp, c_pad, t0, c0),
                         }
                     }
                 });
             }
 
+            /// The convolution's operands as raw pointers (see [`super::convolve`]).
+            #[derive(Clone, Copy)]
+            pub(super) struct Geometry {
+                pub a: *const f64,
+                pub step: usize,
+                pub kdim: usize,
+                pub w: *const f64,
+                pub c_pad: usize,
+                pub bias: *const f64,
+            }
+
+            /// Output steps `t0..t0 + T`, channels `c0..c0 + NV·lanes`, in registers.
+            ///
+            /// # Safety
+            /// The CPU must have the target features, and `t0 + T <= l_out`,
+            /// `c0 + NV·lanes <= c_pad` for slices that satisfy `convolve`'s assertions.
             #[inline]
             #[target_feature(enable = $feature)]
-            #[allow(clippy::too_many_arguments)]
-            unsafe fn tile<const T: usize, const NV: usize>(
-                a: *const f64,
-                step: usize,
-                kdim: usize,
-                w: *const f64,
-                c_pad: usize,
-                bias: *const f64,
-                y: *mut f64,
+            pub(super) unsafe fn tile<const T: usize, const NV: usize>(
+                g: &Geometry,
                 t0: usize,
                 c0: usize,
-            ) {
-                // SAFETY (whole body): the caller keeps t0 + T <= l_out and
-                // c0 + NV·lanes <= c_pad.
+            ) -> [[$vec; NV]; T] {
+                let Geometry {
+                    a,
+                    step,
+                    kdim,
+                    w,
+                    c_pad,
+                    bias,
+                } = *g;
+                // SAFETY (whole body): the caller keeps the tile inside the slices.
                 unsafe {
                     let mut acc = [[$setzero(); NV]; T];
                     for row in acc.iter_mut() {
@@ -198,6 +232,22 @@ macro_rules! simd_kernel {
                             }
                         }
                     }
+                    acc
+                }
+            }
+
+            /// A tile's accumulators into `y` (`l_out × c_pad`).
+            #[inline]
+            #[target_feature(enable = $feature)]
+            unsafe fn store<const T: usize, const NV: usize>(
+                acc: [[$vec; NV]; T],
+                y: *mut f64,
+                c_pad: usize,
+                t0: usize,
+                c0: usize,
+            ) {
+                // SAFETY: the caller keeps the tile inside `y`.
+                unsafe {
                     for (tt, row) in acc.iter().enumerate() {
                         for (v, r) in row.iter().enumerate() {
                             $storeu(y.add((t0 + tt) * c_pad + c0 + v * $lanes), *r);
@@ -236,6 +286,169 @@ simd_kernel!(
     _mm512_fmadd_pd,
     _mm512_storeu_pd
 );
+
+/// What follows the convolution in a block of the CNN: LayerNorm over the channels of
+/// each step (`gamma`, `beta`, `eps`), then LeakyReLU (`slope`).
+pub(super) struct Norm<'a> {
+    pub gamma: &'a [f64],
+    pub beta: &'a [f64],
+    pub eps: f64,
+    pub slope: f64,
+}
+
+/// Where [`avx512_norm::convolve_norm`] puts a block's activations.
+pub(super) enum Activations<'a> {
+    /// Row t (of `c` channels) at `rows[t·c..]`: the next block's input.
+    Rows(&'a mut [f64]),
+    /// Added up over the steps, in step order, into the `c` channels: the last block's
+    /// pooling.
+    Pool(&'a mut [f64]),
+}
+
+/// Convolution, LayerNorm and LeakyReLU in one pass with AVX-512, for blocks whose
+/// output channels fill whole 8-lane vectors, at most 4 of them: each register tile
+/// then holds whole steps, normalised before they leave the registers. Every value is
+/// computed as the separate passes compute it (the convolution's tile, [`lane_sum`]'s
+/// order of additions, the same divisions and square root, no fused multiply-add
+/// outside the convolution), so the bits are the same (tested).
+#[cfg(target_arch = "x86_64")]
+pub(super) mod avx512_norm {
+    use super::avx512::{tile, Geometry};
+    use super::{for_each_tile, lane_total, Activations, Norm, LANES, LANES_512, TILE_T_512};
+    use std::arch::x86_64::*;
+
+    /// Whether [`convolve_norm`] takes `c` output channels (padded to `c_pad`).
+    pub fn takes(c: usize, c_pad: usize) -> bool {
+        c == c_pad && c.is_multiple_of(LANES_512) && c > 0 && c <= 4 * LANES_512
+    }
+
+    /// `l_out` steps of the convolution of [`super::convolve`] (its arguments), each
+    /// normalised and activated into `out`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F; [`takes`] holds for `c_pad`; `a`, `w` and `bias`
+    /// satisfy `convolve`'s assertions for `l_out` steps; `norm` has `c_pad` channels;
+    /// `out` holds `l_out` rows (or one row to pool into) of `c_pad` channels.
+    #[target_feature(enable = "avx512f")]
+    #[allow(clippy::too_many_arguments)]
+    pub unsafe fn convolve_norm(
+        a: &[f64],
+        step: usize,
+        kdim: usize,
+        w: &[f64],
+        c_pad: usize,
+        bias: &[f64],
+        l_out: usize,
+        norm: &Norm<'_>,
+        out: Activations<'_>,
+    ) {
+        const T: usize = TILE_T_512;
+        let g = Geometry {
+            a: a.as_ptr(),
+            step,
+            kdim,
+            w: w.as_ptr(),
+            c_pad,
+            bias: bias.as_ptr(),
+        };
+        let (dst, pool) = match out {
+            Activations::Rows(rows) => (rows.as_mut_ptr(), false),
+            Activations::Pool(sums) => (sums.as_mut_ptr(), true),
+        };
+        let c = c_pad as f64;
+        for_each_tile(l_out, c_pad, LANES_512, T, |t0, _, t_n, nv| {
+            // SAFETY: the tiles stay inside the slices (the caller's contract); one
+            // channel block of `nv` = c_pad / 8 vectors covers every channel.
+            unsafe {
+                let at = if pool { dst } else { dst.add(t0 * c_pad) };
+                let step = if pool { 0 } else { c_pad };
+                match (t_n, nv) {
+                    (T, 4) => normalise(&tile::<T, 4>(&g, t0, 0), c, norm, at, step),
+                    (T, 3) => normalise(&tile::<T, 3>(&g, t0, 0), c, norm, at, step),
+                    (T, 2) => normalise(&tile::<T, 2>(&g, t0, 0), c, norm, at, step),
+                    (T, _) => normalise(&tile::<T, 1>(&g, t0, 0), c, norm, at, step),
+                    (_, 4) => normalise(&tile::<1, 4>(&g, t0, 0), c, norm, at, step),
+                    (_, 3) => normalise(&tile::<1, 3>(&g, t0, 0), c, norm, at, step),
+                    (_, 2) => normalise(&tile::<1, 2>(&g, t0, 0), c, norm, at, step),
+                    _ => normalise(&tile::<1, 1>(&g, t0, 0), c, norm, at, step),
+                }
+            }
+        });
+    }
+
+    /// A tile's steps (`T` rows of `NV` whole vectors of channels): LayerNorm, then
+    /// LeakyReLU, row t stored at `at + t·step`, or (`step` 0: pooling) added to `at`
+    /// in step order. Each stage runs over all the tile's steps before the next, so
+    /// that their sums, divisions and square roots overlap.
+    #[inline(never)]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn normalise<const T: usize, const NV: usize>(
+        rows: &[[__m512d; NV]; T],
+        c: f64,
+        norm: &Norm<'_>,
+        at: *mut f64,
+        step: usize,
+    ) {
+        // SAFETY (whole body): `norm` has NV vectors of channels and `at` room for the
+        // rows (the caller's contract).
+        unsafe {
+            // (plain loops: closures would not inherit the target feature)
+            // each stage over all the tile's steps before the next
+            let mut mean = [0.0; T];
+            for t in 0..T {
+                mean[t] = sum_in_lane_order(&rows[t]) / c;
+            }
+            let mut rstd = [0.0; T];
+            for t in 0..T {
+                let m = _mm512_set1_pd(mean[t]);
+                let mut squares = rows[t];
+                for d in squares.iter_mut() {
+                    let centred = _mm512_sub_pd(*d, m);
+                    *d = _mm512_mul_pd(centred, centred);
+                }
+                rstd[t] = sum_in_lane_order(&squares) / c + norm.eps;
+            }
+            for r in rstd.iter_mut() {
+                *r = 1.0 / r.sqrt();
+            }
+            let (zero, slope) = (_mm512_setzero_pd(), _mm512_set1_pd(norm.slope));
+            for (t, row) in rows.iter().enumerate() {
+                let (m, r) = (_mm512_set1_pd(mean[t]), _mm512_set1_pd(rstd[t]));
+                for (v, &x) in row.iter().enumerate() {
+                    let d = _mm512_sub_pd(x, m);
+                    let gamma = _mm512_loadu_pd(norm.gamma.as_ptr().add(v * LANES_512));
+                    let beta = _mm512_loadu_pd(norm.beta.as_ptr().add(v * LANES_512));
+                    let y = _mm512_add_pd(_mm512_mul_pd(_mm512_mul_pd(d, r), gamma), beta);
+                    // y where y >= 0 (NaN fails it, as in the scalar `if`), else y·slope
+                    let keep = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(y, zero);
+                    let act = _mm512_mask_blend_pd(keep, _mm512_mul_pd(y, slope), y);
+                    let p = at.add(t * step + v * LANES_512);
+                    if step == 0 {
+                        _mm512_storeu_pd(p, _mm512_add_pd(_mm512_loadu_pd(p), act));
+                    } else {
+                        _mm512_storeu_pd(p, act);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Σ over the lanes of `vectors` in [`super::lane_sum`]'s order: its partial sum j
+    /// takes lane j of each half (channels 4k + j), half after half.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn sum_in_lane_order(vectors: &[__m512d]) -> f64 {
+        let mut acc = _mm256_setzero_pd();
+        for &v in vectors {
+            acc = _mm256_add_pd(acc, _mm512_castpd512_pd256(v));
+            acc = _mm256_add_pd(acc, _mm512_extractf64x4_pd::<1>(v));
+        }
+        let mut parts = [0.0; LANES];
+        // SAFETY: `parts` holds the 4 lanes.
+        unsafe { _mm256_storeu_pd(parts.as_mut_ptr(), acc) };
+        lane_total(parts, std::iter::empty::<f64>().sum())
+    }
+}
 
 #[cfg(test)]
 mod tests {

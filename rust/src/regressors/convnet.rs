@@ -23,10 +23,12 @@
 //! Speed: activations are time-major, so the im2col row of output step t is the
 //! contiguous slice of the padded input that starts at `t·stride·c_in`; the convolution
 //! is a register-tiled product over those slices, with AVX-512, or AVX2 and FMA, where
-//! the CPU has them (the same bits on every path). Windows are spread over rayon's
-//! threads.
+//! the CPU has them (the same bits on every path). With AVX-512, a block whose channels
+//! fill at most four whole vectors (the shipped nets' 16 and 32) normalises each tile
+//! of steps while it is still in registers, instead of in passes over a buffer.
+//! Windows are spread over rayon's threads.
 
-use super::conv1d::{convolve, lane_sum, LANES};
+use super::conv1d::{self, convolve, lane_sum, Activations, Norm, LANES};
 use super::per_window;
 use crate::cancel::Cancel;
 use crate::error::{Error, Result};
@@ -397,23 +399,26 @@ impl ConvNet {
             // SAFETY: the CPU has AVX, checked just above.
             return unsafe { self.forward_avx(x, s) };
         }
-        self.forward_body(x, s)
+        self.forward_body(x, s, false)
     }
 
+    /// With AVX-512, blocks whose channels fill whole vectors run convolution,
+    /// LayerNorm and LeakyReLU in one pass ([`conv1d::avx512_norm`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     fn forward_avx512(&self, x: &[f32], s: &mut Scratch) -> f64 {
-        self.forward_body(x, s)
+        self.forward_body(x, s, true)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     fn forward_avx(&self, x: &[f32], s: &mut Scratch) -> f64 {
-        self.forward_body(x, s)
+        self.forward_body(x, s, false)
     }
 
+    /// The pass; `fused`: the CPU has AVX-512F (see [`Self::forward_avx512`]).
     #[inline(always)]
-    fn forward_body(&self, x: &[f32], s: &mut Scratch) -> f64 {
+    fn forward_body(&self, x: &[f32], s: &mut Scratch, fused: bool) -> f64 {
         let (scale, log_s2) = self.prepare_window(x, s);
         let start = self.blocks[0].pad; // c_in = 1
         for (dst, p) in s.inputs[0][start..start + self.window]
@@ -424,6 +429,12 @@ impl ConvNet {
         }
         s.pooled.iter_mut().for_each(|v| *v = 0.0);
         for i in 0..self.blocks.len() {
+            #[cfg(target_arch = "x86_64")]
+            if fused && conv1d::avx512_norm::takes(self.blocks[i].c_out, self.blocks[i].c_pad) {
+                // SAFETY: `fused` says the CPU has AVX-512F; `takes` holds.
+                unsafe { self.run_block_fused(i, s) };
+                continue;
+            }
             self.run_block(i, s);
         }
         let l = self.blocks.last().map_or(1, |b| b.l_out) as f64;
@@ -511,6 +522,38 @@ impl ConvNet {
                 }
             }
         }
+    }
+
+    /// [`Self::run_block`] in one pass ([`conv1d::avx512_norm::convolve_norm`]).
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F, and `avx512_norm::takes` must hold for the block.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn run_block_fused(&self, i: usize, s: &mut Scratch) {
+        let b = &self.blocks[i];
+        let (done, rest) = s.inputs.split_at_mut(i + 1);
+        let norm = Norm {
+            gamma: &b.gamma,
+            beta: &b.beta,
+            eps: b.eps,
+            slope: self.slope,
+        };
+        let out = match rest.first_mut() {
+            Some(next) => {
+                let off = self.blocks[i + 1].pad * b.c_out;
+                Activations::Rows(&mut next[off..off + b.l_out * b.c_out])
+            }
+            None => Activations::Pool(&mut s.pooled),
+        };
+        let (step, kdim) = (b.stride * b.c_in, b.kernel * b.c_in);
+        // SAFETY: the caller's contract; the layouts are the ones `convolve` asserts
+        // in `run_block` (checked when the net was built).
+        unsafe {
+            conv1d::avx512_norm::convolve_norm(
+                &done[i], step, kdim, &b.w, b.c_pad, &b.bias, b.l_out, &norm, out,
+            )
+        };
     }
 
     /// LayerNorm over the channels of one time step (its mean and 1/σ given), then

@@ -253,7 +253,7 @@ fn a_non_finite_sample_gives_nan_and_bad_shapes_are_named() {
 }
 
 #[test]
-fn the_avx_and_portable_builds_agree_bit_for_bit() {
+fn the_fused_avx512_avx_and_portable_builds_agree_bit_for_bit() {
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let fixed = Scaling::Fixed {
         input_scale: 0.1,
@@ -265,10 +265,21 @@ fn the_avx_and_portable_builds_agree_bit_for_bit() {
     ] {
         let (built, _, _) = net(prepare, scaling, seed);
         let mut s = built.scratch();
-        for _ in 0..10 {
-            let w = random(&mut rng, 200, 0.3);
-            let fast = built.forward(&w, &mut s);
-            assert_eq!(fast.to_bits(), built.forward_body(&w, &mut s).to_bits());
+        // random windows over ten decades, a constant one, one with a NaN sample
+        let mut windows: Vec<Vec<f32>> = (0..200)
+            .map(|k| random(&mut rng, 200, 10f32.powi(k % 11 - 7)))
+            .collect();
+        windows.push(vec![0.25; 200]);
+        windows.push(random(&mut rng, 200, 0.3));
+        windows.last_mut().unwrap()[57] = f32::NAN;
+        for w in &windows {
+            // with AVX-512: the fused blocks; without: the AVX or portable pass again
+            let fast = built.forward(w, &mut s);
+            assert_eq!(
+                fast.to_bits(),
+                built.forward_body(w, &mut s, false).to_bits()
+            );
         }
+        assert!(built.forward(&windows[201], &mut s).is_nan());
     }
 }
