@@ -128,3 +128,13 @@ def test_leaving_on_an_error_kills_the_workers_mid_queue(ran):
             pool.submit(replace(curves, name=f"s{i}"))
         raise KeyboardInterrupt
     assert all(w.returncode == -signal.SIGKILL for w in pool._workers)
+
+
+def test_log_axes_are_labelled_at_their_decades_in_plain_text():
+    """The q figures' log axes: "10⁻⁵" in plain text (no mathtext to parse), a number
+    where a tick is not a power of ten, nothing at or below zero."""
+    from pronet.plots import _power_of_ten
+
+    assert [_power_of_ten(v) for v in (1e-5, 1e-12, 1.0, 1e3)] == ["10⁻⁵", "10⁻¹²", "10⁰", "10³"]
+    assert _power_of_ten(2e-3) == "0.002"
+    assert _power_of_ten(0.0) == _power_of_ten(-1.0) == _power_of_ten(float("nan")) == ""
