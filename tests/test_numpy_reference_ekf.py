@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 import pronet
+from pronet.run import Recorded
+from pronet.run import run as pronet_run
 
 from numpy_reference_ekf import dcm_from_euler, gravity, rates, run_reference_filter, strapdown_step
 
@@ -181,6 +183,11 @@ def test_a_pass_keeping_the_last_epoch_is_the_same_pass(calibration) -> None:
         )  # fmt: skip
 
     full, last = run("all"), run("last")
+    # the same through the one run path, from a Recorded that asks for the last epoch
+    rec = Recorded(imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, cfg, epochs="last")
+    via_run = pronet_run(pronet.Strategy.mehra(5, Q), rec).result
+    np.testing.assert_array_equal(via_run.sigma, last.sigma)
+    np.testing.assert_array_equal(via_run.nis, full.nis)
     assert len(full.time) == len(imu) + 1 and len(last.time) == 1
     for name in ("time", "lla", "vel", "rpy", "bias", "sigma", "calibration", "calibration_sigma"):
         kept = getattr(full, name)[-1:]  # (0, 4) stays (0, 4) without the states
@@ -189,8 +196,10 @@ def test_a_pass_keeping_the_last_epoch_is_the_same_pass(calibration) -> None:
     updates = ("dvl_epoch", "innovation", "innovation_cov", "nis", "gain", "accepted")
     for name in ("covariance", "adaptive_q", *updates):
         np.testing.assert_array_equal(getattr(last, name), getattr(full, name))
-    with pytest.raises(ValueError, match="^epochs: must be 'all' or 'last', got \"every\""):
+    with pytest.raises(ValueError, match='^epochs: must be "all" or "last", got "every"$'):
         run("every")
+    with pytest.raises(ValueError, match="^epochs: expected a string, got "):
+        run(1)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("xi", [1, 5])

@@ -130,11 +130,30 @@ def test_leaving_on_an_error_kills_the_workers_mid_queue(ran):
     assert all(w.returncode == -signal.SIGKILL for w in pool._workers)
 
 
-def test_log_axes_are_labelled_at_their_decades_in_plain_text():
-    """The q figures' log axes: "10⁻⁵" in plain text (no mathtext to parse), a number
-    where a tick is not a power of ten, nothing at or below zero."""
-    from pronet.plots import _power_of_ten
+@pytest.mark.parametrize(
+    ("low", "high", "expected"),
+    [(1e-12, 10.0, "10⁻⁶"), (2.5e-5, 4e-5, "3×10⁻⁵"), (1.2e-3, 2e-3, "1.5×10⁻³")],
+)
+def test_log_axes_are_labelled_in_plain_text(low, high, expected):
+    """The q figures' log axes: "10⁻⁵" and "3×10⁻⁵" in plain text (no mathtext to
+    parse), labelled where matplotlib labels them, also between decades when the axis
+    spans less than one."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    assert [_power_of_ten(v) for v in (1e-5, 1e-12, 1.0, 1e3)] == ["10⁻⁵", "10⁻¹²", "10⁰", "10³"]
-    assert _power_of_ten(2e-3) == "0.002"
-    assert _power_of_ten(0.0) == _power_of_ten(-1.0) == _power_of_ten(float("nan")) == ""
+    from pronet.plots import _log_y, _power_of_ten
+
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [low, high])
+    _log_y(ax)
+    fig.canvas.draw()
+    shown = [
+        t.get_text()
+        for t in ax.get_yticklabels() + ax.get_yticklabels(minor=True)
+        if t.get_text() and low <= t.get_position()[1] <= high * 1.0001
+    ]
+    assert expected in shown and not any("$" in t for t in shown)
+    assert [_power_of_ten(v) for v in (1e-5, 2e-5, 1.0, 1e3)] == ["10⁻⁵", "2×10⁻⁵", "10⁰", "10³"]
+    assert _power_of_ten(0.0) == _power_of_ten(-1.0) == _power_of_ten(float("inf")) == ""

@@ -265,7 +265,7 @@ def run_filter(
     bias0: Any | None = None,
     q_time: NDArray[np.float64] | None = None,
     q: NDArray[np.float64] | None = None,
-    epochs: str = "all",
+    epochs: Literal["all", "last"] = "all",
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
     [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``

@@ -83,23 +83,32 @@ _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
 def _power_of_ten(value: float, _pos: object = None) -> str:
-    """A log axis's tick label: "10⁻⁵" for a power of ten, else the number."""
-    if not value > 0:
+    """A log axis's tick label in plain text: "10⁻⁵", or "2×10⁻⁵" between decades;
+    nothing for a value that is not finite and positive."""
+    if not (value > 0 and math.isfinite(value)):
         return ""
-    exponent = round(math.log10(value))
-    if not math.isclose(value, 10.0**exponent, rel_tol=1e-9):
-        return f"{value:g}"
-    return "10" + str(exponent).translate(_SUPERSCRIPT)
+    exponent = math.floor(math.log10(value) + 1e-9)
+    coeff = value / 10.0**exponent
+    power = "10" + str(exponent).translate(_SUPERSCRIPT)
+    if math.isclose(coeff, 1.0, rel_tol=1e-9):
+        return power
+    return f"{coeff:.3g}×{power}"
 
 
 def _log_y(ax) -> None:  # ax: matplotlib Axes
-    """A log y axis labelled at its decades in plain text ("10⁻⁵"): matplotlib's own
-    labels are mathtext, whose parser took a fifth of ``section_q``'s drawing time."""
-    from matplotlib.ticker import FuncFormatter, NullFormatter
+    """A log y axis labelled in plain text ("10⁻⁵", "2×10⁻⁵"): matplotlib's own labels
+    are mathtext, whose parser took a fifth of ``section_q``'s drawing time. Which
+    ticks get a label is matplotlib's choice, as before: the decades, and the ticks
+    between them where the axis spans too few decades to show any."""
+    from matplotlib.ticker import LogFormatter
+
+    class PlainLog(LogFormatter):
+        def _num_to_string(self, x: float, vmin: float, vmax: float) -> str:
+            return _power_of_ten(x)
 
     ax.set_yscale("log")
-    ax.yaxis.set_major_formatter(FuncFormatter(_power_of_ten))
-    ax.yaxis.set_minor_formatter(NullFormatter())
+    ax.yaxis.set_major_formatter(PlainLog())
+    ax.yaxis.set_minor_formatter(PlainLog(labelOnlyBase=False))
 
 
 def save_png(fig, path: str | os.PathLike[str]) -> Path:  # fig: matplotlib Figure

@@ -8,10 +8,12 @@ use crate::mechanization::{ImuSample, NavState};
 use crate::noise::NoiseStrategy;
 use nalgebra::Vector3;
 
-/// Output of [`filter_recorded`]: the estimate after every IMU epoch and the updates.
+/// Output of [`filter_recorded`]: the estimate after every IMU epoch (or the last one
+/// only, [`Epochs::Last`]) and the updates.
 #[derive(Clone, Debug, Default)]
 pub struct FilterOutput {
-    /// Epoch times [s]: `t0` then every IMU sample time.
+    /// Epoch times [s]: `t0` then every IMU sample time (the last one only with
+    /// [`Epochs::Last`]); the per-epoch vectors below follow them.
     pub time: Vec<f64>,
     pub nav: Vec<NavState>,
     /// `[b_a, b_g]` estimates per epoch.
@@ -192,10 +194,10 @@ pub enum Epochs {
     /// The initial state and the estimate after every IMU sample.
     #[default]
     All,
-    /// The estimate after the last IMU sample only (the initial state if there is
-    /// none): for passes whose updates alone are read, such as matching R to the
-    /// innovations, which then neither compute nor store the estimate (~300 bytes) at
-    /// every IMU sample. `dvl_epoch` still counts every epoch.
+    /// The estimate after the last IMU sample only: for passes whose updates alone are
+    /// read, such as matching R to the innovations, which then neither compute nor
+    /// store the estimate (~300 bytes here, ~70 more in the binding's arrays) at every
+    /// IMU sample. `dvl_epoch` still counts every epoch.
     Last,
 }
 
@@ -210,32 +212,7 @@ pub fn filter_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
-    earth::check_latitude("lla0", initial.lla[0])?;
-    data.validate()?;
-    if !data.q_time.is_empty() && !strategy.takes_outside_q() {
-        return Err(Error::invalid(
-            "strategy",
-            "a q schedule needs an external strategy (Strategy.external)",
-        ));
-    }
-    if strategy.wants_true_variance() {
-        return Err(Error::invalid(
-            "strategy",
-            "oracle needs the simulated IMU's true variance, which recorded data does not have",
-        ));
-    }
-    check::finite("initial state", initial.lla.as_slice())?;
-    check::finite("initial state", initial.vel.as_slice())?;
-    check::finite("initial bias", &initial_bias)?;
-    let mut ekf = Ekf::new(
-        cfg,
-        initial,
-        Vector3::new(initial_bias[0], initial_bias[1], initial_bias[2]),
-        Vector3::new(initial_bias[3], initial_bias[4], initial_bias[5]),
-    )?;
-    if let Some(q) = strategy.sensitivity_q() {
-        ekf.track_sensitivity(q);
-    }
+    let mut ekf = start(data, initial, initial_bias, cfg, strategy)?;
     let every = epochs == Epochs::All;
     let kept = if every { data.imu.len() + 1 } else { 1 };
     let mut out = FilterOutput::with_capacity(kept, data.dvl.len());
@@ -282,6 +259,44 @@ pub fn filter_recorded_until(
     }
     out.final_covariance = ekf.p;
     Ok(out)
+}
+
+/// The filter at the start of a pass, once the data, the initial state and the
+/// strategy have been checked for it.
+fn start(
+    data: &RecordedData<'_>,
+    initial: NavState,
+    initial_bias: [f64; 6],
+    cfg: &FilterConfig,
+    strategy: &dyn NoiseStrategy,
+) -> Result<Ekf> {
+    earth::check_latitude("lla0", initial.lla[0])?;
+    data.validate()?;
+    if !data.q_time.is_empty() && !strategy.takes_outside_q() {
+        return Err(Error::invalid(
+            "strategy",
+            "a q schedule needs an external strategy (Strategy.external)",
+        ));
+    }
+    if strategy.wants_true_variance() {
+        return Err(Error::invalid(
+            "strategy",
+            "oracle needs the simulated IMU's true variance, which recorded data does not have",
+        ));
+    }
+    check::finite("initial state", initial.lla.as_slice())?;
+    check::finite("initial state", initial.vel.as_slice())?;
+    check::finite("initial bias", &initial_bias)?;
+    let mut ekf = Ekf::new(
+        cfg,
+        initial,
+        Vector3::new(initial_bias[0], initial_bias[1], initial_bias[2]),
+        Vector3::new(initial_bias[3], initial_bias[4], initial_bias[5]),
+    )?;
+    if let Some(q) = strategy.sensitivity_q() {
+        ekf.track_sensitivity(q);
+    }
+    Ok(ekf)
 }
 
 /// Apply every DVL row whose nearest epoch is `epoch` (time `t` [s], step `dt` [s]).

@@ -2,7 +2,7 @@
 
 use super::config::PyFilterConfig;
 use super::convert::{
-    arg_t0, as_rows, column, fixed_or, nav_state, readonly_rows, rows, rows_array,
+    arg_epochs, arg_t0, as_rows, column, fixed_or, nav_state, readonly_rows, rows, rows_array,
 };
 use super::strategy::PyStrategy;
 use super::{interruptible, invalid};
@@ -31,7 +31,8 @@ fn q_schedule(
 }
 
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all"))]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string()),
+    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all')")]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -48,15 +49,15 @@ fn run_filter<'py>(
     bias0: Option<&Bound<'py, PyAny>>,
     q_time: Option<&Bound<'py, PyAny>>,
     q: Option<&Bound<'py, PyAny>>,
-    epochs: &str,
+    #[pyo3(from_py_with = arg_epochs)] epochs: String,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let epochs = match epochs {
+    let epochs = match epochs.as_str() {
         "all" => Epochs::All,
         "last" => Epochs::Last,
         other => {
             return Err(invalid(
                 "epochs",
-                format!("must be 'all' or 'last', got {other:?}"),
+                format!("must be \"all\" or \"last\", got {other:?}"),
             ))
         }
     };

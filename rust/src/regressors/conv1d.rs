@@ -289,6 +289,7 @@ simd_kernel!(
 
 /// What follows the convolution in a block of the CNN: LayerNorm over the channels of
 /// each step (`gamma`, `beta`, `eps`), then LeakyReLU (`slope`).
+#[cfg(target_arch = "x86_64")]
 pub(super) struct Norm<'a> {
     pub gamma: &'a [f64],
     pub beta: &'a [f64],
@@ -297,6 +298,7 @@ pub(super) struct Norm<'a> {
 }
 
 /// Where [`avx512_norm::convolve_norm`] puts a block's activations.
+#[cfg(target_arch = "x86_64")]
 pub(super) enum Activations<'a> {
     /// Row t (of `c` channels) at `rows[t·c..]`: the next block's input.
     Rows(&'a mut [f64]),
@@ -325,10 +327,12 @@ pub(super) mod avx512_norm {
     /// `l_out` steps of the convolution of [`super::convolve`] (its arguments), each
     /// normalised and activated into `out`.
     ///
+    /// Panics where the slices do not fit (as [`super::convolve`] does): `a` too short
+    /// for `l_out` steps, `w`, `bias`, `norm` or `out` not of `c_pad` channels (`out`:
+    /// `l_out` rows, or one row to pool into), or [`takes`] false for `c_pad`.
+    ///
     /// # Safety
-    /// The CPU must have AVX-512F; [`takes`] holds for `c_pad`; `a`, `w` and `bias`
-    /// satisfy `convolve`'s assertions for `l_out` steps; `norm` has `c_pad` channels;
-    /// `out` holds `l_out` rows (or one row to pool into) of `c_pad` channels.
+    /// The CPU must have AVX-512F.
     #[target_feature(enable = "avx512f")]
     #[allow(clippy::too_many_arguments)]
     pub unsafe fn convolve_norm(
@@ -343,6 +347,16 @@ pub(super) mod avx512_norm {
         out: Activations<'_>,
     ) {
         const T: usize = TILE_T_512;
+        assert!(
+            l_out == 0 || (l_out - 1) * step + kdim <= a.len(),
+            "convolution input too short"
+        );
+        assert!(takes(c_pad, c_pad) && w.len() == kdim * c_pad && bias.len() == c_pad);
+        let fits = match &out {
+            Activations::Rows(rows) => rows.len() == l_out * c_pad,
+            Activations::Pool(sums) => sums.len() == c_pad,
+        };
+        assert!(fits && norm.gamma.len() == c_pad && norm.beta.len() == c_pad);
         let g = Geometry {
             a: a.as_ptr(),
             step,
@@ -357,8 +371,8 @@ pub(super) mod avx512_norm {
         };
         let c = c_pad as f64;
         for_each_tile(l_out, c_pad, LANES_512, T, |t0, _, t_n, nv| {
-            // SAFETY: the tiles stay inside the slices (the caller's contract); one
-            // channel block of `nv` = c_pad / 8 vectors covers every channel.
+            // SAFETY: the tiles stay inside the slices (asserted above); one channel
+            // block of `nv` = c_pad / 8 vectors covers every channel.
             unsafe {
                 let at = if pool { dst } else { dst.add(t0 * c_pad) };
                 let step = if pool { 0 } else { c_pad };

@@ -28,7 +28,9 @@
 //! of steps while it is still in registers, instead of in passes over a buffer.
 //! Windows are spread over rayon's threads.
 
-use super::conv1d::{self, convolve, lane_sum, Activations, Norm, LANES};
+#[cfg(target_arch = "x86_64")]
+use super::conv1d::{self, Activations, Norm};
+use super::conv1d::{convolve, lane_sum, LANES};
 use super::per_window;
 use crate::cancel::Cancel;
 use crate::error::{Error, Result};
@@ -418,6 +420,7 @@ impl ConvNet {
 
     /// The pass; `fused`: the CPU has AVX-512F (see [`Self::forward_avx512`]).
     #[inline(always)]
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
     fn forward_body(&self, x: &[f32], s: &mut Scratch, fused: bool) -> f64 {
         let (scale, log_s2) = self.prepare_window(x, s);
         let start = self.blocks[0].pad; // c_in = 1
@@ -547,8 +550,8 @@ impl ConvNet {
             None => Activations::Pool(&mut s.pooled),
         };
         let (step, kdim) = (b.stride * b.c_in, b.kernel * b.c_in);
-        // SAFETY: the caller's contract; the layouts are the ones `convolve` asserts
-        // in `run_block` (checked when the net was built).
+        // SAFETY: the caller's contract (`convolve_norm` asserts the layouts, as
+        // `convolve` does in `run_block`).
         unsafe {
             conv1d::avx512_norm::convolve_norm(
                 &done[i], step, kdim, &b.w, b.c_pad, &b.bias, b.l_out, &norm, out,
