@@ -55,11 +55,7 @@ pub(super) fn convolve(
     y: &mut [f64],
 ) {
     let l_out = y.len() / c_pad;
-    assert!(
-        l_out == 0 || (l_out - 1) * step + kdim <= a.len(),
-        "convolution input too short"
-    );
-    assert!(w.len() == kdim * c_pad && bias.len() == c_pad && c_pad.is_multiple_of(LANES));
+    assert_operands(a, step, kdim, w, c_pad, bias, l_out);
     #[cfg(target_arch = "x86_64")]
     if c_pad.is_multiple_of(LANES_512) && std::arch::is_x86_feature_detected!("avx512f") {
         // SAFETY: the CPU has AVX-512F (checked just above), `c_pad` is a whole number of
@@ -75,6 +71,26 @@ pub(super) fn convolve(
         return;
     }
     convolve_portable(a, step, kdim, w, c_pad, bias, y);
+}
+
+/// Panics unless `a` holds `l_out` steps of `step` (each reading `kdim` values), `w` is
+/// `kdim × c_pad`, `bias` has `c_pad` values and `c_pad` is a multiple of [`LANES`]:
+/// what every path of [`convolve`] relies on.
+#[allow(clippy::too_many_arguments)]
+fn assert_operands(
+    a: &[f64],
+    step: usize,
+    kdim: usize,
+    w: &[f64],
+    c_pad: usize,
+    bias: &[f64],
+    l_out: usize,
+) {
+    assert!(
+        l_out == 0 || (l_out - 1) * step + kdim <= a.len(),
+        "convolution input too short"
+    );
+    assert!(w.len() == kdim * c_pad && bias.len() == c_pad && c_pad.is_multiple_of(LANES));
 }
 
 /// The channel blocks and time tiles of [`convolve`] for vectors of `lanes` channels and
@@ -347,11 +363,8 @@ pub(super) mod avx512_norm {
         out: Activations<'_>,
     ) {
         const T: usize = TILE_T_512;
-        assert!(
-            l_out == 0 || (l_out - 1) * step + kdim <= a.len(),
-            "convolution input too short"
-        );
-        assert!(takes(c_pad, c_pad) && w.len() == kdim * c_pad && bias.len() == c_pad);
+        super::assert_operands(a, step, kdim, w, c_pad, bias, l_out);
+        assert!(takes(c_pad, c_pad));
         let fits = match &out {
             Activations::Rows(rows) => rows.len() == l_out * c_pad,
             Activations::Pool(sums) => sums.len() == c_pad,
