@@ -82,7 +82,7 @@ def _legend_beside(fig, ax) -> None:  # fig: matplotlib Figure, ax: its Axes
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
 
 
-def _power_of_ten(value: float, _pos: object = None) -> str:
+def _power_of_ten(value: float) -> str:
     """A log axis's tick label in plain text: "10⁻⁵", or "2×10⁻⁵" between decades;
     nothing for a value that is not finite and positive."""
     if not (value > 0 and math.isfinite(value)):

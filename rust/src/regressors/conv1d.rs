@@ -406,7 +406,9 @@ pub(super) mod avx512_norm {
     /// A tile's steps (`T` rows of `NV` whole vectors of channels): LayerNorm, then
     /// LeakyReLU, row t stored at `at + t·step`, or (`step` 0: pooling) added to `at`
     /// in step order. Each stage runs over all the tile's steps before the next, so
-    /// that their sums, divisions and square roots overlap.
+    /// that their sums, divisions and square roots overlap. Not inlined: inside the
+    /// tile's loop its registers pushed the accumulators to the stack (measured: 10.7
+    /// against 6.7 ms per 600 windows).
     #[inline(never)]
     #[target_feature(enable = "avx512f")]
     unsafe fn normalise<const T: usize, const NV: usize>(
@@ -419,7 +421,6 @@ pub(super) mod avx512_norm {
         // SAFETY (whole body): `norm` has NV vectors of channels and `at` room for the
         // rows (the caller's contract).
         unsafe {
-            // (plain loops: closures would not inherit the target feature)
             // each stage over all the tile's steps before the next
             let mut mean = [0.0; T];
             for t in 0..T {
