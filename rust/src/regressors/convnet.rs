@@ -30,10 +30,14 @@
 
 #[cfg(target_arch = "x86_64")]
 use super::conv1d::{self, Activations, Norm};
-use super::conv1d::{convolve, lane_sum, LANES};
+use super::conv1d::{convolve, lane_sum};
 use super::per_window;
 use crate::cancel::Cancel;
 use crate::error::{Error, Result};
+
+#[path = "convnet_layout.rs"]
+mod layout;
+use layout::{check_head, sized, Block, Dense};
 
 /// How a window is prepared before the first convolution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,26 +85,6 @@ pub struct DenseWeights {
     pub n_out: usize,
 }
 
-/// A block laid out for the tiled convolution.
-#[derive(Clone, Debug)]
-struct Block {
-    /// `(kernel·c_in) × c_pad`: row `k·c_in + i`, column o is torch's `weight[o, i, k]`;
-    /// columns beyond `c_out` are zero.
-    w: Vec<f64>,
-    bias: Vec<f64>,
-    gamma: Vec<f64>,
-    beta: Vec<f64>,
-    eps: f64,
-    c_in: usize,
-    c_out: usize,
-    c_pad: usize,
-    kernel: usize,
-    stride: usize,
-    pad: usize,
-    l_in: usize,
-    l_out: usize,
-}
-
 /// A ProNet CNN regressor's forward pass; see the module docs.
 #[derive(Clone, Debug)]
 pub struct ConvNet {
@@ -112,33 +96,6 @@ pub struct ConvNet {
     head: Vec<Dense>,
     /// The unit-norm centred time ramp the detrending projects on.
     ramp: Vec<f64>,
-}
-
-/// A Linear layer laid out for the forward pass: float64 weights, input-major, so that
-/// every output's sum runs in the input's order while the outputs go side by side in
-/// vector lanes.
-#[derive(Clone, Debug)]
-struct Dense {
-    /// `n_in × n_out`: row i, column o is torch's `weight[o, i]`.
-    wt: Vec<f64>,
-    bias: Vec<f64>,
-    n_out: usize,
-}
-
-impl Dense {
-    fn lay_out(d: &DenseWeights) -> Self {
-        let mut wt = vec![0.0; d.n_in * d.n_out];
-        for (o, row) in d.weight.chunks_exact(d.n_in).enumerate() {
-            for (i, &w) in row.iter().enumerate() {
-                wt[i * d.n_out + o] = f64::from(w);
-            }
-        }
-        Self {
-            wt,
-            bias: d.bias.iter().map(|&b| f64::from(b)).collect(),
-            n_out: d.n_out,
-        }
-    }
 }
 
 /// Per-thread buffers of one forward pass.
@@ -157,109 +114,6 @@ struct Scratch {
     /// The Linear layers' input and output.
     features: Vec<f64>,
     dense: Vec<f64>,
-}
-
-fn sized(arg: &str, what: &str, got: usize, want: usize) -> Result<()> {
-    if got == want {
-        Ok(())
-    } else {
-        Err(Error::invalid(
-            arg,
-            format!("{what} has {got} values, expected {want}"),
-        ))
-    }
-}
-
-impl Block {
-    /// Block `b` checked against its input (`c_in` channels, `l_in` steps) and laid out
-    /// for the tiled convolution; errors name `arg`.
-    fn lay_out(b: ConvBlockWeights, c_in: usize, l_in: usize, arg: &str) -> Result<Self> {
-        if b.kernel == 0 || b.stride == 0 {
-            return Err(Error::invalid(arg, "kernel and stride must be >= 1"));
-        }
-        if b.c_in != c_in || b.c_out == 0 {
-            return Err(Error::invalid(
-                arg,
-                format!(
-                    "takes {} channels and gives {}; the previous layer gives {c_in}",
-                    b.c_in, b.c_out
-                ),
-            ));
-        }
-        sized(arg, "weight", b.weight.len(), b.c_out * b.c_in * b.kernel)?;
-        sized(arg, "bias", b.bias.len(), b.c_out)?;
-        sized(arg, "norm_weight", b.norm_weight.len(), b.c_out)?;
-        sized(arg, "norm_bias", b.norm_bias.len(), b.c_out)?;
-        if !(b.norm_eps.is_finite() && b.norm_eps >= 0.0) {
-            return Err(Error::invalid(arg, "eps must be finite and >= 0"));
-        }
-        let pad = b.kernel / 2;
-        if l_in + 2 * pad < b.kernel {
-            return Err(Error::invalid(
-                arg,
-                format!("kernel {} is longer than its padded input", b.kernel),
-            ));
-        }
-        let c_pad = b.c_out.div_ceil(LANES) * LANES;
-        let mut w = vec![0.0; b.kernel * b.c_in * c_pad];
-        for o in 0..b.c_out {
-            for ci in 0..b.c_in {
-                for k in 0..b.kernel {
-                    w[(k * b.c_in + ci) * c_pad + o] =
-                        f64::from(b.weight[(o * b.c_in + ci) * b.kernel + k]);
-                }
-            }
-        }
-        let mut bias = vec![0.0; c_pad];
-        for (dst, &v) in bias.iter_mut().zip(&b.bias) {
-            *dst = f64::from(v);
-        }
-        Ok(Self {
-            w,
-            bias,
-            gamma: b.norm_weight.iter().map(|&v| f64::from(v)).collect(),
-            beta: b.norm_bias.iter().map(|&v| f64::from(v)).collect(),
-            eps: f64::from(b.norm_eps),
-            c_in: b.c_in,
-            c_out: b.c_out,
-            c_pad,
-            kernel: b.kernel,
-            stride: b.stride,
-            pad,
-            l_in,
-            l_out: (l_in + 2 * pad - b.kernel) / b.stride + 1,
-        })
-    }
-}
-
-/// The Linear layers chain from `c_in` features to one output.
-fn check_head(head: &[DenseWeights], c_in: usize) -> Result<()> {
-    if head.is_empty() {
-        return Err(Error::invalid("head", "need at least one Linear layer"));
-    }
-    let mut c_prev = c_in;
-    for (i, d) in head.iter().enumerate() {
-        let arg = format!("head[{i}]");
-        if d.n_in != c_prev || d.n_out == 0 {
-            return Err(Error::invalid(
-                &arg,
-                format!(
-                    "takes {} inputs and gives {}; the previous layer gives {c_prev}",
-                    d.n_in, d.n_out
-                ),
-            ));
-        }
-        sized(&arg, "weight", d.weight.len(), d.n_out * d.n_in)?;
-        sized(&arg, "bias", d.bias.len(), d.n_out)?;
-        c_prev = d.n_out;
-    }
-    if c_prev != 1 {
-        return Err(Error::invalid(
-            "head",
-            format!("the last layer must give 1 output, gives {c_prev}"),
-        ));
-    }
-    Ok(())
 }
 
 impl ConvNet {
