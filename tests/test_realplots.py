@@ -3,6 +3,7 @@ drawing in worker processes."""
 
 from __future__ import annotations
 
+import io
 import signal
 from dataclasses import replace
 
@@ -101,6 +102,66 @@ def test_figures_drawn_in_a_worker_are_the_ones_drawn_here(ran, tmp_path):
     assert steps == ["sec"]
     for name, png in here.items():  # Agg draws the same pixels in any process
         assert (tmp_path / name).read_bytes() == png
+
+
+def _varied(curves):
+    """Sections unlike ``curves`` and each other: other rows, spans, names, no q."""
+    track = [(lab, 3.0 * e - 40.0, 0.5 * n) for lab, e, n in curves.track]
+    velocity = [(lab, t + 100.0, 20.0 * dv) for lab, t, dv in curves.velocity_error]
+    q = [(lab, t, acc * 1e3, gyro * 1e-2) for lab, t, acc, gyro in curves.q]
+    return [
+        replace(curves, name="wide", track=track, velocity_error=velocity, q=q),
+        replace(
+            curves,
+            name="few",
+            track=curves.track[:3],
+            velocity_error=curves.velocity_error[4:6],
+            q=curves.q[1:2],
+        ),
+        replace(curves, name="no q", q=[]),
+        replace(curves, name="no gyro q", q=[(lab, t, a, np.nan * g) for lab, t, a, g in q]),
+        curves,
+    ]
+
+
+def test_a_kept_figure_draws_the_bytes_of_a_fresh_one(ran):
+    """A worker draws every section on the same three figures: whatever was drawn on
+    them before (other rows, spans, a log axis over other decades, a failed draw), the
+    next section's PNG is byte for byte that of a new figure."""
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    kept: dict = {}
+    broken = replace(curves, name="broken", track=[], velocity_error=[(1, 2)], q=[(1,)])
+    for kind in realplots.FIGURES:
+        for one in _varied(curves):
+            again = realplots.draw_figure(kind, one, kept)
+            assert again == realplots.draw_figure(kind, one), (kind, one.name)
+            with pytest.raises(ValueError):  # half drawn: the next one starts clean
+                realplots.draw_figure(kind, broken, kept)
+    assert sorted(kept) == sorted(realplots.FIGURES)
+    with pytest.raises(ValueError, match="kind: expected one of track, velocity_error, q"):
+        realplots.draw_figure("speed", curves)
+
+
+def test_png_bytes_drop_alpha_only_where_every_pixel_is_opaque():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from pronet.plots import png_bytes
+
+    modes = []
+    for face in ("white", (1.0, 1.0, 1.0, 0.5)):
+        fig = Figure(figsize=(2, 1), dpi=50, facecolor=face)
+        FigureCanvasAgg(fig)
+        fig.add_subplot().plot([0, 1], [1, 0])
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())
+        image = Image.open(io.BytesIO(png_bytes(fig)))
+        modes.append(image.mode)
+        np.testing.assert_array_equal(np.asarray(image.convert("RGBA")), rgba)
+    assert modes == ["RGB", "RGBA"]
 
 
 def test_a_worker_error_is_raised_with_its_traceback(ran, tmp_path):

@@ -45,7 +45,6 @@ def _legend_figure(width: float, height: float, rows: int) -> tuple[Figure, list
     (room for tick labels down to 1e-12, a y label, a title): constrained layout's
     solver would take a third of the drawing time of each of ``pronet real``'s 33
     figures."""
-    from cycler import cycler
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -60,9 +59,17 @@ def _legend_figure(width: float, height: float, rows: int) -> tuple[Figure, list
         hspace=0.08,
     )
     axes = fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
-    for ax in axes:  # ten colours solid, then the same ten dashed: no two rows alike
-        ax.set_prop_cycle(cycler(linestyle=["-", "--"]) * cycler(color=TAB10))
+    for ax in axes:
+        _restart_styles(ax)
     return fig, list(axes)
+
+
+def _restart_styles(ax) -> None:  # ax: matplotlib Axes
+    """Start ``ax``'s line styles over: ten colours solid, then the same ten dashed, so
+    that no two of ``pronet real``'s rows look alike."""
+    from cycler import cycler
+
+    ax.set_prop_cycle(cycler(linestyle=["-", "--"]) * cycler(color=TAB10))
 
 
 def _legend_beside(fig, ax) -> None:  # fig: matplotlib Figure, ax: its Axes
@@ -111,13 +118,35 @@ def _log_y(ax) -> None:  # ax: matplotlib Axes
     ax.yaxis.set_minor_formatter(PlainLog(labelOnlyBase=False))
 
 
+def png_bytes(fig) -> bytes:  # fig: matplotlib Figure
+    """``fig`` drawn by Agg at its dpi, as PNG bytes: RGB where every pixel is opaque
+    (a quarter fewer bytes to compress than matplotlib's RGBA, the same picture),
+    RGBA otherwise; zlib level 1."""
+    from PIL import Image
+
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    height, width = rgba.shape[:2]
+    if (rgba[..., 3] == 255).all():  # PIL's raw decoder drops the 4th byte as it reads
+        image = Image.frombytes("RGB", (width, height), rgba, "raw", "RGBX")
+    else:
+        image = Image.fromarray(rgba)
+    buf = io.BytesIO()
+    image.save(buf, format="png", compress_level=1, dpi=(fig.dpi, fig.dpi))
+    return buf.getvalue()
+
+
 def save_png(fig, path: str | os.PathLike[str]) -> Path:  # fig: matplotlib Figure
-    """Render ``fig`` to ``path`` as PNG, atomically; returns the path."""
+    """Render ``fig`` to ``path`` as PNG (:func:`png_bytes`), atomically; returns the
+    path."""
+    return _write_png(path, png_bytes(fig))
+
+
+def _write_png(path: str | os.PathLike[str], png: bytes) -> Path:
+    """``png`` written to ``path`` atomically (its folder made as needed); the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", pil_kwargs={"compress_level": 1})
-    atomic_write(path, buf.getvalue())
+    atomic_write(path, png)
     return path
 
 
@@ -323,60 +352,126 @@ class SectionCurves:
     q: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]
 
 
-def section_track(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
-    """North-east track of each strategy's estimate against the truth (black, thick) on
-    one recorded section, metres from the start."""
-    fig, (ax,) = _legend_figure(7.0, 6.0, 1)
+#: The figures of a recorded section, by kind (:class:`SectionFigure`).
+SECTION_FIGURES = ("track", "velocity_error", "q")
+
+
+class SectionFigure:
+    """One of the figures of recorded sections (``kind`` in :data:`SECTION_FIGURES`),
+    kept to be drawn again: :meth:`png` removes the last section's lines and legend
+    and draws the next one's on the same axes, whose ticks, labels and grid matplotlib
+    then only updates. The pixels are those of a new figure (tested), at about three
+    quarters of its cost; ``pronet real``'s figure workers keep one of each kind.
+    Not for two threads at once."""
+
+    def __init__(self, kind: str) -> None:
+        if kind not in SECTION_FIGURES:
+            raise ValueError(f"kind: expected one of {', '.join(SECTION_FIGURES)}, got {kind!r}")
+        self.kind = kind
+        self._new_figure()
+
+    def _new_figure(self) -> None:
+        """The empty figure: panels, labels, grids, scales; no data, not yet drawn."""
+        width, height, rows = {"track": (7.0, 6.0, 1), "velocity_error": (11.0, 7.0, 3)}.get(
+            self.kind, (11.0, 5.5, 2)
+        )
+        self.fig, self.axes = _legend_figure(width, height, rows)
+        self._used = False
+        if self.kind == "track":
+            self.axes[0].set(xlabel="east [m]", ylabel="north [m]")
+            self.axes[0].set_aspect("equal", adjustable="datalim")
+            self.axes[0].grid(alpha=0.3)
+        elif self.kind == "velocity_error":
+            for ax, name in zip(self.axes, ("north", "east", "down"), strict=True):
+                ax.set_ylabel(f"δv {name} [m/s]")
+                ax.grid(alpha=0.3)
+        else:
+            units = ("accelerometer q [(m/s²)²]", "gyro q [(rad/s)²]")
+            for ax, unit in zip(self.axes, units, strict=True):
+                _log_y(ax)
+                ax.set_ylabel(unit)
+                ax.grid(alpha=0.3, which="both")
+        if self.kind != "track":
+            self.axes[-1].set_xlabel("time [s, IMU clock]")
+
+    def png(self, curves: SectionCurves) -> bytes:
+        """The figure of ``curves``, as PNG bytes (:func:`png_bytes`)."""
+        used, self._used = self._used, True
+        if used:  # back to no data (also after a draw that failed half-way)
+            for ax in self.axes:
+                for line in list(ax.lines):
+                    line.remove()
+                _restart_styles(ax)
+                ax.relim()
+                ax.autoscale(True)
+            for legend in list(self.fig.legends):
+                legend.remove()
+        self._draw(curves)
+        if used and not all(np.isfinite(ax.dataLim.get_points()).all() for ax in self.axes):
+            # matplotlib scales an axis without data to the limits it was last drawn
+            # with, a new figure's to its defaults: this one goes on a new figure
+            self._new_figure()
+            self._used = True
+            self._draw(curves)
+        return png_bytes(self.fig)
+
+    def _draw(self, curves: SectionCurves) -> None:
+        """``curves``' lines, legend and title on the figure's empty panels."""
+        draw = {"track": _track, "velocity_error": _velocity_error, "q": _q}[self.kind]
+        draw(self.axes, curves)
+        _legend_beside(self.fig, self.axes[0])
+        title = {
+            "track": "north-east track, estimate against truth",
+            "velocity_error": "velocity error against the ground truth",
+            "q": "process noise per strategy (mean over 3 channels)",
+        }[self.kind]
+        self.fig.suptitle(f"{curves.name}: {title}")
+
+
+def _track(axes: list, curves: SectionCurves) -> None:
+    (ax,) = axes
     (_, east, north), *runs = curves.track
     ax.plot(east, north, color="black", lw=2.2, label="ground truth")
     for label, e, n in runs:
         ax.plot(e, n, lw=0.9, label=label)
     ax.plot(east[0], north[0], "o", color="tab:green", label="start")
-    ax.set(xlabel="east [m]", ylabel="north [m]")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(alpha=0.3)
-    _legend_beside(fig, ax)
-    fig.suptitle(f"{curves.name}: north-east track, estimate against truth")
-    return save_png(fig, path)
 
 
-def section_velocity_error(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
-    """Velocity error (north, east, down) against time of each strategy on one
-    recorded section, at the ground-truth rows; the y range follows the first strategy
-    so that a diverging row does not flatten the others."""
-    fig, axes = _legend_figure(11.0, 7.0, 3)
+def _velocity_error(axes: list, curves: SectionCurves) -> None:
     span = 0.0
     for k, (label, time, dv) in enumerate(curves.velocity_error):
         if k == 0:
             span = 3 * float(np.nanmax(np.abs(dv), initial=0.0)) or 1.0
         for axis, ax in enumerate(axes):
             ax.plot(time, dv[:, axis], lw=0.8, label=label)
-    for ax, name in zip(axes, ("north", "east", "down"), strict=True):
+    for ax in axes:
         ax.set_ylim(-span, span)
-        ax.set_ylabel(f"δv {name} [m/s]")
-        ax.grid(alpha=0.3)
-    axes[-1].set_xlabel("time [s, IMU clock]")
-    _legend_beside(fig, axes[0])
-    fig.suptitle(f"{curves.name}: velocity error against the ground truth")
-    return save_png(fig, path)
+
+
+def _q(axes: list, curves: SectionCurves) -> None:
+    for label, t, acc, gyro in curves.q:
+        axes[0].step(t, acc, where="post", lw=0.9, label=label)
+        axes[1].step(t, gyro, where="post", lw=0.9, label=label)
+
+
+def section_track(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
+    """North-east track of each strategy's estimate against the truth (black, thick) on
+    one recorded section, metres from the start."""
+    return _write_png(path, SectionFigure("track").png(curves))
+
+
+def section_velocity_error(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
+    """Velocity error (north, east, down) against time of each strategy on one
+    recorded section, at the ground-truth rows; the y range follows the first strategy
+    so that a diverging row does not flatten the others."""
+    return _write_png(path, SectionFigure("velocity_error").png(curves))
 
 
 def section_q(curves: SectionCurves, path: str | os.PathLike[str]) -> Path:
     """The process noise each strategy used on one recorded section, as the mean
     per-sample variance of the accelerometer and of the gyro channels, log scale;
     constant rows are flat lines."""
-    fig, axes = _legend_figure(11.0, 5.5, 2)
-    for label, t, acc, gyro in curves.q:
-        axes[0].step(t, acc, where="post", lw=0.9, label=label)
-        axes[1].step(t, gyro, where="post", lw=0.9, label=label)
-    for ax, unit in zip(axes, ("accelerometer q [(m/s²)²]", "gyro q [(rad/s)²]"), strict=True):
-        _log_y(ax)
-        ax.set_ylabel(unit)
-        ax.grid(alpha=0.3, which="both")
-    axes[-1].set_xlabel("time [s, IMU clock]")
-    _legend_beside(fig, axes[0])
-    fig.suptitle(f"{curves.name}: process noise per strategy (mean over 3 channels)")
-    return save_png(fig, path)
+    return _write_png(path, SectionFigure("q").png(curves))
 
 
 def sweep_metric(summary, x: str, path: str | os.PathLike[str], metric: str = "srmse") -> Path:
