@@ -23,13 +23,23 @@ from synthetic_recording import synthetic_recording
 LONG = ["simulate", "--strategies", "constant", "--runs", "3000", "--threads", "1"]
 
 
-def stops_at_once(calls: dict[str, Callable[[], object]]) -> None:
-    """Each call, sent Ctrl-C (SIGINT to this process) 0.3 s in, raises
-    KeyboardInterrupt within a second of the signal. Uninterrupted each takes seconds
-    (more under load); the stop is usually a tenth of that, the rest is the input check
-    and copy before the native call, which signals wait for."""
+def stops_at_once(
+    calls: dict[str, Callable[[], object]], to: Callable[[], int] | None = None
+) -> None:
+    """Each call, sent Ctrl-C (SIGINT to this process, or to the thread ``to()``
+    names when it is sent) 0.3 s in, raises KeyboardInterrupt within a second of the
+    signal. Uninterrupted each takes seconds (more under load); the stop is usually a
+    tenth of that, the rest is the input check and copy before the native call, which
+    signals wait for."""
+
+    def send() -> None:
+        if to is None:
+            os.kill(os.getpid(), signal.SIGINT)
+        else:
+            signal.pthread_kill(to(), signal.SIGINT)
+
     for name, call in calls.items():
-        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+        timer = threading.Timer(0.3, send)
         began = time.monotonic()
         timer.start()
         with pytest.raises(KeyboardInterrupt):
@@ -148,6 +158,53 @@ def test_ctrl_c_ends_sections_filtered_side_by_side_at_once() -> None:
         alignment.align(rec, alignment.Alignment(how="none")),
     )
     stops_at_once({"run_sections": lambda: realdata.run_sections([pair] * 4, {}, 1.0, threads=2)})
+
+
+def test_ctrl_c_taken_by_a_section_thread_ends_the_sections_at_once() -> None:
+    """The kernel may hand a process's signal to any thread; Python acts on it in the
+    main thread only. Sent to a section thread, it was seen only once a whole section
+    was done (3-4 s here): the main thread now waits for the sections in slices."""
+    rec = synthetic_recording(seed=1, duration=2400.0, name="long").recording
+    pair = (
+        alignment.align(rec, alignment.estimate_alignment(rec)),
+        alignment.align(rec, alignment.Alignment(how="none")),
+    )
+
+    def section_thread() -> int:  # the newest pool's: run_sections'
+        pools = [t for t in threading.enumerate() if t.name.startswith("ThreadPoolExecutor")]
+        ident = pools[-1].ident
+        assert ident is not None
+        return ident
+
+    stops_at_once(
+        {"run_sections": lambda: realdata.run_sections([pair] * 4, {}, 1.0, threads=2)},
+        to=section_thread,
+    )
+
+
+def test_waiting_in_slices_gives_every_result_and_error_in_order() -> None:
+    """The main thread's wait (:mod:`pronet._waiting`): values and exceptions come back
+    as ``Future.result()`` gives them (a task's own TimeoutError too), in order, and
+    leaving early cancels the tasks not yet started."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pronet._waiting import result_of, results_in_order
+
+    def task(i: int) -> int:
+        time.sleep({0: 0.12, 3: 0.5}.get(i, 0.0))  # 0: waited for in three slices
+        if i == 2:
+            raise TimeoutError("the task's own")
+        return i * i
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        futures = [pool.submit(task, i) for i in range(6)]
+        got = []
+        with pytest.raises(TimeoutError, match="the task's own"):
+            for value in results_in_order(futures):
+                got.append(value)
+        assert got == [0, 1]
+        assert futures[4].cancelled() and futures[5].cancelled()  # 3 was running
+        assert result_of(pool.submit(task, 1)) == 1
 
 
 def test_the_core_reads_any_memory_layout_alike() -> None:

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._validate import flag, scalar
+from pronet._waiting import results_in_order
 from pronet.alignment import Section, find_sections, load_section, section_name
 from pronet.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.dvltruth import TruthCalibration, truth_calibration
@@ -386,8 +387,8 @@ def run_sections(
 
     stop = threading.Event()
     with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        try:
-            outcomes = list(pool.map(one, sections))
+        try:  # waited for in slices, so that a signal another thread took is seen at once
+            outcomes = list(results_in_order([pool.submit(one, pair) for pair in sections]))
         except BaseException:  # Ctrl-C, SIGTERM, an error: the threads stop at their next pass
             stop.set()
             raise
@@ -536,7 +537,8 @@ def run_real(
     loaded: list[tuple[Section, Section]] = []
     unread: dict[str, str] = {}
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        for path, section in zip(paths, pool.map(read, paths), strict=True):  # in order
+        reading = results_in_order([pool.submit(read, path) for path in paths])
+        for path, section in zip(paths, reading, strict=True):  # in order
             if isinstance(section, str):
                 unread[section_name(path)] = section
             else:

@@ -27,6 +27,7 @@ from typing import IO, TYPE_CHECKING
 import numpy as np
 
 from pronet._files import atomic_write
+from pronet._waiting import result_of
 from pronet.plots import SECTION_FIGURES, SectionFigure
 
 if TYPE_CHECKING:
@@ -246,7 +247,7 @@ class FigurePool:
         worker's error is raised here (RuntimeError with its traceback)."""
         for name in names:
             for kind, png in zip(FIGURES, self._figures[name], strict=True):
-                atomic_write(folder / figure_name(kind, name), png.result())
+                atomic_write(folder / figure_name(kind, name), result_of(png))
             if on_done is not None:
                 on_done(name)
 
