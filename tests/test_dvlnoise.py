@@ -197,3 +197,23 @@ def test_calibration_agreement_weights_by_variance_and_counts_outliers() -> None
     assert off == 4  # the weighted mean sits between the two clusters; none within 3σ
     assert calibration_agreement(np.array([1.0, 1.1]), np.array([0.1, 0.1]))[2] == 0
     assert np.isnan(calibration_agreement(np.array([1.0]), np.array([0.0]))[0])
+
+
+def test_the_matching_passes_keep_only_their_last_epoch(known_noise, monkeypatch) -> None:
+    """The matching reads the updates alone, so its passes ask the core for no epoch
+    arrays (``epochs="last"``: about a third of ``pronet real``'s passes, and the bytes
+    they no longer write): every pass, without and with the calibration states."""
+    section = known_noise
+    asked = []
+    run = realdata.run
+
+    def spy(strategy, target):
+        asked.append((target.epochs, target.config.dvl_calibration))
+        return run(strategy, target)
+
+    monkeypatch.setattr(realdata, "run", spy)
+    strategy = pronet.Strategy.constant([1e-4] * 3 + [1e-8] * 3)
+    noise = realdata.estimate_dvl_noise(section, strategy, section.alignment.filter_lever_arm)
+    passes = noise.matched.passes + noise.matched_calibrated.passes
+    assert len(asked) == passes and {epochs for epochs, _ in asked} == {"last"}
+    assert sum(calibrated for _, calibrated in asked) == noise.matched_calibrated.passes
