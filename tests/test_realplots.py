@@ -132,13 +132,26 @@ def test_a_kept_figure_draws_the_bytes_of_a_fresh_one(ran):
     imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
     curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
     kept: dict = {}
-    broken = replace(curves, name="broken", track=[], velocity_error=[(1, 2)], q=[(1,)])
+    # each fails after its first lines are drawn: mismatched lengths, infinite limits
+    (label, time, dv), (_, e, n), (_, t, acc, gyro) = (
+        curves.velocity_error[0],
+        curves.track[0],
+        curves.q[0],
+    )
+    broken = replace(
+        curves,
+        name="broken",
+        track=[curves.track[0], (label, e, n[:-1])],
+        velocity_error=[(label, time, np.where(np.arange(len(time))[:, None] == 3, np.inf, dv))],
+        q=[curves.q[0], (label, t, acc[:-1], gyro)],
+    )
     for kind in realplots.FIGURES:
         for one in _varied(curves):
             again = realplots.draw_figure(kind, one, kept)
             assert again == realplots.draw_figure(kind, one), (kind, one.name)
-            with pytest.raises(ValueError):  # half drawn: the next one starts clean
+            with pytest.raises(ValueError):
                 realplots.draw_figure(kind, broken, kept)
+            assert kept[kind].axes[0].lines  # half drawn: the next one starts clean
     assert sorted(kept) == sorted(realplots.FIGURES)
     with pytest.raises(ValueError, match="kind: expected one of track, velocity_error, q"):
         realplots.draw_figure("speed", curves)
@@ -218,3 +231,20 @@ def test_log_axes_are_labelled_in_plain_text(low, high, expected):
     assert expected in shown and not any("$" in t for t in shown)
     assert [_power_of_ten(v) for v in (1e-5, 2e-5, 1.0, 1e3)] == ["10⁻⁵", "2×10⁻⁵", "10⁰", "10³"]
     assert _power_of_ten(0.0) == _power_of_ten(-1.0) == _power_of_ten(float("inf")) == ""
+
+
+def test_png_bytes_of_a_figure_on_another_canvas_go_through_savefig():
+    """A figure without pronet's plain Agg canvas (pyplot's, another backend's) is
+    written by matplotlib's own ``savefig``."""
+    from matplotlib.backends.backend_svg import FigureCanvasSVG
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from pronet.plots import png_bytes
+
+    bare, svg = Figure(figsize=(2, 1), dpi=50), Figure(figsize=(2, 1), dpi=50)
+    FigureCanvasSVG(svg)
+    for fig in (bare, svg):
+        fig.add_subplot().plot([0, 1], [1, 0])
+        image = Image.open(io.BytesIO(png_bytes(fig)))
+        assert image.size == (100, 50) and image.mode == "RGBA"

@@ -191,7 +191,7 @@ def test_waiting_in_slices_gives_every_result_and_error_in_order() -> None:
     from pronet._waiting import result_of, results_in_order
 
     def task(i: int) -> int:
-        time.sleep({0: 0.12, 3: 0.5}.get(i, 0.0))  # 0: waited for in three slices
+        time.sleep({0: 0.12, 3: 0.5}.get(i, 0.0))  # 0: longer than a slice
         if i == 2:
             raise TimeoutError("the task's own")
         return i * i
@@ -230,3 +230,33 @@ def test_the_core_reads_any_memory_layout_alike() -> None:
         got = _core.mechanize(arr, 0.01, *start)
         for key in ("lla", "vel", "rpy"):
             np.testing.assert_array_equal(got[key], want[key], err_msg=f"{name}: {key}")
+
+
+def test_ctrl_c_while_sections_are_read_cancels_the_reads_not_started(
+    monkeypatch, tmp_path
+) -> None:
+    """Ctrl-C taken in ``run_real``'s reading loop itself (here: as its progress line
+    is printed) cancels the reads not yet started: the reads under way finish (0.5 s
+    each, two threads), the other fourteen are never made."""
+    from pathlib import Path
+
+    started = []
+
+    def slow_load(path, fmt, **kw):  # an unreadable section, after a while
+        started.append(path)
+        time.sleep(0.5)
+        return "unreadable"
+
+    def on_done(name: str) -> None:
+        raise KeyboardInterrupt
+
+    paths = [Path(f"/nowhere/s{i}") for i in range(16)]
+    monkeypatch.setattr(realdata, "select_sections", lambda data, names: paths)
+    monkeypatch.setattr(realdata, "load_section", slow_load)
+    began = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        realdata.run_real(
+            "/nowhere", tmp_path / "out", use_models=False, plots=False, on_done=on_done
+        )
+    assert len(started) <= 4, started  # before: all 16, one after the other (4 s)
+    assert time.monotonic() - began < 2.0

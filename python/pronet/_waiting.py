@@ -11,13 +11,13 @@ thread waits here in slices of :data:`POLL` seconds.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Sequence
 from concurrent.futures import Future, wait
 from typing import TypeVar
 
 T = TypeVar("T")
 
-#: Longest single wait [s] of the main thread: a signal is acted upon within it.
+#: Longest single wait [s] of the waits made here: a signal is acted upon within it.
 POLL = 0.05
 
 
@@ -29,9 +29,11 @@ def result_of(future: Future[T]) -> T:
     return future.result()
 
 
-def results_in_order(futures: Sequence[Future[T]]) -> Iterator[T]:
-    """Each future's :func:`result_of`, in order; leaving early (an error, Ctrl-C)
-    cancels those that have not started."""
+def results_in_order(futures: Sequence[Future[T]]) -> Generator[T, None, None]:
+    """Each future's :func:`result_of`, in order. When the iteration stops early (an
+    error, Ctrl-C), the futures that have not started are cancelled once the generator
+    is closed: at once for an exception raised in here; for one raised in the
+    caller's loop body, hold it in ``contextlib.closing``."""
     try:
         for future in futures:
             yield result_of(future)

@@ -119,11 +119,19 @@ def _log_y(ax) -> None:  # ax: matplotlib Axes
 
 
 def png_bytes(fig) -> bytes:  # fig: matplotlib Figure
-    """``fig`` drawn by Agg at its dpi, as PNG bytes: RGB where every pixel is opaque
-    (a quarter fewer bytes to compress than matplotlib's RGBA, the same picture),
-    RGBA otherwise; zlib level 1."""
+    """``fig`` as PNG bytes, zlib level 1. pronet's own figures (a plain Agg canvas,
+    :func:`_figure`) are drawn at the figure's dpi and written RGB where every pixel
+    is opaque (a quarter fewer bytes to compress than matplotlib's RGBA, the same
+    picture), RGBA otherwise; matplotlib's ``savefig.*`` settings do not apply to
+    them. A figure on any other canvas (pyplot's, another backend's) goes through
+    ``savefig``."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
 
+    buf = io.BytesIO()
+    if type(fig.canvas) is not FigureCanvasAgg:
+        fig.savefig(buf, format="png", pil_kwargs={"compress_level": 1})
+        return buf.getvalue()
     fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     height, width = rgba.shape[:2]
@@ -131,7 +139,6 @@ def png_bytes(fig) -> bytes:  # fig: matplotlib Figure
         image = Image.frombytes("RGB", (width, height), rgba, "raw", "RGBX")
     else:
         image = Image.fromarray(rgba)
-    buf = io.BytesIO()
     image.save(buf, format="png", compress_level=1, dpi=(fig.dpi, fig.dpi))
     return buf.getvalue()
 
@@ -403,7 +410,6 @@ class SectionFigure:
                     line.remove()
                 _restart_styles(ax)
                 ax.relim()
-                ax.autoscale(True)
             for legend in list(self.fig.legends):
                 legend.remove()
         self._draw(curves)

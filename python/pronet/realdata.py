@@ -16,7 +16,7 @@ import os
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import nullcontext
+from contextlib import closing, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -536,8 +536,10 @@ def run_real(
 
     loaded: list[tuple[Section, Section]] = []
     unread: dict[str, str] = {}
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        reading = results_in_order([pool.submit(read, path) for path in paths])
+    with (
+        ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool,
+        closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
+    ):  # closed however the loop ends: the reads not yet started are cancelled
         for path, section in zip(paths, reading, strict=True):  # in order
             if isinstance(section, str):
                 unread[section_name(path)] = section
