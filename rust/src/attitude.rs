@@ -17,10 +17,12 @@ pub fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
 pub fn exp_so3(rv: &Vector3<f64>) -> Matrix3<f64> {
     let t2 = rv.norm_squared();
     let (a, b) = if t2 < 1e-6 {
-        // sin t / t and (1 - cos t) / t², truncated after the t⁶ term (error < t⁸/9!).
+        // sin t / t and (1 - cos t) / t², truncated after the t⁶ term (error < t⁸/9!),
+        // with the constant divisors as reciprocals: a division costs the core several
+        // multiplies, and these ones run twice in every strapdown step.
         (
-            1.0 - t2 / 6.0 * (1.0 - t2 / 20.0 * (1.0 - t2 / 42.0)),
-            0.5 * (1.0 - t2 / 12.0 * (1.0 - t2 / 30.0 * (1.0 - t2 / 56.0))),
+            1.0 - t2 * (1.0 / 6.0) * (1.0 - t2 * (1.0 / 20.0) * (1.0 - t2 * (1.0 / 42.0))),
+            0.5 * (1.0 - t2 * (1.0 / 12.0) * (1.0 - t2 * (1.0 / 30.0) * (1.0 - t2 * (1.0 / 56.0)))),
         )
     } else {
         let t = t2.sqrt();
