@@ -106,6 +106,16 @@ def experiment_result(show: Output, folder: Path, start: float) -> None:
     )
 
 
+def add_result_folder(parser: argparse.ArgumentParser, command: str) -> None:
+    """--out: the result folder of an experiment command (default results/COMMAND-<time>)."""
+    parser.add_argument(
+        "--out",
+        metavar="PATH",
+        default=None,
+        help=f"result folder (default results/{command}-<time>)",
+    )
+
+
 def add_output_flags(parser: argparse.ArgumentParser) -> None:
     """--quiet and --json."""
     parser.add_argument("--quiet", action="store_true", help="no progress bars or messages")

@@ -15,6 +15,7 @@ from pronet.cli._common import (
     Subparsers,
     add_no_plots,
     add_output_flags,
+    add_result_folder,
     add_tuning_period,
 )
 from pronet.dvlnoise import DVL_NOISE_SOURCES
@@ -76,9 +77,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
-    parser.add_argument(
-        "--out", metavar="PATH", default=None, help="result folder (default results/real-<time>)"
-    )
+    add_result_folder(parser, "real")
     add_output_flags(parser)
     parser.set_defaults(func=run)
 

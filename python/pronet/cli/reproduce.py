@@ -11,6 +11,7 @@ from pronet.cli._common import (
     Subparsers,
     add_monte_carlo_args,
     add_output_flags,
+    add_result_folder,
     add_tuning_period,
     experiment_result,
 )
@@ -22,12 +23,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     add_monte_carlo_args(parser)
     parser.add_argument("--quick", action="store_true", help="10 runs per strategy")
-    parser.add_argument(
-        "--out",
-        metavar="PATH",
-        default=None,
-        help="result folder (default results/reproduce-<time>)",
-    )
+    add_result_folder(parser, "reproduce")
     parser.add_argument(
         "--retrain", action="store_true", help="train all three regressors first (~10 min)"
     )

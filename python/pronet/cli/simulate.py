@@ -12,6 +12,7 @@ from pronet.cli._common import (
     add_monte_carlo_args,
     add_no_plots,
     add_output_flags,
+    add_result_folder,
     add_tuning_period,
     experiment_result,
 )
@@ -58,12 +59,7 @@ def add_parser(sub: Subparsers) -> None:
     )
     add_tuning_period(parser)
     add_no_plots(parser)
-    parser.add_argument(
-        "--out",
-        metavar="PATH",
-        default=None,
-        help="result folder (default results/simulate-<time>)",
-    )
+    add_result_folder(parser, "simulate")
     add_output_flags(parser)
     parser.set_defaults(func=run)
 

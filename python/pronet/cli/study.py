@@ -11,6 +11,7 @@ from pronet.cli._common import (
     Subparsers,
     add_monte_carlo_args,
     add_output_flags,
+    add_result_folder,
     experiment_result,
 )
 from pronet.scenarios import STUDY_SCENARIOS
@@ -38,9 +39,7 @@ def add_parser(sub: Subparsers) -> None:
         help="comma-separated row labels of pronet.study.STUDY_ROWS (default: all)",
     )
     add_monte_carlo_args(parser)
-    parser.add_argument(
-        "--out", metavar="PATH", default=None, help="result folder (default results/study-<time>)"
-    )
+    add_result_folder(parser, "study")
     add_output_flags(parser)
     parser.set_defaults(func=run)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from pronet.cli._common import Bars, Output, Subparsers, add_output_flags
+from pronet.cli._common import Bars, Output, Subparsers, add_output_flags, add_result_folder
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -40,9 +40,7 @@ def add_parser(sub: Subparsers) -> None:
         default=None,
         help="local: threads per shard (default all cores); ray: CPUs per shard (default 1)",
     )
-    parser.add_argument(
-        "--out", metavar="PATH", default=None, help="result folder (default results/sweep-<time>)"
-    )
+    add_result_folder(parser, "sweep")
     parser.add_argument(
         "--resume",
         action="store_true",
