@@ -38,8 +38,9 @@ def _unit_scaled(windows: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.in
     of two ``2**e`` that brings its largest magnitude into [0.5, 1), and ``e``
     ``(..., 1)``. Exact, so statistics computed on the scaled window and scaled back
     equal the direct ones bit for bit, except where the direct ones would overflow
-    (|w| ~ 1e80 raised to the 4th power) or underflow. The result is an array of its
-    own, never the caller's, so it may be worked on in place."""
+    (|w| ~ 1e80 raised to the 4th power) or underflow. The result is a C-ordered array
+    of its own, never the caller's, so it may be worked on in place, and every layout of
+    the same numbers gives the same bits."""
     src = real_array(windows, "windows")
     w = as_windows(src)
     # max |w| as max(max w, −min w): the same value (NaN where a NaN is) without a
@@ -47,8 +48,10 @@ def _unit_scaled(windows: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.in
     with np.errstate(invalid="ignore"):
         peak = np.maximum(w.max(axis=-1, keepdims=True), -w.min(axis=-1, keepdims=True))
     e = np.frexp(np.where(np.isfinite(peak), peak, 0.0))[1]
-    # A converted array (float32 windows, say) is already a copy: scale it in place.
-    return np.ldexp(w, -e, out=w if w.dtype != src.dtype else None), e
+    # A converted C-ordered array (float32 windows, say) is already a copy: scale it in
+    # place; anything else goes to a new C-ordered array.
+    own = w.dtype != src.dtype and w.flags.c_contiguous
+    return np.ldexp(w, -e, out=w if own else None, order="C"), e
 
 
 def detrend(windows: ArrayLike) -> NDArray[np.float64]:
@@ -60,9 +63,9 @@ def detrend(windows: ArrayLike) -> NDArray[np.float64]:
 
 def _detrend(w: NDArray[np.float64], out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """``w`` minus each window's least-squares line, written to ``out`` (which may be
-    ``w``) or a new array. The work is done in place: every window-sized temporary is
-    fresh memory whose page faults cost more than the arithmetic (a batch of 600 windows
-    of 200 samples is ~1 MB)."""
+    ``w``) or a new array. Apart from the line itself no window-sized temporary is made:
+    each is fresh memory whose page faults cost more than its arithmetic (a batch of 600
+    windows of 200 samples is ~1 MB)."""
     n = w.shape[-1]
     t = np.arange(n) - (n - 1) / 2.0
     centred = np.subtract(w, w.mean(axis=-1, keepdims=True), out=out)
