@@ -250,9 +250,28 @@ pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
 
 /// Run `f` on a rayon pool of `threads` threads, or on the global pool for `None`.
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
-    match threads {
-        None => Ok(f()),
-        Some(n) => Ok(thread_pool(n)?.install(f)),
+    Ok(Workers::new(threads)?.run(f))
+}
+
+/// The threads a long-lived object's calls run on (a frozen regressor, an ensemble): a
+/// pool of its own when it was built with a thread count, else rayon's global pool.
+/// Clones share the pool.
+#[derive(Clone, Debug, Default)]
+pub struct Workers(Option<Arc<rayon::ThreadPool>>);
+
+impl Workers {
+    /// A pool of `threads` threads (1 to [`MAX_THREADS`], else an error naming
+    /// `threads`), or the global pool for `None`.
+    pub fn new(threads: Option<usize>) -> Result<Self> {
+        Ok(Self(threads.map(thread_pool).transpose()?.map(Arc::new)))
+    }
+
+    /// Run `f` on these threads: rayon's parallel iterators inside it use them.
+    pub fn run<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
+        match &self.0 {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
     }
 }
 
@@ -260,6 +279,22 @@ pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Sen
 pub(crate) mod tests {
     use super::*;
     use crate::trajectory::builtin;
+
+    #[test]
+    fn workers_run_on_their_own_pool_or_the_global_one() {
+        let own = Workers::new(Some(3)).unwrap();
+        assert_eq!(own.run(rayon::current_num_threads), 3);
+        assert_eq!(own.clone().run(rayon::current_num_threads), 3);
+        let global = Workers::new(None).unwrap();
+        assert_eq!(
+            global.run(rayon::current_num_threads),
+            rayon::current_num_threads()
+        );
+        for bad in [0, MAX_THREADS + 1] {
+            let err = Workers::new(Some(bad)).unwrap_err().to_string();
+            assert!(err.starts_with("threads"), "{err}");
+        }
+    }
 
     pub(crate) const TRUE_Q: [f64; 6] = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
 

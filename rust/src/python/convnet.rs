@@ -3,7 +3,7 @@
 
 use super::convert::{arg_threads, describe, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
-use crate::montecarlo::thread_pool;
+use crate::montecarlo::Workers;
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
 use numpy::{
     IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
@@ -16,7 +16,7 @@ use std::sync::Arc;
 #[pyclass(name = "ConvNet", module = "pronet._core", frozen)]
 pub struct PyConvNet {
     inner: Arc<ConvNet>,
-    pool: Option<Arc<rayon::ThreadPool>>,
+    workers: Workers,
 }
 
 fn vector(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f32>> {
@@ -150,17 +150,16 @@ impl PyConvNet {
             .map(|(i, d)| dense(d, i))
             .collect::<PyResult<Vec<_>>>()?;
         let ramp = ramp.map(|r| vector(&r, "ramp")).transpose()?;
-        let (net, pool) = detached(py, move || {
+        let (net, workers) = detached(py, move || {
             let mut net = ConvNet::new(window, prepare, scaling, negative_slope, blocks, head)?;
             if let Some(ramp) = ramp {
                 net = net.with_ramp(&ramp)?;
             }
-            let pool = threads.map(thread_pool).transpose()?.map(Arc::new);
-            Ok((net, pool))
+            Ok((net, Workers::new(threads)?))
         })?;
         Ok(Self {
             inner: Arc::new(net),
-            pool,
+            workers,
         })
     }
 
@@ -172,10 +171,9 @@ impl PyConvNet {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let samples: Vec<f32> = window_rows(windows, self.inner.window(), "float32")?;
         let net = Arc::clone(&self.inner);
-        let pool = self.pool.clone();
-        let q = interruptible(py, move |cancel| match pool {
-            Some(p) => p.install(|| net.predict_until(&samples, cancel)),
-            None => net.predict_until(&samples, cancel),
+        let workers = self.workers.clone();
+        let q = interruptible(py, move |cancel| {
+            workers.run(|| net.predict_until(&samples, cancel))
         })?;
         Ok(q.into_pyarray(py))
     }

@@ -13,7 +13,7 @@ use super::{detached, interruptible, invalid};
 use crate::cancel::Cancel;
 use crate::ensemble::{Ensemble, TuningSchedule};
 use crate::error::Error;
-use crate::montecarlo::{thread_pool, McOptions};
+use crate::montecarlo::{McOptions, Workers};
 use crate::Result as CoreResult;
 use numpy::ndarray::{Array1, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray3};
@@ -25,7 +25,7 @@ use std::sync::{Arc, Mutex};
 #[pyclass(name = "Ensemble", module = "pronet._core")]
 pub struct PyEnsemble {
     inner: Arc<Mutex<Option<Ensemble>>>,
-    pool: Option<Arc<rayon::ThreadPool>>,
+    workers: Workers,
     n_runs: usize,
     window: usize,
 }
@@ -46,7 +46,7 @@ impl PyEnsemble {
         f: impl FnOnce(&mut Ensemble, &Cancel) -> CoreResult<T> + Send,
     ) -> PyResult<T> {
         let inner = Arc::clone(&self.inner);
-        let pool = self.pool.clone();
+        let workers = self.workers.clone();
         let call = move |cancel: &Cancel| {
             let mut guard = inner.lock().map_err(poisoned)?;
             let ens = guard.as_mut().ok_or_else(|| {
@@ -55,10 +55,7 @@ impl PyEnsemble {
                     "already finished or interrupted; create a new Ensemble",
                 )
             })?;
-            let out = match pool {
-                Some(p) => p.install(|| f(ens, cancel)),
-                None => f(ens, cancel),
-            };
+            let out = workers.run(|| f(ens, cancel));
             if cancel.is_cancelled() {
                 guard.take();
             }
@@ -101,15 +98,15 @@ impl PyEnsemble {
         };
         let sc = scenario(trajectory, sensors, sample_initial_error);
         let cfg = config.inner.clone();
-        let (ens, pool) = detached(py, move || {
+        let (ens, workers) = detached(py, move || {
             opts.validate()?;
-            let pool = threads.map(thread_pool).transpose()?.map(Arc::new);
+            let workers = Workers::new(threads)?;
             let ens = Ensemble::new(sc, &cfg, prior_q, &opts, window, tuning_period)?;
-            Ok((ens, pool))
+            Ok((ens, workers))
         })?;
         Ok(Self {
             inner: Arc::new(Mutex::new(Some(ens))),
-            pool,
+            workers,
             n_runs,
             window,
         })
@@ -136,17 +133,14 @@ impl PyEnsemble {
     /// used afterwards.
     fn finish<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let inner = Arc::clone(&self.inner);
-        let pool = self.pool.clone();
+        let workers = self.workers.clone();
         let res = interruptible(py, move |cancel| {
             let ens = inner
                 .lock()
                 .map_err(poisoned)?
                 .take()
                 .ok_or_else(|| Error::invalid("ensemble", "already finished or interrupted"))?;
-            match pool {
-                Some(p) => p.install(|| ens.finish_until(cancel)),
-                None => ens.finish_until(cancel),
-            }
+            workers.run(|| ens.finish_until(cancel))
         })?;
         result_dict(py, &res)
     }

@@ -3,7 +3,7 @@
 
 use super::convert::{arg_threads, describe, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
-use crate::montecarlo::thread_pool;
+use crate::montecarlo::Workers;
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -13,7 +13,7 @@ use std::sync::Arc;
 #[pyclass(name = "HcfEnsemble", module = "pronet._core", frozen)]
 pub struct PyHcfEnsemble {
     inner: Arc<HcfEnsemble>,
-    pool: Option<Arc<rayon::ThreadPool>>,
+    workers: Workers,
 }
 
 fn array<T: numpy::Element + Copy>(
@@ -83,14 +83,13 @@ impl PyHcfEnsemble {
             }
         };
         let (gb, rf) = (trees(gb, "gb")?, trees(rf, "rf")?);
-        let (model, pool) = detached(py, move || {
+        let (model, workers) = detached(py, move || {
             let model = HcfEnsemble::new(window, gb, gb_init, gb_rate, rf, target)?;
-            let pool = threads.map(thread_pool).transpose()?.map(Arc::new);
-            Ok((model, pool))
+            Ok((model, Workers::new(threads)?))
         })?;
         Ok(Self {
             inner: Arc::new(model),
-            pool,
+            workers,
         })
     }
 
@@ -102,10 +101,9 @@ impl PyHcfEnsemble {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let samples: Vec<f64> = window_rows(windows, self.inner.window(), "float64")?;
         let model = Arc::clone(&self.inner);
-        let pool = self.pool.clone();
-        let q = interruptible(py, move |cancel| match pool {
-            Some(p) => p.install(|| model.predict_until(&samples, cancel)),
-            None => model.predict_until(&samples, cancel),
+        let workers = self.workers.clone();
+        let q = interruptible(py, move |cancel| {
+            workers.run(|| model.predict_until(&samples, cancel))
         })?;
         Ok(q.into_pyarray(py))
     }
