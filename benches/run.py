@@ -31,6 +31,10 @@ Definitions:
   on the local engine (all cores per shard) and on a private Ray (one CPU per shard).
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
+- yardsticks: after the table, each timed row with a target in seconds divided by the
+  same run's constant-Q Monte Carlo time, beside its target divided by that row's time
+  on the machine the targets were set on (:data:`TARGET_MACHINE_YARDSTICK`): a reading
+  that the machine's speed and its drift within the hour largely cancel from.
 """
 
 from __future__ import annotations
@@ -61,6 +65,10 @@ from pronet.models import Regressor
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = "python benches/run.py"
+#: The constant-Q Monte Carlo row [s] (100 runs, 2 threads) on the machine the
+#: targets were set on (issue 19's measurements).
+TARGET_MACHINE_YARDSTICK = 1.03
+YARDSTICK_ROW = "constant Q Monte Carlo"
 
 
 @dataclass
@@ -559,6 +567,31 @@ BENCHES: dict[str, Callable[[argparse.Namespace], list[Row]]] = {
 }
 
 
+def in_yardsticks(rows: list[dict[str, object]], runs: int) -> list[str]:
+    """Comment lines: each row with a target in seconds ("≤ X s") as a multiple of the
+    constant-Q Monte Carlo row of the same run, beside its target as a multiple of
+    :data:`TARGET_MACHINE_YARDSTICK`; nothing when that row was not run or the run was
+    not at the targets' 100 Monte Carlo runs."""
+    stick = next((r for r in rows if str(r["what"]).startswith(YARDSTICK_ROW)), None)
+    if runs != 100 or stick is None or not isinstance(stick["value"], float):
+        return []
+    if stick["value"] <= 0:
+        return []
+    yardstick = stick["value"]
+    lines = [
+        f"# in yardsticks (this run's {YARDSTICK_ROW}, {yardstick:.2f} s; the targets "
+        f"over its {TARGET_MACHINE_YARDSTICK} s on the machine they were set on):"
+    ]
+    for row in rows:
+        target = re.fullmatch(r"≤ ([0-9.]+) s", str(row["target"]))
+        if row is stick or target is None or not isinstance(row["value"], float):
+            continue
+        measured, limit = row["value"] / yardstick, float(target[1]) / TARGET_MACHINE_YARDSTICK
+        met = "met" if measured <= limit else "**not met**"
+        lines.append(f"#   {row['what']}: {measured:.2f} (target {limit:.2f}, {met})")
+    return lines
+
+
 def compare(old_path: str, new_path: str) -> int:
     """Print two ``--json`` files side by side, row by row (matched on ``what``)."""
     old, new = (json.loads(Path(p).read_text()) for p in (old_path, new_path))
@@ -571,6 +604,9 @@ def compare(old_path: str, new_path: str) -> int:
         if row.get("value") and was.get("value"):
             ratio = f"{row['value'] / was['value']:.2f}×"
         print(f"| {row['what']} | {was.get('measured', '—')} | {row['measured']} | {ratio} |")
+    for path, record in ((old_path, old), (new_path, new)):
+        for line in in_yardsticks(record["rows"], record.get("runs", 100)):
+            print(line.replace("this run's", f"{path}'s", 1))
     return 0
 
 
@@ -614,6 +650,8 @@ def main() -> int:
             met = {True: "yes", False: "**no**", None: ""}[row.met]
             print(f"| {row.what} | {row.measured} | {row.target} | {met} | `{row.command}` |")
             sys.stdout.flush()
+    for line in in_yardsticks([dataclasses.asdict(r) for r in rows], args.runs):
+        print(line)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"# this process's peak memory: {peak:.0f} MiB")
     if args.json:
@@ -621,6 +659,7 @@ def main() -> int:
             "command": f"{SCRIPT} {' '.join(sys.argv[1:])}".rstrip(),
             "machine": machine,
             "date": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "runs": args.runs,
             "rows": [dataclasses.asdict(r) for r in rows],
         }
         atomic_write(Path(args.json), (json.dumps(record, indent=1) + "\n").encode())
