@@ -32,9 +32,10 @@ Definitions:
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
 - yardsticks: after the table, each timed row with a target in seconds divided by the
-  same run's constant-Q Monte Carlo time, beside its target divided by that row's time
-  on the machine the targets were set on (:data:`TARGET_MACHINE_YARDSTICK`): a reading
-  that the machine's speed and its drift within the hour largely cancel from.
+  same run's constant-Q Monte Carlo time, beside its target divided by that Monte
+  Carlo's time on the machine the targets were set on (:data:`TARGET_MACHINE_YARDSTICK`):
+  a reading from which much of a machine's speed cancels, its drift within the hour
+  only in part.
 """
 
 from __future__ import annotations
@@ -605,7 +606,11 @@ def compare(old_path: str, new_path: str) -> int:
             ratio = f"{row['value'] / was['value']:.2f}×"
         print(f"| {row['what']} | {was.get('measured', '—')} | {row['measured']} | {ratio} |")
     for path, record in ((old_path, old), (new_path, new)):
-        for line in in_yardsticks(record["rows"], record.get("runs", 100)):
+        # files written before they recorded "runs": from their command (--quick: 10)
+        command = record.get("command", "")
+        given = re.search(r"--runs (\d+)", command)
+        fallback = 10 if "--quick" in command else int(given[1]) if given else 100
+        for line in in_yardsticks(record["rows"], record.get("runs", fallback)):
             print(line.replace("this run's", f"{path}'s", 1))
     return 0
 
