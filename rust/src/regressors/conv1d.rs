@@ -6,13 +6,38 @@
 /// the channel padding is a multiple of it.
 pub(super) const LANES: usize = 4;
 /// Output time steps per AVX2 tile (with 4 vectors of channels: 8 accumulators of the
-/// 16 registers).
-const TILE_T: usize = 2;
+/// 16 registers), then 1 for the steps left over.
+const TILES: [usize; 2] = [2, 1];
 /// Output channels per AVX-512 vector (8 float64 lanes).
 const LANES_512: usize = 8;
 /// Output time steps per AVX-512 tile (with 4 vectors of channels: 24 accumulators of
-/// the 32 registers, so that 4 weight loads feed 24 fused multiply-adds).
-const TILE_T_512: usize = 6;
+/// the 32 registers, so that 4 weight loads feed 24 fused multiply-adds), then tiles of
+/// 4, 2 and 1 step for the steps left over: a one-step tile waits on its fused
+/// multiply-adds one after another, a wider one overlaps them.
+const TILES_512: [usize; 4] = [6, 4, 2, 1];
+/// The same for the fused LayerNorm ([`avx512_norm::convolve_norm`]) of blocks of at
+/// most 2 vectors of channels (28 accumulators): its per-step sums, divisions and
+/// square roots wait on one another less, the more steps a tile normalises together.
+const TILES_NARROW_512: [usize; 4] = [14, 4, 2, 1];
+
+/// `match (t_n, nv)` over the tile shapes: `t_n` one of the step counts `[T, ...]` (or
+/// else 1), `nv` 4, 3, 2 or else 1 vectors; each arm is `$call!(T, NV)`.
+macro_rules! tile_shapes {
+    ($t_n:expr, $nv:expr, $call:ident, [$($t:tt),+]) => {
+        match ($t_n, $nv) {
+            $(
+                ($t, 4) => $call!($t, 4),
+                ($t, 3) => $call!($t, 3),
+                ($t, 2) => $call!($t, 2),
+                ($t, _) => $call!($t, 1),
+            )+
+            (_, 4) => $call!(1, 4),
+            (_, 3) => $call!(1, 3),
+            (_, 2) => $call!(1, 2),
+            _ => $call!(1, 1),
+        }
+    };
+}
 
 /// Σ f(v) over `values`, in [`LANES`] partial sums (so that it vectorises): partial
 /// sum j adds `f(values[j])`, `f(values[j + LANES])`, … in order from 0.0, and
@@ -93,28 +118,28 @@ fn assert_operands(
     assert!(w.len() == kdim * c_pad && bias.len() == c_pad && c_pad.is_multiple_of(LANES));
 }
 
-/// The channel blocks and time tiles of [`convolve`] for vectors of `lanes` channels and
-/// tiles of `tile_t` steps: calls `tile(t0, c0, T, NV)` (T is `tile_t` or, for the last
-/// steps, 1; NV is at most 4 vectors). `c_pad` is a multiple of `lanes`.
+/// The channel blocks and time tiles of [`convolve`] for vectors of `lanes` channels:
+/// calls `tile(t0, c0, T, NV)` with NV at most 4 vectors and T the first of `sizes`
+/// (step counts, largest first, the last 1) that fits in the steps left. `c_pad` is a
+/// multiple of `lanes`.
 #[inline(always)]
 fn for_each_tile(
     l_out: usize,
     c_pad: usize,
     lanes: usize,
-    tile_t: usize,
+    sizes: &[usize],
     mut tile: impl FnMut(usize, usize, usize, usize),
 ) {
+    debug_assert!(sizes.last() == Some(&1));
     let mut c0 = 0;
     while c0 < c_pad {
         let nv = ((c_pad - c0) / lanes).min(4);
         let mut t = 0;
-        while t + tile_t <= l_out {
-            tile(t, c0, tile_t, nv);
-            t += tile_t;
-        }
-        while t < l_out {
-            tile(t, c0, 1, nv);
-            t += 1;
+        for &size in sizes {
+            while t + size <= l_out {
+                tile(t, c0, size, nv);
+                t += size;
+            }
         }
         c0 += nv * lanes;
     }
@@ -129,7 +154,7 @@ pub(super) fn convolve_portable(
     bias: &[f64],
     y: &mut [f64],
 ) {
-    for_each_tile(y.len() / c_pad, c_pad, LANES, TILE_T, |t0, c0, t_n, nv| {
+    for_each_tile(y.len() / c_pad, c_pad, LANES, &TILES, |t0, c0, t_n, nv| {
         for t in t0..t0 + t_n {
             let out = &mut y[t * c_pad + c0..][..nv * LANES];
             out.copy_from_slice(&bias[c0..c0 + nv * LANES]);
@@ -144,16 +169,18 @@ pub(super) fn convolve_portable(
 }
 
 /// A SIMD copy of [`convolve`] in module `$name`: vectors `$vec` of `$lanes` float64
-/// lanes, tiles of `$tile_t` steps × up to 4 vectors, compiled for `$feature`; the
-/// intrinsics that load, broadcast, fuse-multiply-add and store such a vector.
+/// lanes, tiles of the step counts `$tiles` (the last 1) × up to 4 vectors, compiled for
+/// `$feature`; the intrinsics that load, broadcast, fuse-multiply-add and store such a
+/// vector.
 macro_rules! simd_kernel {
     (
-        $name:ident, $doc:literal, $feature:literal, $lanes:ident, $tile_t:ident, $vec:ident,
+        $name:ident, $doc:literal, $feature:literal, $lanes:ident, $tiles:ident,
+        [$($t:tt),+], $vec:ident,
         $setzero:ident, $loadu:ident, $set1:ident, $fmadd:ident, $storeu:ident
     ) => {
         #[cfg(target_arch = "x86_64")]
         mod $name {
-            use super::{for_each_tile, $lanes, $tile_t};
+            use super::{for_each_tile, $lanes, $tiles};
             use std::arch::x86_64::*;
 
             #[doc = $doc]
@@ -172,7 +199,7 @@ macro_rules! simd_kernel {
                 bias: &[f64],
                 y: &mut [f64],
             ) {
-                const T: usize = $tile_t;
+                const { assert!(matches!($tiles, [$($t,)+ 1])) };
                 let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
                 let g = Geometry {
                     a,
@@ -182,20 +209,14 @@ macro_rules! simd_kernel {
                     c_pad,
                     bias,
                 };
-                for_each_tile(y.len() / c_pad, c_pad, $lanes, T, |t0, c0, t_n, nv| {
-                    // SAFETY: every index below stays inside the slices `convolve` checked.
-                    unsafe {
-                        match (t_n, nv) {
-                            (T, 4) => store(tile::<T, 4>(&g, t0, c0), yp, c_pad, t0, c0),
-                            (T, 3) => store(tile::<T, 3>(&g, t0, c0), yp, c_pad, t0, c0),
-                            (T, 2) => store(tile::<T, 2>(&g, t0, c0), yp, c_pad, t0, c0),
-                            (T, _) => store(tile::<T, 1>(&g, t0, c0), yp, c_pad, t0, c0),
-                            (_, 4) => store(tile::<1, 4>(&g, t0, c0), yp, c_pad, t0, c0),
-                            (_, 3) => store(tile::<1, 3>(&g, t0, c0), yp, c_pad, t0, c0),
-                            (_, 2) => store(tile::<1, 2>(&g, t0, c0), yp, c_pad, t0, c0),
-                            _ => store(tile::<1, 1>(&g, t0, c0), yp, c_pad, t0, c0),
-                        }
+                for_each_tile(y.len() / c_pad, c_pad, $lanes, &$tiles, |t0, c0, t_n, nv| {
+                    macro_rules! conv {
+                        ($tt:tt, $nv:tt) => {
+                            store(tile::<$tt, $nv>(&g, t0, c0), yp, c_pad, t0, c0)
+                        };
                     }
+                    // SAFETY: every index below stays inside the slices `convolve` checked.
+                    unsafe { tile_shapes!(t_n, nv, conv, [$($t),+]) }
                 });
             }
 
@@ -280,7 +301,8 @@ simd_kernel!(
     "[`super::convolve`] with 4-lane AVX registers and fused multiply-adds.",
     "avx2,fma",
     LANES,
-    TILE_T,
+    TILES,
+    [2],
     __m256d,
     _mm256_setzero_pd,
     _mm256_loadu_pd,
@@ -294,7 +316,8 @@ simd_kernel!(
     "[`super::convolve`] with 8-lane AVX-512 registers and fused multiply-adds.",
     "avx512f",
     LANES_512,
-    TILE_T_512,
+    TILES_512,
+    [6, 4, 2],
     __m512d,
     _mm512_setzero_pd,
     _mm512_loadu_pd,
@@ -332,7 +355,9 @@ pub(super) enum Activations<'a> {
 #[cfg(target_arch = "x86_64")]
 pub(super) mod avx512_norm {
     use super::avx512::{tile, Geometry};
-    use super::{for_each_tile, lane_total, Activations, Norm, LANES, LANES_512, TILE_T_512};
+    use super::{
+        for_each_tile, lane_total, Activations, Norm, LANES, LANES_512, TILES_512, TILES_NARROW_512,
+    };
     use std::arch::x86_64::*;
 
     /// Whether [`convolve_norm`] takes `c` output channels (padded to `c_pad`).
@@ -362,7 +387,8 @@ pub(super) mod avx512_norm {
         norm: &Norm<'_>,
         out: Activations<'_>,
     ) {
-        const T: usize = TILE_T_512;
+        const { assert!(matches!(TILES_512, [6, 4, 2, 1])) };
+        const { assert!(matches!(TILES_NARROW_512, [14, 4, 2, 1])) };
         super::assert_operands(a, step, kdim, w, c_pad, bias, l_out);
         assert!(takes(c_pad, c_pad));
         let fits = match &out {
@@ -383,21 +409,28 @@ pub(super) mod avx512_norm {
             Activations::Pool(sums) => (sums.as_mut_ptr(), true),
         };
         let c = c_pad as f64;
-        for_each_tile(l_out, c_pad, LANES_512, T, |t0, _, t_n, nv| {
+        let narrow = c_pad <= 2 * LANES_512;
+        let sizes: &[usize] = if narrow {
+            &TILES_NARROW_512
+        } else {
+            &TILES_512
+        };
+        for_each_tile(l_out, c_pad, LANES_512, sizes, |t0, _, t_n, nv| {
             // SAFETY: the tiles stay inside the slices (asserted above); one channel
             // block of `nv` = c_pad / 8 vectors covers every channel.
             unsafe {
                 let at = if pool { dst } else { dst.add(t0 * c_pad) };
                 let step = if pool { 0 } else { c_pad };
-                match (t_n, nv) {
-                    (T, 4) => normalise(&tile::<T, 4>(&g, t0, 0), c, norm, at, step),
-                    (T, 3) => normalise(&tile::<T, 3>(&g, t0, 0), c, norm, at, step),
-                    (T, 2) => normalise(&tile::<T, 2>(&g, t0, 0), c, norm, at, step),
-                    (T, _) => normalise(&tile::<T, 1>(&g, t0, 0), c, norm, at, step),
-                    (_, 4) => normalise(&tile::<1, 4>(&g, t0, 0), c, norm, at, step),
-                    (_, 3) => normalise(&tile::<1, 3>(&g, t0, 0), c, norm, at, step),
-                    (_, 2) => normalise(&tile::<1, 2>(&g, t0, 0), c, norm, at, step),
-                    _ => normalise(&tile::<1, 1>(&g, t0, 0), c, norm, at, step),
+                macro_rules! conv_norm {
+                    ($tt:tt, $nv:tt) => {
+                        normalise(&tile::<$tt, $nv>(&g, t0, 0), c, norm, at, step)
+                    };
+                }
+                if narrow {
+                    // at most 2 vectors: the arms of 3 and 4 are never taken
+                    tile_shapes!(t_n, nv, conv_norm, [14, 4, 2])
+                } else {
+                    tile_shapes!(t_n, nv, conv_norm, [6, 4, 2])
                 }
             }
         });

@@ -17,12 +17,14 @@ fn net(
     scaling: Scaling,
     seed: u64,
 ) -> (ConvNet, Vec<ConvBlockWeights>, Vec<DenseWeights>) {
-    net_with([16, 32, 32], prepare, scaling, seed)
+    net_with([16, 32, 32], 200, prepare, scaling, seed)
 }
 
-/// [`net`] with these output channels in its three blocks.
+/// [`net`] with these output channels in its three blocks, for windows of `window`
+/// samples.
 fn net_with(
     channels: [usize; 3],
+    window: usize,
     prepare: Prepare,
     scaling: Scaling,
     seed: u64,
@@ -62,7 +64,8 @@ fn net_with(
         });
         c_in = n_out;
     }
-    let built = ConvNet::new(200, prepare, scaling, 0.01, blocks.clone(), head.clone()).unwrap();
+    let built = ConvNet::new(window, prepare, scaling, 0.01, blocks.clone(), head.clone());
+    let built = built.unwrap();
     (built, blocks, head)
 }
 
@@ -282,21 +285,28 @@ fn the_fused_avx512_avx_and_portable_builds_agree_bit_for_bit() {
         assert!(takes(8, 8) && takes(16, 16) && takes(24, 24) && takes(32, 32));
         assert!(!takes(40, 40) && !takes(12, 12) && !takes(12, 16));
     }
-    for (seed, channels, prepare, scaling) in [
+    // windows of 200 samples (blocks of 200, 100 and 50 steps), 217 (217, 109, 55) and
+    // 45 (45, 23, 12): the fused blocks' tiles of 14 or 6 steps, then every tile of
+    // 4, 2 and 1 step for the steps left over
+    let cases = [
         (10, [16, 32, 32], Prepare::Detrend, Scaling::Spread),
         (11, [16, 32, 32], Prepare::Centre, fixed),
         (12, [8, 24, 40], Prepare::Detrend, Scaling::Spread),
         (13, [12, 24, 8], Prepare::Centre, Scaling::Spread),
-    ] {
-        let (built, _, _) = net_with(channels, prepare, scaling, seed);
+    ];
+    for ((seed, channels, prepare, scaling), n) in cases
+        .into_iter()
+        .flat_map(|case| [200, 217, 45].map(|n| (case, n)))
+    {
+        let (built, _, _) = net_with(channels, n, prepare, scaling, seed);
         let mut s = built.scratch();
         // random windows over ten decades, a constant one, one with a NaN sample
         let mut windows: Vec<Vec<f32>> = (0..200)
-            .map(|k| random(&mut rng, 200, 10f32.powi(k % 11 - 7)))
+            .map(|k| random(&mut rng, n, 10f32.powi(k % 11 - 7)))
             .collect();
-        windows.push(vec![0.25; 200]);
-        windows.push(random(&mut rng, 200, 0.3));
-        windows.last_mut().unwrap()[57] = f32::NAN;
+        windows.push(vec![0.25; n]);
+        windows.push(random(&mut rng, n, 0.3));
+        windows.last_mut().unwrap()[n / 3] = f32::NAN;
         for w in &windows {
             // with AVX-512: the fused blocks; without: the AVX or portable pass again
             let fast = built.forward(w, &mut s);
