@@ -28,6 +28,7 @@
 //! of steps while it is still in registers, instead of in passes over a buffer.
 //! Windows are spread over rayon's threads.
 
+use super::aligned::Aligned;
 #[cfg(target_arch = "x86_64")]
 use super::conv1d::{self, Activations, Norm};
 use super::conv1d::{convolve, lane_sum};
@@ -101,16 +102,16 @@ pub struct ConvNet {
 /// Per-thread buffers of one forward pass.
 struct Scratch {
     /// Each block's zero-padded, time-major input `(pad + l_in + pad) × c_in`.
-    inputs: Vec<Vec<f64>>,
+    inputs: Vec<Aligned>,
     /// One block's convolution output `l_out × c_pad`.
-    conv: Vec<f64>,
+    conv: Aligned,
     prepared: Vec<f64>,
     /// Each step's LayerNorm mean and 1/σ in one block.
     mean: Vec<f64>,
     rstd: Vec<f64>,
     /// The last block's output at one time step, and its sum over time.
     last: Vec<f64>,
-    pooled: Vec<f64>,
+    pooled: Aligned,
     /// The Linear layers' input and output.
     features: Vec<f64>,
     dense: Vec<f64>,
@@ -227,14 +228,14 @@ impl ConvNet {
             inputs: self
                 .blocks
                 .iter()
-                .map(|b| vec![0.0; (b.l_in + 2 * b.pad) * b.c_in])
+                .map(|b| Aligned::zeros((b.l_in + 2 * b.pad) * b.c_in))
                 .collect(),
-            conv: vec![0.0; conv.unwrap_or(0)],
+            conv: Aligned::zeros(conv.unwrap_or(0)),
             prepared: vec![0.0; self.window],
             mean: vec![0.0; steps],
             rstd: vec![0.0; steps],
             last: vec![0.0; c_last],
-            pooled: vec![0.0; c_last],
+            pooled: Aligned::zeros(c_last),
             features: Vec::with_capacity(width),
             dense: Vec::with_capacity(width),
         }

@@ -2,6 +2,7 @@
 //! ([`super::ConvNet`]): each block's kernel as a `(kernel·c_in) × c_pad` matrix for
 //! the tiled convolution, each Linear layer input-major in float64.
 
+use super::super::aligned::Aligned;
 use super::super::conv1d::LANES;
 use super::{ConvBlockWeights, DenseWeights};
 use crate::error::{Error, Result};
@@ -11,10 +12,10 @@ use crate::error::{Error, Result};
 pub(super) struct Block {
     /// `(kernel·c_in) × c_pad`: row `k·c_in + i`, column o is torch's `weight[o, i, k]`;
     /// columns beyond `c_out` are zero.
-    pub(super) w: Vec<f64>,
-    pub(super) bias: Vec<f64>,
-    pub(super) gamma: Vec<f64>,
-    pub(super) beta: Vec<f64>,
+    pub(super) w: Aligned,
+    pub(super) bias: Aligned,
+    pub(super) gamma: Aligned,
+    pub(super) beta: Aligned,
     pub(super) eps: f64,
     pub(super) c_in: usize,
     pub(super) c_out: usize,
@@ -100,7 +101,7 @@ impl Block {
             ));
         }
         let c_pad = b.c_out.div_ceil(LANES) * LANES;
-        let mut w = vec![0.0; b.kernel * b.c_in * c_pad];
+        let mut w = Aligned::zeros(b.kernel * b.c_in * c_pad);
         for o in 0..b.c_out {
             for ci in 0..b.c_in {
                 for k in 0..b.kernel {
@@ -109,7 +110,7 @@ impl Block {
                 }
             }
         }
-        let mut bias = vec![0.0; c_pad];
+        let mut bias = Aligned::zeros(c_pad);
         for (dst, &v) in bias.iter_mut().zip(&b.bias) {
             *dst = f64::from(v);
         }

@@ -6,6 +6,7 @@
 //! - [`convnet`]: the ProNet CNNs (`BaselineNet`, `DetrendNet`);
 //! - [`hcf`]: the handcrafted-feature ensemble (gradient boosting and a random forest).
 
+mod aligned;
 mod conv1d;
 pub mod convnet;
 pub mod hcf;
