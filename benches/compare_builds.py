@@ -1,0 +1,145 @@
+"""Two or more builds of pronet's core, timed side by side in one process.
+
+Run:  ~/.cache/pronet-venv/bin/python benches/compare_builds.py NAME=PATH.so NAME=PATH.so
+      [--threads N] [--rounds R] [--calls C] [--monte-carlo]
+
+Each PATH is a ``_core.abi3.so`` (e.g. ``python/pronet/_core.abi3.so`` copied aside
+before and after a change). All of them are loaded into this one process, each under
+the name ``pronet._core``, and their calls are interleaved: R rounds, each timing C
+calls of every build, in alternating order. Prints each build's median time per call,
+its min and max, and its ratio to the first build's median. Every build must give the
+same predictions (checked first), so that only the speed is compared.
+
+Why not time each build in its own process: on the machines of this project the same
+build ran ~8 % faster or slower from one process to the next (where the allocator put
+its buffers, how the machine drifted between the runs), more than the changes being
+measured. Interleaving in one process cancels both.
+
+Timed: the shipped detrend net's forward pass on 600 windows (what the learned loop
+calls at each tuning instant), and with ``--monte-carlo`` the constant-Q Monte Carlo
+of 100 runs on the paper's scenario (one call per round).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.machinery
+import importlib.util
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from pronet import frozen, paper
+
+
+def load_core(path: str) -> ModuleType:
+    """The extension module at ``path``, loaded as ``pronet._core`` (not registered in
+    ``sys.modules``, so several builds coexist)."""
+    loader = importlib.machinery.ExtensionFileLoader("pronet._core", path)
+    spec = importlib.util.spec_from_file_location("pronet._core", path, loader=loader)
+    if spec is None:
+        raise SystemExit(f"{path}: not a loadable extension module")
+    module = importlib.util.module_from_spec(spec)
+    loader.exec_module(module)
+    return module
+
+
+@contextmanager
+def building_with(module: ModuleType, core: ModuleType) -> Iterator[None]:
+    """Within the block, ``module``'s functions build their core objects from ``core``."""
+    saved = getattr(module, "_core")  # noqa: B009 (mypy: _core is not re-exported)
+    setattr(module, "_core", core)  # noqa: B010
+    try:
+        yield
+    finally:
+        setattr(module, "_core", saved)  # noqa: B010
+
+
+def net_call(core: ModuleType, threads: int) -> Callable[[], Any]:
+    """The detrend net of ``core`` predicting 600 windows (100 runs × 6 channels)."""
+    tensors, card, weights, card_file = frozen.read_model("detrend")
+    arch = frozen.checked_architecture(card, tensors, weights, card_file)
+    with building_with(frozen, core):
+        net = frozen.conv_net("detrend", arch, tensors, threads)
+    rng = np.random.default_rng(0)
+    windows = (rng.standard_normal((600, 200)) * 0.01 + 9.8).astype(np.float32)
+    return lambda: net.predict(windows)
+
+
+def monte_carlo_call(core: ModuleType, threads: int) -> Callable[[], Any]:
+    """The constant-Q Monte Carlo of ``core``: 100 runs of the paper's scenario (its
+    sensors and filter, built from ``core``'s own types)."""
+    q = tuple(paper.PAPER_Q)
+    trajectory = core.builtin_trajectory("paper")
+    sensors = core.SensorConfig(imu_variance=q)  # as scenarios.paper_scenario's
+    with building_with(paper, core):
+        config = paper.paper_filter_config()
+    strategy = core.Strategy.constant(q)
+    return lambda: core.monte_carlo(
+        trajectory, sensors, config, strategy, n_runs=100, seed=0, threads=threads
+    )
+
+
+def interleave(
+    calls: dict[str, Callable[[], Any]], rounds: int, per_round: int
+) -> dict[str, list[float]]:
+    """Seconds per call of each entry, ``rounds`` rounds of ``per_round`` calls each,
+    the order reversed every other round."""
+    times: dict[str, list[float]] = {name: [] for name in calls}
+    names = list(calls)
+    for r in range(rounds):
+        for name in names if r % 2 == 0 else names[::-1]:
+            f = calls[name]
+            t0 = time.perf_counter()
+            for _ in range(per_round):
+                f()
+            times[name].append((time.perf_counter() - t0) / per_round)
+    return times
+
+
+def report(title: str, times: dict[str, list[float]], unit: float, unit_name: str) -> None:
+    first = float(np.median(next(iter(times.values()))))
+    print(f"{title}")
+    for name, ts in times.items():
+        a = np.asarray(ts)
+        print(
+            f"  {name:12s} median {np.median(a) / unit:8.3f} {unit_name}"
+            f"  min {a.min() / unit:8.3f}  max {a.max() / unit:8.3f}"
+            f"  ×{np.median(a) / first:.3f}"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("builds", nargs="+", metavar="NAME=PATH.so")
+    parser.add_argument("--threads", type=int, default=2, help="worker threads (default 2)")
+    parser.add_argument("--rounds", type=int, default=20, help="rounds (default 20)")
+    parser.add_argument("--calls", type=int, default=20, help="net calls per round (20)")
+    parser.add_argument("--monte-carlo", action="store_true", help="also time the Monte Carlo")
+    args = parser.parse_args()
+    cores: dict[str, ModuleType] = {}
+    for item in args.builds:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            parser.error(f"builds: expected NAME=PATH.so, got {item!r}")
+        cores[name] = load_core(path)
+    nets = {name: net_call(core, args.threads) for name, core in cores.items()}
+    answers = {name: f() for name, f in nets.items()}
+    reference = next(iter(answers.values()))
+    for name, q in answers.items():
+        if not np.array_equal(q, reference):
+            raise SystemExit(f"{name}: predictions differ from the first build's")
+    times = interleave(nets, args.rounds, args.calls)
+    report(f"detrend net, 600 windows, {args.threads} threads", times, 1e-3, "ms")
+    if args.monte_carlo:
+        runs = {name: monte_carlo_call(core, args.threads) for name, core in cores.items()}
+        times = interleave(runs, max(args.rounds // 2, 3), 1)
+        report(f"constant-Q Monte Carlo, 100 runs, {args.threads} threads", times, 1.0, "s")
+
+
+if __name__ == "__main__":
+    main()
