@@ -104,6 +104,12 @@ def test_figures_drawn_in_a_worker_are_the_ones_drawn_here(ran, tmp_path):
         assert (tmp_path / name).read_bytes() == png
 
 
+def test_the_pool_defaults_to_half_the_cores_and_at_least_one_worker(monkeypatch):
+    for cores, workers in [(None, 1), (1, 1), (2, 1), (3, 1), (8, 4), (64, 32)]:
+        monkeypatch.setattr(realplots.os, "cpu_count", lambda c=cores: c)
+        assert realplots.default_workers() == workers
+
+
 def _varied(curves):
     """Sections unlike ``curves`` and each other: other rows, spans, names, no q."""
     track = [(lab, 3.0 * e - 40.0, 0.5 * n) for lab, e, n in curves.track]

@@ -145,6 +145,11 @@ def figure_name(kind: str, section: str) -> str:
     return f"{kind}_{section}.png"
 
 
+def default_workers() -> int:
+    """:class:`FigurePool`'s default: half this machine's cores, at least one."""
+    return max(1, (os.cpu_count() or 1) // 2)
+
+
 class FigurePool:
     """Draws sections' figures in worker processes as the sections are handed in;
     :meth:`write` collects them into a folder. Use as a context manager: leaving it
@@ -156,12 +161,17 @@ class FigurePool:
     workers import the caller's main script again (an unguarded script would run
     twice), forked ones copy the caller's memory page by page as it writes, and a
     worker killed inside its pool's queue lock can hang the pool's shutdown.
+
+    ``workers``: how many (default: half the cores, at least one). The filters are most
+    of the work and keep the cores first (the workers run at nice +10); a worker more
+    than the cores they leave idle only adds its start-up (on 2 cores, two workers made
+    ``pronet real`` on the Snapir data 8.3-9.0 s against 7.8-8.3 s with one).
     """
 
     def __init__(self, workers: int | None = None) -> None:
         import pronet
 
-        n = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        n = max(1, workers if workers is not None else default_workers())
         env = dict(os.environ)  # the workers import this pronet, wherever it lies
         here = str(Path(pronet.__file__).resolve().parents[1])
         env["PYTHONPATH"] = os.pathsep.join(p for p in (here, env.get("PYTHONPATH")) if p)
