@@ -53,6 +53,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -95,7 +96,7 @@ def best_of(repeat: int, f: Callable[[], object]) -> float:
 
 
 def paper_monte_carlo(strategy: pronet.Strategy, n_runs: int, threads: int | None) -> None:
-    sc = scenarios.SCENARIOS["paper"]()
+    sc = scenarios.paper_scenario()
     pronet.monte_carlo(
         sc.trajectory,
         strategy,
@@ -218,11 +219,12 @@ def bench_monte_carlo(args: argparse.Namespace) -> list[Row]:
 
 
 def bench_hybrid(args: argparse.Namespace) -> list[Row]:
-    sc = scenarios.SCENARIOS["paper"]()
+    sc = scenarios.paper_scenario()
     n = args.runs
     rows = []
-    net = models.load("detrend")
-    assert isinstance(net, models.BaselineNet)
+    loaded = models.load("detrend")
+    assert isinstance(loaded, models.BaselineNet)
+    net: models.BaselineNet = loaded
 
     class TorchPass:  # the same net through torch's float32 pass: the loop before freezing
         def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
@@ -274,12 +276,12 @@ def bench_inference(args: argparse.Namespace) -> list[Row]:
         model = models.load(name)
         if isinstance(model, models.BaselineNet):
             frozen = model.frozen()
-            candidates.append((f"{name}, frozen in the core", lambda m=frozen: m.predict(windows)))
+            candidates.append((f"{name}, frozen in the core", partial(frozen.predict, windows)))
             candidates.append(
-                (f"{name}, torch float32", lambda m=model: m.predict(windows, native=False))
+                (f"{name}, torch float32", partial(model.predict, windows, native=False))
             )
         else:
-            candidates.append((name, lambda m=model: m.predict(windows)))
+            candidates.append((name, partial(model.predict, windows)))
     rows = []
     for label, call in candidates:
         call()  # warm-up
@@ -317,7 +319,7 @@ def bench_reference(args: argparse.Namespace) -> list[Row]:
     sys.path.insert(0, str(ROOT / "tests"))
     from numpy_reference_ekf import run_reference_filter
 
-    sc = scenarios.SCENARIOS["paper"]()
+    sc = scenarios.paper_scenario()
     cfg = paper.paper_filter_config()
     traj = sc.trajectory
     n = int(round(args.reference_seconds / traj.dt))
@@ -494,8 +496,9 @@ def bench_real(args: argparse.Namespace) -> list[Row]:
         per_section.append(
             best_of(
                 args.repeat,
-                lambda p=path: alignment.load_section(
-                    p,
+                partial(
+                    alignment.load_section,
+                    path,
                     "snapir",
                     imu_lever_arm=alignment.SNAPIR_IMU_LEVER_ARM,
                     dvl_lever_arm=alignment.SNAPIR_DVL_LEVER_ARM,

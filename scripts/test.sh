@@ -20,7 +20,7 @@ echo "== ruff"
 "$VENV/bin/ruff" check python tests benches examples scripts
 echo "== stubtest (python/pronet/_core.pyi against the built module)"
 "$VENV/bin/python" -m mypy.stubtest pronet._core
-echo "== mypy (the package's types)"
+echo "== mypy (the package's and the benchmarks' types)"
 # Its cache lives beside the venv, outside the checkout: a fresh clone does not redo
 # the third-party modules (mypy re-checks every file whose contents changed).
 "$VENV/bin/python" -m mypy --cache-dir "${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
