@@ -8,12 +8,16 @@ before and after a change). All of them are loaded into this one process, each u
 the name ``pronet._core``, and their calls are interleaved: R rounds, each timing C
 calls of every build, in alternating order. Prints each build's median time per call,
 its min and max, and its ratio to the first build's median. Every build must give the
-same predictions (checked first), so that only the speed is compared.
+same answers, bit for bit (checked first, for each thing timed), so that only the speed
+is compared.
 
 Why not time each build in its own process: on the machines of this project the same
-build ran ~8 % faster or slower from one process to the next (where the allocator put
-its buffers, how the machine drifted between the runs), more than the changes being
-measured. Interleaving in one process cancels both.
+build ran up to ~8 % faster or slower from one process to the next, more than the
+changes being measured: the machine drifts between runs, and where the allocator puts
+a build's buffers moved the CNN by that much (its buffers are 64-byte aligned since).
+Interleaving in one process cancels the drift. Where each build's buffers lie stays
+fixed for the process: to rule it out for code whose data is not aligned, compare again
+in a second process.
 
 Timed: the shipped detrend net's forward pass on 600 windows (what the learned loop
 calls at each tuning instant), and with ``--monte-carlo`` the constant-Q Monte Carlo
@@ -26,7 +30,7 @@ import argparse
 import importlib.machinery
 import importlib.util
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from types import ModuleType
 from typing import Any
@@ -41,11 +45,41 @@ def load_core(path: str) -> ModuleType:
     ``sys.modules``, so several builds coexist)."""
     loader = importlib.machinery.ExtensionFileLoader("pronet._core", path)
     spec = importlib.util.spec_from_file_location("pronet._core", path, loader=loader)
-    if spec is None:
-        raise SystemExit(f"{path}: not a loadable extension module")
-    module = importlib.util.module_from_spec(spec)
-    loader.exec_module(module)
+    try:
+        module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+        loader.exec_module(module)
+    except (ImportError, OSError) as exc:
+        raise SystemExit(f"{path}: not a loadable build of pronet's core ({exc})") from None
     return module
+
+
+def first_difference(answers: Mapping[str, Any]) -> str | None:
+    """Where a build's answer differs from the first build's (``None`` when each is the
+    same, bit for bit). An answer is an array or a mapping of names to arrays."""
+
+    def arrays(answer: Any) -> dict[str, np.ndarray]:
+        if isinstance(answer, Mapping):
+            return {k: np.asarray(v) for k, v in answer.items() if isinstance(v, np.ndarray)}
+        return {"": np.asarray(answer)}
+
+    def bits(a: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(a).view(np.uint8).reshape(*a.shape, a.dtype.itemsize)
+
+    (first, reference), *others = ((n, arrays(a)) for n, a in answers.items())
+    for name, got in others:
+        for key in sorted(set(reference) | set(got)):
+            where = f"{name}: {key + ' ' if key else ''}"
+            want, have = reference.get(key), got.get(key)
+            if want is None or have is None or (want.shape, want.dtype) != (have.shape, have.dtype):
+                return f"{where}not shaped or typed as {first}'s"
+            same = (bits(want) == bits(have)).all(axis=-1)
+            if not np.all(same):
+                i = tuple(int(j) for j in np.argwhere(~same)[0])
+                return (
+                    f"{where}{np.count_nonzero(~same)} of {same.size} values differ from "
+                    f"{first}'s, the first at {i}: {have[i].item()!r} against {want[i].item()!r}"
+                )
+    return None
 
 
 @contextmanager
@@ -113,32 +147,46 @@ def report(title: str, times: dict[str, list[float]], unit: float, unit_name: st
         )
 
 
+def positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def timed(title: str, calls: dict[str, Callable[[], Any]], rounds: int, per_round: int) -> None:
+    """Check that every build answers alike, then time them interleaved and report."""
+    difference = first_difference({name: f() for name, f in calls.items()})
+    if difference is not None:
+        raise SystemExit(f"{title}: {difference}; the builds do not compute the same")
+    report(
+        title, interleave(calls, rounds, per_round), *(1e-3, "ms") if per_round > 1 else (1.0, "s")
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("builds", nargs="+", metavar="NAME=PATH.so")
-    parser.add_argument("--threads", type=int, default=2, help="worker threads (default 2)")
-    parser.add_argument("--rounds", type=int, default=20, help="rounds (default 20)")
-    parser.add_argument("--calls", type=int, default=20, help="net calls per round (20)")
+    parser.add_argument("--threads", type=positive, default=2, help="worker threads (2)")
+    parser.add_argument("--rounds", type=positive, default=20, help="rounds (default 20)")
+    parser.add_argument("--calls", type=positive, default=20, help="net calls per round (20)")
     parser.add_argument("--monte-carlo", action="store_true", help="also time the Monte Carlo")
     args = parser.parse_args()
-    cores: dict[str, ModuleType] = {}
+    paths: dict[str, str] = {}
     for item in args.builds:
         name, sep, path = item.partition("=")
         if not sep or not name or not path:
             parser.error(f"builds: expected NAME=PATH.so, got {item!r}")
-        cores[name] = load_core(path)
+        if name in paths:
+            parser.error(f"builds: the name {name!r} is given twice")
+        paths[name] = path
+    cores = {name: load_core(path) for name, path in paths.items()}
     nets = {name: net_call(core, args.threads) for name, core in cores.items()}
-    answers = {name: f() for name, f in nets.items()}
-    reference = next(iter(answers.values()))
-    for name, q in answers.items():
-        if not np.array_equal(q, reference):
-            raise SystemExit(f"{name}: predictions differ from the first build's")
-    times = interleave(nets, args.rounds, args.calls)
-    report(f"detrend net, 600 windows, {args.threads} threads", times, 1e-3, "ms")
+    timed(f"detrend net, 600 windows, {args.threads} threads", nets, args.rounds, args.calls)
     if args.monte_carlo:
         runs = {name: monte_carlo_call(core, args.threads) for name, core in cores.items()}
-        times = interleave(runs, max(args.rounds // 2, 3), 1)
-        report(f"constant-Q Monte Carlo, 100 runs, {args.threads} threads", times, 1.0, "s")
+        title = f"constant-Q Monte Carlo, 100 runs, {args.threads} threads"
+        timed(title, runs, max(args.rounds // 2, 3), 1)
 
 
 if __name__ == "__main__":

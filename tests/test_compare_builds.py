@@ -1,14 +1,18 @@
 """benches/compare_builds.py loads several builds of the core into one process and
-times them interleaved; a build that predicts differently is refused, not timed."""
+times them interleaved, after checking that they answer alike bit for bit; bad
+arguments and unloadable builds are named."""
 
 from __future__ import annotations
 
+import importlib.util
 import shutil
 import subprocess
 import sys
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
+import pytest
 
 from pronet import _core
 
@@ -21,24 +25,77 @@ def run(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+def rows(stdout: str) -> dict[str, dict[str, list[str]]]:
+    """Each title's rows, by build name."""
+    out: dict[str, dict[str, list[str]]] = {}
+    title = ""
+    for line in stdout.splitlines():
+        if line.startswith("  "):
+            out[title][line.split()[0]] = line.split()
+        else:
+            title = line
+            out[title] = {}
+    return out
+
+
+@pytest.fixture(scope="module")
+def script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("compare_builds", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def test_two_copies_of_the_installed_build_are_timed_side_by_side(tmp_path: Path) -> None:
     copy = tmp_path / "_core.abi3.so"
     shutil.copyfile(_core.__file__, copy)
-    out = run(f"installed={_core.__file__}", f"copy={copy}", "--rounds", "2", "--calls", "1")
+    out = run(
+        f"installed={_core.__file__}",
+        f"copy={copy}",
+        "--rounds",
+        "2",
+        "--calls",
+        "1",
+        "--monte-carlo",
+    )
     assert out.returncode == 0, out.stderr
-    lines = out.stdout.splitlines()
-    assert lines[0] == "detrend net, 600 windows, 2 threads"
-    rows = {line.split()[0]: line.split() for line in lines[1:]}
-    assert set(rows) == {"installed", "copy"}
-    assert rows["installed"][-1] == "×1.000"  # the first build is the reference
-    medians = [float(rows[name][2]) for name in ("installed", "copy")]
-    assert all(np.isfinite(medians)) and min(medians) > 0
+    tables = rows(out.stdout)
+    assert list(tables) == [
+        "detrend net, 600 windows, 2 threads",
+        "constant-Q Monte Carlo, 100 runs, 2 threads",
+    ]
+    for table in tables.values():
+        assert set(table) == {"installed", "copy"}
+        assert table["installed"][-1] == "×1.000"  # the first build is the reference
+        medians = [float(table[name][2]) for name in ("installed", "copy")]
+        assert all(np.isfinite(medians)) and min(medians) > 0
 
 
-def test_a_build_is_named_when_it_cannot_be_loaded_or_is_malformed(tmp_path: Path) -> None:
+def test_builds_that_answer_differently_are_refused_with_where(script: ModuleType) -> None:
+    a = np.array([[1.0, np.nan], [0.0, 2.0]])
+    assert script.first_difference({"a": a, "b": a.copy()}) is None  # NaN is NaN
+    signed = np.array([[1.0, np.nan], [-0.0, 2.0]])  # equal as numbers, not bit for bit
+    assert script.first_difference({"a": a, "b": signed}) == (
+        "b: 1 of 4 values differ from a's, the first at (1, 0): -0.0 against 0.0"
+    )
+    runs = {"error": a, "steps": 7}  # a Monte Carlo's answer: its arrays are compared
+    assert script.first_difference({"a": runs, "b": {"error": a.copy()}}) is None
+    assert script.first_difference({"a": runs, "b": {"error": a[:1]}}) == (
+        "b: error not shaped or typed as a's"
+    )
+    assert script.first_difference({"a": runs, "b": {}}) == "b: error not shaped or typed as a's"
+
+
+def test_bad_arguments_and_unloadable_builds_are_named(tmp_path: Path) -> None:
     out = run("no-equals-sign")
     assert out.returncode == 2 and "expected NAME=PATH.so, got 'no-equals-sign'" in out.stderr
+    out = run(f"a={_core.__file__}", f"a={_core.__file__}")
+    assert out.returncode == 2 and "the name 'a' is given twice" in out.stderr
+    out = run(f"a={_core.__file__}", "--calls", "0")
+    assert out.returncode == 2 and "--calls: must be >= 1, got 0" in out.stderr
     bad = tmp_path / "_core.abi3.so"
     bad.write_bytes(b"not a shared object")
     out = run(f"bad={bad}")
-    assert out.returncode != 0 and str(bad) in out.stderr
+    (line,) = out.stderr.strip().splitlines()  # one line, no traceback
+    assert out.returncode == 1 and line.startswith(f"{bad}: not a loadable build of pronet")

@@ -1,9 +1,9 @@
 //! float64 buffers that start on a 64-byte boundary: a cache line, and one AVX-512
 //! vector. The CNN's weights and activations are read and written in such vectors
-//! ([`super::conv1d`]); from a `Vec<f64>` (16-byte aligned) most of them straddle two
-//! cache lines, and how many depended on where the allocator happened to put each
-//! buffer, so that the same build ran up to ~15 % slower or faster from one process to
-//! the next.
+//! ([`super::conv1d`]); a `Vec<f64>` is only sure to be 8-byte aligned (glibc gives 16),
+//! so most of them straddled two cache lines, and how many depended on where the
+//! allocator happened to put each buffer: the same build took 10.0-11.3 ms per 600
+//! windows from one process to the next.
 
 use std::ops::{Deref, DerefMut};
 

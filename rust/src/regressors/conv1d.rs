@@ -20,21 +20,30 @@ const TILES_512: [usize; 4] = [6, 4, 2, 1];
 /// square roots wait on one another less, the more steps a tile normalises together.
 const TILES_NARROW_512: [usize; 4] = [14, 4, 2, 1];
 
-/// `match (t_n, nv)` over the tile shapes: `t_n` one of the step counts `[T, ...]` (or
-/// else 1), `nv` 4, 3, 2 or else 1 vectors; each arm is `$call!(T, NV)`.
+/// `match (t_n, nv)` over the tile shapes: `t_n` one of the step counts `[T, ..., 1]`
+/// (a size list, whose constant the caller asserts equal to it), `nv` 4, 3, 2 or 1
+/// vectors (`wide`) or 2 or 1 (`narrow`); each arm is `$call!(T, NV)`. Any other pair
+/// is a bug in the caller's tiling: a panic (the bindings report it as an internal
+/// error) rather than steps left uncomputed.
 macro_rules! tile_shapes {
-    ($t_n:expr, $nv:expr, $call:ident, [$($t:tt),+]) => {
+    (wide, $t_n:expr, $nv:expr, $call:ident, [$($t:tt),+]) => {
         match ($t_n, $nv) {
             $(
                 ($t, 4) => $call!($t, 4),
                 ($t, 3) => $call!($t, 3),
                 ($t, 2) => $call!($t, 2),
-                ($t, _) => $call!($t, 1),
+                ($t, 1) => $call!($t, 1),
             )+
-            (_, 4) => $call!(1, 4),
-            (_, 3) => $call!(1, 3),
-            (_, 2) => $call!(1, 2),
-            _ => $call!(1, 1),
+            (t_n, nv) => unreachable!("no tile of {t_n} steps and {nv} vectors"),
+        }
+    };
+    (narrow, $t_n:expr, $nv:expr, $call:ident, [$($t:tt),+]) => {
+        match ($t_n, $nv) {
+            $(
+                ($t, 2) => $call!($t, 2),
+                ($t, 1) => $call!($t, 1),
+            )+
+            (t_n, nv) => unreachable!("no narrow tile of {t_n} steps and {nv} vectors"),
         }
     };
 }
@@ -169,7 +178,8 @@ pub(super) fn convolve_portable(
 }
 
 /// A SIMD copy of [`convolve`] in module `$name`: vectors `$vec` of `$lanes` float64
-/// lanes, tiles of the step counts `$tiles` (the last 1) × up to 4 vectors, compiled for
+/// lanes, tiles of the step counts `$tiles` (the last 1; `[$t, ...]` the same list, for
+/// `tile_shapes!`) × up to 4 vectors, compiled for
 /// `$feature`; the intrinsics that load, broadcast, fuse-multiply-add and store such a
 /// vector.
 macro_rules! simd_kernel {
@@ -199,7 +209,7 @@ macro_rules! simd_kernel {
                 bias: &[f64],
                 y: &mut [f64],
             ) {
-                const { assert!(matches!($tiles, [$($t,)+ 1])) };
+                const { assert!(matches!($tiles, [$($t),+])) };
                 let (a, w, bias, yp) = (a.as_ptr(), w.as_ptr(), bias.as_ptr(), y.as_mut_ptr());
                 let g = Geometry {
                     a,
@@ -216,7 +226,7 @@ macro_rules! simd_kernel {
                         };
                     }
                     // SAFETY: every index below stays inside the slices `convolve` checked.
-                    unsafe { tile_shapes!(t_n, nv, conv, [$($t),+]) }
+                    unsafe { tile_shapes!(wide, t_n, nv, conv, [$($t),+]) }
                 });
             }
 
@@ -302,7 +312,7 @@ simd_kernel!(
     "avx2,fma",
     LANES,
     TILES,
-    [2],
+    [2, 1],
     __m256d,
     _mm256_setzero_pd,
     _mm256_loadu_pd,
@@ -317,7 +327,7 @@ simd_kernel!(
     "avx512f",
     LANES_512,
     TILES_512,
-    [6, 4, 2],
+    [6, 4, 2, 1],
     __m512d,
     _mm512_setzero_pd,
     _mm512_loadu_pd,
@@ -427,10 +437,9 @@ pub(super) mod avx512_norm {
                     };
                 }
                 if narrow {
-                    // at most 2 vectors: the arms of 3 and 4 are never taken
-                    tile_shapes!(t_n, nv, conv_norm, [14, 4, 2])
+                    tile_shapes!(narrow, t_n, nv, conv_norm, [14, 4, 2, 1])
                 } else {
-                    tile_shapes!(t_n, nv, conv_norm, [6, 4, 2])
+                    tile_shapes!(wide, t_n, nv, conv_norm, [6, 4, 2, 1])
                 }
             }
         });
