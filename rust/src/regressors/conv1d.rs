@@ -179,9 +179,8 @@ pub(super) fn convolve_portable(
 
 /// A SIMD copy of [`convolve`] in module `$name`: vectors `$vec` of `$lanes` float64
 /// lanes, tiles of the step counts `$tiles` (the last 1; `[$t, ...]` the same list, for
-/// `tile_shapes!`) × up to 4 vectors, compiled for
-/// `$feature`; the intrinsics that load, broadcast, fuse-multiply-add and store such a
-/// vector.
+/// `tile_shapes!`) × up to 4 vectors, compiled for `$feature`; the intrinsics that load,
+/// broadcast, fuse-multiply-add and store such a vector.
 macro_rules! simd_kernel {
     (
         $name:ident, $doc:literal, $feature:literal, $lanes:ident, $tiles:ident,

@@ -25,8 +25,9 @@
 //! is a register-tiled product over those slices, with AVX-512, or AVX2 and FMA, where
 //! the CPU has them (the same bits on every path). With AVX-512, a block whose channels
 //! fill at most four whole vectors (the shipped nets' 16 and 32) normalises each tile
-//! of steps while it is still in registers, instead of in passes over a buffer.
-//! Windows are spread over rayon's threads.
+//! of steps while it is still in registers, instead of in passes over a buffer. The
+//! weights and activations start on cache lines ([`super::aligned`]). Windows are spread
+//! over rayon's threads.
 
 use super::aligned::Aligned;
 #[cfg(target_arch = "x86_64")]
