@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pronet import alignment, realdata, realplots
+from pronet import alignment, realdata, realplots, sectionplots
 from pronet.alignment import align, estimate_alignment
 from pronet.hybrid import ConstantRegressor
 from pronet.realtuning import real_filter_config
@@ -110,6 +110,29 @@ def test_the_pool_defaults_to_half_the_cores_and_at_least_one_worker(monkeypatch
         assert realplots.default_workers() == workers
 
 
+def test_a_kept_legend_is_pasted_only_where_it_covers_the_background_alone(ran):
+    """Something drawn where the legend is: its pixels are not pasted over it (nor kept
+    from a drawing with it), and the figure is the one matplotlib draws."""
+    from pronet._legendpixels import LegendPixels
+
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    figure = sectionplots.SectionFigure("track")
+    figure.png(curves)
+    figure.png(curves)
+    assert figure.legend.pasted == 1
+    box = figure.fig.legends[0].get_window_extent()
+    width, height = figure.fig.bbox.width, figure.fig.bbox.height
+    figure.fig.text((box.x0 + 4) / width, (box.y0 + 4) / height, "under the legend")
+    drawn = figure.png(curves)  # refused: the region is not background alone
+    assert figure.legend.pasted == 1 and not figure.legend.holds(figure.fig.legends[0])
+    figure.legend = LegendPixels()  # nothing kept: matplotlib draws the legend
+    assert figure.png(curves) == drawn
+    figure.png(curves)  # nor kept from a drawing where the text reaches the legend
+    assert figure.legend.pasted == 0
+
+
 def _varied(curves):
     """Sections unlike ``curves`` and each other: other rows, spans, names, no q."""
     track = [(lab, 3.0 * e - 40.0, 0.5 * n) for lab, e, n in curves.track]
@@ -159,6 +182,8 @@ def test_a_kept_figure_draws_the_bytes_of_a_fresh_one(ran):
                 realplots.draw_figure(kind, broken, kept)
             assert kept[kind].axes[0].lines  # half drawn: the next one starts clean
     assert sorted(kept) == sorted(realplots.FIGURES)
+    # the legends of the sections with the same rows were pasted, not drawn again
+    assert all(kept[kind].legend.pasted >= 1 for kind in realplots.FIGURES)
     with pytest.raises(ValueError, match="kind: expected one of track, velocity_error, q"):
         realplots.draw_figure("speed", curves)
 

@@ -1,5 +1,5 @@
 """The figures of ``pronet real``: what each section's three figures show, taken from
-its runs as small arrays (:class:`pronet.plots.SectionCurves`), and drawn in worker
+its runs as small arrays (:class:`pronet.sectionplots.SectionCurves`), and drawn in worker
 processes while the other sections are still being filtered.
 
 matplotlib holds the GIL for nearly all of a figure's drawing, so figures drawn on a
@@ -28,12 +28,12 @@ import numpy as np
 
 from pronet._files import atomic_write
 from pronet._waiting import result_of
-from pronet.plots import SECTION_FIGURES, SectionFigure
+from pronet.sectionplots import SECTION_FIGURES, SectionFigure
 
 if TYPE_CHECKING:
     from pronet.alignment import Section
-    from pronet.plots import SectionCurves
     from pronet.realdata import SectionRun
+    from pronet.sectionplots import SectionCurves
 
 #: Points per line beyond which a long series is drawn thinned (every k-th point, the
 #: last one kept): a 40,000-sample track drawn at ~800 pixels looks the same, and
@@ -73,8 +73,8 @@ def section_curves(
             ``trace / (3 Δt_imu Δt)``.
     """
     from pronet import earth_radii
-    from pronet.plots import SectionCurves
     from pronet.realmetrics import estimate_at_truth
+    from pronet.sectionplots import SectionCurves
 
     lla0 = section.truth_lla[0]
     r_n, r_e = earth_radii(float(lla0[0]))
@@ -131,8 +131,8 @@ def draw_figure(
     """One of the figures of a section (``kind`` in :data:`FIGURES`), as PNG bytes.
 
     ``kept``: figures to draw again, by kind (a worker's; one is added on a kind's
-    first use), instead of a new figure each time: the same bytes, at about three
-    quarters of the cost (:class:`pronet.plots.SectionFigure`)."""
+    first use), instead of a new figure each time: the same bytes, at about half the
+    cost (:class:`pronet.sectionplots.SectionFigure`)."""
     if kept is None:
         return SectionFigure(kind).png(curves)
     if kind not in kept:
