@@ -111,10 +111,8 @@ def test_the_pool_defaults_to_half_the_cores_and_at_least_one_worker(monkeypatch
 
 
 def test_a_kept_legend_is_pasted_only_where_it_covers_the_background_alone(ran):
-    """Something drawn where the legend is: its pixels are not pasted over it (nor kept
-    from a drawing with it), and the figure is the one matplotlib draws."""
-    from pronet._legendpixels import LegendPixels
-
+    """Something drawn where the legend is: its pixels are not pasted over it, nor kept
+    from a drawing with it, and the figure is the one matplotlib draws."""
     section, done, _ = ran
     imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
     curves = realplots.section_curves(section, done.runs, done.constants[section.name], imu_dt)
@@ -124,13 +122,51 @@ def test_a_kept_legend_is_pasted_only_where_it_covers_the_background_alone(ran):
     assert figure.legend.pasted == 1
     box = figure.fig.legends[0].get_window_extent()
     width, height = figure.fig.bbox.width, figure.fig.bbox.height
-    figure.fig.text((box.x0 + 4) / width, (box.y0 + 4) / height, "under the legend")
+    under = ((box.x0 + 4) / width, (box.y0 + 4) / height, "under the legend")
+    figure.fig.text(*under)
     drawn = figure.png(curves)  # refused: the region is not background alone
     assert figure.legend.pasted == 1 and not figure.legend.holds(figure.fig.legends[0])
-    figure.legend = LegendPixels()  # nothing kept: matplotlib draws the legend
-    assert figure.png(curves) == drawn
-    figure.png(curves)  # nor kept from a drawing where the text reaches the legend
-    assert figure.legend.pasted == 0
+    fresh = sectionplots.SectionFigure("track")
+    fresh.fig.text(*under)
+    assert fresh.png(curves) == drawn  # matplotlib's own drawing
+    # nothing kept from a drawing where the text reaches the legend
+    assert not fresh.legend.holds(fresh.fig.legends[0])
+    beside = sectionplots.SectionFigure("track")  # text just off the pixels kept: kept
+    beside.fig.text(0.01, 0.01, "far from the legend")
+    beside.png(curves)
+    assert beside.legend.holds(beside.fig.legends[0])
+
+
+def test_a_legend_is_kept_only_for_its_own_entries_and_lines_alone():
+    """The key names what the legend's pixels depend on; a legend with a handle other
+    than a line (here a patch) is never kept."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from pronet._legendpixels import LegendPixels, legend_key
+    from pronet.plots import _drawn
+
+    def figure(**line):
+        fig = Figure(figsize=(3, 2), dpi=60)
+        FigureCanvasAgg(fig)
+        ax = fig.add_axes((0.1, 0.1, 0.4, 0.8))
+        ax.plot([0, 1], [0, 1], label="a", **line)
+        return fig, ax
+
+    fig, ax = figure()
+    legend = fig.legend(loc="upper right")
+    kept = LegendPixels()
+    kept.keep(fig, legend, _drawn(fig))
+    assert kept.holds(legend)
+    for changed in ({"color": "red"}, {"lw": 3.0}, {"ls": "--"}, {"marker": "o"}):
+        other, _ = figure(**changed)
+        assert not kept.holds(other.legend(loc="upper right")), changed
+    fig, ax = figure()
+    ax.bar([0.0], [1.0], label="bar")
+    legend = fig.legend(loc="upper right")
+    assert legend_key(legend) is None
+    kept.keep(fig, legend, _drawn(fig))
+    assert not kept.holds(legend)
 
 
 def _varied(curves):

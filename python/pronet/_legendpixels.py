@@ -20,32 +20,59 @@ from typing import Any
 
 import numpy as np
 
-#: Pixels kept around the legend's extent: its frame's antialiased edge.
+#: Pixels kept around the legend's extent beside its frame's half line width: the
+#: antialiased edge.
 MARGIN = 2
 
 
-def legend_key(legend: Any) -> tuple[Any, ...]:
-    """What a legend's pixels depend on beside its place: its labels and its handles'
-    styles (``legend``: a matplotlib Legend; its place and fonts are fixed by the
-    figure that keeps it)."""
+def legend_key(legend: Any) -> tuple[Any, ...] | None:
+    """What a legend's pixels depend on beside its place (``legend``: a matplotlib
+    Legend): its figure's size [px] and dpi, its frame's style, its labels with their
+    fonts and colours, and its handles' styles; None where a handle is not a line (its
+    style is not read here, so its pixels are never kept)."""
     from matplotlib.colors import to_rgba
+    from matplotlib.lines import Line2D
 
-    texts = tuple(t.get_text() for t in legend.get_texts())
-    styles = tuple(
+    if not all(type(h) is Line2D for h in legend.legend_handles):
+        return None
+    fig, frame = legend.get_figure(), legend.get_frame()
+    place = (
+        tuple(fig.bbox.bounds),
+        fig.dpi,
+        getattr(legend, "_loc", None),
+        legend.get_bbox_to_anchor().bounds,
+    )
+    style = (
+        to_rgba(frame.get_facecolor()),
+        to_rgba(frame.get_edgecolor()),
+        frame.get_linewidth(),
+        frame.get_boxstyle().__class__.__name__,
+        legend.get_alpha(),
+    )
+    texts = tuple(
+        (t.get_text(), to_rgba(t.get_color()), t.get_fontproperties().get_fontconfig_pattern())
+        for t in legend.get_texts()
+    )
+    lines = tuple(
         (
-            type(h).__name__,
             to_rgba(h.get_color()),
             h.get_linestyle(),
+            str(getattr(h, "_dash_pattern", None)),
             h.get_linewidth(),
             str(h.get_marker()),
             h.get_markersize(),
+            h.get_markeredgewidth(),
             to_rgba(h.get_markerfacecolor()),
             to_rgba(h.get_markeredgecolor()),
+            h.get_solid_capstyle(),
+            h.get_dash_capstyle(),
+            h.get_solid_joinstyle(),
+            h.get_antialiased(),
             h.get_alpha(),
         )
         for h in legend.legend_handles
     )
-    return texts, styles
+    return place, style, texts, lines
 
 
 class LegendPixels:
@@ -73,20 +100,28 @@ class LegendPixels:
         return True
 
     def keep(self, fig: Any, legend: Any, rgba: np.ndarray) -> None:
-        """Keep ``legend``'s pixels from ``rgba`` (``fig`` drawn with it), unless
-        another artist's extent reaches its region; then nothing is kept."""
-        renderer = fig.canvas.get_renderer()
-        box = legend.get_window_extent(renderer).padded(MARGIN)
+        """Keep ``legend``'s pixels from ``rgba`` (``fig`` drawn with it), unless a
+        handle is not a line or another artist's extent reaches the pixels kept (and
+        one more around them); then nothing is kept."""
+        from matplotlib.transforms import Bbox
+
         self._key = None
+        key = legend_key(legend)
+        if key is None:
+            return
+        renderer = fig.canvas.get_renderer()
+        half_line = legend.get_frame().get_linewidth() * fig.dpi / 72.0 / 2.0
+        box = legend.get_window_extent(renderer).padded(MARGIN + half_line)
+        height, width = rgba.shape[:2]
+        x0, x1 = max(int(np.floor(box.x0)), 0), min(int(np.ceil(box.x1)), width)
+        y0, y1 = max(int(np.floor(box.y0)), 0), min(int(np.ceil(box.y1)), height)
+        reach = Bbox.from_extents(x0 - 1, y0 - 1, x1 + 1, y1 + 1)
         for artist in fig.get_children():  # the panels, the title, other legends
             if artist is fig.patch or artist is legend or not artist.get_visible():
                 continue
             extent = artist.get_tightbbox(renderer)
-            if extent is not None and extent.overlaps(box):
+            if extent is not None and extent.overlaps(reach):
                 return
-        height, width = rgba.shape[:2]
-        x0, x1 = max(int(np.floor(box.x0)), 0), min(int(np.ceil(box.x1)), width)
-        y0, y1 = max(int(np.floor(box.y0)), 0), min(int(np.ceil(box.y1)), height)
         self._rows, self._cols = slice(height - y1, height - y0), slice(x0, x1)  # rows top down
         self._pixels = rgba[self._rows, self._cols].copy()
-        self._key = legend_key(legend)
+        self._key = key
