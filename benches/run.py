@@ -61,6 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 import pronet
 from pronet import dataset, models, paper, scenarios
+from pronet._cores import usable_cores
 from pronet._files import atomic_write
 from pronet.hybrid import HybridResult, run_hybrid
 from pronet.models import Regressor
@@ -644,7 +645,7 @@ def main() -> int:
     import torch
 
     machine = (
-        f"{os.cpu_count()} cores, python {sys.version.split()[0]}, "
+        f"{usable_cores()} cores, python {sys.version.split()[0]}, "
         f"numpy {np.__version__}, torch {torch.__version__} ({torch.get_num_threads()} threads)"
     )
     print(f"# {SCRIPT} {' '.join(sys.argv[1:])}".rstrip())

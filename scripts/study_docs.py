@@ -1,6 +1,6 @@
 """Regenerate ``docs/study.md``'s tables and figure from a study's result folder.
 
-    pronet study --out results/study            # 100 runs, about four minutes
+    pronet study --out results/study            # 100 runs, about a minute
     python scripts/study_docs.py results/study  # copies study.csv and study.png into
                                                 # docs/study/ and rewrites the tables
 

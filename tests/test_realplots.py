@@ -105,8 +105,8 @@ def test_figures_drawn_in_a_worker_are_the_ones_drawn_here(ran, tmp_path):
 
 
 def test_the_pool_defaults_to_half_the_cores_and_at_least_one_worker(monkeypatch):
-    for cores, workers in [(None, 1), (1, 1), (2, 1), (3, 1), (8, 4), (64, 32)]:
-        monkeypatch.setattr(realplots.os, "cpu_count", lambda c=cores: c)
+    for cores, workers in [(1, 1), (2, 1), (3, 1), (8, 4), (64, 32)]:
+        monkeypatch.setattr(realplots, "usable_cores", lambda c=cores: c)
         assert realplots.default_workers() == workers
 
 

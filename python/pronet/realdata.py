@@ -12,7 +12,6 @@ horizontal position error, and the final error as a percentage of the distance.
 from __future__ import annotations
 
 import contextvars
-import os
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -25,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet._cores import usable_cores
 from pronet._validate import flag, scalar
 from pronet._waiting import results_in_order
 from pronet.alignment import Section, find_sections, load_section, section_name
@@ -366,7 +366,7 @@ def run_sections(
     :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
     read); the others still run. Raises ValueError naming the section when none is left.
     """
-    workers = threads if threads is not None else (os.cpu_count() or 1)
+    workers = threads if threads is not None else usable_cores()
     lock = threading.Lock()
 
     def done(text: str) -> None:
@@ -537,7 +537,7 @@ def run_real(
     loaded: list[tuple[Section, Section]] = []
     unread: dict[str, str] = {}
     with (
-        ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool,
+        ThreadPoolExecutor(max_workers=usable_cores()) as pool,
         closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
     ):  # closed however the loop ends: the reads not yet started are cancelled
         for path, section in zip(paths, reading, strict=True):  # in order

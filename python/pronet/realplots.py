@@ -26,6 +26,7 @@ from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
+from pronet._cores import usable_cores
 from pronet._files import atomic_write
 from pronet._waiting import result_of
 from pronet.sectionplots import SECTION_FIGURES, SectionFigure
@@ -146,8 +147,9 @@ def figure_name(kind: str, section: str) -> str:
 
 
 def default_workers() -> int:
-    """:class:`FigurePool`'s default: half this machine's cores, at least one."""
-    return max(1, (os.cpu_count() or 1) // 2)
+    """:class:`FigurePool`'s default: half the cores this process may use, at least
+    one."""
+    return max(1, usable_cores() // 2)
 
 
 class FigurePool:

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 
 import pronet
 from pronet import _core
+from pronet._cores import usable_cores
 from pronet.cli._common import Subparsers
 
 
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         "python": sys.version.split()[0],
         "numpy": numpy.__version__,
         "torch": torch_version,
-        "cores": os.cpu_count(),
+        "cores": usable_cores(),
         "torch_threads": torch_threads,
         "ray": _version_of("ray"),
         "weights": str(modelfile.SHIPPED_DIR),
