@@ -355,8 +355,8 @@ def run_sections(
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
     the inertial run;
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
-    on ``threads`` threads (default: one per core; each filter is one native call
-    without the GIL), and the results do not depend on it.
+    on ``threads`` threads (default: one per core this process may use; each filter is
+    one native call without the GIL), and the results do not depend on it.
 
     ``on_section(aligned, runs, constants)`` is called (on the section's thread) as
     soon as a section's strategy rows are done, with the q of its constant rows (the
