@@ -37,7 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from pronet import frozen, paper
+from pronet.learn import frozen
+from pronet.sim import paper
 
 
 def load_core(path: str) -> ModuleType:

@@ -60,11 +60,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 import pronet
-from pronet import dataset, models, paper, scenarios
-from pronet._cores import usable_cores
-from pronet._files import atomic_write
-from pronet.hybrid import HybridResult, run_hybrid
-from pronet.models import Regressor
+from pronet._util.cores import usable_cores
+from pronet._util.files import atomic_write
+from pronet.learn import dataset, models
+from pronet.learn.hybrid import HybridResult, run_hybrid
+from pronet.learn.models import Regressor
+from pronet.sim import paper, scenarios
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = "python benches/run.py"
@@ -162,7 +163,7 @@ def bench_mechanization(args: argparse.Namespace) -> list[Row]:
 MONTE_CARLO = """
 import sys, time
 import pronet
-from pronet import paper, scenarios
+from pronet.sim import paper, scenarios
 kind, n_runs, threads, repeat = sys.argv[1], *map(int, sys.argv[2:5])
 sc = scenarios.SCENARIOS["paper"]()
 q = paper.PAPER_Q
@@ -366,7 +367,7 @@ def bench_reference(args: argparse.Namespace) -> list[Row]:
     ]
 
 
-# Without pronet.scenarios, which imports torch (~500 MiB that is not the Monte Carlo's).
+# Without pronet.sim.scenarios, which imports torch (~500 MiB that is not the Monte Carlo's).
 # Peak memory from VmHWM: ru_maxrss would carry over the parent's peak across exec.
 SOAK = """
 import sys, time
@@ -437,7 +438,8 @@ def bench_reproduce(args: argparse.Namespace) -> list[Row]:
 
 
 def bench_sweep(args: argparse.Namespace) -> list[Row]:
-    from pronet import config, sweep
+    from pronet import config
+    from pronet.experiments import sweep
 
     runs = 20 if args.quick else args.runs
     grid = config.sweep_grid(
@@ -486,7 +488,7 @@ def _cli(*argv: str) -> float:
 
 
 def bench_real(args: argparse.Namespace) -> list[Row]:
-    from pronet import alignment
+    from pronet.recorded import alignment
 
     data = Path(os.environ.get("PRONET_SNAPIR_DIR", ROOT.parent / "shared" / "data" / "snapir"))
     if not data.is_dir():

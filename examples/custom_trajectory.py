@@ -19,7 +19,7 @@ import numpy as np
 import pronet
 from pronet import Segment
 from pronet.run import run
-from pronet.scenarios import Scenario
+from pronet.sim.scenarios import Scenario
 
 Q = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6)  # per-sample IMU variances [(m/s²)², (rad/s)²]
 EPS_A, EPS_G = 1e-8, 1e-12  # bias random-walk PSDs [(m/s²)²/s], [(rad/s)²/s]

@@ -17,8 +17,9 @@ import argparse
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from pronet import models, scenarios
+from pronet.learn import models
 from pronet.run import run
+from pronet.sim import scenarios
 from pronet.strategies import Learned
 
 

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import argparse
 
-from pronet import config, sweep
+from pronet import config
+from pronet.experiments import sweep
 
 
 def main(argv: list[str] | None = None) -> int:

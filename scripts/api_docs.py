@@ -7,8 +7,9 @@ Usage::
 
 Only the standard library's ``inspect``, ``ast`` and ``pkgutil`` are used. The page
 covers the top-level ``pronet`` namespace (everything in ``pronet.__all__``), then every
-public module of the package (not ``cli``): its docstring, then its public classes
-(with their own public methods and properties) and functions, in source order.
+public module of the package, the top-level ones first, then each subpackage and its
+modules (not ``cli``): its docstring, then its public classes (with their own public
+methods and properties) and functions, in source order.
 
 The native classes and functions of ``pronet._core`` carry short runtime docstrings that
 point at the stub; their documentation and typed signatures are read from
@@ -537,13 +538,18 @@ def _qualname(cls: type) -> str:
 
 
 def public_modules(package: ModuleType) -> list[str]:
-    """``package``'s public submodules, sorted (``cli`` is documented by ``--help``)."""
-    names = [
-        info.name
-        for info in pkgutil.iter_modules(package.__path__)
-        if not info.name.startswith("_") and info.name != "cli"
-    ]
-    return sorted(names)
+    """``package``'s public modules and subpackages, dotted below it, in the order of
+    its layout: the top-level modules, then each subpackage followed by its modules
+    (``cli`` is documented by ``--help``; private ones, ``_`` first, are left out)."""
+    names = []
+    for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: (i.ispkg, i.name)):
+        if info.name.startswith("_") or info.name == "cli":
+            continue
+        names.append(info.name)
+        if info.ispkg:
+            sub = importlib.import_module(f"{package.__name__}.{info.name}")
+            names += [f"{info.name}.{name}" for name in public_modules(sub)]
+    return names
 
 
 def generate() -> str:

@@ -1,6 +1,6 @@
 """The DVL calibration states with a prior of one's choosing (``FilterConfig``'s
 ``dvl_scale_sigma`` and ``dvl_misalignment_sigma``): the simulation check of
-:func:`pronet.dvlcalibration.calibration_check` and, where the Snapir data is, the
+:func:`pronet.recorded.dvlcalibration.calibration_check` and, where the Snapir data is, the
 constant row on the recorded sections without the states and with them, with the
 datasheet's R and with R matched to the innovations of the filter with those states.
 docs/filter.md and docs/realdata.md quote it for a prior of 0.3 % and 0.3°.
@@ -17,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pronet import _core, dvlcalibration
-from pronet.alignment import load_snapir_sections
-from pronet.dvlnoise import match_innovations, second_difference_variance
-from pronet.realdata import run_section
-from pronet.realtuning import (
+from pronet import _core
+from pronet.recorded import dvlcalibration
+from pronet.recorded.alignment import load_snapir_sections
+from pronet.recorded.dvlnoise import match_innovations, second_difference_variance
+from pronet.recorded.real import run_section
+from pronet.recorded.tuning import (
     REAL_ACCEL_BIAS_PSD,
     REAL_DVL_VARIANCE,
     REAL_GYRO_BIAS_PSD,

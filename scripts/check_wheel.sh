@@ -93,7 +93,7 @@ echo "== sdist"
 SDIST="$(ls "$TMP"/sdist/pronet-*.tar.gz)"
 tar tzf "$SDIST" >"$TMP/sdist.files"
 for f in pyproject.toml Cargo.toml Cargo.lock rust/src/lib.rs python/pronet/__init__.py \
-         python/pronet/_core.pyi python/pronet/weights/detrend.safetensors; do
+         python/pronet/_core.pyi python/pronet/learn/weights/detrend.safetensors; do
   grep -qx "pronet-[^/]*/$f" "$TMP/sdist.files" || fail "the sdist has no $f"
 done
 echo "   $(basename "$SDIST"): the crate, the package and the weights"
@@ -162,14 +162,14 @@ so=("$PKG"/_core*.so)
 [ "${#so[@]}" -ge 1 ] || missing+=("pronet/_core*.so")
 # The shipped weights: every .safetensors and .json that the source tree has, byte for
 # byte, and at least one of each kind.
-src_weights=("$ROOT"/python/pronet/weights/*.safetensors "$ROOT"/python/pronet/weights/*.json)
-inst_st=("$PKG"/weights/*.safetensors)
-inst_js=("$PKG"/weights/*.json)
+src_weights=("$ROOT"/python/pronet/learn/weights/*.safetensors "$ROOT"/python/pronet/learn/weights/*.json)
+inst_st=("$PKG"/learn/weights/*.safetensors)
+inst_js=("$PKG"/learn/weights/*.json)
 shopt -u nullglob
-[ "${#inst_st[@]}" -ge 1 ] || missing+=("pronet/weights/*.safetensors")
-[ "${#inst_js[@]}" -ge 1 ] || missing+=("pronet/weights/*.json")
+[ "${#inst_st[@]}" -ge 1 ] || missing+=("pronet/learn/weights/*.safetensors")
+[ "${#inst_js[@]}" -ge 1 ] || missing+=("pronet/learn/weights/*.json")
 for src in "${src_weights[@]}"; do
-  name="weights/$(basename "$src")"
+  name="learn/weights/$(basename "$src")"
   if [ ! -f "$PKG/$name" ]; then
     missing+=("pronet/$name")
   elif ! cmp -s "$src" "$PKG/$name"; then

@@ -4,7 +4,7 @@ Two experiments, printed as Markdown (docs/filter.md quotes them):
 
 1. The 19-state filter (``FilterConfig(dvl_calibration=True)``) on a 400 s straight run
    at a constant 1 m/s with an ideal DVL (scale error 0, aligned), the recorded
-   sections' tuning (:mod:`pronet.dvlcalibration`), the simulated IMU matching the
+   sections' tuning (:mod:`pronet.recorded.dvlcalibration`), the simulated IMU matching the
    filter's q. The final scale estimate, mean over the runs, with its standard error:
    as the tuning and the scale prior are varied.
 2. The same question on a one-axis model that an exact Bayesian filter can solve: the
@@ -23,8 +23,9 @@ import math
 
 import numpy as np
 
-from pronet import _core, dvlcalibration
+from pronet import _core
 from pronet.montecarlo import monte_carlo
+from pronet.recorded import dvlcalibration
 from pronet.results import markdown
 from pronet.trajectory import trajectory_from_segments
 

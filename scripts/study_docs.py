@@ -5,7 +5,7 @@
                                                 # docs/study/ and rewrites the tables
 
 The tables between the ``study`` markers of ``docs/study.md`` are rendered from
-``docs/study/study.csv`` by :func:`pronet.study.study_markdown`, never typed;
+``docs/study/study.csv`` by :func:`pronet.experiments.study.study_markdown`, never typed;
 ``tests/test_docs.py`` checks that they match.
 """
 
@@ -34,7 +34,7 @@ def tables() -> str:
     """The tables of ``docs/study/study.csv``."""
     import pandas as pd
 
-    from pronet.study import study_markdown
+    from pronet.experiments.study import study_markdown
 
     return study_markdown(pd.read_csv(DATA / "study.csv"))
 

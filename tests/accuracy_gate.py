@@ -10,7 +10,7 @@ Each row (scenario × strategy) records velocity SRMSE and SMAE, final and maxim
 horizontal position error, mean NIS, mean velocity NEES, the fraction of velocity
 errors inside ±3σ, and two counts that must match exactly: the epochs scored and the
 non-finite samples dropped. Rows cover the paper's seven rows on the ``paper`` and
-``varying-noise`` scenarios, the study's rows (:data:`pronet.study.STUDY_ROWS`) on the
+``varying-noise`` scenarios, the study's rows (:data:`pronet.experiments.study.STUDY_ROWS`) on the
 study scenarios, at :data:`GATE_RUNS` runs (seed 0), and, where the Snapir data is
 present, its sections (the real-data rows with ``detvar`` and ``adaptive``).
 
@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pronet._files import atomic_write
+from pronet._util.files import atomic_write
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The pinned figures, and the page whose tables are generated from them.
@@ -96,10 +96,10 @@ def monte_carlo_row(result) -> Row:  # result: pronet.MonteCarloResult with hist
     }
 
 
-def section_row(section, run) -> Row:  # pronet.alignment.Section, pronet.realdata.SectionRun
+def section_row(section, run) -> Row:  # recorded.alignment.Section, recorded.runs.SectionRun
     """The gate's figures of one recorded-section run, at its ground-truth rows. The
     velocity NEES uses the filter's per-axis σ (the recorded diagonal)."""
-    from pronet.realmetrics import estimate_at_truth
+    from pronet.recorded.metrics import estimate_at_truth
 
     r = run.result
     rows, _, vel = estimate_at_truth(section, r)
@@ -136,8 +136,11 @@ def simulated_rows(
     """The paper's rows on the paper's scenarios and the study's rows on the study's
     scenarios, with the shipped models; or only the named ``scenarios`` and strategy
     labels (a quick partial gate)."""
-    from pronet import models, paper, run, study
-    from pronet.scenarios import PAPER_SCENARIOS, SCENARIOS
+    from pronet import run
+    from pronet.experiments import study
+    from pronet.learn import models
+    from pronet.sim import paper
+    from pronet.sim.scenarios import PAPER_SCENARIOS, SCENARIOS
 
     unknown = set(scenarios or ()) - set(SCENARIOS)
     if unknown:
@@ -228,16 +231,17 @@ REAL_PREFIX = "real: "
 
 
 def real_rows(loaded: list) -> Rows:
-    """Every row of ``pronet real`` (:func:`pronet.realdata.plan_section`: the strategies
+    """Every row of ``pronet real`` (:func:`pronet.recorded.real.plan_section`: the strategies
     and the variant rows) on each aligned recorded section (``loaded``: ``(aligned, _)``
-    pairs from :func:`pronet.alignment.load_section`)."""
-    from pronet import models, realdata
+    pairs from :func:`pronet.recorded.alignment.load_section`)."""
+    from pronet.learn import models
+    from pronet.recorded import real
 
     regressors = {k: models.load(k) for k in models.SHIPPED}
     out: Rows = {}
     for aligned, _ in loaded:
-        plan = realdata.plan_section(aligned, regressors, 1.0)
-        runs, _ = realdata.evaluate_section(
+        plan = real.plan_section(aligned, regressors, 1.0)
+        runs, _ = real.evaluate_section(
             aligned, plan.strategies, plan.config, variants=plan.variants
         )
         out[f"{REAL_PREFIX}{aligned.name}"] = {r.label: section_row(aligned, r) for r in runs}
@@ -247,7 +251,7 @@ def real_rows(loaded: list) -> Rows:
 def fresh_rows(recorded_data: str | Path | None = None) -> Rows:
     """Every row the gate checks: the at-rest row, both simulated scenarios, and the
     Snapir sections when ``recorded_data`` is a folder holding them."""
-    from pronet import alignment
+    from pronet.recorded import alignment
 
     rows = at_rest_rows()
     rows.update(simulated_rows())

@@ -27,6 +27,6 @@ def paper_trajectory() -> pronet.Trajectory:
 @pytest.fixture(scope="session")
 def default_dataset():
     """The default dataset (seed 0), the one the shipped models were trained on."""
-    from pronet.dataset import DatasetParams, build_dataset
+    from pronet.learn.dataset import DatasetParams, build_dataset
 
     return build_dataset(DatasetParams())

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 
 import pronet
-from pronet.alignment import Clock, dcm_from_euler
-from pronet.recordings import Recording
+from pronet.recorded.alignment import Clock, dcm_from_euler
+from pronet.recorded.recordings import Recording
 
 GT_CLOCK = Clock(offset=-0.45, scale=0.9975)
 DVL_CLOCK = Clock(offset=1.0, scale=0.9975)

@@ -84,7 +84,7 @@ def test_blessing_without_the_data_keeps_the_recorded_real_rows():
 
 def test_baseline_file_is_checked():
     with pytest.raises(ValueError, match="not a pronet accuracy-baselines file"):
-        baselines.load(ROOT / "python" / "pronet" / "weights" / "detrend.json")
+        baselines.load(ROOT / "python" / "pronet" / "learn" / "weights" / "detrend.json")
 
 
 @pytest.mark.slow

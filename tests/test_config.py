@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import pronet
-from pronet import config, paper, scenarios
+from pronet import config
 from pronet.config import ConfigError
+from pronet.sim import paper, scenarios
 from pronet.strategies import StrategySpec
 
 
@@ -264,7 +265,7 @@ def test_sweep_errors_point_at_the_key(tmp_path, change, message) -> None:
 def test_a_sweep_finds_model_files_beside_it(tmp_path) -> None:
     import shutil
 
-    from pronet import modelfile
+    from pronet.learn import modelfile
 
     (tmp_path / "nets").mkdir()
     for suffix in (".safetensors", ".json"):

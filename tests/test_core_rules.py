@@ -18,7 +18,9 @@ import numpy as np
 import pytest
 
 import pronet
-from pronet import _core, _validate, hybrid, montecarlo
+from pronet import _core, montecarlo
+from pronet._util import validate
+from pronet.learn import hybrid
 
 from conftest import PAPER_Q
 
@@ -209,7 +211,7 @@ def test_ensemble_stops_at_the_tuning_instants() -> None:
 
 
 def test_python_uses_the_cores_limits() -> None:
-    assert _validate.MAX_THREADS == _core.MAX_THREADS == 1024
+    assert validate.MAX_THREADS == _core.MAX_THREADS == 1024
     assert montecarlo.MAX_RUN_INDEX == _core.MAX_RUN_INDEX == 2**62
     with pytest.raises(ValueError, match=r"^threads: must be 1 to 1024, got 1025$"):
         pronet.monte_carlo(

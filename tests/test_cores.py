@@ -9,24 +9,24 @@ import sys
 
 import pytest
 
-from pronet import _cores
-from pronet._cores import usable_cores
+from pronet._util import cores
+from pronet._util.cores import usable_cores
 
 
 def test_the_count_is_the_affinity_mask_and_falls_back_to_the_machine(monkeypatch):
-    monkeypatch.setattr(_cores.os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
+    monkeypatch.setattr(cores.os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
     assert usable_cores() == 3
-    monkeypatch.setattr(_cores.os, "sched_getaffinity", lambda pid: set(), raising=False)
+    monkeypatch.setattr(cores.os, "sched_getaffinity", lambda pid: set(), raising=False)
     assert usable_cores() == 1
 
     def unsupported(pid):
         raise OSError("no affinity here")
 
-    monkeypatch.setattr(_cores.os, "sched_getaffinity", unsupported, raising=False)
+    monkeypatch.setattr(cores.os, "sched_getaffinity", unsupported, raising=False)
     for machine, expected in [(None, 1), (1, 1), (6, 6)]:
-        monkeypatch.setattr(_cores.os, "cpu_count", lambda m=machine: m)
+        monkeypatch.setattr(cores.os, "cpu_count", lambda m=machine: m)
         assert usable_cores() == expected
-    monkeypatch.delattr(_cores.os, "sched_getaffinity")  # macOS, Windows
+    monkeypatch.delattr(cores.os, "sched_getaffinity")  # macOS, Windows
     assert usable_cores() == 6
 
 
@@ -35,7 +35,7 @@ def test_the_count_is_the_affinity_mask_and_falls_back_to_the_machine(monkeypatc
     reason="needs taskset and CPU affinity",
 )
 def test_a_process_pinned_to_one_core_counts_one():
-    code = "from pronet._cores import usable_cores; print(usable_cores())"
+    code = "from pronet._util.cores import usable_cores; print(usable_cores())"
     out = subprocess.run(
         ["taskset", "-c", "0", sys.executable, "-c", code],
         capture_output=True,

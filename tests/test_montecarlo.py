@@ -114,7 +114,8 @@ def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
 
 
 def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> None:
-    from pronet import paper, results, run, scenarios
+    from pronet import results, run
+    from pronet.sim import paper, scenarios
 
     strategy = pronet.Strategy.mehra(5, PAPER_Q)
     whole = pronet.monte_carlo(paper_trajectory, strategy, n_runs=5, seed=2, record_every=500)

@@ -159,7 +159,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference() -> None:
     # Scale ~0.005 and angles ~0.01 rad: 1e-8 relative of those scales.
     np.testing.assert_allclose(rust.calibration, ref["calibration"], rtol=rtol, atol=1e-10)
     np.testing.assert_allclose(rust.calibration_sigma, ref["calibration_sigma"], rtol=rtol)
-    # The updates moved the states (how well they learn: test_dvl_calibration.py).
+    # The updates moved the states (how well they learn: test_dvlcalibration.py).
     assert np.abs(rust.calibration[-1] - rust.calibration[0]).max() > 1e-4
     # Without the states the arrays are empty.
     plain = pronet.run_filter(

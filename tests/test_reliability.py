@@ -141,7 +141,7 @@ def test_bad_first_run_is_a_value_error(paper_trajectory) -> None:
 def test_a_shard_round_trips_exactly_and_other_settings_are_refused(
     tmp_path, paper_trajectory
 ) -> None:
-    from pronet.hybrid import ConstantRegressor, run_hybrid
+    from pronet.learn.hybrid import ConstantRegressor, run_hybrid
     from pronet.shards import ShardStore
 
     store = ShardStore(tmp_path / "s", {"n_runs": 2, "seed": 4})

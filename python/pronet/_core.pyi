@@ -352,14 +352,14 @@ def tuning_instants(
     [s], each as the number of samples before it: every ``round(tuning_period / dt)``
     samples (at least one; halves round away from zero), from the first such multiple at
     which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
-    there; :func:`pronet.hybrid.q_schedule` evaluates its regressor there.
+    there; :func:`pronet.learn.hybrid.q_schedule` evaluates its regressor there.
     ``dt`` and ``tuning_period`` finite and > 0, ``window`` >= 1."""
 
 @final
 class ConvNet:
-    """The forward pass of a ProNet CNN regressor (``pronet.models.BaselineNet`` or
+    """The forward pass of a ProNet CNN regressor (``pronet.learn.models.BaselineNet`` or
     ``DetrendNet``) from its torch weights; build it with
-    :meth:`pronet.models.BaselineNet.native`.
+    :meth:`pronet.learn.models.BaselineNet.native`.
 
     ``prepare``: ``"centre"`` or ``"detrend"``; ``scaling``: ``"fixed"`` (uses
     ``input_scale`` and ``q_scale``) or ``"spread"``. ``blocks``: per convolution block
@@ -391,8 +391,8 @@ class ConvNet:
 
 @final
 class HcfEnsemble:
-    """The handcrafted-feature ensemble's prediction (``pronet.hcf.HCFEnsemble``) from
-    its exported trees; build it with :meth:`pronet.hcf.HCFEnsemble.frozen`.
+    """The handcrafted-feature ensemble's prediction (``pronet.learn.hcf.HCFEnsemble``) from
+    its exported trees; build it with :meth:`pronet.learn.hcf.HCFEnsemble.frozen`.
 
     ``gb``, ``rf``: ``(left, right, feature, roots)`` int32 and ``threshold``, ``value``
     float64 arrays, in the order ``(left, right, feature, threshold, value, roots)``;
@@ -424,7 +424,7 @@ def attitude_increment_costs(
     offsets: NDArray[np.float64],
     scale: float,
 ) -> NDArray[np.float64]:
-    """The clock-alignment cost of ``pronet.alignment.estimate_gt_clock`` for the clocks
+    """The clock-alignment cost of ``pronet.recorded.alignment.estimate_gt_clock`` for the clocks
     ``(offset, scale)``, one per offset: the mean squared difference between the
     truth's Euler-angle steps ``gt_step (R - 1, 3)`` [rad] and the integrated gyro Euler
     rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at

@@ -8,7 +8,7 @@ mistakes too, so a misspelt key never silently falls back to a default.
 **Scenario** (``pronet simulate --scenario FILE``, or listed in a sweep)::
 
     name = "fast-turns"        # default: the file name without .toml
-    base = "paper"             # built-in scenario it starts from (pronet.scenarios.SCENARIOS):
+    base = "paper"             # built-in scenario it starts from (pronet.sim.scenarios.SCENARIOS):
                                # paper, varying-noise, matched, varying-matched, regimes, outage
     q_nominal = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]   # optional, see below
     schedule_seed = 3          # optional: the seed of a drawn noise schedule (varying-noise,
@@ -71,9 +71,9 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
-from pronet._validate import real_array
-from pronet.paper import PAPER_Q
-from pronet.scenarios import SCENARIOS, Scenario, time_average_q
+from pronet._util.validate import real_array
+from pronet.sim.paper import PAPER_Q
+from pronet.sim.scenarios import SCENARIOS, Scenario, time_average_q
 from pronet.strategies import StrategySpec, strategy
 from pronet.trajectory import builtin_trajectory, trajectory_from_segments
 
@@ -282,7 +282,7 @@ def _number(value: object, where: str) -> float:
 
 
 def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int = 0) -> Scenario:
-    """A :class:`~pronet.scenarios.Scenario` from a scenario document (the module
+    """A :class:`~pronet.sim.scenarios.Scenario` from a scenario document (the module
     docstring); ``where`` (the file) prefixes errors. A drawn noise schedule comes from
     the document's ``schedule_seed``, else from ``seed`` (the run's)."""
     _check_keys(data, SCENARIO_KEYS, f"{where}:")
@@ -344,7 +344,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
 
 
 def load_scenario(name_or_path: str | Path, seed: int = 0) -> Scenario:
-    """A built-in scenario by name (:data:`pronet.scenarios.SCENARIOS`) or a scenario
+    """A built-in scenario by name (:data:`pronet.sim.scenarios.SCENARIOS`) or a scenario
     file; a drawn noise schedule comes from ``seed`` unless the file sets
     ``schedule_seed``."""
     if str(name_or_path) in SCENARIOS:
@@ -472,7 +472,7 @@ def sweep_grid(doc: Mapping[str, Any], path: str | Path) -> SweepGrid:
     for text in _list(doc, "strategies", where):
         spec = _native(f"{where} strategies:", functools.partial(StrategySpec.parse, text))
         if spec.kind == "learned":
-            from pronet import frozen
+            from pronet.learn import frozen
 
             if spec.model not in frozen.SHIPPED:  # a model file, relative to the sweep file
                 model = Path(path).parent / spec.model

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._validate import check_type, float_array, scalar
+from pronet._util.validate import check_type, float_array, scalar
 
 
 @dataclass(frozen=True)
@@ -105,7 +105,7 @@ def run_filter(
             ``q_time[j]`` on (``Strategy.external(prior_q)`` holds before the first).
             This is the ProNet loop on recorded data: the windows a regressor reads are
             raw IMU samples, known before the filter runs (see
-            :func:`pronet.hybrid.q_schedule`).
+            :func:`pronet.learn.hybrid.q_schedule`).
         epochs: ``"all"`` keeps the estimate at every epoch; ``"last"`` only at the
             last one, for a pass whose updates alone are read (matching R to the
             innovations): it skips storing the estimate (~370 bytes) at every IMU

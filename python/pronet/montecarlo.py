@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._validate import check_type
+from pronet._util.validate import check_type
 from pronet.stats import MeanCI, mean_ci
 
 #: Run indices stay below 2^62: run i's random streams are numbered 4·i + k

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._validate import float_array, scalar
+from pronet._util.validate import float_array, scalar
 
 
 @dataclass(frozen=True)

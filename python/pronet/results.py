@@ -21,10 +21,10 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pronet._files import atomic_folder, json_bytes
-from pronet.hybrid import HybridResult
+from pronet._util.files import atomic_folder, json_bytes
+from pronet.learn.hybrid import HybridResult
 from pronet.montecarlo import MonteCarloResult
-from pronet.paper import PAPER_TABLE
+from pronet.sim.paper import PAPER_TABLE
 from pronet.stats import MeanCI, mean_ci
 
 if TYPE_CHECKING:  # pandas loads only when a table is made
@@ -169,7 +169,7 @@ def consistency_cells(result: MonteCarloResult) -> list[str]:
 
 def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
     """Experiment rows as a Markdown table; with ``paper``, the paper's numbers beside
-    ours (:data:`pronet.paper.PAPER_TABLE`)."""
+    ours (:data:`pronet.sim.paper.PAPER_TABLE`)."""
     header = ["approach", "SRMSE [m/s] (95 % CI)", "SMAE [m/s] (95 % CI)"]
     header.append("ΔSRMSE vs row 1 (paired 95 % CI)")
     if paper:
@@ -194,7 +194,7 @@ def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
 
 def write_tables(folder: Path, summary: pd.DataFrame, per_run: pd.DataFrame, table_md: str) -> None:
     """Write ``table.md``, ``summary.csv``, ``metrics.json`` and ``metrics.csv`` into
-    ``folder`` (inside :func:`~pronet._files.atomic_folder`), checking the schema."""
+    ``folder`` (inside :func:`~pronet._util.files.atomic_folder`), checking the schema."""
     if tuple(summary.columns) != SUMMARY_COLUMNS or tuple(per_run.columns) != RUN_COLUMNS:
         raise ValueError("results: a table does not have the result schema")
     (folder / "table.md").write_text(table_md)

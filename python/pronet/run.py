@@ -6,12 +6,12 @@ learned one (:class:`~pronet.strategies.Learned`: the ProNet hybrid loop, the re
 in Python every tuning period). :func:`run_strategies` runs several strategies on the
 same noise realizations (common random numbers) so that their differences are paired.
 
-- On a :class:`~pronet.scenarios.Scenario`: a Monte Carlo of ``n_runs`` simulated runs
+- On a :class:`~pronet.sim.scenarios.Scenario`: a Monte Carlo of ``n_runs`` simulated runs
   (run i draws its noise from the streams of ``(seed, first_run + i)``), returned as a
   :class:`SimulatedRun`.
 - On :class:`Recorded` sensors (one recorded stretch with its initial state): one filter
   pass, returned as a :class:`RecordedRun`. A learned strategy's q is computed from the
-  raw IMU windows first (:func:`pronet.hybrid.q_schedule`), then handed to the filter.
+  raw IMU windows first (:func:`pronet.learn.hybrid.q_schedule`), then handed to the filter.
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet.filter import FilterResult, run_filter
-from pronet.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
+from pronet.learn.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo
-from pronet.scenarios import Scenario
 from pronet.shards import ShardStore
+from pronet.sim.scenarios import Scenario
 from pronet.stats import MeanCI, mean_ci
 from pronet.strategies import Learned, StrategyLike
 
@@ -121,7 +121,7 @@ def run(
     Args:
         strategy: a native :class:`pronet._core.Strategy` or a
             :class:`~pronet.strategies.Learned` regressor.
-        target: a :class:`~pronet.scenarios.Scenario` (Monte Carlo) or
+        target: a :class:`~pronet.sim.scenarios.Scenario` (Monte Carlo) or
             :class:`Recorded` sensors (one filter pass).
         n_runs, seed, record_every, first_run, threads: the Monte Carlo on a scenario
             (see :func:`pronet.monte_carlo`); a recorded run takes none of them.

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from pronet._files import atomic_write, json_bytes
-from pronet.hybrid import Guardrails, HybridResult
+from pronet._util.files import atomic_write, json_bytes
+from pronet.learn.hybrid import Guardrails, HybridResult
 from pronet.montecarlo import MonteCarloResult
 
 _SETTINGS = "settings.json"

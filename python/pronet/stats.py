@@ -9,7 +9,7 @@ from statistics import NormalDist
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pronet._validate import count, real_array
+from pronet._util.validate import count, real_array
 
 _Z975 = NormalDist().inv_cdf(0.975)
 

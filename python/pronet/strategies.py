@@ -15,12 +15,12 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pronet import _core
-from pronet._validate import float_array
-from pronet.hybrid import DEFAULT_TUNING_PERIOD
-from pronet.windowstats import DetrendedVariance
+from pronet._util.validate import float_array
+from pronet.learn.hybrid import DEFAULT_TUNING_PERIOD
+from pronet.learn.windowstats import DetrendedVariance
 
 if TYPE_CHECKING:  # torch loads only when a model does
-    from pronet.models import Regressor
+    from pronet.learn.models import Regressor
 
 
 @dataclass(frozen=True, repr=False)
@@ -151,7 +151,7 @@ def strategy(
     if spec.kind == "detvar":
         return Learned(DetrendedVariance() if regressor is None else regressor, q, tuning_period)
     if regressor is None:  # frozen in the core: no torch
-        from pronet.frozen import load_frozen
+        from pronet.learn.frozen import load_frozen
 
         regressor = load_frozen(spec.model)
     return Learned(regressor, q, tuning_period)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from numpy.typing import ArrayLike
 
 from pronet import _core
-from pronet._validate import check_type, float_array, scalar
+from pronet._util.validate import check_type, float_array, scalar
 
 
 @dataclass(frozen=True)

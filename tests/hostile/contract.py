@@ -9,7 +9,7 @@ PanicException, another exception type or a silent wrong answer.
 
 Elementwise array helpers (the window statistics, the regressors, ``dcm_from_euler``,
 ``Clock``, ``white_noise_q``) propagate NaN and inf to the outputs they touch, as NumPy
-does (documented for the regressors in :mod:`pronet.models`); finite input must give
+does (documented for the regressors in :mod:`pronet.learn.models`); finite input must give
 finite output wherever the exact result is representable.
 
 The ``*_refuses_*`` and ``*_does_not_*`` cases of each test module pin the defects this
@@ -285,14 +285,14 @@ finite_or_not = st.one_of(
 
 @functools.cache
 def windowstats_regressor():
-    from pronet.models import DetrendedVariance
+    from pronet.learn.models import DetrendedVariance
 
     return DetrendedVariance()
 
 
 @functools.cache
 def regressor(name: str):
-    from pronet import models
+    from pronet.learn import models
 
     return windowstats_regressor() if name == "reference" else models.load(name)
 

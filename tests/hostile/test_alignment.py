@@ -1,4 +1,4 @@
-"""Hostile clocks, attitudes and lever arms (:mod:`pronet.alignment`)."""
+"""Hostile clocks, attitudes and lever arms (:mod:`pronet.recorded.alignment`)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from pronet import alignment
+from pronet.recorded import alignment
 
 from .contract import (
     NON_FINITE,

@@ -1,4 +1,4 @@
-"""Hostile parameters, cards and files for the training data (:mod:`pronet.dataset`)."""
+"""Hostile parameters, cards and files for the training data (:mod:`pronet.learn.dataset`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pronet import dataset
+from pronet.learn import dataset
 
 from .contract import (
     INF,

@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from pronet import hybrid
+from pronet.learn import hybrid
 
 from .contract import (
     INF,

@@ -1,4 +1,4 @@
-"""Hostile inputs to the recorded-data loop (:mod:`pronet.realdata`)."""
+"""Hostile inputs to the recorded-data loop (:mod:`pronet.recorded.real`)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import pronet
-from pronet import _core, alignment, hybrid, realdata
+from pronet import _core
+from pronet.learn import hybrid
+from pronet.recorded import alignment, real
 from pronet.strategies import Learned
 
 from .contract import (
@@ -30,7 +32,7 @@ from .contract import (
 @given(imu=hostile(st.tuples(st.integers(0, 6), st.sampled_from([6, 6, 5])), any_float))
 def test_white_noise_q(imu) -> None:
     value, ref = imu
-    out = check(realdata.white_noise_q, value, ref, ("imu",))
+    out = check(real.white_noise_q, value, ref, ("imu",))
     if out is None:
         assert ref is None or ref.shape[0] < 2 or ref.shape[1:] != (6,)
         return
@@ -45,13 +47,13 @@ def test_white_noise_q(imu) -> None:
     q=vectors(6, st.one_of(st.floats(0.0, 1.0), st.sampled_from(SPECIAL)), forms=CORE_FORMS),
 )
 def test_real_filter_config_and_strategies(lever, q) -> None:
-    check(lambda v: realdata.real_filter_config(v).lever_arm, *lever, ("lever_arm",))
+    check(lambda v: real.real_filter_config(v).lever_arm, *lever, ("lever_arm",))
     value, ref = q
 
     def rows(v):
         return [
             (k, s.kind, s.q) if isinstance(s, _core.Strategy) else (k, "learned", s.prior_q)
-            for k, s in realdata.real_strategies(v, {}, 1.0).items()
+            for k, s in real.real_strategies(v, {}, 1.0).items()
         ]
 
     out = check(rows, value, ref, ("q", "prior_q"))
@@ -75,11 +77,11 @@ def section():
 )
 def test_run_section(duration, use_dvl, learned) -> None:
     sec = section()
-    q = realdata.white_noise_q(sec.imu)
+    q = real.white_noise_q(sec.imu)
     strategy = Learned(hybrid.ConstantRegressor(q), q) if learned else pronet.Strategy.constant(q)
-    cfg = realdata.real_filter_config(sec.alignment.filter_lever_arm)
+    cfg = real.real_filter_config(sec.alignment.filter_lever_arm)
     run = attempt(
-        lambda: realdata.run_section(sec, strategy, cfg, duration=duration, use_dvl=use_dvl),
+        lambda: real.run_section(sec, strategy, cfg, duration=duration, use_dvl=use_dvl),
         "duration",
         "use_dvl",
         "section",

@@ -1,4 +1,4 @@
-"""Hostile training hyperparameters (:mod:`pronet.training`)."""
+"""Hostile training hyperparameters (:mod:`pronet.learn.training`)."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ from .contract import (
     value=ANY_SCALAR,
 )
 def test_training_hyperparameters_are_checked_when_made(field, value) -> None:
-    from pronet.training import NetTraining
+    from pronet.learn.training import NetTraining
 
     hp = attempt(lambda: NetTraining(**{field: value}), field)
     if hp is not None:

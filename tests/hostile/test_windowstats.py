@@ -1,4 +1,4 @@
-"""Hostile inputs to :mod:`pronet.windowstats`: window statistics and the Cramér-Rao
+"""Hostile inputs to :mod:`pronet.learn.windowstats`: window statistics and the Cramér-Rao
 bound."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from pronet import windowstats
+from pronet.learn import windowstats
 
 from .contract import (
     NON_FINITE,

@@ -2,8 +2,8 @@
 
 Each command is one module holding its parser beside its handler
 (``add_parser(sub)`` and ``run(args) -> exit code``); the work itself is done by the
-library (:mod:`pronet.reproduce`, :mod:`pronet.simulation`, :mod:`pronet.realdata`,
-:mod:`pronet.sweep`, ...).
+library (:mod:`pronet.experiments.reproduce`, :mod:`pronet.experiments.simulation`,
+:mod:`pronet.recorded.real`, :mod:`pronet.experiments.sweep`, ...).
 
 One rule for every failure the user can cause (a bad argument or file, an unwritable,
 full or busy output, a size beyond memory, a command that needs an extra that is not
@@ -22,7 +22,7 @@ import sys
 import threading
 from typing import NoReturn
 
-from pronet._extras import MissingExtra
+from pronet._util.extras import MissingExtra
 from pronet.cli import (
     dataset,
     evaluate,

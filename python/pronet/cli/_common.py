@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 if TYPE_CHECKING:
     from tqdm import tqdm
 
-    from pronet.dataset import Dataset, DatasetParams
+    from pronet.learn.dataset import Dataset, DatasetParams
 
 #: What ``add_subparsers`` returns: each command module adds its parser to it.
 Subparsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
@@ -183,7 +183,7 @@ def add_dataset_args(parser: argparse.ArgumentParser) -> None:
 def dataset_for(args: argparse.Namespace) -> tuple[Dataset, DatasetParams]:
     """The dataset named by ``--dataset``, or the default one regenerated from
     ``--data-seed``."""
-    from pronet import dataset
+    from pronet.learn import dataset
 
     if args.dataset:
         return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)

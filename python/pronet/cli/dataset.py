@@ -7,12 +7,12 @@ import dataclasses
 import time
 from pathlib import Path
 
-from pronet._files import check_writable
+from pronet._util.files import check_writable
 from pronet.cli._common import Output, Subparsers, add_output_flags
 
 
 def add_parser(sub: Subparsers) -> None:
-    from pronet.dataset import DatasetParams
+    from pronet.learn.dataset import DatasetParams
 
     defaults = DatasetParams()
     parser = sub.add_parser(
@@ -36,7 +36,7 @@ def add_parser(sub: Subparsers) -> None:
         "--grades",
         action="store_true",
         help="per-window variances log-uniform over 1e-7..1e-1 (m/s²)² and 1e-10..1e-2 "
-        "(rad/s)² (pronet.dataset.GRADES; --levels draws per trajectory), the training set "
+        "(rad/s)² (pronet.learn.dataset.GRADES; --levels draws per trajectory), the training set "
         "of the shipped models (the paper's paper-* used the default)",
     )
     parser.add_argument("--force", action="store_true", help="replace an existing file")
@@ -45,7 +45,7 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet import dataset
+    from pronet.learn import dataset
 
     out = Path(args.out)
     if out.exists() and not args.force:

@@ -31,7 +31,8 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet import models, plots, training
+    from pronet import plots
+    from pronet.learn import models, training
 
     names = [n.strip() for n in args.models.split(",") if n.strip()]
     loaded = {n: models.load(n) for n in names}  # fail on a bad file before any work

@@ -8,7 +8,7 @@ import sys
 
 import pronet
 from pronet import _core
-from pronet._cores import usable_cores
+from pronet._util.cores import usable_cores
 from pronet.cli._common import Subparsers
 
 
@@ -33,7 +33,7 @@ def _version_of(package: str) -> str | None:
 def run(args: argparse.Namespace) -> int:
     import numpy
 
-    from pronet import frozen, modelfile
+    from pronet.learn import frozen, modelfile
 
     torch_version, torch_threads = None, None
     try:

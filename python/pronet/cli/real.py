@@ -1,5 +1,5 @@
 """``pronet real``: every strategy on recorded INS/DVL sections
-(:func:`pronet.realdata.run_real`)."""
+(:func:`pronet.recorded.real.run_real`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import json
 import sys
 import time
 
-from pronet.alignment import FORMATS, SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 from pronet.cli._common import (
     Bars,
     Output,
@@ -18,7 +17,8 @@ from pronet.cli._common import (
     add_result_folder,
     add_tuning_period,
 )
-from pronet.dvlnoise import DVL_NOISE_SOURCES
+from pronet.recorded.alignment import FORMATS, SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
 
 
 def _vector3(text: str) -> tuple[float, float, float]:
@@ -47,7 +47,10 @@ def add_parser(sub: Subparsers) -> None:
         "--format",
         choices=FORMATS,
         default="snapir",
-        help="snapir: the published layout; generic: see pronet.recordings (default snapir)",
+        help=(
+            "snapir: the published layout; generic: see pronet.recorded.recordings "
+            "(default snapir)"
+        ),
     )
     parser.add_argument(
         "--sections", metavar="LIST", default=None, help="comma-separated section names"
@@ -83,7 +86,7 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet.realdata import run_real
+    from pronet.recorded.real import run_real
 
     show = Output(args)
     start = time.perf_counter()

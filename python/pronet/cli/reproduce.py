@@ -1,4 +1,5 @@
-"""``pronet reproduce``: the paper's Monte Carlo experiment (:mod:`pronet.reproduce`)."""
+"""``pronet reproduce``: the paper's Monte Carlo experiment
+(:mod:`pronet.experiments.reproduce`)."""
 
 from __future__ import annotations
 
@@ -39,7 +40,7 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet.reproduce import reproduce
+    from pronet.experiments.reproduce import reproduce
 
     show = Output(args)
     start = time.perf_counter()

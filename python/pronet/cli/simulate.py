@@ -1,4 +1,4 @@
-"""``pronet simulate``: chosen strategies on one scenario (:mod:`pronet.simulation`)."""
+"""``pronet simulate``: chosen strategies on one scenario (:mod:`pronet.experiments.simulation`)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from pronet.cli._common import (
     add_tuning_period,
     experiment_result,
 )
-from pronet.paper import PAPER_ROWS
+from pronet.sim.paper import PAPER_ROWS
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -65,7 +65,7 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet.simulation import simulate
+    from pronet.experiments.simulation import simulate
 
     show = Output(args)
     start = time.perf_counter()

@@ -1,4 +1,4 @@
-"""``pronet study``: when does adaptive process noise pay? (:mod:`pronet.study`)."""
+"""``pronet study``: when does adaptive process noise pay? (:mod:`pronet.experiments.study`)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from pronet.cli._common import (
     add_result_folder,
     experiment_result,
 )
-from pronet.scenarios import STUDY_SCENARIOS
+from pronet.sim.scenarios import STUDY_SCENARIOS
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -22,7 +22,7 @@ def add_parser(sub: Subparsers) -> None:
         "study",
         help="the study: every estimator of q on the study scenarios (oracle ceiling, "
         "statistics, adaptive, learned)",
-        description="Run every study strategy (pronet.study.STUDY_ROWS) on the study "
+        description="Run every study strategy (pronet.experiments.study.STUDY_ROWS) on the study "
         "scenarios with common random numbers and write table, metrics, figure and "
         "config (docs/study.md).",
     )
@@ -36,7 +36,7 @@ def add_parser(sub: Subparsers) -> None:
         "--strategies",
         metavar="LABELS",
         default=None,
-        help="comma-separated row labels of pronet.study.STUDY_ROWS (default: all)",
+        help="comma-separated row labels of pronet.experiments.study.STUDY_ROWS (default: all)",
     )
     add_monte_carlo_args(parser)
     add_result_folder(parser, "study")
@@ -45,7 +45,7 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet.study import study
+    from pronet.experiments.study import study
 
     show = Output(args)
     start = time.perf_counter()

@@ -1,5 +1,5 @@
 """``pronet sweep``: a grid of Monte Carlos as shards, here or on a Ray cluster
-(:mod:`pronet.sweep`)."""
+(:mod:`pronet.experiments.sweep`)."""
 
 from __future__ import annotations
 
@@ -51,8 +51,9 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet import config, sweep
-    from pronet._outputs import new_result_folder, partial_folder
+    from pronet import config
+    from pronet._util.outputs import new_result_folder, partial_folder
+    from pronet.experiments import sweep
     from pronet.shards import ShardStore
 
     show = Output(args)

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pronet._files import check_writable
+from pronet._util.files import check_writable
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
 
 
@@ -40,7 +40,7 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet import training
+    from pronet.learn import training
 
     kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)

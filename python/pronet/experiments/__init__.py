@@ -1,0 +1,15 @@
+"""The experiments: compositions of the run path (:func:`pronet.run.run`) that write
+one result folder each (:mod:`pronet.results`).
+
+- :mod:`~pronet.experiments.reproduce`: the paper's experiment end to end
+  (``pronet reproduce``);
+- :mod:`~pronet.experiments.simulation`: chosen strategies on one scenario
+  (``pronet simulate``);
+- :mod:`~pronet.experiments.study`: when adaptive process noise pays (``pronet study``);
+- :mod:`~pronet.experiments.sweep`: grids of Monte Carlos, locally or on Ray
+  (``pronet sweep``).
+
+Recorded sections have their own experiment, :mod:`pronet.recorded.real`.
+"""
+
+__all__ = ["reproduce", "simulation", "study", "sweep"]

@@ -1,0 +1,152 @@
+"""Chosen strategies on one simulated scenario: a Monte Carlo each on the same noise
+realizations, written as one result folder (table, metrics, configuration and plots).
+``pronet simulate`` is a thin face over :func:`simulate`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
+from pronet._util.validate import threads as threads_arg
+from pronet.results import write_result_folder
+from pronet.run import Row, run_strategies
+from pronet.sim.scenarios import Scenario
+from pronet.strategies import StrategySpec, strategy
+
+
+def _scenario(
+    scenario: str | Path | Scenario, filter_config: str | Path | None, seed: int
+) -> Scenario:
+    """``scenario`` (built-in name or ``.toml`` file, its noise schedule drawn from
+    ``seed``; or an object), with the keys of the ``filter_config`` file, if given,
+    overriding its filter's."""
+    from pronet import config
+
+    if not isinstance(scenario, Scenario):
+        scenario = config.load_scenario(scenario, seed)
+    if filter_config:
+        tuned = config.load_filter_config(filter_config, base=scenario.config)
+        scenario = dataclasses.replace(scenario, config=tuned)
+    return scenario
+
+
+def _specs(specs: Sequence[str | StrategySpec]) -> list[StrategySpec]:
+    """``specs`` parsed; ``ValueError`` unless there is at least one and all differ."""
+    texts = [s.text if isinstance(s, StrategySpec) else str(s).strip() for s in specs]
+    kept = [(t, s) for t, s in zip(texts, specs, strict=True) if t]
+    if not kept or len({t for t, _ in kept}) != len(kept):
+        raise ValueError(
+            f"strategies: expected distinct comma-separated specs, got {[t for t, _ in kept]}"
+        )
+    return [s if isinstance(s, StrategySpec) else StrategySpec.parse(t) for t, s in kept]
+
+
+def _check_numbers(
+    n_runs: int, threads: int | None, record_every: float, tuning_period: float
+) -> None:
+    """``ValueError`` naming the option unless the numbers of :func:`simulate` are valid."""
+    if n_runs < 1:
+        raise ValueError(f"--runs: must be at least 1, got {n_runs}")
+    for name, value in (("tuning-period", tuning_period), ("record-every", record_every)):
+        if not 0 < value < math.inf:
+            raise ValueError(f"--{name}: must be a finite number of seconds > 0, got {value}")
+    threads_arg(threads, "--threads")
+
+
+def simulate(
+    scenario: str | Path | Scenario,
+    specs: Sequence[str | StrategySpec],
+    out: str | Path | None = None,
+    *,
+    filter_config: str | Path | None = None,
+    n_runs: int = 100,
+    seed: int = 0,
+    threads: int | None = None,
+    record_every: float = 1.0,
+    tuning_period: float = 1.0,
+    plots: bool = True,
+    say: Say | None = None,
+    on_start: OnStart | None = None,
+    on_done: OnDone | None = None,
+) -> Path:
+    """Run every strategy of ``specs`` on ``scenario`` and write the result folder;
+    returns the folder. Everything is read and checked before anything runs.
+
+    Args:
+        scenario: a built-in scenario name (:data:`pronet.sim.scenarios.SCENARIOS`), a
+            scenario ``.toml`` file (see :mod:`pronet.config`) or a
+            :class:`~pronet.sim.scenarios.Scenario`; a drawn noise schedule comes from
+            ``seed`` unless the file sets ``schedule_seed``.
+        specs: distinct strategy specs (see :class:`~pronet.strategies.StrategySpec`);
+            the first is the reference of the paired differences.
+        out: the result folder to create (default ``results/simulate-<time>``); an
+            existing one is refused.
+        filter_config: a filter ``.toml`` file; the keys it names override the
+            scenario's filter, the rest stay.
+        n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
+        threads: worker threads (default: all cores).
+        record_every: seconds between the saved history samples the plots use (> 0).
+        tuning_period: seconds between regressor calls of learned strategies (> 0).
+        plots: False: the tables, metrics and config only (the plots take most of the
+            time of a short run).
+        say, on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`); one
+            stage, a step per strategy labelled with its spec.
+
+    Raises:
+        ValueError: a bad argument, file or spec, before any computation.
+    """
+    _check_numbers(n_runs, threads, record_every, tuning_period)
+    sc = _scenario(scenario, filter_config, seed)
+    parsed = _specs(specs)
+    strategies = {spec.text: strategy(spec, sc.q_nominal, tuning_period) for spec in parsed}
+    out = new_result_folder(out, "simulate")
+    if say is not None:
+        say(
+            f"scenario {sc.name} ({sc.trajectory.duration:g} s): "
+            f"{len(strategies)} strategies, {n_runs} Monte Carlo runs each, seed {seed}"
+        )
+    if on_start is not None:
+        on_start(len(strategies), "strategy", None)
+    title = f"{sc.name} scenario, {n_runs} runs"
+    rows = run_strategies(
+        strategies,
+        sc,
+        n_runs=n_runs,
+        seed=seed,
+        threads=threads,
+        record_every=max(1, round(record_every / sc.trajectory.dt)),
+        on_done=on_done,
+    )
+    settings: dict[str, object] = {
+        "scenario": scenario.name if isinstance(scenario, Scenario) else str(scenario),
+        "filter": repr(sc.config),
+        "sensors": repr(sc.sensors),
+        "trajectory": sc.trajectory.name,
+        "q_nominal": list(sc.q_nominal),
+        "schedule_seed": sc.schedule_seed,
+        "strategies": [spec.text for spec in parsed],
+        "n_runs": n_runs,
+        "seed": seed,
+        "tuning_period_s": tuning_period,
+    }
+    return write_result_folder(
+        out,
+        {title: rows},
+        settings,
+        extra=(lambda folder: _figures(folder, sc, title, rows)) if plots else None,
+        paper_columns=False,
+    )
+
+
+def _figures(folder: Path, scenario: Scenario, title: str, rows: list[Row]) -> None:
+    """The plots of a simulation's result folder."""
+    from pronet import plots
+
+    plots.metrics_with_ci({title: rows}, folder / "srmse_smae.png")
+    plots.trajectory(scenario.trajectory, folder / "trajectory.png", scenario.name)
+    plots.velocity_error(rows, folder / "velocity_error.png", title)
+    plots.q_tracking(rows, scenario.schedule_time, scenario.schedule_q, folder / "q.png", title)

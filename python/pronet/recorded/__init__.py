@@ -1,0 +1,38 @@
+"""Recorded missions: reading a vehicle's IMU, DVL and ground truth, aligning their
+clocks and lever arms, tuning the filter for them, running every strategy and reporting.
+
+Reading and preparing:
+
+- :mod:`~pronet.recorded.recordings`: the readers (the Snapir layout, the generic CSV
+  and ``.npz`` formats), validated before any computation;
+- :mod:`~pronet.recorded.alignment`: clocks and lever arms, a recording turned into a
+  filter-ready :class:`~pronet.recorded.alignment.Section`;
+- :mod:`~pronet.recorded.tuning`: the filter tuning of recorded sections and the rows
+  ``pronet real`` runs;
+- :mod:`~pronet.recorded.dvlnoise`: the DVL's noise variance R from the data;
+- :mod:`~pronet.recorded.dvltruth`: the DVL scale and mounting the ground truth implies;
+- :mod:`~pronet.recorded.dvlcalibration`: the DVL calibration states in simulation.
+
+Running and reporting (``pronet real``):
+
+- :mod:`~pronet.recorded.real`: every strategy on the sections, the result folder
+  (:func:`~pronet.recorded.real.run_real`);
+- :mod:`~pronet.recorded.runs`: what a run produced, as plain records;
+- :mod:`~pronet.recorded.metrics`: errors against the ground truth;
+- :mod:`~pronet.recorded.tables`: the tables, ``metrics.csv`` and ``config.json``;
+- :mod:`~pronet.recorded.figures`: the section figures, drawn in worker processes.
+"""
+
+__all__ = [
+    "alignment",
+    "dvlcalibration",
+    "dvlnoise",
+    "dvltruth",
+    "figures",
+    "metrics",
+    "real",
+    "recordings",
+    "runs",
+    "tables",
+    "tuning",
+]

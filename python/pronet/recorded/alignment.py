@@ -1,0 +1,345 @@
+"""Clocks and lever arms: turn a :class:`~pronet.recorded.recordings.Recording` into a filter-ready
+:class:`Section` on the IMU's clock, with the ground truth moved to the IMU.
+
+Clocks. Each stream's stamps map to IMU time by ``t_imu = offset + scale · t_stamp``
+(:class:`Clock`). Real loggers stamp streams differently: in the Snapir data the
+ground-truth and DVL stamps step by 400/399 s while the rows are 1.000 s apart on the
+IMU clock, and the ground truth is shifted by about ±0.45 s. Both clocks can be given or
+estimated per section:
+
+- ground truth (:func:`estimate_gt_clock`): the Euler-angle increments between
+  consecutive ground-truth rows are matched against the same increments integrated from
+  the gyro (Euler rates from the body rates and the ground truth's roll and pitch). A
+  coarse grid over scale ∈ [0.99, 1.01] and offset ∈ [−2, 2] s, then a fine one around
+  the best, minimises the mean squared mismatch.
+- DVL (:func:`estimate_dvl_clock`): its body velocity is matched against the aligned
+  ground truth's velocity rotated into the body and moved to the DVL
+  (``Cᵀ v + ω × r``), over the same kind of grid of offsets, with the ground truth's
+  scale.
+
+Lever arms (body frame FRD, metres, relative to the point the ground truth describes):
+the ground truth is moved to the IMU, ``p_imu = p_gt + C r_imu``,
+``v_imu = v_gt + C (ω × r_imu)`` (ω the gyro rate; the Earth's rate over a few metres
+is below 2e-4 m/s and left out), and the filter's DVL lever arm is ``r_dvl − r_imu``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pronet import _core
+from pronet._util.validate import check_type, float_array, real_array, scalar
+from pronet.recorded.recordings import Recording
+
+F64 = NDArray[np.float64]
+
+#: Snapir lever arms from its README [m, body FRD, relative to the ground-truth point].
+SNAPIR_IMU_LEVER_ARM = (-1.78, -0.04, -1.04)
+SNAPIR_DVL_LEVER_ARM = (-1.85, -0.03, 0.12)
+
+
+@dataclass(frozen=True)
+class Clock:
+    """``t_imu = offset + scale · t_stamp`` [s]."""
+
+    offset: float = 0.0
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(scalar(self.offset, "offset")):
+            raise ValueError(f"offset: must be finite, got {self.offset}")
+        if not 0 < scalar(self.scale, "scale") < np.inf:
+            raise ValueError(f"scale: must be finite and > 0, got {self.scale}")
+
+    def __call__(self, stamps: ArrayLike) -> F64:
+        return self.offset + self.scale * real_array(stamps, "stamps").astype(np.float64)
+
+
+def _lever_arm(value: ArrayLike, name: str) -> F64:
+    """A lever arm ``(3,)`` [m] of finite numbers, or ``ValueError`` naming it."""
+    arm = float_array(value, name, (3,))
+    if not np.isfinite(arm).all():
+        raise ValueError(f"{name}: must be finite, got {arm}")
+    return arm
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """How a recording's streams are put on the IMU clock and at the IMU point.
+
+    Attributes:
+        gt_clock, dvl_clock: stamp → IMU time of the ground truth and of the DVL.
+        imu_lever_arm: IMU position [m, body FRD] relative to the ground-truth point.
+        dvl_lever_arm: DVL position [m, body FRD] relative to the ground-truth point.
+        how: ``"estimated"``, ``"given"`` or ``"none"`` (stamps and no lever arms).
+    """
+
+    gt_clock: Clock = field(default_factory=Clock)
+    dvl_clock: Clock = field(default_factory=Clock)
+    imu_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    dvl_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    how: str = "given"
+
+    def __post_init__(self) -> None:
+        check_type(self.gt_clock, Clock, "gt_clock")
+        check_type(self.dvl_clock, Clock, "dvl_clock")
+        _lever_arm(self.imu_lever_arm, "imu_lever_arm")
+        _lever_arm(self.dvl_lever_arm, "dvl_lever_arm")
+
+    @property
+    def filter_lever_arm(self) -> tuple[float, float, float]:
+        """The DVL's lever arm from the IMU [m, body FRD], as the filter takes it."""
+        d = np.subtract(self.dvl_lever_arm, self.imu_lever_arm)
+        return (float(d[0]), float(d[1]), float(d[2]))
+
+
+@dataclass(frozen=True)
+class Section:
+    """A recording on the IMU clock with its truth at the IMU, ready for the filter.
+
+    Attributes:
+        name: section name.
+        imu_time: ``(n,)`` IMU sample times [s].
+        imu: ``(n, 6)`` ``[f (m/s²), ω (rad/s)]``, body FRD.
+        dvl_time: ``(m,)`` DVL times on the IMU clock [s].
+        dvl: ``(m, 3)`` DVL body velocity [m/s].
+        truth_time: ``(k,)`` ground-truth times on the IMU clock [s].
+        truth_lla, truth_vel, truth_rpy: ``(k, 3)`` the truth moved to the IMU:
+            lat, lon [rad], height [m, up]; NED velocity [m/s]; roll, pitch, yaw [rad].
+        alignment: how it was aligned.
+    """
+
+    name: str
+    imu_time: F64
+    imu: F64
+    dvl_time: F64
+    dvl: F64
+    truth_time: F64
+    truth_lla: F64
+    truth_vel: F64
+    truth_rpy: F64
+    alignment: Alignment
+
+
+def dcm_from_euler(rpy: ArrayLike) -> F64:
+    """Body-to-NED DCMs ``(…, 3, 3)`` from roll, pitch, yaw ``(…, 3)`` [rad] (ZYX)."""
+    a = real_array(rpy, "rpy").astype(np.float64)
+    if a.ndim < 1 or a.shape[-1] != 3:
+        raise ValueError(f"rpy: expected shape (..., 3), got {a.shape}")
+    cr, sr = np.cos(a[..., 0]), np.sin(a[..., 0])
+    cp, sp = np.cos(a[..., 1]), np.sin(a[..., 1])
+    cy, sy = np.cos(a[..., 2]), np.sin(a[..., 2])
+    c = np.empty(a.shape[:-1] + (3, 3))
+    c[..., 0, 0] = cp * cy
+    c[..., 0, 1] = sr * sp * cy - cr * sy
+    c[..., 0, 2] = cr * sp * cy + sr * sy
+    c[..., 1, 0] = cp * sy
+    c[..., 1, 1] = sr * sp * sy + cr * cy
+    c[..., 1, 2] = cr * sp * sy - sr * cy
+    c[..., 2, 0] = -sp
+    c[..., 2, 1] = sr * cp
+    c[..., 2, 2] = cr * cp
+    return c
+
+
+def _interp(t: F64, tp: F64, fp: F64) -> F64:
+    """Linear interpolation of the columns of ``fp (k, c)`` at ``t``."""
+    return np.stack([np.interp(t, tp, fp[:, j]) for j in range(fp.shape[1])], axis=1)
+
+
+def _fit(cost: Callable[[F64, float], F64], scale: float | None = None) -> Clock:
+    """Minimise ``cost(offsets, scale)`` (one value per offset): a coarse grid, then a
+    fine one around the best; ``scale`` given: only the offset is searched."""
+
+    def search(scales: F64, offsets_for: Callable[[float], F64]) -> tuple[float, float, float]:
+        best = (np.inf, 0.0, 1.0)
+        for scale in scales:
+            offsets = offsets_for(float(scale))
+            c = cost(offsets, float(scale))
+            i = int(np.argmin(c))
+            if c[i] < best[0]:
+                best = (float(c[i]), float(offsets[i]), float(scale))
+        return best
+
+    coarse = np.linspace(0.99, 1.01, 41) if scale is None else np.array([scale])
+    _, o0, s0 = search(coarse, lambda _: np.linspace(-2.0, 2.0, 201))
+    fine = s0 + np.linspace(-5e-4, 5e-4, 51) if scale is None else coarse
+    c, o, s = search(fine, lambda _: o0 + np.linspace(-0.02, 0.02, 41))
+    if not np.isfinite(c):
+        raise ValueError("recording: the streams do not overlap in time; cannot align clocks")
+    return Clock(offset=o, scale=s)
+
+
+def estimate_gt_clock(rec: Recording) -> Clock:
+    """The ground truth's clock, from its attitude increments against the gyro's."""
+    euler = np.unwrap(rec.gt_rpy, axis=0)
+    t_imu = rec.imu_time
+    roll = np.interp(t_imu, rec.gt_time, euler[:, 0])
+    pitch = np.interp(t_imu, rec.gt_time, euler[:, 1])
+    w = rec.imu[:, 3:6]
+    sr, cr, cp = np.sin(roll), np.cos(roll), np.cos(pitch)
+    yaw_part = w[:, 1] * sr + w[:, 2] * cr
+    rates = np.column_stack(
+        [w[:, 0] + yaw_part * np.tan(pitch), w[:, 1] * cr - w[:, 2] * sr, yaw_part / cp]
+    )
+    # Cumulative integral on sample boundaries; sample k covers (t[k-1], t[k]].
+    dt = np.diff(t_imu, prepend=t_imu[0] - np.median(np.diff(t_imu)))
+    edges = np.concatenate([[t_imu[0] - dt[0]], t_imu])
+    cum = np.vstack([np.zeros(3), np.cumsum(rates * dt[:, None], axis=0)])
+    gt_step = np.diff(euler, axis=0)
+
+    def cost(offsets: F64, scale: float) -> F64:
+        # in the core: the same interpolation as numpy.interp, one walk over the edges
+        return _core.attitude_increment_costs(edges, cum, rec.gt_time, gt_step, offsets, scale)
+
+    return _fit(cost)
+
+
+def estimate_dvl_clock(
+    rec: Recording, gt_clock: Clock, dvl_lever_arm: ArrayLike = (0.0, 0.0, 0.0)
+) -> Clock:
+    """The DVL's clock, from its body velocity against the aligned ground truth's. Its
+    scale is taken as the ground truth's (one logger stamps both, as in the Snapir
+    data): body velocity varies slowly, so it pins an offset well but cannot also
+    separate a scale from it over a short section."""
+    r = _lever_arm(dvl_lever_arm, "dvl_lever_arm")
+    t_gt = gt_clock(rec.gt_time)
+    euler = np.unwrap(rec.gt_rpy, axis=0)
+    # The truth's velocity moved to the DVL at its own rows, then interpolated: the
+    # lever-arm term is then as smooth as the velocity it is added to.
+    w = _interp(t_gt, rec.imu_time, rec.imu[:, 3:6])
+    v_dvl = rec.gt_vel + np.einsum("kij,kj->ki", dcm_from_euler(rec.gt_rpy), np.cross(w, r))
+    lo, hi = max(t_gt[0], rec.imu_time[0]), min(t_gt[-1], rec.imu_time[-1])
+
+    def cost(offsets: F64, scale: float) -> F64:
+        t = offsets[:, None] + scale * rec.dvl_time  # (offsets, rows)
+        inside = (t >= lo) & (t <= hi)
+        c = dcm_from_euler(np.stack([np.interp(t, t_gt, euler[:, j]) for j in range(3)], -1))
+        v_ned = np.stack([np.interp(t, t_gt, v_dvl[:, j]) for j in range(3)], -1)
+        v_body = np.einsum("okji,okj->oki", c, v_ned)
+        sq = np.where(inside, np.sum((rec.dvl - v_body) ** 2, axis=-1), 0.0)
+        n = inside.sum(axis=1)
+        return np.where(n >= 10, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
+
+    return _fit(cost, scale=gt_clock.scale)
+
+
+def estimate_alignment(
+    rec: Recording,
+    imu_lever_arm: ArrayLike = (0.0, 0.0, 0.0),
+    dvl_lever_arm: ArrayLike = (0.0, 0.0, 0.0),
+) -> Alignment:
+    """Both clocks estimated from the data, with the given lever arms [m, body FRD,
+    relative to the ground-truth point]."""
+    imu_arm = _lever_arm(imu_lever_arm, "imu_lever_arm")
+    dvl_arm = _lever_arm(dvl_lever_arm, "dvl_lever_arm")
+    gt_clock = estimate_gt_clock(rec)
+    return Alignment(
+        gt_clock=gt_clock,
+        dvl_clock=estimate_dvl_clock(rec, gt_clock, dvl_arm),
+        imu_lever_arm=tuple(float(v) for v in imu_arm),  # type: ignore[arg-type]
+        dvl_lever_arm=tuple(float(v) for v in dvl_arm),  # type: ignore[arg-type]
+        how="estimated",
+    )
+
+
+def align(rec: Recording, alignment: Alignment) -> Section:
+    """Put ``rec`` on the IMU clock and move its truth to the IMU (see the module
+    docstring)."""
+    truth_time = alignment.gt_clock(rec.gt_time)
+    c = dcm_from_euler(rec.gt_rpy)
+    r = np.asarray(alignment.imu_lever_arm, dtype=np.float64)
+    lla = rec.gt_lla.copy()
+    vel = rec.gt_vel.copy()
+    if r.any():
+        offset_ned = c @ r
+        radii = np.array([_core.earth_radii(float(lat)) for lat in lla[:, 0]])
+        h = lla[:, 2]
+        lla[:, 0] += offset_ned[:, 0] / (radii[:, 0] + h)
+        lla[:, 1] += offset_ned[:, 1] / ((radii[:, 1] + h) * np.cos(lla[:, 0]))
+        lla[:, 2] -= offset_ned[:, 2]
+        w = _interp(truth_time, rec.imu_time, rec.imu[:, 3:6])
+        vel += np.einsum("kij,kj->ki", c, np.cross(w, r))
+    return Section(
+        name=rec.name,
+        imu_time=rec.imu_time,
+        imu=rec.imu,
+        dvl_time=alignment.dvl_clock(rec.dvl_time),
+        dvl=rec.dvl,
+        truth_time=truth_time,
+        truth_lla=lla,
+        truth_vel=vel,
+        truth_rpy=rec.gt_rpy,
+        alignment=alignment,
+    )
+
+
+# ------------------------------------------------------------------------ sections
+
+#: Recorded-data layouts :func:`load_section` reads.
+FORMATS = ("snapir", "generic")
+
+
+def find_sections(data: str | Path) -> list[Path]:
+    """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
+    ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
+    from pronet.recorded.recordings import RecordingError
+
+    data = Path(data)
+    if not data.is_dir():
+        raise RecordingError(
+            f"{data}: not a folder" + ("" if data.exists() else " (it does not exist)")
+        )
+
+    def is_section(p: Path) -> bool:
+        return p.is_dir() and any((p / n).is_file() for n in ("imu.csv", "imu.csv.gz"))
+
+    if is_section(data):
+        return [data]
+    found = sorted(p for p in data.iterdir() if is_section(p) or p.suffix == ".npz")
+    if not found:
+        raise RecordingError(f"{data}: no sections (folders with imu/dvl/gt CSVs, or .npz files)")
+    return found
+
+
+def section_name(path: Path) -> str:
+    """The name of the section at ``path`` (from :func:`find_sections`): a folder's
+    name, an ``.npz`` file's stem."""
+    return path.stem if path.suffix == ".npz" else path.name
+
+
+def load_section(
+    path: Path,
+    fmt: str,
+    *,
+    imu_lever_arm: tuple[float, float, float],
+    dvl_lever_arm: tuple[float, float, float],
+    handle_alignment: bool = True,
+) -> tuple[Section, Section]:
+    """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
+    lever arms applied, and the stamps as given with no lever arms (the comparison)."""
+    from pronet.recorded.recordings import read_recording, read_snapir
+
+    if fmt not in FORMATS:
+        raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
+    stamped = align(rec, Alignment(how="none"))
+    if not handle_alignment:
+        return stamped, stamped
+    return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
+
+
+def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:
+    """Every Snapir section under ``data``, ``(aligned, as_stamped)`` each, with the
+    lever arms from the data's README."""
+    return [
+        load_section(
+            p, "snapir", imu_lever_arm=SNAPIR_IMU_LEVER_ARM, dvl_lever_arm=SNAPIR_DVL_LEVER_ARM
+        )
+        for p in find_sections(data)
+    ]

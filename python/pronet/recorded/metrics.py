@@ -1,0 +1,87 @@
+"""Errors of a filter run on a recorded section against its ground truth: velocity
+SRMSE and SMAE, final and maximum horizontal position error, the final error as a
+percentage of the distance travelled, and the mean NIS. Taken at the ground-truth rows
+inside the run, the estimate linearly interpolated between IMU epochs."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet import _core
+from pronet.filter import FilterResult
+from pronet.recorded.alignment import Section
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SectionMetrics:
+    """Errors of one run against the ground truth at its rows after the start.
+
+    Attributes:
+        srmse, smae: velocity √(mean Σ δv²) and mean Σ|δv| [m/s].
+        final_horizontal, max_horizontal: horizontal position error [m].
+        distance: horizontal distance travelled by the truth [m].
+        final_percent: ``final_horizontal`` as % of ``distance``.
+        mean_nis: mean NIS of the DVL updates (3 when consistent).
+        n_scored: ground-truth rows scored.
+    """
+
+    srmse: float
+    smae: float
+    final_horizontal: float
+    max_horizontal: float
+    distance: float
+    final_percent: float
+    mean_nis: float
+    n_scored: int
+
+
+def _horizontal_offsets(lla: F64, ref: F64) -> tuple[F64, F64]:
+    """North and east of ``lla`` from ``ref`` [m], row by row (radii at ``ref``)."""
+    radii = np.array([_core.earth_radii(float(lat)) for lat in ref[:, 0]])
+    north = (lla[:, 0] - ref[:, 0]) * (radii[:, 0] + ref[:, 2])
+    east = (lla[:, 1] - ref[:, 1]) * (radii[:, 1] + ref[:, 2]) * np.cos(ref[:, 0])
+    return north, east
+
+
+def estimate_at_truth(section: Section, result: FilterResult) -> tuple[NDArray[np.intp], F64, F64]:
+    """``(rows, lla, vel)``: the truth rows inside the run and the estimate there,
+    linearly interpolated between IMU epochs."""
+    rows = np.flatnonzero(
+        (section.truth_time > result.time[0]) & (section.truth_time <= result.time[-1])
+    )
+    t = section.truth_time[rows]
+
+    def at(values: F64) -> F64:
+        return np.stack([np.interp(t, result.time, values[:, j]) for j in range(3)], axis=1)
+
+    return rows, at(result.lla), at(result.vel)
+
+
+def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
+    """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`)."""
+    rows, lla, vel = estimate_at_truth(section, result)
+    if rows.size == 0:
+        raise ValueError(f"section {section.name}: no ground-truth row inside the run")
+    dv = vel - section.truth_vel[rows]
+    north, east = _horizontal_offsets(lla, section.truth_lla[rows])
+    horizontal = np.hypot(north, east)
+    truth = section.truth_lla[np.concatenate([[rows[0] - 1], rows])]
+    step_n, step_e = _horizontal_offsets(truth[1:], truth[:-1])
+    distance = float(np.sum(np.hypot(step_n, step_e)))
+    nis = result.nis[np.isfinite(result.nis)]
+    return SectionMetrics(
+        srmse=float(np.sqrt(np.mean(np.sum(dv**2, axis=1)))),
+        smae=float(np.mean(np.sum(np.abs(dv), axis=1))),
+        final_horizontal=float(horizontal[-1]),
+        max_horizontal=float(horizontal.max()),
+        distance=distance,
+        final_percent=100 * float(horizontal[-1]) / distance if distance > 0 else math.nan,
+        mean_nis=float(nis.mean()) if nis.size else math.nan,
+        n_scored=int(rows.size),
+    )

@@ -1,0 +1,525 @@
+"""Every strategy on recorded sections: filter runs, metrics against the ground truth,
+plots and the result folder of ``pronet real`` (its tables: :mod:`pronet.recorded.tables`).
+
+Each run starts from the ground truth (moved to the IMU) at its first row inside the
+IMU record, with the filter tuning of :func:`pronet.recorded.tuning.real_filter_config`, and
+the process noise of each strategy built around q estimated from the section's own IMU
+(:func:`pronet.recorded.tuning.white_noise_q`). Metrics are taken at the ground-truth rows
+after the start (:mod:`pronet.recorded.metrics`): velocity SRMSE and SMAE, final and maximum
+horizontal position error, and the final error as a percentage of the distance.
+"""
+
+from __future__ import annotations
+
+import contextvars
+import threading
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import closing, nullcontext
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet import _core
+from pronet._util.cores import usable_cores
+from pronet._util.validate import flag, scalar
+from pronet._util.waiting import results_in_order
+from pronet.filter import FilterResult
+from pronet.recorded.alignment import Section, find_sections, load_section, section_name
+from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
+from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
+from pronet.recorded.figures import FigurePool, section_curves
+from pronet.recorded.metrics import section_metrics
+from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
+from pronet.recorded.tables import failed_records, real_config, real_tables, write_metrics
+from pronet.recorded.tuning import (
+    BOTH,
+    DVL_CALIBRATION,
+    R_FROM_DATA,
+    REAL_DVL_VARIANCE,
+    REAL_VARIANT_ROWS,
+    check_dvl_noise,
+    real_filter_config,
+    real_strategies,
+    white_noise_q,
+)
+from pronet.run import Recorded, run
+from pronet.strategies import StrategyLike
+
+if TYPE_CHECKING:  # torch loads only when a net is trained or run through torch
+    from pronet.learn.models import Regressor
+
+F64 = NDArray[np.float64]
+
+
+def start_index(section: Section) -> int:
+    """The ground-truth row a run starts from: the first at or after the first IMU
+    sample's time."""
+    inside = np.flatnonzero(section.truth_time >= section.imu_time[0])
+    if inside.size < 2:
+        raise ValueError(f"section {section.name}: the ground truth does not overlap the IMU")
+    return int(inside[0])
+
+
+#: Set (to an event) on the threads of :func:`run_sections`: once the event is set,
+#: each thread's next filter pass raises :class:`_Stopped` instead of running, so that
+#: Ctrl-C ends the sections within one pass (~0.05 s) instead of a whole section.
+_STOP: contextvars.ContextVar[threading.Event | None] = contextvars.ContextVar(
+    "pronet_real_stop", default=None
+)
+
+
+class _Stopped(Exception):
+    """A section thread told to stop (the caller is already raising its own error)."""
+
+
+def run_section(
+    section: Section,
+    strategy: StrategyLike,
+    config: _core.FilterConfig,
+    *,
+    label: str = "",
+    setup: str = "aligned",
+    duration: float | None = None,
+    use_dvl: bool = True,
+) -> SectionRun:
+    """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
+    for ``duration`` seconds (default: to the end), with or without the DVL."""
+    done = run(strategy, section_recorded(section, config, duration=duration, use_dvl=use_dvl))
+    metrics = section_metrics(section, done.result)
+    return SectionRun(
+        setup,
+        section.name,
+        label,
+        done.result,
+        metrics,
+        done.schedule,
+        done.seconds,
+        done.tuning_period,
+    )
+
+
+def section_recorded(
+    section: Section,
+    config: _core.FilterConfig,
+    *,
+    duration: float | None = None,
+    use_dvl: bool = True,
+    epochs: Literal["all", "last"] = "all",
+) -> Recorded:
+    """``section``'s sensors from the ground truth at :func:`start_index` on, for
+    ``duration`` seconds (default: to the end), with or without the DVL, ready to
+    filter with ``config`` (``epochs``: see :class:`pronet.run.Recorded`). Inside
+    :func:`run_sections`, it stops the section's thread once the run is told to stop."""
+    stop = _STOP.get()
+    if stop is not None and stop.is_set():
+        raise _Stopped
+    if duration is not None and not scalar(duration, "duration") > 0:
+        raise ValueError(f"duration: must be > 0 s, got {duration}")
+    i0 = start_index(section)
+    t0 = float(section.truth_time[i0])
+    take = section.imu_time > t0
+    if duration is not None:
+        take &= section.imu_time <= t0 + float(duration)
+        end = section.imu_time[take].max(initial=-np.inf)
+        if not np.any((section.truth_time > t0) & (section.truth_time <= end)):
+            raise ValueError(f"duration: {duration} s from the start reach no ground-truth row")
+    keep = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
+    return Recorded(
+        imu=section.imu[take],
+        imu_time=section.imu_time[take],
+        dvl=section.dvl[keep],
+        dvl_time=section.dvl_time[keep],
+        t0=t0,
+        lla0=section.truth_lla[i0],
+        vel0=section.truth_vel[i0],
+        rpy0=section.truth_rpy[i0],
+        config=config,
+        epochs=epochs,
+    )
+
+
+#: Seconds of the pure-inertial sanity run.
+INERTIAL_SECONDS = 60.0
+
+
+def evaluate_section(
+    section: Section,
+    strategies: Mapping[str, StrategyLike],
+    config: _core.FilterConfig,
+    *,
+    variants: Mapping[str, _core.FilterConfig] | None = None,
+    setup: str = "aligned",
+    on_done: Callable[[str], None] | None = None,
+) -> tuple[list[SectionRun], SectionRun]:
+    """Every strategy on ``section`` with ``config``, the first strategy with each of
+    ``variants``' configs (by row label), and the pure-inertial run over the first
+    :data:`INERTIAL_SECONDS` with the first strategy's noise."""
+    first = next(iter(strategies.values()))
+    rows = [(label, chosen, config) for label, chosen in strategies.items()]
+    rows += [(label, first, cfg) for label, cfg in (variants or {}).items()]
+    runs = []
+    for label, chosen, cfg in rows:
+        runs.append(run_section(section, chosen, cfg, label=label, setup=setup))
+        if on_done is not None:
+            on_done(label)
+    inertial = run_section(
+        section,
+        first,
+        config,
+        label=f"inertial only, first {INERTIAL_SECONDS:g} s",
+        setup=setup,
+        duration=INERTIAL_SECONDS,
+        use_dvl=False,
+    )
+    return runs, inertial
+
+
+def estimate_dvl_noise(
+    section: Section, strategy: StrategyLike, lever_arm: tuple[float, float, float]
+) -> SectionDvlNoise:
+    """The DVL noise of ``section``: its second-difference R, then the R that matches
+    the innovations of ``strategy`` under :func:`real_filter_config`, without and with
+    the calibration states (a pass per step of
+    :func:`pronet.recorded.dvlnoise.match_innovations`)."""
+
+    def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
+        def one_pass(r: tuple[float, float, float]) -> FilterResult:
+            config = real_filter_config(lever_arm, r, calibration)
+            # the matching reads the updates only: no epoch arrays, no metrics
+            return run(strategy, section_recorded(section, config, epochs="last")).result
+
+        return match_innovations(one_pass, first)
+
+    try:
+        start = second_difference_variance(section.dvl)
+        without = matched(False, start)
+        # With the states, R comes out close to the R without them: start from there.
+        return SectionDvlNoise(start, without, matched(True, without.variance))
+    except ValueError as exc:
+        raise ValueError(f"section {section.name}: DVL noise: {exc}") from None
+
+
+@dataclass(frozen=True)
+class SectionPlan:
+    """What runs on one section: the strategy rows with ``config``, and the first
+    strategy with each of ``variants``' configs (:data:`REAL_VARIANT_ROWS`).
+
+    Attributes:
+        q: the section's IMU noise (:func:`white_noise_q`).
+        dvl_noise: the section's DVL noise estimates, or why they could not be made
+            (then the section has no variant rows).
+        dvl_variance: the R of the strategy rows [(m/s)²] (the datasheet's or the data's).
+    """
+
+    q: tuple[float, ...]
+    strategies: dict[str, StrategyLike]
+    config: _core.FilterConfig
+    variants: dict[str, _core.FilterConfig]
+    dvl_noise: SectionDvlNoise | str
+    dvl_variance: tuple[float, float, float]
+
+
+def plan_section(
+    section: Section,
+    models: Mapping[str, Regressor],
+    tuning_period: float,
+    dvl_noise: str = "datasheet",
+) -> SectionPlan:
+    """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
+    its estimated q, with the DVL noise of ``dvl_noise`` (one of
+    :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows."""
+    check_dvl_noise(dvl_noise)
+    q = white_noise_q(section.imu)
+    strategies = real_strategies(q, models, tuning_period)
+    arm = section.alignment.filter_lever_arm
+    datasheet = (REAL_DVL_VARIANCE,) * 3
+    try:
+        noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm)
+    except ValueError as exc:
+        if dvl_noise == "data":  # the strategy rows need it
+            raise
+        # The strategy rows do not: they run, the variant rows are left out.
+        return SectionPlan(q, strategies, real_filter_config(arm), {}, str(exc), datasheet)
+    used = noise.matched.variance if dvl_noise == "data" else datasheet
+    variants = {
+        R_FROM_DATA: real_filter_config(arm, noise.matched.variance),
+        DVL_CALIBRATION: real_filter_config(arm, calibration=True),
+        BOTH: real_filter_config(arm, noise.matched_calibrated.variance, calibration=True),
+    }
+    return SectionPlan(q, strategies, real_filter_config(arm, used), variants, noise, used)
+
+
+# ------------------------------------------------------------------------ pronet real
+
+
+def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
+    """The sections under ``data`` (:func:`pronet.recorded.alignment.find_sections`), only those
+    whose folder or file name, or name without suffix, is in ``names`` when given."""
+    paths = find_sections(data)
+    if names:
+        wanted = {n.strip() for n in names}
+        known = {p.name for p in paths} | {p.stem for p in paths}
+        unknown = sorted(wanted - known)
+        if unknown:  # a misspelt name must not silently drop its section
+            raise ValueError(
+                f"--sections: no section named {', '.join(unknown)} in {data}; there are "
+                f"{', '.join(p.name for p in paths)}"
+            )
+        paths = [p for p in paths if p.name in wanted or p.stem in wanted]
+    return paths
+
+
+def run_sections(
+    sections: list[tuple[Section, Section]],
+    models: Mapping[str, Regressor],
+    tuning_period: float,
+    on_done: Callable[[str], None] | None = None,
+    threads: int | None = None,
+    failed: Mapping[str, str] | None = None,
+    dvl_noise: str = "datasheet",
+    on_section: Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]
+    | None = None,
+) -> RealRuns:
+    """The rows of :func:`plan_section` on each aligned section (with its own estimated
+    q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
+    the inertial run;
+    ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
+    on ``threads`` threads (default: one per core this process may use; each filter is
+    one native call without the GIL), and the results do not depend on it.
+
+    ``on_section(aligned, runs, constants)`` is called (on the section's thread) as
+    soon as a section's strategy rows are done, with the q of its constant rows (the
+    figures start from it).
+
+    A section whose filter raises ValueError is left out and its reason kept in
+    :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
+    read); the others still run. Raises ValueError naming the section when none is left.
+    """
+    workers = threads if threads is not None else usable_cores()
+    lock = threading.Lock()
+
+    def done(text: str) -> None:
+        if on_done is not None:
+            with lock:
+                on_done(text)
+
+    def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
+        _STOP.set(stop)  # this thread's context: its run_section calls see the event
+        try:
+            plan = plan_section(pair[0], models, tuning_period, dvl_noise)
+            ran = _run_one_section(pair[0], pair[1], plan, done)
+        except ValueError as exc:  # the reason, kept beside the section's name
+            return str(exc)
+        if on_section is not None:
+            on_section(pair[0], ran.runs, ran.constants)
+        return ran
+
+    stop = threading.Event()
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        try:  # waited for in slices, so that a signal another thread took is seen at once
+            outcomes = list(results_in_order([pool.submit(one, pair) for pair in sections]))
+        except BaseException:  # Ctrl-C, SIGTERM, an error: the threads stop at their next pass
+            stop.set()
+            raise
+    reasons = dict(failed or {})
+    ran: list[tuple[tuple[Section, Section], _SectionRuns]] = []
+    for pair, outcome in zip(sections, outcomes, strict=True):
+        if isinstance(outcome, str):
+            reasons[pair[0].name] = outcome
+        else:
+            ran.append((pair, outcome))
+    if not ran:
+        raise ValueError(_no_section_left(reasons))
+    parts = [p for _, p in ran]
+    return RealRuns(
+        [pair for pair, _ in ran],
+        [r for p in parts for r in p.runs],
+        [p.stamped for p in parts],
+        [p.inertial for p in parts],
+        {a.name: p.q for (a, _), p in ran},
+        {a.name: p.constants for (a, _), p in ran},
+        reasons,
+        {a.name: (p.plan.dvl_noise, p.plan.dvl_variance) for (a, _), p in ran},
+        {a.name: p.truth_calibration for (a, _), p in ran},
+    )
+
+
+def _no_section_left(reasons: Mapping[str, str]) -> str:
+    """The error when every section failed: the first one's reason, and how many more."""
+    if not reasons:
+        return "no sections to run"
+    name, reason = next(iter(reasons.items()))
+    more = f" (and {len(reasons) - 1} more sections failed)" if len(reasons) > 1 else ""
+    return f"section {name}: {reason}{more}"
+
+
+@dataclass(frozen=True)
+class _SectionRuns:
+    plan: SectionPlan
+    constants: dict[str, tuple[float, ...]]
+    runs: list[SectionRun]
+    stamped: SectionRun
+    inertial: SectionRun
+    truth_calibration: TruthCalibration | str
+
+    @property
+    def q(self) -> tuple[float, ...]:
+        return self.plan.q
+
+
+def _run_one_section(
+    aligned: Section, stamped: Section, plan: SectionPlan, on_done: Callable[[str], None]
+) -> _SectionRuns:
+    constants = {
+        label: tuple(s.q)
+        for label, s in plan.strategies.items()
+        if isinstance(s, _core.Strategy) and s.kind == "constant"
+    }
+    section_runs, inertial_run = evaluate_section(
+        aligned,
+        plan.strategies,
+        plan.config,
+        variants=plan.variants,
+        on_done=lambda label: on_done(f"{aligned.name}: {label}"),
+    )
+    first_label, first = next(iter(plan.strategies.items()))
+    stamped_run = run_section(
+        stamped,
+        first,
+        real_filter_config(stamped.alignment.filter_lever_arm, plan.dvl_variance),
+        label=f"{first_label}, stamps as given, no lever arms",
+        setup="stamps as given, no lever arms",
+    )
+    try:
+        truth: TruthCalibration | str = truth_calibration(aligned)
+    except ValueError as exc:  # a section too short or too slow: the reason, in config.json
+        truth = str(exc)
+    return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run, truth)
+
+
+def run_real(
+    data: str | Path,
+    out: str | Path | None = None,
+    *,
+    fmt: str = "snapir",
+    sections: list[str] | tuple[str, ...] | None = None,
+    imu_lever_arm: tuple[float, float, float] | None = None,
+    dvl_lever_arm: tuple[float, float, float] | None = None,
+    tuning_period: float = 1.0,
+    use_models: bool = True,
+    plots: bool = True,
+    dvl_noise: str = "datasheet",
+    on_start: Callable[[int, str, str | None], None] | None = None,
+    on_done: Callable[[str], None] | None = None,
+) -> Path:
+    """Every strategy on the recorded sections under ``data`` (read where they lie, never
+    copied), written as one result folder (``table.md``, ``metrics.csv``/``.json``,
+    ``config.json``, plots per section); returns the folder. Every section is read and
+    checked before any filter runs. A section that cannot be read or filtered is left
+    out and reported (``table.md``'s "Sections not run", ``failure`` in
+    ``metrics.csv``, ``failed_sections`` in ``config.json``); the others still run.
+    Raises ValueError, naming the section, when no section can be run.
+
+    Args:
+        out: the result folder to create (default ``results/real-<time>``).
+        fmt: one of :data:`pronet.recorded.alignment.FORMATS`; sections: only these section names.
+        imu_lever_arm, dvl_lever_arm: sensor positions from the ground-truth point
+            [m, body FRD] (default: the Snapir AUV's).
+        tuning_period: seconds between regressor calls in the learned rows (> 0).
+        use_models: False: only the model-based rows.
+        plots: False: no plots (the tables and metrics only). The figures are drawn
+            in worker processes (:class:`pronet.recorded.figures.FigurePool`) while the other
+            sections are filtered; on the Snapir data they add about half to the run
+            time (9.4 s against 6.3 s on 2 cores).
+        dvl_noise: the DVL noise R of the strategy rows, one of
+            :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`: ``"datasheet"``
+            (:data:`pronet.recorded.tuning.REAL_DVL_VARIANCE`) or ``"data"`` (each section's
+            innovation-matched R, :func:`estimate_dvl_noise`). Either way the table has
+            the variant rows and reports each section's R.
+        on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`): stages
+            ``reading, aligning`` (a step per section), the runs (a step per section
+            and strategy) and ``plots`` (a step per section).
+    """
+    from pronet._util.files import atomic_folder, json_bytes
+    from pronet._util.outputs import new_result_folder
+    from pronet.learn.frozen import SHIPPED, load_frozen
+    from pronet.recorded.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+
+    folder = new_result_folder(out, "real")
+    if not tuning_period > 0:
+        raise ValueError("--tuning-period must be > 0 s")
+    check_dvl_noise(dvl_noise)
+    imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
+    dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
+    paths = select_sections(data, sections)
+    # frozen in the core, loaded without torch
+    regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
+    if on_start is not None:
+        on_start(len(paths), "section", "reading, aligning")
+
+    def read(path: Path) -> tuple[Section, Section] | str:
+        try:
+            return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+        except (ValueError, OSError) as exc:  # the reason (it names the file)
+            return str(exc)
+
+    loaded: list[tuple[Section, Section]] = []
+    unread: dict[str, str] = {}
+    with (
+        ThreadPoolExecutor(max_workers=usable_cores()) as pool,
+        closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
+    ):  # closed however the loop ends: the reads not yet started are cancelled
+        for path, section in zip(paths, reading, strict=True):  # in order
+            if isinstance(section, str):
+                unread[section_name(path)] = section
+            else:
+                loaded.append(section)
+            if on_done is not None:
+                on_done(path.name)
+    if not loaded:  # nothing to run: the first reason, before any filter
+        raise ValueError(_no_section_left(unread))
+    if on_start is not None:
+        n_rows = len(real_strategies((1.0,) * 6, regressors, 1.0)) + len(REAL_VARIANT_ROWS)
+        on_start(len(loaded) * n_rows, "run", None)
+    # the figures are drawn in worker processes as the sections finish
+    with FigurePool() if plots else nullcontext(None) as figures:
+        done = run_sections(
+            loaded,
+            regressors,
+            tuning_period,
+            on_done,
+            failed=unread,
+            dvl_noise=dvl_noise,
+            on_section=None if figures is None else _drawn_by(figures),
+        )
+        config = real_config(
+            data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors
+        )
+        with atomic_folder(folder) as tmp:
+            runs = done.runs + done.stamped + done.inertial
+            write_metrics(tmp, runs, real_tables(done), failed_records(done))
+            (tmp / "config.json").write_bytes(json_bytes(config))
+            if figures is not None:
+                if on_start is not None:
+                    on_start(len(done.sections), "section", "plots")
+                figures.write(tmp, [a.name for a, _ in done.sections], on_done)
+    return folder
+
+
+def _drawn_by(
+    figures: FigurePool,
+) -> Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]:
+    """The ``on_section`` hook of :func:`run_sections` that hands each finished section's
+    curves to ``figures``."""
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+
+    def submit(
+        aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
+    ) -> None:
+        figures.submit(section_curves(aligned, runs, constants, imu_dt))
+
+    return submit

@@ -1,0 +1,446 @@
+"""Readers for recorded INS/DVL data (real vehicles), validated before any computation.
+
+Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
+
+- :func:`read_snapir` reads the published Snapir AUV layout: a folder holding
+  ``imu.csv.gz``, ``dvl.csv.gz`` and ``gt.csv.gz`` with the publisher's headers
+  (``Time [s], ACC X [m/s^2], …``). Its body frame is FRD; its altitude is negative below
+  the surface, i.e. height up.
+- :func:`read_recording` reads the generic format, for users' own recordings: either a
+  folder holding ``imu.csv``, ``dvl.csv`` and ``gt.csv`` (each optionally ``.gz``), or
+  one ``.npz`` file with 2-D float arrays ``imu``, ``dvl``, ``gt`` and string arrays
+  ``imu_columns``, ``dvl_columns``, ``gt_columns`` naming their columns. Every column
+  is named ``name [unit]``:
+
+  ===== ============================================================================
+  table columns (accepted units; converted to the first)
+  ===== ============================================================================
+  imu   ``time [s]``, ``acc_x``, ``acc_y``, ``acc_z [m/s^2]``,
+        ``gyro_x``, ``gyro_y``, ``gyro_z [rad/s | deg/s]``: body frame FRD,
+        specific force and angular rate, one row per sample
+  dvl   ``time [s]``, ``vel_x``, ``vel_y``, ``vel_z [m/s]``: body-frame velocity of the
+        DVL
+  gt    ``time [s]``, ``lat``, ``lon [rad | deg]``, ``height [m]`` (up),
+        ``vel_n``, ``vel_e``, ``vel_d [m/s]``, ``roll``, ``pitch``, ``yaw [rad | deg]``
+        (ZYX): the ground truth at its reference point
+  ===== ============================================================================
+
+  Extra columns are ignored; column order is free.
+
+Checks (each failure raises :class:`RecordingError`, a ``ValueError``, naming the file
+and, where there is one, the row): the file exists and is not empty, the columns are
+comma-separated and every required one is present with a known unit, every value is a
+finite number, time increases strictly, the sample rate is plausible for the sensor
+(IMU 10 Hz–10 kHz, DVL and ground truth 0.05–100 Hz), the IMU time has no gap longer
+than five median steps, and the magnitudes fit their units (the mean specific force
+near gravity, angular rates within 10 rad/s, the DVL's speed within a factor 2 of the
+ground truth's; see :data:`GRAVITY_RANGE` and beside it). A folder holding both a
+``.csv`` and a ``.csv.gz`` of one stream is ambiguous and refused. Row numbers count
+data rows from 1 (the header is row 0).
+
+Timestamps are kept as recorded: clock offsets and lever arms are the business of
+:mod:`pronet.recorded.alignment`.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import io
+import re
+import zipfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+
+class RecordingError(ValueError):
+    """A recording file is missing, malformed or implausible; the message names the file
+    (and row)."""
+
+
+#: Required columns of each table: name → accepted units and their factor to SI.
+_ANGLE = {"rad": 1.0, "deg": np.pi / 180}
+_RATE = {"rad/s": 1.0, "deg/s": np.pi / 180}
+COLUMNS: dict[str, dict[str, dict[str, float]]] = {
+    "imu": {
+        "time": {"s": 1.0},
+        **{f"acc_{a}": {"m/s^2": 1.0} for a in "xyz"},
+        **{f"gyro_{a}": _RATE for a in "xyz"},
+    },
+    "dvl": {"time": {"s": 1.0}, **{f"vel_{a}": {"m/s": 1.0} for a in "xyz"}},
+    "gt": {
+        "time": {"s": 1.0},
+        "lat": _ANGLE,
+        "lon": _ANGLE,
+        "height": {"m": 1.0},
+        **{f"vel_{a}": {"m/s": 1.0} for a in "ned"},
+        **{a: _ANGLE for a in ("roll", "pitch", "yaw")},
+    },
+}
+
+#: Plausible sample rates [Hz] of each table.
+RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 100.0)}
+#: Plausible magnitudes. The mean specific force over a section within this range of
+#: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
+#: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
+#: the DVL's median speed within this ratio of the ground truth's (when that is above
+#: 0.2 m/s); no IMU step longer than this many median steps.
+STANDARD_GRAVITY = 9.80665
+GRAVITY_RANGE = (0.8, 1.2)
+MAX_RECORDED_RATE = 10.0
+DVL_SPEED_RATIO = (0.5, 2.0)
+MAX_IMU_GAP = 5.0
+
+#: The Snapir publisher's column names, by our name.
+SNAPIR_NAMES = {
+    "imu": {
+        "time": "time",
+        "acc x": "acc_x",
+        "acc y": "acc_y",
+        "acc z": "acc_z",
+        "gyro x": "gyro_x",
+        "gyro y": "gyro_y",
+        "gyro z": "gyro_z",
+    },
+    "dvl": {"time": "time", "dvl x": "vel_x", "dvl y": "vel_y", "dvl z": "vel_z"},
+    "gt": {
+        "time": "time",
+        "latitude": "lat",
+        "longitude": "lon",
+        "altitude": "height",
+        "v north": "vel_n",
+        "v east": "vel_e",
+        "v down": "vel_d",
+        "roll": "roll",
+        "pitch": "pitch",
+        "yaw": "yaw",
+    },
+}
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One recorded section, SI units, stamps as recorded (each stream its own clock).
+
+    Attributes:
+        name: section name (the folder or file stem).
+        imu_time: ``(n,)`` IMU stamps [s].
+        imu: ``(n, 6)`` ``[f (m/s²), ω (rad/s)]``, body frame FRD.
+        dvl_time: ``(m,)`` DVL stamps [s].
+        dvl: ``(m, 3)`` DVL body-frame velocity [m/s].
+        gt_time: ``(k,)`` ground-truth stamps [s].
+        gt_lla: ``(k, 3)`` latitude, longitude [rad], height [m, up].
+        gt_vel: ``(k, 3)`` NED velocity [m/s].
+        gt_rpy: ``(k, 3)`` roll, pitch, yaw [rad] (ZYX).
+        source: where it was read from.
+    """
+
+    name: str
+    imu_time: F64
+    imu: F64
+    dvl_time: F64
+    dvl: F64
+    gt_time: F64
+    gt_lla: F64
+    gt_vel: F64
+    gt_rpy: F64
+    source: str
+
+    @property
+    def duration(self) -> float:
+        """IMU time span [s]."""
+        return float(self.imu_time[-1] - self.imu_time[0])
+
+
+def read_snapir(folder: str | Path) -> Recording:
+    """Read one Snapir section (``trajectoryNN/`` with ``imu``, ``dvl`` and ``gt``
+    ``.csv.gz``) as published, validated; see the module docstring."""
+    folder = Path(folder)
+    tables = {kind: _read_csv(_find(folder, kind), kind, SNAPIR_NAMES[kind]) for kind in COLUMNS}
+    return _recording(folder.name, tables, str(folder))
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a recording in the generic format (a folder of ``imu``/``dvl``/``gt`` CSV
+    files, or one ``.npz``), validated; see the module docstring for the columns."""
+    path = Path(path)
+    if path.is_dir():
+        tables = {kind: _read_csv(_find(path, kind), kind, None) for kind in COLUMNS}
+        return _recording(path.name, tables, str(path))
+    if path.suffix == ".npz":
+        return _recording(path.stem, _read_npz(path), str(path))
+    raise RecordingError(
+        f"{path}: expected a folder of imu/dvl/gt CSV files or an .npz file"
+        + ("" if path.exists() else " (it does not exist)")
+    )
+
+
+def write_recording(path: str | Path, recording: Recording) -> Path:
+    """Write ``recording`` in the generic format: an ``.npz`` file if ``path`` ends in
+    ``.npz``, else a folder of three CSV files (SI units, full precision)."""
+    path = Path(path)
+    tables = _as_tables(recording)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix == ".npz":
+        arrays: dict[str, np.ndarray] = {}
+        for kind, (header, data) in tables.items():
+            arrays[kind] = data
+            arrays[f"{kind}_columns"] = np.array(header)
+        np.savez(path, **arrays)  # type: ignore[arg-type]
+        return path
+    path.mkdir(parents=True, exist_ok=True)
+    for kind, (header, data) in tables.items():
+        buf = io.StringIO()
+        buf.write(",".join(header) + "\n")
+        np.savetxt(buf, data, delimiter=",", fmt="%.17g")
+        (path / f"{kind}.csv").write_text(buf.getvalue())
+    return path
+
+
+def _as_tables(rec: Recording) -> dict[str, tuple[list[str], F64]]:
+    def header(kind: str) -> list[str]:
+        return [f"{name} [{next(iter(units))}]" for name, units in COLUMNS[kind].items()]
+
+    gt = np.column_stack([rec.gt_time, rec.gt_lla, rec.gt_vel, rec.gt_rpy])
+    return {
+        "imu": (header("imu"), np.column_stack([rec.imu_time, rec.imu])),
+        "dvl": (header("dvl"), np.column_stack([rec.dvl_time, rec.dvl])),
+        "gt": (header("gt"), gt),
+    }
+
+
+def _find(folder: Path, kind: str) -> Path:
+    if not folder.is_dir():
+        missing = "" if folder.exists() else " (it does not exist)"
+        raise RecordingError(f"{folder}: not a folder{missing}")
+    found = [folder / n for n in (f"{kind}.csv", f"{kind}.csv.gz") if (folder / n).is_file()]
+    if len(found) > 1:
+        raise RecordingError(
+            f"{folder}: both {kind}.csv and {kind}.csv.gz; keep the one that holds the data"
+        )
+    if not found:
+        raise RecordingError(f"{folder}: no {kind}.csv or {kind}.csv.gz")
+    return found[0]
+
+
+def _parse_header(cell: str) -> tuple[str, str]:
+    name, _, unit = cell.strip().partition("[")
+    return name.strip().lower(), unit.rstrip("] ").strip()
+
+
+def _select_columns(
+    where: str, header: list[str], kind: str, names: dict[str, str] | None
+) -> list[tuple[int, float]]:
+    """Column index and SI factor of each required column, in :data:`COLUMNS` order."""
+    parsed = [_parse_header(h) for h in header]
+    found: dict[str, tuple[int, str]] = {}
+    for i, (name, unit) in enumerate(parsed):
+        ours = names.get(name, name) if names is not None else name
+        found.setdefault(ours, (i, unit))
+    picks = []
+    for name, units in COLUMNS[kind].items():
+        if name not in found:
+            shown = ", ".join(header)
+            raise RecordingError(
+                f"{where}: missing column {name!r} [{' | '.join(units)}]; has: {shown}"
+            )
+        i, unit = found[name]
+        if unit not in units:
+            raise RecordingError(
+                f"{where}: column {header[i]!r} has unit [{unit}]; expected one of "
+                f"{', '.join(units)}"
+            )
+        picks.append((i, units[unit]))
+    return picks
+
+
+def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
+    try:
+        raw = gzip.open(path, "rt") if path.suffix == ".gz" else open(path, newline="")
+        with raw as fh:
+            text = fh.read()
+    except (OSError, EOFError, UnicodeDecodeError) as exc:
+        raise RecordingError(f"{path}: cannot be read ({exc})") from None
+    reader = csv.reader(io.StringIO(text))
+    header = next(reader, [])
+    if not any(cell.strip() for cell in header):
+        raise RecordingError(f"{path}: is empty (no header row)")
+    if len(header) == 1 and (sep := next((d for d in ";\t|" if d in header[0]), None)):
+        raise RecordingError(
+            f"{path}: the header is one column separated by {sep!r}; "
+            "the file must be comma-separated"
+        )
+    picks = _select_columns(str(path), header, kind, names)
+    columns = [i for i, _ in picks]
+    table = _parse_numbers(text, len(header))
+    if table is not None:
+        out = np.ascontiguousarray(table[:, columns])
+    else:  # not a plain table of numbers: the careful reader names the row and cell
+        out = _parse_rows(path, header, reader, columns)
+    return _finish(str(path), out, picks, [header[i].strip() for i, _ in picks], kind)
+
+
+_LINE_STARTING_BLANK = re.compile(r"\n[ \t\f\v]")
+
+
+def _parse_numbers(text: str, width: int) -> F64 | None:
+    """The data rows of ``text`` (after its one-line header) as a ``(rows, width)``
+    float array, with pandas' C parser (exact, as ``float()``); None unless every row
+    is ``width`` finite-or-infinite numbers (a NaN, a short or long row, a cell that is
+    not a number, a quoted header: the careful reader then decides)."""
+    import pandas as pd
+
+    first = text.partition("\n")[0]
+    # pandas would skip a line of blanks that the careful reader reports as a short row:
+    # any line starting with a blank goes to the careful reader (a quick scan)
+    if '"' in first or _LINE_STARTING_BLANK.search(text):
+        return None
+    try:
+        table = pd.read_csv(
+            io.StringIO(text), header=None, skiprows=1, dtype=np.float64, na_filter=False
+        ).to_numpy(dtype=np.float64)
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        return None
+    if table.ndim != 2 or table.shape[1] != width or table.shape[0] == 0 or np.isnan(table).any():
+        return None
+    return table
+
+
+def _parse_rows(
+    path: Path, header: list[str], reader: Iterator[list[str]], columns: list[int]
+) -> F64:
+    """The ``columns`` of the data rows, cell by cell: a row of the wrong width or a
+    cell of those columns that ``float()`` refuses is a :class:`RecordingError` naming
+    the row and the column."""
+    body = [r for r in reader if r]
+    if not body:
+        raise RecordingError(f"{path}: has a header but no data rows")
+    out = np.empty((len(body), len(columns)))
+    width = len(header)
+    for r, row in enumerate(body, start=1):
+        if len(row) != width:
+            raise RecordingError(f"{path}, row {r}: has {len(row)} fields, the header {width}")
+        for j, i in enumerate(columns):
+            try:
+                out[r - 1, j] = float(row[i])
+            except ValueError:
+                raise RecordingError(
+                    f"{path}, row {r}: {header[i].strip()!r} is {row[i]!r}, not a number"
+                ) from None
+    return out
+
+
+def _read_npz(path: Path) -> dict[str, F64]:
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise RecordingError(f"{path}: not a readable .npz ({exc})") from None
+    tables = {}
+    with archive:
+        for kind in COLUMNS:
+            where = f"{path}[{kind}]"
+            if kind not in archive.files or f"{kind}_columns" not in archive.files:
+                raise RecordingError(f"{path}: needs arrays {kind!r} and '{kind}_columns'")
+            try:
+                data, header = archive[kind], archive[f"{kind}_columns"]
+            except ValueError as exc:  # object arrays would need pickle: refused
+                raise RecordingError(f"{where}: cannot be read without pickle ({exc})") from None
+            if header.dtype.kind != "U" or header.ndim != 1:
+                raise RecordingError(f"{path}[{kind}_columns]: must be a 1-D array of strings")
+            if data.ndim != 2 or data.shape[1] != len(header) or data.dtype.kind not in "iuf":
+                raise RecordingError(
+                    f"{where}: must be a 2-D numeric array with {len(header)} columns "
+                    f"(one per {kind}_columns entry), got {data.dtype} {data.shape}"
+                )
+            if data.shape[0] == 0:
+                raise RecordingError(f"{where}: has no rows")
+            labels = [str(h) for h in header]
+            picks = _select_columns(where, labels, kind, None)
+            out = data[:, [i for i, _ in picks]].astype(np.float64)
+            tables[kind] = _finish(where, out, picks, [labels[i] for i, _ in picks], kind)
+    return tables
+
+
+def _check_plausible(imu: F64, dvl: F64, gt_vel: F64, source: str) -> None:
+    """Magnitudes that fit their units, checked before anything is filtered (a unit
+    mix-up otherwise runs to the end and only shows as a huge error)."""
+    specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
+    lo, hi = GRAVITY_RANGE
+    if not lo <= specific_force / STANDARD_GRAVITY <= hi:
+        raise RecordingError(
+            f"{source} imu: the mean specific force is {specific_force:.4g} m/s², not near "
+            f"gravity ({STANDARD_GRAVITY} m/s²); are the accelerations in g, or mis-scaled?"
+        )
+    rate = float(np.percentile(np.linalg.norm(imu[:, 3:], axis=1), 99))
+    if rate > MAX_RECORDED_RATE:
+        raise RecordingError(
+            f"{source} imu: 1 % of the angular rates exceed {rate:.4g} rad/s, beyond any "
+            f"vehicle (at most {MAX_RECORDED_RATE:g}); are they in deg/s under a rad/s header?"
+        )
+    truth, dvl_speed = (float(np.median(np.linalg.norm(v, axis=1))) for v in (gt_vel, dvl))
+    lo, hi = DVL_SPEED_RATIO
+    if truth > 0.2 and len(dvl) and not lo <= dvl_speed / truth <= hi:
+        raise RecordingError(
+            f"{source} dvl: its median speed {dvl_speed:.4g} m/s against the ground truth's "
+            f"{truth:.4g} m/s; are the DVL velocities in m/s?"
+        )
+
+
+def _finish(
+    where: str, values: F64, picks: list[tuple[int, float]], labels: list[str], kind: str
+) -> F64:
+    """Check finiteness, strictly increasing time and the rate; convert to SI."""
+    bad = ~np.isfinite(values)
+    if bad.any():
+        r, j = np.argwhere(bad)[0]
+        raise RecordingError(f"{where}, row {r + 1}: {labels[j]!r} is {values[r, j]}, not finite")
+    t = values[:, 0]
+    step = np.diff(t)
+    if (step <= 0).any():
+        r = int(np.argmax(step <= 0)) + 2
+        raise RecordingError(
+            f"{where}, row {r}: time {t[r - 1]} s does not increase (previous row {t[r - 2]} s)"
+        )
+    if len(t) > 1:
+        rate = 1.0 / float(np.median(step))
+        lo, hi = RATE_RANGE[kind]
+        if not lo <= rate <= hi:
+            raise RecordingError(
+                f"{where}: sample rate {rate:.4g} Hz is implausible for {kind} "
+                f"(expected {lo:g}–{hi:g} Hz); is the time column in seconds?"
+            )
+        gap = step > MAX_IMU_GAP * np.median(step)
+        if kind == "imu" and gap.any():  # the strapdown would integrate across it
+            r = int(np.argmax(gap)) + 2
+            raise RecordingError(
+                f"{where}, row {r}: a gap of {step[r - 2]:.4g} s after {t[r - 2]} s (the "
+                f"median step is {np.median(step):.4g} s); cut the section there"
+            )
+    return values * np.array([factor for _, factor in picks])
+
+
+def _recording(name: str, tables: dict[str, F64], source: str) -> Recording:
+    imu, dvl, gt = tables["imu"], tables["dvl"], tables["gt"]
+    lat = gt[:, 1]
+    if (np.abs(lat) > np.pi / 2).any():
+        r = int(np.argmax(np.abs(lat) > np.pi / 2)) + 1
+        raise RecordingError(f"{source} gt, row {r}: latitude {lat[r - 1]} rad is outside ±π/2")
+    _check_plausible(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source)
+    return Recording(
+        name=name,
+        imu_time=imu[:, 0].copy(),
+        imu=np.ascontiguousarray(imu[:, 1:7]),
+        dvl_time=dvl[:, 0].copy(),
+        dvl=np.ascontiguousarray(dvl[:, 1:4]),
+        gt_time=gt[:, 0].copy(),
+        gt_lla=np.ascontiguousarray(gt[:, 1:4]),
+        gt_vel=np.ascontiguousarray(gt[:, 4:7]),
+        gt_rpy=np.ascontiguousarray(gt[:, 7:10]),
+        source=source,
+    )

@@ -1,0 +1,88 @@
+"""What a ``pronet real`` run produced, as plain records: one strategy on one section
+(:class:`SectionRun`), a section's DVL noise estimates (:class:`SectionDvlNoise`) and
+every run of :func:`pronet.recorded.real.run_real` (:class:`RealRuns`).
+
+They live apart from the code that makes them so that the tables
+(:mod:`pronet.recorded.tables`) and figures (:mod:`pronet.recorded.figures`) read them
+without importing the run itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pronet.filter import FilterResult
+from pronet.learn.hybrid import QSchedule
+from pronet.recorded.alignment import Section
+from pronet.recorded.dvlnoise import MatchedVariance
+from pronet.recorded.dvltruth import TruthCalibration
+from pronet.recorded.metrics import SectionMetrics
+
+
+@dataclass(frozen=True)
+class SectionRun:
+    """One strategy on one section: the filter output, its metrics and its q.
+
+    ``setup`` names how the section was prepared (``"aligned"``: clocks estimated and
+    lever arms applied; or the comparison without them); ``schedule`` is the learned
+    rows' q; ``seconds`` the wall time of the run (inference included)."""
+
+    setup: str
+    section: str
+    label: str
+    result: FilterResult
+    metrics: SectionMetrics
+    schedule: QSchedule | None
+    seconds: float
+    tuning_period: float | None = None
+
+
+@dataclass(frozen=True)
+class SectionDvlNoise:
+    """The DVL noise of one section, per body axis [(m/s)²] (:mod:`pronet.recorded.dvlnoise`).
+
+    Attributes:
+        second_difference: from the DVL's own readings, filter-free.
+        matched: innovation-matched for the constant (estimated q) filter, starting
+            from ``second_difference``.
+        matched_calibrated: the same with the DVL calibration states on, starting from
+            ``matched``.
+    """
+
+    second_difference: tuple[float, float, float]
+    matched: MatchedVariance
+    matched_calibrated: MatchedVariance
+
+
+@dataclass(frozen=True)
+class RealRuns:
+    """Every run of :func:`run_real`.
+
+    Attributes:
+        sections: ``(aligned, as_stamped)`` per section (see
+            :func:`pronet.recorded.alignment.load_section`).
+        runs: every strategy on every aligned section.
+        stamped: the first strategy on each section as stamped, without lever arms.
+        inertial: the pure-inertial sanity run of each section.
+        q_estimated: per section, the IMU noise q of :func:`white_noise_q`.
+        constants: per section, the q of each constant strategy (for the q plots).
+        failed: per section that could not be read or filtered, the reason (one line);
+            the other sections' runs are complete without it.
+        dvl_noise: per section, the DVL noise estimates (or why there are none) and
+            the R the strategy rows used ``(estimates, used)``.
+        truth_calibration: per section, the DVL scale and mounting its ground truth
+            implies without a filter (:func:`pronet.recorded.dvltruth.truth_calibration`), or why
+            there is none.
+    """
+
+    sections: list[tuple[Section, Section]]
+    runs: list[SectionRun]
+    stamped: list[SectionRun]
+    inertial: list[SectionRun]
+    q_estimated: dict[str, tuple[float, ...]]
+    constants: dict[str, dict[str, tuple[float, ...]]]
+    failed: dict[str, str] = field(default_factory=dict)
+    dvl_noise: dict[str, tuple[SectionDvlNoise | str, tuple[float, float, float]]] = field(
+        default_factory=dict
+    )
+    truth_calibration: dict[str, TruthCalibration | str] = field(default_factory=dict)

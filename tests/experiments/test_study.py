@@ -1,0 +1,106 @@
+"""``pronet study``: the folder it writes, its statistics and its refusals."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pronet import cli, results
+from pronet.experiments.study import (
+    STUDY_COLUMNS,
+    STUDY_ROWS,
+    oracle_share,
+    run_study,
+    study_dataframe,
+)
+
+ROWS = "constant (true q),oracle,adaptive,detvar"
+
+
+def test_pronet_study_writes_table_metrics_figure_and_config(tmp_path) -> None:
+    out = tmp_path / "study"
+    args = ["study", "--runs", "3", "--scenarios", "regimes,outage", "--strategies", ROWS]
+    assert cli.main([*args, "--out", str(out), "--quiet"]) == 0
+    files = {p.name for p in out.iterdir()}
+    assert {"table.md", "study.csv", "summary.csv", "metrics.csv", "metrics.json"} <= files
+    assert {"config.json", "study.png"} <= files
+    assert not list(tmp_path.glob(".study*"))  # nothing left of the atomic write
+    table = pd.read_csv(out / "study.csv")
+    assert tuple(table.columns) == STUDY_COLUMNS
+    assert list(table["strategy"].unique()) == ROWS.split(",")
+    assert tuple(pd.read_csv(out / "metrics.csv").columns) == results.RUN_COLUMNS
+    outage = table[table["scenario"] == "outage"]["outage_end_error"]
+    assert outage.notna().all() and (outage > 0).all()
+    assert table[table["scenario"] == "regimes"]["outage_end_error"].isna().all()
+    assert (table["seconds"] > 0).all() and (table["runs"] == 3).all()
+    config = json.loads((out / "config.json").read_text())
+    assert config["scenarios"]["regimes"]["schedule_seed"] == 0
+    assert config["strategies"]["adaptive"] == "adaptive"
+    text = (out / "table.md").read_text()
+    assert "### regimes: 3 runs per row" in text and "| reference |" in text
+
+
+def test_the_oracle_share_is_paired_and_undefined_without_a_gain() -> None:
+    rng = np.random.default_rng(0)
+    ref = 1.0 + 0.1 * rng.standard_normal(50)
+    oracle = ref - 0.2 - 0.01 * rng.standard_normal(50)
+    half = ref - 0.1
+    share, low, high = oracle_share(ref, half, oracle)
+    assert share == pytest.approx(0.1 / np.mean(ref - oracle))
+    assert low < share < high and high - low < 0.1  # paired: the common noise cancels
+    assert oracle_share(ref, oracle, oracle)[0] == pytest.approx(1.0)
+    assert all(math.isnan(v) for v in oracle_share(ref, half, ref))  # the oracle gains 0
+
+
+def test_the_study_table_pairs_every_row_with_the_reference() -> None:
+    rows = run_study(4, 2, scenarios=["matched"], labels=["oracle", "constant (0.1 x q)"])
+    assert [r.label for r in rows] == ["constant (true q)", "oracle", "constant (0.1 x q)"]
+    table = study_dataframe(rows)
+    ref = rows[0].result.srmse
+    np.testing.assert_allclose(table["srmse_diff"], [np.mean(r.result.srmse - ref) for r in rows])
+    assert table["srmse_diff"].iloc[0] == 0.0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scenarios", "lake"], "--scenarios: unknown"),
+        (["--strategies", "kalman"], "--strategies: unknown"),
+        (["--runs", "0"], "--runs: must be at least 1"),
+        (["--strategies", "oracle,oracle"], "listed twice"),
+    ],
+)
+def test_pronet_study_refuses_bad_arguments(tmp_path, capsys, args, message) -> None:
+    assert cli.main(["study", *args, "--out", str(tmp_path / "s"), "--quiet"]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+def test_every_study_row_is_a_spec() -> None:
+    from pronet.strategies import StrategySpec
+
+    for spec in STUDY_ROWS.values():
+        StrategySpec.parse(spec)
+
+
+@pytest.mark.slow
+def test_the_adaptive_and_learned_rows_meet_the_study_bars() -> None:
+    """At the study's 100 runs, adaptive never diverges on a study scenario and is no
+    worse than the constant told 10x the truth on matched and regimes; on 30 paired runs
+    (the study's 100 take a minute of inference) the regressors for real sensor grades
+    stay within 5 % of the constant told the truth on matched."""
+    labels = ["constant (10 x q)", "adaptive"]
+    for name in ("matched", "varying-matched", "regimes", "outage"):
+        rows = {r.label: r.result for r in run_study(100, 0, scenarios=[name], labels=labels)}
+        assert rows["adaptive"].n_diverged == 0 and rows["adaptive"].n_failed == 0, name
+        if name in ("matched", "regimes"):
+            assert np.mean(rows["adaptive"].srmse) <= np.mean(rows["constant (10 x q)"].srmse)
+    learned = ["HCF-ensemble", "baseline net", "detrend net"]
+    rows = {r.label: r.result for r in run_study(30, 0, scenarios=["matched"], labels=learned)}
+    reference = np.mean(rows["constant (true q)"].srmse)
+    for label in learned:
+        assert np.mean(rows[label].srmse) <= 1.05 * reference, label
