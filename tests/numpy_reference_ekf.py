@@ -113,6 +113,7 @@ def run_reference_filter(
     lever_arm=(0.0, 0.0, 0.0),
     aiding="body",
     calibration=None,
+    formulation="classic",
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
     innovation, nis (one row per DVL measurement applied, in order).
@@ -120,7 +121,18 @@ def run_reference_filter(
     ``calibration``: None, or ``(scale_sigma, misalignment_sigma (3,), scale_psd,
     misalignment_psd)`` for the DVL scale-factor and misalignment states 15..19; the
     output then also has ``calibration`` (k, roll, pitch, yaw of the DVL in the body)
-    and ``calibration_sigma`` per epoch, ``sigma`` keeping the first 15."""
+    and ``calibration_sigma`` per epoch, ``sigma`` keeping the first 15.
+
+    ``formulation``: ``"classic"`` (velocity error ``dv``) or ``"invariant"`` (``dV = dv
+    - [v x] psi``): P lives in its coordinates, ``x_inv = T x_classic`` with ``T`` the
+    identity but ``-[v x]`` at (velocity, attitude); ``sigma`` is always classic."""
+    invariant = formulation == "invariant"
+
+    def t_matrix(vel, sign=-1.0):
+        t = np.eye(n_x)
+        t[3:6, 6:9] = sign * skew(vel)
+        return t
+
     lla = np.array(lla0, dtype=float)
     v = np.array(vel0, dtype=float)
     c = dcm_from_euler(*rpy0)
@@ -134,6 +146,8 @@ def run_reference_filter(
         p0 = np.concatenate([p0, [scale_sigma**2], np.asarray(mis_sigma, dtype=float) ** 2])
         cal_noise = np.array([scale_psd, mis_psd, mis_psd, mis_psd])
     p = np.diag(p0)
+    if invariant:
+        p = t_matrix(np.asarray(vel0, dtype=float)) @ p @ t_matrix(np.asarray(vel0, dtype=float)).T
     k_scale = 0.0  # DVL scale-factor error estimate
     m_dvl = np.eye(3)  # body -> DVL rotation estimate
     r_arm = np.asarray(lever_arm, dtype=float)
@@ -148,7 +162,8 @@ def run_reference_filter(
         out["vel"].append(v.copy())
         out["rpy"].append(euler_from_dcm(c))
         out["bias"].append(np.concatenate([ba, bg]))
-        out["sigma"].append(np.sqrt(np.diag(p))[:15])
+        classic = t_matrix(v, +1.0) @ p @ t_matrix(v, +1.0).T if invariant else p
+        out["sigma"].append(np.sqrt(np.diag(classic))[:15])
         if calibration is not None:
             out["calibration"].append(np.concatenate([[k_scale], euler_from_dcm(m_dvl.T)]))
             out["calibration_sigma"].append(np.sqrt(np.diag(p))[15:])
@@ -177,6 +192,11 @@ def run_reference_filter(
         gam = np.zeros((15, 12))
         gam[3:6, 0:3] = c
         gam[6:9, 3:6] = -c
+        if invariant:  # docs/filter.md, "The invariant formulation"
+            fm[0:3, 6:9] = skew(v)
+            fm[3:6, 6:9] = -skew(g) - skew(v) @ skew(w_ie)
+            fm[3:6, 12:15] = -skew(v) @ c
+            gam[3:6, 3:6] = skew(v) @ c
         gam[9:12, 6:9] = np.eye(3)
         gam[12:15, 9:12] = np.eye(3)
         qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
@@ -193,11 +213,12 @@ def run_reference_filter(
             if aiding == "body":
                 pred = c.T @ v + np.cross(w_hat, r_arm)
                 h[:, 3:6] = c.T
-                h[:, 6:9] = -c.T @ skew(v)
+                h[:, 6:9] = 0.0 if invariant else -c.T @ skew(v)
                 h[:, 12:15] = skew(r_arm)
             else:
                 pred = v.copy()
                 h[:, 3:6] = np.eye(3)
+                h[:, 6:9] = skew(v) if invariant else 0.0
             if calibration is not None:  # z = (1 + k) M v_b
                 v_b = pred
                 pred = (1 + k_scale) * m_dvl @ v_b
@@ -219,7 +240,7 @@ def run_reference_filter(
             lla = lla - np.array(
                 [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
             )
-            v = v - dx[3:6]
+            v = v - (dx[3:6] + np.cross(v, dx[6:9]) if invariant else dx[3:6])
             c = exp_so3(dx[6:9]) @ c
             ba = ba - dx[9:12]
             bg = bg - dx[12:15]

@@ -60,7 +60,8 @@ def test_reference_strapdown_stays_at_rest() -> None:
     ("aiding", "lever_arm"),
     [("body", (0.5, -0.2, 1.0)), ("body", (0.0, 0.0, 0.0)), ("nav", (0, 0, 0))],
 )
-def test_rust_filter_matches_reference(aiding, lever_arm) -> None:
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+def test_rust_filter_matches_reference(aiding, lever_arm, formulation) -> None:
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(lever_arm), aiding)
     cfg = pronet.FilterConfig(
         p0_sigma=P0,
@@ -69,6 +70,7 @@ def test_rust_filter_matches_reference(aiding, lever_arm) -> None:
         dvl_variance=(0.01,) * 3,
         lever_arm=lever_arm,
         aiding=aiding,
+        formulation=formulation,
     )
     rust = pronet.run_filter(
         imu,
@@ -99,6 +101,7 @@ def test_rust_filter_matches_reference(aiding, lever_arm) -> None:
         imu_dt=0.01,
         lever_arm=lever_arm,
         aiding=aiding,
+        formulation=formulation,
     )
     # The filter worked: the updates pulled the estimate to the truth.
     assert len(ref["nis"]) == 60
@@ -115,7 +118,8 @@ def test_rust_filter_matches_reference(aiding, lever_arm) -> None:
     np.testing.assert_allclose(rust.nis, ref["nis"], rtol=rtol)
 
 
-def test_rust_filter_with_dvl_calibration_states_matches_reference() -> None:
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+def test_rust_filter_with_dvl_calibration_states_matches_reference(formulation) -> None:
     """The 19-state filter (DVL scale factor and misalignment) against the dense NumPy
     one, on readings of a DVL with a 0.5 % scale error and a mounting of (0.1°, −0.2°,
     0.5°), lever arm and random-walk PSDs included: equal to 1e-8 relative."""
@@ -136,6 +140,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference() -> None:
         dvl_misalignment_sigma=calibration[1],
         dvl_scale_psd=calibration[2],
         dvl_misalignment_psd=calibration[3],
+        formulation=formulation,
     )
     args = (imu, imu_time, dvl, dvl_time)
     start = dict(lla0=lla0, vel0=vel0, rpy0=rpy0)
@@ -145,7 +150,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference() -> None:
     ref = run_reference_filter(
         *args, 0.0, lla0, vel0, rpy0, q=Q, accel_bias_psd=1e-6, gyro_bias_psd=1e-8,
         dvl_variance=(0.01,) * 3, p0_sigma=P0, imu_dt=0.01, lever_arm=arm,
-        calibration=calibration,
+        calibration=calibration, formulation=formulation,
     )  # fmt: skip
     assert len(ref["nis"]) == 60 and rust.calibration.shape == (len(imu) + 1, 4)
     rtol = 1e-8

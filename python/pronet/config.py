@@ -32,7 +32,8 @@ mistakes too, so a misspelt key never silently falls back to a default.
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
     dvl_variance = [0.01, 0.01, 0.01]
     # p0_sigma (15), accel_bias_psd [(m/s²)²/s], gyro_bias_psd [(rad/s)²/s],
-    # lever_arm (3) [m], aiding ("body" or "nav"), imu_dt [s], innovation_gate (NIS)
+    # lever_arm (3) [m], aiding ("body" or "nav"), imu_dt [s], innovation_gate (NIS),
+    # formulation ("invariant" or "classic": the velocity-error coordinates)
 
 ``q_nominal`` is what the constant rows are told and every adaptive row starts from.
 Without it: the base's, unless ``[sensors]`` sets ``imu_variance``, in which case it is
@@ -92,6 +93,7 @@ FILTER_KEYS = (
     "aiding",
     "imu_dt",
     "innovation_gate",
+    "formulation",
 )
 #: Keys of a ``[sensors]`` table (the keyword arguments of ``pronet.SensorConfig``).
 SENSOR_KEYS = (

@@ -19,7 +19,8 @@ pub enum ProcessNoise<'a> {
         imu_variance: &'a [f64; 6],
         bias_psd: &'a [f64; 6],
     },
-    /// A discrete 15×15 matrix added as it is at each IMU step.
+    /// A discrete 15×15 matrix in the classic error coordinates, added at each IMU step
+    /// (mapped into the filter's formulation first).
     Discrete(&'a Matrix15),
 }
 

@@ -335,7 +335,7 @@ impl Run {
         // Every epoch is recorded, applied or not, so that the histories stay aligned.
         self.nis.push(info.nis);
         let e = state_error(&self.ekf, state, &self.true_bias);
-        self.nees.push(block_nees(&e, &self.ekf.p));
+        self.nees.push(block_nees(&e, &self.ekf.covariance()));
         if let Some((_, _, nees)) = calibration_error(&self.ekf, mounting) {
             self.calibration_nees.push(nees);
         }

@@ -27,7 +27,9 @@
 
 use nalgebra::Vector3;
 use pronet::ekf::calibration::CalibrationConfig;
-use pronet::ekf::{filter_recorded, Aiding, Ekf, FilterConfig, FilterOutput, RecordedData};
+use pronet::ekf::{
+    filter_recorded, Aiding, Ekf, FilterConfig, FilterOutput, Formulation, RecordedData,
+};
 use pronet::mechanization::NavState;
 use pronet::montecarlo::{run_monte_carlo, McOptions, RunSummary, Scenario};
 use pronet::noise::StrategySpec;
@@ -311,42 +313,51 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
         // 20..23 lever arm, 23 imu_dt, 24 innovation gate, 25..30 the calibration's
         // scale σ, misalignment σ (3) and scale walk (where the states are on).
         rarely((0..30usize, wild()), 2),
+        // The formulation: both are held to every property.
+        any::<bool>(),
     )
-        .prop_map(|(p0, psd_a, psd_g, r, arm, body, dt, cal, bad)| {
-            let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
-            let mut c = FilterConfig {
-                p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
-                accel_bias_psd: pow(psd_a),
-                gyro_bias_psd: pow(psd_g),
-                dvl_variance: std::array::from_fn(|i| 10f64.powf(r[i])),
-                lever_arm: Vector3::new(arm[0], arm[1], arm[2]),
-                aiding: if body { Aiding::Body } else { Aiding::Nav },
-                imu_dt: if dt == 0.05 { dt } else { 10f64.powf(dt) },
-                innovation_gate: None,
-                dvl_calibration: cal.map(|e| CalibrationConfig {
-                    scale_sigma: 10f64.powf(e[0]),
-                    misalignment_sigma: [10f64.powf(e[1]), 10f64.powf(e[2]), 10f64.powf(e[3])],
-                    scale_psd: 10f64.powf(e[4]),
-                    misalignment_psd: 0.0,
-                }),
-            };
-            for (field, v) in bad {
-                match (field, c.dvl_calibration.as_mut()) {
-                    (0..=14, _) => c.p0_sigma[field] = v,
-                    (15, _) => c.accel_bias_psd = v,
-                    (16, _) => c.gyro_bias_psd = v,
-                    (17..=19, _) => c.dvl_variance[field - 17] = v,
-                    (20..=22, _) => c.lever_arm[field - 20] = v,
-                    (23, _) => c.imu_dt = v,
-                    (24, _) => c.innovation_gate = Some(v),
-                    (25, Some(k)) => k.scale_sigma = v,
-                    (26..=28, Some(k)) => k.misalignment_sigma[field - 26] = v,
-                    (29, Some(k)) => k.scale_psd = v,
-                    _ => {}
+        .prop_map(
+            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, invariant)| {
+                let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
+                let mut c = FilterConfig {
+                    p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
+                    accel_bias_psd: pow(psd_a),
+                    gyro_bias_psd: pow(psd_g),
+                    dvl_variance: std::array::from_fn(|i| 10f64.powf(r[i])),
+                    lever_arm: Vector3::new(arm[0], arm[1], arm[2]),
+                    aiding: if body { Aiding::Body } else { Aiding::Nav },
+                    imu_dt: if dt == 0.05 { dt } else { 10f64.powf(dt) },
+                    innovation_gate: None,
+                    dvl_calibration: cal.map(|e| CalibrationConfig {
+                        scale_sigma: 10f64.powf(e[0]),
+                        misalignment_sigma: [10f64.powf(e[1]), 10f64.powf(e[2]), 10f64.powf(e[3])],
+                        scale_psd: 10f64.powf(e[4]),
+                        misalignment_psd: 0.0,
+                    }),
+                    formulation: if invariant {
+                        Formulation::Invariant
+                    } else {
+                        Formulation::Classic
+                    },
+                };
+                for (field, v) in bad {
+                    match (field, c.dvl_calibration.as_mut()) {
+                        (0..=14, _) => c.p0_sigma[field] = v,
+                        (15, _) => c.accel_bias_psd = v,
+                        (16, _) => c.gyro_bias_psd = v,
+                        (17..=19, _) => c.dvl_variance[field - 17] = v,
+                        (20..=22, _) => c.lever_arm[field - 20] = v,
+                        (23, _) => c.imu_dt = v,
+                        (24, _) => c.innovation_gate = Some(v),
+                        (25, Some(k)) => k.scale_sigma = v,
+                        (26..=28, Some(k)) => k.misalignment_sigma[field - 26] = v,
+                        (29, Some(k)) => k.scale_psd = v,
+                        _ => {}
+                    }
                 }
-            }
-            c
-        })
+                c
+            },
+        )
 }
 
 /// The documented validity of a filter configuration (see `docs/filter.md` and

@@ -2,6 +2,7 @@
 //! and the innovation gate.
 
 use super::calibration::{check_aiding, CalibrationConfig};
+use super::formulation::Formulation;
 use super::{Matrix15, Vector15};
 use crate::error::{check, Error, Result};
 use nalgebra::Vector3;
@@ -38,6 +39,9 @@ pub struct FilterConfig {
     /// DVL scale-factor and misalignment states appended to the 15 (body-frame aiding
     /// only); `None` (the default): the 15-state filter.
     pub dvl_calibration: Option<CalibrationConfig>,
+    /// The coordinates of the velocity error the filter runs in (see
+    /// [`super::formulation`]); `p0_sigma` is always given in the classic ones.
+    pub formulation: Formulation,
 }
 
 impl Default for FilterConfig {
@@ -52,6 +56,7 @@ impl Default for FilterConfig {
             imu_dt: 0.01,
             innovation_gate: None,
             dvl_calibration: None,
+            formulation: Formulation::default(),
         }
     }
 }

@@ -1,36 +1,57 @@
 //! The error dynamics of the 15-state filter: the nonzero blocks of F, the block-sparse
-//! propagation `P ← Φ P Φᵀ` with `Φ = I + F Δt`, and the IMU white-noise term of Q_d.
-//! Every formula is in `docs/filter.md`.
+//! propagation `P ← Φ P Φᵀ` with `Φ = I + F Δt`, and the IMU white-noise term of Q_d,
+//! in either [`Formulation`]. Every formula is in `docs/filter.md`.
 
+use super::formulation::Formulation;
 use super::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::attitude::skew;
 use crate::mechanization::{FrameRates, NavState};
 use nalgebra::{Matrix3, Vector3};
 
-/// The nonzero blocks of the error dynamics F (see `docs/filter.md`).
+/// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
+/// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
+/// invariant one has all three (`vel_att` full).
 pub(super) struct ErrorDynamics {
     pos_pos: Matrix3<f64>,
+    pos_att: Matrix3<f64>,
     vel_pos: Vector3<f64>,
     vel_vel: Matrix3<f64>,
     vel_att: Matrix3<f64>,
     vel_abias: Matrix3<f64>,
+    vel_gbias: Matrix3<f64>,
     att_att: Matrix3<f64>,
     att_gbias: Matrix3<f64>,
+    invariant: bool,
 }
 
 impl ErrorDynamics {
-    pub(super) fn new(nav: &NavState, rates: &FrameRates, f_body: &Vector3<f64>) -> Self {
+    pub(super) fn new(
+        nav: &NavState,
+        rates: &FrameRates,
+        f_body: &Vector3<f64>,
+        formulation: Formulation,
+    ) -> Self {
         let radius = (rates.latitude.r_n * rates.latitude.r_e).sqrt() + nav.lla[2];
         let schuler = rates.gravity[2] / radius;
         let c = nav.dcm;
+        let invariant = formulation == Formulation::Invariant;
+        let v = skew(&nav.vel);
+        let (pos_att, vel_att, vel_gbias) = if invariant {
+            (v, -skew(&rates.gravity) - v * skew(&rates.earth), -v * c)
+        } else {
+            (Matrix3::zeros(), skew(&(c * f_body)), Matrix3::zeros())
+        };
         Self {
             pos_pos: -skew(&rates.transport),
+            pos_att,
             vel_pos: Vector3::new(-schuler, -schuler, 2.0 * schuler),
             vel_vel: -skew(&(2.0 * rates.earth + rates.transport)),
-            vel_att: skew(&(c * f_body)),
+            vel_att,
             vel_abias: -c,
+            vel_gbias,
             att_att: -skew(&rates.nav_rate()),
             att_gbias: c,
+            invariant,
         }
     }
 
@@ -61,6 +82,13 @@ impl ErrorDynamics {
             o[POS + r] = pp[r] + xv[r];
             o[VEL + r] = self.vel_pos[r] * xp[r] + vv[r] + va[r] + vb[r];
             o[ATT + r] = aa[r] + ab[r];
+        }
+        if self.invariant {
+            let (pa, vg) = (mv(&self.pos_att, xa), mv(&self.vel_gbias, xbg));
+            for r in 0..3 {
+                o[POS + r] += pa[r];
+                o[VEL + r] += vg[r];
+            }
         }
         o
     }
@@ -93,7 +121,11 @@ impl ErrorDynamics {
     #[inline(always)]
     fn propagate_covariance_portable(&self, p: &mut Matrix15, dt: f64) {
         const NAV: usize = 9;
-        let a = self.times(p);
+        let a = if self.invariant {
+            self.times::<true>(p)
+        } else {
+            self.times::<false>(p)
+        };
         // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j] (column j of
         // F Aᵀ is F times row j of A); the block gains M + Mᵀ, which is exactly
         // symmetric since addition commutes.
@@ -125,9 +157,10 @@ impl ErrorDynamics {
     }
 
     /// Rows 0..9 of `A = F P` for a symmetric P, each row a 15-array:
-    /// `A[i, :] = Σ_k F[i, k] P[:, k]`.
+    /// `A[i, :] = Σ_k F[i, k] P[:, k]`; `INVARIANT` adds the blocks only the invariant
+    /// formulation has (and takes its `vel_att` as full).
     #[inline(always)]
-    fn times(&self, p: &Matrix15) -> [[f64; 15]; 9] {
+    fn times<const INVARIANT: bool>(&self, p: &Matrix15) -> [[f64; 15]; 9] {
         #[inline(always)]
         fn col(p: &Matrix15, k: usize) -> &[f64; 15] {
             p.as_slice()[15 * k..15 * k + 15] // column-major
@@ -160,10 +193,18 @@ impl ErrorDynamics {
             let row = &mut a[POS + r];
             *row = *col(p, VEL + r);
             skew_block(row, &self.pos_pos, r, p, POS);
+            if INVARIANT {
+                skew_block(row, &self.pos_att, r, p, ATT);
+            }
             let row = &mut a[VEL + r];
             *row = col(p, POS + r).map(|x| self.vel_pos[r] * x);
             skew_block(row, &self.vel_vel, r, p, VEL);
-            skew_block(row, &self.vel_att, r, p, ATT);
+            if INVARIANT {
+                block(row, &self.vel_att, r, p, ATT);
+                block(row, &self.vel_gbias, r, p, GYRO_BIAS);
+            } else {
+                skew_block(row, &self.vel_att, r, p, ATT);
+            }
             block(row, &self.vel_abias, r, p, ACC_BIAS);
             let row = &mut a[ATT + r];
             *row = col(p, GYRO_BIAS).map(|x| self.att_gbias[(r, 0)] * x);
@@ -176,17 +217,38 @@ impl ErrorDynamics {
 }
 
 /// Add the IMU white noise of one step to the velocity and attitude blocks of `p`:
-/// `C diag(q_a) Cᵀ·white` and `C diag(q_g) Cᵀ·white` (`white = Δt_imu·Δt`), each added
-/// symmetrized so that `p` stays exactly symmetric.
-pub(super) fn add_imu_noise(p: &mut Matrix15, c: &Matrix3<f64>, q: &[f64; 6], white: f64) {
+/// `Q_a = C diag(q_a) Cᵀ·white` and `Q_g = C diag(q_g) Cᵀ·white` (`white = Δt_imu·Δt`),
+/// each added symmetrized so that `p` stays exactly symmetric. In the invariant
+/// formulation the gyro noise also drives `δV = δv − [v×]ψ`: the velocity block gains
+/// `[v×] Q_g [v×]ᵀ` and the velocity–attitude block `−[v×] Q_g`.
+pub(super) fn add_imu_noise(
+    p: &mut Matrix15,
+    nav: &NavState,
+    formulation: Formulation,
+    q: &[f64; 6],
+    white: f64,
+) {
+    let c = &nav.dcm;
     let qa = c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
     let qg = c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
+    let (qa, qg) = (qa * white, qg * white);
     let mut blk = |at: usize, m: Matrix3<f64>| {
         let mut view = p.fixed_view_mut::<3, 3>(at, at);
         view += (m + m.transpose()) * 0.5;
     };
-    blk(VEL, qa * white);
-    blk(ATT, qg * white);
+    if formulation == Formulation::Invariant {
+        let v = skew(&nav.vel);
+        let cross = -v * qg;
+        blk(VEL, qa + v * qg * v.transpose());
+        blk(ATT, qg);
+        let mut view = p.fixed_view_mut::<3, 3>(VEL, ATT);
+        view += cross;
+        let mut view = p.fixed_view_mut::<3, 3>(ATT, VEL);
+        view += cross.transpose();
+    } else {
+        blk(VEL, qa);
+        blk(ATT, qg);
+    }
 }
 
 #[cfg(test)]
@@ -199,6 +261,8 @@ mod tests {
         let mut put =
             |r: usize, c: usize, m: &Matrix3<f64>| f.fixed_view_mut::<3, 3>(r, c).copy_from(m);
         put(POS, POS, &d.pos_pos);
+        put(POS, ATT, &d.pos_att);
+        put(VEL, GYRO_BIAS, &d.vel_gbias);
         put(POS, VEL, &Matrix3::identity());
         put(VEL, POS, &Matrix3::from_diagonal(&d.vel_pos));
         put(VEL, VEL, &d.vel_vel);
@@ -211,10 +275,24 @@ mod tests {
 
     #[test]
     fn block_sparse_propagation_equals_dense_phi_p_phi_t() {
+        for formulation in [Formulation::Classic, Formulation::Invariant] {
+            sparse_equals_dense(formulation);
+        }
+    }
+
+    fn sparse_equals_dense(formulation: Formulation) {
         let nav = moving_state();
         let rates = FrameRates::at(&nav);
-        let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8));
+        let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), formulation);
         let f = dense_f(&d);
+        // F x from the dense F equals the sparse product.
+        let x: [f64; 15] = std::array::from_fn(|i| (i as f64 - 6.0) * 0.3);
+        let fx = f * crate::ekf::Vector15::from_column_slice(&x);
+        let sparse = d.apply(&x);
+        assert!(
+            (0..9).all(|i| (fx[i] - sparse[i]).abs() < 1e-12),
+            "{formulation:?}"
+        );
         let a = Matrix15::from_fn(|i, j| {
             ((i * 7 + j * 3) % 11) as f64 * 0.1 + if i == j { 2.0 } else { 0.0 }
         });

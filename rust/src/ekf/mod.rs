@@ -1,9 +1,10 @@
 //! The 15-state INS/DVL error-state EKF, closed loop.
 //!
 //! Error state `δx = [δp (NED m), δv (m/s), ψ (rad), δb_a (m/s²), δb_g (rad/s)]`, each
-//! estimate minus truth; `Ĉ = (I − [ψ×]) C`. Propagation `Φ = I + FΔt`,
-//! `Q_d = Γ Q^c Γᵀ Δt`; DVL updates in Joseph form with feedback and reset. Every
-//! formula is in `docs/filter.md`.
+//! estimate minus truth; `Ĉ = (I − [ψ×]) C`; the velocity error in the coordinates of
+//! the configured [`Formulation`] (`δv`, or `δV = δv − [v̂×]ψ`). Propagation
+//! `Φ = I + FΔt`, `Q_d = Γ Q^c Γᵀ Δt`; DVL updates in Joseph form with feedback and
+//! reset. Every formula is in `docs/filter.md`.
 
 use crate::attitude::{exp_so3, skew};
 use crate::earth;
@@ -28,11 +29,13 @@ pub const GYRO_BIAS: usize = 12;
 pub mod calibration;
 mod config;
 mod dynamics;
+pub mod formulation;
 mod recorded;
 
 use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
 use dynamics::{add_imu_noise, ErrorDynamics};
+pub use formulation::Formulation;
 pub use recorded::{filter_recorded, filter_recorded_until, Epochs, FilterOutput, RecordedData};
 
 /// Result of one DVL update.
@@ -93,6 +96,8 @@ pub struct Ekf {
     pub accel_bias: Vector3<f64>,
     /// Gyro bias estimate [rad/s].
     pub gyro_bias: Vector3<f64>,
+    /// The error covariance in the coordinates of [`FilterConfig::formulation`]
+    /// ([`Ekf::covariance`] gives it in the classic ones users read).
     pub p: Matrix15,
     /// Last bias-corrected gyro sample [rad/s] (for the lever-arm term).
     last_gyro: Vector3<f64>,
@@ -114,11 +119,13 @@ impl Ekf {
         gyro_bias: Vector3<f64>,
     ) -> Result<Self> {
         cfg.validate()?;
+        let mut p = cfg.p0();
+        formulation::from_classic(cfg.formulation, &mut p, &nav.vel);
         Ok(Self {
             nav,
             accel_bias,
             gyro_bias,
-            p: cfg.p0(),
+            p,
             last_gyro: Vector3::zeros(),
             cfg: cfg.clone(),
             sensitivity: None,
@@ -147,11 +154,34 @@ impl Ekf {
         &self.cfg
     }
 
-    /// 1σ of each error state, `sqrt(diag P)`.
+    /// The error covariance in the classic coordinates (`δv = v̂ − v`), whatever the
+    /// formulation: the one users read and NEES is taken in.
+    pub fn covariance(&self) -> Matrix15 {
+        self.to_classic(&self.p)
+    }
+
+    /// The error covariance in the coordinates of `formulation` (mapped from the
+    /// filter's own at the current velocity estimate when they differ).
+    pub fn covariance_in(&self, formulation: Formulation) -> Matrix15 {
+        let mut p = self.covariance();
+        formulation::from_classic(formulation, &mut p, &self.nav.vel);
+        p
+    }
+
+    /// A matrix in the filter's error coordinates (a covariance, a discrete Q) mapped
+    /// into the classic ones at the current velocity estimate.
+    pub fn to_classic(&self, m: &Matrix15) -> Matrix15 {
+        let mut m = *m;
+        formulation::to_classic(self.cfg.formulation, &mut m, &self.nav.vel);
+        m
+    }
+
+    /// 1σ of each error state in the classic coordinates, `sqrt(diag P)`.
     /// A negative rounding residue gives 0; a NaN variance stays NaN (never "known").
     pub fn sigma(&self) -> [f64; 15] {
+        let p = self.covariance();
         std::array::from_fn(|i| {
-            let v = self.p[(i, i)];
+            let v = p[(i, i)];
             if v < 0.0 {
                 0.0
             } else {
@@ -184,7 +214,8 @@ impl Ekf {
             gyro: raw.gyro - self.gyro_bias,
         };
         let rates = FrameRates::at(&self.nav);
-        let dynamics = ErrorDynamics::new(&self.nav, &rates, &imu.accel);
+        let formulation = self.cfg.formulation;
+        let dynamics = ErrorDynamics::new(&self.nav, &rates, &imu.accel, formulation);
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
         if let Some(c) = self.calibration.as_mut() {
@@ -192,7 +223,7 @@ impl Ekf {
         }
         if let Some((m, q)) = self.sensitivity.as_mut() {
             dynamics.propagate_covariance(m, dt);
-            add_imu_noise(m, &self.nav.dcm, q, self.cfg.imu_dt * dt);
+            add_imu_noise(m, &self.nav, formulation, q, self.cfg.imu_dt * dt);
             if let Some(c) = self.sensitivity_calibration.as_mut() {
                 c.propagate(&dynamics, dt, false);
             }
@@ -213,31 +244,45 @@ impl Ekf {
                 imu_variance: q,
                 bias_psd,
             } => {
-                add_imu_noise(&mut self.p, &self.nav.dcm, q, self.cfg.imu_dt * dt);
+                let white = self.cfg.imu_dt * dt;
+                add_imu_noise(&mut self.p, &self.nav, self.cfg.formulation, q, white);
                 for (i, psd) in bias_psd.iter().enumerate() {
                     self.p[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
                 }
             }
-            ProcessNoise::Discrete(qd) => self.p += (qd + qd.transpose()) * 0.5,
+            ProcessNoise::Discrete(qd) => {
+                let mut qd = (qd + qd.transpose()) * 0.5;
+                formulation::from_classic(self.cfg.formulation, &mut qd, &self.nav.vel);
+                self.p += qd;
+            }
         }
     }
 
-    /// Predicted measurement and its Jacobian for the configured aiding.
+    /// Predicted measurement and its Jacobian for the configured aiding, in the
+    /// formulation's coordinates: body aiding reads `δV` alone (`H_ψ = 0`) in the
+    /// invariant one, NED aiding gains `H_ψ = [v̂×]` there.
     fn measurement_model(&self) -> (Vector3<f64>, Rows3) {
         let mut h = Rows3::zeros();
+        let invariant = self.cfg.formulation == Formulation::Invariant;
         match self.cfg.aiding {
             Aiding::Body => {
                 let ct = self.nav.dcm.transpose();
                 let r = self.cfg.lever_arm;
                 h.fixed_view_mut::<3, 3>(0, VEL).copy_from(&ct);
-                h.fixed_view_mut::<3, 3>(0, ATT)
-                    .copy_from(&(-ct * skew(&self.nav.vel)));
+                if !invariant {
+                    h.fixed_view_mut::<3, 3>(0, ATT)
+                        .copy_from(&(-ct * skew(&self.nav.vel)));
+                }
                 h.fixed_view_mut::<3, 3>(0, GYRO_BIAS).copy_from(&skew(&r));
                 (ct * self.nav.vel + self.last_gyro.cross(&r), h)
             }
             Aiding::Nav => {
                 h.fixed_view_mut::<3, 3>(0, VEL)
                     .copy_from(&Matrix3::identity());
+                if invariant {
+                    h.fixed_view_mut::<3, 3>(0, ATT)
+                        .copy_from(&skew(&self.nav.vel));
+                }
                 (self.nav.vel, h)
             }
         }
@@ -283,6 +328,8 @@ impl Ekf {
                 (out.info, dx)
             }
         };
+        let mut info = info;
+        formulation::gain_to_classic(self.cfg.formulation, &mut info.gain, &self.nav.vel);
         if let Some((dx, cal)) = dx {
             self.feedback(&dx);
             if let (Some(c), Some(cal)) = (self.calibration.as_mut(), cal) {
@@ -298,13 +345,19 @@ impl Ekf {
         Ok(info)
     }
 
-    /// Apply an error estimate `δx̂` (estimate minus truth) to the navigation solution
-    /// and biases.
+    /// Apply an error estimate `δx̂` (estimate minus truth, in the formulation's
+    /// coordinates) to the navigation solution and biases.
     fn feedback(&mut self, dx: &Vector15) {
         let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
         let dp = block(POS);
+        let dv = formulation::classic_velocity(
+            self.cfg.formulation,
+            &block(VEL),
+            &block(ATT),
+            &self.nav.vel,
+        );
         self.nav.lla -= earth::ned_delta_to_lla_delta(&self.nav.lla, &dp);
-        self.nav.vel -= block(VEL);
+        self.nav.vel -= dv;
         self.nav.dcm = exp_so3(&block(ATT)) * self.nav.dcm;
         self.accel_bias -= block(ACC_BIAS);
         self.gyro_bias -= block(GYRO_BIAS);

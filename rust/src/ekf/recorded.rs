@@ -257,7 +257,7 @@ pub fn filter_recorded_until(
     if !every {
         out.record(&ekf, t_prev);
     }
-    out.final_covariance = ekf.p;
+    out.final_covariance = ekf.covariance();
     Ok(out)
 }
 
@@ -323,7 +323,7 @@ fn apply_dvl_rows(
             strategy.after_update(&info, at.steps_since_update);
             at.steps_since_update = 0;
         }
-        out.adaptive_q[row] = strategy.discrete_q().copied();
+        out.adaptive_q[row] = strategy.discrete_q().map(|q| ekf.to_classic(q));
         out.dvl_epoch[row] = Some(epoch);
         out.updates[row] = Some(info);
         at.next_dvl += 1;

@@ -2,12 +2,12 @@
 
 use super::convert::{
     arg_accel_bias_psd, arg_aiding, arg_dvl_calibration, arg_dvl_misalignment_psd,
-    arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate,
-    fixed, fixed_or,
+    arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_formulation, arg_gyro_bias_psd, arg_imu_dt,
+    arg_innovation_gate, fixed, fixed_or,
 };
 use super::{invalid, to_py_err};
 use crate::ekf::calibration::CalibrationConfig;
-use crate::ekf::{Aiding, FilterConfig};
+use crate::ekf::{Aiding, FilterConfig, Formulation};
 use nalgebra::Vector3;
 use pyo3::prelude::*;
 
@@ -29,12 +29,21 @@ fn parse_aiding(text: &str) -> PyResult<Aiding> {
     }
 }
 
+fn parse_formulation(text: &str) -> PyResult<Formulation> {
+    Formulation::from_name(text).ok_or_else(|| {
+        invalid(
+            "formulation",
+            format!("must be \"invariant\" or \"classic\", got {text:?}"),
+        )
+    })
+}
+
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, formulation = Formulation::default().name().to_string()))]
     #[pyo3(
-        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None)"
+        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, formulation='classic')"
     )]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
@@ -51,6 +60,7 @@ impl PyFilterConfig {
         dvl_misalignment_sigma: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = arg_dvl_scale_psd)] dvl_scale_psd: Option<f64>,
         #[pyo3(from_py_with = arg_dvl_misalignment_psd)] dvl_misalignment_psd: Option<f64>,
+        #[pyo3(from_py_with = arg_formulation)] formulation: String,
     ) -> PyResult<Self> {
         let defaults = FilterConfig::default();
         let misalignment_sigma = dvl_misalignment_sigma
@@ -89,6 +99,7 @@ impl PyFilterConfig {
             imu_dt,
             innovation_gate,
             dvl_calibration: calibration,
+            formulation: parse_formulation(&formulation)?,
         };
         inner.validate().map_err(to_py_err)?;
         Ok(Self { inner })
@@ -119,6 +130,11 @@ impl PyFilterConfig {
             Aiding::Body => "body",
             Aiding::Nav => "nav",
         }
+    }
+    /// The velocity-error coordinates the filter runs in: "invariant" or "classic".
+    #[getter]
+    fn formulation(&self) -> &'static str {
+        self.inner.formulation.name()
     }
     #[getter]
     fn imu_dt(&self) -> f64 {
@@ -164,7 +180,7 @@ impl PyFilterConfig {
             ),
         };
         format!(
-            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}{calibration})",
+            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}, formulation={:?}{calibration})",
             self.inner.accel_bias_psd,
             self.inner.gyro_bias_psd,
             self.inner.dvl_variance,
@@ -174,6 +190,7 @@ impl PyFilterConfig {
             self.inner
                 .innovation_gate
                 .map_or("None".to_string(), |g| g.to_string()),
+            self.formulation(),
         )
     }
 }

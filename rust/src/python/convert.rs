@@ -262,6 +262,7 @@ arg_converters! {
     arg_dvl_period: f64 = real_arg("dvl_period");
     arg_tuning_period: f64 = real_arg("tuning_period");
     arg_aiding: String = text_arg("aiding");
+    arg_formulation: String = text_arg("formulation");
     arg_epochs: String = text_arg("epochs");
     arg_window: usize = whole_arg("window");
     arg_n_runs: usize = whole_arg("n_runs");
