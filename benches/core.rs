@@ -1,5 +1,5 @@
 //! Micro-benchmarks of the navigation core's inner steps: one strapdown mechanization
-//! step, one EKF covariance-and-state prediction and one DVL update.
+//! step, one EKF covariance-and-state prediction in each formulation and one DVL update.
 //!
 //! Run: `cargo bench --features bench --bench core` (criterion; HTML under target/criterion). The
 //! performance target for mechanization is ≥ 10 M steps/s per core, i.e. ≤ 100 ns.
@@ -7,7 +7,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::Vector3;
 use pronet::attitude::dcm_from_euler;
-use pronet::ekf::{Ekf, FilterConfig};
+use pronet::ekf::{Ekf, FilterConfig, Formulation};
 use pronet::mechanization::{step, ImuSample, NavState};
 use pronet::noise::ProcessNoise;
 use std::hint::black_box;
@@ -29,14 +29,17 @@ fn imu() -> ImuSample {
     }
 }
 
+fn ekf_in(formulation: Formulation) -> Ekf {
+    let config = FilterConfig {
+        formulation,
+        ..FilterConfig::default()
+    };
+    Ekf::new(&config, moving_state(), Vector3::zeros(), Vector3::zeros())
+        .expect("the default filter config is valid")
+}
+
 fn ekf() -> Ekf {
-    Ekf::new(
-        &FilterConfig::default(),
-        moving_state(),
-        Vector3::zeros(),
-        Vector3::zeros(),
-    )
-    .expect("the default filter config is valid")
+    ekf_in(Formulation::default())
 }
 
 fn benches(c: &mut Criterion) {
@@ -51,14 +54,22 @@ fn benches(c: &mut Criterion) {
         imu_variance: &q,
         bias_psd: &bias_psd,
     };
-    let start = ekf();
-    c.bench_function("ekf predict (covariance + strapdown)", |b| {
-        b.iter_batched_ref(
-            || start.clone(),
-            |f| f.propagate(black_box(&sample), DT, noise),
-            criterion::BatchSize::SmallInput,
-        )
-    });
+    // One predict step in each formulation, side by side (issue 41: the invariant one
+    // may cost at most 1.2× the classic one; benches/run.py reports the ratio).
+    for formulation in [Formulation::Classic, Formulation::Invariant] {
+        let start = ekf_in(formulation);
+        let name = format!(
+            "ekf predict {} (covariance + strapdown)",
+            formulation.name()
+        );
+        c.bench_function(&name, |b| {
+            b.iter_batched_ref(
+                || start.clone(),
+                |f| f.propagate(black_box(&sample), DT, noise),
+                criterion::BatchSize::SmallInput,
+            )
+        });
+    }
 
     let mut predicted = ekf();
     for _ in 0..100 {

@@ -136,7 +136,35 @@ def bench_rust(args: argparse.Namespace) -> list[Row]:
             target, met = "≥ 10 M steps/s per core", ns <= 100
         measured = f"{ns:.0f} ns ({1e3 / ns:.1f} M/s)"
         rows.append(Row(f"{name} (Rust)", measured, target, met, command, ns, "ns"))
-    return rows
+    return rows + formulation_ratio(rows, command)
+
+
+#: The most one invariant-formulation predict step may cost over a classic one (issue 41).
+FORMULATION_TARGET = 1.2
+
+
+def formulation_ratio(rows: list[Row], command: str) -> list[Row]:
+    """The invariant predict step's time over the classic one's, both measured in the
+    same criterion run (no row when either is missing)."""
+    ns = {}
+    for row in rows:
+        for name in ("classic", "invariant"):
+            if row.what.startswith(f"ekf predict {name} ") and row.value is not None:
+                ns[name] = row.value
+    if len(ns) < 2:
+        return []
+    ratio = ns["invariant"] / ns["classic"]
+    return [
+        Row(
+            "ekf predict: invariant over classic formulation",
+            f"{ratio:.2f}× ({ns['classic']:.0f} → {ns['invariant']:.0f} ns)",
+            f"≤ {FORMULATION_TARGET}×",
+            ratio <= FORMULATION_TARGET,
+            command,
+            ratio,
+            "x",
+        )
+    ]
 
 
 def bench_mechanization(args: argparse.Namespace) -> list[Row]:

@@ -240,7 +240,8 @@ def run_reference_filter(
             lla = lla - np.array(
                 [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
             )
-            v = v - (dx[3:6] + np.cross(v, dx[6:9]) if invariant else dx[3:6])
+            # invariant: v = C Ĉᵀ (v̂ − δV), with C = Exp(ψ) Ĉ (exact; first order δV + [v̂×]ψ)
+            v = exp_so3(dx[6:9]) @ (v - dx[3:6]) if invariant else v - dx[3:6]
             c = exp_so3(dx[6:9]) @ c
             ba = ba - dx[9:12]
             bg = bg - dx[12:15]

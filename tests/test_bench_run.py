@@ -114,3 +114,20 @@ def test_yardsticks_divide_by_the_same_runs_constant_q_monte_carlo(monkeypatch):
     ]
     assert run.in_yardsticks(rows, 10) == []  # not at the targets' 100 runs
     assert run.in_yardsticks(rows[1:], 100) == []  # no yardstick row
+
+
+def test_the_formulation_row_divides_the_two_predict_steps_of_one_criterion_run(monkeypatch):
+    run = load_script(monkeypatch)
+    row = run.Row
+
+    def rust(name: str, ns: float) -> object:
+        return row(f"ekf predict {name} (covariance + strapdown) (Rust)", "", "—", None, "c", ns)
+
+    for classic, invariant in [(400.0, 440.0), (400.0, 520.0)]:
+        (ratio,) = run.formulation_ratio(
+            [rust("classic", classic), rust("invariant", invariant)], "c"
+        )
+        assert ratio.value == pytest.approx(invariant / classic) and ratio.unit == "x"
+        assert ratio.met == (invariant / classic <= run.FORMULATION_TARGET)
+        assert ratio.target == f"≤ {run.FORMULATION_TARGET}×"
+    assert run.formulation_ratio([rust("classic", 400.0)], "c") == []  # one side missing

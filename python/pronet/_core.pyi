@@ -124,9 +124,10 @@ class FilterConfig:
     DVL's scale-factor error and mounting misalignment appended to the 15 error states,
     with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
     [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
-    velocity error the filter runs in, "invariant" (``δV = δv − [v̂×]ψ``, consistent in
-    heading) or "classic" (``δv``, pronet's filter before 2026-12); the prior and every
-    output are in the classic coordinates either way. See ``docs/filter.md``."""
+    velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
+    consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
+    prior and every output are in the classic coordinates either way. See
+    ``docs/filter.md``."""
 
     def __new__(
         cls,
@@ -144,7 +145,7 @@ class FilterConfig:
         dvl_misalignment_sigma: Any | None = None,
         dvl_scale_psd: float | None = None,
         dvl_misalignment_psd: float | None = None,
-        formulation: Literal["invariant", "classic"] = "classic",
+        formulation: Literal["invariant", "classic"] = "invariant",
     ) -> FilterConfig: ...
     @property
     def p0_sigma(self) -> list[float]: ...

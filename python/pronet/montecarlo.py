@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type
-from pronet.stats import MeanCI, mean_ci
+from pronet.stats import MeanCI, chi2_mean_band, mean_ci
 
 #: Run indices stay below 2^62: run i's random streams are numbered 4·i + k
 #: (``montecarlo::MAX_RUN_INDEX`` in Rust).
@@ -26,6 +26,11 @@ MAX_RUN_INDEX = _core.MAX_RUN_INDEX
 
 #: Names of the five 3-blocks of the error state, in order.
 STATE_BLOCKS = ("position", "velocity", "attitude", "accel_bias", "gyro_bias")
+
+#: A result whose block NEES lies inside its 95 % band at fewer than this share of the
+#: DVL epochs is flagged in the tables (:meth:`MonteCarloResult.nees_in_band`; a
+#: consistent filter's share is 95 %).
+IN_BAND_FLAG = 0.9
 
 #: The χ² (3 dof) quantile of probability 0.9973 (a Gaussian's ±3σ share): a consistent
 #: filter's 3-dof NEES lies below it at 99.73 % of epochs.
@@ -97,18 +102,46 @@ class MonteCarloResult:
         """Runs whose NIS showed divergence (see ``diverged_at``)."""
         return int(np.isfinite(self.diverged_at).sum())
 
+    def block_nees(self, block: str) -> NDArray[np.float64]:
+        """``(n_runs, m)`` the NEES of one block of :data:`STATE_BLOCKS` at each DVL
+        epoch (3 dof; in the coordinates of ``docs/filter.md``, "Metrics")."""
+        if block not in STATE_BLOCKS:
+            raise ValueError(f"block: expected one of {list(STATE_BLOCKS)}, got {block!r}")
+        if self.nees.ndim != 3:
+            return np.empty((self.n_runs, 0))
+        return self.nees[:, :, STATE_BLOCKS.index(block)]
+
     @property
     def velocity_nees(self) -> NDArray[np.float64]:
         """``(n_runs,)`` mean velocity NEES over the DVL epochs (3 when consistent; NaN
         for a failed run or one without epochs)."""
-        v = self.nees[:, :, 1] if self.nees.ndim == 3 else np.empty((self.n_runs, 0))
-        return _row_mean(v)
+        return _row_mean(self.block_nees("velocity"))
+
+    @property
+    def attitude_nees(self) -> NDArray[np.float64]:
+        """``(n_runs,)`` mean attitude (roll, pitch, heading) NEES over the DVL epochs
+        (3 when consistent, above 3 overconfident; NaN for a failed run or one without
+        epochs)."""
+        return _row_mean(self.block_nees("attitude"))
+
+    def nees_in_band(self, block: str) -> float:
+        """The share of DVL epochs at which ``block``'s NEES (:data:`STATE_BLOCKS`),
+        averaged over the runs that did not fail, lies inside the 95 % band of a
+        consistent filter's (:func:`pronet.stats.chi2_mean_band`): about 0.95 when
+        consistent; NaN without such runs or epochs. Below :data:`IN_BAND_FLAG` the
+        tables flag it."""
+        v = self.block_nees(block)[[f is None for f in self.failure]]
+        if v.size == 0:
+            return float("nan")
+        low, high = chi2_mean_band(3, v.shape[0])
+        mean = v.mean(axis=0)
+        return float(np.mean((mean >= low) & (mean <= high)))
 
     @property
     def velocity_nees_3sigma(self) -> NDArray[np.float64]:
         """``(n_runs,)`` share of DVL epochs whose velocity NEES is inside the 3σ bound
         :data:`CHI2_3DOF_3SIGMA` (0.9973 when consistent)."""
-        v = self.nees[:, :, 1] if self.nees.ndim == 3 else np.empty((self.n_runs, 0))
+        v = self.block_nees("velocity")
         with np.errstate(invalid="ignore"):
             inside = np.where(np.isfinite(v), (v <= CHI2_3DOF_3SIGMA).astype(np.float64), np.nan)
         return _row_mean(inside)
@@ -149,6 +182,7 @@ class MonteCarloResult:
         "mean_nis",
         "velocity_nees",
         "velocity_nees_3sigma",
+        "attitude_nees",
         "rejected_updates",
         "diverged_at",
     )
@@ -213,8 +247,10 @@ def monte_carlo(
         n_runs: number of runs.
         seed: Monte Carlo seed (run i uses the streams of (seed, i)).
         record_every: keep the error and 1σ history every this many IMU steps (0: none).
-        sample_initial_error: start each run from the truth plus an error drawn from
-            the filter's P0 (True) or exactly at the truth (False).
+        sample_initial_error: start each run's navigation solution at the truth plus
+            an error drawn from the filter's P0 and the IMU's turn-on bias at
+            ``sensors.imu_bias`` less a draw from P0 (True), or both exactly at the
+            truth and ``imu_bias`` (False). The bias estimates start at zero.
         threads: worker threads (default: all cores).
         first_run: index of the first run (a shard of a larger Monte Carlo: runs
             ``first_run .. first_run + n_runs``, identical to those runs of the whole).

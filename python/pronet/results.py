@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 from pronet._util.files import atomic_folder, json_bytes
 from pronet.learn.hybrid import HybridResult
-from pronet.montecarlo import MonteCarloResult
+from pronet.montecarlo import IN_BAND_FLAG, MonteCarloResult
 from pronet.sim.paper import PAPER_TABLE
 from pronet.stats import MeanCI, mean_ci
 
@@ -153,18 +153,33 @@ def markdown(
 
 
 #: Table columns of a filter's consistency (see :func:`consistency_cells`).
-CONSISTENCY_HEADER = ("vel. NEES (in 3σ)", "NIS")
+CONSISTENCY_HEADER = ("vel. NEES (in 3σ)", "att. NEES", "NIS")
+#: The mark of a NEES outside its band (:func:`out_of_band`).
+OUT_OF_BAND = " ⚠"
+
+
+def out_of_band(result: MonteCarloResult, block: str) -> str:
+    """:data:`OUT_OF_BAND` when ``block``'s run-averaged NEES lies inside its 95 % band
+    at fewer than :data:`pronet.montecarlo.IN_BAND_FLAG` of the DVL epochs, else ``""``."""
+    share = result.nees_in_band(block)
+    return OUT_OF_BAND if share < IN_BAND_FLAG else ""
 
 
 def consistency_cells(result: MonteCarloResult) -> list[str]:
     """The :data:`CONSISTENCY_HEADER` cells of ``result``: the mean velocity NEES (3 when
     consistent) with the share of epochs inside its 3σ bound (99.7 % when consistent),
-    and the mean NIS (3 when consistent); means over the runs that did not fail."""
-    nees, inside, nis = (
+    the mean attitude NEES (3 when consistent), each marked :data:`OUT_OF_BAND` where
+    it leaves its band (:func:`out_of_band`), and the mean NIS (3 when consistent);
+    means over the runs that did not fail."""
+    nees, inside, attitude, nis = (
         mean_ci(getattr(result, name)).mean
-        for name in ("velocity_nees", "velocity_nees_3sigma", "mean_nis")
+        for name in ("velocity_nees", "velocity_nees_3sigma", "attitude_nees", "mean_nis")
     )
-    return [f"{nees:.2f} ({100 * inside:.1f} %)", f"{nis:.2f}"]
+    return [
+        f"{nees:.2f} ({100 * inside:.1f} %){out_of_band(result, 'velocity')}",
+        f"{attitude:.2f}{out_of_band(result, 'attitude')}",
+        f"{nis:.2f}",
+    ]
 
 
 def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:

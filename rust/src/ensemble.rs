@@ -337,8 +337,10 @@ mod tests {
         let mut ens =
             Ensemble::new(Arc::clone(&sc), &tuned_filter(), TRUE_Q, &opts, 50, 0.5).unwrap();
         let w = ens.advance().unwrap();
-        // Regenerate run 1's first 50 raw samples from its stream.
-        let mut sim = SensorSim::new(&sc.sensors, 3, 1);
+        // Regenerate run 1's first 50 raw samples from its stream (with its turn-on bias).
+        let (_, bias) = crate::run::initial_state(&sc, &tuned_filter(), 3, 1);
+        assert!(bias.iter().all(|b| *b != 0.0), "a drawn turn-on bias");
+        let mut sim = SensorSim::new(&sc.sensors, 3, 1).with_turn_on_bias(bias);
         let raw: Vec<[f64; 6]> = (0..50)
             .map(|k| {
                 sim.imu(

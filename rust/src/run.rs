@@ -4,7 +4,8 @@
 use crate::attitude::{exp_so3, log_so3};
 use crate::earth;
 use crate::ekf::{
-    Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL,
+    Ekf, FilterConfig, Formulation, Matrix15, NisMonitor, UpdateInfo, ACC_BIAS, ATT, GYRO_BIAS,
+    POS, VEL,
 };
 use crate::error::Result;
 use crate::mechanization::{ImuSample, NavState};
@@ -166,15 +167,54 @@ fn calibration_error(ekf: &Ekf, truth: &DvlMounting) -> Option<([f64; 4], [f64; 
     Some((e, c.sigma(), nees))
 }
 
-/// NEES of each 3-block: `e_bᵀ P_bb⁻¹ e_b` (NaN where the block is singular).
-fn block_nees(error: &[f64; 15], p: &Matrix15) -> [f64; 5] {
-    [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS].map(|b| {
-        let e = Vector3::new(error[b], error[b + 1], error[b + 2]);
-        match p.fixed_view::<3, 3>(b, b).into_owned().cholesky() {
-            Some(ch) => e.dot(&ch.solve(&e)),
-            None => f64::NAN,
+/// `eᵀ P⁻¹ e` of one 3-block (NaN where the block is singular).
+fn nees3(e: &Vector3<f64>, p: &Matrix15, block: usize) -> f64 {
+    match p.fixed_view::<3, 3>(block, block).into_owned().cholesky() {
+        Some(ch) => e.dot(&ch.solve(e)),
+        None => f64::NAN,
+    }
+}
+
+/// NEES of each 3-block, each in the coordinates where its error is linear in the
+/// state (see `docs/filter.md`, "Consistency"): position, attitude and biases in the
+/// classic ones, velocity as the body-frame velocity error rotated to NED,
+/// `δV = v̂ − Ĉ Cᵀ v` (the invariant velocity error, exact), against the invariant
+/// covariance. The classic `δv` carries `[v̂×]ψ`, which is second-order wrong once
+/// heading errors reach degrees; `δV` is what the DVL reads in either formulation.
+fn block_nees(ekf: &Ekf, truth: &NavState, error: &[f64; 15]) -> [f64; 5] {
+    let p = ekf.covariance();
+    let mut nees = [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS]
+        .map(|b| nees3(&Vector3::new(error[b], error[b + 1], error[b + 2]), &p, b));
+    let dv = ekf.nav.vel - ekf.nav.dcm * (truth.dcm.transpose() * truth.vel);
+    nees[1] = nees3(&dv, &ekf.covariance_in(Formulation::Invariant), VEL);
+    nees
+}
+
+/// Run `run_index`'s start: the filter's initial navigation solution and the IMU's
+/// true turn-on bias `[b_a, b_g]`. The filter starts from its prior mean, the bias
+/// estimates at zero; the turn-on bias is the configured one, less a draw from the
+/// prior when initial errors are sampled, so that every initial error (the biases'
+/// too) is a draw from P0 about the configured offset.
+pub(crate) fn initial_state(
+    scenario: &Scenario,
+    filter: &FilterConfig,
+    seed: u64,
+    run_index: u64,
+) -> (NavState, [f64; 6]) {
+    let mut nav = scenario.truth.states[0];
+    let mut bias = scenario.sensors.imu.bias;
+    if scenario.sample_initial_error {
+        let mut rng = stream_rng(seed, run_index, Stream::InitialError);
+        let dx: [f64; 15] = std::array::from_fn(|i| filter.p0_sigma[i] * normal(&mut rng));
+        let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
+        nav.lla += earth::ned_delta_to_lla_delta(&nav.lla, &block(POS));
+        nav.vel += block(VEL);
+        nav.dcm = exp_so3(&(-block(ATT))) * nav.dcm;
+        for (i, b) in bias.iter_mut().enumerate() {
+            *b -= dx[ACC_BIAS + i];
         }
-    })
+    }
+    (nav, bias)
 }
 
 impl Run {
@@ -188,34 +228,15 @@ impl Run {
         window: Option<usize>,
     ) -> Result<Self> {
         let dvl_every = scenario.dvl_every()?;
-        let truth0 = scenario.truth.states[0];
-        let true_bias = scenario.sensors.imu.bias;
-        let mut nav = truth0;
-        let mut bias = true_bias;
-        if scenario.sample_initial_error {
-            let mut rng = stream_rng(seed, run_index, Stream::InitialError);
-            let dx: [f64; 15] = std::array::from_fn(|i| filter.p0_sigma[i] * normal(&mut rng));
-            let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
-            nav.lla += earth::ned_delta_to_lla_delta(&nav.lla, &block(POS));
-            nav.vel += block(VEL);
-            nav.dcm = exp_so3(&(-block(ATT))) * nav.dcm;
-            for i in 0..6 {
-                bias[i] += dx[ACC_BIAS + i];
-            }
-        }
-        let mut ekf = Ekf::new(
-            filter,
-            nav,
-            Vector3::new(bias[0], bias[1], bias[2]),
-            Vector3::new(bias[3], bias[4], bias[5]),
-        )?;
+        let (nav, true_bias) = initial_state(scenario, filter, seed, run_index);
+        let mut ekf = Ekf::new(filter, nav, Vector3::zeros(), Vector3::zeros())?;
         let strategy = strategy.build(filter.bias_psd());
         if let Some(q) = strategy.sensitivity_q() {
             ekf.track_sensitivity(q);
         }
         let n_epochs = scenario.truth.len() / dvl_every;
         let mut run = Self {
-            sim: SensorSim::new(&scenario.sensors, seed, run_index),
+            sim: SensorSim::new(&scenario.sensors, seed, run_index).with_turn_on_bias(true_bias),
             ekf,
             oracle: strategy.wants_true_variance(),
             strategy,
@@ -335,7 +356,7 @@ impl Run {
         // Every epoch is recorded, applied or not, so that the histories stay aligned.
         self.nis.push(info.nis);
         let e = state_error(&self.ekf, state, &self.true_bias);
-        self.nees.push(block_nees(&e, &self.ekf.covariance()));
+        self.nees.push(block_nees(&self.ekf, state, &e));
         if let Some((_, _, nees)) = calibration_error(&self.ekf, mounting) {
             self.calibration_nees.push(nees);
         }

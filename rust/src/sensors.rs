@@ -281,6 +281,13 @@ impl SensorSim {
         }
     }
 
+    /// Start the bias at `bias` `[b_a, b_g]` instead of the configured one (a turn-on
+    /// bias drawn for this run).
+    pub fn with_turn_on_bias(mut self, bias: [f64; 6]) -> Self {
+        self.bias = bias;
+        self
+    }
+
     /// The true IMU variances of the sample covering `(t_start, t_start + dt]`.
     pub fn variance(&mut self, cfg: &ImuErrorModel, t_start: f64) -> [f64; 6] {
         *cfg.variance.at(t_start, &mut self.cursor)

@@ -26,6 +26,7 @@ from pronet.recorded.alignment import (
     estimate_alignment,
 )
 from pronet.recorded.dvltruth import truth_calibration
+from pronet.recorded.metrics import section_metrics
 from pronet.recorded.recordings import (
     Recording,
     RecordingError,
@@ -305,6 +306,21 @@ def test_alignment_makes_the_filter_measurably_better(synthetic):
     assert metrics["handled"].srmse < 0.02
     assert metrics["stamps"].srmse > 2 * metrics["handled"].srmse
     assert metrics["stamps"].final_horizontal > 2 * metrics["handled"].final_horizontal
+
+
+def test_the_heading_ratio_compares_the_heading_error_with_its_sigma(synthetic):
+    """``heading_ratio`` is the RMS of (yaw error / heading σ) at the truth rows: a truth
+    turned by 10 σ in yaw reads about 10 more."""
+    rec = synthetic.recording
+    section = align(rec, estimate_alignment(rec, IMU_LEVER_ARM, DVL_LEVER_ARM))
+    config = real.real_filter_config(section.alignment.filter_lever_arm)
+    strategy = pronet.Strategy.constant(real.white_noise_q(rec.imu))
+    run = real.run_section(section, strategy, config)
+    assert 0 < run.metrics.heading_ratio < 3  # the filter's heading is honest here
+    sigma = float(np.median(run.result.sigma[:, 8]))
+    turned = replace(section, truth_rpy=section.truth_rpy + [0.0, 0.0, 10 * sigma])
+    ratio = section_metrics(turned, run.result).heading_ratio
+    assert 7 < ratio < 13, ratio
 
 
 # ---------------------------------------------------------------- ProNet loop on recorded data

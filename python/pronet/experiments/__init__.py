@@ -1,6 +1,8 @@
 """The experiments: compositions of the run path (:func:`pronet.run.run`) that write
 one result folder each (:mod:`pronet.results`).
 
+- :mod:`~pronet.experiments.consistency`: is the filter's σ honest, block by block,
+  for every IMU grade (``scripts/consistency.py``, ``docs/accuracy.md``);
 - :mod:`~pronet.experiments.reproduce`: the paper's experiment end to end
   (``pronet reproduce``);
 - :mod:`~pronet.experiments.simulation`: chosen strategies on one scenario
@@ -12,4 +14,4 @@ one result folder each (:mod:`pronet.results`).
 Recorded sections have their own experiment, :mod:`pronet.recorded.real`.
 """
 
-__all__ = ["reproduce", "simulation", "study", "sweep"]
+__all__ = ["consistency", "reproduce", "simulation", "study", "sweep"]

@@ -28,8 +28,9 @@ from pronet._util.files import atomic_folder, json_bytes
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.validate import threads as threads_arg
 from pronet.learn.hybrid import HybridResult
-from pronet.montecarlo import MonteCarloResult
+from pronet.montecarlo import IN_BAND_FLAG, MonteCarloResult
 from pronet.results import (
+    OUT_OF_BAND,
     SUMMARY_COLUMNS,
     markdown,
     results_dataframe,
@@ -222,6 +223,9 @@ STUDY_COLUMNS = (
     "outage_end_error",
     "velocity_nees",
     "velocity_nees_3sigma",
+    "velocity_nees_in_band",
+    "attitude_nees",
+    "attitude_nees_in_band",
     "mean_nis",
     "diverged_runs",
     "failed_runs",
@@ -265,6 +269,9 @@ def study_dataframe(rows: Sequence[StudyRow]) -> pd.DataFrame:
                     "outage_end_error": float(np.nanmean(outage)) if outage.size else math.nan,
                     "velocity_nees": s["velocity_nees"].mean,
                     "velocity_nees_3sigma": s["velocity_nees_3sigma"].mean,
+                    "velocity_nees_in_band": res.nees_in_band("velocity"),
+                    "attitude_nees": s["attitude_nees"].mean,
+                    "attitude_nees_in_band": res.nees_in_band("attitude"),
                     "mean_nis": s["mean_nis"].mean,
                     "diverged_runs": res.n_diverged,
                     "failed_runs": res.n_failed,
@@ -284,6 +291,12 @@ def _pct(value: float, ref: float) -> str:
     return f"{100 * value / ref:+.1f}" if math.isfinite(value) and ref else "—"
 
 
+def _flag(in_band: float) -> str:
+    """:data:`pronet.results.OUT_OF_BAND` for a NEES inside its band at fewer than
+    :data:`pronet.montecarlo.IN_BAND_FLAG` of the epochs (a study row's record)."""
+    return OUT_OF_BAND if in_band < IN_BAND_FLAG else ""
+
+
 def study_markdown(table: pd.DataFrame) -> str:
     """The study table as Markdown, one block per scenario: ΔSRMSE in % of the
     reference's SRMSE with its paired 95 % CI, the oracle-gain share with its bootstrap
@@ -297,6 +310,7 @@ def study_markdown(table: pd.DataFrame) -> str:
         "final / max horiz. [m]",
         "outage end [m]",
         "vel. NEES (in 3σ)",
+        "att. NEES",
         "NIS",
         "diverged",
         "time [s]",
@@ -324,7 +338,9 @@ def study_markdown(table: pd.DataFrame) -> str:
                     f"{r.smae:.4f}",
                     f"{r.final_horizontal_error:.2f} / {r.max_horizontal_error:.2f}",
                     outage,
-                    f"{r.velocity_nees:.2f} ({100 * r.velocity_nees_3sigma:.1f} %)",
+                    f"{r.velocity_nees:.2f} ({100 * r.velocity_nees_3sigma:.1f} %)"
+                    + _flag(r.velocity_nees_in_band),
+                    f"{r.attitude_nees:.2f}" + _flag(r.attitude_nees_in_band),
                     f"{r.mean_nis:.2f}",
                     f"{r.diverged_runs} / {r.runs}",
                     f"{r.seconds:.1f}",

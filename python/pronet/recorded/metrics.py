@@ -1,6 +1,7 @@
 """Errors of a filter run on a recorded section against its ground truth: velocity
 SRMSE and SMAE, final and maximum horizontal position error, the final error as a
-percentage of the distance travelled, and the mean NIS. Taken at the ground-truth rows
+percentage of the distance travelled, the mean NIS and the heading error against the
+filter's heading σ. Taken at the ground-truth rows
 inside the run, the estimate linearly interpolated between IMU epochs."""
 
 from __future__ import annotations
@@ -28,6 +29,10 @@ class SectionMetrics:
         distance: horizontal distance travelled by the truth [m].
         final_percent: ``final_horizontal`` as % of ``distance``.
         mean_nis: mean NIS of the DVL updates (3 when consistent).
+        heading_ratio: RMS over the scored rows of the heading error (yaw estimate
+            minus truth, wrapped) over the filter's heading 1σ (about 1 when the filter
+            is consistent, above 1 overconfident; the truth's own heading error and
+            any yaw misalignment between the truth and the IMU count as error).
         n_scored: ground-truth rows scored.
     """
 
@@ -38,6 +43,7 @@ class SectionMetrics:
     distance: float
     final_percent: float
     mean_nis: float
+    heading_ratio: float
     n_scored: int
 
 
@@ -63,6 +69,17 @@ def estimate_at_truth(section: Section, result: FilterResult) -> tuple[NDArray[n
     return rows, at(result.lla), at(result.vel)
 
 
+def _heading_ratio(section: Section, result: FilterResult, rows: NDArray[np.intp]) -> float:
+    """RMS of the heading error over its 1σ at the truth ``rows`` (see
+    :class:`SectionMetrics`); the yaw interpolated unwrapped, the error wrapped."""
+    t = section.truth_time[rows]
+    yaw = np.interp(t, result.time, np.unwrap(result.rpy[:, 2]))
+    sigma = np.interp(t, result.time, result.sigma[:, 8])
+    error = np.angle(np.exp(1j * (yaw - section.truth_rpy[rows, 2])))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.sqrt(np.mean((error / sigma) ** 2)))
+
+
 def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
     """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`)."""
     rows, lla, vel = estimate_at_truth(section, result)
@@ -83,5 +100,6 @@ def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
         distance=distance,
         final_percent=100 * float(horizontal[-1]) / distance if distance > 0 else math.nan,
         mean_nis=float(nis.mean()) if nis.size else math.nan,
+        heading_ratio=_heading_ratio(section, result, rows),
         n_scored=int(rows.size),
     )

@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pronet.recorded.tuning import real_filter_config
-from pronet.results import RUN_COLUMNS, SUMMARIZED, SUMMARY_COLUMNS, markdown, write_tables
+from pronet.results import (
+    OUT_OF_BAND,
+    RUN_COLUMNS,
+    SUMMARIZED,
+    SUMMARY_COLUMNS,
+    markdown,
+    write_tables,
+)
 
 if TYPE_CHECKING:
     from pronet.learn.models import Regressor
@@ -26,18 +33,30 @@ METRIC_COLUMNS = (
     ("max_horizontal", "max horiz. error [m]", "{:.2f}"),
     ("final_percent", "final error [% of distance]", "{:.2f}"),
     ("mean_nis", "mean NIS", "{:.2f}"),
+    ("heading_ratio", "heading error / σ (RMS)", "{:.2f}"),
 )
 
 
+#: A heading error RMS beyond this many of the filter's σ is flagged
+#: (:data:`pronet.results.OUT_OF_BAND`): a consistent filter's is about 1.
+HEADING_FLAG = 3.0
+
+
+def _cell(key: str, fmt: str, value: float) -> str:
+    flag = OUT_OF_BAND if key == "heading_ratio" and value > HEADING_FLAG else ""
+    return fmt.format(value) + flag
+
+
 def summary_table(runs: list[SectionRun], title: str) -> str:
-    """Markdown: one row per strategy, each metric's mean over the sections."""
+    """Markdown: one row per strategy, each metric's mean over the sections (the heading
+    ratio flagged beyond :data:`HEADING_FLAG`)."""
     labels = list(dict.fromkeys(r.label for r in runs))
     n = len({r.section for r in runs})
     lines = []
     for label in labels:
         mine = [r.metrics for r in runs if r.label == label]
         cells = [
-            fmt.format(float(np.mean([getattr(m, key) for m in mine])))
+            _cell(key, fmt, float(np.mean([getattr(m, key) for m in mine])))
             for key, _, fmt in METRIC_COLUMNS
         ]
         lines.append([label, *cells])
@@ -85,6 +104,7 @@ def run_record(run: SectionRun) -> dict[str, object]:
         "mean_nis": m.mean_nis,
         "velocity_nees": math.nan,  # the sections' truth has no NEES here (yet)
         "velocity_nees_3sigma": math.nan,
+        "attitude_nees": math.nan,
         "rejected_updates": int((applied & ~r.accepted).sum()),
         "diverged_at": math.nan if r.diverged_at is None else r.diverged_at,
         "failure": None,

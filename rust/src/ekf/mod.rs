@@ -346,19 +346,20 @@ impl Ekf {
     }
 
     /// Apply an error estimate `δx̂` (estimate minus truth, in the formulation's
-    /// coordinates) to the navigation solution and biases.
+    /// coordinates) to the navigation solution and biases. The invariant velocity is
+    /// corrected exactly, `v̂ ← Exp(ψ̂)(v̂ − δV̂)` (`δV = v̂ − Ĉ Cᵀ v` and `C = Exp(ψ) Ĉ`):
+    /// to first order `v̂ − δV̂ − [v̂×]ψ̂`, but a rotation of the corrected velocity, so
+    /// that a large attitude correction cannot scale the speed.
     fn feedback(&mut self, dx: &Vector15) {
         let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
         let dp = block(POS);
-        let dv = formulation::classic_velocity(
-            self.cfg.formulation,
-            &block(VEL),
-            &block(ATT),
-            &self.nav.vel,
-        );
+        let rotation = exp_so3(&block(ATT));
         self.nav.lla -= earth::ned_delta_to_lla_delta(&self.nav.lla, &dp);
-        self.nav.vel -= dv;
-        self.nav.dcm = exp_so3(&block(ATT)) * self.nav.dcm;
+        self.nav.vel = match self.cfg.formulation {
+            Formulation::Classic => self.nav.vel - block(VEL),
+            Formulation::Invariant => rotation * (self.nav.vel - block(VEL)),
+        };
+        self.nav.dcm = rotation * self.nav.dcm;
         self.accel_bias -= block(ACC_BIAS);
         self.gyro_bias -= block(GYRO_BIAS);
     }

@@ -323,7 +323,8 @@ fn apply_dvl_rows(
             strategy.after_update(&info, at.steps_since_update);
             at.steps_since_update = 0;
         }
-        out.adaptive_q[row] = strategy.discrete_q().map(|q| ekf.to_classic(q));
+        // Mehra's Q̂ is built from the reported (classic) gain: classic already.
+        out.adaptive_q[row] = strategy.discrete_q().copied();
         out.dvl_epoch[row] = Some(epoch);
         out.updates[row] = Some(info);
         at.next_dvl += 1;

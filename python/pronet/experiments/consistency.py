@@ -1,0 +1,174 @@
+"""The consistency suite: is the filter's σ honest, block by block, for every IMU grade?
+
+Each cell is a Monte Carlo of one IMU grade (:data:`GRADES`) on one motion
+(:data:`MOTIONS`) with a DVL at 1 or 5 Hz, 1200 s long, the filter told the exact
+noise model. Per error block (position, velocity, attitude, accelerometer and gyro
+bias) it reports the share of DVL epochs whose run-averaged NEES lies inside its 95 %
+band, and the heading error RMS at the end against the filter's mean 1σ there. Each
+block's NEES is taken in the coordinates where its error is linear (the velocity as
+the body-frame velocity error rotated to NED; see ``docs/filter.md``, "Metrics").
+
+Initial errors: ``draw=True`` draws every initial error, the biases' too, from P0 (the
+filter starts at its prior mean, so its errors are P0-distributed); ``draw=False``
+starts the filter at the truth with zero biases, where a consistent filter is
+conservative (its error stays below its σ).
+
+``python scripts/consistency.py`` runs the whole grid and writes the tables of
+``docs/accuracy.md``; the cheap cells are tests (``tests/test_consistency.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from pronet import _core
+from pronet.stats import chi2_mean_band
+
+#: The filter's velocity-error coordinates (:class:`pronet.FilterConfig`).
+Formulation = Literal["invariant", "classic"]
+
+#: IMU grades: per-sample white-noise variance at 100 Hz of the accelerometers
+#: [(m/s²)²] and gyros [(rad/s)²], turn-on bias 1σ [m/s², rad/s] and bias random-walk
+#: PSDs [(m/s²)²/s, (rad/s)²/s]. MEMS is the grade whose heading the classic
+#: formulation got wrong (gyro ARW ≈ 0.27 °/√h, bias 41 °/h); tactical is ≈ 0.11 °/√h
+#: and 1 °/h; FOG (navigation grade) ≈ 0.011 °/√h and 0.01 °/h.
+GRADES: dict[str, dict[str, float]] = {
+    "mems": {"q_a": 2e-3, "q_g": 2e-5, "b_a": 1e-3, "b_g": 2e-4, "w_a": 1e-9, "w_g": 2.35e-12},
+    "tactical": {"q_a": 2.5e-5, "q_g": 1e-7, "b_a": 1e-3, "b_g": 5e-6, "w_a": 1e-11, "w_g": 1e-15},
+    "fog": {"q_a": 2.5e-6, "q_g": 1e-9, "b_a": 2e-4, "b_g": 5e-8, "w_a": 1e-13, "w_g": 1e-17},
+}
+
+_DEG = math.pi / 180.0
+#: Motions, 1200 s at 1.5 m/s: rows ``[duration s, accel m/s², yaw rate rad/s, pitch
+#: rate rad/s]`` of :func:`pronet.trajectory_from_segments`.
+MOTIONS: dict[str, list[list[float]]] = {
+    "straight": [[1200.0, 0.0, 0.0, 0.0]],
+    "turns": [
+        [100.0, 0.0, 0.0, 0.0],
+        [90.0, 0.0, 2 * _DEG, 0.0],
+        [500.0, 0.0, 0.0, 0.0],
+        [90.0, 0.0, -2 * _DEG, 0.0],
+        [420.0, 0.0, 0.0, 0.0],
+    ],
+    "helix": [
+        [10.0, 0.0, 0.0, -1 * _DEG],
+        [10.0, 0.0, 0.0, 1 * _DEG],
+        [1180.0, 0.0, 3 * _DEG, 0.0],
+    ],
+    "zigzag": [[60.0, 0.0, 0.0, 0.0]]
+    + [[30.0, 0.0, s * 3 * _DEG, 0.0] for s in (1, -1, -1, 1) * 9]
+    + [[60.0, 0.0, 0.0, 0.0]],
+}
+BLOCKS = ("position", "velocity", "attitude", "accel bias", "gyro bias")
+#: DVL noise 1σ [m/s] per axis.
+DVL_SIGMA = 0.02
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell of the suite.
+
+    Attributes:
+        grade, motion, formulation, dvl_hz, draw: what was run.
+        runs: Monte Carlo runs.
+        heading_rms, heading_sigma: heading error RMS over the runs and the filter's
+            mean 1σ at the end [rad].
+        gyro_z_sigma_ratio: the vertical gyro bias's final mean 1σ over its prior.
+        inside: per block (:data:`BLOCKS`), the share of DVL epochs whose NEES averaged
+            over the runs lies inside its 95 % band.
+        mean_nees: per block, the NEES averaged over runs and epochs (3 if consistent).
+        mean_nis: NIS over every update (3 if consistent).
+    """
+
+    grade: str
+    motion: str
+    formulation: str
+    dvl_hz: float
+    draw: bool
+    runs: int
+    heading_rms: float
+    heading_sigma: float
+    gyro_z_sigma_ratio: float
+    inside: tuple[float, ...]
+    mean_nees: tuple[float, ...]
+    mean_nis: float
+
+    @property
+    def heading_ratio(self) -> float:
+        """Heading error RMS over its mean 1σ (1 when consistent, < 1 conservative)."""
+        return self.heading_rms / self.heading_sigma
+
+
+def filter_config(grade: str, formulation: Formulation) -> _core.FilterConfig:
+    """The filter told ``grade``'s exact model: its bias priors and walks, position
+    1 m, velocity 0.02 m/s, roll and pitch 1 mrad, heading 1° (1σ)."""
+    g = GRADES[grade]
+    p0 = [1.0] * 3 + [0.02] * 3 + [1e-3, 1e-3, _DEG] + [g["b_a"]] * 3 + [g["b_g"]] * 3
+    return _core.FilterConfig(
+        p0_sigma=p0,
+        accel_bias_psd=g["w_a"],
+        gyro_bias_psd=g["w_g"],
+        dvl_variance=[DVL_SIGMA**2] * 3,
+        formulation=formulation,
+    )
+
+
+def run_cell(
+    grade: str,
+    motion: str,
+    formulation: Formulation,
+    *,
+    dvl_hz: float = 5.0,
+    draw: bool = True,
+    runs: int = 20,
+    seed: int = 0,
+) -> Cell:
+    """Run one cell (see the module's docstring)."""
+    g = GRADES[grade]
+    q = [g["q_a"]] * 3 + [g["q_g"]] * 3
+    trajectory = _core.trajectory_from_segments(
+        np.array(MOTIONS[motion]),
+        lla0=[32.0 * _DEG, 34.0 * _DEG, -20.0],
+        speed0=1.5,
+        dt=0.01,
+        name=motion,
+    )
+    sensors = _core.SensorConfig(
+        imu_variance=q,
+        imu_bias_psd=[g["w_a"]] * 3 + [g["w_g"]] * 3,
+        dvl_variance=[DVL_SIGMA**2] * 3,
+        dvl_period=1.0 / dvl_hz,
+    )
+    every = int(round(100 / dvl_hz))
+    out = _core.monte_carlo(
+        trajectory,
+        sensors,
+        filter_config(grade, formulation),
+        _core.Strategy.constant(q),
+        n_runs=runs,
+        seed=seed,
+        record_every=every * 50,
+        sample_initial_error=draw,
+    )
+    error, sigma, nees = out["error"], out["sigma"], out["nees"]
+    low, high = chi2_mean_band(3, runs)
+    per_epoch = np.mean(nees, axis=0)  # (epochs, 5)
+    inside = np.mean((per_epoch >= low) & (per_epoch <= high), axis=0)
+    return Cell(
+        grade=grade,
+        motion=motion,
+        formulation=formulation,
+        dvl_hz=dvl_hz,
+        draw=draw,
+        runs=runs,
+        heading_rms=float(np.sqrt(np.mean(error[:, -1, 8] ** 2))),
+        heading_sigma=float(np.mean(sigma[:, -1, 8])),
+        gyro_z_sigma_ratio=float(np.mean(sigma[:, -1, 14]) / g["b_g"]),
+        inside=tuple(float(x) for x in inside),
+        mean_nees=tuple(float(x) for x in np.mean(per_epoch, axis=0)),
+        mean_nis=float(np.mean(out["nis"])),
+    )
