@@ -191,6 +191,14 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     (repeat,) = json.loads((again / "metrics.json").read_text())
     for key in ("srmse", "srmse_low", "srmse_high", "smae"):
         assert rows["mehra:5"][key] == repeat[key]
+    # --formulation classic reaches the filter: recorded, and other numbers
+    assert 'formulation="invariant"' in config["filter"]
+    classic = tmp_path / "classic"
+    argv = [*args[:-1], str(classic), "--strategies", "mehra:5", "--quiet", "--no-plots"]
+    assert cli.main([*argv, "--formulation", "classic"]) == 0
+    assert 'formulation="classic"' in json.loads((classic / "config.json").read_text())["filter"]
+    (old,) = json.loads((classic / "metrics.json").read_text())
+    assert old["srmse"] != repeat["srmse"]
 
 
 @pytest.mark.parametrize(

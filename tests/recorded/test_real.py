@@ -445,6 +445,31 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     assert (bare / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
 
 
+def test_pronet_real_runs_either_formulation(tmp_path, capsys):
+    """``--formulation classic`` reaches every filter of the run (the config records it,
+    the numbers move), the default is the invariant one, and a bad name is refused."""
+    data = tmp_path / "data"
+    write_recording(data / "run1.npz", synthetic_recording(seed=1, duration=70.0).recording)
+    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
+    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
+    argv += ["--no-models", arm]
+    metrics = {}
+    for name, extra in (("default", []), ("classic", ["--formulation", "classic"])):
+        out = tmp_path / name
+        assert main([*argv, "--out", str(out), *extra]) == 0
+        config = json.loads((out / "config.json").read_text())
+        assert f'formulation="{name if extra else "invariant"}"' in config["filter"]
+        metrics[name] = [r["srmse"] for r in json.loads((out / "metrics.json").read_text())]
+    assert len(metrics["default"]) == len(metrics["classic"]) > 5
+    assert metrics["default"] != metrics["classic"]
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as refused:
+        main([*argv, "--out", str(tmp_path / "bad"), "--formulation", "psi"])
+    assert refused.value.code == 2
+    assert "--formulation: invalid choice: 'psi'" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
 def test_sections_run_side_by_side_give_the_numbers_of_one_thread(synthetic):
     section = align(synthetic.recording, estimate_alignment(synthetic.recording))
     stamped = align(synthetic.recording, alignment.Alignment(how="none"))

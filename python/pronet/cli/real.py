@@ -78,6 +78,13 @@ def add_parser(sub: Subparsers) -> None:
         "section's, matched to the filter's innovations (default datasheet; the table "
         "has a row with R from the data and each section's R either way)",
     )
+    parser.add_argument(
+        "--formulation",
+        choices=("invariant", "classic"),
+        default=None,
+        help="the filter's error coordinates: invariant (the default, consistent in "
+        "heading) or classic (pronet's filter before 2026-12, to reproduce its results)",
+    )
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
     add_result_folder(parser, "real")
@@ -102,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
             use_models=not args.no_models,
             plots=not args.no_plots,
             dvl_noise=args.dvl_noise,
+            formulation=args.formulation,
             on_start=bars.start,
             on_done=bars.done,
         )

@@ -42,6 +42,14 @@ def add_parser(sub: Subparsers) -> None:
         help="filter configuration .toml: the keys it names override the scenario's filter",
     )
     parser.add_argument(
+        "--formulation",
+        choices=("invariant", "classic"),
+        default=None,
+        help="the filter's error coordinates: invariant (the default, consistent in "
+        "heading) or classic (pronet's filter before 2026-12, to reproduce its results); "
+        "overrides the scenario's and --filter's",
+    )
+    parser.add_argument(
         "--strategies",
         metavar="SPECS",
         default=",".join(PAPER_ROWS.values()),
@@ -75,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
             args.strategies.split(","),
             args.out,
             filter_config=args.filter,
+            formulation=args.formulation,
             n_runs=args.runs,
             seed=args.seed,
             threads=args.threads,

@@ -19,17 +19,24 @@ from pronet.strategies import StrategySpec, strategy
 
 
 def _scenario(
-    scenario: str | Path | Scenario, filter_config: str | Path | None, seed: int
+    scenario: str | Path | Scenario,
+    filter_config: str | Path | None,
+    seed: int,
+    formulation: str | None = None,
 ) -> Scenario:
     """``scenario`` (built-in name or ``.toml`` file, its noise schedule drawn from
     ``seed``; or an object), with the keys of the ``filter_config`` file, if given,
-    overriding its filter's."""
+    overriding its filter's, and then ``formulation``, if given."""
     from pronet import config
 
     if not isinstance(scenario, Scenario):
         scenario = config.load_scenario(scenario, seed)
     if filter_config:
         tuned = config.load_filter_config(filter_config, base=scenario.config)
+        scenario = dataclasses.replace(scenario, config=tuned)
+    if formulation is not None:
+        table = {"formulation": formulation}
+        tuned = config.filter_config(table, "--formulation:", base=scenario.config)
         scenario = dataclasses.replace(scenario, config=tuned)
     return scenario
 
@@ -63,6 +70,7 @@ def simulate(
     out: str | Path | None = None,
     *,
     filter_config: str | Path | None = None,
+    formulation: str | None = None,
     n_runs: int = 100,
     seed: int = 0,
     threads: int | None = None,
@@ -87,6 +95,8 @@ def simulate(
             existing one is refused.
         filter_config: a filter ``.toml`` file; the keys it names override the
             scenario's filter, the rest stay.
+        formulation: the filter's error coordinates, ``"invariant"`` or ``"classic"``
+            (default: the scenario's or the filter file's, else the invariant one).
         n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
         threads: worker threads (default: all cores).
         record_every: seconds between the saved history samples the plots use (> 0).
@@ -100,7 +110,7 @@ def simulate(
         ValueError: a bad argument, file or spec, before any computation.
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
-    sc = _scenario(scenario, filter_config, seed)
+    sc = _scenario(scenario, filter_config, seed, formulation)
     parsed = _specs(specs)
     strategies = {spec.text: strategy(spec, sc.q_nominal, tuning_period) for spec in parsed}
     out = new_result_folder(out, "simulate")

@@ -179,7 +179,10 @@ def evaluate_section(
 
 
 def estimate_dvl_noise(
-    section: Section, strategy: StrategyLike, lever_arm: tuple[float, float, float]
+    section: Section,
+    strategy: StrategyLike,
+    lever_arm: tuple[float, float, float],
+    formulation: str | None = None,
 ) -> SectionDvlNoise:
     """The DVL noise of ``section``: its second-difference R, then the R that matches
     the innovations of ``strategy`` under :func:`real_filter_config`, without and with
@@ -188,7 +191,7 @@ def estimate_dvl_noise(
 
     def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
         def one_pass(r: tuple[float, float, float]) -> FilterResult:
-            config = real_filter_config(lever_arm, r, calibration)
+            config = real_filter_config(lever_arm, r, calibration, formulation)
             # the matching reads the updates only: no epoch arrays, no metrics
             return run(strategy, section_recorded(section, config, epochs="last")).result
 
@@ -228,29 +231,34 @@ def plan_section(
     models: Mapping[str, Regressor],
     tuning_period: float,
     dvl_noise: str = "datasheet",
+    formulation: str | None = None,
 ) -> SectionPlan:
     """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
     its estimated q, with the DVL noise of ``dvl_noise`` (one of
-    :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows."""
+    :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows, every
+    filter in ``formulation`` (default ``FilterConfig``'s)."""
     check_dvl_noise(dvl_noise)
     q = white_noise_q(section.imu)
     strategies = real_strategies(q, models, tuning_period)
     arm = section.alignment.filter_lever_arm
     datasheet = (REAL_DVL_VARIANCE,) * 3
     try:
-        noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm)
+        noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm, formulation)
     except ValueError as exc:
         if dvl_noise == "data":  # the strategy rows need it
             raise
         # The strategy rows do not: they run, the variant rows are left out.
-        return SectionPlan(q, strategies, real_filter_config(arm), {}, str(exc), datasheet)
+        config = real_filter_config(arm, formulation=formulation)
+        return SectionPlan(q, strategies, config, {}, str(exc), datasheet)
     used = noise.matched.variance if dvl_noise == "data" else datasheet
+    both = noise.matched_calibrated.variance
     variants = {
-        R_FROM_DATA: real_filter_config(arm, noise.matched.variance),
-        DVL_CALIBRATION: real_filter_config(arm, calibration=True),
-        BOTH: real_filter_config(arm, noise.matched_calibrated.variance, calibration=True),
+        R_FROM_DATA: real_filter_config(arm, noise.matched.variance, formulation=formulation),
+        DVL_CALIBRATION: real_filter_config(arm, calibration=True, formulation=formulation),
+        BOTH: real_filter_config(arm, both, calibration=True, formulation=formulation),
     }
-    return SectionPlan(q, strategies, real_filter_config(arm, used), variants, noise, used)
+    config = real_filter_config(arm, used, formulation=formulation)
+    return SectionPlan(q, strategies, config, variants, noise, used)
 
 
 # ------------------------------------------------------------------------ pronet real
@@ -283,10 +291,11 @@ def run_sections(
     dvl_noise: str = "datasheet",
     on_section: Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]
     | None = None,
+    formulation: str | None = None,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
-    the inertial run;
+    the inertial run, every filter in ``formulation`` (default ``FilterConfig``'s);
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core this process may use; each filter is
     one native call without the GIL), and the results do not depend on it.
@@ -310,7 +319,7 @@ def run_sections(
     def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
         _STOP.set(stop)  # this thread's context: its run_section calls see the event
         try:
-            plan = plan_section(pair[0], models, tuning_period, dvl_noise)
+            plan = plan_section(pair[0], models, tuning_period, dvl_noise, formulation)
             ran = _run_one_section(pair[0], pair[1], plan, done)
         except ValueError as exc:  # the reason, kept beside the section's name
             return str(exc)
@@ -390,7 +399,11 @@ def _run_one_section(
     stamped_run = run_section(
         stamped,
         first,
-        real_filter_config(stamped.alignment.filter_lever_arm, plan.dvl_variance),
+        real_filter_config(
+            stamped.alignment.filter_lever_arm,
+            plan.dvl_variance,
+            formulation=plan.config.formulation,
+        ),
         label=f"{first_label}, stamps as given, no lever arms",
         setup="stamps as given, no lever arms",
     )
@@ -413,6 +426,7 @@ def run_real(
     use_models: bool = True,
     plots: bool = True,
     dvl_noise: str = "datasheet",
+    formulation: str | None = None,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -440,6 +454,8 @@ def run_real(
             (:data:`pronet.recorded.tuning.REAL_DVL_VARIANCE`) or ``"data"`` (each section's
             innovation-matched R, :func:`estimate_dvl_noise`). Either way the table has
             the variant rows and reports each section's R.
+        formulation: the filter's error coordinates, ``"invariant"`` (the default) or
+            ``"classic"`` (pronet's filter before 2026-12), for every row.
         on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`): stages
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
@@ -453,6 +469,7 @@ def run_real(
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
+    tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation)  # checked now
     imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
     dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
     paths = select_sections(data, sections)
@@ -495,9 +512,10 @@ def run_real(
             failed=unread,
             dvl_noise=dvl_noise,
             on_section=None if figures is None else _drawn_by(figures),
+            formulation=formulation,
         )
         config = real_config(
-            data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors
+            data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors, tuning
         )
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial

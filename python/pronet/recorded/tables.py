@@ -22,6 +22,7 @@ from pronet.results import (
 )
 
 if TYPE_CHECKING:
+    from pronet import _core
     from pronet.learn.models import Regressor
     from pronet.recorded.dvltruth import TruthCalibration
     from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
@@ -312,9 +313,11 @@ def real_config(
     dvl_noise: str,
     done: RealRuns,
     regressors: Mapping[str, Regressor],
+    tuning: _core.FilterConfig | None = None,
 ) -> dict[str, object]:
-    """``config.json`` of a ``pronet real`` folder: what ran, on what, and the
-    per-section estimates (clocks, q, DVL noise and calibration)."""
+    """``config.json`` of a ``pronet real`` folder: what ran, on what (``tuning``: the
+    strategy rows' filter, lever arms aside; default :func:`real_filter_config`'s),
+    and the per-section estimates (clocks, q, DVL noise and calibration)."""
     imu_arm, dvl_arm = arms
     return {
         "data": str(Path(data).resolve()),
@@ -322,7 +325,7 @@ def real_config(
         "sections": [a.name for a, _ in done.sections],
         "failed_sections": done.failed,
         "tuning_period_s": tuning_period,
-        "filter": repr(real_filter_config((0.0, 0.0, 0.0))),
+        "filter": repr(tuning if tuning is not None else real_filter_config((0.0, 0.0, 0.0))),
         "imu_lever_arm_m": imu_arm,
         "dvl_lever_arm_m": dvl_arm,
         "clocks": {

@@ -57,13 +57,17 @@ def real_filter_config(
     lever_arm: tuple[float, float, float],
     dvl_variance: tuple[float, float, float] | None = None,
     calibration: bool = False,
+    formulation: str | None = None,
 ) -> _core.FilterConfig:
     """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
     IMU [m, body FRD], the DVL noise ``dvl_variance`` per body axis [(m/s)²] (default:
-    the datasheet's, :data:`REAL_DVL_VARIANCE`) and, with ``calibration``, the DVL
-    scale-factor and misalignment states (their default prior: 1 %, 1° per axis); see
+    the datasheet's, :data:`REAL_DVL_VARIANCE`), with ``calibration`` the DVL
+    scale-factor and misalignment states (their default prior: 1 %, 1° per axis), and
+    the filter's ``formulation`` (default ``FilterConfig``'s, the invariant one); see
     :data:`REAL_P0_SIGMA` and the PSD constants for sources."""
+    chosen = {} if formulation is None else {"formulation": formulation}
     return _core.FilterConfig(
+        **chosen,  # type: ignore[arg-type]
         p0_sigma=REAL_P0_SIGMA,
         accel_bias_psd=REAL_ACCEL_BIAS_PSD,
         gyro_bias_psd=REAL_GYRO_BIAS_PSD,
