@@ -57,8 +57,18 @@ impl ErrorDynamics {
 
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
     /// multiply-adds instead of 225.
-    #[inline(always)]
     pub(super) fn apply(&self, x: &[f64]) -> [f64; 9] {
+        if self.invariant {
+            self.apply_in::<true>(x)
+        } else {
+            self.apply_in::<false>(x)
+        }
+    }
+
+    /// [`Self::apply`] for one formulation. The skew-symmetric blocks skip their zero
+    /// diagonal, which leaves every sum bit-identical (`0·x + y = y` for finite x).
+    #[inline(always)]
+    fn apply_in<const INVARIANT: bool>(&self, x: &[f64]) -> [f64; 9] {
         #[inline(always)]
         fn mv(a: &Matrix3<f64>, x: &[f64]) -> [f64; 3] {
             let a = a.as_slice(); // column-major
@@ -68,23 +78,34 @@ impl ErrorDynamics {
                 a[2] * x[0] + a[5] * x[1] + a[8] * x[2],
             ]
         }
+        #[inline(always)]
+        fn skew_mv(a: &Matrix3<f64>, x: &[f64]) -> [f64; 3] {
+            let a = a.as_slice();
+            [
+                a[3] * x[1] + a[6] * x[2],
+                a[1] * x[0] + a[7] * x[2],
+                a[2] * x[0] + a[5] * x[1],
+            ]
+        }
         let (xp, xv, xa) = (&x[POS..POS + 3], &x[VEL..VEL + 3], &x[ATT..ATT + 3]);
         let (xba, xbg) = (&x[ACC_BIAS..ACC_BIAS + 3], &x[GYRO_BIAS..GYRO_BIAS + 3]);
-        let pp = mv(&self.pos_pos, xp);
-        let (vv, va, vb) = (
-            mv(&self.vel_vel, xv),
-            mv(&self.vel_att, xa),
-            mv(&self.vel_abias, xba),
-        );
-        let (aa, ab) = (mv(&self.att_att, xa), mv(&self.att_gbias, xbg));
+        let pp = skew_mv(&self.pos_pos, xp);
+        let vv = skew_mv(&self.vel_vel, xv);
+        let va = if INVARIANT {
+            mv(&self.vel_att, xa)
+        } else {
+            skew_mv(&self.vel_att, xa)
+        };
+        let vb = mv(&self.vel_abias, xba);
+        let (aa, ab) = (skew_mv(&self.att_att, xa), mv(&self.att_gbias, xbg));
         let mut o = [0.0; 9];
         for r in 0..3 {
             o[POS + r] = pp[r] + xv[r];
             o[VEL + r] = self.vel_pos[r] * xp[r] + vv[r] + va[r] + vb[r];
             o[ATT + r] = aa[r] + ab[r];
         }
-        if self.invariant {
-            let (pa, vg) = (mv(&self.pos_att, xa), mv(&self.vel_gbias, xbg));
+        if INVARIANT {
+            let (pa, vg) = (skew_mv(&self.pos_att, xa), mv(&self.vel_gbias, xbg));
             for r in 0..3 {
                 o[POS + r] += pa[r];
                 o[VEL + r] += vg[r];
@@ -120,19 +141,24 @@ impl ErrorDynamics {
 
     #[inline(always)]
     fn propagate_covariance_portable(&self, p: &mut Matrix15, dt: f64) {
-        const NAV: usize = 9;
-        let a = if self.invariant {
-            self.times::<true>(p)
+        if self.invariant {
+            self.propagate_in::<true>(p, dt)
         } else {
-            self.times::<false>(p)
-        };
+            self.propagate_in::<false>(p, dt)
+        }
+    }
+
+    #[inline(always)]
+    fn propagate_in<const INVARIANT: bool>(&self, p: &mut Matrix15, dt: f64) {
+        const NAV: usize = 9;
+        let a = self.times::<INVARIANT>(p);
         // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j] (column j of
         // F Aᵀ is F times row j of A); the block gains M + Mᵀ, which is exactly
         // symmetric since addition commutes.
         let half_dt2 = 0.5 * (dt * dt);
         let mut m = [[0.0; NAV]; NAV];
         for (j, col) in m.iter_mut().enumerate() {
-            let b = self.apply(&a[j]);
+            let b = self.apply_in::<INVARIANT>(&a[j]);
             for (i, v) in col.iter_mut().enumerate() {
                 *v = dt * a[i][j] + half_dt2 * b[i];
             }
@@ -238,8 +264,9 @@ pub(super) fn add_imu_noise(
     };
     if formulation == Formulation::Invariant {
         let v = skew(&nav.vel);
-        let cross = -v * qg;
-        blk(VEL, qa + v * qg * v.transpose());
+        let vq = v * qg; // once: −[v×]Q_g is its negation, exactly
+        let cross = -vq;
+        blk(VEL, qa + vq * v.transpose());
         blk(ATT, qg);
         let mut view = p.fixed_view_mut::<3, 3>(VEL, ATT);
         view += cross;
