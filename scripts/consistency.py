@@ -10,17 +10,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import re
 import sys
 from pathlib import Path
 
 from pronet._util.files import atomic_write
 from pronet.experiments.consistency import BLOCKS, GRADES, MOTIONS, Cell, run_cell
-from pronet.results import markdown
+from pronet.results import between_markers, markdown
 from pronet.stats import chi2_mean_band
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "accuracy.md"
-BEGIN, END = "<!-- consistency-tables:begin -->", "<!-- consistency-tables:end -->"
 RUNS = 20
 #: Above this final heading 1σ [deg] the attitude error is no longer small: the
 #: linearized filter's NEES is not expected inside its band there (reported, not hidden).
@@ -82,14 +80,6 @@ def tables(runs: int = RUNS) -> str:
     return out
 
 
-def render(page: str, text: str) -> str:
-    """``page`` with the text between the consistency markers replaced by ``text``."""
-    pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
-    if not pattern.search(page):
-        raise ValueError(f"{PAGE}: has no consistency-tables markers")
-    return pattern.sub(lambda _: f"{BEGIN}\n{text}{END}", page)
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--print", action="store_true", help="print instead of writing")
@@ -99,7 +89,8 @@ def main() -> int:
     if args.print:
         print(text)
     else:
-        atomic_write(PAGE, render(PAGE.read_text(), text).encode())
+        page = between_markers(PAGE.read_text(), "consistency-tables", text, str(PAGE))
+        atomic_write(PAGE, page.encode())
         print(f"wrote {PAGE}")
     return 0
 

@@ -11,7 +11,6 @@ The tables between the ``study`` markers of ``docs/study.md`` are rendered from
 
 from __future__ import annotations
 
-import re
 import shutil
 import sys
 from pathlib import Path
@@ -19,15 +18,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "study.md"
 DATA = ROOT / "docs" / "study"
-BEGIN, END = "<!-- study-tables:begin -->", "<!-- study-tables:end -->"
 
 
 def render(page: str, tables: str) -> str:
     """``page`` with the text between the study markers replaced by ``tables``."""
-    pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
-    if not pattern.search(page):
-        raise ValueError(f"{PAGE}: has no study-tables markers")
-    return pattern.sub(lambda _: f"{BEGIN}\n{tables}{END}", page)
+    from pronet.results import between_markers
+
+    return between_markers(page, "study-tables", tables, str(PAGE))
 
 
 def tables() -> str:

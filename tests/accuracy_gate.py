@@ -33,7 +33,6 @@ import argparse
 import json
 import math
 import os
-import re
 import sys
 import time
 from collections.abc import Callable, Collection, Mapping
@@ -42,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from pronet._util.files import atomic_write
+from pronet.results import between_markers
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The pinned figures, and the page whose tables are generated from them.
@@ -385,10 +385,7 @@ BEGIN, END = "<!-- accuracy-baselines:begin -->", "<!-- accuracy-baselines:end -
 def page_with_tables(page: str, rows: Rows) -> str:
     """``page`` (Markdown text) with the text between the baseline markers replaced by the
     tables."""
-    pattern = re.compile(re.escape(BEGIN) + ".*?" + re.escape(END), re.S)
-    if not pattern.search(page):
-        raise ValueError("page: has no accuracy-baselines markers")
-    return pattern.sub(lambda _: f"{BEGIN}\n{markdown(rows)}{END}", page)
+    return between_markers(page, "accuracy-baselines", markdown(rows))
 
 
 def partial_rows(strategies: Collection[str]) -> Rows:

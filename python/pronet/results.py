@@ -17,6 +17,7 @@ its confidence bounds are NaN.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -150,6 +151,17 @@ def markdown(
     out = f"### {title}\n\n" if title else ""
     out += "| " + " | ".join(header) + " |\n" + "|---" * len(header) + "|\n"
     return out + "".join("| " + " | ".join(str(c) for c in r) + " |\n" for r in rows)
+
+
+def between_markers(page: str, name: str, text: str, where: str = "page") -> str:
+    """``page`` (Markdown) with what lies between ``<!-- name:begin -->`` and
+    ``<!-- name:end -->`` replaced by ``text`` (how the generated tables of ``docs/``
+    are written); ``ValueError`` naming ``where`` if the page has no such markers."""
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    pattern = re.compile(re.escape(begin) + ".*?" + re.escape(end), re.S)
+    if not pattern.search(page):
+        raise ValueError(f"{where}: has no {name} markers")
+    return pattern.sub(lambda _: f"{begin}\n{text}{end}", page)
 
 
 #: Table columns of a filter's consistency (see :func:`consistency_cells`).
