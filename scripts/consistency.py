@@ -14,7 +14,8 @@ import sys
 from pathlib import Path
 
 from pronet._util.files import atomic_write
-from pronet.experiments.consistency import BLOCKS, GRADES, MOTIONS, Cell, run_cell
+from pronet.experiments.consistency import GRADES, MOTIONS, Cell, run_cell
+from pronet.montecarlo import STATE_BLOCKS
 from pronet.results import between_markers, markdown
 from pronet.stats import chi2_mean_band
 
@@ -32,7 +33,7 @@ HEADER = (
     "at truth",
     "heading σ",
     "b_gz σ / prior",
-    *(f"{b} in band" for b in BLOCKS),
+    *(f"{b.replace('_', ' ')} in band" for b in STATE_BLOCKS),
     "NIS",
 )
 

@@ -15,6 +15,28 @@ from conftest import PAPER_Q
 MATCHED = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14)
 
 
+#: Bias random-walk PSDs (accel, gyro) of a simulated IMU, and a filter told them.
+TOLD_EPS = (1e-8, 1e-12)
+TOLD = pronet.FilterConfig(accel_bias_psd=TOLD_EPS[0], gyro_bias_psd=TOLD_EPS[1])
+
+
+def matched_monte_carlo(
+    trajectory: pronet.Trajectory, n_runs: int, imu_bias: list[float] | None = None,
+    sample_initial_error: bool = True,
+) -> pronet.MonteCarloResult:
+    """Constant true q, white noise q, bias walks of :data:`TOLD_EPS` in both the
+    simulated IMU and the filter (:data:`TOLD`), seed 11."""
+    eps_a, eps_g = TOLD_EPS
+    sensors = pronet.SensorConfig(
+        imu_variance=PAPER_Q, imu_bias_psd=[eps_a] * 3 + [eps_g] * 3,
+        imu_bias=[0.0] * 6 if imu_bias is None else imu_bias,
+    )
+    return pronet.monte_carlo(
+        trajectory, pronet.Strategy.constant(PAPER_Q), sensors=sensors, config=TOLD,
+        n_runs=n_runs, seed=11, sample_initial_error=sample_initial_error,
+    )  # fmt: skip
+
+
 def test_dvl_aiding_keeps_velocity_error_below_the_dvl_alone(paper_trajectory) -> None:
     r = pronet.monte_carlo(
         paper_trajectory, pronet.Strategy.constant(PAPER_Q), config=MATCHED, n_runs=20, seed=3
@@ -35,18 +57,8 @@ def test_filter_is_consistent_when_sensors_match_its_model(paper_trajectory) -> 
     """100 runs with white noise q, bias random walk of the filter's epsilon, DVL
     noise R and initial errors from P0: the run-averaged NIS and velocity NEES lie in
     their 95 % chi-square bands at >= 90 % of the DVL epochs."""
-    eps_a, eps_g = 1e-8, 1e-12
-    sensors = pronet.SensorConfig(imu_variance=PAPER_Q, imu_bias_psd=[eps_a] * 3 + [eps_g] * 3)
-    config = pronet.FilterConfig(accel_bias_psd=eps_a, gyro_bias_psd=eps_g)
     n = 100
-    r = pronet.monte_carlo(
-        paper_trajectory,
-        pronet.Strategy.constant(PAPER_Q),
-        sensors=sensors,
-        config=config,
-        n_runs=n,
-        seed=11,
-    )
+    r = matched_monte_carlo(paper_trajectory, n)
     assert r.n_failed == 0
     lo, hi = chi2.ppf([0.025, 0.975], 3 * n) / n
     nis = r.nis.mean(axis=0)
@@ -158,25 +170,12 @@ def test_the_turn_on_bias_is_the_configured_one_and_the_filter_stays_consistent(
     the result. A bias of 1σ of P0 per axis (a typical one), with the navigation
     solution started at the truth: the velocity and bias NEES stay inside their 95 %
     bands at >= 90 % of the DVL epochs (measured 98 %, 100 %, 95 %)."""
-    eps_a, eps_g = 1e-8, 1e-12
-    config = pronet.FilterConfig(accel_bias_psd=eps_a, gyro_bias_psd=eps_g)
     n = 50
 
     def run(bias: list[float]) -> pronet.MonteCarloResult:
-        sensors = pronet.SensorConfig(
-            imu_variance=PAPER_Q, imu_bias_psd=[eps_a] * 3 + [eps_g] * 3, imu_bias=bias
-        )
-        return pronet.monte_carlo(
-            paper_trajectory,
-            pronet.Strategy.constant(PAPER_Q),
-            sensors=sensors,
-            config=config,
-            n_runs=n,
-            seed=11,
-            sample_initial_error=False,
-        )
+        return matched_monte_carlo(paper_trajectory, n, imu_bias=bias, sample_initial_error=False)
 
-    sigma = np.array(config.p0_sigma[9:15])
+    sigma = np.array(TOLD.p0_sigma[9:15])
     biased, unbiased = run(list(sigma * [1, -1, 1, -1, 1, -1])), run([0.0] * 6)
     assert biased.n_failed == 0
     assert biased.srmse.mean() > unbiased.srmse.mean()

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import pytest
 
-from pronet.experiments.consistency import BLOCKS, run_cell
+from pronet.experiments.consistency import run_cell
+from pronet.montecarlo import STATE_BLOCKS
 
 
 @pytest.mark.parametrize(
@@ -27,8 +28,8 @@ def test_invariant_heading_is_consistent(grade: str, motion: str) -> None:
     assert at_truth.heading_ratio <= 1.5, at_truth
     assert at_truth.gyro_z_sigma_ratio >= 0.8, at_truth
     # The attitude and bias blocks are inside their band at >= 90 % of the epochs.
-    for block in ("attitude", "accel bias", "gyro bias"):
-        assert drawn.inside[BLOCKS.index(block)] >= 0.9, (block, drawn)
+    for block in ("attitude", "accel_bias", "gyro_bias"):
+        assert drawn.inside[STATE_BLOCKS.index(block)] >= 0.9, (block, drawn)
     assert 2.9 < drawn.mean_nis < 3.1
 
 

@@ -14,7 +14,8 @@ starts the filter at the truth with zero biases, where a consistent filter is
 conservative (its error stays below its σ).
 
 ``python scripts/consistency.py`` runs the whole grid and writes the tables of
-``docs/accuracy.md``; the cheap cells are tests (``tests/test_consistency.py``).
+``docs/accuracy.md``; the cheap cells are tests
+(``tests/experiments/test_consistency.py``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Literal
 import numpy as np
 
 from pronet import _core
-from pronet.stats import chi2_mean_band
+from pronet.montecarlo import STATE_BLOCKS, monte_carlo
 
 #: The filter's velocity-error coordinates (:class:`pronet.FilterConfig`).
 Formulation = Literal["invariant", "classic"]
@@ -63,7 +64,6 @@ MOTIONS: dict[str, list[list[float]]] = {
     + [[30.0, 0.0, s * 3 * _DEG, 0.0] for s in (1, -1, -1, 1) * 9]
     + [[60.0, 0.0, 0.0, 0.0]],
 }
-BLOCKS = ("position", "velocity", "attitude", "accel bias", "gyro bias")
 #: DVL noise 1σ [m/s] per axis.
 DVL_SIGMA = 0.02
 
@@ -78,8 +78,8 @@ class Cell:
         heading_rms, heading_sigma: heading error RMS over the runs and the filter's
             mean 1σ at the end [rad].
         gyro_z_sigma_ratio: the vertical gyro bias's final mean 1σ over its prior.
-        inside: per block (:data:`BLOCKS`), the share of DVL epochs whose NEES averaged
-            over the runs lies inside its 95 % band.
+        inside: per block (:data:`pronet.montecarlo.STATE_BLOCKS`), the share of DVL
+            epochs whose NEES averaged over the runs lies inside its 95 % band.
         mean_nees: per block, the NEES averaged over runs and epochs (3 if consistent).
         mean_nis: NIS over every update (3 if consistent).
     """
@@ -144,20 +144,18 @@ def run_cell(
         dvl_period=1.0 / dvl_hz,
     )
     every = int(round(100 / dvl_hz))
-    out = _core.monte_carlo(
+    out = monte_carlo(
         trajectory,
-        sensors,
-        filter_config(grade, formulation),
         _core.Strategy.constant(q),
+        sensors=sensors,
+        config=filter_config(grade, formulation),
         n_runs=runs,
         seed=seed,
         record_every=every * 50,
         sample_initial_error=draw,
     )
-    error, sigma, nees = out["error"], out["sigma"], out["nees"]
-    low, high = chi2_mean_band(3, runs)
-    per_epoch = np.mean(nees, axis=0)  # (epochs, 5)
-    inside = np.mean((per_epoch >= low) & (per_epoch <= high), axis=0)
+    error, sigma = out.error, out.sigma
+    assert error is not None and sigma is not None  # record_every > 0
     return Cell(
         grade=grade,
         motion=motion,
@@ -168,7 +166,7 @@ def run_cell(
         heading_rms=float(np.sqrt(np.mean(error[:, -1, 8] ** 2))),
         heading_sigma=float(np.mean(sigma[:, -1, 8])),
         gyro_z_sigma_ratio=float(np.mean(sigma[:, -1, 14]) / g["b_g"]),
-        inside=tuple(float(x) for x in inside),
-        mean_nees=tuple(float(x) for x in np.mean(per_epoch, axis=0)),
-        mean_nis=float(np.mean(out["nis"])),
+        inside=tuple(out.nees_in_band(block) for block in STATE_BLOCKS),
+        mean_nees=tuple(float(np.mean(out.block_nees(block))) for block in STATE_BLOCKS),
+        mean_nis=float(np.mean(out.nis)),
     )

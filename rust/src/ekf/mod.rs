@@ -163,6 +163,9 @@ impl Ekf {
     /// The error covariance in the coordinates of `formulation` (mapped from the
     /// filter's own at the current velocity estimate when they differ).
     pub fn covariance_in(&self, formulation: Formulation) -> Matrix15 {
+        if formulation == self.cfg.formulation {
+            return self.p;
+        }
         let mut p = self.covariance();
         formulation::from_classic(formulation, &mut p, &self.nav.vel);
         p
