@@ -123,6 +123,30 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
         ("[trajectory]\nsegments = [[10, 0, 0, 0]]\nheight_m = 'a'\n", "height_m: expected"),
         ("[trajectory]\nsegments = [[10, 0, 0, 0]]\nspeed_mps = true\n", "speed_mps: expected"),
         ("[trajectory]\nbuiltin = 'paper'\ndt_s = 'x'\n", "[trajectory] dt_s: expected"),
+        # one type rule: text and booleans are not numbers, in a list as anywhere
+        (
+            "[trajectory]\nsegments = [['60', 0, 0, 0]]\n",
+            "segments: expected real numbers, got '60'",
+        ),
+        (
+            "[trajectory]\nsegments = [[60, true, false, 0]]\n",
+            "segments: expected real numbers, got True",
+        ),
+        (
+            "[trajectory]\nsegments = [[true, 0, 0, 0]]\n",
+            "segments: expected real numbers, got True",
+        ),
+        # answered in the unit the file gives
+        (
+            "[trajectory]\nsegments = [[10, 0, 0, 0]]\nlat_deg = 89.5\n",
+            "lat_deg: must be within ±89° (NED is singular at the poles), got 89.5°",
+        ),
+        (
+            "[sensors]\ndvl_period = 1e-9\n",
+            "[sensors] dvl_period: must be a whole multiple of the IMU period",
+        ),
+        ("[sensors]\nlever_arm = [1e9, 0, 0]\n", "[sensors] lever_arm: must be within ±1000 m"),
+        ("[filter]\nlever_arm = [0, 0, -1e9]\n", "[filter] lever_arm: must be within ±1000 m"),
         ("base = 'lake'\n", "base: 'lake' is not one of paper, varying-noise"),
         ("colour = 'red'\n", "colour: unknown key"),
         ("q_nominal = [1, 2]\n", "q_nominal: expected 6"),

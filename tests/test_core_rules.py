@@ -213,10 +213,18 @@ def test_ensemble_stops_at_the_tuning_instants() -> None:
 def test_python_uses_the_cores_limits() -> None:
     assert validate.MAX_THREADS == _core.MAX_THREADS == 1024
     assert montecarlo.MAX_RUN_INDEX == _core.MAX_RUN_INDEX == 2**62
-    with pytest.raises(ValueError, match=r"^threads: must be 1 to 1024, got 1025$"):
+    most = _core.max_threads()
+    assert _core.THREADS_PER_CORE == 8 and 8 <= most <= 1024 and (most % 8 == 0 or most == 1024)
+    refused = rf"^threads: must be 1 to {most} \(8 per core .*got 1025$"
+    with pytest.raises(ValueError, match=refused):
         pronet.monte_carlo(
             short_trajectory(), pronet.Strategy.constant(PAPER_Q), n_runs=1, threads=1025
         )
+    for python_side in (most + 1, 0):
+        with pytest.raises(ValueError, match=rf"^--threads: expected 1 to {most} "):
+            validate.threads(python_side, "--threads")
+    assert validate.threads(most, "--threads") == most
+    assert validate.threads(1024, "threads", per_core=False) == 1024
     with pytest.raises(ValueError, match=r"^first_run: first_run \+ n_runs must be at most 2\^62"):
         pronet.monte_carlo(
             short_trajectory(),

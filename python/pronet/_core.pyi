@@ -16,6 +16,9 @@ from numpy.typing import NDArray
 __all__ = [
     "__version__",
     "MAX_THREADS",
+    "THREADS_PER_CORE",
+    "THREADS_ENV",
+    "MAX_LEVER_ARM",
     "MAX_RUN_INDEX",
     "MAX_GRAVITY_HEIGHT",
     "MAX_LATITUDE_DEG",
@@ -32,6 +35,8 @@ __all__ = [
     "run_filter",
     "monte_carlo",
     "check_result_size",
+    "check_threads",
+    "max_threads",
     "Ensemble",
     "tuning_instants",
     "ConvNet",
@@ -40,8 +45,16 @@ __all__ = [
 ]
 
 __version__: str
-#: Most worker threads a pool may have (``montecarlo::MAX_THREADS``).
+#: Most worker threads a pool may have on any machine (``montecarlo::MAX_THREADS``).
 MAX_THREADS: int
+#: Most worker threads per core this process may use (``montecarlo::THREADS_PER_CORE``):
+#: a pool has 1 to :func:`max_threads` threads.
+THREADS_PER_CORE: int
+#: The environment variable that sets the thread count of calls given none,
+#: ``"RAYON_NUM_THREADS"`` (checked as an explicit count is).
+THREADS_ENV: str
+#: Longest lever arm component [m] a sensor may have (``sensors::MAX_LEVER_ARM``, 1 km).
+MAX_LEVER_ARM: float
 #: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
 #: streams are numbered 4·i + k.
 MAX_RUN_INDEX: int
@@ -292,8 +305,9 @@ def monte_carlo(
     first_run: int = 0,
 ) -> dict[str, Any]:
     """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
-    ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :data:`MAX_THREADS`
-    (None: all cores)."""
+    ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :func:`max_threads`
+    (None: :func:`check_threads`'s default). An external strategy is refused: nothing
+    sets its q here."""
 
 def check_result_size(
     trajectory: Trajectory, sensors: SensorConfig, *, n_runs: int, record_every: int = 0
@@ -301,6 +315,16 @@ def check_result_size(
     """``ValueError`` naming ``n_runs`` if the records of ``n_runs`` runs of
     ``trajectory`` would exceed the core's memory limit (4 GiB), as :func:`monte_carlo`
     checks before it allocates; nothing is run."""
+
+def check_threads(threads: int | None = None) -> int:
+    """The thread count a call given ``threads`` runs on: ``threads`` itself if it is 1
+    to :func:`max_threads` (else ``ValueError`` naming ``threads``); for None,
+    ``RAYON_NUM_THREADS`` if set (checked the same way, the error naming the variable),
+    else one per usable core."""
+
+def max_threads() -> int:
+    """The most threads a pool may have here: :data:`THREADS_PER_CORE` per usable core,
+    at most :data:`MAX_THREADS`."""
 
 @final
 class Ensemble:

@@ -250,7 +250,7 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
             )
         dt = _number(t["dt_s"], f"{where} dt_s")
         return _native(where, lambda: builtin_trajectory(t["builtin"], dt))
-    rows = _native(where, lambda: np.array(t["segments"], dtype=np.float64))
+    rows = _native(where, lambda: real_array(t["segments"], "segments").astype(np.float64))
     if rows.ndim != 2 or rows.shape[1] != 4 or len(rows) == 0:
         raise ConfigError(
             f"{where} segments: expected rows of [duration s, accel m/s², yaw rate deg/s, "
@@ -261,6 +261,11 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
     v = {k: _number(t[k], f"{where} {k}") for k in TRAJECTORY_DEFAULTS if k.endswith(_UNITS)}
     if not 0 < v["dt_s"] < math.inf:
         raise ConfigError(f"{where} dt_s: must be a finite period > 0 s, got {v['dt_s']}")
+    if not abs(v["lat_deg"]) <= _core.MAX_LATITUDE_DEG:  # in degrees, as the file gives it
+        raise ConfigError(
+            f"{where} lat_deg: must be within ±{_core.MAX_LATITUDE_DEG:g}° (NED is singular "
+            f"at the poles), got {v['lat_deg']:g}°"
+        )
     return _native(
         where,
         lambda: trajectory_from_segments(
@@ -311,6 +316,10 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         # the filter's Q_d = q·imu_dt·Δt is the sample variance only when imu_dt is the
         # IMU period: a new trajectory's period carries over unless [filter] says otherwise
         config = filter_config({"imu_dt": traj.dt}, f"{where}: [trajectory] dt_s", config)
+    # the DVL period must be a whole number of IMU periods: named with the file now,
+    # not by the first Monte Carlo
+    period_key = "[sensors]" if "dvl_period" in data.get("sensors", {}) else "[trajectory] dt_s:"
+    _native(f"{where}: {period_key}", lambda: _core.check_result_size(traj, sensors, n_runs=1))
     times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
     schedule = np.asarray(sensors.imu_variance, dtype=np.float64)
     if "q_nominal" in data:

@@ -46,7 +46,8 @@ class MonteCarloResult:
         smae: ``(n_runs,)`` velocity SMAE ``mean_k Σ_NED |δv|`` [m/s].
         final_horizontal_error: ``(n_runs,)`` horizontal position error at the end [m].
         max_horizontal_error: ``(n_runs,)`` largest horizontal position error [m].
-        mean_nis: ``(n_runs,)`` mean NIS over the applied DVL updates.
+        mean_nis: ``(n_runs,)`` mean NIS over the applied DVL updates (NaN for a run
+            with none: undefined, not 0).
         rejected_updates: ``(n_runs,)`` DVL updates the innovation gate rejected
             (``FilterConfig(innovation_gate=...)``; 0 without a gate).
         diverged_at: ``(n_runs,)`` time [s] at which the NIS showed divergence (its mean
@@ -241,7 +242,8 @@ def monte_carlo(
 
     Args:
         trajectory: truth and ideal IMU (e.g. ``builtin_trajectory("paper")``).
-        strategy: process-noise strategy.
+        strategy: process-noise strategy; not an external one (nothing sets its q in a
+            Monte Carlo: ``ValueError`` naming ``strategy``; an :class:`Ensemble` does).
         sensors: sensor models (default ``SensorConfig()``: the paper's IMU and DVL).
         config: filter tuning (default ``FilterConfig()``).
         n_runs: number of runs.
@@ -251,7 +253,8 @@ def monte_carlo(
             an error drawn from the filter's P0 and the IMU's turn-on bias at
             ``sensors.imu_bias`` less a draw from P0 (True), or both exactly at the
             truth and ``imu_bias`` (False). The bias estimates start at zero.
-        threads: worker threads (default: all cores).
+        threads: worker threads, 1 to 8 per core (default: one per core, or
+            ``RAYON_NUM_THREADS``).
         first_run: index of the first run (a shard of a larger Monte Carlo: runs
             ``first_run .. first_run + n_runs``, identical to those runs of the whole).
     """

@@ -295,7 +295,7 @@ mod tests {
         let mc = run_monte_carlo(
             &sc,
             &tuned_filter(),
-            &StrategySpec::External { prior_q: TRUE_Q },
+            &StrategySpec::Constant { q: TRUE_Q },
             &opts,
         )
         .unwrap();

@@ -15,7 +15,7 @@ pub use crate::run::{History, Run, RunRecord, RunSummary};
 use crate::sensors::SensorConfig;
 use crate::trajectory::Truth;
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// A simulated scenario: a truth with its ideal IMU, and the sensor models.
 #[derive(Clone, Debug)]
@@ -192,6 +192,16 @@ pub fn run_monte_carlo_until(
     opts: &McOptions,
     cancel: &Cancel,
 ) -> Result<McResult> {
+    if strategy.is_external() {
+        // Nothing sets an external strategy's q in a Monte Carlo: it would run silently
+        // as its prior. Its q comes from outside, through an `Ensemble`.
+        return Err(Error::invalid(
+            "strategy",
+            "an external strategy takes its q from outside (an Ensemble's set_q, or \
+             run_filter's q schedule); nothing sets it in a Monte Carlo, where it would \
+             only ever use its prior q: use a constant strategy of that q",
+        ));
+    }
     check_strategy(filter, strategy, opts)?;
     let dvl_every = scenario.dvl_every()?;
     scenario.check_result_size(opts, dvl_every, 0)?;
@@ -229,49 +239,127 @@ pub fn run_monte_carlo_until(
     })
 }
 
-/// The most worker threads a pool may have: far above any core count this runs on, and
-/// low enough that a mistyped count fails at once instead of spawning for minutes.
+/// The most worker threads a pool may have, whatever the machine: far above any core
+/// count this runs on, and low enough that a mistyped count fails at once instead of
+/// spawning for minutes.
 pub const MAX_THREADS: usize = 1024;
 
-/// A rayon pool of `threads` worker threads (1 to [`MAX_THREADS`]), or an error
+/// The most worker threads per core this process may use: the core's calls are
+/// CPU-bound, so threads beyond one per core only queue (1,024 threads on 2 cores added
+/// 3 s to a 1 s Monte Carlo); a few per core leave room for a deliberate oversubscription.
+pub const THREADS_PER_CORE: usize = 8;
+
+/// The environment variable that sets the thread count of calls given none (rayon's).
+pub const THREADS_ENV: &str = "RAYON_NUM_THREADS";
+
+/// The cores this process may use (its CPU affinity and quota, as the standard library
+/// counts them), at least 1.
+pub fn usable_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// The most threads a pool may have on this machine: [`THREADS_PER_CORE`] per usable
+/// core, and never more than [`MAX_THREADS`].
+pub fn max_threads() -> usize {
+    MAX_THREADS.min(THREADS_PER_CORE * usable_cores())
+}
+
+/// `threads` if it is 1 to [`max_threads`], else an error naming `arg`.
+pub fn check_threads(arg: &str, threads: usize) -> Result<usize> {
+    let most = max_threads();
+    if (1..=most).contains(&threads) {
+        return Ok(threads);
+    }
+    Err(Error::invalid(
+        arg,
+        format!(
+            "must be 1 to {most} ({THREADS_PER_CORE} per core this process may use, {} here; \
+             never more than {MAX_THREADS}), got {threads}",
+            usable_cores()
+        ),
+    ))
+}
+
+/// The thread count of a call given none: [`THREADS_ENV`] if it is set (checked as an
+/// explicit count is, the error naming the variable), else one per usable core.
+pub fn default_threads() -> Result<usize> {
+    threads_from_env(std::env::var_os(THREADS_ENV).map(|v| v.to_string_lossy().into_owned()))
+}
+
+/// [`default_threads`] for the value `text` of [`THREADS_ENV`] (None: unset).
+fn threads_from_env(text: Option<String>) -> Result<usize> {
+    let Some(text) = text else {
+        return Ok(usable_cores());
+    };
+    match text.trim().parse::<usize>() {
+        Ok(n) => check_threads(THREADS_ENV, n),
+        Err(_) => Err(Error::invalid(
+            THREADS_ENV,
+            format!(
+                "expected a whole number 1 to {} (or unset it: one thread per core), got {text:?}",
+                max_threads()
+            ),
+        )),
+    }
+}
+
+/// A rayon pool of `threads` worker threads (1 to [`max_threads`]), or an error
 /// naming `threads`.
 pub fn thread_pool(threads: usize) -> Result<rayon::ThreadPool> {
-    if !(1..=MAX_THREADS).contains(&threads) {
-        return Err(Error::invalid(
-            "threads",
-            format!("must be 1 to {MAX_THREADS}, got {threads}"),
-        ));
-    }
+    check_threads("threads", threads)?;
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| Error::invalid("threads", format!("cannot start {threads} threads: {e}")))
 }
 
-/// Run `f` on a rayon pool of `threads` threads, or on the global pool for `None`.
+/// Run `f` on a rayon pool of `threads` threads, or on the default pool for `None`.
 pub fn with_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Result<T> {
     Ok(Workers::new(threads)?.run(f))
 }
 
+/// The pool of calls given no thread count, [`default_threads`] large, made at the
+/// first such call. rayon's own global pool is never used: it would take any
+/// `RAYON_NUM_THREADS` unchecked (100,000 built 16,000 threads before failing).
+static DEFAULT_POOL: OnceLock<Arc<rayon::ThreadPool>> = OnceLock::new();
+
+fn default_pool() -> Result<Arc<rayon::ThreadPool>> {
+    if let Some(pool) = DEFAULT_POOL.get() {
+        return Ok(Arc::clone(pool));
+    }
+    let threads = default_threads()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::invalid(THREADS_ENV, format!("cannot start {threads} threads: {e}")))?;
+    Ok(Arc::clone(DEFAULT_POOL.get_or_init(|| Arc::new(pool))))
+}
+
 /// The threads a long-lived object's calls run on (a frozen regressor, an ensemble): a
-/// pool of its own when it was built with a thread count, else rayon's global pool.
-/// Clones share the pool.
-#[derive(Clone, Debug, Default)]
-pub struct Workers(Option<Arc<rayon::ThreadPool>>);
+/// pool of its own when it was built with a thread count, else the default pool
+/// ([`default_threads`] threads, shared by every call given none). Clones share the pool.
+#[derive(Clone, Debug)]
+pub struct Workers(Arc<rayon::ThreadPool>);
 
 impl Workers {
-    /// A pool of `threads` threads (1 to [`MAX_THREADS`], else an error naming
-    /// `threads`), or the global pool for `None`.
+    /// A pool of `threads` threads (1 to [`max_threads`], else an error naming
+    /// `threads`), or the default pool for `None` (an error naming
+    /// [`THREADS_ENV`] if that is set to an unusable count).
     pub fn new(threads: Option<usize>) -> Result<Self> {
-        Ok(Self(threads.map(thread_pool).transpose()?.map(Arc::new)))
+        match threads {
+            Some(n) => Ok(Self(Arc::new(thread_pool(n)?))),
+            None => Ok(Self(default_pool()?)),
+        }
     }
 
     /// Run `f` on these threads: rayon's parallel iterators inside it use them.
     pub fn run<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
-        match &self.0 {
-            Some(pool) => pool.install(f),
-            None => f(),
-        }
+        self.0.install(f)
+    }
+
+    /// How many threads these are.
+    pub fn threads(&self) -> usize {
+        self.0.current_num_threads()
     }
 }
 
@@ -281,18 +369,36 @@ pub(crate) mod tests {
     use crate::trajectory::builtin;
 
     #[test]
-    fn workers_run_on_their_own_pool_or_the_global_one() {
+    fn workers_run_on_their_own_pool_or_the_default_one() {
         let own = Workers::new(Some(3)).unwrap();
         assert_eq!(own.run(rayon::current_num_threads), 3);
         assert_eq!(own.clone().run(rayon::current_num_threads), 3);
-        let global = Workers::new(None).unwrap();
-        assert_eq!(
-            global.run(rayon::current_num_threads),
-            rayon::current_num_threads()
-        );
-        for bad in [0, MAX_THREADS + 1] {
+        let default = Workers::new(None).unwrap();
+        assert_eq!(default.run(rayon::current_num_threads), default.threads());
+        assert_eq!(default.threads(), default_threads().unwrap());
+        for bad in [0, max_threads() + 1, MAX_THREADS + 1] {
             let err = Workers::new(Some(bad)).unwrap_err().to_string();
-            assert!(err.starts_with("threads"), "{err}");
+            assert!(err.starts_with("threads: must be 1 to "), "{err}");
+        }
+    }
+
+    #[test]
+    fn the_thread_variable_is_checked_as_an_explicit_count() {
+        assert_eq!(threads_from_env(None), Ok(usable_cores()));
+        assert_eq!(threads_from_env(Some(" 1 ".into())), Ok(1));
+        assert!(max_threads() <= MAX_THREADS);
+        assert!(max_threads() >= THREADS_PER_CORE.min(MAX_THREADS));
+        for bad in [
+            "0",
+            "100000",
+            "-3",
+            "2.5",
+            "",
+            "all",
+            "18446744073709551616",
+        ] {
+            let err = threads_from_env(Some(bad.into())).unwrap_err().to_string();
+            assert!(err.starts_with("RAYON_NUM_THREADS: "), "{bad}: {err}");
         }
     }
 
@@ -420,6 +526,32 @@ pub(crate) mod tests {
         );
         assert_eq!(one.dvl_time.len(), 30);
         assert_eq!(one.record_time.len(), 61);
+    }
+
+    #[test]
+    fn an_external_strategy_is_refused_and_no_update_means_no_mean_nis() {
+        let sc = short_scenario(5.0);
+        let opts = McOptions {
+            n_runs: 2,
+            seed: 1,
+            record_every: 0,
+            first_run: 0,
+        };
+        let external = StrategySpec::External { prior_q: TRUE_Q };
+        let err = run_monte_carlo(&sc, &tuned_filter(), &external, &opts).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("strategy: an external strategy"),
+            "{err}"
+        );
+        // A DVL period longer than the run: not one update, so the mean NIS is undefined.
+        let mut quiet = (*sc).clone();
+        quiet.sensors.dvl.period = 10.0;
+        let constant = StrategySpec::Constant { q: TRUE_Q };
+        let res = run_monte_carlo(&Arc::new(quiet), &tuned_filter(), &constant, &opts).unwrap();
+        assert!(res.dvl_time.is_empty());
+        assert!(res.runs.iter().all(|r| r.summary.mean_nis.is_nan()));
+        assert!(res.runs.iter().all(|r| r.summary.srmse.is_finite()));
     }
 
     #[test]

@@ -386,8 +386,9 @@ impl Run {
         let failed = self.failure.is_some();
         let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
         let accepted = self.nis.len() - self.rejected_updates;
-        // Every update rejected by the gate: no NIS to average (0 would look healthy).
-        let mean_nis = if accepted == 0 && self.rejected_updates > 0 {
+        // No applied update (none made, or every one rejected by the gate): no NIS to
+        // average; 0 would look healthy.
+        let mean_nis = if accepted == 0 {
             f64::NAN
         } else {
             self.accepted_nis_sum / accepted.max(1) as f64

@@ -108,6 +108,27 @@ pub struct ImuErrorModel {
     pub bias_rw_psd: [f64; 6],
 }
 
+/// The longest lever arm a sensor may have from the point it is referred to [m]: 1 km,
+/// beyond any vehicle. A longer one is a mistake (a unit slip), and left unchecked it
+/// turns into an error about something else (a latitude beyond the poles).
+pub const MAX_LEVER_ARM: f64 = 1000.0;
+
+/// `Err` naming `arg` unless the lever arm `values` [m] is finite and no component is
+/// longer than [`MAX_LEVER_ARM`].
+pub fn check_lever_arm(arg: &str, values: &[f64]) -> Result<()> {
+    check::finite(arg, values)?;
+    match values.iter().position(|v| v.abs() > MAX_LEVER_ARM) {
+        None => Ok(()),
+        Some(i) => Err(Error::invalid(
+            arg,
+            format!(
+                "must be within ±{MAX_LEVER_ARM} m (no vehicle is longer), element {i} is {} m",
+                values[i]
+            ),
+        )),
+    }
+}
+
 /// A DVL's scale factor and mounting, as the truth of a simulation or an estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DvlMounting {
@@ -237,7 +258,7 @@ impl SensorConfig {
         check::non_negative("imu_bias_psd", &self.imu.bias_rw_psd)?;
         check::non_negative("dvl_variance", &self.dvl.variance)?;
         check::positive("dvl_period", self.dvl.period)?;
-        check::finite("lever_arm", self.dvl.lever_arm.as_slice())?;
+        check_lever_arm("lever_arm", self.dvl.lever_arm.as_slice())?;
         self.dvl.mounting.validate()?;
         let mut previous_end = f64::NEG_INFINITY;
         for o in &self.dvl.outages {
@@ -448,5 +469,19 @@ mod tests {
         // Heading east at 2 m/s, rolling at 0.1 rad/s with the DVL 1 m below: ω × r = [0, −0.1, 0].
         let z = sim.dvl(&cfg.dvl, &truth, &Vector3::new(0.1, 0.0, 0.0));
         assert!((z - Vector3::new(2.0, -0.1, 0.0)).norm() < 1e-12, "{z:?}");
+    }
+
+    #[test]
+    fn a_lever_arm_beyond_any_vehicle_is_refused_by_name() {
+        let mut cfg = SensorConfig::paper();
+        cfg.dvl.lever_arm = Vector3::new(0.0, -MAX_LEVER_ARM, 2.0);
+        assert!(cfg.validate().is_ok());
+        cfg.dvl.lever_arm = Vector3::new(1e9, 0.0, 0.0);
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(
+            err.starts_with("lever_arm: must be within ±1000 m"),
+            "{err}"
+        );
+        assert!(err.ends_with("element 0 is 1000000000 m"), "{err}");
     }
 }

@@ -765,7 +765,10 @@ fn sensors_are_valid(s: &SensorConfig) -> bool {
         && s.dvl.variance.iter().all(nonneg)
         && s.dvl.period.is_finite()
         && s.dvl.period > 0.0
-        && all_finite(s.dvl.lever_arm.iter())
+        && s.dvl
+            .lever_arm
+            .iter()
+            .all(|v| v.abs() <= pronet::sensors::MAX_LEVER_ARM)
 }
 
 fn short_trajectory() -> impl Strategy<Value = TrajectorySpec> {
@@ -824,8 +827,10 @@ fn mc_case(
     let ratio = sensors.dvl.period / truth.dt;
     let off = (ratio - ratio.round()).abs();
     let period_fits = ratio.round() >= 1.0 && (off <= 1e-6 * ratio || !ratio.is_finite());
+    // An external strategy's q comes from outside: a Monte Carlo refuses it.
     let settings_valid = config_is_valid(cfg)
         && strategy_is_valid(spec)
+        && !matches!(spec, StrategySpec::External { .. })
         && sensors_are_valid(&sensors)
         && period_fits;
     // An initial error drawn from an absurd P0 σ is absurd data.
@@ -877,9 +882,10 @@ fn mc_case(
                 );
             }
             None => {
-                // Mean NIS is NaN, by design, when the gate rejected every update.
-                let all_rejected = s.rejected_updates > 0 && s.rejected_updates == run.nis.len();
-                let checked = if all_rejected {
+                // Mean NIS is NaN, by design, when no update was applied (none made,
+                // or the gate rejected every one).
+                let none_applied = s.rejected_updates == run.nis.len();
+                let checked = if none_applied {
                     &metrics[..4]
                 } else {
                     &metrics[..]

@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 import pytest
 
+from pronet import _core
 from pronet.recorded import alignment, real
 
 from synthetic_recording import synthetic_recording
@@ -82,6 +83,57 @@ def test_a_signal_ends_a_long_native_call_at_once(tmp_path, sig, code, word) -> 
     print(f"stopped {took:.2f} s after the signal")
     assert took < 1.5, f"the process took {took:.2f} s to stop"
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # no folder, no lock, no temp
+
+
+def _pronet(args: list[str], env: dict[str, str]) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-c", "import sys, pronet.cli; sys.exit(pronet.cli.main())", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, **env},
+    )
+
+
+@pytest.mark.parametrize("value", ["100000", "0", "-2", "all", "1e3", str(_core.max_threads() + 1)])
+def test_a_thread_count_from_the_environment_is_bounded_like_the_option(tmp_path, value) -> None:
+    """RAYON_NUM_THREADS=100000 once built 16,000 threads for 13 minutes on a 0.6 s job
+    and ignored SIGTERM: now it is refused as --threads is, before any work, in one
+    line naming the variable."""
+    began = time.monotonic()
+    proc = _pronet([*LONG[:-2], "--out", str(tmp_path / "res")], {"RAYON_NUM_THREADS": value})
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2, err
+    assert err.startswith("pronet: RAYON_NUM_THREADS: ") and len(err.splitlines()) == 1, err
+    assert f"1 to {_core.max_threads()}" in err
+    assert time.monotonic() - began < 20  # the interpreter's start; no thread is built
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("source", ["option", "environment"])
+def test_sigterm_ends_a_run_on_the_most_threads_allowed_at_once(tmp_path, source) -> None:
+    """At the largest thread count either source may give, SIGTERM still ends the
+    process within a second and a half."""
+    most = str(_core.max_threads())
+    args = [*LONG[:-2], "--out", str(tmp_path / "res")]
+    if source == "option":
+        proc = _pronet([*args, "--threads", most], {})
+    else:
+        proc = _pronet(args, {"RAYON_NUM_THREADS": most})
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().startswith("scenario paper")
+        time.sleep(1.0)
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        took = time.monotonic() - sent
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert "terminated; no result folder was written" in err
+    print(f"{most} threads: stopped {took:.2f} s after the signal")
+    assert took < 1.5, f"the process took {took:.2f} s to stop"
 
 
 def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:

@@ -183,7 +183,7 @@ def test_bad_engine_arguments_fail_before_any_run(grid, monkeypatch) -> None:
         sweep.run_sweep(grid, engine="dask")
     with pytest.raises(ValueError, match="address: only the ray engine"):
         sweep.run_sweep(grid, address="auto")
-    with pytest.raises(ValueError, match="threads: expected 1 to 1024"):
+    with pytest.raises(ValueError, match="threads: expected 1 to "):
         sweep.run_sweep(grid, threads=0)
 
 

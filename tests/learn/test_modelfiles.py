@@ -96,6 +96,14 @@ def test_bad_cards(saved_net) -> None:
         ({"kind": "transformer"}, "unknown model kind 'transformer'"),
         ({"architecture": {"window": 1}}, "bad architecture"),
         ({"architecture": {"widths": 3}}, "bad architecture"),
+        # one type rule: a whole number is a whole number, a scale a real number
+        ({"architecture": {"window": "200"}}, "architecture window: expected a whole number"),
+        ({"architecture": {"window": 200.7}}, "architecture window: expected a whole number"),
+        ({"architecture": {"window": True}}, "architecture window: expected a whole number"),
+        ({"architecture": {"channels": [16, "32", 32]}}, "architecture channels: expected a whole"),
+        ({"architecture": {"input_scale": "0.1"}}, "architecture input_scale: expected a real"),
+        ({"architecture": {"q_scale": False}}, "architecture q_scale: expected a real"),
+        ({"architecture": {"scaling": 1}}, "architecture scaling: expected text"),
     ):
         card_file.write_text(json.dumps({**card, **change}))
         with pytest.raises(ModelFileError, match=rf"net\.json: .*{message}"):

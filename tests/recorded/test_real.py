@@ -740,3 +740,18 @@ def test_a_failing_section_is_named(synthetic, monkeypatch):
     monkeypatch.setattr(real, "evaluate_section", fails)
     with pytest.raises(ValueError, match=r"^section synthetic: numerical failure"):
         real.run_sections([(section, stamped)], {}, 1.0, threads=1)
+
+
+@pytest.mark.parametrize(
+    ("option", "value"), [("--dvl-lever-arm", "1e9,0,0"), ("--imu-lever-arm", "0,0,-2000")]
+)
+def test_a_lever_arm_beyond_any_vehicle_is_named_as_one(tmp_path, capsys, option, value):
+    """A lever arm of 1e9 m was reported as a latitude beyond the poles: now the option
+    is named, in metres, before any section is read."""
+    (tmp_path / "data").mkdir()
+    out = tmp_path / "out"
+    argv = ["real", "--data", str(tmp_path / "data"), "--format", "generic", "--out", str(out)]
+    assert main([*argv, f"{option}={value}"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"pronet: {option}: must be within ±1000 m (no vehicle is longer)")
+    assert err.count("\n") == 1 and not out.exists()

@@ -19,7 +19,12 @@ MAX_THREADS = _core.MAX_THREADS
 
 def real_array(value: ArrayLike, name: str) -> NDArray[Any]:
     """``value`` as a NumPy array of integers or floats (any shape, no copy when it
-    already is one), or ``ValueError`` naming the argument."""
+    already is one), or ``ValueError`` naming the argument. A nested list is refused if
+    any element is a bool or text (NumPy would read ``[60, True]`` as ``[60, 1]``)."""
+    if isinstance(value, list | tuple):
+        wrong = _not_a_number(value)
+        if wrong is not None:
+            raise ValueError(f"{name}: expected real numbers, got {wrong!r}")
     try:
         arr = np.asarray(value)
     except (TypeError, ValueError) as exc:
@@ -27,6 +32,21 @@ def real_array(value: ArrayLike, name: str) -> NDArray[Any]:
     if arr.dtype.kind not in "iuf":
         raise ValueError(f"{name}: expected real numbers, got an array of dtype {arr.dtype}")
     return arr
+
+
+def _not_a_number(value: list[Any] | tuple[Any, ...]) -> object | None:
+    """The first element of the nested lists ``value`` that NumPy would take as a
+    number although it is none (a bool, text, bytes, a bool array), else None."""
+    stack: list[Any] = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, list | tuple):
+            stack.extend(reversed(item))
+        elif isinstance(item, bool | np.bool_ | str | bytes) or (
+            isinstance(item, np.ndarray) and item.dtype.kind not in "iuf"
+        ):
+            return item
+    return None
 
 
 def float_array(value: ArrayLike, name: str, shape: tuple[int | None, ...]) -> NDArray[np.float64]:
@@ -70,14 +90,22 @@ def count(value: object, name: str, maximum: int | None = None) -> int:
     return int(value)
 
 
-def threads(value: object, name: str) -> int | None:
-    """A thread count: None (all cores) or a whole number from 1 to :data:`MAX_THREADS`,
-    else ``ValueError`` naming the argument."""
+def threads(value: object, name: str, per_core: bool = True) -> int | None:
+    """A thread count: None (the default: ``RAYON_NUM_THREADS`` if set, else one per
+    core) or a whole number from 1 to :func:`pronet._core.max_threads` (at most
+    :data:`pronet._core.THREADS_PER_CORE` per core this process may use, never more than
+    :data:`MAX_THREADS`), else ``ValueError`` naming the argument (or the environment
+    variable). The core's rule (:func:`pronet._core.check_threads`), checked before any
+    work. ``per_core=False``: 1 to :data:`MAX_THREADS` only (a count for other machines,
+    as a Ray sweep's CPUs per shard)."""
     if value is None:
+        _core.check_threads(None)  # a bad RAYON_NUM_THREADS is named now, not mid-run
         return None
     n = count(value, name)
-    if not 1 <= n <= MAX_THREADS:
-        raise ValueError(f"{name}: expected 1 to {MAX_THREADS}, got {n}")
+    most = _core.max_threads() if per_core else MAX_THREADS
+    if not 1 <= n <= most:
+        cap = f" ({_core.THREADS_PER_CORE} per core this process may use)" if per_core else ""
+        raise ValueError(f"{name}: expected 1 to {most}{cap}, got {n}")
     return n
 
 

@@ -119,7 +119,14 @@ def user_error(exc: ValueError | OSError | MemoryError | MissingExtra) -> str:
 
 
 #: Library arguments whose errors reach the command line, and the options that set them.
-_OPTIONS = {"n_runs": "--runs", "n_levels": "--levels", "seed": "--seed"}
+_OPTIONS = {
+    "n_runs": "--runs",
+    "n_levels": "--levels",
+    "seed": "--seed",
+    "threads": "--threads",
+    "imu_lever_arm": "--imu-lever-arm",
+    "dvl_lever_arm": "--dvl-lever-arm",
+}
 
 
 __all__ = ["build_parser", "main", "user_error"]

@@ -139,7 +139,11 @@ def add_monte_carlo_args(parser: argparse.ArgumentParser) -> None:
         "--seed", metavar="N", type=int, default=0, help="Monte Carlo seed (default 0)"
     )
     parser.add_argument(
-        "--threads", metavar="N", type=int, default=None, help="worker threads (default: all cores)"
+        "--threads",
+        metavar="N",
+        type=int,
+        default=None,
+        help="worker threads (default: one per core, or RAYON_NUM_THREADS; at most 8 per core)",
     )
 
 

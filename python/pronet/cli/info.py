@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 import pronet
@@ -49,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
         "numpy": numpy.__version__,
         "torch": torch_version,
         "cores": usable_cores(),
+        "threads": _core.check_threads(None),  # RAYON_NUM_THREADS if set (checked)
+        "max_threads": _core.max_threads(),
         "torch_threads": torch_threads,
         "ray": _version_of("ray"),
         "weights": str(modelfile.SHIPPED_DIR),
@@ -62,7 +65,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"pronet {info['pronet']} (native core {info['native_core']})")
     print(f"python {info['python']}, numpy {info['numpy']}, torch {info['torch'] or no_torch}")
     threads = f"; torch uses {torch_threads}" if torch_threads is not None else ""
-    print(f"cores: {info['cores']}  (Monte Carlo threads default to all of them{threads})")
+    source = _core.THREADS_ENV if _core.THREADS_ENV in os.environ else "one per core"
+    print(
+        f"cores: {info['cores']}  (threads: {info['threads']} by default, from {source}; "
+        f"at most {info['max_threads']}{threads})"
+    )
     print(f"ray: {info['ray'] or 'not installed (pronet sweep --engine ray needs it)'}")
     print(f"shipped models: {', '.join(frozen.SHIPPED)} in {info['weights']}")
     print(f"built-in trajectories: {', '.join(_core.builtin_trajectory_names())}")

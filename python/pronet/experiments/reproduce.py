@@ -78,7 +78,8 @@ def reproduce(
         out: the result folder to create (default ``results/reproduce-<time>``); an
             existing one is refused.
         n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
-        threads: worker threads (default: all cores).
+        threads: worker threads, 1 to 8 per core (default: one per core, or
+            ``RAYON_NUM_THREADS``).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         retrain: train the three regressors first (~10 min) instead of using the
             shipped weights; those runs are not saved for resuming.

@@ -98,7 +98,8 @@ def simulate(
         formulation: the filter's error coordinates, ``"invariant"`` or ``"classic"``
             (default: the scenario's or the filter file's, else the invariant one).
         n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
-        threads: worker threads (default: all cores).
+        threads: worker threads, 1 to 8 per core (default: one per core, or
+            ``RAYON_NUM_THREADS``).
         record_every: seconds between the saved history samples the plots use (> 0).
         tuning_period: seconds between regressor calls of learned strategies (> 0).
         plots: False: the tables, metrics and config only (the plots take most of the

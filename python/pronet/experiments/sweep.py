@@ -214,7 +214,8 @@ def check_engine(engine: str, address: str | None, threads: int | None) -> None:
         raise ValueError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     if address is not None and engine != "ray":
         raise ValueError("address: only the ray engine connects to a cluster")
-    threads_arg(threads, "threads")
+    # ray: CPUs per shard on the cluster's machines, not threads on this one
+    threads_arg(threads, "threads", per_core=engine != "ray")
     if engine == "ray":
         try:
             import ray  # noqa: F401

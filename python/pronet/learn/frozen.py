@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
+from pronet._util.validate import count, scalar
 from pronet.learn import modelfile
 from pronet.learn.windowstats import as_windows
 
@@ -187,11 +188,36 @@ def checked_architecture(
     if unknown:
         raise modelfile.ModelFileError(f"{card_file}: bad architecture (unknown {unknown})")
     arch = {**NET_DEFAULTS, **given}
+    for key, value in arch.items():
+        _check_entry(key, value, card_file)
     try:
         modelfile.check_tensors(weights, tensors, net_shapes(arch))
     except (TypeError, KeyError) as exc:
         raise modelfile.ModelFileError(f"{card_file}: bad architecture ({exc})") from None
     return arch
+
+
+def _check_entry(key: str, value: object, card_file: Path) -> None:
+    """``ModelFileError`` naming the card and ``key`` unless ``value`` has the type of
+    :data:`NET_DEFAULTS`'s entry: whole numbers are whole numbers (``"200"``, ``200.7``
+    and ``true`` are not), scales real numbers, ``scaling`` text."""
+    default = NET_DEFAULTS[key]
+    try:
+        if isinstance(default, str):
+            if not isinstance(value, str):
+                raise ValueError(f"{key}: expected text, got {value!r}")
+        elif isinstance(default, list):
+            if not isinstance(value, list):
+                raise ValueError(f"{key}: expected a list of whole numbers, got {value!r}")
+            for v in value:
+                if count(v, key) < 1:
+                    raise ValueError(f"{key}: expected whole numbers >= 1, got {v!r}")
+        elif isinstance(default, int):
+            count(value, key)
+        elif not 0 < scalar(value, key) < np.inf:
+            raise ValueError(f"{key}: must be finite and > 0, got {value!r}")
+    except ValueError as exc:
+        raise modelfile.ModelFileError(f"{card_file}: architecture {exc}") from None
 
 
 def read_model(

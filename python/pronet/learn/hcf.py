@@ -284,9 +284,12 @@ class HCFEnsemble:
     ) -> HCFEnsemble:
         """Rebuild from :meth:`tensors` output, checking every array first."""
         arch = card.get("architecture", {})
-        window = arch.get("window")
-        if not isinstance(window, int) or window < 3:
-            raise modelfile.ModelFileError(f"{weights}: card has no valid window length")
+        window = arch.get("window") if isinstance(arch, dict) else None
+        if isinstance(window, bool) or not isinstance(window, int) or window < 3:
+            raise modelfile.ModelFileError(
+                f"{weights}: card architecture window: expected a whole number >= 3, "
+                f"got {window!r}"
+            )
         if arch.get("features") != list(FEATURE_NAMES):
             raise modelfile.ModelFileError(f"{weights}: card lists other features than pronet's")
         names = [f"{p}.{k}" for p in ("gb", "rf") for k in _ARRAYS] + ["gb.init_rate"]

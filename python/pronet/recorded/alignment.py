@@ -60,11 +60,18 @@ class Clock:
         return self.offset + self.scale * real_array(stamps, "stamps").astype(np.float64)
 
 
-def _lever_arm(value: ArrayLike, name: str) -> F64:
-    """A lever arm ``(3,)`` [m] of finite numbers, or ``ValueError`` naming it."""
+def lever_arm(value: ArrayLike, name: str) -> F64:
+    """A lever arm ``(3,)`` [m] of finite numbers within ±:data:`pronet._core.MAX_LEVER_ARM`
+    (the core's rule, 1 km), or ``ValueError`` naming it: a longer one is a slip of
+    units, which would otherwise surface as an error about something else (a latitude)."""
     arm = float_array(value, name, (3,))
     if not np.isfinite(arm).all():
         raise ValueError(f"{name}: must be finite, got {arm}")
+    if np.abs(arm).max() > _core.MAX_LEVER_ARM:
+        raise ValueError(
+            f"{name}: must be within ±{_core.MAX_LEVER_ARM:g} m (no vehicle is longer), "
+            f"got {', '.join(f'{v:g}' for v in arm)} m"
+        )
     return arm
 
 
@@ -88,8 +95,8 @@ class Alignment:
     def __post_init__(self) -> None:
         check_type(self.gt_clock, Clock, "gt_clock")
         check_type(self.dvl_clock, Clock, "dvl_clock")
-        _lever_arm(self.imu_lever_arm, "imu_lever_arm")
-        _lever_arm(self.dvl_lever_arm, "dvl_lever_arm")
+        lever_arm(self.imu_lever_arm, "imu_lever_arm")
+        lever_arm(self.dvl_lever_arm, "dvl_lever_arm")
 
     @property
     def filter_lever_arm(self) -> tuple[float, float, float]:
@@ -207,7 +214,7 @@ def estimate_dvl_clock(
     scale is taken as the ground truth's (one logger stamps both, as in the Snapir
     data): body velocity varies slowly, so it pins an offset well but cannot also
     separate a scale from it over a short section."""
-    r = _lever_arm(dvl_lever_arm, "dvl_lever_arm")
+    r = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     # The truth's velocity moved to the DVL at its own rows, then interpolated: the
@@ -236,8 +243,8 @@ def estimate_alignment(
 ) -> Alignment:
     """Both clocks estimated from the data, with the given lever arms [m, body FRD,
     relative to the ground-truth point]."""
-    imu_arm = _lever_arm(imu_lever_arm, "imu_lever_arm")
-    dvl_arm = _lever_arm(dvl_lever_arm, "dvl_lever_arm")
+    imu_arm = lever_arm(imu_lever_arm, "imu_lever_arm")
+    dvl_arm = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     gt_clock = estimate_gt_clock(rec)
     return Alignment(
         gt_clock=gt_clock,

@@ -28,7 +28,13 @@ from pronet._util.cores import usable_cores
 from pronet._util.validate import flag, scalar
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
-from pronet.recorded.alignment import Section, find_sections, load_section, section_name
+from pronet.recorded.alignment import (
+    Section,
+    find_sections,
+    lever_arm,
+    load_section,
+    section_name,
+)
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
@@ -472,6 +478,8 @@ def run_real(
     tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation)  # checked now
     imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
     dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
+    lever_arm(imu_arm, "imu_lever_arm")  # before any section is read
+    lever_arm(dvl_arm, "dvl_lever_arm")
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}

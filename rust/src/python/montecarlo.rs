@@ -9,7 +9,8 @@ use super::strategy::PyStrategy;
 use super::trajectory::PyTrajectory;
 use super::{interruptible, to_py_err};
 use crate::montecarlo::{
-    run_monte_carlo_until, with_threads, McOptions, McResult, RunSummary, Scenario,
+    check_threads, default_threads, max_threads, run_monte_carlo_until, with_threads, McOptions,
+    McResult, RunSummary, Scenario,
 };
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
@@ -198,7 +199,29 @@ fn py_check_result_size(
     sc.check_result_size(&opts, dvl_every, 0).map_err(to_py_err)
 }
 
+/// The thread count a call given `threads` runs on, by the core's rule: `threads`
+/// itself if it is 1 to `max_threads()`; for None, `RAYON_NUM_THREADS` if it is set
+/// (checked the same way, the error naming the variable), else one per usable core.
+#[pyfunction(name = "check_threads")]
+#[pyo3(signature = (threads = None))]
+fn py_check_threads(#[pyo3(from_py_with = arg_threads)] threads: Option<usize>) -> PyResult<usize> {
+    match threads {
+        Some(n) => check_threads("threads", n),
+        None => default_threads(),
+    }
+    .map_err(to_py_err)
+}
+
+/// The most threads a pool may have here: `THREADS_PER_CORE` per usable core, at most
+/// `MAX_THREADS`.
+#[pyfunction(name = "max_threads")]
+fn py_max_threads() -> usize {
+    max_threads()
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(py_monte_carlo, m)?)?;
+    m.add_function(wrap_pyfunction!(py_check_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(py_max_threads, m)?)?;
     m.add_function(wrap_pyfunction!(py_check_result_size, m)?)
 }
