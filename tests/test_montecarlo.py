@@ -155,10 +155,10 @@ def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> No
 
     sc = scenarios.paper_scenario()
     rows = run.run_strategies(paper.model_based_strategies(sc.q_nominal), sc, n_runs=3, seed=1)
-    table = results.rows_dataframe({"paper, 3 runs": rows})
+    table = results.rows_dataframe({"paper": rows})
     assert list(table["strategy"]) == [r.label for r in rows]
     assert table.loc[2, "srmse"] == pytest.approx(rows[2].srmse.mean)
-    per_run = results.rows_dataframe({"paper, 3 runs": rows}, per_run=True)
+    per_run = results.rows_dataframe({"paper": rows}, per_run=True)
     assert len(per_run) == 4 * 3 and tuple(per_run.columns) == results.RUN_COLUMNS
 
 

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type
-from pronet.stats import MeanCI, chi2_mean_band, mean_ci
+from pronet.stats import NON_NEGATIVE, SHARE, MeanCI, chi2_mean_band, mean_ci
 
 #: Run indices stay below 2^62: run i's random streams are numbered 4·i + k
 #: (``montecarlo::MAX_RUN_INDEX`` in Rust).
@@ -213,8 +213,13 @@ class MonteCarloResult:
     SUMMARIZED = tuple(m for m in PER_RUN if m not in ("rejected_updates", "diverged_at"))
 
     def summary(self) -> dict[str, MeanCI]:
-        """Mean and 95 % CI over runs of every metric in :data:`SUMMARIZED`."""
-        return {name: mean_ci(getattr(self, name)) for name in self.SUMMARIZED}
+        """Mean and 95 % CI over runs of every metric in :data:`SUMMARIZED`, each within
+        its range (the ``*_3sigma`` shares in [0, 1], every other metric non-negative;
+        see :func:`pronet.stats.mean_ci`)."""
+        return {
+            name: mean_ci(getattr(self, name), SHARE if name.endswith("_3sigma") else NON_NEGATIVE)
+            for name in self.SUMMARIZED
+        }
 
 
 def _row_mean(v: NDArray[np.float64]) -> NDArray[np.float64]:

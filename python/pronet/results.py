@@ -26,7 +26,7 @@ from pronet._util.files import atomic_folder, json_bytes
 from pronet.learn.hybrid import HybridResult
 from pronet.montecarlo import IN_BAND_FLAG, MonteCarloResult
 from pronet.sim.paper import PAPER_TABLE
-from pronet.stats import MeanCI, mean_ci
+from pronet.stats import MeanCI, format_number, mean_ci
 
 if TYPE_CHECKING:  # pandas loads only when a table is made
     import pandas as pd
@@ -120,14 +120,21 @@ def results_dataframe(
     return pd.concat(frames, ignore_index=True)
 
 
-def _row_labels(title: str, row: Row) -> dict[str, object]:
-    return {"scenario": title, "strategy": row.label, "tuning_period_s": row.tuning_period}
+def _row_labels(scenario: str, row: Row) -> dict[str, object]:
+    return {"scenario": scenario, "strategy": row.label, "tuning_period_s": row.tuning_period}
+
+
+def table_title(scenario: str, rows: Sequence[Row]) -> str:
+    """The title of a scenario's table and figures: ``"<scenario> scenario, N runs"``."""
+    runs = rows[0].result.n_runs if rows else 0
+    return f"{scenario} scenario, {runs} runs"
 
 
 def rows_dataframe(tables: dict[str, list[Row]], per_run: bool = False) -> pd.DataFrame:
-    """Experiment rows (title → rows, as :func:`pronet.run.run_strategies` makes them)
-    as one DataFrame: :data:`SUMMARY_COLUMNS` with each row's paired difference and
-    guardrail counts, or with ``per_run`` :data:`RUN_COLUMNS`."""
+    """Experiment rows (scenario name → rows, as :func:`pronet.run.run_strategies` makes
+    them; the name fills the ``scenario`` column, as in every result) as one DataFrame:
+    :data:`SUMMARY_COLUMNS` with each row's paired difference and guardrail counts, or
+    with ``per_run`` :data:`RUN_COLUMNS`."""
     import pandas as pd
 
     if per_run:
@@ -188,9 +195,10 @@ def consistency_cells(result: MonteCarloResult) -> list[str]:
         for name in ("velocity_nees", "velocity_nees_3sigma", "attitude_nees", "mean_nis")
     )
     return [
-        f"{nees:.2f} ({100 * inside:.1f} %){out_of_band(result, 'velocity')}",
-        f"{attitude:.2f}{out_of_band(result, 'attitude')}",
-        f"{nis:.2f}",
+        f"{format_number(nees, '{:.2f}')} ({format_number(100 * inside, '{:.1f}')} %)"
+        f"{out_of_band(result, 'velocity')}",
+        f"{format_number(attitude, '{:.2f}')}{out_of_band(result, 'attitude')}",
+        format_number(nis, "{:.2f}"),
     ]
 
 
@@ -238,14 +246,15 @@ def write_result_folder(
     extra: Callable[[Path], None] | None = None,
     paper_columns: bool = True,
 ) -> Path:
-    """Write an experiment's tables (:func:`write_tables`) and ``config.json`` into
+    """Write an experiment's tables (``tables``: scenario name → rows; :func:`write_tables`,
+    each titled by :func:`table_title`) and ``config.json`` into
     ``folder``, plus whatever ``extra(tmp_folder)`` writes (plots, models), atomically:
     everything goes to a temporary sibling first, which is renamed into place only when
     complete. An existing folder is refused, never overwritten. With ``paper_columns``,
-    tables titled ``paper ...`` show the paper's numbers beside ours."""
+    the tables of the ``paper*`` scenarios show the paper's numbers beside ours."""
     text = "\n".join(
-        rows_markdown(rows, title, paper=paper_columns and title.startswith("paper"))
-        for title, rows in tables.items()
+        rows_markdown(rows, table_title(name, rows), paper_columns and name.startswith("paper"))
+        for name, rows in tables.items()
     )
     with atomic_folder(Path(folder)) as tmp:
         write_tables(tmp, rows_dataframe(tables), rows_dataframe(tables, per_run=True), text)

@@ -31,7 +31,7 @@ from pronet.learn.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_sched
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.shards import ShardStore
 from pronet.sim.scenarios import Scenario
-from pronet.stats import MeanCI, mean_ci
+from pronet.stats import NON_NEGATIVE, MeanCI, mean_ci
 from pronet.strategies import Learned, StrategyLike
 
 F64 = NDArray[np.float64]
@@ -285,8 +285,8 @@ def run_strategies(
         Row(
             label=label,
             result=r,
-            srmse=mean_ci(r.srmse),
-            smae=mean_ci(r.smae),
+            srmse=mean_ci(r.srmse, NON_NEGATIVE),
+            smae=mean_ci(r.smae, NON_NEGATIVE),
             srmse_diff=mean_ci(r.srmse - ref.srmse),
             smae_diff=mean_ci(r.smae - ref.smae),
             hybrid=h,

@@ -71,7 +71,7 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
         assert png.read_bytes()[:8] == PNG and png.stat().st_size > 20_000, png.name
     metrics = json.loads((out / "metrics.json").read_text())
     scenarios = list(dict.fromkeys(r["scenario"] for r in metrics))
-    assert scenarios == ["paper scenario, 2 runs", "varying-noise scenario, 2 runs"]
+    assert scenarios == ["paper", "varying-noise"]
     for scenario in scenarios:
         rows = {r["strategy"]: r for r in metrics if r["scenario"] == scenario}
         assert list(rows) == [
@@ -175,7 +175,7 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     rows = {r["strategy"]: r for r in printed["metrics"]}
     assert list(rows) == ["constant", "constant:20", "mehra:5", "learned:detrend"]
     assert rows["mehra:5"]["runs"] == 3 and rows["learned:detrend"]["tunings"] == 38
-    assert {r["scenario"] for r in printed["metrics"]} == {"short scenario, 3 runs"}
+    assert {r["scenario"] for r in printed["metrics"]} == {"short"}
     names = sorted(p.name for p in out.iterdir())
     assert names == [
         "config.json",
@@ -324,16 +324,26 @@ def test_dataset_train_and_evaluate_on_a_small_dataset(tmp_path, capsys) -> None
     assert cli.main([*train, "--out", str(models), "--quiet", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)["models"]["baseline"]
     assert report["n_test"] == made["test"] and report["model"]["rmse"] > 0
+    # one noise level: every label is the same, so R² is undefined (null), not -3e29
+    assert report["model"]["r2"] is None
     assert (models / "baseline.safetensors").is_file() and (models / "baseline.json").is_file()
+    # a model of the same name is not replaced without --force
+    weights = (models / "baseline.safetensors").read_bytes()
+    assert cli.main([*train, "--out", str(models), "--quiet"]) == 2
+    assert "baseline.safetensors exists; use --force" in capsys.readouterr().err
+    assert (models / "baseline.safetensors").read_bytes() == weights
     figure = tmp_path / "fig.png"
     evaluate = ["evaluate", "--dataset", str(data), "--figure", str(figure)]
     assert cli.main([*evaluate, "--models", f"{models / 'baseline'},hcf"]) == 0
     text = capsys.readouterr().out
-    assert "hcf" in text and "figure written" in text
+    assert "hcf" in text and "figure written" in text and "| undefined |" in text
     assert figure.read_bytes()[:4] == b"\x89PNG"
-    # a bad model file fails before any work, naming the file
+    # the figure is not replaced without --force; a bad model file fails before any
+    # work, naming the file
+    assert cli.main([*evaluate, "--models", "hcf"]) == 2
+    assert "--figure: " in capsys.readouterr().err
     (tmp_path / "bad.json").write_text("{")
-    assert cli.main([*evaluate, "--models", str(tmp_path / "bad")]) == 2
+    assert cli.main([*evaluate, "--force", "--models", str(tmp_path / "bad")]) == 2
     assert "bad" in capsys.readouterr().err
 
 

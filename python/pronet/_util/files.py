@@ -7,6 +7,7 @@ from __future__ import annotations
 import atexit
 import fcntl
 import glob
+import hashlib
 import json
 import math
 import os
@@ -19,11 +20,49 @@ from pathlib import Path
 
 import numpy as np
 
+#: The longest file name (bytes of UTF-8) most file systems allow (ext4, XFS, APFS,
+#: NTFS in characters): the hidden names pronet makes beside a file fit in it.
+NAME_MAX = 255
+#: What :func:`tempfile.mkstemp` and :func:`tempfile.mkdtemp` add to a prefix.
+_TEMP_CHARS = 8
+
+
+def sibling(path: Path, suffix: str, hidden: bool = False, room: int = 0) -> Path:
+    """The file beside ``path`` named ``<name><suffix>`` (``.<name><suffix>`` if
+    ``hidden``), for a lock, a temporary or a ``.partial`` folder. When that name, with
+    ``room`` bytes more, would exceed :data:`NAME_MAX`, ``<name>`` is cut and ended by a
+    hash of the whole name: any name the file system allows for ``path`` gets its
+    siblings (a 250-character ``--out`` once failed on its own lock)."""
+    path = Path(path)
+    dot = "." if hidden else ""
+    name = f"{dot}{path.name}{suffix}"
+    if len(name.encode()) + room <= NAME_MAX:
+        return path.with_name(name)
+    digest = "~" + hashlib.sha256(path.name.encode()).hexdigest()[:12]
+    keep = NAME_MAX - room - len(f"{dot}{digest}{suffix}".encode())
+    cut = path.name.encode()[:keep].decode(errors="ignore")
+    return path.with_name(f"{dot}{cut}{digest}{suffix}")
+
+
+def check_new_files(paths: list[Path], option: str, force: bool = False) -> None:
+    """``ValueError`` naming ``option`` if any of ``paths`` (every file one output
+    writes: a dataset and its card, a model's weights and card) exists and ``force`` is
+    not set, or if one cannot be written (:func:`check_writable`). Checked before any
+    work: without ``--force`` nothing existing is overwritten, whichever file of the set
+    it is."""
+    for path in paths:
+        if path.is_dir():
+            raise ValueError(f"{option}: {path} is a folder; name the file to write")
+        if (path.exists() or path.is_symlink()) and not force:
+            raise ValueError(f"{option}: {path} exists; use --force to replace it")
+        check_writable(path, option)
+
 
 def atomic_write(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` via a temporary sibling and a rename, so ``path`` is
     either the old file or the complete new one, never a partial write."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    prefix = sibling(path, ".", hidden=True, room=_TEMP_CHARS).name
+    fd, tmp = tempfile.mkstemp(prefix=prefix, dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -72,7 +111,12 @@ def atomic_folder(folder: Path) -> Iterator[Path]:
 
 def _temp_prefix(folder: Path) -> str:
     """The name prefix of :func:`atomic_folder`'s temporary sibling of ``folder``."""
-    return f".{folder.name}."
+    return sibling(folder, ".", hidden=True, room=_TEMP_CHARS).name
+
+
+def _lock(folder: Path) -> Path:
+    """The lock file of :func:`reserve_folder`'s reservation of ``folder``."""
+    return sibling(folder, ".lock", hidden=True)
 
 
 def json_bytes(data: object) -> bytes:
@@ -145,8 +189,7 @@ def reserve_folder(folder: Path, option: str = "--out") -> None:
         return
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
-        lock = folder.parent / f".{folder.name}.lock"
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = os.open(_lock(folder), os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
         raise ValueError(f"{option}: {folder}: {exc.strerror or exc}") from None
     try:
@@ -174,7 +217,7 @@ def release_folder(folder: Path) -> None:
     folder = Path(folder)
     fd = _RESERVED.pop(folder.absolute(), None)
     if fd is not None:
-        (folder.parent / f".{folder.name}.lock").unlink(missing_ok=True)
+        _lock(folder).unlink(missing_ok=True)
         os.close(fd)
 
 

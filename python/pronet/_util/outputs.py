@@ -11,7 +11,7 @@ import datetime as _dt
 from collections.abc import Callable
 from pathlib import Path
 
-from pronet._util.files import check_out_folder, reserve_folder
+from pronet._util.files import check_out_folder, reserve_folder, sibling
 
 #: ``say(text)``: a message for people (the library never prints).
 Say = Callable[[str], None]
@@ -35,9 +35,10 @@ def new_result_folder(out: str | Path | None, command: str) -> Path:
 
 
 def partial_folder(out: Path, resume: bool) -> Path:
-    """Where the finished pieces of a run into ``out`` are kept (``<out>.partial``);
+    """Where the finished pieces of a run into ``out`` are kept (``<out>.partial``, its
+    name shortened by a hash if that would be too long: :func:`~pronet._util.files.sibling`);
     ``ValueError`` if an interrupted run left some there and ``resume`` is not set."""
-    partial = out.with_name(out.name + ".partial")
+    partial = sibling(out, ".partial")
     if partial.exists() and not resume:
         raise ValueError(
             f"{partial} holds an interrupted run of this folder; add --resume to continue "

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, NoReturn, TypeAlias
+
+from pronet._util.files import json_bytes
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -37,7 +38,7 @@ class Output:
     def result(self, text: str, data: object) -> None:
         """The command's result: ``text`` for people, or ``data`` as JSON."""
         if self.json:
-            print(json.dumps(strict_json(data), indent=2))
+            sys.stdout.write(json_bytes(data).decode())  # NaN and infinities as null
         else:
             print(text)
 
@@ -84,17 +85,6 @@ class Bars:
         tb: TracebackType | None,
     ) -> None:
         self.close()
-
-
-def strict_json(value: object) -> object:
-    """``value`` with NaN and infinities as null: strict JSON, which every reader takes."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): strict_json(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [strict_json(v) for v in value]
-    return value
 
 
 def experiment_result(show: Output, folder: Path, start: float) -> None:

@@ -7,7 +7,7 @@ import dataclasses
 import time
 from pathlib import Path
 
-from pronet._util.files import check_writable
+from pronet._util.files import check_new_files
 from pronet.cli._common import Output, Subparsers, add_output_flags
 
 
@@ -39,7 +39,7 @@ def add_parser(sub: Subparsers) -> None:
         "(rad/s)² (pronet.learn.dataset.GRADES; --levels draws per trajectory), the training set "
         "of the shipped models (the paper's paper-* used the default)",
     )
-    parser.add_argument("--force", action="store_true", help="replace an existing file")
+    parser.add_argument("--force", action="store_true", help="replace an existing dataset and card")
     add_output_flags(parser)
     parser.set_defaults(func=run)
 
@@ -48,11 +48,10 @@ def run(args: argparse.Namespace) -> int:
     from pronet.learn import dataset
 
     out = Path(args.out)
-    if out.exists() and not args.force:
-        raise ValueError(f"--out: {out} exists; use --force to replace it")
-    if out.is_dir():
-        raise ValueError(f"--out: {out} is a folder; name the .npz file to write")
-    check_writable(out, "--out")
+    if out.suffix == ".json":  # the card's own name: the data would be overwritten by it
+        raise ValueError(f"--out: {out} is the name of a card; name the .npz file to write")
+    # the data and its card: neither is overwritten without --force
+    check_new_files([out, dataset.card_path(out)], "--out", args.force)
     base = dataset.GRADES if args.grades else dataset.DatasetParams()
     params = dataclasses.replace(base, seed=args.seed, n_levels=args.levels)
     params.validate()  # an error names the field; cli.user_error names its option

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet._util.files import check_new_files
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
 
 
@@ -28,12 +30,15 @@ def add_parser(sub: Subparsers) -> None:
     parser.add_argument(
         "--figure", metavar="PNG", default=None, help="write predicted-vs-true q PNG here"
     )
+    parser.add_argument("--force", action="store_true", help="replace an existing --figure")
 
 
 def run(args: argparse.Namespace) -> int:
     from pronet import plots
     from pronet.learn import models, training
 
+    if args.figure:  # before any model is loaded or scored
+        check_new_files([Path(args.figure)], "--figure", args.force)
     names = [n.strip() for n in args.models.split(",") if n.strip()]
     loaded = {n: models.load(n) for n in names}  # fail on a bad file before any work
     ds, _ = dataset_for(args)

@@ -17,13 +17,22 @@ from pronet.cli._common import (
     experiment_result,
 )
 
+#: The runs per strategy of ``--quick``.
+QUICK_RUNS = 10
+#: The runs per strategy without ``--runs`` or ``--quick``.
+DEFAULT_RUNS = 100
+
 
 def add_parser(sub: Subparsers) -> None:
     parser = sub.add_parser(
         "reproduce", help="run the paper's Monte Carlo experiment and print its table"
     )
     add_monte_carlo_args(parser)
-    parser.add_argument("--quick", action="store_true", help="10 runs per strategy")
+    # --runs given or not: --quick with an explicit --runs is a conflict, never a choice
+    parser.set_defaults(runs=None)
+    parser.add_argument(
+        "--quick", action="store_true", help=f"{QUICK_RUNS} runs per strategy (not with --runs)"
+    )
     add_result_folder(parser, "reproduce")
     parser.add_argument(
         "--retrain", action="store_true", help="train all three regressors first (~10 min)"
@@ -42,12 +51,19 @@ def add_parser(sub: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pronet.experiments.reproduce import reproduce
 
+    if args.quick and args.runs is not None:
+        raise ValueError(
+            f"--quick and --runs: give one (--quick is --runs {QUICK_RUNS}), "
+            f"got --quick with --runs {args.runs}"
+        )
+    n_runs = QUICK_RUNS if args.quick else DEFAULT_RUNS if args.runs is None else args.runs
+
     show = Output(args)
     start = time.perf_counter()
     with Bars(show) as bars:
         folder = reproduce(
             args.out,
-            n_runs=10 if args.quick else args.runs,
+            n_runs=n_runs,
             seed=args.seed,
             threads=args.threads,
             tuning_period=args.tuning_period,

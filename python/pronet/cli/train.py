@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pronet._util.files import check_writable
+from pronet._util.files import check_new_files
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
 
 
@@ -31,6 +31,9 @@ def add_parser(sub: Subparsers) -> None:
         "--seed", metavar="N", type=int, default=0, help="training seed (default 0)"
     )
     parser.add_argument(
+        "--force", action="store_true", help="replace models of the same name in --out"
+    )
+    parser.add_argument(
         "--max-epochs",
         metavar="N",
         type=int,
@@ -40,14 +43,16 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pronet.learn import training
+    from pronet.learn import modelfile, training
 
     kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
     folder = Path(args.out)
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"--out: {folder} is a file, not a folder")
-    check_writable(folder, "--out")
+    # every model's weights and card: a model trained earlier is not replaced silently
+    written = [p for kind in kinds for p in modelfile.paths(folder / kind)]
+    check_new_files(written, "--out", args.force)
     ds, params = dataset_for(args)
     out = Output(args)
     reports: dict[str, dict[str, Any]] = {}

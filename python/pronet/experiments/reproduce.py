@@ -20,7 +20,7 @@ from pronet import _core
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder, partial_folder
 from pronet._util.validate import threads as threads_arg
 from pronet.learn.dataset import Dataset, DatasetParams, build_dataset
-from pronet.results import write_result_folder
+from pronet.results import table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.shards import ShardStore
 from pronet.sim.paper import LEARNED_LABELS, paper_strategies
@@ -183,7 +183,7 @@ def _run_tables(
     shards: ShardStore | None,
     on_done: OnDone | None,
 ) -> dict[str, list[Row]]:
-    """Every scenario's Monte Carlos, as tables titled ``"<scenario> scenario, N runs"``.
+    """Every scenario's Monte Carlos, as tables keyed by the scenario's name.
     On Ctrl-C the interrupt carries a note on what ``shards`` kept."""
     tables: dict[str, list[Row]] = {}
     try:
@@ -193,7 +193,7 @@ def _run_tables(
                 if on_done is not None:
                     on_done(f"{sc.name}: {label}")
 
-            tables[f"{sc.name} scenario, {n_runs} runs"] = run_strategies(
+            tables[sc.name] = run_strategies(
                 jobs[sc.name],
                 sc,
                 n_runs=n_runs,
@@ -264,9 +264,10 @@ def _figures(
         },
         folder / "predicted_vs_true_q.png",
     )
-    plots.metrics_with_ci(tables, folder / "srmse_smae.png")
+    titled = {table_title(name, rows): rows for name, rows in tables.items()}
+    plots.metrics_with_ci(titled, folder / "srmse_smae.png")
     plots.trajectory(scenarios[0].trajectory, folder / "trajectory.png", "paper trajectory")
-    for sc, (title, rows) in zip(scenarios, tables.items(), strict=True):
+    for sc, (title, rows) in zip(scenarios, titled.items(), strict=True):
         plots.velocity_error(rows, folder / f"velocity_error_{sc.name}.png", title)
         plots.q_tracking(rows, sc.schedule_time, sc.schedule_q, folder / f"q_{sc.name}.png", title)
     if trained_dir is not None:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.validate import threads as threads_arg
-from pronet.results import write_result_folder
+from pronet.results import table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.sim.scenarios import Scenario
 from pronet.strategies import StrategySpec, strategy
@@ -122,7 +122,6 @@ def simulate(
         )
     if on_start is not None:
         on_start(len(strategies), "strategy", None)
-    title = f"{sc.name} scenario, {n_runs} runs"
     rows = run_strategies(
         strategies,
         sc,
@@ -146,17 +145,18 @@ def simulate(
     }
     return write_result_folder(
         out,
-        {title: rows},
+        {sc.name: rows},
         settings,
-        extra=(lambda folder: _figures(folder, sc, title, rows)) if plots else None,
+        extra=(lambda folder: _figures(folder, sc, rows)) if plots else None,
         paper_columns=False,
     )
 
 
-def _figures(folder: Path, scenario: Scenario, title: str, rows: list[Row]) -> None:
+def _figures(folder: Path, scenario: Scenario, rows: list[Row]) -> None:
     """The plots of a simulation's result folder."""
     from pronet import plots
 
+    title = table_title(scenario.name, rows)
     plots.metrics_with_ci({title: rows}, folder / "srmse_smae.png")
     plots.trajectory(scenario.trajectory, folder / "trajectory.png", scenario.name)
     plots.velocity_error(rows, folder / "velocity_error.png", title)

@@ -39,7 +39,7 @@ from pronet.results import (
 )
 from pronet.run import run
 from pronet.sim.scenarios import SCENARIOS, STUDY_SCENARIOS, Scenario
-from pronet.stats import mean_ci
+from pronet.stats import BOOTSTRAP, mean_ci
 from pronet.strategies import StrategyLike, StrategySpec, strategy
 
 if TYPE_CHECKING:  # pandas and torch load only when used
@@ -65,8 +65,6 @@ STUDY_ROWS = {
 }
 REFERENCE = "constant (true q)"
 ORACLE = "oracle"
-#: Bootstrap resamples of the oracle-gain share's CI.
-BOOTSTRAP = 2000
 
 
 def study_strategies(
@@ -196,7 +194,7 @@ def oracle_share(
 ) -> tuple[float, float, float]:
     """The share of the oracle's SRMSE gain a row achieves, ``mean(ref − row) /
     mean(ref − oracle)`` over the runs where all three are finite, with a paired
-    percentile-bootstrap 95 % CI (:data:`BOOTSTRAP` resamples of the runs). NaN where
+    percentile-bootstrap 95 % CI (:data:`pronet.stats.BOOTSTRAP` resamples of the runs). NaN where
     the oracle gains nothing measurable (its gain's 95 % CI includes 0): a share of
     nothing is no number."""
     ok = np.isfinite(reference) & np.isfinite(row) & np.isfinite(oracle)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet._util.files import atomic_write
+from pronet._util.files import atomic_write, json_bytes
 
 FORMAT = "pronet-model"
 VERSION = 1
@@ -56,7 +56,7 @@ def write(path: str | os.PathLike[str], tensors: dict[str, NDArray[Any]], card: 
         "weights_sha256": hashlib.sha256(data).hexdigest(),
     }
     atomic_write(weights, data)
-    atomic_write(card_file, (json.dumps(full, indent=2, allow_nan=False) + "\n").encode())
+    atomic_write(card_file, json_bytes(full))  # an undefined score (R² of equal labels): null
     return card_file
 
 

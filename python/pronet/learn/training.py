@@ -15,6 +15,7 @@ per decade of q, beside the reference's (what matters over many decades).
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import asdict, dataclass
@@ -28,6 +29,7 @@ from pronet._util.validate import count, scalar
 from pronet.learn.dataset import Dataset, DatasetParams, dataset_sha256
 from pronet.learn.models import NETS, DetrendedVariance, Regressor, save_net
 from pronet.learn.windowstats import cramer_rao_rmse
+from pronet.stats import format_number
 
 MODEL_KINDS = ("baseline", "detrend", "hcf")
 
@@ -61,13 +63,17 @@ class NetTraining:
 
 
 def scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, float]:
-    """RMSE and MAE [(unit)² per sample] and R² of predictions against labels."""
+    """RMSE and MAE [(unit)² per sample] and R² of predictions against labels; R² is
+    NaN (undefined, printed so) when every label is the same: there is no variance to
+    explain, and the rounding of their mean would make it any number (−3e29 once)."""
     err = pred - q
+    constant = q.size == 0 or bool(np.all(q == q.flat[0]))
     return {
         "rmse": float(np.sqrt(np.mean(err**2))),
         "mae": float(np.mean(np.abs(err))),
-        "r2": float(1.0 - np.sum(err**2) / np.sum((q - q.mean()) ** 2)),
+        "r2": math.nan if constant else float(1.0 - np.sum(err**2) / np.sum((q - q.mean()) ** 2)),
     }
+
 
 
 def log_scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, Any]:
@@ -264,12 +270,12 @@ def scores_table(reports: dict[str, dict[str, Any]]) -> str:
     for name, rep in reports.items():
         s = rep["model"]
         lines.append(
-            f"| {name} | {s['rmse']:.3e} | {s['mae']:.3e} | {s['r2']:.4f} | "
+            f"| {name} | {s['rmse']:.3e} | {s['mae']:.3e} | {format_number(s['r2'])} | "
             f"{s['rmse'] / ref['rmse']:.3f} |"
         )
     lines.append(
         f"| detrended variance (reference, N − 2 dof) | {ref['rmse']:.3e} | {ref['mae']:.3e} "
-        f"| {ref['r2']:.4f} | 1.000 |"
+        f"| {format_number(ref['r2'])} | 1.000 |"
     )
     lines.append(
         f"| Cramér–Rao floor √(mean 2q²/N) | {first['cramer_rao_rmse']:.3e} | | | "

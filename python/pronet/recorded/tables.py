@@ -20,6 +20,7 @@ from pronet.results import (
     markdown,
     write_tables,
 )
+from pronet.stats import format_number
 
 if TYPE_CHECKING:
     from pronet import _core
@@ -45,7 +46,7 @@ HEADING_FLAG = 3.0
 
 def _cell(key: str, fmt: str, value: float) -> str:
     flag = OUT_OF_BAND if key == "heading_ratio" and value > HEADING_FLAG else ""
-    return fmt.format(value) + flag
+    return format_number(value, fmt) + flag
 
 
 def summary_table(runs: list[SectionRun], title: str) -> str:
@@ -73,7 +74,7 @@ def per_section_table(runs: list[SectionRun], key: str, title: str) -> str:
     value = {(r.section, r.label): getattr(r.metrics, key) for r in runs}
 
     def cell(s: str, lb: str) -> str:  # "—" where a section has no such row
-        return fmt.format(value[s, lb]) if (s, lb) in value else "—"
+        return format_number(value[s, lb], fmt) if (s, lb) in value else "—"
 
     lines: list[list[object]] = [[s, *(cell(s, lb) for lb in labels)] for s in sections]
     means = [
