@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -97,9 +99,9 @@ def test_histories_have_documented_shapes(paper_trajectory) -> None:
 def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
     ens = pronet.Ensemble(
         paper_trajectory,
-        pronet.SensorConfig(),
-        MATCHED,
         PAPER_Q,
+        sensors=pronet.SensorConfig(),
+        config=MATCHED,
         n_runs=3,
         seed=2,
         window=200,
@@ -118,12 +120,31 @@ def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
         stops += 1
     assert stops == 32 and ens.done
     res = ens.finish()
-    q = res["q"]
+    assert isinstance(res, pronet.MonteCarloResult) and res.n_runs == 3
+    q = res.q
     assert q.shape == (3, 34, 6)
     np.testing.assert_array_equal(q[:, 1, 0], 1e-4)  # prior until the first tuning
     np.testing.assert_array_equal(q[:, -1, 0], 4e-4)
     with pytest.raises(ValueError, match="already finished"):
         ens.advance()
+
+
+def test_ensemble_takes_monte_carlos_arguments_and_returns_its_result(paper_trajectory) -> None:
+    mc = inspect.signature(pronet.monte_carlo).parameters
+    ens = inspect.signature(pronet.Ensemble).parameters
+    shared = [name for name in mc if name != "strategy"]
+    assert [n for n in ens if n in shared] == shared
+    for name in shared:
+        assert (ens[name].kind, ens[name].default) == (mc[name].kind, mc[name].default), name
+    assert ens["n_runs"].default == 100 and ens["sensors"].default is None
+    # Never tuned, the ensemble's runs are a constant strategy's at its prior, run by run.
+    tuned = pronet.Ensemble(paper_trajectory, PAPER_Q, n_runs=2, seed=3).finish()
+    const = pronet.monte_carlo(
+        paper_trajectory, pronet.Strategy.constant(PAPER_Q), n_runs=2, seed=3
+    )
+    assert isinstance(tuned, pronet.MonteCarloResult)
+    for name in ("srmse", "nis", "nees", "final_horizontal_error"):
+        np.testing.assert_array_equal(getattr(tuned, name), getattr(const, name), err_msg=name)
 
 
 def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> None:

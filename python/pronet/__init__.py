@@ -12,7 +12,6 @@ attitude is roll, pitch, yaw (ZYX) in rad; IMU samples are
 """
 
 from pronet._core import (
-    Ensemble,
     FilterConfig,
     SensorConfig,
     Strategy,
@@ -22,8 +21,9 @@ from pronet._core import (
     earth_radii,
     normal_gravity,
 )
+from pronet.ensemble import Ensemble
 from pronet.filter import FilterResult, run_filter
-from pronet.montecarlo import MonteCarloResult, monte_carlo
+from pronet.montecarlo import STATE_BLOCKS, MonteCarloResult, monte_carlo
 from pronet.navigation import NavSolution, mechanize
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
 
@@ -33,6 +33,7 @@ __all__ = [
     "FilterResult",
     "MonteCarloResult",
     "NavSolution",
+    "STATE_BLOCKS",
     "Segment",
     "SensorConfig",
     "Strategy",
