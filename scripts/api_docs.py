@@ -411,6 +411,9 @@ class Page:
             sig = entry.signature if entry else _runtime_sig(obj)
             self.code(_wrap(name, sig))
             self.text(_native_doc(entry, obj))
+        elif entry is None and isinstance(obj, tuple) and all(isinstance(x, str) for x in obj):
+            self.code(f"{name} = {obj!r}")
+            self.text(_comment_doc(name) or "Module attribute.")
         else:
             ann = entry.signature if entry else f": {type(obj).__name__}"
             self.code(f"{name}{ann}")
@@ -492,6 +495,25 @@ class Page:
             "",
         ]
         return "\n".join(head + self.body).rstrip("\n") + "\n"
+
+
+def _comment_doc(name: str) -> str:
+    """The ``#:`` comment above ``name = ...`` in the package module it is imported from
+    into ``pronet`` (how the package documents its constants), or ``""``."""
+    import pronet
+
+    package = Path(pronet.__file__).resolve().parent
+    for node in ast.parse((package / "__init__.py").read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.ImportFrom) and any(a.name == name for a in node.names):
+            module = (node.module or "").removeprefix("pronet.").replace(".", "/")
+            lines = (package / f"{module}.py").read_text(encoding="utf-8").splitlines()
+            for i, line in enumerate(lines):
+                if re.match(rf"{name}\b.*=", line):
+                    j = i
+                    while j > 0 and lines[j - 1].startswith("#:"):
+                        j -= 1
+                    return "\n".join(x.removeprefix("#:").strip() for x in lines[j:i])
+    return ""
 
 
 def _is_getset(value: Any) -> bool:

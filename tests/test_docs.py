@@ -197,3 +197,10 @@ def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
     )
     with pytest.raises(ValueError, match="no study-tables markers"):
         study_docs.render("# no markers\n", "x")
+
+
+def test_api_reference_lists_the_state_blocks() -> None:
+    import pronet
+
+    assert "STATE_BLOCKS" in pronet.__all__
+    assert f"STATE_BLOCKS = {pronet.STATE_BLOCKS!r}" in API.read_text(encoding="utf-8")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 
 import numpy as np
@@ -248,3 +249,28 @@ def test_nees_in_band_is_the_share_of_epochs_a_consistent_filter_keeps_inside() 
     with pytest.raises(ValueError, match="^block: expected one of"):
         r.nees_in_band("heading")
     assert "attitude_nees" in r.summary() and "attitude_nees" in r.to_dataframe()
+
+
+def test_summary_reports_every_blocks_nees_with_its_band() -> None:
+    rng = np.random.default_rng(7)
+    honest = rng.chisquare(3, size=(20, 300, 5))
+    scale = np.array([1.0, 1.0, 4.0, 0.25, 1.0])  # attitude overconfident, accel bias shy
+    r = _with_nees(honest * scale, ["diverged"] + [None] * 19)
+    r = dataclasses.replace(r, nees=np.where(np.arange(20)[:, None, None] == 0, np.nan, r.nees))
+    summary, row = r.summary(), r.summary_row()
+    low, high = chi2.ppf([0.025, 0.975], 3 * 19) / 19  # the band of 19 runs' mean
+    assert row["nees_band_low"] == pytest.approx(low, rel=2e-3)
+    assert row["nees_band_high"] == pytest.approx(high, rel=2e-3)
+    for i, block in enumerate(STATE_BLOCKS):
+        per_run = (honest * scale)[1:, :, i].mean(axis=1)
+        assert summary[f"{block}_nees"].mean == pytest.approx(per_run.mean()), block
+        assert summary[f"{block}_nees"].n == 19
+        assert row[f"{block}_nees"] == pytest.approx(3.0 * scale[i], rel=0.05), block
+        inside = row[f"{block}_nees_in_band"]
+        assert (0.9 < inside < 0.99) if scale[i] == 1.0 else inside < 0.05, block
+    # The same names in the per-run table and the result schema.
+    assert {f"{b}_nees" for b in STATE_BLOCKS} <= set(r.to_dataframe().columns)
+    from pronet.results import SUMMARY_COLUMNS
+
+    assert list(row) == [c for c in SUMMARY_COLUMNS if c in row]
+    assert {f"{b}_nees_in_band" for b in STATE_BLOCKS} <= set(SUMMARY_COLUMNS)

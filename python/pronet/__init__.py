@@ -21,9 +21,8 @@ from pronet._core import (
     earth_radii,
     normal_gravity,
 )
-from pronet.ensemble import Ensemble
 from pronet.filter import FilterResult, run_filter
-from pronet.montecarlo import STATE_BLOCKS, MonteCarloResult, monte_carlo
+from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
 from pronet.navigation import NavSolution, mechanize
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
 

@@ -37,8 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type, float_array, real_array, scalar
-from pronet.ensemble import DEFAULT_TUNING_PERIOD, DEFAULT_WINDOW, Ensemble
-from pronet.montecarlo import MonteCarloResult
+from pronet.montecarlo import DEFAULT_TUNING_PERIOD, DEFAULT_WINDOW, Ensemble, MonteCarloResult
 
 if TYPE_CHECKING:  # torch loads only when a model does
     from pronet.learn.models import Regressor
