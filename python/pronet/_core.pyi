@@ -3,15 +3,17 @@
 Conventions: NED navigation frame, FRD body frame; positions ``[lat rad, lon rad, h m]``
 (height positive up); attitude roll, pitch, yaw (ZYX) in rad; IMU rows
 ``[f_x, f_y, f_z, w_x, w_y, w_z]`` in m/s² and rad/s. q is the per-sample variance of an
-IMU channel. Array arguments must be float64 numpy arrays (the :mod:`pronet` wrappers
-convert array-likes). Every error raises ``ValueError`` starting with the argument's name.
+IMU channel. Array arguments take real numbers in any form alike: NumPy arrays of any
+integer or float dtype and layout, nested lists and tuples (booleans, complex numbers,
+strings and objects are refused). Every error raises ``ValueError`` starting with the
+argument's name.
 Heavy calls release the GIL.
 """
 
 from typing import Any, Literal, final
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "__version__",
@@ -92,7 +94,7 @@ def builtin_trajectory_names() -> list[str]:
     """Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`)."""
 
 def trajectory_from_segments(
-    segments: NDArray[np.float64],
+    segments: ArrayLike,
     *,
     lla0: Any,
     speed0: float,
@@ -108,7 +110,7 @@ def earth_radii(lat: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature [m]."""
 
 def mechanize(
-    imu: NDArray[np.float64], dt: float, lla0: Any, vel0: Any, rpy0: Any
+    imu: ArrayLike, dt: float, lla0: Any, vel0: Any, rpy0: Any
 ) -> dict[str, NDArray[np.float64]]:
     """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
     IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
@@ -258,10 +260,10 @@ class SensorConfig:
     def dvl_misalignment(self) -> list[float]: ...
 
 def run_filter(
-    imu: NDArray[np.float64],
-    imu_time: NDArray[np.float64],
-    dvl: NDArray[np.float64],
-    dvl_time: NDArray[np.float64],
+    imu: ArrayLike,
+    imu_time: ArrayLike,
+    dvl: ArrayLike,
+    dvl_time: ArrayLike,
     *,
     t0: float,
     lla0: Any,
@@ -270,8 +272,8 @@ def run_filter(
     config: FilterConfig,
     strategy: Strategy,
     bias0: Any | None = None,
-    q_time: NDArray[np.float64] | None = None,
-    q: NDArray[np.float64] | None = None,
+    q_time: ArrayLike | None = None,
+    q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
@@ -334,7 +336,7 @@ class Ensemble:
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""
-    def set_q(self, q: NDArray[np.float64]) -> None:
+    def set_q(self, q: ArrayLike) -> None:
         """Set each run's IMU variances: ``q`` float64 ``(n_runs, 6)``."""
     def finish(self) -> dict[str, Any]:
         """Run to the end; the results as :func:`monte_carlo` returns them. The
@@ -388,10 +390,10 @@ class ConvNet:
         input_scale: float = 0.1,
         q_scale: float = 0.01,
         negative_slope: float = 0.01,
-        ramp: NDArray[np.float32] | None = None,
+        ramp: ArrayLike | None = None,
         threads: int | None = None,
     ) -> ConvNet: ...
-    def predict(self, windows: NDArray[np.float32]) -> NDArray[np.float64]:
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         """q ``(n,)`` [(unit)² per sample] for windows float32 ``(n, window)``."""
     @property
     def window(self) -> int: ...
@@ -418,17 +420,17 @@ class HcfEnsemble:
         target: str,
         threads: int | None = None,
     ) -> HcfEnsemble: ...
-    def predict(self, windows: NDArray[np.float64]) -> NDArray[np.float64]:
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         """q ``(n,)`` for windows float64 ``(n, window)``."""
     @property
     def window(self) -> int: ...
 
 def attitude_increment_costs(
-    edges: NDArray[np.float64],
-    cum: NDArray[np.float64],
-    gt_time: NDArray[np.float64],
-    gt_step: NDArray[np.float64],
-    offsets: NDArray[np.float64],
+    edges: ArrayLike,
+    cum: ArrayLike,
+    gt_time: ArrayLike,
+    gt_step: ArrayLike,
+    offsets: ArrayLike,
     scale: float,
 ) -> NDArray[np.float64]:
     """The clock-alignment cost of ``pronet.recorded.alignment.estimate_gt_clock`` for the clocks

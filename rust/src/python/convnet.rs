@@ -1,7 +1,7 @@
 //! `ConvNet`: the forward pass of a ProNet CNN regressor in the core, built from the
 //! torch model's weights (`pronet.models.BaselineNet.native`).
 
-use super::convert::{arg_threads, describe, text_arg, window_rows};
+use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
 use crate::montecarlo::Workers;
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
@@ -20,11 +20,11 @@ pub struct PyConvNet {
 }
 
 fn vector(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f32>> {
-    let arr: PyReadonlyArray1<f32> = obj.extract().map_err(|_| {
+    let arr: PyReadonlyArray1<f32> = real_array(obj, "float32").ok_or_else(|| {
         invalid(
             arg,
             format!(
-                "expected a float32 array of shape (n,), got {}",
+                "expected real numbers of shape (n,) (taken as float32), got {}",
                 describe(obj)
             ),
         )
@@ -48,7 +48,7 @@ fn block(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<ConvBlockWeights> {
         )
     })?;
     let (weight, bias, gamma, beta, stride, eps) = parts;
-    let w: PyReadonlyArray3<f32> = weight.extract().map_err(|_| {
+    let w: PyReadonlyArray3<f32> = real_array(&weight, "float32").ok_or_else(|| {
         invalid(
             &arg,
             format!(
@@ -78,7 +78,7 @@ fn dense(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<DenseWeights> {
     let (weight, bias): (Bound<PyAny>, Bound<PyAny>) = obj
         .extract()
         .map_err(|_| invalid(&arg, "expected (weight, bias) with float32 arrays"))?;
-    let w: PyReadonlyArray2<f32> = weight.extract().map_err(|_| {
+    let w: PyReadonlyArray2<f32> = real_array(&weight, "float32").ok_or_else(|| {
         invalid(
             &arg,
             format!(

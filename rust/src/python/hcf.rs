@@ -1,7 +1,7 @@
 //! `HcfEnsemble`: the handcrafted-feature ensemble's prediction in the core, built from
 //! the exported trees (`pronet.hcf.HCFEnsemble.frozen`).
 
-use super::convert::{arg_threads, describe, text_arg, window_rows};
+use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
 use crate::montecarlo::Workers;
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
@@ -21,11 +21,11 @@ fn array<T: numpy::Element + Copy>(
     arg: &str,
     dtype: &str,
 ) -> PyResult<Vec<T>> {
-    let arr: PyReadonlyArray1<T> = obj.extract().map_err(|_| {
+    let arr: PyReadonlyArray1<T> = real_array(obj, dtype).ok_or_else(|| {
         invalid(
             arg,
             format!(
-                "expected a {dtype} array of shape (n,), got {}",
+                "expected numbers of shape (n,) (taken as {dtype}), got {}",
                 describe(obj)
             ),
         )
