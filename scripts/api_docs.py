@@ -11,10 +11,12 @@ public module of the package, the top-level ones first, then each subpackage and
 modules (not ``cli``): its docstring, then its public classes (with their own public
 methods and properties) and functions, in source order.
 
-The native classes and functions of ``pronet._core`` carry short runtime docstrings that
-point at the stub; their documentation and typed signatures are read from
-``python/pronet/_core.pyi`` with ``ast``, falling back to the runtime docstring and
-signature where the stub has none. Module-level constants are not listed.
+The documentation and typed signatures of the native classes and functions of
+``pronet._core`` are read from ``python/pronet/_core.pyi`` with ``ast`` (their runtime
+docstrings are the same text, written from the stub by ``scripts/core_docs.py``),
+falling back to the runtime signature where the stub has none. Module-level constants
+are not listed, but for the top-level namespace's tuples of names (``STATE_BLOCKS``):
+their value and ``#:`` comment.
 """
 
 from __future__ import annotations

@@ -166,17 +166,23 @@ class FilterConfig:
     @property
     def innovation_gate(self) -> float | None: ...
     @property
-    def dvl_calibration(self) -> bool: ...
+    def dvl_calibration(self) -> bool:
+        """Whether the DVL scale-factor and misalignment states are estimated (19 states)."""
     @property
-    def dvl_scale_sigma(self) -> float | None: ...
+    def dvl_scale_sigma(self) -> float | None:
+        """Initial 1σ of the DVL scale-factor error (None without the calibration states)."""
     @property
-    def dvl_misalignment_sigma(self) -> list[float] | None: ...
+    def dvl_misalignment_sigma(self) -> list[float] | None:
+        """Initial 1σ of the DVL misalignment about body x, y, z [rad] (None without them)."""
     @property
-    def dvl_scale_psd(self) -> float | None: ...
+    def dvl_scale_psd(self) -> float | None:
+        """Random-walk PSD of the DVL scale factor [1/s] (None without the states)."""
     @property
-    def dvl_misalignment_psd(self) -> float | None: ...
+    def dvl_misalignment_psd(self) -> float | None:
+        """Random-walk PSD of each misalignment angle [rad²/s] (None without the states)."""
     @property
-    def formulation(self) -> Literal["invariant", "classic"]: ...
+    def formulation(self) -> Literal["invariant", "classic"]:
+        """The velocity-error coordinates the filter runs in: "invariant" or "classic"."""
 
 @final
 class Strategy:
@@ -209,7 +215,8 @@ class Strategy:
     @property
     def label(self) -> str: ...
     @property
-    def q(self) -> list[float]: ...
+    def q(self) -> list[float]:
+        """q of a constant strategy, the prior q of the others; empty for the oracle."""
     @property
     def window(self) -> int | None: ...
 
@@ -247,7 +254,8 @@ class SensorConfig:
     @property
     def imu_bias_psd(self) -> list[float]: ...
     @property
-    def dvl_outages(self) -> NDArray[np.float64]: ...
+    def dvl_outages(self) -> NDArray[np.float64]:
+        """``(k, 2)`` DVL outages ``[start, end)`` [s]."""
     @property
     def dvl_variance(self) -> list[float]: ...
     @property
@@ -255,9 +263,11 @@ class SensorConfig:
     @property
     def lever_arm(self) -> list[float]: ...
     @property
-    def dvl_scale(self) -> float: ...
+    def dvl_scale(self) -> float:
+        """The DVL's scale-factor error k: it reads ``(1 + k)`` times the true velocity."""
     @property
-    def dvl_misalignment(self) -> list[float]: ...
+    def dvl_misalignment(self) -> list[float]:
+        """The DVL's roll, pitch, yaw in the body frame [rad] (its mounting misalignment)."""
 
 def run_filter(
     imu: ArrayLike,
@@ -311,7 +321,7 @@ class Ensemble:
     ``advance()`` steps every run to the next tuning instant (see
     :func:`tuning_instants`; ``window`` 1 to the trajectory's length) and returns the
     last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, window)`` oldest
-    first, or None at the end; ``set_q(q)`` with ``q`` float64 ``(n_runs, 6)`` sets each
+    first, or None at the end; ``set_q(q)`` with ``q`` ``(n_runs, 6)`` sets each
     run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
     ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
     (KeyboardInterrupt); the ensemble is then unusable (ValueError).
@@ -337,7 +347,7 @@ class Ensemble:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""
     def set_q(self, q: ArrayLike) -> None:
-        """Set each run's IMU variances: ``q`` float64 ``(n_runs, 6)``."""
+        """Set each run's IMU variances: ``q`` ``(n_runs, 6)``."""
     def finish(self) -> dict[str, Any]:
         """Run to the end; the results as :func:`monte_carlo` returns them. The
         ensemble cannot be used afterwards."""
@@ -373,7 +383,7 @@ class ConvNet:
     ``prepare``: ``"centre"`` or ``"detrend"``; ``scaling``: ``"fixed"`` (uses
     ``input_scale`` and ``q_scale``) or ``"spread"``. ``blocks``: per convolution block
     ``(weight (c_out, c_in, kernel), bias, norm_weight, norm_bias, stride, eps)``;
-    ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays float32.
+    ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays taken as float32.
     ``ramp``: the ``(window,)`` ramp a ``"detrend"`` net projects out, as the torch
     model stores it (None: the exact unit-norm centred ramp). ``threads``: worker
     threads for ``predict`` (None: all cores). Computes in float64.
@@ -394,7 +404,7 @@ class ConvNet:
         threads: int | None = None,
     ) -> ConvNet: ...
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
-        """q ``(n,)`` [(unit)² per sample] for windows float32 ``(n, window)``."""
+        """q ``(n,)`` [(unit)² per sample] for windows ``(n, window)`` (taken as float32)."""
     @property
     def window(self) -> int: ...
 
@@ -421,7 +431,7 @@ class HcfEnsemble:
         threads: int | None = None,
     ) -> HcfEnsemble: ...
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
-        """q ``(n,)`` for windows float64 ``(n, window)``."""
+        """q ``(n,)`` for windows ``(n, window)``."""
     @property
     def window(self) -> int: ...
 

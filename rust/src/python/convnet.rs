@@ -12,7 +12,17 @@ use numpy::{
 use pyo3::prelude::*;
 use std::sync::Arc;
 
-/// A CNN regressor's forward pass (see `_core.pyi`).
+/// The forward pass of a ProNet CNN regressor (``pronet.learn.models.BaselineNet`` or
+/// ``DetrendNet``) from its torch weights; build it with
+/// :meth:`pronet.learn.models.BaselineNet.native`.
+///
+/// ``prepare``: ``"centre"`` or ``"detrend"``; ``scaling``: ``"fixed"`` (uses
+/// ``input_scale`` and ``q_scale``) or ``"spread"``. ``blocks``: per convolution block
+/// ``(weight (c_out, c_in, kernel), bias, norm_weight, norm_bias, stride, eps)``;
+/// ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays taken as float32.
+/// ``ramp``: the ``(window,)`` ramp a ``"detrend"`` net projects out, as the torch
+/// model stores it (None: the exact unit-norm centred ramp). ``threads``: worker
+/// threads for ``predict`` (None: all cores). Computes in float64.
 #[pyclass(name = "ConvNet", module = "pronet._core", frozen)]
 pub struct PyConvNet {
     inner: Arc<ConvNet>,
@@ -163,7 +173,7 @@ impl PyConvNet {
         })
     }
 
-    /// q `(n,)` float64 for windows `(n, window)` float32.
+    /// q ``(n,)`` [(unit)² per sample] for windows ``(n, window)`` (taken as float32).
     fn predict<'py>(
         &self,
         py: Python<'py>,

@@ -9,7 +9,13 @@ use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use std::sync::Arc;
 
-/// The HCF ensemble's prediction (see `_core.pyi`).
+/// The handcrafted-feature ensemble's prediction (``pronet.learn.hcf.HCFEnsemble``) from
+/// its exported trees; build it with :meth:`pronet.learn.hcf.HCFEnsemble.frozen`.
+///
+/// ``gb``, ``rf``: ``(left, right, feature, roots)`` int32 and ``threshold``, ``value``
+/// float64 arrays, in the order ``(left, right, feature, threshold, value, roots)``;
+/// ``target``: ``"q"`` or ``"log-ratio"``. ``threads``: worker threads for ``predict``
+/// (None: all cores).
 #[pyclass(name = "HcfEnsemble", module = "pronet._core", frozen)]
 pub struct PyHcfEnsemble {
     inner: Arc<HcfEnsemble>,
@@ -93,7 +99,7 @@ impl PyHcfEnsemble {
         })
     }
 
-    /// q `(n,)` float64 for windows `(n, window)` float64.
+    /// q ``(n,)`` for windows ``(n, window)``.
     fn predict<'py>(
         &self,
         py: Python<'py>,

@@ -143,6 +143,9 @@ fn history_arrays<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, res: &McResult) 
     Ok(())
 }
 
+/// A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
+/// ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :data:`MAX_THREADS`
+/// (None: all cores).
 #[pyfunction(name = "monte_carlo")]
 #[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
 #[allow(clippy::too_many_arguments)]
@@ -176,9 +179,9 @@ fn py_monte_carlo<'py>(
     result_dict(py, &res)
 }
 
-/// The core's memory rule for `n_runs` runs of `trajectory` (see
-/// `Scenario::check_result_size`), without running anything: a sweep checks its whole
-/// grid with it before it plans a shard.
+/// ``ValueError`` naming ``n_runs`` if the records of ``n_runs`` runs of
+/// ``trajectory`` would exceed the core's memory limit (4 GiB), as :func:`monte_carlo`
+/// checks before it allocates; nothing is run.
 #[pyfunction(name = "check_result_size")]
 #[pyo3(signature = (trajectory, sensors, *, n_runs, record_every = 0))]
 fn py_check_result_size(
