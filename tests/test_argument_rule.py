@@ -133,6 +133,13 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
             pronet.mechanize(f(IMU), 0.01, *(f(v) for v in NAV0.values())).vel,
         ),
     ),
+    "local_ned": (
+        ("pronet.local_ned", "pronet.lla_from_ned"),
+        lambda f: (
+            pronet.local_ned(f(TRAJ.lla), f(LLA0)),
+            pronet.lla_from_ned(f([[10.0, -5.0, 1.0]]), f(LLA0)),
+        ),
+    ),
     "configs": (
         ("_core.FilterConfig", "_core.SensorConfig"),
         lambda f: (repr(_filter_config(f)), repr(_sensors(f)), _sensors(f).dvl_outages),

@@ -23,7 +23,7 @@ from pronet._core import (
 )
 from pronet.filter import FilterResult, run_filter
 from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
-from pronet.navigation import NavSolution, mechanize
+from pronet.navigation import NavSolution, lla_from_ned, local_ned, mechanize
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
 
 __all__ = [
@@ -41,6 +41,8 @@ __all__ = [
     "builtin_trajectory",
     "builtin_trajectory_names",
     "earth_radii",
+    "lla_from_ned",
+    "local_ned",
     "mechanize",
     "monte_carlo",
     "normal_gravity",

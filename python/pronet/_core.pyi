@@ -21,6 +21,8 @@ __all__ = [
     "MAX_RUN_INDEX",
     "MAX_GRAVITY_HEIGHT",
     "MAX_LATITUDE_DEG",
+    "WGS84_A",
+    "WGS84_F",
     "Trajectory",
     "builtin_trajectory",
     "builtin_trajectory_names",
@@ -51,6 +53,9 @@ MAX_RUN_INDEX: int
 MAX_GRAVITY_HEIGHT: float
 #: Largest |latitude| [°] a navigation state may start at (``earth::MAX_LATITUDE_DEG``).
 MAX_LATITUDE_DEG: float
+#: WGS-84 semi-major axis [m] and flattening (``earth::A``, ``earth::F``).
+WGS84_A: float
+WGS84_F: float
 
 @final
 class Trajectory:
