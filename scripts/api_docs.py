@@ -11,10 +11,12 @@ public module of the package, the top-level ones first, then each subpackage and
 modules (not ``cli``): its docstring, then its public classes (with their own public
 methods and properties) and functions, in source order.
 
-The native classes and functions of ``pronet._core`` carry short runtime docstrings that
-point at the stub; their documentation and typed signatures are read from
-``python/pronet/_core.pyi`` with ``ast``, falling back to the runtime docstring and
-signature where the stub has none. Module-level constants are not listed.
+The documentation and typed signatures of the native classes and functions of
+``pronet._core`` are read from ``python/pronet/_core.pyi`` with ``ast`` (their runtime
+docstrings are the same text, written from the stub by ``scripts/core_docs.py``),
+falling back to the runtime signature where the stub has none. Module-level constants
+are not listed, but for the top-level namespace's tuples of names (``STATE_BLOCKS``):
+their value and ``#:`` comment.
 """
 
 from __future__ import annotations
@@ -411,6 +413,9 @@ class Page:
             sig = entry.signature if entry else _runtime_sig(obj)
             self.code(_wrap(name, sig))
             self.text(_native_doc(entry, obj))
+        elif entry is None and isinstance(obj, tuple) and all(isinstance(x, str) for x in obj):
+            self.code(f"{name} = {obj!r}")
+            self.text(_comment_doc(name) or "Module attribute.")
         else:
             ann = entry.signature if entry else f": {type(obj).__name__}"
             self.code(f"{name}{ann}")
@@ -492,6 +497,25 @@ class Page:
             "",
         ]
         return "\n".join(head + self.body).rstrip("\n") + "\n"
+
+
+def _comment_doc(name: str) -> str:
+    """The ``#:`` comment above ``name = ...`` in the package module it is imported from
+    into ``pronet`` (how the package documents its constants), or ``""``."""
+    import pronet
+
+    package = Path(pronet.__file__).resolve().parent
+    for node in ast.parse((package / "__init__.py").read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.ImportFrom) and any(a.name == name for a in node.names):
+            module = (node.module or "").removeprefix("pronet.").replace(".", "/")
+            lines = (package / f"{module}.py").read_text(encoding="utf-8").splitlines()
+            for i, line in enumerate(lines):
+                if re.match(rf"{name}\b.*=", line):
+                    j = i
+                    while j > 0 and lines[j - 1].startswith("#:"):
+                        j -= 1
+                    return "\n".join(x.removeprefix("#:").strip() for x in lines[j:i])
+    return ""
 
 
 def _is_getset(value: Any) -> bool:

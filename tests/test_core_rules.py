@@ -113,9 +113,9 @@ def test_q_schedule_and_ensemble_give_the_same_tuning_error(period, text) -> Non
     with pytest.raises(ValueError) as ens:
         pronet.Ensemble(
             short_trajectory(),
-            pronet.SensorConfig(),
-            pronet.FilterConfig(),
             PAPER_Q,
+            sensors=pronet.SensorConfig(),
+            config=pronet.FilterConfig(),
             n_runs=1,
             window=3,
             tuning_period=period,
@@ -193,9 +193,9 @@ def test_ensemble_stops_at_the_tuning_instants() -> None:
     traj = short_trajectory()
     ens = pronet.Ensemble(
         traj,
-        pronet.SensorConfig(),
-        pronet.FilterConfig(),
         PAPER_Q,
+        sensors=pronet.SensorConfig(),
+        config=pronet.FilterConfig(),
         n_runs=1,
         window=30,
         tuning_period=0.125,  # 12.5 samples: 13, not 12

@@ -197,3 +197,54 @@ def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
     )
     with pytest.raises(ValueError, match="no study-tables markers"):
         study_docs.render("# no markers\n", "x")
+
+
+def test_api_reference_lists_the_state_blocks() -> None:
+    import pronet
+
+    assert "STATE_BLOCKS" in pronet.__all__
+    assert f"STATE_BLOCKS = {pronet.STATE_BLOCKS!r}" in API.read_text(encoding="utf-8")
+
+
+def _script(name: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _runtime_doc(name: str) -> str:
+    """The built module's ``__doc__`` of ``X`` or ``X.member``, cleaned."""
+    import inspect
+
+    from pronet import _core
+
+    owner, _, member = name.partition(".")
+    obj = getattr(_core, owner)
+    if member:
+        obj = inspect.getattr_static(obj, member)
+        obj = obj.__func__ if isinstance(obj, staticmethod) else obj
+    doc = obj.__doc__
+    return inspect.cleandoc(doc) if isinstance(doc, str) else ""
+
+
+def test_native_docstrings_at_run_time_are_the_stubs() -> None:
+    """help() at the prompt shows the stub's text: one source (``_core.pyi``), written
+    into the bindings' doc comments by ``scripts/core_docs.py``."""
+    docs = _script("core_docs").stub_docs()
+    assert len(docs) > 60 and docs["Strategy.adaptive"].startswith("q = λ·prior_q")
+    differ = [name for name, doc in docs.items() if _runtime_doc(name) != doc]
+    assert not differ, f"runtime docstrings differ from _core.pyi: {differ}"
+    from pronet import _core
+
+    public = {n for n in _core.__all__ if callable(getattr(_core, n))}
+    assert public <= set(docs), "a native callable the stub does not describe"
+
+
+def test_binding_doc_comments_are_written_from_the_stub(capsys) -> None:
+    core_docs = _script("core_docs")
+    assert core_docs.main(["--check"]) == 0, capsys.readouterr().err
+    rust = (ROOT / "rust" / "src" / "python" / "strategy.rs").read_text(encoding="utf-8")
+    stale = rust.replace("/// Constant Q^c from 6", "/// Constant Q from 6")
+    assert core_docs.rewrite(stale, core_docs.stub_docs(), set()) == rust

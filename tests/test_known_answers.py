@@ -90,3 +90,39 @@ def test_builtin_trajectories_have_the_documented_lengths(paper_trajectory) -> N
     )
     for name in ("train-straight", "train-turns", "train-zigzag", "train-helix"):
         assert pronet.builtin_trajectory(name).imu.shape == (40_000, 6)
+
+
+WGS84_B = 6356752.314245  # the WGS-84 semi-minor axis [m], as published
+
+
+def test_local_ned_known_answers_on_the_wgs84_ellipsoid() -> None:
+    a = 6378137.0
+    equator = (0.0, 0.0, 0.0)
+    np.testing.assert_allclose(pronet.local_ned([0.0, 0.0, 100.0], equator), [0, 0, -100])
+    # A quarter turn east along the equator: a east of and a below the origin's plane.
+    np.testing.assert_allclose(pronet.local_ned([0.0, math.pi / 2, 0.0], equator), [0, a, a])
+    # The north pole: the semi-minor axis north, a below.
+    pole = pronet.local_ned([[math.pi / 2, 0.0, 0.0]], equator)
+    np.testing.assert_allclose(pole, [[WGS84_B, 0.0, a]], atol=1e-6)
+    # Small offsets: the radii of curvature (the core's) times the angles.
+    origin = np.array([math.radians(32.0), math.radians(34.0), -5.0])
+    d = 1e-7
+    ned = pronet.local_ned(origin + [d, 0.0, 0.0], origin)
+    m, n = pronet.earth_radii(origin[0])
+    assert ned[0] == pytest.approx(d * (m + origin[2]), rel=1e-6) and abs(ned[1]) < 1e-9
+    ned = pronet.local_ned(origin + [0.0, d, 0.0], origin)
+    assert ned[1] == pytest.approx(d * (n + origin[2]) * math.cos(origin[0]), rel=1e-6)
+
+
+@pytest.mark.parametrize("lat_deg", [-89.0, -32.0, 0.0, 45.0, 89.0])
+def test_lla_from_ned_inverts_local_ned(lat_deg: float) -> None:
+    origin = np.array([math.radians(lat_deg), math.radians(-170.0), 120.0])
+    ned = np.random.default_rng(3).uniform(-1e5, 1e5, size=(50, 3))
+    lla = pronet.lla_from_ned(ned, origin)
+    assert lla.shape == (50, 3)
+    np.testing.assert_allclose(pronet.local_ned(lla, origin), ned, atol=1e-6)
+    np.testing.assert_allclose(pronet.lla_from_ned(np.zeros(3), origin), origin, atol=1e-9)
+    with pytest.raises(ValueError, match="^origin"):
+        pronet.local_ned(lla, [3.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="^lla"):
+        pronet.local_ned([[0.0, 0.0]], origin)

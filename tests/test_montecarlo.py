@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -97,9 +100,9 @@ def test_histories_have_documented_shapes(paper_trajectory) -> None:
 def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
     ens = pronet.Ensemble(
         paper_trajectory,
-        pronet.SensorConfig(),
-        MATCHED,
         PAPER_Q,
+        sensors=pronet.SensorConfig(),
+        config=MATCHED,
         n_runs=3,
         seed=2,
         window=200,
@@ -118,12 +121,31 @@ def test_ensemble_round_trip_and_outside_tuning(paper_trajectory) -> None:
         stops += 1
     assert stops == 32 and ens.done
     res = ens.finish()
-    q = res["q"]
+    assert isinstance(res, pronet.MonteCarloResult) and res.n_runs == 3
+    q = res.q
     assert q.shape == (3, 34, 6)
     np.testing.assert_array_equal(q[:, 1, 0], 1e-4)  # prior until the first tuning
     np.testing.assert_array_equal(q[:, -1, 0], 4e-4)
     with pytest.raises(ValueError, match="already finished"):
         ens.advance()
+
+
+def test_ensemble_takes_monte_carlos_arguments_and_returns_its_result(paper_trajectory) -> None:
+    mc = inspect.signature(pronet.monte_carlo).parameters
+    ens = inspect.signature(pronet.Ensemble).parameters
+    shared = [name for name in mc if name != "strategy"]
+    assert [n for n in ens if n in shared] == shared
+    for name in shared:
+        assert (ens[name].kind, ens[name].default) == (mc[name].kind, mc[name].default), name
+    assert ens["n_runs"].default == 100 and ens["sensors"].default is None
+    # Never tuned, the ensemble's runs are a constant strategy's at its prior, run by run.
+    tuned = pronet.Ensemble(paper_trajectory, PAPER_Q, n_runs=2, seed=3).finish()
+    const = pronet.monte_carlo(
+        paper_trajectory, pronet.Strategy.constant(PAPER_Q), n_runs=2, seed=3
+    )
+    assert isinstance(tuned, pronet.MonteCarloResult)
+    for name in ("srmse", "nis", "nees", "final_horizontal_error"):
+        np.testing.assert_array_equal(getattr(tuned, name), getattr(const, name), err_msg=name)
 
 
 def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> None:
@@ -227,3 +249,28 @@ def test_nees_in_band_is_the_share_of_epochs_a_consistent_filter_keeps_inside() 
     with pytest.raises(ValueError, match="^block: expected one of"):
         r.nees_in_band("heading")
     assert "attitude_nees" in r.summary() and "attitude_nees" in r.to_dataframe()
+
+
+def test_summary_reports_every_blocks_nees_with_its_band() -> None:
+    rng = np.random.default_rng(7)
+    honest = rng.chisquare(3, size=(20, 300, 5))
+    scale = np.array([1.0, 1.0, 4.0, 0.25, 1.0])  # attitude overconfident, accel bias shy
+    r = _with_nees(honest * scale, ["diverged"] + [None] * 19)
+    r = dataclasses.replace(r, nees=np.where(np.arange(20)[:, None, None] == 0, np.nan, r.nees))
+    summary, row = r.summary(), r.summary_row()
+    low, high = chi2.ppf([0.025, 0.975], 3 * 19) / 19  # the band of 19 runs' mean
+    assert row["nees_band_low"] == pytest.approx(low, rel=2e-3)
+    assert row["nees_band_high"] == pytest.approx(high, rel=2e-3)
+    for i, block in enumerate(STATE_BLOCKS):
+        per_run = (honest * scale)[1:, :, i].mean(axis=1)
+        assert summary[f"{block}_nees"].mean == pytest.approx(per_run.mean()), block
+        assert summary[f"{block}_nees"].n == 19
+        assert row[f"{block}_nees"] == pytest.approx(3.0 * scale[i], rel=0.05), block
+        inside = row[f"{block}_nees_in_band"]
+        assert (0.9 < inside < 0.99) if scale[i] == 1.0 else inside < 0.05, block
+    # The same names in the per-run table and the result schema.
+    assert {f"{b}_nees" for b in STATE_BLOCKS} <= set(r.to_dataframe().columns)
+    from pronet.results import SUMMARY_COLUMNS
+
+    assert list(row) == [c for c in SUMMARY_COLUMNS if c in row]
+    assert {f"{b}_nees_in_band" for b in STATE_BLOCKS} <= set(SUMMARY_COLUMNS)

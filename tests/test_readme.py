@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,6 +51,10 @@ def _python_md(ns: dict) -> None:
     assert ns["mine"].time[-1] == 75.0  # 30 s + 45 s of segments
     assert ns["res"].error.shape == ns["res"].sigma.shape == (10, 76, 15)  # every 1 s
     assert ns["out"].nis.shape == (10,)  # one NIS per DVL reading
+    assert len(ns["table"]) == len(ns["out"].time)
+    np.testing.assert_allclose(ns["back"], ns["out"].lla, rtol=0, atol=1e-8)  # ECEF rounding
+    assert ns["mine_result"].n_runs == 4 and ns["mine_result"].q is None
+    assert ns["mine_result"].summary()["position_nees"].n == 4
 
 
 def _learning_md(ns: dict) -> None:

@@ -11,9 +11,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import pronet
 from pronet import _core, cli, config, results
 from pronet.run import Recorded, run
 from pronet.strategies import StrategySpec, strategy
+
+from conftest import PAPER_Q
 
 PACKAGE = Path(__file__).resolve().parents[1] / "python" / "pronet"
 
@@ -126,3 +129,31 @@ def test_run_refuses_what_its_target_cannot_take() -> None:
         run(adaptive, rec)
     one = dataclasses.replace(rec, dvl=np.zeros((1, 3)), dvl_time=np.array([0.02]))
     assert run(strategy(StrategySpec.parse("adaptive:1"), q), one).result.time.shape == (4,)
+
+
+def test_filter_result_to_dataframe_has_every_epoch_and_update() -> None:
+    from pronet.filter import EPOCH_COLUMNS, UPDATE_COLUMNS
+
+    traj = pronet.builtin_trajectory("paper")
+    n = 500
+    dvl_t = np.array([1.0, 2.0, 3.0, 99.0])  # the last after the run
+    out = pronet.run_filter(
+        traj.imu[:n], traj.time[1 : n + 1], np.tile(traj.vel_ned[0], (4, 1)), dvl_t,
+        t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+        config=pronet.FilterConfig(aiding="nav"), strategy=pronet.Strategy.constant(PAPER_Q),
+    )  # fmt: skip
+    epochs = out.to_dataframe()
+    assert tuple(epochs.columns) == EPOCH_COLUMNS and len(epochs) == n + 1
+    np.testing.assert_array_equal(epochs["time"], out.time)
+    np.testing.assert_array_equal(epochs[["lat", "lon", "h"]], out.lla)
+    np.testing.assert_array_equal(epochs["yaw"], out.rpy[:, 2])
+    np.testing.assert_array_equal(epochs["bias_gz"], out.bias[:, 5])
+    np.testing.assert_array_equal(epochs["sigma_psi_d"], out.sigma[:, 8])
+    updates = out.to_dataframe("updates")
+    assert tuple(updates.columns) == UPDATE_COLUMNS and len(updates) == 4
+    np.testing.assert_allclose(updates["time"][:3], [1.0, 2.0, 3.0], atol=1e-9)
+    assert np.isnan(updates["time"][3]) and updates["dvl_epoch"][3] == -1
+    np.testing.assert_array_equal(updates["innovation_z"], out.innovation[:, 2])
+    assert list(updates["accepted"]) == [True, True, True, False]
+    with pytest.raises(ValueError, match="^rows"):
+        out.to_dataframe("runs")

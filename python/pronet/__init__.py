@@ -12,7 +12,6 @@ attitude is roll, pitch, yaw (ZYX) in rad; IMU samples are
 """
 
 from pronet._core import (
-    Ensemble,
     FilterConfig,
     SensorConfig,
     Strategy,
@@ -23,8 +22,8 @@ from pronet._core import (
     normal_gravity,
 )
 from pronet.filter import FilterResult, run_filter
-from pronet.montecarlo import MonteCarloResult, monte_carlo
-from pronet.navigation import NavSolution, mechanize
+from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
+from pronet.navigation import NavSolution, lla_from_ned, local_ned, mechanize
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
 
 __all__ = [
@@ -33,6 +32,7 @@ __all__ = [
     "FilterResult",
     "MonteCarloResult",
     "NavSolution",
+    "STATE_BLOCKS",
     "Segment",
     "SensorConfig",
     "Strategy",
@@ -41,6 +41,8 @@ __all__ = [
     "builtin_trajectory",
     "builtin_trajectory_names",
     "earth_radii",
+    "lla_from_ned",
+    "local_ned",
     "mechanize",
     "monte_carlo",
     "normal_gravity",

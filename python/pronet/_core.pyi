@@ -3,15 +3,17 @@
 Conventions: NED navigation frame, FRD body frame; positions ``[lat rad, lon rad, h m]``
 (height positive up); attitude roll, pitch, yaw (ZYX) in rad; IMU rows
 ``[f_x, f_y, f_z, w_x, w_y, w_z]`` in m/s² and rad/s. q is the per-sample variance of an
-IMU channel. Array arguments must be float64 numpy arrays (the :mod:`pronet` wrappers
-convert array-likes). Every error raises ``ValueError`` starting with the argument's name.
+IMU channel. Array arguments take real numbers in any form alike: NumPy arrays of any
+integer or float dtype and layout, nested lists and tuples (booleans, complex numbers,
+strings and objects are refused). Every error raises ``ValueError`` starting with the
+argument's name.
 Heavy calls release the GIL.
 """
 
 from typing import Any, Literal, final
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "__version__",
@@ -22,6 +24,8 @@ __all__ = [
     "MAX_RUN_INDEX",
     "MAX_GRAVITY_HEIGHT",
     "MAX_LATITUDE_DEG",
+    "WGS84_A",
+    "WGS84_F",
     "Trajectory",
     "builtin_trajectory",
     "builtin_trajectory_names",
@@ -62,6 +66,9 @@ MAX_RUN_INDEX: int
 MAX_GRAVITY_HEIGHT: float
 #: Largest |latitude| [°] a navigation state may start at (``earth::MAX_LATITUDE_DEG``).
 MAX_LATITUDE_DEG: float
+#: WGS-84 semi-major axis [m] and flattening (``earth::A``, ``earth::F``).
+WGS84_A: float
+WGS84_F: float
 
 @final
 class Trajectory:
@@ -105,7 +112,7 @@ def builtin_trajectory_names() -> list[str]:
     """Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`)."""
 
 def trajectory_from_segments(
-    segments: NDArray[np.float64],
+    segments: ArrayLike,
     *,
     lla0: Any,
     speed0: float,
@@ -121,7 +128,7 @@ def earth_radii(lat: float) -> tuple[float, float]:
     """Meridian and prime-vertical radii of curvature [m]."""
 
 def mechanize(
-    imu: NDArray[np.float64], dt: float, lla0: Any, vel0: Any, rpy0: Any
+    imu: ArrayLike, dt: float, lla0: Any, vel0: Any, rpy0: Any
 ) -> dict[str, NDArray[np.float64]]:
     """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
     IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
@@ -177,17 +184,23 @@ class FilterConfig:
     @property
     def innovation_gate(self) -> float | None: ...
     @property
-    def dvl_calibration(self) -> bool: ...
+    def dvl_calibration(self) -> bool:
+        """Whether the DVL scale-factor and misalignment states are estimated (19 states)."""
     @property
-    def dvl_scale_sigma(self) -> float | None: ...
+    def dvl_scale_sigma(self) -> float | None:
+        """Initial 1σ of the DVL scale-factor error (None without the calibration states)."""
     @property
-    def dvl_misalignment_sigma(self) -> list[float] | None: ...
+    def dvl_misalignment_sigma(self) -> list[float] | None:
+        """Initial 1σ of the DVL misalignment about body x, y, z [rad] (None without them)."""
     @property
-    def dvl_scale_psd(self) -> float | None: ...
+    def dvl_scale_psd(self) -> float | None:
+        """Random-walk PSD of the DVL scale factor [1/s] (None without the states)."""
     @property
-    def dvl_misalignment_psd(self) -> float | None: ...
+    def dvl_misalignment_psd(self) -> float | None:
+        """Random-walk PSD of each misalignment angle [rad²/s] (None without the states)."""
     @property
-    def formulation(self) -> Literal["invariant", "classic"]: ...
+    def formulation(self) -> Literal["invariant", "classic"]:
+        """The velocity-error coordinates the filter runs in: "invariant" or "classic"."""
 
 @final
 class Strategy:
@@ -220,7 +233,8 @@ class Strategy:
     @property
     def label(self) -> str: ...
     @property
-    def q(self) -> list[float]: ...
+    def q(self) -> list[float]:
+        """q of a constant strategy, the prior q of the others; empty for the oracle."""
     @property
     def window(self) -> int | None: ...
 
@@ -258,7 +272,8 @@ class SensorConfig:
     @property
     def imu_bias_psd(self) -> list[float]: ...
     @property
-    def dvl_outages(self) -> NDArray[np.float64]: ...
+    def dvl_outages(self) -> NDArray[np.float64]:
+        """``(k, 2)`` DVL outages ``[start, end)`` [s]."""
     @property
     def dvl_variance(self) -> list[float]: ...
     @property
@@ -266,15 +281,17 @@ class SensorConfig:
     @property
     def lever_arm(self) -> list[float]: ...
     @property
-    def dvl_scale(self) -> float: ...
+    def dvl_scale(self) -> float:
+        """The DVL's scale-factor error k: it reads ``(1 + k)`` times the true velocity."""
     @property
-    def dvl_misalignment(self) -> list[float]: ...
+    def dvl_misalignment(self) -> list[float]:
+        """The DVL's roll, pitch, yaw in the body frame [rad] (its mounting misalignment)."""
 
 def run_filter(
-    imu: NDArray[np.float64],
-    imu_time: NDArray[np.float64],
-    dvl: NDArray[np.float64],
-    dvl_time: NDArray[np.float64],
+    imu: ArrayLike,
+    imu_time: ArrayLike,
+    dvl: ArrayLike,
+    dvl_time: ArrayLike,
     *,
     t0: float,
     lla0: Any,
@@ -283,8 +300,8 @@ def run_filter(
     config: FilterConfig,
     strategy: Strategy,
     bias0: Any | None = None,
-    q_time: NDArray[np.float64] | None = None,
-    q: NDArray[np.float64] | None = None,
+    q_time: ArrayLike | None = None,
+    q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
@@ -333,7 +350,7 @@ class Ensemble:
     ``advance()`` steps every run to the next tuning instant (see
     :func:`tuning_instants`; ``window`` 1 to the trajectory's length) and returns the
     last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, window)`` oldest
-    first, or None at the end; ``set_q(q)`` with ``q`` float64 ``(n_runs, 6)`` sets each
+    first, or None at the end; ``set_q(q)`` with ``q`` ``(n_runs, 6)`` sets each
     run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
     ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
     (KeyboardInterrupt); the ensemble is then unusable (ValueError).
@@ -358,8 +375,8 @@ class Ensemble:
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""
-    def set_q(self, q: NDArray[np.float64]) -> None:
-        """Set each run's IMU variances: ``q`` float64 ``(n_runs, 6)``."""
+    def set_q(self, q: ArrayLike) -> None:
+        """Set each run's IMU variances: ``q`` ``(n_runs, 6)``."""
     def finish(self) -> dict[str, Any]:
         """Run to the end; the results as :func:`monte_carlo` returns them. The
         ensemble cannot be used afterwards."""
@@ -395,7 +412,7 @@ class ConvNet:
     ``prepare``: ``"centre"`` or ``"detrend"``; ``scaling``: ``"fixed"`` (uses
     ``input_scale`` and ``q_scale``) or ``"spread"``. ``blocks``: per convolution block
     ``(weight (c_out, c_in, kernel), bias, norm_weight, norm_bias, stride, eps)``;
-    ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays float32.
+    ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays taken as float32.
     ``ramp``: the ``(window,)`` ramp a ``"detrend"`` net projects out, as the torch
     model stores it (None: the exact unit-norm centred ramp). ``threads``: worker
     threads for ``predict`` (None: all cores). Computes in float64.
@@ -412,11 +429,11 @@ class ConvNet:
         input_scale: float = 0.1,
         q_scale: float = 0.01,
         negative_slope: float = 0.01,
-        ramp: NDArray[np.float32] | None = None,
+        ramp: ArrayLike | None = None,
         threads: int | None = None,
     ) -> ConvNet: ...
-    def predict(self, windows: NDArray[np.float32]) -> NDArray[np.float64]:
-        """q ``(n,)`` [(unit)² per sample] for windows float32 ``(n, window)``."""
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        """q ``(n,)`` [(unit)² per sample] for windows ``(n, window)`` (taken as float32)."""
     @property
     def window(self) -> int: ...
 
@@ -442,17 +459,17 @@ class HcfEnsemble:
         target: str,
         threads: int | None = None,
     ) -> HcfEnsemble: ...
-    def predict(self, windows: NDArray[np.float64]) -> NDArray[np.float64]:
-        """q ``(n,)`` for windows float64 ``(n, window)``."""
+    def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+        """q ``(n,)`` for windows ``(n, window)``."""
     @property
     def window(self) -> int: ...
 
 def attitude_increment_costs(
-    edges: NDArray[np.float64],
-    cum: NDArray[np.float64],
-    gt_time: NDArray[np.float64],
-    gt_step: NDArray[np.float64],
-    offsets: NDArray[np.float64],
+    edges: ArrayLike,
+    cum: ArrayLike,
+    gt_time: ArrayLike,
+    gt_step: ArrayLike,
+    offsets: ArrayLike,
     scale: float,
 ) -> NDArray[np.float64]:
     """The clock-alignment cost of ``pronet.recorded.alignment.estimate_gt_clock`` for the clocks

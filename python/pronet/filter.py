@@ -66,6 +66,75 @@ class FilterResult:
     accepted: NDArray[np.bool_]
     diverged_at: float | None
 
+    def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
+        """The result as a pandas table, SI units as the attributes.
+
+        ``rows="epochs"``: one row per epoch, columns :data:`EPOCH_COLUMNS` (``time``,
+        ``lat``, ``lon`` [rad], ``h`` [m], NED velocity, roll, pitch, yaw, the bias
+        estimates and the 1σ of the 15 error states), then with the DVL calibration
+        states :data:`CALIBRATION_COLUMNS` and their ``sigma_`` twins. ``rows="updates"``:
+        one row per DVL row, columns :data:`UPDATE_COLUMNS` (the epoch and its time, or
+        -1 and NaN for a row outside the run, the time NaN too for a pass run with
+        ``epochs="last"``; the innovation [m/s], body x, y, z or with
+        ``FilterConfig(aiding="nav")`` N, E, D; the NIS; whether it was applied).
+        """
+        import pandas as pd
+
+        if rows == "updates":
+            inside = self.dvl_epoch >= 0
+            t = np.full(len(self.dvl_epoch), np.nan)
+            if len(self.time) > int(self.dvl_epoch.max(initial=-1)):  # not epochs="last"
+                t[inside] = self.time[self.dvl_epoch[inside]]
+            data = {"dvl_epoch": self.dvl_epoch, "time": t}
+            data.update(zip(UPDATE_COLUMNS[2:5], self.innovation.T, strict=True))
+            data.update(nis=self.nis, accepted=self.accepted)
+            return pd.DataFrame(data, columns=list(UPDATE_COLUMNS))
+        if rows != "epochs":
+            raise ValueError(f'rows: expected "epochs" or "updates", got {rows!r}')
+        parts = [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
+        columns = list(EPOCH_COLUMNS)
+        if len(self.calibration):
+            parts += [self.calibration, self.calibration_sigma]
+            columns += [*CALIBRATION_COLUMNS, *(f"sigma_{c}" for c in CALIBRATION_COLUMNS)]
+        return pd.DataFrame(np.hstack(parts), columns=columns)
+
+
+#: The 15 error states, in order (:attr:`FilterResult.sigma`): NED position [m], NED
+#: velocity [m/s], attitude ψ [rad], accelerometer [m/s²] and gyro [rad/s] biases.
+ERROR_STATES = (
+    *(f"dp_{a}" for a in "ned"),
+    *(f"dv_{a}" for a in "ned"),
+    *(f"psi_{a}" for a in "ned"),
+    *(f"ba_{a}" for a in "xyz"),
+    *(f"bg_{a}" for a in "xyz"),
+)
+#: Columns of :meth:`FilterResult.to_dataframe` (one row per epoch).
+EPOCH_COLUMNS = (
+    "time",
+    "lat",
+    "lon",
+    "h",
+    *(f"vel_{a}" for a in "ned"),
+    "roll",
+    "pitch",
+    "yaw",
+    *(f"bias_a{a}" for a in "xyz"),
+    *(f"bias_g{a}" for a in "xyz"),
+    *(f"sigma_{s}" for s in ERROR_STATES),
+)
+#: The DVL calibration states' columns (with ``FilterConfig(dvl_calibration=True)``).
+CALIBRATION_COLUMNS = ("dvl_scale", "dvl_roll", "dvl_pitch", "dvl_yaw")
+#: Columns of :meth:`FilterResult.to_dataframe` with ``rows="updates"``.
+UPDATE_COLUMNS = (
+    "dvl_epoch",
+    "time",
+    "innovation_x",
+    "innovation_y",
+    "innovation_z",
+    "nis",
+    "accepted",
+)
+
 
 def run_filter(
     imu: ArrayLike,

@@ -6,6 +6,11 @@ whatever the thread count, a run's numbers do not depend on the other runs, a Mo
 split into shards (``first_run``) equals the same runs computed whole, and every
 strategy run with the same seed sees the same noise realizations (common random
 numbers): differences between strategies are paired.
+
+:class:`Ensemble` steps the same runs in lockstep for a q estimator of your own: it takes
+the arguments of :func:`monte_carlo` (an initial q in place of the strategy, and the
+window and tuning period of the loop), and its :meth:`~Ensemble.finish` returns the same
+:class:`MonteCarloResult`. The runs live in the native core (:class:`pronet._core.Ensemble`).
 """
 
 from __future__ import annotations
@@ -14,17 +19,20 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._util.validate import check_type
+from pronet._util.validate import check_type, float_array
 from pronet.stats import NON_NEGATIVE, SHARE, MeanCI, chi2_mean_band, mean_ci
 
 #: Run indices stay below 2^62: run i's random streams are numbered 4·i + k
 #: (``montecarlo::MAX_RUN_INDEX`` in Rust).
 MAX_RUN_INDEX = _core.MAX_RUN_INDEX
 
-#: Names of the five 3-blocks of the error state, in order.
+#: Names of the five 3-blocks of the error state, in order: NED position [m], NED
+#: velocity [m/s], attitude (the small rotation ψ [rad] of docs/filter.md), accelerometer bias
+#: [m/s²] and gyro bias [rad/s] (:meth:`MonteCarloResult.block_nees`,
+#: :meth:`MonteCarloResult.mean_nees`, :meth:`MonteCarloResult.nees_in_band`).
 STATE_BLOCKS = ("position", "velocity", "attitude", "accel_bias", "gyro_bias")
 
 #: A result whose block NEES lies inside its 95 % band at fewer than this share of the
@@ -112,18 +120,45 @@ class MonteCarloResult:
             return np.empty((self.n_runs, 0))
         return self.nees[:, :, STATE_BLOCKS.index(block)]
 
+    def mean_nees(self, block: str) -> NDArray[np.float64]:
+        """``(n_runs,)`` each run's mean NEES of one block of :data:`STATE_BLOCKS` over
+        the DVL epochs (3 dof: 3 when consistent, above 3 overconfident; NaN for a failed
+        run or one without epochs). The properties ``position_nees`` ...
+        ``gyro_bias_nees`` are this for each block."""
+        return _row_mean(self.block_nees(block))
+
+    @property
+    def position_nees(self) -> NDArray[np.float64]:
+        """``(n_runs,)`` mean NED position NEES (:meth:`mean_nees`)."""
+        return self.mean_nees("position")
+
     @property
     def velocity_nees(self) -> NDArray[np.float64]:
-        """``(n_runs,)`` mean velocity NEES over the DVL epochs (3 when consistent; NaN
-        for a failed run or one without epochs)."""
-        return _row_mean(self.block_nees("velocity"))
+        """``(n_runs,)`` mean NED velocity NEES (:meth:`mean_nees`)."""
+        return self.mean_nees("velocity")
 
     @property
     def attitude_nees(self) -> NDArray[np.float64]:
-        """``(n_runs,)`` mean attitude (roll, pitch, heading) NEES over the DVL epochs
-        (3 when consistent, above 3 overconfident; NaN for a failed run or one without
-        epochs)."""
-        return _row_mean(self.block_nees("attitude"))
+        """``(n_runs,)`` mean attitude (roll, pitch, heading) NEES (:meth:`mean_nees`)."""
+        return self.mean_nees("attitude")
+
+    @property
+    def accel_bias_nees(self) -> NDArray[np.float64]:
+        """``(n_runs,)`` mean accelerometer-bias NEES (:meth:`mean_nees`)."""
+        return self.mean_nees("accel_bias")
+
+    @property
+    def gyro_bias_nees(self) -> NDArray[np.float64]:
+        """``(n_runs,)`` mean gyro-bias NEES (:meth:`mean_nees`)."""
+        return self.mean_nees("gyro_bias")
+
+    def nees_band(self) -> tuple[float, float]:
+        """The 95 % band ``(low, high)`` of a consistent filter's 3-dof NEES averaged over
+        the runs that did not fail, at one epoch (:func:`pronet.stats.chi2_mean_band`):
+        what :meth:`nees_in_band` tests each epoch's mean against; NaN without such
+        runs."""
+        n_ok = self.n_runs - self.n_failed
+        return chi2_mean_band(3, n_ok) if n_ok > 0 else (float("nan"), float("nan"))
 
     def nees_in_band(self, block: str) -> float:
         """The share of DVL epochs at which ``block``'s NEES (:data:`STATE_BLOCKS`),
@@ -134,7 +169,7 @@ class MonteCarloResult:
         v = self.block_nees(block)[[f is None for f in self.failure]]
         if v.size == 0:
             return float("nan")
-        low, high = chi2_mean_band(3, v.shape[0])
+        low, high = self.nees_band()
         mean = v.mean(axis=0)
         return float(np.mean((mean >= low) & (mean <= high)))
 
@@ -184,6 +219,9 @@ class MonteCarloResult:
         "velocity_nees",
         "velocity_nees_3sigma",
         "attitude_nees",
+        "position_nees",
+        "accel_bias_nees",
+        "gyro_bias_nees",
         "rejected_updates",
         "diverged_at",
     )
@@ -200,11 +238,15 @@ class MonteCarloResult:
 
     def summary_row(self) -> dict[str, float | int]:
         """:meth:`summary` flattened for a table: ``srmse``, ``srmse_low``,
-        ``srmse_high`` ... (mean and 95 % CI bounds, units as the attributes), then
-        ``runs``, ``failed_runs`` and ``diverged_runs``."""
+        ``srmse_high`` ... (mean and 95 % CI bounds, units as the attributes; every
+        block's NEES among them), then each block's ``{block}_nees_in_band``
+        (:meth:`nees_in_band`), the band ``nees_band_low`` and ``nees_band_high``
+        (:meth:`nees_band`), ``runs``, ``failed_runs`` and ``diverged_runs``."""
         row: dict[str, float | int] = {}
         for name, ci in self.summary().items():
             row.update({name: ci.mean, f"{name}_low": ci.low, f"{name}_high": ci.high})
+        row.update({f"{b}_nees_in_band": self.nees_in_band(b) for b in STATE_BLOCKS})
+        row["nees_band_low"], row["nees_band_high"] = self.nees_band()
         row.update(runs=self.n_runs, failed_runs=self.n_failed, diverged_runs=self.n_diverged)
         return row
 
@@ -213,9 +255,12 @@ class MonteCarloResult:
     SUMMARIZED = tuple(m for m in PER_RUN if m not in ("rejected_updates", "diverged_at"))
 
     def summary(self) -> dict[str, MeanCI]:
-        """Mean and 95 % CI over runs of every metric in :data:`SUMMARIZED`, each within
-        its range (the ``*_3sigma`` shares in [0, 1], every other metric non-negative;
-        see :func:`pronet.stats.mean_ci`)."""
+        """Mean and 95 % CI over runs of every metric in :data:`SUMMARIZED`: the errors,
+        the NIS and every block's NEES (``position_nees`` ... ``gyro_bias_nees``, 3 when
+        consistent), each within its range (the ``*_3sigma`` shares in [0, 1], every
+        other metric non-negative; see :func:`pronet.stats.mean_ci`). The band a
+        consistent filter's NEES lies in is :meth:`nees_band`, the share of epochs inside
+        it :meth:`nees_in_band`; :meth:`summary_row` has both."""
         return {
             name: mean_ci(getattr(self, name), SHARE if name.endswith("_3sigma") else NON_NEGATIVE)
             for name in self.SUMMARIZED
@@ -283,3 +328,114 @@ def monte_carlo(
         first_run=first_run,
     )
     return MonteCarloResult(**out)
+
+#: The default window of raw IMU samples handed out at each tuning instant (the paper's N)
+#: and time between tuning instants [s]; :mod:`pronet.learn.hybrid` explains them.
+DEFAULT_WINDOW = 200
+DEFAULT_TUNING_PERIOD = 1.0
+
+
+class Ensemble:
+    """``n_runs`` simulated runs along ``trajectory``, filtered in lockstep, their IMU
+    variances set from outside at every tuning instant.
+
+    Loop: ``windows = ens.advance()`` steps every run to the next tuning instant
+    (:func:`pronet._core.tuning_instants`) and returns the last ``window`` raw IMU
+    samples of every run, float32 ``(n_runs, 6, window)`` oldest first (body FRD,
+    ``[f (m/s²), ω (rad/s)]``), or None at the end; ``ens.set_q(q)`` sets each run's
+    per-sample IMU variances ``q (n_runs, 6)`` [(m/s²)², (rad/s)²] until the next
+    setting; ``ens.finish()`` runs to the end and returns the
+    :class:`~pronet.MonteCarloResult`. Until the first ``set_q`` every run uses
+    ``prior_q``. Run i draws its noise as run i of :func:`pronet.monte_carlo` with the
+    same seed does (common random numbers), so the two compare pairwise.
+
+    Args:
+        trajectory: truth and ideal IMU (e.g. ``builtin_trajectory("paper")``).
+        prior_q: 6 per-sample IMU variances [(m/s²)², (rad/s)²] in force until the first
+            ``set_q``.
+        sensors, config, n_runs, seed, record_every, sample_initial_error, threads,
+            first_run: as for :func:`pronet.monte_carlo` (same defaults).
+        window: IMU samples per window handed out, 1 to the trajectory's length.
+        tuning_period: time between tuning instants [s], > 0.
+
+    ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
+    (``KeyboardInterrupt``); the ensemble is then unusable (``ValueError``), as it is
+    after ``finish``.
+    """
+
+    def __init__(
+        self,
+        trajectory: _core.Trajectory,
+        prior_q: ArrayLike,
+        *,
+        sensors: _core.SensorConfig | None = None,
+        config: _core.FilterConfig | None = None,
+        n_runs: int = 100,
+        seed: int = 0,
+        window: int = DEFAULT_WINDOW,
+        tuning_period: float = DEFAULT_TUNING_PERIOD,
+        record_every: int = 0,
+        sample_initial_error: bool = True,
+        threads: int | None = None,
+        first_run: int = 0,
+    ) -> None:
+        check_type(trajectory, _core.Trajectory, "trajectory")
+        sensors = sensors if sensors is not None else _core.SensorConfig()
+        config = config if config is not None else _core.FilterConfig()
+        check_type(sensors, _core.SensorConfig, "sensors")
+        check_type(config, _core.FilterConfig, "config")
+        # The native core checks the counts, the seed, the window, the tuning period and
+        # the thread count, naming each.
+        self._native = _core.Ensemble(
+            trajectory,
+            sensors,
+            config,
+            prior_q,  # 6 finite real numbers of any sequence, checked by the core
+            n_runs=n_runs,
+            seed=seed,
+            window=window,
+            tuning_period=tuning_period,
+            record_every=record_every,
+            sample_initial_error=sample_initial_error,
+            threads=threads,
+            first_run=first_run,
+        )
+
+    def advance(self) -> NDArray[np.float32] | None:
+        """Step all runs to the next tuning instant; the windows float32
+        ``(n_runs, 6, window)``, oldest sample first, or None at the end."""
+        return self._native.advance()
+
+    def set_q(self, q: ArrayLike) -> None:
+        """Set each run's per-sample IMU variances: ``q`` ``(n_runs, 6)``
+        [(m/s²)², (rad/s)²], finite and >= 0."""
+        self._native.set_q(float_array(q, "q", (None, 6)))
+
+    def finish(self) -> MonteCarloResult:
+        """Run to the end; the result as :func:`pronet.monte_carlo` returns it. The
+        ensemble cannot be used afterwards."""
+        return MonteCarloResult(**self._native.finish())
+
+    @property
+    def n_runs(self) -> int:
+        return self._native.n_runs
+
+    @property
+    def window(self) -> int:
+        """IMU samples per window."""
+        return self._native.window
+
+    @property
+    def steps(self) -> int:
+        """IMU steps taken so far."""
+        return self._native.steps
+
+    @property
+    def time(self) -> float:
+        """Current time [s]."""
+        return self._native.time
+
+    @property
+    def done(self) -> bool:
+        """Whether every run reached the end (or the ensemble finished)."""
+        return self._native.done

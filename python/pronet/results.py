@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 from pronet._util.files import atomic_folder, json_bytes
 from pronet.learn.hybrid import HybridResult
-from pronet.montecarlo import IN_BAND_FLAG, MonteCarloResult
+from pronet.montecarlo import IN_BAND_FLAG, STATE_BLOCKS, MonteCarloResult
 from pronet.sim.paper import PAPER_TABLE
 from pronet.stats import MeanCI, format_number, mean_ci
 
@@ -38,7 +38,7 @@ if TYPE_CHECKING:  # pandas loads only when a table is made
 #: (NaN for native strategies).
 LABELS = ("scenario", "strategy", "noise_level", "tuning_period_s")
 #: The per-run metrics [m/s, m, -, share, count, s] in :class:`~pronet.MonteCarloResult`
-#: order (velocity NEES and its 3σ share: NaN on recorded sections).
+#: order (the NEES and the velocity NEES's 3σ share: NaN on recorded sections).
 METRICS = MonteCarloResult.PER_RUN
 #: Columns of every ``metrics.csv``.
 RUN_COLUMNS = (*LABELS, "run", *METRICS, "failure")
@@ -48,6 +48,9 @@ SUMMARIZED = MonteCarloResult.SUMMARIZED
 SUMMARY_COLUMNS = (
     *LABELS,
     *(f"{m}{s}" for m in SUMMARIZED for s in ("", "_low", "_high")),
+    *(f"{b}_nees_in_band" for b in STATE_BLOCKS),
+    "nees_band_low",
+    "nees_band_high",
     "runs",
     "failed_runs",
     "diverged_runs",

@@ -182,9 +182,9 @@ def test_ctrl_c_ends_long_predictions_and_ensemble_steps_at_once() -> None:
     def ensemble() -> pronet.Ensemble:
         return pronet.Ensemble(
             traj,
-            pronet.SensorConfig(imu_variance=q),
-            pronet.FilterConfig(),
             q,
+            sensors=pronet.SensorConfig(imu_variance=q),
+            config=pronet.FilterConfig(),
             n_runs=300,
             tuning_period=1e4,  # one instant beyond the end: a single long advance
         )

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pronet import _core, cli, config
-from pronet.montecarlo import CHI2_3DOF_3SIGMA, MonteCarloResult
+from pronet import Ensemble, _core, cli, config
+from pronet.montecarlo import CHI2_3DOF_3SIGMA
 from pronet.run import run
 from pronet.sim import scenarios
 from pronet.strategies import StrategySpec, strategy
@@ -38,11 +38,11 @@ def test_oracle_equals_an_ensemble_setting_the_true_schedule_every_step(tmp_path
     def true_q(t: float) -> np.ndarray:
         return sc.schedule_q[np.searchsorted(sc.schedule_time, t, side="right") - 1]
 
-    ens = _core.Ensemble(
+    ens = Ensemble(
         sc.trajectory,
-        sc.sensors,
-        sc.config,
         true_q(0.0),
+        sensors=sc.sensors,
+        config=sc.config,
         n_runs=3,
         seed=5,
         window=1,
@@ -51,7 +51,7 @@ def test_oracle_equals_an_ensemble_setting_the_true_schedule_every_step(tmp_path
     )
     while ens.advance() is not None:  # an instant before every step but the first
         ens.set_q(np.tile(true_q(ens.time), (3, 1)))
-    loop = MonteCarloResult(**ens.finish())
+    loop = ens.finish()
     for name in ("srmse", "smae", "final_horizontal_error", "mean_nis", "nees", "error", "q"):
         np.testing.assert_array_equal(getattr(oracle, name), getattr(loop, name), err_msg=name)
 

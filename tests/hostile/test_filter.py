@@ -100,7 +100,7 @@ def test_run_filter_rejects_bad_arrays_naming_the_argument(overrides, arg) -> No
         _run(**overrides)
 
 
-def test_native_core_rejects_non_float64_arrays_naming_the_argument() -> None:
+def test_native_core_takes_any_real_numbers_and_refuses_the_rest_naming_the_argument() -> None:
     imu, t, dvl, dvl_t = _filter_inputs()
     kwargs = dict(
         t0=0.0,
@@ -110,10 +110,18 @@ def test_native_core_rejects_non_float64_arrays_naming_the_argument() -> None:
         config=pronet.FilterConfig(),
         strategy=STRAT,
     )
-    with pytest.raises(ValueError, match="^imu: expected a float64"):
-        _core.run_filter(imu.astype(np.float32), t, dvl, dvl_t, **kwargs)
-    with pytest.raises(ValueError, match="^dvl_time: expected a float64"):
-        _core.run_filter(imu, t, dvl, list(dvl_t), **kwargs)
+    ref = _core.run_filter(imu, t, dvl, dvl_t, **kwargs)
+    as_lists = _core.run_filter(imu.tolist(), list(t), dvl.tolist(), tuple(dvl_t), **kwargs)
+    np.testing.assert_array_equal(as_lists["vel"], ref["vel"])
+    narrow = _core.run_filter(imu.astype(np.float32), t, dvl, dvl_t, **kwargs)
+    exact = _core.run_filter(imu.astype(np.float32).astype(np.float64), t, dvl, dvl_t, **kwargs)
+    np.testing.assert_array_equal(narrow["vel"], exact["vel"])
+    with pytest.raises(ValueError, match="^imu: expected real numbers of shape"):
+        _core.run_filter(imu.astype(np.complex128), t, dvl, dvl_t, **kwargs)
+    with pytest.raises(ValueError, match="^dvl_time: expected real numbers of shape"):
+        _core.run_filter(imu, t, dvl, [str(x) for x in dvl_t], **kwargs)
+    with pytest.raises(ValueError, match="^dvl: expected real numbers of shape"):
+        _core.run_filter(imu, t, dvl != 0, dvl_t, **kwargs)
 
 
 def test_layouts_are_accepted_and_agree() -> None:

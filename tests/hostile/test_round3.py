@@ -169,9 +169,7 @@ def test_a_thread_option_beyond_the_machine_is_refused(where, capsys, name, thre
     "call",
     [
         lambda t: pronet.monte_carlo(t, pronet.Strategy.constant(Q), n_runs=1, threads=MOST + 1),
-        lambda t: pronet.Ensemble(
-            t, pronet.SensorConfig(), pronet.FilterConfig(), n_runs=1, threads=0, prior_q=Q
-        ),
+        lambda t: pronet.Ensemble(t, Q, n_runs=1, threads=0),
     ],
     ids=["monte_carlo", "Ensemble"],
 )

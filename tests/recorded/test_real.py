@@ -251,7 +251,18 @@ def test_malformed_npz_gives_a_clear_error(tmp_path, synthetic):
     arrays = dict(np.load(good))
     cases = {
         "missing": ({k: v for k, v in arrays.items() if k != "dvl"}, "needs arrays 'dvl'"),
-        "pickled": ({**arrays, "gt": np.array([object()], dtype=object)}, "without pickle"),
+        "pickled": ({**arrays, "gt": np.array([object()], dtype=object)}, "[gt]: an object array"),
+        # The case: column names saved as an object array; named, with the fix.
+        "names": (
+            {**arrays, "imu_columns": arrays["imu_columns"].astype(object)},
+            "[imu_columns]: an object array, which cannot be read without pickle (refused: "
+            "loading it could run code); save it as an array of strings: "
+            "np.array(names, dtype=str)",
+        ),
+        "bytes": (
+            {**arrays, "dvl_columns": arrays["dvl_columns"].astype(bytes)},
+            "[dvl_columns]: must be a 1-D array of strings, got |S",
+        ),
         "shape": ({**arrays, "imu": arrays["imu"][:, :3]}, "must be a 2-D numeric array"),
         "nan": (
             {**arrays, "imu": np.where(np.arange(7) == 2, np.nan, arrays["imu"])},

@@ -37,15 +37,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type, float_array, real_array, scalar
-from pronet.montecarlo import MonteCarloResult
+from pronet.montecarlo import DEFAULT_TUNING_PERIOD, DEFAULT_WINDOW, Ensemble, MonteCarloResult
 
 if TYPE_CHECKING:  # torch loads only when a model does
     from pronet.learn.models import Regressor
-
-#: Default tuning period [s]; see the module docstring.
-DEFAULT_TUNING_PERIOD = 1.0
-#: Default window length [IMU samples] (the paper's N).
-DEFAULT_WINDOW = 200
 
 
 @dataclass(frozen=True)
@@ -140,13 +135,13 @@ def run_hybrid(
     prior = float_array(prior_q, "prior_q", (6,))
     guardrails = Guardrails() if guardrails is None else guardrails
     check_type(guardrails, Guardrails, "guardrails")
-    # The native Ensemble checks the counts, the seed, the window (1 to the trajectory's
-    # length), the tuning period and the thread count, naming each.
-    ens = _core.Ensemble(
+    # The Ensemble checks the counts, the seed, the window (1 to the trajectory's length),
+    # the tuning period and the thread count, naming each.
+    ens = Ensemble(
         trajectory,
-        sensors if sensors is not None else _core.SensorConfig(),
-        config if config is not None else _core.FilterConfig(),
         prior,
+        sensors=sensors,
+        config=config,
         n_runs=n_runs,
         seed=seed,
         window=window,
@@ -174,7 +169,7 @@ def for_loop(regressor: Regressor, threads: int | None = None) -> Regressor:
 
 
 def _drive(
-    ens: _core.Ensemble, regressor: Regressor, prior: NDArray[np.float64], guardrails: Guardrails
+    ens: Ensemble, regressor: Regressor, prior: NDArray[np.float64], guardrails: Guardrails
 ) -> HybridResult:
     """Step ``ens`` to the end, setting the guarded predictions of ``regressor`` as its
     q at every tuning instant; the wall time inside the core and the model is kept."""
@@ -207,10 +202,10 @@ def _drive(
         q_prev = q
         n_tunings += 1
     t3 = time.perf_counter()
-    out = ens.finish()
+    result = ens.finish()
     rust += time.perf_counter() - t3
     return HybridResult(
-        result=MonteCarloResult(**out),
+        result=result,
         n_tunings=n_tunings,
         clipped=clipped,
         non_finite=non_finite,

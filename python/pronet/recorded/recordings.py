@@ -52,6 +52,7 @@ import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -336,6 +337,19 @@ def _parse_rows(
     return out
 
 
+def _npz_array(archive: Any, path: Path, name: str, fix: str) -> NDArray[Any]:
+    """Array ``name`` of an open ``.npz``; an object array (it would need pickle, which is
+    refused: loading it could run code) is a :class:`RecordingError` naming it and how
+    to save it instead (``fix``: the kind of array and the call that makes one)."""
+    try:
+        return cast("NDArray[Any]", archive[name])
+    except ValueError:
+        raise RecordingError(
+            f"{path}[{name}]: an object array, which cannot be read without pickle (refused: "
+            f"loading it could run code); save it as an array of {fix}"
+        ) from None
+
+
 def _read_npz(path: Path) -> dict[str, F64]:
     try:
         archive = np.load(path, allow_pickle=False)
@@ -347,12 +361,14 @@ def _read_npz(path: Path) -> dict[str, F64]:
             where = f"{path}[{kind}]"
             if kind not in archive.files or f"{kind}_columns" not in archive.files:
                 raise RecordingError(f"{path}: needs arrays {kind!r} and '{kind}_columns'")
-            try:
-                data, header = archive[kind], archive[f"{kind}_columns"]
-            except ValueError as exc:  # object arrays would need pickle: refused
-                raise RecordingError(f"{where}: cannot be read without pickle ({exc})") from None
+            data = _npz_array(archive, path, kind, "numbers: np.asarray(table, dtype=float)")
+            names = f"{kind}_columns"
+            header = _npz_array(archive, path, names, "strings: np.array(names, dtype=str)")
             if header.dtype.kind != "U" or header.ndim != 1:
-                raise RecordingError(f"{path}[{kind}_columns]: must be a 1-D array of strings")
+                raise RecordingError(
+                    f"{path}[{kind}_columns]: must be a 1-D array of strings, got {header.dtype} "
+                    f"{header.shape}; save the names as np.array(names, dtype=str)"
+                )
             if data.ndim != 2 or data.shape[1] != len(header) or data.dtype.kind not in "iuf":
                 raise RecordingError(
                     f"{where}: must be a 2-D numeric array with {len(header)} columns "

@@ -107,6 +107,9 @@ def run_record(run: SectionRun) -> dict[str, object]:
         "velocity_nees": math.nan,  # the sections' truth has no NEES here (yet)
         "velocity_nees_3sigma": math.nan,
         "attitude_nees": math.nan,
+        "position_nees": math.nan,
+        "accel_bias_nees": math.nan,
+        "gyro_bias_nees": math.nan,
         "rejected_updates": int((applied & ~r.accepted).sum()),
         "diverged_at": math.nan if r.diverged_at is None else r.diverged_at,
         "failure": None,
@@ -121,6 +124,7 @@ def summary_record(run: SectionRun) -> dict[str, object]:
     out["tuning_period_s"] = rec["tuning_period_s"]
     for name in SUMMARIZED:
         out.update({name: rec[name], f"{name}_low": math.nan, f"{name}_high": math.nan})
+    out.update({c: math.nan for c in SUMMARY_COLUMNS if "_band" in c})  # no NEES: no truth
     out.update(runs=1, failed_runs=0, diverged_runs=int(run.result.diverged_at is not None))
     out.update(srmse_diff=math.nan, srmse_diff_low=math.nan, srmse_diff_high=math.nan)
     sched = run.schedule

@@ -7,6 +7,12 @@ use crate::clocks;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 
+/// The clock-alignment cost of ``pronet.recorded.alignment.estimate_gt_clock`` for the clocks
+/// ``(offset, scale)``, one per offset: the mean squared difference between the
+/// truth's Euler-angle steps ``gt_step (R - 1, 3)`` [rad] and the integrated gyro Euler
+/// rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at
+/// ``offset + scale·gt_time``, over the pairs of rows mapped inside the edges; inf
+/// with fewer than 10 such pairs.
 #[pyfunction]
 #[pyo3(signature = (edges, cum, gt_time, gt_step, offsets, scale))]
 fn attitude_increment_costs<'py>(

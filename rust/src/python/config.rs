@@ -11,7 +11,18 @@ use crate::ekf::{Aiding, FilterConfig, Formulation};
 use nalgebra::Vector3;
 use pyo3::prelude::*;
 
-/// EKF tuning (see `_core.pyi`).
+/// EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
+/// ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
+/// ("body" velocity or "nav" NED velocity), nominal IMU period [s], the chi-square
+/// innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate), and
+/// the opt-in DVL calibration states (``dvl_calibration=True``, body aiding only): the
+/// DVL's scale-factor error and mounting misalignment appended to the 15 error states,
+/// with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
+/// [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
+/// velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
+/// consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
+/// prior and every output are in the classic coordinates either way. See
+/// ``docs/filter.md``.
 #[pyclass(name = "FilterConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PyFilterConfig {

@@ -6,8 +6,11 @@ use super::invalid;
 use crate::attitude::{dcm_from_euler, euler_from_dcm};
 use crate::mechanization::NavState;
 use nalgebra::Vector3;
-use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::ndarray::{Array2, Dimension, Ix1, Ix2};
+use numpy::{
+    Element, IntoPyArray, PyArray2, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString};
 use std::borrow::Cow;
@@ -29,7 +32,40 @@ pub fn describe(obj: &Bound<'_, PyAny>) -> String {
     }
 }
 
-/// A float64 array of shape (n, C) as rows.
+/// `obj` as a read-only NumPy array of `T` (named `dtype`, e.g. "float64") with `D`'s
+/// number of axes, whatever form the numbers come in (the one argument rule: a sequence
+/// and an array are accepted alike): an array of that dtype as it is (no copy), else
+/// anything NumPy reads as integers (and, for a float `dtype`, floats) of any width,
+/// nested lists and tuples included, converted by `numpy.asarray(obj).astype(dtype)`.
+/// None for anything else: booleans, complex numbers, strings, objects, ragged
+/// sequences, another number of axes.
+pub fn real_array<'py, T: Element, D: Dimension>(
+    obj: &Bound<'py, PyAny>,
+    dtype: &str,
+) -> Option<PyReadonlyArray<'py, T, D>> {
+    if let Ok(arr) = obj.extract::<PyReadonlyArray<T, D>>() {
+        return Some(arr);
+    }
+    if obj.is_instance_of::<PyString>()
+        || obj.is_instance_of::<PyBytes>()
+        || obj.is_instance_of::<PyByteArray>()
+    {
+        return None;
+    }
+    let kinds: &[&str] = if dtype.starts_with("float") {
+        &["i", "u", "f"]
+    } else {
+        &["i", "u"]
+    };
+    let numpy = obj.py().import("numpy").ok()?;
+    let arr = numpy.call_method1("asarray", (obj,)).ok()?;
+    if !numpy_kind_in(&arr, kinds) {
+        return None;
+    }
+    arr.call_method1("astype", (dtype,)).ok()?.extract().ok()
+}
+
+/// Real numbers of shape (n, C) as rows.
 pub fn rows<const C: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<[f64; C]>> {
     Ok(as_rows::<C>(&readonly_rows::<C>(obj, arg)?).into_owned())
 }
@@ -53,16 +89,17 @@ pub fn as_rows<'a, const C: usize>(arr: &'a PyReadonlyArray2<'_, f64>) -> Cow<'a
     }
 }
 
-/// `obj` as a read-only float64 array of shape (n, C), or a `ValueError` naming `arg`.
+/// `obj` as a read-only float64 array of shape (n, C) ([`real_array`]), or a
+/// `ValueError` naming `arg`.
 pub fn readonly_rows<'py, const C: usize>(
     obj: &Bound<'py, PyAny>,
     arg: &str,
 ) -> PyResult<PyReadonlyArray2<'py, f64>> {
-    let arr: PyReadonlyArray2<f64> = obj.extract().map_err(|_| {
+    let arr = real_array::<f64, Ix2>(obj, "float64").ok_or_else(|| {
         invalid(
             arg,
             format!(
-                "expected a float64 numpy array of shape (n, {C}), got {}",
+                "expected real numbers of shape (n, {C}) (an array or nested lists), got {}",
                 describe(obj)
             ),
         )
@@ -77,7 +114,7 @@ pub fn readonly_rows<'py, const C: usize>(
     Ok(arr)
 }
 
-/// A float64 array of shape (n,).
+/// Real numbers of shape (n,).
 pub fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
     Ok(as_values(&readonly_column(obj, arg)?).into_owned())
 }
@@ -91,16 +128,17 @@ pub fn as_values<'a>(arr: &'a PyReadonlyArray1<'_, f64>) -> Cow<'a, [f64]> {
     }
 }
 
-/// `obj` as a read-only float64 array of shape (n,), or a `ValueError` naming `arg`.
+/// `obj` as a read-only float64 array of shape (n,) ([`real_array`]), or a
+/// `ValueError` naming `arg`.
 pub fn readonly_column<'py>(
     obj: &Bound<'py, PyAny>,
     arg: &str,
 ) -> PyResult<PyReadonlyArray1<'py, f64>> {
-    obj.extract().map_err(|_| {
+    real_array::<f64, Ix1>(obj, "float64").ok_or_else(|| {
         invalid(
             arg,
             format!(
-                "expected a float64 numpy array of shape (n,), got {}",
+                "expected real numbers of shape (n,) (an array or a list), got {}",
                 describe(obj)
             ),
         )
@@ -347,18 +385,18 @@ pub fn nav_arrays<'py>(
     Ok(())
 }
 
-/// Windows `(n, window)` of dtype `T` (`dtype` names it in the error) as one row-major
-/// vector.
-pub fn window_rows<T: numpy::Element + Copy>(
+/// Windows `(n, window)` of dtype `T` (named `dtype`; other real numbers are converted
+/// to it, [`real_array`]) as one row-major vector.
+pub fn window_rows<T: Element + Copy>(
     obj: &Bound<'_, PyAny>,
     window: usize,
     dtype: &str,
 ) -> PyResult<Vec<T>> {
-    let w: PyReadonlyArray2<T> = obj.extract().map_err(|_| {
+    let w: PyReadonlyArray2<T> = real_array(obj, dtype).ok_or_else(|| {
         invalid(
             "windows",
             format!(
-                "expected a {dtype} array of shape (n, {window}), got {}",
+                "expected real numbers of shape (n, {window}) (taken as {dtype}), got {}",
                 describe(obj)
             ),
         )

@@ -1,7 +1,7 @@
 //! `ConvNet`: the forward pass of a ProNet CNN regressor in the core, built from the
 //! torch model's weights (`pronet.models.BaselineNet.native`).
 
-use super::convert::{arg_threads, describe, text_arg, window_rows};
+use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
 use crate::montecarlo::Workers;
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
@@ -12,7 +12,17 @@ use numpy::{
 use pyo3::prelude::*;
 use std::sync::Arc;
 
-/// A CNN regressor's forward pass (see `_core.pyi`).
+/// The forward pass of a ProNet CNN regressor (``pronet.learn.models.BaselineNet`` or
+/// ``DetrendNet``) from its torch weights; build it with
+/// :meth:`pronet.learn.models.BaselineNet.native`.
+///
+/// ``prepare``: ``"centre"`` or ``"detrend"``; ``scaling``: ``"fixed"`` (uses
+/// ``input_scale`` and ``q_scale``) or ``"spread"``. ``blocks``: per convolution block
+/// ``(weight (c_out, c_in, kernel), bias, norm_weight, norm_bias, stride, eps)``;
+/// ``head``: per Linear layer ``(weight (n_out, n_in), bias)``; arrays taken as float32.
+/// ``ramp``: the ``(window,)`` ramp a ``"detrend"`` net projects out, as the torch
+/// model stores it (None: the exact unit-norm centred ramp). ``threads``: worker
+/// threads for ``predict`` (None: all cores). Computes in float64.
 #[pyclass(name = "ConvNet", module = "pronet._core", frozen)]
 pub struct PyConvNet {
     inner: Arc<ConvNet>,
@@ -20,11 +30,11 @@ pub struct PyConvNet {
 }
 
 fn vector(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f32>> {
-    let arr: PyReadonlyArray1<f32> = obj.extract().map_err(|_| {
+    let arr: PyReadonlyArray1<f32> = real_array(obj, "float32").ok_or_else(|| {
         invalid(
             arg,
             format!(
-                "expected a float32 array of shape (n,), got {}",
+                "expected real numbers of shape (n,) (taken as float32), got {}",
                 describe(obj)
             ),
         )
@@ -48,7 +58,7 @@ fn block(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<ConvBlockWeights> {
         )
     })?;
     let (weight, bias, gamma, beta, stride, eps) = parts;
-    let w: PyReadonlyArray3<f32> = weight.extract().map_err(|_| {
+    let w: PyReadonlyArray3<f32> = real_array(&weight, "float32").ok_or_else(|| {
         invalid(
             &arg,
             format!(
@@ -78,7 +88,7 @@ fn dense(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<DenseWeights> {
     let (weight, bias): (Bound<PyAny>, Bound<PyAny>) = obj
         .extract()
         .map_err(|_| invalid(&arg, "expected (weight, bias) with float32 arrays"))?;
-    let w: PyReadonlyArray2<f32> = weight.extract().map_err(|_| {
+    let w: PyReadonlyArray2<f32> = real_array(&weight, "float32").ok_or_else(|| {
         invalid(
             &arg,
             format!(
@@ -163,7 +173,7 @@ impl PyConvNet {
         })
     }
 
-    /// q `(n,)` float64 for windows `(n, window)` float32.
+    /// q ``(n,)`` [(unit)² per sample] for windows ``(n, window)`` (taken as float32).
     fn predict<'py>(
         &self,
         py: Python<'py>,

@@ -21,7 +21,15 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::{Arc, Mutex};
 
-/// Lockstep ensemble for outside tuning (see `_core.pyi`).
+/// All runs of a Monte Carlo stepped in lockstep for outside tuning.
+///
+/// ``advance()`` steps every run to the next tuning instant (see
+/// :func:`tuning_instants`; ``window`` 1 to the trajectory's length) and returns the
+/// last ``window`` raw IMU samples of every run, float32 ``(n_runs, 6, window)`` oldest
+/// first, or None at the end; ``set_q(q)`` with ``q`` ``(n_runs, 6)`` sets each
+/// run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
+/// ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
+/// (KeyboardInterrupt); the ensemble is then unusable (ValueError).
 #[pyclass(name = "Ensemble", module = "pronet._core")]
 pub struct PyEnsemble {
     inner: Arc<Mutex<Option<Ensemble>>>,
@@ -112,8 +120,8 @@ impl PyEnsemble {
         })
     }
 
-    /// Step all runs to the next tuning instant; the windows `(n_runs, 6, window)`
-    /// float32, or None at the end.
+    /// Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
+    /// float32, oldest sample first, or None at the end.
     fn advance<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray3<f32>>>> {
         let Some(flat) = self.with(py, true, |e, cancel| e.advance_until(cancel))? else {
             return Ok(None);
@@ -123,14 +131,14 @@ impl PyEnsemble {
         Ok(Some(windows.into_pyarray(py)))
     }
 
-    /// Set each run's IMU variances, `q` of shape (n_runs, 6), float64.
+    /// Set each run's IMU variances: ``q`` ``(n_runs, 6)``.
     fn set_q(&self, py: Python<'_>, q: &Bound<'_, PyAny>) -> PyResult<()> {
         let q = rows::<6>(q, "q")?;
         self.with(py, false, move |e, _| e.set_q(&q))
     }
 
-    /// Run to the end and return the results (as `monte_carlo`). The ensemble cannot be
-    /// used afterwards.
+    /// Run to the end; the results as :func:`monte_carlo` returns them. The
+    /// ensemble cannot be used afterwards.
     fn finish<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let inner = Arc::clone(&self.inner);
         let workers = self.workers.clone();
@@ -173,8 +181,12 @@ impl PyEnsemble {
     }
 }
 
-/// The tuning instants over `n_samples` samples of step `dt` [s] (see
-/// `TuningSchedule`), as an int64 array of sample counts.
+/// The hybrid loop's tuning instants over ``n_samples`` IMU samples of step ``dt``
+/// [s], each as the number of samples before it: every ``round(tuning_period / dt)``
+/// samples (at least one; halves round away from zero), from the first such multiple at
+/// which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
+/// there; :func:`pronet.learn.hybrid.q_schedule` evaluates its regressor there.
+/// ``dt`` and ``tuning_period`` finite and > 0, ``window`` >= 1.
 #[pyfunction]
 fn tuning_instants<'py>(
     py: Python<'py>,

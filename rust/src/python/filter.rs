@@ -30,6 +30,9 @@ fn q_schedule(
     }
 }
 
+/// One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
+/// [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
+/// or ``"last"`` (the epoch arrays keep only the last epoch). ``|lla0[0]|`` <= 89°.
 #[pyfunction]
 #[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string()),
     text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all')")]

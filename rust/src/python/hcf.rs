@@ -1,7 +1,7 @@
 //! `HcfEnsemble`: the handcrafted-feature ensemble's prediction in the core, built from
 //! the exported trees (`pronet.hcf.HCFEnsemble.frozen`).
 
-use super::convert::{arg_threads, describe, text_arg, window_rows};
+use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
 use crate::montecarlo::Workers;
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
@@ -9,7 +9,13 @@ use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use std::sync::Arc;
 
-/// The HCF ensemble's prediction (see `_core.pyi`).
+/// The handcrafted-feature ensemble's prediction (``pronet.learn.hcf.HCFEnsemble``) from
+/// its exported trees; build it with :meth:`pronet.learn.hcf.HCFEnsemble.frozen`.
+///
+/// ``gb``, ``rf``: ``(left, right, feature, roots)`` int32 and ``threshold``, ``value``
+/// float64 arrays, in the order ``(left, right, feature, threshold, value, roots)``;
+/// ``target``: ``"q"`` or ``"log-ratio"``. ``threads``: worker threads for ``predict``
+/// (None: all cores).
 #[pyclass(name = "HcfEnsemble", module = "pronet._core", frozen)]
 pub struct PyHcfEnsemble {
     inner: Arc<HcfEnsemble>,
@@ -21,11 +27,11 @@ fn array<T: numpy::Element + Copy>(
     arg: &str,
     dtype: &str,
 ) -> PyResult<Vec<T>> {
-    let arr: PyReadonlyArray1<T> = obj.extract().map_err(|_| {
+    let arr: PyReadonlyArray1<T> = real_array(obj, dtype).ok_or_else(|| {
         invalid(
             arg,
             format!(
-                "expected a {dtype} array of shape (n,), got {}",
+                "expected numbers of shape (n,) (taken as {dtype}), got {}",
                 describe(obj)
             ),
         )
@@ -93,7 +99,7 @@ impl PyHcfEnsemble {
         })
     }
 
-    /// q `(n,)` float64 for windows `(n, window)` float64.
+    /// q ``(n,)`` for windows ``(n, window)``.
     fn predict<'py>(
         &self,
         py: Python<'py>,

@@ -144,6 +144,10 @@ fn history_arrays<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, res: &McResult) 
     Ok(())
 }
 
+/// A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
+/// ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :func:`max_threads`
+/// (None: :func:`check_threads`'s default). An external strategy is refused: nothing
+/// sets its q here.
 #[pyfunction(name = "monte_carlo")]
 #[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
 #[allow(clippy::too_many_arguments)]
@@ -177,9 +181,9 @@ fn py_monte_carlo<'py>(
     result_dict(py, &res)
 }
 
-/// The core's memory rule for `n_runs` runs of `trajectory` (see
-/// `Scenario::check_result_size`), without running anything: a sweep checks its whole
-/// grid with it before it plans a shard.
+/// ``ValueError`` naming ``n_runs`` if the records of ``n_runs`` runs of
+/// ``trajectory`` would exceed the core's memory limit (4 GiB), as :func:`monte_carlo`
+/// checks before it allocates; nothing is run.
 #[pyfunction(name = "check_result_size")]
 #[pyo3(signature = (trajectory, sensors, *, n_runs, record_every = 0))]
 fn py_check_result_size(
@@ -199,9 +203,10 @@ fn py_check_result_size(
     sc.check_result_size(&opts, dvl_every, 0).map_err(to_py_err)
 }
 
-/// The thread count a call given `threads` runs on, by the core's rule: `threads`
-/// itself if it is 1 to `max_threads()`; for None, `RAYON_NUM_THREADS` if it is set
-/// (checked the same way, the error naming the variable), else one per usable core.
+/// The thread count a call given ``threads`` runs on: ``threads`` itself if it is 1
+/// to :func:`max_threads` (else ``ValueError`` naming ``threads``); for None,
+/// ``RAYON_NUM_THREADS`` if set (checked the same way, the error naming the variable),
+/// else one per usable core.
 #[pyfunction(name = "check_threads")]
 #[pyo3(signature = (threads = None))]
 fn py_check_threads(#[pyo3(from_py_with = arg_threads)] threads: Option<usize>) -> PyResult<usize> {
@@ -212,8 +217,8 @@ fn py_check_threads(#[pyo3(from_py_with = arg_threads)] threads: Option<usize>) 
     .map_err(to_py_err)
 }
 
-/// The most threads a pool may have here: `THREADS_PER_CORE` per usable core, at most
-/// `MAX_THREADS`.
+/// The most threads a pool may have here: :data:`THREADS_PER_CORE` per usable core,
+/// at most :data:`MAX_THREADS`.
 #[pyfunction(name = "max_threads")]
 fn py_max_threads() -> usize {
     max_threads()

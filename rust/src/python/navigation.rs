@@ -6,6 +6,8 @@ use crate::{earth, mechanization};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+/// WGS-84 normal gravity [m/s²] at latitude [rad] and height [m], |h| <= 100 km (a
+/// near-surface model; ValueError beyond).
 #[pyfunction]
 #[pyo3(signature = (lat, h = 0.0))]
 fn normal_gravity(
@@ -15,11 +17,15 @@ fn normal_gravity(
     earth::checked_gravity(lat, h).map_err(to_py_err)
 }
 
+/// Meridian and prime-vertical radii of curvature [m].
 #[pyfunction]
 fn earth_radii(#[pyo3(from_py_with = arg_lat)] lat: f64) -> PyResult<(f64, f64)> {
     earth::checked_radii(lat).map_err(to_py_err)
 }
 
+/// Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
+/// IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
+/// ValueError naming ``imu, dt, lla0, vel0``.
 #[pyfunction]
 #[pyo3(signature = (imu, dt, lla0, vel0, rpy0))]
 fn mechanize<'py>(

@@ -7,7 +7,14 @@ use nalgebra::Vector3;
 use numpy::PyArray2;
 use pyo3::prelude::*;
 
-/// Simulated sensor models (see `_core.pyi`).
+/// Simulated sensors. ``imu_variance``: 6 per-sample variances, or with
+/// ``imu_variance_times`` (k,) [s, starting at 0] a ``(k, 6)`` piecewise-constant
+/// schedule. Constant bias, bias random-walk PSD, DVL variance [(m/s)²], DVL period [s]
+/// (a whole number of IMU steps), DVL lever arm [m, body], DVL outages ``(k, 2)``
+/// ``[start, end)`` [s] (sorted, not overlapping; no reading inside one), and the
+/// DVL's scale-factor error k (it reads ``1 + k`` times the velocity, k > −1) and
+/// mounting misalignment (its roll, pitch, yaw in the body frame [rad]). Defaults: the
+/// paper's (an ideal DVL).
 #[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PySensorConfig {
@@ -106,7 +113,7 @@ impl PySensorConfig {
     fn lever_arm(&self) -> Vec<f64> {
         self.inner.dvl.lever_arm.as_slice().to_vec()
     }
-    /// The DVL's scale-factor error k: it reads `(1 + k)` times the true velocity.
+    /// The DVL's scale-factor error k: it reads ``(1 + k)`` times the true velocity.
     #[getter]
     fn dvl_scale(&self) -> f64 {
         self.inner.dvl.mounting.scale
@@ -116,7 +123,7 @@ impl PySensorConfig {
     fn dvl_misalignment(&self) -> Vec<f64> {
         self.inner.dvl.mounting.angles().to_vec()
     }
-    /// `(k, 2)` DVL outages `[start, end)` [s].
+    /// ``(k, 2)`` DVL outages ``[start, end)`` [s].
     #[getter]
     fn dvl_outages<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(py, self.inner.dvl.outages.iter().copied())

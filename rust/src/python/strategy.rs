@@ -5,7 +5,9 @@ use super::to_py_err;
 use crate::noise::StrategySpec;
 use pyo3::prelude::*;
 
-/// A process-noise strategy (see `_core.pyi`).
+/// Process-noise strategy: constant Q^c, Mehra innovation-adaptive (window ξ),
+/// robust adaptive (covariance matching of a scale on q), the oracle (the simulated
+/// IMU's true variance), or external (q set by the caller through an :class:`Ensemble`).
 #[pyclass(name = "Strategy", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PyStrategy {
@@ -21,10 +23,13 @@ impl PyStrategy {
 
 #[pymethods]
 impl PyStrategy {
+    /// Constant Q^c from 6 per-sample IMU variances q [(m/s²)², (rad/s)²].
     #[staticmethod]
     fn constant(q: &Bound<'_, PyAny>) -> PyResult<Self> {
         Self::checked(StrategySpec::Constant { q: fixed(q, "q")? })
     }
+    /// Mehra's innovation-adaptive Q over the last ``window`` DVL innovations
+    /// (``window`` >= 1); constant ``prior_q`` until that many exist.
     #[staticmethod]
     #[pyo3(signature = (window, prior_q))]
     fn mehra(
@@ -36,6 +41,9 @@ impl PyStrategy {
             prior_q: fixed(prior_q, "prior_q")?,
         })
     }
+    /// q = λ·prior_q with the scale λ estimated by matching the DVL innovations'
+    /// NIS over an exponentially forgetting window of ``window`` updates (>= 1);
+    /// structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/filter.md``.
     #[staticmethod]
     #[pyo3(signature = (window, prior_q))]
     fn adaptive(
@@ -47,12 +55,16 @@ impl PyStrategy {
             prior_q: fixed(prior_q, "prior_q")?,
         })
     }
+    /// The simulated IMU's true variance at every IMU step: the ceiling. Simulation
+    /// only; recorded data has no truth to give it.
     #[staticmethod]
     fn oracle() -> Self {
         Self {
             inner: StrategySpec::Oracle,
         }
     }
+    /// q set from outside (the hybrid loop, through an :class:`Ensemble`);
+    /// ``prior_q`` until the first setting.
     #[staticmethod]
     fn external(prior_q: &Bound<'_, PyAny>) -> PyResult<Self> {
         Self::checked(StrategySpec::External {

@@ -8,7 +8,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;
 use std::sync::Arc;
 
-/// A trajectory's truth and ideal IMU (see `_core.pyi`).
+/// Truth of a trajectory at n + 1 epochs and the ideal IMU over the n intervals.
 #[pyclass(name = "Trajectory", module = "pronet._core", frozen)]
 pub struct PyTrajectory {
     pub(super) truth: Arc<Truth>,
@@ -21,38 +21,47 @@ impl PyTrajectory {
     fn name(&self) -> String {
         self.truth.name.clone()
     }
+    /// Sample period [s].
     #[getter]
     fn dt(&self) -> f64 {
         self.truth.dt
     }
+    /// Length [s].
     #[getter]
     fn duration(&self) -> f64 {
         self.truth.duration()
     }
+    /// Number of IMU samples n.
     #[getter]
     fn n_samples(&self) -> usize {
         self.truth.len()
     }
+    /// ``(n+1,)`` epoch times [s], starting at 0.
     #[getter]
     fn time<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.truth.time.clone().into_pyarray(py)
     }
+    /// ``(n+1, 3)`` latitude, longitude [rad], height [m].
     #[getter]
     fn lla<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(py, self.truth.states.iter().map(|s| s.lla.into()))
     }
+    /// ``(n+1, 3)`` NED velocity [m/s].
     #[getter]
     fn vel_ned<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(py, self.truth.states.iter().map(|s| s.vel.into()))
     }
+    /// ``(n+1, 3)`` roll, pitch, yaw [rad].
     #[getter]
     fn rpy<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(py, self.truth.rpy.iter().map(|r| (*r).into()))
     }
+    /// ``(n, 6)`` ideal IMU; row k covers ``(time[k], time[k+1]]``.
     #[getter]
     fn imu<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(py, self.truth.imu.iter().copied())
     }
+    /// ``(k, 4)`` rows ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]``.
     #[getter]
     fn segments<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(
@@ -63,6 +72,7 @@ impl PyTrajectory {
                 .map(|s| [s.duration, s.accel, s.yaw_rate, s.pitch_rate]),
         )
     }
+    /// Initial forward speed [m/s].
     #[getter]
     fn speed0(&self) -> f64 {
         self.spec.speed0
@@ -100,6 +110,7 @@ fn builtin_trajectory(
     make_trajectory(py, spec)
 }
 
+/// Names of the built-in trajectories (see :func:`pronet.builtin_trajectory`).
 #[pyfunction]
 fn builtin_trajectory_names() -> Vec<&'static str> {
     trajectory::BUILTIN_NAMES.to_vec()
