@@ -49,9 +49,9 @@ __all__ = [
 ]
 
 __version__: str
-#: Most worker threads a pool may have on any machine (``montecarlo::MAX_THREADS``).
+#: Most worker threads a pool may have on any machine (``threads::MAX_THREADS``).
 MAX_THREADS: int
-#: Most worker threads per core this process may use (``montecarlo::THREADS_PER_CORE``):
+#: Most worker threads per core this process may use (``threads::THREADS_PER_CORE``):
 #: a pool has 1 to :func:`max_threads` threads.
 THREADS_PER_CORE: int
 #: The environment variable that sets the thread count of calls given none,

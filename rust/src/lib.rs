@@ -21,6 +21,7 @@ pub mod noise;
 pub mod regressors;
 pub mod run;
 pub mod sensors;
+pub mod threads;
 pub mod trajectory;
 
 #[cfg(feature = "python")]

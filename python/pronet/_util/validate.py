@@ -13,7 +13,7 @@ from pronet import _core
 #: Largest values of signed (counts) and unsigned (seeds) 64-bit integer arguments.
 I64_MAX = 2**63 - 1
 U64_MAX = 2**64 - 1
-#: Most worker threads the native core takes (``montecarlo::MAX_THREADS`` in Rust).
+#: Most worker threads the native core takes (``threads::MAX_THREADS`` in Rust).
 MAX_THREADS = _core.MAX_THREADS
 
 

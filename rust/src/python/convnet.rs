@@ -3,8 +3,8 @@
 
 use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
-use crate::montecarlo::Workers;
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
+use crate::threads::Workers;
 use numpy::{
     IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
     PyUntypedArrayMethods,

@@ -3,8 +3,8 @@
 
 use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
 use super::{detached, interruptible, invalid};
-use crate::montecarlo::Workers;
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
+use crate::threads::Workers;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use std::sync::Arc;

@@ -119,9 +119,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // rust-numpy panics when that happens.
     numpy::PyArray1::<f64>::zeros(m.py(), [0], false);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("MAX_THREADS", crate::montecarlo::MAX_THREADS)?;
-    m.add("THREADS_PER_CORE", crate::montecarlo::THREADS_PER_CORE)?;
-    m.add("THREADS_ENV", crate::montecarlo::THREADS_ENV)?;
+    m.add("MAX_THREADS", crate::threads::MAX_THREADS)?;
+    m.add("THREADS_PER_CORE", crate::threads::THREADS_PER_CORE)?;
+    m.add("THREADS_ENV", crate::threads::THREADS_ENV)?;
     m.add("MAX_LEVER_ARM", crate::sensors::MAX_LEVER_ARM)?;
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;
     m.add("MAX_GRAVITY_HEIGHT", crate::earth::MAX_GRAVITY_HEIGHT)?;

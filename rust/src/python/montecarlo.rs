@@ -8,10 +8,8 @@ use super::sensors::PySensorConfig;
 use super::strategy::PyStrategy;
 use super::trajectory::PyTrajectory;
 use super::{interruptible, to_py_err};
-use crate::montecarlo::{
-    check_threads, default_threads, max_threads, run_monte_carlo_until, with_threads, McOptions,
-    McResult, RunSummary, Scenario,
-};
+use crate::montecarlo::{run_monte_carlo_until, McOptions, McResult, RunSummary, Scenario};
+use crate::threads::{check_threads, default_threads, max_threads, with_threads};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
