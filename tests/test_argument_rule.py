@@ -72,7 +72,7 @@ def _run_filter(run: Callable[..., Any], f: Form) -> Any:
     return run(
         f(IMU), f(IMU_T), f(DVL), f(DVL_T), t0=0.0, **{k: f(v) for k, v in NAV0.items()},
         config=_core.FilterConfig(), strategy=_core.Strategy.external(f(PAPER_Q)),
-        bias0=f([0.0] * 6), q_time=f([1.0]), q=f([[2e-4] * 6]),
+        bias0=f([0.0] * 6), q_time=f([1.0]), q=f([[2e-4] * 6]), covariance_time=f([0.5, 1.0]),
     )  # fmt: skip
 
 
@@ -154,7 +154,10 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
     ),  # fmt: skip
     "run_filter": (
         ("_core.run_filter", "pronet.run_filter"),
-        lambda f: (_run_filter(_core.run_filter, f)["vel"], _run_filter(pronet.run_filter, f).vel),
+        lambda f: (
+            _run_filter(_core.run_filter, f)["covariances"],
+            _run_filter(pronet.run_filter, f).covariances,
+        ),
     ),
     "ensemble": (
         ("_core.Ensemble", "_core.Ensemble.set_q", "pronet.Ensemble", "pronet.Ensemble.set_q"),

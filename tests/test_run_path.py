@@ -157,3 +157,34 @@ def test_filter_result_to_dataframe_has_every_epoch_and_update() -> None:
     assert list(updates["accepted"]) == [True, True, True, False]
     with pytest.raises(ValueError, match="^rows"):
         out.to_dataframe("runs")
+
+
+def test_run_filter_keeps_the_covariance_at_the_times_asked_for() -> None:
+    """``covariance_time`` keeps the full covariance at the epoch nearest each time,
+    after its update (its diagonal the σ there), in every aiding and with every epoch
+    kept or the last alone; a time outside the run is -1 and NaN; the pass is otherwise
+    the same; a bad time is refused by name."""
+    traj = pronet.builtin_trajectory("paper")
+    n = 400
+    args = (traj.imu[:n], traj.time[1 : n + 1], np.tile([1.0, 0, 0], (3, 1)), [1.0, 2.0, 3.0])
+    kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+              strategy=pronet.Strategy.mehra(2, PAPER_Q))  # fmt: skip
+    plain = pronet.run_filter(*args, **kw)  # type: ignore[arg-type]
+    assert plain.covariances.shape == (0, 15, 15) and plain.covariance_epoch.shape == (0,)
+    times = [-1.0, 0.0, 1.0, 2.5, 3.996, 4.2]
+    out = pronet.run_filter(*args, **kw, covariance_time=times)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(out.sigma, plain.sigma)
+    np.testing.assert_array_equal(out.covariance_epoch, [-1, 0, 100, 250, n, -1])
+    assert np.isnan(out.covariances[[0, -1]]).all()
+    for p, k in zip(out.covariances[1:-1], out.covariance_epoch[1:-1], strict=True):
+        np.testing.assert_array_equal(p, p.T)
+        np.testing.assert_array_equal(np.sqrt(np.diag(p)), out.sigma[k])
+        assert np.linalg.eigvalsh(p).min() > 0
+    np.testing.assert_array_equal(out.covariances[-2], out.covariance)
+    # Off-diagonal terms are kept too: the update correlates velocity with attitude.
+    assert np.abs(out.covariances[2][3:6, 6:9]).max() > 0
+    last = pronet.run_filter(*args, **kw, epochs="last", covariance_time=times)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(last.covariances, out.covariances)
+    for bad, message in (([2.0, 1.0], "must increase strictly"), ([np.nan], "finite")):
+        with pytest.raises(ValueError, match=f"^covariance_time.*{message}"):
+            pronet.run_filter(*args, **kw, covariance_time=bad)  # type: ignore[arg-type]

@@ -303,10 +303,13 @@ def run_filter(
     q_time: ArrayLike | None = None,
     q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
+    covariance_time: ArrayLike | None = None,
 ) -> dict[str, NDArray[Any]]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
     [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-    or ``"last"`` (the epoch arrays keep only the last epoch). ``|lla0[0]|`` <= 89°."""
+    or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
+    (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
+    ``|lla0[0]|`` <= 89°."""
 
 def monte_carlo(
     trajectory: Trajectory,

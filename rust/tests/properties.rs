@@ -669,6 +669,7 @@ fn filter_case(
         t0,
         q_time: &[],
         q_values: &[],
+        covariance_time: &[],
     };
     let mut strategy = spec.build(cfg.bias_psd());
     let result = filter_recorded(&data, init, bias0, cfg, strategy.as_mut());
@@ -962,6 +963,7 @@ fn pass_without_dvl(
         t0,
         q_time: &[],
         q_values: &[],
+        covariance_time: &[],
     };
     let mut init = rec.truth.states[0];
     if let Some(v) = vel0 {

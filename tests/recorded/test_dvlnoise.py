@@ -70,7 +70,8 @@ def _fake_pass(true_r: np.ndarray, share: float, rng: np.random.Generator):
         nis = np.einsum("ki,ki->k", nu, nu / np.diagonal(s, axis1=1, axis2=2))
         empty = np.zeros((0,))
         unused = ("time", "lla", "vel", "rpy", "bias", "sigma", "calibration",
-                  "calibration_sigma", "covariance", "gain", "adaptive_q")  # fmt: skip
+                  "calibration_sigma", "covariance", "covariance_epoch", "covariances", "gain",
+                  "adaptive_q")  # fmt: skip
         return FilterResult(
             **dict.fromkeys(unused, empty),
             dvl_epoch=np.zeros(m, dtype=np.int64),

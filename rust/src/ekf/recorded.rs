@@ -32,11 +32,16 @@ pub struct FilterOutput {
     pub calibration_sigma: Vec<[f64; 4]>,
     /// Covariance at the last epoch.
     pub final_covariance: Matrix15,
+    /// For each of [`RecordedData::covariance_time`]: the epoch index it was kept at
+    /// (None if outside the run) and the full covariance there, classic coordinates.
+    pub covariance_epoch: Vec<Option<usize>>,
+    pub covariances: Vec<Option<Matrix15>>,
     /// Divergence watch over every update's NIS.
     pub nis_monitor: NisMonitor,
 }
 
 /// Inputs of one filter pass over recorded (or user-simulated) sensor arrays.
+#[derive(Clone, Copy, Debug, Default)]
 pub struct RecordedData<'a> {
     /// IMU samples; row k covers `(imu_time[k-1], imu_time[k]]`, `imu_time[-1] = t0`.
     pub imu: &'a [[f64; 6]],
@@ -53,6 +58,10 @@ pub struct RecordedData<'a> {
     pub q_time: &'a [f64],
     /// The schedule's IMU variances, one row per `q_time` [(m/s²)², (rad/s)²].
     pub q_values: &'a [[f64; 6]],
+    /// Times [s] at which to keep the full covariance, strictly increasing (empty for
+    /// none): each is kept at the epoch nearest to it, after that epoch's update, so a
+    /// pass stores 15 × 15 numbers (1,800 bytes) per time asked for, never per epoch.
+    pub covariance_time: &'a [f64],
 }
 
 impl RecordedData<'_> {
@@ -102,6 +111,7 @@ impl RecordedData<'_> {
             ));
         }
         check::increasing("q_time", self.q_time)?;
+        check::increasing("covariance_time", self.covariance_time)?;
         for (i, row) in self.q_values.iter().enumerate() {
             check::non_negative("q", row).map_err(|_| {
                 Error::invalid(
@@ -137,6 +147,8 @@ impl FilterOutput {
             calibration: Vec::new(),
             calibration_sigma: Vec::new(),
             final_covariance: Matrix15::zeros(),
+            covariance_epoch: Vec::new(),
+            covariances: Vec::new(),
             nis_monitor: NisMonitor::default(),
         }
     }
@@ -161,6 +173,7 @@ impl FilterOutput {
 struct Cursor {
     next_dvl: usize,
     next_q: usize,
+    next_covariance: usize,
     steps_since_update: usize,
 }
 
@@ -224,6 +237,8 @@ pub fn filter_recorded_until(
         out.record(&ekf, data.t0);
     }
     let mut at = Cursor::default();
+    let first_dt = data.imu_time[0] - data.t0;
+    keep_covariances(data, &ekf, &mut out, &mut at, 0, data.t0, first_dt);
     let mut t_prev = data.t0;
     for (k, (sample, &t)) in data.imu.iter().zip(data.imu_time).enumerate() {
         if k % STEPS_PER_CHECK == 0 {
@@ -249,6 +264,8 @@ pub fn filter_recorded_until(
             })?;
         at.steps_since_update += 1;
         apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
+        let next_dt = data.imu_time.get(k + 1).map_or(dt, |&next| next - t);
+        keep_covariances(data, &ekf, &mut out, &mut at, k + 1, t, next_dt);
         if every {
             out.record(&ekf, t);
         }
@@ -258,7 +275,40 @@ pub fn filter_recorded_until(
         out.record(&ekf, t_prev);
     }
     out.final_covariance = ekf.covariance();
+    // Times beyond the last epoch's half step are outside the run.
+    out.covariance_epoch
+        .resize(data.covariance_time.len(), None);
+    out.covariances.resize(data.covariance_time.len(), None);
     Ok(out)
+}
+
+/// Keep the covariance (classic coordinates) for every asked-for time whose nearest
+/// epoch is `epoch` (time `t` [s]; `next_dt` [s] the step after it): the times before
+/// or at `t + next_dt/2` not yet taken. Times before the run's first half step are outside
+/// it (None), as DVL rows are.
+fn keep_covariances(
+    data: &RecordedData<'_>,
+    ekf: &Ekf,
+    out: &mut FilterOutput,
+    at: &mut Cursor,
+    epoch: usize,
+    t: f64,
+    next_dt: f64,
+) {
+    let times = data.covariance_time;
+    let first_dt = data.imu_time[0] - data.t0;
+    let mut kept: Option<Matrix15> = None;
+    while at.next_covariance < times.len() && times[at.next_covariance] <= t + 0.5 * next_dt {
+        if times[at.next_covariance] < data.t0 - 0.5 * first_dt {
+            out.covariance_epoch.push(None);
+            out.covariances.push(None);
+        } else {
+            let p = *kept.get_or_insert_with(|| ekf.covariance());
+            out.covariance_epoch.push(Some(epoch));
+            out.covariances.push(Some(p));
+        }
+        at.next_covariance += 1;
+    }
 }
 
 /// The filter at the start of a pass, once the data, the initial state and the
@@ -349,6 +399,7 @@ mod tests {
                 t0,
                 q_time: &[],
                 q_values: &[],
+                covariance_time: &[],
             }
             .validate()
         };
@@ -369,6 +420,7 @@ mod tests {
             t0: 0.0,
             q_time: &[],
             q_values: &[],
+            covariance_time: &[],
         }
         .validate()
         .unwrap_err();
@@ -385,6 +437,7 @@ mod tests {
             t0: 0.0,
             q_time: &[],
             q_values: &[],
+            covariance_time: &[],
         }
     }
 
@@ -430,6 +483,7 @@ mod tests {
             t0: 0.0,
             q_time: &[],
             q_values: &[],
+            covariance_time: &[],
         };
         for calibration in [
             None,
@@ -475,6 +529,73 @@ mod tests {
         }
     }
 
+    /// The covariance is kept at the epoch nearest each asked-for time, after that
+    /// epoch's update (its diagonal is the σ recorded there), the pass otherwise
+    /// unchanged; times outside the run are None, and a time that is not increasing
+    /// is refused by name.
+    #[test]
+    fn covariances_are_kept_at_the_epochs_nearest_the_times_asked_for() {
+        let n = 250;
+        let imu = vec![[0.02, -0.01, -9.79, 1e-4, 0.0, 2e-4]; n];
+        let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
+        let dvl = vec![[0.5, 0.01, 0.0]; 4];
+        let dvl_time = [0.5, 1.0, 1.5, 2.0];
+        let times = [-0.1, -0.004, 0.004, 0.996, 1.0, 1.2449, 2.504, 2.6];
+        let cfg = FilterConfig::default();
+        let pass = |covariance_time: &[f64]| {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl: &dvl,
+                dvl_time: &dvl_time,
+                covariance_time,
+                ..RecordedData::default()
+            };
+            let spec = StrategySpec::Constant { q: [1e-4; 6] };
+            filter_recorded(
+                &data,
+                moving_state(),
+                [0.0; 6],
+                &cfg,
+                spec.build(cfg.bias_psd()).as_mut(),
+            )
+        };
+        let plain = pass(&[]).unwrap();
+        let kept = pass(&times).unwrap();
+        assert!(plain.covariances.is_empty() && plain.covariance_epoch.is_empty());
+        assert_eq!(kept.sigma, plain.sigma);
+        assert_eq!(kept.final_covariance, plain.final_covariance);
+        let epochs = [
+            None,
+            Some(0),
+            Some(0),
+            Some(100),
+            Some(100),
+            Some(124),
+            Some(250),
+            None,
+        ];
+        assert_eq!(kept.covariance_epoch, epochs);
+        for (p, epoch) in kept.covariances.iter().zip(epochs) {
+            let Some(k) = epoch else {
+                assert!(p.is_none());
+                continue;
+            };
+            let p = p.unwrap();
+            assert_eq!(p, p.transpose());
+            let sigma: [f64; 15] = std::array::from_fn(|i| p[(i, i)].sqrt());
+            assert_eq!(sigma, plain.sigma[k], "epoch {k}");
+        }
+        // Epoch 100 (t = 1.0 s) holds the covariance after its DVL update.
+        let p100 = kept.covariances[3].unwrap();
+        assert!(p100[(3, 3)].sqrt() < plain.sigma[99][3]);
+        assert_eq!(kept.covariances[6].unwrap(), plain.final_covariance);
+        let err = pass(&[1.0, 1.0]).unwrap_err();
+        assert!(err.to_string().starts_with("covariance_time"), "{err}");
+        let err = pass(&[f64::NAN]).unwrap_err();
+        assert!(err.to_string().starts_with("covariance_time"), "{err}");
+    }
+
     /// A q schedule switches an external strategy's q at the epoch nearest each row's
     /// time, and nothing else: before the switch the run equals the prior's constant
     /// run bit for bit, from it on the new q's constant run's covariance growth.
@@ -497,6 +618,7 @@ mod tests {
                 t0: 0.0,
                 q_time,
                 q_values,
+                covariance_time: &[],
             };
             filter_recorded(
                 &data,

@@ -32,10 +32,12 @@ fn q_schedule(
 
 /// One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
 /// [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-/// or ``"last"`` (the epoch arrays keep only the last epoch). ``|lla0[0]|`` <= 89°.
+/// or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
+/// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
+/// ``|lla0[0]|`` <= 89°.
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string()),
-    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all')")]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), covariance_time = None),
+    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', covariance_time=None)")]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -53,6 +55,7 @@ fn run_filter<'py>(
     q_time: Option<&Bound<'py, PyAny>>,
     q: Option<&Bound<'py, PyAny>>,
     #[pyo3(from_py_with = arg_epochs)] epochs: String,
+    covariance_time: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let epochs = match epochs.as_str() {
         "all" => Epochs::All,
@@ -73,6 +76,10 @@ fn run_filter<'py>(
     let dvl_rows = as_rows::<3>(&dvl_array);
     let dvl = &*dvl_rows;
     let dvl_time = column(dvl_time, "dvl_time")?;
+    let covariance_time = match covariance_time {
+        Some(times) => column(times, "covariance_time")?,
+        None => Vec::new(),
+    };
     let init = nav_state(lla0, vel0, rpy0)?;
     let bias0 = fixed_or::<6>(bias0, "bias0", [0.0; 6])?;
     let cfg = config.inner.clone();
@@ -89,6 +96,7 @@ fn run_filter<'py>(
             t0,
             q_time: &q_time,
             q_values: &q_values,
+            covariance_time: &covariance_time,
         };
         let mut strat = spec.build(cfg.bias_psd());
         filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
@@ -110,6 +118,9 @@ struct OutputArrays {
     calibration: Array2<f64>,
     calibration_sigma: Array2<f64>,
     covariance: Array2<f64>,
+    /// Per asked-for time: -1 and NaN where a time fell outside the run.
+    covariance_epoch: Array1<i64>,
+    covariances: Array3<f64>,
     dvl_epoch: Array1<i64>,
     diverged_at: Option<f64>,
     /// Per DVL row: NaN (and not accepted) where a row fell outside the run.
@@ -138,6 +149,14 @@ impl OutputArrays {
             calibration: Array2::from(out.calibration),
             calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
+            covariance_epoch: out
+                .covariance_epoch
+                .iter()
+                .map(|e| e.map_or(-1, |k| k as i64))
+                .collect(),
+            covariances: Array3::from_shape_fn((out.covariances.len(), 15, 15), |(k, i, j)| {
+                out.covariances[k].map_or(f64::NAN, |p| p[(i, j)])
+            }),
             dvl_epoch: out
                 .dvl_epoch
                 .iter()
@@ -183,6 +202,8 @@ impl OutputArrays {
         d.set_item("calibration", self.calibration.into_pyarray(py))?;
         d.set_item("calibration_sigma", self.calibration_sigma.into_pyarray(py))?;
         d.set_item("covariance", self.covariance.into_pyarray(py))?;
+        d.set_item("covariance_epoch", self.covariance_epoch.into_pyarray(py))?;
+        d.set_item("covariances", self.covariances.into_pyarray(py))?;
         d.set_item("dvl_epoch", self.dvl_epoch.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
         d.set_item("innovation", self.innovation.into_pyarray(py))?;
