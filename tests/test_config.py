@@ -221,7 +221,7 @@ def test_the_paper_rows_are_built_from_specs() -> None:
     assert list(rows) == list(paper.PAPER_ROWS)[:4]
     assert list(rows)[:2] == ["constant (true q)", "constant (20 x q)"]
     assert rows["constant (20 x q)"].q == [20 * 1e-4] * 3 + [20 * 1e-6] * 3
-    assert rows["adaptive xi=5"].window == 5
+    assert rows["mehra xi=5"].window == 5
     assert paper.LEARNED_LABELS == {
         "paper-hcf": "HCF-ensemble",
         "paper-baseline": "baseline net",

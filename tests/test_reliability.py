@@ -151,11 +151,11 @@ def test_a_shard_round_trips_exactly_and_other_settings_are_refused(
     hybrid = run_hybrid(
         ConstantRegressor(PAPER_Q), paper_trajectory, prior_q=PAPER_Q, n_runs=2, seed=4
     )
-    store.save("paper", "adaptive xi=1", mc, None)
+    store.save("paper", "mehra xi=1", mc, None)
     store.save("paper", "net / 1 s", hybrid.result, hybrid)
     again = ShardStore(tmp_path / "s", {"n_runs": 2, "seed": 4})
     assert len(again) == 2 and again.load("paper", "other") is None
-    loaded, none = again.load("paper", "adaptive xi=1")
+    loaded, none = again.load("paper", "mehra xi=1")
     assert none is None and loaded.failure == mc.failure
     for name, value in vars(mc).items():
         if isinstance(value, np.ndarray):

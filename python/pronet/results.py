@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 from pronet._util.files import atomic_folder, json_bytes
 from pronet.learn.hybrid import HybridResult
 from pronet.montecarlo import IN_BAND_FLAG, STATE_BLOCKS, MonteCarloResult
-from pronet.sim.paper import PAPER_TABLE
+from pronet.sim.paper import PAPER_NAMES, PAPER_TABLE
 from pronet.stats import MeanCI, format_number, mean_ci
 
 if TYPE_CHECKING:  # pandas loads only when a table is made
@@ -206,12 +206,12 @@ def consistency_cells(result: MonteCarloResult) -> list[str]:
 
 
 def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
-    """Experiment rows as a Markdown table; with ``paper``, the paper's numbers beside
-    ours (:data:`pronet.sim.paper.PAPER_TABLE`)."""
+    """Experiment rows as a Markdown table; with ``paper``, the paper's name of each row
+    and its numbers beside ours (:data:`pronet.sim.paper.PAPER_NAMES`, ``PAPER_TABLE``)."""
     header = ["approach", "SRMSE [m/s] (95 % CI)", "SMAE [m/s] (95 % CI)"]
     header.append("ΔSRMSE vs row 1 (paired 95 % CI)")
     if paper:
-        header += ["paper SRMSE", "paper SMAE"]
+        header += ["paper's row", "paper SRMSE", "paper SMAE"]
     header += [*CONSISTENCY_HEADER, "failed / diverged runs", "guardrail events"]
     lines = []
     for row in rows:
@@ -220,6 +220,7 @@ def rows_markdown(rows: list[Row], title: str, paper: bool = True) -> str:
         cells.append(f"{d.mean:+.4f} [{d.low:+.4f}, {d.high:+.4f}]")
         if paper:
             ref = PAPER_TABLE.get(row.label)
+            cells.append(PAPER_NAMES.get(row.label, ""))
             cells += [f"{ref[0]:.3f}", f"{ref[1]:.3f}"] if ref else ["", ""]
         cells += consistency_cells(row.result)
         cells.append(f"{row.result.n_failed} / {row.result.n_diverged}")

@@ -77,8 +77,8 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
         assert list(rows) == [
             "constant (true q)",
             "constant (20 x q)",
-            "adaptive xi=1",
-            "adaptive xi=5",
+            "mehra xi=1",
+            "mehra xi=5",
             "HCF-ensemble",
             "baseline net",
             "detrend net",
@@ -90,6 +90,10 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
         assert rows["constant (true q)"]["srmse_diff"] == 0
     table = (out / "table.md").read_text()
     assert table.count("| detrend net |") == 2
+    # Mehra's rows carry the paper's name beside ours in the paper scenario's table;
+    # no row of any table is called "adaptive xi" (pronet's adaptive is another row).
+    assert table.count("| mehra xi=5 |") == 2 and table.count("| Adaptive ξ=5 |") == 1
+    assert "adaptive xi" not in table.lower()
     lines = (out / "metrics.csv").read_text().splitlines()
     assert lines[0] == ",".join(RUN_COLUMNS) and len(lines) == 1 + 2 * 7 * 2
     # No temporary folder is left behind, and an existing folder is never overwritten.

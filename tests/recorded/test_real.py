@@ -405,7 +405,7 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     code = main(argv + ["--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))])
     assert code == 0
     text = capsys.readouterr().out
-    labels = ("constant (estimated q)", "adaptive xi=5", "detrend net", "HCF-ensemble")
+    labels = ("constant (estimated q)", "mehra xi=5", "detrend net", "HCF-ensemble")
     for label in (*labels, "detvar", "adaptive"):
         assert label in text
     assert "stamps as given, no lever arms" in text and "inertial only, first 60 s" in text
