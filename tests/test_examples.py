@@ -1,14 +1,21 @@
-"""The scripts in examples/ run and print what their docstrings promise (few runs)."""
+"""The scripts in examples/ run and print what their docstrings promise (few runs), and
+docs/python.md shows the ones it walks through as they are."""
 
 from __future__ import annotations
 
+import importlib.util
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+import pronet
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+NUMBER = r"[-+]?\d+\.\d+"
 
 
 def run(name: str, *args: str) -> str:
@@ -25,9 +32,68 @@ def run(name: str, *args: str) -> str:
 def test_every_example_is_tested() -> None:
     assert sorted(p.name for p in EXAMPLES.glob("*.py")) == [
         "custom_trajectory.py",
+        "mems_survey.py",
+        "own_arrays.py",
+        "own_estimator.py",
         "own_regressor.py",
         "sweep_tuning_period.py",
     ]
+
+
+def _example_docs():
+    spec = importlib.util.spec_from_file_location(
+        "example_docs", ROOT / "scripts" / "example_docs.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_python_md_shows_the_walked_examples_as_they_are(capsys) -> None:
+    docs = _example_docs()
+    assert docs.main(["--check"]) == 0, capsys.readouterr().out
+    page = docs.PAGE.read_text(encoding="utf-8")
+    for name in docs.WALKED:
+        assert (EXAMPLES / name).read_text(encoding="utf-8") in page, name
+    # A page whose copy differs from its script is rewritten to the script.
+    assert docs.render(page.replace("lawnmower()", "survey()", 1)) != page.replace(
+        "lawnmower()", "survey()", 1
+    )
+
+
+@pytest.mark.slow
+def test_mems_survey_reports_a_consistent_filter_in_every_block() -> None:
+    out = run("mems_survey.py", "--runs", "8").splitlines()
+    assert out[0] == "lawnmower: 384 s, 38400 IMU samples, 5 Hz DVL"
+    srmse = float(re.search(f"SRMSE ({NUMBER})", out[1]).group(1))  # type: ignore[union-attr]
+    assert 0 < srmse < 0.2  # a MEMS IMU held by a 5 Hz DVL
+    blocks = [line.split() for line in out[3:]]
+    assert [b[0] for b in blocks] == list(pronet.STATE_BLOCKS)
+    # The filter is told the simulated model: every block's run-mean NEES near 3.
+    assert all(1.5 < float(b[1].rstrip(",")) < 6.0 for b in blocks), out
+
+
+@pytest.mark.slow
+def test_own_estimator_runs_in_lockstep_and_reports_a_paired_difference() -> None:
+    out = run("own_estimator.py", "--runs", "4").splitlines()
+    assert out[0].startswith("difference variance: SRMSE ") and out[0].endswith("328 tunings")
+    low_high = re.search(f"paired difference: +({NUMBER}) \\[({NUMBER}), ({NUMBER})\\]", out[2])
+    assert low_high is not None, out[2]
+    mean, low, high = (float(x) for x in low_high.groups())
+    assert low <= mean <= high
+
+
+def test_own_arrays_filters_the_arrays_and_keeps_the_covariance_asked_for() -> None:
+    out = run("own_arrays.py").splitlines()
+    assert out[0].startswith("33001 epochs, 1650 DVL updates, mean NIS ")
+    assert 2.0 < float(out[0].rsplit(" ", 1)[1]) < 4.0  # R told the truth: NIS ≈ 3
+    kept = out[2:]
+    assert [line.split(" s:")[0] for line in kept] == ["t =  60.0", "t = 180.0", "t = 300.0"]
+    for line in kept:
+        north, east, major, minor = (float(x) for x in re.findall(NUMBER, line.split(":", 1)[1]))
+        assert 0 < minor <= major
+        assert max(abs(north), abs(east)) < 4 * major, line  # inside the ellipse's box
 
 
 @pytest.mark.slow
