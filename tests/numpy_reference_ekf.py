@@ -114,6 +114,7 @@ def run_reference_filter(
     aiding="body",
     calibration=None,
     formulation="classic",
+    log=None,
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
     innovation, nis (one row per DVL measurement applied, in order).
@@ -125,7 +126,12 @@ def run_reference_filter(
 
     ``formulation``: ``"classic"`` (velocity error ``dv``) or ``"invariant"`` (``dV = dv
     - [v x] psi``): P lives in its coordinates, ``x_inv = T x_classic`` with ``T`` the
-    identity but ``-[v x]`` at (velocity, attitude); ``sigma`` is always classic."""
+    identity but ``-[v x]`` at (velocity, attitude); ``sigma`` is always classic.
+
+    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx)`` (the step's
+    transition into the epoch, the covariance before and after its updates, the sum of
+    the error estimates fed back there) for the smoother in
+    ``numpy_reference_smoother.py``; epoch 0 has no transition (None)."""
     invariant = formulation == "invariant"
 
     def t_matrix(vel, sign=-1.0):
@@ -169,6 +175,8 @@ def run_reference_filter(
             out["calibration_sigma"].append(np.sqrt(np.diag(p))[15:])
 
     record(t0)
+    if log is not None:
+        log.append((None, p.copy(), p.copy(), np.zeros(n_x)))
     t_prev = t0
     j = 0
     w_hat = np.zeros(3)
@@ -207,6 +215,7 @@ def run_reference_filter(
         qd[15:, 15:] = np.diag(cal_noise * dt)
         p = phi @ p @ phi.T + qd
         p = (p + p.T) / 2
+        p_prior, dx_sum = p.copy(), np.zeros(n_x)
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:
             h = np.zeros((3, 15))
@@ -248,9 +257,12 @@ def run_reference_filter(
             if calibration is not None:
                 k_scale = k_scale - dx[15]
                 m_dvl = m_dvl @ exp_so3(-dx[16:19])
+            dx_sum += dx
             out["innovation"].append(nu)
             out["nis"].append(float(nu @ np.linalg.solve(s, nu)))
             j += 1
         record(t)
+        if log is not None:
+            log.append((phi, p_prior, p.copy(), dx_sum))
         t_prev = t
     return {k: np.array(val) for k, val in out.items()}

@@ -188,3 +188,37 @@ def test_run_filter_keeps_the_covariance_at_the_times_asked_for() -> None:
     for bad, message in (([2.0, 1.0], "must increase strictly"), ([np.nan], "finite")):
         with pytest.raises(ValueError, match=f"^covariance_time.*{message}"):
             pronet.run_filter(*args, **kw, covariance_time=bad)  # type: ignore[arg-type]
+
+
+def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
+    """``smooth=True`` adds the smoothed solution (a table like the forward one's) and
+    leaves the forward pass as it was; it keeps every epoch and is refused with
+    ``epochs="last"``, with the DVL calibration states, or given a non-bool."""
+    from pronet.filter import EPOCH_COLUMNS
+
+    traj = pronet.builtin_trajectory("paper")
+    n = 400
+    args = (traj.imu[:n], traj.time[1 : n + 1], np.tile([1.0, 0, 0], (3, 1)), [1.0, 2.0, 3.0])
+    kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+              strategy=pronet.Strategy.constant(PAPER_Q))  # fmt: skip
+    plain = pronet.run_filter(*args, **kw)  # type: ignore[arg-type]
+    assert plain.smoothed is None
+    out = pronet.run_filter(*args, **kw, smooth=True)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(out.vel, plain.vel)
+    np.testing.assert_array_equal(out.sigma, plain.sigma)
+    s = out.smoothed
+    assert isinstance(s, pronet.SmoothedResult)
+    table = s.to_dataframe()
+    assert tuple(table.columns) == EPOCH_COLUMNS and len(table) == n + 1
+    np.testing.assert_array_equal(table["time"], out.time)
+    np.testing.assert_array_equal(table["vel_e"], s.vel[:, 1])
+    np.testing.assert_array_equal(table["sigma_dv_n"], s.sigma[:, 3])
+    assert (s.sigma <= out.sigma * (1 + 1e-12)).all() and (s.sigma[100] < out.sigma[100]).any()
+    cases = [
+        ({"epochs": "last"}, "^epochs: smooth=True keeps every epoch"),
+        ({"config": pronet.FilterConfig(dvl_calibration=True)}, "^config: the smoother does not"),
+        ({"smooth": 1}, "^smooth: expected a bool"),
+    ]
+    for extra, message in cases:
+        with pytest.raises(ValueError, match=message):
+            pronet.run_filter(*args, **{**kw, "smooth": True, **extra})  # type: ignore[arg-type]

@@ -21,7 +21,7 @@ from pronet._core import (
     earth_radii,
     normal_gravity,
 )
-from pronet.filter import FilterResult, run_filter
+from pronet.filter import FilterResult, SmoothedResult, run_filter
 from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
 from pronet.navigation import NavSolution, lla_from_ned, local_ned, mechanize
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
@@ -34,6 +34,7 @@ __all__ = [
     "NavSolution",
     "STATE_BLOCKS",
     "Segment",
+    "SmoothedResult",
     "SensorConfig",
     "Strategy",
     "Trajectory",

@@ -304,12 +304,14 @@ def run_filter(
     q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
     covariance_time: ArrayLike | None = None,
-) -> dict[str, NDArray[Any]]:
+    smooth: bool = False,
+) -> dict[str, Any]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
     [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
     or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
     (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
-    ``|lla0[0]|`` <= 89°."""
+    ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
+    ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``|lla0[0]|`` <= 89°."""
 
 def monte_carlo(
     trajectory: Trajectory,

@@ -13,6 +13,35 @@ from pronet._util.validate import check_type, float_array, scalar
 
 
 @dataclass(frozen=True)
+class SmoothedResult:
+    """The RTS-smoothed solution at every epoch of a pass (``run_filter(smooth=True)``):
+    each epoch's estimate given every measurement of the pass, before and after it.
+
+    Attributes:
+        time: ``(n+1,)`` epoch times [s], the forward pass's.
+        lla: ``(n+1, 3)`` latitude, longitude [rad], height [m, up].
+        vel: ``(n+1, 3)`` NED velocity [m/s].
+        rpy: ``(n+1, 3)`` roll, pitch, yaw [rad].
+        bias: ``(n+1, 6)`` accelerometer [m/s²] and gyro [rad/s] bias estimates.
+        sigma: ``(n+1, 15)`` smoothed 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a,
+            δb_g]`` (:data:`ERROR_STATES`), never above the forward pass's.
+    """
+
+    time: NDArray[np.float64]
+    lla: NDArray[np.float64]
+    vel: NDArray[np.float64]
+    rpy: NDArray[np.float64]
+    bias: NDArray[np.float64]
+    sigma: NDArray[np.float64]
+
+    def to_dataframe(self):  # -> pd.DataFrame
+        """One row per epoch, columns :data:`EPOCH_COLUMNS`, SI units as the attributes."""
+        return _epoch_table(
+            [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
+        )
+
+
+@dataclass(frozen=True)
 class FilterResult:
     """The estimate at every IMU epoch and every DVL update.
 
@@ -52,6 +81,8 @@ class FilterResult:
         adaptive_q: ``(m, 15, 15)`` the per-IMU-step discrete Q_d a Mehra strategy set
             after each update (``K C Kᵀ`` spread over the interval's steps); NaN for
             other strategies and before Mehra has its ξ innovations.
+        smoothed: the RTS-smoothed solution at every epoch with ``smooth=True``
+            (:class:`SmoothedResult`), else None.
     """
 
     time: NDArray[np.float64]
@@ -73,6 +104,7 @@ class FilterResult:
     adaptive_q: NDArray[np.float64]
     accepted: NDArray[np.bool_]
     diverged_at: float | None
+    smoothed: SmoothedResult | None = None
 
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
         """The result as a pandas table, SI units as the attributes.
@@ -100,11 +132,20 @@ class FilterResult:
         if rows != "epochs":
             raise ValueError(f'rows: expected "epochs" or "updates", got {rows!r}')
         parts = [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
-        columns = list(EPOCH_COLUMNS)
         if len(self.calibration):
             parts += [self.calibration, self.calibration_sigma]
-            columns += [*CALIBRATION_COLUMNS, *(f"sigma_{c}" for c in CALIBRATION_COLUMNS)]
-        return pd.DataFrame(np.hstack(parts), columns=columns)
+        return _epoch_table(parts)
+
+
+def _epoch_table(parts: list[NDArray[np.float64]]):  # -> pd.DataFrame
+    """The epoch columns (:data:`EPOCH_COLUMNS`, then the calibration states' if
+    ``parts`` has them) as a data frame."""
+    import pandas as pd
+
+    columns = list(EPOCH_COLUMNS)
+    if len(parts) > 6:
+        columns += [*CALIBRATION_COLUMNS, *(f"sigma_{c}" for c in CALIBRATION_COLUMNS)]
+    return pd.DataFrame(np.hstack(parts), columns=columns)
 
 
 #: The 15 error states, in order (:attr:`FilterResult.sigma`): NED position [m], NED
@@ -161,6 +202,7 @@ def run_filter(
     q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
     covariance_time: ArrayLike | None = None,
+    smooth: bool = False,
 ) -> FilterResult:
     """Run the INS/DVL error-state EKF over sensor arrays.
 
@@ -193,10 +235,16 @@ def run_filter(
             epoch nearest it. Memory is 1,800 bytes per time asked for, whatever the
             pass's length (every epoch of a 1 h, 100 Hz pass would be 650 MB; σ alone
             is kept at every epoch).
+        smooth: also run the Rauch–Tung–Striebel smoother backward over the pass
+            (:attr:`FilterResult.smoothed`; every epoch kept, so not with
+            ``epochs="last"``; the DVL calibration states are not smoothed yet). It
+            keeps two covariances per DVL epoch, not per IMU sample, and costs a few
+            forward passes (docs/filter.md, "The RTS smoother").
     """
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
     check_type(strategy, _core.Strategy, "strategy")
+    check_type(smooth, bool, "smooth")
     out = _core.run_filter(
         float_array(imu, "imu", (None, 6)),
         float_array(imu_time, "imu_time", (None,)),
@@ -217,5 +265,9 @@ def run_filter(
             if covariance_time is None
             else float_array(covariance_time, "covariance_time", (None,))
         ),
+        smooth=smooth,
     )
-    return FilterResult(**out)  # type: ignore[arg-type]  # the stub's dict: arrays and a float
+    smoothed = out.pop("smoothed")
+    if smoothed is not None:
+        smoothed = SmoothedResult(time=out["time"], **smoothed)
+    return FilterResult(**out, smoothed=smoothed)

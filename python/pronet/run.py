@@ -193,7 +193,8 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
     check_acts(strategy, rec)
     start = time.perf_counter()
     schedule, period = None, None
-    q_args: dict[str, F64] = {}
+    q_time: F64 | None = None
+    q: F64 | None = None
     core_strategy = strategy
     if isinstance(strategy, Learned):
         period = strategy.tuning_period
@@ -206,7 +207,7 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
         )
         core_strategy = _core.Strategy.external(strategy.prior_q)
         if len(schedule.time):
-            q_args = {"q_time": schedule.time, "q": schedule.q}
+            q_time, q = schedule.time, schedule.q
     result = run_filter(
         rec.imu,
         rec.imu_time,
@@ -219,7 +220,8 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
         config=rec.config,
         strategy=core_strategy,  # type: ignore[arg-type]
         epochs=rec.epochs,
-        **q_args,
+        q_time=q_time,
+        q=q,
     )
     return RecordedRun(result, schedule, time.perf_counter() - start, period)
 

@@ -387,6 +387,7 @@ mod tests {
             gain,
             accepted: true,
             sensitivity: None,
+            correction: None,
         }
     }
 

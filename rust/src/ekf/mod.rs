@@ -31,12 +31,16 @@ mod config;
 mod dynamics;
 pub mod formulation;
 mod recorded;
+pub mod smoother;
 
 use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
 use dynamics::{add_imu_noise, ErrorDynamics};
 pub use formulation::Formulation;
-pub use recorded::{filter_recorded, filter_recorded_until, Epochs, FilterOutput, RecordedData};
+pub use recorded::{
+    filter_recorded, filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput,
+    RecordedData,
+};
 
 /// Result of one DVL update.
 #[derive(Clone, Debug)]
@@ -52,6 +56,9 @@ pub struct UpdateInfo {
     pub accepted: bool,
     /// `H M Hᵀ` with `M = ∂P⁻/∂λ` (see [`Ekf::track_sensitivity`]); None when untracked.
     pub sensitivity: Option<Matrix3<f64>>,
+    /// The error estimate `δx̂ = −K ν` fed back, in the filter's own coordinates (the
+    /// first 15 states); None when the gate rejected the measurement.
+    pub correction: Option<Vector15>,
 }
 
 /// Mean NIS over the last [`NisMonitor::WINDOW`] updates above which the filter is
@@ -334,6 +341,7 @@ impl Ekf {
         let mut info = info;
         formulation::gain_to_classic(self.cfg.formulation, &mut info.gain, &self.nav.vel);
         if let Some((dx, cal)) = dx {
+            info.correction = Some(dx);
             self.feedback(&dx);
             if let (Some(c), Some(cal)) = (self.calibration.as_mut(), cal) {
                 c.feedback(&cal);
@@ -354,17 +362,31 @@ impl Ekf {
     /// to first order `v̂ − δV̂ − [v̂×]ψ̂`, but a rotation of the corrected velocity, so
     /// that a large attitude correction cannot scale the speed.
     fn feedback(&mut self, dx: &Vector15) {
-        let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
-        let dp = block(POS);
-        let rotation = exp_so3(&block(ATT));
-        self.nav.lla -= earth::ned_delta_to_lla_delta(&self.nav.lla, &dp);
-        self.nav.vel = match self.cfg.formulation {
-            Formulation::Classic => self.nav.vel - block(VEL),
-            Formulation::Invariant => rotation * (self.nav.vel - block(VEL)),
-        };
-        self.nav.dcm = rotation * self.nav.dcm;
-        self.accel_bias -= block(ACC_BIAS);
-        self.gyro_bias -= block(GYRO_BIAS);
+        let formulation = self.cfg.formulation;
+        correct(
+            &mut self.nav,
+            &mut self.accel_bias,
+            &mut self.gyro_bias,
+            dx,
+            formulation,
+        );
+    }
+
+    /// `Φ = I + F Δt` of the next IMU step from the current state with the raw sample
+    /// `raw` (bias-corrected as [`Ekf::propagate`] does): the transition that step
+    /// applies to the covariance, as a dense matrix (the smoother's backward pass).
+    pub fn transition(&self, raw: &ImuSample, dt: f64) -> Matrix15 {
+        let accel = raw.accel - self.accel_bias;
+        let rates = FrameRates::at(&self.nav);
+        let dynamics = ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation);
+        let mut phi = Matrix15::identity();
+        for c in 0..15 {
+            let column = dynamics.apply(Matrix15::identity().column(c).as_slice());
+            for (r, value) in column.iter().enumerate() {
+                phi[(r, c)] += value * dt;
+            }
+        }
+        phi
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional
@@ -389,6 +411,30 @@ impl Ekf {
             }
         }
     }
+}
+
+/// Remove an error estimate `δx̂` (estimate minus truth, in the coordinates of
+/// `formulation`) from a navigation solution and its bias estimates: the filter's
+/// feedback, and the smoother's correction of the forward solution. The invariant
+/// velocity is corrected exactly, `v̂ ← Exp(ψ̂)(v̂ − δV̂)` (see [`Ekf::update`]).
+pub fn correct(
+    nav: &mut NavState,
+    accel_bias: &mut Vector3<f64>,
+    gyro_bias: &mut Vector3<f64>,
+    dx: &Vector15,
+    formulation: Formulation,
+) {
+    let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
+    let dp = block(POS);
+    let rotation = exp_so3(&block(ATT));
+    nav.lla -= earth::ned_delta_to_lla_delta(&nav.lla, &dp);
+    nav.vel = match formulation {
+        Formulation::Classic => nav.vel - block(VEL),
+        Formulation::Invariant => rotation * (nav.vel - block(VEL)),
+    };
+    nav.dcm = rotation * nav.dcm;
+    *accel_bias -= block(ACC_BIAS);
+    *gyro_bias -= block(GYRO_BIAS);
 }
 
 /// What [`kalman_update`] did: the update's report (its gain the first 15 rows) and
@@ -435,6 +481,7 @@ fn kalman_update<const N: usize>(
         gain: gain.fixed_rows::<15>(0).into_owned(),
         accepted,
         sensitivity,
+        correction: None,
     };
     if !accepted {
         return Ok(Outcome {

@@ -1,6 +1,7 @@
 //! One filter pass over recorded (or user-simulated) IMU and DVL arrays.
 
-use super::{Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo};
+use super::smoother::{self, Forward, Nodes, Smoothed};
+use super::{Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, Vector15};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
 use crate::error::{check, Error, Result};
@@ -38,6 +39,8 @@ pub struct FilterOutput {
     pub covariances: Vec<Option<Matrix15>>,
     /// Divergence watch over every update's NIS.
     pub nis_monitor: NisMonitor,
+    /// The RTS-smoothed solution at every epoch, from [`smooth_recorded_until`].
+    pub smoothed: Option<Smoothed>,
 }
 
 /// Inputs of one filter pass over recorded (or user-simulated) sensor arrays.
@@ -150,6 +153,7 @@ impl FilterOutput {
             covariance_epoch: Vec::new(),
             covariances: Vec::new(),
             nis_monitor: NisMonitor::default(),
+            smoothed: None,
         }
     }
 
@@ -225,6 +229,71 @@ pub fn filter_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
+    forward_pass(
+        data,
+        initial,
+        initial_bias,
+        cfg,
+        strategy,
+        epochs,
+        None,
+        cancel,
+    )
+}
+
+/// [`filter_recorded_until`] keeping every epoch, then the RTS smoother's backward pass
+/// ([`smoother`]): the output's `smoothed` holds the smoothed solution at every epoch.
+/// The DVL calibration states are not smoothed yet (refused, naming `config`).
+pub fn smooth_recorded_until(
+    data: &RecordedData<'_>,
+    initial: NavState,
+    initial_bias: [f64; 6],
+    cfg: &FilterConfig,
+    strategy: &mut dyn NoiseStrategy,
+    cancel: &Cancel,
+) -> Result<FilterOutput> {
+    if cfg.dvl_calibration.is_some() {
+        return Err(Error::invalid(
+            "config",
+            "the smoother does not smooth the DVL calibration states yet: \
+             smooth without dvl_calibration",
+        ));
+    }
+    let mut nodes = Nodes::default();
+    let mut out = forward_pass(
+        data,
+        initial,
+        initial_bias,
+        cfg,
+        strategy,
+        Epochs::All,
+        Some(&mut nodes),
+        cancel,
+    )?;
+    let forward = Forward {
+        imu: data.imu,
+        imu_time: data.imu_time,
+        t0: data.t0,
+        nav: &out.nav,
+        bias: &out.bias,
+    };
+    let smoothed = smoother::smooth(&forward, cfg, &nodes.0, cancel)?;
+    out.smoothed = Some(smoothed);
+    Ok(out)
+}
+
+/// The forward pass; with `nodes`, keeping what the smoother needs.
+#[allow(clippy::too_many_arguments)]
+fn forward_pass(
+    data: &RecordedData<'_>,
+    initial: NavState,
+    initial_bias: [f64; 6],
+    cfg: &FilterConfig,
+    strategy: &mut dyn NoiseStrategy,
+    epochs: Epochs,
+    mut nodes: Option<&mut Nodes>,
+    cancel: &Cancel,
+) -> Result<FilterOutput> {
     let mut ekf = start(data, initial, initial_bias, cfg, strategy)?;
     let every = epochs == Epochs::All;
     let kept = if every { data.imu.len() + 1 } else { 1 };
@@ -257,13 +326,19 @@ pub fn filter_recorded_until(
         if let Some(q) = q_in_force {
             strategy.set_imu_variance(&q)?;
         }
+        if let Some(nodes) = nodes.as_deref_mut() {
+            nodes.before_step(k, &ekf, strategy.process_noise());
+        }
         ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise())
             .map_err(|e| match e {
                 Error::Numerical(m) => Error::Numerical(format!("{m} (t = {t} s)")),
                 other => other,
             })?;
         at.steps_since_update += 1;
-        apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
+        let correction = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
+        if let (Some(nodes), Some(correction)) = (nodes.as_deref_mut(), correction) {
+            nodes.after_updates(k + 1, &ekf, correction, strategy.process_noise());
+        }
         let next_dt = data.imu_time.get(k + 1).map_or(dt, |&next| next - t);
         keep_covariances(data, &ekf, &mut out, &mut at, k + 1, t, next_dt);
         if every {
@@ -273,6 +348,9 @@ pub fn filter_recorded_until(
     }
     if !every {
         out.record(&ekf, t_prev);
+    }
+    if let Some(nodes) = nodes {
+        nodes.finish(data.imu.len(), &ekf);
     }
     out.final_covariance = ekf.covariance();
     // Times beyond the last epoch's half step are outside the run.
@@ -349,7 +427,8 @@ fn start(
     Ok(ekf)
 }
 
-/// Apply every DVL row whose nearest epoch is `epoch` (time `t` [s], step `dt` [s]).
+/// Apply every DVL row whose nearest epoch is `epoch` (time `t` [s], step `dt` [s]);
+/// the sum of the error estimates fed back, or None if no row was there.
 #[allow(clippy::too_many_arguments)]
 fn apply_dvl_rows(
     data: &RecordedData<'_>,
@@ -360,7 +439,8 @@ fn apply_dvl_rows(
     epoch: usize,
     t: f64,
     dt: f64,
-) -> Result<()> {
+) -> Result<Option<Vector15>> {
+    let mut correction: Option<Vector15> = None;
     while at.next_dvl < data.dvl.len() && data.dvl_time[at.next_dvl] <= t + 0.5 * dt {
         let row = at.next_dvl;
         let z = Vector3::from_column_slice(&data.dvl[row]);
@@ -369,6 +449,10 @@ fn apply_dvl_rows(
             other => other,
         })?;
         out.nis_monitor.push(info.nis, t);
+        let sum = correction.get_or_insert_with(Vector15::zeros);
+        if let Some(dx) = &info.correction {
+            *sum += dx;
+        }
         if info.accepted {
             strategy.after_update(&info, at.steps_since_update);
             at.steps_since_update = 0;
@@ -379,13 +463,14 @@ fn apply_dvl_rows(
         out.updates[row] = Some(info);
         at.next_dvl += 1;
     }
-    Ok(())
+    Ok(correction)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::ekf::tests::moving_state;
+    use crate::ekf::Formulation;
     use crate::noise::StrategySpec;
     #[test]
     fn recorded_data_is_validated() {
@@ -650,6 +735,185 @@ mod tests {
         assert!(err.to_string().starts_with("q_time"), "{err}");
         let err = run(StrategySpec::External { prior_q: qa }, &[1.0], &[[-1.0; 6]]).unwrap_err();
         assert!(err.to_string().starts_with("q: row 0"), "{err}");
+    }
+
+    /// IMU rows, their times, DVL rows, their times.
+    type Pass = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+
+    /// A moving pass of `n` steps with a DVL row every second.
+    fn moving_pass(n: usize) -> Pass {
+        let imu = (0..n)
+            .map(|k| {
+                let wobble = (k as f64 * 0.07).sin();
+                [0.02 * wobble, -0.01, -9.79, 1e-4, 2e-4 * wobble, 2e-4]
+            })
+            .collect();
+        let imu_time = (1..=n).map(|k| k as f64 * 0.01).collect();
+        let dvl_time: Vec<f64> = (1..=n / 100).map(|k| k as f64).collect();
+        let dvl = dvl_time
+            .iter()
+            .map(|t| [0.5 + 0.01 * t, 0.01, -0.002 * t])
+            .collect();
+        (imu, imu_time, dvl, dvl_time)
+    }
+
+    /// The smoother's nodes: for every strategy (the noise changing at updates, and at
+    /// q schedule rows between them), each interval rebuilt from its first node goes
+    /// through the forward pass's covariances, bit for bit (its σ at every epoch).
+    #[test]
+    fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
+        let (imu, imu_time, dvl, dvl_time) = moving_pass(600);
+        let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+        let cases = [
+            (StrategySpec::Constant { q }, vec![], vec![]),
+            (
+                StrategySpec::Mehra {
+                    window: 2,
+                    prior_q: q,
+                },
+                vec![],
+                vec![],
+            ),
+            (
+                StrategySpec::Adaptive {
+                    window: 2,
+                    prior_q: q,
+                },
+                vec![],
+                vec![],
+            ),
+            (
+                StrategySpec::External { prior_q: q },
+                vec![1.504, 3.0, 4.25],
+                vec![[4e-4; 6], q, [2e-4; 6]],
+            ),
+        ];
+        for formulation in [Formulation::Classic, Formulation::Invariant] {
+            let cfg = FilterConfig {
+                formulation,
+                ..FilterConfig::default()
+            };
+            for (spec, q_time, q_values) in &cases {
+                let data = RecordedData {
+                    imu: &imu,
+                    imu_time: &imu_time,
+                    dvl: &dvl,
+                    dvl_time: &dvl_time,
+                    q_time,
+                    q_values,
+                    ..RecordedData::default()
+                };
+                let mut strategy = spec.build(cfg.bias_psd());
+                let mut nodes = Nodes::default();
+                let out = forward_pass(
+                    &data,
+                    moving_state(),
+                    [0.0; 6],
+                    &cfg,
+                    strategy.as_mut(),
+                    Epochs::All,
+                    Some(&mut nodes),
+                    &Cancel::default(),
+                )
+                .unwrap();
+                let nodes = nodes.0;
+                // A node at the start, at each of the 6 DVL epochs (the last one the
+                // end), and at each q row that fell between them.
+                assert_eq!(nodes.first().unwrap().epoch, 0);
+                assert_eq!(nodes.last().unwrap().epoch, 600);
+                let updates = nodes
+                    .iter()
+                    .filter(|n| n.correction != Vector15::zeros())
+                    .count();
+                assert_eq!(updates, 6, "{spec:?}");
+                assert_eq!(
+                    nodes.len(),
+                    7 + usize::from(!q_time.is_empty()) * 2,
+                    "{spec:?}"
+                );
+                let forward = Forward {
+                    imu: &imu,
+                    imu_time: &imu_time,
+                    t0: 0.0,
+                    nav: &out.nav,
+                    bias: &out.bias,
+                };
+                for pair in nodes.windows(2) {
+                    let interval = smoother::Interval::rebuild(
+                        &forward,
+                        &cfg,
+                        &pair[0],
+                        pair[1].epoch,
+                        &Cancel::default(),
+                    )
+                    .unwrap();
+                    let (a, b) = (pair[0].epoch, pair[1].epoch);
+                    assert_eq!(interval.p.len(), b - a);
+                    for (k, p) in interval.p.iter().enumerate() {
+                        let zero = Vector3::zeros();
+                        let mut ekf = Ekf::new(&cfg, out.nav[a + k], zero, zero).unwrap();
+                        ekf.p = *p;
+                        let at = a + k;
+                        assert_eq!(ekf.sigma(), out.sigma[at], "{spec:?} {formulation:?} {at}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Without a measurement there is nothing to smooth: the smoothed solution is the
+    /// forward one. With them, the smoothed σ is below the forward σ inside the pass
+    /// and equal at its end; what cannot be smoothed is refused by name.
+    #[test]
+    fn smoothing_without_measurements_changes_nothing() {
+        let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
+        let cfg = FilterConfig::default();
+        let spec = StrategySpec::Constant { q: [1e-4; 6] };
+        let pass = |dvl: &[[f64; 3]], dvl_time: &[f64], cfg: &FilterConfig| {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl,
+                dvl_time,
+                ..RecordedData::default()
+            };
+            smooth_recorded_until(
+                &data,
+                moving_state(),
+                [0.0; 6],
+                cfg,
+                spec.build(cfg.bias_psd()).as_mut(),
+                &Cancel::default(),
+            )
+        };
+        let bare = pass(&[], &[], &cfg).unwrap();
+        let s = bare.smoothed.unwrap();
+        assert_eq!(s.nav, bare.nav);
+        assert_eq!(s.bias, bare.bias);
+        for (a, b) in s.sigma.iter().zip(&bare.sigma) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).abs() <= 1e-12 * y, "{x} {y}");
+            }
+        }
+        let aided = pass(&dvl, &dvl_time, &cfg).unwrap();
+        let s = aided.smoothed.unwrap();
+        assert_eq!(s.sigma[300], aided.sigma[300]);
+        assert!(s.sigma[150][3] < 0.99 * aided.sigma[150][3]);
+        assert!(s
+            .sigma
+            .iter()
+            .zip(&aided.sigma)
+            .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
+        let calibrated = FilterConfig {
+            dvl_calibration: Some(super::super::calibration::CalibrationConfig::default()),
+            ..FilterConfig::default()
+        };
+        let err = pass(&dvl, &dvl_time, &calibrated).unwrap_err();
+        assert!(
+            err.to_string()
+                .starts_with("config: the smoother does not smooth"),
+            "{err}"
+        );
     }
 
     /// The text `tests/test_core_rules.py` expects from `pronet.run_filter`.

@@ -7,7 +7,11 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::{interruptible, invalid};
 use crate::attitude::euler_from_dcm;
-use crate::ekf::{filter_recorded_until, Epochs, FilterOutput, RecordedData};
+use crate::ekf::smoother::Smoothed;
+use crate::ekf::{
+    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData,
+};
+use crate::mechanization::NavState;
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
@@ -34,10 +38,11 @@ fn q_schedule(
 /// [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
 /// or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
 /// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
-/// ``|lla0[0]|`` <= 89°.
+/// ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
+/// ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``|lla0[0]|`` <= 89°.
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), covariance_time = None),
-    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', covariance_time=None)")]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), covariance_time = None, smooth = false),
+    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', covariance_time=None, smooth=False)")]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -56,6 +61,7 @@ fn run_filter<'py>(
     q: Option<&Bound<'py, PyAny>>,
     #[pyo3(from_py_with = arg_epochs)] epochs: String,
     covariance_time: Option<&Bound<'py, PyAny>>,
+    smooth: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let epochs = match epochs.as_str() {
         "all" => Epochs::All,
@@ -67,6 +73,12 @@ fn run_filter<'py>(
             ))
         }
     };
+    if smooth && epochs == Epochs::Last {
+        return Err(invalid(
+            "epochs",
+            "smooth=True keeps every epoch (the smoother corrects each): use epochs=\"all\"",
+        ));
+    }
     let imu_array = readonly_rows::<6>(imu, "imu")?;
     let imu_rows = as_rows::<6>(&imu_array);
     let imu = &*imu_rows;
@@ -99,8 +111,12 @@ fn run_filter<'py>(
             covariance_time: &covariance_time,
         };
         let mut strat = spec.build(cfg.bias_psd());
-        filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
-            .map(OutputArrays::new)
+        if smooth {
+            smooth_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), cancel)
+        } else {
+            filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
+        }
+        .map(OutputArrays::new)
     })?;
     arrays.into_dict(py)
 }
@@ -109,11 +125,7 @@ fn run_filter<'py>(
 /// takes, owned by Rust until they are handed over.
 struct OutputArrays {
     time: Array1<f64>,
-    lla: Array2<f64>,
-    vel: Array2<f64>,
-    rpy: Array2<f64>,
-    bias: Array2<f64>,
-    sigma: Array2<f64>,
+    epochs: EpochArrays,
     /// (0, 4) without the DVL calibration states.
     calibration: Array2<f64>,
     calibration_sigma: Array2<f64>,
@@ -130,22 +142,56 @@ struct OutputArrays {
     accepted: Array1<bool>,
     gain: Array3<f64>,
     adaptive_q: Array3<f64>,
+    /// The smoothed solution's (`pronet.SmoothedResult`).
+    smoothed: Option<EpochArrays>,
+}
+
+/// A solution's arrays at every epoch: position, velocity, attitude, biases, σ.
+struct EpochArrays {
+    lla: Array2<f64>,
+    vel: Array2<f64>,
+    rpy: Array2<f64>,
+    bias: Array2<f64>,
+    sigma: Array2<f64>,
+}
+
+impl EpochArrays {
+    /// The bias and σ arrays take over their vectors without a copy.
+    fn new(nav: &[NavState], bias: Vec<[f64; 6]>, sigma: Vec<[f64; 15]>) -> Self {
+        Self {
+            lla: rows_array(nav.iter().map(|n| n.lla.into())),
+            vel: rows_array(nav.iter().map(|n| n.vel.into())),
+            rpy: rows_array(nav.iter().map(|n| euler_from_dcm(&n.dcm).into())),
+            bias: Array2::from(bias),
+            sigma: Array2::from(sigma),
+        }
+    }
+
+    fn smoothed(s: Smoothed) -> Self {
+        Self::new(&s.nav, s.bias, s.sigma)
+    }
+
+    /// Each array handed to NumPy without a copy, into `d`.
+    fn fill(self, py: Python<'_>, d: &Bound<'_, PyDict>) -> PyResult<()> {
+        d.set_item("lla", self.lla.into_pyarray(py))?;
+        d.set_item("vel", self.vel.into_pyarray(py))?;
+        d.set_item("rpy", self.rpy.into_pyarray(py))?;
+        d.set_item("bias", self.bias.into_pyarray(py))?;
+        d.set_item("sigma", self.sigma.into_pyarray(py))
+    }
 }
 
 impl OutputArrays {
     /// The epochs' time, bias, sigma and calibration arrays take over the output's
     /// vectors without a copy.
-    fn new(out: FilterOutput) -> Self {
+    fn new(mut out: FilterOutput) -> Self {
         let m = out.updates.len();
+        let smoothed = out.smoothed.take().map(EpochArrays::smoothed);
         let p = out.final_covariance;
         let nan3 = [f64::NAN; 3];
         Self {
+            epochs: EpochArrays::new(&out.nav, out.bias, out.sigma),
             time: Array1::from(out.time),
-            lla: rows_array(out.nav.iter().map(|s| s.lla.into())),
-            vel: rows_array(out.nav.iter().map(|s| s.vel.into())),
-            rpy: rows_array(out.nav.iter().map(|s| euler_from_dcm(&s.dcm).into())),
-            bias: Array2::from(out.bias),
-            sigma: Array2::from(out.sigma),
             calibration: Array2::from(out.calibration),
             calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
@@ -187,6 +233,7 @@ impl OutputArrays {
             adaptive_q: Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
                 out.adaptive_q[k].map_or(f64::NAN, |q| q[(i, j)])
             }),
+            smoothed,
         }
     }
 
@@ -194,11 +241,7 @@ impl OutputArrays {
     fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("time", self.time.into_pyarray(py))?;
-        d.set_item("lla", self.lla.into_pyarray(py))?;
-        d.set_item("vel", self.vel.into_pyarray(py))?;
-        d.set_item("rpy", self.rpy.into_pyarray(py))?;
-        d.set_item("bias", self.bias.into_pyarray(py))?;
-        d.set_item("sigma", self.sigma.into_pyarray(py))?;
+        self.epochs.fill(py, &d)?;
         d.set_item("calibration", self.calibration.into_pyarray(py))?;
         d.set_item("calibration_sigma", self.calibration_sigma.into_pyarray(py))?;
         d.set_item("covariance", self.covariance.into_pyarray(py))?;
@@ -212,6 +255,14 @@ impl OutputArrays {
         d.set_item("accepted", self.accepted.into_pyarray(py))?;
         d.set_item("gain", self.gain.into_pyarray(py))?;
         d.set_item("adaptive_q", self.adaptive_q.into_pyarray(py))?;
+        match self.smoothed {
+            Some(s) => {
+                let smoothed = PyDict::new(py);
+                s.fill(py, &smoothed)?;
+                d.set_item("smoothed", smoothed)?;
+            }
+            None => d.set_item("smoothed", py.None())?,
+        }
         Ok(d)
     }
 }

@@ -1,0 +1,308 @@
+//! The Rauch–Tung–Striebel smoother over the closed-loop error-state filter.
+//!
+//! The forward pass ([`super::filter_recorded_until`] with smoothing on) keeps a
+//! [`Node`] at every epoch where the covariance was updated or the process noise
+//! changed: the covariance before and after the update, the error estimate fed back,
+//! and the noise in force until the next node. Between nodes the filter only
+//! predicts, so the backward pass rebuilds each interval's covariances and transitions
+//! from the forward solution (kept at every epoch) and the node it starts from, and
+//! never stores them for the whole pass: memory grows with the nodes (DVL epochs), not
+//! with the IMU samples.
+//!
+//! After every update the forward filter resets its error estimate to zero, so every
+//! error below is relative to the forward solution at its epoch. With `δs` the smoothed
+//! error of the solution after an epoch's update (the prior's is `δs⁻ = δs + δx̂`, the
+//! feedback being `x̂⁺ = x̂⁻ ⊖ δx̂`), an interval from node `a` to node `b` gives, at
+//! each epoch `i` in it (`P_i` the forward covariance there, `Φ_{i→b}` the product of
+//! the step transitions from `i` to `b`, `P⁻_b` the covariance before `b`'s update):
+//!
+//! ```text
+//! A_i  = P_i Φ_{i→b}ᵀ (P⁻_b)⁻¹
+//! δs_i = A_i δs⁻_b
+//! Ps_i = P_i + A_i (Ps_b − P⁻_b) A_iᵀ
+//! ```
+//!
+//! the fixed-interval RTS recursion `C_i = P⁺_i Φ_{i+1}ᵀ (P⁻_{i+1})⁻¹` chained over the
+//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0`. `docs/filter.md` ("The RTS
+//! smoother") writes it out with its sources.
+
+use super::{correct, Ekf, FilterConfig, Matrix15, Vector15};
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
+use crate::error::{Error, Result};
+use crate::mechanization::{ImuSample, NavState};
+use crate::noise::ProcessNoise;
+use nalgebra::Vector3;
+
+/// The process noise of an interval, owned (see [`ProcessNoise`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Noise {
+    Continuous {
+        imu_variance: [f64; 6],
+        bias_psd: [f64; 6],
+    },
+    Discrete(Box<Matrix15>),
+}
+
+impl Noise {
+    pub fn of(noise: ProcessNoise<'_>) -> Self {
+        match noise {
+            ProcessNoise::Continuous {
+                imu_variance,
+                bias_psd,
+            } => Self::Continuous {
+                imu_variance: *imu_variance,
+                bias_psd: *bias_psd,
+            },
+            ProcessNoise::Discrete(q) => Self::Discrete(Box::new(*q)),
+        }
+    }
+
+    /// Whether `noise` is this noise, bit for bit.
+    pub fn is(&self, noise: ProcessNoise<'_>) -> bool {
+        match (self, noise) {
+            (
+                Self::Continuous {
+                    imu_variance: q,
+                    bias_psd: b,
+                },
+                ProcessNoise::Continuous {
+                    imu_variance,
+                    bias_psd,
+                },
+            ) => q == imu_variance && b == bias_psd,
+            (Self::Discrete(q), ProcessNoise::Discrete(other)) => **q == *other,
+            _ => false,
+        }
+    }
+
+    pub fn as_process_noise(&self) -> ProcessNoise<'_> {
+        match self {
+            Self::Continuous {
+                imu_variance,
+                bias_psd,
+            } => ProcessNoise::Continuous {
+                imu_variance,
+                bias_psd,
+            },
+            Self::Discrete(q) => ProcessNoise::Discrete(q),
+        }
+    }
+}
+
+/// What the backward pass needs of one epoch of the forward pass (covariances in the
+/// filter's own error coordinates).
+#[derive(Clone, Debug)]
+pub struct Node {
+    /// The epoch's index in the forward output.
+    pub epoch: usize,
+    /// The covariance after the epoch's updates (the one before them is rebuilt by the
+    /// backward pass, bit for bit, and not kept).
+    pub p_post: Matrix15,
+    /// The sum of the error estimates fed back at the epoch (zero where none).
+    pub correction: Vector15,
+    /// The process noise in force from this epoch to the next node.
+    pub noise: Noise,
+}
+
+/// The nodes of a forward pass, kept as it runs.
+#[derive(Clone, Debug, Default)]
+pub struct Nodes(pub Vec<Node>);
+
+impl Nodes {
+    /// Before the step that starts at `epoch`: a node there if the noise for the step
+    /// differs from the last node's (the last node takes it if it is at `epoch`).
+    pub fn before_step(&mut self, epoch: usize, ekf: &Ekf, noise: ProcessNoise<'_>) {
+        match self.0.last_mut() {
+            Some(last) if last.noise.is(noise) => {}
+            Some(last) if last.epoch == epoch => last.noise = Noise::of(noise),
+            _ => self.0.push(Node {
+                epoch,
+                p_post: ekf.p,
+                correction: Vector15::zeros(),
+                noise: Noise::of(noise),
+            }),
+        }
+    }
+
+    /// After the updates at `epoch`: `correction` the sum of the estimates fed back,
+    /// `noise` the strategy's noise after them (Mehra and the adaptive strategy change
+    /// it at updates).
+    pub fn after_updates(
+        &mut self,
+        epoch: usize,
+        ekf: &Ekf,
+        correction: Vector15,
+        noise: ProcessNoise<'_>,
+    ) {
+        self.0.push(Node {
+            epoch,
+            p_post: ekf.p,
+            correction,
+            noise: Noise::of(noise),
+        });
+    }
+
+    /// At the end of the pass, after the last epoch `epoch`: the node the backward
+    /// pass starts from.
+    pub fn finish(&mut self, epoch: usize, ekf: &Ekf) {
+        if self.0.last().is_some_and(|n| n.epoch == epoch) {
+            return;
+        }
+        let noise = self.0.last().map(|n| n.noise.clone());
+        self.0.push(Node {
+            epoch,
+            p_post: ekf.p,
+            correction: Vector15::zeros(),
+            noise: noise.unwrap_or(Noise::Discrete(Box::new(Matrix15::zeros()))),
+        });
+    }
+}
+
+/// The smoothed solution at every epoch of the forward pass.
+#[derive(Clone, Debug, Default)]
+pub struct Smoothed {
+    pub nav: Vec<NavState>,
+    /// `[b_a, b_g]` per epoch.
+    pub bias: Vec<[f64; 6]>,
+    /// 1σ of the 15 error states in the classic coordinates, per epoch.
+    pub sigma: Vec<[f64; 15]>,
+}
+
+/// What the backward pass reads of the forward one: its solution at every epoch and the
+/// sensor rows it ran on.
+pub struct Forward<'a> {
+    pub imu: &'a [[f64; 6]],
+    pub imu_time: &'a [f64],
+    pub t0: f64,
+    pub nav: &'a [NavState],
+    pub bias: &'a [[f64; 6]],
+}
+
+/// The backward pass over `nodes` (from [`Nodes`], first at epoch 0 and last at the
+/// last epoch); stops with [`Error::Cancelled`] soon after `cancel` is set.
+pub fn smooth(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    nodes: &[Node],
+    cancel: &Cancel,
+) -> Result<Smoothed> {
+    let n = forward.nav.len();
+    if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
+        return Err(Error::Numerical(
+            "the smoother's nodes do not span the pass".into(),
+        ));
+    }
+    let mut out = Smoothed {
+        nav: forward.nav.to_vec(),
+        bias: forward.bias.to_vec(),
+        sigma: vec![[0.0; 15]; n],
+    };
+    let last = &nodes[nodes.len() - 1];
+    // After the last epoch nothing is left to learn: δs = 0, Ps = P.
+    let mut ds = Vector15::zeros();
+    let mut ps = last.p_post;
+    out.sigma[last.epoch] = classic_sigma(cfg, &forward.nav[last.epoch], &ps);
+    for pair in nodes.windows(2).rev() {
+        let (a, b) = (&pair[0], &pair[1]);
+        cancel.check()?;
+        let interval = Interval::rebuild(forward, cfg, a, b.epoch, cancel)?;
+        let p_prior = interval.p_end;
+        let chol = p_prior.cholesky().ok_or_else(|| {
+            Error::Numerical(format!(
+                "the smoother: the covariance before epoch {} is not positive definite",
+                b.epoch
+            ))
+        })?;
+        let lambda = chol.solve(&(ds + b.correction));
+        let m = chol.solve(&(ps - p_prior));
+        let m = chol.solve(&m.transpose()).transpose();
+        let m = (m + m.transpose()) * 0.5;
+        // back = Φ_{i→b}ᵀ, from b back to a.
+        let mut back = Matrix15::identity();
+        for i in (a.epoch..b.epoch).rev() {
+            let k = i - a.epoch;
+            back = interval.phi[k].transpose() * back;
+            let gain = interval.p[k] * back;
+            let dsi = gain * lambda;
+            let psi = interval.p[k] + gain * m * gain.transpose();
+            let psi = (psi + psi.transpose()) * 0.5;
+            out.sigma[i] = classic_sigma(cfg, &forward.nav[i], &psi);
+            apply(&mut out, i, &dsi, cfg);
+            if i == a.epoch {
+                (ds, ps) = (dsi, psi);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The forward covariances `P_i` (epochs `a..b`, `P_a` the node's after its update)
+/// and the transitions `Φ` of the steps `i → i+1`, rebuilt from the forward solution.
+pub(super) struct Interval {
+    pub(super) p: Vec<Matrix15>,
+    pub(super) phi: Vec<Matrix15>,
+    /// The covariance after the last step (before the end node's update).
+    pub(super) p_end: Matrix15,
+}
+
+impl Interval {
+    /// The interval from node `a` to the epoch `end`, rebuilt by the filter's own
+    /// prediction from the forward solution at `a`: the same steps on the same numbers,
+    /// so its last covariance is the forward pass's before `end`'s update, bit for bit.
+    pub(super) fn rebuild(
+        forward: &Forward<'_>,
+        cfg: &FilterConfig,
+        a: &Node,
+        end: usize,
+        cancel: &Cancel,
+    ) -> Result<Self> {
+        let b = &forward.bias[a.epoch];
+        let mut ekf = Ekf::new(
+            cfg,
+            forward.nav[a.epoch],
+            Vector3::new(b[0], b[1], b[2]),
+            Vector3::new(b[3], b[4], b[5]),
+        )?;
+        ekf.p = a.p_post;
+        let steps = end - a.epoch;
+        let (mut p, mut phi) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+        for epoch in a.epoch..end {
+            if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
+                cancel.check()?;
+            }
+            // The step from epoch i to i + 1 reads IMU row i.
+            let raw = ImuSample::from_array(&forward.imu[epoch]);
+            let t_prev = if epoch == 0 {
+                forward.t0
+            } else {
+                forward.imu_time[epoch - 1]
+            };
+            let dt = forward.imu_time[epoch] - t_prev;
+            p.push(ekf.p);
+            phi.push(ekf.transition(&raw, dt));
+            ekf.propagate(&raw, dt, a.noise.as_process_noise())?;
+        }
+        Ok(Self {
+            p,
+            phi,
+            p_end: ekf.p,
+        })
+    }
+}
+
+/// Remove the smoothed error `ds` from the forward solution at epoch `i`.
+fn apply(out: &mut Smoothed, i: usize, ds: &Vector15, cfg: &FilterConfig) {
+    let b = out.bias[i];
+    let (mut ab, mut gb) = (
+        Vector3::new(b[0], b[1], b[2]),
+        Vector3::new(b[3], b[4], b[5]),
+    );
+    correct(&mut out.nav[i], &mut ab, &mut gb, ds, cfg.formulation);
+    out.bias[i] = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
+}
+
+fn classic_sigma(cfg: &FilterConfig, nav: &NavState, p: &Matrix15) -> [f64; 15] {
+    let mut c = *p;
+    super::formulation::to_classic(cfg.formulation, &mut c, &nav.vel);
+    std::array::from_fn(|i| c[(i, i)].max(0.0).sqrt())
+}

@@ -1,0 +1,60 @@
+"""An independent, pure-NumPy Rauch–Tung–Striebel smoother over the reference filter.
+
+The plain fixed-interval recursion at every IMU step, dense matrices throughout, with
+the closed-loop filter's resets: after each epoch's updates the forward error estimate
+is zero, and the error of the solution before them is the one after plus the estimate
+fed back (``docs/filter.md``, "The RTS smoother"). It shares no code with the Rust core
+(whose backward pass chains the steps between updates instead) and is slow on purpose.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from numpy_reference_ekf import dcm_from_euler, euler_from_dcm, exp_so3, radii, skew
+
+
+def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
+    """The smoothed ``lla``, ``vel``, ``rpy``, ``bias`` and classic ``sigma`` at every
+    epoch, from the reference filter's output ``forward`` and its ``log``."""
+    invariant = formulation == "invariant"
+    n = len(log)
+    out = {k: np.array(forward[k], dtype=float, copy=True) for k in ("lla", "vel", "rpy", "bias")}
+    out["sigma"] = np.zeros((n, 15))
+    ds = np.zeros(15)
+    ps = log[-1][2]
+    out["sigma"][-1] = _classic_sigma(ps, out["vel"][-1], invariant)
+    for i in range(n - 2, -1, -1):
+        phi, p_prior, _, dx = log[i + 1]
+        p_post = log[i][2]
+        gain = p_post @ phi.T @ np.linalg.inv(p_prior)
+        ds = gain @ (ds + dx)
+        ps = p_post + gain @ (ps - p_prior) @ gain.T
+        ps = (ps + ps.T) / 2
+        out["sigma"][i] = _classic_sigma(ps, forward["vel"][i], invariant)
+        _correct(out, i, ds, invariant)
+    return out
+
+
+def _classic_sigma(p: np.ndarray, vel: np.ndarray, invariant: bool) -> np.ndarray:
+    if invariant:  # dv = dV + [v x] psi
+        t = np.eye(15)
+        t[3:6, 6:9] = skew(vel)
+        p = t @ p @ t.T
+    return np.sqrt(np.maximum(np.diag(p), 0.0))
+
+
+def _correct(out: dict, i: int, dx: np.ndarray, invariant: bool) -> None:
+    """The filter's feedback of ``dx`` applied to the solution at epoch ``i``."""
+    lla, v = out["lla"][i], out["vel"][i]
+    c = dcm_from_euler(*out["rpy"][i])
+    rn, re = radii(lla[0])
+    out["lla"][i] = lla - np.array(
+        [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
+    )
+    rot = exp_so3(dx[6:9])
+    out["vel"][i] = rot @ (v - dx[3:6]) if invariant else v - dx[3:6]
+    out["rpy"][i] = euler_from_dcm(rot @ c)
+    out["bias"][i] = out["bias"][i] - dx[9:15]
