@@ -63,3 +63,82 @@ def test_the_smoother_is_consistent_and_beats_the_filter(formulation) -> None:
     # Never worse beyond the noise of 40 runs, and well better on the whole.
     assert (rms_s <= 1.15 * rms_f).all()
     assert rms_s.mean() < 0.85 * rms_f.mean(), (rms_s.mean(), rms_f.mean())
+
+
+@pytest.fixture(scope="module")
+def matched():
+    from pronet.sim.scenarios import SCENARIOS
+
+    return SCENARIOS["matched"](0)
+
+
+def _mc(sc, **kw):
+    return pronet.monte_carlo(
+        sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
+        config=sc.config, seed=0, record_every=100, **kw,
+    )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_monte_carlo_smooths_every_run_and_leaves_the_filter_as_it_was(matched) -> None:
+    """The filter's numbers are bit-identical with and without ``smooth``; the smoothed
+    result has the same shapes, a consistent NEES in every block, and a velocity error
+    below the filter's at every recorded epoch (a filter told the simulated model)."""
+    plain = _mc(matched, n_runs=30)
+    both = _mc(matched, n_runs=30, smooth=True)
+    assert plain.smoothed is None
+    for name in ("srmse", "final_horizontal_error", "nis", "nees", "error", "sigma"):
+        np.testing.assert_array_equal(getattr(both, name), getattr(plain, name), err_msg=name)
+    s = both.smoothed
+    assert s is not None and s.smoothed is None and s.q is None
+    assert s.nees.shape == both.nees.shape and s.error.shape == both.error.shape
+    np.testing.assert_array_equal(s.nis, both.nis)  # the filter's, kept
+    for block in pronet.STATE_BLOCKS:
+        assert s.nees_in_band(block) >= 0.85, (block, s.nees_in_band(block))
+    rms = lambda r: np.sqrt(np.mean(np.sum(r.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
+    assert (rms(s)[1:-1] < rms(both)[1:-1]).all()
+    assert s.summary()["srmse"].mean < 0.7 * both.summary()["srmse"].mean
+    # The last epoch has nothing after it: smoothed = filtered there.
+    np.testing.assert_allclose(s.error[:, -1], both.error[:, -1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(s.final_horizontal_error, both.final_horizontal_error, rtol=1e-12)
+
+
+def test_the_ensemble_smooths_as_monte_carlo_does(matched) -> None:
+    """An untuned ensemble is a constant strategy's Monte Carlo, smoothed too; the DVL
+    calibration states are refused by name."""
+    ens = pronet.Ensemble(
+        matched.trajectory, matched.q_nominal, sensors=matched.sensors, config=matched.config,
+        n_runs=3, seed=0, record_every=100, smooth=True,
+    ).finish()  # fmt: skip
+    mc = _mc(matched, n_runs=3, smooth=True)
+    assert ens.smoothed is not None and mc.smoothed is not None
+    np.testing.assert_array_equal(ens.smoothed.srmse, mc.smoothed.srmse)
+    np.testing.assert_array_equal(ens.smoothed.error, mc.smoothed.error)
+    with pytest.raises(ValueError, match="^smooth: the smoother does not smooth the DVL"):
+        pronet.monte_carlo(
+            matched.trajectory, pronet.Strategy.constant(matched.q_nominal), n_runs=1,
+            config=pronet.FilterConfig(dvl_calibration=True), smooth=True,
+        )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_the_smoother_cuts_the_drift_of_each_dvl_outage() -> None:
+    """The ``outage`` scenario (DVL silent 60–120, 150–210, 240–300 s), 100 runs: the
+    smoothed horizontal error at each outage's middle is below the filter's, and the
+    part of it gathered since the outage began is cut to 0.44–0.49 of the filter's
+    (asserted: below 0.6). The error from before the outage, unobservable from
+    velocity alone, stays (docs/filter.md, "The RTS smoother")."""
+    from pronet.sim.scenarios import SCENARIOS
+
+    sc = SCENARIOS["outage"](0)
+    r = _mc(sc, n_runs=100, smooth=True)
+    s = r.smoothed
+    assert s is not None
+    for start, end in sc.sensors.dvl_outages:
+        a, m = (int(np.argmin(np.abs(r.record_time - t))) for t in (start, (start + end) / 2))
+        def rms(e: np.ndarray) -> float:
+            return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+
+        assert rms(s.error[:, m, :2]) < rms(r.error[:, m, :2])
+        drift = [rms(x.error[:, m, :2] - x.error[:, a, :2]) for x in (r, s)]
+        assert drift[1] < 0.6 * drift[0], (start, drift)

@@ -325,11 +325,15 @@ def monte_carlo(
     sample_initial_error: bool = True,
     threads: int | None = None,
     first_run: int = 0,
+    smooth: bool = False,
 ) -> dict[str, Any]:
     """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
     ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :func:`max_threads`
     (None: :func:`check_threads`'s default). An external strategy is refused: nothing
-    sets its q here."""
+    sets its q here. ``smooth``: also the RTS smoother's metrics of every run (key
+    ``smoothed``: ``srmse``, ``smae``, ``final_horizontal_error``,
+    ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
+    ``sigma``)."""
 
 def check_result_size(
     trajectory: Trajectory, sensors: SensorConfig, *, n_runs: int, record_every: int = 0
@@ -358,7 +362,8 @@ class Ensemble:
     first, or None at the end; ``set_q(q)`` with ``q`` ``(n_runs, 6)`` sets each
     run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
     ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
-    (KeyboardInterrupt); the ensemble is then unusable (ValueError).
+    (KeyboardInterrupt); the ensemble is then unusable (ValueError). ``smooth``: as
+    :func:`monte_carlo`'s.
     """
 
     def __new__(
@@ -376,6 +381,7 @@ class Ensemble:
         sample_initial_error: bool = True,
         threads: int | None = None,
         first_run: int = 0,
+        smooth: bool = False,
     ) -> Ensemble: ...
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``

@@ -16,7 +16,7 @@ window and tuning period of the loop), and its :meth:`~Ensemble.finish` returns 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -77,6 +77,10 @@ class MonteCarloResult:
         calibration_sigma: ``(n_runs, 4)`` the filter's final 1σ of the same.
         calibration_nees: ``(n_runs, m)`` NEES of the four calibration states after
             each update (4 dof).
+        smoothed: with ``smooth=True``, the same result for the RTS-smoothed solution
+            of every run: its ``srmse``, ``smae``, horizontal errors, ``nees`` (at the
+            same DVL epochs) and ``error``/``sigma`` histories; the NIS, failures and
+            divergence are the filter's, ``q`` None. Else None.
     """
 
     srmse: NDArray[np.float64]
@@ -97,6 +101,7 @@ class MonteCarloResult:
     calibration_error: NDArray[np.float64] | None = None
     calibration_sigma: NDArray[np.float64] | None = None
     calibration_nees: NDArray[np.float64] | None = None
+    smoothed: MonteCarloResult | None = None
 
     @property
     def n_runs(self) -> int:
@@ -287,6 +292,7 @@ def monte_carlo(
     sample_initial_error: bool = True,
     threads: int | None = None,
     first_run: int = 0,
+    smooth: bool = False,
 ) -> MonteCarloResult:
     """Simulate ``n_runs`` noisy runs along ``trajectory`` and filter each one.
 
@@ -307,6 +313,11 @@ def monte_carlo(
             ``RAYON_NUM_THREADS``).
         first_run: index of the first run (a shard of a larger Monte Carlo: runs
             ``first_run .. first_run + n_runs``, identical to those runs of the whole).
+        smooth: also run the RTS smoother backward over every run
+            (:attr:`MonteCarloResult.smoothed`; the filter's numbers are unchanged). A
+            run then keeps its solution at every IMU epoch until it is smoothed (~300
+            bytes each) and costs a few forward passes; not with the DVL calibration
+            states (``ValueError`` naming ``smooth``).
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")
@@ -326,8 +337,18 @@ def monte_carlo(
         sample_initial_error=sample_initial_error,
         threads=threads,
         first_run=first_run,
+        smooth=smooth,
     )
-    return MonteCarloResult(**out)
+    return result_of(out)
+
+
+def result_of(out: dict) -> MonteCarloResult:
+    """The result of the native core's dict (``monte_carlo``, ``Ensemble.finish``)."""
+    smoothed = out.pop("smoothed", None)
+    result = MonteCarloResult(**out)
+    if smoothed is None:
+        return result
+    return replace(result, smoothed=replace(result, q=None, **smoothed))
 
 #: The default window of raw IMU samples handed out at each tuning instant (the paper's N)
 #: and time between tuning instants [s]; :mod:`pronet.learn.hybrid` explains them.
@@ -354,7 +375,7 @@ class Ensemble:
         prior_q: 6 per-sample IMU variances [(m/s²)², (rad/s)²] in force until the first
             ``set_q``.
         sensors, config, n_runs, seed, record_every, sample_initial_error, threads,
-            first_run: as for :func:`pronet.monte_carlo` (same defaults).
+            first_run, smooth: as for :func:`pronet.monte_carlo` (same defaults).
         window: IMU samples per window handed out, 1 to the trajectory's length.
         tuning_period: time between tuning instants [s], > 0.
 
@@ -378,6 +399,7 @@ class Ensemble:
         sample_initial_error: bool = True,
         threads: int | None = None,
         first_run: int = 0,
+        smooth: bool = False,
     ) -> None:
         check_type(trajectory, _core.Trajectory, "trajectory")
         sensors = sensors if sensors is not None else _core.SensorConfig()
@@ -399,6 +421,7 @@ class Ensemble:
             sample_initial_error=sample_initial_error,
             threads=threads,
             first_run=first_run,
+            smooth=smooth,
         )
 
     def advance(self) -> NDArray[np.float32] | None:
@@ -414,7 +437,7 @@ class Ensemble:
     def finish(self) -> MonteCarloResult:
         """Run to the end; the result as :func:`pronet.monte_carlo` returns it. The
         ensemble cannot be used afterwards."""
-        return MonteCarloResult(**self._native.finish())
+        return result_of(self._native.finish())
 
     @property
     def n_runs(self) -> int:

@@ -133,7 +133,7 @@ impl Ensemble {
         scenario.check_result_size(opts, dvl_every, window * 6 * (8 + 4))?;
         let runs = (0..opts.n_runs)
             .map(|i| {
-                Run::new(
+                let mut run = Run::new(
                     &scenario,
                     filter,
                     &strategy,
@@ -141,7 +141,11 @@ impl Ensemble {
                     opts.first_run + i as u64,
                     opts.record_every,
                     Some(window),
-                )
+                )?;
+                if opts.smooth {
+                    run.keep_for_smoother(&scenario);
+                }
+                Ok(run)
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(Self {
@@ -285,6 +289,7 @@ mod tests {
             seed,
             record_every,
             first_run: 0,
+            smooth: false,
         }
     }
 

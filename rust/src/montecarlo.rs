@@ -68,7 +68,9 @@ impl Scenario {
             0 => 0.0,
             every => (steps / every as f64).floor() + 1.0,
         };
-        let per_run = 8.0 * (7.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
+        // A smoothed run records its epochs' NEES and its histories twice.
+        let twice = if opts.smooth { 2.0 } else { 1.0 };
+        let per_run = 8.0 * twice * (7.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
         let total = per_run * opts.n_runs as f64;
         if total > MAX_RESULT_BYTES as f64 {
             let gib = |b: f64| b / (1u64 << 30) as f64;
@@ -105,7 +107,7 @@ pub const MAX_RESULT_BYTES: u64 = 4 << 30;
 pub const MAX_RUN_INDEX: u64 = 1 << 62;
 
 /// Monte Carlo size and recording options.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct McOptions {
     pub n_runs: usize,
     pub seed: u64,
@@ -115,6 +117,8 @@ pub struct McOptions {
     /// the random streams of `(seed, index)`, so shards of a Monte Carlo computed apart
     /// are bit-identical to the same runs computed whole.
     pub first_run: u64,
+    /// Also run the RTS smoother over each run ([`RunRecord::smoothed`]).
+    pub smooth: bool,
 }
 
 impl McOptions {
@@ -169,7 +173,15 @@ pub(crate) fn check_strategy(
 ) -> Result<()> {
     filter.validate()?;
     strategy.validate()?;
-    opts.validate()
+    opts.validate()?;
+    if opts.smooth && filter.dvl_calibration.is_some() {
+        return Err(Error::invalid(
+            "smooth",
+            "the smoother does not smooth the DVL calibration states yet: smooth without \
+             dvl_calibration",
+        ));
+    }
+    Ok(())
 }
 
 /// Run `opts.n_runs` runs of `scenario` with one strategy, in parallel on the current
@@ -219,6 +231,9 @@ pub fn run_monte_carlo_until(
                 opts.record_every,
                 None,
             )?;
+            if opts.smooth {
+                run.keep_for_smoother(scenario);
+            }
             for k in 0..n_steps {
                 if k % STEPS_PER_CHECK == 0 {
                     cancel.check()?;
@@ -265,6 +280,49 @@ pub(crate) mod tests {
         })
     }
 
+    /// Smoothing leaves the filter's records as they were and adds, per run, smoothed
+    /// metrics shaped as the filter's and below them; the DVL calibration is refused.
+    #[test]
+    fn smoothing_adds_a_record_per_run_and_changes_no_forward_number() {
+        let sc = short_scenario(60.0);
+        let cfg = tuned_filter();
+        let spec = StrategySpec::Constant { q: TRUE_Q };
+        let opts = McOptions {
+            n_runs: 6,
+            seed: 2,
+            record_every: 50,
+            ..McOptions::default()
+        };
+        let plain = run_monte_carlo(&sc, &cfg, &spec, &opts).unwrap();
+        let smooth = McOptions {
+            smooth: true,
+            ..opts
+        };
+        let both = run_monte_carlo(&sc, &cfg, &spec, &smooth).unwrap();
+        let (mut forward, mut smoothed) = (0.0, 0.0);
+        for (p, b) in plain.runs.iter().zip(&both.runs) {
+            assert!(p.smoothed.is_none());
+            assert_eq!(
+                (&p.summary, &p.nis, &p.history),
+                (&b.summary, &b.nis, &b.history)
+            );
+            let s = b.smoothed.as_ref().unwrap();
+            assert_eq!(s.nees.len(), b.nees.len());
+            let h = s.history.as_ref().unwrap();
+            assert_eq!(h.error.len(), b.history.as_ref().unwrap().error.len());
+            assert!(h.sigma.iter().flatten().all(|x| x.is_finite()));
+            forward += b.summary.srmse;
+            smoothed += s.srmse;
+        }
+        assert!(smoothed < 0.9 * forward, "{smoothed} vs {forward}");
+        let calibrated = FilterConfig {
+            dvl_calibration: Some(crate::ekf::calibration::CalibrationConfig::default()),
+            ..cfg
+        };
+        let err = run_monte_carlo(&sc, &calibrated, &spec, &smooth).unwrap_err();
+        assert!(err.to_string().starts_with("smooth: "), "{err}");
+    }
+
     pub(crate) fn tuned_filter() -> FilterConfig {
         FilterConfig {
             accel_bias_psd: 1e-10,
@@ -282,6 +340,7 @@ pub(crate) mod tests {
             seed: 0,
             record_every,
             first_run: 0,
+            smooth: false,
         };
         assert!(sc.check_result_size(&opts(1000, 100), dvl_every, 0).is_ok());
         // A trillion runs: refused at once (the runs would take petabytes).
@@ -308,6 +367,7 @@ pub(crate) mod tests {
             seed: 42,
             record_every: 50,
             first_run: 0,
+            smooth: false,
         };
         let strat = StrategySpec::Mehra {
             window: 3,
@@ -379,6 +439,7 @@ pub(crate) mod tests {
             seed: 1,
             record_every: 0,
             first_run: 0,
+            smooth: false,
         };
         let external = StrategySpec::External { prior_q: TRUE_Q };
         let err = run_monte_carlo(&sc, &tuned_filter(), &external, &opts).unwrap_err();
@@ -405,6 +466,7 @@ pub(crate) mod tests {
             seed: 1,
             record_every: 0,
             first_run: 0,
+            smooth: false,
         };
         let res = run_monte_carlo(
             &sc,
@@ -450,6 +512,7 @@ pub(crate) mod tests {
             seed: 0,
             record_every: 0,
             first_run: 0,
+            smooth: false,
         };
         let err = run_monte_carlo(
             &Arc::new(sc),

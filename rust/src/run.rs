@@ -2,10 +2,13 @@
 //! simulation, the filter, and the metrics, NIS/NEES and histories it reports.
 
 use crate::attitude::{exp_so3, log_so3};
+use crate::cancel::Cancel;
 use crate::earth;
+use crate::ekf::formulation;
+use crate::ekf::smoother::{smooth, Covariances, Forward, Nodes, Smoothed};
 use crate::ekf::{
-    Ekf, FilterConfig, Formulation, Matrix15, NisMonitor, UpdateInfo, ACC_BIAS, ATT, GYRO_BIAS,
-    POS, VEL,
+    Ekf, FilterConfig, Formulation, Matrix15, NisMonitor, UpdateInfo, Vector15, ACC_BIAS, ATT,
+    GYRO_BIAS, POS, VEL,
 };
 use crate::error::Result;
 use crate::mechanization::{ImuSample, NavState};
@@ -72,6 +75,36 @@ pub struct RunRecord {
     /// empty without them.
     pub calibration_nees: Vec<f64>,
     pub history: Option<History>,
+    /// The RTS smoother's metrics of the run, when it was asked for
+    /// ([`Run::keep_for_smoother`]) and the filter did not fail.
+    pub smoothed: Option<SmoothedRecord>,
+}
+
+/// A run's metrics after the RTS smoother: the [`RunSummary`] error metrics, the block
+/// NEES at the DVL updates and the histories of the smoothed solution.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SmoothedRecord {
+    pub srmse: f64,
+    pub smae: f64,
+    pub final_horizontal_error: f64,
+    pub max_horizontal_error: f64,
+    /// As [`RunRecord::nees`], at the same epochs.
+    pub nees: Vec<[f64; 5]>,
+    /// Error and σ at the recorded epochs (`imu_variance` empty).
+    pub history: Option<History>,
+}
+
+/// What the smoother reads of a run, kept as it steps: the nodes (see
+/// [`crate::ekf::smoother`]), the raw IMU samples, the forward solution at every epoch
+/// and the epochs of the DVL updates.
+struct SmootherLog {
+    nodes: Nodes,
+    imu: Vec<[f64; 6]>,
+    nav: Vec<NavState>,
+    bias: Vec<[f64; 6]>,
+    /// The IMU's true bias at each epoch (the one errors there are taken against).
+    true_bias: Vec<[f64; 6]>,
+    update_epochs: Vec<usize>,
 }
 
 /// The last N raw IMU samples of a run, as the regressor reads them.
@@ -134,16 +167,34 @@ pub struct Run {
     history: Option<History>,
     window: Option<ImuWindow>,
     failure: Option<String>,
+    smoother: Option<Box<SmootherLog>>,
+}
+
+fn bias_array(ekf: &Ekf) -> [f64; 6] {
+    let (a, g) = (ekf.accel_bias, ekf.gyro_bias);
+    [a[0], a[1], a[2], g[0], g[1], g[2]]
 }
 
 /// Estimate-minus-truth error of the full state.
 fn state_error(ekf: &Ekf, truth: &NavState, true_bias: &[f64; 6]) -> [f64; 15] {
-    let dp = earth::position_error_ned(&ekf.nav.lla, &truth.lla);
-    let dv = ekf.nav.vel - truth.vel;
+    solution_error(&ekf.nav, &bias_array(ekf), truth, true_bias)
+}
+
+/// Estimate-minus-truth error of a solution `nav` with bias estimates `bias`.
+fn solution_error(
+    nav: &NavState,
+    bias: &[f64; 6],
+    truth: &NavState,
+    true_bias: &[f64; 6],
+) -> [f64; 15] {
+    let dp = earth::position_error_ned(&nav.lla, &truth.lla);
+    let dv = nav.vel - truth.vel;
     // Ĉ = (I − [ψ×]) C ≈ Exp(−ψ) C.
-    let psi = -log_so3(&(ekf.nav.dcm * truth.dcm.transpose()));
-    let ba = ekf.accel_bias - Vector3::new(true_bias[0], true_bias[1], true_bias[2]);
-    let bg = ekf.gyro_bias - Vector3::new(true_bias[3], true_bias[4], true_bias[5]);
+    let psi = -log_so3(&(nav.dcm * truth.dcm.transpose()));
+    let ba = Vector3::new(bias[0], bias[1], bias[2])
+        - Vector3::new(true_bias[0], true_bias[1], true_bias[2]);
+    let bg = Vector3::new(bias[3], bias[4], bias[5])
+        - Vector3::new(true_bias[3], true_bias[4], true_bias[5]);
     let mut e = [0.0; 15];
     for (offset, v) in [
         (POS, dp),
@@ -190,6 +241,37 @@ fn block_nees(ekf: &Ekf, truth: &NavState, error: &[f64; 15]) -> [f64; 5] {
     nees
 }
 
+/// [`block_nees`] of a smoothed solution `nav` whose covariance `p` is in the
+/// coordinates of `formulation` about the velocity `about` (the forward solution's).
+fn smoothed_block_nees(
+    nav: &NavState,
+    p: &Matrix15,
+    formulation: Formulation,
+    about: &Vector3<f64>,
+    truth: &NavState,
+    error: &[f64; 15],
+) -> [f64; 5] {
+    let mut classic = *p;
+    formulation::to_classic(formulation, &mut classic, about);
+    let mut nees = [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS].map(|b| {
+        nees3(
+            &Vector3::new(error[b], error[b + 1], error[b + 2]),
+            &classic,
+            b,
+        )
+    });
+    let invariant = if formulation == Formulation::Invariant {
+        *p
+    } else {
+        let mut q = classic;
+        formulation::from_classic(Formulation::Invariant, &mut q, &nav.vel);
+        q
+    };
+    let dv = nav.vel - nav.dcm * (truth.dcm.transpose() * truth.vel);
+    nees[1] = nees3(&dv, &invariant, VEL);
+    nees
+}
+
 /// Run `run_index`'s start: the filter's initial navigation solution and the IMU's
 /// true turn-on bias `[b_a, b_g]`. The filter starts from its prior mean, the bias
 /// estimates at zero; the turn-on bias is the configured one, less a draw from the
@@ -215,6 +297,67 @@ pub(crate) fn initial_state(
         }
     }
     (nav, bias)
+}
+
+/// The smoothed solution's metrics against the truth, as a forward run reports them.
+fn smoothed_metrics(
+    s: &Smoothed,
+    log: &SmootherLog,
+    formulation: Formulation,
+    truth: &Truth,
+    record_every: usize,
+) -> SmoothedRecord {
+    let n = s.nav.len() - 1;
+    let error =
+        |k: usize| solution_error(&s.nav[k], &s.bias[k], &truth.states[k], &log.true_bias[k]);
+    let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
+    let mut horizontal = 0.0;
+    for k in 1..=n {
+        let e = error(k);
+        let dv = Vector3::new(e[VEL], e[VEL + 1], e[VEL + 2]);
+        sum_sq += dv.norm_squared();
+        sum_abs += dv.abs().sum();
+        let sq = e[POS] * e[POS] + e[POS + 1] * e[POS + 1];
+        max_sq = max_sq.max(sq);
+        horizontal = sq.sqrt();
+    }
+    let covariance: std::collections::HashMap<usize, &Matrix15> =
+        s.node_covariance.iter().map(|(k, p)| (*k, p)).collect();
+    let nees = log
+        .update_epochs
+        .iter()
+        .map(|&k| match covariance.get(&k) {
+            Some(p) => {
+                let about = &log.nav[k].vel;
+                smoothed_block_nees(
+                    &s.nav[k],
+                    p,
+                    formulation,
+                    about,
+                    &truth.states[k],
+                    &error(k),
+                )
+            }
+            None => [f64::NAN; 5],
+        })
+        .collect();
+    let history = (record_every > 0).then(|| {
+        let epochs = (0..=n).step_by(record_every);
+        History {
+            error: epochs.clone().map(error).collect(),
+            sigma: epochs.map(|k| s.sigma[k]).collect(),
+            imu_variance: Vec::new(),
+        }
+    });
+    let steps = n.max(1) as f64;
+    SmoothedRecord {
+        srmse: (sum_sq / steps).sqrt(),
+        smae: sum_abs / steps,
+        final_horizontal_error: horizontal,
+        max_horizontal_error: max_sq.sqrt(),
+        nees,
+        history,
+    }
 }
 
 impl Run {
@@ -259,6 +402,7 @@ impl Run {
             history: (record_every > 0).then(History::default),
             window: window.map(ImuWindow::new),
             failure: None,
+            smoother: None,
         };
         if run.oracle {
             // the q in force at the start, as the histories report it
@@ -283,6 +427,26 @@ impl Run {
         }
     }
 
+    /// Keep what the RTS smoother needs from now on (call before the first step): the
+    /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
+    /// keeps the forward solution at every IMU epoch (~230 bytes each) and one
+    /// covariance per DVL update.
+    pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
+        let n = scenario.truth.len() + 1;
+        let mut log = SmootherLog {
+            nodes: Nodes::default(),
+            imu: Vec::with_capacity(n),
+            nav: Vec::with_capacity(n),
+            bias: Vec::with_capacity(n),
+            true_bias: Vec::with_capacity(n),
+            update_epochs: Vec::new(),
+        };
+        log.nav.push(self.ekf.nav);
+        log.bias.push(bias_array(&self.ekf));
+        log.true_bias.push(self.true_bias);
+        self.smoother = Some(Box::new(log));
+    }
+
     /// Advance by one IMU sample (and a DVL update when one is due).
     pub fn step(&mut self, scenario: &Scenario) {
         let truth = &*scenario.truth;
@@ -297,6 +461,11 @@ impl Run {
             .imu(&scenario.sensors.imu, ideal, truth.time[self.k], truth.dt);
         if let Some(w) = self.window.as_mut() {
             w.push(&raw);
+        }
+        if let Some(log) = self.smoother.as_mut() {
+            log.nodes
+                .before_step(self.k, &self.ekf, self.strategy.process_noise());
+            log.imu.push(raw);
         }
         self.k += 1;
         self.steps_since_update += 1;
@@ -315,14 +484,27 @@ impl Run {
                 z.as_ref(),
                 self.steps_since_update,
             ) {
-                Ok(Some(info)) => self.after_update(
-                    &info,
-                    state,
-                    truth.time[self.k],
-                    &scenario.sensors.dvl.mounting,
-                ),
+                Ok(Some(info)) => {
+                    self.after_update(
+                        &info,
+                        state,
+                        truth.time[self.k],
+                        &scenario.sensors.dvl.mounting,
+                    );
+                    if let Some(log) = self.smoother.as_mut() {
+                        let dx = info.correction.unwrap_or_else(Vector15::zeros);
+                        let noise = self.strategy.process_noise();
+                        log.nodes.after_updates(self.k, &self.ekf, dx, noise);
+                        log.update_epochs.push(self.k);
+                    }
+                }
                 Ok(None) => {}
                 Err(e) => self.failure = Some(format!("t = {} s: {e}", truth.time[self.k])),
+            }
+            if let Some(log) = self.smoother.as_mut() {
+                log.nav.push(self.ekf.nav);
+                log.bias.push(bias_array(&self.ekf));
+                log.true_bias.push(self.true_bias);
             }
         }
         let dv = self.ekf.nav.vel - state.vel;
@@ -379,8 +561,55 @@ impl Run {
         self.strategy.as_mut()
     }
 
+    /// The smoothed metrics of a run kept for the smoother, or None (not kept, or the
+    /// filter failed). A smoother that fails numerically gives NaN metrics.
+    fn smoothed_record(&mut self, scenario: &Scenario) -> Option<SmoothedRecord> {
+        let mut log = self.smoother.take()?;
+        if self.failure.is_some() {
+            return None;
+        }
+        let truth = &*scenario.truth;
+        log.nodes.finish(self.k, &self.ekf);
+        let forward = Forward {
+            imu: &log.imu,
+            imu_time: &truth.time[1..=self.k],
+            t0: truth.time[0],
+            nav: &log.nav,
+            bias: &log.bias,
+        };
+        let cfg = self.ekf.config();
+        // σ where the histories read it; the NEES reads the nodes' covariances.
+        let every = self.record_every;
+        let recorded = |k: usize| every > 0 && k.is_multiple_of(every);
+        let covariances = Covariances::Where(&recorded);
+        let Ok(smoothed) = smooth(&forward, cfg, &log.nodes.0, covariances, &Cancel::default())
+        else {
+            let nan = f64::NAN;
+            return Some(SmoothedRecord {
+                srmse: nan,
+                smae: nan,
+                final_horizontal_error: nan,
+                max_horizontal_error: nan,
+                nees: vec![[nan; 5]; log.update_epochs.len()],
+                history: self.history.as_ref().map(|h| History {
+                    error: vec![[nan; 15]; h.error.len()],
+                    sigma: vec![[nan; 15]; h.sigma.len()],
+                    imu_variance: Vec::new(),
+                }),
+            });
+        };
+        Some(smoothed_metrics(
+            &smoothed,
+            &log,
+            cfg.formulation,
+            truth,
+            self.record_every,
+        ))
+    }
+
     /// The run's record (the DVL calibration judged against the scenario's DVL).
-    pub fn finish(self, scenario: &Scenario) -> RunRecord {
+    pub fn finish(mut self, scenario: &Scenario) -> RunRecord {
+        let smoothed = self.smoothed_record(scenario);
         let mounting = &scenario.sensors.dvl.mounting;
         let n = self.k.max(1) as f64;
         let failed = self.failure.is_some();
@@ -413,6 +642,7 @@ impl Run {
             nees: self.nees,
             calibration_nees: self.calibration_nees,
             history: self.history,
+            smoothed,
         }
     }
 }

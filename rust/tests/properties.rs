@@ -853,6 +853,7 @@ fn mc_case(
         seed: 5,
         record_every,
         first_run: 0,
+        smooth: false,
     };
     let result = run_monte_carlo(&scenario, cfg, spec, &opts);
     if settings_valid {
@@ -1129,6 +1130,7 @@ fn one_short_run(sensors: SensorConfig) -> pronet::Result<pronet::montecarlo::Ru
         seed: 1,
         record_every: 0,
         first_run: 0,
+        smooth: false,
     };
     run_monte_carlo(&scenario, &tuned_config(), &TRUE_Q, &opts).map(|r| r.runs[0].summary.clone())
 }

@@ -55,6 +55,28 @@ impl ErrorDynamics {
         }
     }
 
+    /// `Φ = I + F Δt` as a dense matrix, assembled from the blocks.
+    pub(super) fn transition(&self, dt: f64) -> Matrix15 {
+        let mut phi = Matrix15::identity();
+        let mut put = |r: usize, c: usize, block: &Matrix3<f64>| {
+            let mut view = phi.fixed_view_mut::<3, 3>(r, c);
+            view += block * dt;
+        };
+        put(POS, POS, &self.pos_pos);
+        put(POS, VEL, &Matrix3::identity());
+        put(VEL, POS, &Matrix3::from_diagonal(&self.vel_pos));
+        put(VEL, VEL, &self.vel_vel);
+        put(VEL, ATT, &self.vel_att);
+        put(VEL, ACC_BIAS, &self.vel_abias);
+        put(ATT, ATT, &self.att_att);
+        put(ATT, GYRO_BIAS, &self.att_gbias);
+        if self.invariant {
+            put(POS, ATT, &self.pos_att);
+            put(VEL, GYRO_BIAS, &self.vel_gbias);
+        }
+        phi
+    }
+
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
     /// multiply-adds instead of 225.
     pub(super) fn apply(&self, x: &[f64]) -> [f64; 9] {

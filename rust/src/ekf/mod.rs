@@ -378,15 +378,7 @@ impl Ekf {
     pub fn transition(&self, raw: &ImuSample, dt: f64) -> Matrix15 {
         let accel = raw.accel - self.accel_bias;
         let rates = FrameRates::at(&self.nav);
-        let dynamics = ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation);
-        let mut phi = Matrix15::identity();
-        for c in 0..15 {
-            let column = dynamics.apply(Matrix15::identity().column(c).as_slice());
-            for (r, value) in column.iter().enumerate() {
-                phi[(r, c)] += value * dt;
-            }
-        }
-        phi
+        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).transition(dt)
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional

@@ -1,6 +1,6 @@
 //! One filter pass over recorded (or user-simulated) IMU and DVL arrays.
 
-use super::smoother::{self, Forward, Nodes, Smoothed};
+use super::smoother::{self, Covariances, Forward, Nodes, Smoothed};
 use super::{Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, Vector15};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
@@ -277,7 +277,7 @@ pub fn smooth_recorded_until(
         nav: &out.nav,
         bias: &out.bias,
     };
-    let smoothed = smoother::smooth(&forward, cfg, &nodes.0, cancel)?;
+    let smoothed = smoother::smooth(&forward, cfg, &nodes.0, Covariances::Every, cancel)?;
     out.smoothed = Some(smoothed);
     Ok(out)
 }
@@ -844,6 +844,7 @@ mod tests {
                         &cfg,
                         &pair[0],
                         pair[1].epoch,
+                        None,
                         &Cancel::default(),
                     )
                     .unwrap();

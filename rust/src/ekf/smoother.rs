@@ -166,6 +166,9 @@ pub struct Smoothed {
     pub bias: Vec<[f64; 6]>,
     /// 1σ of the 15 error states in the classic coordinates, per epoch.
     pub sigma: Vec<[f64; 15]>,
+    /// The smoothed covariance at each node's epoch (in the order of the nodes), in
+    /// the filter's own error coordinates about the forward solution's velocity.
+    pub node_covariance: Vec<(usize, Matrix15)>,
 }
 
 /// What the backward pass reads of the forward one: its solution at every epoch and the
@@ -178,12 +181,26 @@ pub struct Forward<'a> {
     pub bias: &'a [[f64; 6]],
 }
 
+/// Which epochs' smoothed covariance (σ) a backward pass computes; the nodes' it
+/// always does. The mean it computes at every epoch.
+#[derive(Clone, Copy)]
+pub enum Covariances<'a> {
+    /// Every epoch (`run_filter`): the product `Φ_{i→b}ᵀ` is carried back step by step.
+    Every,
+    /// Only the epochs where this holds (a Monte Carlo's recorded ones), the others'
+    /// σ left NaN: the interval's forward product `G_i = Φ_{a→i}` is carried instead,
+    /// and `Φ_{i→b} = G_b G_i⁻¹` formed at those epochs alone.
+    Where(&'a dyn Fn(usize) -> bool),
+}
+
 /// The backward pass over `nodes` (from [`Nodes`], first at epoch 0 and last at the
-/// last epoch); stops with [`Error::Cancelled`] soon after `cancel` is set.
+/// last epoch), computing the covariance where `covariances` says; stops with
+/// [`Error::Cancelled`] soon after `cancel` is set.
 pub fn smooth(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
+    covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
     let n = forward.nav.len();
@@ -195,54 +212,97 @@ pub fn smooth(
     let mut out = Smoothed {
         nav: forward.nav.to_vec(),
         bias: forward.bias.to_vec(),
-        sigma: vec![[0.0; 15]; n],
+        sigma: vec![[f64::NAN; 15]; n],
+        node_covariance: Vec::with_capacity(nodes.len()),
     };
     let last = &nodes[nodes.len() - 1];
     // After the last epoch nothing is left to learn: δs = 0, Ps = P.
     let mut ds = Vector15::zeros();
     let mut ps = last.p_post;
     out.sigma[last.epoch] = classic_sigma(cfg, &forward.nav[last.epoch], &ps);
+    out.node_covariance.push((last.epoch, ps));
+    let wanted = match covariances {
+        Covariances::Every => None,
+        Covariances::Where(f) => Some(f),
+    };
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let interval = Interval::rebuild(forward, cfg, a, b.epoch, cancel)?;
-        let p_prior = interval.p_end;
-        let chol = p_prior.cholesky().ok_or_else(|| {
+        let interval = Interval::rebuild(forward, cfg, a, b.epoch, wanted, cancel)?;
+        let chol = interval.p_end.cholesky().ok_or_else(|| {
             Error::Numerical(format!(
                 "the smoother: the covariance before epoch {} is not positive definite",
                 b.epoch
             ))
         })?;
-        let lambda = chol.solve(&(ds + b.correction));
-        let m = chol.solve(&(ps - p_prior));
+        // μ_i = Φ_{i→b}ᵀ (P⁻_b)⁻¹ δs⁻_b and δs_i = P_i μ_i; M as in the module's text.
+        let mut mu = chol.solve(&(ds + b.correction));
+        let m = chol.solve(&(ps - interval.p_end));
         let m = chol.solve(&m.transpose()).transpose();
         let m = (m + m.transpose()) * 0.5;
-        // back = Φ_{i→b}ᵀ, from b back to a.
-        let mut back = Matrix15::identity();
+        let mut back = Matrix15::identity(); // Φ_{i→b}ᵀ, carried with Covariances::Every
         for i in (a.epoch..b.epoch).rev() {
             let k = i - a.epoch;
-            back = interval.phi[k].transpose() * back;
-            let gain = interval.p[k] * back;
-            let dsi = gain * lambda;
-            let psi = interval.p[k] + gain * m * gain.transpose();
-            let psi = (psi + psi.transpose()) * 0.5;
-            out.sigma[i] = classic_sigma(cfg, &forward.nav[i], &psi);
+            let phi = &interval.phi[k];
+            mu = phi.transpose() * mu;
+            let dsi = interval.p[k] * mu;
+            let transposed_product = if wanted.is_none() {
+                back = transposed_step(phi, &back);
+                Some(back)
+            } else {
+                interval.product_to_end(k)?
+            };
+            if let Some(bk) = transposed_product {
+                let gain = interval.p[k] * bk;
+                let psi = interval.p[k] + gain * m * gain.transpose();
+                let psi = (psi + psi.transpose()) * 0.5;
+                out.sigma[i] = classic_sigma(cfg, &forward.nav[i], &psi);
+                if i == a.epoch {
+                    ps = psi;
+                    out.node_covariance.push((i, psi));
+                }
+            }
             apply(&mut out, i, &dsi, cfg);
             if i == a.epoch {
-                (ds, ps) = (dsi, psi);
+                ds = dsi;
             }
         }
     }
+    out.node_covariance.reverse();
     Ok(out)
 }
 
+/// `Φᵀ B` for a step transition Φ whose bias rows are the identity's (F has none):
+/// the navigation rows' product and the bias rows of B, 2,025 multiply-adds, not 3,375.
+fn transposed_step(phi: &Matrix15, b: &Matrix15) -> Matrix15 {
+    let nav_rows = phi.fixed_rows::<9>(0);
+    let mut out = nav_rows.transpose() * b.fixed_rows::<9>(0);
+    for r in 9..15 {
+        let row = b.row(r).into_owned();
+        let mut target = out.row_mut(r);
+        target += row;
+    }
+    out
+}
+
+/// `Φ G` for such a Φ: the navigation rows change, the bias rows stay.
+fn step_product(phi: &Matrix15, g: &mut Matrix15) {
+    let nav = phi.fixed_rows::<9>(0) * *g;
+    g.fixed_rows_mut::<9>(0).copy_from(&nav);
+}
+
 /// The forward covariances `P_i` (epochs `a..b`, `P_a` the node's after its update)
-/// and the transitions `Φ` of the steps `i → i+1`, rebuilt from the forward solution.
+/// and the transitions `Φ` of the steps `i → i+1`, rebuilt from the forward solution;
+/// with a covariance predicate, the product `G_i = Φ_{a→i}` at the epochs it holds
+/// for, and `G_b`.
 pub(super) struct Interval {
     pub(super) p: Vec<Matrix15>,
     pub(super) phi: Vec<Matrix15>,
     /// The covariance after the last step (before the end node's update).
     pub(super) p_end: Matrix15,
+    /// `G_i` at the wanted epochs (index `i − a`), None elsewhere.
+    g: Vec<Option<Matrix15>>,
+    g_end: Matrix15,
 }
 
 impl Interval {
@@ -254,6 +314,7 @@ impl Interval {
         cfg: &FilterConfig,
         a: &Node,
         end: usize,
+        wanted: Option<&dyn Fn(usize) -> bool>,
         cancel: &Cancel,
     ) -> Result<Self> {
         let b = &forward.bias[a.epoch];
@@ -266,6 +327,8 @@ impl Interval {
         ekf.p = a.p_post;
         let steps = end - a.epoch;
         let (mut p, mut phi) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
+        let mut g_at = Vec::new();
+        let mut g = Matrix15::identity();
         for epoch in a.epoch..end {
             if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
                 cancel.check()?;
@@ -279,14 +342,36 @@ impl Interval {
             };
             let dt = forward.imu_time[epoch] - t_prev;
             p.push(ekf.p);
-            phi.push(ekf.transition(&raw, dt));
+            let step = ekf.transition(&raw, dt);
+            if let Some(wanted) = wanted {
+                g_at.push((epoch > a.epoch && wanted(epoch)).then_some(g));
+                step_product(&step, &mut g);
+            }
+            phi.push(step);
             ekf.propagate(&raw, dt, a.noise.as_process_noise())?;
         }
         Ok(Self {
             p,
             phi,
             p_end: ekf.p,
+            g: g_at,
+            g_end: g,
         })
+    }
+
+    /// `Φ_{i→b}ᵀ` for the epoch `a + k` where it was wanted: `G_bᵀ` at the start,
+    /// `(G_b G_i⁻¹)ᵀ` inside; None where it was not.
+    fn product_to_end(&self, k: usize) -> Result<Option<Matrix15>> {
+        if k == 0 {
+            return Ok(Some(self.g_end.transpose()));
+        }
+        let Some(g) = self.g.get(k).copied().flatten() else {
+            return Ok(None);
+        };
+        let inverse = g.try_inverse().ok_or_else(|| {
+            Error::Numerical("the smoother: a transition product is singular".into())
+        })?;
+        Ok(Some((self.g_end * inverse).transpose()))
     }
 }
 

@@ -134,6 +134,16 @@ fn error_dynamics_match_the_mechanization() {
             let end = error_in(formulation, &est1, &truth1, &bias_error);
             let rate = (end - start) / dt;
             let f = dynamics.apply(start.as_slice());
+            // The dense Φ the smoother reads is I + F Δt, the F applied here.
+            let phi = dynamics.transition(dt);
+            let applied = phi * start - start;
+            for i in 0..15 {
+                let want = if i < 9 { f[i] * dt } else { 0.0 };
+                assert!(
+                    (applied[i] - want).abs() <= 1e-15 * (1.0 + want.abs()),
+                    "{i}"
+                );
+            }
             for i in 0..9 {
                 // F is the rate at the start of the step: the step's own drift is
                 // O(g Δt) times the error.

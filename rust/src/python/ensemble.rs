@@ -30,7 +30,8 @@ use std::sync::{Arc, Mutex};
 /// first, or None at the end; ``set_q(q)`` with ``q`` ``(n_runs, 6)`` sets each
 /// run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
 /// ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
-/// (KeyboardInterrupt); the ensemble is then unusable (ValueError).
+/// (KeyboardInterrupt); the ensemble is then unusable (ValueError). ``smooth``: as
+/// :func:`monte_carlo`'s.
 #[pyclass(name = "Ensemble", module = "pronet._core")]
 pub struct PyEnsemble {
     inner: Arc<Mutex<Option<Ensemble>>>,
@@ -81,7 +82,7 @@ impl PyEnsemble {
 #[pymethods]
 impl PyEnsemble {
     #[new]
-    #[pyo3(signature = (trajectory, sensors, config, prior_q, *, n_runs, seed = 0, window = 200, tuning_period = 1.0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
+    #[pyo3(signature = (trajectory, sensors, config, prior_q, *, n_runs, seed = 0, window = 200, tuning_period = 1.0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0, smooth = false))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -97,6 +98,7 @@ impl PyEnsemble {
         #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
         #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
         #[pyo3(from_py_with = arg_first_run)] first_run: u64,
+        smooth: bool,
     ) -> PyResult<Self> {
         let prior_q = fixed::<6>(prior_q, "prior_q")?;
         let opts = McOptions {
@@ -104,6 +106,7 @@ impl PyEnsemble {
             seed,
             record_every,
             first_run,
+            smooth,
         };
         let sc = scenario(trajectory, sensors, sample_initial_error);
         let cfg = config.inner.clone();

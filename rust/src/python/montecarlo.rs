@@ -8,7 +8,10 @@ use super::sensors::PySensorConfig;
 use super::strategy::PyStrategy;
 use super::trajectory::PyTrajectory;
 use super::{interruptible, to_py_err};
-use crate::montecarlo::{run_monte_carlo_until, McOptions, McResult, RunSummary, Scenario};
+use crate::montecarlo::{
+    run_monte_carlo_until, History, McOptions, McResult, RunSummary, Scenario,
+};
+use crate::run::SmoothedRecord;
 use crate::threads::{check_threads, default_threads, max_threads, with_threads};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
@@ -71,6 +74,39 @@ pub(super) fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Boun
     if res.runs.iter().any(|r| !r.calibration_nees.is_empty()) {
         calibration_arrays(py, &d, res)?;
     }
+    if res.runs.iter().any(|r| r.smoothed.is_some()) {
+        d.set_item("smoothed", smoothed_dict(py, res)?)?;
+    }
+    Ok(d)
+}
+
+/// The smoothed runs' metrics, NEES and histories, shaped as the forward ones (NaN
+/// where a run has none: its filter failed).
+fn smoothed_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let (n, m, r) = (res.runs.len(), res.dvl_time.len(), res.record_time.len());
+    let smoothed = |i: usize| res.runs[i].smoothed.as_ref();
+    let col = |f: &dyn Fn(&SmoothedRecord) -> f64| {
+        Array1::from_iter((0..n).map(|i| smoothed(i).map_or(f64::NAN, f))).into_pyarray(py)
+    };
+    d.set_item("srmse", col(&|s| s.srmse))?;
+    d.set_item("smae", col(&|s| s.smae))?;
+    d.set_item("final_horizontal_error", col(&|s| s.final_horizontal_error))?;
+    d.set_item("max_horizontal_error", col(&|s| s.max_horizontal_error))?;
+    d.set_item(
+        "nees",
+        Array3::from_shape_fn((n, m, 5), |(i, k, b)| {
+            smoothed(i)
+                .and_then(|s| s.nees.get(k))
+                .map_or(f64::NAN, |e| e[b])
+        })
+        .into_pyarray(py),
+    )?;
+    if r > 0 {
+        let history = |i: usize| smoothed(i).and_then(|s| s.history.as_ref());
+        series(py, &d, "error", res, &history, &|h| &h.error)?;
+        series(py, &d, "sigma", res, &history, &|h| &h.sigma)?;
+    }
     Ok(d)
 }
 
@@ -109,45 +145,44 @@ fn calibration_arrays<'py>(
 
 /// `record_time` and the `error`, `sigma` and `q` histories (NaN where a run has none).
 fn history_arrays<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, res: &McResult) -> PyResult<()> {
-    let (n, r) = (res.runs.len(), res.record_time.len());
     d.set_item("record_time", res.record_time.clone().into_pyarray(py))?;
-    let at = |i: usize, pick: &dyn Fn(&crate::montecarlo::History) -> Option<f64>| {
-        res.runs[i]
-            .history
-            .as_ref()
-            .and_then(pick)
-            .unwrap_or(f64::NAN)
+    let history = |i: usize| res.runs[i].history.as_ref();
+    series(py, d, "error", res, &history, &|h| &h.error)?;
+    series(py, d, "sigma", res, &history, &|h| &h.sigma)?;
+    series(py, d, "q", res, &history, &|h| &h.imu_variance)
+}
+
+/// `d[key]`: the `(n_runs, r, N)` array of one history series, `pick(history(i))` for
+/// run i (NaN where a run has none, or its series ends early).
+fn series<'py, 'r, const N: usize>(
+    py: Python<'py>,
+    d: &Bound<'py, PyDict>,
+    key: &str,
+    res: &'r McResult,
+    history: &dyn Fn(usize) -> Option<&'r History>,
+    pick: &dyn Fn(&History) -> &Vec<[f64; N]>,
+) -> PyResult<()> {
+    let (n, r) = (res.runs.len(), res.record_time.len());
+    let at = |i: usize, k: usize, s: usize| {
+        history(i)
+            .and_then(|h| pick(h).get(k))
+            .map_or(f64::NAN, |e| e[s])
     };
     d.set_item(
-        "error",
-        Array3::from_shape_fn((n, r, 15), |(i, k, s)| {
-            at(i, &|h| h.error.get(k).map(|e| e[s]))
-        })
-        .into_pyarray(py),
-    )?;
-    d.set_item(
-        "sigma",
-        Array3::from_shape_fn((n, r, 15), |(i, k, s)| {
-            at(i, &|h| h.sigma.get(k).map(|e| e[s]))
-        })
-        .into_pyarray(py),
-    )?;
-    d.set_item(
-        "q",
-        Array3::from_shape_fn((n, r, 6), |(i, k, s)| {
-            at(i, &|h| h.imu_variance.get(k).map(|e| e[s]))
-        })
-        .into_pyarray(py),
-    )?;
-    Ok(())
+        key,
+        Array3::from_shape_fn((n, r, N), |(i, k, s)| at(i, k, s)).into_pyarray(py),
+    )
 }
 
 /// A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
 /// ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :func:`max_threads`
 /// (None: :func:`check_threads`'s default). An external strategy is refused: nothing
-/// sets its q here.
+/// sets its q here. ``smooth``: also the RTS smoother's metrics of every run (key
+/// ``smoothed``: ``srmse``, ``smae``, ``final_horizontal_error``,
+/// ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
+/// ``sigma``).
 #[pyfunction(name = "monte_carlo")]
-#[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0))]
+#[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0, smooth = false))]
 #[allow(clippy::too_many_arguments)]
 fn py_monte_carlo<'py>(
     py: Python<'py>,
@@ -161,12 +196,14 @@ fn py_monte_carlo<'py>(
     #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
     #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
     #[pyo3(from_py_with = arg_first_run)] first_run: u64,
+    smooth: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = McOptions {
         n_runs,
         seed,
         record_every,
         first_run,
+        smooth,
     };
     let sc = scenario(trajectory, sensors, sample_initial_error);
     let (cfg, spec) = (config.inner.clone(), strategy.inner.clone());
@@ -196,6 +233,7 @@ fn py_check_result_size(
         seed: 0,
         record_every,
         first_run: 0,
+        smooth: false,
     };
     let dvl_every = sc.dvl_every().map_err(to_py_err)?;
     sc.check_result_size(&opts, dvl_every, 0).map_err(to_py_err)
