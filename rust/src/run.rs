@@ -276,7 +276,7 @@ impl Run {
             if self.k.is_multiple_of(self.record_every) {
                 let truth = &truth.states[self.k];
                 h.error.push(state_error(&self.ekf, truth, &self.true_bias));
-                h.sigma.push(self.ekf.sigma());
+                h.sigma.push(self.ekf.sigma_up_to_date());
                 h.imu_variance
                     .push(self.strategy.imu_variance().unwrap_or([f64::NAN; 6]));
             }
@@ -380,7 +380,8 @@ impl Run {
     }
 
     /// The run's record (the DVL calibration judged against the scenario's DVL).
-    pub fn finish(self, scenario: &Scenario) -> RunRecord {
+    pub fn finish(mut self, scenario: &Scenario) -> RunRecord {
+        self.ekf.bring_up_to_date();
         let mounting = &scenario.sensors.dvl.mounting;
         let n = self.k.max(1) as f64;
         let failed = self.failure.is_some();

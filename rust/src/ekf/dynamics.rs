@@ -6,7 +6,12 @@ use super::formulation::Formulation;
 use super::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::attitude::skew;
 use crate::mechanization::{FrameRates, NavState};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
+
+/// The navigation rows and columns of the error state (position, velocity, attitude).
+const NAV: usize = 9;
+type Matrix9 = SMatrix<f64, NAV, NAV>;
+type Matrix9x6 = SMatrix<f64, NAV, 6>;
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
 /// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
@@ -31,6 +36,17 @@ impl ErrorDynamics {
         f_body: &Vector3<f64>,
         formulation: Formulation,
     ) -> Self {
+        Self::with_force(nav, rates, &(nav.dcm * f_body), formulation)
+    }
+
+    /// [`Self::new`] with the specific force given in NED, `Ĉ f̂` (a covariance step's
+    /// mean over its interval).
+    pub(super) fn with_force(
+        nav: &NavState,
+        rates: &FrameRates,
+        f_ned: &Vector3<f64>,
+        formulation: Formulation,
+    ) -> Self {
         let radius = (rates.latitude.r_n * rates.latitude.r_e).sqrt() + nav.lla[2];
         let schuler = rates.gravity[2] / radius;
         let c = nav.dcm;
@@ -39,7 +55,7 @@ impl ErrorDynamics {
         let (pos_att, vel_att, vel_gbias) = if invariant {
             (v, -skew(&rates.gravity) - v * skew(&rates.earth), -v * c)
         } else {
-            (Matrix3::zeros(), skew(&(c * f_body)), Matrix3::zeros())
+            (Matrix3::zeros(), skew(f_ned), Matrix3::zeros())
         };
         Self {
             pos_pos: -skew(&rates.transport),
@@ -150,7 +166,6 @@ impl ErrorDynamics {
 
     #[inline(always)]
     fn propagate_in<const INVARIANT: bool>(&self, p: &mut Matrix15, dt: f64) {
-        const NAV: usize = 9;
         let a = self.times::<INVARIANT>(p);
         // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j] (column j of
         // F Aᵀ is F times row j of A); the block gains M + Mᵀ, which is exactly
@@ -242,6 +257,89 @@ impl ErrorDynamics {
     }
 }
 
+impl ErrorDynamics {
+    /// Rows 0..9 of F, dense (its bias rows are zero).
+    fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
+        let mut f = SMatrix::<f64, NAV, 15>::zeros();
+        let mut put =
+            |r: usize, c: usize, m: &Matrix3<f64>| f.fixed_view_mut::<3, 3>(r, c).copy_from(m);
+        put(POS, POS, &self.pos_pos);
+        put(POS, VEL, &Matrix3::identity());
+        put(POS, ATT, &self.pos_att);
+        put(VEL, POS, &Matrix3::from_diagonal(&self.vel_pos));
+        put(VEL, VEL, &self.vel_vel);
+        put(VEL, ATT, &self.vel_att);
+        put(VEL, ACC_BIAS, &self.vel_abias);
+        put(VEL, GYRO_BIAS, &self.vel_gbias);
+        put(ATT, ATT, &self.att_att);
+        put(ATT, GYRO_BIAS, &self.att_gbias);
+        f
+    }
+
+    /// The transition over a covariance step of `dt` seconds with F held constant:
+    /// `Φ = I + F Δt + ½ (F Δt)²`, second order in Δt.
+    pub(super) fn transition(&self, dt: f64) -> Transition {
+        let fd = self.nav_rows() * dt;
+        // F² has zero bias rows too: its navigation rows are F_nn (F Δt)_nav.
+        let nn: Matrix9 = fd.fixed_view::<NAV, NAV>(0, 0).into_owned();
+        let mut phi = fd + (nn * fd) * 0.5;
+        for i in 0..NAV {
+            phi[(i, i)] += 1.0;
+        }
+        Transition {
+            nn: phi.fixed_view::<NAV, NAV>(0, 0).into_owned(),
+            nb: phi.fixed_view::<NAV, 6>(0, NAV).into_owned(),
+        }
+    }
+}
+
+/// A transition matrix whose bias rows are those of the identity,
+/// `Φ = [[Φ_nn, Φ_nb], [0, I]]` (the navigation block 9×9, its bias columns 9×6).
+#[derive(Clone, Debug)]
+pub(super) struct Transition {
+    nn: Matrix9,
+    nb: Matrix9x6,
+}
+
+impl Transition {
+    /// `P ← Φ (P + ½Q) Φᵀ + ½Q`, symmetrized: the trapezoidal discretization of the
+    /// noise `Q` injected over the step (`docs/filter.md`, "Covariance step"). With
+    /// `P' = P + ½Q = [[N, C], [Cᵀ, D]]`: `Y = Φ_nn C + Φ_nb D` is the new navigation-
+    /// bias block, `(Φ_nn N + Φ_nb Cᵀ) Φ_nnᵀ + Y Φ_nbᵀ` the navigation block, D stays.
+    pub(super) fn propagate(&self, p: &mut Matrix15, q: &Matrix15) {
+        let half = q * 0.5;
+        let start = *p + half;
+        let n = start.fixed_view::<NAV, NAV>(0, 0);
+        let c = start.fixed_view::<NAV, 6>(0, NAV);
+        let d = start.fixed_view::<6, 6>(NAV, NAV);
+        let y: Matrix9x6 = self.nn * c + self.nb * d;
+        let x: Matrix9 = self.nn * n + self.nb * c.transpose();
+        let nav: Matrix9 = x * self.nn.transpose() + y * self.nb.transpose();
+        let mut out = start;
+        out.fixed_view_mut::<NAV, NAV>(0, 0).copy_from(&nav);
+        out.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&y);
+        out.fixed_view_mut::<6, NAV>(NAV, 0)
+            .copy_from(&y.transpose());
+        out += half;
+        *p = (out + out.transpose()) * 0.5;
+    }
+
+    /// `X ← Φ X` for the 15 rows of `X` (a cross-covariance with other states).
+    pub(super) fn apply<const C: usize>(&self, x: &mut SMatrix<f64, 15, C>) {
+        let nav = self.nn * x.fixed_view::<NAV, C>(0, 0) + self.nb * x.fixed_view::<6, C>(NAV, 0);
+        x.fixed_view_mut::<NAV, C>(0, 0).copy_from(&nav);
+    }
+
+    /// The dense 15×15 Φ.
+    #[cfg(test)]
+    pub(super) fn dense(&self) -> Matrix15 {
+        let mut phi = Matrix15::identity();
+        phi.fixed_view_mut::<NAV, NAV>(0, 0).copy_from(&self.nn);
+        phi.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&self.nb);
+        phi
+    }
+}
+
 /// Add the IMU white noise of one step to the velocity and attitude blocks of `p`:
 /// `Q_a = C diag(q_a) Cᵀ·white` and `Q_g = C diag(q_g) Cᵀ·white` (`white = Δt_imu·Δt`),
 /// each added symmetrized so that `p` stays exactly symmetric. In the invariant
@@ -285,19 +383,44 @@ mod tests {
 
     fn dense_f(d: &ErrorDynamics) -> Matrix15 {
         let mut f = Matrix15::zeros();
-        let mut put =
-            |r: usize, c: usize, m: &Matrix3<f64>| f.fixed_view_mut::<3, 3>(r, c).copy_from(m);
-        put(POS, POS, &d.pos_pos);
-        put(POS, ATT, &d.pos_att);
-        put(VEL, GYRO_BIAS, &d.vel_gbias);
-        put(POS, VEL, &Matrix3::identity());
-        put(VEL, POS, &Matrix3::from_diagonal(&d.vel_pos));
-        put(VEL, VEL, &d.vel_vel);
-        put(VEL, ATT, &d.vel_att);
-        put(VEL, ACC_BIAS, &d.vel_abias);
-        put(ATT, ATT, &d.att_att);
-        put(ATT, GYRO_BIAS, &d.att_gbias);
+        f.fixed_view_mut::<NAV, 15>(0, 0).copy_from(&d.nav_rows());
         f
+    }
+
+    fn test_p() -> Matrix15 {
+        let a = Matrix15::from_fn(|i, j| {
+            ((i * 7 + j * 3) % 11) as f64 * 0.1 + if i == j { 2.0 } else { 0.0 }
+        });
+        a * a.transpose()
+    }
+
+    #[test]
+    fn interval_transition_is_second_order_and_propagates_blockwise() {
+        for formulation in [Formulation::Classic, Formulation::Invariant] {
+            let nav = moving_state();
+            let rates = FrameRates::at(&nav);
+            let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), formulation);
+            let f = dense_f(&d);
+            let dt = 0.3;
+            let want_phi = Matrix15::identity() + f * dt + f * f * (0.5 * dt * dt);
+            let t = d.transition(dt);
+            let phi = t.dense();
+            assert!((phi - want_phi).abs().max() < 1e-12, "{formulation:?}");
+            // Φ (P + ½Q) Φᵀ + ½Q against the dense product.
+            let p = test_p();
+            let q = Matrix15::from_diagonal(&crate::ekf::Vector15::from_fn(|i, _| {
+                1e-3 * (i + 1) as f64
+            }));
+            let want = phi * (p + q * 0.5) * phi.transpose() + q * 0.5;
+            let mut got = p;
+            t.propagate(&mut got, &q);
+            assert!((got - want).abs().max() < 1e-12 * want.abs().max());
+            assert_eq!(got, got.transpose());
+            let mut x = SMatrix::<f64, 15, 4>::from_fn(|i, j| (i + 2 * j) as f64 * 0.1);
+            let want = phi * x;
+            t.apply(&mut x);
+            assert!((x - want).abs().max() < 1e-12);
+        }
     }
 
     #[test]
@@ -320,10 +443,7 @@ mod tests {
             (0..9).all(|i| (fx[i] - sparse[i]).abs() < 1e-12),
             "{formulation:?}"
         );
-        let a = Matrix15::from_fn(|i, j| {
-            ((i * 7 + j * 3) % 11) as f64 * 0.1 + if i == j { 2.0 } else { 0.0 }
-        });
-        let p = a * a.transpose();
+        let p = test_p();
         let dt = 0.01;
         let phi = Matrix15::identity() + f * dt;
         let want = phi * p * phi.transpose();

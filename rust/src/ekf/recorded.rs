@@ -18,6 +18,10 @@ pub struct FilterOutput {
     pub nav: Vec<NavState>,
     /// `[b_a, b_g]` estimates per epoch.
     pub bias: Vec<[f64; 6]>,
+    /// 1σ of the 15 errors per epoch. With a covariance step
+    /// ([`super::FilterConfig::covariance_step`]), an epoch inside a step repeats the
+    /// σ of the last closed one; steps close when due, at every DVL update and at the
+    /// last epoch.
     pub sigma: Vec<[f64; 15]>,
     /// For each DVL row: the epoch index it was applied at (None if outside the run).
     pub dvl_epoch: Vec<Option<usize>>,
@@ -248,6 +252,9 @@ pub fn filter_recorded_until(
                 other => other,
             })?;
         at.steps_since_update += 1;
+        if k + 1 == data.imu.len() {
+            ekf.bring_up_to_date(); // the end of the pass
+        }
         apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
         if every {
             out.record(&ekf, t);
