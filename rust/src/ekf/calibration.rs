@@ -127,7 +127,7 @@ impl Calibration {
 
     /// [`Self::propagate`] over a covariance step of `dt` seconds with transition `Φ`:
     /// `[Φ P_xc, P_cc + Q_c Δt]` (Φ is the identity on these states and the noise has no
-    /// cross terms, so the trapezoid of [`Transition::propagate`] changes nothing here).
+    /// cross terms, so the half-and-half noise of a covariance step changes nothing here).
     pub(super) fn propagate_interval(&mut self, phi: &Transition, dt: f64, with_noise: bool) {
         phi.apply(&mut self.cross);
         if with_noise {

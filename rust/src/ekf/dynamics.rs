@@ -302,26 +302,39 @@ pub(super) struct Transition {
 }
 
 impl Transition {
-    /// `P ← Φ (P + ½Q) Φᵀ + ½Q`, symmetrized: the trapezoidal discretization of the
-    /// noise `Q` injected over the step (`docs/filter.md`, "Covariance step"). With
-    /// `P' = P + ½Q = [[N, C], [Cᵀ, D]]`: `Y = Φ_nn C + Φ_nb D` is the new navigation-
-    /// bias block, `(Φ_nn N + Φ_nb Cᵀ) Φ_nnᵀ + Y Φ_nbᵀ` the navigation block, D stays.
-    pub(super) fn propagate(&self, p: &mut Matrix15, q: &Matrix15) {
-        let half = q * 0.5;
-        let start = *p + half;
-        let n = start.fixed_view::<NAV, NAV>(0, 0);
-        let c = start.fixed_view::<NAV, 6>(0, NAV);
-        let d = start.fixed_view::<6, 6>(NAV, NAV);
+    /// `P ← Φ P Φᵀ` using the block structure: with `P = [[N, C], [Cᵀ, D]]`,
+    /// `Y = Φ_nn C + Φ_nb D` is the new navigation-bias block and
+    /// `(Φ_nn N + Φ_nb Cᵀ) Φ_nnᵀ + Y Φ_nbᵀ` the navigation block (written symmetrized);
+    /// D stays. The noise of a covariance step is added around it (see
+    /// `super::interval`). An AVX2 copy is chosen at run time where the CPU has it (no
+    /// FMA: the same bits either way).
+    pub(super) fn propagate(&self, p: &mut Matrix15) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.propagate_avx2(p) };
+        }
+        self.propagate_portable(p)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn propagate_avx2(&self, p: &mut Matrix15) {
+        self.propagate_portable(p)
+    }
+
+    #[inline(always)]
+    fn propagate_portable(&self, p: &mut Matrix15) {
+        let n = p.fixed_view::<NAV, NAV>(0, 0);
+        let c = p.fixed_view::<NAV, 6>(0, NAV);
+        let d = p.fixed_view::<6, 6>(NAV, NAV);
         let y: Matrix9x6 = self.nn * c + self.nb * d;
         let x: Matrix9 = self.nn * n + self.nb * c.transpose();
         let nav: Matrix9 = x * self.nn.transpose() + y * self.nb.transpose();
-        let mut out = start;
-        out.fixed_view_mut::<NAV, NAV>(0, 0).copy_from(&nav);
-        out.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&y);
-        out.fixed_view_mut::<6, NAV>(NAV, 0)
-            .copy_from(&y.transpose());
-        out += half;
-        *p = (out + out.transpose()) * 0.5;
+        p.fixed_view_mut::<NAV, NAV>(0, 0)
+            .copy_from(&((nav + nav.transpose()) * 0.5));
+        p.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&y);
+        p.fixed_view_mut::<6, NAV>(NAV, 0).copy_from(&y.transpose());
     }
 
     /// `X ← Φ X` for the 15 rows of `X` (a cross-covariance with other states).
@@ -406,14 +419,15 @@ mod tests {
             let t = d.transition(dt);
             let phi = t.dense();
             assert!((phi - want_phi).abs().max() < 1e-12, "{formulation:?}");
-            // Φ (P + ½Q) Φᵀ + ½Q against the dense product.
+            // Φ (P + ½Q) Φᵀ + ½Q against the dense product (the noise as a step adds it).
             let p = test_p();
             let q = Matrix15::from_diagonal(&crate::ekf::Vector15::from_fn(|i, _| {
                 1e-3 * (i + 1) as f64
             }));
             let want = phi * (p + q * 0.5) * phi.transpose() + q * 0.5;
-            let mut got = p;
-            t.propagate(&mut got, &q);
+            let mut got = p + q * 0.5;
+            t.propagate(&mut got);
+            got += q * 0.5;
             assert!((got - want).abs().max() < 1e-12 * want.abs().max());
             assert_eq!(got, got.transpose());
             let mut x = SMatrix::<f64, 15, 4>::from_fn(|i, j| (i + 2 * j) as f64 * 0.1);

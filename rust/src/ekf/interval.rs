@@ -88,7 +88,9 @@ impl Interval {
         cfg.interval_due(self.elapsed)
     }
 
-    /// Propagate the filter's P, M and calibration blocks over the interval.
+    /// Propagate the filter's P, M and calibration blocks over the interval:
+    /// `P ← Φ (P + ½Q) Φᵀ + ½Q`, the noise added to the blocks it has, half on either
+    /// side of Φ.
     pub(super) fn close(self, ekf: &mut Ekf) {
         if self.elapsed <= 0.0 {
             return;
@@ -99,24 +101,30 @@ impl Interval {
         let force = self.force / self.elapsed;
         let phi =
             ErrorDynamics::with_force(start, &rates, &force, formulation).transition(self.elapsed);
-        let mut q = Matrix15::zeros();
-        add_imu_noise(&mut q, start, formulation, &self.imu_noise, 1.0);
-        for (i, v) in self.bias_noise.iter().enumerate() {
-            q[(ACC_BIAS + i, ACC_BIAS + i)] += v;
-        }
-        if let Some(qd) = self.discrete {
-            let mut qd = (qd + qd.transpose()) * 0.5;
+        let discrete = self.discrete.map(|qd| {
+            let mut qd = (qd + qd.transpose()) * 0.25; // symmetrized, halved
             formulation::from_classic(formulation, &mut qd, &start.vel);
-            q += qd;
-        }
-        phi.propagate(&mut ekf.p, &q);
+            qd
+        });
+        let noise = |p: &mut Matrix15| {
+            add_imu_noise(p, start, formulation, &self.imu_noise, 0.5);
+            for (i, v) in self.bias_noise.iter().enumerate() {
+                p[(ACC_BIAS + i, ACC_BIAS + i)] += 0.5 * v;
+            }
+            if let Some(qd) = &discrete {
+                *p += qd;
+            }
+        };
+        noise(&mut ekf.p);
+        phi.propagate(&mut ekf.p);
+        noise(&mut ekf.p);
         if let Some(c) = ekf.calibration.as_mut() {
             c.propagate_interval(&phi, self.elapsed, true);
         }
         if let (Some((m, qm)), Some(white)) = (ekf.sensitivity.as_mut(), self.sensitivity_white) {
-            let mut noise = Matrix15::zeros();
-            add_imu_noise(&mut noise, start, formulation, qm, white);
-            phi.propagate(m, &noise);
+            add_imu_noise(m, start, formulation, qm, 0.5 * white);
+            phi.propagate(m);
+            add_imu_noise(m, start, formulation, qm, 0.5 * white);
             if let Some(c) = ekf.sensitivity_calibration.as_mut() {
                 c.propagate_interval(&phi, self.elapsed, false);
             }
