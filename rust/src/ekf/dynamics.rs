@@ -259,6 +259,7 @@ impl ErrorDynamics {
 
 impl ErrorDynamics {
     /// Rows 0..9 of F, dense (its bias rows are zero).
+    #[inline(always)]
     fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
         let mut f = SMatrix::<f64, NAV, 15>::zeros();
         let mut put =
@@ -279,10 +280,27 @@ impl ErrorDynamics {
     /// The transition over a covariance step of `dt` seconds with F held constant:
     /// `Φ = I + F Δt + ½ (F Δt)²`, second order in Δt.
     pub(super) fn transition(&self, dt: f64) -> Transition {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.transition_avx2(dt) };
+        }
+        self.transition_portable(dt)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn transition_avx2(&self, dt: f64) -> Transition {
+        self.transition_portable(dt)
+    }
+
+    #[inline(always)]
+    fn transition_portable(&self, dt: f64) -> Transition {
         let fd = self.nav_rows() * dt;
         // F² has zero bias rows too: its navigation rows are F_nn (F Δt)_nav.
-        let nn: Matrix9 = fd.fixed_view::<NAV, NAV>(0, 0).into_owned();
-        let mut phi = fd + (nn * fd) * 0.5;
+        let half: Matrix9 = fd.fixed_view::<NAV, NAV>(0, 0) * 0.5;
+        let mut phi = fd;
+        mul_add(&mut phi, &half, &fd);
         for i in 0..NAV {
             phi[(i, i)] += 1.0;
         }
@@ -325,12 +343,18 @@ impl Transition {
 
     #[inline(always)]
     fn propagate_portable(&self, p: &mut Matrix15) {
-        let n = p.fixed_view::<NAV, NAV>(0, 0);
-        let c = p.fixed_view::<NAV, 6>(0, NAV);
-        let d = p.fixed_view::<6, 6>(NAV, NAV);
-        let y: Matrix9x6 = self.nn * c + self.nb * d;
-        let x: Matrix9 = self.nn * n + self.nb * c.transpose();
-        let nav: Matrix9 = x * self.nn.transpose() + y * self.nb.transpose();
+        let n: Matrix9 = p.fixed_view::<NAV, NAV>(0, 0).into_owned();
+        let c: Matrix9x6 = p.fixed_view::<NAV, 6>(0, NAV).into_owned();
+        let d: SMatrix<f64, 6, 6> = p.fixed_view::<6, 6>(NAV, NAV).into_owned();
+        let mut y = Matrix9x6::zeros();
+        mul_add(&mut y, &self.nn, &c);
+        mul_add(&mut y, &self.nb, &d);
+        let mut x = Matrix9::zeros();
+        mul_add(&mut x, &self.nn, &n);
+        mul_add_transposed(&mut x, &self.nb, &c);
+        let mut nav = Matrix9::zeros();
+        mul_add_transposed(&mut nav, &x, &self.nn);
+        mul_add_transposed(&mut nav, &y, &self.nb);
         p.fixed_view_mut::<NAV, NAV>(0, 0)
             .copy_from(&((nav + nav.transpose()) * 0.5));
         p.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&y);
@@ -350,6 +374,44 @@ impl Transition {
         phi.fixed_view_mut::<NAV, NAV>(0, 0).copy_from(&self.nn);
         phi.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&self.nb);
         phi
+    }
+}
+
+/// `out += a b` for small fixed-size matrices, column by column (contiguous columns of
+/// `a` scaled and summed, which the compiler vectorizes where nalgebra's generic
+/// product is not inlined).
+#[inline(always)]
+fn mul_add<const R: usize, const K: usize, const C: usize>(
+    out: &mut SMatrix<f64, R, C>,
+    a: &SMatrix<f64, R, K>,
+    b: &SMatrix<f64, K, C>,
+) {
+    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
+    for j in 0..C {
+        for k in 0..K {
+            let coef = b[j * K + k];
+            for i in 0..R {
+                o[j * R + i] += a[k * R + i] * coef;
+            }
+        }
+    }
+}
+
+/// `out += a bᵀ` for `b` of `C × K` (see [`mul_add`]).
+#[inline(always)]
+fn mul_add_transposed<const R: usize, const K: usize, const C: usize>(
+    out: &mut SMatrix<f64, R, C>,
+    a: &SMatrix<f64, R, K>,
+    b: &SMatrix<f64, C, K>,
+) {
+    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
+    for j in 0..C {
+        for k in 0..K {
+            let coef = b[k * C + j];
+            for i in 0..R {
+                o[j * R + i] += a[k * R + i] * coef;
+            }
+        }
     }
 }
 
