@@ -16,7 +16,9 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +28,7 @@ from pronet.recorded.alignment import dcm_from_euler
 from pronet.sim import paper, scenarios
 
 
-def recording(seconds: float) -> dict[str, object]:
+def recording(seconds: float) -> dict[str, Any]:
     """``run_filter``'s arguments for ``seconds`` of a vehicle turning every minute
     at 100 Hz, with the paper's IMU noise and a 1 Hz body-frame DVL (0.01 m/s)."""
     n_legs = max(1, int(seconds // 60))
@@ -51,7 +53,7 @@ def recording(seconds: float) -> dict[str, object]:
     )
 
 
-def alternating(repeat: int, calls: dict[str, Callable[[], object]]) -> dict[str, float]:
+def alternating(repeat: int, calls: Mapping[str, Callable[[], object]]) -> dict[str, float]:
     """Best wall time [s] of each call over ``repeat`` rounds, the calls alternating."""
     best = dict.fromkeys(calls, np.inf)
     for _ in range(repeat):
@@ -72,23 +74,22 @@ def main(argv: list[str]) -> int:
         base = paper.paper_filter_config()
         return filter_config({"covariance_step": s}, "covariance_step:", base)
 
+    def monte_carlo_at(s: float) -> object:
+        return pronet.monte_carlo(
+            sc.trajectory,
+            pronet.Strategy.constant(sc.q_nominal),
+            sensors=sc.sensors,
+            config=config(s),
+            n_runs=runs,
+            seed=0,
+            threads=threads,
+        )
+
     monte_carlo = alternating(
-        repeat,
-        {
-            name: lambda s=s: pronet.monte_carlo(
-                sc.trajectory,
-                pronet.Strategy.constant(sc.q_nominal),
-                sensors=sc.sensors,
-                config=config(s),
-                n_runs=runs,
-                seed=0,
-                threads=threads,
-            )
-            for name, s in settings.items()
-        },
+        repeat, {name: partial(monte_carlo_at, s) for name, s in settings.items()}
     )
     data = recording(seconds)
-    n = len(data["imu"])  # type: ignore[arg-type]
+    n = len(data["imu"])
     out = {
         "monte_carlo_every_s": monte_carlo["every"],
         "monte_carlo_step_s": monte_carlo["step"],
@@ -96,14 +97,12 @@ def main(argv: list[str]) -> int:
     }
     # epochs="last": the filter alone; "all": with every epoch's estimate and σ kept
     for epochs in ("last", "all"):
-        walls = alternating(
-            repeat,
-            {
-                name: lambda s=s, e=epochs: pronet.run_filter(**data, config=config(s), epochs=e)  # type: ignore[arg-type]
-                for name, s in settings.items()
-            },
-        )
-        for name, wall in walls.items():
+
+        def run(s: float, epochs: str = epochs) -> object:
+            return pronet.run_filter(**data, config=config(s), epochs=epochs)  # type: ignore[arg-type]
+
+        calls = {name: partial(run, s) for name, s in settings.items()}
+        for name, wall in alternating(repeat, calls).items():
             out[f"run_filter_{epochs}_{name}_ns"] = wall / n * 1e9
     assert "torch" not in sys.modules
     print(json.dumps(out))
