@@ -1,5 +1,6 @@
 //! Micro-benchmarks of the navigation core's inner steps: one strapdown mechanization
-//! step, one EKF covariance-and-state prediction in each formulation and one DVL update.
+//! step, one EKF covariance-and-state prediction in each formulation, ten predictions at
+//! a 0.1 s covariance step and one DVL update.
 //!
 //! Run: `cargo bench --features bench --bench core` (criterion; HTML under target/criterion). The
 //! performance target for mechanization is ≥ 10 M steps/s per core, i.e. ≤ 100 ns.
@@ -70,6 +71,31 @@ fn benches(c: &mut Criterion) {
             )
         });
     }
+
+    // Ten samples at a 0.1 s covariance step (issue 43): nine accumulate, the tenth
+    // closes the interval (Φ P Φᵀ once); against ten samples of the predict above.
+    let stepped = Ekf::new(
+        &FilterConfig {
+            covariance_step: 0.1,
+            ..FilterConfig::default()
+        },
+        moving_state(),
+        Vector3::zeros(),
+        Vector3::zeros(),
+    )
+    .expect("a valid config");
+    c.bench_function("ekf predict x10 at a 0.1 s covariance step", |b| {
+        b.iter_batched_ref(
+            || stepped.clone(),
+            |f| {
+                for _ in 0..10 {
+                    f.propagate(black_box(&sample), DT, noise)
+                        .expect("a finite prediction");
+                }
+            },
+            criterion::BatchSize::SmallInput,
+        )
+    });
 
     let mut predicted = ekf();
     for _ in 0..100 {

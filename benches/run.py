@@ -31,6 +31,11 @@ Definitions:
   on the local engine (all cores per shard) and on a private Ray (one CPU per shard).
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
+- covariance step (issue 43): ``benches/covariance_step.py`` in a fresh process, the
+  per-sample filter and a 0.1 s covariance step alternating, best of ``--repeat`` each:
+  the 100-run constant-Q Monte Carlo of ``paper`` (2 threads) as a ratio, and
+  ``run_filter`` in ns per IMU step on an hour of 100 Hz IMU with a 1 Hz DVL (6 minutes
+  under ``--quick``), keeping the last epoch (the filter alone) and every epoch.
 - yardsticks: after the table, each timed row with a target in seconds divided by the
   same run's constant-Q Monte Carlo time, beside its target divided by that Monte
   Carlo's time on the machine the targets were set on (:data:`TARGET_MACHINE_YARDSTICK`):
@@ -245,6 +250,52 @@ def bench_monte_carlo(args: argparse.Namespace) -> list[Row]:
             "x",
         )
     )
+    return rows
+
+
+#: The covariance step the speed rows time against the per-sample filter [s].
+COVARIANCE_STEP = 0.1
+
+
+def bench_covariance_step(args: argparse.Namespace) -> list[Row]:
+    seconds = 360 if args.quick else 3600
+    argv = [str(args.runs), str(args.repeat), str(seconds), str(COVARIANCE_STEP)]
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benches" / "covariance_step.py"), *argv],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    m = json.loads(out.stdout)
+    command = f"{SCRIPT} --only covariance-step --runs {args.runs}"
+    step = f"{COVARIANCE_STEP:g} s covariance step"
+    mc = m["monte_carlo_every_s"] / m["monte_carlo_step_s"]
+    rows = [
+        Row(
+            f"{step} against every IMU step: constant Q Monte Carlo, {args.runs} runs",
+            f"{mc:.2f}× ({m['monte_carlo_every_s']:.2f} s → {m['monte_carlo_step_s']:.2f} s)",
+            "≥ 2×",
+            mc >= 2,
+            command,
+            mc,
+            "x",
+        )
+    ]
+    for epochs, kept, target in (("last", "last epoch", 300.0), ("all", "every epoch", None)):
+        every, stepped = m[f"run_filter_{epochs}_every_ns"], m[f"run_filter_{epochs}_step_ns"]
+        rows.append(
+            Row(
+                f"{step} against every IMU step: `run_filter`, {seconds / 3600:g} h at "
+                f"100 Hz, 1 Hz DVL, {kept} kept, per IMU step",
+                f"{stepped:.0f} ns ({every / stepped:.2f}× faster than every IMU step, "
+                f"{every:.0f} ns)",
+                "—" if target is None else f"≤ {target:g} ns",
+                None if target is None else stepped <= target,
+                command,
+                stepped,
+                "ns per step",
+            )
+        )
     return rows
 
 
@@ -590,6 +641,7 @@ BENCHES: dict[str, Callable[[argparse.Namespace], list[Row]]] = {
     "rust": bench_rust,
     "mechanization": bench_mechanization,
     "monte-carlo": bench_monte_carlo,
+    "covariance-step": bench_covariance_step,
     "hybrid": bench_hybrid,
     "dataset": bench_dataset,
     "inference": bench_inference,

@@ -94,6 +94,34 @@ def strapdown_step(lla, v, c, f, w, dt):
     return np.array([lat_new, lon_new, h_new]), v_new, c_new
 
 
+def error_dynamics(lla, v, c, f_ned, invariant):
+    """F (15×15) and Γ (15×12, noise ``[accel, gyro, accel bias, gyro bias]``) at the
+    state ``lla, v, c`` with the NED specific force ``f_ned`` (docs/filter.md)."""
+    w_ie, w_en, g = rates(lla, v)
+    rn, re = radii(lla[0])
+    big_r = math.sqrt(rn * re) + lla[2]
+    fm = np.zeros((15, 15))
+    fm[0:3, 0:3] = -skew(w_en)
+    fm[0:3, 3:6] = np.eye(3)
+    fm[3:6, 0:3] = g[2] / big_r * np.diag([-1.0, -1.0, 2.0])
+    fm[3:6, 3:6] = -skew(2 * w_ie + w_en)
+    fm[3:6, 6:9] = skew(f_ned)
+    fm[3:6, 9:12] = -c
+    fm[6:9, 6:9] = -skew(w_ie + w_en)
+    fm[6:9, 12:15] = c
+    gam = np.zeros((15, 12))
+    gam[3:6, 0:3] = c
+    gam[6:9, 3:6] = -c
+    if invariant:  # docs/filter.md, "The invariant formulation"
+        fm[0:3, 6:9] = skew(v)
+        fm[3:6, 6:9] = -skew(g) - skew(v) @ skew(w_ie)
+        fm[3:6, 12:15] = -skew(v) @ c
+        gam[3:6, 3:6] = skew(v) @ c
+    gam[9:12, 6:9] = np.eye(3)
+    gam[12:15, 9:12] = np.eye(3)
+    return fm, gam
+
+
 def run_reference_filter(
     imu,
     imu_time,
@@ -114,6 +142,7 @@ def run_reference_filter(
     aiding="body",
     calibration=None,
     formulation="classic",
+    covariance_step=0.0,
     log=None,
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
@@ -128,11 +157,33 @@ def run_reference_filter(
     - [v x] psi``): P lives in its coordinates, ``x_inv = T x_classic`` with ``T`` the
     identity but ``-[v x]`` at (velocity, attitude); ``sigma`` is always classic.
 
-    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx)`` (the step's
-    transition into the epoch, the covariance before and after its updates, the sum of
-    the error estimates fed back there) for the smoother in
+    ``covariance_step`` [s]: P propagated once per interval of that many seconds
+    (rounded to whole IMU samples; under 1.5 samples: every sample), with F and Γ at
+    the interval's start and the mean NED specific force, ``Phi = I + F T + (F T)²/2``
+    and ``P = Phi (P + Q/2) Phiᵀ + Q/2``; closed early before a DVL update and at the
+    last sample. Between closes ``sigma`` repeats the last closed covariance.
+
+    ``log`` (every sample only): a list that receives, per epoch, ``(phi, p_prior,
+    p_post, dx)`` (the step's transition into the epoch, the covariance before and after
+    its updates, the sum of the error estimates fed back there) for the smoother in
     ``numpy_reference_smoother.py``; epoch 0 has no transition (None)."""
     invariant = formulation == "invariant"
+    every_sample = covariance_step < 1.5 * imu_dt
+    if log is not None and not every_sample:
+        raise ValueError("log: the reference smoother needs the covariance at every sample")
+    interval = None
+
+    def close(p, interval):
+        big_t = interval["dt"]
+        start_lla, start_v, start_c = interval["nav"]
+        fm, gam = error_dynamics(start_lla, start_v, start_c, interval["force"] / big_t, invariant)
+        phi = np.eye(n_x)
+        phi[:15, :15] += fm * big_t + (fm * big_t) @ (fm * big_t) / 2
+        qd = np.zeros((n_x, n_x))
+        qd[:15, :15] = gam @ np.diag(interval["q"]) @ gam.T
+        qd[15:, 15:] = np.diag(cal_noise * big_t)
+        p = phi @ (p + qd / 2) @ phi.T + qd / 2
+        return (p + p.T) / 2
 
     def t_matrix(vel, sign=-1.0):
         t = np.eye(n_x)
@@ -185,38 +236,31 @@ def run_reference_filter(
         dt = t - t_prev
         f_hat = imu[k, :3] - ba
         w_hat = imu[k, 3:] - bg
-        w_ie, w_en, g = rates(lla, v)
-        rn, re = radii(lla[0])
-        big_r = math.sqrt(rn * re) + lla[2]
-        fm = np.zeros((15, 15))
-        fm[0:3, 0:3] = -skew(w_en)
-        fm[0:3, 3:6] = np.eye(3)
-        fm[3:6, 0:3] = g[2] / big_r * np.diag([-1.0, -1.0, 2.0])
-        fm[3:6, 3:6] = -skew(2 * w_ie + w_en)
-        fm[3:6, 6:9] = skew(c @ f_hat)
-        fm[3:6, 9:12] = -c
-        fm[6:9, 6:9] = -skew(w_ie + w_en)
-        fm[6:9, 12:15] = c
-        gam = np.zeros((15, 12))
-        gam[3:6, 0:3] = c
-        gam[6:9, 3:6] = -c
-        if invariant:  # docs/filter.md, "The invariant formulation"
-            fm[0:3, 6:9] = skew(v)
-            fm[3:6, 6:9] = -skew(g) - skew(v) @ skew(w_ie)
-            fm[3:6, 12:15] = -skew(v) @ c
-            gam[3:6, 3:6] = skew(v) @ c
-        gam[9:12, 6:9] = np.eye(3)
-        gam[12:15, 9:12] = np.eye(3)
-        qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
-        phi = np.eye(n_x)
-        phi[:15, :15] += fm * dt
-        qd = np.zeros((n_x, n_x))
-        qd[:15, :15] = gam @ qc @ gam.T * dt
-        qd[15:, 15:] = np.diag(cal_noise * dt)
-        p = phi @ p @ phi.T + qd
-        p = (p + p.T) / 2
-        p_prior, dx_sum = p.copy(), np.zeros(n_x)
+        if every_sample:
+            fm, gam = error_dynamics(lla, v, c, c @ f_hat, invariant)
+            qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
+            phi = np.eye(n_x)
+            phi[:15, :15] += fm * dt
+            qd = np.zeros((n_x, n_x))
+            qd[:15, :15] = gam @ qc @ gam.T * dt
+            qd[15:, 15:] = np.diag(cal_noise * dt)
+            p = phi @ p @ phi.T + qd
+            p = (p + p.T) / 2
+        else:  # docs/filter.md, "Covariance step"
+            if interval is None:
+                interval = {"nav": (lla, v, c), "dt": 0.0, "force": np.zeros(3), "q": 0.0}
+            interval["dt"] += dt
+            interval["force"] = interval["force"] + c @ f_hat * dt
+            walks = np.array([accel_bias_psd] * 3 + [gyro_bias_psd] * 3) * dt
+            interval["q"] = interval["q"] + np.concatenate([q * imu_dt * dt, walks])
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
+        updating = j < len(dvl) and dvl_time[j] <= t + dt / 2
+        if interval is not None and (
+            interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
+        ):
+            p = close(p, interval)
+            interval = None
+        p_prior, dx_sum = p.copy(), np.zeros(n_x)
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:
             h = np.zeros((3, 15))
             if aiding == "body":

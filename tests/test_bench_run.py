@@ -18,7 +18,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benches" / "run.py"
 #: Rows cheap enough for every CI run (seconds in all under --quick).
-CHEAP = ["mechanization", "monte-carlo", "hybrid", "dataset", "inference"]
+CHEAP = ["mechanization", "monte-carlo", "covariance-step", "hybrid", "dataset", "inference"]
 
 
 def bench(*args: str) -> subprocess.CompletedProcess[str]:

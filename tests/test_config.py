@@ -99,6 +99,9 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
     )
     assert cfg.aiding == "nav" and cfg.imu_dt == 0.02 and cfg.lever_arm == [0.5, 0.0, 0.0]
     assert cfg.dvl_variance == pronet.FilterConfig().dvl_variance
+    assert cfg.covariance_step == 0.0  # every IMU sample unless named
+    stepped = config.load_filter_config(write(tmp_path, "s.toml", "covariance_step = 0.1\n"))
+    assert stepped.covariance_step == 0.1
 
 
 @pytest.mark.parametrize(
@@ -109,6 +112,8 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
         ("[filter]\naccel_bias_psd = 'small'\n", "[filter] accel_bias_psd: expected a real"),
         ("[filter]\naccel_bias_psd = -1.0\n", "[filter] accel_bias_psd"),
         ("[filter]\naiding = 'ned'\n", "[filter] aiding"),
+        ("[filter]\ncovariance_step = -0.1\n", "[filter] covariance_step: must be a finite"),
+        ("[filter]\ncovariance_step = nan\n", "[filter] covariance_step: must be a finite"),
         ("[sensors]\ndvl_period = true\n", "[sensors] dvl_period"),
         ("[sensors]\nimu_variance_times = [0, 10]\n", "[sensors] imu_variance_times: needs"),
         ("[sensors]\nimu_variance = [1, 2, 3]\n", "[sensors] imu_variance"),

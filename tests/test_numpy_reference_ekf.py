@@ -61,7 +61,9 @@ def test_reference_strapdown_stays_at_rest() -> None:
     [("body", (0.5, -0.2, 1.0)), ("body", (0.0, 0.0, 0.0)), ("nav", (0, 0, 0))],
 )
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-def test_rust_filter_matches_reference(aiding, lever_arm, formulation) -> None:
+@pytest.mark.parametrize("covariance_step", [0.0, 0.1])
+def test_rust_filter_matches_reference(aiding, lever_arm, formulation, covariance_step) -> None:
+    """At every IMU sample and at a 0.1 s covariance step (ten samples)."""
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(lever_arm), aiding)
     cfg = pronet.FilterConfig(
         p0_sigma=P0,
@@ -71,6 +73,7 @@ def test_rust_filter_matches_reference(aiding, lever_arm, formulation) -> None:
         lever_arm=lever_arm,
         aiding=aiding,
         formulation=formulation,
+        covariance_step=covariance_step,
     )
     rust = pronet.run_filter(
         imu,
@@ -102,6 +105,7 @@ def test_rust_filter_matches_reference(aiding, lever_arm, formulation) -> None:
         lever_arm=lever_arm,
         aiding=aiding,
         formulation=formulation,
+        covariance_step=covariance_step,
     )
     # The filter worked: the updates pulled the estimate to the truth.
     assert len(ref["nis"]) == 60
@@ -119,10 +123,15 @@ def test_rust_filter_matches_reference(aiding, lever_arm, formulation) -> None:
 
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-def test_rust_filter_with_dvl_calibration_states_matches_reference(formulation) -> None:
+@pytest.mark.parametrize("covariance_step", [0.0, 0.07])
+def test_rust_filter_with_dvl_calibration_states_matches_reference(
+    formulation, covariance_step
+) -> None:
     """The 19-state filter (DVL scale factor and misalignment) against the dense NumPy
     one, on readings of a DVL with a 0.5 % scale error and a mounting of (0.1°, −0.2°,
-    0.5°), lever arm and random-walk PSDs included: equal to 1e-8 relative."""
+    0.5°), lever arm and random-walk PSDs included: equal to 1e-8 relative, at every
+    IMU sample and at a 0.07 s covariance step (seven samples, the last step of each
+    second closed early by the DVL update)."""
     arm = np.array([0.5, -0.2, 1.0])
     imu, imu_time, dvl_body, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, arm, "body")
     mounting = np.radians([0.1, -0.2, 0.5])
@@ -141,6 +150,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(formulation) 
         dvl_scale_psd=calibration[2],
         dvl_misalignment_psd=calibration[3],
         formulation=formulation,
+        covariance_step=covariance_step,
     )
     args = (imu, imu_time, dvl, dvl_time)
     start = dict(lla0=lla0, vel0=vel0, rpy0=rpy0)
@@ -150,7 +160,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(formulation) 
     ref = run_reference_filter(
         *args, 0.0, lla0, vel0, rpy0, q=Q, accel_bias_psd=1e-6, gyro_bias_psd=1e-8,
         dvl_variance=(0.01,) * 3, p0_sigma=P0, imu_dt=0.01, lever_arm=arm,
-        calibration=calibration, formulation=formulation,
+        calibration=calibration, formulation=formulation, covariance_step=covariance_step,
     )  # fmt: skip
     assert len(ref["nis"]) == 60 and rust.calibration.shape == (len(imu) + 1, 4)
     rtol = 1e-8

@@ -193,7 +193,8 @@ def test_run_filter_keeps_the_covariance_at_the_times_asked_for() -> None:
 def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
     """``smooth=True`` adds the smoothed solution (a table like the forward one's) and
     leaves the forward pass as it was; it keeps every epoch and is refused with
-    ``epochs="last"``, with the DVL calibration states, or given a non-bool."""
+    ``epochs="last"``, with the DVL calibration states or a covariance step, or given
+    a non-bool."""
     from pronet.filter import EPOCH_COLUMNS
 
     traj = pronet.builtin_trajectory("paper")
@@ -217,6 +218,7 @@ def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
     cases = [
         ({"epochs": "last"}, "^epochs: smooth=True keeps every epoch"),
         ({"config": pronet.FilterConfig(dvl_calibration=True)}, "^config: the smoother does not"),
+        ({"config": pronet.FilterConfig(covariance_step=0.1)}, "^config: the smoother needs"),
         ({"smooth": 1}, "^smooth: expected a bool"),
     ]
     for extra, message in cases:

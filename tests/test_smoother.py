@@ -105,7 +105,7 @@ def test_monte_carlo_smooths_every_run_and_leaves_the_filter_as_it_was(matched) 
 
 def test_the_ensemble_smooths_as_monte_carlo_does(matched) -> None:
     """An untuned ensemble is a constant strategy's Monte Carlo, smoothed too; the DVL
-    calibration states are refused by name."""
+    calibration states and a covariance step are refused by name."""
     ens = pronet.Ensemble(
         matched.trajectory, matched.q_nominal, sensors=matched.sensors, config=matched.config,
         n_runs=3, seed=0, record_every=100, smooth=True,
@@ -114,11 +114,16 @@ def test_the_ensemble_smooths_as_monte_carlo_does(matched) -> None:
     assert ens.smoothed is not None and mc.smoothed is not None
     np.testing.assert_array_equal(ens.smoothed.srmse, mc.smoothed.srmse)
     np.testing.assert_array_equal(ens.smoothed.error, mc.smoothed.error)
-    with pytest.raises(ValueError, match="^smooth: the smoother does not smooth the DVL"):
-        pronet.monte_carlo(
-            matched.trajectory, pronet.Strategy.constant(matched.q_nominal), n_runs=1,
-            config=pronet.FilterConfig(dvl_calibration=True), smooth=True,
-        )  # fmt: skip
+    refused = [
+        (pronet.FilterConfig(dvl_calibration=True), "^smooth: the smoother does not smooth"),
+        (pronet.FilterConfig(covariance_step=0.1), "^smooth: the smoother needs the cov"),
+    ]
+    for config, message in refused:
+        with pytest.raises(ValueError, match=message):
+            pronet.monte_carlo(
+                matched.trajectory, pronet.Strategy.constant(matched.q_nominal), n_runs=1,
+                config=config, smooth=True,
+            )  # fmt: skip
 
 
 @pytest.mark.slow

@@ -146,8 +146,12 @@ class FilterConfig:
     [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
     velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
     consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
-    prior and every output are in the classic coordinates either way. See
-    ``docs/filter.md``."""
+    prior and every output are in the classic coordinates either way; and the
+    covariance step [s]: the interval over which the covariance is propagated at once
+    (Φ and Q_d accumulated, the navigation still integrated at every IMU sample). 0
+    (the default), or less than 1.5 IMU periods: every sample; a longer step is rounded
+    to a whole number of IMU periods, and the covariance is brought up to date before
+    every DVL update and at the end of a pass. See ``docs/filter.md``."""
 
     def __new__(
         cls,
@@ -166,6 +170,7 @@ class FilterConfig:
         dvl_scale_psd: float | None = None,
         dvl_misalignment_psd: float | None = None,
         formulation: Literal["invariant", "classic"] = "invariant",
+        covariance_step: float = 0.0,
     ) -> FilterConfig: ...
     @property
     def p0_sigma(self) -> list[float]: ...
@@ -201,6 +206,9 @@ class FilterConfig:
     @property
     def formulation(self) -> Literal["invariant", "classic"]:
         """The velocity-error coordinates the filter runs in: "invariant" or "classic"."""
+    @property
+    def covariance_step(self) -> float:
+        """The covariance step [s] (0: the covariance propagated at every IMU sample)."""
 
 @final
 class Strategy:

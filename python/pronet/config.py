@@ -33,7 +33,8 @@ mistakes too, so a misspelt key never silently falls back to a default.
     dvl_variance = [0.01, 0.01, 0.01]
     # p0_sigma (15), accel_bias_psd [(m/s²)²/s], gyro_bias_psd [(rad/s)²/s],
     # lever_arm (3) [m], aiding ("body" or "nav"), imu_dt [s], innovation_gate (NIS),
-    # formulation ("invariant" or "classic": the velocity-error coordinates)
+    # formulation ("invariant" or "classic": the velocity-error coordinates),
+    # covariance_step [s] (0: the covariance propagated at every IMU sample)
 
 ``q_nominal`` is what the constant rows are told and every adaptive row starts from.
 Without it: the base's, unless ``[sensors]`` sets ``imu_variance``, in which case it is
@@ -94,6 +95,7 @@ FILTER_KEYS = (
     "imu_dt",
     "innovation_gate",
     "formulation",
+    "covariance_step",
 )
 #: Keys of a ``[sensors]`` table (the keyword arguments of ``pronet.SensorConfig``).
 SENSOR_KEYS = (

@@ -174,12 +174,8 @@ pub(crate) fn check_strategy(
     filter.validate()?;
     strategy.validate()?;
     opts.validate()?;
-    if opts.smooth && filter.dvl_calibration.is_some() {
-        return Err(Error::invalid(
-            "smooth",
-            "the smoother does not smooth the DVL calibration states yet: smooth without \
-             dvl_calibration",
-        ));
+    if opts.smooth {
+        crate::ekf::smoother::check_config(filter, "smooth")?;
     }
     Ok(())
 }

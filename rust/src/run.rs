@@ -420,7 +420,7 @@ impl Run {
             if self.k.is_multiple_of(self.record_every) {
                 let truth = &truth.states[self.k];
                 h.error.push(state_error(&self.ekf, truth, &self.true_bias));
-                h.sigma.push(self.ekf.sigma());
+                h.sigma.push(self.ekf.sigma_up_to_date());
                 h.imu_variance
                     .push(self.strategy.imu_variance().unwrap_or([f64::NAN; 6]));
             }
@@ -609,6 +609,7 @@ impl Run {
 
     /// The run's record (the DVL calibration judged against the scenario's DVL).
     pub fn finish(mut self, scenario: &Scenario) -> RunRecord {
+        self.ekf.bring_up_to_date();
         let smoothed = self.smoothed_record(scenario);
         let mounting = &scenario.sensors.dvl.mounting;
         let n = self.k.max(1) as f64;

@@ -311,13 +311,16 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
         prop_oneof![3 => Just(None), 1 => prop::collection::vec(-5.0..-1.0f64, 5).prop_map(Some)],
         // Corruptions: 0..15 p0_sigma, 15 accel psd, 16 gyro psd, 17..20 dvl variance,
         // 20..23 lever arm, 23 imu_dt, 24 innovation gate, 25..30 the calibration's
-        // scale σ, misalignment σ (3) and scale walk (where the states are on).
-        rarely((0..30usize, wild()), 2),
+        // scale σ, misalignment σ (3) and scale walk (where the states are on), 30 the
+        // covariance step.
+        rarely((0..31usize, wild()), 2),
         // The formulation: both are held to every property.
         any::<bool>(),
+        // The covariance step: every sample, or intervals of 0.1 s.
+        prop_oneof![2 => Just(0.0), 1 => Just(0.1)],
     )
         .prop_map(
-            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, invariant)| {
+            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, invariant, step)| {
                 let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
                 let mut c = FilterConfig {
                     p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
@@ -339,6 +342,7 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
                     } else {
                         Formulation::Classic
                     },
+                    covariance_step: step,
                 };
                 for (field, v) in bad {
                     match (field, c.dvl_calibration.as_mut()) {
@@ -352,6 +356,7 @@ fn filter_config() -> impl Strategy<Value = FilterConfig> {
                         (25, Some(k)) => k.scale_sigma = v,
                         (26..=28, Some(k)) => k.misalignment_sigma[field - 26] = v,
                         (29, Some(k)) => k.scale_psd = v,
+                        (30, _) => c.covariance_step = v,
                         _ => {}
                     }
                 }
@@ -372,6 +377,7 @@ fn config_is_valid(c: &FilterConfig) -> bool {
         && c.imu_dt.is_finite()
         && c.imu_dt > 0.0
         && c.innovation_gate.is_none_or(|g| g.is_finite() && g > 0.0)
+        && nonneg(c.covariance_step)
         && c.dvl_calibration.is_none_or(|k| {
             c.aiding == Aiding::Body
                 && nonneg(k.scale_sigma)

@@ -213,6 +213,14 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     assert 'formulation="classic"' in json.loads((classic / "config.json").read_text())["filter"]
     (old,) = json.loads((classic / "metrics.json").read_text())
     assert old["srmse"] != repeat["srmse"]
+    # --covariance-step reaches the filter too: recorded, and other numbers
+    assert "covariance_step=0)" in config["filter"]
+    stepped = tmp_path / "stepped"
+    argv[argv.index(str(classic))] = str(stepped)
+    assert cli.main([*argv, "--covariance-step", "0.1"]) == 0
+    assert "covariance_step=0.1" in json.loads((stepped / "config.json").read_text())["filter"]
+    (step,) = json.loads((stepped / "metrics.json").read_text())
+    assert step["srmse"] != repeat["srmse"]
 
 
 @pytest.mark.parametrize(
@@ -227,6 +235,8 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
         (["--tuning-period", "-1"], "--tuning-period: must be a finite number of seconds"),
         (["--record-every", "nan"], "--record-every: must be a finite number of seconds"),
         (["--threads", "0"], "--threads: expected 1 to "),
+        (["--covariance-step", "-1"], "--covariance-step: covariance_step: must be a finite"),
+        (["--covariance-step", "nan"], "--covariance-step: covariance_step: must be a finite"),
     ],
 )
 def test_simulate_refuses_bad_input_before_any_work(

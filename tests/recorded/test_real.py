@@ -457,27 +457,37 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
 
 
 def test_pronet_real_runs_either_formulation(tmp_path, capsys):
-    """``--formulation classic`` reaches every filter of the run (the config records it,
-    the numbers move), the default is the invariant one, and a bad name is refused."""
+    """``--formulation classic`` and ``--covariance-step`` reach every filter of the run
+    (the config records them, the numbers move), the default is the invariant one at
+    every IMU sample, and a bad name or step is refused."""
     data = tmp_path / "data"
     write_recording(data / "run1.npz", synthetic_recording(seed=1, duration=70.0).recording)
     arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
     argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
     argv += ["--no-models", arm]
     metrics = {}
-    for name, extra in (("default", []), ("classic", ["--formulation", "classic"])):
+    runs = (
+        ("default", [], 'formulation="invariant", covariance_step=0'),
+        ("classic", ["--formulation", "classic"], 'formulation="classic"'),
+        ("step", ["--covariance-step", "0.2"], 'formulation="invariant", covariance_step=0.2'),
+    )
+    for name, extra, recorded in runs:
         out = tmp_path / name
         assert main([*argv, "--out", str(out), *extra]) == 0
         config = json.loads((out / "config.json").read_text())
-        assert f'formulation="{name if extra else "invariant"}"' in config["filter"]
+        assert recorded in config["filter"]
         metrics[name] = [r["srmse"] for r in json.loads((out / "metrics.json").read_text())]
-    assert len(metrics["default"]) == len(metrics["classic"]) > 5
+    assert len(metrics["default"]) == len(metrics["classic"]) == len(metrics["step"]) > 5
     assert metrics["default"] != metrics["classic"]
+    assert metrics["default"] != metrics["step"]
     capsys.readouterr()
     with pytest.raises(SystemExit) as refused:
         main([*argv, "--out", str(tmp_path / "bad"), "--formulation", "psi"])
     assert refused.value.code == 2
     assert "--formulation: invalid choice: 'psi'" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+    assert main([*argv, "--out", str(tmp_path / "bad"), "--covariance-step", "-0.1"]) != 0
+    assert "covariance_step: must be a finite number of seconds >= 0" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
 
 

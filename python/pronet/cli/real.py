@@ -85,6 +85,14 @@ def add_parser(sub: Subparsers) -> None:
         help="the filter's error coordinates: invariant (the default, consistent in "
         "heading) or classic (pronet's filter before 2026-12, to reproduce its results)",
     )
+    parser.add_argument(
+        "--covariance-step",
+        metavar="SECONDS",
+        type=float,
+        default=0.0,
+        help="interval over which every filter propagates its covariance at once (0: every "
+        "IMU sample, the default; rounded to whole IMU samples)",
+    )
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
     add_result_folder(parser, "real")
@@ -110,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
             plots=not args.no_plots,
             dvl_noise=args.dvl_noise,
             formulation=args.formulation,
+            covariance_step=args.covariance_step,
             on_start=bars.start,
             on_done=bars.done,
         )

@@ -50,6 +50,15 @@ def add_parser(sub: Subparsers) -> None:
         "overrides the scenario's and --filter's",
     )
     parser.add_argument(
+        "--covariance-step",
+        metavar="SECONDS",
+        type=float,
+        default=None,
+        help="interval over which the filter propagates its covariance at once (0: every "
+        "IMU sample, the default; rounded to whole IMU samples); overrides the scenario's "
+        "and --filter's",
+    )
+    parser.add_argument(
         "--strategies",
         metavar="SPECS",
         default=",".join(PAPER_ROWS.values()),
@@ -84,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
             args.out,
             filter_config=args.filter,
             formulation=args.formulation,
+            covariance_step=args.covariance_step,
             n_runs=args.runs,
             seed=args.seed,
             threads=args.threads,

@@ -23,10 +23,11 @@ def _scenario(
     filter_config: str | Path | None,
     seed: int,
     formulation: str | None = None,
+    covariance_step: float | None = None,
 ) -> Scenario:
     """``scenario`` (built-in name or ``.toml`` file, its noise schedule drawn from
     ``seed``; or an object), with the keys of the ``filter_config`` file, if given,
-    overriding its filter's, and then ``formulation``, if given."""
+    overriding its filter's, and then ``formulation`` and ``covariance_step``, if given."""
     from pronet import config
 
     if not isinstance(scenario, Scenario):
@@ -34,10 +35,11 @@ def _scenario(
     if filter_config:
         tuned = config.load_filter_config(filter_config, base=scenario.config)
         scenario = dataclasses.replace(scenario, config=tuned)
-    if formulation is not None:
-        table = {"formulation": formulation}
-        tuned = config.filter_config(table, "--formulation:", base=scenario.config)
-        scenario = dataclasses.replace(scenario, config=tuned)
+    for key, value in (("formulation", formulation), ("covariance_step", covariance_step)):
+        if value is not None:
+            where = f"--{key.replace('_', '-')}:"
+            tuned = config.filter_config({key: value}, where, base=scenario.config)
+            scenario = dataclasses.replace(scenario, config=tuned)
     return scenario
 
 
@@ -71,6 +73,7 @@ def simulate(
     *,
     filter_config: str | Path | None = None,
     formulation: str | None = None,
+    covariance_step: float | None = None,
     n_runs: int = 100,
     seed: int = 0,
     threads: int | None = None,
@@ -97,6 +100,8 @@ def simulate(
             scenario's filter, the rest stay.
         formulation: the filter's error coordinates, ``"invariant"`` or ``"classic"``
             (default: the scenario's or the filter file's, else the invariant one).
+        covariance_step: the filter's covariance step [s] (default: the scenario's or
+            the filter file's, else 0: every IMU sample; see ``FilterConfig``).
         n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
         threads: worker threads, 1 to 8 per core (default: one per core, or
             ``RAYON_NUM_THREADS``).
@@ -111,7 +116,7 @@ def simulate(
         ValueError: a bad argument, file or spec, before any computation.
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
-    sc = _scenario(scenario, filter_config, seed, formulation)
+    sc = _scenario(scenario, filter_config, seed, formulation, covariance_step)
     parsed = _specs(specs)
     strategies = {spec.text: strategy(spec, sc.q_nominal, tuning_period) for spec in parsed}
     out = new_result_folder(out, "simulate")

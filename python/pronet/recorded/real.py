@@ -12,6 +12,7 @@ horizontal position error, and the final error as a percentage of the distance.
 from __future__ import annotations
 
 import contextvars
+import functools
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -189,6 +190,7 @@ def estimate_dvl_noise(
     strategy: StrategyLike,
     lever_arm: tuple[float, float, float],
     formulation: str | None = None,
+    covariance_step: float = 0.0,
 ) -> SectionDvlNoise:
     """The DVL noise of ``section``: its second-difference R, then the R that matches
     the innovations of ``strategy`` under :func:`real_filter_config`, without and with
@@ -197,7 +199,7 @@ def estimate_dvl_noise(
 
     def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
         def one_pass(r: tuple[float, float, float]) -> FilterResult:
-            config = real_filter_config(lever_arm, r, calibration, formulation)
+            config = real_filter_config(lever_arm, r, calibration, formulation, covariance_step)
             # the matching reads the updates only: no epoch arrays, no metrics
             return run(strategy, section_recorded(section, config, epochs="last")).result
 
@@ -238,32 +240,37 @@ def plan_section(
     tuning_period: float,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
+    covariance_step: float = 0.0,
 ) -> SectionPlan:
     """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
     its estimated q, with the DVL noise of ``dvl_noise`` (one of
     :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows, every
-    filter in ``formulation`` (default ``FilterConfig``'s)."""
+    filter in ``formulation`` (default ``FilterConfig``'s) with ``covariance_step``."""
     check_dvl_noise(dvl_noise)
+    filters = functools.partial(
+        real_filter_config, formulation=formulation, covariance_step=covariance_step
+    )
     q = white_noise_q(section.imu)
     strategies = real_strategies(q, models, tuning_period)
     arm = section.alignment.filter_lever_arm
     datasheet = (REAL_DVL_VARIANCE,) * 3
     try:
-        noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm, formulation)
+        first = next(iter(strategies.values()))
+        noise = estimate_dvl_noise(section, first, arm, formulation, covariance_step)
     except ValueError as exc:
         if dvl_noise == "data":  # the strategy rows need it
             raise
         # The strategy rows do not: they run, the variant rows are left out.
-        config = real_filter_config(arm, formulation=formulation)
+        config = filters(arm)
         return SectionPlan(q, strategies, config, {}, str(exc), datasheet)
     used = noise.matched.variance if dvl_noise == "data" else datasheet
     both = noise.matched_calibrated.variance
     variants = {
-        R_FROM_DATA: real_filter_config(arm, noise.matched.variance, formulation=formulation),
-        DVL_CALIBRATION: real_filter_config(arm, calibration=True, formulation=formulation),
-        BOTH: real_filter_config(arm, both, calibration=True, formulation=formulation),
+        R_FROM_DATA: filters(arm, noise.matched.variance),
+        DVL_CALIBRATION: filters(arm, calibration=True),
+        BOTH: filters(arm, both, calibration=True),
     }
-    config = real_filter_config(arm, used, formulation=formulation)
+    config = filters(arm, used)
     return SectionPlan(q, strategies, config, variants, noise, used)
 
 
@@ -298,10 +305,12 @@ def run_sections(
     on_section: Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]
     | None = None,
     formulation: str | None = None,
+    covariance_step: float = 0.0,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
-    the inertial run, every filter in ``formulation`` (default ``FilterConfig``'s);
+    the inertial run, every filter in ``formulation`` (default ``FilterConfig``'s)
+    with ``covariance_step``;
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core this process may use; each filter is
     one native call without the GIL), and the results do not depend on it.
@@ -325,7 +334,9 @@ def run_sections(
     def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
         _STOP.set(stop)  # this thread's context: its run_section calls see the event
         try:
-            plan = plan_section(pair[0], models, tuning_period, dvl_noise, formulation)
+            plan = plan_section(
+                pair[0], models, tuning_period, dvl_noise, formulation, covariance_step
+            )
             ran = _run_one_section(pair[0], pair[1], plan, done)
         except ValueError as exc:  # the reason, kept beside the section's name
             return str(exc)
@@ -409,6 +420,7 @@ def _run_one_section(
             stamped.alignment.filter_lever_arm,
             plan.dvl_variance,
             formulation=plan.config.formulation,
+            covariance_step=plan.config.covariance_step,
         ),
         label=f"{first_label}, stamps as given, no lever arms",
         setup="stamps as given, no lever arms",
@@ -433,6 +445,7 @@ def run_real(
     plots: bool = True,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
+    covariance_step: float = 0.0,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -462,6 +475,8 @@ def run_real(
             the variant rows and reports each section's R.
         formulation: the filter's error coordinates, ``"invariant"`` (the default) or
             ``"classic"`` (pronet's filter before 2026-12), for every row.
+        covariance_step: the filters' covariance step [s] (0, the default: every IMU
+            sample; see ``FilterConfig``), for every row.
         on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`): stages
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
@@ -475,7 +490,8 @@ def run_real(
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
-    tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation)  # checked now
+    # checked now
+    tuning = real_filter_config((0.0, 0.0, 0.0), None, False, formulation, covariance_step)
     imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
     dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
     lever_arm(imu_arm, "imu_lever_arm")  # before any section is read
@@ -521,6 +537,7 @@ def run_real(
             dvl_noise=dvl_noise,
             on_section=None if figures is None else _drawn_by(figures),
             formulation=formulation,
+            covariance_step=covariance_step,
         )
         config = real_config(
             data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors, tuning

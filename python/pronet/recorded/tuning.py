@@ -58,13 +58,15 @@ def real_filter_config(
     dvl_variance: tuple[float, float, float] | None = None,
     calibration: bool = False,
     formulation: str | None = None,
+    covariance_step: float = 0.0,
 ) -> _core.FilterConfig:
     """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
     IMU [m, body FRD], the DVL noise ``dvl_variance`` per body axis [(m/s)²] (default:
     the datasheet's, :data:`REAL_DVL_VARIANCE`), with ``calibration`` the DVL
     scale-factor and misalignment states (their default prior: 1 %, 1° per axis), and
-    the filter's ``formulation`` (default ``FilterConfig``'s, the invariant one); see
-    :data:`REAL_P0_SIGMA` and the PSD constants for sources."""
+    the filter's ``formulation`` (default ``FilterConfig``'s, the invariant one) and
+    ``covariance_step`` [s] (0: every IMU sample); see :data:`REAL_P0_SIGMA` and the
+    PSD constants for sources."""
     chosen = {} if formulation is None else {"formulation": formulation}
     return _core.FilterConfig(
         **chosen,  # type: ignore[arg-type]
@@ -74,6 +76,7 @@ def real_filter_config(
         dvl_variance=(REAL_DVL_VARIANCE,) * 3 if dvl_variance is None else dvl_variance,
         lever_arm=lever_arm,
         dvl_calibration=calibration,
+        covariance_step=covariance_step,
     )
 
 

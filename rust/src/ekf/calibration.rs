@@ -10,7 +10,7 @@
 //! `P_cc` unchanged (plus the walks' PSDs), and the 15×15 block goes through the
 //! 15-state kernel untouched. Every formula is in `docs/filter.md`.
 
-use super::dynamics::ErrorDynamics;
+use super::dynamics::{ErrorDynamics, Transition};
 use super::Matrix15;
 use crate::attitude::{exp_so3, skew};
 use crate::error::{check, Error, Result};
@@ -121,10 +121,25 @@ impl Calibration {
             }
         }
         if with_noise {
-            self.cov[(0, 0)] += self.cfg.scale_psd * dt;
-            for i in 1..4 {
-                self.cov[(i, i)] += self.cfg.misalignment_psd * dt;
-            }
+            self.add_walks(dt);
+        }
+    }
+
+    /// [`Self::propagate`] over a covariance step of `dt` seconds with transition `Φ`:
+    /// `[Φ P_xc, P_cc + Q_c Δt]` (Φ is the identity on these states and the noise has no
+    /// cross terms, so the half-and-half noise of a covariance step changes nothing here).
+    pub(super) fn propagate_interval(&mut self, phi: &Transition, dt: f64, with_noise: bool) {
+        phi.apply(&mut self.cross);
+        if with_noise {
+            self.add_walks(dt);
+        }
+    }
+
+    /// The random walks' variance over `dt` seconds.
+    fn add_walks(&mut self, dt: f64) {
+        self.cov[(0, 0)] += self.cfg.scale_psd * dt;
+        for i in 1..4 {
+            self.cov[(i, i)] += self.cfg.misalignment_psd * dt;
         }
     }
 

@@ -42,6 +42,14 @@ pub struct FilterConfig {
     /// The coordinates of the velocity error the filter runs in (see
     /// [`super::formulation`]); `p0_sigma` is always given in the classic ones.
     pub formulation: Formulation,
+    /// The interval [s] over which the covariance is propagated in one step (Φ and Q_d
+    /// accumulated over it, see `docs/filter.md`, "Covariance step"); the navigation
+    /// solution is still integrated at every IMU sample. 0 (the default), or anything
+    /// shorter than 1.5 IMU periods: at every IMU sample. Longer steps are rounded to the
+    /// nearest whole number of IMU periods (halves down): an interval closes at the
+    /// first sample within half an IMU period of the step, before every DVL update and
+    /// wherever the filter is brought up to date ([`super::Ekf::bring_up_to_date`]).
+    pub covariance_step: f64,
 }
 
 impl Default for FilterConfig {
@@ -57,6 +65,7 @@ impl Default for FilterConfig {
             innovation_gate: None,
             dvl_calibration: None,
             formulation: Formulation::default(),
+            covariance_step: 0.0,
         }
     }
 }
@@ -81,6 +90,15 @@ impl FilterConfig {
         }
         check::finite("lever_arm", self.lever_arm.as_slice())?;
         check::positive("imu_dt", self.imu_dt)?;
+        if !(self.covariance_step.is_finite() && self.covariance_step >= 0.0) {
+            return Err(Error::invalid(
+                "covariance_step",
+                format!(
+                    "must be a finite number of seconds >= 0 (0: every IMU sample), got {}",
+                    self.covariance_step
+                ),
+            ));
+        }
         if let Some(gate) = self.innovation_gate {
             check::positive("innovation_gate", gate)?;
         }
@@ -89,6 +107,18 @@ impl FilterConfig {
             check_aiding(self.aiding == Aiding::Body)?;
         }
         Ok(())
+    }
+
+    /// Whether the covariance is propagated at every IMU sample: a covariance step
+    /// shorter than 1.5 IMU periods rounds to one.
+    pub fn covariance_every_sample(&self) -> bool {
+        self.covariance_step < 1.5 * self.imu_dt
+    }
+
+    /// Whether an interval that has run `elapsed` seconds is due to close: within half
+    /// an IMU period of the covariance step.
+    pub(super) fn interval_due(&self, elapsed: f64) -> bool {
+        elapsed + 0.5 * self.imu_dt >= self.covariance_step
     }
 
     /// `diag(p0_sigma²)`.
@@ -128,5 +158,32 @@ mod tests {
             ..FilterConfig::default()
         };
         assert!(c.validate().is_err());
+        for bad in [-0.1, f64::NAN, f64::INFINITY] {
+            let c = FilterConfig {
+                covariance_step: bad,
+                ..FilterConfig::default()
+            };
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.starts_with("covariance_step"), "{e}");
+        }
+    }
+
+    #[test]
+    fn covariance_step_rounds_to_whole_imu_periods() {
+        let at = |step: f64| FilterConfig {
+            covariance_step: step,
+            ..FilterConfig::default()
+        };
+        for step in [0.0, 0.005, 0.01, 0.0149] {
+            assert!(at(step).covariance_every_sample(), "{step}");
+        }
+        // 0.1 s at 100 Hz: ten samples, though ten 0.01 s steps sum to just under 0.1.
+        let c = at(0.1);
+        assert!(!c.covariance_every_sample());
+        let elapsed = |n: usize| (0..n).map(|_| 0.01).sum::<f64>();
+        assert!(!c.interval_due(elapsed(9)) && c.interval_due(elapsed(10)));
+        // 0.026 s: rounded to three samples; 0.024 s to two.
+        assert!(!at(0.026).interval_due(elapsed(2)) && at(0.026).interval_due(elapsed(3)));
+        assert!(at(0.024).interval_due(elapsed(2)));
     }
 }

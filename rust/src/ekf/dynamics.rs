@@ -6,7 +6,12 @@ use super::formulation::Formulation;
 use super::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::attitude::skew;
 use crate::mechanization::{FrameRates, NavState};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
+
+/// The navigation rows and columns of the error state (position, velocity, attitude).
+const NAV: usize = 9;
+type Matrix9 = SMatrix<f64, NAV, NAV>;
+type Matrix9x6 = SMatrix<f64, NAV, 6>;
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
 /// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
@@ -31,6 +36,17 @@ impl ErrorDynamics {
         f_body: &Vector3<f64>,
         formulation: Formulation,
     ) -> Self {
+        Self::with_force(nav, rates, &(nav.dcm * f_body), formulation)
+    }
+
+    /// [`Self::new`] with the specific force given in NED, `Ĉ f̂` (a covariance step's
+    /// mean over its interval).
+    pub(super) fn with_force(
+        nav: &NavState,
+        rates: &FrameRates,
+        f_ned: &Vector3<f64>,
+        formulation: Formulation,
+    ) -> Self {
         let radius = (rates.latitude.r_n * rates.latitude.r_e).sqrt() + nav.lla[2];
         let schuler = rates.gravity[2] / radius;
         let c = nav.dcm;
@@ -39,7 +55,7 @@ impl ErrorDynamics {
         let (pos_att, vel_att, vel_gbias) = if invariant {
             (v, -skew(&rates.gravity) - v * skew(&rates.earth), -v * c)
         } else {
-            (Matrix3::zeros(), skew(&(c * f_body)), Matrix3::zeros())
+            (Matrix3::zeros(), skew(f_ned), Matrix3::zeros())
         };
         Self {
             pos_pos: -skew(&rates.transport),
@@ -55,25 +71,11 @@ impl ErrorDynamics {
         }
     }
 
-    /// `Φ = I + F Δt` as a dense matrix, assembled from the blocks.
-    pub(super) fn transition(&self, dt: f64) -> Matrix15 {
+    /// `Φ = I + F Δt` of one IMU step as a dense matrix (the smoother's transition).
+    pub(super) fn step_transition(&self, dt: f64) -> Matrix15 {
         let mut phi = Matrix15::identity();
-        let mut put = |r: usize, c: usize, block: &Matrix3<f64>| {
-            let mut view = phi.fixed_view_mut::<3, 3>(r, c);
-            view += block * dt;
-        };
-        put(POS, POS, &self.pos_pos);
-        put(POS, VEL, &Matrix3::identity());
-        put(VEL, POS, &Matrix3::from_diagonal(&self.vel_pos));
-        put(VEL, VEL, &self.vel_vel);
-        put(VEL, ATT, &self.vel_att);
-        put(VEL, ACC_BIAS, &self.vel_abias);
-        put(ATT, ATT, &self.att_att);
-        put(ATT, GYRO_BIAS, &self.att_gbias);
-        if self.invariant {
-            put(POS, ATT, &self.pos_att);
-            put(VEL, GYRO_BIAS, &self.vel_gbias);
-        }
+        let mut nav = phi.fixed_rows_mut::<9>(0);
+        nav += self.nav_rows() * dt;
         phi
     }
 
@@ -172,7 +174,6 @@ impl ErrorDynamics {
 
     #[inline(always)]
     fn propagate_in<const INVARIANT: bool>(&self, p: &mut Matrix15, dt: f64) {
-        const NAV: usize = 9;
         let a = self.times::<INVARIANT>(p);
         // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j] (column j of
         // F Aᵀ is F times row j of A); the block gains M + Mᵀ, which is exactly
@@ -264,6 +265,164 @@ impl ErrorDynamics {
     }
 }
 
+impl ErrorDynamics {
+    /// Rows 0..9 of F, dense (its bias rows are zero).
+    #[inline(always)]
+    fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
+        let mut f = SMatrix::<f64, NAV, 15>::zeros();
+        let mut put =
+            |r: usize, c: usize, m: &Matrix3<f64>| f.fixed_view_mut::<3, 3>(r, c).copy_from(m);
+        put(POS, POS, &self.pos_pos);
+        put(POS, VEL, &Matrix3::identity());
+        put(POS, ATT, &self.pos_att);
+        put(VEL, POS, &Matrix3::from_diagonal(&self.vel_pos));
+        put(VEL, VEL, &self.vel_vel);
+        put(VEL, ATT, &self.vel_att);
+        put(VEL, ACC_BIAS, &self.vel_abias);
+        put(VEL, GYRO_BIAS, &self.vel_gbias);
+        put(ATT, ATT, &self.att_att);
+        put(ATT, GYRO_BIAS, &self.att_gbias);
+        f
+    }
+
+    /// The transition over a covariance step of `dt` seconds with F held constant:
+    /// `Φ = I + F Δt + ½ (F Δt)²`, second order in Δt.
+    pub(super) fn transition(&self, dt: f64) -> Transition {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.transition_avx2(dt) };
+        }
+        self.transition_portable(dt)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn transition_avx2(&self, dt: f64) -> Transition {
+        self.transition_portable(dt)
+    }
+
+    #[inline(always)]
+    fn transition_portable(&self, dt: f64) -> Transition {
+        let fd = self.nav_rows() * dt;
+        // F² has zero bias rows too: its navigation rows are F_nn (F Δt)_nav.
+        let half: Matrix9 = fd.fixed_view::<NAV, NAV>(0, 0) * 0.5;
+        let mut phi = fd;
+        mul_add(&mut phi, &half, &fd);
+        for i in 0..NAV {
+            phi[(i, i)] += 1.0;
+        }
+        Transition {
+            nn: phi.fixed_view::<NAV, NAV>(0, 0).into_owned(),
+            nb: phi.fixed_view::<NAV, 6>(0, NAV).into_owned(),
+        }
+    }
+}
+
+/// A transition matrix whose bias rows are those of the identity,
+/// `Φ = [[Φ_nn, Φ_nb], [0, I]]` (the navigation block 9×9, its bias columns 9×6).
+#[derive(Clone, Debug)]
+pub(super) struct Transition {
+    nn: Matrix9,
+    nb: Matrix9x6,
+}
+
+impl Transition {
+    /// `P ← Φ P Φᵀ` using the block structure: with `P = [[N, C], [Cᵀ, D]]`,
+    /// `Y = Φ_nn C + Φ_nb D` is the new navigation-bias block and
+    /// `(Φ_nn N + Φ_nb Cᵀ) Φ_nnᵀ + Y Φ_nbᵀ` the navigation block (written symmetrized);
+    /// D stays. The noise of a covariance step is added around it (see
+    /// `super::interval`). An AVX2 copy is chosen at run time where the CPU has it (no
+    /// FMA: the same bits either way).
+    pub(super) fn propagate(&self, p: &mut Matrix15) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            return unsafe { self.propagate_avx2(p) };
+        }
+        self.propagate_portable(p)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn propagate_avx2(&self, p: &mut Matrix15) {
+        self.propagate_portable(p)
+    }
+
+    #[inline(always)]
+    fn propagate_portable(&self, p: &mut Matrix15) {
+        let n: Matrix9 = p.fixed_view::<NAV, NAV>(0, 0).into_owned();
+        let c: Matrix9x6 = p.fixed_view::<NAV, 6>(0, NAV).into_owned();
+        let d: SMatrix<f64, 6, 6> = p.fixed_view::<6, 6>(NAV, NAV).into_owned();
+        let mut y = Matrix9x6::zeros();
+        mul_add(&mut y, &self.nn, &c);
+        mul_add(&mut y, &self.nb, &d);
+        let mut x = Matrix9::zeros();
+        mul_add(&mut x, &self.nn, &n);
+        mul_add_transposed(&mut x, &self.nb, &c);
+        let mut nav = Matrix9::zeros();
+        mul_add_transposed(&mut nav, &x, &self.nn);
+        mul_add_transposed(&mut nav, &y, &self.nb);
+        p.fixed_view_mut::<NAV, NAV>(0, 0)
+            .copy_from(&((nav + nav.transpose()) * 0.5));
+        p.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&y);
+        p.fixed_view_mut::<6, NAV>(NAV, 0).copy_from(&y.transpose());
+    }
+
+    /// `X ← Φ X` for the 15 rows of `X` (a cross-covariance with other states).
+    pub(super) fn apply<const C: usize>(&self, x: &mut SMatrix<f64, 15, C>) {
+        let nav = self.nn * x.fixed_view::<NAV, C>(0, 0) + self.nb * x.fixed_view::<6, C>(NAV, 0);
+        x.fixed_view_mut::<NAV, C>(0, 0).copy_from(&nav);
+    }
+
+    /// The dense 15×15 Φ.
+    #[cfg(test)]
+    pub(super) fn dense(&self) -> Matrix15 {
+        let mut phi = Matrix15::identity();
+        phi.fixed_view_mut::<NAV, NAV>(0, 0).copy_from(&self.nn);
+        phi.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&self.nb);
+        phi
+    }
+}
+
+/// `out += a b` for small fixed-size matrices, column by column (contiguous columns of
+/// `a` scaled and summed, which the compiler vectorizes where nalgebra's generic
+/// product is not inlined).
+#[inline(always)]
+fn mul_add<const R: usize, const K: usize, const C: usize>(
+    out: &mut SMatrix<f64, R, C>,
+    a: &SMatrix<f64, R, K>,
+    b: &SMatrix<f64, K, C>,
+) {
+    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
+    for j in 0..C {
+        for k in 0..K {
+            let coef = b[j * K + k];
+            for i in 0..R {
+                o[j * R + i] += a[k * R + i] * coef;
+            }
+        }
+    }
+}
+
+/// `out += a bᵀ` for `b` of `C × K` (see [`mul_add`]).
+#[inline(always)]
+fn mul_add_transposed<const R: usize, const K: usize, const C: usize>(
+    out: &mut SMatrix<f64, R, C>,
+    a: &SMatrix<f64, R, K>,
+    b: &SMatrix<f64, C, K>,
+) {
+    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
+    for j in 0..C {
+        for k in 0..K {
+            let coef = b[k * C + j];
+            for i in 0..R {
+                o[j * R + i] += a[k * R + i] * coef;
+            }
+        }
+    }
+}
+
 /// Add the IMU white noise of one step to the velocity and attitude blocks of `p`:
 /// `Q_a = C diag(q_a) Cᵀ·white` and `Q_g = C diag(q_g) Cᵀ·white` (`white = Δt_imu·Δt`),
 /// each added symmetrized so that `p` stays exactly symmetric. In the invariant
@@ -307,19 +466,45 @@ mod tests {
 
     fn dense_f(d: &ErrorDynamics) -> Matrix15 {
         let mut f = Matrix15::zeros();
-        let mut put =
-            |r: usize, c: usize, m: &Matrix3<f64>| f.fixed_view_mut::<3, 3>(r, c).copy_from(m);
-        put(POS, POS, &d.pos_pos);
-        put(POS, ATT, &d.pos_att);
-        put(VEL, GYRO_BIAS, &d.vel_gbias);
-        put(POS, VEL, &Matrix3::identity());
-        put(VEL, POS, &Matrix3::from_diagonal(&d.vel_pos));
-        put(VEL, VEL, &d.vel_vel);
-        put(VEL, ATT, &d.vel_att);
-        put(VEL, ACC_BIAS, &d.vel_abias);
-        put(ATT, ATT, &d.att_att);
-        put(ATT, GYRO_BIAS, &d.att_gbias);
+        f.fixed_view_mut::<NAV, 15>(0, 0).copy_from(&d.nav_rows());
         f
+    }
+
+    fn test_p() -> Matrix15 {
+        let a = Matrix15::from_fn(|i, j| {
+            ((i * 7 + j * 3) % 11) as f64 * 0.1 + if i == j { 2.0 } else { 0.0 }
+        });
+        a * a.transpose()
+    }
+
+    #[test]
+    fn interval_transition_is_second_order_and_propagates_blockwise() {
+        for formulation in [Formulation::Classic, Formulation::Invariant] {
+            let nav = moving_state();
+            let rates = FrameRates::at(&nav);
+            let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), formulation);
+            let f = dense_f(&d);
+            let dt = 0.3;
+            let want_phi = Matrix15::identity() + f * dt + f * f * (0.5 * dt * dt);
+            let t = d.transition(dt);
+            let phi = t.dense();
+            assert!((phi - want_phi).abs().max() < 1e-12, "{formulation:?}");
+            // Φ (P + ½Q) Φᵀ + ½Q against the dense product (the noise as a step adds it).
+            let p = test_p();
+            let q = Matrix15::from_diagonal(&crate::ekf::Vector15::from_fn(|i, _| {
+                1e-3 * (i + 1) as f64
+            }));
+            let want = phi * (p + q * 0.5) * phi.transpose() + q * 0.5;
+            let mut got = p + q * 0.5;
+            t.propagate(&mut got);
+            got += q * 0.5;
+            assert!((got - want).abs().max() < 1e-12 * want.abs().max());
+            assert_eq!(got, got.transpose());
+            let mut x = SMatrix::<f64, 15, 4>::from_fn(|i, j| (i + 2 * j) as f64 * 0.1);
+            let want = phi * x;
+            t.apply(&mut x);
+            assert!((x - want).abs().max() < 1e-12);
+        }
     }
 
     #[test]
@@ -342,10 +527,7 @@ mod tests {
             (0..9).all(|i| (fx[i] - sparse[i]).abs() < 1e-12),
             "{formulation:?}"
         );
-        let a = Matrix15::from_fn(|i, j| {
-            ((i * 7 + j * 3) % 11) as f64 * 0.1 + if i == j { 2.0 } else { 0.0 }
-        });
-        let p = a * a.transpose();
+        let p = test_p();
         let dt = 0.01;
         let phi = Matrix15::identity() + f * dt;
         let want = phi * p * phi.transpose();

@@ -3,8 +3,9 @@
 //! Error state `δx = [δp (NED m), δv (m/s), ψ (rad), δb_a (m/s²), δb_g (rad/s)]`, each
 //! estimate minus truth; `Ĉ = (I − [ψ×]) C`; the velocity error in the coordinates of
 //! the configured [`Formulation`] (`δv`, or `δV = δv − [v̂×]ψ`). Propagation
-//! `Φ = I + FΔt`, `Q_d = Γ Q^c Γᵀ Δt`; DVL updates in Joseph form with feedback and
-//! reset. Every formula is in `docs/filter.md`.
+//! `Φ = I + FΔt`, `Q_d = Γ Q^c Γᵀ Δt` at every IMU sample, or over a covariance step
+//! ([`FilterConfig::covariance_step`], [`interval`]); DVL updates in Joseph form with
+//! feedback and reset. Every formula is in `docs/filter.md`.
 
 use crate::attitude::{exp_so3, skew};
 use crate::earth;
@@ -30,6 +31,7 @@ pub mod calibration;
 mod config;
 mod dynamics;
 pub mod formulation;
+mod interval;
 mod recorded;
 pub mod smoother;
 
@@ -37,6 +39,7 @@ use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
 use dynamics::{add_imu_noise, ErrorDynamics};
 pub use formulation::Formulation;
+use interval::Interval;
 pub use recorded::{
     filter_recorded, filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput,
     RecordedData,
@@ -116,6 +119,9 @@ pub struct Ekf {
     pub calibration: Option<Calibration>,
     /// The calibration blocks of `M` (with [`Ekf::track_sensitivity`] and calibration).
     sensitivity_calibration: Option<Calibration>,
+    /// The covariance step under way (see [`FilterConfig::covariance_step`]): P, M and
+    /// the calibration blocks stand at its start.
+    interval: Option<Interval>,
 }
 
 impl Ekf {
@@ -138,6 +144,7 @@ impl Ekf {
             sensitivity: None,
             calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
             sensitivity_calibration: None,
+            interval: None,
         })
     }
 
@@ -148,6 +155,7 @@ impl Ekf {
     /// exact to first order because ∂P⁺/∂K vanishes at the Kalman gain. Each update then
     /// reports `H M Hᵀ` ([`UpdateInfo::sensitivity`]); the adaptive strategy reads it.
     pub fn track_sensitivity(&mut self, q: [f64; 6]) {
+        self.bring_up_to_date();
         self.sensitivity = Some((Matrix15::zeros(), q));
         self.sensitivity_calibration = self.calibration.as_ref().map(Calibration::zeroed_like);
     }
@@ -159,6 +167,38 @@ impl Ekf {
 
     pub fn config(&self) -> &FilterConfig {
         &self.cfg
+    }
+
+    /// Close the covariance step under way, if any: propagate P (and M and the
+    /// calibration blocks) over the samples since it started. The covariance readers
+    /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
+    /// end of the last closed step; every DVL update brings it up to date first.
+    pub fn bring_up_to_date(&mut self) {
+        if let Some(interval) = self.interval.take() {
+            interval.close(self);
+        }
+    }
+
+    /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
+    /// copy), so that reading it does not change the filter's later steps.
+    pub fn sigma_up_to_date(&self) -> [f64; 15] {
+        if self.interval.is_none() {
+            return self.sigma();
+        }
+        let mut copy = self.clone();
+        copy.bring_up_to_date();
+        copy.sigma()
+    }
+
+    /// [`Ekf::covariance`] brought up to date without closing the step under way (on
+    /// a copy), as [`Ekf::sigma_up_to_date`].
+    pub fn covariance_up_to_date(&self) -> Matrix15 {
+        if self.interval.is_none() {
+            return self.covariance();
+        }
+        let mut copy = self.clone();
+        copy.bring_up_to_date();
+        copy.covariance()
     }
 
     /// The error covariance in the classic coordinates (`δv = v̂ − v`), whatever the
@@ -215,17 +255,49 @@ impl Ekf {
     }
 
     /// Propagate over one raw IMU sample (`dt` [s]): covariance with F and Q_d from
-    /// the state at the start of the step, then the strapdown step with the
-    /// bias-corrected sample. A non-finite result (an overflow from absurd inputs or a
-    /// diverged filter) is an `Error::Numerical`, never a silent NaN.
+    /// the state at the start of the step (or the sample added to the covariance step
+    /// under way, closed when due), then the strapdown step with the bias-corrected
+    /// sample. A non-finite result (an overflow from absurd inputs or a diverged
+    /// filter) is an `Error::Numerical`, never a silent NaN.
     pub fn propagate(&mut self, raw: &ImuSample, dt: f64, noise: ProcessNoise<'_>) -> Result<()> {
         let imu = ImuSample {
             accel: raw.accel - self.accel_bias,
             gyro: raw.gyro - self.gyro_bias,
         };
         let rates = FrameRates::at(&self.nav);
+        let every_sample = self.cfg.covariance_every_sample();
+        if every_sample {
+            self.propagate_covariance(&imu, &rates, dt, noise);
+        } else {
+            let white = self.cfg.imu_dt * dt;
+            let tracked = self.sensitivity.is_some();
+            self.interval
+                .get_or_insert_with(|| Interval::open(&self.nav, tracked))
+                .add(&self.nav, &imu.accel, dt, white, noise);
+        }
+        self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
+        self.last_gyro = imu.gyro;
+        if !every_sample && self.interval.as_ref().is_some_and(|i| i.due(&self.cfg)) {
+            self.bring_up_to_date();
+        }
+        if !self.is_finite() {
+            return Err(Error::Numerical(
+                "the prediction produced a non-finite state or covariance".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The covariance part of [`Ekf::propagate`] at every IMU sample.
+    fn propagate_covariance(
+        &mut self,
+        imu: &ImuSample,
+        rates: &FrameRates,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) {
         let formulation = self.cfg.formulation;
-        let dynamics = ErrorDynamics::new(&self.nav, &rates, &imu.accel, formulation);
+        let dynamics = ErrorDynamics::new(&self.nav, rates, &imu.accel, formulation);
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
         if let Some(c) = self.calibration.as_mut() {
@@ -238,14 +310,6 @@ impl Ekf {
                 c.propagate(&dynamics, dt, false);
             }
         }
-        self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
-        self.last_gyro = imu.gyro;
-        if !self.is_finite() {
-            return Err(Error::Numerical(
-                "the prediction produced a non-finite state or covariance".into(),
-            ));
-        }
-        Ok(())
     }
 
     fn add_process_noise(&mut self, noise: ProcessNoise<'_>, dt: f64) {
@@ -302,6 +366,7 @@ impl Ekf {
     /// then feedback of the error estimate and reset. With the DVL calibration states
     /// the update runs on the 19-state covariance (see [`calibration`]).
     pub fn update(&mut self, z: &Vector3<f64>) -> Result<UpdateInfo> {
+        self.bring_up_to_date();
         let r = Matrix3::from_diagonal(&Vector3::from_column_slice(&self.cfg.dvl_variance));
         let gate = self.cfg.innovation_gate;
         let (predicted, h) = self.measurement_model();
@@ -378,7 +443,7 @@ impl Ekf {
     pub fn transition(&self, raw: &ImuSample, dt: f64) -> Matrix15 {
         let accel = raw.accel - self.accel_bias;
         let rates = FrameRates::at(&self.nav);
-        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).transition(dt)
+        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).step_transition(dt)
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional

@@ -19,6 +19,10 @@ pub struct FilterOutput {
     pub nav: Vec<NavState>,
     /// `[b_a, b_g]` estimates per epoch.
     pub bias: Vec<[f64; 6]>,
+    /// 1σ of the 15 errors per epoch. With a covariance step
+    /// ([`super::FilterConfig::covariance_step`]), an epoch inside a step repeats the
+    /// σ of the last closed one; steps close when due, at every DVL update and at the
+    /// last epoch.
     pub sigma: Vec<[f64; 15]>,
     /// For each DVL row: the epoch index it was applied at (None if outside the run).
     pub dvl_epoch: Vec<Option<usize>>,
@@ -252,13 +256,7 @@ pub fn smooth_recorded_until(
     strategy: &mut dyn NoiseStrategy,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
-    if cfg.dvl_calibration.is_some() {
-        return Err(Error::invalid(
-            "config",
-            "the smoother does not smooth the DVL calibration states yet: \
-             smooth without dvl_calibration",
-        ));
-    }
+    smoother::check_config(cfg, "config")?;
     let mut nodes = Nodes::default();
     let mut out = forward_pass(
         data,
@@ -335,6 +333,9 @@ fn forward_pass(
                 other => other,
             })?;
         at.steps_since_update += 1;
+        if k + 1 == data.imu.len() {
+            ekf.bring_up_to_date(); // the end of the pass
+        }
         let correction = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
         if let (Some(nodes), Some(correction)) = (nodes.as_deref_mut(), correction) {
             nodes.after_updates(k + 1, &ekf, correction, strategy.process_noise());
@@ -381,7 +382,7 @@ fn keep_covariances(
             out.covariance_epoch.push(None);
             out.covariances.push(None);
         } else {
-            let p = *kept.get_or_insert_with(|| ekf.covariance());
+            let p = *kept.get_or_insert_with(|| ekf.covariance_up_to_date());
             out.covariance_epoch.push(Some(epoch));
             out.covariances.push(Some(p));
         }

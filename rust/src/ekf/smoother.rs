@@ -33,6 +33,27 @@ use crate::mechanization::{ImuSample, NavState};
 use crate::noise::ProcessNoise;
 use nalgebra::Vector3;
 
+/// What the smoother cannot smooth yet, refused naming `arg`: the DVL calibration
+/// states, and a covariance step longer than one IMU sample (its intervals are not
+/// rebuilt step by step).
+pub fn check_config(cfg: &FilterConfig, arg: &str) -> Result<()> {
+    if cfg.dvl_calibration.is_some() {
+        return Err(Error::invalid(
+            arg,
+            "the smoother does not smooth the DVL calibration states yet: smooth without \
+             dvl_calibration",
+        ));
+    }
+    if !cfg.covariance_every_sample() {
+        return Err(Error::invalid(
+            arg,
+            "the smoother needs the covariance propagated at every IMU sample: smooth with \
+             covariance_step=0",
+        ));
+    }
+    Ok(())
+}
+
 /// The process noise of an interval, owned (see [`ProcessNoise`]).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Noise {

@@ -135,7 +135,7 @@ fn error_dynamics_match_the_mechanization() {
             let rate = (end - start) / dt;
             let f = dynamics.apply(start.as_slice());
             // The dense Φ the smoother reads is I + F Δt, the F applied here.
-            let phi = dynamics.transition(dt);
+            let phi = dynamics.step_transition(dt);
             let applied = phi * start - start;
             for i in 0..15 {
                 let want = if i < 9 { f[i] * dt } else { 0.0 };

@@ -1,9 +1,9 @@
 //! `FilterConfig`: the EKF's tuning.
 
 use super::convert::{
-    arg_accel_bias_psd, arg_aiding, arg_dvl_calibration, arg_dvl_misalignment_psd,
-    arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_formulation, arg_gyro_bias_psd, arg_imu_dt,
-    arg_innovation_gate, fixed, fixed_or,
+    arg_accel_bias_psd, arg_aiding, arg_covariance_step, arg_dvl_calibration,
+    arg_dvl_misalignment_psd, arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_formulation,
+    arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate, fixed, fixed_or,
 };
 use super::{invalid, to_py_err};
 use crate::ekf::calibration::CalibrationConfig;
@@ -21,8 +21,12 @@ use pyo3::prelude::*;
 /// [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
 /// velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
 /// consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
-/// prior and every output are in the classic coordinates either way. See
-/// ``docs/filter.md``.
+/// prior and every output are in the classic coordinates either way; and the
+/// covariance step [s]: the interval over which the covariance is propagated at once
+/// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample). 0
+/// (the default), or less than 1.5 IMU periods: every sample; a longer step is rounded
+/// to a whole number of IMU periods, and the covariance is brought up to date before
+/// every DVL update and at the end of a pass. See ``docs/filter.md``.
 #[pyclass(name = "FilterConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PyFilterConfig {
@@ -52,9 +56,9 @@ fn parse_formulation(text: &str) -> PyResult<Formulation> {
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, formulation = Formulation::default().name().to_string()))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, formulation = Formulation::default().name().to_string(), covariance_step = 0.0))]
     #[pyo3(
-        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, formulation='invariant')"
+        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, formulation='invariant', covariance_step=0.0)"
     )]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
@@ -72,6 +76,7 @@ impl PyFilterConfig {
         #[pyo3(from_py_with = arg_dvl_scale_psd)] dvl_scale_psd: Option<f64>,
         #[pyo3(from_py_with = arg_dvl_misalignment_psd)] dvl_misalignment_psd: Option<f64>,
         #[pyo3(from_py_with = arg_formulation)] formulation: String,
+        #[pyo3(from_py_with = arg_covariance_step)] covariance_step: f64,
     ) -> PyResult<Self> {
         let defaults = FilterConfig::default();
         let misalignment_sigma = dvl_misalignment_sigma
@@ -111,6 +116,7 @@ impl PyFilterConfig {
             innovation_gate,
             dvl_calibration: calibration,
             formulation: parse_formulation(&formulation)?,
+            covariance_step,
         };
         inner.validate().map_err(to_py_err)?;
         // the filter's lever arm, bounded as the sensors' is (a 1e9 m arm is a slip of units)
@@ -149,6 +155,11 @@ impl PyFilterConfig {
     #[getter]
     fn formulation(&self) -> &'static str {
         self.inner.formulation.name()
+    }
+    /// The covariance step [s] (0: the covariance propagated at every IMU sample).
+    #[getter]
+    fn covariance_step(&self) -> f64 {
+        self.inner.covariance_step
     }
     #[getter]
     fn imu_dt(&self) -> f64 {
@@ -194,7 +205,7 @@ impl PyFilterConfig {
             ),
         };
         format!(
-            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}, formulation={:?}{calibration})",
+            "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}, formulation={:?}, covariance_step={}{calibration})",
             self.inner.accel_bias_psd,
             self.inner.gyro_bias_psd,
             self.inner.dvl_variance,
@@ -205,6 +216,7 @@ impl PyFilterConfig {
                 .innovation_gate
                 .map_or("None".to_string(), |g| g.to_string()),
             self.formulation(),
+            self.inner.covariance_step,
         )
     }
 }

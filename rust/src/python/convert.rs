@@ -297,6 +297,7 @@ arg_converters! {
     arg_accel_bias_psd: f64 = real_arg("accel_bias_psd");
     arg_gyro_bias_psd: f64 = real_arg("gyro_bias_psd");
     arg_imu_dt: f64 = real_arg("imu_dt");
+    arg_covariance_step: f64 = real_arg("covariance_step");
     arg_dvl_period: f64 = real_arg("dvl_period");
     arg_tuning_period: f64 = real_arg("tuning_period");
     arg_aiding: String = text_arg("aiding");
