@@ -30,6 +30,8 @@ pub struct RunSummary {
     pub mean_nis: f64,
     /// DVL updates the innovation gate rejected.
     pub rejected_updates: usize,
+    /// DVL readings due but missing (bottom lock lost: [`crate::sensors::DvlDropout`]).
+    pub missed_updates: usize,
     /// Time [s] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
     pub diverged_at: Option<f64>,
     /// Set when the filter failed numerically; the run's metrics are then NaN.
@@ -127,6 +129,7 @@ pub struct Run {
     max_horizontal_sq: f64,
     nis: Vec<f64>,
     rejected_updates: usize,
+    missed_updates: usize,
     accepted_nis_sum: f64,
     nis_monitor: NisMonitor,
     nees: Vec<[f64; 5]>,
@@ -252,6 +255,7 @@ impl Run {
             max_horizontal_sq: 0.0,
             nis: Vec::with_capacity(n_epochs),
             rejected_updates: 0,
+            missed_updates: 0,
             accepted_nis_sum: 0.0,
             nis_monitor: NisMonitor::default(),
             nees: Vec::with_capacity(n_epochs),
@@ -302,12 +306,21 @@ impl Run {
         self.steps_since_update += 1;
         let state = &truth.states[self.k];
         if self.failure.is_none() {
-            let due = self.k.is_multiple_of(self.dvl_every)
-                && scenario.sensors.dvl.available(truth.time[self.k]);
+            let dvl = &scenario.sensors.dvl;
+            let due = self.k.is_multiple_of(self.dvl_every) && dvl.available(truth.time[self.k]);
             let z = due.then(|| {
                 let gyro = Vector3::new(ideal[3], ideal[4], ideal[5]);
-                self.sim.dvl(&scenario.sensors.dvl, state, &gyro)
+                self.sim.dvl(dvl, state, &gyro)
             });
+            // A reading lost with the bottom lock: no update, its epoch recorded as NaN
+            // (its noise was drawn all the same: the stream stays aligned).
+            let z = match z {
+                Some(_) if !self.sim.dvl_locked(dvl) => {
+                    self.missed_update();
+                    None
+                }
+                z => z,
+            };
             match self.ekf.step(
                 &ImuSample::from_array(&raw),
                 truth.dt,
@@ -337,6 +350,16 @@ impl Run {
             self.max_horizontal = self.horizontal;
         }
         self.record_history(truth);
+    }
+
+    /// Record a due DVL epoch whose reading is missing: NaN NIS and NEES.
+    fn missed_update(&mut self) {
+        self.missed_updates += 1;
+        self.nis.push(f64::NAN);
+        self.nees.push([f64::NAN; 5]);
+        if self.ekf.calibration.is_some() {
+            self.calibration_nees.push(f64::NAN);
+        }
     }
 
     fn after_update(
@@ -385,7 +408,7 @@ impl Run {
         let n = self.k.max(1) as f64;
         let failed = self.failure.is_some();
         let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
-        let accepted = self.nis.len() - self.rejected_updates;
+        let accepted = self.nis.len() - self.rejected_updates - self.missed_updates;
         // No applied update (none made, or every one rejected by the gate): no NIS to
         // average; 0 would look healthy.
         let mean_nis = if accepted == 0 {
@@ -403,6 +426,7 @@ impl Run {
                 ),
                 mean_nis: nan_if_failed(mean_nis),
                 rejected_updates: self.rejected_updates,
+                missed_updates: self.missed_updates,
                 diverged_at: self.nis_monitor.diverged_at,
                 calibration: calibration_error(&self.ekf, mounting)
                     .filter(|_| !failed)

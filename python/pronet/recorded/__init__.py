@@ -7,6 +7,8 @@ Reading and preparing:
   and ``.npz`` formats), validated before any computation;
 - :mod:`~pronet.recorded.alignment`: clocks and lever arms, a recording turned into a
   filter-ready :class:`~pronet.recorded.alignment.Section`;
+- :mod:`~pronet.recorded.missing`: missing DVL readings (no bottom lock), skipped as
+  updates and counted;
 - :mod:`~pronet.recorded.tuning`: the filter tuning of recorded sections and the rows
   ``pronet real`` runs;
 - :mod:`~pronet.recorded.dvlnoise`: the DVL's noise variance R from the data;
@@ -30,6 +32,7 @@ __all__ = [
     "dvltruth",
     "figures",
     "metrics",
+    "missing",
     "real",
     "recordings",
     "runs",

@@ -119,6 +119,9 @@ class Section:
         truth_lla, truth_vel, truth_rpy: ``(k, 3)`` the truth moved to the IMU:
             lat, lon [rad], height [m, up]; NED velocity [m/s]; roll, pitch, yaw [rad].
         alignment: how it was aligned.
+        dvl_skipped_time: ``(j,)`` times on the IMU clock [s] of the DVL rows skipped as
+            missing readings (:mod:`pronet.recorded.missing`), not in ``dvl``.
+        dvl_skipped_reason: why each was skipped.
     """
 
     name: str
@@ -131,6 +134,8 @@ class Section:
     truth_vel: F64
     truth_rpy: F64
     alignment: Alignment
+    dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
+    dvl_skipped_reason: tuple[str, ...] = ()
 
 
 def dcm_from_euler(rpy: ArrayLike) -> F64:
@@ -283,6 +288,8 @@ def align(rec: Recording, alignment: Alignment) -> Section:
         truth_vel=vel,
         truth_rpy=rec.gt_rpy,
         alignment=alignment,
+        dvl_skipped_time=alignment.dvl_clock(rec.dvl_skipped_time),
+        dvl_skipped_reason=rec.dvl_skipped_reason,
     )
 
 

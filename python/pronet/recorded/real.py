@@ -95,7 +95,7 @@ def run_section(
     """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
     for ``duration`` seconds (default: to the end), with or without the DVL."""
     done = run(strategy, section_recorded(section, config, duration=duration, use_dvl=use_dvl))
-    metrics = section_metrics(section, done.result)
+    metrics = section_metrics(section, done.result, use_dvl)
     return SectionRun(
         setup,
         section.name,

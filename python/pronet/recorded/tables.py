@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pronet.recorded import missing
+from pronet.recorded.alignment import Section
 from pronet.recorded.tuning import real_filter_config
 from pronet.results import (
     OUT_OF_BAND,
@@ -111,6 +113,7 @@ def run_record(run: SectionRun) -> dict[str, object]:
         "accel_bias_nees": math.nan,
         "gyro_bias_nees": math.nan,
         "rejected_updates": int((applied & ~r.accepted).sum()),
+        "missed_updates": m.missed_updates,
         "diverged_at": math.nan if r.diverged_at is None else r.diverged_at,
         "failure": None,
     }
@@ -146,7 +149,7 @@ def failed_records(done: RealRuns) -> tuple[list[dict[str, object]], list[dict[s
         for run in template:
             rec = {**run_record(run), "scenario": name, "failure": reason}
             rec.update({k: math.nan for k in (*SUMMARIZED, "velocity_nees_3sigma")})
-            rec.update(rejected_updates=0, diverged_at=math.nan)
+            rec.update(rejected_updates=0, missed_updates=0, diverged_at=math.nan)
             per_run.append(rec)
             row = {**summary_record(run), "scenario": name, "failed_runs": 1}
             row.update({k: math.nan for k in row if k.startswith(SUMMARIZED)})
@@ -180,6 +183,31 @@ def failed_table(failed: dict[str, str]) -> str:
     """Markdown: the sections that could not be read or filtered, with the reason."""
     lines: list[list[object]] = [[name, reason] for name, reason in failed.items()]
     return markdown(["section", "reason"], lines, "Sections not run")
+
+
+def dvl_skipped(section: Section) -> dict[str, float]:
+    """A section's DVL rows skipped as missing readings, by reason
+    (:data:`pronet.recorded.missing.REASONS`), their total, the rows used and the
+    longest stretch between used rows that held skipped ones [s]."""
+    found = missing.counts(section.dvl_skipped_reason)
+    gap = missing.longest_gap(section.dvl_time, section.dvl_skipped_time)
+    return {
+        **found,
+        "skipped": sum(found.values()),
+        "used": len(section.dvl_time),
+        "longest_gap_s": gap,
+    }
+
+
+def dvl_skipped_table(done: RealRuns) -> str:
+    """Markdown: each section's DVL rows skipped as missing readings (missed updates)."""
+    lines: list[list[object]] = []
+    for aligned, _ in done.sections:
+        d = dvl_skipped(aligned)
+        counts = [int(d[r]) for r in missing.REASONS]
+        lines.append([aligned.name, int(d["used"]), *counts, f"{d['longest_gap_s']:.1f}"])
+    header = ["section", "used", *missing.REASONS, "longest dropout [s]"]
+    return markdown(header, lines, "DVL readings skipped as missing (missed updates)")
 
 
 def dvl_noise_table(done: RealRuns) -> str:
@@ -296,6 +324,11 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "mean_nis", "Per section"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
+                [dvl_skipped_table(done)]
+                if any(len(a.dvl_skipped_time) for a, _ in done.sections)
+                else []
+            ),
+            *(
                 [calibration_table(done.runs, done.truth_calibration)]
                 if any(final_calibration(r) is not None for r in done.runs)
                 else []
@@ -341,6 +374,7 @@ def real_config(
             for a, _ in done.sections
         },
         "q_estimated": done.q_estimated,
+        "dvl_skipped": {a.name: dvl_skipped(a) for a, _ in done.sections},
         "dvl_noise": dvl_noise,
         "dvl_variance": {
             name: {"used": list(used), **_noise_record(noise)}
