@@ -292,10 +292,13 @@ def test_clocks_are_estimated_and_the_truth_moved_to_the_imu(synthetic):
     assert al.filter_lever_arm == pytest.approx(np.subtract(DVL_LEVER_ARM, IMU_LEVER_ARM))
     section = align(rec, al)
     # On the true clock the truth, moved to the IMU, is the trajectory's.
-    exact = align(rec, replace(al, gt_clock=GT_CLOCK, dvl_clock=DVL_CLOCK))
+    # (the clocks of the simulation count from 0, the section's times from its epoch)
+    e = rec.imu_time[0]
+    exact = align(rec, replace(al, gt_clock=GT_CLOCK.since(e), dvl_clock=DVL_CLOCK.since(e)))
+    assert exact.epoch == e
     traj = synthetic.trajectory
-    idx = np.round(exact.truth_time / traj.dt).astype(int)
-    np.testing.assert_allclose(exact.truth_time, traj.time[idx], atol=1e-9)
+    idx = np.round((exact.truth_time + e) / traj.dt).astype(int)
+    np.testing.assert_allclose(exact.truth_time + e, traj.time[idx], atol=1e-9)
     r_n, r_e = pronet.earth_radii(float(traj.lla[0, 0]))
     dp = (exact.truth_lla - traj.lla[idx]) * [r_n, r_e * np.cos(traj.lla[0, 0]), 1.0]
     assert np.abs(dp).max() < 1e-5  # metres

@@ -368,6 +368,7 @@ def real_config(
         "dvl_lever_arm_m": dvl_arm,
         "clocks": {
             a.name: {
+                "epoch_s": a.epoch,
                 "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
                 "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
             }
