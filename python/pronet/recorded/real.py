@@ -16,7 +16,7 @@ import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing, nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
@@ -45,14 +45,14 @@ from pronet.recorded.tuning import (
     BOTH,
     DVL_CALIBRATION,
     R_FROM_DATA,
-    REAL_DVL_VARIANCE,
     REAL_VARIANT_ROWS,
     check_dvl_noise,
+    imu_step,
     real_filter_config,
     real_strategies,
     white_noise_q,
 )
-from pronet.run import Recorded, run
+from pronet.run import Recorded, check_acts, run
 from pronet.strategies import StrategyLike
 
 if TYPE_CHECKING:  # torch loads only when a net is trained or run through torch
@@ -189,15 +189,18 @@ def estimate_dvl_noise(
     strategy: StrategyLike,
     lever_arm: tuple[float, float, float],
     formulation: str | None = None,
+    base: _core.FilterConfig | None = None,
 ) -> SectionDvlNoise:
     """The DVL noise of ``section``: its second-difference R, then the R that matches
     the innovations of ``strategy`` under :func:`real_filter_config`, without and with
     the calibration states (a pass per step of
-    :func:`pronet.recorded.dvlnoise.match_innovations`)."""
+    :func:`pronet.recorded.dvlnoise.match_innovations`); ``base``: the vehicle's own
+    tuning (:func:`real_filter_config`)."""
+    imu_dt = imu_step(section.imu_time)
 
     def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
         def one_pass(r: tuple[float, float, float]) -> FilterResult:
-            config = real_filter_config(lever_arm, r, calibration, formulation)
+            config = real_filter_config(lever_arm, r, calibration, formulation, imu_dt, base)
             # the matching reads the updates only: no epoch arrays, no metrics
             return run(strategy, section_recorded(section, config, epochs="last")).result
 
@@ -222,6 +225,10 @@ class SectionPlan:
         dvl_noise: the section's DVL noise estimates, or why they could not be made
             (then the section has no variant rows).
         dvl_variance: the R of the strategy rows [(m/s)²] (the datasheet's or the data's).
+        base: the vehicle's own tuning the configs were made from (None: the FOG
+            defaults of :func:`real_filter_config`).
+        not_run: the strategy rows left out because they could never act on the
+            section (:func:`pronet.run.check_acts`), with the reason.
     """
 
     q: tuple[float, ...]
@@ -230,6 +237,8 @@ class SectionPlan:
     variants: dict[str, _core.FilterConfig]
     dvl_noise: SectionDvlNoise | str
     dvl_variance: tuple[float, float, float]
+    base: _core.FilterConfig | None = None
+    not_run: dict[str, str] = field(default_factory=dict)
 
 
 def plan_section(
@@ -238,33 +247,54 @@ def plan_section(
     tuning_period: float,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
+    base: _core.FilterConfig | None = None,
 ) -> SectionPlan:
     """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
     its estimated q, with the DVL noise of ``dvl_noise`` (one of
     :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows, every
-    filter in ``formulation`` (default ``FilterConfig``'s)."""
+    filter in ``formulation`` (default ``FilterConfig``'s or ``base``'s), at the
+    section's own IMU step (:func:`imu_step`), tuned as ``base`` (None: the FOG
+    defaults of :func:`real_filter_config`)."""
     check_dvl_noise(dvl_noise)
     q = white_noise_q(section.imu)
     strategies = real_strategies(q, models, tuning_period)
     arm = section.alignment.filter_lever_arm
-    datasheet = (REAL_DVL_VARIANCE,) * 3
+    dt = imu_step(section.imu_time)
+
+    def config(
+        r: tuple[float, float, float] | None = None, calibration: bool = False
+    ) -> _core.FilterConfig:
+        return real_filter_config(arm, r, calibration, formulation, dt, base)
+
+    r = config().dvl_variance
+    datasheet = (r[0], r[1], r[2])
+    # a row that could never act on this section (a window longer than its DVL
+    # updates, a tuning period beyond it) is left out and reported, not run as its prior
+    recorded = section_recorded(section, config())
+    not_run: dict[str, str] = {}
+    for label, chosen in list(strategies.items())[1:]:  # the first, constant, always acts
+        try:
+            check_acts(chosen, recorded)
+        except ValueError as exc:
+            not_run[label] = str(exc)
+            del strategies[label]
     try:
-        noise = estimate_dvl_noise(section, next(iter(strategies.values())), arm, formulation)
+        noise = estimate_dvl_noise(
+            section, next(iter(strategies.values())), arm, formulation, base
+        )
     except ValueError as exc:
         if dvl_noise == "data":  # the strategy rows need it
             raise
         # The strategy rows do not: they run, the variant rows are left out.
-        config = real_filter_config(arm, formulation=formulation)
-        return SectionPlan(q, strategies, config, {}, str(exc), datasheet)
+        return SectionPlan(q, strategies, config(), {}, str(exc), datasheet, base, not_run)
     used = noise.matched.variance if dvl_noise == "data" else datasheet
     both = noise.matched_calibrated.variance
     variants = {
-        R_FROM_DATA: real_filter_config(arm, noise.matched.variance, formulation=formulation),
-        DVL_CALIBRATION: real_filter_config(arm, calibration=True, formulation=formulation),
-        BOTH: real_filter_config(arm, both, calibration=True, formulation=formulation),
+        R_FROM_DATA: config(noise.matched.variance),
+        DVL_CALIBRATION: config(calibration=True),
+        BOTH: config(both, calibration=True),
     }
-    config = real_filter_config(arm, used, formulation=formulation)
-    return SectionPlan(q, strategies, config, variants, noise, used)
+    return SectionPlan(q, strategies, config(used), variants, noise, used, base, not_run)
 
 
 # ------------------------------------------------------------------------ pronet real
@@ -298,6 +328,7 @@ def run_sections(
     on_section: Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]
     | None = None,
     formulation: str | None = None,
+    base: _core.FilterConfig | None = None,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
@@ -325,7 +356,7 @@ def run_sections(
     def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
         _STOP.set(stop)  # this thread's context: its run_section calls see the event
         try:
-            plan = plan_section(pair[0], models, tuning_period, dvl_noise, formulation)
+            plan = plan_section(pair[0], models, tuning_period, dvl_noise, formulation, base)
             ran = _run_one_section(pair[0], pair[1], plan, done)
         except ValueError as exc:  # the reason, kept beside the section's name
             return str(exc)
@@ -360,6 +391,8 @@ def run_sections(
         reasons,
         {a.name: (p.plan.dvl_noise, p.plan.dvl_variance) for (a, _), p in ran},
         {a.name: p.truth_calibration for (a, _), p in ran},
+        {a.name: p.plan.config.imu_dt for (a, _), p in ran},
+        {a.name: p.plan.not_run for (a, _), p in ran if p.plan.not_run},
     )
 
 
@@ -409,6 +442,8 @@ def _run_one_section(
             stamped.alignment.filter_lever_arm,
             plan.dvl_variance,
             formulation=plan.config.formulation,
+            imu_dt=plan.config.imu_dt,
+            base=plan.base,
         ),
         label=f"{first_label}, stamps as given, no lever arms",
         setup="stamps as given, no lever arms",
@@ -522,6 +557,9 @@ def run_real(
             on_section=None if figures is None else _drawn_by(figures),
             formulation=formulation,
         )
+        # the strategy rows' filter as the first section ran it (its IMU step)
+        first_dt = next(iter(done.imu_dt.values()))
+        tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation, imu_dt=first_dt)
         config = real_config(
             data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors, tuning
         )
@@ -541,11 +579,11 @@ def _drawn_by(
 ) -> Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]:
     """The ``on_section`` hook of :func:`run_sections` that hands each finished section's
     curves to ``figures``."""
-    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
 
     def submit(
         aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
     ) -> None:
+        imu_dt = imu_step(aligned.imu_time)
         figures.submit(section_curves(aligned, runs, constants, imu_dt))
 
     return submit

@@ -38,8 +38,8 @@ Checks (each failure raises :class:`RecordingError`, a ``ValueError``, naming th
 and, where there is one, the row): the file exists and is not empty, the columns are
 comma-separated and every required one is present with a known unit, every value is a
 finite number (the DVL's velocities aside: missing readings, above), time increases
-strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL and ground
-truth 0.05–100 Hz), the IMU time has no gap longer than five median steps, and the
+strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz,
+ground truth 0.05–1000 Hz), the IMU time has no gap longer than five median steps, and the
 magnitudes fit their units (the mean specific force near gravity, angular rates within
 10 rad/s, the DVL's speed within a factor 2 of the ground truth's; see
 :data:`GRAVITY_RANGE` and beside it). A folder holding both a ``.csv`` and a ``.csv.gz``
@@ -99,7 +99,7 @@ COLUMNS: dict[str, dict[str, dict[str, float]]] = {
 OPTIONAL: dict[str, dict[str, dict[str, float]]] = {"dvl": {"valid": {"": 1.0, "-": 1.0}}}
 
 #: Plausible sample rates [Hz] of each table.
-RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 100.0)}
+RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 1000.0)}
 #: Plausible magnitudes. The mean specific force over a section within this range of
 #: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
 #: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);

@@ -185,6 +185,14 @@ def failed_table(failed: dict[str, str]) -> str:
     return markdown(["section", "reason"], lines, "Sections not run")
 
 
+def rows_not_run_table(rows: dict[str, dict[str, str]]) -> str:
+    """Markdown: the strategy rows left out of a section, with the reason."""
+    lines: list[list[object]] = [
+        [name, label, reason] for name, by in rows.items() for label, reason in by.items()
+    ]
+    return markdown(["section", "row", "reason"], lines, "Rows not run (they could never act)")
+
+
 def dvl_skipped(section: Section) -> dict[str, float]:
     """A section's DVL rows skipped as missing readings, by reason
     (:data:`pronet.recorded.missing.REASONS`), their total, the rows used and the
@@ -338,6 +346,7 @@ def real_tables(done: RealRuns) -> str:
                 f"{first_label}: alignment handled against stamps as given",
             ),
             summary_table(done.inertial, "Sanity: pure inertial, no DVL"),
+            *([rows_not_run_table(done.rows_not_run)] if done.rows_not_run else []),
             *([failed_table(done.failed)] if done.failed else []),
         ]
     )
@@ -364,6 +373,8 @@ def real_config(
         "failed_sections": done.failed,
         "tuning_period_s": tuning_period,
         "filter": repr(tuning if tuning is not None else real_filter_config((0.0, 0.0, 0.0))),
+        "imu_dt_s": done.imu_dt,
+        "rows_not_run": done.rows_not_run,
         "imu_lever_arm_m": imu_arm,
         "dvl_lever_arm_m": dvl_arm,
         "clocks": {
