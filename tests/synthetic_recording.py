@@ -40,6 +40,8 @@ def synthetic_recording(
     jitter: float = 0.0,
     gt_rate: float = 1.0,
     dvl_rate: float = 1.0,
+    imu_bias: tuple[float, ...] | None = None,
+    bias_psd: tuple[float, ...] | None = None,
 ) -> Synthetic:
     """An AUV-like section: turns and depth changes at 1.5–2 m/s, 100 Hz IMU with
     white noise (variance 1e-4 (m/s²)² and 1e-8 (rad/s)²), 1 Hz DVL with white noise of
@@ -49,7 +51,9 @@ def synthetic_recording(
     ``imu_rate`` [Hz]: the IMU's rate; ``jitter``: each IMU stamp moved by up to
     ``jitter / 2`` of a step (a step then varies by up to ``jitter``), the sample the
     mean over its own interval (from a truth ten times finer); ``gt_rate``,
-    ``dvl_rate`` [Hz]: the ground truth's and the DVL's rates."""
+    ``dvl_rate`` [Hz]: the ground truth's and the DVL's rates. ``imu_bias`` (6) a turn-on
+    bias ``[b_a (m/s²), b_g (rad/s)]`` and ``bias_psd`` (6) its random walk's PSD
+    [(m/s²)²/s, (rad/s)²/s] (as a ``SensorConfig``'s)."""
     # Smoothly varying turn rate, speed and pitch (one-second segments), as an AUV
     # manoeuvres: 1 Hz rows interpolate such motion well.
     t = np.arange(int(duration)) + 0.5
@@ -83,6 +87,11 @@ def synthetic_recording(
         edges = np.concatenate([[0.0], imu_time])
         ideal = np.diff(_at(edges, t_epoch, total), axis=0) / np.diff(edges)[:, None]
     imu = ideal + rng.normal(size=ideal.shape) * np.sqrt([1e-4] * 3 + [1e-8] * 3)
+    if imu_bias is not None or bias_psd is not None:
+        walk_rng = np.random.default_rng(seed + 2)
+        steps = np.diff(np.concatenate([[t_epoch[0]], imu_time]))[:, None]
+        walk = walk_rng.normal(size=imu.shape) * np.sqrt(np.asarray(bias_psd or [0.0] * 6) * steps)
+        imu = imu + np.asarray(imu_bias or [0.0] * 6) + np.cumsum(walk, axis=0) - walk
     rpy = np.unwrap(traj.rpy, axis=0)
     r_imu, r_dvl = np.array(IMU_LEVER_ARM), np.array(DVL_LEVER_ARM)
 

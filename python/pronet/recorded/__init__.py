@@ -11,6 +11,8 @@ Reading and preparing:
   updates and counted;
 - :mod:`~pronet.recorded.tuning`: the filter tuning of recorded sections and the rows
   ``pronet real`` runs;
+- :mod:`~pronet.recorded.vehicle`: your own vehicle's tuning (``--filter``: grade
+  presets, a scenario's ``[filter]`` keys, lever arms);
 - :mod:`~pronet.recorded.dvlnoise`: the DVL's noise variance R from the data;
 - :mod:`~pronet.recorded.dvltruth`: the DVL scale and mounting the ground truth implies;
 - :mod:`~pronet.recorded.dvlcalibration`: the DVL calibration states in simulation.
@@ -38,4 +40,5 @@ __all__ = [
     "runs",
     "tables",
     "tuning",
+    "vehicle",
 ]

@@ -339,10 +339,13 @@ FORMATS = ("snapir", "generic")
 
 def find_sections(data: str | Path) -> list[Path]:
     """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
-    ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
+    ``.npz`` files, sorted by name; ``data`` itself if it is one section (a folder of
+    CSVs, or one ``.npz`` file)."""
     from pronet.recorded.recordings import RecordingError
 
     data = Path(data)
+    if data.suffix == ".npz" and data.is_file():
+        return [data]
     if not data.is_dir():
         raise RecordingError(
             f"{data}: not a folder" + ("" if data.exists() else " (it does not exist)")

@@ -31,7 +31,6 @@ from pronet.filter import FilterResult
 from pronet.recorded.alignment import (
     Section,
     find_sections,
-    lever_arm,
     load_section,
     section_name,
 )
@@ -52,6 +51,7 @@ from pronet.recorded.tuning import (
     real_strategies,
     white_noise_q,
 )
+from pronet.recorded.vehicle import VehicleTuning, lever_arms
 from pronet.run import Recorded, check_acts, run
 from pronet.strategies import StrategyLike
 
@@ -468,6 +468,7 @@ def run_real(
     plots: bool = True,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
+    vehicle: VehicleTuning | None = None,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -483,7 +484,10 @@ def run_real(
         out: the result folder to create (default ``results/real-<time>``).
         fmt: one of :data:`pronet.recorded.alignment.FORMATS`; sections: only these section names.
         imu_lever_arm, dvl_lever_arm: sensor positions from the ground-truth point
-            [m, body FRD] (default: the Snapir AUV's).
+            [m, body FRD]; default: ``vehicle``'s, else with ``fmt="snapir"`` the
+            Snapir AUV's; the generic format has no default (ValueError: a recording
+            of another vehicle with Snapir's arms would run silently wrong; give
+            ``(0, 0, 0)`` for a truth at the sensors).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         use_models: False: only the model-based rows.
         plots: False: no plots (the tables and metrics only). The figures are drawn
@@ -496,7 +500,12 @@ def run_real(
             innovation-matched R, :func:`estimate_dvl_noise`). Either way the table has
             the variant rows and reports each section's R.
         formulation: the filter's error coordinates, ``"invariant"`` (the default) or
-            ``"classic"`` (pronet's filter before 2026-12), for every row.
+            ``"classic"`` (pronet's filter before 2026-12), for every row (default:
+            ``vehicle``'s, else ``FilterConfig``'s).
+        vehicle: the vehicle's own tuning (``--filter``,
+            :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
+            aiding, gate, formulation and lever arms; default the FOG tuning of
+            :func:`real_filter_config`.
         on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`): stages
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
@@ -504,17 +513,14 @@ def run_real(
     from pronet._util.files import atomic_folder, json_bytes
     from pronet._util.outputs import new_result_folder
     from pronet.learn.frozen import SHIPPED, load_frozen
-    from pronet.recorded.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
     folder = new_result_folder(out, "real")
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
-    tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation)  # checked now
-    imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
-    dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
-    lever_arm(imu_arm, "imu_lever_arm")  # before any section is read
-    lever_arm(dvl_arm, "dvl_lever_arm")
+    base = None if vehicle is None else vehicle.base
+    tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation, base=base)  # checked
+    imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
@@ -556,13 +562,17 @@ def run_real(
             dvl_noise=dvl_noise,
             on_section=None if figures is None else _drawn_by(figures),
             formulation=formulation,
+            base=base,
         )
         # the strategy rows' filter as the first section ran it (its IMU step)
         first_dt = next(iter(done.imu_dt.values()))
-        tuning = real_filter_config((0.0, 0.0, 0.0), formulation=formulation, imu_dt=first_dt)
+        tuning = real_filter_config(
+            (0.0, 0.0, 0.0), formulation=formulation, imu_dt=first_dt, base=base
+        )
         config = real_config(
             data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors, tuning
         )
+        config["filter_file"] = None if vehicle is None else vehicle.source
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))

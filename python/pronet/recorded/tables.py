@@ -38,6 +38,7 @@ METRIC_COLUMNS = (
     ("final_percent", "final error [% of distance]", "{:.2f}"),
     ("mean_nis", "mean NIS", "{:.2f}"),
     ("heading_ratio", "heading error / σ (RMS)", "{:.2f}"),
+    ("velocity_3sigma", "vel. error within 3σ (share)", "{:.3f}"),
 )
 
 
