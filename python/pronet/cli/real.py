@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 
 from pronet.cli._common import (
     Bars,
@@ -19,6 +20,7 @@ from pronet.cli._common import (
 )
 from pronet.recorded.alignment import FORMATS
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
+from pronet.recorded.plausible import PlausibilityWarning
 
 
 def _vector3(text: str) -> tuple[float, float, float]:
@@ -110,7 +112,13 @@ def run(args: argparse.Namespace) -> int:
     vehicle = None if args.filter is None else load_vehicle(args.filter)
     show = Output(args)
     start = time.perf_counter()
-    with Bars(show) as bars:
+
+    def warn(message: Warning | str, *_: object, **__: object) -> None:
+        print(f"pronet: warning: {message}", file=sys.stderr)  # also with --quiet
+
+    with Bars(show) as bars, warnings.catch_warnings():
+        warnings.simplefilter("always", PlausibilityWarning)
+        warnings.showwarning = warn
         out = run_real(
             args.data,
             args.out,

@@ -9,6 +9,8 @@ Reading and preparing:
   filter-ready :class:`~pronet.recorded.alignment.Section`;
 - :mod:`~pronet.recorded.missing`: missing DVL readings (no bottom lock), skipped as
   updates and counted;
+- :mod:`~pronet.recorded.plausible`: plausibility checks naming file and column (stuck
+  channels, angle units, duplicate columns, physical bounds, long lever arms);
 - :mod:`~pronet.recorded.tuning`: the filter tuning of recorded sections and the rows
   ``pronet real`` runs;
 - :mod:`~pronet.recorded.vehicle`: your own vehicle's tuning (``--filter``: grade
@@ -35,6 +37,7 @@ __all__ = [
     "figures",
     "metrics",
     "missing",
+    "plausible",
     "real",
     "recordings",
     "runs",

@@ -65,7 +65,8 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet.recorded import missing
+from pronet.recorded import missing, plausible
+from pronet.recorded.plausible import Table
 
 F64 = NDArray[np.float64]
 
@@ -259,6 +260,10 @@ def _select_columns(
 ) -> list[tuple[int, float]]:
     """Column index and SI factor of each required column, in :data:`COLUMNS` order."""
     parsed = [_parse_header(h) for h in header]
+    ours_all = [names.get(n, n) if names is not None else n for n, _ in parsed]
+    wanted = set(COLUMNS[kind]) | set(OPTIONAL.get(kind, {}))
+    if (twice := plausible.duplicate_columns(where, ours_all, header, wanted)) is not None:
+        raise RecordingError(twice)
     found: dict[str, tuple[int, str]] = {}
     for i, (name, unit) in enumerate(parsed):
         ours = names.get(name, name) if names is not None else name
@@ -288,7 +293,7 @@ def _select_columns(
     return picks
 
 
-def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
+def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> Table:
     try:
         raw = gzip.open(path, "rt") if path.suffix == ".gz" else open(path, newline="")
         with raw as fh:
@@ -313,7 +318,8 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
         # an empty DVL velocity cell is a missing reading (NaN), not a malformed file
         blank_ok = set(columns[1:4]) if kind == "dvl" else set()
         out = _parse_rows(path, header, reader, columns, blank_ok)
-    return _finish(str(path), out, picks, [header[i].strip() for i, _ in picks], kind)
+    labels = [header[i].strip() for i, _ in picks]
+    return Table(_finish(str(path), out, picks, labels, kind), str(path), labels)
 
 
 _LINE_STARTING_BLANK = re.compile(r"\n[ \t\f\v]")
@@ -384,7 +390,7 @@ def _npz_array(archive: Any, path: Path, name: str, fix: str) -> NDArray[Any]:
         ) from None
 
 
-def _read_npz(path: Path) -> dict[str, F64]:
+def _read_npz(path: Path) -> dict[str, Table]:
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
@@ -413,7 +419,8 @@ def _read_npz(path: Path) -> dict[str, F64]:
             labels = [str(h) for h in header]
             picks = _select_columns(where, labels, kind, None)
             out = data[:, [i for i, _ in picks]].astype(np.float64)
-            tables[kind] = _finish(where, out, picks, [labels[i] for i, _ in picks], kind)
+            chosen = [labels[i] for i, _ in picks]
+            tables[kind] = Table(_finish(where, out, picks, chosen, kind), where, chosen)
     return tables
 
 
@@ -507,15 +514,27 @@ def _skipped_dvl(dvl: F64, gt: F64, source: str) -> tuple[F64, NDArray[np.str_]]
     return dvl[why == "", :4], why
 
 
-def _recording(name: str, tables: dict[str, F64], source: str) -> Recording:
-    imu, gt = tables["imu"], tables["gt"]
+def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
+    imu, gt, raw_dvl = tables["imu"].values, tables["gt"].values, tables["dvl"].values
     lat = gt[:, 1]
     if (np.abs(lat) > np.pi / 2).any():
         r = int(np.argmax(np.abs(lat) > np.pi / 2)) + 1
         raise RecordingError(f"{source} gt, row {r}: latitude {lat[r - 1]} rad is outside ±π/2")
-    dvl, why = _skipped_dvl(tables["dvl"], gt, source)
+    for kind in ("dvl", "gt"):
+        if (apart := plausible.disjoint_streams(tables["imu"], tables[kind], kind)) is not None:
+            raise RecordingError(apart)
+    if (beyond := plausible.beyond_bounds(tables["gt"])) is not None:
+        raise RecordingError(beyond)
+    dvl, why = _skipped_dvl(raw_dvl, gt, source)
     skipped = why != ""
     _check_plausible(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source)
+    for problem in (
+        plausible.stuck_channels(tables["imu"], range(1, 7)),
+        plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped),
+        plausible.attitude_units(tables["imu"], tables["gt"]),
+    ):
+        if problem is not None:
+            raise RecordingError(problem)
     return Recording(
         name=name,
         imu_time=imu[:, 0].copy(),
@@ -527,6 +546,6 @@ def _recording(name: str, tables: dict[str, F64], source: str) -> Recording:
         gt_vel=np.ascontiguousarray(gt[:, 4:7]),
         gt_rpy=np.ascontiguousarray(gt[:, 7:10]),
         source=source,
-        dvl_skipped_time=tables["dvl"][skipped, 0].copy(),
+        dvl_skipped_time=raw_dvl[skipped, 0].copy(),
         dvl_skipped_reason=tuple(str(r) for r in why[skipped]),
     )

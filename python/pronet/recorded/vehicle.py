@@ -45,6 +45,7 @@ import numpy as np
 from pronet import _core
 from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
 from pronet.recorded.alignment import lever_arm
+from pronet.recorded.plausible import long_lever_arm
 from pronet.recorded.tuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
 
 _G = 9.80665
@@ -170,8 +171,9 @@ def lever_arms(
         imu = SNAPIR_IMU_LEVER_ARM if imu is None else imu
         dvl = SNAPIR_DVL_LEVER_ARM if dvl is None else dvl
     for value, name in ((imu, "imu_lever_arm"), (dvl, "dvl_lever_arm")):
-        if value is not None:  # a given arm's own error first
+        if value is not None:  # a given arm's own error first, then its length
             lever_arm(value, name)
+            long_lever_arm(value, name)
     missing = [n for n, v in (("--imu-lever-arm", imu), ("--dvl-lever-arm", dvl)) if v is None]
     if missing or imu is None or dvl is None:
         raise ValueError(
