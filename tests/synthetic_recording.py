@@ -36,12 +36,24 @@ def synthetic_recording(
     name: str = "synthetic",
     dvl_sigma: float | tuple[float, float, float] = 0.01,
     dvl_mounting: tuple[float, tuple[float, float, float]] = (0.0, (0.0, 0.0, 0.0)),
+    imu_rate: float = 100.0,
+    jitter: float = 0.0,
+    gt_rate: float = 1.0,
+    dvl_rate: float = 1.0,
+    imu_bias: tuple[float, ...] | None = None,
+    bias_psd: tuple[float, ...] | None = None,
 ) -> Synthetic:
     """An AUV-like section: turns and depth changes at 1.5–2 m/s, 100 Hz IMU with
     white noise (variance 1e-4 (m/s²)² and 1e-8 (rad/s)²), 1 Hz DVL with white noise of
     ``dvl_sigma`` [m/s] per body axis, and ground truth on their own clocks.
     ``dvl_mounting = (k, (roll, pitch, yaw))``: the DVL reads ``(1 + k) C_b^d v_b`` with
-    ``C_d^b = R(roll, pitch, yaw)`` [rad] (as the core's ``DvlMounting``)."""
+    ``C_d^b = R(roll, pitch, yaw)`` [rad] (as the core's ``DvlMounting``).
+    ``imu_rate`` [Hz]: the IMU's rate; ``jitter``: each IMU stamp moved by up to
+    ``jitter / 2`` of a step (a step then varies by up to ``jitter``), the sample the
+    mean over its own interval (from a truth ten times finer); ``gt_rate``,
+    ``dvl_rate`` [Hz]: the ground truth's and the DVL's rates. ``imu_bias`` (6) a turn-on
+    bias ``[b_a (m/s²), b_g (rad/s)]`` and ``bias_psd`` (6) its random walk's PSD
+    [(m/s²)²/s, (rad/s)²/s] (as a ``SensorConfig``'s)."""
     # Smoothly varying turn rate, speed and pitch (one-second segments), as an AUV
     # manoeuvres: 1 Hz rows interpolate such motion well.
     t = np.arange(int(duration)) + 0.5
@@ -53,22 +65,42 @@ def synthetic_recording(
             0.01 * np.sin(2 * np.pi * t / 31.0),
         ]
     )
+    fine = 10 if jitter else 1
     traj = pronet.trajectory_from_segments(
-        segments, lla0=(0.5733, 0.6090, -20.0), speed0=1.8, rpy0=(0.01, 0.0, 0.3)
+        segments,
+        lla0=(0.5733, 0.6090, -20.0),
+        speed0=1.8,
+        rpy0=(0.01, 0.0, 0.3),
+        **({} if imu_rate == 100.0 and not jitter else {"dt": 1.0 / (imu_rate * fine)}),
     )
     rng = np.random.default_rng(seed)
     t_epoch = traj.time
     imu_time = t_epoch[1:]
-    imu = traj.imu + rng.normal(size=traj.imu.shape) * np.sqrt([1e-4] * 3 + [1e-8] * 3)
+    ideal = traj.imu
+    if jitter:  # stamps moved, each sample the mean over its own interval
+        step = 1.0 / imu_rate
+        k = np.arange(1, int(t_epoch[-1] * imu_rate))
+        imu_time = k * step + np.random.default_rng(seed + 1).uniform(-0.5, 0.5, k.size) * (
+            jitter * step
+        )
+        total = np.vstack([np.zeros(6), np.cumsum(traj.imu * np.diff(t_epoch)[:, None], axis=0)])
+        edges = np.concatenate([[0.0], imu_time])
+        ideal = np.diff(_at(edges, t_epoch, total), axis=0) / np.diff(edges)[:, None]
+    imu = ideal + rng.normal(size=ideal.shape) * np.sqrt([1e-4] * 3 + [1e-8] * 3)
+    if imu_bias is not None or bias_psd is not None:
+        walk_rng = np.random.default_rng(seed + 2)
+        steps = np.diff(np.concatenate([[t_epoch[0]], imu_time]))[:, None]
+        walk = walk_rng.normal(size=imu.shape) * np.sqrt(np.asarray(bias_psd or [0.0] * 6) * steps)
+        imu = imu + np.asarray(imu_bias or [0.0] * 6) + np.cumsum(walk, axis=0) - walk
     rpy = np.unwrap(traj.rpy, axis=0)
     r_imu, r_dvl = np.array(IMU_LEVER_ARM), np.array(DVL_LEVER_ARM)
 
     # Ground truth at the reference point, rows 1 s apart on the IMU clock.
-    k = np.arange(1, int((t_epoch[-1] - GT_CLOCK.offset) // 1.0) + 1)
-    t_gt = GT_CLOCK.offset + k * 1.0
+    k = np.arange(1, int((t_epoch[-1] - GT_CLOCK.offset) * gt_rate) + 1)
+    t_gt = GT_CLOCK.offset + (k * 1.0 if gt_rate == 1.0 else k / gt_rate)
     t_gt = t_gt[(t_gt > t_epoch[0]) & (t_gt < t_epoch[-1])]
     c = dcm_from_euler(_at(t_gt, t_epoch, rpy))
-    w = _at(t_gt, imu_time, traj.imu[:, 3:6])
+    w = _at(t_gt, t_epoch[1:], traj.imu[:, 3:6])
     lla = _at(t_gt, t_epoch, traj.lla)
     offset_ned = c @ r_imu
     radii = np.array([pronet.earth_radii(float(lat)) for lat in lla[:, 0]])
@@ -81,11 +113,15 @@ def synthetic_recording(
     rpy_gt[:, 2] = np.angle(np.exp(1j * rpy_gt[:, 2]))
 
     # DVL body velocity at the DVL, rows 1 s apart on the IMU clock, 1 s late.
-    t_dvl = DVL_CLOCK.offset + np.arange(0, int(t_epoch[-1])) * 1.0
+    t_dvl = DVL_CLOCK.offset + (
+        np.arange(0, int(t_epoch[-1])) * 1.0
+        if dvl_rate == 1.0
+        else np.arange(0, int(t_epoch[-1] * dvl_rate)) / dvl_rate
+    )
     t_dvl = t_dvl[(t_dvl > t_epoch[0]) & (t_dvl < t_epoch[-1])]
     cd = dcm_from_euler(_at(t_dvl, t_epoch, rpy))
     v_body = np.einsum("kji,kj->ki", cd, _at(t_dvl, t_epoch, traj.vel_ned))
-    v_body += np.cross(_at(t_dvl, imu_time, traj.imu[:, 3:6]), r_dvl - r_imu)
+    v_body += np.cross(_at(t_dvl, t_epoch[1:], traj.imu[:, 3:6]), r_dvl - r_imu)
     scale, angles = dvl_mounting
     if scale != 0.0 or any(angles):
         body_to_dvl = dcm_from_euler(np.asarray(angles, dtype=np.float64)).T

@@ -147,3 +147,21 @@ def test_the_smoother_cuts_the_drift_of_each_dvl_outage() -> None:
         assert rms(s.error[:, m, :2]) < rms(r.error[:, m, :2])
         drift = [rms(x.error[:, m, :2] - x.error[:, a, :2]) for x in (r, s)]
         assert drift[1] < 0.6 * drift[0], (start, drift)
+
+
+def test_smoothing_with_lost_dvl_readings_keeps_the_epochs_aligned(matched) -> None:
+    """With bottom-lock loss (``dvl_dropout``) the smoothed NEES has the filter's shape
+    and its NaN at the same lost epochs."""
+    from dataclasses import replace
+
+    sensors = pronet.SensorConfig(
+        imu_variance=matched.sensors.imu_variance[0], dvl_variance=matched.sensors.dvl_variance,
+        dvl_dropout=(30.0, 10.0),
+    )  # fmt: skip
+    r = _mc(replace(matched, sensors=sensors), n_runs=4, smooth=True)
+    s = r.smoothed
+    assert s is not None and r.missed_updates is not None and r.missed_updates.sum() > 0
+    assert s.nees.shape == r.nees.shape
+    lost = np.isnan(r.nis)
+    np.testing.assert_array_equal(np.isnan(s.nees[:, :, 1]), lost)
+    assert s.summary()["srmse"].mean < r.summary()["srmse"].mean

@@ -254,8 +254,13 @@ class SensorConfig:
     (a whole number of IMU steps), DVL lever arm [m, body], DVL outages ``(k, 2)``
     ``[start, end)`` [s] (sorted, not overlapping; no reading inside one), and the
     DVL's scale-factor error k (it reads ``1 + k`` times the velocity, k > −1) and
-    mounting misalignment (its roll, pitch, yaw in the body frame [rad]). Defaults: the
-    paper's (an ideal DVL)."""
+    mounting misalignment (its roll, pitch, yaw in the body frame [rad]), and
+    ``dvl_dropout`` ``(mean_interval, mean_length)`` [s]: random bottom-lock loss, a
+    locked/lost chain stepped at each due reading (mean time between losses, mean
+    length of a loss; its own seeded stream, so a Monte Carlo stays the same for any
+    thread count; a lost reading is a missed update, counted in
+    ``MonteCarloResult.missed_updates``). Defaults: the paper's (an ideal DVL, no
+    dropout)."""
 
     def __new__(
         cls,
@@ -270,6 +275,7 @@ class SensorConfig:
         dvl_outages: Any | None = None,
         dvl_scale: float = 0.0,
         dvl_misalignment: Any | None = None,
+        dvl_dropout: Any | None = None,
     ) -> SensorConfig: ...
     @property
     def imu_variance_times(self) -> list[float]: ...
@@ -294,6 +300,9 @@ class SensorConfig:
     @property
     def dvl_misalignment(self) -> list[float]:
         """The DVL's roll, pitch, yaw in the body frame [rad] (its mounting misalignment)."""
+    @property
+    def dvl_dropout(self) -> tuple[float, float] | None:
+        """``(mean_interval, mean_length)`` [s] of the random bottom-lock loss, or None."""
 
 def run_filter(
     imu: ArrayLike,

@@ -28,6 +28,8 @@ mistakes too, so a misspelt key never silently falls back to a default.
     # imu_variance_times = [0, 100]  with imu_variance a list of 6-lists: a schedule [s]
     # imu_bias, imu_bias_psd (6 each), dvl_variance (3) [(m/s)²], dvl_period [s],
     # lever_arm (3) [m, body FRD], dvl_outages = [[60, 120], [150, 210]]  ([start, end) [s])
+    # dvl_dropout = [120, 20]   random bottom-lock loss: [mean time between losses, mean
+    #                           # length of a loss] [s]; unset: none (see SensorConfig)
 
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
     dvl_variance = [0.01, 0.01, 0.01]
@@ -107,6 +109,7 @@ SENSOR_KEYS = (
     "dvl_period",
     "lever_arm",
     "dvl_outages",
+    "dvl_dropout",
 )
 #: Keys of a ``[trajectory]`` table with their defaults (``builtin`` excludes the rest
 #: but ``dt_s``); the defaults are the paper trajectory's start.

@@ -15,6 +15,7 @@ window and tuning period of the loop), and its :meth:`~Ensemble.finish` returns 
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
 
@@ -77,10 +78,13 @@ class MonteCarloResult:
         calibration_sigma: ``(n_runs, 4)`` the filter's final 1σ of the same.
         calibration_nees: ``(n_runs, m)`` NEES of the four calibration states after
             each update (4 dof).
+        missed_updates: ``(n_runs,)`` DVL readings that were due but missing (the
+            sensors' ``dvl_dropout``: bottom lock lost; on a recorded section the rows
+            skipped as missing readings); their NIS and NEES are NaN. 0 without.
         smoothed: with ``smooth=True``, the same result for the RTS-smoothed solution
             of every run: its ``srmse``, ``smae``, horizontal errors, ``nees`` (at the
-            same DVL epochs) and ``error``/``sigma`` histories; the NIS, failures and
-            divergence are the filter's, ``q`` None. Else None.
+            same DVL epochs) and ``error``/``sigma`` histories; the NIS, failures,
+            divergence and missed updates are the filter's, ``q`` None. Else None.
     """
 
     srmse: NDArray[np.float64]
@@ -101,7 +105,12 @@ class MonteCarloResult:
     calibration_error: NDArray[np.float64] | None = None
     calibration_sigma: NDArray[np.float64] | None = None
     calibration_nees: NDArray[np.float64] | None = None
+    missed_updates: NDArray[np.int64] | None = None
     smoothed: MonteCarloResult | None = None
+
+    def __post_init__(self) -> None:
+        if self.missed_updates is None:  # results made before the count existed
+            object.__setattr__(self, "missed_updates", np.zeros(len(self.srmse), np.int64))
 
     @property
     def n_runs(self) -> int:
@@ -175,7 +184,15 @@ class MonteCarloResult:
         if v.size == 0:
             return float("nan")
         low, high = self.nees_band()
-        mean = v.mean(axis=0)
+        if np.isnan(v).any():  # missed updates (a DVL dropout): the runs that had one
+            with np.errstate(invalid="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                mean = np.nanmean(v, axis=0)
+            mean = mean[np.isfinite(mean)]
+            if mean.size == 0:
+                return float("nan")
+        else:
+            mean = v.mean(axis=0)
         return float(np.mean((mean >= low) & (mean <= high)))
 
     @property
@@ -228,6 +245,7 @@ class MonteCarloResult:
         "accel_bias_nees",
         "gyro_bias_nees",
         "rejected_updates",
+        "missed_updates",
         "diverged_at",
     )
 
@@ -256,8 +274,10 @@ class MonteCarloResult:
         return row
 
     #: The per-run metrics :meth:`summary` gives a mean and 95 % CI of (all but the counts
-    #: and times: ``rejected_updates``, ``diverged_at``).
-    SUMMARIZED = tuple(m for m in PER_RUN if m not in ("rejected_updates", "diverged_at"))
+    #: and times: ``rejected_updates``, ``missed_updates``, ``diverged_at``).
+    SUMMARIZED = tuple(
+        m for m in PER_RUN if m not in ("rejected_updates", "missed_updates", "diverged_at")
+    )
 
     def summary(self) -> dict[str, MeanCI]:
         """Mean and 95 % CI over runs of every metric in :data:`SUMMARIZED`: the errors,

@@ -10,6 +10,10 @@
 //! [`MIN_PAIRS`] such pairs cost infinity. The grid search over clocks stays in Python;
 //! this evaluates one scale and many offsets in one pass, walking the IMU edges instead
 //! of searching them for every point.
+//!
+//! The scale acts about t = 0 of the times it is given: the caller passes every time
+//! counted from the section's start (`pronet.recorded.alignment.since_epoch`), so that
+//! a clock does not depend on the stamps' origin (Unix time).
 
 use crate::error::{Error, Result};
 

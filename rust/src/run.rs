@@ -33,6 +33,8 @@ pub struct RunSummary {
     pub mean_nis: f64,
     /// DVL updates the innovation gate rejected.
     pub rejected_updates: usize,
+    /// DVL readings due but missing (bottom lock lost: [`crate::sensors::DvlDropout`]).
+    pub missed_updates: usize,
     /// Time [s] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
     pub diverged_at: Option<f64>,
     /// Set when the filter failed numerically; the run's metrics are then NaN.
@@ -104,7 +106,8 @@ struct SmootherLog {
     bias: Vec<[f64; 6]>,
     /// The IMU's true bias at each epoch (the one errors there are taken against).
     true_bias: Vec<[f64; 6]>,
-    update_epochs: Vec<usize>,
+    /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
+    update_epochs: Vec<Option<usize>>,
 }
 
 /// The last N raw IMU samples of a run, as the regressor reads them.
@@ -160,6 +163,7 @@ pub struct Run {
     max_horizontal_sq: f64,
     nis: Vec<f64>,
     rejected_updates: usize,
+    missed_updates: usize,
     accepted_nis_sum: f64,
     nis_monitor: NisMonitor,
     nees: Vec<[f64; 5]>,
@@ -326,20 +330,22 @@ fn smoothed_metrics(
     let nees = log
         .update_epochs
         .iter()
-        .map(|&k| match covariance.get(&k) {
-            Some(p) => {
-                let about = &log.nav[k].vel;
-                smoothed_block_nees(
-                    &s.nav[k],
-                    p,
-                    formulation,
-                    about,
-                    &truth.states[k],
-                    &error(k),
-                )
-            }
-            None => [f64::NAN; 5],
-        })
+        .map(
+            |&k| match k.and_then(|k| covariance.get(&k).map(|p| (k, p))) {
+                Some((k, p)) => {
+                    let about = &log.nav[k].vel;
+                    smoothed_block_nees(
+                        &s.nav[k],
+                        p,
+                        formulation,
+                        about,
+                        &truth.states[k],
+                        &error(k),
+                    )
+                }
+                None => [f64::NAN; 5],
+            },
+        )
         .collect();
     let history = (record_every > 0).then(|| {
         let epochs = (0..=n).step_by(record_every);
@@ -395,6 +401,7 @@ impl Run {
             max_horizontal_sq: 0.0,
             nis: Vec::with_capacity(n_epochs),
             rejected_updates: 0,
+            missed_updates: 0,
             accepted_nis_sum: 0.0,
             nis_monitor: NisMonitor::default(),
             nees: Vec::with_capacity(n_epochs),
@@ -471,12 +478,24 @@ impl Run {
         self.steps_since_update += 1;
         let state = &truth.states[self.k];
         if self.failure.is_none() {
-            let due = self.k.is_multiple_of(self.dvl_every)
-                && scenario.sensors.dvl.available(truth.time[self.k]);
+            let dvl = &scenario.sensors.dvl;
+            let due = self.k.is_multiple_of(self.dvl_every) && dvl.available(truth.time[self.k]);
             let z = due.then(|| {
                 let gyro = Vector3::new(ideal[3], ideal[4], ideal[5]);
-                self.sim.dvl(&scenario.sensors.dvl, state, &gyro)
+                self.sim.dvl(dvl, state, &gyro)
             });
+            // A reading lost with the bottom lock: no update, its epoch recorded as NaN
+            // (its noise was drawn all the same: the stream stays aligned).
+            let z = match z {
+                Some(_) if !self.sim.dvl_locked(dvl) => {
+                    self.missed_update();
+                    if let Some(log) = self.smoother.as_mut() {
+                        log.update_epochs.push(None);
+                    }
+                    None
+                }
+                z => z,
+            };
             match self.ekf.step(
                 &ImuSample::from_array(&raw),
                 truth.dt,
@@ -495,7 +514,7 @@ impl Run {
                         let dx = info.correction.unwrap_or_else(Vector15::zeros);
                         let noise = self.strategy.process_noise();
                         log.nodes.after_updates(self.k, &self.ekf, dx, noise);
-                        log.update_epochs.push(self.k);
+                        log.update_epochs.push(Some(self.k));
                     }
                 }
                 Ok(None) => {}
@@ -519,6 +538,16 @@ impl Run {
             self.max_horizontal = self.horizontal;
         }
         self.record_history(truth);
+    }
+
+    /// Record a due DVL epoch whose reading is missing: NaN NIS and NEES.
+    fn missed_update(&mut self) {
+        self.missed_updates += 1;
+        self.nis.push(f64::NAN);
+        self.nees.push([f64::NAN; 5]);
+        if self.ekf.calibration.is_some() {
+            self.calibration_nees.push(f64::NAN);
+        }
     }
 
     fn after_update(
@@ -615,7 +644,7 @@ impl Run {
         let n = self.k.max(1) as f64;
         let failed = self.failure.is_some();
         let nan_if_failed = |x: f64| if failed { f64::NAN } else { x };
-        let accepted = self.nis.len() - self.rejected_updates;
+        let accepted = self.nis.len() - self.rejected_updates - self.missed_updates;
         // No applied update (none made, or every one rejected by the gate): no NIS to
         // average; 0 would look healthy.
         let mean_nis = if accepted == 0 {
@@ -633,6 +662,7 @@ impl Run {
                 ),
                 mean_nis: nan_if_failed(mean_nis),
                 rejected_updates: self.rejected_updates,
+                missed_updates: self.missed_updates,
                 diverged_at: self.nis_monitor.diverged_at,
                 calibration: calibration_error(&self.ekf, mounting)
                     .filter(|_| !failed)

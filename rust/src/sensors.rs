@@ -1,11 +1,14 @@
 //! Sensor error models and their simulation: IMU white noise (per channel, with a
 //! variance that may follow a schedule), constant bias and bias random walk; DVL
-//! body-frame velocity with white noise and a lever arm.
+//! body-frame velocity with white noise and a lever arm, and random bottom-lock loss
+//! ([`DvlDropout`]).
 //!
 //! Random numbers: every run draws from its own ChaCha8 streams, keyed by the
-//! Monte Carlo seed and `4 · run_index + k` (k = 0 IMU, 1 DVL, 2 initial error), so a
-//! run's noise never depends on the thread count, on other runs, or on the filter
-//! strategy (common random numbers across strategies).
+//! Monte Carlo seed and `4 · run_index + k` (k = 0 IMU, 1 DVL, 2 initial error, 3 DVL
+//! dropout), so a run's noise never depends on the thread count, on other runs, or on
+//! the filter strategy (common random numbers across strategies). The dropout stream
+//! is drawn only when a dropout model is set, and a missed reading still draws its DVL
+//! noise: the other streams are the same with and without dropout.
 
 use crate::attitude::{dcm_from_euler, euler_from_dcm, log_so3};
 use crate::error::{check, Error, Result};
@@ -21,6 +24,7 @@ pub enum Stream {
     Imu = 0,
     Dvl = 1,
     InitialError = 2,
+    DvlDropout = 3,
 }
 
 /// The RNG of one stream of one run.
@@ -197,6 +201,47 @@ impl DvlMounting {
     }
 }
 
+/// Random bottom-lock loss: a two-state (locked, lost) Markov chain stepped at each
+/// reading that is due. A locked DVL loses the bottom before the next reading with
+/// probability `1 − exp(−T/mean_interval)`, a lost one regains it with probability
+/// `1 − exp(−T/mean_length)` (`T` the DVL period): exponential stretches sampled at the
+/// readings, so a loss lasts a geometric number of readings with mean
+/// `1 / (1 − exp(−T/mean_length))` (≈ `mean_length / T` when that is long). A run starts
+/// locked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DvlDropout {
+    /// Mean time between losses of bottom lock (the mean locked stretch) [s].
+    pub mean_interval: f64,
+    /// Mean length of a loss [s].
+    pub mean_length: f64,
+}
+
+impl DvlDropout {
+    /// `Err` naming `dvl_dropout` unless both times are finite and > 0.
+    pub fn validate(&self) -> Result<()> {
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        if ok(self.mean_interval) && ok(self.mean_length) {
+            return Ok(());
+        }
+        Err(Error::invalid(
+            "dvl_dropout",
+            format!(
+                "needs [mean_interval, mean_length], both finite and > 0 s; got [{}, {}]",
+                self.mean_interval, self.mean_length
+            ),
+        ))
+    }
+
+    /// The probabilities of losing lock and of regaining it between two readings
+    /// `period` [s] apart.
+    pub fn probabilities(&self, period: f64) -> (f64, f64) {
+        (
+            -(-period / self.mean_interval).exp_m1(),
+            -(-period / self.mean_length).exp_m1(),
+        )
+    }
+}
+
 /// DVL model: body-frame velocity at the DVL, every `period` seconds, white noise.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DvlModel {
@@ -212,6 +257,8 @@ pub struct DvlModel {
     /// The true scale factor and mounting of the DVL (ideal by default): it reads
     /// `(1 + k) M v_b` in its own axes (estimated by [`crate::ekf::calibration`]).
     pub mounting: DvlMounting,
+    /// Random bottom-lock loss (`None`: never; the default).
+    pub dropout: Option<DvlDropout>,
 }
 
 impl DvlModel {
@@ -245,6 +292,7 @@ impl SensorConfig {
                 lever_arm: Vector3::zeros(),
                 outages: Vec::new(),
                 mounting: DvlMounting::default(),
+                dropout: None,
             },
         }
     }
@@ -260,6 +308,9 @@ impl SensorConfig {
         check::positive("dvl_period", self.dvl.period)?;
         check_lever_arm("lever_arm", self.dvl.lever_arm.as_slice())?;
         self.dvl.mounting.validate()?;
+        if let Some(d) = &self.dvl.dropout {
+            d.validate()?;
+        }
         let mut previous_end = f64::NEG_INFINITY;
         for o in &self.dvl.outages {
             check::finite("dvl_outages", o)?;
@@ -288,6 +339,8 @@ impl SensorConfig {
 pub struct SensorSim {
     imu_rng: ChaCha8Rng,
     dvl_rng: ChaCha8Rng,
+    dropout_rng: ChaCha8Rng,
+    locked: bool,
     bias: [f64; 6],
     cursor: usize,
 }
@@ -297,6 +350,8 @@ impl SensorSim {
         Self {
             imu_rng: stream_rng(seed, run_index, Stream::Imu),
             dvl_rng: stream_rng(seed, run_index, Stream::Dvl),
+            dropout_rng: stream_rng(seed, run_index, Stream::DvlDropout),
+            locked: true,
             bias: cfg.imu.bias,
             cursor: 0,
         }
@@ -339,6 +394,17 @@ impl SensorSim {
             }
         }
         out
+    }
+
+    /// Whether the DVL has bottom lock at a reading that is due: always without a
+    /// dropout model (and no draw); else one step of its chain ([`DvlDropout`]).
+    pub fn dvl_locked(&mut self, cfg: &DvlModel) -> bool {
+        if let Some(d) = &cfg.dropout {
+            let (lose, regain) = d.probabilities(cfg.period);
+            let u: f64 = self.dropout_rng.random();
+            self.locked = if self.locked { u >= lose } else { u < regain };
+        }
+        self.locked
     }
 
     /// Noisy DVL reading `(1 + k) M (C_n^b v^n + ω × r) + n` [m/s, the DVL's axes] for
@@ -425,6 +491,44 @@ mod tests {
             cfg.dvl.outages = bad;
             let err = cfg.validate().unwrap_err().to_string();
             assert!(err.starts_with("dvl_outages"), "{err}");
+        }
+    }
+
+    #[test]
+    fn dropout_losses_have_their_mean_length_and_share_and_are_checked() {
+        let mut cfg = SensorConfig::paper();
+        cfg.dvl.dropout = Some(DvlDropout {
+            mean_interval: 60.0,
+            mean_length: 20.0,
+        });
+        cfg.validate().unwrap();
+        let mut sim = SensorSim::new(&cfg, 3, 1);
+        let locked: Vec<bool> = (0..400_000).map(|_| sim.dvl_locked(&cfg.dvl)).collect();
+        let lost = locked.iter().filter(|l| !**l).count() as f64 / locked.len() as f64;
+        // stationary share lost: p_lose / (p_lose + p_regain), about 20 / 80
+        let (p, r) = cfg.dvl.dropout.unwrap().probabilities(1.0);
+        assert!((lost / (p / (p + r)) - 1.0).abs() < 0.05, "{lost}");
+        let starts = locked.windows(2).filter(|w| w[0] && !w[1]).count() as f64;
+        let mean_length = locked.iter().filter(|l| !**l).count() as f64 / starts;
+        assert!(
+            (mean_length / (1.0 / r) - 1.0).abs() < 0.05,
+            "{mean_length}"
+        );
+        // the same draws for the same seed and run; none without the model
+        let mut again = SensorSim::new(&cfg, 3, 1);
+        assert!(locked[..1000]
+            .iter()
+            .all(|&l| l == again.dvl_locked(&cfg.dvl)));
+        let paper = SensorConfig::paper();
+        let mut plain = SensorSim::new(&paper, 3, 1);
+        assert!((0..1000).all(|_| plain.dvl_locked(&paper.dvl)));
+        for bad in [[0.0, 1.0], [1.0, f64::NAN], [-1.0, 1.0]] {
+            cfg.dvl.dropout = Some(DvlDropout {
+                mean_interval: bad[0],
+                mean_length: bad[1],
+            });
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.starts_with("dvl_dropout: needs"), "{err}");
         }
     }
 

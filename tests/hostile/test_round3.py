@@ -80,7 +80,10 @@ def command(name: str, w: Path, out: Path) -> list[str]:
         "sweep": ["sweep", str(w / "grid.toml"), "--out", str(out)],
         "study": ["study", "--runs", "2", "--scenarios", "paper", "--out", str(out)],
         "reproduce": ["reproduce", "--runs", "2", "--out", str(out)],
-        "real": ["real", "--data", str(w / "data"), "--format", "generic", "--out", str(out)],
+        "real": [
+            *("real", "--data", str(w / "data"), "--format", "generic", "--out", str(out)),
+            *("--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0"),
+        ],
     }[name]
 
 

@@ -19,6 +19,7 @@ from pronet.recorded.dvlnoise import (
     match_innovations,
     second_difference_variance,
 )
+from pronet.recorded.tuning import REAL_DVL_VARIANCE
 
 from synthetic_recording import (
     DVL_CLOCK,
@@ -146,7 +147,7 @@ def test_both_estimates_find_a_known_dvl_noise_and_the_rows_use_it(known_noise) 
     assert noise.matched.converged and 2.4 < noise.matched.mean_nis < 3.6
 
     datasheet = real.plan_section(section, {}, 1.0)
-    assert datasheet.dvl_variance == (real.REAL_DVL_VARIANCE,) * 3
+    assert datasheet.dvl_variance == (REAL_DVL_VARIANCE,) * 3
     assert tuple(datasheet.config.dvl_variance) == datasheet.dvl_variance
     variants = datasheet.variants
     assert list(variants) == list(real.REAL_VARIANT_ROWS)

@@ -150,10 +150,10 @@ def edit_line(path: Path, index: int, edit) -> None:
             lambda p: edit_line(p, 5, lambda s: "0.0" + s[s.index(",") :]),
             "row 5: time 0.0 s does not increase",
         ),
-        (
-            "dvl",
+        (  # a NaN in the DVL's velocity is a missing reading (test_missing_dvl.py)
+            "gt",
             lambda p: edit_line(p, 3, lambda s: s[: s.rindex(",")] + ",nan"),
-            "row 3: 'vel_z [m/s]' is nan, not finite",
+            "row 3: 'yaw [rad]' is nan, not finite",
         ),
         ("imu", lambda p: p.write_text(""), "is empty"),
         (
@@ -292,10 +292,13 @@ def test_clocks_are_estimated_and_the_truth_moved_to_the_imu(synthetic):
     assert al.filter_lever_arm == pytest.approx(np.subtract(DVL_LEVER_ARM, IMU_LEVER_ARM))
     section = align(rec, al)
     # On the true clock the truth, moved to the IMU, is the trajectory's.
-    exact = align(rec, replace(al, gt_clock=GT_CLOCK, dvl_clock=DVL_CLOCK))
+    # (the clocks of the simulation count from 0, the section's times from its epoch)
+    e = rec.imu_time[0]
+    exact = align(rec, replace(al, gt_clock=GT_CLOCK.since(e), dvl_clock=DVL_CLOCK.since(e)))
+    assert exact.epoch == e
     traj = synthetic.trajectory
-    idx = np.round(exact.truth_time / traj.dt).astype(int)
-    np.testing.assert_allclose(exact.truth_time, traj.time[idx], atol=1e-9)
+    idx = np.round((exact.truth_time + e) / traj.dt).astype(int)
+    np.testing.assert_allclose(exact.truth_time + e, traj.time[idx], atol=1e-9)
     r_n, r_e = pronet.earth_radii(float(traj.lla[0, 0]))
     dp = (exact.truth_lla - traj.lla[idx]) * [r_n, r_e * np.cos(traj.lla[0, 0]), 1.0]
     assert np.abs(dp).max() < 1e-5  # metres
@@ -402,6 +405,7 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
         write_recording(data / f"run{i}.npz", rec)
     out = tmp_path / "out"
     argv = ["real", "--data", str(data), "--format", "generic", "--out", str(out), "--quiet"]
+    argv += ["--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
     code = main(argv + ["--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))])
     assert code == 0
     text = capsys.readouterr().out
@@ -444,6 +448,7 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     assert main(argv) == 2  # the folder exists: refused, not overwritten
     capsys.readouterr()
     as_json = [*argv[:5], "--sections", "run2", "--out", str(tmp_path / "js"), "--json"]
+    as_json += [argv[8], "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))]
     assert main(as_json) == 0
     printed = json.loads(capsys.readouterr().out)  # stdout: one JSON document
     assert printed["folder"] == str(tmp_path / "js")
@@ -451,7 +456,7 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     # --no-plots: the same tables and metrics, no figures
     bare = tmp_path / "bare"
     arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
-    assert main([*argv[:5], "--out", str(bare), "--quiet", "--no-plots", arm]) == 0
+    assert main([*argv[:5], "--out", str(bare), "--quiet", "--no-plots", arm, argv[8]]) == 0
     assert not list(bare.glob("*.png"))
     assert (bare / "metrics.csv").read_text() == (out / "metrics.csv").read_text()
 
@@ -464,7 +469,7 @@ def test_pronet_real_runs_either_formulation(tmp_path, capsys):
     write_recording(data / "run1.npz", synthetic_recording(seed=1, duration=70.0).recording)
     arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
     argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
-    argv += ["--no-models", arm]
+    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
     metrics = {}
     runs = (
         ("default", [], 'formulation="invariant", covariance_step=0'),
@@ -511,7 +516,8 @@ def test_pronet_real_refuses_bad_data_before_any_work(tmp_path, capsys):
     write_recording(data / "run1", synthetic_recording(seed=1, duration=30.0).recording)
     (data / "run1" / "imu.csv").write_text("time [s];acc_x\n")
     out = tmp_path / "out"
-    assert main(["real", "--data", str(data), "--format", "generic", "--out", str(out)]) == 2
+    argv = ["real", "--data", str(data), "--format", "generic", "--out", str(out)]
+    assert main([*argv, "--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0"]) == 2
     assert "comma-separated" in capsys.readouterr().err
     assert not out.exists()
 
@@ -708,6 +714,7 @@ def test_a_failing_section_is_reported_and_the_others_still_run(tmp_path, capsys
     in_g = good.imu / np.r_[[9.80665] * 3, [1.0] * 3]
     write_recording(data / "bad.npz", replace(good, name="bad", imu=in_g))
     argv = ["real", "--data", str(data), "--format", "generic", "--no-models", "--no-plots"]
+    argv += ["--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0"]
     out = tmp_path / "out"
     assert main([*argv, "--out", str(out), "--quiet"]) == 0
     err = capsys.readouterr().err

@@ -7,6 +7,7 @@ import argparse
 import json
 import sys
 import time
+import warnings
 
 from pronet.cli._common import (
     Bars,
@@ -17,8 +18,9 @@ from pronet.cli._common import (
     add_result_folder,
     add_tuning_period,
 )
-from pronet.recorded.alignment import FORMATS, SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+from pronet.recorded.alignment import FORMATS
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
+from pronet.recorded.plausible import PlausibilityWarning
 
 
 def _vector3(text: str) -> tuple[float, float, float]:
@@ -39,9 +41,9 @@ def add_parser(sub: Subparsers) -> None:
     )
     parser.add_argument(
         "--data",
-        metavar="DIR",
+        metavar="PATH",
         required=True,
-        help="folder of sections, or one section (never copied)",
+        help="folder of sections, or one section: a folder of CSVs or one .npz (never copied)",
     )
     parser.add_argument(
         "--format",
@@ -59,15 +61,17 @@ def add_parser(sub: Subparsers) -> None:
         "--imu-lever-arm",
         metavar="X,Y,Z",
         type=_vector3,
-        default=SNAPIR_IMU_LEVER_ARM,
-        help="IMU position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
+        default=None,
+        help="IMU position from the ground-truth point, x,y,z [m, body FRD] (default: "
+        "--filter's, else Snapir's with --format snapir; required with --format generic)",
     )
     parser.add_argument(
         "--dvl-lever-arm",
         metavar="X,Y,Z",
         type=_vector3,
-        default=SNAPIR_DVL_LEVER_ARM,
-        help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default Snapir's)",
+        default=None,
+        help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default: "
+        "--filter's, else Snapir's with --format snapir; required with --format generic)",
     )
     add_tuning_period(parser)
     parser.add_argument(
@@ -89,9 +93,18 @@ def add_parser(sub: Subparsers) -> None:
         "--covariance-step",
         metavar="SECONDS",
         type=float,
-        default=0.0,
+        default=None,
         help="interval over which every filter propagates its covariance at once (0: every "
-        "IMU sample, the default; rounded to whole IMU samples)",
+        "IMU sample, the default unless --filter sets one; rounded to whole IMU samples)",
+    )
+    parser.add_argument(
+        "--filter",
+        metavar="FILE",
+        default=None,
+        help="your vehicle's tuning: a TOML file with a scenario's [filter] keys (p0_sigma, "
+        "accel_bias_psd, gyro_bias_psd, dvl_variance, ...), grade = mems|tactical|fog and "
+        "imu_lever_arm/dvl_lever_arm (pronet.recorded.vehicle), or a grade's name alone "
+        "(default: the FOG tuning of the Snapir AUV)",
     )
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
@@ -102,10 +115,18 @@ def add_parser(sub: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from pronet.recorded.real import run_real
+    from pronet.recorded.vehicle import load_vehicle
 
+    vehicle = None if args.filter is None else load_vehicle(args.filter)
     show = Output(args)
     start = time.perf_counter()
-    with Bars(show) as bars:
+
+    def warn(message: Warning | str, *_: object, **__: object) -> None:
+        print(f"pronet: warning: {message}", file=sys.stderr)  # also with --quiet
+
+    with Bars(show) as bars, warnings.catch_warnings():
+        warnings.simplefilter("always", PlausibilityWarning)
+        warnings.showwarning = warn
         out = run_real(
             args.data,
             args.out,
@@ -119,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
             dvl_noise=args.dvl_noise,
             formulation=args.formulation,
             covariance_step=args.covariance_step,
+            vehicle=vehicle,
             on_start=bars.start,
             on_done=bars.done,
         )

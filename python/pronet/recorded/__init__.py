@@ -7,8 +7,14 @@ Reading and preparing:
   and ``.npz`` formats), validated before any computation;
 - :mod:`~pronet.recorded.alignment`: clocks and lever arms, a recording turned into a
   filter-ready :class:`~pronet.recorded.alignment.Section`;
+- :mod:`~pronet.recorded.missing`: missing DVL readings (no bottom lock), skipped as
+  updates and counted;
+- :mod:`~pronet.recorded.plausible`: plausibility checks naming file and column (stuck
+  channels, angle units, duplicate columns, physical bounds, long lever arms);
 - :mod:`~pronet.recorded.tuning`: the filter tuning of recorded sections and the rows
   ``pronet real`` runs;
+- :mod:`~pronet.recorded.vehicle`: your own vehicle's tuning (``--filter``: grade
+  presets, a scenario's ``[filter]`` keys, lever arms);
 - :mod:`~pronet.recorded.dvlnoise`: the DVL's noise variance R from the data;
 - :mod:`~pronet.recorded.dvltruth`: the DVL scale and mounting the ground truth implies;
 - :mod:`~pronet.recorded.dvlcalibration`: the DVL calibration states in simulation.
@@ -30,9 +36,12 @@ __all__ = [
     "dvltruth",
     "figures",
     "metrics",
+    "missing",
+    "plausible",
     "real",
     "recordings",
     "runs",
     "tables",
     "tuning",
+    "vehicle",
 ]

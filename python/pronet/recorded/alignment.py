@@ -2,10 +2,14 @@
 :class:`Section` on the IMU's clock, with the ground truth moved to the IMU.
 
 Clocks. Each stream's stamps map to IMU time by ``t_imu = offset + scale · t_stamp``
-(:class:`Clock`). Real loggers stamp streams differently: in the Snapir data the
-ground-truth and DVL stamps step by 400/399 s while the rows are 1.000 s apart on the
-IMU clock, and the ground truth is shifted by about ±0.45 s. Both clocks can be given or
-estimated per section:
+(:class:`Clock`), every time counted from the section's *epoch*, its first IMU stamp:
+the scale acts about the section's start, not about t = 0, so the estimates do not
+depend on the stamps' origin (relative stamps or Unix time give the same clocks and
+results; a float64 stamp near 1.7e9 s resolves 2.4e-7 s, the one limit Unix-time stamps
+bring). A :class:`Section`'s times are on the IMU clock since its ``epoch``. Real
+loggers stamp streams differently: in the Snapir data the ground-truth and DVL stamps
+step by 400/399 s while the rows are 1.000 s apart on the IMU clock, and the ground
+truth is shifted by about ±0.45 s. Both clocks can be given or estimated per section:
 
 - ground truth (:func:`estimate_gt_clock`): the Euler-angle increments between
   consecutive ground-truth rows are matched against the same increments integrated from
@@ -26,7 +30,7 @@ is below 2e-4 m/s and left out), and the filter's DVL lever arm is ``r_dvl − r
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +49,8 @@ SNAPIR_DVL_LEVER_ARM = (-1.85, -0.03, 0.12)
 
 @dataclass(frozen=True)
 class Clock:
-    """``t_imu = offset + scale · t_stamp`` [s]."""
+    """``t_imu = offset + scale · t_stamp`` [s], both times counted from the section's
+    epoch (its first IMU stamp; see the module docstring)."""
 
     offset: float = 0.0
     scale: float = 1.0
@@ -58,6 +63,12 @@ class Clock:
 
     def __call__(self, stamps: ArrayLike) -> F64:
         return self.offset + self.scale * real_array(stamps, "stamps").astype(np.float64)
+
+    def since(self, epoch: float) -> Clock:
+        """The same mapping for stamps and times counted from ``epoch`` [s] instead of
+        from 0 (``offset − epoch·(1 − scale)``): a clock known on absolute stamps, given
+        to :func:`align` for a recording whose first IMU stamp is ``epoch``."""
+        return Clock(offset=self.offset - float(epoch) * (1.0 - self.scale), scale=self.scale)
 
 
 def lever_arm(value: ArrayLike, name: str) -> F64:
@@ -119,6 +130,11 @@ class Section:
         truth_lla, truth_vel, truth_rpy: ``(k, 3)`` the truth moved to the IMU:
             lat, lon [rad], height [m, up]; NED velocity [m/s]; roll, pitch, yaw [rad].
         alignment: how it was aligned.
+        epoch: the recording's first IMU stamp [s, as recorded], from which every time
+            of the section counts (0 for stamps that start at 0).
+        dvl_skipped_time: ``(j,)`` times on the IMU clock [s] of the DVL rows skipped as
+            missing readings (:mod:`pronet.recorded.missing`), not in ``dvl``.
+        dvl_skipped_reason: why each was skipped.
     """
 
     name: str
@@ -131,6 +147,9 @@ class Section:
     truth_vel: F64
     truth_rpy: F64
     alignment: Alignment
+    epoch: float = 0.0
+    dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
+    dvl_skipped_reason: tuple[str, ...] = ()
 
 
 def dcm_from_euler(rpy: ArrayLike) -> F64:
@@ -182,8 +201,28 @@ def _fit(cost: Callable[[F64, float], F64], scale: float | None = None) -> Clock
     return Clock(offset=o, scale=s)
 
 
+def since_epoch(rec: Recording) -> tuple[Recording, float]:
+    """``rec`` with every stamp counted from its epoch (its first IMU stamp), and that
+    epoch [s]. Stamps that start at 0 are returned as they are (subtracting 0 is exact)."""
+    epoch = float(rec.imu_time[0])
+    if epoch == 0.0:
+        return rec, 0.0
+    return (
+        replace(
+            rec,
+            imu_time=rec.imu_time - epoch,
+            dvl_time=rec.dvl_time - epoch,
+            gt_time=rec.gt_time - epoch,
+            dvl_skipped_time=rec.dvl_skipped_time - epoch,
+        ),
+        epoch,
+    )
+
+
 def estimate_gt_clock(rec: Recording) -> Clock:
-    """The ground truth's clock, from its attitude increments against the gyro's."""
+    """The ground truth's clock (since the epoch: see the module docstring), from its
+    attitude increments against the gyro's."""
+    rec, _ = since_epoch(rec)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     t_imu = rec.imu_time
     roll = np.interp(t_imu, rec.gt_time, euler[:, 0])
@@ -213,7 +252,9 @@ def estimate_dvl_clock(
     """The DVL's clock, from its body velocity against the aligned ground truth's. Its
     scale is taken as the ground truth's (one logger stamps both, as in the Snapir
     data): body velocity varies slowly, so it pins an offset well but cannot also
-    separate a scale from it over a short section."""
+    separate a scale from it over a short section. ``gt_clock`` and the result count
+    from the epoch (see the module docstring)."""
+    rec, _ = since_epoch(rec)
     r = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
     euler = np.unwrap(rec.gt_rpy, axis=0)
@@ -256,8 +297,9 @@ def estimate_alignment(
 
 
 def align(rec: Recording, alignment: Alignment) -> Section:
-    """Put ``rec`` on the IMU clock and move its truth to the IMU (see the module
-    docstring)."""
+    """Put ``rec`` on the IMU clock since its epoch and move its truth to the IMU (see
+    the module docstring)."""
+    rec, epoch = since_epoch(rec)
     truth_time = alignment.gt_clock(rec.gt_time)
     c = dcm_from_euler(rec.gt_rpy)
     r = np.asarray(alignment.imu_lever_arm, dtype=np.float64)
@@ -283,6 +325,9 @@ def align(rec: Recording, alignment: Alignment) -> Section:
         truth_vel=vel,
         truth_rpy=rec.gt_rpy,
         alignment=alignment,
+        epoch=epoch,
+        dvl_skipped_time=alignment.dvl_clock(rec.dvl_skipped_time),
+        dvl_skipped_reason=rec.dvl_skipped_reason,
     )
 
 
@@ -294,10 +339,13 @@ FORMATS = ("snapir", "generic")
 
 def find_sections(data: str | Path) -> list[Path]:
     """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
-    ``.npz`` files, sorted by name; ``data`` itself if it is one section."""
+    ``.npz`` files, sorted by name; ``data`` itself if it is one section (a folder of
+    CSVs, or one ``.npz`` file)."""
     from pronet.recorded.recordings import RecordingError
 
     data = Path(data)
+    if data.suffix == ".npz" and data.is_file():
+        return [data]
     if not data.is_dir():
         raise RecordingError(
             f"{data}: not a folder" + ("" if data.exists() else " (it does not exist)")
@@ -350,3 +398,20 @@ def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:
         )
         for p in find_sections(data)
     ]
+
+
+def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
+    """The sections under ``data`` (:func:`find_sections`), only those
+    whose folder or file name, or name without suffix, is in ``names`` when given."""
+    paths = find_sections(data)
+    if names:
+        wanted = {n.strip() for n in names}
+        known = {p.name for p in paths} | {p.stem for p in paths}
+        unknown = sorted(wanted - known)
+        if unknown:  # a misspelt name must not silently drop its section
+            raise ValueError(
+                f"--sections: no section named {', '.join(unknown)} in {data}; there are "
+                f"{', '.join(p.name for p in paths)}"
+            )
+        paths = [p for p in paths if p.name in wanted or p.stem in wanted]
+    return paths

@@ -34,6 +34,11 @@ class SectionMetrics:
             is consistent, above 1 overconfident; the truth's own heading error and
             any yaw misalignment between the truth and the IMU count as error).
         n_scored: ground-truth rows scored.
+        velocity_3sigma: the share of the scored rows at which the velocity error lies
+            within 3 of the filter's 1σ in each NED axis (at least 0.99 when the filter
+            is consistent; its truth's own error counts as error).
+        missed_updates: DVL rows inside the run skipped as missing readings
+            (:mod:`pronet.recorded.missing`); 0 for a run without the DVL.
     """
 
     srmse: float
@@ -45,6 +50,8 @@ class SectionMetrics:
     mean_nis: float
     heading_ratio: float
     n_scored: int
+    missed_updates: int = 0
+    velocity_3sigma: float = math.nan
 
 
 def _horizontal_offsets(lla: F64, ref: F64) -> tuple[F64, F64]:
@@ -80,8 +87,9 @@ def _heading_ratio(section: Section, result: FilterResult, rows: NDArray[np.intp
         return float(np.sqrt(np.mean((error / sigma) ** 2)))
 
 
-def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
-    """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`)."""
+def section_metrics(section: Section, result: FilterResult, use_dvl: bool = True) -> SectionMetrics:
+    """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`;
+    ``use_dvl``: whether the run had the DVL, for its missed updates)."""
     rows, lla, vel = estimate_at_truth(section, result)
     if rows.size == 0:
         raise ValueError(f"section {section.name}: no ground-truth row inside the run")
@@ -102,4 +110,23 @@ def section_metrics(section: Section, result: FilterResult) -> SectionMetrics:
         mean_nis=float(nis.mean()) if nis.size else math.nan,
         heading_ratio=_heading_ratio(section, result, rows),
         n_scored=int(rows.size),
+        missed_updates=missed_updates(section, result) if use_dvl else 0,
+        velocity_3sigma=_within_3sigma(section, result, rows, dv),
     )
+
+
+def _within_3sigma(
+    section: Section, result: FilterResult, rows: NDArray[np.intp], dv: F64
+) -> float:
+    """The share of the truth ``rows`` whose velocity error ``dv`` lies within 3σ of the
+    filter in each NED axis (its σ interpolated at the row)."""
+    t = section.truth_time[rows]
+    sigma = np.stack([np.interp(t, result.time, result.sigma[:, 3 + j]) for j in range(3)], 1)
+    return float(np.mean(np.all(np.abs(dv) <= 3 * sigma, axis=1)))
+
+
+def missed_updates(section: Section, result: FilterResult) -> int:
+    """The DVL rows of ``section`` skipped as missing readings whose time lies inside
+    the run ``result`` (after its start, up to its last epoch)."""
+    t = section.dvl_skipped_time
+    return int(np.sum((t > result.time[0]) & (t <= result.time[-1])))

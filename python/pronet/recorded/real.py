@@ -12,12 +12,11 @@ horizontal position error, and the final error as a percentage of the distance.
 from __future__ import annotations
 
 import contextvars
-import functools
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing, nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
@@ -29,13 +28,7 @@ from pronet._util.cores import usable_cores
 from pronet._util.validate import flag, scalar
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
-from pronet.recorded.alignment import (
-    Section,
-    find_sections,
-    lever_arm,
-    load_section,
-    section_name,
-)
+from pronet.recorded.alignment import Section, load_section, section_name, select_sections
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
@@ -46,14 +39,15 @@ from pronet.recorded.tuning import (
     BOTH,
     DVL_CALIBRATION,
     R_FROM_DATA,
-    REAL_DVL_VARIANCE,
     REAL_VARIANT_ROWS,
     check_dvl_noise,
+    imu_step,
     real_filter_config,
     real_strategies,
     white_noise_q,
 )
-from pronet.run import Recorded, run
+from pronet.recorded.vehicle import VehicleTuning, lever_arms
+from pronet.run import Recorded, check_acts, run
 from pronet.strategies import StrategyLike
 
 if TYPE_CHECKING:  # torch loads only when a net is trained or run through torch
@@ -96,7 +90,7 @@ def run_section(
     """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
     for ``duration`` seconds (default: to the end), with or without the DVL."""
     done = run(strategy, section_recorded(section, config, duration=duration, use_dvl=use_dvl))
-    metrics = section_metrics(section, done.result)
+    metrics = section_metrics(section, done.result, use_dvl)
     return SectionRun(
         setup,
         section.name,
@@ -190,16 +184,21 @@ def estimate_dvl_noise(
     strategy: StrategyLike,
     lever_arm: tuple[float, float, float],
     formulation: str | None = None,
-    covariance_step: float = 0.0,
+    base: _core.FilterConfig | None = None,
+    covariance_step: float | None = None,
 ) -> SectionDvlNoise:
     """The DVL noise of ``section``: its second-difference R, then the R that matches
     the innovations of ``strategy`` under :func:`real_filter_config`, without and with
     the calibration states (a pass per step of
-    :func:`pronet.recorded.dvlnoise.match_innovations`)."""
+    :func:`pronet.recorded.dvlnoise.match_innovations`); ``base``, ``covariance_step``:
+    the vehicle's own tuning and the covariance step (:func:`real_filter_config`)."""
+    imu_dt = imu_step(section.imu_time)
 
     def matched(calibration: bool, first: tuple[float, float, float]) -> MatchedVariance:
         def one_pass(r: tuple[float, float, float]) -> FilterResult:
-            config = real_filter_config(lever_arm, r, calibration, formulation, covariance_step)
+            config = real_filter_config(
+                lever_arm, r, calibration, formulation, imu_dt, base, covariance_step
+            )
             # the matching reads the updates only: no epoch arrays, no metrics
             return run(strategy, section_recorded(section, config, epochs="last")).result
 
@@ -224,6 +223,10 @@ class SectionPlan:
         dvl_noise: the section's DVL noise estimates, or why they could not be made
             (then the section has no variant rows).
         dvl_variance: the R of the strategy rows [(m/s)²] (the datasheet's or the data's).
+        base: the vehicle's own tuning the configs were made from (None: the FOG
+            defaults of :func:`real_filter_config`).
+        not_run: the strategy rows left out because they could never act on the
+            section (:func:`pronet.run.check_acts`), with the reason.
     """
 
     q: tuple[float, ...]
@@ -232,6 +235,8 @@ class SectionPlan:
     variants: dict[str, _core.FilterConfig]
     dvl_noise: SectionDvlNoise | str
     dvl_variance: tuple[float, float, float]
+    base: _core.FilterConfig | None = None
+    not_run: dict[str, str] = field(default_factory=dict)
 
 
 def plan_section(
@@ -240,58 +245,58 @@ def plan_section(
     tuning_period: float,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
-    covariance_step: float = 0.0,
+    base: _core.FilterConfig | None = None,
+    covariance_step: float | None = None,
 ) -> SectionPlan:
     """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
     its estimated q, with the DVL noise of ``dvl_noise`` (one of
     :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows, every
-    filter in ``formulation`` (default ``FilterConfig``'s) with ``covariance_step``."""
+    filter in ``formulation`` (default ``FilterConfig``'s or ``base``'s), at the
+    section's own IMU step (:func:`imu_step`), tuned as ``base`` (None: the FOG
+    defaults of :func:`real_filter_config`), with ``covariance_step`` [s] (None:
+    ``base``'s, else every IMU sample)."""
     check_dvl_noise(dvl_noise)
-    filters = functools.partial(
-        real_filter_config, formulation=formulation, covariance_step=covariance_step
-    )
     q = white_noise_q(section.imu)
     strategies = real_strategies(q, models, tuning_period)
     arm = section.alignment.filter_lever_arm
-    datasheet = (REAL_DVL_VARIANCE,) * 3
+    dt = imu_step(section.imu_time)
+
+    def config(
+        r: tuple[float, float, float] | None = None, calibration: bool = False
+    ) -> _core.FilterConfig:
+        return real_filter_config(arm, r, calibration, formulation, dt, base, covariance_step)
+
+    r = config().dvl_variance
+    datasheet = (r[0], r[1], r[2])
+    # a row that could never act on this section (a window longer than its DVL
+    # updates, a tuning period beyond it) is left out and reported, not run as its prior
+    recorded = section_recorded(section, config())
+    not_run: dict[str, str] = {}
+    for label, chosen in list(strategies.items())[1:]:  # the first, constant, always acts
+        try:
+            check_acts(chosen, recorded)
+        except ValueError as exc:
+            not_run[label] = str(exc)
+            del strategies[label]
     try:
         first = next(iter(strategies.values()))
-        noise = estimate_dvl_noise(section, first, arm, formulation, covariance_step)
+        noise = estimate_dvl_noise(section, first, arm, formulation, base, covariance_step)
     except ValueError as exc:
         if dvl_noise == "data":  # the strategy rows need it
             raise
         # The strategy rows do not: they run, the variant rows are left out.
-        config = filters(arm)
-        return SectionPlan(q, strategies, config, {}, str(exc), datasheet)
+        return SectionPlan(q, strategies, config(), {}, str(exc), datasheet, base, not_run)
     used = noise.matched.variance if dvl_noise == "data" else datasheet
     both = noise.matched_calibrated.variance
     variants = {
-        R_FROM_DATA: filters(arm, noise.matched.variance),
-        DVL_CALIBRATION: filters(arm, calibration=True),
-        BOTH: filters(arm, both, calibration=True),
+        R_FROM_DATA: config(noise.matched.variance),
+        DVL_CALIBRATION: config(calibration=True),
+        BOTH: config(both, calibration=True),
     }
-    config = filters(arm, used)
-    return SectionPlan(q, strategies, config, variants, noise, used)
+    return SectionPlan(q, strategies, config(used), variants, noise, used, base, not_run)
 
 
 # ------------------------------------------------------------------------ pronet real
-
-
-def select_sections(data: str | Path, names: list[str] | tuple[str, ...] | None) -> list[Path]:
-    """The sections under ``data`` (:func:`pronet.recorded.alignment.find_sections`), only those
-    whose folder or file name, or name without suffix, is in ``names`` when given."""
-    paths = find_sections(data)
-    if names:
-        wanted = {n.strip() for n in names}
-        known = {p.name for p in paths} | {p.stem for p in paths}
-        unknown = sorted(wanted - known)
-        if unknown:  # a misspelt name must not silently drop its section
-            raise ValueError(
-                f"--sections: no section named {', '.join(unknown)} in {data}; there are "
-                f"{', '.join(p.name for p in paths)}"
-            )
-        paths = [p for p in paths if p.name in wanted or p.stem in wanted]
-    return paths
 
 
 def run_sections(
@@ -305,7 +310,8 @@ def run_sections(
     on_section: Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]
     | None = None,
     formulation: str | None = None,
-    covariance_step: float = 0.0,
+    base: _core.FilterConfig | None = None,
+    covariance_step: float | None = None,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
@@ -335,7 +341,7 @@ def run_sections(
         _STOP.set(stop)  # this thread's context: its run_section calls see the event
         try:
             plan = plan_section(
-                pair[0], models, tuning_period, dvl_noise, formulation, covariance_step
+                pair[0], models, tuning_period, dvl_noise, formulation, base, covariance_step
             )
             ran = _run_one_section(pair[0], pair[1], plan, done)
         except ValueError as exc:  # the reason, kept beside the section's name
@@ -371,6 +377,8 @@ def run_sections(
         reasons,
         {a.name: (p.plan.dvl_noise, p.plan.dvl_variance) for (a, _), p in ran},
         {a.name: p.truth_calibration for (a, _), p in ran},
+        {a.name: p.plan.config.imu_dt for (a, _), p in ran},
+        {a.name: p.plan.not_run for (a, _), p in ran if p.plan.not_run},
     )
 
 
@@ -420,6 +428,8 @@ def _run_one_section(
             stamped.alignment.filter_lever_arm,
             plan.dvl_variance,
             formulation=plan.config.formulation,
+            imu_dt=plan.config.imu_dt,
+            base=plan.base,
             covariance_step=plan.config.covariance_step,
         ),
         label=f"{first_label}, stamps as given, no lever arms",
@@ -445,7 +455,8 @@ def run_real(
     plots: bool = True,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
-    covariance_step: float = 0.0,
+    covariance_step: float | None = None,
+    vehicle: VehicleTuning | None = None,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -461,7 +472,10 @@ def run_real(
         out: the result folder to create (default ``results/real-<time>``).
         fmt: one of :data:`pronet.recorded.alignment.FORMATS`; sections: only these section names.
         imu_lever_arm, dvl_lever_arm: sensor positions from the ground-truth point
-            [m, body FRD] (default: the Snapir AUV's).
+            [m, body FRD]; default: ``vehicle``'s, else with ``fmt="snapir"`` the
+            Snapir AUV's; the generic format has no default (ValueError: a recording
+            of another vehicle with Snapir's arms would run silently wrong; give
+            ``(0, 0, 0)`` for a truth at the sensors).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         use_models: False: only the model-based rows.
         plots: False: no plots (the tables and metrics only). The figures are drawn
@@ -474,9 +488,14 @@ def run_real(
             innovation-matched R, :func:`estimate_dvl_noise`). Either way the table has
             the variant rows and reports each section's R.
         formulation: the filter's error coordinates, ``"invariant"`` (the default) or
-            ``"classic"`` (pronet's filter before 2026-12), for every row.
-        covariance_step: the filters' covariance step [s] (0, the default: every IMU
-            sample; see ``FilterConfig``), for every row.
+            ``"classic"`` (pronet's filter before 2026-12), for every row (default:
+            ``vehicle``'s, else ``FilterConfig``'s).
+        covariance_step: the filters' covariance step [s] for every row (default:
+            ``vehicle``'s, else 0: every IMU sample; see ``FilterConfig``).
+        vehicle: the vehicle's own tuning (``--filter``,
+            :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
+            aiding, gate, formulation and lever arms; default the FOG tuning of
+            :func:`real_filter_config`.
         on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`): stages
             ``reading, aligning`` (a step per section), the runs (a step per section
             and strategy) and ``plots`` (a step per section).
@@ -484,18 +503,16 @@ def run_real(
     from pronet._util.files import atomic_folder, json_bytes
     from pronet._util.outputs import new_result_folder
     from pronet.learn.frozen import SHIPPED, load_frozen
-    from pronet.recorded.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
     folder = new_result_folder(out, "real")
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
-    # checked now
-    tuning = real_filter_config((0.0, 0.0, 0.0), None, False, formulation, covariance_step)
-    imu_arm = SNAPIR_IMU_LEVER_ARM if imu_lever_arm is None else imu_lever_arm
-    dvl_arm = SNAPIR_DVL_LEVER_ARM if dvl_lever_arm is None else dvl_lever_arm
-    lever_arm(imu_arm, "imu_lever_arm")  # before any section is read
-    lever_arm(dvl_arm, "dvl_lever_arm")
+    base = None if vehicle is None else vehicle.base
+    tuning = real_filter_config(  # checked now
+        (0.0, 0.0, 0.0), formulation=formulation, base=base, covariance_step=covariance_step
+    )
+    imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
@@ -537,11 +554,22 @@ def run_real(
             dvl_noise=dvl_noise,
             on_section=None if figures is None else _drawn_by(figures),
             formulation=formulation,
+            base=base,
+            covariance_step=covariance_step,
+        )
+        # the strategy rows' filter as the first section ran it (its IMU step)
+        first_dt = next(iter(done.imu_dt.values()))
+        tuning = real_filter_config(
+            (0.0, 0.0, 0.0),
+            formulation=formulation,
+            imu_dt=first_dt,
+            base=base,
             covariance_step=covariance_step,
         )
         config = real_config(
             data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors, tuning
         )
+        config["filter_file"] = None if vehicle is None else vehicle.source
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))
@@ -558,11 +586,11 @@ def _drawn_by(
 ) -> Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]:
     """The ``on_section`` hook of :func:`run_sections` that hands each finished section's
     curves to ``figures``."""
-    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
 
     def submit(
         aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
     ) -> None:
+        imu_dt = imu_step(aligned.imu_time)
         figures.submit(section_curves(aligned, runs, constants, imu_dt))
 
     return submit

@@ -25,18 +25,26 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
         (ZYX): the ground truth at its reference point
   ===== ============================================================================
 
-  Extra columns are ignored; column order is free.
+  Extra columns are ignored; column order is free. The DVL table may hold an optional
+  ``valid`` column (1 valid, 0 not; no unit).
+
+Missing DVL readings (NaN or empty cells, no-lock markers such as RDI's −32.768 m/s,
+all-zero rows while the vehicle moves, ``valid`` = 0) are not errors: they are taken out
+of :attr:`Recording.dvl` and kept, with their reasons, in
+:attr:`Recording.dvl_skipped_time` and :attr:`Recording.dvl_skipped_reason`; see
+:mod:`pronet.recorded.missing`. A DVL without a single usable row is an error.
 
 Checks (each failure raises :class:`RecordingError`, a ``ValueError``, naming the file
 and, where there is one, the row): the file exists and is not empty, the columns are
 comma-separated and every required one is present with a known unit, every value is a
-finite number, time increases strictly, the sample rate is plausible for the sensor
-(IMU 10 Hz–10 kHz, DVL and ground truth 0.05–100 Hz), the IMU time has no gap longer
-than five median steps, and the magnitudes fit their units (the mean specific force
-near gravity, angular rates within 10 rad/s, the DVL's speed within a factor 2 of the
-ground truth's; see :data:`GRAVITY_RANGE` and beside it). A folder holding both a
-``.csv`` and a ``.csv.gz`` of one stream is ambiguous and refused. Row numbers count
-data rows from 1 (the header is row 0).
+finite number (the DVL's velocities aside: missing readings, above), time increases
+strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz,
+ground truth 0.05–1000 Hz), the IMU time has no gap longer than five median steps, and the
+magnitudes fit their units (the mean specific force near gravity, angular rates within
+10 rad/s, the DVL's speed within a factor 2 of the ground truth's; see
+:data:`GRAVITY_RANGE` and beside it). A folder holding both a ``.csv`` and a ``.csv.gz``
+of one stream is ambiguous and refused. Row numbers count data rows from 1 (the header
+is row 0).
 
 Timestamps are kept as recorded: clock offsets and lever arms are the business of
 :mod:`pronet.recorded.alignment`.
@@ -50,12 +58,15 @@ import io
 import re
 import zipfile
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
+
+from pronet.recorded import missing, plausible
+from pronet.recorded.plausible import Table
 
 F64 = NDArray[np.float64]
 
@@ -85,8 +96,11 @@ COLUMNS: dict[str, dict[str, dict[str, float]]] = {
     },
 }
 
+#: Optional columns of each table, with their units (a ``valid`` flag has none).
+OPTIONAL: dict[str, dict[str, dict[str, float]]] = {"dvl": {"valid": {"": 1.0, "-": 1.0}}}
+
 #: Plausible sample rates [Hz] of each table.
-RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 100.0)}
+RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 1000.0)}
 #: Plausible magnitudes. The mean specific force over a section within this range of
 #: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
 #: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
@@ -140,6 +154,10 @@ class Recording:
         gt_vel: ``(k, 3)`` NED velocity [m/s].
         gt_rpy: ``(k, 3)`` roll, pitch, yaw [rad] (ZYX).
         source: where it was read from.
+        dvl_skipped_time: ``(j,)`` stamps [s] of the DVL rows skipped as missing
+            readings (:mod:`pronet.recorded.missing`), not in ``dvl``.
+        dvl_skipped_reason: why each was skipped (one of
+            :data:`pronet.recorded.missing.REASONS`).
     """
 
     name: str
@@ -152,6 +170,8 @@ class Recording:
     gt_vel: F64
     gt_rpy: F64
     source: str
+    dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
+    dvl_skipped_reason: tuple[str, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -240,6 +260,10 @@ def _select_columns(
 ) -> list[tuple[int, float]]:
     """Column index and SI factor of each required column, in :data:`COLUMNS` order."""
     parsed = [_parse_header(h) for h in header]
+    ours_all = [names.get(n, n) if names is not None else n for n, _ in parsed]
+    wanted = set(COLUMNS[kind]) | set(OPTIONAL.get(kind, {}))
+    if (twice := plausible.duplicate_columns(where, ours_all, header, wanted)) is not None:
+        raise RecordingError(twice)
     found: dict[str, tuple[int, str]] = {}
     for i, (name, unit) in enumerate(parsed):
         ours = names.get(name, name) if names is not None else name
@@ -258,10 +282,18 @@ def _select_columns(
                 f"{', '.join(units)}"
             )
         picks.append((i, units[unit]))
+    for name, units in OPTIONAL.get(kind, {}).items():
+        if name in found:
+            i, unit = found[name]
+            if unit not in units:
+                raise RecordingError(
+                    f"{where}: column {header[i]!r} has unit [{unit}]; expected none"
+                )
+            picks.append((i, units[unit]))
     return picks
 
 
-def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
+def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> Table:
     try:
         raw = gzip.open(path, "rt") if path.suffix == ".gz" else open(path, newline="")
         with raw as fh:
@@ -283,8 +315,11 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> F64:
     if table is not None:
         out = np.ascontiguousarray(table[:, columns])
     else:  # not a plain table of numbers: the careful reader names the row and cell
-        out = _parse_rows(path, header, reader, columns)
-    return _finish(str(path), out, picks, [header[i].strip() for i, _ in picks], kind)
+        # an empty DVL velocity cell is a missing reading (NaN), not a malformed file
+        blank_ok = set(columns[1:4]) if kind == "dvl" else set()
+        out = _parse_rows(path, header, reader, columns, blank_ok)
+    labels = [header[i].strip() for i, _ in picks]
+    return Table(_finish(str(path), out, picks, labels, kind), str(path), labels)
 
 
 _LINE_STARTING_BLANK = re.compile(r"\n[ \t\f\v]")
@@ -314,11 +349,16 @@ def _parse_numbers(text: str, width: int) -> F64 | None:
 
 
 def _parse_rows(
-    path: Path, header: list[str], reader: Iterator[list[str]], columns: list[int]
+    path: Path,
+    header: list[str],
+    reader: Iterator[list[str]],
+    columns: list[int],
+    blank_ok: set[int] | None = None,
 ) -> F64:
     """The ``columns`` of the data rows, cell by cell: a row of the wrong width or a
     cell of those columns that ``float()`` refuses is a :class:`RecordingError` naming
-    the row and the column."""
+    the row and the column; an empty cell of a column in ``blank_ok`` is NaN."""
+    blank = blank_ok or set()
     body = [r for r in reader if r]
     if not body:
         raise RecordingError(f"{path}: has a header but no data rows")
@@ -329,7 +369,7 @@ def _parse_rows(
             raise RecordingError(f"{path}, row {r}: has {len(row)} fields, the header {width}")
         for j, i in enumerate(columns):
             try:
-                out[r - 1, j] = float(row[i])
+                out[r - 1, j] = np.nan if i in blank and not row[i].strip() else float(row[i])
             except ValueError:
                 raise RecordingError(
                     f"{path}, row {r}: {header[i].strip()!r} is {row[i]!r}, not a number"
@@ -350,7 +390,7 @@ def _npz_array(archive: Any, path: Path, name: str, fix: str) -> NDArray[Any]:
         ) from None
 
 
-def _read_npz(path: Path) -> dict[str, F64]:
+def _read_npz(path: Path) -> dict[str, Table]:
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
@@ -379,7 +419,8 @@ def _read_npz(path: Path) -> dict[str, F64]:
             labels = [str(h) for h in header]
             picks = _select_columns(where, labels, kind, None)
             out = data[:, [i for i, _ in picks]].astype(np.float64)
-            tables[kind] = _finish(where, out, picks, [labels[i] for i, _ in picks], kind)
+            chosen = [labels[i] for i, _ in picks]
+            tables[kind] = Table(_finish(where, out, picks, chosen, kind), where, chosen)
     return tables
 
 
@@ -411,8 +452,17 @@ def _check_plausible(imu: F64, dvl: F64, gt_vel: F64, source: str) -> None:
 def _finish(
     where: str, values: F64, picks: list[tuple[int, float]], labels: list[str], kind: str
 ) -> F64:
-    """Check finiteness, strictly increasing time and the rate; convert to SI."""
+    """Check finiteness (a DVL velocity may be missing: :mod:`pronet.recorded.missing`),
+    a ``valid`` column of 0 and 1, strictly increasing time and the rate; convert to SI."""
     bad = ~np.isfinite(values)
+    if kind == "dvl":
+        bad[:, 1:4] = False
+        if values.shape[1] > 4 and not np.isin(values[:, 4], (0.0, 1.0)).all():
+            r = int(np.argmax(~np.isin(values[:, 4], (0.0, 1.0))))
+            raise RecordingError(
+                f"{where}, row {r + 1}: {labels[4]!r} is {values[r, 4]}; it must be 1 "
+                "(valid) or 0 (not)"
+            )
     if bad.any():
         r, j = np.argwhere(bad)[0]
         raise RecordingError(f"{where}, row {r + 1}: {labels[j]!r} is {values[r, j]}, not finite")
@@ -441,13 +491,50 @@ def _finish(
     return values * np.array([factor for _, factor in picks])
 
 
-def _recording(name: str, tables: dict[str, F64], source: str) -> Recording:
-    imu, dvl, gt = tables["imu"], tables["dvl"], tables["gt"]
+def _skipped_dvl(dvl: F64, gt: F64, source: str) -> tuple[F64, NDArray[np.str_]]:
+    """The DVL rows the filter uses and the reason each row is skipped (``""``: used),
+    :func:`pronet.recorded.missing.classify`; a DVL with no usable row is an error."""
+    speed = np.linalg.norm(gt[:, 4:7], axis=1)
+    truth_speed = np.interp(dvl[:, 0], gt[:, 0], speed)
+    valid = dvl[:, 4] if dvl.shape[1] > 4 else None
+    why = missing.classify(dvl[:, 1:4], valid, truth_speed)
+    if (why == "sentinel").all():  # every row beyond any vehicle: a unit, not a dropout
+        speed_dvl = float(np.median(np.linalg.norm(dvl[:, 1:4], axis=1)))
+        raise RecordingError(
+            f"{source} dvl: its median speed {speed_dvl:.4g} m/s against the ground truth's "
+            f"{float(np.median(speed)):.4g} m/s, every row at or beyond the no-lock marker "
+            f"±{missing.DVL_SENTINEL} m/s; are the DVL velocities in m/s?"
+        )
+    if (why != "").all():
+        seen = ", ".join(f"{n} {r}" for r, n in missing.counts(tuple(why)).items() if n)
+        raise RecordingError(
+            f"{source} dvl: no usable reading in its {len(dvl)} rows ({seen}); see "
+            "pronet.recorded.missing for the markers recognised"
+        )
+    return dvl[why == "", :4], why
+
+
+def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
+    imu, gt, raw_dvl = tables["imu"].values, tables["gt"].values, tables["dvl"].values
     lat = gt[:, 1]
     if (np.abs(lat) > np.pi / 2).any():
         r = int(np.argmax(np.abs(lat) > np.pi / 2)) + 1
         raise RecordingError(f"{source} gt, row {r}: latitude {lat[r - 1]} rad is outside ±π/2")
+    for kind in ("dvl", "gt"):
+        if (apart := plausible.disjoint_streams(tables["imu"], tables[kind], kind)) is not None:
+            raise RecordingError(apart)
+    if (beyond := plausible.beyond_bounds(tables["gt"])) is not None:
+        raise RecordingError(beyond)
+    dvl, why = _skipped_dvl(raw_dvl, gt, source)
+    skipped = why != ""
     _check_plausible(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source)
+    for problem in (
+        plausible.stuck_channels(tables["imu"], range(1, 7)),
+        plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped),
+        plausible.attitude_units(tables["imu"], tables["gt"]),
+    ):
+        if problem is not None:
+            raise RecordingError(problem)
     return Recording(
         name=name,
         imu_time=imu[:, 0].copy(),
@@ -459,4 +546,6 @@ def _recording(name: str, tables: dict[str, F64], source: str) -> Recording:
         gt_vel=np.ascontiguousarray(gt[:, 4:7]),
         gt_rpy=np.ascontiguousarray(gt[:, 7:10]),
         source=source,
+        dvl_skipped_time=raw_dvl[skipped, 0].copy(),
+        dvl_skipped_reason=tuple(str(r) for r in why[skipped]),
     )

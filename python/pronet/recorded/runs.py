@@ -73,6 +73,11 @@ class RealRuns:
         truth_calibration: per section, the DVL scale and mounting its ground truth
             implies without a filter (:func:`pronet.recorded.dvltruth.truth_calibration`), or why
             there is none.
+        imu_dt: per section, the IMU's nominal step the filter used [s]
+            (:func:`pronet.recorded.tuning.imu_step`).
+        rows_not_run: per section that has any, the strategy rows left out because
+            they could never act on it (a window longer than its DVL updates), with
+            the reason.
     """
 
     sections: list[tuple[Section, Section]]
@@ -86,3 +91,5 @@ class RealRuns:
         default_factory=dict
     )
     truth_calibration: dict[str, TruthCalibration | str] = field(default_factory=dict)
+    imu_dt: dict[str, float] = field(default_factory=dict)
+    rows_not_run: dict[str, dict[str, str]] = field(default_factory=dict)

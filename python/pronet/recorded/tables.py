@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pronet.recorded import missing
+from pronet.recorded.alignment import Section
 from pronet.recorded.tuning import real_filter_config
 from pronet.results import (
     OUT_OF_BAND,
@@ -36,6 +38,7 @@ METRIC_COLUMNS = (
     ("final_percent", "final error [% of distance]", "{:.2f}"),
     ("mean_nis", "mean NIS", "{:.2f}"),
     ("heading_ratio", "heading error / σ (RMS)", "{:.2f}"),
+    ("velocity_3sigma", "vel. error within 3σ (share)", "{:.3f}"),
 )
 
 
@@ -111,6 +114,7 @@ def run_record(run: SectionRun) -> dict[str, object]:
         "accel_bias_nees": math.nan,
         "gyro_bias_nees": math.nan,
         "rejected_updates": int((applied & ~r.accepted).sum()),
+        "missed_updates": m.missed_updates,
         "diverged_at": math.nan if r.diverged_at is None else r.diverged_at,
         "failure": None,
     }
@@ -146,7 +150,7 @@ def failed_records(done: RealRuns) -> tuple[list[dict[str, object]], list[dict[s
         for run in template:
             rec = {**run_record(run), "scenario": name, "failure": reason}
             rec.update({k: math.nan for k in (*SUMMARIZED, "velocity_nees_3sigma")})
-            rec.update(rejected_updates=0, diverged_at=math.nan)
+            rec.update(rejected_updates=0, missed_updates=0, diverged_at=math.nan)
             per_run.append(rec)
             row = {**summary_record(run), "scenario": name, "failed_runs": 1}
             row.update({k: math.nan for k in row if k.startswith(SUMMARIZED)})
@@ -180,6 +184,39 @@ def failed_table(failed: dict[str, str]) -> str:
     """Markdown: the sections that could not be read or filtered, with the reason."""
     lines: list[list[object]] = [[name, reason] for name, reason in failed.items()]
     return markdown(["section", "reason"], lines, "Sections not run")
+
+
+def rows_not_run_table(rows: dict[str, dict[str, str]]) -> str:
+    """Markdown: the strategy rows left out of a section, with the reason."""
+    lines: list[list[object]] = [
+        [name, label, reason] for name, by in rows.items() for label, reason in by.items()
+    ]
+    return markdown(["section", "row", "reason"], lines, "Rows not run (they could never act)")
+
+
+def dvl_skipped(section: Section) -> dict[str, float]:
+    """A section's DVL rows skipped as missing readings, by reason
+    (:data:`pronet.recorded.missing.REASONS`), their total, the rows used and the
+    longest stretch between used rows that held skipped ones [s]."""
+    found = missing.counts(section.dvl_skipped_reason)
+    gap = missing.longest_gap(section.dvl_time, section.dvl_skipped_time)
+    return {
+        **found,
+        "skipped": sum(found.values()),
+        "used": len(section.dvl_time),
+        "longest_gap_s": gap,
+    }
+
+
+def dvl_skipped_table(done: RealRuns) -> str:
+    """Markdown: each section's DVL rows skipped as missing readings (missed updates)."""
+    lines: list[list[object]] = []
+    for aligned, _ in done.sections:
+        d = dvl_skipped(aligned)
+        counts = [int(d[r]) for r in missing.REASONS]
+        lines.append([aligned.name, int(d["used"]), *counts, f"{d['longest_gap_s']:.1f}"])
+    header = ["section", "used", *missing.REASONS, "longest dropout [s]"]
+    return markdown(header, lines, "DVL readings skipped as missing (missed updates)")
 
 
 def dvl_noise_table(done: RealRuns) -> str:
@@ -296,6 +333,11 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "mean_nis", "Per section"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
+                [dvl_skipped_table(done)]
+                if any(len(a.dvl_skipped_time) for a, _ in done.sections)
+                else []
+            ),
+            *(
                 [calibration_table(done.runs, done.truth_calibration)]
                 if any(final_calibration(r) is not None for r in done.runs)
                 else []
@@ -305,6 +347,7 @@ def real_tables(done: RealRuns) -> str:
                 f"{first_label}: alignment handled against stamps as given",
             ),
             summary_table(done.inertial, "Sanity: pure inertial, no DVL"),
+            *([rows_not_run_table(done.rows_not_run)] if done.rows_not_run else []),
             *([failed_table(done.failed)] if done.failed else []),
         ]
     )
@@ -331,16 +374,20 @@ def real_config(
         "failed_sections": done.failed,
         "tuning_period_s": tuning_period,
         "filter": repr(tuning if tuning is not None else real_filter_config((0.0, 0.0, 0.0))),
+        "imu_dt_s": done.imu_dt,
+        "rows_not_run": done.rows_not_run,
         "imu_lever_arm_m": imu_arm,
         "dvl_lever_arm_m": dvl_arm,
         "clocks": {
             a.name: {
+                "epoch_s": a.epoch,
                 "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
                 "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
             }
             for a, _ in done.sections
         },
         "q_estimated": done.q_estimated,
+        "dvl_skipped": {a.name: dvl_skipped(a) for a, _ in done.sections},
         "dvl_noise": dvl_noise,
         "dvl_variance": {
             name: {"used": list(used), **_noise_record(noise)}

@@ -8,7 +8,7 @@ the variant rows (the DVL noise from the data, the DVL calibration states, both)
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,16 +58,43 @@ def real_filter_config(
     dvl_variance: tuple[float, float, float] | None = None,
     calibration: bool = False,
     formulation: str | None = None,
-    covariance_step: float = 0.0,
+    imu_dt: float | None = None,
+    base: _core.FilterConfig | None = None,
+    covariance_step: float | None = None,
 ) -> _core.FilterConfig:
     """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
     IMU [m, body FRD], the DVL noise ``dvl_variance`` per body axis [(m/s)²] (default:
     the datasheet's, :data:`REAL_DVL_VARIANCE`), with ``calibration`` the DVL
-    scale-factor and misalignment states (their default prior: 1 %, 1° per axis), and
-    the filter's ``formulation`` (default ``FilterConfig``'s, the invariant one) and
-    ``covariance_step`` [s] (0: every IMU sample); see :data:`REAL_P0_SIGMA` and the
-    PSD constants for sources."""
-    chosen = {} if formulation is None else {"formulation": formulation}
+    scale-factor and misalignment states (their default prior: 1 %, 1° per axis), the
+    filter's ``formulation`` (default ``FilterConfig``'s, the invariant one), the
+    IMU's nominal step ``imu_dt`` [s] (:func:`imu_step`; default ``FilterConfig``'s
+    0.01 s) and ``covariance_step`` [s] (default 0: every IMU sample); see
+    :data:`REAL_P0_SIGMA` and the PSD constants for sources.
+
+    ``base`` (a vehicle's own tuning, ``pronet real --filter``): its P0, bias PSDs,
+    DVL noise (unless ``dvl_variance`` is given), aiding, innovation gate, formulation
+    and covariance step (unless ``formulation`` or ``covariance_step`` is given)
+    instead of the FOG defaults above."""
+    if base is not None:
+        own: dict[str, Any] = {
+            "p0_sigma": base.p0_sigma,
+            "accel_bias_psd": base.accel_bias_psd,
+            "gyro_bias_psd": base.gyro_bias_psd,
+            "dvl_variance": base.dvl_variance if dvl_variance is None else dvl_variance,
+            "lever_arm": lever_arm,
+            "aiding": base.aiding,
+            "imu_dt": base.imu_dt if imu_dt is None else imu_dt,
+            "innovation_gate": base.innovation_gate,
+            "dvl_calibration": calibration,
+            "formulation": base.formulation if formulation is None else formulation,
+            "covariance_step": (
+                base.covariance_step if covariance_step is None else covariance_step
+            ),
+        }
+        return _core.FilterConfig(**own)
+    chosen: dict[str, object] = {} if formulation is None else {"formulation": formulation}
+    if imu_dt is not None:
+        chosen["imu_dt"] = imu_dt
     return _core.FilterConfig(
         **chosen,  # type: ignore[arg-type]
         p0_sigma=REAL_P0_SIGMA,
@@ -76,8 +103,33 @@ def real_filter_config(
         dvl_variance=(REAL_DVL_VARIANCE,) * 3 if dvl_variance is None else dvl_variance,
         lever_arm=lever_arm,
         dvl_calibration=calibration,
-        covariance_step=covariance_step,
+        covariance_step=0.0 if covariance_step is None else covariance_step,
     )
+
+
+#: A median IMU step within this share of a whole rate in Hz is taken at that rate.
+NOMINAL_RATE_TOLERANCE = 1e-3
+
+
+def imu_step(imu_time: F64) -> float:
+    """The IMU's nominal step [s] for the filter's white-noise term: the mean step of
+    ``imu_time``, at the whole rate in Hz it is within :data:`NOMINAL_RATE_TOLERANCE`
+    of (a logger's clock drift aside: the Snapir IMU's stamps step by 0.01000025 s, its
+    rate 100 Hz). The filter adds ``q · imu_dt · dt`` per step with each step's own
+    ``dt`` from the stamps: ``q · imu_dt`` is the noise PSD of ``q`` per sample of
+    ``imu_dt``, and a jittered IMU is integrated exactly over each of its steps, not
+    resampled."""
+    t = float_array(imu_time, "imu_time", (None,))
+    if len(t) < 2:
+        raise ValueError(f"imu_time: needs at least two samples, got {len(t)}")
+    if not (np.diff(t) > 0).all():
+        raise ValueError("imu_time: must increase strictly")
+    step = (t[-1] - t[0]) / (len(t) - 1)  # the mean: a jitter averages out
+    rate = 1.0 / step
+    whole = round(rate)
+    if whole >= 1 and abs(rate - whole) <= NOMINAL_RATE_TOLERANCE * rate:
+        return 1.0 / whole
+    return step
 
 
 def white_noise_q(imu: F64) -> tuple[float, ...]:

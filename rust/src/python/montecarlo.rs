@@ -47,6 +47,11 @@ pub(super) fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Boun
         Array1::from_iter(res.runs.iter().map(|r| r.summary.rejected_updates as i64))
             .into_pyarray(py),
     )?;
+    d.set_item(
+        "missed_updates",
+        Array1::from_iter(res.runs.iter().map(|r| r.summary.missed_updates as i64))
+            .into_pyarray(py),
+    )?;
     d.set_item("diverged_at", col(&|s| s.diverged_at.unwrap_or(f64::NAN)))?;
     let failures: Vec<Option<String>> =
         res.runs.iter().map(|r| r.summary.failure.clone()).collect();

@@ -2,7 +2,9 @@
 
 use super::convert::{arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, rows};
 use super::{invalid, to_py_err};
-use crate::sensors::{DvlModel, DvlMounting, ImuErrorModel, SensorConfig, VarianceSchedule};
+use crate::sensors::{
+    DvlDropout, DvlModel, DvlMounting, ImuErrorModel, SensorConfig, VarianceSchedule,
+};
 use nalgebra::Vector3;
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -13,8 +15,13 @@ use pyo3::prelude::*;
 /// (a whole number of IMU steps), DVL lever arm [m, body], DVL outages ``(k, 2)``
 /// ``[start, end)`` [s] (sorted, not overlapping; no reading inside one), and the
 /// DVL's scale-factor error k (it reads ``1 + k`` times the velocity, k > −1) and
-/// mounting misalignment (its roll, pitch, yaw in the body frame [rad]). Defaults: the
-/// paper's (an ideal DVL).
+/// mounting misalignment (its roll, pitch, yaw in the body frame [rad]), and
+/// ``dvl_dropout`` ``(mean_interval, mean_length)`` [s]: random bottom-lock loss, a
+/// locked/lost chain stepped at each due reading (mean time between losses, mean
+/// length of a loss; its own seeded stream, so a Monte Carlo stays the same for any
+/// thread count; a lost reading is a missed update, counted in
+/// ``MonteCarloResult.missed_updates``). Defaults: the paper's (an ideal DVL, no
+/// dropout).
 #[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PySensorConfig {
@@ -43,7 +50,7 @@ fn variance(
 impl PySensorConfig {
     #[new]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None))]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -55,7 +62,18 @@ impl PySensorConfig {
         dvl_outages: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = arg_dvl_scale)] dvl_scale: f64,
         dvl_misalignment: Option<&Bound<'_, PyAny>>,
+        dvl_dropout: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let dropout = match dvl_dropout {
+            Some(d) => {
+                let [mean_interval, mean_length] = fixed::<2>(d, "dvl_dropout")?;
+                Some(DvlDropout {
+                    mean_interval,
+                    mean_length,
+                })
+            }
+            None => None,
+        };
         let angles = fixed_or::<3>(dvl_misalignment, "dvl_misalignment", [0.0; 3])?;
         let inner = SensorConfig {
             imu: ImuErrorModel {
@@ -80,6 +98,7 @@ impl PySensorConfig {
                 } else {
                     DvlMounting::from_angles(dvl_scale, angles)
                 },
+                dropout,
             },
         };
         inner.validate().map_err(to_py_err)?;
@@ -127,6 +146,14 @@ impl PySensorConfig {
     #[getter]
     fn dvl_outages<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         matrix(py, self.inner.dvl.outages.iter().copied())
+    }
+    /// ``(mean_interval, mean_length)`` [s] of the random bottom-lock loss, or None.
+    #[getter]
+    fn dvl_dropout(&self) -> Option<(f64, f64)> {
+        self.inner
+            .dvl
+            .dropout
+            .map(|d| (d.mean_interval, d.mean_length))
     }
     fn __repr__(&self) -> String {
         format!("SensorConfig({:?})", self.inner)

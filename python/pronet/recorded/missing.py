@@ -1,0 +1,81 @@
+"""Missing DVL readings: the rows a DVL writes when it has no bottom lock, recognised
+and skipped as updates (a missed update, as in an outage), never fatal.
+
+A DVL that loses the bottom keeps writing rows, marked in one of these ways; each such
+row is a *skipped* reading, counted by reason (:data:`REASONS`):
+
+- ``nan``: a NaN (or an empty cell) in any velocity component;
+- ``sentinel``: a component at or beyond :data:`DVL_SENTINEL` in magnitude (or
+  infinite). Recognised markers: Teledyne RDI's bad velocity, −32768 mm/s, written as
+  −32.768 m/s by its PD0/PD6 decoders (Nortek's DVLs use the same −32.768), the raw
+  −32768 when left in mm/s, and placeholders such as ±99.99 or 9999; no vehicle moves
+  at 32 m/s;
+- ``zero``: all three components exactly 0 while the ground truth (stamps as given,
+  interpolated) moves faster than :data:`MOVING_SPEED`: several loggers write zeros for
+  a ping without lock; a vehicle at rest may read exact zeros and keeps them;
+- ``invalid``: the optional ``valid`` column of the generic format (``valid``, no unit
+  or ``[-]``, 1 valid and 0 not) is 0.
+
+The filter sees only the remaining rows; the skipped ones are kept (stamps and reasons)
+so that ``pronet real`` reports them per section (``table.md``, ``missed_updates`` in
+``metrics.csv``, ``config.json``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+#: Magnitude [m/s] at or beyond which a DVL velocity component is a no-lock marker.
+DVL_SENTINEL = 32.768
+#: Ground-truth speed [m/s] above which an all-zero DVL row is a missing reading.
+MOVING_SPEED = 0.2
+#: Why a DVL row is skipped, in the order a row is classified (the first that applies).
+REASONS = ("invalid", "nan", "sentinel", "zero")
+
+
+def classify(
+    vel: F64,
+    valid: F64 | None,
+    truth_speed: F64,
+) -> NDArray[np.str_]:
+    """The reason each DVL row ``vel (m, 3)`` [m/s] is skipped (one of :data:`REASONS`),
+    ``""`` for a reading the filter uses. ``valid`` ``(m,)``: the ``valid`` column (0 or
+    1) or None; ``truth_speed`` ``(m,)``: the ground truth's speed at each row [m/s]."""
+    why = np.full(len(vel), "", dtype="<U8")
+    with np.errstate(invalid="ignore"):
+        zero = np.all(vel == 0.0, axis=1) & (truth_speed > MOVING_SPEED)
+        sentinel = np.any(np.abs(vel) >= DVL_SENTINEL, axis=1)
+    for reason, rows in reversed(
+        [
+            ("invalid", np.zeros(len(vel), bool) if valid is None else valid == 0.0),
+            ("nan", np.any(np.isnan(vel), axis=1)),
+            ("sentinel", sentinel),
+            ("zero", zero),
+        ]
+    ):
+        why[rows] = reason
+    return why
+
+
+def counts(reasons: tuple[str, ...] | NDArray[np.str_]) -> dict[str, int]:
+    """Skipped rows per reason of :data:`REASONS` (every reason present, 0 if none)."""
+    found = list(reasons)
+    return {r: found.count(r) for r in REASONS}
+
+
+def longest_gap(kept_time: F64, skipped_time: F64) -> float:
+    """The longest stretch [s] between two used DVL rows that holds skipped ones (0
+    without skipped rows): the longest dropout the filter bridged on the IMU alone."""
+    if skipped_time.size == 0 or kept_time.size == 0:
+        return 0.0
+    edges = np.concatenate([[-np.inf], kept_time, [np.inf]])
+    slot = np.searchsorted(kept_time, skipped_time)
+    gaps = [edges[s + 1] - edges[s] for s in np.unique(slot)]
+    finite = [g for g in gaps if np.isfinite(g)]
+    if len(finite) < len(gaps):  # before the first or after the last used row
+        ends = [skipped_time.max() - kept_time[-1], kept_time[0] - skipped_time.min()]
+        finite.append(float(max(e for e in ends)))
+    return float(max(finite))

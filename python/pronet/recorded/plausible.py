@@ -1,0 +1,170 @@
+"""Plausibility of a recording, one line each naming the file and column: checks that
+catch data which would otherwise run to a silently wrong answer (issue 37, point 5).
+
+Each check returns the problem as one line (``"<file>: column '<name>': ..."``), or
+None; :mod:`pronet.recorded.recordings` raises it as a ``RecordingError`` (exit 2 from
+the command line). Checked, in this order, after the per-file checks (finite numbers,
+increasing time, rate):
+
+- a column named twice (:func:`duplicate_columns`; otherwise the first would be used);
+- streams that do not share a clock (:func:`disjoint_streams`): the DVL's or the
+  ground truth's stamps beside none of the IMU's (another epoch, another unit);
+- values beyond physical bounds (:func:`beyond_bounds`): a ground-truth speed beyond
+  :data:`MAX_SPEED` or a height beyond :data:`HEIGHT_RANGE`;
+- stuck or dead channels (:func:`stuck_channels`): an IMU or DVL column whose every
+  value over the section is the same (a dead gyro reads 0);
+- angles whose unit disagrees with their header (:func:`attitude_units`): the ground
+  truth's attitude turning :data:`ANGLE_RATIO` times more or less than the integrated
+  gyro (rad under a ``[deg]`` header turns 57 times less).
+
+Lever arms beyond :data:`LONG_LEVER_ARM` are usable and only warned of
+(:func:`long_lever_arm`, a :class:`PlausibilityWarning`): typed in cm or mm, they run to
+errors of 100 m/s; a few vehicles are that long.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+#: The fastest a ground truth may move [m/s] (no underwater vehicle comes near it).
+MAX_SPEED = 100.0
+#: The heights a ground truth may have [m, up]: the deepest trench to high above sea.
+HEIGHT_RANGE = (-12_000.0, 10_000.0)
+#: The truth's attitude steps over the gyro's, by RMS, outside [1/x, x]: a unit slip.
+ANGLE_RATIO = 5.0
+#: Below this RMS gyro turn per truth row [rad] the attitude-unit check says nothing.
+MIN_TURN = 1e-3
+#: A lever arm longer than this [m] is warned of.
+LONG_LEVER_ARM = 10.0
+
+
+class PlausibilityWarning(UserWarning):
+    """Usable data that is probably a mistake (a lever arm beyond 10 m)."""
+
+
+class Table(NamedTuple):
+    """A table as read: values (SI, the required columns in order, then the optional
+    ones present), where it came from (file, or ``file[array]``) and the column labels
+    as written."""
+
+    values: F64
+    where: str
+    labels: list[str]
+
+
+def duplicate_columns(
+    where: str, names: list[str], header: list[str], wanted: set[str]
+) -> str | None:
+    """A column of ``wanted`` named twice in ``header`` (``names``: its parsed names)."""
+    for name in sorted(wanted):
+        at = [i for i, n in enumerate(names) if n == name]
+        if len(at) > 1:
+            shown = " and ".join(f"{i + 1} ({header[i].strip()!r})" for i in at)
+            return (
+                f"{where}: column {name!r} appears {len(at)} times (columns {shown}); "
+                "keep the one that holds the data"
+            )
+    return None
+
+
+def disjoint_streams(imu: Table, other: Table, kind: str) -> str | None:
+    """``other``'s stamps beside none of the IMU's: no overlap even with the clock
+    search's reach (an offset of 2 s and a scale of 1 %)."""
+    a, b = float(imu.values[0, 0]), float(imu.values[-1, 0])
+    t = other.values[:, 0]
+    slack = 2.0 + 0.01 * max(abs(a), abs(b))
+    if t[-1] < a - slack or t[0] > b + slack:
+        return (
+            f"{other.where}: column {other.labels[0]!r} runs {t[0]:.10g} … {t[-1]:.10g} s, "
+            f"the IMU's {a:.10g} … {b:.10g} s: the {kind} and IMU stamps do not overlap "
+            "(another epoch or unit? every stream must be stamped on one clock, in seconds)"
+        )
+    return None
+
+
+def beyond_bounds(gt: Table) -> str | None:
+    """A ground-truth speed beyond :data:`MAX_SPEED` or height beyond
+    :data:`HEIGHT_RANGE`, named by column."""
+    for j in (4, 5, 6):
+        v = np.abs(gt.values[:, j])
+        if v.max() > MAX_SPEED:
+            r = int(np.argmax(v))
+            return (
+                f"{gt.where}, row {r + 1}: column {gt.labels[j]!r} is {gt.values[r, j]:.6g} "
+                f"m/s, beyond any underwater vehicle (at most {MAX_SPEED:g}); in another unit?"
+            )
+    h = gt.values[:, 3]
+    lo, hi = HEIGHT_RANGE
+    if h.min() < lo or h.max() > hi:
+        r = int(np.argmax((h < lo) | (h > hi)))
+        return (
+            f"{gt.where}, row {r + 1}: column {gt.labels[3]!r} is {h[r]:.6g} m, beyond "
+            f"{lo:g} … {hi:g} m; in another unit?"
+        )
+    return None
+
+
+def stuck_channels(
+    table: Table, columns: range, rows: NDArray[np.bool_] | None = None
+) -> str | None:
+    """A column of ``columns`` whose every value (of ``rows``) is the same: a stuck or
+    dead channel (checked over at least 10 values)."""
+    values = table.values if rows is None else table.values[rows]
+    if len(values) < 10:
+        return None
+    for j in columns:
+        if np.ptp(values[:, j]) == 0.0:
+            return (
+                f"{table.where}: column {table.labels[j]!r} is {values[0, j]:.6g} in every one "
+                f"of its {len(values)} rows: a stuck or dead channel"
+            )
+    return None
+
+
+def attitude_units(imu: Table, gt: Table) -> str | None:
+    """The truth's attitude steps between its rows against the gyro's turn over the
+    same stamps (as given), by RMS: outside [1/:data:`ANGLE_RATIO`, ANGLE_RATIO], the
+    angles' unit disagrees with their header. Silent where the gyro turns less than
+    :data:`MIN_TURN` per row."""
+    t_imu, w = imu.values[:, 0], imu.values[:, 4:7]
+    dt = np.diff(t_imu, prepend=t_imu[0] - np.median(np.diff(t_imu)))
+    cum = np.vstack([np.zeros(3), np.cumsum(w * dt[:, None], axis=0)])
+    edges = np.concatenate([[t_imu[0] - dt[0]], t_imu])
+    t = gt.values[:, 0]
+    inside = (t >= edges[0]) & (t <= edges[-1])
+    if inside.sum() < 10:
+        return None
+    turned = np.stack([np.interp(t[inside], edges, cum[:, j]) for j in range(3)], axis=1)
+    gyro = np.sqrt(np.mean(np.sum(np.diff(turned, axis=0) ** 2, axis=1)))
+    euler = np.unwrap(gt.values[inside, 7:10], axis=0)
+    truth = np.sqrt(np.mean(np.sum(np.diff(euler, axis=0) ** 2, axis=1)))
+    if gyro < MIN_TURN:
+        return None
+    ratio = truth / gyro
+    if 1 / ANGLE_RATIO <= ratio <= ANGLE_RATIO:
+        return None
+    header = ", ".join(repr(gt.labels[j]) for j in (7, 8, 9))
+    guess = "rad under a [deg] header" if ratio < 1 else "deg under a [rad] header"
+    return (
+        f"{gt.where}: columns {header} turn {ratio:.3g} times as much as the gyro between "
+        f"rows; are the angles in {guess}?"
+    )
+
+
+def long_lever_arm(arm: tuple[float, float, float], name: str) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a lever arm beyond :data:`LONG_LEVER_ARM`."""
+    longest = max(abs(v) for v in arm)
+    if longest > LONG_LEVER_ARM:
+        shown = ",".join(f"{v:g}" for v in arm)
+        warnings.warn(
+            f"{name}: {shown} m reaches {longest:g} m from the ground-truth point, beyond "
+            f"{LONG_LEVER_ARM:g} m; typed in cm or mm? (used as given)",
+            PlausibilityWarning,
+            stacklevel=3,
+        )

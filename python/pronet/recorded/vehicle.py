@@ -1,0 +1,184 @@
+"""Your own vehicle's filter tuning for ``pronet real --filter FILE.toml``: the keys of a
+scenario file's ``[filter]`` table (:data:`pronet.config.FILTER_KEYS`), an IMU grade
+preset and the lever arms, over the FOG defaults of
+:func:`pronet.recorded.tuning.real_filter_config`.
+
+A file, every key optional::
+
+    grade = "mems"                      # "mems", "tactical" or "fog" (GRADES): its P0
+                                        # biases and bias random-walk PSDs, applied first
+    p0_sigma = [...]                    # 15 initial 1σ, as FilterConfig (overrides grade)
+    accel_bias_psd = 2.5e-7             # (m/s²)²/s
+    gyro_bias_psd = 7.5e-9              # (rad/s)²/s
+    dvl_variance = [1e-4, 1e-4, 1e-4]   # the DVL noise R [(m/s)²] (the "datasheet" R)
+    aiding = "body"; innovation_gate = 16.27; formulation = "invariant"
+    imu_lever_arm = [0.0, 0.0, 0.0]     # IMU from the ground-truth point [m, body FRD]
+    dvl_lever_arm = [0.5, 0.0, 0.3]     # DVL from the ground-truth point [m, body FRD]
+    # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
+                                        # imu_lever_arm beside it (not dvl_lever_arm)
+
+``imu_dt`` is refused: ``pronet real`` uses each section's own IMU step
+(:func:`pronet.recorded.tuning.imu_step`). ``--filter mems`` (a grade's name, not a
+file) is the preset alone.
+
+The grades (:data:`GRADES`) take their turn-on biases from the classes of N. El-Sheimy
+and A. Youssef, "Inertial sensors technologies for navigation applications: state of the
+art and future trends", Satellite Navigation 1, 2 (2020), Table 1: navigation grade
+(``fog``) accelerometer bias < 100 µg and gyro drift < 0.01 °/h (here the FOG
+defaults, 50 µg and 0.2 °/h, a Phins-class INS as on the Snapir AUV); tactical grade
+1–5 mg and 1–10 °/h (here 3 mg and 5 °/h); commercial MEMS 100–1000 µg and 0.1 °/s
+(here 1 mg and 0.1 °/s). Their bias random walks take each turn-on bias as the drift
+over 400 s (PSD = bias² / 400 s), as the FOG defaults do (1e-9 (m/s²)²/s and 1e-14
+(rad/s)²/s are 6e-4 m/s² and 2e-6 rad/s over 400 s). Position, velocity and attitude
+start from the ground truth in every grade (0.1 m, 0.02 m/s, 0.01°/0.06°).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pronet import _core
+from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
+from pronet.recorded.alignment import lever_arm
+from pronet.recorded.plausible import long_lever_arm
+from pronet.recorded.tuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
+
+_G = 9.80665
+_DEG_PER_H = math.pi / 180 / 3600
+
+
+def _grade(accel_bias: float, gyro_bias: float) -> dict[str, Any]:
+    """P0 and bias walks of a grade from its turn-on biases [m/s², rad/s]."""
+    return {
+        "p0_sigma": REAL_P0_SIGMA[:9] + (accel_bias,) * 3 + (gyro_bias,) * 3,
+        "accel_bias_psd": accel_bias**2 / 400.0,
+        "gyro_bias_psd": gyro_bias**2 / 400.0,
+    }
+
+
+#: The IMU grade presets (see the module docstring for their sources): the 15 initial
+#: 1σ and the bias random-walk PSDs of a ``FilterConfig``.
+GRADES: dict[str, dict[str, Any]] = {
+    "fog": {
+        "p0_sigma": REAL_P0_SIGMA,
+        "accel_bias_psd": REAL_ACCEL_BIAS_PSD,
+        "gyro_bias_psd": REAL_GYRO_BIAS_PSD,
+    },
+    "tactical": _grade(3e-3 * _G, 5.0 * _DEG_PER_H),
+    "mems": _grade(1e-3 * _G, 0.1 * 3600 * _DEG_PER_H),
+}
+
+#: Keys of a ``--filter`` file beside :data:`pronet.config.FILTER_KEYS`.
+VEHICLE_KEYS = ("grade", "imu_lever_arm", "dvl_lever_arm")
+
+
+@dataclass(frozen=True)
+class VehicleTuning:
+    """A vehicle's tuning from a ``--filter`` file or a grade's name.
+
+    Attributes:
+        base: the filter tuning (lever arm aside: each section's).
+        imu_lever_arm, dvl_lever_arm: the sensors from the ground-truth point [m, body
+            FRD], or None where the file does not say.
+        source: the file, or the grade's name.
+    """
+
+    base: _core.FilterConfig
+    imu_lever_arm: tuple[float, float, float] | None
+    dvl_lever_arm: tuple[float, float, float] | None
+    source: str
+
+
+def _arm(value: Any, where: str) -> tuple[float, float, float]:
+    try:
+        a = lever_arm(value, where)
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return float(a[0]), float(a[1]), float(a[2])
+
+
+def grade_config(name: str, where: str = "grade") -> _core.FilterConfig:
+    """The FOG defaults of :func:`pronet.recorded.tuning.real_filter_config` with the
+    P0 and bias walks of the grade ``name`` (:data:`GRADES`)."""
+    if name not in GRADES:
+        raise ConfigError(f"{where}: must be one of {', '.join(GRADES)}, got {name!r}")
+    from pronet.recorded.tuning import real_filter_config
+
+    return filter_config(GRADES[name], where, real_filter_config((0.0, 0.0, 0.0)))
+
+
+def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
+    """The tuning of ``--filter``: a TOML file (see the module docstring), or the name
+    of a grade (:data:`GRADES`) when no such file exists. ``ConfigError`` (a
+    ``ValueError``) naming the file and key for anything wrong."""
+    text = str(path_or_grade)
+    if text in GRADES and not Path(text).exists():
+        return VehicleTuning(grade_config(text, "--filter"), None, None, text)
+    path = Path(text)
+    table = read_toml(path)
+    where = f"{path}:"
+    unknown = sorted(set(table) - set(FILTER_KEYS) - set(VEHICLE_KEYS))
+    if unknown:
+        known = ", ".join((*FILTER_KEYS, *VEHICLE_KEYS))
+        raise ConfigError(f"{where} unknown key {unknown[0]!r}; known: {known}")
+    if "imu_dt" in table:
+        raise ConfigError(
+            f"{where} imu_dt: pronet real uses each section's own IMU step (imu_dt_s in "
+            "config.json); leave it out"
+        )
+    grade = table.get("grade", "fog")
+    if not isinstance(grade, str):
+        raise ConfigError(f"{where} grade: must be a string, got {grade!r}")
+    base = grade_config(grade, f"{where} grade")
+    filter_keys = {k: v for k, v in table.items() if k in FILTER_KEYS and k != "lever_arm"}
+    base = filter_config(filter_keys, where, base)
+    imu, dvl = (
+        _arm(table[key], f"{where} {key}") if key in table else None
+        for key in ("imu_lever_arm", "dvl_lever_arm")
+    )
+    if "lever_arm" in table:
+        if imu is None or dvl is not None:
+            raise ConfigError(
+                f"{where} lever_arm: the DVL from the IMU needs imu_lever_arm beside it (the "
+                "IMU from the ground-truth point) and no dvl_lever_arm"
+            )
+        arm = _arm(table["lever_arm"], f"{where} lever_arm")
+        d = np.add(imu, arm)
+        dvl = (float(d[0]), float(d[1]), float(d[2]))
+    return VehicleTuning(base, imu, dvl, str(path))
+
+
+def lever_arms(
+    fmt: str,
+    imu: tuple[float, float, float] | None,
+    dvl: tuple[float, float, float] | None,
+    vehicle: VehicleTuning | None,
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The lever arms of :func:`pronet.recorded.real.run_real` (given, else the
+    vehicle's, else Snapir's for its own format), checked; ValueError when the generic
+    format has none."""
+    from pronet.recorded.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
+
+    if vehicle is not None:
+        imu = vehicle.imu_lever_arm if imu is None else imu
+        dvl = vehicle.dvl_lever_arm if dvl is None else dvl
+    if fmt == "snapir":
+        imu = SNAPIR_IMU_LEVER_ARM if imu is None else imu
+        dvl = SNAPIR_DVL_LEVER_ARM if dvl is None else dvl
+    for value, name in ((imu, "imu_lever_arm"), (dvl, "dvl_lever_arm")):
+        if value is not None:  # a given arm's own error first, then its length
+            lever_arm(value, name)
+            long_lever_arm(value, name)
+    missing = [n for n, v in (("--imu-lever-arm", imu), ("--dvl-lever-arm", dvl)) if v is None]
+    if missing or imu is None or dvl is None:
+        raise ValueError(
+            f"--format {fmt}: needs the lever arms ({' and '.join(missing)}, or "
+            "imu_lever_arm/dvl_lever_arm in --filter): the IMU's and the DVL's positions "
+            "from the ground-truth point [m, body FRD]; give 0,0,0 for a truth at a sensor"
+        )
+    return imu, dvl

@@ -1,0 +1,148 @@
+"""Implausible data that used to run (issue 37, point 5): each case is one line on
+stderr naming the file and column, exit 2 (a warning where the data is usable)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pronet.cli import main
+from pronet.recorded.recordings import write_recording
+
+from synthetic_recording import synthetic_recording
+
+
+@pytest.fixture(scope="module")
+def recording():
+    return synthetic_recording(seed=4, duration=70.0, name="s").recording
+
+
+def _edit(folder, kind, change):
+    path = folder / f"{kind}.csv"
+    table = pd.read_csv(path)
+    table = change(table)
+    table.to_csv(path, index=False, float_format="%.17g")
+
+
+def _gyro_dead(t):
+    t["gyro_y [rad/s]"] = 0.0
+    return t
+
+
+def _angles_in_rad_under_deg(t):
+    return t.rename(
+        columns={c: c.replace("[rad]", "[deg]") for c in ("roll [rad]", "pitch [rad]", "yaw [rad]")}
+    )
+
+
+def _twice(t):
+    t.insert(len(t.columns), "acc_x [m/s^2].1", t["acc_x [m/s^2]"] * 0)
+    return t.rename(columns={"acc_x [m/s^2].1": "acc_x [m/s^2]"})
+
+
+def _in_cm_per_s(t):
+    for c in ("vel_n [m/s]", "vel_e [m/s]", "vel_d [m/s]"):
+        t[c] = t[c] * 100
+    return t
+
+
+def _unix(t):
+    t["time [s]"] = t["time [s]"] + 1.7e9
+    return t
+
+
+def _dvl_stuck(t):
+    t["vel_z [m/s]"] = 0.25
+    return t
+
+
+@pytest.mark.parametrize(
+    ("kind", "change", "expected"),
+    [
+        (
+            "imu",
+            _gyro_dead,
+            r"imu.csv: column 'gyro_y \[rad/s\]' is 0 in every one of its \d+ rows: a stuck or "
+            r"dead channel",
+        ),
+        ("dvl", _dvl_stuck, r"dvl.csv: column 'vel_z \[m/s\]' is 0.25 in every one"),
+        (
+            "gt",
+            _angles_in_rad_under_deg,
+            r"gt.csv: columns 'roll \[deg\]', 'pitch \[deg\]', 'yaw \[deg\]' turn 0.0\d+ times "
+            r"as much as the gyro between rows; are the angles in rad under a \[deg\] header\?",
+        ),
+        (
+            "imu",
+            _twice,
+            r"imu.csv: column 'acc_x' appears 2 times \(columns 2 \('acc_x \[m/s\^2\]'\) and 8",
+        ),
+        (
+            "gt",
+            _in_cm_per_s,
+            r"gt.csv, row \d+: column 'vel_\w \[m/s\]' is -?\d+\.?\d* m/s, beyond any "
+            r"underwater vehicle",
+        ),
+        (
+            "gt",
+            _unix,
+            r"gt.csv: column 'time \[s\]' runs 1700000\d+.* the gt and IMU stamps do not overlap",
+        ),
+    ],
+)
+def test_implausible_data_is_one_line_naming_file_and_column(
+    tmp_path, capsys, recording, kind, change, expected
+):
+    write_recording(tmp_path / "s", recording)
+    _edit(tmp_path / "s", kind, change)
+    argv = [
+        "real",
+        "--data",
+        str(tmp_path / "s"),
+        "--format",
+        "generic",
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    assert main([*argv, "--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("pronet: section s: ") and re.search(expected, err), err
+
+
+def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recording):
+    """Arms typed in cm (185 m) are usable: a warning naming the option, the run goes on;
+    in mm (1.85 km) they are an error (tests/hostile)."""
+    write_recording(tmp_path / "s", recording)
+    argv = [
+        "real",
+        "--data",
+        str(tmp_path / "s"),
+        "--format",
+        "generic",
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    argv += [
+        "--imu-lever-arm=0,0,0",
+        "--dvl-lever-arm=-185,-3,12",
+        "--no-models",
+        "--no-plots",
+        "--quiet",
+    ]
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "pronet: warning: dvl_lever_arm: -185,-3,12 m reaches 185 m from the ground-truth "
+        "point, beyond 10 m; typed in cm or mm? (used as given)"
+    ]
+
+
+def test_the_synthetic_and_snapir_like_data_pass_every_check(tmp_path, recording):
+    from pronet.recorded.recordings import read_recording
+
+    write_recording(tmp_path / "s", recording)
+    assert np.array_equal(read_recording(tmp_path / "s").imu, recording.imu)

@@ -1,0 +1,138 @@
+"""Your own vehicle (issue 37, point 4): ``pronet real --filter FILE.toml`` with a
+scenario's ``[filter]`` keys, the grade presets and the lever arms; the generic format
+requires the lever arms; ``--data`` takes one ``.npz``."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pronet.cli import main
+from pronet.config import ConfigError
+from pronet.recorded import vehicle
+from pronet.recorded.recordings import write_recording
+from pronet.recorded.tuning import REAL_P0_SIGMA, real_filter_config
+
+from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording
+
+
+def _toml(path, text):
+    path.write_text(text)
+    return str(path)
+
+
+def _arms_toml() -> str:
+    return f"imu_lever_arm = {list(IMU_LEVER_ARM)}\ndvl_lever_arm = {list(DVL_LEVER_ARM)}\n"
+
+
+def _summary_row(table_md: str, label: str) -> list[str]:
+    """The cells of ``label``'s row in table.md's first (summary) table."""
+    for line in table_md.splitlines():
+        if line.startswith(f"| {label} |"):
+            return [c.strip() for c in line.strip("|").split("|")]
+    raise AssertionError(f"no row {label!r}")
+
+
+def test_pronet_real_with_mems_toml_is_consistent_on_a_simulated_mems_recording(
+    tmp_path, capsys
+):
+    """The acceptance case: a MEMS recording simulated with the mems grade's turn-on
+    bias (drawn from its P0) and bias walks, written in the generic format, run with
+    ``--filter mems.toml`` telling the filter that model: the velocity error lies within
+    its 3σ at >= 95 % of the truth rows."""
+    grade = vehicle.GRADES["mems"]
+    rng = np.random.default_rng(11)
+    bias = tuple(rng.normal(size=6) * np.array(grade["p0_sigma"][9:]))
+    psd = (grade["accel_bias_psd"],) * 3 + (grade["gyro_bias_psd"],) * 3
+    rec = synthetic_recording(
+        seed=11, duration=200.0, name="mems", imu_bias=bias, bias_psd=psd
+    ).recording
+    write_recording(tmp_path / "mems.npz", rec)
+    toml = _toml(
+        tmp_path / "mems.toml", 'grade = "mems"\ndvl_variance = [1e-4, 1e-4, 1e-4]\n' + _arms_toml()
+    )
+    out = tmp_path / "out"
+    argv = ["real", "--data", str(tmp_path / "mems.npz"), "--format", "generic"]
+    assert main([*argv, "--filter", toml, "--out", str(out), "--quiet", "--no-plots"]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["filter_file"] == toml and config["sections"] == ["mems"]
+    assert 'dvl_variance=[0.0001, 0.0001, 0.0001]' in config["filter"]
+    assert config["dvl_variance"]["mems"]["used"] == [1e-4] * 3
+    table = (out / "table.md").read_text()
+    within = float(_summary_row(table, "constant (estimated q)")[-1])
+    assert within >= 0.95, table
+    # the FOG tuning, told nothing of the MEMS biases, is not consistent on it
+    fog = tmp_path / "fog"
+    assert main([*argv, *_arms(), "--out", str(fog), "--quiet", "--no-plots", "--no-models"]) == 0
+    fog_within = float(_summary_row((fog / "table.md").read_text(), "constant (estimated q)")[-1])
+    assert fog_within < within
+    capsys.readouterr()
+
+
+def _arms() -> list[str]:
+    return [
+        "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM)),
+        "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM)),
+    ]
+
+
+def test_the_grades_and_the_keys_of_a_filter_file(tmp_path):
+    fog = vehicle.load_vehicle("fog").base
+    default = real_filter_config((0.0, 0.0, 0.0))
+    assert repr(fog) == repr(default)  # the fog grade is the default tuning
+    mems = vehicle.load_vehicle("mems").base
+    assert mems.p0_sigma[:9] == list(REAL_P0_SIGMA[:9])
+    assert mems.p0_sigma[9] == pytest.approx(9.80665e-3) and mems.gyro_bias_psd > 1e-10
+    tactical = vehicle.load_vehicle(
+        _toml(tmp_path / "t.toml", 'grade = "tactical"\ngyro_bias_psd = 1e-13\n')
+    )
+    assert tactical.base.gyro_bias_psd == 1e-13  # a key over its grade
+    assert tactical.base.p0_sigma[12] == pytest.approx(5 * np.pi / 180 / 3600)
+    assert tactical.imu_lever_arm is None and tactical.dvl_lever_arm is None
+    own = vehicle.load_vehicle(
+        _toml(tmp_path / "o.toml", "imu_lever_arm = [1, 0, 0]\nlever_arm = [0, 0, 0.5]\n")
+    )
+    assert own.dvl_lever_arm == (1.0, 0.0, 0.5)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('grade = "nav"\n', r"grade: must be one of fog, tactical, mems, got 'nav'"),
+        ("imu_dt = 0.005\n", r"imu_dt: pronet real uses each section's own IMU step"),
+        ("p0 = 1\n", r"unknown key 'p0'"),
+        ("accel_bias_psd = -1\n", r"accel_bias_psd"),
+        ("lever_arm = [0, 0, 1]\n", r"lever_arm: the DVL from the IMU needs imu_lever_arm"),
+        ("dvl_lever_arm = [1800, 0, 0]\n", r"dvl_lever_arm: must be within"),
+    ],
+)
+def test_a_bad_filter_file_is_one_line_naming_file_and_key(tmp_path, capsys, text, message):
+    path = _toml(tmp_path / "bad.toml", text)
+    with pytest.raises(ConfigError, match=message):
+        vehicle.load_vehicle(path)
+    argv = ["real", "--data", str(tmp_path), "--filter", path, "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "bad.toml" in err
+
+
+def test_the_generic_format_requires_the_lever_arms(tmp_path, capsys):
+    rec = synthetic_recording(seed=1, duration=70.0, name="s").recording
+    write_recording(tmp_path / "s", rec)
+    argv = ["real", "--data", str(tmp_path / "s"), "--format", "generic", "--quiet"]
+    out = tmp_path / "o"
+    assert main([*argv, "--out", str(out), "--imu-lever-arm=0,0,0"]) == 2
+    err = capsys.readouterr().err
+    assert "--format generic: needs the lever arms (--dvl-lever-arm" in err
+    assert not out.exists()
+    # an explicit 0,0,0 is an answer: it runs (on a folder of CSVs as one section)
+    zero = ["--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0", "--no-plots", "--no-models"]
+    assert main([*argv, "--out", str(out), *zero]) == 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["imu_lever_arm_m"] == [0, 0, 0] and config["sections"] == ["s"]
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert set(metrics.scenario.str.split(" ").str[0]) == {"s"}
+    capsys.readouterr()
