@@ -148,6 +148,34 @@ def test_ensemble_takes_monte_carlos_arguments_and_returns_its_result(paper_traj
         np.testing.assert_array_equal(getattr(tuned, name), getattr(const, name), err_msg=name)
 
 
+def test_a_covariance_step_keeps_every_strategy_and_recording_changes_no_run(
+    paper_trajectory,
+) -> None:
+    """At a 0.07 s covariance step (seven samples, so that the DVL updates and the
+    tunings fall inside intervals): the history samples are brought up to date on a
+    copy, so a run with them is the run without; an untuned ensemble is a constant
+    strategy run for run; q set from outside between two tunings takes effect; Mehra
+    and the adaptive strategy run to the end."""
+    step = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14, covariance_step=0.07)
+    args = dict(config=step, n_runs=2, seed=3)
+    const = pronet.Strategy.constant(PAPER_Q)
+    plain = pronet.monte_carlo(paper_trajectory, const, **args)
+    recorded = pronet.monte_carlo(paper_trajectory, const, record_every=37, **args)
+    assert recorded.sigma is not None and np.isfinite(recorded.sigma).all()
+    untuned = pronet.Ensemble(paper_trajectory, PAPER_Q, **args).finish()
+    for name in ("srmse", "nis", "nees", "final_horizontal_error"):
+        np.testing.assert_array_equal(getattr(recorded, name), getattr(plain, name), name)
+        np.testing.assert_array_equal(getattr(untuned, name), getattr(plain, name), name)
+    ens = pronet.Ensemble(paper_trajectory, PAPER_Q, window=100, tuning_period=5.0, **args)
+    while ens.advance() is not None:
+        ens.set_q(np.full((2, 6), 16.0) * np.asarray(PAPER_Q))
+    tuned = ens.finish()
+    assert np.isfinite(tuned.nis).all() and not np.array_equal(tuned.nis, plain.nis)
+    for strategy in (pronet.Strategy.mehra(5, PAPER_Q), pronet.Strategy.adaptive(60, PAPER_Q)):
+        r = pronet.monte_carlo(paper_trajectory, strategy, **args)
+        assert r.n_failed == 0 and np.isfinite(r.nees).all()
+
+
 def test_shards_concat_and_results_convert_to_dataframes(paper_trajectory) -> None:
     from pronet import results, run
     from pronet.sim import paper, scenarios

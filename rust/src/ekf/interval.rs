@@ -274,4 +274,37 @@ mod tests {
         }
         assert!(ekf.interval.is_none());
     }
+
+    /// A q changed inside a step counts from its sample on: P is affine in the summed
+    /// noise, so q_a for five samples and q_b for five gives the mean of the two
+    /// filters' covariances (without updates the state, and with it F, is the same).
+    #[test]
+    fn a_q_changed_inside_a_step_counts_from_its_sample() {
+        let cfg = FilterConfig {
+            covariance_step: 0.1,
+            ..FilterConfig::default()
+        };
+        let bias = cfg.bias_psd();
+        let sample = ImuSample::from_array(&[0.3, -0.2, -9.79, 0.01, 0.004, 0.05]);
+        let run = |first: &[f64; 6], second: &[f64; 6]| {
+            let mut ekf =
+                Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
+            for k in 0..10 {
+                let noise = ProcessNoise::Continuous {
+                    imu_variance: if k < 5 { first } else { second },
+                    bias_psd: &bias,
+                };
+                ekf.propagate(&sample, 0.01, noise).unwrap();
+            }
+            assert!(ekf.interval.is_none(), "the tenth sample closes the step");
+            ekf.p
+        };
+        let loud = Q.map(|v| 9.0 * v);
+        let (quiet, noisy, mixed) = (run(&Q, &Q), run(&loud, &loud), run(&Q, &loud));
+        // Against the part of P that q moves (the prior's variances are far larger).
+        let moved = noisy - quiet;
+        assert!(moved.abs().max() > 0.0, "q mattered");
+        let off = (mixed - quiet - moved * 0.5).abs().max();
+        assert!(off < 1e-6 * moved.abs().max(), "{off}");
+    }
 }
