@@ -39,6 +39,7 @@ __all__ = [
     "run_filter",
     "monte_carlo",
     "check_result_size",
+    "check_smoothable",
     "check_threads",
     "max_threads",
     "Ensemble",
@@ -351,6 +352,11 @@ def monte_carlo(
     ``smoothed``: ``srmse``, ``smae``, ``final_horizontal_error``,
     ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
     ``sigma``)."""
+
+def check_smoothable(config: FilterConfig) -> None:
+    """``ValueError`` naming ``smooth`` if the RTS smoother cannot smooth a filter of
+    ``config`` (the DVL calibration states; a covariance step above one IMU sample), as
+    :func:`monte_carlo` checks with ``smooth=True``; nothing is run."""
 
 def check_result_size(
     trajectory: Trajectory, sensors: SensorConfig, *, n_runs: int, record_every: int = 0

@@ -16,6 +16,7 @@ same noise realizations (common random numbers) so that their differences are pa
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -99,6 +100,7 @@ def run(
     record_every: int = ...,
     first_run: int = ...,
     threads: int | None = ...,
+    smooth: bool = ...,
 ) -> SimulatedRun: ...
 
 
@@ -115,6 +117,7 @@ def run(
     record_every: int = 0,
     first_run: int = 0,
     threads: int | None = None,
+    smooth: bool = False,
 ) -> SimulatedRun | RecordedRun:
     """Run ``strategy`` on a simulated scenario or on recorded sensors.
 
@@ -123,13 +126,15 @@ def run(
             :class:`~pronet.strategies.Learned` regressor.
         target: a :class:`~pronet.sim.scenarios.Scenario` (Monte Carlo) or
             :class:`Recorded` sensors (one filter pass).
-        n_runs, seed, record_every, first_run, threads: the Monte Carlo on a scenario
-            (see :func:`pronet.monte_carlo`); a recorded run takes none of them.
+        n_runs, seed, record_every, first_run, threads, smooth: the Monte Carlo on a
+            scenario (see :func:`pronet.monte_carlo`); a recorded run takes none of
+            them (``run_filter(smooth=True)`` smooths one pass).
     """
     if isinstance(target, Recorded):
-        if (n_runs, seed, record_every, first_run, threads) != (100, 0, 0, 0, None):
+        given = (n_runs, seed, record_every, first_run, threads, smooth)
+        if given != (100, 0, 0, 0, None, False):
             raise ValueError(
-                "run: n_runs, seed, record_every, first_run and threads are "
+                "run: n_runs, seed, record_every, first_run, threads and smooth are "
                 "for simulated scenarios; a recorded run takes none of them"
             )
         return _recorded(strategy, target)
@@ -144,6 +149,7 @@ def run(
         threads=threads,
         record_every=record_every,
         first_run=first_run,
+        smooth=smooth,
     )
     if isinstance(strategy, Learned):
         h = run_hybrid(
@@ -255,10 +261,18 @@ def run_strategies(
     record_every: int = 0,
     on_done: Callable[[str], None] | None = None,
     shards: ShardStore | None = None,
+    smooth: bool = False,
 ) -> list[Row]:
     """Run every strategy on the same noise realizations (same seed); the first strategy
     is the reference for the paired differences. With ``shards``, each finished strategy
-    is saved there at once, and one already saved is loaded instead of rerun."""
+    is saved there at once, and one already saved is loaded instead of rerun. With
+    ``smooth``, each strategy's row is followed by its RTS-smoothed one (labelled
+    ``"<label>, smoothed"``, paired against the first strategy's filter too); shards
+    keep no smoothed result, so the two do not go together."""
+    if smooth and shards is not None:
+        raise ValueError("smooth: saved shards keep no smoothed result; run without them")
+    if smooth:
+        _core.check_smoothable(scenario.config)
     for label, strategy in strategies.items():  # all of them before any computing
         check_acts(strategy, scenario, label)
     results: dict[str, tuple[MonteCarloResult, HybridResult | None]] = {}
@@ -276,6 +290,7 @@ def run_strategies(
                 seed=seed,
                 threads=threads,
                 record_every=record_every,
+                smooth=smooth,
             )
             results[label] = (done.result, done.hybrid)
             if shards is not None:
@@ -283,8 +298,9 @@ def run_strategies(
         if on_done is not None:
             on_done(label)
     ref = next(iter(results.values()))[0]
-    return [
-        Row(
+
+    def row(label: str, r: MonteCarloResult, h: HybridResult | None) -> Row:
+        return Row(
             label=label,
             result=r,
             srmse=mean_ci(r.srmse, NON_NEGATIVE),
@@ -294,5 +310,15 @@ def run_strategies(
             hybrid=h,
             tuning_period=periods[label],
         )
-        for label, (r, h) in results.items()
-    ]
+
+    rows = []
+    for label, (r, h) in results.items():
+        rows.append(row(label, r, h))
+        if r.smoothed is not None:
+            smoothed = row(label, r.smoothed, h)
+            rows.append(dataclasses.replace(smoothed, label=f"{label}, {SMOOTHED}"))
+    return rows
+
+
+#: The suffix of a smoothed row's label (``run_strategies(smooth=True)``).
+SMOOTHED = "smoothed"

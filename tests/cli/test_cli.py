@@ -221,6 +221,16 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     assert "covariance_step=0.1" in json.loads((stepped / "config.json").read_text())["filter"]
     (step,) = json.loads((stepped / "metrics.json").read_text())
     assert step["srmse"] != repeat["srmse"]
+    # --smooth: each row followed by its smoothed one, recorded (Mehra's Q on the paper's
+    # filter is no model the smoother can trust: its row may come out either way)
+    smoothed = tmp_path / "smoothed"
+    argv[argv.index(str(stepped))] = str(smoothed)
+    assert cli.main([*argv, "--smooth"]) == 0
+    rows = json.loads((smoothed / "metrics.json").read_text())
+    assert [r["strategy"] for r in rows] == ["mehra:5", "mehra:5, smoothed"]
+    assert rows[0]["srmse"] == repeat["srmse"] and rows[1]["srmse"] != rows[0]["srmse"]
+    assert json.loads((smoothed / "config.json").read_text())["smooth"] is True
+    assert "| mehra:5, smoothed |" in (smoothed / "table.md").read_text()
 
 
 @pytest.mark.parametrize(
@@ -237,6 +247,7 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
         (["--threads", "0"], "--threads: expected 1 to "),
         (["--covariance-step", "-1"], "--covariance-step: covariance_step: must be a finite"),
         (["--covariance-step", "nan"], "--covariance-step: covariance_step: must be a finite"),
+        (["--smooth", "--covariance-step", "0.1"], "smooth: the smoother needs the covariance"),
     ],
 )
 def test_simulate_refuses_bad_input_before_any_work(

@@ -75,6 +75,13 @@ def add_parser(sub: Subparsers) -> None:
         help="seconds between the saved history samples the plots use (default 1 s)",
     )
     add_tuning_period(parser)
+    parser.add_argument(
+        "--smooth",
+        action="store_true",
+        help="also run the RTS smoother over every run: each strategy's row is followed by "
+        "its smoothed one ('<spec>, smoothed'); not with --covariance-step above one IMU "
+        "sample or the DVL calibration states",
+    )
     add_no_plots(parser)
     add_result_folder(parser, "simulate")
     add_output_flags(parser)
@@ -99,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
             threads=args.threads,
             record_every=args.record_every,
             tuning_period=args.tuning_period,
+            smooth=args.smooth,
             plots=not args.no_plots,
             say=bars.say,
             on_start=bars.start,

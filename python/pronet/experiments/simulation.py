@@ -10,6 +10,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from pronet import _core
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.validate import threads as threads_arg
 from pronet.results import table_title, write_result_folder
@@ -79,6 +80,7 @@ def simulate(
     threads: int | None = None,
     record_every: float = 1.0,
     tuning_period: float = 1.0,
+    smooth: bool = False,
     plots: bool = True,
     say: Say | None = None,
     on_start: OnStart | None = None,
@@ -107,6 +109,8 @@ def simulate(
             ``RAYON_NUM_THREADS``).
         record_every: seconds between the saved history samples the plots use (> 0).
         tuning_period: seconds between regressor calls of learned strategies (> 0).
+        smooth: also the RTS smoother over every run: each strategy's row is followed
+            by its smoothed one (``"<spec>, smoothed"``; see :func:`pronet.monte_carlo`).
         plots: False: the tables, metrics and config only (the plots take most of the
             time of a short run).
         say, on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`); one
@@ -117,6 +121,8 @@ def simulate(
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
     sc = _scenario(scenario, filter_config, seed, formulation, covariance_step)
+    if smooth:
+        _core.check_smoothable(sc.config)
     parsed = _specs(specs)
     strategies = {spec.text: strategy(spec, sc.q_nominal, tuning_period) for spec in parsed}
     out = new_result_folder(out, "simulate")
@@ -135,6 +141,7 @@ def simulate(
         threads=threads,
         record_every=max(1, round(record_every / sc.trajectory.dt)),
         on_done=on_done,
+        smooth=smooth,
     )
     settings: dict[str, object] = {
         "scenario": scenario.name if isinstance(scenario, Scenario) else str(scenario),
@@ -147,6 +154,7 @@ def simulate(
         "n_runs": n_runs,
         "seed": seed,
         "tuning_period_s": tuning_period,
+        "smooth": smooth,
     }
     return write_result_folder(
         out,

@@ -110,6 +110,7 @@ def run_hybrid(
     sample_initial_error: bool = True,
     threads: int | None = None,
     first_run: int = 0,
+    smooth: bool = False,
 ) -> HybridResult:
     """Monte Carlo with the process noise set by ``regressor`` while the filters run.
 
@@ -126,6 +127,8 @@ def run_hybrid(
         record_every: keep error, 1σ and q histories every this many IMU steps.
         sample_initial_error, threads, first_run: as for :func:`pronet.monte_carlo`
             (a shard of runs ``first_run .. first_run + n_runs`` sees their noise).
+        smooth: also the RTS smoother over every run, as for :func:`pronet.monte_carlo`
+            (the result's ``smoothed``).
     """
     if not callable(getattr(regressor, "predict", None)):
         raise ValueError(
@@ -150,6 +153,7 @@ def run_hybrid(
         sample_initial_error=sample_initial_error,
         threads=threads,
         first_run=first_run,
+        smooth=smooth,
     )
     return _drive(ens, for_loop(regressor, threads), prior, guardrails)
 
