@@ -45,6 +45,10 @@ def _angles_in_rad_under_deg(t):
     )
 
 
+def _position_in_rad_under_deg(t):
+    return t.rename(columns={"lat [rad]": "lat [deg]", "lon [rad]": "lon [deg]"})
+
+
 def _twice(t):
     t.insert(len(t.columns), "acc_x [m/s^2].1", t["acc_x [m/s^2]"] * 0)
     return t.rename(columns={"acc_x [m/s^2].1": "acc_x [m/s^2]"})
@@ -74,6 +78,12 @@ def _dvl_stuck(t):
             _gyro_dead,
             r"imu.csv: column 'gyro_y \[rad/s\]' is 0 in every one of its \d+ rows: a stuck or "
             r"dead channel",
+        ),
+        (
+            "gt",
+            _position_in_rad_under_deg,
+            r"gt.csv: columns 'lat \[deg\]', 'lon \[deg\]' move 0.0\d+ times as far as the "
+            r"velocity between rows; are they in rad under a \[deg\] header\?",
         ),
         ("dvl", _dvl_stuck, r"dvl.csv: column 'vel_z \[m/s\]' is 0.25 in every one"),
         (

@@ -532,6 +532,7 @@ def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
         plausible.stuck_channels(tables["imu"], range(1, 7)),
         plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped),
         plausible.attitude_units(tables["imu"], tables["gt"]),
+        plausible.position_units(tables["gt"]),
     ):
         if problem is not None:
             raise RecordingError(problem)
