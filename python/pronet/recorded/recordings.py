@@ -204,7 +204,8 @@ def read_recording(path: str | Path) -> Recording:
 
 def write_recording(path: str | Path, recording: Recording) -> Path:
     """Write ``recording`` in the generic format: an ``.npz`` file if ``path`` ends in
-    ``.npz``, else a folder of three CSV files (SI units, full precision)."""
+    ``.npz``, else a folder of three CSV files (SI units, full precision). The DVL rows
+    skipped as missing readings are not in it (only the readings the filter uses)."""
     path = Path(path)
     tables = _as_tables(recording)
     path.parent.mkdir(parents=True, exist_ok=True)
