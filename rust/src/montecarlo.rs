@@ -500,6 +500,47 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_dvl_dropout_misses_updates_on_any_thread_count_and_unset_changes_nothing() {
+        let plain = short_scenario(60.0);
+        let mut lossy = (*plain).clone();
+        lossy.sensors.dvl.dropout = Some(crate::sensors::DvlDropout {
+            mean_interval: 15.0,
+            mean_length: 5.0,
+        });
+        let opts = McOptions {
+            n_runs: 4,
+            seed: 3,
+            record_every: 0,
+            first_run: 0,
+            smooth: false,
+        };
+        let strat = StrategySpec::Constant { q: TRUE_Q };
+        let lossy = Arc::new(lossy);
+        let run = |sc: &Arc<Scenario>, threads| {
+            with_threads(Some(threads), || {
+                run_monte_carlo(sc, &tuned_filter(), &strat, &opts)
+            })
+            .unwrap()
+            .unwrap()
+        };
+        let (one, two) = (run(&lossy, 1), run(&lossy, 2));
+        assert_eq!(format!("{one:?}"), format!("{two:?}"));
+        for r in &one.runs {
+            let lost = r.nis.iter().filter(|v| v.is_nan()).count();
+            assert!(lost > 0 && lost == r.summary.missed_updates, "{lost}");
+            assert_eq!(r.nis.len(), one.dvl_time.len());
+            assert!(r.summary.mean_nis.is_finite());
+        }
+        // unset: no missed update, and the scenario without the field set is the paper's
+        let base = run(&plain, 1);
+        assert!(base.runs.iter().all(|r| r.summary.missed_updates == 0));
+        assert!(base
+            .runs
+            .iter()
+            .all(|r| r.nis.iter().all(|v| v.is_finite())));
+    }
+
+    #[test]
     fn bad_dvl_period_is_rejected() {
         let mut sc = (*short_scenario(5.0)).clone();
         sc.sensors.dvl.period = 0.015;

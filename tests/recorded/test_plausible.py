@@ -20,6 +20,13 @@ def recording():
     return synthetic_recording(seed=4, duration=70.0, name="s").recording
 
 
+def _written(tmp_path, recording) -> list[str]:
+    """``recording`` written as CSVs under ``tmp_path / "s"``; the command that reads it."""
+    write_recording(tmp_path / "s", recording)
+    folder, out = str(tmp_path / "s"), str(tmp_path / "o")
+    return ["real", "--data", folder, "--format", "generic", "--out", out]
+
+
 def _edit(folder, kind, change):
     path = folder / f"{kind}.csv"
     table = pd.read_csv(path)
@@ -36,6 +43,10 @@ def _angles_in_rad_under_deg(t):
     return t.rename(
         columns={c: c.replace("[rad]", "[deg]") for c in ("roll [rad]", "pitch [rad]", "yaw [rad]")}
     )
+
+
+def _position_in_rad_under_deg(t):
+    return t.rename(columns={"lat [rad]": "lat [deg]", "lon [rad]": "lon [deg]"})
 
 
 def _twice(t):
@@ -68,6 +79,12 @@ def _dvl_stuck(t):
             r"imu.csv: column 'gyro_y \[rad/s\]' is 0 in every one of its \d+ rows: a stuck or "
             r"dead channel",
         ),
+        (
+            "gt",
+            _position_in_rad_under_deg,
+            r"gt.csv: columns 'lat \[deg\]', 'lon \[deg\]' move 0.0\d+ times as far as the "
+            r"velocity between rows; are they in rad under a \[deg\] header\?",
+        ),
         ("dvl", _dvl_stuck, r"dvl.csv: column 'vel_z \[m/s\]' is 0.25 in every one"),
         (
             "gt",
@@ -96,17 +113,8 @@ def _dvl_stuck(t):
 def test_implausible_data_is_one_line_naming_file_and_column(
     tmp_path, capsys, recording, kind, change, expected
 ):
-    write_recording(tmp_path / "s", recording)
+    argv = _written(tmp_path, recording)
     _edit(tmp_path / "s", kind, change)
-    argv = [
-        "real",
-        "--data",
-        str(tmp_path / "s"),
-        "--format",
-        "generic",
-        "--out",
-        str(tmp_path / "o"),
-    ]
     assert main([*argv, "--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
@@ -116,16 +124,7 @@ def test_implausible_data_is_one_line_naming_file_and_column(
 def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recording):
     """Arms typed in cm (185 m) are usable: a warning naming the option, the run goes on;
     in mm (1.85 km) they are an error (tests/hostile)."""
-    write_recording(tmp_path / "s", recording)
-    argv = [
-        "real",
-        "--data",
-        str(tmp_path / "s"),
-        "--format",
-        "generic",
-        "--out",
-        str(tmp_path / "o"),
-    ]
+    argv = _written(tmp_path, recording)
     argv += [
         "--imu-lever-arm=0,0,0",
         "--dvl-lever-arm=-185,-3,12",

@@ -36,9 +36,7 @@ def _summary_row(table_md: str, label: str) -> list[str]:
     raise AssertionError(f"no row {label!r}")
 
 
-def test_pronet_real_with_mems_toml_is_consistent_on_a_simulated_mems_recording(
-    tmp_path, capsys
-):
+def test_pronet_real_with_mems_toml_is_consistent_on_a_simulated_mems_recording(tmp_path, capsys):
     """The acceptance case: a MEMS recording simulated with the mems grade's turn-on
     bias (drawn from its P0) and bias walks, written in the generic format, run with
     ``--filter mems.toml`` telling the filter that model: the velocity error lies within
@@ -59,7 +57,7 @@ def test_pronet_real_with_mems_toml_is_consistent_on_a_simulated_mems_recording(
     assert main([*argv, "--filter", toml, "--out", str(out), "--quiet", "--no-plots"]) == 0
     config = json.loads((out / "config.json").read_text())
     assert config["filter_file"] == toml and config["sections"] == ["mems"]
-    assert 'dvl_variance=[0.0001, 0.0001, 0.0001]' in config["filter"]
+    assert "dvl_variance=[0.0001, 0.0001, 0.0001]" in config["filter"]
     assert config["dvl_variance"]["mems"]["used"] == [1e-4] * 3
     table = (out / "table.md").read_text()
     within = float(_summary_row(table, "constant (estimated q)")[-1])
@@ -92,6 +90,10 @@ def test_the_grades_and_the_keys_of_a_filter_file(tmp_path):
     assert tactical.base.gyro_bias_psd == 1e-13  # a key over its grade
     assert tactical.base.p0_sigma[12] == pytest.approx(5 * np.pi / 180 / 3600)
     assert tactical.imu_lever_arm is None and tactical.dvl_lever_arm is None
+    scenario = _toml(
+        tmp_path / "s.toml", '[trajectory]\nbuiltin = "paper"\n[filter]\ngrade = "tactical"\n'
+    )
+    assert repr(vehicle.load_vehicle(scenario).base) == repr(vehicle.load_vehicle("tactical").base)
     own = vehicle.load_vehicle(
         _toml(tmp_path / "o.toml", "imu_lever_arm = [1, 0, 0]\nlever_arm = [0, 0, 0.5]\n")
     )

@@ -15,7 +15,8 @@ increasing time, rate):
   value over the section is the same (a dead gyro reads 0);
 - angles whose unit disagrees with their header (:func:`attitude_units`): the ground
   truth's attitude turning :data:`ANGLE_RATIO` times more or less than the integrated
-  gyro (rad under a ``[deg]`` header turns 57 times less).
+  gyro (rad under a ``[deg]`` header turns 57 times less); its latitude and longitude
+  moving so much more or less than its velocity (:func:`position_units`).
 
 Lever arms beyond :data:`LONG_LEVER_ARM` are usable and only warned of
 (:func:`long_lever_arm`, a :class:`PlausibilityWarning`): typed in cm or mm, they run to
@@ -154,6 +155,33 @@ def attitude_units(imu: Table, gt: Table) -> str | None:
     return (
         f"{gt.where}: columns {header} turn {ratio:.3g} times as much as the gyro between "
         f"rows; are the angles in {guess}?"
+    )
+
+
+def position_units(gt: Table) -> str | None:
+    """The truth's horizontal steps between its rows from latitude and longitude
+    against the same steps from its velocity, by RMS: outside [1/:data:`ANGLE_RATIO`,
+    ANGLE_RATIO], latitude and longitude disagree with their header's unit (rad under
+    ``[deg]`` moves 57 times less). Silent where the velocity moves less than 0.1 m per
+    row."""
+    v, t = gt.values, gt.values[:, 0]
+    dt = np.diff(t)
+    lat = v[:, 1]
+    radius = 6_371_000.0  # a sphere: enough for a ratio of 57
+    north = np.diff(lat) * radius
+    east = np.diff(v[:, 2]) * radius * np.cos(lat[:-1])
+    moved = np.sqrt(np.mean(north**2 + east**2))
+    mean_vel = (v[1:, 4:6] + v[:-1, 4:6]) / 2
+    by_velocity = np.sqrt(np.mean(np.sum((mean_vel * dt[:, None]) ** 2, axis=1)))
+    if len(t) < 10 or by_velocity < 0.1:
+        return None
+    ratio = moved / by_velocity
+    if 1 / ANGLE_RATIO <= ratio <= ANGLE_RATIO:
+        return None
+    guess = "rad under a [deg] header" if ratio < 1 else "deg under a [rad] header"
+    return (
+        f"{gt.where}: columns {gt.labels[1]!r}, {gt.labels[2]!r} move {ratio:.3g} times as "
+        f"far as the velocity between rows; are they in {guess}?"
     )
 
 

@@ -509,7 +509,7 @@ def run_real(
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
     base = None if vehicle is None else vehicle.base
-    tuning = real_filter_config(  # checked now
+    real_filter_config(  # checked now
         (0.0, 0.0, 0.0), formulation=formulation, base=base, covariance_step=covariance_step
     )
     imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)

@@ -204,7 +204,8 @@ def read_recording(path: str | Path) -> Recording:
 
 def write_recording(path: str | Path, recording: Recording) -> Path:
     """Write ``recording`` in the generic format: an ``.npz`` file if ``path`` ends in
-    ``.npz``, else a folder of three CSV files (SI units, full precision)."""
+    ``.npz``, else a folder of three CSV files (SI units, full precision). The DVL rows
+    skipped as missing readings are not in it (only the readings the filter uses)."""
     path = Path(path)
     tables = _as_tables(recording)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -532,6 +533,7 @@ def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
         plausible.stuck_channels(tables["imu"], range(1, 7)),
         plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped),
         plausible.attitude_units(tables["imu"], tables["gt"]),
+        plausible.position_units(tables["gt"]),
     ):
         if problem is not None:
             raise RecordingError(problem)

@@ -17,7 +17,8 @@ A file, every key optional::
     # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
                                         # imu_lever_arm beside it (not dvl_lever_arm)
 
-``imu_dt`` is refused: ``pronet real`` uses each section's own IMU step
+The same keys may sit in a ``[filter]`` table (a scenario file: its other tables are
+not read). ``imu_dt`` is refused: ``pronet real`` uses each section's own IMU step
 (:func:`pronet.recorded.tuning.imu_step`). ``--filter mems`` (a grade's name, not a
 file) is the preset alone.
 
@@ -122,6 +123,8 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
     path = Path(text)
     table = read_toml(path)
     where = f"{path}:"
+    if isinstance(table.get("filter"), dict):  # a scenario file: its [filter] table
+        table, where = table["filter"], f"{path}: [filter]"
     unknown = sorted(set(table) - set(FILTER_KEYS) - set(VEHICLE_KEYS))
     if unknown:
         known = ", ".join((*FILTER_KEYS, *VEHICLE_KEYS))
