@@ -53,6 +53,7 @@ class Recorded:
         config: the filter's tuning.
         epochs: which epochs the result keeps: ``"all"``, or ``"last"`` for a pass
             whose updates alone are read (see :func:`pronet.run_filter`).
+        smooth: also the RTS smoother over the pass (``FilterResult.smoothed``).
     """
 
     imu: F64
@@ -65,6 +66,7 @@ class Recorded:
     rpy0: F64
     config: _core.FilterConfig
     epochs: Literal["all", "last"] = "all"
+    smooth: bool = False
 
 
 @dataclass(frozen=True)
@@ -226,6 +228,7 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
         config=rec.config,
         strategy=core_strategy,  # type: ignore[arg-type]
         epochs=rec.epochs,
+        smooth=rec.smooth,
         q_time=q_time,
         q=q,
     )

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 import pronet
 from pronet.cli import main
 from pronet.learn.hybrid import ConstantRegressor, q_schedule
-from pronet.recorded import alignment, real
+from pronet.recorded import alignment, passes, real
 from pronet.recorded.alignment import (
     Alignment,
     align,
@@ -620,7 +620,7 @@ _GRADE_LABELS = ("HCF-ensemble", "baseline net", "detrend net")
 
 def test_run_filter_checks_its_q_schedule(synthetic):
     section = align(synthetic.recording, Alignment(how="none"))
-    i0 = real.start_index(section)
+    i0 = passes.start_index(section)
     args = dict(
         imu=section.imu[100:400],
         imu_time=section.imu_time[100:400],
@@ -783,3 +783,47 @@ def test_a_lever_arm_beyond_any_vehicle_is_named_as_one(tmp_path, capsys, option
     err = capsys.readouterr().err
     assert err.startswith(f"pronet: {option}: must be within ±1000 m (no vehicle is longer)")
     assert err.count("\n") == 1 and not out.exists()
+
+
+@pytest.mark.slow
+def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path, capsys):
+    """``--smooth``: each strategy row is followed by its smoothed one, scored at the same
+    ground-truth rows (the final error the filter's: nothing comes after the last
+    epoch), the variant rows with the DVL calibration states not smoothed; a covariance
+    step is refused before any section is read."""
+    from pronet.recorded.passes import smoothed_run
+
+    data = tmp_path / "data"
+    write_recording(data / "run1.npz", synthetic_recording(seed=1, duration=70.0).recording)
+    out = tmp_path / "out"
+    arms = ["--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM)),
+            "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))]  # fmt: skip
+    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-models", *arms]
+    assert main([*argv, "--out", str(out), "--smooth"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    rows = {r["strategy"]: r for r in metrics if r["scenario"] == "run1"}
+    plain = [label for label in rows if not label.endswith(", smoothed")]
+    others = {*real.REAL_VARIANT_ROWS, f"inertial only, first {passes.INERTIAL_SECONDS:g} s"}
+    strategies = [label for label in plain if label not in others]
+    assert strategies and all(f"{label}, smoothed" in rows for label in strategies)
+    assert not any(f"{label}, smoothed" in rows for label in real.REAL_VARIANT_ROWS)
+    first = rows["constant (estimated q)"]
+    smoothed = rows["constant (estimated q), smoothed"]
+    assert smoothed["srmse"] != first["srmse"]
+    assert smoothed["final_horizontal_error"] == pytest.approx(
+        first["final_horizontal_error"], rel=1e-6
+    )
+    assert json.loads((out / "config.json").read_text())["smooth"] is True
+    capsys.readouterr()
+    refused = tmp_path / "refused"
+    argv += ["--out", str(refused), "--smooth", "--covariance-step", "0.1"]
+    assert main(argv) == 2
+    assert "smooth: the smoother needs the covariance" in capsys.readouterr().err
+    assert not refused.exists()
+    # A row of a pass run without smoothing has no smoothed twin.
+    aligned, _ = alignment.load_section(
+        data / "run1.npz", "generic", imu_lever_arm=IMU_LEVER_ARM, dvl_lever_arm=DVL_LEVER_ARM
+    )
+    done = real.run_section(aligned, pronet.Strategy.constant([1e-4] * 6), pronet.FilterConfig())
+    with pytest.raises(ValueError, match="was run without smooth=True"):
+        smoothed_run(aligned, done)

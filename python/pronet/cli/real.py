@@ -106,6 +106,12 @@ def add_parser(sub: Subparsers) -> None:
         "imu_lever_arm/dvl_lever_arm (pronet.recorded.vehicle), or a grade's name alone "
         "(default: the FOG tuning of the Snapir AUV)",
     )
+    parser.add_argument(
+        "--smooth",
+        action="store_true",
+        help="also run the RTS smoother over every strategy row: each is followed by its "
+        "smoothed row ('<label>, smoothed'), scored at the same ground-truth rows",
+    )
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
     add_result_folder(parser, "real")
@@ -141,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
             formulation=args.formulation,
             covariance_step=args.covariance_step,
             vehicle=vehicle,
+            smooth=args.smooth,
             on_start=bars.start,
             on_done=bars.done,
         )

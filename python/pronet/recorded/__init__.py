@@ -21,6 +21,8 @@ Reading and preparing:
 
 Running and reporting (``pronet real``):
 
+- :mod:`~pronet.recorded.passes`: one section's filter passes (where a run starts, its
+  sensors, one strategy's pass and metrics, the rows of a section);
 - :mod:`~pronet.recorded.real`: every strategy on the sections, the result folder
   (:func:`~pronet.recorded.real.run_real`);
 - :mod:`~pronet.recorded.runs`: what a run produced, as plain records;
@@ -37,6 +39,7 @@ __all__ = [
     "figures",
     "metrics",
     "missing",
+    "passes",
     "plausible",
     "real",
     "recordings",

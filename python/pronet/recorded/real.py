@@ -6,33 +6,29 @@ IMU record, with the filter tuning of :func:`pronet.recorded.tuning.real_filter_
 the process noise of each strategy built around q estimated from the section's own IMU
 (:func:`pronet.recorded.tuning.white_noise_q`). Metrics are taken at the ground-truth rows
 after the start (:mod:`pronet.recorded.metrics`): velocity SRMSE and SMAE, final and maximum
-horizontal position error, and the final error as a percentage of the distance.
+horizontal position error, and the final error as a percentage of the distance. One
+section's passes are :mod:`pronet.recorded.passes`'.
 """
 
 from __future__ import annotations
 
-import contextvars
 import threading
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
-
-import numpy as np
-from numpy.typing import NDArray
+from typing import TYPE_CHECKING
 
 from pronet import _core
 from pronet._util.cores import usable_cores
-from pronet._util.validate import flag, scalar
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
 from pronet.recorded.alignment import Section, load_section, section_name, select_sections
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
-from pronet.recorded.metrics import section_metrics
+from pronet.recorded.passes import STOP, evaluate_section, run_section, section_recorded
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
 from pronet.recorded.tables import failed_records, real_config, real_tables, write_metrics
 from pronet.recorded.tuning import (
@@ -47,136 +43,11 @@ from pronet.recorded.tuning import (
     white_noise_q,
 )
 from pronet.recorded.vehicle import VehicleTuning, lever_arms
-from pronet.run import Recorded, check_acts, run
+from pronet.run import check_acts, run
 from pronet.strategies import StrategyLike
 
 if TYPE_CHECKING:  # torch loads only when a net is trained or run through torch
     from pronet.learn.models import Regressor
-
-F64 = NDArray[np.float64]
-
-
-def start_index(section: Section) -> int:
-    """The ground-truth row a run starts from: the first at or after the first IMU
-    sample's time."""
-    inside = np.flatnonzero(section.truth_time >= section.imu_time[0])
-    if inside.size < 2:
-        raise ValueError(f"section {section.name}: the ground truth does not overlap the IMU")
-    return int(inside[0])
-
-
-#: Set (to an event) on the threads of :func:`run_sections`: once the event is set,
-#: each thread's next filter pass raises :class:`_Stopped` instead of running, so that
-#: Ctrl-C ends the sections within one pass (~0.05 s) instead of a whole section.
-_STOP: contextvars.ContextVar[threading.Event | None] = contextvars.ContextVar(
-    "pronet_real_stop", default=None
-)
-
-
-class _Stopped(Exception):
-    """A section thread told to stop (the caller is already raising its own error)."""
-
-
-def run_section(
-    section: Section,
-    strategy: StrategyLike,
-    config: _core.FilterConfig,
-    *,
-    label: str = "",
-    setup: str = "aligned",
-    duration: float | None = None,
-    use_dvl: bool = True,
-) -> SectionRun:
-    """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
-    for ``duration`` seconds (default: to the end), with or without the DVL."""
-    done = run(strategy, section_recorded(section, config, duration=duration, use_dvl=use_dvl))
-    metrics = section_metrics(section, done.result, use_dvl)
-    return SectionRun(
-        setup,
-        section.name,
-        label,
-        done.result,
-        metrics,
-        done.schedule,
-        done.seconds,
-        done.tuning_period,
-    )
-
-
-def section_recorded(
-    section: Section,
-    config: _core.FilterConfig,
-    *,
-    duration: float | None = None,
-    use_dvl: bool = True,
-    epochs: Literal["all", "last"] = "all",
-) -> Recorded:
-    """``section``'s sensors from the ground truth at :func:`start_index` on, for
-    ``duration`` seconds (default: to the end), with or without the DVL, ready to
-    filter with ``config`` (``epochs``: see :class:`pronet.run.Recorded`). Inside
-    :func:`run_sections`, it stops the section's thread once the run is told to stop."""
-    stop = _STOP.get()
-    if stop is not None and stop.is_set():
-        raise _Stopped
-    if duration is not None and not scalar(duration, "duration") > 0:
-        raise ValueError(f"duration: must be > 0 s, got {duration}")
-    i0 = start_index(section)
-    t0 = float(section.truth_time[i0])
-    take = section.imu_time > t0
-    if duration is not None:
-        take &= section.imu_time <= t0 + float(duration)
-        end = section.imu_time[take].max(initial=-np.inf)
-        if not np.any((section.truth_time > t0) & (section.truth_time <= end)):
-            raise ValueError(f"duration: {duration} s from the start reach no ground-truth row")
-    keep = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
-    return Recorded(
-        imu=section.imu[take],
-        imu_time=section.imu_time[take],
-        dvl=section.dvl[keep],
-        dvl_time=section.dvl_time[keep],
-        t0=t0,
-        lla0=section.truth_lla[i0],
-        vel0=section.truth_vel[i0],
-        rpy0=section.truth_rpy[i0],
-        config=config,
-        epochs=epochs,
-    )
-
-
-#: Seconds of the pure-inertial sanity run.
-INERTIAL_SECONDS = 60.0
-
-
-def evaluate_section(
-    section: Section,
-    strategies: Mapping[str, StrategyLike],
-    config: _core.FilterConfig,
-    *,
-    variants: Mapping[str, _core.FilterConfig] | None = None,
-    setup: str = "aligned",
-    on_done: Callable[[str], None] | None = None,
-) -> tuple[list[SectionRun], SectionRun]:
-    """Every strategy on ``section`` with ``config``, the first strategy with each of
-    ``variants``' configs (by row label), and the pure-inertial run over the first
-    :data:`INERTIAL_SECONDS` with the first strategy's noise."""
-    first = next(iter(strategies.values()))
-    rows = [(label, chosen, config) for label, chosen in strategies.items()]
-    rows += [(label, first, cfg) for label, cfg in (variants or {}).items()]
-    runs = []
-    for label, chosen, cfg in rows:
-        runs.append(run_section(section, chosen, cfg, label=label, setup=setup))
-        if on_done is not None:
-            on_done(label)
-    inertial = run_section(
-        section,
-        first,
-        config,
-        label=f"inertial only, first {INERTIAL_SECONDS:g} s",
-        setup=setup,
-        duration=INERTIAL_SECONDS,
-        use_dvl=False,
-    )
-    return runs, inertial
 
 
 def estimate_dvl_noise(
@@ -312,11 +183,13 @@ def run_sections(
     formulation: str | None = None,
     base: _core.FilterConfig | None = None,
     covariance_step: float | None = None,
+    smooth: bool = False,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
     the inertial run, every filter in ``formulation`` (default ``FilterConfig``'s)
-    with ``covariance_step``;
+    with ``covariance_step``, each strategy row followed by its smoothed one with
+    ``smooth`` (:func:`pronet.recorded.passes.smoothed_run`);
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core this process may use; each filter is
     one native call without the GIL), and the results do not depend on it.
@@ -338,12 +211,12 @@ def run_sections(
                 on_done(text)
 
     def one(pair: tuple[Section, Section]) -> _SectionRuns | str:
-        _STOP.set(stop)  # this thread's context: its run_section calls see the event
+        STOP.set(stop)  # this thread's context: its run_section calls see the event
         try:
             plan = plan_section(
                 pair[0], models, tuning_period, dvl_noise, formulation, base, covariance_step
             )
-            ran = _run_one_section(pair[0], pair[1], plan, done)
+            ran = _run_one_section(pair[0], pair[1], plan, done, smooth)
         except ValueError as exc:  # the reason, kept beside the section's name
             return str(exc)
         if on_section is not None:
@@ -406,7 +279,11 @@ class _SectionRuns:
 
 
 def _run_one_section(
-    aligned: Section, stamped: Section, plan: SectionPlan, on_done: Callable[[str], None]
+    aligned: Section,
+    stamped: Section,
+    plan: SectionPlan,
+    on_done: Callable[[str], None],
+    smooth: bool = False,
 ) -> _SectionRuns:
     constants = {
         label: tuple(s.q)
@@ -419,6 +296,7 @@ def _run_one_section(
         plan.config,
         variants=plan.variants,
         on_done=lambda label: on_done(f"{aligned.name}: {label}"),
+        smooth=smooth,
     )
     first_label, first = next(iter(plan.strategies.items()))
     stamped_run = run_section(
@@ -457,6 +335,7 @@ def run_real(
     formulation: str | None = None,
     covariance_step: float | None = None,
     vehicle: VehicleTuning | None = None,
+    smooth: bool = False,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -492,6 +371,9 @@ def run_real(
             ``vehicle``'s, else ``FilterConfig``'s).
         covariance_step: the filters' covariance step [s] for every row (default:
             ``vehicle``'s, else 0: every IMU sample; see ``FilterConfig``).
+        smooth: also the RTS smoother over every strategy row: each is followed by its
+            smoothed row (``"<label>, smoothed"``), its metrics taken at the same
+            ground-truth rows (docs/filter.md, "The RTS smoother").
         vehicle: the vehicle's own tuning (``--filter``,
             :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
             aiding, gate, formulation and lever arms; default the FOG tuning of
@@ -509,9 +391,11 @@ def run_real(
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
     base = None if vehicle is None else vehicle.base
-    real_filter_config(  # checked now
+    checked = real_filter_config(  # checked now
         (0.0, 0.0, 0.0), formulation=formulation, base=base, covariance_step=covariance_step
     )
+    if smooth:
+        _core.check_smoothable(checked)
     imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
@@ -556,6 +440,7 @@ def run_real(
             formulation=formulation,
             base=base,
             covariance_step=covariance_step,
+            smooth=smooth,
         )
         # the strategy rows' filter as the first section ran it (its IMU step)
         first_dt = next(iter(done.imu_dt.values()))
@@ -570,6 +455,7 @@ def run_real(
             data, fmt, tuning_period, (imu_arm, dvl_arm), dvl_noise, done, regressors, tuning
         )
         config["filter_file"] = None if vehicle is None else vehicle.source
+        config["smooth"] = smooth
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))

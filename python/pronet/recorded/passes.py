@@ -1,0 +1,181 @@
+"""One recorded section's filter passes: where a run starts (:func:`start_index`), its
+sensors ready to filter (:func:`section_recorded`), one strategy's pass with its
+metrics against the ground truth (:func:`run_section`) and the strategy rows with the
+pure-inertial sanity run (:func:`evaluate_section`). :mod:`pronet.recorded.real`
+runs them on every section of ``pronet real``.
+"""
+
+from __future__ import annotations
+
+import contextvars
+import dataclasses
+import threading
+from collections.abc import Callable, Mapping
+from typing import Literal
+
+import numpy as np
+
+from pronet import _core
+from pronet._util.validate import flag, scalar
+from pronet.recorded.alignment import Section
+from pronet.recorded.metrics import section_metrics
+from pronet.recorded.runs import SectionRun
+from pronet.run import Recorded, run
+from pronet.strategies import StrategyLike
+
+
+def start_index(section: Section) -> int:
+    """The ground-truth row a run starts from: the first at or after the first IMU
+    sample's time."""
+    inside = np.flatnonzero(section.truth_time >= section.imu_time[0])
+    if inside.size < 2:
+        raise ValueError(f"section {section.name}: the ground truth does not overlap the IMU")
+    return int(inside[0])
+
+
+#: Set (to an event) on the threads of :func:`run_sections`: once the event is set,
+#: each thread's next filter pass raises :class:`Stopped` instead of running, so that
+#: Ctrl-C ends the sections within one pass (~0.05 s) instead of a whole section.
+STOP: contextvars.ContextVar[threading.Event | None] = contextvars.ContextVar(
+    "pronet_real_stop", default=None
+)
+
+
+class Stopped(Exception):
+    """A section thread told to stop (the caller is already raising its own error)."""
+
+
+def run_section(
+    section: Section,
+    strategy: StrategyLike,
+    config: _core.FilterConfig,
+    *,
+    label: str = "",
+    setup: str = "aligned",
+    duration: float | None = None,
+    use_dvl: bool = True,
+    smooth: bool = False,
+) -> SectionRun:
+    """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
+    for ``duration`` seconds (default: to the end), with or without the DVL; with
+    ``smooth``, the pass's result carries the smoothed solution (:func:`smoothed_run`)."""
+    recorded = section_recorded(
+        section, config, duration=duration, use_dvl=use_dvl, smooth=smooth
+    )
+    done = run(strategy, recorded)
+    metrics = section_metrics(section, done.result, use_dvl)
+    return SectionRun(
+        setup,
+        section.name,
+        label,
+        done.result,
+        metrics,
+        done.schedule,
+        done.seconds,
+        done.tuning_period,
+    )
+
+
+def section_recorded(
+    section: Section,
+    config: _core.FilterConfig,
+    *,
+    duration: float | None = None,
+    use_dvl: bool = True,
+    epochs: Literal["all", "last"] = "all",
+    smooth: bool = False,
+) -> Recorded:
+    """``section``'s sensors from the ground truth at :func:`start_index` on, for
+    ``duration`` seconds (default: to the end), with or without the DVL, ready to
+    filter with ``config`` (``epochs``: see :class:`pronet.run.Recorded`). Inside
+    :func:`run_sections`, it stops the section's thread once the run is told to stop."""
+    stop = STOP.get()
+    if stop is not None and stop.is_set():
+        raise Stopped
+    if duration is not None and not scalar(duration, "duration") > 0:
+        raise ValueError(f"duration: must be > 0 s, got {duration}")
+    i0 = start_index(section)
+    t0 = float(section.truth_time[i0])
+    take = section.imu_time > t0
+    if duration is not None:
+        take &= section.imu_time <= t0 + float(duration)
+        end = section.imu_time[take].max(initial=-np.inf)
+        if not np.any((section.truth_time > t0) & (section.truth_time <= end)):
+            raise ValueError(f"duration: {duration} s from the start reach no ground-truth row")
+    keep = np.full(len(section.dvl), flag(use_dvl, "use_dvl"))
+    return Recorded(
+        imu=section.imu[take],
+        imu_time=section.imu_time[take],
+        dvl=section.dvl[keep],
+        dvl_time=section.dvl_time[keep],
+        t0=t0,
+        lla0=section.truth_lla[i0],
+        vel0=section.truth_vel[i0],
+        rpy0=section.truth_rpy[i0],
+        config=config,
+        epochs=epochs,
+        smooth=smooth,
+    )
+
+
+#: Seconds of the pure-inertial sanity run.
+INERTIAL_SECONDS = 60.0
+
+
+def evaluate_section(
+    section: Section,
+    strategies: Mapping[str, StrategyLike],
+    config: _core.FilterConfig,
+    *,
+    variants: Mapping[str, _core.FilterConfig] | None = None,
+    setup: str = "aligned",
+    on_done: Callable[[str], None] | None = None,
+    smooth: bool = False,
+) -> tuple[list[SectionRun], SectionRun]:
+    """Every strategy on ``section`` with ``config``, the first strategy with each of
+    ``variants``' configs (by row label), and the pure-inertial run over the first
+    :data:`INERTIAL_SECONDS` with the first strategy's noise. With ``smooth``, each
+    strategy row is followed by its smoothed one (:func:`smoothed_run`; the variant
+    rows with the DVL calibration states are not smoothed)."""
+    first = next(iter(strategies.values()))
+    rows = [(label, chosen, config, smooth) for label, chosen in strategies.items()]
+    rows += [(label, first, cfg, False) for label, cfg in (variants or {}).items()]
+    runs = []
+    for label, chosen, cfg, smoothed in rows:
+        done = run_section(section, chosen, cfg, label=label, setup=setup, smooth=smoothed)
+        runs.append(done)
+        if smoothed:
+            runs.append(smoothed_run(section, done))
+        if on_done is not None:
+            on_done(label)
+    inertial = run_section(
+        section,
+        first,
+        config,
+        label=f"inertial only, first {INERTIAL_SECONDS:g} s",
+        setup=setup,
+        duration=INERTIAL_SECONDS,
+        use_dvl=False,
+    )
+    return runs, inertial
+
+
+#: The suffix of a smoothed row's label.
+SMOOTHED = "smoothed"
+
+
+def smoothed_run(section: Section, done: SectionRun) -> SectionRun:
+    """The row of ``done``'s RTS-smoothed solution (``"<label>, smoothed"``): its
+    result is the filter's with the smoothed position, velocity, attitude, biases and
+    σ (updates, NIS and q the filter's), its metrics taken against the ground truth as
+    the filter's are. ``ValueError`` if the pass was not smoothed."""
+    s = done.result.smoothed
+    if s is None:
+        raise ValueError(f"{done.label}: the pass was run without smooth=True")
+    result = dataclasses.replace(
+        done.result, lla=s.lla, vel=s.vel, rpy=s.rpy, bias=s.bias, sigma=s.sigma, smoothed=None
+    )
+    metrics = section_metrics(section, result, True)
+    return dataclasses.replace(
+        done, label=f"{done.label}, {SMOOTHED}", result=result, metrics=metrics
+    )
