@@ -144,6 +144,12 @@ def run_reference_filter(
     formulation="classic",
     covariance_step=0.0,
     log=None,
+    depth=(),
+    depth_time=(),
+    depth_sigma=None,
+    fix=(),
+    fix_time=(),
+    fix_sigma=(),
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
     innovation, nis (one row per DVL measurement applied, in order).
@@ -166,7 +172,13 @@ def run_reference_filter(
     ``log`` (every sample only): a list that receives, per epoch, ``(phi, p_prior,
     p_post, dx)`` (the step's transition into the epoch, the covariance before and after
     its updates, the sum of the error estimates fed back there) for the smoother in
-    ``numpy_reference_smoother.py``; epoch 0 has no transition (None)."""
+    ``numpy_reference_smoother.py``; epoch 0 has no transition (None).
+
+    ``depth`` [m, down] at ``depth_time`` with 1σ ``depth_sigma``, and ``fix`` rows
+    ``[lat, lon, h (NaN: none)]`` at ``fix_time`` with 1σ rows ``fix_sigma`` [m, N E D]:
+    after an epoch's DVL rows, each available component a scalar update of the position
+    error (``H = e_i``, Joseph form) fed back before the next; the output then has
+    ``depth_nis`` and ``fix_nis`` (one per row applied)."""
     invariant = formulation == "invariant"
     every_sample = covariance_step < 1.5 * imu_dt
     if log is not None and not every_sample:
@@ -211,7 +223,68 @@ def run_reference_filter(
     rmat = np.diag(dvl_variance)
     q = np.asarray(q, dtype=float)
     keys = ("time", "lla", "vel", "rpy", "bias", "sigma", "innovation", "nis")
-    out = {k: [] for k in (*keys, "calibration", "calibration_sigma")}
+    out = {k: [] for k in (*keys, "calibration", "calibration_sigma", "depth_nis", "fix_nis")}
+
+    def feed(dx):
+        """The filter's feedback of the error estimate ``dx``."""
+        nonlocal lla, v, c, ba, bg, k_scale, m_dvl
+        rn, re = radii(lla[0])
+        lla = lla - np.array(
+            [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
+        )
+        # invariant: v = C Ĉᵀ (v̂ − δV), with C = Exp(ψ) Ĉ (exact; first order δV + [v̂×]ψ)
+        v = exp_so3(dx[6:9]) @ (v - dx[3:6]) if invariant else v - dx[3:6]
+        c = exp_so3(dx[6:9]) @ c
+        ba = ba - dx[9:12]
+        bg = bg - dx[12:15]
+        if calibration is not None:
+            k_scale = k_scale - dx[15]
+            m_dvl = m_dvl @ exp_so3(-dx[16:19])
+
+    def scalar(i, nu, r):
+        """A scalar update of position error i (0 N, 1 E, 2 D); its dx and NIS."""
+        nonlocal p
+        s_i = p[i, i] + r
+        gain = p[:, i] / s_i
+        h_row = np.zeros((1, n_x))
+        h_row[0, i] = 1.0
+        ikh = np.eye(n_x) - gain[:, None] @ h_row
+        p = ikh @ p @ ikh.T + r * np.outer(gain, gain)
+        p = (p + p.T) / 2
+        dx = -gain * nu
+        feed(dx)
+        return dx, nu * nu / s_i
+
+    def position_rows(t, dt, first):
+        """The depth readings and fixes due at the epoch of time t; their dx summed."""
+        nonlocal jd, jf
+        total = np.zeros(n_x)
+        while jd < len(depth) and depth_time[jd] <= t + dt / 2:
+            if depth_time[jd] >= first:
+                dx, nis = scalar(2, depth[jd] + lla[2], depth_sigma**2)
+                total += dx
+                out["depth_nis"].append(nis)
+            jd += 1
+        while jf < len(fix) and fix_time[jf] <= t + dt / 2:
+            if fix_time[jf] >= first:
+                z, sig, nis = fix[jf], fix_sigma[jf], 0.0
+                for axis in range(2 if math.isnan(z[2]) else 3):
+                    rn, re = radii(lla[0])
+                    nu = (
+                        (z[0] - lla[0]) * (rn + lla[2])
+                        if axis == 0
+                        else (z[1] - lla[1]) * (re + lla[2]) * math.cos(lla[0])
+                        if axis == 1
+                        else lla[2] - z[2]
+                    )
+                    dx, one = scalar(axis, nu, sig[axis] ** 2)
+                    total += dx
+                    nis += one
+                out["fix_nis"].append(nis)
+            jf += 1
+        return total
+
+    jd = jf = 0
 
     def record(t):
         out["time"].append(t)
@@ -254,7 +327,10 @@ def run_reference_filter(
             walks = np.array([accel_bias_psd] * 3 + [gyro_bias_psd] * 3) * dt
             interval["q"] = interval["q"] + np.concatenate([q * imu_dt * dt, walks])
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
-        updating = j < len(dvl) and dvl_time[j] <= t + dt / 2
+        updating = any(
+            i < len(times) and times[i] <= t + dt / 2
+            for i, times in ((j, dvl_time), (jd, depth_time), (jf, fix_time))
+        )
         if interval is not None and (
             interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
         ):
@@ -289,22 +365,12 @@ def run_reference_filter(
             p = ikh @ p @ ikh.T + gain @ rmat @ gain.T
             p = (p + p.T) / 2
             dx = -gain @ nu
-            rn, re = radii(lla[0])
-            lla = lla - np.array(
-                [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
-            )
-            # invariant: v = C Ĉᵀ (v̂ − δV), with C = Exp(ψ) Ĉ (exact; first order δV + [v̂×]ψ)
-            v = exp_so3(dx[6:9]) @ (v - dx[3:6]) if invariant else v - dx[3:6]
-            c = exp_so3(dx[6:9]) @ c
-            ba = ba - dx[9:12]
-            bg = bg - dx[12:15]
-            if calibration is not None:
-                k_scale = k_scale - dx[15]
-                m_dvl = m_dvl @ exp_so3(-dx[16:19])
+            feed(dx)
             dx_sum += dx
             out["innovation"].append(nu)
             out["nis"].append(float(nu @ np.linalg.solve(s, nu)))
             j += 1
+        dx_sum += position_rows(t, dt, t0 - (imu_time[0] - t0) / 2)
         record(t)
         if log is not None:
             log.append((phi, p_prior, p.copy(), dx_sum))

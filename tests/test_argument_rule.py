@@ -73,6 +73,8 @@ def _run_filter(run: Callable[..., Any], f: Form) -> Any:
         f(IMU), f(IMU_T), f(DVL), f(DVL_T), t0=0.0, **{k: f(v) for k, v in NAV0.items()},
         config=_core.FilterConfig(), strategy=_core.Strategy.external(f(PAPER_Q)),
         bias0=f([0.0] * 6), q_time=f([1.0]), q=f([[2e-4] * 6]), covariance_time=f([0.5, 1.0]),
+        depth=f([5.0]), depth_time=f([1.5]), depth_sigma=0.1, fix=f([LLA0]), fix_time=f([2.0]),
+        fix_sigma=f([[2.0, 2.0, 2.0]]),
     )  # fmt: skip
 
 

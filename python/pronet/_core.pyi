@@ -323,13 +323,22 @@ def run_filter(
     epochs: Literal["all", "last"] = "all",
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
+    depth: ArrayLike | None = None,
+    depth_time: ArrayLike | None = None,
+    depth_sigma: float | None = None,
+    fix: ArrayLike | None = None,
+    fix_time: ArrayLike | None = None,
+    fix_sigma: ArrayLike | None = None,
 ) -> dict[str, Any]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
     [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
     or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
     (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
     ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-    ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``|lla0[0]|`` <= 89°."""
+    ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``depth`` (d,) [m, down] at
+    ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
+    (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
+    [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°."""
 
 def monte_carlo(
     trajectory: Trajectory,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -81,6 +81,10 @@ class FilterResult:
         adaptive_q: ``(m, 15, 15)`` the per-IMU-step discrete Q_d a Mehra strategy set
             after each update (``K C Kᵀ`` spread over the interval's steps); NaN for
             other strategies and before Mehra has its ξ innovations.
+        depth_epoch, fix_epoch: ``(d,)``, ``(f,)`` the epoch each depth reading and
+            position fix was applied at (-1 outside the run).
+        depth_nis, fix_nis: their normalized innovation squared (χ² with 1 dof for a
+            depth, 2 or 3 for a fix without or with its height; NaN outside the run).
         smoothed: the RTS-smoothed solution at every epoch with ``smooth=True``
             (:class:`SmoothedResult`), else None.
     """
@@ -104,6 +108,10 @@ class FilterResult:
     adaptive_q: NDArray[np.float64]
     accepted: NDArray[np.bool_]
     diverged_at: float | None
+    depth_epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
+    depth_nis: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
+    fix_epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
+    fix_nis: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
     smoothed: SmoothedResult | None = None
 
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
@@ -203,6 +211,12 @@ def run_filter(
     epochs: Literal["all", "last"] = "all",
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
+    depth: ArrayLike | None = None,
+    depth_time: ArrayLike | None = None,
+    depth_sigma: float | None = None,
+    fix: ArrayLike | None = None,
+    fix_time: ArrayLike | None = None,
+    fix_sigma: ArrayLike | None = None,
 ) -> FilterResult:
     """Run the INS/DVL error-state EKF over sensor arrays.
 
@@ -240,6 +254,16 @@ def run_filter(
             ``epochs="last"``; the DVL calibration states are not smoothed yet). It
             keeps two covariances per DVL epoch, not per IMU sample, and costs a few
             forward passes (docs/filter.md, "The RTS smoother").
+        depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive
+            down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
+            all three or none.
+        fix, fix_time, fix_sigma: position fixes (GNSS, USBL, LBL) ``(f, 3)`` ``[lat,
+            lon (rad), h (m, up)]`` (a NaN height: a horizontal fix) at ``(f,)`` times
+            [s] (strictly increasing), each with its 1σ ``(f, 3)`` [m] north, east,
+            down; all three or none. Depth and fixes refer to the IMU's point; each is
+            applied at the epoch nearest its time, after the DVL rows there, as scalar
+            updates of the position error (docs/filter.md, "Position and depth
+            updates"). The DVL may be empty: a GNSS/INS or depth-only pass works too.
     """
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
@@ -266,6 +290,12 @@ def run_filter(
             else float_array(covariance_time, "covariance_time", (None,))
         ),
         smooth=smooth,
+        depth=None if depth is None else float_array(depth, "depth", (None,)),
+        depth_time=None if depth_time is None else float_array(depth_time, "depth_time", (None,)),
+        depth_sigma=None if depth_sigma is None else scalar(depth_sigma, "depth_sigma"),
+        fix=None if fix is None else float_array(fix, "fix", (None, 3)),
+        fix_time=None if fix_time is None else float_array(fix_time, "fix_time", (None,)),
+        fix_sigma=None if fix_sigma is None else float_array(fix_sigma, "fix_sigma", (None, 3)),
     )
     smoothed = out.pop("smoothed")
     if smoothed is not None:

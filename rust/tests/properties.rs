@@ -676,6 +676,7 @@ fn filter_case(
         q_time: &[],
         q_values: &[],
         covariance_time: &[],
+        ..RecordedData::default()
     };
     let mut strategy = spec.build(cfg.bias_psd());
     let result = filter_recorded(&data, init, bias0, cfg, strategy.as_mut());
@@ -971,6 +972,7 @@ fn pass_without_dvl(
         q_time: &[],
         q_values: &[],
         covariance_time: &[],
+        ..RecordedData::default()
     };
     let mut init = rec.truth.states[0];
     if let Some(v) = vel0 {

@@ -32,6 +32,7 @@ mod config;
 mod dynamics;
 pub mod formulation;
 mod interval;
+pub mod position;
 mod recorded;
 pub mod smoother;
 

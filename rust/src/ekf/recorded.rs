@@ -45,6 +45,12 @@ pub struct FilterOutput {
     pub nis_monitor: NisMonitor,
     /// The RTS-smoothed solution at every epoch, from [`smooth_recorded_until`].
     pub smoothed: Option<Smoothed>,
+    /// For each depth reading and each position fix: the epoch it was applied at
+    /// (None if outside the run) and its NIS (NaN there).
+    pub depth_epoch: Vec<Option<usize>>,
+    pub depth_nis: Vec<f64>,
+    pub fix_epoch: Vec<Option<usize>>,
+    pub fix_nis: Vec<f64>,
 }
 
 /// Inputs of one filter pass over recorded (or user-simulated) sensor arrays.
@@ -69,6 +75,17 @@ pub struct RecordedData<'a> {
     /// none): each is kept at the epoch nearest to it, after that epoch's update, so a
     /// pass stores 15 × 15 numbers (1,800 bytes) per time asked for, never per epoch.
     pub covariance_time: &'a [f64],
+    /// Depth readings [m, positive down] at `depth_time` [s] (strictly increasing),
+    /// each of 1σ `depth_sigma` [m] (see [`super::position`]); empty for none.
+    pub depth: &'a [f64],
+    pub depth_time: &'a [f64],
+    pub depth_sigma: f64,
+    /// Position fixes `[φ (rad), λ (rad), h (m, up)]` (a NaN height: horizontal only)
+    /// at `fix_time` [s] (strictly increasing), each with its 1σ `[north, east, down]`
+    /// [m] in `fix_sigma`; empty for none.
+    pub fix: &'a [[f64; 3]],
+    pub fix_time: &'a [f64],
+    pub fix_sigma: &'a [[f64; 3]],
 }
 
 impl RecordedData<'_> {
@@ -119,6 +136,7 @@ impl RecordedData<'_> {
         }
         check::increasing("q_time", self.q_time)?;
         check::increasing("covariance_time", self.covariance_time)?;
+        self.validate_aiding()?;
         for (i, row) in self.q_values.iter().enumerate() {
             check::non_negative("q", row).map_err(|_| {
                 Error::invalid(
@@ -135,6 +153,68 @@ impl RecordedData<'_> {
                     self.imu_time[0], self.t0
                 ),
             ));
+        }
+        Ok(())
+    }
+}
+
+impl RecordedData<'_> {
+    /// The depth readings and position fixes: lengths, times, values and σ.
+    fn validate_aiding(&self) -> Result<()> {
+        let same = |name: &str, n: usize, time: &str, m: usize| {
+            if n == m {
+                return Ok(());
+            }
+            Err(Error::invalid(
+                time,
+                format!("has {m} rows but {name} has {n}"),
+            ))
+        };
+        same(
+            "depth",
+            self.depth.len(),
+            "depth_time",
+            self.depth_time.len(),
+        )?;
+        same("fix", self.fix.len(), "fix_time", self.fix_time.len())?;
+        same("fix", self.fix.len(), "fix_sigma", self.fix_sigma.len())?;
+        check::increasing("depth_time", self.depth_time)?;
+        check::increasing("fix_time", self.fix_time)?;
+        check::finite("depth", self.depth)?;
+        let sigma_ok = self.depth_sigma > 0.0 && self.depth_sigma.is_finite();
+        if !self.depth.is_empty() && !sigma_ok {
+            return Err(Error::invalid(
+                "depth_sigma",
+                format!(
+                    "must be a finite number of metres > 0, got {}",
+                    self.depth_sigma
+                ),
+            ));
+        }
+        for (i, (fix, sigma)) in self.fix.iter().zip(self.fix_sigma).enumerate() {
+            let vertical = !fix[2].is_nan();
+            if !fix[0].is_finite() || !fix[1].is_finite() || fix[2].is_infinite() {
+                return Err(Error::invalid(
+                    "fix",
+                    format!(
+                        "row {i} must hold a finite latitude and longitude [rad] and a finite \
+                         or NaN height [m], got {fix:?}"
+                    ),
+                ));
+            }
+            earth::check_latitude("fix", fix[0])?;
+            let wanted = if vertical { 3 } else { 2 };
+            if !sigma[..wanted].iter().all(|s| *s > 0.0 && s.is_finite()) {
+                let axes = if vertical {
+                    "north, east, down"
+                } else {
+                    "north, east"
+                };
+                return Err(Error::invalid(
+                    "fix_sigma",
+                    format!("row {i} must hold {wanted} finite 1σ > 0 [m] ({axes}), got {sigma:?}"),
+                ));
+            }
         }
         Ok(())
     }
@@ -158,6 +238,10 @@ impl FilterOutput {
             covariances: Vec::new(),
             nis_monitor: NisMonitor::default(),
             smoothed: None,
+            depth_epoch: Vec::new(),
+            depth_nis: Vec::new(),
+            fix_epoch: Vec::new(),
+            fix_nis: Vec::new(),
         }
     }
 
@@ -182,6 +266,8 @@ struct Cursor {
     next_dvl: usize,
     next_q: usize,
     next_covariance: usize,
+    next_depth: usize,
+    next_fix: usize,
     steps_since_update: usize,
 }
 
@@ -336,7 +422,12 @@ fn forward_pass(
         if k + 1 == data.imu.len() {
             ekf.bring_up_to_date(); // the end of the pass
         }
-        let correction = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
+        let dvl = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
+        let aiding = apply_position_rows(data, &mut ekf, &mut out, &mut at, k + 1, t, dt)?;
+        let correction = match (dvl, aiding) {
+            (None, None) => None,
+            (a, b) => Some(a.unwrap_or_else(Vector15::zeros) + b.unwrap_or_else(Vector15::zeros)),
+        };
         if let (Some(nodes), Some(correction)) = (nodes.as_deref_mut(), correction) {
             nodes.after_updates(k + 1, &ekf, correction, strategy.process_noise());
         }
@@ -358,7 +449,63 @@ fn forward_pass(
     out.covariance_epoch
         .resize(data.covariance_time.len(), None);
     out.covariances.resize(data.covariance_time.len(), None);
+    out.depth_epoch.resize(data.depth.len(), None);
+    out.depth_nis.resize(data.depth.len(), f64::NAN);
+    out.fix_epoch.resize(data.fix.len(), None);
+    out.fix_nis.resize(data.fix.len(), f64::NAN);
     Ok(out)
+}
+
+/// Apply every depth reading, then every position fix, whose nearest epoch is `epoch`
+/// (time `t` [s], step `dt` [s]), as DVL rows are placed; rows before the run's first
+/// half step are outside it. The sum of the error estimates fed back, or None if no row
+/// was there.
+#[allow(clippy::too_many_arguments)]
+fn apply_position_rows(
+    data: &RecordedData<'_>,
+    ekf: &mut Ekf,
+    out: &mut FilterOutput,
+    at: &mut Cursor,
+    epoch: usize,
+    t: f64,
+    dt: f64,
+) -> Result<Option<Vector15>> {
+    let first = data.t0 - 0.5 * (data.imu_time[0] - data.t0);
+    let due = |time: f64| time <= t + 0.5 * dt;
+    let mut correction: Option<Vector15> = None;
+    let numerical = |what: &str, row: usize, e: Error| match e {
+        Error::Numerical(m) => Error::Numerical(format!("{m} ({what} row {row}, t = {t} s)")),
+        other => other,
+    };
+    while at.next_depth < data.depth.len() && due(data.depth_time[at.next_depth]) {
+        let row = at.next_depth;
+        at.next_depth += 1;
+        out.depth_epoch.push(None);
+        out.depth_nis.push(f64::NAN);
+        if data.depth_time[row] < first {
+            continue;
+        }
+        let done = ekf
+            .update_depth(data.depth[row], data.depth_sigma)
+            .map_err(|e| numerical("depth", row, e))?;
+        (out.depth_epoch[row], out.depth_nis[row]) = (Some(epoch), done.nis);
+        *correction.get_or_insert_with(Vector15::zeros) += done.correction;
+    }
+    while at.next_fix < data.fix.len() && due(data.fix_time[at.next_fix]) {
+        let row = at.next_fix;
+        at.next_fix += 1;
+        out.fix_epoch.push(None);
+        out.fix_nis.push(f64::NAN);
+        if data.fix_time[row] < first {
+            continue;
+        }
+        let done = ekf
+            .update_fix(&data.fix[row], &data.fix_sigma[row])
+            .map_err(|e| numerical("fix", row, e))?;
+        (out.fix_epoch[row], out.fix_nis[row]) = (Some(epoch), done.nis);
+        *correction.get_or_insert_with(Vector15::zeros) += done.correction;
+    }
+    Ok(correction)
 }
 
 /// Keep the covariance (classic coordinates) for every asked-for time whose nearest
@@ -486,6 +633,7 @@ mod tests {
                 q_time: &[],
                 q_values: &[],
                 covariance_time: &[],
+                ..RecordedData::default()
             }
             .validate()
         };
@@ -507,6 +655,7 @@ mod tests {
             q_time: &[],
             q_values: &[],
             covariance_time: &[],
+            ..RecordedData::default()
         }
         .validate()
         .unwrap_err();
@@ -524,6 +673,7 @@ mod tests {
             q_time: &[],
             q_values: &[],
             covariance_time: &[],
+            ..RecordedData::default()
         }
     }
 
@@ -570,6 +720,7 @@ mod tests {
             q_time: &[],
             q_values: &[],
             covariance_time: &[],
+            ..RecordedData::default()
         };
         for calibration in [
             None,
@@ -705,6 +856,7 @@ mod tests {
                 q_time,
                 q_values,
                 covariance_time: &[],
+                ..RecordedData::default()
             };
             filter_recorded(
                 &data,

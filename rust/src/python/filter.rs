@@ -17,6 +17,60 @@ use numpy::IntoPyArray;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+/// The depth readings and position fixes of a pass, each group all or none.
+struct Aiding {
+    depth: Vec<f64>,
+    depth_time: Vec<f64>,
+    depth_sigma: f64,
+    fix: Vec<[f64; 3]>,
+    fix_time: Vec<f64>,
+    fix_sigma: Vec<[f64; 3]>,
+}
+
+impl Aiding {
+    fn new(
+        depth: Option<&Bound<'_, PyAny>>,
+        depth_time: Option<&Bound<'_, PyAny>>,
+        depth_sigma: Option<f64>,
+        fix: Option<&Bound<'_, PyAny>>,
+        fix_time: Option<&Bound<'_, PyAny>>,
+        fix_sigma: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let (depth, depth_time, depth_sigma) = match (depth, depth_time, depth_sigma) {
+            (Some(d), Some(t), Some(s)) => (column(d, "depth")?, column(t, "depth_time")?, s),
+            (None, None, None) => (Vec::new(), Vec::new(), f64::NAN),
+            _ => {
+                return Err(invalid(
+                    "depth",
+                    "depth, depth_time and depth_sigma go together: give all three or none",
+                ))
+            }
+        };
+        let (fix, fix_time, fix_sigma) = match (fix, fix_time, fix_sigma) {
+            (Some(f), Some(t), Some(s)) => (
+                rows::<3>(f, "fix")?,
+                column(t, "fix_time")?,
+                rows::<3>(s, "fix_sigma")?,
+            ),
+            (None, None, None) => (Vec::new(), Vec::new(), Vec::new()),
+            _ => {
+                return Err(invalid(
+                    "fix",
+                    "fix, fix_time and fix_sigma go together: give all three or none",
+                ))
+            }
+        };
+        Ok(Self {
+            depth,
+            depth_time,
+            depth_sigma,
+            fix,
+            fix_time,
+            fix_sigma,
+        })
+    }
+}
+
 /// The q schedule `(q_time, q)`: both or neither.
 type QSchedule = (Vec<f64>, Vec<[f64; 6]>);
 
@@ -39,10 +93,13 @@ fn q_schedule(
 /// or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
 /// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
 /// ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-/// ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``|lla0[0]|`` <= 89°.
+/// ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``depth`` (d,) [m, down] at
+/// ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
+/// (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
+/// [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°.
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), covariance_time = None, smooth = false),
-    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', covariance_time=None, smooth=False)")]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), covariance_time = None, smooth = false, depth = None, depth_time = None, depth_sigma = None, fix = None, fix_time = None, fix_sigma = None),
+    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', covariance_time=None, smooth=False, depth=None, depth_time=None, depth_sigma=None, fix=None, fix_time=None, fix_sigma=None)")]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -62,6 +119,12 @@ fn run_filter<'py>(
     #[pyo3(from_py_with = arg_epochs)] epochs: String,
     covariance_time: Option<&Bound<'py, PyAny>>,
     smooth: bool,
+    depth: Option<&Bound<'py, PyAny>>,
+    depth_time: Option<&Bound<'py, PyAny>>,
+    depth_sigma: Option<f64>,
+    fix: Option<&Bound<'py, PyAny>>,
+    fix_time: Option<&Bound<'py, PyAny>>,
+    fix_sigma: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let epochs = match epochs.as_str() {
         "all" => Epochs::All,
@@ -92,6 +155,7 @@ fn run_filter<'py>(
         Some(times) => column(times, "covariance_time")?,
         None => Vec::new(),
     };
+    let aiding = Aiding::new(depth, depth_time, depth_sigma, fix, fix_time, fix_sigma)?;
     let init = nav_state(lla0, vel0, rpy0)?;
     let bias0 = fixed_or::<6>(bias0, "bias0", [0.0; 6])?;
     let cfg = config.inner.clone();
@@ -109,6 +173,12 @@ fn run_filter<'py>(
             q_time: &q_time,
             q_values: &q_values,
             covariance_time: &covariance_time,
+            depth: &aiding.depth,
+            depth_time: &aiding.depth_time,
+            depth_sigma: aiding.depth_sigma,
+            fix: &aiding.fix,
+            fix_time: &aiding.fix_time,
+            fix_sigma: &aiding.fix_sigma,
         };
         let mut strat = spec.build(cfg.bias_psd());
         if smooth {
@@ -130,6 +200,11 @@ struct OutputArrays {
     calibration: Array2<f64>,
     calibration_sigma: Array2<f64>,
     covariance: Array2<f64>,
+    /// Per depth reading and position fix: the epoch (-1 outside the run) and NIS.
+    depth_epoch: Array1<i64>,
+    depth_nis: Array1<f64>,
+    fix_epoch: Array1<i64>,
+    fix_nis: Array1<f64>,
     /// Per asked-for time: -1 and NaN where a time fell outside the run.
     covariance_epoch: Array1<i64>,
     covariances: Array3<f64>,
@@ -195,19 +270,15 @@ impl OutputArrays {
             calibration: Array2::from(out.calibration),
             calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
-            covariance_epoch: out
-                .covariance_epoch
-                .iter()
-                .map(|e| e.map_or(-1, |k| k as i64))
-                .collect(),
+            covariance_epoch: epochs_array(&out.covariance_epoch),
+            depth_epoch: epochs_array(&out.depth_epoch),
+            depth_nis: Array1::from(std::mem::take(&mut out.depth_nis)),
+            fix_epoch: epochs_array(&out.fix_epoch),
+            fix_nis: Array1::from(std::mem::take(&mut out.fix_nis)),
             covariances: Array3::from_shape_fn((out.covariances.len(), 15, 15), |(k, i, j)| {
                 out.covariances[k].map_or(f64::NAN, |p| p[(i, j)])
             }),
-            dvl_epoch: out
-                .dvl_epoch
-                .iter()
-                .map(|e| e.map_or(-1, |k| k as i64))
-                .collect(),
+            dvl_epoch: epochs_array(&out.dvl_epoch),
             diverged_at: out.nis_monitor.diverged_at,
             innovation: rows_array(
                 out.updates
@@ -246,6 +317,10 @@ impl OutputArrays {
         d.set_item("calibration_sigma", self.calibration_sigma.into_pyarray(py))?;
         d.set_item("covariance", self.covariance.into_pyarray(py))?;
         d.set_item("covariance_epoch", self.covariance_epoch.into_pyarray(py))?;
+        d.set_item("depth_epoch", self.depth_epoch.into_pyarray(py))?;
+        d.set_item("depth_nis", self.depth_nis.into_pyarray(py))?;
+        d.set_item("fix_epoch", self.fix_epoch.into_pyarray(py))?;
+        d.set_item("fix_nis", self.fix_nis.into_pyarray(py))?;
         d.set_item("covariances", self.covariances.into_pyarray(py))?;
         d.set_item("dvl_epoch", self.dvl_epoch.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
@@ -265,6 +340,11 @@ impl OutputArrays {
         }
         Ok(d)
     }
+}
+
+/// Epoch indices, -1 for None (a row outside the run).
+fn epochs_array(epochs: &[Option<usize>]) -> Array1<i64> {
+    epochs.iter().map(|e| e.map_or(-1, |k| k as i64)).collect()
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -1,0 +1,148 @@
+"""Position fixes and depth readings as filter updates (``run_filter(depth=..., fix=...)``):
+equal to the NumPy reference to 1e-8 (both formulations, the 19 states, the smoother),
+what they do to the error, and the inputs they refuse."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import pronet
+
+from numpy_reference_ekf import run_reference_filter
+from numpy_reference_smoother import rts_smooth
+from test_numpy_reference_ekf import P0, Q, _inputs
+
+R_EARTH = 6.38e6  # [m], for metres to radians at the test's tolerance
+
+
+def _aiding(traj: pronet.Trajectory, seconds: float, rng: np.random.Generator):
+    """Depth every second (σ 0.1 m) and fixes every 10 s (σ 2 m; every other one
+    without its height), from the truth plus noise; the first fix before the run."""
+    k = np.arange(100, int(seconds * 100) + 1, 100)
+    depth = -traj.lla[k, 2] + rng.normal(size=len(k)) * 0.1
+    f = np.arange(1000, int(seconds * 100) + 1, 1000)
+    fix = traj.lla[f] + rng.normal(size=(len(f), 3)) * [2 / R_EARTH, 2 / R_EARTH, 2]
+    fix[1::2, 2] = np.nan
+    sigma = np.tile([2.0, 2.0, 2.0], (len(f), 1))
+    fix_time = traj.time[f]
+    fix = np.vstack([traj.lla[0], fix])
+    fix_time = np.concatenate([[-5.0], fix_time])
+    sigma = np.vstack([[2.0, 2.0, 2.0], sigma])
+    return dict(depth=depth, depth_time=traj.time[k], depth_sigma=0.1, fix=fix,
+                fix_time=fix_time, fix_sigma=sigma)  # fmt: skip
+
+
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+@pytest.mark.parametrize("calibrated", [False, True])
+def test_fixes_and_depth_match_the_reference(formulation, calibrated) -> None:
+    arm = (0.5, -0.2, 1.0)
+    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(arm), "body")
+    aiding = _aiding(pronet.builtin_trajectory("paper"), 60.0, np.random.default_rng(8))
+    calibration = (0.01, (0.02, 0.02, 0.03), 1e-8, 1e-9) if calibrated else None
+    extra = {}
+    if calibrated:
+        extra = dict(dvl_calibration=True, dvl_scale_sigma=0.01,
+                     dvl_misalignment_sigma=(0.02, 0.02, 0.03), dvl_scale_psd=1e-8,
+                     dvl_misalignment_psd=1e-9)  # fmt: skip
+    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3)
+    cfg = pronet.FilterConfig(p0_sigma=P0, lever_arm=arm, formulation=formulation,
+                              **tuning, **extra)  # fmt: skip
+    rust = pronet.run_filter(
+        imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
+        strategy=pronet.Strategy.constant(Q), smooth=not calibrated, **aiding,
+    )  # fmt: skip
+    log: list | None = None if calibrated else []
+    ref = run_reference_filter(
+        imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, q=Q, p0_sigma=P0, imu_dt=0.01,
+        lever_arm=arm, formulation=formulation, calibration=calibration, log=log,
+        **tuning, **aiding,
+    )  # fmt: skip
+    assert rust.fix_epoch[0] == -1 and np.isnan(rust.fix_nis[0])  # before the run
+    np.testing.assert_array_equal(rust.fix_epoch[1:], np.arange(1, 7) * 1000)
+    np.testing.assert_array_equal(rust.depth_epoch, np.arange(1, 61) * 100)
+    rtol = 1e-8
+    np.testing.assert_allclose(rust.depth_nis, ref["depth_nis"], rtol=rtol)
+    np.testing.assert_allclose(rust.fix_nis[1:], ref["fix_nis"], rtol=rtol)
+    np.testing.assert_allclose(rust.vel, ref["vel"], rtol=rtol, atol=1e-8)
+    np.testing.assert_allclose(rust.rpy, ref["rpy"], rtol=rtol, atol=1e-10)
+    np.testing.assert_allclose(rust.bias, ref["bias"], rtol=rtol, atol=1e-11)
+    np.testing.assert_allclose(rust.sigma, ref["sigma"], rtol=rtol, atol=0.0)
+    np.testing.assert_allclose(rust.lla[:, :2], ref["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6)
+    np.testing.assert_allclose(rust.lla[:, 2], ref["lla"][:, 2], rtol=rtol, atol=1e-8)
+    if log is not None:  # the smoother across the position updates' resets too
+        smoothed = rts_smooth(ref, log, formulation)
+        assert rust.smoothed is not None
+        np.testing.assert_allclose(rust.smoothed.vel, smoothed["vel"], rtol=rtol, atol=1e-8)
+        np.testing.assert_allclose(rust.smoothed.sigma, smoothed["sigma"], rtol=rtol, atol=0)
+        np.testing.assert_allclose(
+            rust.smoothed.lla[:, :2], smoothed["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6
+        )
+
+
+def _pass(seconds: float, seed: int, **aiding):
+    """A noisy IMU along the paper's trajectory, no DVL, from the truth."""
+    traj = pronet.builtin_trajectory("paper")
+    n = int(round(seconds / traj.dt))
+    rng = np.random.default_rng(seed)
+    bias = np.array([2e-3] * 3 + [2e-5] * 3)  # [m/s², rad/s]
+    imu = traj.imu[:n] + rng.normal(size=(n, 6)) * np.sqrt(Q) + bias
+    cfg = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14)
+    out = pronet.run_filter(
+        imu, traj.time[1 : n + 1], np.zeros((0, 3)), np.zeros(0), t0=0.0, lla0=traj.lla[0],
+        vel0=traj.vel_ned[0], rpy0=traj.rpy[0], config=cfg,
+        strategy=pronet.Strategy.constant(Q), **aiding,
+    )  # fmt: skip
+    origin = traj.lla[0]
+    error = pronet.local_ned(out.lla, origin) - pronet.local_ned(traj.lla[: n + 1], origin)
+    return traj, out, error
+
+
+def test_fixes_alone_bound_the_drift_and_depth_holds_the_height() -> None:
+    """Without a DVL: a fix every 10 s (σ 2 m) keeps the horizontal error within a few
+    σ where free inertial drifts away; a depth every second (σ 0.1 m) holds the height,
+    and the filter's σ says so."""
+    seconds, rng = 300.0, np.random.default_rng(3)
+    free_traj, _, free = _pass(seconds, 1)
+    aiding = _aiding(free_traj, seconds, rng)
+    _, out, aided = _pass(seconds, 1, **aiding)
+    horizontal = np.hypot(aided[:, 0], aided[:, 1])
+    assert np.hypot(*free[-1, :2]) > 100.0  # free inertial: 2 mg of bias for 300 s
+    assert horizontal[3000:].max() < 15.0, horizontal.max()
+    assert np.abs(aided[100:, 2]).max() < 0.5
+    assert out.sigma[-1, 2] < 0.2 and out.sigma[-1, 0] < 10.0
+    nis = out.fix_nis[np.isfinite(out.fix_nis)]
+    assert 0.5 < nis.mean() < 6.0  # χ² of 2–3 dof, from a filter told its model
+
+
+@pytest.mark.parametrize(
+    ("aiding", "message"),
+    [
+        (dict(depth=[1.0], depth_time=[1.0]), "^depth: depth, depth_time and depth_sigma"),
+        (dict(depth=[1.0], depth_time=[1.0, 2.0], depth_sigma=0.1), "^depth_time: has 2 rows"),
+        (dict(depth=[1.0], depth_time=[1.0], depth_sigma=0.0), "^depth_sigma: must be a fin"),
+        (dict(depth=[np.nan], depth_time=[1.0], depth_sigma=0.1), "^depth"),
+        (dict(fix=[[0.5, 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0, 0.0, 2.0]]),
+         "^fix_sigma: row 0 must hold 3 finite"),
+        (dict(fix=[[0.5, 0.6, np.nan]], fix_time=[1.0], fix_sigma=[[2.0, 2.0, np.nan]]), None),
+        (dict(fix=[[math.radians(89.5), 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
+         "^fix: latitude must be within"),
+        (dict(fix=[[0.5, np.inf, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
+         "^fix: row 0 must hold a finite latitude"),
+        (dict(fix=[[0.5, 0.6, 0.0]], fix_time=[2.0, 1.0], fix_sigma=[[2.0] * 3]),
+         "^fix_time: has 2 rows"),
+    ],
+)
+def test_bad_aiding_is_refused_by_name(aiding, message) -> None:
+    traj = pronet.builtin_trajectory("paper")
+    args = (traj.imu[:300], traj.time[1:301], np.zeros((0, 3)), np.zeros(0))
+    kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+              strategy=pronet.Strategy.constant(Q))  # fmt: skip
+    if message is None:  # a horizontal fix: its vertical σ is not read
+        out = pronet.run_filter(*args, **kw, **aiding)  # type: ignore[arg-type]
+        assert out.fix_epoch.tolist() == [100] and np.isfinite(out.fix_nis[0])
+        return
+    with pytest.raises(ValueError, match=message):
+        pronet.run_filter(*args, **kw, **aiding)  # type: ignore[arg-type]
