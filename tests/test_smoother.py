@@ -165,3 +165,34 @@ def test_smoothing_with_lost_dvl_readings_keeps_the_epochs_aligned(matched) -> N
     lost = np.isnan(r.nis)
     np.testing.assert_array_equal(np.isnan(s.nees[:, :, 1]), lost)
     assert s.summary()["srmse"].mean < r.summary()["srmse"].mean
+
+
+def test_smoothed_shards_concat_as_the_whole(matched) -> None:
+    """Shards of a smoothed Monte Carlo (``first_run``) join into the whole, smoothed
+    part included; smoothed and plain shards do not mix."""
+    whole = _mc(matched, n_runs=4, smooth=True)
+    parts = [_mc(matched, n_runs=2, smooth=True, first_run=k) for k in (0, 2)]
+    joined = pronet.MonteCarloResult.concat(parts)
+    assert joined.smoothed is not None and whole.smoothed is not None
+    np.testing.assert_array_equal(joined.smoothed.srmse, whole.smoothed.srmse)
+    np.testing.assert_array_equal(joined.smoothed.error, whole.smoothed.error)
+    with pytest.raises(ValueError, match="some shards were smoothed"):
+        pronet.MonteCarloResult.concat([parts[0], _mc(matched, n_runs=2, first_run=2)])
+
+
+def test_nees_in_band_with_lost_readings_uses_each_epochs_run_count() -> None:
+    """A consistent filter's NEES (χ² with 3 dof) with 40 % of the readings lost is in
+    band at about 95 % of the epochs, each epoch judged against the band of the runs
+    that had it (against the band of all runs it scored 0.875)."""
+    rng = np.random.default_rng(0)
+    runs, epochs = 100, 400
+    nees = rng.chisquare(3, size=(runs, epochs, 5))
+    nees[rng.random((runs, epochs)) < 0.4] = np.nan
+    empty = np.zeros(runs)
+    result = pronet.MonteCarloResult(
+        srmse=empty, smae=empty, final_horizontal_error=empty, max_horizontal_error=empty,
+        mean_nis=empty, rejected_updates=np.zeros(runs, np.int64), diverged_at=empty + np.nan,
+        failure=[None] * runs, dvl_time=np.arange(epochs, dtype=float),
+        nis=nees[:, :, 0], nees=nees,
+    )  # fmt: skip
+    assert 0.92 <= result.nees_in_band("velocity") <= 0.98

@@ -68,7 +68,9 @@ class FilterResult:
             when none was asked for.
         covariances: ``(j, 15, 15)`` the full covariance at those epochs, after their
             update, in the order and units of :data:`ERROR_STATES` (NaN where outside
-            the run); its diagonal is ``sigma**2`` there.
+            the run); its diagonal is ``sigma**2`` there (with a covariance step, σ at an
+            epoch inside a step repeats the last closed step, the covariance here is
+            brought up to date).
         dvl_epoch: ``(m,)`` epoch index each DVL row was applied at.
         innovation: ``(m, 3)`` ``z − h(x̂)`` [m/s].
         innovation_cov: ``(m, 3, 3)`` innovation covariance S [(m/s)²].
@@ -251,9 +253,11 @@ def run_filter(
             is kept at every epoch).
         smooth: also run the Rauch–Tung–Striebel smoother backward over the pass
             (:attr:`FilterResult.smoothed`; every epoch kept, so not with
-            ``epochs="last"``; the DVL calibration states are not smoothed yet). It
-            keeps two covariances per DVL epoch, not per IMU sample, and costs a few
-            forward passes (docs/filter.md, "The RTS smoother").
+            ``epochs="last"``; the DVL calibration states and a covariance step are not
+            smoothed yet). It keeps one covariance per DVL epoch and, while it smooths
+            an interval between two, two per IMU step of that interval (3.6 kB each: a
+            long stretch without an update, an outage, costs memory in proportion), and
+            costs about four forward passes (docs/filter.md, "The RTS smoother").
         depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive
             down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
             all three or none.

@@ -178,22 +178,29 @@ class MonteCarloResult:
         """The share of DVL epochs at which ``block``'s NEES (:data:`STATE_BLOCKS`),
         averaged over the runs that did not fail, lies inside the 95 % band of a
         consistent filter's (:func:`pronet.stats.chi2_mean_band`): about 0.95 when
-        consistent; NaN without such runs or epochs. Below :data:`IN_BAND_FLAG` the
-        tables flag it."""
+        consistent; NaN without such runs or epochs. Where readings were lost (a DVL
+        dropout) an epoch's mean is over the runs that had it, against the band of
+        that many runs. Below :data:`IN_BAND_FLAG` the tables flag it."""
         v = self.block_nees(block)[[f is None for f in self.failure]]
         if v.size == 0:
             return float("nan")
-        low, high = self.nees_band()
-        if np.isnan(v).any():  # missed updates (a DVL dropout): the runs that had one
-            with np.errstate(invalid="ignore"), warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                mean = np.nanmean(v, axis=0)
-            mean = mean[np.isfinite(mean)]
-            if mean.size == 0:
-                return float("nan")
-        else:
+        if not np.isnan(v).any():
+            low, high = self.nees_band()
             mean = v.mean(axis=0)
-        return float(np.mean((mean >= low) & (mean <= high)))
+            return float(np.mean((mean >= low) & (mean <= high)))
+        # Missed updates (a DVL dropout): each epoch's mean over the runs that had it,
+        # against the band of that many runs (a mean over fewer runs spreads more).
+        counts = np.isfinite(v).sum(axis=0)
+        kept = counts > 0
+        if not kept.any():
+            return float("nan")
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mean = np.nanmean(v[:, kept], axis=0)
+        bands = {int(n): chi2_mean_band(3, int(n)) for n in np.unique(counts[kept])}
+        lows = np.array([bands[int(n)][0] for n in counts[kept]])
+        highs = np.array([bands[int(n)][1] for n in counts[kept]])
+        return float(np.mean((mean >= lows) & (mean <= highs)))
 
     @property
     def velocity_nees_3sigma(self) -> NDArray[np.float64]:
@@ -225,6 +232,10 @@ class MonteCarloResult:
                 joined[f.name] = values[0]
             elif f.name == "failure":
                 joined[f.name] = [msg for v in values for msg in v]
+            elif f.name == "smoothed":
+                if any(v is None for v in values) and not all(v is None for v in values):
+                    raise ValueError("parts: some shards were smoothed and some not")
+                joined[f.name] = None if values[0] is None else cls.concat(values)
             elif values[0] is None:
                 joined[f.name] = None
             else:
@@ -335,9 +346,11 @@ def monte_carlo(
             ``first_run .. first_run + n_runs``, identical to those runs of the whole).
         smooth: also run the RTS smoother backward over every run
             (:attr:`MonteCarloResult.smoothed`; the filter's numbers are unchanged). A
-            run then keeps its solution at every IMU epoch until it is smoothed (~300
-            bytes each) and costs a few forward passes; not with the DVL calibration
-            states (``ValueError`` naming ``smooth``).
+            run then keeps its solution at every IMU epoch until it is smoothed (~250
+            bytes each) and, while it smooths an interval between two DVL updates, two
+            covariances per IMU step of it (3.6 kB each, per thread); it costs about
+            four plain runs; not with the DVL calibration states or a covariance step
+            (``ValueError`` naming ``smooth``).
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")

@@ -605,6 +605,7 @@ impl Run {
             t0: truth.time[0],
             nav: &log.nav,
             bias: &log.bias,
+            dt: Some(truth.dt),
         };
         let cfg = self.ekf.config();
         // σ where the histories read it; the NEES reads the nodes' covariances.

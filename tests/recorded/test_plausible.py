@@ -145,3 +145,29 @@ def test_the_synthetic_and_snapir_like_data_pass_every_check(tmp_path, recording
 
     write_recording(tmp_path / "s", recording)
     assert np.array_equal(read_recording(tmp_path / "s").imu, recording.imu)
+
+
+def test_a_biased_mems_gyro_on_a_straight_leg_is_not_taken_for_wrong_angle_units():
+    """A MEMS gyro's bias (0.1 °/s: 1.7e-3 rad per 1 Hz truth row) on a straight leg
+    whose truth attitude barely moves is no unit error: the steps are compared less
+    their median, so the bias cancels (it once said "rad under a [deg] header"). The
+    same leg with turns that come and go, in degrees under a [rad] header, still is."""
+    from pronet.recorded.plausible import Table, attitude_units
+
+    rng = np.random.default_rng(0)
+    t_imu = np.arange(1, 6001) * 0.01  # 60 s at 100 Hz
+    gyro = np.radians(0.1) + rng.normal(size=(6000, 3)) * 1e-4  # [rad/s]
+    imu = np.column_stack([t_imu, np.zeros((6000, 3)), gyro])
+    t_gt = np.arange(1.0, 60.0)
+    rpy = 0.2 + rng.normal(size=(len(t_gt), 3)) * 1e-5  # [rad], straight and level
+    gt = np.column_stack([t_gt, np.zeros((len(t_gt), 6)), rpy])
+    labels = ["roll [rad]", "pitch [rad]", "yaw [rad]"]
+    tables = (Table(imu, "imu.csv", []), Table(gt, "gt.csv", [""] * 7 + labels))
+    assert attitude_units(*tables) is None
+    # Weaving: the gyro turns ±0.05 rad/s over 10 s periods, the truth in degrees.
+    weave = 0.05 * np.sin(2 * np.pi * t_imu / 10)
+    imu[:, 6] += weave
+    yaw = np.cumsum(weave) * 0.01
+    gt[:, 9] = np.degrees(np.interp(t_gt, t_imu, yaw))
+    found = attitude_units(Table(imu, "imu.csv", []), Table(gt, "gt.csv", [""] * 7 + labels))
+    assert found is not None and "deg under a [rad] header" in found, found

@@ -35,7 +35,7 @@ Formulation = Literal["invariant", "classic"]
 #: IMU grades: per-sample white-noise variance at 100 Hz of the accelerometers
 #: [(m/s²)²] and gyros [(rad/s)²], turn-on bias 1σ [m/s², rad/s] and bias random-walk
 #: PSDs [(m/s²)²/s, (rad/s)²/s]. MEMS is the grade whose heading the classic
-#: formulation got wrong (gyro ARW ≈ 0.27 °/√h, bias 41 °/h); tactical is ≈ 0.11 °/√h
+#: formulation got wrong (gyro ARW ≈ 1.5 °/√h, bias 41 °/h); tactical is ≈ 0.11 °/√h
 #: and 1 °/h; FOG (navigation grade) ≈ 0.011 °/√h and 0.01 °/h.
 GRADES: dict[str, dict[str, float]] = {
     "mems": {"q_a": 2e-3, "q_g": 2e-5, "b_a": 1e-3, "b_g": 2e-4, "w_a": 1e-9, "w_g": 2.35e-12},

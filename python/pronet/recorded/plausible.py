@@ -128,11 +128,19 @@ def stuck_channels(
     return None
 
 
+def _varying_steps(angles: F64) -> float:
+    """RMS of the row-to-row steps of ``angles`` ``(n, 3)`` [rad] less their median."""
+    steps = np.diff(angles, axis=0)
+    steps = steps - np.median(steps, axis=0)
+    return float(np.sqrt(np.mean(np.sum(steps**2, axis=1))))
+
+
 def attitude_units(imu: Table, gt: Table) -> str | None:
     """The truth's attitude steps between its rows against the gyro's turn over the
-    same stamps (as given), by RMS: outside [1/:data:`ANGLE_RATIO`, ANGLE_RATIO], the
-    angles' unit disagrees with their header. Silent where the gyro turns less than
-    :data:`MIN_TURN` per row."""
+    same stamps (as given), each less its median step (a gyro bias, a steady turn), by
+    RMS: outside [1/:data:`ANGLE_RATIO`, ANGLE_RATIO], the angles' unit disagrees with
+    their header. Silent where the gyro's turn varies less than :data:`MIN_TURN` per
+    row."""
     t_imu, w = imu.values[:, 0], imu.values[:, 4:7]
     dt = np.diff(t_imu, prepend=t_imu[0] - np.median(np.diff(t_imu)))
     cum = np.vstack([np.zeros(3), np.cumsum(w * dt[:, None], axis=0)])
@@ -142,9 +150,10 @@ def attitude_units(imu: Table, gt: Table) -> str | None:
     if inside.sum() < 10:
         return None
     turned = np.stack([np.interp(t[inside], edges, cum[:, j]) for j in range(3)], axis=1)
-    gyro = np.sqrt(np.mean(np.sum(np.diff(turned, axis=0) ** 2, axis=1)))
     euler = np.unwrap(gt.values[inside, 7:10], axis=0)
-    truth = np.sqrt(np.mean(np.sum(np.diff(euler, axis=0) ** 2, axis=1)))
+    # Steps less their median: a gyro's bias (a MEMS one turns 1e-3 rad per second on a
+    # straight leg) and a steady turn cancel; the turns that come and go are compared.
+    gyro, truth = (_varying_steps(a) for a in (turned, euler))
     if gyro < MIN_TURN:
         return None
     ratio = truth / gyro

@@ -29,8 +29,10 @@ art and future trends", Satellite Navigation 1, 2 (2020), Table 1: navigation gr
 defaults, 50 µg and 0.2 °/h, a Phins-class INS as on the Snapir AUV); tactical grade
 1–5 mg and 1–10 °/h (here 3 mg and 5 °/h); commercial MEMS 100–1000 µg and 0.1 °/s
 (here 1 mg and 0.1 °/s). Their bias random walks take each turn-on bias as the drift
-over 400 s (PSD = bias² / 400 s), as the FOG defaults do (1e-9 (m/s²)²/s and 1e-14
-(rad/s)²/s are 6e-4 m/s² and 2e-6 rad/s over 400 s). Position, velocity and attitude
+over 400 s (PSD = bias² / 400 s), the rule the FOG defaults follow to within a factor
+of two to four (1e-9 (m/s²)²/s and 1e-14 (rad/s)²/s are 6e-4 m/s² and 2e-6 rad/s over
+400 s, against its 50 µg = 4.9e-4 m/s² and 0.2 °/h = 9.7e-7 rad/s; ``fog`` keeps the
+defaults exactly). Position, velocity and attitude
 start from the ground truth in every grade (0.1 m, 0.02 m/s, 0.01°/0.06°).
 """
 

@@ -360,6 +360,7 @@ pub fn smooth_recorded_until(
         t0: data.t0,
         nav: &out.nav,
         bias: &out.bias,
+        dt: None,
     };
     let smoothed = smoother::smooth(&forward, cfg, &nodes.0, Covariances::Every, cancel)?;
     out.smoothed = Some(smoothed);
@@ -990,6 +991,7 @@ mod tests {
                     t0: 0.0,
                     nav: &out.nav,
                     bias: &out.bias,
+                    dt: None,
                 };
                 for pair in nodes.windows(2) {
                     let interval = smoother::Interval::rebuild(
@@ -1011,6 +1013,59 @@ mod tests {
                         assert_eq!(ekf.sigma(), out.sigma[at], "{spec:?} {formulation:?} {at}");
                     }
                 }
+            }
+        }
+    }
+
+    /// The Monte Carlo's way to the smoothed covariance (the interval's forward product,
+    /// inverted where read) gives the σ of the step-by-step way, to rounding, and the
+    /// same mean; epochs it is not asked for stay NaN.
+    #[test]
+    fn covariances_where_asked_equal_the_step_by_step_ones() {
+        let (imu, imu_time, dvl, dvl_time) = moving_pass(400);
+        let cfg = FilterConfig::default();
+        let data = RecordedData {
+            imu: &imu,
+            imu_time: &imu_time,
+            dvl: &dvl,
+            dvl_time: &dvl_time,
+            ..RecordedData::default()
+        };
+        let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
+        let mut nodes = Nodes::default();
+        let cancel = Cancel::default();
+        let out = forward_pass(
+            &data,
+            moving_state(),
+            [0.0; 6],
+            &cfg,
+            strategy.as_mut(),
+            Epochs::All,
+            Some(&mut nodes),
+            &cancel,
+        )
+        .unwrap();
+        let forward = Forward {
+            imu: &imu,
+            imu_time: &imu_time,
+            t0: 0.0,
+            nav: &out.nav,
+            bias: &out.bias,
+            dt: None,
+        };
+        let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
+        let odd = |k: usize| k % 7 == 3;
+        let some = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Where(&odd), &cancel);
+        let (every, some) = (every.unwrap(), some.unwrap());
+        assert_eq!(every.nav, some.nav);
+        let nodes: Vec<usize> = nodes.0.iter().map(|n| n.epoch).collect();
+        for (k, (a, b)) in every.sigma.iter().zip(&some.sigma).enumerate() {
+            if odd(k) || nodes.contains(&k) {
+                for (x, y) in a.iter().zip(b) {
+                    assert!((x - y).abs() <= 1e-9 * x.abs().max(1e-12), "{k}: {x} {y}");
+                }
+            } else {
+                assert!(b.iter().all(|y| y.is_nan()), "{k}");
             }
         }
     }

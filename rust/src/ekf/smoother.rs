@@ -200,6 +200,10 @@ pub struct Forward<'a> {
     pub t0: f64,
     pub nav: &'a [NavState],
     pub bias: &'a [[f64; 6]],
+    /// The step every sample was propagated over, when the forward pass used one
+    /// (a simulation's `truth.dt`), so that the rebuilt steps are its steps bit for bit;
+    /// None: each sample's stamped step.
+    pub dt: Option<f64>,
 }
 
 /// Which epochs' smoothed covariance (σ) a backward pass computes; the nodes' it
@@ -321,8 +325,8 @@ pub(super) struct Interval {
     pub(super) phi: Vec<Matrix15>,
     /// The covariance after the last step (before the end node's update).
     pub(super) p_end: Matrix15,
-    /// `G_i` at the wanted epochs (index `i − a`), None elsewhere.
-    g: Vec<Option<Matrix15>>,
+    /// `(i − a, G_i)` at the wanted epochs inside the interval.
+    g: Vec<(usize, Matrix15)>,
     g_end: Matrix15,
 }
 
@@ -361,11 +365,13 @@ impl Interval {
             } else {
                 forward.imu_time[epoch - 1]
             };
-            let dt = forward.imu_time[epoch] - t_prev;
+            let dt = forward.dt.unwrap_or(forward.imu_time[epoch] - t_prev);
             p.push(ekf.p);
             let step = ekf.transition(&raw, dt);
             if let Some(wanted) = wanted {
-                g_at.push((epoch > a.epoch && wanted(epoch)).then_some(g));
+                if epoch > a.epoch && wanted(epoch) {
+                    g_at.push((epoch - a.epoch, g));
+                }
                 step_product(&step, &mut g);
             }
             phi.push(step);
@@ -386,9 +392,10 @@ impl Interval {
         if k == 0 {
             return Ok(Some(self.g_end.transpose()));
         }
-        let Some(g) = self.g.get(k).copied().flatten() else {
+        let Ok(at) = self.g.binary_search_by_key(&k, |(i, _)| *i) else {
             return Ok(None);
         };
+        let g = self.g[at].1;
         let inverse = g.try_inverse().ok_or_else(|| {
             Error::Numerical("the smoother: a transition product is singular".into())
         })?;
