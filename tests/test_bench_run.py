@@ -1,11 +1,10 @@
 """benches/run.py works end to end on its cheap rows (``--quick``): the table and the
-``--json`` file hold the same rows, each row's verdict agrees with its number and
-target, ``--compare`` pairs the rows, and the yardstick reading divides as documented.
-Nothing here judges the machine's speed."""
+``--json`` file hold the same rows, each timed row is its number over the same run's
+reference, each verdict agrees with its number and target, and ``--compare`` pairs the
+rows of two runs. Nothing here judges the machine's speed."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import subprocess
@@ -16,9 +15,18 @@ from types import ModuleType
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benches" / "run.py"
+BENCHES = ROOT / "benches"
+SCRIPT = BENCHES / "run.py"
 #: Rows cheap enough for every CI run (seconds in all under --quick).
-CHEAP = ["mechanization", "monte-carlo", "covariance-step", "hybrid", "dataset", "inference"]
+CHEAP = [
+    "mechanization",
+    "monte-carlo",
+    "covariance-step",
+    "hybrid",
+    "dataset",
+    "inference",
+    "pyins",
+]
 
 
 def bench(*args: str) -> subprocess.CompletedProcess[str]:
@@ -47,13 +55,40 @@ def test_the_table_and_the_json_hold_the_same_rows(quick):
     printed = table(stdout)
     rows = record["rows"]
     assert [c[0] for c in printed] == [r["what"] for r in rows]
-    assert [c[1] for c in printed] == [r["measured"] for r in rows]
+    assert [c[3] for c in printed] == [r["measured"] for r in rows]
     assert record["runs"] == 10 and "--quick" in record["command"]
-    assert all(len(c) == 5 for c in printed)
+    assert all(len(c) == 7 for c in printed)
     whats = " / ".join(r["what"] for r in rows)
     for part in ("pronet.mechanize", "constant Q Monte Carlo", "1 → 2 threads", "ProNet detrend"):
         assert part in whats
     assert sum(r["what"].startswith("inference, ") for r in rows) >= 5
+    before, after = record["reference_s"]
+    assert before > 0 and after > 0
+    assert f"every IMU step: {before:.3f} s before the rows" in stdout
+
+
+def test_each_timed_row_is_its_number_over_the_same_runs_reference(quick):
+    stdout, record, _ = quick
+    reference = record["reference_s"][0]
+    per_step = reference / (100 * 33_000) * 1e9
+    timed = 0
+    for row, cells in zip(record["rows"], table(stdout), strict=True):
+        if row["unit"] == "s":
+            assert row["ratio"] == pytest.approx(row["value"] / reference), row
+        elif row["unit"] == "ns per step":
+            assert row["ratio"] == pytest.approx(row["value"] / per_step), row
+        else:
+            assert row["ratio"] is None, row
+            continue
+        assert cells[1].endswith("×") and float(cells[1][:-1]) == pytest.approx(
+            row["ratio"], rel=0.01, abs=0.01
+        )
+        timed += 1
+    assert timed >= 10
+    # the constant-Q Monte Carlo at 10 runs: about a tenth of the 100-run reference
+    (mc,) = [r for r in record["rows"] if r["what"].startswith("constant Q Monte Carlo")]
+    assert 0.02 < mc["ratio"] < 0.5
+    assert mc["ns_per_step"] == pytest.approx(mc["value"] / (10 * 33_000) * 1e9)
 
 
 def test_each_verdict_agrees_with_its_number_and_target(quick):
@@ -61,73 +96,77 @@ def test_each_verdict_agrees_with_its_number_and_target(quick):
     judged = 0
     for row in record["rows"]:
         assert row["value"] is None or row["value"] > 0, row
-        limit = re.fullmatch(r"≤ ([0-9.]+) s", row["target"])
-        if limit is not None:
-            assert row["unit"] == "s" and row["met"] == (row["value"] <= float(limit[1])), row
+        target = re.fullmatch(r"([≤≥]) ([0-9.]+)×.*", row["target"])
+        if target is not None:
+            number = row["ratio"] if row["ratio"] is not None else row["value"]
+            limit = float(target[2])
+            assert row["met"] == (number <= limit if target[1] == "≤" else number >= limit), row
             judged += 1
         elif row["target"] in ("—", ""):
             assert row["met"] is None, row
-    assert judged >= 4  # the two Monte Carlos, the two loops with targets, the dataset
+    assert judged >= 5  # Mehra, threads, the covariance step, the two loops, the dataset
+
+
+def test_pyins_row_is_skipped_cleanly_without_pyins(quick):
+    _, record, _ = quick
+    (row,) = [r for r in record["rows"] if r["what"].startswith("pyins")]
+    try:
+        import pyins  # noqa: F401
+    except ImportError:
+        assert row["measured"].startswith("skipped: pyins") and row["met"] is None
 
 
 def test_compare_pairs_the_rows_of_two_files(quick, tmp_path):
     _, record, path = quick
-    other = dict(
-        record, rows=[dict(r, value=2 * r["value"]) if r["value"] else r for r in record["rows"]]
-    )
-    doubled = tmp_path / "doubled.json"
-    doubled.write_text(json.dumps(other))
-    done = bench("--compare", str(path), str(doubled))
+
+    def doubled(r: dict) -> dict:
+        twice = {k: 2 * r[k] for k in ("value", "ratio") if r[k]}
+        return dict(r, **twice)
+
+    other = dict(record, rows=[doubled(r) for r in record["rows"]])
+    later = tmp_path / "doubled.json"
+    later.write_text(json.dumps(other))
+    done = bench("--compare", str(path), str(later))
     assert done.returncode == 0, done.stderr
     rows = table(done.stdout)
     assert [c[0] for c in rows] == [r["what"] for r in record["rows"]]
-    assert all(
-        c[3] == ("2.00×" if r["value"] else "") for c, r in zip(rows, record["rows"], strict=True)
-    )
-    assert "yardsticks" not in done.stdout  # at 10 runs the reading is not defined
+    for cells, r in zip(rows, record["rows"], strict=True):
+        assert cells[3] == ("2.00×" if r["value"] else "")
+        assert cells[4] == ("2.00×" if r["ratio"] else "")
 
 
-def load_script(monkeypatch) -> ModuleType:
-    spec = importlib.util.spec_from_file_location("bench_run", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "bench_run", module)  # for its dataclasses
-    spec.loader.exec_module(module)
-    return module
+def load(name: str, monkeypatch) -> ModuleType:
+    """A module of benches/, imported as run.py imports it."""
+    monkeypatch.syspath_prepend(str(BENCHES))
+    return __import__(name)
 
 
-def test_yardsticks_divide_by_the_same_runs_constant_q_monte_carlo(monkeypatch):
-    run = load_script(monkeypatch)
-    stick = f"{run.YARDSTICK_ROW}, 100 runs × 330 s, 2 threads"
-    rows = [
-        {"what": stick, "target": "≤ 0.8 s", "value": 0.5},
-        {"what": "fast", "target": "≤ 3 s", "value": 1.0},
-        {"what": "slow", "target": "≤ 1.5 s", "value": 1.0},
-        {"what": "no target", "target": "—", "value": 9.0},
-        {"what": "a ratio", "target": "≥ 1.8×", "value": 1.9},
-    ]
-    lines = run.in_yardsticks(rows, 100)
-    limit_fast, limit_slow = 3 / run.TARGET_MACHINE_YARDSTICK, 1.5 / run.TARGET_MACHINE_YARDSTICK
-    assert lines[1:] == [
-        f"#   fast: 2.00 (target {limit_fast:.2f}, met)",
-        f"#   slow: 2.00 (target {limit_slow:.2f}, **not met**)",
-    ]
-    assert run.in_yardsticks(rows, 10) == []  # not at the targets' 100 runs
-    assert run.in_yardsticks(rows[1:], 100) == []  # no yardstick row
+def test_a_former_target_in_seconds_reads_over_the_target_machines_reference(monkeypatch):
+    rows = load("rows", monkeypatch)
+    ref = rows.Reference(0.5)
+    at_most = rows.from_seconds_target(3.0)
+    assert at_most == round(3.0 / rows.TARGET_MACHINE_REFERENCE, 2)
+    fast = rows.timed_row("fast", 1.0, ref, "c", at_most=at_most, steps=1000)
+    slow = rows.timed_row("slow", 1.5, ref, "c", at_most=at_most)
+    assert fast.ratio == 2.0 and fast.met and fast.ns_per_step == pytest.approx(1e6)
+    assert slow.ratio == 3.0 and slow.met is False and slow.ns_per_step is None
+    assert fast.target == f"≤ {at_most:.2f}×"
+    step = rows.per_step_row("step", ref.ns_per_step / 4, ref, "c")
+    assert step.ratio == pytest.approx(0.25) and step.met is None
 
 
 def test_the_formulation_row_divides_the_two_predict_steps_of_one_criterion_run(monkeypatch):
-    run = load_script(monkeypatch)
-    row = run.Row
+    filter_rows = load("filter_rows", monkeypatch)
+    row = load("rows", monkeypatch).Row
 
     def rust(name: str, ns: float) -> object:
         return row(f"ekf predict {name} (covariance + strapdown) (Rust)", "", "—", None, "c", ns)
 
     for classic, invariant in [(400.0, 440.0), (400.0, 520.0)]:
-        (ratio,) = run.formulation_ratio(
+        (ratio,) = filter_rows.formulation_ratio(
             [rust("classic", classic), rust("invariant", invariant)], "c"
         )
         assert ratio.value == pytest.approx(invariant / classic) and ratio.unit == "x"
-        assert ratio.met == (invariant / classic <= run.FORMULATION_TARGET)
-        assert ratio.target == f"≤ {run.FORMULATION_TARGET}×"
-    assert run.formulation_ratio([rust("classic", 400.0)], "c") == []  # one side missing
+        assert ratio.met == (invariant / classic <= filter_rows.FORMULATION_TARGET)
+        assert ratio.target == f"≤ {filter_rows.FORMULATION_TARGET}×"
+    assert filter_rows.formulation_ratio([rust("classic", 400.0)], "c") == []  # one side missing

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from pronet.learn.hybrid import ConstantRegressor
-from pronet.plots import sections
 from pronet.recorded import alignment, figures, real
 from pronet.recorded.alignment import align, estimate_alignment
 from pronet.recorded.tuning import real_filter_config
@@ -111,65 +110,6 @@ def test_the_pool_defaults_to_half_the_cores_and_at_least_one_worker(monkeypatch
         assert figures.default_workers() == workers
 
 
-def test_a_kept_legend_is_pasted_only_where_it_covers_the_background_alone(ran):
-    """Something drawn where the legend is: its pixels are not pasted over it, nor kept
-    from a drawing with it, and the figure is the one matplotlib draws."""
-    section, done, _ = ran
-    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
-    curves = figures.section_curves(section, done.runs, done.constants[section.name], imu_dt)
-    figure = sections.SectionFigure("track")
-    figure.png(curves)
-    figure.png(curves)
-    assert figure.legend.pasted == 1
-    box = figure.fig.legends[0].get_window_extent()
-    width, height = figure.fig.bbox.width, figure.fig.bbox.height
-    under = ((box.x0 + 4) / width, (box.y0 + 4) / height, "under the legend")
-    figure.fig.text(*under)
-    drawn = figure.png(curves)  # refused: the region is not background alone
-    assert figure.legend.pasted == 1 and not figure.legend.holds(figure.fig.legends[0])
-    fresh = sections.SectionFigure("track")
-    fresh.fig.text(*under)
-    assert fresh.png(curves) == drawn  # matplotlib's own drawing
-    # nothing kept from a drawing where the text reaches the legend
-    assert not fresh.legend.holds(fresh.fig.legends[0])
-    beside = sections.SectionFigure("track")  # text just off the pixels kept: kept
-    beside.fig.text(0.01, 0.01, "far from the legend")
-    beside.png(curves)
-    assert beside.legend.holds(beside.fig.legends[0])
-
-
-def test_a_legend_is_kept_only_for_its_own_entries_and_lines_alone():
-    """The key names what the legend's pixels depend on; a legend with a handle other
-    than a line (here a patch) is never kept."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from pronet.plots._legendpixels import LegendPixels, legend_key
-    from pronet.plots.figures import _drawn
-
-    def figure(**line):
-        fig = Figure(figsize=(3, 2), dpi=60)
-        FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.1, 0.1, 0.4, 0.8))
-        ax.plot([0, 1], [0, 1], label="a", **line)
-        return fig, ax
-
-    fig, ax = figure()
-    legend = fig.legend(loc="upper right")
-    kept = LegendPixels()
-    kept.keep(fig, legend, _drawn(fig))
-    assert kept.holds(legend)
-    for changed in ({"color": "red"}, {"lw": 3.0}, {"ls": "--"}, {"marker": "o"}):
-        other, _ = figure(**changed)
-        assert not kept.holds(other.legend(loc="upper right")), changed
-    fig, ax = figure()
-    ax.bar([0.0], [1.0], label="bar")
-    legend = fig.legend(loc="upper right")
-    assert legend_key(legend) is None
-    kept.keep(fig, legend, _drawn(fig))
-    assert not kept.holds(legend)
-
-
 def _varied(curves):
     """Sections unlike ``curves`` and each other: other rows, spans, names, no q."""
     track = [(lab, 3.0 * e - 40.0, 0.5 * n) for lab, e, n in curves.track]
@@ -219,8 +159,6 @@ def test_a_kept_figure_draws_the_bytes_of_a_fresh_one(ran):
                 figures.draw_figure(kind, broken, kept)
             assert kept[kind].axes[0].lines  # half drawn: the next one starts clean
     assert sorted(kept) == sorted(figures.FIGURES)
-    # the legends of the sections with the same rows were pasted, not drawn again
-    assert all(kept[kind].legend.pasted >= 1 for kind in figures.FIGURES)
     with pytest.raises(ValueError, match="kind: expected one of track, velocity_error, q"):
         figures.draw_figure("speed", curves)
 

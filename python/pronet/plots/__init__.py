@@ -3,8 +3,7 @@ written as PNG atomically; matplotlib loads only when one is drawn.
 
 - :mod:`~pronet.plots.figures`: one function per figure of the simulated experiments
   and of ``pronet evaluate`` (re-exported here: ``pronet.plots.trajectory(...)``);
-- :mod:`~pronet.plots.sections`: the figures of a recorded section (``pronet real``);
-- :mod:`~pronet.plots._legendpixels` (private): a kept figure's legend pasted as pixels.
+- :mod:`~pronet.plots.sections`: the figures of a recorded section (``pronet real``).
 
 ``docs/figures.md`` shows each figure and how to read it.
 """

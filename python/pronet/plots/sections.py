@@ -13,15 +13,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pronet.plots._legendpixels import LegendPixels
 from pronet.plots.figures import _drawn, _encode_png, _log_y, _write_png
 
 if TYPE_CHECKING:  # matplotlib loads only when a figure is drawn
     from matplotlib.figure import Figure
 
-
-#: An opaque white pixel of an Agg canvas: the background a kept legend is pasted on.
-_WHITE = np.array([255, 255, 255, 255], dtype=np.uint8)
 
 #: matplotlib's default ten line colours ("tab10").
 TAB10 = tuple(f"tab:{c}" for c in "blue orange green red purple brown pink gray olive cyan".split())
@@ -106,10 +102,8 @@ class SectionFigure:
     """One of the figures of recorded sections (``kind`` in :data:`SECTION_FIGURES`),
     kept to be drawn again: :meth:`png` removes the last section's lines and legend
     and draws the next one's on the same axes, whose ticks, labels and grid matplotlib
-    then only updates, and its legend, while its entries stay the same, is pasted as
-    the pixels of its first drawing (:mod:`pronet.plots._legendpixels`). The pixels are those
-    of a new figure (tested), at about half its cost; ``pronet real``'s figure workers
-    keep one of each kind. Not for two threads at once."""
+    then only updates. The pixels are those of a new figure (tested), at less cost;
+    ``pronet real``'s figure workers keep one of each kind. Not for two threads at once."""
 
     def __init__(self, kind: str) -> None:
         if kind not in SECTION_FIGURES:
@@ -124,7 +118,6 @@ class SectionFigure:
         )
         self.fig, self.axes = _legend_figure(width, height, rows)
         self._used = False
-        self.legend = LegendPixels()
         if self.kind == "track":
             self.axes[0].set(xlabel="east [m]", ylabel="north [m]")
             self.axes[0].set_aspect("equal", adjustable="datalim")
@@ -160,25 +153,7 @@ class SectionFigure:
             self._new_figure()
             self._used = True
             self._draw(curves)
-        return self._png()
-
-    def _png(self) -> bytes:
-        """The figure drawn as PNG bytes, its legend pasted where :attr:`legend` holds
-        its pixels (else drawn, and its pixels kept)."""
-        (legend,) = self.fig.legends
-        kept, fig = self.legend, self.fig
-        if kept.holds(legend):
-            legend.set_visible(False)
-            try:
-                rgba = _drawn(fig)
-            finally:
-                legend.set_visible(True)
-            if kept.paste(rgba, _WHITE):
-                return _encode_png(rgba, fig.dpi)
-        rgba = _drawn(fig)
-        if tuple(fig.get_facecolor()) == (1.0, 1.0, 1.0, 1.0):  # the background pasted on
-            kept.keep(fig, legend, rgba)
-        return _encode_png(rgba, fig.dpi)
+        return _encode_png(_drawn(self.fig), self.fig.dpi)
 
     def _draw(self, curves: SectionCurves) -> None:
         """``curves``' lines, legend and title on the figure's empty panels."""

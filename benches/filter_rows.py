@@ -1,0 +1,249 @@
+"""``benches/run.py``'s rows of the core: the Rust micro-benchmarks, the mechanization
+from Python, the Monte Carlos, the covariance step and the 10,000-run soak.
+
+Definitions:
+- Monte Carlo rows: the evaluation scenario (``paper``, 330 s at 100 Hz, P propagated
+  every IMU step), ``--runs`` runs, the paper's filter and sensors, no histories, best
+  of ``--repeat`` in a fresh process; ns per filter step counts IMU steps over all runs.
+- covariance step (issue 43): ``benches/covariance_step.py`` in a fresh process, the
+  per-sample filter and a 0.1 s covariance step alternating, best of ``--repeat`` each:
+  the constant-Q Monte Carlo of ``paper`` (2 threads) as a ratio, and ``run_filter`` in
+  ns per IMU step on an hour of 100 Hz IMU with a 1 Hz DVL (6 minutes under
+  ``--quick``), keeping the last epoch (the filter alone) and every epoch.
+- 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
+  runs and at all of them; peak RSS and the time ratio (10 is linear).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+from rows import (
+    PAPER_STEPS,
+    SCRIPT,
+    Reference,
+    Row,
+    best_of,
+    from_seconds_target,
+    monte_carlo_wall,
+    per_step_row,
+    timed_row,
+    times,
+)
+
+import pronet
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Criterion's summary of one benchmark: its name, then "time: [low median high unit]".
+CRITERION_LINE = re.compile(r"^(\S[^\n]*?)\s+time:\s+\[\S+ \S+ (\S+) (\S+) \S+ \S+\]", re.M)
+UNIT_NS = {"ps": 1e-3, "ns": 1.0, "µs": 1e3, "us": 1e3, "ms": 1e6, "s": 1e9}
+#: The mechanization step's target: 100 ns (10 M steps/s per core), as a ratio.
+MECHANIZATION_TARGET = round(100 / (1e9 * 1.03 / (100 * PAPER_STEPS)), 2)
+
+
+def bench_rust(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    """Criterion's medians [ns], each over the reference's ns per filter step (criterion
+    runs apart from the reference: a coarser ratio than the other rows')."""
+    command = "cargo bench --features bench --bench core"
+    if shutil.which("cargo") is None:
+        return [Row("Rust micro-benchmarks", "skipped: no cargo", "—", None, command)]
+    extra = ["--warm-up-time", "1", "--measurement-time", "2"] if args.quick else []
+    out = subprocess.run(
+        ["cargo", "bench", "--quiet", "--features", "bench", "--bench", "core", "--", "--noplot"]
+        + extra,
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    rows = []
+    for name, value, unit in CRITERION_LINE.findall(out.replace("\n  ", "  ")):
+        ns = float(value) * UNIT_NS[unit]
+        at_most = MECHANIZATION_TARGET if name.startswith("mechanization") else None
+        rows.append(per_step_row(f"{name} (Rust)", ns, ref, command, at_most=at_most))
+    return rows + formulation_ratio(rows, command)
+
+
+#: The most one invariant-formulation predict step may cost over a classic one (issue 41).
+FORMULATION_TARGET = 1.2
+
+
+def formulation_ratio(rows: list[Row], command: str) -> list[Row]:
+    """The invariant predict step's time over the classic one's, both measured in the
+    same criterion run (no row when either is missing)."""
+    ns = {}
+    for row in rows:
+        for name in ("classic", "invariant"):
+            if row.what.startswith(f"ekf predict {name} ") and row.value is not None:
+                ns[name] = row.value
+    if len(ns) < 2:
+        return []
+    ratio = ns["invariant"] / ns["classic"]
+    return [
+        Row(
+            "ekf predict: invariant over classic formulation",
+            f"{ratio:.2f}× ({ns['classic']:.0f} → {ns['invariant']:.0f} ns)",
+            f"≤ {FORMULATION_TARGET}×",
+            ratio <= FORMULATION_TARGET,
+            command,
+            ratio,
+            "x",
+        )
+    ]
+
+
+def bench_mechanization(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    traj = pronet.builtin_trajectory("paper")
+    imu = np.tile(traj.imu, (10 if not args.quick else 1, 1))
+    lla0, vel0, rpy0 = traj.lla[0], traj.vel_ned[0], traj.rpy[0]
+    wall = best_of(args.repeat, lambda: pronet.mechanize(imu, traj.dt, lla0, vel0, rpy0))
+    ns = wall / len(imu) * 1e9
+    return [
+        per_step_row(
+            "`pronet.mechanize` from Python, with roll/pitch/yaw of every step",
+            ns,
+            ref,
+            f"{SCRIPT} --only mechanization",
+            detail=f"{1e3 / ns:.1f} M steps/s",
+        )
+    ]
+
+
+def bench_monte_carlo(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    n = args.runs
+    steps = n * PAPER_STEPS
+    command = f"{SCRIPT} --only monte-carlo --runs {n}"
+    rows = []
+    walls = {}
+    for label, kind, target in [("constant Q", "constant", None), ("Mehra ξ = 5", "mehra", 1.5)]:
+        for threads in (1, 2):
+            walls[label, threads] = monte_carlo_wall(kind, n, threads, args.repeat)
+        at_most = None if target is None else from_seconds_target(target) * n / 100
+        rows.append(
+            timed_row(
+                f"{label} Monte Carlo, {n} runs × 330 s, 2 threads",
+                walls[label, 2],
+                ref,
+                command,
+                at_most=at_most,
+                steps=steps,
+            )
+        )
+    speedup = walls["constant Q", 1] / walls["constant Q", 2]
+    rows.append(
+        Row(
+            "1 → 2 threads (constant Q)",
+            f"{speedup:.2f}× ({walls['constant Q', 1]:.2f} s → {walls['constant Q', 2]:.2f} s)",
+            "≥ 1.8×",
+            speedup >= 1.8,
+            command,
+            speedup,
+            "x",
+        )
+    )
+    return rows
+
+
+#: The covariance step the speed rows time against the per-sample filter [s].
+COVARIANCE_STEP = 0.1
+
+
+def bench_covariance_step(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    seconds = 360 if args.quick else 3600
+    argv = [str(args.runs), str(args.repeat), str(seconds), str(COVARIANCE_STEP)]
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benches" / "covariance_step.py"), *argv],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    m = json.loads(out.stdout)
+    command = f"{SCRIPT} --only covariance-step --runs {args.runs}"
+    step = f"{COVARIANCE_STEP:g} s covariance step"
+    mc = m["monte_carlo_every_s"] / m["monte_carlo_step_s"]
+    rows = [
+        Row(
+            f"{step} against every IMU step: constant Q Monte Carlo, {args.runs} runs",
+            f"{mc:.2f}× ({m['monte_carlo_every_s']:.2f} s → {m['monte_carlo_step_s']:.2f} s)",
+            "≥ 2×",
+            mc >= 2,
+            command,
+            mc,
+            "x",
+            ns_per_step=m["monte_carlo_step_s"] / (args.runs * PAPER_STEPS) * 1e9,
+        )
+    ]
+    for epochs, kept in (("last", "last epoch"), ("all", "every epoch")):
+        every, stepped = m[f"run_filter_{epochs}_every_ns"], m[f"run_filter_{epochs}_step_ns"]
+        rows.append(
+            per_step_row(
+                f"{step}: `run_filter`, {seconds / 3600:g} h at 100 Hz, 1 Hz DVL, {kept} kept",
+                stepped,
+                ref,
+                command,
+                detail=f"{times(every / stepped)} faster than every IMU step, {every:.0f} ns",
+            )
+        )
+    return rows
+
+
+# Without pronet.sim.scenarios, which imports torch (~500 MiB that is not the Monte Carlo's).
+# Peak memory from VmHWM: ru_maxrss would carry over the parent's peak across exec.
+SOAK = """
+import sys, time
+import pronet
+def peak_kib():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
+q = (1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6)
+traj = pronet.builtin_trajectory("paper")
+config = pronet.FilterConfig(accel_bias_psd=1e-3, gyro_bias_psd=1e-3, dvl_variance=(0.01,) * 3)
+before = peak_kib()
+t0 = time.perf_counter()
+pronet.monte_carlo(traj, pronet.Strategy.constant(q), sensors=pronet.SensorConfig(imu_variance=q),
+                   config=config, n_runs=int(sys.argv[1]), seed=0)
+print(time.perf_counter() - t0, before, peak_kib())
+"""
+
+
+def bench_soak(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    big = 1000 if args.quick else 10_000
+    measured = {}
+    for n in (big // 10, big):
+        out = subprocess.run(
+            [sys.executable, "-c", SOAK, str(n)], check=True, capture_output=True, text=True
+        )
+        wall, before_kib, peak_kib = out.stdout.split()
+        measured[n] = float(wall), int(before_kib) / 2**20, int(peak_kib) / 2**20
+    (t_small, _, _), (t_big, before, gib) = measured[big // 10], measured[big]
+    command = f"{SCRIPT} --only soak"
+    return [
+        Row(
+            f"{big:,}-run Monte Carlo without histories: peak memory",
+            f"{gib * 1024:.0f} MiB (of which {before * 1024:.0f} MiB before it started)",
+            "< 1 GB",
+            gib * 2**30 < 1e9,
+            command,
+            gib * 1024,
+            "MiB",
+        ),
+        Row(
+            f"{big:,}-run Monte Carlo: time, and its ratio to {big // 10:,} runs",
+            f"{t_big / t_small:.1f}× for 10× the runs ({t_big:.0f} s)",
+            "≤ 10.5× (linear in runs)",
+            t_big / t_small <= 10.5,
+            command,
+            t_big / t_small,
+            "x",
+            ns_per_step=t_big / (big * PAPER_STEPS) * 1e9,
+        ),
+    ]

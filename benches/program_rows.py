@@ -1,0 +1,270 @@
+"""``benches/run.py``'s rows of the programs built on the core: the learned loops,
+inference, the dataset, the sweep, ``pronet real``, ``reproduce`` and ``study``.
+
+Definitions:
+- hybrid: ``run_hybrid`` with the shipped detrend net (its forward pass frozen in the
+  core), and with the detrended variance (``detvar``), tuning every 1 s, split into
+  time stepping the filters and time in ``predict``.
+- real: ``pronet real`` on the Snapir sections (``$PRONET_SNAPIR_DIR``, else
+  ``../shared/data/snapir``), every strategy; and reading plus clock estimation per
+  section.
+- study: ``pronet study`` at 100 runs (four scenarios × ten estimators).
+- sweep: 2 strategies x 4 noise levels on ``paper`` in shards of a quarter of the runs,
+  on the local engine (all cores per shard) and on a private Ray (one CPU per shard).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from rows import PAPER_STEPS, SCRIPT, Reference, Row, best_of, from_seconds_target, timed_row
+
+from pronet.learn import dataset, models
+from pronet.learn.hybrid import HybridResult, run_hybrid
+from pronet.learn.models import Regressor
+from pronet.sim import paper, scenarios
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _best_hybrid(regressor: Regressor, runs: int, repeat: int) -> tuple[float, HybridResult]:
+    """The fastest of ``repeat`` learned loops on ``paper``: wall [s] and result."""
+    sc = scenarios.paper_scenario()
+    best: tuple[float, HybridResult] | None = None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = run_hybrid(
+            regressor,
+            sc.trajectory,
+            prior_q=sc.q_nominal,
+            sensors=sc.sensors,
+            config=paper.paper_filter_config(),
+            n_runs=runs,
+            seed=0,
+        )
+        wall = time.perf_counter() - t0
+        if best is None or wall < best[0]:
+            best = (wall, out)
+    assert best is not None
+    return best
+
+
+def bench_hybrid(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    n = args.runs
+    loaded = models.load("detrend")
+    assert isinstance(loaded, models.BaselineNet)
+    net: models.BaselineNet = loaded
+
+    class TorchPass:  # the same net through torch's float32 pass: the loop before freezing
+        def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
+            return net.predict(windows, native=False)
+
+    choices: list[tuple[str, Regressor, float | None]] = [
+        ("ProNet detrend net", net, 3.0),
+        ("detrended variance (`detvar`)", models.DetrendedVariance(), 1.5),
+        ("the same detrend net through torch (float32, not frozen)", TorchPass(), None),
+    ]
+    rows = []
+    for label, regressor, target in choices:
+        wall, out = _best_hybrid(regressor, n, args.repeat)
+        rows.append(
+            timed_row(
+                f"{label} loop, {n} runs × 330 s, including inference",
+                wall,
+                ref,
+                f"{SCRIPT} --only hybrid --runs {n}",
+                detail=f"filters {out.rust_seconds:.2f} s, predict {out.model_seconds:.2f} s, "
+                f"{out.n_tunings} tunings",
+                at_most=None if target is None else from_seconds_target(target) * n / 100,
+                steps=n * PAPER_STEPS,
+            )
+        )
+    return rows
+
+
+def bench_inference(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    windows = (np.random.default_rng(0).standard_normal((100, 6, 200)) * 0.1).astype(np.float32)
+    candidates: list[tuple[str, Callable[[], object]]] = []
+    detvar = models.DetrendedVariance()
+    candidates.append(("detrended variance", lambda: detvar.predict(windows)))
+    for name in models.SHIPPED:
+        model = models.load(name)
+        if isinstance(model, models.BaselineNet):
+            frozen = model.frozen()
+            candidates.append((f"{name}, frozen in the core", partial(frozen.predict, windows)))
+            candidates.append(
+                (f"{name}, torch float32", partial(model.predict, windows, native=False))
+            )
+        else:
+            candidates.append((name, partial(model.predict, windows)))
+    rows = []
+    for label, call in candidates:
+        call()  # warm-up
+        wall = best_of(args.repeat * 5, call)
+        rows.append(
+            timed_row(
+                f"inference, {label}, batch 600",
+                wall,
+                ref,
+                f"{SCRIPT} --only inference",
+                detail=f"{600 / wall:,.0f} windows/s",
+            )
+        )
+    return rows
+
+
+def bench_dataset(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    ds: list[dataset.Dataset] = []
+    wall = best_of(args.repeat, lambda: ds.append(dataset.build_dataset()))
+    n = ds[-1].q.size
+    return [
+        timed_row(
+            f"dataset of {n:,} windows (`build_dataset`)",
+            wall,
+            ref,
+            f"{SCRIPT} --only dataset",
+            at_most=from_seconds_target(5.0),
+        )
+    ]
+
+
+def bench_sweep(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    from pronet import config
+    from pronet.experiments import sweep
+
+    runs = 20 if args.quick else args.runs
+    grid = config.sweep_grid(
+        {
+            "scenarios": ["paper"],
+            "strategies": ["constant", "mehra:5"],
+            "noise_levels": [1, 2, 4, 8],
+            "runs": runs,
+            "shard_runs": max(1, runs // 4),
+        },
+        "bench",
+    )
+    n_shards = len(sweep.plan(grid))
+    t0 = time.perf_counter()
+    local = sweep.run_sweep(grid, engine="local")
+    t_local = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    on_ray = sweep.run_sweep(grid, engine="ray")  # starts a private Ray: counted
+    t_ray = time.perf_counter() - t0
+    same = all(
+        np.array_equal(a.result.srmse, b.result.srmse)
+        for a, b in zip(local.points, on_ray.points, strict=True)
+    )
+    what = f"sweep, 8 grid points x {runs} runs in {n_shards} shards"
+    command = f"{SCRIPT} --only sweep"
+    return [
+        timed_row(f"{what}, local engine", t_local, ref, command, steps=8 * runs * PAPER_STEPS),
+        Row(
+            f"{what}, Ray engine (a private Ray on this machine, start-up included)",
+            f"{t_ray / t_local:.2f}× local ({t_ray:.2f} s), numbers "
+            + ("identical" if same else "DIFFERENT"),
+            "identical numbers",
+            same,
+            command,
+            t_ray / t_local,
+            "x",
+        ),
+    ]
+
+
+def _cli(*argv: str) -> float:
+    """Wall time [s] of ``pronet ARGV`` in a fresh process."""
+    pronet_cli = Path(sys.executable).with_name("pronet")
+    t0 = time.perf_counter()
+    subprocess.run([str(pronet_cli), *argv], check=True, stdout=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
+def bench_real(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    from pronet.recorded import alignment
+
+    data = Path(os.environ.get("PRONET_SNAPIR_DIR", ROOT.parent / "shared" / "data" / "snapir"))
+    if not data.is_dir():
+        return [Row("`pronet real`", f"skipped: no data at {data}", "—", None, "")]
+    paths = alignment.find_sections(data)
+    per_section = [
+        best_of(
+            args.repeat,
+            partial(
+                alignment.load_section,
+                path,
+                "snapir",
+                imu_lever_arm=alignment.SNAPIR_IMU_LEVER_ARM,
+                dvl_lever_arm=alignment.SNAPIR_DVL_LEVER_ARM,
+            ),
+        )
+        for path in paths
+    ]
+    with tempfile.TemporaryDirectory() as tmp:
+        wall = _cli("real", "--data", str(data), "--quiet", "--out", str(Path(tmp) / "out"))
+        bare = _cli(
+            "real", "--data", str(data), "--quiet", "--no-plots", "--out", str(Path(tmp) / "b")
+        )
+    command = f"{SCRIPT} --only real"
+    return [
+        timed_row(
+            f"reading a Snapir section and estimating its clocks, worst of {len(paths)}",
+            max(per_section),
+            ref,
+            command,
+            detail=f"mean {np.mean(per_section):.2f} s",
+            at_most=from_seconds_target(0.2),
+        ),
+        timed_row(
+            f"`pronet real --no-plots`, {len(paths)} Snapir sections, every strategy",
+            bare,
+            ref,
+            f"{command}  (or: time pronet real --data DIR --no-plots)",
+            at_most=from_seconds_target(10.0),
+        ),
+        timed_row(
+            f"`pronet real`, {len(paths)} Snapir sections, every strategy, plots",
+            wall,
+            ref,
+            f"{command}  (or: time pronet real --data DIR)",
+            at_most=from_seconds_target(10.0),
+        ),
+    ]
+
+
+def bench_reproduce(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    with tempfile.TemporaryDirectory() as tmp:
+        wall = _cli("reproduce", "--quiet", "--out", str(Path(tmp) / "out"))
+    return [
+        timed_row(
+            "`pronet reproduce`, shipped weights, both scenarios, 100 runs",
+            wall,
+            ref,
+            f"{SCRIPT} --only reproduce  (or: time pronet reproduce)",
+            at_most=from_seconds_target(40.0),
+        )
+    ]
+
+
+def bench_study(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    runs = 10 if args.quick else 100
+    with tempfile.TemporaryDirectory() as tmp:
+        wall = _cli("study", "--runs", str(runs), "--quiet", "--out", str(Path(tmp) / "out"))
+    return [
+        timed_row(
+            f"`pronet study`, {runs} runs (4 scenarios × 10 estimators)",
+            wall,
+            ref,
+            f"{SCRIPT} --only study  (or: time pronet study)",
+            at_most=round(from_seconds_target(180.0) * runs / 100, 2),
+        )
+    ]
