@@ -158,6 +158,9 @@ class Recording:
             readings (:mod:`pronet.recorded.missing`), not in ``dvl``.
         dvl_skipped_reason: why each was skipped (one of
             :data:`pronet.recorded.missing.REASONS`).
+        dvl_variance: the DVL's noise variance R per axis [(m/s)², body FRD] that the
+            recording states (a ROS bag's covariance, :mod:`pronet.recorded.bags`), or
+            None (R as tuned).
     """
 
     name: str
@@ -172,6 +175,7 @@ class Recording:
     source: str
     dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     dvl_skipped_reason: tuple[str, ...] = ()
+    dvl_variance: tuple[float, float, float] | None = None
 
     @property
     def duration(self) -> float:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pronet.recorded import missing
-from pronet.recorded.alignment import Section
+from pronet.recorded.alignment import Format, Section
 from pronet.recorded.tuning import real_filter_config
 from pronet.results import (
     OUT_OF_BAND,
@@ -355,7 +355,7 @@ def real_tables(done: RealRuns) -> str:
 
 def real_config(
     data: str | Path,
-    fmt: str,
+    fmt: Format,
     tuning_period: float,
     arms: tuple[tuple[float, float, float], tuple[float, float, float]],
     dvl_noise: str,
@@ -369,7 +369,7 @@ def real_config(
     imu_arm, dvl_arm = arms
     return {
         "data": str(Path(data).resolve()),
-        "format": fmt,
+        "format": fmt if isinstance(fmt, str) else fmt.record(),
         "sections": [a.name for a, _ in done.sections],
         "failed_sections": done.failed,
         "tuning_period_s": tuning_period,
@@ -389,6 +389,7 @@ def real_config(
         "q_estimated": done.q_estimated,
         "dvl_skipped": {a.name: dvl_skipped(a) for a, _ in done.sections},
         "dvl_noise": dvl_noise,
+        "dvl_variance_bag": {a.name: a.dvl_variance for a, _ in done.sections if a.dvl_variance},
         "dvl_variance": {
             name: {"used": list(used), **_noise_record(noise)}
             for name, (noise, used) in done.dvl_noise.items()
