@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -16,7 +17,7 @@ import pytest
 from pronet._util.extras import MissingExtra
 from pronet.cli import main
 from pronet.recorded.alignment import find_sections
-from pronet.recorded.bags import BagTopics, read_bag, require_rosbags
+from pronet.recorded.bags import BagTopics, require_rosbags
 from pronet.recorded.recordings import RecordingError, read_recording, write_recording
 
 from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording
@@ -28,7 +29,9 @@ ARMS = [
 
 
 def _rosbags():
-    pytest.importorskip("rosbags", reason="the rosbags extra: pip install 'pronet[rosbags]'")
+    pytest.importorskip(
+        "rosbags.highlevel", reason="the rosbags extra: pip install 'pronet[rosbags]'"
+    )
     pytest.importorskip("scipy", reason="the tests' bag writer turns DCMs into quaternions")
     from ros_bag import UNIX, write_bag
 
@@ -47,7 +50,7 @@ def _bag(tmp_path, storage="mcap", duration=60.0, **kw):
 @pytest.mark.parametrize("truth", ["odometry", "pose"])
 def test_a_bag_reads_as_the_recording_it_was_written_from(tmp_path, storage, truth):
     rec, path, topics, unix = _bag(tmp_path, storage, truth=truth)
-    got = read_bag(path, topics)
+    got = read_recording(path, topics)
     assert got.name == "mission" and got.source == str(path)
     # FLU → FRD is a sign flip: exact; stamps at the nanoseconds a bag keeps
     np.testing.assert_array_equal(got.imu, rec.imu)
@@ -70,7 +73,7 @@ def test_a_bag_reads_as_the_recording_it_was_written_from(tmp_path, storage, tru
 def test_the_frames_are_options(tmp_path):
     """A bag recorded in FRD is taken as it is: its vectors differ from FLU's by the flips."""
     rec, path, topics, _ = _bag(tmp_path)
-    frd = read_bag(path, replace(topics, body_frame="frd"))
+    frd = read_recording(path, replace(topics, body_frame="frd"))
     np.testing.assert_array_equal(frd.imu, rec.imu * [1, -1, -1, 1, -1, -1])
     with pytest.raises(ValueError, match="body_frame: expected flu or frd"):
         BagTopics(body_frame="rfu")
@@ -83,7 +86,7 @@ def test_the_dvl_covariance_is_r_as_the_median_of_the_set_diagonals(tmp_path):
     cov[::7] = 0.0  # "unknown": not set, left out
     cov[1, 0] = -1.0  # "not provided"
     _, path, topics, _ = _bag(tmp_path, dvl_covariance=cov)
-    got = read_bag(path, topics)
+    got = read_recording(path, topics)
     set_ = cov[(cov > 0).all(axis=1)]
     np.testing.assert_array_equal(got.dvl_variance, np.median(set_, axis=0))
 
@@ -99,7 +102,7 @@ def test_the_dvl_covariance_is_r_as_the_median_of_the_set_diagonals(tmp_path):
 def test_bad_topics_are_one_line_naming_bag_and_topic(tmp_path, change, message):
     _, path, topics, _ = _bag(tmp_path, duration=30.0)
     with pytest.raises(RecordingError) as err:
-        read_bag(path, replace(topics, **change))
+        read_recording(path, replace(topics, **change))
     assert str(path) in str(err.value) and message in str(err.value)
     assert "\n" not in str(err.value)
 
@@ -133,7 +136,7 @@ def test_a_bag_runs_through_pronet_real_as_its_csvs_do_to_1e_12(tmp_path, capsys
     argv = ["real", "--format", "bag", "--data", str(path), "--imu-topic", "/imu/data"]
     argv += ["--dvl-topic", "/dvl/twist", "--truth-topic", "/odometry", "--origin", origin]
     assert main([*argv, *ARMS, "--out", str(tmp_path / "bag"), "--no-plots", "--quiet"]) == 0
-    as_read = read_bag(path, topics)
+    as_read = read_recording(path, topics)
     csvs = write_recording(tmp_path / "csv" / "mission", as_read)
     assert read_recording(csvs).imu_time.tolist() == as_read.imu_time.tolist()
     # the CSVs state no R: the bag's, through --filter, for the same filter
@@ -158,6 +161,10 @@ def test_a_bag_runs_through_pronet_real_as_its_csvs_do_to_1e_12(tmp_path, capsys
     assert config["dvl_variance_bag"] == {"mission": [2.5e-4] * 3}
     assert config["dvl_variance"]["mission"]["used"] == [2.5e-4] * 3
     assert np.isfinite(bag.srmse).all() and bag.srmse.iloc[0] < 0.1
+    # the command of docs/realdata.md's worked example is this one
+    docs = (Path(__file__).parents[2] / "docs" / "realdata.md").read_text()
+    assert "pronet real --format bag --data mission.bag --imu-topic /imu/data --dvl-topic " in docs
+    assert "/dvl/twist \\\n    --truth-topic /odometry --origin 32.8,34.95,0" in docs
 
 
 def test_without_the_extra_it_is_named_in_one_line(tmp_path, monkeypatch, capsys):

@@ -390,11 +390,10 @@ def load_section(
     lever arms applied, and the stamps as given with no lever arms (the comparison).
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
     (``"bag"``: the default topics)."""
-    from pronet.recorded.bags import read_bag
     from pronet.recorded.recordings import read_recording, read_snapir
 
     if isinstance(fmt, BagTopics) or fmt == "bag":
-        rec = read_bag(path, fmt if isinstance(fmt, BagTopics) else None)
+        rec = read_recording(path, fmt if isinstance(fmt, BagTopics) else None)
     elif fmt not in FORMATS:
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
     else:

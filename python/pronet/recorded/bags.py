@@ -18,9 +18,10 @@ truth ``nav_msgs/msg/Odometry`` or            ``pose`` (position [m] in a local 
 ===== ======================================= =========================================
 
 Every row is stamped with its message's ``header.stamp`` (``sec + nanosec·1e-9`` [s]),
-not the time the bag recorded it. The result is a :class:`~pronet.recorded.recordings.Recording`
-checked exactly as the generic CSV format is (one line naming the bag and topic):
-a bag and the same numbers written as CSV files give the same result.
+not the time the bag recorded it. :func:`pronet.recorded.recordings.read_recording` reads
+a bag (through :func:`bag_streams`) as a :class:`~pronet.recorded.recordings.Recording`,
+checked exactly as the generic CSV format is (one line naming the bag and topic): a bag
+and the same numbers written as CSV files give the same result.
 
 Frames. ROS follows REP-103: body frames are FLU (x forward, y left, z up) and local
 world frames ENU (x east, y north, z up); pronet's are FRD and NED. With
@@ -60,10 +61,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet._util.extras import missing
-from pronet.recorded.plausible import Table
-from pronet.recorded.recordings import COLUMNS, Recording, RecordingError, _finish, _recording
 
 F64 = NDArray[np.float64]
+
+
+class BagError(ValueError):
+    """A bag cannot be read as a recording: one line naming the bag and the topic
+    (:func:`pronet.recorded.recordings.read_recording` raises it as a ``RecordingError``)."""
+
 
 IMU_TYPES = ("sensor_msgs/msg/Imu",)
 DVL_TYPES = (
@@ -177,25 +182,17 @@ def _messages(reader: Any, path: Path, topic: str, kind: str, types: tuple[str, 
     found = [c for c in reader.connections if c.topic == topic]
     if not found:
         have = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections))
-        raise RecordingError(f"{path}: no topic {topic!r} for the {kind}; the bag has: {have}")
+        raise BagError(f"{path}: no topic {topic!r} for the {kind}; the bag has: {have}")
     bad = sorted({c.msgtype for c in found} - set(types))
     if bad:
-        raise RecordingError(
+        raise BagError(
             f"{path}[{topic}]: the {kind} topic holds {', '.join(bad)}; expected "
             f"{' or '.join(types)}"
         )
     msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=found)]
     if len(msgs) < 2:
-        raise RecordingError(f"{path}[{topic}]: the {kind} topic has {len(msgs)} message(s)")
+        raise BagError(f"{path}[{topic}]: the {kind} topic has {len(msgs)} message(s)")
     return msgs
-
-
-def _table(path: Path, topic: str, kind: str, rows: list[list[float]]) -> Table:
-    where = f"{path}[{topic}]"
-    labels = [f"{name} [{next(iter(units))}]" for name, units in COLUMNS[kind].items()]
-    values = np.array(rows, dtype=np.float64)
-    picks = [(i, 1.0) for i in range(values.shape[1])]
-    return Table(_finish(where, values, picks, labels, kind), where, labels)
 
 
 def _dvl_variance(msgs: list[Any]) -> tuple[float, float, float] | None:
@@ -216,7 +213,7 @@ def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[flo
     from pronet.navigation import lla_from_ned
 
     if topics.origin is None:
-        raise RecordingError(
+        raise BagError(
             f"{path}[{topics.truth}]: the truth's positions are local metres; give their "
             "geodetic origin (--origin LAT,LON,HEIGHT in deg, deg, m)"
         )
@@ -239,11 +236,16 @@ def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[flo
     return np.column_stack([time, lla, vel, rpy]).tolist()
 
 
-def read_bag(path: str | Path, topics: BagTopics | None = None) -> Recording:
-    """Read one ROS 1 or ROS 2 bag as a :class:`~pronet.recorded.recordings.Recording`
-    (SI, body FRD, NED; see the module docstring for the topics, frames and R), checked
-    as the generic format is; :class:`~pronet.recorded.recordings.RecordingError` naming
-    the bag and topic, :class:`~pronet._util.extras.MissingExtra` without ``rosbags``."""
+def bag_streams(
+    path: str | Path, topics: BagTopics | None = None
+) -> tuple[dict[str, tuple[str, F64]], tuple[float, float, float] | None]:
+    """The IMU, DVL and truth of one ROS 1 or ROS 2 bag as the generic format's tables
+    (``{"imu" | "dvl" | "gt": (where, rows)}``, ``where`` naming bag and topic, the rows
+    in :data:`pronet.recorded.recordings.COLUMNS` order, SI, body FRD, NED) and the R its
+    DVL covariance states (None: not set); see the module docstring. Not yet checked:
+    :func:`pronet.recorded.recordings.read_recording` reads a bag through this and checks
+    it as the generic format. :class:`BagError` naming bag and topic,
+    :class:`~pronet._util.extras.MissingExtra` without ``rosbags``."""
     require_rosbags()
     from rosbags.highlevel import AnyReader, AnyReaderError
     from rosbags.typesys import Stores, get_typestore
@@ -251,7 +253,7 @@ def read_bag(path: str | Path, topics: BagTopics | None = None) -> Recording:
     topics = topics or BagTopics()
     path = Path(path)
     if not is_bag(path):
-        raise RecordingError(
+        raise BagError(
             f"{path}: not a ROS bag (a .bag file, or a ROS 2 bag folder with metadata.yaml)"
             + ("" if path.exists() else " (it does not exist)")
         )
@@ -262,7 +264,7 @@ def read_bag(path: str | Path, topics: BagTopics | None = None) -> Recording:
             dvl_msgs = _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
             truth_msgs = _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
     except AnyReaderError as exc:
-        raise RecordingError(f"{path}: cannot be read as a ROS bag ({exc})") from None
+        raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
     imu = [
         [_stamp(m), *(np.array(_xyz(m.linear_acceleration)) * flip)]
         + list(np.array(_xyz(m.angular_velocity)) * flip)
@@ -273,13 +275,13 @@ def read_bag(path: str | Path, topics: BagTopics | None = None) -> Recording:
         return m.twist.twist.linear if hasattr(m.twist, "twist") else m.twist.linear
 
     dvl = [[_stamp(m), *(np.array(_xyz(velocity(m))) * flip)] for m in dvl_msgs]
-    tables = {
-        "imu": _table(path, topics.imu, "imu", imu),
-        "dvl": _table(path, topics.dvl, "dvl", dvl),
-        "gt": _table(path, topics.truth, "gt", _truth_rows(truth_msgs, topics, path)),
+    truth = _truth_rows(truth_msgs, topics, path)
+    streams = {
+        kind: (f"{path}[{topic}]", np.array(rows, dtype=np.float64))
+        for kind, topic, rows in (
+            ("imu", topics.imu, imu),
+            ("dvl", topics.dvl, dvl),
+            ("gt", topics.truth, truth),
+        )
     }
-    name = path.stem if path.is_file() else path.name
-    rec = _recording(name, tables, str(path))
-    from dataclasses import replace
-
-    return replace(rec, dvl_variance=_dvl_variance(dvl_msgs))
+    return streams, _dvl_variance(dvl_msgs)
