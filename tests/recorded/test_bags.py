@@ -160,6 +160,9 @@ def test_a_bag_runs_through_pronet_real_as_its_csvs_do_to_1e_12(tmp_path, capsys
     assert config["format"]["format"] == "bag" and config["format"]["dvl_topic"] == "/dvl/twist"
     assert config["dvl_variance_bag"] == {"mission": [2.5e-4] * 3}
     assert config["dvl_variance"]["mission"]["used"] == [2.5e-4] * 3
+    table = (tmp_path / "bag" / "table.md").read_text()
+    assert "| mission | 0.0158 / 0.0158 / 0.0158 (the bag's) |" in table
+    assert "(the bag's)" not in (tmp_path / "csv-out" / "table.md").read_text()
     assert np.isfinite(bag.srmse).all() and bag.srmse.iloc[0] < 0.1
     # the command of docs/realdata.md's worked example is this one
     docs = (Path(__file__).parents[2] / "docs" / "realdata.md").read_text()

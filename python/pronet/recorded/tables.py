@@ -221,22 +221,23 @@ def dvl_skipped_table(done: RealRuns) -> str:
 
 def dvl_noise_table(done: RealRuns) -> str:
     """Markdown: each section's DVL noise 1σ per body axis [m/s]: the R its strategy
-    rows used, the second-difference estimate and the innovation-matched one."""
+    rows used (marked "the bag's" when it is the R a ROS bag's covariance states), the
+    second-difference estimate and the innovation-matched one."""
+    stated = {a.name: a.dvl_variance for a, _ in done.sections}
 
     def sigma(v: tuple[float, float, float]) -> str:
         return " / ".join(f"{math.sqrt(x):.4f}" for x in v)
 
     lines: list[list[object]] = []
     for name, (noise, used) in done.dvl_noise.items():
+        cell = sigma(used) + (" (the bag's)" if stated.get(name) == tuple(used) else "")
         if isinstance(noise, str):
-            lines.append([name, sigma(used), f"not estimated: {noise}", "", "", ""])
+            lines.append([name, cell, f"not estimated: {noise}", "", "", ""])
             continue
         m = noise.matched
         state = f"{m.passes} passes" + ("" if m.converged else ", not converged")
         both = sigma(noise.matched_calibrated.variance)
-        lines.append(
-            [name, sigma(used), sigma(noise.second_difference), sigma(m.variance), both, state]
-        )
+        lines.append([name, cell, sigma(noise.second_difference), sigma(m.variance), both, state])
     header = [
         "section",
         "used",
