@@ -45,10 +45,11 @@ DVL noise. A message's covariance is *set* when the diagonal of its linear block
 −1 for "not provided"). The filter's R is the per-axis median of the set diagonals over
 the topic (one value per axis, robust to a few odd messages; the sign flips of FLU → FRD
 leave a diagonal as it is), kept in :attr:`Recording.dvl_variance` and used as the
-strategy rows' R in place of the datasheet's or ``--filter``'s (``--dvl-noise data``
-still matches R to the innovations); ``config.json`` reports it under
-``dvl_variance_bag``. A topic with no set covariance (or a TwistStamped) leaves R as
-tuned.
+R of the strategy rows and of the calibration row in place of the datasheet's or
+``--filter``'s (``--dvl-noise data`` still matches R to the innovations);
+``config.json`` reports it under ``dvl_variance_bag``, ``table.md`` marks it "(the
+bag's)". A topic with no set covariance (or a TwistStamped) leaves R as tuned. The
+median is over every message of the topic, those skipped as missing readings included.
 """
 
 from __future__ import annotations
