@@ -118,9 +118,14 @@ def test_the_cli_names_a_missing_topic_and_exits_2_before_any_work(tmp_path, cap
     assert not out.exists()
     assert main([*argv[:5], *ARMS, "--out", str(out)]) == 2  # no --origin
     assert "--format bag: needs --origin" in capsys.readouterr().err
-    csv = ["real", "--format", "generic", "--data", str(path), "--imu-topic", "/imu", *ARMS]
-    assert main(csv) == 2
+    csv = ["real", "--format", "generic", "--data", str(path), *ARMS, "--out", str(out)]
+    assert main([*csv, "--imu-topic", "/imu"]) == 2
     assert "--imu-topic: only with --format bag" in capsys.readouterr().err
+    assert main(csv) == 2  # a bag given as the generic format: said so
+    assert f"{path}: a ROS bag; read it with --format bag (format generic)" in (
+        capsys.readouterr().err
+    )
+    assert not out.exists()
 
 
 @pytest.mark.slow

@@ -390,8 +390,10 @@ def load_section(
     lever arms applied, and the stamps as given with no lever arms (the comparison).
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
     (``"bag"``: the default topics)."""
-    from pronet.recorded.recordings import read_recording, read_snapir
+    from pronet.recorded.recordings import RecordingError, read_recording, read_snapir
 
+    if is_bag(path) and not (isinstance(fmt, BagTopics) or fmt == "bag"):
+        raise RecordingError(f"{path}: a ROS bag; read it with --format bag (format {fmt})")
     if isinstance(fmt, BagTopics) or fmt == "bag":
         rec = read_recording(path, fmt if isinstance(fmt, BagTopics) else None)
     elif fmt not in FORMATS:
