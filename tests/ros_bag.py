@@ -27,7 +27,6 @@ def write_bag(
     topics: BagTopics | None = None,
     truth: str = "odometry",
     dvl_covariance: np.ndarray | None = None,
-    extra_topic: str | None = None,
 ) -> tuple[Path, BagTopics]:
     """Write ``rec`` as a bag at ``path`` (``storage``: ``rosbag1``, ``sqlite3`` or
     ``mcap``) and return it with the topics (origin: the truth's first row) to read it.
@@ -104,8 +103,6 @@ def write_bag(
         else:
             msg = t[truth_type](header=header(stamp), pose=pose)
         msgs.append((stamp, topics.truth, truth_type, msg))
-    if extra_topic is not None:
-        msgs.append((rec.imu_time[0], extra_topic, imu_type, msgs[0][3]))
     msgs.sort(key=lambda m: m[0])
     if ros1:
         writer = Writer1(path)
