@@ -3,13 +3,14 @@
 ``pip install pronet`` brings what the native strategies, recorded data, sweeps, the
 shipped models (frozen in the core), the detrended variance, plots and tables need.
 Training and running the nets through torch need torch, training the HCF ensemble
-needs scikit-learn: both come with ``pip install 'pronet[torch]'``.
+needs scikit-learn: both come with ``pip install 'pronet[torch]'``. Reading ROS bags
+(``pronet real --format bag``) needs rosbags: ``pip install 'pronet[rosbags]'``.
 """
 
 from __future__ import annotations
 
 #: The extra that installs each optional module.
-EXTRAS = {"torch": "torch", "sklearn": "torch"}
+EXTRAS = {"torch": "torch", "sklearn": "torch", "rosbags": "rosbags"}
 
 
 class MissingExtra(ImportError):

@@ -19,6 +19,7 @@ from pronet.cli._common import (
     add_tuning_period,
 )
 from pronet.recorded.alignment import FORMATS
+from pronet.recorded.bags import BagTopics, require_rosbags
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
 from pronet.recorded.plausible import PlausibilityWarning
 
@@ -32,6 +33,73 @@ def _vector3(text: str) -> tuple[float, float, float]:
     if len(values) != 3:
         raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
     return values[0], values[1], values[2]
+
+
+def _origin(text: str) -> tuple[float, float, float]:
+    """``lat,lon,height`` [deg, deg, m] as three floats, or the error argparse reports."""
+    try:
+        return _vector3(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"expected LAT,LON,HEIGHT in deg, deg, m, got {text!r}"
+        ) from None
+
+
+def _add_bag_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``--format bag`` (:class:`pronet.recorded.bags.BagTopics`)."""
+    bag = parser.add_argument_group("ROS bags (--format bag; pip install 'pronet[rosbags]')")
+    defaults = BagTopics()
+    for name, what, types in (
+        ("imu", "IMU", "sensor_msgs/msg/Imu"),
+        ("dvl", "DVL", "geometry_msgs/msg/TwistWithCovarianceStamped or TwistStamped"),
+        ("truth", "ground truth", "nav_msgs/msg/Odometry or geometry_msgs/msg/PoseStamped"),
+    ):
+        bag.add_argument(
+            f"--{name}-topic",
+            metavar="TOPIC",
+            default=None,
+            help=f"the {what} topic, {types} (default {getattr(defaults, name)})",
+        )
+    bag.add_argument(
+        "--origin",
+        metavar="LAT,LON,HEIGHT",
+        type=_origin,
+        default=None,
+        help="the geodetic origin [deg, deg, m up] of the truth's local positions (required "
+        "with --format bag: a bag's poses are metres in a local frame)",
+    )
+    bag.add_argument(
+        "--body-frame",
+        choices=("flu", "frd"),
+        default=None,
+        help="the IMU's, DVL's and truth's body frame (default flu, REP-103)",
+    )
+    bag.add_argument(
+        "--world-frame",
+        choices=("enu", "ned"),
+        default=None,
+        help="the truth's local world frame (default enu, REP-103)",
+    )
+
+
+def bag_topics(args: argparse.Namespace) -> BagTopics | None:
+    """The bag's topics and frames from the options (None unless ``--format bag``);
+    ValueError for a bag option with another format."""
+    options = {  # field: (option, value)
+        "imu": ("--imu-topic", args.imu_topic),
+        "dvl": ("--dvl-topic", args.dvl_topic),
+        "truth": ("--truth-topic", args.truth_topic),
+        "origin": ("--origin", args.origin),
+        "body_frame": ("--body-frame", args.body_frame),
+        "world_frame": ("--world-frame", args.world_frame),
+    }
+    given = {k: value for k, (_, value) in options.items() if value is not None}
+    if args.format != "bag":
+        if given:
+            names = ", ".join(options[k][0] for k in given)
+            raise ValueError(f"{names}: only with --format bag")
+        return None
+    return BagTopics(**given)
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -50,8 +118,8 @@ def add_parser(sub: Subparsers) -> None:
         choices=FORMATS,
         default="snapir",
         help=(
-            "snapir: the published layout; generic: see pronet.recorded.recordings "
-            "(default snapir)"
+            "snapir: the published layout; generic: see pronet.recorded.recordings; bag: "
+            "ROS 1 .bag files or ROS 2 bag folders, see pronet.recorded.bags (default snapir)"
         ),
     )
     parser.add_argument(
@@ -112,6 +180,7 @@ def add_parser(sub: Subparsers) -> None:
         help="also run the RTS smoother over every strategy row: each is followed by its "
         "smoothed row ('<label>, smoothed'), scored at the same ground-truth rows",
     )
+    _add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
     add_result_folder(parser, "real")
@@ -123,6 +192,11 @@ def run(args: argparse.Namespace) -> int:
     from pronet.recorded.real import run_real
     from pronet.recorded.vehicle import load_vehicle
 
+    topics = bag_topics(args)
+    if topics is not None:  # before any work: the extra, then the origin
+        require_rosbags()
+        if topics.origin is None:
+            raise ValueError("--format bag: needs --origin LAT,LON,HEIGHT (deg, deg, m)")
     vehicle = None if args.filter is None else load_vehicle(args.filter)
     show = Output(args)
     start = time.perf_counter()
@@ -136,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
         out = run_real(
             args.data,
             args.out,
-            fmt=args.format,
+            fmt=args.format if topics is None else topics,
             sections=args.sections.split(",") if args.sections else None,
             imu_lever_arm=args.imu_lever_arm,
             dvl_lever_arm=args.dvl_lever_arm,

@@ -7,6 +7,8 @@ Reading and preparing:
   and ``.npz`` formats), validated before any computation;
 - :mod:`~pronet.recorded.alignment`: clocks and lever arms, a recording turned into a
   filter-ready :class:`~pronet.recorded.alignment.Section`;
+- :mod:`~pronet.recorded.bags`: ROS 1 and ROS 2 bags as recordings (the ``rosbags``
+  extra): topics, frames (REP-103 FLU/ENU to FRD/NED), the DVL covariance as R;
 - :mod:`~pronet.recorded.missing`: missing DVL readings (no bottom lock), skipped as
   updates and counted;
 - :mod:`~pronet.recorded.plausible`: plausibility checks naming file and column (stuck
@@ -33,6 +35,7 @@ Running and reporting (``pronet real``):
 
 __all__ = [
     "alignment",
+    "bags",
     "dvlcalibration",
     "dvlnoise",
     "dvltruth",

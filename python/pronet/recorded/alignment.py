@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type, float_array, real_array, scalar
+from pronet.recorded.bags import BagTopics, is_bag
 from pronet.recorded.recordings import Recording
 
 F64 = NDArray[np.float64]
@@ -135,6 +136,8 @@ class Section:
         dvl_skipped_time: ``(j,)`` times on the IMU clock [s] of the DVL rows skipped as
             missing readings (:mod:`pronet.recorded.missing`), not in ``dvl``.
         dvl_skipped_reason: why each was skipped.
+        dvl_variance: the DVL's R per axis [(m/s)²] that the recording states (a ROS
+            bag's covariance), used as the strategy rows' R; None: R as tuned.
     """
 
     name: str
@@ -150,6 +153,7 @@ class Section:
     epoch: float = 0.0
     dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     dvl_skipped_reason: tuple[str, ...] = ()
+    dvl_variance: tuple[float, float, float] | None = None
 
 
 def dcm_from_euler(rpy: ArrayLike) -> F64:
@@ -328,23 +332,27 @@ def align(rec: Recording, alignment: Alignment) -> Section:
         epoch=epoch,
         dvl_skipped_time=alignment.dvl_clock(rec.dvl_skipped_time),
         dvl_skipped_reason=rec.dvl_skipped_reason,
+        dvl_variance=rec.dvl_variance,
     )
 
 
 # ------------------------------------------------------------------------ sections
 
-#: Recorded-data layouts :func:`load_section` reads.
-FORMATS = ("snapir", "generic")
+#: Recorded-data layouts :func:`load_section` reads (``bag``: ROS bags,
+#: :mod:`pronet.recorded.bags`, with the topics of a :class:`~pronet.recorded.bags.BagTopics`).
+FORMATS = ("snapir", "generic", "bag")
+#: A format's name, or a bag's topics and frames (the ``bag`` format).
+Format = str | BagTopics
 
 
 def find_sections(data: str | Path) -> list[Path]:
-    """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]`` and
-    ``.npz`` files, sorted by name; ``data`` itself if it is one section (a folder of
-    CSVs, or one ``.npz`` file)."""
+    """The sections under ``data``: sub-folders holding an ``imu.csv[.gz]``, ``.npz``
+    files and ROS bags (:func:`pronet.recorded.bags.is_bag`), sorted by name; ``data``
+    itself if it is one section (a folder of CSVs, one ``.npz`` file, one bag)."""
     from pronet.recorded.recordings import RecordingError
 
     data = Path(data)
-    if data.suffix == ".npz" and data.is_file():
+    if (data.suffix == ".npz" and data.is_file()) or is_bag(data):
         return [data]
     if not data.is_dir():
         raise RecordingError(
@@ -356,33 +364,42 @@ def find_sections(data: str | Path) -> list[Path]:
 
     if is_section(data):
         return [data]
-    found = sorted(p for p in data.iterdir() if is_section(p) or p.suffix == ".npz")
+    found = sorted(p for p in data.iterdir() if is_section(p) or p.suffix == ".npz" or is_bag(p))
     if not found:
-        raise RecordingError(f"{data}: no sections (folders with imu/dvl/gt CSVs, or .npz files)")
+        raise RecordingError(
+            f"{data}: no sections (folders with imu/dvl/gt CSVs, .npz files or ROS bags)"
+        )
     return found
 
 
 def section_name(path: Path) -> str:
     """The name of the section at ``path`` (from :func:`find_sections`): a folder's
-    name, an ``.npz`` file's stem."""
-    return path.stem if path.suffix == ".npz" else path.name
+    name, an ``.npz`` or ``.bag`` file's stem."""
+    return path.stem if path.suffix in (".npz", ".bag") else path.name
 
 
 def load_section(
     path: Path,
-    fmt: str,
+    fmt: Format,
     *,
     imu_lever_arm: tuple[float, float, float],
     dvl_lever_arm: tuple[float, float, float],
     handle_alignment: bool = True,
 ) -> tuple[Section, Section]:
     """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
-    lever arms applied, and the stamps as given with no lever arms (the comparison)."""
-    from pronet.recorded.recordings import read_recording, read_snapir
+    lever arms applied, and the stamps as given with no lever arms (the comparison).
+    ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
+    (``"bag"``: the default topics)."""
+    from pronet.recorded.recordings import RecordingError, read_recording, read_snapir
 
-    if fmt not in FORMATS:
+    if is_bag(path) and not (isinstance(fmt, BagTopics) or fmt == "bag"):
+        raise RecordingError(f"{path}: a ROS bag; read it with --format bag (format {fmt})")
+    if isinstance(fmt, BagTopics) or fmt == "bag":
+        rec = read_recording(path, fmt if isinstance(fmt, BagTopics) else None)
+    elif fmt not in FORMATS:
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
-    rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
+    else:
+        rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
     stamped = align(rec, Alignment(how="none"))
     if not handle_alignment:
         return stamped, stamped

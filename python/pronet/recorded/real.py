@@ -24,7 +24,7 @@ from pronet import _core
 from pronet._util.cores import usable_cores
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
-from pronet.recorded.alignment import Section, load_section, section_name, select_sections
+from pronet.recorded.alignment import Format, Section, load_section, section_name, select_sections
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
@@ -119,13 +119,12 @@ def plan_section(
     base: _core.FilterConfig | None = None,
     covariance_step: float | None = None,
 ) -> SectionPlan:
-    """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around
-    its estimated q, with the DVL noise of ``dvl_noise`` (one of
-    :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`), and the variant rows, every
-    filter in ``formulation`` (default ``FilterConfig``'s or ``base``'s), at the
-    section's own IMU step (:func:`imu_step`), tuned as ``base`` (None: the FOG
-    defaults of :func:`real_filter_config`), with ``covariance_step`` [s] (None:
-    ``base``'s, else every IMU sample)."""
+    """The rows of ``section`` (:class:`SectionPlan`): :func:`real_strategies` around its
+    estimated q, the DVL noise of ``dvl_noise`` (``"datasheet"`` or ``"data"``), and the
+    variant rows, every filter in ``formulation`` (default ``FilterConfig``'s or
+    ``base``'s), at the section's IMU step (:func:`imu_step`), tuned as ``base`` (None: the
+    FOG defaults of :func:`real_filter_config`; R the section's own where it has one, a
+    bag's), with ``covariance_step`` [s] (None: ``base``'s, else every IMU sample)."""
     check_dvl_noise(dvl_noise)
     q = white_noise_q(section.imu)
     strategies = real_strategies(q, models, tuning_period)
@@ -135,6 +134,7 @@ def plan_section(
     def config(
         r: tuple[float, float, float] | None = None, calibration: bool = False
     ) -> _core.FilterConfig:
+        r = r or section.dvl_variance  # a bag's covariance, else as tuned
         return real_filter_config(arm, r, calibration, formulation, dt, base, covariance_step)
 
     r = config().dvl_variance
@@ -324,7 +324,7 @@ def run_real(
     data: str | Path,
     out: str | Path | None = None,
     *,
-    fmt: str = "snapir",
+    fmt: Format = "snapir",
     sections: list[str] | tuple[str, ...] | None = None,
     imu_lever_arm: tuple[float, float, float] | None = None,
     dvl_lever_arm: tuple[float, float, float] | None = None,

@@ -6,11 +6,11 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
   ``imu.csv.gz``, ``dvl.csv.gz`` and ``gt.csv.gz`` with the publisher's headers
   (``Time [s], ACC X [m/s^2], …``). Its body frame is FRD; its altitude is negative below
   the surface, i.e. height up.
-- :func:`read_recording` reads the generic format, for users' own recordings: either a
-  folder holding ``imu.csv``, ``dvl.csv`` and ``gt.csv`` (each optionally ``.gz``), or
-  one ``.npz`` file with 2-D float arrays ``imu``, ``dvl``, ``gt`` and string arrays
-  ``imu_columns``, ``dvl_columns``, ``gt_columns`` naming their columns. Every column
-  is named ``name [unit]``:
+- :func:`read_recording` reads the generic format, for users' own recordings (and ROS
+  bags, :mod:`pronet.recorded.bags`): either a folder holding ``imu.csv``, ``dvl.csv``
+  and ``gt.csv`` (each optionally ``.gz``), or one ``.npz`` file with 2-D float arrays
+  ``imu``, ``dvl``, ``gt`` and string arrays ``imu_columns``, ``dvl_columns``,
+  ``gt_columns`` naming their columns. Every column is named ``name [unit]``:
 
   ===== ============================================================================
   table columns (accepted units; converted to the first)
@@ -58,7 +58,7 @@ import io
 import re
 import zipfile
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, cast
 
@@ -66,6 +66,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet.recorded import missing, plausible
+from pronet.recorded.bags import BagError, BagTopics, bag_streams, is_bag
 from pronet.recorded.plausible import Table
 
 F64 = NDArray[np.float64]
@@ -158,6 +159,9 @@ class Recording:
             readings (:mod:`pronet.recorded.missing`), not in ``dvl``.
         dvl_skipped_reason: why each was skipped (one of
             :data:`pronet.recorded.missing.REASONS`).
+        dvl_variance: the DVL's noise variance R per axis [(m/s)², body FRD] that the
+            recording states (a ROS bag's covariance, :mod:`pronet.recorded.bags`), or
+            None (R as tuned).
     """
 
     name: str
@@ -172,6 +176,7 @@ class Recording:
     source: str
     dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     dvl_skipped_reason: tuple[str, ...] = ()
+    dvl_variance: tuple[float, float, float] | None = None
 
     @property
     def duration(self) -> float:
@@ -187,10 +192,13 @@ def read_snapir(folder: str | Path) -> Recording:
     return _recording(folder.name, tables, str(folder))
 
 
-def read_recording(path: str | Path) -> Recording:
+def read_recording(path: str | Path, topics: BagTopics | None = None) -> Recording:
     """Read a recording in the generic format (a folder of ``imu``/``dvl``/``gt`` CSV
-    files, or one ``.npz``), validated; see the module docstring for the columns."""
+    files, or one ``.npz``), validated; see the module docstring for the columns. A ROS
+    bag is read with ``topics`` (:func:`pronet.recorded.bags.bag_streams`)."""
     path = Path(path)
+    if is_bag(path):
+        return _read_bag(path, topics)
     if path.is_dir():
         tables = {kind: _read_csv(_find(path, kind), kind, None) for kind in COLUMNS}
         return _recording(path.name, tables, str(path))
@@ -223,6 +231,22 @@ def write_recording(path: str | Path, recording: Recording) -> Path:
         np.savetxt(buf, data, delimiter=",", fmt="%.17g")
         (path / f"{kind}.csv").write_text(buf.getvalue())
     return path
+
+
+def _read_bag(path: Path, topics: BagTopics | None) -> Recording:
+    """A ROS bag's streams (:func:`pronet.recorded.bags.bag_streams`), checked as the
+    generic format's tables are, with the R its DVL covariance states."""
+    try:
+        streams, variance = bag_streams(path, topics)
+    except BagError as exc:
+        raise RecordingError(str(exc)) from None
+    tables = {}
+    for kind, (where, values) in streams.items():
+        labels = [f"{name} [{next(iter(units))}]" for name, units in COLUMNS[kind].items()]
+        picks = [(i, 1.0) for i in range(values.shape[1])]
+        tables[kind] = Table(_finish(where, values, picks, labels, kind), where, labels)
+    name = path.stem if path.is_file() else path.name
+    return replace(_recording(name, tables, str(path)), dvl_variance=variance)
 
 
 def _as_tables(rec: Recording) -> dict[str, tuple[list[str], F64]]:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pronet.recorded import missing
-from pronet.recorded.alignment import Section
+from pronet.recorded.alignment import Format, Section
 from pronet.recorded.tuning import real_filter_config
 from pronet.results import (
     OUT_OF_BAND,
@@ -221,22 +221,23 @@ def dvl_skipped_table(done: RealRuns) -> str:
 
 def dvl_noise_table(done: RealRuns) -> str:
     """Markdown: each section's DVL noise 1σ per body axis [m/s]: the R its strategy
-    rows used, the second-difference estimate and the innovation-matched one."""
+    rows used (marked "the bag's" when it is the R a ROS bag's covariance states), the
+    second-difference estimate and the innovation-matched one."""
+    stated = {a.name: a.dvl_variance for a, _ in done.sections}
 
     def sigma(v: tuple[float, float, float]) -> str:
         return " / ".join(f"{math.sqrt(x):.4f}" for x in v)
 
     lines: list[list[object]] = []
     for name, (noise, used) in done.dvl_noise.items():
+        cell = sigma(used) + (" (the bag's)" if stated.get(name) == tuple(used) else "")
         if isinstance(noise, str):
-            lines.append([name, sigma(used), f"not estimated: {noise}", "", "", ""])
+            lines.append([name, cell, f"not estimated: {noise}", "", "", ""])
             continue
         m = noise.matched
         state = f"{m.passes} passes" + ("" if m.converged else ", not converged")
         both = sigma(noise.matched_calibrated.variance)
-        lines.append(
-            [name, sigma(used), sigma(noise.second_difference), sigma(m.variance), both, state]
-        )
+        lines.append([name, cell, sigma(noise.second_difference), sigma(m.variance), both, state])
     header = [
         "section",
         "used",
@@ -355,7 +356,7 @@ def real_tables(done: RealRuns) -> str:
 
 def real_config(
     data: str | Path,
-    fmt: str,
+    fmt: Format,
     tuning_period: float,
     arms: tuple[tuple[float, float, float], tuple[float, float, float]],
     dvl_noise: str,
@@ -369,7 +370,7 @@ def real_config(
     imu_arm, dvl_arm = arms
     return {
         "data": str(Path(data).resolve()),
-        "format": fmt,
+        "format": fmt if isinstance(fmt, str) else fmt.record(),
         "sections": [a.name for a, _ in done.sections],
         "failed_sections": done.failed,
         "tuning_period_s": tuning_period,
@@ -389,6 +390,7 @@ def real_config(
         "q_estimated": done.q_estimated,
         "dvl_skipped": {a.name: dvl_skipped(a) for a, _ in done.sections},
         "dvl_noise": dvl_noise,
+        "dvl_variance_bag": {a.name: a.dvl_variance for a, _ in done.sections if a.dvl_variance},
         "dvl_variance": {
             name: {"used": list(used), **_noise_record(noise)}
             for name, (noise, used) in done.dvl_noise.items()

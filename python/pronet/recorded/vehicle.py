@@ -47,7 +47,7 @@ import numpy as np
 
 from pronet import _core
 from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
-from pronet.recorded.alignment import lever_arm
+from pronet.recorded.alignment import Format, lever_arm
 from pronet.recorded.plausible import long_lever_arm
 from pronet.recorded.tuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
 
@@ -159,7 +159,7 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
 
 
 def lever_arms(
-    fmt: str,
+    fmt: Format,
     imu: tuple[float, float, float] | None,
     dvl: tuple[float, float, float] | None,
     vehicle: VehicleTuning | None,

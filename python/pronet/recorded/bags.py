@@ -1,0 +1,288 @@
+"""ROS bags as recordings: ROS 1 ``.bag`` files and ROS 2 bags (a folder holding
+``metadata.yaml`` with sqlite3 ``.db3`` or ``.mcap`` storage), read with the pure-Python
+`rosbags <https://gitlab.com/ternaris/rosbags>`_ library (no ROS installation), an
+optional extra: ``pip install 'pronet[rosbags]'``.
+
+Three topics, named by :class:`BagTopics` (``pronet real --format bag --imu-topic …``):
+
+===== ======================================= =========================================
+topic message type                            used
+===== ======================================= =========================================
+imu   ``sensor_msgs/msg/Imu``                 ``linear_acceleration`` [m/s²] (specific
+                                              force), ``angular_velocity`` [rad/s]
+dvl   ``geometry_msgs/msg/TwistWithCovariance ``linear`` [m/s]: the DVL's body-frame
+      Stamped`` or ``…/TwistStamped``         velocity; the covariance's linear block
+truth ``nav_msgs/msg/Odometry`` or            ``pose`` (position [m] in a local world
+      ``geometry_msgs/msg/PoseStamped``       frame, orientation body → world),
+                                              Odometry's ``twist.linear`` [m/s, body]
+===== ======================================= =========================================
+
+Every row is stamped with its message's ``header.stamp`` (``sec + nanosec·1e-9`` [s]),
+not the time the bag recorded it. :func:`pronet.recorded.recordings.read_recording` reads
+a bag (through :func:`bag_streams`) as a :class:`~pronet.recorded.recordings.Recording`,
+checked exactly as the generic CSV format is (one line naming the bag and topic): a bag
+and the same numbers written as CSV files give the same result.
+
+Frames. ROS follows REP-103: body frames are FLU (x forward, y left, z up) and local
+world frames ENU (x east, y north, z up); pronet's are FRD and NED. With
+``body_frame="flu"`` (the default) the IMU's and the DVL's vectors become
+``(x, −y, −z)``; with ``"frd"`` they are taken as they are. With ``world_frame="enu"``
+(the default) a truth position ``(x, y, z)`` is north ``y``, east ``x``, down ``−z``;
+with ``"ned"`` it is north, east, down. The truth's orientation ``C_wb`` (body → world)
+becomes ``C_nb = T_w · C_wb · D_b`` (``T_enu`` swapping x and y and negating z, ``D_flu =
+diag(1, −1, −1)``; identities for NED and FRD), and roll, pitch, yaw (ZYX) follow.
+
+Truth positions are local metres about a geodetic ``origin`` (latitude, longitude [deg],
+height [m, up]) that the bag does not hold and that must be given: the world frame's
+axes are taken as the local north, east (and up) at the origin, and the positions are
+turned into latitude, longitude and height on WGS-84 (:func:`pronet.lla_from_ned`).
+The truth's NED velocity is Odometry's ``twist.twist.linear`` (in its child frame, the
+body, by nav_msgs' definition) rotated by ``C_wb`` and ``T_w``; a PoseStamped truth has
+no velocity, which is the central difference of its positions (``np.gradient``).
+
+DVL noise. A message's covariance is *set* when the diagonal of its linear block
+(entries 0, 7, 14 of the row-major 6×6) is positive (ROS writes zeros for "unknown" and
+−1 for "not provided"). The filter's R is the per-axis median of the set diagonals over
+the topic (one value per axis, robust to a few odd messages; the sign flips of FLU → FRD
+leave a diagonal as it is), kept in :attr:`Recording.dvl_variance` and used as the
+R of the strategy rows and of the calibration row in place of the datasheet's or
+``--filter``'s (``--dvl-noise data`` still matches R to the innovations);
+``config.json`` reports it under ``dvl_variance_bag``, ``table.md`` marks it "(the
+bag's)". A topic with no set covariance (or a TwistStamped) leaves R as tuned. The
+median is over every message of the topic, those skipped as missing readings included.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet._util.extras import missing
+
+F64 = NDArray[np.float64]
+
+
+class BagError(ValueError):
+    """A bag cannot be read as a recording: one line naming the bag and the topic
+    (:func:`pronet.recorded.recordings.read_recording` raises it as a ``RecordingError``)."""
+
+
+IMU_TYPES = ("sensor_msgs/msg/Imu",)
+DVL_TYPES = (
+    "geometry_msgs/msg/TwistWithCovarianceStamped",
+    "geometry_msgs/msg/TwistStamped",
+)
+TRUTH_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
+#: Suffixes of a bag given as one file (ROS 1; a ROS 2 bag is a folder with metadata.yaml).
+BAG_SUFFIXES = (".bag",)
+
+_FLU = np.array([1.0, -1.0, -1.0])
+_ENU_TO_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+
+
+@dataclass(frozen=True)
+class BagTopics:
+    """Which topics of a bag are the IMU, the DVL and the truth, and their frames.
+
+    Attributes:
+        imu, dvl, truth: topic names (see the module docstring for their types).
+        origin: the truth's local origin: latitude, longitude [deg], height [m, up]
+            (required: a bag's poses are local metres).
+        body_frame: ``"flu"`` (REP-103, the default) or ``"frd"``: the IMU's, the DVL's
+            and the truth's body frame.
+        world_frame: ``"enu"`` (REP-103, the default) or ``"ned"``: the truth's world frame.
+    """
+
+    imu: str = "/imu/data"
+    dvl: str = "/dvl/twist"
+    truth: str = "/odometry"
+    origin: tuple[float, float, float] | None = None
+    body_frame: str = "flu"
+    world_frame: str = "enu"
+
+    def __post_init__(self) -> None:
+        if self.body_frame not in ("flu", "frd"):
+            raise ValueError(f"body_frame: expected flu or frd, got {self.body_frame!r}")
+        if self.world_frame not in ("enu", "ned"):
+            raise ValueError(f"world_frame: expected enu or ned, got {self.world_frame!r}")
+        if self.origin is not None:
+            lat, lon, h = (float(v) for v in self.origin)
+            if not (np.isfinite([lat, lon, h]).all() and abs(lat) <= 90 and abs(lon) <= 360):
+                raise ValueError(f"origin: expected lat,lon [deg],height [m], got {self.origin}")
+
+    def __str__(self) -> str:
+        return "bag"
+
+    def record(self) -> dict[str, object]:
+        """As ``config.json`` records it."""
+        return {
+            "format": "bag",
+            "imu_topic": self.imu,
+            "dvl_topic": self.dvl,
+            "truth_topic": self.truth,
+            "origin_deg_deg_m": None if self.origin is None else list(self.origin),
+            "body_frame": self.body_frame,
+            "world_frame": self.world_frame,
+        }
+
+
+def is_bag(path: Path) -> bool:
+    """Whether ``path`` is a ROS bag: a ``.bag`` file, or a folder holding ``metadata.yaml``."""
+    return (path.is_file() and path.suffix in BAG_SUFFIXES) or (
+        path.is_dir() and (path / "metadata.yaml").is_file()
+    )
+
+
+def require_rosbags() -> None:
+    """Raise :class:`pronet._util.extras.MissingExtra` (one line naming the extra)
+    unless the ``rosbags`` library is installed."""
+    try:
+        import rosbags.highlevel  # noqa: F401
+    except ImportError:
+        raise missing("rosbags", "reading ROS bags") from None
+
+
+def _stamp(msg: Any) -> float:
+    return float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) * 1e-9
+
+
+def _xyz(v: Any) -> list[float]:
+    return [float(v.x), float(v.y), float(v.z)]
+
+
+def _dcm(q: Any) -> F64:
+    """Body → world DCM of a unit quaternion message (x, y, z, w; normalised here)."""
+    x, y, z, w = (float(v) for v in (q.x, q.y, q.z, q.w))
+    n = np.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def euler_from_dcm(c: F64) -> F64:
+    """Roll, pitch, yaw ``(…, 3)`` [rad] (ZYX) of body → NED DCMs ``(…, 3, 3)``, the
+    inverse of :func:`pronet.recorded.alignment.dcm_from_euler`."""
+    roll = np.arctan2(c[..., 2, 1], c[..., 2, 2])
+    pitch = -np.arcsin(np.clip(c[..., 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(c[..., 1, 0], c[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def _messages(reader: Any, path: Path, topic: str, kind: str, types: tuple[str, ...]) -> list[Any]:
+    """The deserialised messages of ``topic``, checked: it exists (else the bag's topics
+    are listed), has one of ``types`` and at least two messages."""
+    found = [c for c in reader.connections if c.topic == topic]
+    if not found:
+        have = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections))
+        raise BagError(f"{path}: no topic {topic!r} for the {kind}; the bag has: {have}")
+    bad = sorted({c.msgtype for c in found} - set(types))
+    if bad:
+        raise BagError(
+            f"{path}[{topic}]: the {kind} topic holds {', '.join(bad)}; expected "
+            f"{' or '.join(types)}"
+        )
+    msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=found)]
+    if len(msgs) < 2:
+        raise BagError(f"{path}[{topic}]: the {kind} topic has {len(msgs)} message(s)")
+    return msgs
+
+
+def _dvl_variance(msgs: list[Any]) -> tuple[float, float, float] | None:
+    """The per-axis median of the set covariance diagonals (module docstring)."""
+    diag = [
+        [float(m.twist.covariance[i]) for i in (0, 7, 14)]
+        for m in msgs
+        if hasattr(m.twist, "covariance")
+    ]
+    set_ = [d for d in diag if min(d) > 0 and np.isfinite(d).all()]
+    if not set_:
+        return None
+    r = np.median(np.array(set_), axis=0)
+    return (float(r[0]), float(r[1]), float(r[2]))
+
+
+def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[float]]:
+    from pronet.navigation import lla_from_ned
+
+    if topics.origin is None:
+        raise BagError(
+            f"{path}[{topics.truth}]: the truth's positions are local metres; give their "
+            "geodetic origin (--origin LAT,LON,HEIGHT in deg, deg, m)"
+        )
+    t_w = _ENU_TO_NED if topics.world_frame == "enu" else np.eye(3)
+    d_b = np.diag(_FLU) if topics.body_frame == "flu" else np.eye(3)
+    time = np.array([_stamp(m) for m in msgs])
+    odometry = hasattr(msgs[0], "twist")
+    pose = [m.pose.pose if odometry else m.pose for m in msgs]
+    ned = np.array([_xyz(p.position) for p in pose]) @ t_w.T
+    c_wb = np.array([_dcm(p.orientation) for p in pose])
+    c_nb = t_w @ c_wb @ d_b
+    if odometry:  # twist in the child (body) frame, per nav_msgs/Odometry
+        v_body = np.array([_xyz(m.twist.twist.linear) for m in msgs])
+        vel = np.einsum("ij,njk,nk->ni", t_w, c_wb, v_body)
+    else:  # a PoseStamped has no velocity: central differences of the positions
+        vel = np.gradient(ned, time, axis=0) if np.all(np.diff(time) > 0) else np.zeros_like(ned)
+    lat, lon, h = topics.origin
+    lla = lla_from_ned(ned, np.array([np.radians(lat), np.radians(lon), h]))
+    rpy = euler_from_dcm(c_nb)
+    return np.column_stack([time, lla, vel, rpy]).tolist()
+
+
+def bag_streams(
+    path: str | Path, topics: BagTopics | None = None
+) -> tuple[dict[str, tuple[str, F64]], tuple[float, float, float] | None]:
+    """The IMU, DVL and truth of one ROS 1 or ROS 2 bag as the generic format's tables
+    (``{"imu" | "dvl" | "gt": (where, rows)}``, ``where`` naming bag and topic, the rows
+    in :data:`pronet.recorded.recordings.COLUMNS` order, SI, body FRD, NED) and the R its
+    DVL covariance states (None: not set); see the module docstring. Not yet checked:
+    :func:`pronet.recorded.recordings.read_recording` reads a bag through this and checks
+    it as the generic format. :class:`BagError` naming bag and topic,
+    :class:`~pronet._util.extras.MissingExtra` without ``rosbags``."""
+    require_rosbags()
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    topics = topics or BagTopics()
+    path = Path(path)
+    if not is_bag(path):
+        raise BagError(
+            f"{path}: not a ROS bag (a .bag file, or a ROS 2 bag folder with metadata.yaml)"
+            + ("" if path.exists() else " (it does not exist)")
+        )
+    flip = _FLU if topics.body_frame == "flu" else np.ones(3)
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.LATEST)) as reader:
+            imu_msgs = _messages(reader, path, topics.imu, "IMU", IMU_TYPES)
+            dvl_msgs = _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
+            truth_msgs = _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
+    except AnyReaderError as exc:
+        raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
+    imu = [
+        [_stamp(m), *(np.array(_xyz(m.linear_acceleration)) * flip)]
+        + list(np.array(_xyz(m.angular_velocity)) * flip)
+        for m in imu_msgs
+    ]
+
+    def velocity(m: Any) -> Any:
+        return m.twist.twist.linear if hasattr(m.twist, "twist") else m.twist.linear
+
+    dvl = [[_stamp(m), *(np.array(_xyz(velocity(m))) * flip)] for m in dvl_msgs]
+    truth = _truth_rows(truth_msgs, topics, path)
+    streams = {
+        kind: (f"{path}[{topic}]", np.array(rows, dtype=np.float64))
+        for kind, topic, rows in (
+            ("imu", topics.imu, imu),
+            ("dvl", topics.dvl, dvl),
+            ("gt", topics.truth, truth),
+        )
+    }
+    return streams, _dvl_variance(dvl_msgs)

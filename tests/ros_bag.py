@@ -1,0 +1,120 @@
+"""A recording written as a ROS bag with the rosbags library's own writers (ROS 1
+``.bag``, ROS 2 sqlite3 or mcap), in ROS's frames (REP-103: body FLU, world ENU), as a
+ROS vehicle would record it: the inverse of :mod:`pronet.recorded.bags`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pronet import local_ned
+from pronet.recorded.alignment import dcm_from_euler
+from pronet.recorded.bags import BagTopics
+from pronet.recorded.recordings import Recording
+
+#: Added to every stamp: bags carry Unix time (and ROS 1 stamps are unsigned).
+UNIX = 1_700_000_000
+_FLU = np.diag([1.0, -1.0, -1.0])
+_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+
+
+def write_bag(
+    path: Path,
+    rec: Recording,
+    storage: str = "mcap",
+    *,
+    topics: BagTopics | None = None,
+    truth: str = "odometry",
+    dvl_covariance: np.ndarray | None = None,
+) -> tuple[Path, BagTopics]:
+    """Write ``rec`` as a bag at ``path`` (``storage``: ``rosbag1``, ``sqlite3`` or
+    ``mcap``) and return it with the topics (origin: the truth's first row) to read it.
+    ``truth``: ``odometry`` or ``pose``; ``dvl_covariance``: ``(m, 3)`` per-message
+    diagonals (a TwistWithCovarianceStamped; None: a TwistStamped)."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+    from scipy.spatial.transform import Rotation
+
+    ros1 = storage == "rosbag1"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    t = ts.types
+    origin = np.degrees(rec.gt_lla[0, :2]).tolist() + [float(rec.gt_lla[0, 2])]
+    topics = topics or BagTopics(origin=(origin[0], origin[1], origin[2]))
+
+    def header(stamp: float):  # noqa: ANN202
+        sec = int(np.floor(stamp))
+        ns = min(int(round((stamp - sec) * 1e9)), 999_999_999)
+        time = t["builtin_interfaces/msg/Time"](sec=sec + UNIX, nanosec=ns)
+        seq = {"seq": 0} if ros1 else {}
+        return t["std_msgs/msg/Header"](**seq, stamp=time, frame_id="base_link")
+
+    def vec(v: np.ndarray, kind: str = "geometry_msgs/msg/Vector3"):  # noqa: ANN202
+        return t[kind](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+    zeros9 = np.zeros(9)
+    quat0 = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+    msgs: list[tuple[float, str, str, object]] = []
+    imu_type = "sensor_msgs/msg/Imu"
+    for stamp, row in zip(rec.imu_time, rec.imu, strict=True):
+        flu = np.concatenate([_FLU @ row[:3], _FLU @ row[3:]])
+        msg = t[imu_type](
+            header=header(stamp),
+            orientation=quat0,
+            orientation_covariance=np.array([-1.0, *zeros9[1:]]),
+            angular_velocity=vec(flu[3:]),
+            angular_velocity_covariance=zeros9,
+            linear_acceleration=vec(flu[:3]),
+            linear_acceleration_covariance=zeros9,
+        )
+        msgs.append((stamp, topics.imu, imu_type, msg))
+    dvl_type = "geometry_msgs/msg/Twist" + ("WithCovariance" if dvl_covariance is not None else "")
+    dvl_type += "Stamped"
+    for i, (stamp, v) in enumerate(zip(rec.dvl_time, rec.dvl, strict=True)):
+        twist = t["geometry_msgs/msg/Twist"](linear=vec(_FLU @ v), angular=vec(np.zeros(3)))
+        if dvl_covariance is not None:
+            cov = np.zeros(36)
+            cov[[0, 7, 14]] = dvl_covariance[i]
+            twist = t["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=cov)
+        msgs.append((stamp, topics.dvl, dvl_type, t[dvl_type](header=header(stamp), twist=twist)))
+    ned = local_ned(rec.gt_lla, np.array([np.radians(origin[0]), np.radians(origin[1]), origin[2]]))
+    c_nb = dcm_from_euler(rec.gt_rpy)
+    c_wb = _ENU @ c_nb @ _FLU  # body FLU → world ENU
+    quats = Rotation.from_matrix(c_wb).as_quat()  # x, y, z, w
+    truth_type = "nav_msgs/msg/Odometry" if truth == "odometry" else "geometry_msgs/msg/PoseStamped"
+    for k, stamp in enumerate(rec.gt_time):
+        pose = t["geometry_msgs/msg/Pose"](
+            position=vec(_ENU @ ned[k], "geometry_msgs/msg/Point"),
+            orientation=t["geometry_msgs/msg/Quaternion"](*map(float, quats[k])),
+        )
+        if truth == "odometry":
+            v_body = _FLU @ c_nb[k].T @ rec.gt_vel[k]
+            twist = t["geometry_msgs/msg/Twist"](linear=vec(v_body), angular=vec(np.zeros(3)))
+            msg = t[truth_type](
+                header=header(stamp),
+                child_frame_id="base_link",
+                pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=twist, covariance=np.zeros(36)
+                ),
+            )
+        else:
+            msg = t[truth_type](header=header(stamp), pose=pose)
+        msgs.append((stamp, topics.truth, truth_type, msg))
+    msgs.sort(key=lambda m: m[0])
+    if ros1:
+        writer = Writer1(path)
+    else:
+        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer2(path, version=9, storage_plugin=plugin)
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    with writer:
+        conns = {}
+        for _, topic, kind, _ in msgs:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, kind, typestore=ts)
+        for stamp, topic, kind, msg in msgs:
+            writer.write(conns[topic], int((stamp + UNIX) * 1e9), serialize(msg, kind))
+    return path, topics
