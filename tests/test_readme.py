@@ -60,11 +60,33 @@ def _cli_md(ns: dict) -> None:
     assert len(ns["runs"]) == 16  # x 4 runs
 
 
+def _realdata_md(ns: dict) -> None:
+    assert ns["rec"].name == "mission" and len(ns["rec"].imu) > 0
+    assert Path("mission-csv").is_dir()
+
+
 #: What each page's session must have produced, beyond running without an error.
-CHECKS = {"learning.md": _learning_md, "cli.md": _cli_md}
+CHECKS = {"learning.md": _learning_md, "cli.md": _cli_md, "realdata.md": _realdata_md}
+
+
+def _mission_bag() -> None:
+    """realdata.md's worked example reads ``mission.bag``: a ROS 1 bag written here
+    (the current folder is a temporary one) from a simulated recording."""
+    pytest.importorskip("rosbags.highlevel", reason="the rosbags extra is not installed")
+    from ros_bag import write_bag
+    from synthetic_recording import synthetic_recording
+
+    recording = synthetic_recording(seed=3, name="mission").recording
+    write_bag(Path("mission.bag"), recording, "rosbag1")
+
+
+#: What a page's blocks read, made in a temporary current folder before they run.
+SETUP = {"realdata.md": _mission_bag}
 
 
 @pytest.mark.parametrize("page", pages_with_python(), ids=lambda p: p.name)
-def test_docs_python_blocks_run(page: Path) -> None:
+def test_docs_python_blocks_run(page: Path, tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    SETUP.get(page.name, lambda: None)()
     namespace = run_blocks(page)
     CHECKS.get(page.name, lambda ns: None)(namespace)
