@@ -355,3 +355,19 @@ def test_a_new_trajectory_carries_its_period_and_noise_average_into_the_filter(t
     assert sc.q_nominal != scenarios.varying_noise_scenario().q_nominal
     told = write(tmp_path, "t.toml", path.read_text() + "[filter]\nimu_dt = 0.01\n")
     assert config.load_scenario(told).config.imu_dt == 0.01  # said outright: kept
+
+
+def test_keys_over_a_base_keep_its_dvl_calibration_states() -> None:
+    """A file's keys over a base with the DVL calibration states (``--formulation`` on a
+    scenario, ``--filter`` over a tuned base) keep the states and their priors; a base
+    without them gains none."""
+    base = pronet.FilterConfig(
+        dvl_calibration=True, dvl_scale_sigma=0.02, dvl_misalignment_sigma=[0.01] * 3,
+        dvl_scale_psd=1e-8, dvl_misalignment_psd=1e-9,
+    )  # fmt: skip
+    tuned = config.filter_config({"formulation": "classic"}, "test:", base=base)
+    assert tuned.formulation == "classic" and tuned.dvl_calibration
+    assert tuned.dvl_scale_sigma == 0.02 and tuned.dvl_misalignment_sigma == [0.01] * 3
+    assert (tuned.dvl_scale_psd, tuned.dvl_misalignment_psd) == (1e-8, 1e-9)
+    plain = config.filter_config({"formulation": "classic"}, "test:")
+    assert not plain.dvl_calibration

@@ -99,6 +99,15 @@ FILTER_KEYS = (
     "formulation",
     "covariance_step",
 )
+#: The DVL calibration states' arguments of a ``FilterConfig``: not keys of a file, but
+#: kept from the base configuration a file's keys are laid over.
+CALIBRATION_KEYS = (
+    "dvl_calibration",
+    "dvl_scale_sigma",
+    "dvl_misalignment_sigma",
+    "dvl_scale_psd",
+    "dvl_misalignment_psd",
+)
 #: Keys of a ``[sensors]`` table (the keyword arguments of ``pronet.SensorConfig``).
 SENSOR_KEYS = (
     "imu_variance",
@@ -187,6 +196,8 @@ def filter_config(
     _check_keys(table, FILTER_KEYS, where)
     base = base if base is not None else _core.FilterConfig()
     kwargs = {key: getattr(base, key) for key in FILTER_KEYS}
+    if base.dvl_calibration:  # not file keys, but the base's states stay
+        kwargs.update({key: getattr(base, key) for key in CALIBRATION_KEYS})
     kwargs.update(table)
     return _native(where, lambda: _core.FilterConfig(**kwargs))
 
