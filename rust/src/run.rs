@@ -2,10 +2,7 @@
 //! simulation, the filter, and the metrics, NIS/NEES and histories it reports.
 
 use crate::attitude::{exp_so3, log_so3};
-use crate::cancel::Cancel;
 use crate::earth;
-use crate::ekf::formulation;
-use crate::ekf::smoother::{smooth, Covariances, Forward, Nodes, Smoothed};
 use crate::ekf::{
     Ekf, FilterConfig, Formulation, Matrix15, NisMonitor, UpdateInfo, Vector15, ACC_BIAS, ATT,
     GYRO_BIAS, POS, VEL,
@@ -17,6 +14,10 @@ use crate::noise::{NoiseStrategy, StrategySpec};
 use crate::sensors::{normal, stream_rng, DvlMounting, SensorSim, Stream};
 use crate::trajectory::Truth;
 use nalgebra::{Vector3, Vector4};
+
+mod smoothing;
+pub use smoothing::SmoothedRecord;
+use smoothing::SmootherLog;
 
 /// Per-run scalar metrics. Velocity errors are taken at every IMU epoch.
 #[derive(Clone, Debug, PartialEq)]
@@ -80,34 +81,6 @@ pub struct RunRecord {
     /// The RTS smoother's metrics of the run, when it was asked for
     /// ([`Run::keep_for_smoother`]) and the filter did not fail.
     pub smoothed: Option<SmoothedRecord>,
-}
-
-/// A run's metrics after the RTS smoother: the [`RunSummary`] error metrics, the block
-/// NEES at the DVL updates and the histories of the smoothed solution.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SmoothedRecord {
-    pub srmse: f64,
-    pub smae: f64,
-    pub final_horizontal_error: f64,
-    pub max_horizontal_error: f64,
-    /// As [`RunRecord::nees`], at the same epochs.
-    pub nees: Vec<[f64; 5]>,
-    /// Error and σ at the recorded epochs (`imu_variance` empty).
-    pub history: Option<History>,
-}
-
-/// What the smoother reads of a run, kept as it steps: the nodes (see
-/// [`crate::ekf::smoother`]), the raw IMU samples, the forward solution at every epoch
-/// and the epochs of the DVL updates.
-struct SmootherLog {
-    nodes: Nodes,
-    imu: Vec<[f64; 6]>,
-    nav: Vec<NavState>,
-    bias: Vec<[f64; 6]>,
-    /// The IMU's true bias at each epoch (the one errors there are taken against).
-    true_bias: Vec<[f64; 6]>,
-    /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
-    update_epochs: Vec<Option<usize>>,
 }
 
 /// The last N raw IMU samples of a run, as the regressor reads them.
@@ -245,37 +218,6 @@ fn block_nees(ekf: &Ekf, truth: &NavState, error: &[f64; 15]) -> [f64; 5] {
     nees
 }
 
-/// [`block_nees`] of a smoothed solution `nav` whose covariance `p` is in the
-/// coordinates of `formulation` about the velocity `about` (the forward solution's).
-fn smoothed_block_nees(
-    nav: &NavState,
-    p: &Matrix15,
-    formulation: Formulation,
-    about: &Vector3<f64>,
-    truth: &NavState,
-    error: &[f64; 15],
-) -> [f64; 5] {
-    let mut classic = *p;
-    formulation::to_classic(formulation, &mut classic, about);
-    let mut nees = [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS].map(|b| {
-        nees3(
-            &Vector3::new(error[b], error[b + 1], error[b + 2]),
-            &classic,
-            b,
-        )
-    });
-    let invariant = if formulation == Formulation::Invariant {
-        *p
-    } else {
-        let mut q = classic;
-        formulation::from_classic(Formulation::Invariant, &mut q, &nav.vel);
-        q
-    };
-    let dv = nav.vel - nav.dcm * (truth.dcm.transpose() * truth.vel);
-    nees[1] = nees3(&dv, &invariant, VEL);
-    nees
-}
-
 /// Run `run_index`'s start: the filter's initial navigation solution and the IMU's
 /// true turn-on bias `[b_a, b_g]`. The filter starts from its prior mean, the bias
 /// estimates at zero; the turn-on bias is the configured one, less a draw from the
@@ -301,69 +243,6 @@ pub(crate) fn initial_state(
         }
     }
     (nav, bias)
-}
-
-/// The smoothed solution's metrics against the truth, as a forward run reports them.
-fn smoothed_metrics(
-    s: &Smoothed,
-    log: &SmootherLog,
-    formulation: Formulation,
-    truth: &Truth,
-    record_every: usize,
-) -> SmoothedRecord {
-    let n = s.nav.len() - 1;
-    let error =
-        |k: usize| solution_error(&s.nav[k], &s.bias[k], &truth.states[k], &log.true_bias[k]);
-    let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
-    let mut horizontal = 0.0;
-    for k in 1..=n {
-        let e = error(k);
-        let dv = Vector3::new(e[VEL], e[VEL + 1], e[VEL + 2]);
-        sum_sq += dv.norm_squared();
-        sum_abs += dv.abs().sum();
-        let sq = e[POS] * e[POS] + e[POS + 1] * e[POS + 1];
-        max_sq = max_sq.max(sq);
-        horizontal = sq.sqrt();
-    }
-    let covariance: std::collections::HashMap<usize, &Matrix15> =
-        s.node_covariance.iter().map(|(k, p)| (*k, p)).collect();
-    let nees = log
-        .update_epochs
-        .iter()
-        .map(
-            |&k| match k.and_then(|k| covariance.get(&k).map(|p| (k, p))) {
-                Some((k, p)) => {
-                    let about = &log.nav[k].vel;
-                    smoothed_block_nees(
-                        &s.nav[k],
-                        p,
-                        formulation,
-                        about,
-                        &truth.states[k],
-                        &error(k),
-                    )
-                }
-                None => [f64::NAN; 5],
-            },
-        )
-        .collect();
-    let history = (record_every > 0).then(|| {
-        let epochs = (0..=n).step_by(record_every);
-        History {
-            error: epochs.clone().map(error).collect(),
-            sigma: epochs.map(|k| s.sigma[k]).collect(),
-            imu_variance: Vec::new(),
-        }
-    });
-    let steps = n.max(1) as f64;
-    SmoothedRecord {
-        srmse: (sum_sq / steps).sqrt(),
-        smae: sum_abs / steps,
-        final_horizontal_error: horizontal,
-        max_horizontal_error: max_sq.sqrt(),
-        nees,
-        history,
-    }
 }
 
 impl Run {
@@ -432,26 +311,6 @@ impl Run {
                     .push(self.strategy.imu_variance().unwrap_or([f64::NAN; 6]));
             }
         }
-    }
-
-    /// Keep what the RTS smoother needs from now on (call before the first step): the
-    /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
-    /// keeps the forward solution at every IMU epoch (~230 bytes each) and one
-    /// covariance per DVL update.
-    pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
-        let n = scenario.truth.len() + 1;
-        let mut log = SmootherLog {
-            nodes: Nodes::default(),
-            imu: Vec::with_capacity(n),
-            nav: Vec::with_capacity(n),
-            bias: Vec::with_capacity(n),
-            true_bias: Vec::with_capacity(n),
-            update_epochs: Vec::new(),
-        };
-        log.nav.push(self.ekf.nav);
-        log.bias.push(bias_array(&self.ekf));
-        log.true_bias.push(self.true_bias);
-        self.smoother = Some(Box::new(log));
     }
 
     /// Advance by one IMU sample (and a DVL update when one is due).
@@ -588,53 +447,6 @@ impl Run {
 
     pub fn strategy_mut(&mut self) -> &mut dyn NoiseStrategy {
         self.strategy.as_mut()
-    }
-
-    /// The smoothed metrics of a run kept for the smoother, or None (not kept, or the
-    /// filter failed). A smoother that fails numerically gives NaN metrics.
-    fn smoothed_record(&mut self, scenario: &Scenario) -> Option<SmoothedRecord> {
-        let mut log = self.smoother.take()?;
-        if self.failure.is_some() {
-            return None;
-        }
-        let truth = &*scenario.truth;
-        log.nodes.finish(self.k, &self.ekf);
-        let forward = Forward {
-            imu: &log.imu,
-            imu_time: &truth.time[1..=self.k],
-            t0: truth.time[0],
-            nav: &log.nav,
-            bias: &log.bias,
-            dt: Some(truth.dt),
-        };
-        let cfg = self.ekf.config();
-        // σ where the histories read it; the NEES reads the nodes' covariances.
-        let every = self.record_every;
-        let recorded = |k: usize| every > 0 && k.is_multiple_of(every);
-        let covariances = Covariances::Where(&recorded);
-        let Ok(smoothed) = smooth(&forward, cfg, &log.nodes.0, covariances, &Cancel::default())
-        else {
-            let nan = f64::NAN;
-            return Some(SmoothedRecord {
-                srmse: nan,
-                smae: nan,
-                final_horizontal_error: nan,
-                max_horizontal_error: nan,
-                nees: vec![[nan; 5]; log.update_epochs.len()],
-                history: self.history.as_ref().map(|h| History {
-                    error: vec![[nan; 15]; h.error.len()],
-                    sigma: vec![[nan; 15]; h.sigma.len()],
-                    imu_variance: Vec::new(),
-                }),
-            });
-        };
-        Some(smoothed_metrics(
-            &smoothed,
-            &log,
-            cfg.formulation,
-            truth,
-            self.record_every,
-        ))
     }
 
     /// The run's record (the DVL calibration judged against the scenario's DVL).

@@ -14,7 +14,7 @@
 use super::calibration::{Calibration, N_CALIBRATED, SCALE};
 use super::{Ekf, Vector15, POS};
 use crate::earth;
-use crate::error::{Error, Result};
+use crate::error::{check, Error, Result};
 use nalgebra::{SMatrix, SVector};
 
 /// What a position or depth update did.
@@ -153,6 +153,66 @@ fn scalar_update<const N: usize>(
         *m = (*m + m.transpose()) * 0.5;
     }
     Ok((innovation * innovation / s, -(gain * innovation)))
+}
+
+/// The depth readings and position fixes of a pass: lengths, times, values and σ, each
+/// error naming its argument.
+pub(super) fn check_aiding(
+    depth: &[f64],
+    depth_time: &[f64],
+    depth_sigma: f64,
+    fix: &[[f64; 3]],
+    fix_time: &[f64],
+    fix_sigma: &[[f64; 3]],
+) -> Result<()> {
+    let same = |name: &str, n: usize, time: &str, m: usize| {
+        if n == m {
+            return Ok(());
+        }
+        Err(Error::invalid(
+            time,
+            format!("has {m} rows but {name} has {n}"),
+        ))
+    };
+    same("depth", depth.len(), "depth_time", depth_time.len())?;
+    same("fix", fix.len(), "fix_time", fix_time.len())?;
+    same("fix", fix.len(), "fix_sigma", fix_sigma.len())?;
+    check::increasing("depth_time", depth_time)?;
+    check::increasing("fix_time", fix_time)?;
+    check::finite("depth", depth)?;
+    let sigma_ok = depth_sigma > 0.0 && depth_sigma.is_finite();
+    if !depth.is_empty() && !sigma_ok {
+        return Err(Error::invalid(
+            "depth_sigma",
+            format!("must be a finite number of metres > 0, got {}", depth_sigma),
+        ));
+    }
+    for (i, (fix, sigma)) in fix.iter().zip(fix_sigma).enumerate() {
+        let vertical = !fix[2].is_nan();
+        if !fix[0].is_finite() || !fix[1].is_finite() || fix[2].is_infinite() {
+            return Err(Error::invalid(
+                "fix",
+                format!(
+                    "row {i} must hold a finite latitude and longitude [rad] and a finite \
+                     or NaN height [m], got {fix:?}"
+                ),
+            ));
+        }
+        earth::check_latitude("fix", fix[0])?;
+        let wanted = if vertical { 3 } else { 2 };
+        if !sigma[..wanted].iter().all(|s| *s > 0.0 && s.is_finite()) {
+            let axes = if vertical {
+                "north, east, down"
+            } else {
+                "north, east"
+            };
+            return Err(Error::invalid(
+                "fix_sigma",
+                format!("row {i} must hold {wanted} finite 1σ > 0 [m] ({axes}), got {sigma:?}"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
