@@ -10,8 +10,6 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// The navigation rows and columns of the error state (position, velocity, attitude).
 const NAV: usize = 9;
-type Matrix9 = SMatrix<f64, NAV, NAV>;
-type Matrix9x6 = SMatrix<f64, NAV, 6>;
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
 /// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
@@ -305,35 +303,54 @@ impl ErrorDynamics {
     #[inline(always)]
     fn transition_portable(&self, dt: f64) -> Transition {
         let fd = self.nav_rows() * dt;
-        // F² has zero bias rows too: its navigation rows are F_nn (F Δt)_nav.
-        let half: Matrix9 = fd.fixed_view::<NAV, NAV>(0, 0) * 0.5;
-        let mut phi = fd;
-        mul_add(&mut phi, &half, &fd);
-        for i in 0..NAV {
-            phi[(i, i)] += 1.0;
+        // F² has zero bias rows too: its navigation rows are F_nn (F Δt)_nav, so
+        // column j of Φ's navigation rows is (F Δt)[:, j] + ½ Σ_k (F Δt)[:, k] (F Δt)[k, j]
+        // over the nine navigation columns k. Columns are padded to 12 rows (three
+        // 4-lane vectors) so that every column operation vectorizes whole.
+        let mut f = [[0.0; PAD]; 15];
+        for (k, col) in f.iter_mut().enumerate() {
+            col[..NAV].copy_from_slice(&fd.as_slice()[NAV * k..NAV * k + NAV]);
         }
-        Transition {
-            nn: phi.fixed_view::<NAV, NAV>(0, 0).into_owned(),
-            nb: phi.fixed_view::<NAV, 6>(0, NAV).into_owned(),
+        let mut cols = f;
+        for (j, col) in cols.iter_mut().enumerate() {
+            for (fk, c) in f.iter().zip(&f[j][..NAV]) {
+                axpy(col, fk, 0.5 * c);
+            }
+            if j < NAV {
+                col[j] += 1.0;
+            }
         }
+        Transition { cols }
+    }
+}
+
+/// The navigation rows (0..9) padded to 12, so that a column is three 4-lane vectors.
+const PAD: usize = 12;
+
+/// `acc += x·c` over a padded column (no FMA: the same bits on every CPU).
+#[inline(always)]
+fn axpy(acc: &mut [f64; PAD], x: &[f64; PAD], c: f64) {
+    for (a, x) in acc.iter_mut().zip(x) {
+        *a += x * c;
     }
 }
 
 /// A transition matrix whose bias rows are those of the identity,
-/// `Φ = [[Φ_nn, Φ_nb], [0, I]]` (the navigation block 9×9, its bias columns 9×6).
+/// `Φ = [[Φ_nn, Φ_nb], [0, I]]`, kept as the 15 columns of its 9 navigation rows
+/// (each padded with zeros to [`PAD`] rows).
 #[derive(Clone, Debug)]
 pub(super) struct Transition {
-    nn: Matrix9,
-    nb: Matrix9x6,
+    cols: [[f64; PAD]; 15],
 }
 
 impl Transition {
-    /// `P ← Φ P Φᵀ` using the block structure: with `P = [[N, C], [Cᵀ, D]]`,
-    /// `Y = Φ_nn C + Φ_nb D` is the new navigation-bias block and
-    /// `(Φ_nn N + Φ_nb Cᵀ) Φ_nnᵀ + Y Φ_nbᵀ` the navigation block (written symmetrized);
-    /// D stays. The noise of a covariance step is added around it (see
-    /// `super::interval`). An AVX2 copy is chosen at run time where the CPU has it (no
-    /// FMA: the same bits either way).
+    /// `P ← Φ P Φᵀ` with the bias rows of Φ those of the identity: `Z = W P` for the
+    /// navigation rows `W` (9×15) of Φ, column by column (P is symmetric, so its
+    /// column j is its row j); then the navigation block is `Z Wᵀ` (written
+    /// symmetrized), the navigation-bias block `Z[:, 9..15]`, and the bias block stays.
+    /// The noise of a covariance step is added around it (see `super::interval`). An
+    /// AVX2 copy is chosen at run time where the CPU has it (no FMA: the same bits
+    /// either way).
     pub(super) fn propagate(&self, p: &mut Matrix15) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -351,75 +368,57 @@ impl Transition {
 
     #[inline(always)]
     fn propagate_portable(&self, p: &mut Matrix15) {
-        let n: Matrix9 = p.fixed_view::<NAV, NAV>(0, 0).into_owned();
-        let c: Matrix9x6 = p.fixed_view::<NAV, 6>(0, NAV).into_owned();
-        let d: SMatrix<f64, 6, 6> = p.fixed_view::<6, 6>(NAV, NAV).into_owned();
-        let mut y = Matrix9x6::zeros();
-        mul_add(&mut y, &self.nn, &c);
-        mul_add(&mut y, &self.nb, &d);
-        let mut x = Matrix9::zeros();
-        mul_add(&mut x, &self.nn, &n);
-        mul_add_transposed(&mut x, &self.nb, &c);
-        let mut nav = Matrix9::zeros();
-        mul_add_transposed(&mut nav, &x, &self.nn);
-        mul_add_transposed(&mut nav, &y, &self.nb);
-        p.fixed_view_mut::<NAV, NAV>(0, 0)
-            .copy_from(&((nav + nav.transpose()) * 0.5));
-        p.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&y);
-        p.fixed_view_mut::<6, NAV>(NAV, 0).copy_from(&y.transpose());
+        let w = &self.cols;
+        let mut z = [[0.0; PAD]; 15];
+        for (j, zj) in z.iter_mut().enumerate() {
+            let pj = &p.as_slice()[15 * j..15 * j + 15];
+            for (wk, c) in w.iter().zip(pj) {
+                axpy(zj, wk, *c);
+            }
+        }
+        let mut nav = [[0.0; PAD]; NAV];
+        for (j, nj) in nav.iter_mut().enumerate() {
+            for (zk, wk) in z.iter().zip(w) {
+                axpy(nj, zk, wk[j]);
+            }
+        }
+        let s = p.as_mut_slice(); // column-major
+        for j in 0..NAV {
+            for i in 0..NAV {
+                s[15 * j + i] = 0.5 * (nav[j][i] + nav[i][j]);
+            }
+        }
+        for j in NAV..15 {
+            for i in 0..NAV {
+                s[15 * j + i] = z[j][i];
+                s[15 * i + j] = z[j][i];
+            }
+        }
     }
 
     /// `X ← Φ X` for the 15 rows of `X` (a cross-covariance with other states).
     pub(super) fn apply<const C: usize>(&self, x: &mut SMatrix<f64, 15, C>) {
-        let nav = self.nn * x.fixed_view::<NAV, C>(0, 0) + self.nb * x.fixed_view::<6, C>(NAV, 0);
-        x.fixed_view_mut::<NAV, C>(0, 0).copy_from(&nav);
+        for c in 0..C {
+            let mut acc = [0.0; PAD];
+            for (k, wk) in self.cols.iter().enumerate() {
+                axpy(&mut acc, wk, x[(k, c)]);
+            }
+            for i in 0..NAV {
+                x[(i, c)] = acc[i];
+            }
+        }
     }
 
     /// The dense 15×15 Φ.
     #[cfg(test)]
     pub(super) fn dense(&self) -> Matrix15 {
         let mut phi = Matrix15::identity();
-        phi.fixed_view_mut::<NAV, NAV>(0, 0).copy_from(&self.nn);
-        phi.fixed_view_mut::<NAV, 6>(0, NAV).copy_from(&self.nb);
+        for (k, col) in self.cols.iter().enumerate() {
+            for i in 0..NAV {
+                phi[(i, k)] = col[i];
+            }
+        }
         phi
-    }
-}
-
-/// `out += a b` for small fixed-size matrices, column by column (contiguous columns of
-/// `a` scaled and summed, which the compiler vectorizes where nalgebra's generic
-/// product is not inlined).
-#[inline(always)]
-fn mul_add<const R: usize, const K: usize, const C: usize>(
-    out: &mut SMatrix<f64, R, C>,
-    a: &SMatrix<f64, R, K>,
-    b: &SMatrix<f64, K, C>,
-) {
-    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
-    for j in 0..C {
-        for k in 0..K {
-            let coef = b[j * K + k];
-            for i in 0..R {
-                o[j * R + i] += a[k * R + i] * coef;
-            }
-        }
-    }
-}
-
-/// `out += a bᵀ` for `b` of `C × K` (see [`mul_add`]).
-#[inline(always)]
-fn mul_add_transposed<const R: usize, const K: usize, const C: usize>(
-    out: &mut SMatrix<f64, R, C>,
-    a: &SMatrix<f64, R, K>,
-    b: &SMatrix<f64, C, K>,
-) {
-    let (a, b, o) = (a.as_slice(), b.as_slice(), out.as_mut_slice());
-    for j in 0..C {
-        for k in 0..K {
-            let coef = b[k * C + j];
-            for i in 0..R {
-                o[j * R + i] += a[k * R + i] * coef;
-            }
-        }
     }
 }
 
@@ -435,27 +434,56 @@ pub(super) fn add_imu_noise(
     q: &[f64; 6],
     white: f64,
 ) {
-    let c = &nav.dcm;
-    let qa = c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
-    let qg = c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
-    let (qa, qg) = (qa * white, qg * white);
-    let mut blk = |at: usize, m: Matrix3<f64>| {
-        let mut view = p.fixed_view_mut::<3, 3>(at, at);
-        view += (m + m.transpose()) * 0.5;
-    };
-    if formulation == Formulation::Invariant {
-        let v = skew(&nav.vel);
-        let vq = v * qg; // once: −[v×]Q_g is its negation, exactly
-        let cross = -vq;
-        blk(VEL, qa + vq * v.transpose());
-        blk(ATT, qg);
-        let mut view = p.fixed_view_mut::<3, 3>(VEL, ATT);
-        view += cross;
-        let mut view = p.fixed_view_mut::<3, 3>(ATT, VEL);
-        view += cross.transpose();
-    } else {
-        blk(VEL, qa);
-        blk(ATT, qg);
+    ImuNoise::new(nav, formulation, q, white).add_to(p);
+}
+
+/// The blocks that [`add_imu_noise`] adds, built once so that a covariance step can add
+/// them on either side of Φ without building them twice.
+pub(super) struct ImuNoise {
+    /// Added to the velocity block (symmetrized).
+    vel: Matrix3<f64>,
+    /// Added to the attitude block (symmetrized).
+    att: Matrix3<f64>,
+    /// `−[v×] Q_g`, added to the velocity–attitude block (invariant formulation only).
+    cross: Option<Matrix3<f64>>,
+}
+
+impl ImuNoise {
+    pub(super) fn new(nav: &NavState, formulation: Formulation, q: &[f64; 6], white: f64) -> Self {
+        let c = &nav.dcm;
+        let qa = c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
+        let qg = c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
+        let (qa, qg) = (qa * white, qg * white);
+        if formulation == Formulation::Invariant {
+            let v = skew(&nav.vel);
+            let vq = v * qg; // once: −[v×]Q_g is its negation, exactly
+            Self {
+                vel: qa + vq * v.transpose(),
+                att: qg,
+                cross: Some(-vq),
+            }
+        } else {
+            Self {
+                vel: qa,
+                att: qg,
+                cross: None,
+            }
+        }
+    }
+
+    pub(super) fn add_to(&self, p: &mut Matrix15) {
+        let mut blk = |at: usize, m: &Matrix3<f64>| {
+            let mut view = p.fixed_view_mut::<3, 3>(at, at);
+            view += (m + m.transpose()) * 0.5;
+        };
+        blk(VEL, &self.vel);
+        blk(ATT, &self.att);
+        if let Some(cross) = &self.cross {
+            let mut view = p.fixed_view_mut::<3, 3>(VEL, ATT);
+            view += cross;
+            let mut view = p.fixed_view_mut::<3, 3>(ATT, VEL);
+            view += cross.transpose();
+        }
     }
 }
 

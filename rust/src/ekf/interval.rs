@@ -13,7 +13,7 @@
 //! noise mapped through Γ at the interval's start (`docs/filter.md`, "Covariance
 //! step"). The sensitivity `M` and the DVL calibration blocks go through the same Φ.
 
-use super::dynamics::{add_imu_noise, ErrorDynamics};
+use super::dynamics::{ErrorDynamics, ImuNoise};
 use super::{formulation, Ekf, Matrix15, ACC_BIAS};
 use crate::mechanization::{FrameRates, NavState};
 use crate::noise::ProcessNoise;
@@ -106,8 +106,9 @@ impl Interval {
             formulation::from_classic(formulation, &mut qd, &start.vel);
             qd
         });
+        let imu_noise = ImuNoise::new(start, formulation, &self.imu_noise, 0.5);
         let noise = |p: &mut Matrix15| {
-            add_imu_noise(p, start, formulation, &self.imu_noise, 0.5);
+            imu_noise.add_to(p);
             for (i, v) in self.bias_noise.iter().enumerate() {
                 p[(ACC_BIAS + i, ACC_BIAS + i)] += 0.5 * v;
             }
@@ -122,9 +123,10 @@ impl Interval {
             c.propagate_interval(&phi, self.elapsed, true);
         }
         if let (Some((m, qm)), Some(white)) = (ekf.sensitivity.as_mut(), self.sensitivity_white) {
-            add_imu_noise(m, start, formulation, qm, 0.5 * white);
+            let noise = ImuNoise::new(start, formulation, qm, 0.5 * white);
+            noise.add_to(m);
             phi.propagate(m);
-            add_imu_noise(m, start, formulation, qm, 0.5 * white);
+            noise.add_to(m);
             if let Some(c) = ekf.sensitivity_calibration.as_mut() {
                 c.propagate_interval(&phi, self.elapsed, false);
             }

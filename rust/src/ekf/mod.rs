@@ -245,13 +245,26 @@ impl Ekf {
     /// finite. A non-finite P reaches its diagonal within a step, so the diagonal is
     /// enough.
     pub fn is_finite(&self) -> bool {
+        self.solution_is_finite() && self.covariance_is_finite()
+    }
+
+    /// The navigation solution and the bias estimates of [`Ekf::is_finite`].
+    fn solution_is_finite(&self) -> bool {
+        // `0·x` is ±0 for a finite x and NaN for ±∞ and NaN, so the sum is NaN exactly
+        // when a value is not finite: one branch-free pass over the 21 values.
         let nav = &self.nav;
-        nav.lla.iter().all(|x| x.is_finite())
-            && nav.vel.iter().all(|x| x.is_finite())
-            && nav.dcm.iter().all(|x| x.is_finite())
-            && self.accel_bias.iter().all(|x| x.is_finite())
-            && self.gyro_bias.iter().all(|x| x.is_finite())
-            && (0..15).all(|i| self.p[(i, i)].is_finite())
+        let values = nav.lla.iter().chain(&nav.vel).chain(&nav.dcm);
+        let sum: f64 = values
+            .chain(&self.accel_bias)
+            .chain(&self.gyro_bias)
+            .map(|x| x * 0.0)
+            .sum();
+        !sum.is_nan()
+    }
+
+    /// The variances (and the calibration states) of [`Ekf::is_finite`].
+    fn covariance_is_finite(&self) -> bool {
+        (0..15).all(|i| self.p[(i, i)].is_finite())
             && self.calibration.as_ref().is_none_or(Calibration::is_finite)
     }
 
@@ -278,10 +291,13 @@ impl Ekf {
         }
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
+        // P changes at every sample, or where a covariance step closes.
+        let mut covariance_changed = every_sample;
         if !every_sample && self.interval.as_ref().is_some_and(|i| i.due(&self.cfg)) {
             self.bring_up_to_date();
+            covariance_changed = true;
         }
-        if !self.is_finite() {
+        if !self.solution_is_finite() || (covariance_changed && !self.covariance_is_finite()) {
             return Err(Error::Numerical(
                 "the prediction produced a non-finite state or covariance".into(),
             ));
