@@ -13,12 +13,13 @@ from numpy_reference_smoother import rts_smooth
 from test_numpy_reference_ekf import P0, Q, _inputs
 
 
-def _both(aiding: str, lever_arm, formulation: str, strategy=None):
+def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_step=0.0):
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(lever_arm), aiding)
     tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3)
     cfg = pronet.FilterConfig(
-        p0_sigma=P0, lever_arm=lever_arm, aiding=aiding, formulation=formulation, **tuning
-    )
+        p0_sigma=P0, lever_arm=lever_arm, aiding=aiding, formulation=formulation,
+        covariance_step=covariance_step, **tuning,
+    )  # fmt: skip
     rust = pronet.run_filter(
         imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
         strategy=strategy or pronet.Strategy.constant(Q), smooth=True,
@@ -26,7 +27,8 @@ def _both(aiding: str, lever_arm, formulation: str, strategy=None):
     log: list = []
     forward = run_reference_filter(
         imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, q=Q, p0_sigma=P0, imu_dt=0.01,
-        lever_arm=lever_arm, aiding=aiding, formulation=formulation, log=log, **tuning,
+        lever_arm=lever_arm, aiding=aiding, formulation=formulation, log=log,
+        covariance_step=covariance_step, **tuning,
     )  # fmt: skip
     return rust, forward, rts_smooth(forward, log, formulation)
 
@@ -35,8 +37,10 @@ def _both(aiding: str, lever_arm, formulation: str, strategy=None):
     ("aiding", "lever_arm"), [("body", (0.5, -0.2, 1.0)), ("nav", (0.0, 0.0, 0.0))]
 )
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-def test_rust_smoother_matches_reference(aiding, lever_arm, formulation) -> None:
-    rust, forward, ref = _both(aiding, lever_arm, formulation)
+@pytest.mark.parametrize("covariance_step", [0.0, 0.1, 0.07])
+def test_rust_smoother_matches_reference(aiding, lever_arm, formulation, covariance_step) -> None:
+    """0.1 s: ten steps between DVL rows; 0.07 s: a short step closed by each row."""
+    rust, forward, ref = _both(aiding, lever_arm, formulation, covariance_step=covariance_step)
     s = rust.smoothed
     assert s is not None
     np.testing.assert_array_equal(s.time, rust.time)

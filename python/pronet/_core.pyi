@@ -364,7 +364,7 @@ def monte_carlo(
 
 def check_smoothable(config: FilterConfig) -> None:
     """``ValueError`` naming ``smooth`` if the RTS smoother cannot smooth a filter of
-    ``config`` (the DVL calibration states; a covariance step above one IMU sample), as
+    ``config`` (the DVL calibration states), as
     :func:`monte_carlo` checks with ``smooth=True``; nothing is run."""
 
 def check_result_size(

@@ -253,9 +253,10 @@ def run_filter(
             is kept at every epoch).
         smooth: also run the Rauch–Tung–Striebel smoother backward over the pass
             (:attr:`FilterResult.smoothed`; every epoch kept, so not with
-            ``epochs="last"``; the DVL calibration states and a covariance step are not
-            smoothed yet). It keeps one covariance per DVL epoch and, while it smooths
-            an interval between two, two per IMU step of that interval (3.6 kB each: a
+            ``epochs="last"``; the DVL calibration states are not smoothed yet; with a
+            covariance step the smoother's grid is the steps' closes). It keeps one
+            covariance per DVL epoch and, while it smooths an interval between two, two
+            per IMU step of that interval (3.6 kB each: a
             long stretch without an update, an outage, costs memory in proportion), and
             costs about four forward passes (docs/filter.md, "The RTS smoother").
         depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive

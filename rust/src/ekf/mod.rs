@@ -38,7 +38,7 @@ pub mod smoother;
 
 use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
-use dynamics::{add_imu_noise, ErrorDynamics};
+use dynamics::{add_imu_noise, ErrorDynamics, Transition};
 pub use formulation::Formulation;
 use interval::Interval;
 pub use recorded::{
@@ -175,9 +175,15 @@ impl Ekf {
     /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
     /// end of the last closed step; every DVL update brings it up to date first.
     pub fn bring_up_to_date(&mut self) {
-        if let Some(interval) = self.interval.take() {
-            interval.close(self);
-        }
+        self.close_interval();
+    }
+
+    /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no
+    /// step was under way): the smoother's backward pass reads it.
+    fn close_interval(&mut self) -> Option<Transition> {
+        self.interval
+            .take()
+            .and_then(|interval| interval.close(self))
     }
 
     /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
@@ -261,6 +267,17 @@ impl Ekf {
     /// sample. A non-finite result (an overflow from absurd inputs or a diverged
     /// filter) is an `Error::Numerical`, never a silent NaN.
     pub fn propagate(&mut self, raw: &ImuSample, dt: f64, noise: ProcessNoise<'_>) -> Result<()> {
+        self.propagate_closing(raw, dt, noise).map(|_| ())
+    }
+
+    /// [`Ekf::propagate`], giving the transition Φ of a covariance step closed as due
+    /// at the end of this sample (None at every sample without a covariance step).
+    fn propagate_closing(
+        &mut self,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> Result<Option<Transition>> {
         let imu = ImuSample {
             accel: raw.accel - self.accel_bias,
             gyro: raw.gyro - self.gyro_bias,
@@ -278,15 +295,16 @@ impl Ekf {
         }
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
+        let mut closed = None;
         if !every_sample && self.interval.as_ref().is_some_and(|i| i.due(&self.cfg)) {
-            self.bring_up_to_date();
+            closed = self.close_interval();
         }
         if !self.is_finite() {
             return Err(Error::Numerical(
                 "the prediction produced a non-finite state or covariance".into(),
             ));
         }
-        Ok(())
+        Ok(closed)
     }
 
     /// The covariance part of [`Ekf::propagate`] at every IMU sample.

@@ -222,7 +222,7 @@ fn py_monte_carlo<'py>(
 }
 
 /// ``ValueError`` naming ``smooth`` if the RTS smoother cannot smooth a filter of
-/// ``config`` (the DVL calibration states; a covariance step above one IMU sample), as
+/// ``config`` (the DVL calibration states), as
 /// :func:`monte_carlo` checks with ``smooth=True``; nothing is run.
 #[pyfunction(name = "check_smoothable")]
 fn py_check_smoothable(config: &PyFilterConfig) -> PyResult<()> {

@@ -26,6 +26,7 @@
 //! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0`. `docs/filter.md` ("The RTS
 //! smoother") writes it out with its sources.
 
+use super::interval::Interval as CovarianceStep;
 use super::{correct, Ekf, FilterConfig, Matrix15, Vector15};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
@@ -33,22 +34,16 @@ use crate::mechanization::{ImuSample, NavState};
 use crate::noise::ProcessNoise;
 use nalgebra::Vector3;
 
+pub(super) mod steps;
+
 /// What the smoother cannot smooth yet, refused naming `arg`: the DVL calibration
-/// states, and a covariance step longer than one IMU sample (its intervals are not
-/// rebuilt step by step).
+/// states.
 pub fn check_config(cfg: &FilterConfig, arg: &str) -> Result<()> {
     if cfg.dvl_calibration.is_some() {
         return Err(Error::invalid(
             arg,
             "the smoother does not smooth the DVL calibration states yet: smooth without \
              dvl_calibration",
-        ));
-    }
-    if !cfg.covariance_every_sample() {
-        return Err(Error::invalid(
-            arg,
-            "the smoother needs the covariance propagated at every IMU sample: smooth with \
-             covariance_step=0",
         ));
     }
     Ok(())
@@ -123,6 +118,10 @@ pub struct Node {
     pub correction: Vector15,
     /// The process noise in force from this epoch to the next node.
     pub noise: Noise,
+    /// With a covariance step ([`FilterConfig::covariance_step`]): the step under way
+    /// after the epoch's updates, None where one closed there (`p_post` is then the
+    /// covariance at the last close). About 200 bytes, boxed.
+    pub(in crate::ekf) interval: Option<Box<CovarianceStep>>,
 }
 
 /// The nodes of a forward pass, kept as it runs.
@@ -141,6 +140,7 @@ impl Nodes {
                 p_post: ekf.p,
                 correction: Vector15::zeros(),
                 noise: Noise::of(noise),
+                interval: open_step(ekf),
             }),
         }
     }
@@ -160,23 +160,39 @@ impl Nodes {
             p_post: ekf.p,
             correction,
             noise: Noise::of(noise),
+            interval: open_step(ekf),
         });
     }
 
     /// At the end of the pass, after the last epoch `epoch`: the node the backward
-    /// pass starts from.
+    /// pass starts from, with the covariance step under way closed (on a copy of the
+    /// filter: the forward pass is not changed).
     pub fn finish(&mut self, epoch: usize, ekf: &Ekf) {
-        if self.0.last().is_some_and(|n| n.epoch == epoch) {
+        let closed = ekf.interval.is_some().then(|| {
+            let mut copy = ekf.clone();
+            copy.bring_up_to_date();
+            copy.p
+        });
+        if let Some(last) = self.0.last_mut().filter(|n| n.epoch == epoch) {
+            if let Some(p) = closed {
+                (last.p_post, last.interval) = (p, None);
+            }
             return;
         }
         let noise = self.0.last().map(|n| n.noise.clone());
         self.0.push(Node {
             epoch,
-            p_post: ekf.p,
+            p_post: closed.unwrap_or(ekf.p),
             correction: Vector15::zeros(),
             noise: noise.unwrap_or(Noise::Discrete(Box::new(Matrix15::zeros()))),
+            interval: None,
         });
     }
+}
+
+/// The covariance step under way in `ekf`, if any, copied for a node.
+fn open_step(ekf: &Ekf) -> Option<Box<CovarianceStep>> {
+    ekf.interval.clone().map(Box::new)
 }
 
 /// The smoothed solution at every epoch of the forward pass.
@@ -206,6 +222,22 @@ pub struct Forward<'a> {
     pub dt: Option<f64>,
 }
 
+impl Forward<'_> {
+    /// The time [s] of epoch `i` (`t0` for the first).
+    fn time(&self, i: usize) -> f64 {
+        if i == 0 {
+            self.t0
+        } else {
+            self.imu_time[i - 1]
+        }
+    }
+
+    /// The step [s] from epoch `i` to `i + 1` (the one IMU row `i` is propagated over).
+    fn step(&self, i: usize) -> f64 {
+        self.dt.unwrap_or_else(|| self.imu_time[i] - self.time(i))
+    }
+}
+
 /// Which epochs' smoothed covariance (σ) a backward pass computes; the nodes' it
 /// always does. The mean it computes at every epoch.
 #[derive(Clone, Copy)]
@@ -233,6 +265,9 @@ pub fn smooth(
         return Err(Error::Numerical(
             "the smoother's nodes do not span the pass".into(),
         ));
+    }
+    if !cfg.covariance_every_sample() {
+        return steps::smooth_steps(forward, cfg, nodes, covariances, cancel);
     }
     let mut out = Smoothed {
         nav: forward.nav.to_vec(),
@@ -360,12 +395,7 @@ impl Interval {
             }
             // The step from epoch i to i + 1 reads IMU row i.
             let raw = ImuSample::from_array(&forward.imu[epoch]);
-            let t_prev = if epoch == 0 {
-                forward.t0
-            } else {
-                forward.imu_time[epoch - 1]
-            };
-            let dt = forward.dt.unwrap_or(forward.imu_time[epoch] - t_prev);
+            let dt = forward.step(epoch);
             p.push(ekf.p);
             let step = ekf.transition(&raw, dt);
             if let Some(wanted) = wanted {
