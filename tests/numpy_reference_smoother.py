@@ -18,7 +18,9 @@ from numpy_reference_ekf import dcm_from_euler, euler_from_dcm, exp_so3, radii, 
 
 def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     """The smoothed ``lla``, ``vel``, ``rpy``, ``bias`` and classic ``sigma`` at every
-    epoch, from the reference filter's output ``forward`` and its ``log``.
+    epoch (with the DVL calibration states, ``calibration`` and ``calibration_sigma``
+    too: all 19 states smoothed), from the reference filter's output ``forward`` and
+    its ``log``.
 
     The recursion runs from close to close of the covariance (every epoch without a
     covariance step); between two closes the smoothed error of the forward solution is
@@ -26,8 +28,10 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     one before the later close's, and σ repeats the earlier close's."""
     invariant = formulation == "invariant"
     n = len(log)
-    out = {k: np.array(forward[k], dtype=float, copy=True) for k in ("lla", "vel", "rpy", "bias")}
+    keys = ("lla", "vel", "rpy", "bias", "calibration")
+    out = {k: np.array(forward[k], dtype=float, copy=True) for k in keys}
     out["sigma"] = np.zeros((n, 15))
+    out["calibration_sigma"] = np.zeros((n, 4))
     time = np.asarray(forward["time"], dtype=float)
     closes = [0] + [i for i in range(1, n) if log[i][0] is not None]
     assert closes[-1] == n - 1, "the last epoch closes the covariance step"
@@ -54,6 +58,8 @@ def _fill(out, forward, c, end, ds, ds_end, ps, time, invariant) -> None:
     for i in range(c, end):
         w = 0.0 if i == c else (time[i] - time[c]) / (time[end] - time[c])
         out["sigma"][i] = _classic_sigma(ps[:15, :15], forward["vel"][i], invariant)
+        if len(ps) > 15:
+            out["calibration_sigma"][i] = np.sqrt(np.maximum(np.diag(ps)[15:], 0.0))
         _correct(out, i, (1 - w) * ds + w * ds_end, invariant)
 
 
@@ -77,3 +83,7 @@ def _correct(out: dict, i: int, dx: np.ndarray, invariant: bool) -> None:
     out["vel"][i] = rot @ (v - dx[3:6]) if invariant else v - dx[3:6]
     out["rpy"][i] = euler_from_dcm(rot @ c)
     out["bias"][i] = out["bias"][i] - dx[9:15]
+    if len(dx) > 15:  # the DVL calibration: k -= dk, M = M exp(-[dmu x])
+        k, roll, pitch, yaw = out["calibration"][i]
+        m_dvl = dcm_from_euler(roll, pitch, yaw).T @ exp_so3(-dx[16:19])
+        out["calibration"][i] = np.concatenate([[k - dx[15]], euler_from_dcm(m_dvl.T)])

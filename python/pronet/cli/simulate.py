@@ -79,7 +79,7 @@ def add_parser(sub: Subparsers) -> None:
         "--smooth",
         action="store_true",
         help="also run the RTS smoother over every run: each strategy's row is followed by "
-        "its smoothed one ('<spec>, smoothed'); not with the DVL calibration states",
+        "its smoothed one ('<spec>, smoothed')",
     )
     add_no_plots(parser)
     add_result_folder(parser, "simulate")

@@ -63,6 +63,9 @@ pub struct UpdateInfo {
     /// The error estimate `δx̂ = −K ν` fed back, in the filter's own coordinates (the
     /// first 15 states); None when the gate rejected the measurement.
     pub correction: Option<Vector15>,
+    /// With the DVL calibration states, their estimate `[δk̂, δμ̂]` fed back (None
+    /// without them or when the gate rejected the measurement).
+    pub calibration_correction: Option<[f64; 4]>,
 }
 
 /// Mean NIS over the last [`NisMonitor::WINDOW`] updates above which the filter is
@@ -426,6 +429,7 @@ impl Ekf {
         formulation::gain_to_classic(self.cfg.formulation, &mut info.gain, &self.nav.vel);
         if let Some((dx, cal)) = dx {
             info.correction = Some(dx);
+            info.calibration_correction = cal;
             self.feedback(&dx);
             if let (Some(c), Some(cal)) = (self.calibration.as_mut(), cal) {
                 c.feedback(&cal);
@@ -456,13 +460,14 @@ impl Ekf {
         );
     }
 
-    /// `Φ = I + F Δt` of the next IMU step from the current state with the raw sample
-    /// `raw` (bias-corrected as [`Ekf::propagate`] does): the transition that step
-    /// applies to the covariance, as a dense matrix (the smoother's backward pass).
-    pub fn transition(&self, raw: &ImuSample, dt: f64) -> Matrix15 {
+    /// The navigation rows of `Φ = I + F Δt` of the next IMU step from the current
+    /// state with the raw sample `raw` (bias-corrected as [`Ekf::propagate`] does): the
+    /// transition that step applies to the covariance (the smoother's backward pass;
+    /// its other rows are the identity's).
+    pub fn transition_rows(&self, raw: &ImuSample, dt: f64) -> smoother::NavRows {
         let accel = raw.accel - self.accel_bias;
         let rates = FrameRates::at(&self.nav);
-        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).step_transition(dt)
+        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).step_rows(dt)
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional
@@ -558,6 +563,7 @@ fn kalman_update<const N: usize>(
         accepted,
         sensitivity,
         correction: None,
+        calibration_correction: None,
     };
     if !accepted {
         return Ok(Outcome {

@@ -375,6 +375,7 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
                 t0: 0.0,
                 nav: &out.nav,
                 bias: &out.bias,
+                calibration: &[],
                 dt: None,
             };
             for pair in nodes.windows(2) {
@@ -463,6 +464,7 @@ fn covariance_step_closes_are_rebuilt_exactly() {
                 t0: 0.0,
                 nav: &out.nav,
                 bias: &out.bias,
+                calibration: &[],
                 dt: None,
             };
             let mut closes = vec![0];
@@ -525,6 +527,7 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
         t0: 0.0,
         nav: &out.nav,
         bias: &out.bias,
+        calibration: &[],
         dt: None,
     };
     let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
@@ -546,7 +549,7 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
 
 /// Without a measurement there is nothing to smooth: the smoothed solution is the
 /// forward one. With them, the smoothed σ is below the forward σ inside the pass
-/// and equal at its end; what cannot be smoothed is refused by name.
+/// and equal at its end, the DVL calibration states' too.
 #[test]
 fn smoothing_without_measurements_changes_nothing() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
@@ -587,16 +590,22 @@ fn smoothing_without_measurements_changes_nothing() {
         .iter()
         .zip(&aided.sigma)
         .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
+    // With the DVL calibration states the 19 are smoothed: their σ too, never above
+    // the forward one, and equal at the end.
     let calibrated = FilterConfig {
         dvl_calibration: Some(super::super::calibration::CalibrationConfig::default()),
         ..FilterConfig::default()
     };
-    let err = pass(&dvl, &dvl_time, &calibrated).unwrap_err();
-    assert!(
-        err.to_string()
-            .starts_with("config: the smoother does not smooth"),
-        "{err}"
-    );
+    let aided = pass(&dvl, &dvl_time, &calibrated).unwrap();
+    let s = aided.smoothed.unwrap();
+    assert_eq!(s.calibration.len(), aided.calibration.len());
+    assert_eq!(s.calibration_sigma[300], aided.calibration_sigma[300]);
+    assert!(s.calibration[150] != aided.calibration[150]);
+    assert!(s
+        .calibration_sigma
+        .iter()
+        .zip(&aided.calibration_sigma)
+        .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
 }
 
 /// The text `tests/test_core_rules.py` expects from `pronet.run_filter`.

@@ -23,31 +23,31 @@
 //! ```
 //!
 //! the fixed-interval RTS recursion `C_i = P⁺_i Φ_{i+1}ᵀ (P⁻_{i+1})⁻¹` chained over the
-//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0`. `docs/filter.md` ("The RTS
-//! smoother") writes it out with its sources.
+//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0` ([`every`]); under a covariance
+//! step the grid is the steps' closes instead ([`steps`]). With the DVL calibration
+//! states the recursion runs on all 19 (`N` below): their rows of Φ are the identity's
+//! and the navigation rows do not read them, so every transition is its nine
+//! navigation rows ([`NavRows`]). `docs/filter.md` ("The RTS smoother") writes it out
+//! with its sources.
 
+use super::calibration::{correct_mounting, Cross, DvlMounting, N_CALIBRATED, SCALE};
 use super::interval::Interval as CovarianceStep;
 use super::{correct, Ekf, FilterConfig, Matrix15, Vector15};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
-use crate::mechanization::{ImuSample, NavState};
+use crate::mechanization::NavState;
 use crate::noise::ProcessNoise;
-use nalgebra::Vector3;
+use nalgebra::{Matrix4, SMatrix, SVector, Vector3};
 
+mod every;
 pub(super) mod steps;
 
-/// What the smoother cannot smooth yet, refused naming `arg`: the DVL calibration
-/// states.
-pub fn check_config(cfg: &FilterConfig, arg: &str) -> Result<()> {
-    if cfg.dvl_calibration.is_some() {
-        return Err(Error::invalid(
-            arg,
-            "the smoother does not smooth the DVL calibration states yet: smooth without \
-             dvl_calibration",
-        ));
-    }
-    Ok(())
-}
+#[cfg(test)]
+pub(super) use every::Interval;
+
+/// The navigation rows of a transition `Φ = [[R], [0, I]]` (9 × 15; its other rows
+/// are the identity's, and with the calibration states its last four columns are 0).
+pub type NavRows = SMatrix<f64, 9, 15>;
 
 /// The process noise of an interval, owned (see [`ProcessNoise`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -122,6 +122,86 @@ pub struct Node {
     /// after the epoch's updates, None where one closed there (`p_post` is then the
     /// covariance at the last close). About 200 bytes, boxed.
     pub(in crate::ekf) interval: Option<Box<CovarianceStep>>,
+    /// With the DVL calibration states: their blocks of the covariance after the
+    /// updates and their estimate fed back (boxed, 320 bytes).
+    pub calibration: Option<Box<NodeCalibration>>,
+}
+
+/// The calibration part of a [`Node`].
+#[derive(Clone, Debug)]
+pub struct NodeCalibration {
+    pub cross: Cross,
+    pub cov: Matrix4<f64>,
+    /// The sum of `[δk̂, δμ̂]` fed back at the epoch.
+    pub correction: [f64; 4],
+}
+
+impl Node {
+    /// The covariance after the updates over the `N` states.
+    fn p<const N: usize>(&self) -> SMatrix<f64, N, N> {
+        let cal = self.calibration.as_deref().map(|c| (&c.cross, &c.cov));
+        lift(&self.p_post, cal)
+    }
+
+    /// The error estimate fed back, over the `N` states.
+    fn dx<const N: usize>(&self) -> SVector<f64, N> {
+        let mut dx = SVector::<f64, N>::zeros();
+        dx.fixed_rows_mut::<15>(0).copy_from(&self.correction);
+        if let (true, Some(c)) = (N == N_CALIBRATED, &self.calibration) {
+            for (i, v) in c.correction.iter().enumerate() {
+                dx[SCALE + i] = *v;
+            }
+        }
+        dx
+    }
+}
+
+/// The 15-state covariance `p` with the calibration blocks `cal` as an `N`-state one
+/// (the blocks dropped when `N` is 15).
+fn lift<const N: usize>(p: &Matrix15, cal: Option<(&Cross, &Matrix4<f64>)>) -> SMatrix<f64, N, N> {
+    let mut full = SMatrix::<f64, N, N>::zeros();
+    full.fixed_view_mut::<15, 15>(0, 0).copy_from(p);
+    if let (true, Some((cross, cov))) = (N == N_CALIBRATED, cal) {
+        full.fixed_view_mut::<15, 4>(0, SCALE).copy_from(cross);
+        full.fixed_view_mut::<4, 15>(SCALE, 0)
+            .copy_from(&cross.transpose());
+        full.fixed_view_mut::<4, 4>(SCALE, SCALE).copy_from(cov);
+    }
+    full
+}
+
+/// The filter's covariance over the `N` states.
+fn full_p<const N: usize>(ekf: &Ekf) -> SMatrix<f64, N, N> {
+    lift(&ekf.p, ekf.calibration.as_ref().map(|c| (&c.cross, &c.cov)))
+}
+
+/// The filter's calibration blocks for a node.
+fn node_calibration(ekf: &Ekf, correction: [f64; 4]) -> Option<Box<NodeCalibration>> {
+    ekf.calibration.as_ref().map(|c| {
+        Box::new(NodeCalibration {
+            cross: c.cross,
+            cov: c.cov,
+            correction,
+        })
+    })
+}
+
+/// A filter started from node `a` on the forward solution: its covariance (the
+/// calibration blocks too, and the covariance step under way) the node's.
+fn restart(forward: &Forward<'_>, cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
+    let b = &forward.bias[a.epoch];
+    let mut ekf = Ekf::new(
+        cfg,
+        forward.nav[a.epoch],
+        Vector3::new(b[0], b[1], b[2]),
+        Vector3::new(b[3], b[4], b[5]),
+    )?;
+    ekf.p = a.p_post;
+    if let (Some(c), Some(n)) = (ekf.calibration.as_mut(), a.calibration.as_deref()) {
+        (c.cross, c.cov) = (n.cross, n.cov);
+    }
+    ekf.interval = a.interval.as_deref().cloned();
+    Ok(ekf)
 }
 
 /// The nodes of a forward pass, kept as it runs.
@@ -141,18 +221,21 @@ impl Nodes {
                 correction: Vector15::zeros(),
                 noise: Noise::of(noise),
                 interval: open_step(ekf),
+                calibration: node_calibration(ekf, [0.0; 4]),
             }),
         }
     }
 
-    /// After the updates at `epoch`: `correction` the sum of the estimates fed back,
-    /// `noise` the strategy's noise after them (Mehra and the adaptive strategy change
-    /// it at updates).
+    /// After the updates at `epoch`: `correction` the sum of the estimates fed back
+    /// (the calibration states' in `calibration`, zero without them), `noise` the
+    /// strategy's noise after them (Mehra and the adaptive strategy change it at
+    /// updates).
     pub fn after_updates(
         &mut self,
         epoch: usize,
         ekf: &Ekf,
         correction: Vector15,
+        calibration: [f64; 4],
         noise: ProcessNoise<'_>,
     ) {
         self.0.push(Node {
@@ -161,6 +244,7 @@ impl Nodes {
             correction,
             noise: Noise::of(noise),
             interval: open_step(ekf),
+            calibration: node_calibration(ekf, calibration),
         });
     }
 
@@ -171,21 +255,25 @@ impl Nodes {
         let closed = ekf.interval.is_some().then(|| {
             let mut copy = ekf.clone();
             copy.bring_up_to_date();
-            copy.p
+            copy
         });
+        let ekf = closed.as_ref().unwrap_or(ekf);
         if let Some(last) = self.0.last_mut().filter(|n| n.epoch == epoch) {
-            if let Some(p) = closed {
-                (last.p_post, last.interval) = (p, None);
+            if closed.is_some() {
+                let correction = last.calibration.as_ref().map_or([0.0; 4], |c| c.correction);
+                (last.p_post, last.interval) = (ekf.p, None);
+                last.calibration = node_calibration(ekf, correction);
             }
             return;
         }
         let noise = self.0.last().map(|n| n.noise.clone());
         self.0.push(Node {
             epoch,
-            p_post: closed.unwrap_or(ekf.p),
+            p_post: ekf.p,
             correction: Vector15::zeros(),
             noise: noise.unwrap_or(Noise::Discrete(Box::new(Matrix15::zeros()))),
             interval: None,
+            calibration: node_calibration(ekf, [0.0; 4]),
         });
     }
 }
@@ -203,8 +291,13 @@ pub struct Smoothed {
     pub bias: Vec<[f64; 6]>,
     /// 1σ of the 15 error states in the classic coordinates, per epoch.
     pub sigma: Vec<[f64; 15]>,
+    /// With the DVL calibration states: `[k̂, roll, pitch, yaw]` per epoch, as
+    /// [`super::FilterOutput::calibration`], and the 1σ of `[δk, δμ]` (empty without).
+    pub calibration: Vec<[f64; 4]>,
+    pub calibration_sigma: Vec<[f64; 4]>,
     /// The smoothed covariance at each node's epoch (in the order of the nodes), in
-    /// the filter's own error coordinates about the forward solution's velocity.
+    /// the filter's own error coordinates about the forward solution's velocity (the
+    /// 15 navigation and bias states).
     pub node_covariance: Vec<(usize, Matrix15)>,
 }
 
@@ -216,6 +309,9 @@ pub struct Forward<'a> {
     pub t0: f64,
     pub nav: &'a [NavState],
     pub bias: &'a [[f64; 6]],
+    /// With the DVL calibration states, their estimate `[k̂, roll, pitch, yaw]` at every
+    /// epoch (empty without).
+    pub calibration: &'a [[f64; 4]],
     /// The step every sample was propagated over, when the forward pass used one
     /// (a simulation's `truth.dt`), so that the rebuilt steps are its steps bit for bit;
     /// None: each sample's stamped step.
@@ -252,7 +348,8 @@ pub enum Covariances<'a> {
 
 /// The backward pass over `nodes` (from [`Nodes`], first at epoch 0 and last at the
 /// last epoch), computing the covariance where `covariances` says; stops with
-/// [`Error::Cancelled`] soon after `cancel` is set.
+/// [`Error::Cancelled`] soon after `cancel` is set. With the DVL calibration states
+/// `forward.calibration` holds their estimate at every epoch.
 pub fn smooth(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
@@ -266,182 +363,101 @@ pub fn smooth(
             "the smoother's nodes do not span the pass".into(),
         ));
     }
-    if !cfg.covariance_every_sample() {
-        return steps::smooth_steps(forward, cfg, nodes, covariances, cancel);
+    let calibrated = cfg.dvl_calibration.is_some();
+    if calibrated != (forward.calibration.len() == n) {
+        return Err(Error::Numerical(
+            "the smoother needs the calibration estimate at every epoch, and only with \
+             the calibration states"
+                .into(),
+        ));
     }
-    let mut out = Smoothed {
-        nav: forward.nav.to_vec(),
-        bias: forward.bias.to_vec(),
-        sigma: vec![[f64::NAN; 15]; n],
-        node_covariance: Vec::with_capacity(nodes.len()),
-    };
-    let last = &nodes[nodes.len() - 1];
-    // After the last epoch nothing is left to learn: δs = 0, Ps = P.
-    let mut ds = Vector15::zeros();
-    let mut ps = last.p_post;
-    out.sigma[last.epoch] = classic_sigma(cfg, &forward.nav[last.epoch], &ps);
-    out.node_covariance.push((last.epoch, ps));
-    let wanted = match covariances {
-        Covariances::Every => None,
-        Covariances::Where(f) => Some(f),
-    };
-    for pair in nodes.windows(2).rev() {
-        let (a, b) = (&pair[0], &pair[1]);
-        cancel.check()?;
-        let interval = Interval::rebuild(forward, cfg, a, b.epoch, wanted, cancel)?;
-        let chol = interval.p_end.cholesky().ok_or_else(|| {
-            Error::Numerical(format!(
-                "the smoother: the covariance before epoch {} is not positive definite",
-                b.epoch
-            ))
-        })?;
-        // μ_i = Φ_{i→b}ᵀ (P⁻_b)⁻¹ δs⁻_b and δs_i = P_i μ_i; M as in the module's text.
-        let mut mu = chol.solve(&(ds + b.correction));
-        let m = chol.solve(&(ps - interval.p_end));
-        let m = chol.solve(&m.transpose()).transpose();
-        let m = (m + m.transpose()) * 0.5;
-        let mut back = Matrix15::identity(); // Φ_{i→b}ᵀ, carried with Covariances::Every
-        for i in (a.epoch..b.epoch).rev() {
-            let k = i - a.epoch;
-            let phi = &interval.phi[k];
-            mu = phi.transpose() * mu;
-            let dsi = interval.p[k] * mu;
-            let transposed_product = if wanted.is_none() {
-                back = transposed_step(phi, &back);
-                Some(back)
-            } else {
-                interval.product_to_end(k)?
-            };
-            if let Some(bk) = transposed_product {
-                let gain = interval.p[k] * bk;
-                let psi = interval.p[k] + gain * m * gain.transpose();
-                let psi = (psi + psi.transpose()) * 0.5;
-                out.sigma[i] = classic_sigma(cfg, &forward.nav[i], &psi);
-                if i == a.epoch {
-                    ps = psi;
-                    out.node_covariance.push((i, psi));
-                }
-            }
-            apply(&mut out, i, &dsi, cfg);
-            if i == a.epoch {
-                ds = dsi;
-            }
-        }
+    const CAL: usize = N_CALIBRATED;
+    match (calibrated, cfg.covariance_every_sample()) {
+        (false, true) => every::smooth_every::<15>(forward, cfg, nodes, covariances, cancel),
+        (true, true) => every::smooth_every::<CAL>(forward, cfg, nodes, covariances, cancel),
+        (false, false) => steps::smooth_steps::<15>(forward, cfg, nodes, covariances, cancel),
+        (true, false) => steps::smooth_steps::<CAL>(forward, cfg, nodes, covariances, cancel),
     }
-    out.node_covariance.reverse();
-    Ok(out)
 }
 
-/// `Φᵀ B` for a step transition Φ whose bias rows are the identity's (F has none):
-/// the navigation rows' product and the bias rows of B, 2,025 multiply-adds, not 3,375.
-fn transposed_step(phi: &Matrix15, b: &Matrix15) -> Matrix15 {
-    let nav_rows = phi.fixed_rows::<9>(0);
-    let mut out = nav_rows.transpose() * b.fixed_rows::<9>(0);
-    for r in 9..15 {
-        let row = b.row(r).into_owned();
-        let mut target = out.row_mut(r);
-        target += row;
+impl Smoothed {
+    /// The forward solution, to be corrected, with room for σ.
+    fn start(forward: &Forward<'_>, nodes: usize) -> Self {
+        let n = forward.nav.len();
+        let calibrated = !forward.calibration.is_empty();
+        Self {
+            nav: forward.nav.to_vec(),
+            bias: forward.bias.to_vec(),
+            sigma: vec![[f64::NAN; 15]; n],
+            calibration: forward.calibration.to_vec(),
+            calibration_sigma: vec![[f64::NAN; 4]; if calibrated { n } else { 0 }],
+            node_covariance: Vec::with_capacity(nodes),
+        }
     }
+
+    /// Remove the smoothed error `ds` from the forward solution at epoch `i` (the
+    /// filter's feedback: [`correct`], and the calibration's).
+    fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
+        let b = self.bias[i];
+        let (mut ab, mut gb) = (
+            Vector3::new(b[0], b[1], b[2]),
+            Vector3::new(b[3], b[4], b[5]),
+        );
+        let nav: Vector15 = ds.fixed_rows::<15>(0).into_owned();
+        correct(&mut self.nav[i], &mut ab, &mut gb, &nav, cfg.formulation);
+        self.bias[i] = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
+        if N == N_CALIBRATED {
+            let c = self.calibration[i];
+            let mut mounting = DvlMounting::from_angles(c[0], [c[1], c[2], c[3]]);
+            let dc = std::array::from_fn(|k| ds[SCALE + k]);
+            correct_mounting(&mut mounting, &dc);
+            let a = mounting.angles();
+            self.calibration[i] = [mounting.scale, a[0], a[1], a[2]];
+        }
+    }
+
+    /// σ at epoch `i` from the smoothed covariance `ps` (classic coordinates at the
+    /// forward velocity there).
+    fn set_sigma<const N: usize>(
+        &mut self,
+        i: usize,
+        ps: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let p: Matrix15 = ps.fixed_view::<15, 15>(0, 0).into_owned();
+        self.sigma[i] = classic_sigma(cfg, &forward.nav[i], &p);
+        if N == N_CALIBRATED {
+            self.calibration_sigma[i] =
+                std::array::from_fn(|k| ps[(SCALE + k, SCALE + k)].max(0.0).sqrt());
+        }
+    }
+
+    /// Keep the smoothed covariance at a node's epoch (its 15-state block).
+    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
+        let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
+        self.node_covariance.push((epoch, p));
+    }
+}
+
+/// `Φᵀ B` for `Φ = [[R], [0, I]]` (`R` its navigation rows) and an `N × C` matrix `B`:
+/// `Rᵀ B_nav` in the first 15 rows, plus the rows of `B` past the navigation ones.
+fn transposed<const N: usize, const C: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, C>,
+) -> SMatrix<f64, N, C> {
+    let nav = rows.transpose() * b.fixed_rows::<9>(0);
+    let mut out = *b;
+    out.fixed_rows_mut::<9>(0).fill(0.0);
+    let mut top = out.fixed_rows_mut::<15>(0);
+    top += nav;
     out
 }
 
-/// `Φ G` for such a Φ: the navigation rows change, the bias rows stay.
-fn step_product(phi: &Matrix15, g: &mut Matrix15) {
-    let nav = phi.fixed_rows::<9>(0) * *g;
+/// `Φ G` for such a Φ: the navigation rows change, the others stay.
+fn step_product<const N: usize>(rows: &NavRows, g: &mut SMatrix<f64, N, N>) {
+    let nav = rows * g.fixed_rows::<15>(0);
     g.fixed_rows_mut::<9>(0).copy_from(&nav);
-}
-
-/// The forward covariances `P_i` (epochs `a..b`, `P_a` the node's after its update)
-/// and the transitions `Φ` of the steps `i → i+1`, rebuilt from the forward solution;
-/// with a covariance predicate, the product `G_i = Φ_{a→i}` at the epochs it holds
-/// for, and `G_b`.
-pub(super) struct Interval {
-    pub(super) p: Vec<Matrix15>,
-    pub(super) phi: Vec<Matrix15>,
-    /// The covariance after the last step (before the end node's update).
-    pub(super) p_end: Matrix15,
-    /// `(i − a, G_i)` at the wanted epochs inside the interval.
-    g: Vec<(usize, Matrix15)>,
-    g_end: Matrix15,
-}
-
-impl Interval {
-    /// The interval from node `a` to the epoch `end`, rebuilt by the filter's own
-    /// prediction from the forward solution at `a`: the same steps on the same numbers,
-    /// so its last covariance is the forward pass's before `end`'s update, bit for bit.
-    pub(super) fn rebuild(
-        forward: &Forward<'_>,
-        cfg: &FilterConfig,
-        a: &Node,
-        end: usize,
-        wanted: Option<&dyn Fn(usize) -> bool>,
-        cancel: &Cancel,
-    ) -> Result<Self> {
-        let b = &forward.bias[a.epoch];
-        let mut ekf = Ekf::new(
-            cfg,
-            forward.nav[a.epoch],
-            Vector3::new(b[0], b[1], b[2]),
-            Vector3::new(b[3], b[4], b[5]),
-        )?;
-        ekf.p = a.p_post;
-        let steps = end - a.epoch;
-        let (mut p, mut phi) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
-        let mut g_at = Vec::new();
-        let mut g = Matrix15::identity();
-        for epoch in a.epoch..end {
-            if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
-                cancel.check()?;
-            }
-            // The step from epoch i to i + 1 reads IMU row i.
-            let raw = ImuSample::from_array(&forward.imu[epoch]);
-            let dt = forward.step(epoch);
-            p.push(ekf.p);
-            let step = ekf.transition(&raw, dt);
-            if let Some(wanted) = wanted {
-                if epoch > a.epoch && wanted(epoch) {
-                    g_at.push((epoch - a.epoch, g));
-                }
-                step_product(&step, &mut g);
-            }
-            phi.push(step);
-            ekf.propagate(&raw, dt, a.noise.as_process_noise())?;
-        }
-        Ok(Self {
-            p,
-            phi,
-            p_end: ekf.p,
-            g: g_at,
-            g_end: g,
-        })
-    }
-
-    /// `Φ_{i→b}ᵀ` for the epoch `a + k` where it was wanted: `G_bᵀ` at the start,
-    /// `(G_b G_i⁻¹)ᵀ` inside; None where it was not.
-    fn product_to_end(&self, k: usize) -> Result<Option<Matrix15>> {
-        if k == 0 {
-            return Ok(Some(self.g_end.transpose()));
-        }
-        let Ok(at) = self.g.binary_search_by_key(&k, |(i, _)| *i) else {
-            return Ok(None);
-        };
-        let g = self.g[at].1;
-        let inverse = g.try_inverse().ok_or_else(|| {
-            Error::Numerical("the smoother: a transition product is singular".into())
-        })?;
-        Ok(Some((self.g_end * inverse).transpose()))
-    }
-}
-
-/// Remove the smoothed error `ds` from the forward solution at epoch `i`.
-fn apply(out: &mut Smoothed, i: usize, ds: &Vector15, cfg: &FilterConfig) {
-    let b = out.bias[i];
-    let (mut ab, mut gb) = (
-        Vector3::new(b[0], b[1], b[2]),
-        Vector3::new(b[3], b[4], b[5]),
-    );
-    correct(&mut out.nav[i], &mut ab, &mut gb, ds, cfg.formulation);
-    out.bias[i] = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
 }
 
 fn classic_sigma(cfg: &FilterConfig, nav: &NavState, p: &Matrix15) -> [f64; 15] {

@@ -20,61 +20,55 @@
 //! `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and its σ repeats the smoothed σ at `c`,
 //! as the forward σ repeats the last closed one.
 
-use super::{apply, classic_sigma, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
+use super::{full_p, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::dynamics::Transition;
-use crate::ekf::{Ekf, FilterConfig, Matrix15, Vector15};
+use crate::ekf::FilterConfig;
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
-use nalgebra::Vector3;
+use nalgebra::{SMatrix, SVector};
 
 /// A close of the covariance step, rebuilt: its epoch, the step's Φ and the
-/// covariance it left (before the epoch's updates).
-pub(in crate::ekf) struct Close {
+/// covariance it left (before the epoch's updates), over `N` states.
+pub(in crate::ekf) struct Close<const N: usize> {
     pub(in crate::ekf) epoch: usize,
     phi: Transition,
-    pub(in crate::ekf) p_prior: Matrix15,
+    pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
 }
 
 /// The smoothed close after the ones still to be processed, with its step.
-struct Later {
+struct Later<const N: usize> {
     epoch: usize,
     /// `δs⁻ = δs + δx̂`: the smoothed error of the forward solution before its updates.
-    ds_prior: Vector15,
-    ps: Matrix15,
+    ds_prior: SVector<f64, N>,
+    ps: SMatrix<f64, N, N>,
     phi: Transition,
-    p_prior: Matrix15,
+    p_prior: SMatrix<f64, N, N>,
 }
 
-/// The backward pass of [`super::smooth`] under a covariance step.
-pub(super) fn smooth_steps(
+/// The backward pass of [`super::smooth`] over `N` states under a covariance step.
+pub(super) fn smooth_steps<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
-    let n = forward.nav.len();
-    let mut out = Smoothed {
-        nav: forward.nav.to_vec(),
-        bias: forward.bias.to_vec(),
-        sigma: vec![[f64::NAN; 15]; n],
-        node_covariance: Vec::with_capacity(nodes.len()),
-    };
+    let mut out = Smoothed::start(forward, nodes.len());
     let wanted = |i: usize| match covariances {
         Covariances::Every => true,
         Covariances::Where(f) => f(i),
     };
-    let mut later: Option<Later> = None;
+    let mut later: Option<Later<N>> = None;
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let closes = rebuild(forward, cfg, a, b, cancel)?;
+        let closes = rebuild::<N>(forward, cfg, a, b, cancel)?;
         for close in closes.into_iter().rev() {
             let (p_post, correction) = if close.epoch == b.epoch {
-                (b.p_post, b.correction)
+                (b.p::<N>(), b.dx::<N>())
             } else {
-                (close.p_prior, Vector15::zeros())
+                (close.p_prior, SVector::zeros())
             };
             let (ds, ps) = step_back(&p_post, later.as_ref())?;
             fill(
@@ -88,7 +82,7 @@ pub(super) fn smooth_steps(
                 &wanted,
             );
             if close.epoch == b.epoch {
-                out.node_covariance.push((b.epoch, ps));
+                out.keep_node(b.epoch, &ps);
             }
             later = Some(Later {
                 epoch: close.epoch,
@@ -100,20 +94,32 @@ pub(super) fn smooth_steps(
         }
     }
     // The first epoch: the prior, a close of its own.
-    let first = &nodes[0];
-    let (ds, ps) = step_back(&first.p_post, later.as_ref())?;
+    let (ds, ps) = step_back(&nodes[0].p::<N>(), later.as_ref())?;
     fill(&mut out, forward, cfg, 0, &ds, &ps, later.as_ref(), &wanted);
-    out.node_covariance.push((0, ps));
+    out.keep_node(0, &ps);
     out.node_covariance.reverse();
     Ok(out)
+}
+
+/// `Φ X` for a step's Φ (its rows past the first 15 are the identity's).
+fn phi_times<const N: usize>(phi: &Transition, x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    let mut top: SMatrix<f64, 15, N> = x.fixed_rows::<15>(0).into_owned();
+    phi.apply(&mut top);
+    let mut out = *x;
+    out.fixed_rows_mut::<15>(0).copy_from(&top);
+    out
 }
 
 /// The smoothed error and covariance at a close whose covariance after its updates is
 /// `p_post`, from the next close `later` (None: the last epoch, where `δs = 0`,
 /// `Ps = P`).
-fn step_back(p_post: &Matrix15, later: Option<&Later>) -> Result<(Vector15, Matrix15)> {
+type SmoothedAt<const N: usize> = (SVector<f64, N>, SMatrix<f64, N, N>);
+fn step_back<const N: usize>(
+    p_post: &SMatrix<f64, N, N>,
+    later: Option<&Later<N>>,
+) -> Result<SmoothedAt<N>> {
     let Some(later) = later else {
-        return Ok((Vector15::zeros(), *p_post));
+        return Ok((SVector::zeros(), *p_post));
     };
     let chol = later.p_prior.cholesky().ok_or_else(|| {
         Error::Numerical(format!(
@@ -122,9 +128,7 @@ fn step_back(p_post: &Matrix15, later: Option<&Later>) -> Result<(Vector15, Matr
         ))
     })?;
     // Aᵀ = (P⁻_d)⁻¹ Φ_d P⁺_c (P⁻ and P⁺ symmetric).
-    let mut phi_p = *p_post;
-    later.phi.apply(&mut phi_p);
-    let gain_t = chol.solve(&phi_p);
+    let gain_t = chol.solve(&phi_times(&later.phi, p_post));
     let ds = gain_t.transpose() * later.ds_prior;
     let ps = p_post + gain_t.transpose() * (later.ps - later.p_prior) * gain_t;
     Ok((ds, (ps + ps.transpose()) * 0.5))
@@ -133,21 +137,21 @@ fn step_back(p_post: &Matrix15, later: Option<&Later>) -> Result<(Vector15, Matr
 /// Apply the smoothed error `ds` at the close `epoch` and interpolate it up to the
 /// next close; σ at the close and, repeated, at the epochs before the next one.
 #[allow(clippy::too_many_arguments)]
-fn fill(
+fn fill<const N: usize>(
     out: &mut Smoothed,
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     epoch: usize,
-    ds: &Vector15,
-    ps: &Matrix15,
-    later: Option<&Later>,
+    ds: &SVector<f64, N>,
+    ps: &SMatrix<f64, N, N>,
+    later: Option<&Later<N>>,
     wanted: &dyn Fn(usize) -> bool,
 ) {
     let end = later.map_or(epoch + 1, |l| l.epoch);
     let t_close = forward.time(epoch);
     for i in epoch..end {
         if wanted(i) {
-            out.sigma[i] = classic_sigma(cfg, &forward.nav[i], ps);
+            out.set_sigma(i, ps, cfg, forward);
         }
         let dsi = match later {
             Some(l) if i > epoch => {
@@ -156,29 +160,21 @@ fn fill(
             }
             _ => *ds,
         };
-        apply(out, i, &dsi, cfg);
+        out.apply(i, &dsi, cfg);
     }
 }
 
 /// The closes in `(a, b]` of the covariance step, rebuilt by the filter's prediction
 /// from the forward solution at `a` (and the step `a` was inside, if any), the noise
 /// of `a` throughout; `b`'s step is closed at `b` where the forward pass closed it.
-pub(in crate::ekf) fn rebuild(
+pub(in crate::ekf) fn rebuild<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     a: &Node,
     b: &Node,
     cancel: &Cancel,
-) -> Result<Vec<Close>> {
-    let bias = &forward.bias[a.epoch];
-    let mut ekf = Ekf::new(
-        cfg,
-        forward.nav[a.epoch],
-        Vector3::new(bias[0], bias[1], bias[2]),
-        Vector3::new(bias[3], bias[4], bias[5]),
-    )?;
-    ekf.p = a.p_post;
-    ekf.interval = a.interval.as_deref().cloned();
+) -> Result<Vec<Close<N>>> {
+    let mut ekf = restart(forward, cfg, a)?;
     let noise = a.noise.as_process_noise();
     let mut closes = Vec::new();
     for epoch in a.epoch..b.epoch {
@@ -191,7 +187,7 @@ pub(in crate::ekf) fn rebuild(
             closes.push(Close {
                 epoch: epoch + 1,
                 phi,
-                p_prior: ekf.p,
+                p_prior: full_p::<N>(&ekf),
             });
         }
     }
@@ -200,7 +196,7 @@ pub(in crate::ekf) fn rebuild(
             closes.push(Close {
                 epoch: b.epoch,
                 phi,
-                p_prior: ekf.p,
+                p_prior: full_p::<N>(&ekf),
             });
         }
     }
