@@ -169,10 +169,11 @@ def run_reference_filter(
     and ``P = Phi (P + Q/2) Phiᵀ + Q/2``; closed early before a DVL update and at the
     last sample. Between closes ``sigma`` repeats the last closed covariance.
 
-    ``log`` (every sample only): a list that receives, per epoch, ``(phi, p_prior,
-    p_post, dx)`` (the step's transition into the epoch, the covariance before and after
-    its updates, the sum of the error estimates fed back there) for the smoother in
-    ``numpy_reference_smoother.py``; epoch 0 has no transition (None).
+    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx)`` (the
+    transition of the covariance step that closed at the epoch, None where none did,
+    the covariance before and after its updates, the sum of the error estimates fed
+    back there) for the smoother in ``numpy_reference_smoother.py``; epoch 0 has no
+    transition (None). Without a covariance step every epoch has its step's Φ.
 
     ``depth`` [m, down] at ``depth_time`` with 1σ ``depth_sigma``, and ``fix`` rows
     ``[lat, lon, h (NaN: none)]`` at ``fix_time`` with 1σ rows ``fix_sigma`` [m, N E D]:
@@ -181,11 +182,10 @@ def run_reference_filter(
     ``depth_nis`` and ``fix_nis`` (one per row applied)."""
     invariant = formulation == "invariant"
     every_sample = covariance_step < 1.5 * imu_dt
-    if log is not None and not every_sample:
-        raise ValueError("log: the reference smoother needs the covariance at every sample")
     interval = None
 
     def close(p, interval):
+        """P over the covariance step ``interval``, and the step's Φ."""
         big_t = interval["dt"]
         start_lla, start_v, start_c = interval["nav"]
         fm, gam = error_dynamics(start_lla, start_v, start_c, interval["force"] / big_t, invariant)
@@ -195,7 +195,7 @@ def run_reference_filter(
         qd[:15, :15] = gam @ np.diag(interval["q"]) @ gam.T
         qd[15:, 15:] = np.diag(cal_noise * big_t)
         p = phi @ (p + qd / 2) @ phi.T + qd / 2
-        return (p + p.T) / 2
+        return (p + p.T) / 2, phi
 
     def t_matrix(vel, sign=-1.0):
         t = np.eye(n_x)
@@ -309,6 +309,7 @@ def run_reference_filter(
         dt = t - t_prev
         f_hat = imu[k, :3] - ba
         w_hat = imu[k, 3:] - bg
+        phi = None
         if every_sample:
             fm, gam = error_dynamics(lla, v, c, c @ f_hat, invariant)
             qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
@@ -334,7 +335,7 @@ def run_reference_filter(
         if interval is not None and (
             interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
         ):
-            p = close(p, interval)
+            p, phi = close(p, interval)
             interval = None
         p_prior, dx_sum = p.copy(), np.zeros(n_x)
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:

@@ -18,24 +18,49 @@ from numpy_reference_ekf import dcm_from_euler, euler_from_dcm, exp_so3, radii, 
 
 def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     """The smoothed ``lla``, ``vel``, ``rpy``, ``bias`` and classic ``sigma`` at every
-    epoch, from the reference filter's output ``forward`` and its ``log``."""
+    epoch (with the DVL calibration states, ``calibration`` and ``calibration_sigma``
+    too: all 19 states smoothed), from the reference filter's output ``forward`` and
+    its ``log``.
+
+    The recursion runs from close to close of the covariance (every epoch without a
+    covariance step); between two closes the smoothed error of the forward solution is
+    interpolated linearly in time, from the one after the earlier close's updates to the
+    one before the later close's, and σ repeats the earlier close's."""
     invariant = formulation == "invariant"
     n = len(log)
-    out = {k: np.array(forward[k], dtype=float, copy=True) for k in ("lla", "vel", "rpy", "bias")}
+    keys = ("lla", "vel", "rpy", "bias", "calibration")
+    out = {k: np.array(forward[k], dtype=float, copy=True) for k in keys}
     out["sigma"] = np.zeros((n, 15))
-    ds = np.zeros(15)
+    out["calibration_sigma"] = np.zeros((n, 4))
+    time = np.asarray(forward["time"], dtype=float)
+    closes = [0] + [i for i in range(1, n) if log[i][0] is not None]
+    assert closes[-1] == n - 1, "the last epoch closes the covariance step"
+    later = n - 1
+    ds = np.zeros(len(log[-1][3]))
     ps = log[-1][2]
-    out["sigma"][-1] = _classic_sigma(ps, out["vel"][-1], invariant)
-    for i in range(n - 2, -1, -1):
-        phi, p_prior, _, dx = log[i + 1]
-        p_post = log[i][2]
+    _fill(out, forward, later, later + 1, ds, ds, ps, time, invariant)
+    for c in reversed(closes[:-1]):
+        phi, p_prior, _, dx = log[later]
+        p_post = log[c][2]
+        ds_prior = ds + dx  # the error before the later close's updates
         gain = p_post @ phi.T @ np.linalg.inv(p_prior)
-        ds = gain @ (ds + dx)
+        ds = gain @ ds_prior
         ps = p_post + gain @ (ps - p_prior) @ gain.T
         ps = (ps + ps.T) / 2
-        out["sigma"][i] = _classic_sigma(ps, forward["vel"][i], invariant)
-        _correct(out, i, ds, invariant)
+        _fill(out, forward, c, later, ds, ds_prior, ps, time, invariant)
+        later = c
     return out
+
+
+def _fill(out, forward, c, end, ds, ds_end, ps, time, invariant) -> None:
+    """The smoothed error at the close ``c`` and, interpolated towards ``ds_end`` at the
+    close ``end``, at the epochs between; σ from ``ps`` at all of them."""
+    for i in range(c, end):
+        w = 0.0 if i == c else (time[i] - time[c]) / (time[end] - time[c])
+        out["sigma"][i] = _classic_sigma(ps[:15, :15], forward["vel"][i], invariant)
+        if len(ps) > 15:
+            out["calibration_sigma"][i] = np.sqrt(np.maximum(np.diag(ps)[15:], 0.0))
+        _correct(out, i, (1 - w) * ds + w * ds_end, invariant)
 
 
 def _classic_sigma(p: np.ndarray, vel: np.ndarray, invariant: bool) -> np.ndarray:
@@ -58,3 +83,7 @@ def _correct(out: dict, i: int, dx: np.ndarray, invariant: bool) -> None:
     out["vel"][i] = rot @ (v - dx[3:6]) if invariant else v - dx[3:6]
     out["rpy"][i] = euler_from_dcm(rot @ c)
     out["bias"][i] = out["bias"][i] - dx[9:15]
+    if len(dx) > 15:  # the DVL calibration: k -= dk, M = M exp(-[dmu x])
+        k, roll, pitch, yaw = out["calibration"][i]
+        m_dvl = dcm_from_euler(roll, pitch, yaw).T @ exp_so3(-dx[16:19])
+        out["calibration"][i] = np.concatenate([[k - dx[15]], euler_from_dcm(m_dvl.T)])

@@ -52,9 +52,9 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated) -> None:
                               **tuning, **extra)  # fmt: skip
     rust = pronet.run_filter(
         imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
-        strategy=pronet.Strategy.constant(Q), smooth=not calibrated, **aiding,
+        strategy=pronet.Strategy.constant(Q), smooth=True, **aiding,
     )  # fmt: skip
-    log: list | None = None if calibrated else []
+    log: list = []
     ref = run_reference_filter(
         imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, q=Q, p0_sigma=P0, imu_dt=0.01,
         lever_arm=arm, formulation=formulation, calibration=calibration, log=log,
@@ -72,13 +72,20 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated) -> None:
     np.testing.assert_allclose(rust.sigma, ref["sigma"], rtol=rtol, atol=0.0)
     np.testing.assert_allclose(rust.lla[:, :2], ref["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6)
     np.testing.assert_allclose(rust.lla[:, 2], ref["lla"][:, 2], rtol=rtol, atol=1e-8)
-    if log is not None:  # the smoother across the position updates' resets too
-        smoothed = rts_smooth(ref, log, formulation)
-        assert rust.smoothed is not None
-        np.testing.assert_allclose(rust.smoothed.vel, smoothed["vel"], rtol=rtol, atol=1e-8)
-        np.testing.assert_allclose(rust.smoothed.sigma, smoothed["sigma"], rtol=rtol, atol=0)
+    # The smoother across the position updates' resets too (their calibration part).
+    smoothed = rts_smooth(ref, log, formulation)
+    assert rust.smoothed is not None
+    np.testing.assert_allclose(rust.smoothed.vel, smoothed["vel"], rtol=rtol, atol=1e-8)
+    np.testing.assert_allclose(rust.smoothed.sigma, smoothed["sigma"], rtol=rtol, atol=0)
+    np.testing.assert_allclose(
+        rust.smoothed.lla[:, :2], smoothed["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6
+    )
+    if calibrated:
         np.testing.assert_allclose(
-            rust.smoothed.lla[:, :2], smoothed["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6
+            rust.smoothed.calibration, smoothed["calibration"], rtol=rtol, atol=1e-10
+        )
+        np.testing.assert_allclose(
+            rust.smoothed.calibration_sigma, smoothed["calibration_sigma"], rtol=rtol, atol=0
         )
 
 

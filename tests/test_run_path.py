@@ -191,10 +191,10 @@ def test_run_filter_keeps_the_covariance_at_the_times_asked_for() -> None:
 
 
 def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
-    """``smooth=True`` adds the smoothed solution (a table like the forward one's) and
-    leaves the forward pass as it was; it keeps every epoch and is refused with
-    ``epochs="last"``, with the DVL calibration states or a covariance step, or given
-    a non-bool."""
+    """``smooth=True`` adds the smoothed solution (a table like the forward one's, with
+    the DVL calibration states' columns when they are on) and leaves the forward pass
+    as it was; it keeps every epoch and is refused with ``epochs="last"`` or given a
+    non-bool."""
     from pronet.filter import EPOCH_COLUMNS
 
     traj = pronet.builtin_trajectory("paper")
@@ -215,10 +215,17 @@ def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
     np.testing.assert_array_equal(table["vel_e"], s.vel[:, 1])
     np.testing.assert_array_equal(table["sigma_dv_n"], s.sigma[:, 3])
     assert (s.sigma <= out.sigma * (1 + 1e-12)).all() and (s.sigma[100] < out.sigma[100]).any()
+    calibrated = pronet.run_filter(
+        *args, **kw, smooth=True, config=pronet.FilterConfig(dvl_calibration=True)
+    )  # type: ignore[arg-type]
+    assert calibrated.smoothed is not None
+    table = calibrated.smoothed.to_dataframe()
+    assert tuple(table.columns) == tuple(calibrated.to_dataframe().columns)
+    np.testing.assert_array_equal(
+        table["sigma_dvl_scale"], calibrated.smoothed.calibration_sigma[:, 0]
+    )
     cases = [
         ({"epochs": "last"}, "^epochs: smooth=True keeps every epoch"),
-        ({"config": pronet.FilterConfig(dvl_calibration=True)}, "^config: the smoother does not"),
-        ({"config": pronet.FilterConfig(covariance_step=0.1)}, "^config: the smoother needs"),
         ({"smooth": 1}, "^smooth: expected a bool"),
     ]
     for extra, message in cases:

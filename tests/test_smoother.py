@@ -103,9 +103,38 @@ def test_monte_carlo_smooths_every_run_and_leaves_the_filter_as_it_was(matched) 
     np.testing.assert_allclose(s.final_horizontal_error, both.final_horizontal_error, rtol=1e-12)
 
 
+def _with_step(config: pronet.FilterConfig, step: float) -> pronet.FilterConfig:
+    from pronet.config import FILTER_KEYS
+
+    kw = {k: getattr(config, k) for k in FILTER_KEYS}
+    return pronet.FilterConfig(**{**kw, "covariance_step": step})
+
+
+@pytest.mark.parametrize("step", [0.1, 0.2])
+def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
+    """With the covariance propagated over 0.1 s or 0.2 s steps (the smoother's grid
+    then the steps' closes) the smoothed runs are consistent in every block, below the
+    filter at every recorded epoch, and within 1 % of the every-sample smoother's
+    SRMSE."""
+    every = _mc(matched, n_runs=20, smooth=True)
+    stepped = pronet.monte_carlo(
+        matched.trajectory, pronet.Strategy.constant(matched.q_nominal), sensors=matched.sensors,
+        config=_with_step(matched.config, step), seed=0, record_every=100, n_runs=20,
+        smooth=True,
+    )  # fmt: skip
+    s, e = stepped.smoothed, every.smoothed
+    assert s is not None and e is not None
+    for block in pronet.STATE_BLOCKS:
+        assert s.nees_in_band(block) >= 0.85, (block, s.nees_in_band(block))
+    rms = lambda r: np.sqrt(np.mean(np.sum(r.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
+    assert (rms(s)[1:-1] < rms(stepped)[1:-1]).all()
+    srmse = s.summary()["srmse"].mean, e.summary()["srmse"].mean
+    assert abs(srmse[0] / srmse[1] - 1) < 0.01, srmse
+
+
 def test_the_ensemble_smooths_as_monte_carlo_does(matched) -> None:
-    """An untuned ensemble is a constant strategy's Monte Carlo, smoothed too; the DVL
-    calibration states and a covariance step are refused by name."""
+    """An untuned ensemble is a constant strategy's Monte Carlo, smoothed too, the
+    19-state filter (DVL calibration states) as well."""
     ens = pronet.Ensemble(
         matched.trajectory, matched.q_nominal, sensors=matched.sensors, config=matched.config,
         n_runs=3, seed=0, record_every=100, smooth=True,
@@ -114,16 +143,16 @@ def test_the_ensemble_smooths_as_monte_carlo_does(matched) -> None:
     assert ens.smoothed is not None and mc.smoothed is not None
     np.testing.assert_array_equal(ens.smoothed.srmse, mc.smoothed.srmse)
     np.testing.assert_array_equal(ens.smoothed.error, mc.smoothed.error)
-    refused = [
-        (pronet.FilterConfig(dvl_calibration=True), "^smooth: the smoother does not smooth"),
-        (pronet.FilterConfig(covariance_step=0.1), "^smooth: the smoother needs the cov"),
-    ]
-    for config, message in refused:
-        with pytest.raises(ValueError, match=message):
-            pronet.monte_carlo(
-                matched.trajectory, pronet.Strategy.constant(matched.q_nominal), n_runs=1,
-                config=config, smooth=True,
-            )  # fmt: skip
+    from pronet.config import FILTER_KEYS
+
+    kw = {k: getattr(matched.config, k) for k in FILTER_KEYS}
+    calibrated = pronet.FilterConfig(**kw, dvl_calibration=True)
+    r = pronet.monte_carlo(
+        matched.trajectory, pronet.Strategy.constant(matched.q_nominal), n_runs=3,
+        sensors=matched.sensors, config=calibrated, seed=0, smooth=True,
+    )  # fmt: skip
+    assert r.smoothed is not None
+    assert r.smoothed.summary()["srmse"].mean < 0.7 * r.summary()["srmse"].mean
 
 
 @pytest.mark.slow

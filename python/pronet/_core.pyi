@@ -39,7 +39,6 @@ __all__ = [
     "run_filter",
     "monte_carlo",
     "check_result_size",
-    "check_smoothable",
     "check_threads",
     "max_threads",
     "Ensemble",
@@ -335,7 +334,8 @@ def run_filter(
     or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
     (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
     ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-    ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``depth`` (d,) [m, down] at
+    ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
+    None without). ``depth`` (d,) [m, down] at
     ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
     (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
     [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°."""
@@ -361,11 +361,6 @@ def monte_carlo(
     ``smoothed``: ``srmse``, ``smae``, ``final_horizontal_error``,
     ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
     ``sigma``)."""
-
-def check_smoothable(config: FilterConfig) -> None:
-    """``ValueError`` naming ``smooth`` if the RTS smoother cannot smooth a filter of
-    ``config`` (the DVL calibration states; a covariance step above one IMU sample), as
-    :func:`monte_carlo` checks with ``smooth=True``; nothing is run."""
 
 def check_result_size(
     trajectory: Trajectory, sensors: SensorConfig, *, n_runs: int, record_every: int = 0

@@ -25,6 +25,10 @@ class SmoothedResult:
         bias: ``(n+1, 6)`` accelerometer [m/s²] and gyro [rad/s] bias estimates.
         sigma: ``(n+1, 15)`` smoothed 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a,
             δb_g]`` (:data:`ERROR_STATES`), never above the forward pass's.
+        calibration: ``(n+1, 4)`` with ``FilterConfig(dvl_calibration=True)``, the
+            smoothed DVL scale-factor error and mounting roll, pitch, yaw [rad] (as
+            :attr:`FilterResult.calibration`); ``(0, 4)`` without.
+        calibration_sigma: ``(n+1, 4)`` their smoothed 1σ; ``(0, 4)`` without.
     """
 
     time: NDArray[np.float64]
@@ -33,12 +37,16 @@ class SmoothedResult:
     rpy: NDArray[np.float64]
     bias: NDArray[np.float64]
     sigma: NDArray[np.float64]
+    calibration: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 4)))
+    calibration_sigma: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 4)))
 
     def to_dataframe(self):  # -> pd.DataFrame
-        """One row per epoch, columns :data:`EPOCH_COLUMNS`, SI units as the attributes."""
-        return _epoch_table(
-            [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
-        )
+        """One row per epoch, columns :data:`EPOCH_COLUMNS` (then the calibration
+        states' with them), SI units as the attributes."""
+        parts = [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
+        if len(self.calibration):
+            parts += [self.calibration, self.calibration_sigma]
+        return _epoch_table(parts)
 
 
 @dataclass(frozen=True)
@@ -253,9 +261,10 @@ def run_filter(
             is kept at every epoch).
         smooth: also run the Rauch–Tung–Striebel smoother backward over the pass
             (:attr:`FilterResult.smoothed`; every epoch kept, so not with
-            ``epochs="last"``; the DVL calibration states and a covariance step are not
-            smoothed yet). It keeps one covariance per DVL epoch and, while it smooths
-            an interval between two, two per IMU step of that interval (3.6 kB each: a
+            ``epochs="last"``; with the DVL calibration states all 19 are smoothed; with a
+            covariance step the smoother's grid is the steps' closes). It keeps one
+            covariance per DVL epoch and, while it smooths an interval between two, two
+            per IMU step of that interval (3.6 kB each: a
             long stretch without an update, an outage, costs memory in proportion), and
             costs about four forward passes (docs/filter.md, "The RTS smoother").
         depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive

@@ -349,8 +349,7 @@ def monte_carlo(
             run then keeps its solution at every IMU epoch until it is smoothed (~250
             bytes each) and, while it smooths an interval between two DVL updates, two
             covariances per IMU step of it (3.6 kB each, per thread); it costs about
-            four plain runs; not with the DVL calibration states or a covariance step
-            (``ValueError`` naming ``smooth``).
+            four plain runs.
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")

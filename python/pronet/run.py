@@ -274,8 +274,6 @@ def run_strategies(
     keep no smoothed result, so the two do not go together."""
     if smooth and shards is not None:
         raise ValueError("smooth: saved shards keep no smoothed result; run without them")
-    if smooth:
-        _core.check_smoothable(scenario.config)
     for label, strategy in strategies.items():  # all of them before any computing
         check_acts(strategy, scenario, label)
     results: dict[str, tuple[MonteCarloResult, HybridResult | None]] = {}

@@ -388,6 +388,7 @@ mod tests {
             accepted: true,
             sensitivity: None,
             correction: None,
+            calibration_correction: None,
         }
     }
 

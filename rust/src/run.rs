@@ -371,8 +371,9 @@ impl Run {
                     );
                     if let Some(log) = self.smoother.as_mut() {
                         let dx = info.correction.unwrap_or_else(Vector15::zeros);
+                        let cal = info.calibration_correction.unwrap_or_default();
                         let noise = self.strategy.process_noise();
-                        log.nodes.after_updates(self.k, &self.ekf, dx, noise);
+                        log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
                         log.update_epochs.push(Some(self.k));
                     }
                 }
@@ -380,8 +381,7 @@ impl Run {
                 Err(e) => self.failure = Some(format!("t = {} s: {e}", truth.time[self.k])),
             }
             if let Some(log) = self.smoother.as_mut() {
-                log.nav.push(self.ekf.nav);
-                log.bias.push(bias_array(&self.ekf));
+                log.push(&self.ekf);
                 log.true_bias.push(self.true_bias);
             }
         }

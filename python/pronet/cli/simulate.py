@@ -79,8 +79,7 @@ def add_parser(sub: Subparsers) -> None:
         "--smooth",
         action="store_true",
         help="also run the RTS smoother over every run: each strategy's row is followed by "
-        "its smoothed one ('<spec>, smoothed'); not with --covariance-step above one IMU "
-        "sample or the DVL calibration states",
+        "its smoothed one ('<spec>, smoothed')",
     )
     add_no_plots(parser)
     add_result_folder(parser, "simulate")

@@ -10,7 +10,6 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from pronet import _core
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.validate import threads as threads_arg
 from pronet.results import table_title, write_result_folder
@@ -121,8 +120,6 @@ def simulate(
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
     sc = _scenario(scenario, filter_config, seed, formulation, covariance_step)
-    if smooth:
-        _core.check_smoothable(sc.config)
     parsed = _specs(specs)
     strategies = {spec.text: strategy(spec, sc.q_nominal, tuning_period) for spec in parsed}
     out = new_result_folder(out, "simulate")

@@ -184,9 +184,7 @@ impl Calibration {
 
     /// Apply `[δk̂, δμ̂]` (estimate minus truth): `k̂ ← k̂ − δk̂`, `M̂ ← M̂ exp(−[δμ̂×])`.
     pub fn feedback(&mut self, dc: &[f64; 4]) {
-        self.estimate.scale -= dc[0];
-        let mu = Vector3::new(dc[1], dc[2], dc[3]);
-        self.estimate.body_to_dvl *= exp_so3(&(-mu));
+        correct_mounting(&mut self.estimate, dc);
     }
 
     /// 1σ of `[δk, δμ]` (a negative rounding residue gives 0).
@@ -205,6 +203,14 @@ impl Calibration {
             && self.estimate.body_to_dvl.iter().all(|x| x.is_finite())
             && (0..4).all(|i| self.cov[(i, i)].is_finite())
     }
+}
+
+/// Remove `[δk̂, δμ̂]` (estimate minus truth) from a DVL mounting estimate:
+/// `k̂ ← k̂ − δk̂`, `M̂ ← M̂ exp(−[δμ̂×])` (the filter's feedback, and the smoother's).
+pub fn correct_mounting(mounting: &mut DvlMounting, dc: &[f64; 4]) {
+    mounting.scale -= dc[0];
+    let mu = Vector3::new(dc[1], dc[2], dc[3]);
+    mounting.body_to_dvl *= exp_so3(&(-mu));
 }
 
 /// `Err` unless the calibration can be estimated with this aiding: the states describe

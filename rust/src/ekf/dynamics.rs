@@ -69,12 +69,14 @@ impl ErrorDynamics {
         }
     }
 
-    /// `Φ = I + F Δt` of one IMU step as a dense matrix (the smoother's transition).
-    pub(super) fn step_transition(&self, dt: f64) -> Matrix15 {
-        let mut phi = Matrix15::identity();
-        let mut nav = phi.fixed_rows_mut::<9>(0);
-        nav += self.nav_rows() * dt;
-        phi
+    /// The navigation rows of `Φ = I + F Δt` of one IMU step (its bias rows are the
+    /// identity's): the smoother's transition.
+    pub(super) fn step_rows(&self, dt: f64) -> SMatrix<f64, NAV, 15> {
+        let mut rows = self.nav_rows() * dt;
+        for i in 0..NAV {
+            rows[(i, i)] += 1.0;
+        }
+        rows
     }
 
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60

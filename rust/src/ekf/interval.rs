@@ -13,7 +13,7 @@
 //! noise mapped through Γ at the interval's start (`docs/filter.md`, "Covariance
 //! step"). The sensitivity `M` and the DVL calibration blocks go through the same Φ.
 
-use super::dynamics::{ErrorDynamics, ImuNoise};
+use super::dynamics::{ErrorDynamics, ImuNoise, Transition};
 use super::{formulation, Ekf, Matrix15, ACC_BIAS};
 use crate::mechanization::{FrameRates, NavState};
 use crate::noise::ProcessNoise;
@@ -90,10 +90,10 @@ impl Interval {
 
     /// Propagate the filter's P, M and calibration blocks over the interval:
     /// `P ← Φ (P + ½Q) Φᵀ + ½Q`, the noise added to the blocks it has, half on either
-    /// side of Φ.
-    pub(super) fn close(self, ekf: &mut Ekf) {
+    /// side of Φ. The interval's Φ, or None for an empty interval (P unchanged).
+    pub(super) fn close(self, ekf: &mut Ekf) -> Option<Transition> {
         if self.elapsed <= 0.0 {
-            return;
+            return None;
         }
         let formulation = ekf.cfg.formulation;
         let start = &self.start;
@@ -131,6 +131,7 @@ impl Interval {
                 c.propagate_interval(&phi, self.elapsed, false);
             }
         }
+        Some(phi)
     }
 }
 

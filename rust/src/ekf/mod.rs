@@ -38,7 +38,7 @@ pub mod smoother;
 
 use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig};
-use dynamics::{add_imu_noise, ErrorDynamics};
+use dynamics::{add_imu_noise, ErrorDynamics, Transition};
 pub use formulation::Formulation;
 use interval::Interval;
 pub use recorded::{
@@ -63,6 +63,9 @@ pub struct UpdateInfo {
     /// The error estimate `δx̂ = −K ν` fed back, in the filter's own coordinates (the
     /// first 15 states); None when the gate rejected the measurement.
     pub correction: Option<Vector15>,
+    /// With the DVL calibration states, their estimate `[δk̂, δμ̂]` fed back (None
+    /// without them or when the gate rejected the measurement).
+    pub calibration_correction: Option<[f64; 4]>,
 }
 
 /// Mean NIS over the last [`NisMonitor::WINDOW`] updates above which the filter is
@@ -175,9 +178,15 @@ impl Ekf {
     /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
     /// end of the last closed step; every DVL update brings it up to date first.
     pub fn bring_up_to_date(&mut self) {
-        if let Some(interval) = self.interval.take() {
-            interval.close(self);
-        }
+        self.close_interval();
+    }
+
+    /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no
+    /// step was under way): the smoother's backward pass reads it.
+    fn close_interval(&mut self) -> Option<Transition> {
+        self.interval
+            .take()
+            .and_then(|interval| interval.close(self))
     }
 
     /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
@@ -274,6 +283,17 @@ impl Ekf {
     /// sample. A non-finite result (an overflow from absurd inputs or a diverged
     /// filter) is an `Error::Numerical`, never a silent NaN.
     pub fn propagate(&mut self, raw: &ImuSample, dt: f64, noise: ProcessNoise<'_>) -> Result<()> {
+        self.propagate_closing(raw, dt, noise).map(|_| ())
+    }
+
+    /// [`Ekf::propagate`], giving the transition Φ of a covariance step closed as due
+    /// at the end of this sample (None at every sample without a covariance step).
+    fn propagate_closing(
+        &mut self,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> Result<Option<Transition>> {
         let imu = ImuSample {
             accel: raw.accel - self.accel_bias,
             gyro: raw.gyro - self.gyro_bias,
@@ -293,8 +313,9 @@ impl Ekf {
         self.last_gyro = imu.gyro;
         // P changes at every sample, or where a covariance step closes.
         let mut covariance_changed = every_sample;
+        let mut closed = None;
         if !every_sample && self.interval.as_ref().is_some_and(|i| i.due(&self.cfg)) {
-            self.bring_up_to_date();
+            closed = self.close_interval();
             covariance_changed = true;
         }
         if !self.solution_is_finite() || (covariance_changed && !self.covariance_is_finite()) {
@@ -302,7 +323,7 @@ impl Ekf {
                 "the prediction produced a non-finite state or covariance".into(),
             ));
         }
-        Ok(())
+        Ok(closed)
     }
 
     /// The covariance part of [`Ekf::propagate`] at every IMU sample.
@@ -424,6 +445,7 @@ impl Ekf {
         formulation::gain_to_classic(self.cfg.formulation, &mut info.gain, &self.nav.vel);
         if let Some((dx, cal)) = dx {
             info.correction = Some(dx);
+            info.calibration_correction = cal;
             self.feedback(&dx);
             if let (Some(c), Some(cal)) = (self.calibration.as_mut(), cal) {
                 c.feedback(&cal);
@@ -454,13 +476,14 @@ impl Ekf {
         );
     }
 
-    /// `Φ = I + F Δt` of the next IMU step from the current state with the raw sample
-    /// `raw` (bias-corrected as [`Ekf::propagate`] does): the transition that step
-    /// applies to the covariance, as a dense matrix (the smoother's backward pass).
-    pub fn transition(&self, raw: &ImuSample, dt: f64) -> Matrix15 {
+    /// The navigation rows of `Φ = I + F Δt` of the next IMU step from the current
+    /// state with the raw sample `raw` (bias-corrected as [`Ekf::propagate`] does): the
+    /// transition that step applies to the covariance (the smoother's backward pass;
+    /// its other rows are the identity's).
+    pub fn transition_rows(&self, raw: &ImuSample, dt: f64) -> smoother::NavRows {
         let accel = raw.accel - self.accel_bias;
         let rates = FrameRates::at(&self.nav);
-        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).step_transition(dt)
+        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).step_rows(dt)
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional
@@ -556,6 +579,7 @@ fn kalman_update<const N: usize>(
         accepted,
         sensitivity,
         correction: None,
+        calibration_correction: None,
     };
     if !accepted {
         return Ok(Outcome {

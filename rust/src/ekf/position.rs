@@ -27,6 +27,8 @@ pub struct PositionUpdate {
     pub dof: usize,
     /// The sum of the error estimates fed back (the first 15 states).
     pub correction: Vector15,
+    /// The sum of the DVL calibration states' `[δk̂, δμ̂]` fed back (zero without them).
+    pub calibration_correction: [f64; 4],
 }
 
 impl Ekf {
@@ -38,6 +40,7 @@ impl Ekf {
             nis: 0.0,
             dof: components,
             correction: Vector15::zeros(),
+            calibration_correction: [0.0; 4],
         };
         for (axis, sigma) in sigma.iter().enumerate().take(components) {
             let (r_n, r_e) = earth::radii(self.nav.lla[0]);
@@ -58,6 +61,7 @@ impl Ekf {
             nis: 0.0,
             dof: 1,
             correction: Vector15::zeros(),
+            calibration_correction: [0.0; 4],
         };
         let innovation = depth + self.nav.lla[2]; // z_D − ẑ_D with ẑ_D = −ĥ
         self.scalar_position_update(2, innovation, sigma * sigma, &mut out)?;
@@ -120,6 +124,11 @@ impl Ekf {
         }
         out.nis += nis;
         out.correction += dx;
+        if let Some(cal) = cal {
+            for (sum, v) in out.calibration_correction.iter_mut().zip(cal) {
+                *sum += v;
+            }
+        }
         Ok(())
     }
 }

@@ -277,8 +277,8 @@ pub fn filter_recorded_until(
 }
 
 /// [`filter_recorded_until`] keeping every epoch, then the RTS smoother's backward pass
-/// ([`smoother`]): the output's `smoothed` holds the smoothed solution at every epoch.
-/// The DVL calibration states are not smoothed yet (refused, naming `config`).
+/// ([`smoother`]): the output's `smoothed` holds the smoothed solution at every epoch
+/// (with the DVL calibration states, theirs too).
 pub fn smooth_recorded_until(
     data: &RecordedData<'_>,
     initial: NavState,
@@ -287,7 +287,6 @@ pub fn smooth_recorded_until(
     strategy: &mut dyn NoiseStrategy,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
-    smoother::check_config(cfg, "config")?;
     let mut nodes = Nodes::default();
     let mut out = forward_pass(
         data,
@@ -305,6 +304,7 @@ pub fn smooth_recorded_until(
         t0: data.t0,
         nav: &out.nav,
         bias: &out.bias,
+        calibration: &out.calibration,
         dt: None,
     };
     let smoothed = smoother::smooth(&forward, cfg, &nodes.0, Covariances::Every, cancel)?;
@@ -370,12 +370,13 @@ fn forward_pass(
         }
         let dvl = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
         let aiding = apply_position_rows(data, &mut ekf, &mut out, &mut at, k + 1, t, dt)?;
-        let correction = match (dvl, aiding) {
+        let fed = match (dvl, aiding) {
             (None, None) => None,
-            (a, b) => Some(a.unwrap_or_else(Vector15::zeros) + b.unwrap_or_else(Vector15::zeros)),
+            (a, b) => Some(a.unwrap_or_default().plus(&b.unwrap_or_default())),
         };
-        if let (Some(nodes), Some(correction)) = (nodes.as_deref_mut(), correction) {
-            nodes.after_updates(k + 1, &ekf, correction, strategy.process_noise());
+        if let (Some(nodes), Some(fed)) = (nodes.as_deref_mut(), fed) {
+            let noise = strategy.process_noise();
+            nodes.after_updates(k + 1, &ekf, fed.nav, fed.calibration, noise);
         }
         let next_dt = data.imu_time.get(k + 1).map_or(dt, |&next| next - t);
         keep_covariances(data, &ekf, &mut out, &mut at, k + 1, t, next_dt);
@@ -402,6 +403,27 @@ fn forward_pass(
     Ok(out)
 }
 
+/// The error estimates fed back at an epoch: the 15 states' and the DVL calibration's.
+#[derive(Clone, Copy, Debug, Default)]
+struct Fed {
+    nav: Vector15,
+    calibration: [f64; 4],
+}
+
+impl Fed {
+    fn add(&mut self, nav: &Vector15, calibration: &[f64; 4]) {
+        self.nav += nav;
+        for (sum, v) in self.calibration.iter_mut().zip(calibration) {
+            *sum += v;
+        }
+    }
+
+    fn plus(mut self, other: &Fed) -> Fed {
+        self.add(&other.nav, &other.calibration);
+        self
+    }
+}
+
 /// Apply every depth reading, then every position fix, whose nearest epoch is `epoch`
 /// (time `t` [s], step `dt` [s]), as DVL rows are placed; rows before the run's first
 /// half step are outside it. The sum of the error estimates fed back, or None if no row
@@ -415,10 +437,10 @@ fn apply_position_rows(
     epoch: usize,
     t: f64,
     dt: f64,
-) -> Result<Option<Vector15>> {
+) -> Result<Option<Fed>> {
     let first = data.t0 - 0.5 * (data.imu_time[0] - data.t0);
     let due = |time: f64| time <= t + 0.5 * dt;
-    let mut correction: Option<Vector15> = None;
+    let mut correction: Option<Fed> = None;
     let numerical = |what: &str, row: usize, e: Error| match e {
         Error::Numerical(m) => Error::Numerical(format!("{m} ({what} row {row}, t = {t} s)")),
         other => other,
@@ -435,7 +457,9 @@ fn apply_position_rows(
             .update_depth(data.depth[row], data.depth_sigma)
             .map_err(|e| numerical("depth", row, e))?;
         (out.depth_epoch[row], out.depth_nis[row]) = (Some(epoch), done.nis);
-        *correction.get_or_insert_with(Vector15::zeros) += done.correction;
+        correction
+            .get_or_insert_with(Fed::default)
+            .add(&done.correction, &done.calibration_correction);
     }
     while at.next_fix < data.fix.len() && due(data.fix_time[at.next_fix]) {
         let row = at.next_fix;
@@ -449,7 +473,9 @@ fn apply_position_rows(
             .update_fix(&data.fix[row], &data.fix_sigma[row])
             .map_err(|e| numerical("fix", row, e))?;
         (out.fix_epoch[row], out.fix_nis[row]) = (Some(epoch), done.nis);
-        *correction.get_or_insert_with(Vector15::zeros) += done.correction;
+        correction
+            .get_or_insert_with(Fed::default)
+            .add(&done.correction, &done.calibration_correction);
     }
     Ok(correction)
 }
@@ -533,8 +559,8 @@ fn apply_dvl_rows(
     epoch: usize,
     t: f64,
     dt: f64,
-) -> Result<Option<Vector15>> {
-    let mut correction: Option<Vector15> = None;
+) -> Result<Option<Fed>> {
+    let mut correction: Option<Fed> = None;
     while at.next_dvl < data.dvl.len() && data.dvl_time[at.next_dvl] <= t + 0.5 * dt {
         let row = at.next_dvl;
         let z = Vector3::from_column_slice(&data.dvl[row]);
@@ -543,9 +569,9 @@ fn apply_dvl_rows(
             other => other,
         })?;
         out.nis_monitor.push(info.nis, t);
-        let sum = correction.get_or_insert_with(Vector15::zeros);
+        let sum = correction.get_or_insert_with(Fed::default);
         if let Some(dx) = &info.correction {
-            *sum += dx;
+            sum.add(dx, &info.calibration_correction.unwrap_or_default());
         }
         if info.accepted {
             strategy.after_update(&info, at.steps_since_update);

@@ -375,6 +375,7 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
                 t0: 0.0,
                 nav: &out.nav,
                 bias: &out.bias,
+                calibration: &[],
                 dt: None,
             };
             for pair in nodes.windows(2) {
@@ -397,6 +398,97 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
                     assert_eq!(ekf.sigma(), out.sigma[at], "{spec:?} {formulation:?} {at}");
                 }
             }
+        }
+    }
+}
+
+/// Under a covariance step the smoother's grid is the steps' closes: for every
+/// strategy and both formulations (q rows falling inside steps, where a node carries
+/// the step under way), each stretch between nodes rebuilt from its first node closes
+/// where the forward pass closed, with its covariances bit for bit.
+#[test]
+fn covariance_step_closes_are_rebuilt_exactly() {
+    let (imu, imu_time, dvl, dvl_time) = moving_pass(600);
+    let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+    let cases = [
+        (StrategySpec::Constant { q }, vec![], vec![]),
+        (
+            StrategySpec::Mehra {
+                window: 2,
+                prior_q: q,
+            },
+            vec![],
+            vec![],
+        ),
+        (
+            StrategySpec::External { prior_q: q },
+            vec![1.504, 3.0, 4.25],
+            vec![[4e-4; 6], q, [2e-4; 6]],
+        ),
+    ];
+    for formulation in [Formulation::Classic, Formulation::Invariant] {
+        let cfg = FilterConfig {
+            formulation,
+            covariance_step: 0.07,
+            ..FilterConfig::default()
+        };
+        for (spec, q_time, q_values) in &cases {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl: &dvl,
+                dvl_time: &dvl_time,
+                q_time,
+                q_values,
+                ..RecordedData::default()
+            };
+            let mut strategy = spec.build(cfg.bias_psd());
+            let mut nodes = Nodes::default();
+            let out = forward_pass(
+                &data,
+                moving_state(),
+                [0.0; 6],
+                &cfg,
+                strategy.as_mut(),
+                Epochs::All,
+                Some(&mut nodes),
+                &Cancel::default(),
+            )
+            .unwrap();
+            let nodes = nodes.0;
+            let inside = nodes.iter().filter(|n| n.interval.is_some()).count();
+            assert_eq!(inside, 2 * usize::from(!q_time.is_empty()), "{spec:?}");
+            let forward = Forward {
+                imu: &imu,
+                imu_time: &imu_time,
+                t0: 0.0,
+                nav: &out.nav,
+                bias: &out.bias,
+                calibration: &[],
+                dt: None,
+            };
+            let mut closes = vec![0];
+            for pair in nodes.windows(2) {
+                let (a, b) = (&pair[0], &pair[1]);
+                let rebuilt =
+                    smoother::steps::rebuild(&forward, &cfg, a, b, &Cancel::default()).unwrap();
+                for close in &rebuilt {
+                    closes.push(close.epoch);
+                    if close.epoch == b.epoch && b.correction != Vector15::zeros() {
+                        continue; // σ after the update there
+                    }
+                    let zero = Vector3::zeros();
+                    let at = close.epoch;
+                    let mut ekf = Ekf::new(&cfg, out.nav[at], zero, zero).unwrap();
+                    ekf.p = close.p_prior;
+                    assert_eq!(ekf.sigma(), out.sigma[at], "{spec:?} {formulation:?} {at}");
+                }
+            }
+            // Closes every 7 samples, restarting at each DVL epoch (100, 200, ...).
+            let want: Vec<usize> = (0..=600)
+                .filter(|k| k % 100 == 0 || (k % 100) % 7 == 0)
+                .collect();
+            assert_eq!(closes, want, "{spec:?}");
         }
     }
 }
@@ -435,6 +527,7 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
         t0: 0.0,
         nav: &out.nav,
         bias: &out.bias,
+        calibration: &[],
         dt: None,
     };
     let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
@@ -456,7 +549,7 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
 
 /// Without a measurement there is nothing to smooth: the smoothed solution is the
 /// forward one. With them, the smoothed σ is below the forward σ inside the pass
-/// and equal at its end; what cannot be smoothed is refused by name.
+/// and equal at its end, the DVL calibration states' too.
 #[test]
 fn smoothing_without_measurements_changes_nothing() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
@@ -497,16 +590,22 @@ fn smoothing_without_measurements_changes_nothing() {
         .iter()
         .zip(&aided.sigma)
         .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
+    // With the DVL calibration states the 19 are smoothed: their σ too, never above
+    // the forward one, and equal at the end.
     let calibrated = FilterConfig {
         dvl_calibration: Some(super::super::calibration::CalibrationConfig::default()),
         ..FilterConfig::default()
     };
-    let err = pass(&dvl, &dvl_time, &calibrated).unwrap_err();
-    assert!(
-        err.to_string()
-            .starts_with("config: the smoother does not smooth"),
-        "{err}"
-    );
+    let aided = pass(&dvl, &dvl_time, &calibrated).unwrap();
+    let s = aided.smoothed.unwrap();
+    assert_eq!(s.calibration.len(), aided.calibration.len());
+    assert_eq!(s.calibration_sigma[300], aided.calibration_sigma[300]);
+    assert!(s.calibration[150] != aided.calibration[150]);
+    assert!(s
+        .calibration_sigma
+        .iter()
+        .zip(&aided.calibration_sigma)
+        .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
 }
 
 /// The text `tests/test_core_rules.py` expects from `pronet.run_filter`.

@@ -93,7 +93,8 @@ fn q_schedule(
 /// or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
 /// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
 /// ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-/// ``rpy``, ``bias``, ``sigma`` per epoch; None without). ``depth`` (d,) [m, down] at
+/// ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
+/// None without). ``depth`` (d,) [m, down] at
 /// ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
 /// (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
 /// [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°.
@@ -221,13 +222,15 @@ struct OutputArrays {
     smoothed: Option<EpochArrays>,
 }
 
-/// A solution's arrays at every epoch: position, velocity, attitude, biases, σ.
+/// A solution's arrays at every epoch: position, velocity, attitude, biases, σ (and
+/// a smoothed solution's calibration states).
 struct EpochArrays {
     lla: Array2<f64>,
     vel: Array2<f64>,
     rpy: Array2<f64>,
     bias: Array2<f64>,
     sigma: Array2<f64>,
+    calibration: Option<(Array2<f64>, Array2<f64>)>,
 }
 
 impl EpochArrays {
@@ -239,11 +242,19 @@ impl EpochArrays {
             rpy: rows_array(nav.iter().map(|n| euler_from_dcm(&n.dcm).into())),
             bias: Array2::from(bias),
             sigma: Array2::from(sigma),
+            calibration: None,
         }
     }
 
     fn smoothed(s: Smoothed) -> Self {
-        Self::new(&s.nav, s.bias, s.sigma)
+        let calibration = (
+            Array2::from(s.calibration),
+            Array2::from(s.calibration_sigma),
+        );
+        Self {
+            calibration: Some(calibration),
+            ..Self::new(&s.nav, s.bias, s.sigma)
+        }
     }
 
     /// Each array handed to NumPy without a copy, into `d`.
@@ -252,6 +263,10 @@ impl EpochArrays {
         d.set_item("vel", self.vel.into_pyarray(py))?;
         d.set_item("rpy", self.rpy.into_pyarray(py))?;
         d.set_item("bias", self.bias.into_pyarray(py))?;
+        if let Some((calibration, sigma)) = self.calibration {
+            d.set_item("calibration", calibration.into_pyarray(py))?;
+            d.set_item("calibration_sigma", sigma.into_pyarray(py))?;
+        }
         d.set_item("sigma", self.sigma.into_pyarray(py))
     }
 }

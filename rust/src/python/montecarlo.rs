@@ -221,14 +221,6 @@ fn py_monte_carlo<'py>(
     result_dict(py, &res)
 }
 
-/// ``ValueError`` naming ``smooth`` if the RTS smoother cannot smooth a filter of
-/// ``config`` (the DVL calibration states; a covariance step above one IMU sample), as
-/// :func:`monte_carlo` checks with ``smooth=True``; nothing is run.
-#[pyfunction(name = "check_smoothable")]
-fn py_check_smoothable(config: &PyFilterConfig) -> PyResult<()> {
-    crate::ekf::smoother::check_config(&config.inner, "smooth").map_err(to_py_err)
-}
-
 /// ``ValueError`` naming ``n_runs`` if the records of ``n_runs`` runs of
 /// ``trajectory`` would exceed the core's memory limit (4 GiB), as :func:`monte_carlo`
 /// checks before it allocates; nothing is run.
@@ -277,6 +269,5 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(py_monte_carlo, m)?)?;
     m.add_function(wrap_pyfunction!(py_check_threads, m)?)?;
     m.add_function(wrap_pyfunction!(py_max_threads, m)?)?;
-    m.add_function(wrap_pyfunction!(py_check_smoothable, m)?)?;
     m.add_function(wrap_pyfunction!(py_check_result_size, m)?)
 }

@@ -6,7 +6,7 @@ use super::{bias_array, nees3, solution_error, History, Run};
 use crate::cancel::Cancel;
 use crate::ekf::formulation;
 use crate::ekf::smoother::{smooth, Covariances, Forward, Nodes, Smoothed};
-use crate::ekf::{Formulation, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::ekf::{Ekf, Formulation, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::mechanization::NavState;
 use crate::montecarlo::Scenario;
 use crate::trajectory::Truth;
@@ -34,10 +34,23 @@ pub(super) struct SmootherLog {
     pub(super) imu: Vec<[f64; 6]>,
     pub(super) nav: Vec<NavState>,
     pub(super) bias: Vec<[f64; 6]>,
+    /// With the DVL calibration states, their estimate at every epoch (empty without).
+    pub(super) calibration: Vec<[f64; 4]>,
     /// The IMU's true bias at each epoch (the one errors there are taken against).
     pub(super) true_bias: Vec<[f64; 6]>,
     /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
     pub(super) update_epochs: Vec<Option<usize>>,
+}
+
+impl SmootherLog {
+    /// Keep the forward solution of the epoch just run (the true bias apart).
+    pub(super) fn push(&mut self, ekf: &Ekf) {
+        self.nav.push(ekf.nav);
+        self.bias.push(bias_array(ekf));
+        if let Some(c) = &ekf.calibration {
+            self.calibration.push(c.reported());
+        }
+    }
 }
 
 /// [`block_nees`] of a smoothed solution `nav` whose covariance `p` is in the
@@ -146,11 +159,11 @@ impl Run {
             imu: Vec::with_capacity(n),
             nav: Vec::with_capacity(n),
             bias: Vec::with_capacity(n),
+            calibration: Vec::new(),
             true_bias: Vec::with_capacity(n),
             update_epochs: Vec::new(),
         };
-        log.nav.push(self.ekf.nav);
-        log.bias.push(bias_array(&self.ekf));
+        log.push(&self.ekf);
         log.true_bias.push(self.true_bias);
         self.smoother = Some(Box::new(log));
     }
@@ -170,6 +183,7 @@ impl Run {
             t0: truth.time[0],
             nav: &log.nav,
             bias: &log.bias,
+            calibration: &log.calibration,
             dt: Some(truth.dt),
         };
         let cfg = self.ekf.config();
