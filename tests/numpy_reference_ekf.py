@@ -302,6 +302,7 @@ def run_reference_filter(
     if log is not None:
         log.append((None, p.copy(), p.copy(), np.zeros(n_x)))
     t_prev = t0
+    first = t0 - (imu_time[0] - t0) / 2  # readings stamped before it are skipped
     j = 0
     w_hat = np.zeros(3)
     for k in range(len(imu)):
@@ -328,9 +329,11 @@ def run_reference_filter(
             walks = np.array([accel_bias_psd] * 3 + [gyro_bias_psd] * 3) * dt
             interval["q"] = interval["q"] + np.concatenate([q * imu_dt * dt, walks])
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
-        updating = any(
-            i < len(times) and times[i] <= t + dt / 2
-            for i, times in ((j, dvl_time), (jd, depth_time), (jf, fix_time))
+        # A reading stamped before the run is skipped (position_rows) and closes no step.
+        updating = (j < len(dvl_time) and dvl_time[j] <= t + dt / 2) or any(
+            first <= times[i] <= t + dt / 2
+            for start, times in ((jd, depth_time), (jf, fix_time))
+            for i in range(start, int(np.searchsorted(times, t + dt / 2, side="right")))
         )
         if interval is not None and (
             interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
@@ -371,7 +374,7 @@ def run_reference_filter(
             out["innovation"].append(nu)
             out["nis"].append(float(nu @ np.linalg.solve(s, nu)))
             j += 1
-        dx_sum += position_rows(t, dt, t0 - (imu_time[0] - t0) / 2)
+        dx_sum += position_rows(t, dt, first)
         record(t)
         if log is not None:
             log.append((phi, p_prior, p.copy(), dx_sum))

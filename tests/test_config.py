@@ -99,7 +99,7 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
     )
     assert cfg.aiding == "nav" and cfg.imu_dt == 0.02 and cfg.lever_arm == [0.5, 0.0, 0.0]
     assert cfg.dvl_variance == pronet.FilterConfig().dvl_variance
-    assert cfg.covariance_step == 0.0  # every IMU sample unless named
+    assert cfg.covariance_step == pronet.FilterConfig().covariance_step  # the default unless named
     stepped = config.load_filter_config(write(tmp_path, "s.toml", "covariance_step = 0.1\n"))
     assert stepped.covariance_step == 0.1
 

@@ -37,7 +37,8 @@ def _aiding(traj: pronet.Trajectory, seconds: float, rng: np.random.Generator):
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
 @pytest.mark.parametrize("calibrated", [False, True])
-def test_fixes_and_depth_match_the_reference(formulation, calibrated) -> None:
+@pytest.mark.parametrize("covariance_step", [0.0, 0.1])
+def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance_step) -> None:
     arm = (0.5, -0.2, 1.0)
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(arm), "body")
     aiding = _aiding(pronet.builtin_trajectory("paper"), 60.0, np.random.default_rng(8))
@@ -47,7 +48,8 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated) -> None:
         extra = dict(dvl_calibration=True, dvl_scale_sigma=0.01,
                      dvl_misalignment_sigma=(0.02, 0.02, 0.03), dvl_scale_psd=1e-8,
                      dvl_misalignment_psd=1e-9)  # fmt: skip
-    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3)
+    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3,
+                  covariance_step=covariance_step)  # fmt: skip
     cfg = pronet.FilterConfig(p0_sigma=P0, lever_arm=arm, formulation=formulation,
                               **tuning, **extra)  # fmt: skip
     rust = pronet.run_filter(

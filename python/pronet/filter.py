@@ -64,7 +64,9 @@ class FilterResult:
         vel: ``(n+1, 3)`` NED velocity [m/s].
         rpy: ``(n+1, 3)`` roll, pitch, yaw [rad].
         bias: ``(n+1, 6)`` accelerometer [m/s²] and gyro [rad/s] bias estimates.
-        sigma: ``(n+1, 15)`` filter 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a, δb_g]``.
+        sigma: ``(n+1, 15)`` filter 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a, δb_g]``
+            (with a covariance step, at an epoch inside a step its variance is
+            interpolated linearly in time up to the step's close).
         calibration: ``(n+1, 4)`` with ``FilterConfig(dvl_calibration=True)``, the DVL's
             estimated scale-factor error k (it reads ``1 + k`` times the velocity) and
             its mounting roll, pitch, yaw in the body frame [rad]; ``(0, 4)`` without.
@@ -76,9 +78,9 @@ class FilterResult:
             when none was asked for.
         covariances: ``(j, 15, 15)`` the full covariance at those epochs, after their
             update, in the order and units of :data:`ERROR_STATES` (NaN where outside
-            the run); its diagonal is ``sigma**2`` there (with a covariance step, σ at an
-            epoch inside a step repeats the last closed step, the covariance here is
-            brought up to date).
+            the run); its diagonal is ``sigma**2`` there (with a covariance step, at an
+            epoch inside a step this covariance is brought up to date and ``sigma`` is
+            interpolated, so the two differ slightly).
         dvl_epoch: ``(m,)`` epoch index each DVL row was applied at.
         innovation: ``(m, 3)`` ``z − h(x̂)`` [m/s].
         innovation_cov: ``(m, 3, 3)`` innovation covariance S [(m/s)²].

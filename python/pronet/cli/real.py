@@ -162,8 +162,8 @@ def add_parser(sub: Subparsers) -> None:
         metavar="SECONDS",
         type=float,
         default=None,
-        help="interval over which every filter propagates its covariance at once (0: every "
-        "IMU sample, the default unless --filter sets one; rounded to whole IMU samples)",
+        help="interval over which every filter propagates its covariance at once (default "
+        "0.1 s unless --filter sets one; 0: every IMU sample; rounded to whole IMU samples)",
     )
     parser.add_argument(
         "--filter",

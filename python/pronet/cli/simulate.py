@@ -54,9 +54,9 @@ def add_parser(sub: Subparsers) -> None:
         metavar="SECONDS",
         type=float,
         default=None,
-        help="interval over which the filter propagates its covariance at once (0: every "
-        "IMU sample, the default; rounded to whole IMU samples); overrides the scenario's "
-        "and --filter's",
+        help="interval over which the filter propagates its covariance at once (default "
+        "0.1 s; 0: every IMU sample; rounded to whole IMU samples); overrides the "
+        "scenario's and --filter's",
     )
     parser.add_argument(
         "--strategies",

@@ -102,7 +102,7 @@ def simulate(
         formulation: the filter's error coordinates, ``"invariant"`` or ``"classic"``
             (default: the scenario's or the filter file's, else the invariant one).
         covariance_step: the filter's covariance step [s] (default: the scenario's or
-            the filter file's, else 0: every IMU sample; see ``FilterConfig``).
+            the filter file's, else ``FilterConfig``'s 0.1 s; 0: every IMU sample).
         n_runs: Monte Carlo runs per strategy (>= 1); seed: their seed.
         threads: worker threads, 1 to 8 per core (default: one per core, or
             ``RAYON_NUM_THREADS``).

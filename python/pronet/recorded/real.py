@@ -370,7 +370,7 @@ def run_real(
             ``"classic"`` (pronet's filter before 2026-12), for every row (default:
             ``vehicle``'s, else ``FilterConfig``'s).
         covariance_step: the filters' covariance step [s] for every row (default:
-            ``vehicle``'s, else 0: every IMU sample; see ``FilterConfig``).
+            ``vehicle``'s, else ``FilterConfig``'s 0.1 s; 0: every IMU sample).
         smooth: also the RTS smoother over every strategy row: each is followed by its
             smoothed row (``"<label>, smoothed"``), its metrics taken at the same
             ground-truth rows (docs/filter.md, "The RTS smoother").

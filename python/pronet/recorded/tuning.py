@@ -68,8 +68,8 @@ def real_filter_config(
     scale-factor and misalignment states (their default prior: 1 %, 1° per axis), the
     filter's ``formulation`` (default ``FilterConfig``'s, the invariant one), the
     IMU's nominal step ``imu_dt`` [s] (:func:`imu_step`; default ``FilterConfig``'s
-    0.01 s) and ``covariance_step`` [s] (default 0: every IMU sample); see
-    :data:`REAL_P0_SIGMA` and the PSD constants for sources.
+    0.01 s) and ``covariance_step`` [s] (default ``FilterConfig``'s, 0.1 s; 0: every
+    IMU sample); see :data:`REAL_P0_SIGMA` and the PSD constants for sources.
 
     ``base`` (a vehicle's own tuning, ``pronet real --filter``): its P0, bias PSDs,
     DVL noise (unless ``dvl_variance`` is given), aiding, innovation gate, formulation
@@ -95,6 +95,8 @@ def real_filter_config(
     chosen: dict[str, object] = {} if formulation is None else {"formulation": formulation}
     if imu_dt is not None:
         chosen["imu_dt"] = imu_dt
+    if covariance_step is not None:
+        chosen["covariance_step"] = covariance_step
     return _core.FilterConfig(
         **chosen,  # type: ignore[arg-type]
         p0_sigma=REAL_P0_SIGMA,
@@ -103,7 +105,6 @@ def real_filter_config(
         dvl_variance=(REAL_DVL_VARIANCE,) * 3 if dvl_variance is None else dvl_variance,
         lever_arm=lever_arm,
         dvl_calibration=calibration,
-        covariance_step=0.0 if covariance_step is None else covariance_step,
     )
 
 

@@ -37,7 +37,7 @@ mod recorded;
 pub mod smoother;
 
 use calibration::{Calibration, N_CALIBRATED, SCALE};
-pub use config::{Aiding, FilterConfig};
+pub use config::{Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP};
 use dynamics::{add_imu_noise, ErrorDynamics, Transition};
 pub use formulation::Formulation;
 use interval::Interval;
@@ -126,7 +126,15 @@ pub struct Ekf {
     /// The covariance step under way (see [`FilterConfig::covariance_step`]): P, M and
     /// the calibration blocks stand at its start.
     interval: Option<Interval>,
+    /// With [`Ekf::track_closes`]: the σ (and the calibration σ) at the last close of a
+    /// covariance step, before any update applied at that epoch.
+    closed_sigma: Option<ClosedSigma>,
+    track_closes: bool,
 }
+
+/// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
+/// any, at the close of a covariance step (see [`Ekf::take_closed_sigma`]).
+pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
 
 impl Ekf {
     pub fn new(
@@ -149,6 +157,8 @@ impl Ekf {
             calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
             sensitivity_calibration: None,
             interval: None,
+            closed_sigma: None,
+            track_closes: false,
         })
     }
 
@@ -184,9 +194,31 @@ impl Ekf {
     /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no
     /// step was under way): the smoother's backward pass reads it.
     fn close_interval(&mut self) -> Option<Transition> {
-        self.interval
+        let phi = self
+            .interval
             .take()
-            .and_then(|interval| interval.close(self))
+            .and_then(|interval| interval.close(self));
+        if self.track_closes && phi.is_some() {
+            let calibration = self.calibration.as_ref().map(Calibration::sigma);
+            self.closed_sigma = Some((self.sigma(), calibration));
+        }
+        phi
+    }
+
+    /// Keep the σ at every close of a covariance step for [`Ekf::take_closed_sigma`].
+    pub fn track_closes(&mut self) {
+        self.track_closes = true;
+    }
+
+    /// The σ at the last close since the previous call, before the updates of its epoch
+    /// (None: no close, or [`Ekf::track_closes`] not asked for).
+    pub fn take_closed_sigma(&mut self) -> Option<ClosedSigma> {
+        self.closed_sigma.take()
+    }
+
+    /// Whether P stands at the current epoch (no covariance step under way).
+    pub fn is_up_to_date(&self) -> bool {
+        self.interval.is_none()
     }
 
     /// [`Ekf::sigma`] brought up to date without closing the step under way (on a

@@ -7,7 +7,7 @@ use super::convert::{
 };
 use super::{invalid, to_py_err};
 use crate::ekf::calibration::CalibrationConfig;
-use crate::ekf::{Aiding, FilterConfig, Formulation};
+use crate::ekf::{Aiding, FilterConfig, Formulation, DEFAULT_COVARIANCE_STEP};
 use nalgebra::Vector3;
 use pyo3::prelude::*;
 
@@ -23,10 +23,11 @@ use pyo3::prelude::*;
 /// consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
 /// prior and every output are in the classic coordinates either way; and the
 /// covariance step [s]: the interval over which the covariance is propagated at once
-/// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample). 0
-/// (the default), or less than 1.5 IMU periods: every sample; a longer step is rounded
-/// to a whole number of IMU periods, and the covariance is brought up to date before
-/// every DVL update and at the end of a pass. See ``docs/filter.md``.
+/// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
+/// by default (free in accuracy, about half the cost: ``docs/covariance-step.md``);
+/// 0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
+/// number of IMU periods, and the covariance is brought up to date before every DVL
+/// update and at the end of a pass. See ``docs/filter.md``.
 #[pyclass(name = "FilterConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PyFilterConfig {
@@ -56,9 +57,9 @@ fn parse_formulation(text: &str) -> PyResult<Formulation> {
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, formulation = Formulation::default().name().to_string(), covariance_step = 0.0))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, formulation = Formulation::default().name().to_string(), covariance_step = DEFAULT_COVARIANCE_STEP))]
     #[pyo3(
-        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, formulation='invariant', covariance_step=0.0)"
+        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, formulation='invariant', covariance_step=0.1)"
     )]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
