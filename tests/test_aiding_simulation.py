@@ -180,3 +180,30 @@ def test_bad_scenario_keys_name_file_table_and_key(tmp_path, text: str, message:
         load_scenario(path)
     assert str(exc.value).startswith(f"{path}: {message}"), exc.value
     assert "\n" not in str(exc.value)
+
+
+def test_the_mission_scenario_dives_surveys_and_surfaces(tmp_path) -> None:
+    """``mission``: from the surface to about 30 m and back; GNSS fixes at 1 Hz exactly
+    while the true depth is at most 0.5 m, USBL every 60 s, depth every second; the
+    fixes at the end bring the vehicle home within metres. ``pronet simulate`` runs it."""
+    from pronet.cli import main
+    from pronet.sim.scenarios import SCENARIOS, STUDY_SCENARIOS
+
+    sc = SCENARIOS["mission"](0)
+    depth = -sc.trajectory.lla[:, 2]
+    assert sc.trajectory.duration == 1036.0
+    assert abs(depth[0]) < 1e-9 and abs(depth[-1]) < 1e-6 and 25.0 < depth.max() < 35.0
+    seconds = np.arange(100, len(depth), 100)  # the epochs of whole seconds
+    gnss = int(np.sum(depth[seconds] <= 0.5))
+    assert 120 <= gnss <= 140  # 60 s at each end and the first metres of dive and ascent
+    res = pronet.monte_carlo(
+        sc.trajectory, CONSTANT, sensors=sc.sensors, config=sc.config, n_runs=2, seed=1
+    )
+    assert res.fix_updates.tolist() == [gnss + 1036 // 60] * 2
+    assert res.depth_updates.tolist() == [1036, 1036]
+    assert not any(res.failure) and res.final_horizontal_error.max() < 5.0
+    assert "mission" in STUDY_SCENARIOS
+    out = tmp_path / "mission"
+    argv = ["simulate", "--scenario", "mission", "--strategies", "constant", "--runs", "2"]
+    assert main([*argv, "--no-plots", "--quiet", "--out", str(out)]) == 0
+    assert "mission scenario, 2 runs" in (out / "table.md").read_text()
