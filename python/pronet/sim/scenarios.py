@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -124,7 +125,7 @@ def _scheduled(
     bias_psd: tuple[float, ...] = (0.0,) * 6,
     dvl_variance: tuple[float, float, float] = (0.01, 0.01, 0.01),
     dvl_outages: np.ndarray | None = None,
-    **aiding: object,
+    **aiding: Any,
 ) -> Scenario:
     """A scenario whose IMU follows the schedule ``times``, ``q``; the constant rows are
     told its time average. ``aiding``: the aiding sensors' arguments of
@@ -253,7 +254,7 @@ def _realistic(
     seed: int,
     dvl_outages: np.ndarray | None = None,
     trajectory: _core.Trajectory | None = None,
-    **aiding: object,
+    **aiding: Any,
 ) -> Scenario:
     trajectory = trajectory if trajectory is not None else builtin_trajectory("paper")
     times, q, _ = regime_schedule(trajectory.duration, seed)
