@@ -286,17 +286,45 @@ def run_reference_filter(
 
     jd = jf = 0
 
+    def sigmas():
+        """The 15 states' σ (classic coordinates) and the calibration's, from P now."""
+        classic = t_matrix(v, +1.0) @ p @ t_matrix(v, +1.0).T if invariant else p
+        return np.sqrt(np.diag(classic))[:15], np.sqrt(np.diag(p))[15:]
+
     def record(t):
         out["time"].append(t)
         out["lla"].append(lla.copy())
         out["vel"].append(v.copy())
         out["rpy"].append(euler_from_dcm(c))
         out["bias"].append(np.concatenate([ba, bg]))
-        classic = t_matrix(v, +1.0) @ p @ t_matrix(v, +1.0).T if invariant else p
-        out["sigma"].append(np.sqrt(np.diag(classic))[:15])
+        sigma, cal_sigma = sigmas()
+        out["sigma"].append(sigma)
         if calibration is not None:
             out["calibration"].append(np.concatenate([[k_scale], euler_from_dcm(m_dvl.T)]))
-            out["calibration_sigma"].append(np.sqrt(np.diag(p))[15:])
+            out["calibration_sigma"].append(cal_sigma)
+
+    def interpolate_stale(closed):
+        """Inside a covariance step P stands at its start: once it closes (σ ``closed``
+        before the epoch's updates), the variances of the epochs since the last
+        up-to-date one are interpolated linearly in time (docs/filter.md)."""
+        nonlocal last_current
+        now = len(out["time"]) - 1
+        if closed is not None:
+            t_a, t_b = out["time"][last_current], out["time"][now]
+            for e in pending:
+                w = (out["time"][e] - t_a) / (t_b - t_a)
+                for key, to in (("sigma", closed[0]), ("calibration_sigma", closed[1])):
+                    if out[key]:
+                        frm = out[key][last_current]
+                        out[key][e] = np.sqrt(frm**2 + w * (to**2 - frm**2))
+            pending.clear()
+        if interval is None:
+            last_current = now
+            pending.clear()
+        else:
+            pending.append(now)
+
+    last_current, pending = 0, []
 
     record(t0)
     if log is not None:
@@ -335,11 +363,13 @@ def run_reference_filter(
             for start, times in ((jd, depth_time), (jf, fix_time))
             for i in range(start, int(np.searchsorted(times, t + dt / 2, side="right")))
         )
+        closed = None
         if interval is not None and (
             interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
         ):
             p, phi = close(p, interval)
             interval = None
+            closed = sigmas()
         p_prior, dx_sum = p.copy(), np.zeros(n_x)
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:
             h = np.zeros((3, 15))
@@ -376,6 +406,7 @@ def run_reference_filter(
             j += 1
         dx_sum += position_rows(t, dt, first)
         record(t)
+        interpolate_stale(closed)
         if log is not None:
             log.append((phi, p_prior, p.copy(), dx_sum))
         t_prev = t

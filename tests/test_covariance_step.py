@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_position_aiding import P0, Q, _inputs
 
 import pronet
-from test_position_aiding import P0, Q, _inputs
 
 
 def _run(step: float, calibrated: bool) -> pronet.FilterResult:
@@ -15,8 +15,9 @@ def _run(step: float, calibrated: bool) -> pronet.FilterResult:
     cfg = pronet.FilterConfig(p0_sigma=P0, lever_arm=arm, accel_bias_psd=1e-6,
                               gyro_bias_psd=1e-8, covariance_step=step,
                               dvl_calibration=calibrated)  # fmt: skip
+    q = pronet.Strategy.constant(Q)
     return pronet.run_filter(imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0,
-                             rpy0=rpy0, config=cfg, strategy=pronet.Strategy.constant(Q))  # fmt: skip
+                             rpy0=rpy0, config=cfg, strategy=q)  # fmt: skip
 
 
 @pytest.mark.parametrize("calibrated", [False, True])

@@ -260,8 +260,17 @@ class SensorConfig:
     locked/lost chain stepped at each due reading (mean time between losses, mean
     length of a loss; its own seeded stream, so a Monte Carlo stays the same for any
     thread count; a lost reading is a missed update, counted in
-    ``MonteCarloResult.missed_updates``). Defaults: the paper's (an ideal DVL, no
-    dropout)."""
+    ``MonteCarloResult.missed_updates``). ``dvl_period=0``: no DVL (a GNSS/INS or
+    depth-only run; the other DVL arguments are then unused). The aiding sensors,
+    applied by the filter's position updates with the σ they are simulated with:
+    ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s], the depth
+    of the IMU's point; ``fixes``, a list of position-fix sources, each a dict with
+    ``sigma`` (1σ [m] north, east and optionally down: without it the fixes carry no
+    height), and a schedule: ``period`` [s] (0 or absent: none), ``times`` [s] (single
+    fixes, each at the IMU epoch nearest it) and ``max_depth`` [m] (fixes only while
+    the true depth is at most this: at the surface). Each aiding sensor draws from its
+    own seeded stream: the other sensors' draws are the same with and without it.
+    Defaults: the paper's (an ideal DVL, no dropout, no depth sensor, no fixes)."""
 
     def __new__(
         cls,
@@ -277,6 +286,9 @@ class SensorConfig:
         dvl_scale: float = 0.0,
         dvl_misalignment: Any | None = None,
         dvl_dropout: Any | None = None,
+        depth_sigma: float | None = None,
+        depth_period: float = 1.0,
+        fixes: Any | None = None,
     ) -> SensorConfig: ...
     @property
     def imu_variance_times(self) -> list[float]: ...
@@ -304,6 +316,15 @@ class SensorConfig:
     @property
     def dvl_dropout(self) -> tuple[float, float] | None:
         """``(mean_interval, mean_length)`` [s] of the random bottom-lock loss, or None."""
+    @property
+    def depth_sigma(self) -> float | None:
+        """1σ of the depth sensor [m], or None without one."""
+    @property
+    def depth_period(self) -> float:
+        """Period of the depth sensor [s] (1 without one)."""
+    @property
+    def fixes(self) -> list[dict[str, Any]]:
+        """The position-fix sources, as the dicts the constructor takes."""
 
 def run_filter(
     imu: ArrayLike,

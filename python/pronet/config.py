@@ -30,6 +30,16 @@ mistakes too, so a misspelt key never silently falls back to a default.
     # lever_arm (3) [m, body FRD], dvl_outages = [[60, 120], [150, 210]]  ([start, end) [s])
     # dvl_dropout = [120, 20]   random bottom-lock loss: [mean time between losses, mean
     #                           # length of a loss] [s]; unset: none (see SensorConfig)
+    # dvl_period = 0            no DVL (a GNSS/INS or depth-only run)
+    depth_sigma = 0.1          # optional: a depth sensor, 1σ [m] ...
+    depth_period = 1.0         # ... every this many s
+    # fixes = []               no position fixes (over a base that has them)
+
+    [[sensors.fixes]]          # optional, repeatable: a source of position fixes
+    sigma = [2.5, 2.5]         # 1σ [m] north, east (and down: then the fix has a height)
+    period = 1.0               # [s]; 0 or absent: only the listed times
+    # times = [0.0, 600.0]     # [s] single fixes, each at the IMU epoch nearest it
+    max_depth = 0.5            # optional: fixes only while the true depth <= this [m]
 
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
     dvl_variance = [0.01, 0.01, 0.01]
@@ -119,6 +129,9 @@ SENSOR_KEYS = (
     "lever_arm",
     "dvl_outages",
     "dvl_dropout",
+    "depth_sigma",
+    "depth_period",
+    "fixes",
 )
 #: Keys of a ``[trajectory]`` table with their defaults (``builtin`` excludes the rest
 #: but ``dt_s``); the defaults are the paper trajectory's start.
@@ -334,7 +347,10 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         config = filter_config({"imu_dt": traj.dt}, f"{where}: [trajectory] dt_s", config)
     # the DVL period must be a whole number of IMU periods: named with the file now,
     # not by the first Monte Carlo
-    period_key = "[sensors]" if "dvl_period" in data.get("sensors", {}) else "[trajectory] dt_s:"
+    periods = ("dvl_period", "depth_period", "fixes")
+    period_key = (
+        "[sensors]" if any(k in data.get("sensors", {}) for k in periods) else "[trajectory] dt_s:"
+    )
     _native(f"{where}: {period_key}", lambda: _core.check_result_size(traj, sensors, n_runs=1))
     times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
     schedule = np.asarray(sensors.imu_variance, dtype=np.float64)

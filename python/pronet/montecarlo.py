@@ -81,6 +81,12 @@ class MonteCarloResult:
         missed_updates: ``(n_runs,)`` DVL readings that were due but missing (the
             sensors' ``dvl_dropout``: bottom lock lost; on a recorded section the rows
             skipped as missing readings); their NIS and NEES are NaN. 0 without.
+        depth_updates: ``(n_runs,)`` depth readings applied (the sensors'
+            ``depth_sigma``); 0 without a depth sensor.
+        fix_updates: ``(n_runs,)`` position fixes applied (the sensors' ``fixes``).
+        mean_aiding_nis: ``(n_runs,)`` the mean NIS per degree of freedom over the depth
+            and fix updates (1 when the filter is consistent with their σ); NaN without
+            any, or for a failed run.
         smoothed: with ``smooth=True``, the same result for the RTS-smoothed solution
             of every run: its ``srmse``, ``smae``, horizontal errors, ``nees`` (at the
             same DVL epochs) and ``error``/``sigma`` histories; the NIS, failures,
@@ -106,11 +112,19 @@ class MonteCarloResult:
     calibration_sigma: NDArray[np.float64] | None = None
     calibration_nees: NDArray[np.float64] | None = None
     missed_updates: NDArray[np.int64] | None = None
+    depth_updates: NDArray[np.int64] | None = None
+    fix_updates: NDArray[np.int64] | None = None
+    mean_aiding_nis: NDArray[np.float64] | None = None
     smoothed: MonteCarloResult | None = None
 
     def __post_init__(self) -> None:
-        if self.missed_updates is None:  # results made before the count existed
-            object.__setattr__(self, "missed_updates", np.zeros(len(self.srmse), np.int64))
+        n = len(self.srmse)
+        # results made before these existed: no missed readings, no aiding sensors
+        for name in ("missed_updates", "depth_updates", "fix_updates"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.zeros(n, np.int64))
+        if self.mean_aiding_nis is None:
+            object.__setattr__(self, "mean_aiding_nis", np.full(n, np.nan))
 
     @property
     def n_runs(self) -> int:
@@ -381,6 +395,7 @@ def result_of(out: dict) -> MonteCarloResult:
     if smoothed is None:
         return result
     return replace(result, smoothed=replace(result, q=None, **smoothed))
+
 
 #: The default window of raw IMU samples handed out at each tuning instant (the paper's N)
 #: and time between tuning instants [s]; :mod:`pronet.learn.hybrid` explains them.

@@ -179,7 +179,8 @@ def check_acts(strategy: StrategyLike, target: Scenario | Recorded, label: str =
     else:
         traj = target.trajectory
         n_samples, dt = traj.n_samples, traj.dt
-        n_updates = int(traj.duration / target.sensors.dvl_period + 1e-9)
+        period = target.sensors.dvl_period  # 0: no DVL, no update
+        n_updates = int(traj.duration / period + 1e-9) if period > 0 else 0
     where = f"{label}: " if label else ""
     span = f"the {n_samples * dt:g} s run"
     if isinstance(strategy, Learned):

@@ -99,7 +99,7 @@ pub struct Ensemble {
     k: usize,
     window: usize,
     tuning: TuningSchedule,
-    dvl_every: usize,
+    dvl_every: Option<usize>,
     record_every: usize,
 }
 

@@ -12,6 +12,7 @@ use crate::ekf::FilterConfig;
 use crate::error::{Error, Result};
 use crate::noise::StrategySpec;
 pub use crate::run::{History, Run, RunRecord, RunSummary};
+use crate::sensors::aiding::steps_per;
 use crate::sensors::SensorConfig;
 use crate::trajectory::Truth;
 use rayon::prelude::*;
@@ -30,24 +31,25 @@ pub struct Scenario {
 }
 
 impl Scenario {
-    /// IMU steps per DVL period, checking that the period is a whole number of steps.
-    pub fn dvl_every(&self) -> Result<usize> {
+    /// IMU steps per DVL period (None without a DVL), checking that the period is a
+    /// whole number of steps, and the aiding sensors' periods too.
+    pub fn dvl_every(&self) -> Result<Option<usize>> {
         self.sensors.validate()?;
         if self.truth.is_empty() {
             return Err(Error::invalid("trajectory", "has no IMU samples"));
         }
-        let ratio = self.sensors.dvl.period / self.truth.dt;
-        let steps = ratio.round();
-        if steps < 1.0 || (ratio - steps).abs() > 1e-6 * ratio {
-            return Err(Error::invalid(
-                "dvl_period",
-                format!(
-                    "must be a whole multiple of the IMU period {} s, got {} s",
-                    self.truth.dt, self.sensors.dvl.period
-                ),
-            ));
+        if let Some(d) = &self.sensors.depth {
+            steps_per(d.period, self.truth.dt, "depth_period")?;
         }
-        Ok(steps as usize)
+        for (j, f) in self.sensors.fixes.iter().enumerate() {
+            if f.period > 0.0 {
+                steps_per(f.period, self.truth.dt, &format!("fixes[{j}].period"))?;
+            }
+        }
+        if !self.sensors.dvl.enabled() {
+            return Ok(None);
+        }
+        steps_per(self.sensors.dvl.period, self.truth.dt, "dvl_period").map(Some)
     }
 
     /// `Err` naming `n_runs` when the records of `opts` on this scenario would take more
@@ -59,11 +61,11 @@ impl Scenario {
     pub fn check_result_size(
         &self,
         opts: &McOptions,
-        dvl_every: usize,
+        dvl_every: Option<usize>,
         state_bytes: usize,
     ) -> Result<()> {
         let steps = self.truth.len() as f64;
-        let epochs = (steps / dvl_every.max(1) as f64).floor();
+        let epochs = dvl_every.map_or(0.0, |every| (steps / every.max(1) as f64).floor());
         let records = match opts.record_every {
             0 => 0.0,
             every => (steps / every as f64).floor() + 1.0,
@@ -90,8 +92,12 @@ impl Scenario {
         Ok(())
     }
 
-    /// Times [s] of the DVL epochs (every `dvl_every` IMU steps) outside the outages.
-    pub fn dvl_epoch_times(&self, dvl_every: usize) -> Vec<f64> {
+    /// Times [s] of the DVL epochs (every `dvl_every` IMU steps) outside the outages;
+    /// none without a DVL.
+    pub fn dvl_epoch_times(&self, dvl_every: Option<usize>) -> Vec<f64> {
+        let Some(dvl_every) = dvl_every else {
+            return Vec::new();
+        };
         let mut times = epoch_times(&self.truth, dvl_every, false);
         times.retain(|&t| self.sensors.dvl.available(t));
         times

@@ -11,11 +11,13 @@ use crate::error::Result;
 use crate::mechanization::{ImuSample, NavState};
 use crate::montecarlo::Scenario;
 use crate::noise::{NoiseStrategy, StrategySpec};
-use crate::sensors::{normal, stream_rng, DvlMounting, SensorSim, Stream};
+use crate::sensors::{normal, stream_rng, AidingSim, DvlMounting, Reading, SensorSim, Stream};
 use crate::trajectory::Truth;
 use nalgebra::{Vector3, Vector4};
 
+mod aiding;
 mod smoothing;
+use aiding::AidingTally;
 pub use smoothing::SmoothedRecord;
 use smoothing::SmootherLog;
 
@@ -36,6 +38,13 @@ pub struct RunSummary {
     pub rejected_updates: usize,
     /// DVL readings due but missing (bottom lock lost: [`crate::sensors::DvlDropout`]).
     pub missed_updates: usize,
+    /// Depth readings and position fixes applied (the aiding sensors').
+    pub depth_updates: usize,
+    pub fix_updates: usize,
+    /// The sum of the depth and fix updates' NIS, and of their degrees of freedom (its
+    /// mean per degree of freedom is 1 when the filter is consistent).
+    pub aiding_nis: f64,
+    pub aiding_dof: usize,
     /// Time [s] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
     pub diverged_at: Option<f64>,
     /// Set when the filter failed numerically; the run's metrics are then NaN.
@@ -122,7 +131,12 @@ pub struct Run {
     /// Whether the strategy is told the true IMU variance before every step.
     oracle: bool,
     sim: SensorSim,
-    dvl_every: usize,
+    /// IMU steps per DVL reading; None without a DVL.
+    dvl_every: Option<usize>,
+    /// The depth sensor and position fixes; None without them.
+    aiding: Option<AidingSim>,
+    readings: Vec<Reading>,
+    tally: AidingTally,
     record_every: usize,
     k: usize,
     steps_since_update: usize,
@@ -262,13 +276,24 @@ impl Run {
         if let Some(q) = strategy.sensitivity_q() {
             ekf.track_sensitivity(q);
         }
-        let n_epochs = scenario.truth.len() / dvl_every;
+        let n_epochs = dvl_every.map_or(0, |every| scenario.truth.len() / every);
+        let sensors = &scenario.sensors;
+        let aiding = AidingSim::new(
+            sensors.depth.as_ref(),
+            &sensors.fixes,
+            &scenario.truth,
+            seed,
+            run_index,
+        )?;
         let mut run = Self {
             sim: SensorSim::new(&scenario.sensors, seed, run_index).with_turn_on_bias(true_bias),
             ekf,
             oracle: strategy.wants_true_variance(),
             strategy,
             dvl_every,
+            aiding,
+            readings: Vec::new(),
+            tally: AidingTally::default(),
             record_every,
             k: 0,
             steps_since_update: 0,
@@ -338,7 +363,10 @@ impl Run {
         let state = &truth.states[self.k];
         if self.failure.is_none() {
             let dvl = &scenario.sensors.dvl;
-            let due = self.k.is_multiple_of(self.dvl_every) && dvl.available(truth.time[self.k]);
+            let due = self
+                .dvl_every
+                .is_some_and(|every| self.k.is_multiple_of(every))
+                && dvl.available(truth.time[self.k]);
             let z = due.then(|| {
                 let gyro = Vector3::new(ideal[3], ideal[4], ideal[5]);
                 self.sim.dvl(dvl, state, &gyro)
@@ -355,6 +383,7 @@ impl Run {
                 }
                 z => z,
             };
+            let mut dvl_correction: Option<aiding::Fed> = None;
             match self.ekf.step(
                 &ImuSample::from_array(&raw),
                 truth.dt,
@@ -370,15 +399,29 @@ impl Run {
                         &scenario.sensors.dvl.mounting,
                     );
                     if let Some(log) = self.smoother.as_mut() {
-                        let dx = info.correction.unwrap_or_else(Vector15::zeros);
-                        let cal = info.calibration_correction.unwrap_or_default();
-                        let noise = self.strategy.process_noise();
-                        log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
                         log.update_epochs.push(Some(self.k));
                     }
+                    dvl_correction = Some((
+                        info.correction.unwrap_or_else(Vector15::zeros),
+                        info.calibration_correction.unwrap_or_default(),
+                    ));
                 }
                 Ok(None) => {}
                 Err(e) => self.failure = Some(format!("t = {} s: {e}", truth.time[self.k])),
+            }
+            let aiding = match self.failure {
+                None => self.apply_aiding(scenario, state, truth.time[self.k]),
+                Some(_) => None,
+            };
+            let correction = match (dvl_correction, aiding) {
+                (Some((a, ca)), Some((b, cb))) => {
+                    Some((a + b, std::array::from_fn(|i| ca[i] + cb[i])))
+                }
+                (a, b) => a.or(b),
+            };
+            if let (Some(log), Some((dx, cal))) = (self.smoother.as_mut(), correction) {
+                let noise = self.strategy.process_noise();
+                log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
             }
             if let Some(log) = self.smoother.as_mut() {
                 log.push(&self.ekf);
@@ -476,6 +519,10 @@ impl Run {
                 mean_nis: nan_if_failed(mean_nis),
                 rejected_updates: self.rejected_updates,
                 missed_updates: self.missed_updates,
+                depth_updates: self.tally.depth_updates,
+                fix_updates: self.tally.fix_updates,
+                aiding_nis: nan_if_failed(self.tally.nis_sum),
+                aiding_dof: self.tally.dof,
                 diverged_at: self.nis_monitor.diverged_at,
                 calibration: calibration_error(&self.ekf, mounting)
                     .filter(|_| !failed)

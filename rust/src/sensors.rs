@@ -9,6 +9,9 @@
 //! the filter strategy (common random numbers across strategies). The dropout stream
 //! is drawn only when a dropout model is set, and a missed reading still draws its DVL
 //! noise: the other streams are the same with and without dropout.
+//!
+//! The aiding sensors (a depth sensor, position fixes) are in [`aiding`]. The DVL is
+//! optional: a period of 0 means none (a GNSS/INS or depth-only simulation).
 
 use crate::attitude::{dcm_from_euler, euler_from_dcm, log_so3};
 use crate::error::{check, Error, Result};
@@ -17,6 +20,9 @@ use nalgebra::{Matrix3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+
+pub mod aiding;
+pub use aiding::{AidingSim, DepthModel, FixModel, Reading};
 
 /// Which random stream of a run.
 #[derive(Clone, Copy, Debug)]
@@ -247,7 +253,7 @@ impl DvlDropout {
 pub struct DvlModel {
     /// Per-axis noise variance [(m/s)²].
     pub variance: [f64; 3],
-    /// Measurement period [s] (1 s in the paper).
+    /// Measurement period [s] (1 s in the paper); 0: no DVL.
     pub period: f64,
     /// DVL position relative to the IMU, body frame [m].
     pub lever_arm: Vector3<f64>,
@@ -262,6 +268,12 @@ pub struct DvlModel {
 }
 
 impl DvlModel {
+    /// Whether there is a DVL (a period > 0).
+    #[inline]
+    pub fn enabled(&self) -> bool {
+        self.period != 0.0
+    }
+
     /// Whether a reading due at time `t` [s] exists (`t` is in no outage).
     #[inline]
     pub fn available(&self, t: f64) -> bool {
@@ -273,7 +285,12 @@ impl DvlModel {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SensorConfig {
     pub imu: ImuErrorModel,
+    /// The DVL (a period of 0: none).
     pub dvl: DvlModel,
+    /// A pressure depth sensor (None: none).
+    pub depth: Option<DepthModel>,
+    /// Sources of position fixes (none: empty).
+    pub fixes: Vec<FixModel>,
 }
 
 impl SensorConfig {
@@ -294,7 +311,14 @@ impl SensorConfig {
                 mounting: DvlMounting::default(),
                 dropout: None,
             },
+            depth: None,
+            fixes: Vec::new(),
         }
+    }
+
+    /// Whether any aiding sensor besides the DVL is configured.
+    pub fn has_aiding(&self) -> bool {
+        self.depth.is_some() || !self.fixes.is_empty()
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -305,7 +329,21 @@ impl SensorConfig {
         check::finite("imu_bias", &self.imu.bias)?;
         check::non_negative("imu_bias_psd", &self.imu.bias_rw_psd)?;
         check::non_negative("dvl_variance", &self.dvl.variance)?;
-        check::positive("dvl_period", self.dvl.period)?;
+        if !(self.dvl.period.is_finite() && self.dvl.period >= 0.0) {
+            return Err(Error::invalid(
+                "dvl_period",
+                format!(
+                    "must be finite and >= 0 s (0: no DVL), got {}",
+                    self.dvl.period
+                ),
+            ));
+        }
+        if let Some(d) = &self.depth {
+            d.validate()?;
+        }
+        for (i, f) in self.fixes.iter().enumerate() {
+            f.validate(i)?;
+        }
         check_lever_arm("lever_arm", self.dvl.lever_arm.as_slice())?;
         self.dvl.mounting.validate()?;
         if let Some(d) = &self.dvl.dropout {

@@ -152,7 +152,8 @@ def test_sensor_config_checks_every_field(args) -> None:
         var = var.reshape(-1, 6)
         assert var.shape[0] == len(times) >= 1 and times[0] == 0 and (np.diff(times) > 0).all()
         arrays = (var, times, refs["imu_bias"], refs["imu_bias_psd"], refs["dvl_variance"])
-        assert finite(*arrays, refs["dvl_period"], refs["lever_arm"]) and refs["dvl_period"] > 0
+        # a period of 0 is no DVL (a GNSS/INS or depth-only run); a negative one is refused
+        assert finite(*arrays, refs["dvl_period"], refs["lever_arm"]) and refs["dvl_period"] >= 0
         assert (var >= 0).all() and (refs["imu_bias_psd"] >= 0).all()
         assert (refs["dvl_variance"] >= 0).all()
         np.testing.assert_array_equal(out[0], var)
@@ -186,7 +187,8 @@ def test_innovation_gate_takes_a_positive_real_or_none(gate) -> None:
         (lambda: pronet.FilterConfig(aiding="sideways"), "aiding"),
         (lambda: pronet.SensorConfig(imu_variance=[-1.0] * 6), "imu_variance"),
         (lambda: pronet.SensorConfig(dvl_variance=[-1.0] * 3), "dvl_variance"),
-        (lambda: pronet.SensorConfig(dvl_period=0.0), "dvl_period"),
+        (lambda: pronet.SensorConfig(dvl_period=-1.0), "dvl_period"),
+        (lambda: pronet.SensorConfig(dvl_period=math.inf), "dvl_period"),
         (
             lambda: pronet.SensorConfig(imu_variance=[[1e-3] * 6] * 2, imu_variance_times=[0, 0]),
             "imu_variance_times",

@@ -1,6 +1,8 @@
 """The experiments: compositions of the run path (:func:`pronet.run.run`) that write
 one result folder each (:mod:`pronet.results`).
 
+- :mod:`~pronet.experiments.aided_calibration`: the DVL calibration states with
+  position fixes and depth (``scripts/aided_calibration.py``, ``docs/filter.md``);
 - :mod:`~pronet.experiments.consistency`: is the filter's σ honest, block by block,
   for every IMU grade (``scripts/consistency.py``, ``docs/accuracy.md``);
 - :mod:`~pronet.experiments.reproduce`: the paper's experiment end to end
@@ -14,4 +16,4 @@ one result folder each (:mod:`pronet.results`).
 Recorded sections have their own experiment, :mod:`pronet.recorded.real`.
 """
 
-__all__ = ["consistency", "reproduce", "simulation", "study", "sweep"]
+__all__ = ["aided_calibration", "consistency", "reproduce", "simulation", "study", "sweep"]

@@ -1,7 +1,7 @@
 """Simulated evaluation scenarios: a trajectory, its sensors, the filter's tuning and
 the true IMU noise schedule.
 
-Built-ins (:data:`SCENARIOS`), all on the paper's 330 s trajectory:
+Built-ins (:data:`SCENARIOS`), all but ``mission`` on the paper's 330 s trajectory:
 
 - the paper's reproduction (``pronet reproduce``, :data:`PAPER_SCENARIOS`): ``paper``
   (Table I, :func:`paper_scenario`) and ``varying-noise`` (each IMU channel's variance
@@ -11,7 +11,10 @@ Built-ins (:data:`SCENARIOS`), all on the paper's 330 s trajectory:
   random walk matched to the simulated IMU's (:data:`MATCHED_BIAS_PSD`): ``matched``
   (the paper's sensors), ``varying-matched`` (``varying-noise``'s schedule), ``regimes``
   (a realistic marine IMU switching between a quiet survey and vibration regimes,
-  :func:`regimes_scenario`) and ``outage`` (``regimes`` with three 60 s DVL outages).
+  :func:`regimes_scenario`), ``outage`` (``regimes`` with three 60 s DVL outages) and
+  ``mission`` (an AUV survey of 1036 s with all its sensors: GNSS at the surface, a dive,
+  a lawnmower at 30 m with USBL fixes every 60 s, a depth sensor throughout, the
+  ascent and a GNSS fix again; ``regimes``' IMU and DVL, :func:`mission_scenario`).
 
 A drawn noise schedule comes from the scenario's ``schedule_seed``: the Monte Carlo
 seed unless a scenario file sets its own. A user's scenario comes from a TOML file
@@ -20,14 +23,16 @@ seed unless a scenario file sets its own. A user's scenario comes from a TOML fi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from pronet import _core
 from pronet.sim.paper import PAPER_Q, paper_filter_config
-from pronet.trajectory import builtin_trajectory
+from pronet.trajectory import builtin_trajectory, trajectory_from_segments
 
 
 @dataclass(frozen=True)
@@ -120,15 +125,18 @@ def _scheduled(
     bias_psd: tuple[float, ...] = (0.0,) * 6,
     dvl_variance: tuple[float, float, float] = (0.01, 0.01, 0.01),
     dvl_outages: np.ndarray | None = None,
+    **aiding: Any,
 ) -> Scenario:
     """A scenario whose IMU follows the schedule ``times``, ``q``; the constant rows are
-    told its time average."""
+    told its time average. ``aiding``: the aiding sensors' arguments of
+    ``SensorConfig`` (``depth_sigma``, ``fixes`` ...)."""
     sensors = _core.SensorConfig(
         imu_variance=q,
         imu_variance_times=times,
         imu_bias_psd=bias_psd,
         dvl_variance=dvl_variance,
         dvl_outages=dvl_outages,
+        **aiding,
     )
     return Scenario(
         name=name,
@@ -241,8 +249,14 @@ def outage_scenario(seed: int = 0) -> Scenario:
     return _realistic("outage", seed, np.array(OUTAGES))
 
 
-def _realistic(name: str, seed: int, dvl_outages: np.ndarray | None = None) -> Scenario:
-    trajectory = builtin_trajectory("paper")
+def _realistic(
+    name: str,
+    seed: int,
+    dvl_outages: np.ndarray | None = None,
+    trajectory: _core.Trajectory | None = None,
+    **aiding: Any,
+) -> Scenario:
+    trajectory = trajectory if trajectory is not None else builtin_trajectory("paper")
     times, q, _ = regime_schedule(trajectory.duration, seed)
     return _scheduled(
         name,
@@ -254,6 +268,49 @@ def _realistic(name: str, seed: int, dvl_outages: np.ndarray | None = None) -> S
         MATCHED_BIAS_PSD,
         (REALISTIC_DVL_VARIANCE,) * 3,
         dvl_outages,
+        **aiding,
+    )
+
+
+#: The ``mission`` scenario's aiding sensors. GNSS at the surface: 1σ 2.5 m north and
+#: east (a consumer/marine receiver's horizontal accuracy, no height: the depth sensor
+#: has it), 1 Hz while the true depth is at most 0.5 m (the antenna above water). USBL
+#: acoustic fixes every 60 s, 1σ 3 m per axis (about 1 % of a few hundred metres of
+#: slant range with the ship's own GNSS and attitude errors). A pressure depth sensor,
+#: 1σ 0.1 m at 1 Hz (0.01-0.1 % of a 100-300 m full scale).
+MISSION_GNSS = {"sigma": [2.5, 2.5], "period": 1.0, "max_depth": 0.5}
+MISSION_USBL = {"sigma": [3.0, 3.0, 3.0], "period": 60.0}
+MISSION_DEPTH_SIGMA = 0.1
+
+
+def mission_trajectory(dt: float = 0.01) -> _core.Trajectory:
+    """An AUV survey at 1.5 m/s, 1036 s, heading north from 32° N, 34° E at the surface:
+    60 s at the surface, a dive (pitch down at 2°/s to −20°, held 48 s, levelled: 29.8 m
+    deep), a lawnmower of four 150 s legs (225 m) joined by 180° turns at 3°/s (57 m
+    apart, right then left), the ascent (the dive mirrored) and 60 s at the surface."""
+    deg = math.radians
+    rows = [[60.0, 0, 0, 0], [10.0, 0, 0, deg(-2)], [48.0, 0, 0, 0], [10.0, 0, 0, deg(2)]]
+    for leg in range(4):
+        rows.append([150.0, 0, 0, 0])
+        if leg < 3:
+            rows.append([60.0, 0, deg(3) if leg % 2 == 0 else deg(-3), 0])
+    rows += [[10.0, 0, 0, deg(2)], [48.0, 0, 0, 0], [10.0, 0, 0, deg(-2)], [60.0, 0, 0, 0]]
+    return trajectory_from_segments(
+        np.array(rows), lla0=(deg(32.0), deg(34.0), 0.0), speed0=1.5, dt=dt, name="mission"
+    )
+
+
+def mission_scenario(seed: int = 0) -> Scenario:
+    """An AUV mission (:func:`mission_trajectory`) with all its sensors: the DVL, IMU and
+    filter of ``regimes`` (its noise schedule drawn from ``seed`` over the mission), a
+    depth sensor throughout and position fixes: GNSS at the surface, USBL every 60 s
+    (:data:`MISSION_GNSS`, :data:`MISSION_USBL`, :data:`MISSION_DEPTH_SIGMA`)."""
+    return _realistic(
+        "mission",
+        seed,
+        trajectory=mission_trajectory(),
+        depth_sigma=MISSION_DEPTH_SIGMA,
+        fixes=[MISSION_GNSS, MISSION_USBL],
     )
 
 
@@ -277,8 +334,9 @@ SCENARIOS: dict[str, Callable[[int], Scenario]] = {
     "varying-matched": varying_matched_scenario,
     "regimes": regimes_scenario,
     "outage": outage_scenario,
+    "mission": mission_scenario,
 }
 #: The scenarios of the paper's reproduction (``pronet reproduce``).
 PAPER_SCENARIOS = ("paper", "varying-noise")
 #: The scenarios of the study (``pronet study``).
-STUDY_SCENARIOS = ("matched", "varying-matched", "regimes", "outage")
+STUDY_SCENARIOS = ("matched", "varying-matched", "regimes", "outage", "mission")

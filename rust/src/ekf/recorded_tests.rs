@@ -5,6 +5,17 @@ use super::*;
 use crate::ekf::tests::moving_state;
 use crate::ekf::Formulation;
 use crate::noise::StrategySpec;
+
+/// The filter these tests were written for: the covariance propagated at every IMU
+/// sample (the default steps it every 0.1 s; `ekf::interval` and the Python tests cover
+/// that).
+fn per_sample() -> FilterConfig {
+    FilterConfig {
+        covariance_step: 0.0,
+        ..FilterConfig::default()
+    }
+}
+
 #[test]
 fn recorded_data_is_validated() {
     let imu = [[0.0, 0.0, -9.8, 0.0, 0.0, 0.0]; 3];
@@ -67,7 +78,7 @@ fn a_set_cancel_flag_stops_a_pass() {
     let imu = vec![[0.01, 0.0, -9.79, 0.0, 1e-4, 0.0]; 10];
     let imu_time: Vec<f64> = (1..=10).map(|k| k as f64 * 0.01).collect();
     let data = imu_only(&imu, &imu_time);
-    let cfg = FilterConfig::default();
+    let cfg = per_sample();
     let pass = |cancel: &Cancel| {
         let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
         let bias = [0.0; 6];
@@ -113,7 +124,7 @@ fn keeping_the_last_epoch_changes_no_update_and_no_final_estimate() {
     ] {
         let cfg = FilterConfig {
             dvl_calibration: calibration,
-            ..FilterConfig::default()
+            ..per_sample()
         };
         let pass = |epochs| {
             let spec = StrategySpec::Constant { q: [1e-4; 6] };
@@ -163,7 +174,7 @@ fn covariances_are_kept_at_the_epochs_nearest_the_times_asked_for() {
     let dvl = vec![[0.5, 0.01, 0.0]; 4];
     let dvl_time = [0.5, 1.0, 1.5, 2.0];
     let times = [-0.1, -0.004, 0.004, 0.996, 1.0, 1.2449, 2.504, 2.6];
-    let cfg = FilterConfig::default();
+    let cfg = per_sample();
     let pass = |covariance_time: &[f64]| {
         let data = RecordedData {
             imu: &imu,
@@ -228,7 +239,7 @@ fn q_schedule_sets_external_q_from_its_epoch_on() {
     let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
     let dvl = vec![[0.0; 3]; 3];
     let dvl_time = [0.995, 2.0, 3.004];
-    let cfg = FilterConfig::default();
+    let cfg = per_sample();
     let init = moving_state();
     let (qa, qb) = ([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6], [4e-4; 6]);
     let run = |spec: StrategySpec, q_time: &[f64], q_values: &[[f64; 6]]| {
@@ -329,7 +340,7 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
     for formulation in [Formulation::Classic, Formulation::Invariant] {
         let cfg = FilterConfig {
             formulation,
-            ..FilterConfig::default()
+            ..per_sample()
         };
         for (spec, q_time, q_values) in &cases {
             let data = RecordedData {
@@ -430,7 +441,7 @@ fn covariance_step_closes_are_rebuilt_exactly() {
         let cfg = FilterConfig {
             formulation,
             covariance_step: 0.07,
-            ..FilterConfig::default()
+            ..per_sample()
         };
         for (spec, q_time, q_values) in &cases {
             let data = RecordedData {
@@ -499,7 +510,7 @@ fn covariance_step_closes_are_rebuilt_exactly() {
 #[test]
 fn covariances_where_asked_equal_the_step_by_step_ones() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(400);
-    let cfg = FilterConfig::default();
+    let cfg = per_sample();
     let data = RecordedData {
         imu: &imu,
         imu_time: &imu_time,
@@ -553,7 +564,7 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
 #[test]
 fn smoothing_without_measurements_changes_nothing() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
-    let cfg = FilterConfig::default();
+    let cfg = per_sample();
     let spec = StrategySpec::Constant { q: [1e-4; 6] };
     let pass = |dvl: &[[f64; 3]], dvl_time: &[f64], cfg: &FilterConfig| {
         let data = RecordedData {
@@ -594,7 +605,7 @@ fn smoothing_without_measurements_changes_nothing() {
     // the forward one, and equal at the end.
     let calibrated = FilterConfig {
         dvl_calibration: Some(super::super::calibration::CalibrationConfig::default()),
-        ..FilterConfig::default()
+        ..per_sample()
     };
     let aided = pass(&dvl, &dvl_time, &calibrated).unwrap();
     let s = aided.smoothed.unwrap();
@@ -613,7 +624,7 @@ fn smoothing_without_measurements_changes_nothing() {
 fn a_start_beyond_89_degrees_is_refused_naming_lla0() {
     let imu = [[0.0, 0.0, -9.8, 0.0, 0.0, 0.0]; 2];
     let data = imu_only(&imu, &[0.01, 0.02]);
-    let cfg = FilterConfig::default();
+    let cfg = per_sample();
     let init = NavState {
         lla: Vector3::new(-1.56, 0.0, 0.0),
         vel: Vector3::zeros(),

@@ -299,6 +299,7 @@ arg_converters! {
     arg_imu_dt: f64 = real_arg("imu_dt");
     arg_covariance_step: f64 = real_arg("covariance_step");
     arg_dvl_period: f64 = real_arg("dvl_period");
+    arg_depth_period: f64 = real_arg("depth_period");
     arg_tuning_period: f64 = real_arg("tuning_period");
     arg_aiding: String = text_arg("aiding");
     arg_formulation: String = text_arg("formulation");

@@ -52,6 +52,19 @@ pub(super) fn result_dict<'py>(py: Python<'py>, res: &McResult) -> PyResult<Boun
         Array1::from_iter(res.runs.iter().map(|r| r.summary.missed_updates as i64))
             .into_pyarray(py),
     )?;
+    d.set_item(
+        "depth_updates",
+        Array1::from_iter(res.runs.iter().map(|r| r.summary.depth_updates as i64)).into_pyarray(py),
+    )?;
+    d.set_item(
+        "fix_updates",
+        Array1::from_iter(res.runs.iter().map(|r| r.summary.fix_updates as i64)).into_pyarray(py),
+    )?;
+    // NaN without any depth or fix update
+    d.set_item(
+        "mean_aiding_nis",
+        col(&|s| s.aiding_nis / s.aiding_dof as f64),
+    )?;
     d.set_item("diverged_at", col(&|s| s.diverged_at.unwrap_or(f64::NAN)))?;
     let failures: Vec<Option<String>> =
         res.runs.iter().map(|r| r.summary.failure.clone()).collect();

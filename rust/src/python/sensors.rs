@@ -1,13 +1,18 @@
-//! `SensorConfig`: the simulated IMU and DVL.
+//! `SensorConfig`: the simulated IMU, DVL, depth sensor and position fixes.
 
-use super::convert::{arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, rows};
+use super::convert::{
+    arg_depth_period, arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, real_arg,
+    rows,
+};
 use super::{invalid, to_py_err};
 use crate::sensors::{
-    DvlDropout, DvlModel, DvlMounting, ImuErrorModel, SensorConfig, VarianceSchedule,
+    DepthModel, DvlDropout, DvlModel, DvlMounting, FixModel, ImuErrorModel, SensorConfig,
+    VarianceSchedule,
 };
 use nalgebra::Vector3;
 use numpy::PyArray2;
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString};
 
 /// Simulated sensors. ``imu_variance``: 6 per-sample variances, or with
 /// ``imu_variance_times`` (k,) [s, starting at 0] a ``(k, 6)`` piecewise-constant
@@ -20,8 +25,17 @@ use pyo3::prelude::*;
 /// locked/lost chain stepped at each due reading (mean time between losses, mean
 /// length of a loss; its own seeded stream, so a Monte Carlo stays the same for any
 /// thread count; a lost reading is a missed update, counted in
-/// ``MonteCarloResult.missed_updates``). Defaults: the paper's (an ideal DVL, no
-/// dropout).
+/// ``MonteCarloResult.missed_updates``). ``dvl_period=0``: no DVL (a GNSS/INS or
+/// depth-only run; the other DVL arguments are then unused). The aiding sensors,
+/// applied by the filter's position updates with the σ they are simulated with:
+/// ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s], the depth
+/// of the IMU's point; ``fixes``, a list of position-fix sources, each a dict with
+/// ``sigma`` (1σ [m] north, east and optionally down: without it the fixes carry no
+/// height), and a schedule: ``period`` [s] (0 or absent: none), ``times`` [s] (single
+/// fixes, each at the IMU epoch nearest it) and ``max_depth`` [m] (fixes only while
+/// the true depth is at most this: at the surface). Each aiding sensor draws from its
+/// own seeded stream: the other sensors' draws are the same with and without it.
+/// Defaults: the paper's (an ideal DVL, no dropout, no depth sensor, no fixes).
 #[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PySensorConfig {
@@ -50,7 +64,7 @@ fn variance(
 impl PySensorConfig {
     #[new]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None))]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = 1.0, fixes = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -63,6 +77,9 @@ impl PySensorConfig {
         #[pyo3(from_py_with = arg_dvl_scale)] dvl_scale: f64,
         dvl_misalignment: Option<&Bound<'_, PyAny>>,
         dvl_dropout: Option<&Bound<'_, PyAny>>,
+        depth_sigma: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_depth_period)] depth_period: f64,
+        fixes: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let dropout = match dvl_dropout {
             Some(d) => {
@@ -99,6 +116,17 @@ impl PySensorConfig {
                     DvlMounting::from_angles(dvl_scale, angles)
                 },
                 dropout,
+            },
+            depth: match depth_sigma {
+                Some(s) => Some(DepthModel {
+                    sigma: real_arg(s, "depth_sigma")?,
+                    period: depth_period,
+                }),
+                None => None,
+            },
+            fixes: match fixes {
+                Some(f) => fix_models(f)?,
+                None => Vec::new(),
             },
         };
         inner.validate().map_err(to_py_err)?;
@@ -155,9 +183,104 @@ impl PySensorConfig {
             .dropout
             .map(|d| (d.mean_interval, d.mean_length))
     }
+    /// 1σ of the depth sensor [m], or None without one.
+    #[getter]
+    fn depth_sigma(&self) -> Option<f64> {
+        self.inner.depth.map(|d| d.sigma)
+    }
+    /// Period of the depth sensor [s] (1 without one).
+    #[getter]
+    fn depth_period(&self) -> f64 {
+        self.inner.depth.map_or(1.0, |d| d.period)
+    }
+    /// The position-fix sources, as the dicts the constructor takes.
+    #[getter]
+    fn fixes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for f in &self.inner.fixes {
+            let d = PyDict::new(py);
+            let n = if f.has_height() { 3 } else { 2 };
+            d.set_item("sigma", f.sigma[..n].to_vec())?;
+            d.set_item("period", f.period)?;
+            d.set_item("times", f.times.clone())?;
+            d.set_item("max_depth", f.max_depth)?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
     fn __repr__(&self) -> String {
         format!("SensorConfig({:?})", self.inner)
     }
+}
+
+/// The keys of a position-fix source's dict.
+const FIX_KEYS: [&str; 4] = ["sigma", "period", "times", "max_depth"];
+
+/// The position-fix sources of `fixes`: a list of dicts of [`FIX_KEYS`], each error
+/// naming `fixes[i].key`.
+fn fix_models(fixes: &Bound<'_, PyAny>) -> PyResult<Vec<FixModel>> {
+    let refuse = || {
+        invalid(
+            "fixes",
+            "expected a list of dicts (sigma, period, times, max_depth)",
+        )
+    };
+    if fixes.is_instance_of::<PyString>() || fixes.is_instance_of::<PyDict>() {
+        return Err(refuse());
+    }
+    let mut out = Vec::new();
+    for (i, item) in fixes.try_iter().map_err(|_| refuse())?.enumerate() {
+        let item = item?;
+        let d = item.cast::<PyDict>().map_err(|_| {
+            invalid(
+                &format!("fixes[{i}]"),
+                "expected a dict with sigma, period, times, max_depth",
+            )
+        })?;
+        for key in d.keys() {
+            let key: String = key.extract().unwrap_or_else(|_| format!("{key}"));
+            if !FIX_KEYS.contains(&key.as_str()) {
+                return Err(invalid(
+                    &format!("fixes[{i}].{key}"),
+                    format!("unknown key; expected one of {}", FIX_KEYS.join(", ")),
+                ));
+            }
+        }
+        let name = |key: &str| format!("fixes[{i}].{key}");
+        let sigma = match d.get_item("sigma")? {
+            Some(s) => column(&s, &name("sigma"))?,
+            None => return Err(invalid(&name("sigma"), "missing; it is required")),
+        };
+        if !(sigma.len() == 2 || sigma.len() == 3) {
+            return Err(invalid(
+                &name("sigma"),
+                format!(
+                    "expected 2 (north, east) or 3 (north, east, down) values [m], got {}",
+                    sigma.len()
+                ),
+            ));
+        }
+        let scalar = |key: &str| -> PyResult<Option<f64>> {
+            match d.get_item(key)? {
+                Some(v) if !v.is_none() => Ok(Some(real_arg(&v, &name(key))?)),
+                _ => Ok(None),
+            }
+        };
+        out.push(FixModel {
+            sigma: [
+                sigma[0],
+                sigma[1],
+                sigma.get(2).copied().unwrap_or(f64::NAN),
+            ],
+            period: scalar("period")?.unwrap_or(0.0),
+            times: match d.get_item("times")? {
+                Some(t) if !t.is_none() => column(&t, &name("times"))?,
+                _ => Vec::new(),
+            },
+            max_depth: scalar("max_depth")?,
+        });
+    }
+    Ok(out)
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
