@@ -171,7 +171,8 @@ def add_parser(sub: Subparsers) -> None:
         default=None,
         help="your vehicle's tuning: a TOML file with a scenario's [filter] keys (p0_sigma, "
         "accel_bias_psd, gyro_bias_psd, dvl_variance, ...), grade = mems|tactical|fog and "
-        "imu_lever_arm/dvl_lever_arm (pronet.recorded.vehicle), or a grade's name alone "
+        "imu_lever_arm/dvl_lever_arm, depth_sigma/fix_sigma (pronet.recorded.vehicle), or "
+        "a grade's name alone "
         "(default: the FOG tuning of the Snapir AUV)",
     )
     parser.add_argument(
@@ -180,6 +181,14 @@ def add_parser(sub: Subparsers) -> None:
         help="also run the RTS smoother over every strategy row: each is followed by its "
         "smoothed row ('<label>, smoothed'), scored at the same ground-truth rows",
     )
+    for stream, what in (("depth", "depth readings"), ("fixes", "position fixes")):
+        parser.add_argument(
+            f"--no-{stream}",
+            action="store_true",
+            help=f"ignore the sections' {what} (the generic format's optional "
+            f"{'depth' if stream == 'depth' else 'fix'} table, pronet.recorded.aiding), e.g. "
+            "to compare the DVL alone with the aided filter",
+        )
     _add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
@@ -222,6 +231,8 @@ def run(args: argparse.Namespace) -> int:
             covariance_step=args.covariance_step,
             vehicle=vehicle,
             smooth=args.smooth,
+            use_depth=not args.no_depth,
+            use_fixes=not args.no_fixes,
             on_start=bars.start,
             on_done=bars.done,
         )

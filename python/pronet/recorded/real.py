@@ -24,13 +24,26 @@ from pronet import _core
 from pronet._util.cores import usable_cores
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
+from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import Format, Section, load_section, section_name, select_sections
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
-from pronet.recorded.passes import STOP, evaluate_section, run_section, section_recorded
+from pronet.recorded.passes import (
+    STOP,
+    evaluate_section,
+    run_section,
+    section_recorded,
+    with_aiding,
+)
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
-from pronet.recorded.tables import failed_records, real_config, real_tables, write_metrics
+from pronet.recorded.tables import (
+    aiding_record,
+    failed_records,
+    real_config,
+    real_tables,
+    write_metrics,
+)
 from pronet.recorded.tuning import (
     BOTH,
     DVL_CALIBRATION,
@@ -336,6 +349,8 @@ def run_real(
     covariance_step: float | None = None,
     vehicle: VehicleTuning | None = None,
     smooth: bool = False,
+    use_depth: bool = True,
+    use_fixes: bool = True,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -374,6 +389,11 @@ def run_real(
         smooth: also the RTS smoother over every strategy row: each is followed by its
             smoothed row (``"<label>, smoothed"``), its metrics taken at the same
             ground-truth rows (docs/filter.md, "The RTS smoother").
+        use_depth, use_fixes: False ignores the sections' depth readings or position
+            fixes (:mod:`pronet.recorded.aiding`; ``--no-depth``, ``--no-fixes``), e.g.
+            to compare the DVL alone with the aided filter. Used, they aid every row
+            (the inertial sanity run aside), their σ the file's, else ``vehicle``'s
+            ``depth_sigma``/``fix_sigma``, else the defaults of that module.
         vehicle: the vehicle's own tuning (``--filter``,
             :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
             aiding, gate, formulation and lever arms; default the FOG tuning of
@@ -402,6 +422,9 @@ def run_real(
                 "sample: smooth with covariance_step=0"
             )
     imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
+    aiding = AidingTuning(use_depth=use_depth, use_fixes=use_fixes)
+    if vehicle is not None:
+        aiding = vehicle.aiding(aiding)
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
@@ -410,7 +433,8 @@ def run_real(
 
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
-            return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+            pair = load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+            return with_aiding(pair[0], aiding), with_aiding(pair[1], aiding)
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)
 
@@ -461,6 +485,7 @@ def run_real(
         )
         config["filter_file"] = None if vehicle is None else vehicle.source
         config["smooth"] = smooth
+        config["aiding"] = aiding_record(aiding, [a for a, _ in done.sections])
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pronet.recorded import missing
+from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes
 from pronet.recorded.alignment import Format, Section
 from pronet.recorded.tuning import real_filter_config
 from pronet.results import (
@@ -429,3 +430,24 @@ def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
         out.update({key: list(m.variance), f"{key}_passes": m.passes})
         out[f"{key}_converged"] = m.converged
     return out
+
+
+def aiding_record(tuning: AidingTuning, sections: list[Section]) -> dict[str, object]:
+    """``config.json``'s ``aiding``: what was used, the default σ, and per section the
+    rows used and skipped of each stream with their median σ [m]."""
+
+    def stream(x: DepthReadings | PositionFixes | None) -> dict[str, object] | None:
+        if x is None:
+            return None
+        sigma = None if x.sigma is None else np.median(x.sigma, axis=0).tolist()
+        return {"rows": len(x.time), "skipped": len(x.skipped_time), "sigma_m": sigma}
+
+    return {
+        "use_depth": tuning.use_depth,
+        "use_fixes": tuning.use_fixes,
+        "depth_sigma_m": tuning.depth_sigma,
+        "fix_sigma_m": list(tuning.fix_sigma),
+        "sections": {
+            a.name: {"depth": stream(a.depth), "fixes": stream(a.fixes)} for a in sections
+        },
+    }
