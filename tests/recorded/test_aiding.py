@@ -202,6 +202,9 @@ def test_fixes_bound_the_horizontal_error_where_the_dvl_alone_drifts(tmp_path, m
     used = config["aiding"]["sections"]["sec"]
     assert used["fixes"]["rows"] == 13 and used["depth"]["rows"] == 800
     assert used["fixes"]["sigma_m"] == [2.0, 2.0, 2.0] and used["depth"]["sigma_m"] == 0.05
+    table = (tmp_path / "aided" / "table.md").read_text()
+    assert "### Depth and position fixes" in table and "| sec | 800 (0) | 0.05 |" in table
+    assert "### Depth and position fixes" not in (tmp_path / "alone" / "table.md").read_text()
     ignored = json.loads((tmp_path / "alone" / "config.json").read_text())["aiding"]
     assert ignored["sections"]["sec"] == {"depth": None, "fixes": None}
 

@@ -163,6 +163,8 @@ def plan_section(
             not_run[label] = str(exc)
             del strategies[label]
     try:
+        if not len(section.dvl):
+            raise ValueError("the section has no DVL readings")
         first = next(iter(strategies.values()))
         noise = estimate_dvl_noise(section, first, arm, formulation, base, covariance_step)
     except ValueError as exc:

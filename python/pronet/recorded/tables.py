@@ -335,6 +335,11 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "mean_nis", "Per section"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
+                [aiding_table(done)]
+                if any(a.depth is not None or a.fixes is not None for a, _ in done.sections)
+                else []
+            ),
+            *(
                 [dvl_skipped_table(done)]
                 if any(len(a.dvl_skipped_time) for a, _ in done.sections)
                 else []
@@ -451,3 +456,30 @@ def aiding_record(tuning: AidingTuning, sections: list[Section]) -> dict[str, ob
             a.name: {"depth": stream(a.depth), "fixes": stream(a.fixes)} for a in sections
         },
     }
+
+
+def aiding_table(done: RealRuns) -> str:
+    """Markdown: each section's depth readings and position fixes as used (rows,
+    skipped as missing, median σ) and the first strategy row's mean NIS of each (χ² of
+    1 dof for a depth, 2 or 3 for a fix when the filter is consistent)."""
+    lines = []
+    for aligned, _ in done.sections:
+        first = next((r for r in done.runs if r.section == aligned.name), None)
+        cells: list[str] = [aligned.name]
+        for stream, nis in (
+            (aligned.depth, None if first is None else first.result.depth_nis),
+            (aligned.fixes, None if first is None else first.result.fix_nis),
+        ):
+            if stream is None:
+                cells += ["—", "—", "—"]
+                continue
+            sigma = "" if stream.sigma is None else np.median(stream.sigma, axis=0)
+            shown = " / ".join(f"{v:.3g}" for v in np.atleast_1d(sigma))
+            finite = np.empty(0) if nis is None else nis[np.isfinite(nis)]
+            mean = format_number(float(np.mean(finite)), "{:.2f}") if len(finite) else "undefined"
+            cells += [f"{len(stream.time)} ({len(stream.skipped_time)})", shown, mean]
+        lines.append(cells)
+    header = ["section", "depth rows (skipped)", "depth σ [m]", "depth mean NIS",
+              "fixes (skipped)", "fix σ N / E / D [m]", "fix mean NIS"]  # fmt: skip
+    title = f"Depth and position fixes (mean NIS: {done.runs[0].label})"
+    return markdown(header, lines, title)
