@@ -81,9 +81,10 @@ def _realdata_files() -> None:
     from dataclasses import replace
 
     import numpy as np
-    from synthetic_recording import synthetic_recording, with_aiding
 
     from pronet.recorded.recordings import write_recording
+
+    from synthetic_recording import synthetic_recording, with_aiding
 
     dive = with_aiding(synthetic_recording(seed=5, duration=240.0, name="dive"), seed=5)
     write_recording("dive", replace(dive, dvl=np.empty((0, 3)), dvl_time=np.empty(0)))

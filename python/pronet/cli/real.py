@@ -60,6 +60,32 @@ def _add_bag_options(parser: argparse.ArgumentParser) -> None:
             default=None,
             help=f"the {what} topic, {types} (default {getattr(defaults, name)})",
         )
+    for name, what, types in (
+        ("depth", "depth (pressure)", "sensor_msgs/msg/FluidPressure"),
+        ("fix", "position-fix", "sensor_msgs/msg/NavSatFix"),
+    ):
+        bag.add_argument(
+            f"--{name}-topic",
+            metavar="TOPIC",
+            default=None,
+            help=f"the {what} topic, {types} (default: none read)",
+        )
+    bag.add_argument(
+        "--water-density",
+        metavar="KG_M3",
+        type=float,
+        default=None,
+        help=f"the water's density of the pressure-to-depth conversion (default "
+        f"{defaults.water_density:g}, sea water)",
+    )
+    bag.add_argument(
+        "--surface-pressure",
+        metavar="PA",
+        type=float,
+        default=None,
+        help=f"the pressure at the surface taken off the depth topic's (default "
+        f"{defaults.surface_pressure:g}, the standard atmosphere; 0 for a gauge sensor)",
+    )
     bag.add_argument(
         "--origin",
         metavar="LAT,LON,HEIGHT",
@@ -92,6 +118,10 @@ def bag_topics(args: argparse.Namespace) -> BagTopics | None:
         "origin": ("--origin", args.origin),
         "body_frame": ("--body-frame", args.body_frame),
         "world_frame": ("--world-frame", args.world_frame),
+        "depth": ("--depth-topic", args.depth_topic),
+        "fix": ("--fix-topic", args.fix_topic),
+        "water_density": ("--water-density", args.water_density),
+        "surface_pressure": ("--surface-pressure", args.surface_pressure),
     }
     given = {k: value for k, (_, value) in options.items() if value is not None}
     if args.format != "bag":

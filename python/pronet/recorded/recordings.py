@@ -254,7 +254,8 @@ def _read_bag(path: Path, topics: BagTopics | None) -> Recording:
         raise RecordingError(str(exc)) from None
     tables = {}
     for kind, (where, values) in streams.items():
-        labels = [f"{name} [{next(iter(units))}]" for name, units in COLUMNS[kind].items()]
+        columns = [*_SPEC[kind].items(), *OPTIONAL.get(kind, {}).items()][: values.shape[1]]
+        labels = [f"{name} [{next(iter(units))}]" for name, units in columns]
         picks = [(i, 1.0) for i in range(values.shape[1])]
         tables[kind] = Table(_finish(where, values, picks, labels, kind), where, labels)
     name = path.stem if path.is_file() else path.name
