@@ -18,8 +18,7 @@ import pronet
 from pronet.cli import main
 from pronet.recorded.aiding import DEFAULT_FIX_SIGMA, AidingTuning
 from pronet.recorded.alignment import load_section
-from pronet.recorded.passes import run_section
-from pronet.recorded.passes import with_aiding as section_with_aiding
+from pronet.recorded.passes import aided_section, run_section
 from pronet.recorded.real import run_real
 from pronet.recorded.recordings import RecordingError, read_recording, write_recording
 from pronet.recorded.tuning import real_filter_config, white_noise_q
@@ -231,7 +230,7 @@ def test_gnss_ins_without_a_dvl_runs_forward_and_smoothed(tmp_path, miscalibrate
     assert free.metrics.final_horizontal > 3 * rows[CONSTANT]["final_horizontal_error"]
     with pytest.raises(ValueError, match="no DVL reading, depth or position fix .ignored: "
                        "--no-depth, --no-fixes.: nothing aids the IMU"):  # fmt: skip
-        section_with_aiding(section, AidingTuning(use_depth=False, use_fixes=False))
+        aided_section(section, AidingTuning(use_depth=False, use_fixes=False))
 
 
 def test_depth_holds_the_height_of_a_gnss_ins_run(miscalibrated):
@@ -243,7 +242,7 @@ def test_depth_holds_the_height_of_a_gnss_ins_run(miscalibrated):
     q, cfg = white_noise_q(section.imu), real_filter_config(section.alignment.filter_lever_arm)
     down = {}
     for use_depth in (True, False):
-        aided = section_with_aiding(section, AidingTuning(use_depth=use_depth))
+        aided = aided_section(section, AidingTuning(use_depth=use_depth))
         result = run_section(aided, pronet.Strategy.constant(q), cfg).result
         truth = np.interp(result.time, section.truth_time, section.truth_lla[:, 2])
         down[use_depth] = np.abs(result.lla[:, 2] - truth)[result.time > section.truth_time[0] + 10]

@@ -53,14 +53,6 @@ def _add_bag_options(parser: argparse.ArgumentParser) -> None:
         ("imu", "IMU", "sensor_msgs/msg/Imu"),
         ("dvl", "DVL", "geometry_msgs/msg/TwistWithCovarianceStamped or TwistStamped"),
         ("truth", "ground truth", "nav_msgs/msg/Odometry or geometry_msgs/msg/PoseStamped"),
-    ):
-        bag.add_argument(
-            f"--{name}-topic",
-            metavar="TOPIC",
-            default=None,
-            help=f"the {what} topic, {types} (default {getattr(defaults, name)})",
-        )
-    for name, what, types in (
         ("depth", "depth (pressure)", "sensor_msgs/msg/FluidPressure"),
         ("fix", "position-fix", "sensor_msgs/msg/NavSatFix"),
     ):
@@ -68,7 +60,7 @@ def _add_bag_options(parser: argparse.ArgumentParser) -> None:
             f"--{name}-topic",
             metavar="TOPIC",
             default=None,
-            help=f"the {what} topic, {types} (default: none read)",
+            help=f"the {what} topic, {types} (default {getattr(defaults, name) or 'none read'})",
         )
     bag.add_argument(
         "--water-density",

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,8 +80,23 @@ DEFAULT_DEPTH_SIGMA = 0.1
 DEFAULT_FIX_SIGMA = (2.0, 2.0, 4.0)
 
 
+_S = TypeVar("_S", bound="_Stream")
+
+
+class _Stream:
+    """What a depth and a fix stream share: their stamps, on a clock."""
+
+    time: F64
+    skipped_time: F64
+
+    def on_clock(self: _S, clock: Callable[[F64], F64]) -> _S:
+        """The same stream with every stamp mapped by ``clock``."""
+        mapped = {"time": clock(self.time), "skipped_time": clock(self.skipped_time)}
+        return replace(self, **mapped)  # type: ignore[type-var]  # each subclass: a dataclass
+
+
 @dataclass(frozen=True)
-class DepthReadings:
+class DepthReadings(_Stream):
     """A depth stream as read (SI).
 
     Attributes:
@@ -100,13 +115,9 @@ class DepthReadings:
     skipped_reason: tuple[str, ...] = ()
     source: str = ""
 
-    def on_clock(self, clock: Callable[[F64], F64]) -> DepthReadings:
-        """The same readings with every stamp mapped by ``clock``."""
-        return replace(self, time=clock(self.time), skipped_time=clock(self.skipped_time))
-
 
 @dataclass(frozen=True)
-class PositionFixes:
+class PositionFixes(_Stream):
     """A position-fix stream as read (SI).
 
     Attributes:
@@ -122,10 +133,6 @@ class PositionFixes:
     skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     skipped_reason: tuple[str, ...] = ()
     source: str = ""
-
-    def on_clock(self, clock: Callable[[F64], F64]) -> PositionFixes:
-        """The same fixes with every stamp mapped by ``clock``."""
-        return replace(self, time=clock(self.time), skipped_time=clock(self.skipped_time))
 
 
 def may_be_missing(kind: str, names: list[str]) -> list[int]:

@@ -34,7 +34,7 @@ def start_index(section: Section) -> int:
     return int(inside[0])
 
 
-def with_aiding(section: Section, tuning: AidingTuning) -> Section:
+def aided_section(section: Section, tuning: AidingTuning) -> Section:
     """``section`` with its depth and fixes as ``tuning`` has them (σ where the file
     has none, a stream ignored); ValueError when nothing is left to aid the IMU (no
     DVL, and its depth and fixes absent or ignored)."""

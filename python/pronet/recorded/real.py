@@ -31,10 +31,10 @@ from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
 from pronet.recorded.passes import (
     STOP,
+    aided_section,
     evaluate_section,
     run_section,
     section_recorded,
-    with_aiding,
 )
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
 from pronet.recorded.tables import (
@@ -436,7 +436,7 @@ def run_real(
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
             pair = load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
-            return with_aiding(pair[0], aiding), with_aiding(pair[1], aiding)
+            return aided_section(pair[0], aiding), aided_section(pair[1], aiding)
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)
 
