@@ -224,6 +224,12 @@ def test_gnss_ins_without_a_dvl_runs_forward_and_smoothed(tmp_path, miscalibrate
     )
     config = json.loads((tmp_path / "gnss" / "config.json").read_text())
     assert "mehra xi=1" in config["rows_not_run"]["sec"]
+    # --no-dvl on the recording with its DVL is the recording without it, to the bit
+    ignored = _run(miscalibrated[0].parent, tmp_path / "no-dvl", smooth=True, use_dvl=False)
+    assert ignored.keys() == rows.keys()
+    for label, row in rows.items():
+        assert ignored[label]["final_horizontal_error"] == row["final_horizontal_error"], label
+        assert ignored[label]["srmse"] == row["srmse"], label
     section, _ = load_section(no_dvl, "generic", **ARMS)
     q, cfg = white_noise_q(section.imu), real_filter_config(section.alignment.filter_lever_arm)
     free = run_section(section, pronet.Strategy.constant(q), cfg, aided=False)

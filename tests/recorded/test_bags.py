@@ -226,11 +226,14 @@ def test_depth_from_pressure_and_fixes_from_navsatfix(tmp_path, storage, sigma_i
     with pytest.raises(RecordingError, match=r"\[/dvl/twist\]: the fix topic holds "):
         read_recording(path, replace(topics, fix="/dvl/twist"))
     assert read_recording(path, replace(topics, depth=None, fix=None)).fixes is None
+    assert len(read_recording(path, replace(topics, dvl=None)).dvl) == 0  # GNSS/INS
+    with pytest.raises(RecordingError, match="without a DVL topic, needs a depth or a fix"):
+        read_recording(path, replace(topics, dvl=None, depth=None, fix=None))
     origin = ",".join(map(str, topics.origin or ()))
     argv = ["real", "--format", "bag", "--data", str(path), "--origin", origin, *ARMS,
             "--depth-topic", "/depth/pressure", "--fix-topic", "/gnss/fix", "--no-models",
-            "--no-plots", "--quiet", "--out", str(tmp_path / "out")]  # fmt: skip
+            "--no-plots", "--quiet", "--no-dvl", "--out", str(tmp_path / "out")]  # fmt: skip
     assert main(argv) == 0
     config = json.loads((tmp_path / "out" / "config.json").read_text())
-    assert config["format"]["fix_topic"] == "/gnss/fix"
+    assert config["format"]["fix_topic"] == "/gnss/fix" and config["format"]["dvl_topic"] is None
     assert config["aiding"]["sections"]["mission"]["fixes"]["rows"] == len(rec.fixes.time) - 1

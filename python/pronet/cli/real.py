@@ -121,6 +121,8 @@ def bag_topics(args: argparse.Namespace) -> BagTopics | None:
             names = ", ".join(options[k][0] for k in given)
             raise ValueError(f"{names}: only with --format bag")
         return None
+    if args.no_dvl:
+        given["dvl"] = None
     return BagTopics(**given)
 
 
@@ -203,13 +205,16 @@ def add_parser(sub: Subparsers) -> None:
         help="also run the RTS smoother over every strategy row: each is followed by its "
         "smoothed row ('<label>, smoothed'), scored at the same ground-truth rows",
     )
-    for stream, what in (("depth", "depth readings"), ("fixes", "position fixes")):
+    for stream, what in (
+        ("depth", "depth readings (a depth table or --depth-topic; pronet.recorded.aiding)"),
+        ("fixes", "position fixes (a fix table or --fix-topic; pronet.recorded.aiding)"),
+        ("dvl", "DVL (a bag's DVL topic is then not read): a GNSS/INS or depth-and-fix run"),
+    ):
         parser.add_argument(
             f"--no-{stream}",
             action="store_true",
-            help=f"ignore the sections' {what} (the generic format's optional "
-            f"{'depth' if stream == 'depth' else 'fix'} table, pronet.recorded.aiding), e.g. "
-            "to compare the DVL alone with the aided filter",
+            help=f"ignore the sections' {what}, e.g. to compare the DVL alone with the "
+            "aided filter",
         )
     _add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
@@ -255,6 +260,7 @@ def run(args: argparse.Namespace) -> int:
             smooth=args.smooth,
             use_depth=not args.no_depth,
             use_fixes=not args.no_fixes,
+            use_dvl=not args.no_dvl,
             on_start=bars.start,
             on_done=bars.done,
         )

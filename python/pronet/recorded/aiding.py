@@ -288,18 +288,20 @@ def against_truth(
 
 @dataclass(frozen=True)
 class AidingTuning:
-    """What ``pronet real`` does with a section's depth and fixes.
+    """What ``pronet real`` does with a section's aiding sensors: DVL, depth, fixes.
 
     Attributes:
         depth_sigma: the depth's 1σ [m] where the file has none.
         fix_sigma: the fixes' 1σ north, east, down [m] where the file has none.
-        use_depth, use_fixes: False ignores the stream (``--no-depth``, ``--no-fixes``).
+        use_depth, use_fixes, use_dvl: False ignores the stream (``--no-depth``,
+            ``--no-fixes``, ``--no-dvl``).
     """
 
     depth_sigma: float = DEFAULT_DEPTH_SIGMA
     fix_sigma: tuple[float, float, float] = DEFAULT_FIX_SIGMA
     use_depth: bool = True
     use_fixes: bool = True
+    use_dvl: bool = True
 
     def __post_init__(self) -> None:
         sigma = (self.depth_sigma, *self.fix_sigma)

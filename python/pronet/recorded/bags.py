@@ -122,7 +122,8 @@ class BagTopics:
     """Which topics of a bag are the IMU, the DVL and the truth, and their frames.
 
     Attributes:
-        imu, dvl, truth: topic names (see the module docstring for their types).
+        imu, dvl, truth: topic names (see the module docstring for their types); ``dvl``
+            None: the DVL is not read (the bag then needs a depth or a fix topic).
         origin: the truth's local origin: latitude, longitude [deg], height [m, up]
             (required: a bag's poses are local metres).
         body_frame: ``"flu"`` (REP-103, the default) or ``"frd"``: the IMU's, the DVL's
@@ -136,7 +137,7 @@ class BagTopics:
     """
 
     imu: str = "/imu/data"
-    dvl: str = "/dvl/twist"
+    dvl: str | None = "/dvl/twist"
     truth: str = "/odometry"
     origin: tuple[float, float, float] | None = None
     body_frame: str = "flu"
@@ -338,6 +339,8 @@ def bag_streams(
 
     topics = topics or BagTopics()
     path = Path(path)
+    if topics.dvl is None and topics.depth is None and topics.fix is None:
+        raise BagError(f"{path}: without a DVL topic, needs a depth or a fix topic")
     if not is_bag(path):
         raise BagError(
             f"{path}: not a ROS bag (a .bag file, or a ROS 2 bag folder with metadata.yaml)"
@@ -347,7 +350,9 @@ def bag_streams(
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.LATEST)) as reader:
             imu_msgs = _messages(reader, path, topics.imu, "IMU", IMU_TYPES)
-            dvl_msgs = _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
+            dvl_msgs = (
+                [] if topics.dvl is None else _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
+            )
             truth_msgs = _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
             aiding = {
                 kind: (topic, _messages(reader, path, topic, kind, types, least=1))
@@ -377,6 +382,7 @@ def bag_streams(
             ("dvl", topics.dvl, dvl),
             ("gt", topics.truth, truth),
         )
+        if topic is not None
     }
     if "depth" in aiding:
         topic, msgs = aiding["depth"]

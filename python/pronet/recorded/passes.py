@@ -35,16 +35,27 @@ def start_index(section: Section) -> int:
 
 
 def aided_section(section: Section, tuning: AidingTuning) -> Section:
-    """``section`` with its depth and fixes as ``tuning`` has them (σ where the file
-    has none, a stream ignored); ValueError when nothing is left to aid the IMU (no
-    DVL, and its depth and fixes absent or ignored)."""
+    """``section`` with its DVL, depth and fixes as ``tuning`` has them (σ where the
+    file has none, a stream ignored: ``use_dvl=False`` leaves no DVL row, used or
+    skipped); ValueError when nothing is left to aid the IMU."""
     depth, fixes = tuned(section.depth, section.fixes, tuning)
+    if not tuning.use_dvl:
+        empty = np.empty(0)
+        section = dataclasses.replace(
+            section,
+            dvl=np.empty((0, 3)),
+            dvl_time=empty,
+            dvl_skipped_time=empty,
+            dvl_skipped_reason=(),
+            dvl_variance=None,
+        )
     if not len(section.dvl) and depth is None and fixes is None:
         ignored = [
             flag
             for flag, stream, used in (
                 ("--no-depth", section.depth, tuning.use_depth),
                 ("--no-fixes", section.fixes, tuning.use_fixes),
+                ("--no-dvl", True, tuning.use_dvl),
             )
             if stream is not None and not used
         ]

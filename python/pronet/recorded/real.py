@@ -353,6 +353,7 @@ def run_real(
     smooth: bool = False,
     use_depth: bool = True,
     use_fixes: bool = True,
+    use_dvl: bool = True,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -396,6 +397,8 @@ def run_real(
             to compare the DVL alone with the aided filter. Used, they aid every row
             (the inertial sanity run aside), their σ the file's, else ``vehicle``'s
             ``depth_sigma``/``fix_sigma``, else the defaults of that module.
+        use_dvl: False ignores the sections' DVL (``--no-dvl``): a GNSS/INS or
+            depth-and-fix run of a recording that has one.
         vehicle: the vehicle's own tuning (``--filter``,
             :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
             aiding, gate, formulation and lever arms; default the FOG tuning of
@@ -424,7 +427,7 @@ def run_real(
                 "sample: smooth with covariance_step=0"
             )
     imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
-    aiding = AidingTuning(use_depth=use_depth, use_fixes=use_fixes)
+    aiding = AidingTuning(use_depth=use_depth, use_fixes=use_fixes, use_dvl=use_dvl)
     if vehicle is not None:
         aiding = vehicle.aiding(aiding)
     paths = select_sections(data, sections)

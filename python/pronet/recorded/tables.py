@@ -450,6 +450,7 @@ def aiding_record(tuning: AidingTuning, sections: list[Section]) -> dict[str, ob
     return {
         "use_depth": tuning.use_depth,
         "use_fixes": tuning.use_fixes,
+        "use_dvl": tuning.use_dvl,
         "depth_sigma_m": tuning.depth_sigma,
         "fix_sigma_m": list(tuning.fix_sigma),
         "sections": {
