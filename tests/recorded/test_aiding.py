@@ -157,6 +157,11 @@ def test_the_dvl_is_optional_but_one_aiding_stream_is_needed(tmp_path, aided_80s
     assert len(rec.dvl) == 0 and rec.fixes is not None
     npz = write_recording(tmp_path / "sec.npz", rec)
     assert len(read_recording(npz).dvl) == 0
+    arrays = dict(np.load(npz))
+    del arrays["fix_columns"]  # half a table is not left out silently
+    np.savez(tmp_path / "half.npz", **arrays)
+    with pytest.raises(RecordingError, match=r"half\.npz: needs arrays 'fix' and 'fix_columns'"):
+        read_recording(tmp_path / "half.npz")
     for name in ("depth.csv", "fix.csv"):
         (folder / name).unlink()
     with pytest.raises(RecordingError, match=r"no dvl\.csv or dvl\.csv\.gz \(nor depth\.csv"):

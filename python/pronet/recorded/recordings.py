@@ -447,12 +447,12 @@ def _read_npz(path: Path) -> dict[str, Table]:
         raise RecordingError(f"{path}: not a readable .npz ({exc})") from None
     tables = {}
     with archive:
-        has = {k for k in _SPEC if k in archive.files and f"{k}_columns" in archive.files}
+        has = {k for k in _SPEC if k in archive.files or f"{k}_columns" in archive.files}
         for kind in _SPEC:
             where = f"{path}[{kind}]"
             if kind not in has and (kind in _OPTIONAL_TABLES and has & set(_OPTIONAL_TABLES)):
-                continue
-            if kind not in has:
+                continue  # an optional table left out (a half of one is an error, below)
+            if kind not in archive.files or f"{kind}_columns" not in archive.files:
                 raise RecordingError(f"{path}: needs arrays {kind!r} and '{kind}_columns'")
             data = _npz_array(archive, path, kind, "numbers: np.asarray(table, dtype=float)")
             names = f"{kind}_columns"
