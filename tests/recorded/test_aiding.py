@@ -24,7 +24,13 @@ from pronet.recorded.recordings import RecordingError, read_recording, write_rec
 from pronet.recorded.tuning import real_filter_config, white_noise_q
 from pronet.recorded.vehicle import load_vehicle
 
-from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording, with_aiding
+from synthetic_recording import (
+    DVL_LEVER_ARM,
+    GT_CLOCK,
+    IMU_LEVER_ARM,
+    synthetic_recording,
+    with_aiding,
+)
 
 ARMS = {"imu_lever_arm": IMU_LEVER_ARM, "dvl_lever_arm": DVL_LEVER_ARM}
 CONSTANT = "constant (estimated q)"
@@ -281,3 +287,28 @@ def test_the_command_line_ignores_the_fixes_on_request(tmp_path, aided_80s, caps
     aiding = json.loads((tmp_path / "out" / "config.json").read_text())["aiding"]
     assert aiding["use_fixes"] is False and aiding["sections"]["sec"]["fixes"] is None
     assert aiding["sections"]["sec"]["depth"]["rows"] == 160
+
+
+def test_depth_and_fixes_stamped_on_another_streams_clock(tmp_path, aided_80s) -> None:
+    """Depth and fixes stamped by the ground truth's logger (offset −0.45 s, scale
+    0.9975): ``aiding_clock="gt"`` puts them on the IMU clock through its estimated
+    clock; as given (``"imu"``) they stay up to 0.65 s late over the 80 s."""
+    assert aided_80s.depth is not None and aided_80s.fixes is not None
+    true_depth, true_fix = aided_80s.depth.time, aided_80s.fixes.time
+
+    def logger(t: np.ndarray) -> np.ndarray:  # IMU time → the truth logger's stamps
+        return (t - GT_CLOCK.offset) / GT_CLOCK.scale
+
+    rec = replace(aided_80s, depth=aided_80s.depth.on_clock(logger),
+                  fixes=aided_80s.fixes.on_clock(logger))  # fmt: skip
+    folder = write_recording(tmp_path / "sec", rec)
+    on_gt, _ = load_section(folder, "generic", **ARMS, aiding_clock="gt")
+    as_given, _ = load_section(folder, "generic", **ARMS)
+    epoch = float(rec.imu_time[0])  # every section time counts from the first IMU stamp
+    assert on_gt.depth is not None and on_gt.fixes is not None and as_given.fixes is not None
+    np.testing.assert_allclose(on_gt.fixes.time, true_fix - epoch, rtol=0, atol=1e-3)
+    np.testing.assert_allclose(on_gt.depth.time, true_depth - epoch, rtol=0, atol=1e-3)
+    late = as_given.fixes.time - (true_fix - epoch)
+    assert 0.4 < late.min() and late.max() < 0.7
+    with pytest.raises(ValueError, match="aiding_clock: expected one of imu, dvl, gt"):
+        load_section(folder, "generic", **ARMS, aiding_clock="depth")

@@ -18,7 +18,7 @@ from pronet.cli._common import (
     add_result_folder,
     add_tuning_period,
 )
-from pronet.recorded.alignment import FORMATS
+from pronet.recorded.alignment import AIDING_CLOCKS, FORMATS
 from pronet.recorded.bags import BagTopics, require_rosbags
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
 from pronet.recorded.plausible import PlausibilityWarning
@@ -216,6 +216,14 @@ def add_parser(sub: Subparsers) -> None:
             help=f"ignore the sections' {what}, e.g. to compare the DVL alone with the "
             "aided filter",
         )
+    parser.add_argument(
+        "--aiding-clock",
+        choices=AIDING_CLOCKS,
+        default="imu",
+        help="the clock the depth and fixes are stamped on: the IMU's (their stamps as "
+        "given, the default), or the DVL's or the ground truth's as estimated (one logger "
+        "stamping both)",
+    )
     _add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     add_no_plots(parser)
@@ -261,6 +269,7 @@ def run(args: argparse.Namespace) -> int:
             use_depth=not args.no_depth,
             use_fixes=not args.no_fixes,
             use_dvl=not args.no_dvl,
+            aiding_clock=args.aiding_clock,
             on_start=bars.start,
             on_done=bars.done,
         )

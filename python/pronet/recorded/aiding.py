@@ -18,9 +18,10 @@ fix   ``time [s]``, ``lat``, ``lon [rad | deg]``; optional ``height [m]`` (up: a
 
 Both refer to the IMU's point (the filter's rule, ``run_filter(depth=, fix=)``): a
 depth sensor or an antenna away from it is not moved. Their stamps are taken on the
-IMU's clock, counted from the section's epoch as every stream's
-(:class:`pronet.recorded.alignment.Alignment`'s ``aiding_clock``, identity unless
-given): no clock is estimated for them.
+IMU's clock, counted from the section's epoch as every stream's, or on the DVL's or the
+ground truth's as estimated (:func:`pronet.recorded.alignment.load_section`'s
+``aiding_clock``, :class:`~pronet.recorded.alignment.Alignment`'s): no clock is
+estimated from the depth or the fixes themselves.
 
 Missing values are skipped, never fatal, as the DVL's
 (:mod:`pronet.recorded.missing`): a depth row with a NaN or empty depth or σ cell, a

@@ -357,6 +357,8 @@ def align(rec: Recording, alignment: Alignment) -> Section:
 FORMATS = ("snapir", "generic", "bag")
 #: A format's name, or a bag's topics and frames (the ``bag`` format).
 Format = str | BagTopics
+#: The clocks the depth and fixes may be stamped on (:func:`load_section`).
+AIDING_CLOCKS = ("imu", "dvl", "gt")
 
 
 def find_sections(data: str | Path) -> list[Path]:
@@ -399,11 +401,18 @@ def load_section(
     imu_lever_arm: tuple[float, float, float],
     dvl_lever_arm: tuple[float, float, float],
     handle_alignment: bool = True,
+    aiding_clock: str = "imu",
 ) -> tuple[Section, Section]:
     """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
     lever arms applied, and the stamps as given with no lever arms (the comparison).
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
-    (``"bag"``: the default topics)."""
+    (``"bag"``: the default topics). ``aiding_clock`` (:data:`AIDING_CLOCKS`): the
+    clock the depth and fixes are stamped on, the IMU's (their stamps as given) or the
+    estimated clock of the DVL or of the ground truth (one logger stamping both)."""
+    if aiding_clock not in AIDING_CLOCKS:
+        raise ValueError(
+            f"aiding_clock: expected one of {', '.join(AIDING_CLOCKS)}, got {aiding_clock!r}"
+        )
     from pronet.recorded.recordings import RecordingError, read_recording, read_snapir
 
     if is_bag(path) and not (isinstance(fmt, BagTopics) or fmt == "bag"):
@@ -417,7 +426,11 @@ def load_section(
     stamped = align(rec, Alignment(how="none"))
     if not handle_alignment:
         return stamped, stamped
-    return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
+    alignment = estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)
+    if aiding_clock != "imu":
+        clock = alignment.dvl_clock if aiding_clock == "dvl" else alignment.gt_clock
+        alignment = replace(alignment, aiding_clock=clock)
+    return align(rec, alignment), stamped
 
 
 def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:

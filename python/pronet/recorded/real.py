@@ -25,7 +25,14 @@ from pronet._util.cores import usable_cores
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
 from pronet.recorded.aiding import AidingTuning
-from pronet.recorded.alignment import Format, Section, load_section, section_name, select_sections
+from pronet.recorded.alignment import (
+    AIDING_CLOCKS,
+    Format,
+    Section,
+    load_section,
+    section_name,
+    select_sections,
+)
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
@@ -354,6 +361,7 @@ def run_real(
     use_depth: bool = True,
     use_fixes: bool = True,
     use_dvl: bool = True,
+    aiding_clock: str = "imu",
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -399,6 +407,8 @@ def run_real(
             ``depth_sigma``/``fix_sigma``, else the defaults of that module.
         use_dvl: False ignores the sections' DVL (``--no-dvl``): a GNSS/INS or
             depth-and-fix run of a recording that has one.
+        aiding_clock: the clock of the depth and fixes' stamps, ``"imu"`` (as given),
+            ``"dvl"`` or ``"gt"`` (that stream's estimated clock; ``--aiding-clock``).
         vehicle: the vehicle's own tuning (``--filter``,
             :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
             aiding, gate, formulation and lever arms; default the FOG tuning of
@@ -415,6 +425,9 @@ def run_real(
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
+    if aiding_clock not in AIDING_CLOCKS:
+        choices = ", ".join(AIDING_CLOCKS)
+        raise ValueError(f"--aiding-clock: must be one of {choices}, got {aiding_clock!r}")
     base = None if vehicle is None else vehicle.base
     checked = real_filter_config(  # checked now
         (0.0, 0.0, 0.0), formulation=formulation, base=base, covariance_step=covariance_step
@@ -438,7 +451,9 @@ def run_real(
 
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
-            pair = load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+            pair = load_section(
+                path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm, aiding_clock=aiding_clock
+            )
             return aided_section(pair[0], aiding), aided_section(pair[1], aiding)
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)
@@ -490,7 +505,10 @@ def run_real(
         )
         config["filter_file"] = None if vehicle is None else vehicle.source
         config["smooth"] = smooth
-        config["aiding"] = aiding_record(aiding, [a for a, _ in done.sections])
+        config["aiding"] = {
+            "clock": aiding_clock,
+            **aiding_record(aiding, [a for a, _ in done.sections]),
+        }
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))

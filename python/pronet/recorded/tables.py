@@ -390,6 +390,7 @@ def real_config(
                 "epoch_s": a.epoch,
                 "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
                 "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
+                "aiding": [a.alignment.aiding_clock.offset, a.alignment.aiding_clock.scale],
             }
             for a, _ in done.sections
         },
