@@ -451,10 +451,9 @@ def run_real(
 
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
-            pair = load_section(
+            return load_section(
                 path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm, aiding_clock=aiding_clock
             )
-            return aided_section(pair[0], aiding), aided_section(pair[1], aiding)
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)
 
@@ -465,10 +464,14 @@ def run_real(
         closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
     ):  # closed however the loop ends: the reads not yet started are cancelled
         for path, section in zip(paths, reading, strict=True):  # in order
-            if isinstance(section, str):
-                unread[section_name(path)] = section
-            else:
-                loaded.append(section)
+            try:  # the streams --no-dvl/--no-depth/--no-fixes leave, their sigma
+                if isinstance(section, str):
+                    raise ValueError(section)
+                loaded.append(
+                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
+                )
+            except ValueError as exc:
+                unread[section_name(path)] = str(exc)
             if on_done is not None:
                 on_done(path.name)
     if not loaded:  # nothing to run: the first reason, before any filter
