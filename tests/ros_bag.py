@@ -4,13 +4,14 @@ ROS vehicle would record it: the inverse of :mod:`pronet.recorded.bags`."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from pronet import local_ned
 from pronet.recorded.alignment import dcm_from_euler
-from pronet.recorded.bags import BagTopics
+from pronet.recorded.bags import STANDARD_GRAVITY, BagTopics
 from pronet.recorded.recordings import Recording
 
 #: Added to every stamp: bags carry Unix time (and ROS 1 stamps are unsigned).
@@ -27,11 +28,17 @@ def write_bag(
     topics: BagTopics | None = None,
     truth: str = "odometry",
     dvl_covariance: np.ndarray | None = None,
+    no_fix: tuple[int, ...] = (),
 ) -> tuple[Path, BagTopics]:
     """Write ``rec`` as a bag at ``path`` (``storage``: ``rosbag1``, ``sqlite3`` or
     ``mcap``) and return it with the topics (origin: the truth's first row) to read it.
     ``truth``: ``odometry`` or ``pose``; ``dvl_covariance``: ``(m, 3)`` per-message
-    diagonals (a TwistWithCovarianceStamped; None: a TwistStamped)."""
+    diagonals (a TwistWithCovarianceStamped; None: a TwistStamped). The recording's
+    depth and fixes, if any, go on ``topics.depth`` and ``topics.fix`` (default
+    ``/depth/pressure`` and ``/gnss/fix`` in the returned topics) as FluidPressure (the
+    inverse of the bag reader's conversion, variance 0 where the depth has no σ) and
+    NavSatFix (σ as a DIAGONAL_KNOWN covariance, or UNKNOWN without; the fixes of
+    index ``no_fix`` with the status NO_FIX)."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin
     from rosbags.rosbag2 import Writer as Writer2
@@ -43,6 +50,10 @@ def write_bag(
     t = ts.types
     origin = np.degrees(rec.gt_lla[0, :2]).tolist() + [float(rec.gt_lla[0, 2])]
     topics = topics or BagTopics(origin=(origin[0], origin[1], origin[2]))
+    if topics.depth is None and rec.depth is not None:
+        topics = replace(topics, depth="/depth/pressure")
+    if topics.fix is None and rec.fixes is not None:
+        topics = replace(topics, fix="/gnss/fix")
 
     def header(stamp: float):  # noqa: ANN202
         sec = int(np.floor(stamp))
@@ -103,6 +114,33 @@ def write_bag(
         else:
             msg = t[truth_type](header=header(stamp), pose=pose)
         msgs.append((stamp, topics.truth, truth_type, msg))
+    if rec.depth is not None and topics.depth is not None:
+        kind = "sensor_msgs/msg/FluidPressure"
+        rho_g = topics.water_density * STANDARD_GRAVITY
+        sigma = np.zeros(len(rec.depth.time)) if rec.depth.sigma is None else rec.depth.sigma
+        for stamp, depth, s in zip(rec.depth.time, rec.depth.depth, sigma, strict=True):
+            p = float(depth * rho_g + topics.surface_pressure)
+            msg = t[kind](header=header(stamp), fluid_pressure=p, variance=float((s * rho_g) ** 2))
+            msgs.append((stamp, topics.depth, kind, msg))
+    if rec.fixes is not None and topics.fix is not None:
+        kind = "sensor_msgs/msg/NavSatFix"
+        for k, stamp in enumerate(rec.fixes.time):
+            lat, lon, h = rec.fixes.lla[k]
+            cov = np.zeros(9)
+            if rec.fixes.sigma is not None:
+                cov[[4, 0, 8]] = rec.fixes.sigma[k] ** 2  # N, E, D into ENU order
+            msg = t[kind](
+                header=header(stamp),
+                status=t["sensor_msgs/msg/NavSatStatus"](
+                    status=-1 if k in no_fix else 0, service=1
+                ),
+                latitude=float(np.degrees(lat)),
+                longitude=float(np.degrees(lon)),
+                altitude=float(h),
+                position_covariance=cov,
+                position_covariance_type=0 if rec.fixes.sigma is None else 2,
+            )
+            msgs.append((stamp, topics.fix, kind, msg))
     msgs.sort(key=lambda m: m[0])
     if ros1:
         writer = Writer1(path)

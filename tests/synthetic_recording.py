@@ -5,7 +5,7 @@ be checked against the truth."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -144,3 +144,41 @@ def synthetic_recording(
         source="synthetic",
     )
     return Synthetic(rec, traj, t_gt)
+
+
+def with_aiding(
+    synthetic: Synthetic,
+    seed: int = 0,
+    depth_every: float = 0.5,
+    depth_sigma: float = 0.05,
+    fix_every: float = 30.0,
+    fix_sigma: float = 2.0,
+    sigma_in_file: bool = True,
+) -> Recording:
+    """``synthetic``'s recording with depth readings every ``depth_every`` s (white
+    noise of ``depth_sigma`` [m]) and position fixes every ``fix_every`` s (white noise
+    of ``fix_sigma`` [m] per NED axis, every other one horizontal), both at the IMU's
+    point and stamped on its clock (:mod:`pronet.recorded.aiding`); their σ in the
+    recording with ``sigma_in_file``, else none (the filter's as tuned)."""
+    from pronet.recorded.aiding import DepthReadings, PositionFixes
+
+    traj, rng = synthetic.trajectory, np.random.default_rng(seed + 7)
+    step = int(round(depth_every / traj.dt))
+    k = np.arange(step, len(traj.time), step)
+    depth = -traj.lla[k, 2] + rng.normal(size=len(k)) * depth_sigma
+    f = np.arange(int(round(fix_every / traj.dt)), len(traj.time), int(round(fix_every / traj.dt)))
+    radii = np.array([pronet.earth_radii(float(lat)) for lat in traj.lla[f, 0]])
+    noise = rng.normal(size=(len(f), 3)) * fix_sigma
+    lla = traj.lla[f].copy()
+    lla[:, 0] += noise[:, 0] / (radii[:, 0] + lla[:, 2])
+    lla[:, 1] += noise[:, 1] / ((radii[:, 1] + lla[:, 2]) * np.cos(lla[:, 0]))
+    lla[:, 2] -= noise[:, 2]
+    lla[1::2, 2] = np.nan
+    sigma = np.full((len(f), 3), fix_sigma)
+    return replace(
+        synthetic.recording,
+        depth=DepthReadings(
+            traj.time[k], depth, np.full(len(k), depth_sigma) if sigma_in_file else None
+        ),
+        fixes=PositionFixes(traj.time[f], lla, sigma if sigma_in_file else None),
+    )

@@ -63,25 +63,40 @@ def _cli_md(ns: dict) -> None:
 def _realdata_md(ns: dict) -> None:
     assert ns["rec"].name == "mission" and len(ns["rec"].imu) > 0
     assert Path("mission-csv").is_dir()
+    # the depth-and-fixes example: a GNSS/INS dive without a DVL, and the run of it
+    assert len(ns["dive"].dvl) == 0 and len(ns["dive"].fixes.time) == 8
+    constant = "constant (estimated q)"
+    assert f"{constant}, smoothed" in ns["aided"].index
+    assert ns["aided"][constant] < ns["final"]["depth-only"][constant] / 3
 
 
 #: What each page's session must have produced, beyond running without an error.
 CHECKS = {"learning.md": _learning_md, "cli.md": _cli_md, "realdata.md": _realdata_md}
 
 
-def _mission_bag() -> None:
-    """realdata.md's worked example reads ``mission.bag``: a ROS 1 bag written here
-    (the current folder is a temporary one) from a simulated recording."""
+def _realdata_files() -> None:
+    """realdata.md's worked examples read ``dive/`` (a folder of IMU, ground-truth,
+    depth and fix CSVs, no DVL) and ``mission.bag`` (a ROS 1 bag), written here (the
+    current folder is a temporary one) from simulated recordings."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from pronet.recorded.recordings import write_recording
+
+    from synthetic_recording import synthetic_recording, with_aiding
+
+    dive = with_aiding(synthetic_recording(seed=5, duration=240.0, name="dive"), seed=5)
+    write_recording("dive", replace(dive, dvl=np.empty((0, 3)), dvl_time=np.empty(0)))
     pytest.importorskip("rosbags.highlevel", reason="the rosbags extra is not installed")
     from ros_bag import write_bag
-    from synthetic_recording import synthetic_recording
 
     recording = synthetic_recording(seed=3, name="mission").recording
     write_bag(Path("mission.bag"), recording, "rosbag1")
 
 
 #: What a page's blocks read, made in a temporary current folder before they run.
-SETUP = {"realdata.md": _mission_bag}
+SETUP = {"realdata.md": _realdata_files}
 
 
 @pytest.mark.parametrize("page", pages_with_python(), ids=lambda p: p.name)

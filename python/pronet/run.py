@@ -19,9 +19,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal, overload
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,6 +54,9 @@ class Recorded:
         epochs: which epochs the result keeps: ``"all"``, or ``"last"`` for a pass
             whose updates alone are read (see :func:`pronet.run_filter`).
         smooth: also the RTS smoother over the pass (``FilterResult.smoothed``).
+        aiding: depth readings and position fixes, as :func:`pronet.run_filter`'s
+            keywords (``depth``, ``depth_time``, ``depth_sigma``, ``fix``, ``fix_time``,
+            ``fix_sigma``); empty for none.
     """
 
     imu: F64
@@ -67,6 +70,7 @@ class Recorded:
     config: _core.FilterConfig
     epochs: Literal["all", "last"] = "all"
     smooth: bool = False
+    aiding: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -232,6 +236,7 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
         smooth=rec.smooth,
         q_time=q_time,
         q=q,
+        **rec.aiding,
     )
     return RecordedRun(result, schedule, time.perf_counter() - start, period)
 

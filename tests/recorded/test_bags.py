@@ -187,3 +187,53 @@ def test_without_the_extra_it_is_named_in_one_line(tmp_path, monkeypatch, capsys
     assert main([*argv, "--out", str(tmp_path / "out")]) == 2
     err_lines = capsys.readouterr().err.strip().splitlines()
     assert len(err_lines) == 1 and "pip install 'pronet[rosbags]'" in err_lines[0]
+
+
+@pytest.mark.parametrize("storage", ["mcap", "rosbag1"])
+@pytest.mark.parametrize("sigma_in_file", [True, False])
+def test_depth_from_pressure_and_fixes_from_navsatfix(tmp_path, storage, sigma_in_file):
+    """FluidPressure [Pa] read back as depth [m] through the documented conversion, and
+    NavSatFix as fixes, its covariance (ENU) as σ north, east, down; a fix without a
+    covariance, or a pressure without a variance, leaves σ as tuned; a NO_FIX status is
+    a missing value; the topics are options, and pronet real runs on the bag."""
+    unix, write_bag = _rosbags()
+    from synthetic_recording import with_aiding
+
+    rec = with_aiding(synthetic_recording(seed=3, duration=60.0, name="mission"), seed=3,
+                      fix_every=10.0, sigma_in_file=sigma_in_file)  # fmt: skip
+    name = "mission.bag" if storage == "rosbag1" else "mission"
+    path, topics = write_bag(tmp_path / name, rec, storage, no_fix=(2,))
+    assert topics.depth == "/depth/pressure" and topics.fix == "/gnss/fix"
+    got = read_recording(path, topics)
+    assert got.depth is not None and got.fixes is not None
+    assert rec.depth is not None and rec.fixes is not None
+    np.testing.assert_allclose(got.depth.time - unix, rec.depth.time, rtol=0, atol=3e-7)
+    np.testing.assert_allclose(got.depth.depth, rec.depth.depth, rtol=0, atol=1e-9)
+    kept = np.arange(len(rec.fixes.time)) != 2  # the third: NO_FIX, skipped
+    assert got.fixes.skipped_reason == ("nan",)
+    np.testing.assert_allclose(got.fixes.skipped_time - unix, rec.fixes.time[2], atol=3e-7)
+    np.testing.assert_allclose(got.fixes.lla[:, :2], rec.fixes.lla[kept, :2], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(got.fixes.lla[:, 2], rec.fixes.lla[kept, 2])  # NaN: horizontal
+    if sigma_in_file:
+        np.testing.assert_allclose(got.depth.sigma, rec.depth.sigma, rtol=1e-12)  # type: ignore[arg-type]
+        np.testing.assert_allclose(got.fixes.sigma, rec.fixes.sigma[kept], rtol=1e-15)  # type: ignore[index]
+    else:
+        assert got.depth.sigma is None and got.fixes.sigma is None
+    # a surface pressure of 2 bar: 10 m too shallow, refused against the truth
+    with pytest.raises(RecordingError, match=r"\[/depth/pressure\]: column 'depth' lies a "
+                       r"median -1\d\.\d+ m from the ground truth's depth"):  # fmt: skip
+        read_recording(path, replace(topics, surface_pressure=2e5))
+    with pytest.raises(RecordingError, match=r"\[/dvl/twist\]: the fix topic holds "):
+        read_recording(path, replace(topics, fix="/dvl/twist"))
+    assert read_recording(path, replace(topics, depth=None, fix=None)).fixes is None
+    assert len(read_recording(path, replace(topics, dvl=None)).dvl) == 0  # GNSS/INS
+    with pytest.raises(RecordingError, match="without a DVL topic, needs a depth or a fix"):
+        read_recording(path, replace(topics, dvl=None, depth=None, fix=None))
+    origin = ",".join(map(str, topics.origin or ()))
+    argv = ["real", "--format", "bag", "--data", str(path), "--origin", origin, *ARMS,
+            "--depth-topic", "/depth/pressure", "--fix-topic", "/gnss/fix", "--no-models",
+            "--no-plots", "--quiet", "--no-dvl", "--out", str(tmp_path / "out")]  # fmt: skip
+    assert main(argv) == 0
+    config = json.loads((tmp_path / "out" / "config.json").read_text())
+    assert config["format"]["fix_topic"] == "/gnss/fix" and config["format"]["dvl_topic"] is None
+    assert config["aiding"]["sections"]["mission"]["fixes"]["rows"] == len(rec.fixes.time) - 1

@@ -18,7 +18,7 @@ from pronet.cli._common import (
     add_result_folder,
     add_tuning_period,
 )
-from pronet.recorded.alignment import FORMATS
+from pronet.recorded.alignment import AIDING_CLOCKS, FORMATS
 from pronet.recorded.bags import BagTopics, require_rosbags
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
 from pronet.recorded.plausible import PlausibilityWarning
@@ -53,13 +53,31 @@ def _add_bag_options(parser: argparse.ArgumentParser) -> None:
         ("imu", "IMU", "sensor_msgs/msg/Imu"),
         ("dvl", "DVL", "geometry_msgs/msg/TwistWithCovarianceStamped or TwistStamped"),
         ("truth", "ground truth", "nav_msgs/msg/Odometry or geometry_msgs/msg/PoseStamped"),
+        ("depth", "depth (pressure)", "sensor_msgs/msg/FluidPressure"),
+        ("fix", "position-fix", "sensor_msgs/msg/NavSatFix"),
     ):
         bag.add_argument(
             f"--{name}-topic",
             metavar="TOPIC",
             default=None,
-            help=f"the {what} topic, {types} (default {getattr(defaults, name)})",
+            help=f"the {what} topic, {types} (default {getattr(defaults, name) or 'none read'})",
         )
+    bag.add_argument(
+        "--water-density",
+        metavar="KG_M3",
+        type=float,
+        default=None,
+        help=f"the water's density of the pressure-to-depth conversion (default "
+        f"{defaults.water_density:g}, sea water)",
+    )
+    bag.add_argument(
+        "--surface-pressure",
+        metavar="PA",
+        type=float,
+        default=None,
+        help=f"the pressure at the surface taken off the depth topic's (default "
+        f"{defaults.surface_pressure:g}, the standard atmosphere; 0 for a gauge sensor)",
+    )
     bag.add_argument(
         "--origin",
         metavar="LAT,LON,HEIGHT",
@@ -92,6 +110,10 @@ def bag_topics(args: argparse.Namespace) -> BagTopics | None:
         "origin": ("--origin", args.origin),
         "body_frame": ("--body-frame", args.body_frame),
         "world_frame": ("--world-frame", args.world_frame),
+        "depth": ("--depth-topic", args.depth_topic),
+        "fix": ("--fix-topic", args.fix_topic),
+        "water_density": ("--water-density", args.water_density),
+        "surface_pressure": ("--surface-pressure", args.surface_pressure),
     }
     given = {k: value for k, (_, value) in options.items() if value is not None}
     if args.format != "bag":
@@ -99,6 +121,8 @@ def bag_topics(args: argparse.Namespace) -> BagTopics | None:
             names = ", ".join(options[k][0] for k in given)
             raise ValueError(f"{names}: only with --format bag")
         return None
+    if args.no_dvl:
+        given["dvl"] = None
     return BagTopics(**given)
 
 
@@ -171,7 +195,8 @@ def add_parser(sub: Subparsers) -> None:
         default=None,
         help="your vehicle's tuning: a TOML file with a scenario's [filter] keys (p0_sigma, "
         "accel_bias_psd, gyro_bias_psd, dvl_variance, ...), grade = mems|tactical|fog and "
-        "imu_lever_arm/dvl_lever_arm (pronet.recorded.vehicle), or a grade's name alone "
+        "imu_lever_arm/dvl_lever_arm, depth_sigma/fix_sigma (pronet.recorded.vehicle), or "
+        "a grade's name alone "
         "(default: the FOG tuning of the Snapir AUV)",
     )
     parser.add_argument(
@@ -179,6 +204,25 @@ def add_parser(sub: Subparsers) -> None:
         action="store_true",
         help="also run the RTS smoother over every strategy row: each is followed by its "
         "smoothed row ('<label>, smoothed'), scored at the same ground-truth rows",
+    )
+    for stream, what in (
+        ("depth", "depth readings (a depth table or --depth-topic; pronet.recorded.aiding)"),
+        ("fixes", "position fixes (a fix table or --fix-topic; pronet.recorded.aiding)"),
+        ("dvl", "DVL (a bag's DVL topic is then not read): a GNSS/INS or depth-and-fix run"),
+    ):
+        parser.add_argument(
+            f"--no-{stream}",
+            action="store_true",
+            help=f"ignore the sections' {what}, e.g. to compare the DVL alone with the "
+            "aided filter",
+        )
+    parser.add_argument(
+        "--aiding-clock",
+        choices=AIDING_CLOCKS,
+        default="imu",
+        help="the clock the depth and fixes are stamped on: the IMU's (their stamps as "
+        "given, the default), or the DVL's or the ground truth's as estimated (one logger "
+        "stamping both)",
     )
     _add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
@@ -222,6 +266,10 @@ def run(args: argparse.Namespace) -> int:
             covariance_step=args.covariance_step,
             vehicle=vehicle,
             smooth=args.smooth,
+            use_depth=not args.no_depth,
+            use_fixes=not args.no_fixes,
+            use_dvl=not args.no_dvl,
+            aiding_clock=args.aiding_clock,
             on_start=bars.start,
             on_done=bars.done,
         )

@@ -9,6 +9,8 @@ Reading and preparing:
   filter-ready :class:`~pronet.recorded.alignment.Section`;
 - :mod:`~pronet.recorded.bags`: ROS 1 and ROS 2 bags as recordings (the ``rosbags``
   extra): topics, frames (REP-103 FLU/ENU to FRD/NED), the DVL covariance as R;
+- :mod:`~pronet.recorded.aiding`: depth readings and position fixes (the generic
+  format's optional ``depth`` and ``fix`` tables), their missing values, checks and σ;
 - :mod:`~pronet.recorded.missing`: missing DVL readings (no bottom lock), skipped as
   updates and counted;
 - :mod:`~pronet.recorded.plausible`: plausibility checks naming file and column (stuck
@@ -34,6 +36,7 @@ Running and reporting (``pronet real``):
 """
 
 __all__ = [
+    "aiding",
     "alignment",
     "bags",
     "dvlcalibration",

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type, float_array, real_array, scalar
+from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagTopics, is_bag
 from pronet.recorded.recordings import Recording
 
@@ -96,6 +97,8 @@ class Alignment:
         imu_lever_arm: IMU position [m, body FRD] relative to the ground-truth point.
         dvl_lever_arm: DVL position [m, body FRD] relative to the ground-truth point.
         how: ``"estimated"``, ``"given"`` or ``"none"`` (stamps and no lever arms).
+        aiding_clock: stamp → IMU time of the depth readings and position fixes
+            (:mod:`pronet.recorded.aiding`; never estimated: identity unless given).
     """
 
     gt_clock: Clock = field(default_factory=Clock)
@@ -103,10 +106,12 @@ class Alignment:
     imu_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     dvl_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     how: str = "given"
+    aiding_clock: Clock = field(default_factory=Clock)
 
     def __post_init__(self) -> None:
         check_type(self.gt_clock, Clock, "gt_clock")
         check_type(self.dvl_clock, Clock, "dvl_clock")
+        check_type(self.aiding_clock, Clock, "aiding_clock")
         lever_arm(self.imu_lever_arm, "imu_lever_arm")
         lever_arm(self.dvl_lever_arm, "dvl_lever_arm")
 
@@ -138,6 +143,8 @@ class Section:
         dvl_skipped_reason: why each was skipped.
         dvl_variance: the DVL's R per axis [(m/s)²] that the recording states (a ROS
             bag's covariance), used as the strategy rows' R; None: R as tuned.
+        depth, fixes: the depth readings and position fixes on the IMU clock
+            (:mod:`pronet.recorded.aiding`), or None.
     """
 
     name: str
@@ -154,6 +161,8 @@ class Section:
     dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     dvl_skipped_reason: tuple[str, ...] = ()
     dvl_variance: tuple[float, float, float] | None = None
+    depth: DepthReadings | None = None
+    fixes: PositionFixes | None = None
 
 
 def dcm_from_euler(rpy: ArrayLike) -> F64:
@@ -218,6 +227,8 @@ def since_epoch(rec: Recording) -> tuple[Recording, float]:
             dvl_time=rec.dvl_time - epoch,
             gt_time=rec.gt_time - epoch,
             dvl_skipped_time=rec.dvl_skipped_time - epoch,
+            depth=None if rec.depth is None else rec.depth.on_clock(lambda t: t - epoch),
+            fixes=None if rec.fixes is None else rec.fixes.on_clock(lambda t: t - epoch),
         ),
         epoch,
     )
@@ -293,7 +304,8 @@ def estimate_alignment(
     gt_clock = estimate_gt_clock(rec)
     return Alignment(
         gt_clock=gt_clock,
-        dvl_clock=estimate_dvl_clock(rec, gt_clock, dvl_arm),
+        # without a DVL (a GNSS/INS recording) its clock is never used: the truth's
+        dvl_clock=estimate_dvl_clock(rec, gt_clock, dvl_arm) if len(rec.dvl) else gt_clock,
         imu_lever_arm=tuple(float(v) for v in imu_arm),  # type: ignore[arg-type]
         dvl_lever_arm=tuple(float(v) for v in dvl_arm),  # type: ignore[arg-type]
         how="estimated",
@@ -333,6 +345,8 @@ def align(rec: Recording, alignment: Alignment) -> Section:
         dvl_skipped_time=alignment.dvl_clock(rec.dvl_skipped_time),
         dvl_skipped_reason=rec.dvl_skipped_reason,
         dvl_variance=rec.dvl_variance,
+        depth=None if rec.depth is None else rec.depth.on_clock(alignment.aiding_clock),
+        fixes=None if rec.fixes is None else rec.fixes.on_clock(alignment.aiding_clock),
     )
 
 
@@ -343,6 +357,8 @@ def align(rec: Recording, alignment: Alignment) -> Section:
 FORMATS = ("snapir", "generic", "bag")
 #: A format's name, or a bag's topics and frames (the ``bag`` format).
 Format = str | BagTopics
+#: The clocks the depth and fixes may be stamped on (:func:`load_section`).
+AIDING_CLOCKS = ("imu", "dvl", "gt")
 
 
 def find_sections(data: str | Path) -> list[Path]:
@@ -385,11 +401,18 @@ def load_section(
     imu_lever_arm: tuple[float, float, float],
     dvl_lever_arm: tuple[float, float, float],
     handle_alignment: bool = True,
+    aiding_clock: str = "imu",
 ) -> tuple[Section, Section]:
     """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
     lever arms applied, and the stamps as given with no lever arms (the comparison).
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
-    (``"bag"``: the default topics)."""
+    (``"bag"``: the default topics). ``aiding_clock`` (:data:`AIDING_CLOCKS`): the
+    clock the depth and fixes are stamped on, the IMU's (their stamps as given) or the
+    estimated clock of the DVL or of the ground truth (one logger stamping both)."""
+    if aiding_clock not in AIDING_CLOCKS:
+        raise ValueError(
+            f"aiding_clock: expected one of {', '.join(AIDING_CLOCKS)}, got {aiding_clock!r}"
+        )
     from pronet.recorded.recordings import RecordingError, read_recording, read_snapir
 
     if is_bag(path) and not (isinstance(fmt, BagTopics) or fmt == "bag"):
@@ -403,7 +426,11 @@ def load_section(
     stamped = align(rec, Alignment(how="none"))
     if not handle_alignment:
         return stamped, stamped
-    return align(rec, estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)), stamped
+    alignment = estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)
+    if aiding_clock != "imu":
+        clock = alignment.dvl_clock if aiding_clock == "dvl" else alignment.gt_clock
+        alignment = replace(alignment, aiding_clock=clock)
+    return align(rec, alignment), stamped
 
 
 def load_snapir_sections(data: str | Path) -> list[tuple[Section, Section]]:

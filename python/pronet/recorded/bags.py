@@ -17,6 +17,35 @@ truth ``nav_msgs/msg/Odometry`` or            ``pose`` (position [m] in a local 
                                               Odometry's ``twist.linear`` [m/s, body]
 ===== ======================================= =========================================
 
+Two more topics are optional, read only when named (``--depth-topic``, ``--fix-topic``),
+as the generic format's ``depth`` and ``fix`` tables (:mod:`pronet.recorded.aiding`):
+
+===== ======================================= =========================================
+topic message type                            used
+===== ======================================= =========================================
+depth ``sensor_msgs/msg/FluidPressure``       ``fluid_pressure`` [Pa] → depth
+                                              ``(p − p_surface) / (ρ g)`` [m, down];
+                                              ``variance`` [Pa²] → σ = √variance / (ρ g)
+fix   ``sensor_msgs/msg/NavSatFix``           ``latitude``, ``longitude`` [deg],
+                                              ``altitude`` [m, up; NaN: horizontal];
+                                              ``position_covariance`` (ENU) → σ N, E, D
+===== ======================================= =========================================
+
+The pressure is absolute, as ``sensor_msgs/FluidPressure`` defines it: the surface
+pressure ``p_surface`` (:attr:`BagTopics.surface_pressure`, default the standard
+atmosphere, 101 325 Pa; 0 for a gauge sensor) is taken off and the rest divided by the
+water's density ρ (:attr:`BagTopics.water_density`, default 1025 kg/m³, sea water) and
+standard gravity: the hydrostatic depth of a column of constant density. The UNESCO
+formula (N. P. Fofonoff and R. C. Millard, UNESCO technical papers in marine science 44,
+1983), with the latitude's gravity and the water's compressibility, gives depths
+0.04 % (equator) to 0.6 % (poles) smaller at 100 m and 0.3–0.8 % smaller at 1000 m; a
+vehicle that needs better sets ``water_density`` to absorb it. The variance is the σ
+when every message sets it (> 0), else σ as tuned. A fix with ``status.status`` below
+0 (``STATUS_NO_FIX``) is a missing value (skipped and counted); its σ is the square
+root of the covariance's diagonal (its ENU order turned to N, E, D: entries 4, 0, 8)
+when every fix's ``position_covariance_type`` is above 0 (``COVARIANCE_TYPE_UNKNOWN``),
+else σ as tuned. The altitude is taken as the height of the truth's ``origin`` is: on one datum.
+
 Every row is stamped with its message's ``header.stamp`` (``sec + nanosec·1e-9`` [s]),
 not the time the bag recorded it. :func:`pronet.recorded.recordings.read_recording` reads
 a bag (through :func:`bag_streams`) as a :class:`~pronet.recorded.recordings.Recording`,
@@ -77,6 +106,10 @@ DVL_TYPES = (
     "geometry_msgs/msg/TwistStamped",
 )
 TRUTH_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
+DEPTH_TYPES = ("sensor_msgs/msg/FluidPressure",)
+FIX_TYPES = ("sensor_msgs/msg/NavSatFix",)
+#: Standard gravity [m/s²] of the pressure-to-depth conversion.
+STANDARD_GRAVITY = 9.80665
 #: Suffixes of a bag given as one file (ROS 1; a ROS 2 bag is a folder with metadata.yaml).
 BAG_SUFFIXES = (".bag",)
 
@@ -89,22 +122,42 @@ class BagTopics:
     """Which topics of a bag are the IMU, the DVL and the truth, and their frames.
 
     Attributes:
-        imu, dvl, truth: topic names (see the module docstring for their types).
+        imu, dvl, truth: topic names (see the module docstring for their types); ``dvl``
+            None: the DVL is not read (the bag then needs a depth or a fix topic).
         origin: the truth's local origin: latitude, longitude [deg], height [m, up]
             (required: a bag's poses are local metres).
         body_frame: ``"flu"`` (REP-103, the default) or ``"frd"``: the IMU's, the DVL's
             and the truth's body frame.
         world_frame: ``"enu"`` (REP-103, the default) or ``"ned"``: the truth's world frame.
+        depth, fix: the optional depth (pressure) and position-fix topics, or None (not
+            read).
+        water_density: the water's density [kg/m³] of the pressure-to-depth conversion.
+        surface_pressure: the pressure at the surface [Pa] taken off the readings (the
+            standard atmosphere; 0 for a gauge sensor).
     """
 
     imu: str = "/imu/data"
-    dvl: str = "/dvl/twist"
+    dvl: str | None = "/dvl/twist"
     truth: str = "/odometry"
     origin: tuple[float, float, float] | None = None
     body_frame: str = "flu"
     world_frame: str = "enu"
+    depth: str | None = None
+    fix: str | None = None
+    water_density: float = 1025.0
+    surface_pressure: float = 101_325.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.water_density) and 900.0 <= self.water_density <= 1100.0):
+            raise ValueError(
+                f"water_density: expected 900-1100 kg/m³ (fresh to salt water), got "
+                f"{self.water_density}"
+            )
+        if not (np.isfinite(self.surface_pressure) and 0.0 <= self.surface_pressure <= 2e5):
+            raise ValueError(
+                f"surface_pressure: expected 0-200000 Pa (0: a gauge sensor), got "
+                f"{self.surface_pressure}"
+            )
         if self.body_frame not in ("flu", "frd"):
             raise ValueError(f"body_frame: expected flu or frd, got {self.body_frame!r}")
         if self.world_frame not in ("enu", "ned"):
@@ -127,6 +180,10 @@ class BagTopics:
             "origin_deg_deg_m": None if self.origin is None else list(self.origin),
             "body_frame": self.body_frame,
             "world_frame": self.world_frame,
+            "depth_topic": self.depth,
+            "fix_topic": self.fix,
+            "water_density_kg_m3": self.water_density,
+            "surface_pressure_pa": self.surface_pressure,
         }
 
 
@@ -177,9 +234,11 @@ def euler_from_dcm(c: F64) -> F64:
     return np.stack([roll, pitch, yaw], axis=-1)
 
 
-def _messages(reader: Any, path: Path, topic: str, kind: str, types: tuple[str, ...]) -> list[Any]:
+def _messages(
+    reader: Any, path: Path, topic: str, kind: str, types: tuple[str, ...], least: int = 2
+) -> list[Any]:
     """The deserialised messages of ``topic``, checked: it exists (else the bag's topics
-    are listed), has one of ``types`` and at least two messages."""
+    are listed), has one of ``types`` and at least ``least`` messages."""
     found = [c for c in reader.connections if c.topic == topic]
     if not found:
         have = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections))
@@ -191,7 +250,7 @@ def _messages(reader: Any, path: Path, topic: str, kind: str, types: tuple[str, 
             f"{' or '.join(types)}"
         )
     msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=found)]
-    if len(msgs) < 2:
+    if len(msgs) < least:
         raise BagError(f"{path}[{topic}]: the {kind} topic has {len(msgs)} message(s)")
     return msgs
 
@@ -208,6 +267,31 @@ def _dvl_variance(msgs: list[Any]) -> tuple[float, float, float] | None:
         return None
     r = np.median(np.array(set_), axis=0)
     return (float(r[0]), float(r[1]), float(r[2]))
+
+
+def _depth_rows(msgs: list[Any], topics: BagTopics) -> F64:
+    """``[time, depth (m, down)]`` per message, and its σ [m] when every one sets a
+    variance (module docstring)."""
+    rho_g = topics.water_density * STANDARD_GRAVITY
+    p = np.array([float(m.fluid_pressure) for m in msgs])
+    rows = [np.array([_stamp(m) for m in msgs]), (p - topics.surface_pressure) / rho_g]
+    variance = np.array([float(m.variance) for m in msgs])
+    if (variance > 0).all() and np.isfinite(variance).all():
+        rows.append(np.sqrt(variance) / rho_g)
+    return np.column_stack(rows)
+
+
+def _fix_rows(msgs: list[Any]) -> F64:
+    """``[time, lat, lon (rad), height (m)]`` per NavSatFix, NaN where it has no fix,
+    and σ north, east, down [m] when every one states its covariance."""
+    lla = np.array([[m.latitude, m.longitude, m.altitude] for m in msgs], dtype=np.float64)
+    lla[:, :2] = np.radians(lla[:, :2])
+    lla[[int(m.status.status) < 0 for m in msgs], :2] = np.nan  # STATUS_NO_FIX
+    rows = [np.array([_stamp(m) for m in msgs])[:, None], lla]
+    diag = np.array([[float(m.position_covariance[i]) for i in (4, 0, 8)] for m in msgs])
+    if all(int(m.position_covariance_type) > 0 for m in msgs) and (diag > 0).all():
+        rows.append(np.sqrt(diag))
+    return np.hstack(rows)
 
 
 def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[float]]:
@@ -242,7 +326,9 @@ def bag_streams(
 ) -> tuple[dict[str, tuple[str, F64]], tuple[float, float, float] | None]:
     """The IMU, DVL and truth of one ROS 1 or ROS 2 bag as the generic format's tables
     (``{"imu" | "dvl" | "gt": (where, rows)}``, ``where`` naming bag and topic, the rows
-    in :data:`pronet.recorded.recordings.COLUMNS` order, SI, body FRD, NED) and the R its
+    in :data:`pronet.recorded.recordings.COLUMNS` order, SI, body FRD, NED; with
+    ``topics.depth`` and ``topics.fix`` also ``"depth"`` and ``"fix"``, their required
+    columns then the optional ones present, :mod:`pronet.recorded.aiding`) and the R its
     DVL covariance states (None: not set); see the module docstring. Not yet checked:
     :func:`pronet.recorded.recordings.read_recording` reads a bag through this and checks
     it as the generic format. :class:`BagError` naming bag and topic,
@@ -253,6 +339,8 @@ def bag_streams(
 
     topics = topics or BagTopics()
     path = Path(path)
+    if topics.dvl is None and topics.depth is None and topics.fix is None:
+        raise BagError(f"{path}: without a DVL topic, needs a depth or a fix topic")
     if not is_bag(path):
         raise BagError(
             f"{path}: not a ROS bag (a .bag file, or a ROS 2 bag folder with metadata.yaml)"
@@ -262,8 +350,18 @@ def bag_streams(
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.LATEST)) as reader:
             imu_msgs = _messages(reader, path, topics.imu, "IMU", IMU_TYPES)
-            dvl_msgs = _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
+            dvl_msgs = (
+                [] if topics.dvl is None else _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
+            )
             truth_msgs = _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
+            aiding = {
+                kind: (topic, _messages(reader, path, topic, kind, types, least=1))
+                for kind, topic, types in (
+                    ("depth", topics.depth, DEPTH_TYPES),
+                    ("fix", topics.fix, FIX_TYPES),
+                )
+                if topic is not None
+            }
     except AnyReaderError as exc:
         raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
     imu = [
@@ -284,5 +382,12 @@ def bag_streams(
             ("dvl", topics.dvl, dvl),
             ("gt", topics.truth, truth),
         )
+        if topic is not None
     }
+    if "depth" in aiding:
+        topic, msgs = aiding["depth"]
+        streams["depth"] = (f"{path}[{topic}]", _depth_rows(msgs, topics))
+    if "fix" in aiding:
+        topic, msgs = aiding["fix"]
+        streams["fix"] = (f"{path}[{topic}]", _fix_rows(msgs))
     return streams, _dvl_variance(dvl_msgs)

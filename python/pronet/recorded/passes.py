@@ -17,6 +17,7 @@ import numpy as np
 
 from pronet import _core
 from pronet._util.validate import flag, scalar
+from pronet.recorded.aiding import AidingTuning, filter_aiding, tuned
 from pronet.recorded.alignment import Section
 from pronet.recorded.metrics import section_metrics
 from pronet.recorded.runs import SectionRun
@@ -31,6 +32,39 @@ def start_index(section: Section) -> int:
     if inside.size < 2:
         raise ValueError(f"section {section.name}: the ground truth does not overlap the IMU")
     return int(inside[0])
+
+
+def aided_section(section: Section, tuning: AidingTuning) -> Section:
+    """``section`` with its DVL, depth and fixes as ``tuning`` has them (σ where the
+    file has none, a stream ignored: ``use_dvl=False`` leaves no DVL row, used or
+    skipped); ValueError when nothing is left to aid the IMU."""
+    depth, fixes = tuned(section.depth, section.fixes, tuning)
+    if not tuning.use_dvl:
+        empty = np.empty(0)
+        section = dataclasses.replace(
+            section,
+            dvl=np.empty((0, 3)),
+            dvl_time=empty,
+            dvl_skipped_time=empty,
+            dvl_skipped_reason=(),
+            dvl_variance=None,
+        )
+    if not len(section.dvl) and depth is None and fixes is None:
+        ignored = [
+            flag
+            for flag, stream, used in (
+                ("--no-depth", section.depth, tuning.use_depth),
+                ("--no-fixes", section.fixes, tuning.use_fixes),
+                ("--no-dvl", True, tuning.use_dvl),
+            )
+            if stream is not None and not used
+        ]
+        why = f" (ignored: {', '.join(ignored)})" if ignored else ""
+        raise ValueError(
+            f"section {section.name}: no DVL reading, depth or position fix{why}: nothing "
+            "aids the IMU"
+        )
+    return dataclasses.replace(section, depth=depth, fixes=fixes)
 
 
 #: Set (to an event) on the threads of :func:`run_sections`: once the event is set,
@@ -55,12 +89,14 @@ def run_section(
     duration: float | None = None,
     use_dvl: bool = True,
     smooth: bool = False,
+    aided: bool = True,
 ) -> SectionRun:
     """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
-    for ``duration`` seconds (default: to the end), with or without the DVL; with
-    ``smooth``, the pass's result carries the smoothed solution (:func:`smoothed_run`)."""
+    for ``duration`` seconds (default: to the end), with or without the DVL, with or
+    without (``aided``) its depth and fixes; with ``smooth``, the pass's result carries
+    the smoothed solution (:func:`smoothed_run`)."""
     recorded = section_recorded(
-        section, config, duration=duration, use_dvl=use_dvl, smooth=smooth
+        section, config, duration=duration, use_dvl=use_dvl, smooth=smooth, aided=aided
     )
     done = run(strategy, recorded)
     metrics = section_metrics(section, done.result, use_dvl)
@@ -84,10 +120,13 @@ def section_recorded(
     use_dvl: bool = True,
     epochs: Literal["all", "last"] = "all",
     smooth: bool = False,
+    aided: bool = True,
 ) -> Recorded:
     """``section``'s sensors from the ground truth at :func:`start_index` on, for
-    ``duration`` seconds (default: to the end), with or without the DVL, ready to
-    filter with ``config`` (``epochs``: see :class:`pronet.run.Recorded`). Inside
+    ``duration`` seconds (default: to the end), with or without the DVL, with or
+    without (``aided``) its depth readings and position fixes
+    (:func:`pronet.recorded.aiding.filter_aiding`), ready to filter with ``config``
+    (``epochs``: see :class:`pronet.run.Recorded`). Inside
     :func:`run_sections`, it stops the section's thread once the run is told to stop."""
     stop = STOP.get()
     if stop is not None and stop.is_set():
@@ -115,6 +154,7 @@ def section_recorded(
         config=config,
         epochs=epochs,
         smooth=smooth,
+        aiding=filter_aiding(section.depth, section.fixes) if flag(aided, "aided") else {},
     )
 
 
@@ -156,6 +196,7 @@ def evaluate_section(
         setup=setup,
         duration=INERTIAL_SECONDS,
         use_dvl=False,
+        aided=False,
     )
     return runs, inertial
 

@@ -6,6 +6,9 @@ None; :mod:`pronet.recorded.recordings` raises it as a ``RecordingError`` (exit 
 the command line). Checked, in this order, after the per-file checks (finite numbers,
 increasing time, rate):
 
+- magnitudes that fit their units (:func:`magnitudes`): the mean specific force near
+  gravity, angular rates within :data:`MAX_RECORDED_RATE`, the DVL's speed near the
+  ground truth's;
 - a column named twice (:func:`duplicate_columns`; otherwise the first would be used);
 - streams that do not share a clock (:func:`disjoint_streams`): the DVL's or the
   ground truth's stamps beside none of the IMU's (another epoch, another unit);
@@ -43,6 +46,15 @@ ANGLE_RATIO = 5.0
 MIN_TURN = 1e-3
 #: A lever arm longer than this [m] is warned of.
 LONG_LEVER_ARM = 10.0
+#: Plausible magnitudes. The mean specific force over a section within this range of
+#: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
+#: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
+#: the DVL's median speed within this ratio of the ground truth's (when that is above
+#: 0.2 m/s).
+STANDARD_GRAVITY = 9.80665
+GRAVITY_RANGE = (0.8, 1.2)
+MAX_RECORDED_RATE = 10.0
+DVL_SPEED_RATIO = (0.5, 2.0)
 
 
 class PlausibilityWarning(UserWarning):
@@ -57,6 +69,42 @@ class Table(NamedTuple):
     values: F64
     where: str
     labels: list[str]
+
+
+def parse_header(cell: str) -> tuple[str, str]:
+    """A column header ``name [unit]`` as its lower-case name and its unit."""
+    name, _, unit = cell.strip().partition("[")
+    return name.strip().lower(), unit.rstrip("] ").strip()
+
+
+def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
+    """Magnitudes that fit their units, checked before anything is filtered (a unit
+    mix-up otherwise runs to the end and only shows as a huge error): ``imu`` ``(n, 6)``
+    SI samples, ``dvl`` ``(m, 3)`` the used DVL readings [m/s] (may be empty),
+    ``gt_vel`` ``(k, 3)`` the truth's velocity [m/s]."""
+    specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
+    lo, hi = GRAVITY_RANGE
+    if not lo <= specific_force / STANDARD_GRAVITY <= hi:
+        return (
+            f"{source} imu: the mean specific force is {specific_force:.4g} m/s², not near "
+            f"gravity ({STANDARD_GRAVITY} m/s²); are the accelerations in g, or mis-scaled?"
+        )
+    rate = float(np.percentile(np.linalg.norm(imu[:, 3:], axis=1), 99))
+    if rate > MAX_RECORDED_RATE:
+        return (
+            f"{source} imu: 1 % of the angular rates exceed {rate:.4g} rad/s, beyond any "
+            f"vehicle (at most {MAX_RECORDED_RATE:g}); are they in deg/s under a rad/s header?"
+        )
+    if not len(dvl):
+        return None
+    truth, dvl_speed = (float(np.median(np.linalg.norm(v, axis=1))) for v in (gt_vel, dvl))
+    lo, hi = DVL_SPEED_RATIO
+    if truth > 0.2 and not lo <= dvl_speed / truth <= hi:
+        return (
+            f"{source} dvl: its median speed {dvl_speed:.4g} m/s against the ground truth's "
+            f"{truth:.4g} m/s; are the DVL velocities in m/s?"
+        )
+    return None
 
 
 def duplicate_columns(

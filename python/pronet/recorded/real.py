@@ -24,13 +24,33 @@ from pronet import _core
 from pronet._util.cores import usable_cores
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
-from pronet.recorded.alignment import Format, Section, load_section, section_name, select_sections
+from pronet.recorded.aiding import AidingTuning
+from pronet.recorded.alignment import (
+    AIDING_CLOCKS,
+    Format,
+    Section,
+    load_section,
+    section_name,
+    select_sections,
+)
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
-from pronet.recorded.passes import STOP, evaluate_section, run_section, section_recorded
+from pronet.recorded.passes import (
+    STOP,
+    aided_section,
+    evaluate_section,
+    run_section,
+    section_recorded,
+)
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
-from pronet.recorded.tables import failed_records, real_config, real_tables, write_metrics
+from pronet.recorded.tables import (
+    aiding_record,
+    failed_records,
+    real_config,
+    real_tables,
+    write_metrics,
+)
 from pronet.recorded.tuning import (
     BOTH,
     DVL_CALIBRATION,
@@ -150,6 +170,8 @@ def plan_section(
             not_run[label] = str(exc)
             del strategies[label]
     try:
+        if not len(section.dvl):
+            raise ValueError("the section has no DVL readings")
         first = next(iter(strategies.values()))
         noise = estimate_dvl_noise(section, first, arm, formulation, base, covariance_step)
     except ValueError as exc:
@@ -336,6 +358,10 @@ def run_real(
     covariance_step: float | None = None,
     vehicle: VehicleTuning | None = None,
     smooth: bool = False,
+    use_depth: bool = True,
+    use_fixes: bool = True,
+    use_dvl: bool = True,
+    aiding_clock: str = "imu",
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -374,6 +400,15 @@ def run_real(
         smooth: also the RTS smoother over every strategy row: each is followed by its
             smoothed row (``"<label>, smoothed"``), its metrics taken at the same
             ground-truth rows (docs/filter.md, "The RTS smoother").
+        use_depth, use_fixes: False ignores the sections' depth readings or position
+            fixes (:mod:`pronet.recorded.aiding`; ``--no-depth``, ``--no-fixes``), e.g.
+            to compare the DVL alone with the aided filter. Used, they aid every row
+            (the inertial sanity run aside), their σ the file's, else ``vehicle``'s
+            ``depth_sigma``/``fix_sigma``, else the defaults of that module.
+        use_dvl: False ignores the sections' DVL (``--no-dvl``): a GNSS/INS or
+            depth-and-fix run of a recording that has one.
+        aiding_clock: the clock of the depth and fixes' stamps, ``"imu"`` (as given),
+            ``"dvl"`` or ``"gt"`` (that stream's estimated clock; ``--aiding-clock``).
         vehicle: the vehicle's own tuning (``--filter``,
             :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
             aiding, gate, formulation and lever arms; default the FOG tuning of
@@ -390,11 +425,17 @@ def run_real(
     if not tuning_period > 0:
         raise ValueError("--tuning-period must be > 0 s")
     check_dvl_noise(dvl_noise)
+    if aiding_clock not in AIDING_CLOCKS:
+        choices = ", ".join(AIDING_CLOCKS)
+        raise ValueError(f"--aiding-clock: must be one of {choices}, got {aiding_clock!r}")
     base = None if vehicle is None else vehicle.base
     real_filter_config(  # checked now
         (0.0, 0.0, 0.0), formulation=formulation, base=base, covariance_step=covariance_step
     )
     imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
+    aiding = AidingTuning(use_depth=use_depth, use_fixes=use_fixes, use_dvl=use_dvl)
+    if vehicle is not None:
+        aiding = vehicle.aiding(aiding)
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
@@ -403,7 +444,9 @@ def run_real(
 
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
-            return load_section(path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm)
+            return load_section(
+                path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm, aiding_clock=aiding_clock
+            )
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)
 
@@ -414,10 +457,14 @@ def run_real(
         closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
     ):  # closed however the loop ends: the reads not yet started are cancelled
         for path, section in zip(paths, reading, strict=True):  # in order
-            if isinstance(section, str):
-                unread[section_name(path)] = section
-            else:
-                loaded.append(section)
+            try:  # the streams --no-dvl/--no-depth/--no-fixes leave, their sigma
+                if isinstance(section, str):
+                    raise ValueError(section)
+                loaded.append(
+                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
+                )
+            except ValueError as exc:
+                unread[section_name(path)] = str(exc)
             if on_done is not None:
                 on_done(path.name)
     if not loaded:  # nothing to run: the first reason, before any filter
@@ -454,6 +501,10 @@ def run_real(
         )
         config["filter_file"] = None if vehicle is None else vehicle.source
         config["smooth"] = smooth
+        config["aiding"] = {
+            "clock": aiding_clock,
+            **aiding_record(aiding, [a for a, _ in done.sections]),
+        }
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))

@@ -26,7 +26,11 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
   ===== ============================================================================
 
   Extra columns are ignored; column order is free. The DVL table may hold an optional
-  ``valid`` column (1 valid, 0 not; no unit).
+  ``valid`` column (1 valid, 0 not; no unit). Two more tables are optional: ``depth``
+  (a pressure depth) and ``fix`` (position fixes: GNSS, USBL, LBL), each on its own
+  stamps and rate; their columns, missing values and checks are
+  :mod:`pronet.recorded.aiding`'s. The DVL is optional when either is there (a GNSS/INS
+  or a depth-and-fix recording); a recording needs at least one of the three.
 
 Missing DVL readings (NaN or empty cells, no-lock markers such as RDI's −32.768 m/s,
 all-zero rows while the vehicle moves, ``valid`` = 0) are not errors: they are taken out
@@ -42,7 +46,7 @@ strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0
 ground truth 0.05–1000 Hz), the IMU time has no gap longer than five median steps, and the
 magnitudes fit their units (the mean specific force near gravity, angular rates within
 10 rad/s, the DVL's speed within a factor 2 of the ground truth's; see
-:data:`GRAVITY_RANGE` and beside it). A folder holding both a ``.csv`` and a ``.csv.gz``
+:func:`pronet.recorded.plausible.magnitudes`). A folder holding both a ``.csv`` and a ``.csv.gz``
 of one stream is ambiguous and refused. Row numbers count data rows from 1 (the header
 is row 0).
 
@@ -65,9 +69,10 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet.recorded import missing, plausible
+from pronet.recorded import aiding, missing, plausible
+from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagError, BagTopics, bag_streams, is_bag
-from pronet.recorded.plausible import Table
+from pronet.recorded.plausible import Table, parse_header
 
 F64 = NDArray[np.float64]
 
@@ -102,15 +107,11 @@ OPTIONAL: dict[str, dict[str, dict[str, float]]] = {"dvl": {"valid": {"": 1.0, "
 
 #: Plausible sample rates [Hz] of each table.
 RATE_RANGE = {"imu": (10.0, 10_000.0), "dvl": (0.05, 100.0), "gt": (0.05, 1000.0)}
-#: Plausible magnitudes. The mean specific force over a section within this range of
-#: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
-#: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
-#: the DVL's median speed within this ratio of the ground truth's (when that is above
-#: 0.2 m/s); no IMU step longer than this many median steps.
-STANDARD_GRAVITY = 9.80665
-GRAVITY_RANGE = (0.8, 1.2)
-MAX_RECORDED_RATE = 10.0
-DVL_SPEED_RATIO = (0.5, 2.0)
+RATE_RANGE.update(aiding.RATE_RANGE)
+#: Every table's columns (the optional aiding tables' too), and their optional ones.
+_SPEC = {**COLUMNS, **aiding.COLUMNS}
+OPTIONAL.update(aiding.OPTIONAL)
+#: No IMU step longer than this many median steps (magnitudes: :mod:`pronet.recorded.plausible`).
 MAX_IMU_GAP = 5.0
 
 #: The Snapir publisher's column names, by our name.
@@ -162,6 +163,8 @@ class Recording:
         dvl_variance: the DVL's noise variance R per axis [(m/s)², body FRD] that the
             recording states (a ROS bag's covariance, :mod:`pronet.recorded.bags`), or
             None (R as tuned).
+        depth, fixes: the optional depth readings and position fixes
+            (:mod:`pronet.recorded.aiding`), or None. ``dvl`` may then be empty.
     """
 
     name: str
@@ -177,6 +180,8 @@ class Recording:
     dvl_skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     dvl_skipped_reason: tuple[str, ...] = ()
     dvl_variance: tuple[float, float, float] | None = None
+    depth: DepthReadings | None = None
+    fixes: PositionFixes | None = None
 
     @property
     def duration(self) -> float:
@@ -200,7 +205,13 @@ def read_recording(path: str | Path, topics: BagTopics | None = None) -> Recordi
     if is_bag(path):
         return _read_bag(path, topics)
     if path.is_dir():
-        tables = {kind: _read_csv(_find(path, kind), kind, None) for kind in COLUMNS}
+        found = {
+            kind: _find_optional(path, kind) if kind in _OPTIONAL_TABLES else _find(path, kind)
+            for kind in _SPEC
+        }
+        if not any(found[kind] for kind in _OPTIONAL_TABLES):
+            _find(path, "dvl")  # the error: none of the three
+        tables = {k: _read_csv(f, k, None) for k, f in found.items() if f is not None}
         return _recording(path.name, tables, str(path))
     if path.suffix == ".npz":
         return _recording(path.stem, _read_npz(path), str(path))
@@ -212,8 +223,9 @@ def read_recording(path: str | Path, topics: BagTopics | None = None) -> Recordi
 
 def write_recording(path: str | Path, recording: Recording) -> Path:
     """Write ``recording`` in the generic format: an ``.npz`` file if ``path`` ends in
-    ``.npz``, else a folder of three CSV files (SI units, full precision). The DVL rows
-    skipped as missing readings are not in it (only the readings the filter uses)."""
+    ``.npz``, else a folder of CSV files (SI units, full precision): ``imu``, ``gt``,
+    ``dvl`` unless it is empty, ``depth`` and ``fix`` when it has them. The rows skipped
+    as missing values are not in it (only the readings the filter uses)."""
     path = Path(path)
     tables = _as_tables(recording)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -242,7 +254,8 @@ def _read_bag(path: Path, topics: BagTopics | None) -> Recording:
         raise RecordingError(str(exc)) from None
     tables = {}
     for kind, (where, values) in streams.items():
-        labels = [f"{name} [{next(iter(units))}]" for name, units in COLUMNS[kind].items()]
+        columns = [*_SPEC[kind].items(), *OPTIONAL.get(kind, {}).items()][: values.shape[1]]
+        labels = [f"{name} [{next(iter(units))}]" for name, units in columns]
         picks = [(i, 1.0) for i in range(values.shape[1])]
         tables[kind] = Table(_finish(where, values, picks, labels, kind), where, labels)
     name = path.stem if path.is_file() else path.name
@@ -254,14 +267,30 @@ def _as_tables(rec: Recording) -> dict[str, tuple[list[str], F64]]:
         return [f"{name} [{next(iter(units))}]" for name, units in COLUMNS[kind].items()]
 
     gt = np.column_stack([rec.gt_time, rec.gt_lla, rec.gt_vel, rec.gt_rpy])
-    return {
+    out = {
         "imu": (header("imu"), np.column_stack([rec.imu_time, rec.imu])),
         "dvl": (header("dvl"), np.column_stack([rec.dvl_time, rec.dvl])),
         "gt": (header("gt"), gt),
     }
+    if not len(rec.dvl_time):
+        del out["dvl"]
+    out.update(aiding.as_tables(rec.depth, rec.fixes))
+    return out
+
+
+#: The tables of which a recording needs at least one (and may lack the others).
+_OPTIONAL_TABLES = ("dvl", "depth", "fix")
 
 
 def _find(folder: Path, kind: str) -> Path:
+    found = _find_optional(folder, kind)
+    if found is None:
+        also = " (nor depth.csv or fix.csv: one of the three is needed)" if kind == "dvl" else ""
+        raise RecordingError(f"{folder}: no {kind}.csv or {kind}.csv.gz{also}")
+    return found
+
+
+def _find_optional(folder: Path, kind: str) -> Path | None:
     if not folder.is_dir():
         missing = "" if folder.exists() else " (it does not exist)"
         raise RecordingError(f"{folder}: not a folder{missing}")
@@ -270,23 +299,16 @@ def _find(folder: Path, kind: str) -> Path:
         raise RecordingError(
             f"{folder}: both {kind}.csv and {kind}.csv.gz; keep the one that holds the data"
         )
-    if not found:
-        raise RecordingError(f"{folder}: no {kind}.csv or {kind}.csv.gz")
-    return found[0]
-
-
-def _parse_header(cell: str) -> tuple[str, str]:
-    name, _, unit = cell.strip().partition("[")
-    return name.strip().lower(), unit.rstrip("] ").strip()
+    return found[0] if found else None
 
 
 def _select_columns(
     where: str, header: list[str], kind: str, names: dict[str, str] | None
 ) -> list[tuple[int, float]]:
     """Column index and SI factor of each required column, in :data:`COLUMNS` order."""
-    parsed = [_parse_header(h) for h in header]
+    parsed = [parse_header(h) for h in header]
     ours_all = [names.get(n, n) if names is not None else n for n, _ in parsed]
-    wanted = set(COLUMNS[kind]) | set(OPTIONAL.get(kind, {}))
+    wanted = set(_SPEC[kind]) | set(OPTIONAL.get(kind, {}))
     if (twice := plausible.duplicate_columns(where, ours_all, header, wanted)) is not None:
         raise RecordingError(twice)
     found: dict[str, tuple[int, str]] = {}
@@ -294,7 +316,7 @@ def _select_columns(
         ours = names.get(name, name) if names is not None else name
         found.setdefault(ours, (i, unit))
     picks = []
-    for name, units in COLUMNS[kind].items():
+    for name, units in _SPEC[kind].items():
         if name not in found:
             shown = ", ".join(header)
             raise RecordingError(
@@ -311,8 +333,9 @@ def _select_columns(
         if name in found:
             i, unit = found[name]
             if unit not in units:
+                expected = ", ".join(u for u in units if u) or "none"
                 raise RecordingError(
-                    f"{where}: column {header[i]!r} has unit [{unit}]; expected none"
+                    f"{where}: column {header[i]!r} has unit [{unit}]; expected {expected}"
                 )
             picks.append((i, units[unit]))
     return picks
@@ -342,6 +365,8 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> Table:
     else:  # not a plain table of numbers: the careful reader names the row and cell
         # an empty DVL velocity cell is a missing reading (NaN), not a malformed file
         blank_ok = set(columns[1:4]) if kind == "dvl" else set()
+        parsed = [parse_header(header[i])[0] for i in columns]
+        blank_ok |= {columns[j] for j in aiding.may_be_missing(kind, parsed)}
         out = _parse_rows(path, header, reader, columns, blank_ok)
     labels = [header[i].strip() for i, _ in picks]
     return Table(_finish(str(path), out, picks, labels, kind), str(path), labels)
@@ -422,8 +447,11 @@ def _read_npz(path: Path) -> dict[str, Table]:
         raise RecordingError(f"{path}: not a readable .npz ({exc})") from None
     tables = {}
     with archive:
-        for kind in COLUMNS:
+        has = {k for k in _SPEC if k in archive.files or f"{k}_columns" in archive.files}
+        for kind in _SPEC:
             where = f"{path}[{kind}]"
+            if kind not in has and (kind in _OPTIONAL_TABLES and has & set(_OPTIONAL_TABLES)):
+                continue  # an optional table left out (a half of one is an error, below)
             if kind not in archive.files or f"{kind}_columns" not in archive.files:
                 raise RecordingError(f"{path}: needs arrays {kind!r} and '{kind}_columns'")
             data = _npz_array(archive, path, kind, "numbers: np.asarray(table, dtype=float)")
@@ -449,37 +477,14 @@ def _read_npz(path: Path) -> dict[str, Table]:
     return tables
 
 
-def _check_plausible(imu: F64, dvl: F64, gt_vel: F64, source: str) -> None:
-    """Magnitudes that fit their units, checked before anything is filtered (a unit
-    mix-up otherwise runs to the end and only shows as a huge error)."""
-    specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
-    lo, hi = GRAVITY_RANGE
-    if not lo <= specific_force / STANDARD_GRAVITY <= hi:
-        raise RecordingError(
-            f"{source} imu: the mean specific force is {specific_force:.4g} m/s², not near "
-            f"gravity ({STANDARD_GRAVITY} m/s²); are the accelerations in g, or mis-scaled?"
-        )
-    rate = float(np.percentile(np.linalg.norm(imu[:, 3:], axis=1), 99))
-    if rate > MAX_RECORDED_RATE:
-        raise RecordingError(
-            f"{source} imu: 1 % of the angular rates exceed {rate:.4g} rad/s, beyond any "
-            f"vehicle (at most {MAX_RECORDED_RATE:g}); are they in deg/s under a rad/s header?"
-        )
-    truth, dvl_speed = (float(np.median(np.linalg.norm(v, axis=1))) for v in (gt_vel, dvl))
-    lo, hi = DVL_SPEED_RATIO
-    if truth > 0.2 and len(dvl) and not lo <= dvl_speed / truth <= hi:
-        raise RecordingError(
-            f"{source} dvl: its median speed {dvl_speed:.4g} m/s against the ground truth's "
-            f"{truth:.4g} m/s; are the DVL velocities in m/s?"
-        )
-
-
 def _finish(
     where: str, values: F64, picks: list[tuple[int, float]], labels: list[str], kind: str
 ) -> F64:
     """Check finiteness (a DVL velocity may be missing: :mod:`pronet.recorded.missing`),
     a ``valid`` column of 0 and 1, strictly increasing time and the rate; convert to SI."""
     bad = ~np.isfinite(values)
+    blank = aiding.may_be_missing(kind, [parse_header(label)[0] for label in labels])
+    bad[:, blank] &= ~np.isnan(values[:, blank])
     if kind == "dvl":
         bad[:, 1:4] = False
         if values.shape[1] > 4 and not np.isin(values[:, 4], (0.0, 1.0)).all():
@@ -540,24 +545,30 @@ def _skipped_dvl(dvl: F64, gt: F64, source: str) -> tuple[F64, NDArray[np.str_]]
 
 
 def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
-    imu, gt, raw_dvl = tables["imu"].values, tables["gt"].values, tables["dvl"].values
+    imu, gt = tables["imu"].values, tables["gt"].values
+    raw_dvl = tables["dvl"].values if "dvl" in tables else np.empty((0, 4))
     lat = gt[:, 1]
     if (np.abs(lat) > np.pi / 2).any():
         r = int(np.argmax(np.abs(lat) > np.pi / 2)) + 1
         raise RecordingError(f"{source} gt, row {r}: latitude {lat[r - 1]} rad is outside ±π/2")
-    for kind in ("dvl", "gt"):
+    for kind in (k for k in tables if k != "imu"):
         if (apart := plausible.disjoint_streams(tables["imu"], tables[kind], kind)) is not None:
             raise RecordingError(apart)
     if (beyond := plausible.beyond_bounds(tables["gt"])) is not None:
         raise RecordingError(beyond)
-    dvl, why = _skipped_dvl(raw_dvl, gt, source)
+    dvl, why = _skipped_dvl(raw_dvl, gt, source) if len(raw_dvl) else (raw_dvl, np.empty(0, str))
     skipped = why != ""
-    _check_plausible(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source)
+    try:
+        depth, fixes = aiding.streams(tables)
+    except ValueError as exc:
+        raise RecordingError(str(exc)) from None
     for problem in (
+        plausible.magnitudes(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source),
         plausible.stuck_channels(tables["imu"], range(1, 7)),
-        plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped),
+        plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped) if len(dvl) else None,
         plausible.attitude_units(tables["imu"], tables["gt"]),
         plausible.position_units(tables["gt"]),
+        aiding.against_truth(depth, fixes, tables["gt"]),
     ):
         if problem is not None:
             raise RecordingError(problem)
@@ -574,4 +585,6 @@ def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
         source=source,
         dvl_skipped_time=raw_dvl[skipped, 0].copy(),
         dvl_skipped_reason=tuple(str(r) for r in why[skipped]),
+        depth=depth,
+        fixes=fixes,
     )

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pronet.recorded import missing
+from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes
 from pronet.recorded.alignment import Format, Section
 from pronet.recorded.tuning import real_filter_config
 from pronet.results import (
@@ -334,6 +335,11 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "mean_nis", "Per section"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
+                [aiding_table(done)]
+                if any(a.depth is not None or a.fixes is not None for a, _ in done.sections)
+                else []
+            ),
+            *(
                 [dvl_skipped_table(done)]
                 if any(len(a.dvl_skipped_time) for a, _ in done.sections)
                 else []
@@ -384,6 +390,7 @@ def real_config(
                 "epoch_s": a.epoch,
                 "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
                 "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
+                "aiding": [a.alignment.aiding_clock.offset, a.alignment.aiding_clock.scale],
             }
             for a, _ in done.sections
         },
@@ -429,3 +436,52 @@ def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
         out.update({key: list(m.variance), f"{key}_passes": m.passes})
         out[f"{key}_converged"] = m.converged
     return out
+
+
+def aiding_record(tuning: AidingTuning, sections: list[Section]) -> dict[str, object]:
+    """``config.json``'s ``aiding``: what was used, the default σ, and per section the
+    rows used and skipped of each stream with their median σ [m]."""
+
+    def stream(x: DepthReadings | PositionFixes | None) -> dict[str, object] | None:
+        if x is None:
+            return None
+        sigma = None if x.sigma is None else np.median(x.sigma, axis=0).tolist()
+        return {"rows": len(x.time), "skipped": len(x.skipped_time), "sigma_m": sigma}
+
+    return {
+        "use_depth": tuning.use_depth,
+        "use_fixes": tuning.use_fixes,
+        "use_dvl": tuning.use_dvl,
+        "depth_sigma_m": tuning.depth_sigma,
+        "fix_sigma_m": list(tuning.fix_sigma),
+        "sections": {
+            a.name: {"depth": stream(a.depth), "fixes": stream(a.fixes)} for a in sections
+        },
+    }
+
+
+def aiding_table(done: RealRuns) -> str:
+    """Markdown: each section's depth readings and position fixes as used (rows,
+    skipped as missing, median σ) and the first strategy row's mean NIS of each (χ² of
+    1 dof for a depth, 2 or 3 for a fix when the filter is consistent)."""
+    lines = []
+    for aligned, _ in done.sections:
+        first = next((r for r in done.runs if r.section == aligned.name), None)
+        cells: list[str] = [aligned.name]
+        for stream, nis in (
+            (aligned.depth, None if first is None else first.result.depth_nis),
+            (aligned.fixes, None if first is None else first.result.fix_nis),
+        ):
+            if stream is None:
+                cells += ["—", "—", "—"]
+                continue
+            sigma = "" if stream.sigma is None else np.median(stream.sigma, axis=0)
+            shown = " / ".join(f"{v:.3g}" for v in np.atleast_1d(sigma))
+            finite = np.empty(0) if nis is None else nis[np.isfinite(nis)]
+            mean = format_number(float(np.mean(finite)), "{:.2f}") if len(finite) else "undefined"
+            cells += [f"{len(stream.time)} ({len(stream.skipped_time)})", shown, mean]
+        lines.append(cells)
+    header = ["section", "depth rows (skipped)", "depth σ [m]", "depth mean NIS",
+              "fixes (skipped)", "fix σ N / E / D [m]", "fix mean NIS"]  # fmt: skip
+    title = f"Depth and position fixes (mean NIS: {done.runs[0].label})"
+    return markdown(header, lines, title)

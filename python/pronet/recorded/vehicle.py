@@ -14,6 +14,8 @@ A file, every key optional::
     aiding = "body"; innovation_gate = 16.27; formulation = "invariant"
     imu_lever_arm = [0.0, 0.0, 0.0]     # IMU from the ground-truth point [m, body FRD]
     dvl_lever_arm = [0.5, 0.0, 0.3]     # DVL from the ground-truth point [m, body FRD]
+    depth_sigma = 0.1                   # the depth's 1σ [m] where a recording has none
+    fix_sigma = [2.0, 2.0, 4.0]         # the fixes' 1σ N, E, D [m] where it has none
     # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
                                         # imu_lever_arm beside it (not dvl_lever_arm)
 
@@ -39,7 +41,7 @@ start from the ground truth in every grade (0.1 m, 0.02 m/s, 0.01°/0.06°).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +49,7 @@ import numpy as np
 
 from pronet import _core
 from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
+from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import Format, lever_arm
 from pronet.recorded.plausible import long_lever_arm
 from pronet.recorded.tuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
@@ -77,7 +80,7 @@ GRADES: dict[str, dict[str, Any]] = {
 }
 
 #: Keys of a ``--filter`` file beside :data:`pronet.config.FILTER_KEYS`.
-VEHICLE_KEYS = ("grade", "imu_lever_arm", "dvl_lever_arm")
+VEHICLE_KEYS = ("grade", "imu_lever_arm", "dvl_lever_arm", "depth_sigma", "fix_sigma")
 
 
 @dataclass(frozen=True)
@@ -89,12 +92,24 @@ class VehicleTuning:
         imu_lever_arm, dvl_lever_arm: the sensors from the ground-truth point [m, body
             FRD], or None where the file does not say.
         source: the file, or the grade's name.
+        depth_sigma, fix_sigma: the depth's 1σ [m] and the fixes' 1σ north, east, down
+            [m] where a recording has none (:mod:`pronet.recorded.aiding`), or None.
     """
 
     base: _core.FilterConfig
     imu_lever_arm: tuple[float, float, float] | None
     dvl_lever_arm: tuple[float, float, float] | None
     source: str
+    depth_sigma: float | None = None
+    fix_sigma: tuple[float, float, float] | None = None
+
+    def aiding(self, given: AidingTuning) -> AidingTuning:
+        """``given`` with this vehicle's σ where it has them."""
+        if self.depth_sigma is not None:
+            given = replace(given, depth_sigma=self.depth_sigma)
+        if self.fix_sigma is not None:
+            given = replace(given, fix_sigma=self.fix_sigma)
+        return given
 
 
 def _arm(value: Any, where: str) -> tuple[float, float, float]:
@@ -155,7 +170,29 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
         arm = _arm(table["lever_arm"], f"{where} lever_arm")
         d = np.add(imu, arm)
         dvl = (float(d[0]), float(d[1]), float(d[2]))
-    return VehicleTuning(base, imu, dvl, str(path))
+    return VehicleTuning(base, imu, dvl, str(path), *_aiding_sigma(table, where))
+
+
+def _aiding_sigma(
+    table: dict[str, Any], where: str
+) -> tuple[float | None, tuple[float, float, float] | None]:
+    """The file's ``depth_sigma`` and ``fix_sigma`` [m] (None where absent), checked."""
+    depth, fix = table.get("depth_sigma"), table.get("fix_sigma")
+    try:
+        tuning = AidingTuning(
+            depth_sigma=1.0 if depth is None else float(depth),
+            fix_sigma=(1.0,) * 3 if fix is None else tuple(float(v) for v in fix),  # type: ignore[arg-type]
+        )
+    except (TypeError, ValueError):
+        shown = {k: table[k] for k in ("depth_sigma", "fix_sigma") if k in table}
+        raise ConfigError(
+            f"{where} depth_sigma, fix_sigma: a number of metres > 0 and a list of three "
+            f"(north, east, down), got {shown}"
+        ) from None
+    return (
+        None if depth is None else tuning.depth_sigma,
+        None if fix is None else tuning.fix_sigma,
+    )
 
 
 def lever_arms(

@@ -1,0 +1,341 @@
+"""Depth readings and position fixes in recorded data: the generic format's optional
+``depth`` and ``fix`` streams, their missing values, their checks against the ground
+truth, and the σ the filter gives them (issue 42, point 3).
+
+Two optional tables beside ``imu``, ``dvl`` and ``gt`` (a folder's ``depth.csv`` and
+``fix.csv``, each optionally ``.gz``; an ``.npz``'s arrays ``depth``/``depth_columns``
+and ``fix``/``fix_columns``), each on its own stamps and at its own rate:
+
+===== =============================================================================
+table columns (accepted units; converted to the first)
+===== =============================================================================
+depth ``time [s]``, ``depth [m]`` (pressure depth, positive down); optional
+      ``sigma [m]``, its 1σ
+fix   ``time [s]``, ``lat``, ``lon [rad | deg]``; optional ``height [m]`` (up: a fix
+      without it, or with an empty height cell, is horizontal), ``sigma_n``,
+      ``sigma_e``, ``sigma_d [m]`` (1σ north, east, down; the three together)
+===== =============================================================================
+
+Both refer to the IMU's point (the filter's rule, ``run_filter(depth=, fix=)``): a
+depth sensor or an antenna away from it is not moved. Their stamps are taken on the
+IMU's clock, counted from the section's epoch as every stream's, or on the DVL's or the
+ground truth's as estimated (:func:`pronet.recorded.alignment.load_section`'s
+``aiding_clock``, :class:`~pronet.recorded.alignment.Alignment`'s): no clock is
+estimated from the depth or the fixes themselves.
+
+Missing values are skipped, never fatal, as the DVL's
+(:mod:`pronet.recorded.missing`): a depth row with a NaN or empty depth or σ cell, a
+fix row with a NaN or empty latitude, longitude or σ, is left out of the filter and
+kept with the reason ``"nan"`` (:attr:`DepthReadings.skipped_time`). A σ of 0 or
+below is an error naming its row. Checks against the ground truth (at each row's
+stamp, as given; :func:`against_truth`): the median depth within
+:data:`MAX_DEPTH_OFFSET` of the truth's (a depth from absolute pressure, feet, or a
+height, are not), the median horizontal distance of the fixes within
+:data:`MAX_FIX_OFFSET` of it (degrees under a ``[rad]`` header are not).
+
+σ (:func:`filter_aiding`): the filter takes one depth σ per pass (the median of the
+``sigma`` column when the file has one) and a σ per fix (the file's, else one for
+all). Without a σ in the file, a vehicle file's ``depth_sigma`` / ``fix_sigma``
+(:mod:`pronet.recorded.vehicle`), else :data:`DEFAULT_DEPTH_SIGMA` and
+:data:`DEFAULT_FIX_SIGMA`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet.recorded.plausible import Table, parse_header
+
+F64 = NDArray[np.float64]
+
+_ANGLE = {"rad": 1.0, "deg": np.pi / 180}
+_METRE = {"m": 1.0}
+#: Required columns of the aiding tables: name → accepted units and their SI factor.
+COLUMNS: dict[str, dict[str, dict[str, float]]] = {
+    "depth": {"time": {"s": 1.0}, "depth": _METRE},
+    "fix": {"time": {"s": 1.0}, "lat": _ANGLE, "lon": _ANGLE},
+}
+#: Optional columns of the aiding tables.
+OPTIONAL: dict[str, dict[str, dict[str, float]]] = {
+    "depth": {"sigma": _METRE},
+    "fix": {"height": _METRE, "sigma_n": _METRE, "sigma_e": _METRE, "sigma_d": _METRE},
+}
+#: Plausible sample rates [Hz]: a pressure sensor; fixes on any schedule (a GNSS fix
+#: at 10 Hz at the surface, a USBL fix every few minutes).
+RATE_RANGE = {"depth": (0.01, 1000.0), "fix": (1e-4, 100.0)}
+#: The median depth may differ from the ground truth's by at most this [m]: a depth
+#: from absolute pressure (the atmosphere's 10 m), in feet, or a height, differs more.
+MAX_DEPTH_OFFSET = 5.0
+#: The median horizontal distance [m] of the fixes from the ground truth at most this.
+MAX_FIX_OFFSET = 1000.0
+#: The filter's depth σ [m] when neither the file nor the vehicle gives one: a
+#: pressure sensor's 0.01–0.1 % of a 100–300 m full scale, rounded up.
+DEFAULT_DEPTH_SIGMA = 0.1
+#: The fixes' σ north, east, down [m] when neither the file nor the vehicle gives
+#: one: a standalone GNSS fix's 2 m horizontally, twice that vertically.
+DEFAULT_FIX_SIGMA = (2.0, 2.0, 4.0)
+
+
+_S = TypeVar("_S", bound="_Stream")
+
+
+class _Stream:
+    """What a depth and a fix stream share: their stamps, on a clock."""
+
+    time: F64
+    skipped_time: F64
+
+    def on_clock(self: _S, clock: Callable[[F64], F64]) -> _S:
+        """The same stream with every stamp mapped by ``clock``."""
+        mapped = {"time": clock(self.time), "skipped_time": clock(self.skipped_time)}
+        return replace(self, **mapped)  # type: ignore[type-var]  # each subclass: a dataclass
+
+
+@dataclass(frozen=True)
+class DepthReadings(_Stream):
+    """A depth stream as read (SI).
+
+    Attributes:
+        time: ``(d,)`` stamps [s] of the rows the filter uses.
+        depth: ``(d,)`` depth [m, positive down].
+        sigma: ``(d,)`` the file's 1σ [m], or None (σ as tuned).
+        skipped_time: ``(j,)`` stamps of the rows skipped as missing values.
+        skipped_reason: why each was skipped (``"nan"``).
+        source: where it was read from.
+    """
+
+    time: F64
+    depth: F64
+    sigma: F64 | None
+    skipped_time: F64 = field(default_factory=lambda: np.empty(0))
+    skipped_reason: tuple[str, ...] = ()
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class PositionFixes(_Stream):
+    """A position-fix stream as read (SI).
+
+    Attributes:
+        time: ``(f,)`` stamps [s] of the fixes the filter uses.
+        lla: ``(f, 3)`` latitude, longitude [rad], height [m, up] (NaN: horizontal).
+        sigma: ``(f, 3)`` the file's 1σ north, east, down [m], or None (σ as tuned).
+        skipped_time, skipped_reason, source: as :class:`DepthReadings`'.
+    """
+
+    time: F64
+    lla: F64
+    sigma: F64 | None
+    skipped_time: F64 = field(default_factory=lambda: np.empty(0))
+    skipped_reason: tuple[str, ...] = ()
+    source: str = ""
+
+
+def may_be_missing(kind: str, names: list[str]) -> list[int]:
+    """The columns of ``kind``'s table (by parsed ``names``, in the table's order) whose
+    NaN or empty cell is a missing value rather than an error."""
+    if kind not in COLUMNS:
+        return []
+    return [j for j, n in enumerate(names) if n != "time"]
+
+
+def _column(table: Table, names: list[str], name: str) -> F64 | None:
+    return table.values[:, names.index(name)] if name in names else None
+
+
+def _check_sigma(table: Table, names: list[str], wanted: list[str]) -> None:
+    for name in wanted:
+        j = names.index(name)
+        v = table.values[:, j]
+        bad = v <= 0  # NaN compares False: a missing value
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise ValueError(
+                f"{table.where}, row {r + 1}: {table.labels[j]!r} is {v[r]:g}; a 1σ must be > 0 m"
+            )
+
+
+def depth_readings(table: Table, names: list[str]) -> DepthReadings:
+    """The depth stream of a finished ``depth`` table (``names``: its parsed column
+    names); ValueError, one line naming file, row and column, for a problem."""
+    with_sigma = "sigma" in names
+    if with_sigma:
+        _check_sigma(table, names, ["sigma"])
+    t, depth = table.values[:, 0], table.values[:, 1]
+    sigma = _column(table, names, "sigma")
+    missing = np.isnan(depth) | (np.isnan(sigma) if sigma is not None else False)
+    if missing.all():
+        raise ValueError(
+            f"{table.where}: no usable depth in its {len(t)} rows (every one NaN or empty)"
+        )
+    keep = ~missing
+    return DepthReadings(
+        time=t[keep].copy(),
+        depth=depth[keep].copy(),
+        sigma=None if sigma is None else sigma[keep].copy(),
+        skipped_time=t[missing].copy(),
+        skipped_reason=("nan",) * int(missing.sum()),
+        source=table.where,
+    )
+
+
+def position_fixes(table: Table, names: list[str]) -> PositionFixes:
+    """The fixes of a finished ``fix`` table (``names``: its parsed column names);
+    ValueError, one line naming file, row and column, for a problem."""
+    sigma_names = ["sigma_n", "sigma_e", "sigma_d"]
+    given = [n for n in sigma_names if n in names]
+    if given and len(given) < 3:
+        lacking = ", ".join(n for n in sigma_names if n not in names)
+        raise ValueError(
+            f"{table.where}: has {', '.join(given)} but not {lacking}; give all three or none"
+        )
+    if given:
+        _check_sigma(table, names, sigma_names)
+    t = table.values[:, 0]
+    lat, lon = table.values[:, 1], table.values[:, 2]
+    height = _column(table, names, "height")
+    h = np.full(len(t), np.nan) if height is None else height
+    bad_lat = np.abs(lat) > np.pi / 2
+    if bad_lat.any():
+        r = int(np.argmax(bad_lat))
+        raise ValueError(f"{table.where}, row {r + 1}: latitude {lat[r]} rad is outside ±π/2")
+    missing = np.isnan(lat) | np.isnan(lon)
+    sigma: F64 | None = None
+    if given:
+        sigma = np.column_stack([table.values[:, names.index(n)] for n in sigma_names])
+        missing |= np.isnan(sigma[:, :2]).any(axis=1) | (np.isfinite(h) & np.isnan(sigma[:, 2]))
+    if missing.all():
+        raise ValueError(
+            f"{table.where}: no usable fix in its {len(t)} rows (every one NaN or empty)"
+        )
+    keep = ~missing
+    return PositionFixes(
+        time=t[keep].copy(),
+        lla=np.column_stack([lat, lon, h])[keep],
+        sigma=None if sigma is None else sigma[keep].copy(),
+        skipped_time=t[missing].copy(),
+        skipped_reason=("nan",) * int(missing.sum()),
+        source=table.where,
+    )
+
+
+def streams(tables: Mapping[str, Table]) -> tuple[DepthReadings | None, PositionFixes | None]:
+    """The depth and fix streams of a recording's finished ``tables`` (None where
+    absent), checked; ValueError naming file, row and column for a problem."""
+
+    def names(kind: str) -> list[str]:
+        return [parse_header(label)[0] for label in tables[kind].labels]
+
+    depth = depth_readings(tables["depth"], names("depth")) if "depth" in tables else None
+    fixes = position_fixes(tables["fix"], names("fix")) if "fix" in tables else None
+    return depth, fixes
+
+
+def as_tables(
+    depth: DepthReadings | None, fixes: PositionFixes | None
+) -> dict[str, tuple[list[str], F64]]:
+    """The streams as the generic format's tables, header and SI values (the rows the
+    filter uses), for :func:`pronet.recorded.recordings.write_recording`."""
+    out = {}
+    if depth is not None:
+        columns = [depth.time, depth.depth] + ([] if depth.sigma is None else [depth.sigma])
+        header = ["time [s]", "depth [m]", "sigma [m]"][: len(columns)]
+        out["depth"] = (header, np.column_stack(columns))
+    if fixes is not None:
+        header = ["time [s]", "lat [rad]", "lon [rad]", "height [m]"]
+        parts = [fixes.time[:, None], fixes.lla]
+        if fixes.sigma is not None:
+            header += [f"sigma_{a} [m]" for a in "ned"]
+            parts.append(fixes.sigma)
+        out["fix"] = (header, np.hstack(parts))
+    return out
+
+
+def against_truth(
+    depth: DepthReadings | None, fixes: PositionFixes | None, gt: Table
+) -> str | None:
+    """The depth and fixes against the ground truth ``gt`` (its table: time, lat, lon,
+    height, ...; stamps as given): the median depth offset beyond
+    :data:`MAX_DEPTH_OFFSET`, the median horizontal distance of the fixes beyond
+    :data:`MAX_FIX_OFFSET`. One line naming the file, or None."""
+    t_gt, lla = gt.values[:, 0], gt.values[:, 1:4]
+    if depth is not None:
+        offset = float(np.median(depth.depth + np.interp(depth.time, t_gt, lla[:, 2])))
+        if abs(offset) > MAX_DEPTH_OFFSET:
+            return (
+                f"{depth.source}: column 'depth' lies a median {offset:+.4g} m from the ground "
+                f"truth's depth (at most {MAX_DEPTH_OFFSET:g}); is it positive down, in metres, "
+                "from gauge pressure (less the atmosphere's ~10 m)?"
+            )
+    if fixes is not None:
+        radius = 6_371_000.0  # a sphere: enough to tell a unit from an error of metres
+        lat = np.interp(fixes.time, t_gt, lla[:, 0])
+        lon = np.interp(fixes.time, t_gt, lla[:, 1])
+        north = (fixes.lla[:, 0] - lat) * radius
+        east = (fixes.lla[:, 1] - lon) * radius * np.cos(lat)
+        distance = float(np.median(np.hypot(north, east)))
+        if distance > MAX_FIX_OFFSET:
+            return (
+                f"{fixes.source}: columns 'lat', 'lon' lie a median {distance:.4g} m from the "
+                f"ground truth (at most {MAX_FIX_OFFSET:g}); in another unit or datum?"
+            )
+    return None
+
+
+@dataclass(frozen=True)
+class AidingTuning:
+    """What ``pronet real`` does with a section's aiding sensors: DVL, depth, fixes.
+
+    Attributes:
+        depth_sigma: the depth's 1σ [m] where the file has none.
+        fix_sigma: the fixes' 1σ north, east, down [m] where the file has none.
+        use_depth, use_fixes, use_dvl: False ignores the stream (``--no-depth``,
+            ``--no-fixes``, ``--no-dvl``).
+    """
+
+    depth_sigma: float = DEFAULT_DEPTH_SIGMA
+    fix_sigma: tuple[float, float, float] = DEFAULT_FIX_SIGMA
+    use_depth: bool = True
+    use_fixes: bool = True
+    use_dvl: bool = True
+
+    def __post_init__(self) -> None:
+        sigma = (self.depth_sigma, *self.fix_sigma)
+        if len(self.fix_sigma) != 3 or not all(np.isfinite(s) and s > 0 for s in sigma):
+            raise ValueError(
+                f"depth_sigma, fix_sigma: must be finite numbers of metres > 0 (fix_sigma "
+                f"three: north, east, down), got {self.depth_sigma}, {self.fix_sigma}"
+            )
+
+
+def tuned(
+    depth: DepthReadings | None, fixes: PositionFixes | None, tuning: AidingTuning
+) -> tuple[DepthReadings | None, PositionFixes | None]:
+    """The streams with ``tuning``'s σ where the file has none (the file's kept), and
+    None for a stream ``tuning`` ignores."""
+    if depth is not None and depth.sigma is None:
+        depth = replace(depth, sigma=np.full(len(depth.time), float(tuning.depth_sigma)))
+    if fixes is not None and fixes.sigma is None:
+        sigma = np.tile(np.asarray(tuning.fix_sigma, dtype=np.float64), (len(fixes.time), 1))
+        fixes = replace(fixes, sigma=sigma)
+    return (depth if tuning.use_depth else None), (fixes if tuning.use_fixes else None)
+
+
+def filter_aiding(depth: DepthReadings | None, fixes: PositionFixes | None) -> dict[str, Any]:
+    """The ``run_filter`` keywords (``depth``, ``depth_time``, ``depth_sigma``, ``fix``,
+    ``fix_time``, ``fix_sigma``) of a section's streams, their σ the file's, else the
+    defaults (:func:`tuned` puts a vehicle's in first); empty for none. The filter
+    takes one depth σ per pass: the median of the rows'."""
+    depth, fixes = tuned(depth, fixes, AidingTuning())
+    out: dict[str, Any] = {}
+    if depth is not None and depth.sigma is not None:
+        sigma = float(np.median(depth.sigma))
+        out.update(depth=depth.depth, depth_time=depth.time, depth_sigma=sigma)
+    if fixes is not None:
+        out.update(fix=fixes.lla, fix_time=fixes.time, fix_sigma=fixes.sigma)
+    return out
