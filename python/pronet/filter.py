@@ -266,7 +266,7 @@ def run_filter(
             covariance per DVL epoch and, while it smooths an interval between two, two
             per IMU step of that interval (3.6 kB each: a
             long stretch without an update, an outage, costs memory in proportion), and
-            costs about four forward passes (docs/filter.md, "The RTS smoother").
+            costs 2–5 forward passes (docs/filter.md, "The RTS smoother").
         depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive
             down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
             all three or none.

@@ -348,8 +348,8 @@ def monte_carlo(
             (:attr:`MonteCarloResult.smoothed`; the filter's numbers are unchanged). A
             run then keeps its solution at every IMU epoch until it is smoothed (~250
             bytes each) and, while it smooths an interval between two DVL updates, two
-            covariances per IMU step of it (3.6 kB each, per thread); it costs about
-            four plain runs.
+            covariances per IMU step of it (3.6 kB each, per thread); it costs 2–3.3
+            plain runs.
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")
