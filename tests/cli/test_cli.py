@@ -247,7 +247,6 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
         (["--threads", "0"], "--threads: expected 1 to "),
         (["--covariance-step", "-1"], "--covariance-step: covariance_step: must be a finite"),
         (["--covariance-step", "nan"], "--covariance-step: covariance_step: must be a finite"),
-        (["--smooth", "--covariance-step", "0.1"], "smooth: the smoother needs the covariance"),
     ],
 )
 def test_simulate_refuses_bad_input_before_any_work(

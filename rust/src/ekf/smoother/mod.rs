@@ -335,7 +335,8 @@ impl Forward<'_> {
 /// always does. The mean it computes at every epoch.
 #[derive(Clone, Copy)]
 pub enum Covariances<'a> {
-    /// Every epoch (`run_filter`): the product `Φ_{i→b}ᵀ` is carried back step by step.
+    /// Every epoch (`run_filter`): `Λ_i = Φ_{i→b}ᵀ M Φ_{i→b}` is carried back step by
+    /// step, `Ps_i = P_i + P_i Λ_i P_i`.
     Every,
     /// Only the epochs where this holds (a Monte Carlo's recorded ones), the others'
     /// σ left NaN: the interval's forward product `G_i = Φ_{a→i}` is carried instead,
