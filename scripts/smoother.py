@@ -22,6 +22,7 @@ import argparse
 import numpy as np
 
 import pronet
+from pronet.config import filter_config
 from pronet.results import markdown
 from pronet.sim.scenarios import MATCHED_BIAS_PSD, SCENARIOS
 
@@ -57,13 +58,11 @@ def row(name: str, runs: int) -> list[object]:
 
 
 def psd_rows(runs: int) -> list[list[object]]:
-    from pronet.config import FILTER_KEYS
-
     sc = SCENARIOS["paper"](0)
-    base = {k: getattr(sc.config, k) for k in FILTER_KEYS}
     rows = []
     for accel, gyro in ((1e-3, 1e-3), (1e-5, 1e-7), (1e-7, 1e-10), MATCHED_BIAS_PSD[2:4]):
-        cfg = pronet.FilterConfig(**{**base, "accel_bias_psd": accel, "gyro_bias_psd": gyro})
+        walks = {"accel_bias_psd": accel, "gyro_bias_psd": gyro}
+        cfg = filter_config(walks, "psd", sc.config)
         r = _run(sc, runs, cfg)
         s = r.smoothed
         assert s is not None
