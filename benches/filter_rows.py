@@ -10,6 +10,14 @@ Definitions:
   the constant-Q Monte Carlo of ``paper`` (2 threads) as a ratio, and ``run_filter`` in
   ns per IMU step on an hour of 100 Hz IMU with a 1 Hz DVL (6 minutes under
   ``--quick``), keeping the last epoch (the filter alone) and every epoch.
+- smoother (issue 42): ``benches/smoother.py`` in fresh processes. Cost: the forward
+  and the smoothed pass alternating, best of ``--repeat`` each, every IMU step and a
+  0.1 s covariance step: ``run_filter`` on an hour of 100 Hz IMU with a 1 Hz DVL (6
+  minutes under ``--quick``) and the constant-Q Monte Carlo of ``paper`` (one thread),
+  each a ratio smoothed / forward (target ≤ 2.5×). Memory: the peak resident memory of
+  ``run_filter(smooth=True)`` over 10 hours of 100 Hz IMU with a 5 Hz DVL at a 0.1 s
+  covariance step (half an hour under ``--quick``, extrapolated at its bytes per IMU
+  sample), target ≤ 1 GiB.
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
 """
@@ -192,6 +200,59 @@ def bench_covariance_step(args: argparse.Namespace, ref: Reference) -> list[Row]
                 detail=f"{times(every / stepped)} faster than every IMU step, {every:.0f} ns",
             )
         )
+    return rows
+
+
+def smoother_json(*argv: str) -> dict:
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benches" / "smoother.py"), *argv],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return json.loads(out.stdout)
+
+
+def bench_smoother(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    seconds = 360 if args.quick else 3600
+    runs = 10 if args.quick else args.runs
+    m = smoother_json("cost", str(runs), str(args.repeat), str(seconds), "0", str(COVARIANCE_STEP))
+    command = f"{SCRIPT} --only smoother --runs {args.runs}"
+    rows = []
+    for step in ("0", f"{COVARIANCE_STEP:g}"):
+        at = "every IMU step" if step == "0" else f"{step} s covariance step"
+        for key, what in (
+            ("run_filter", f"`run_filter`, {seconds / 3600:g} h at 100 Hz, 1 Hz DVL"),
+            ("monte_carlo", f"constant Q Monte Carlo of paper, {runs} runs, 1 thread"),
+        ):
+            ratio, walls = m[step][f"{key}_ratio"], m[step][f"{key}_s"]
+            rows.append(
+                Row(
+                    f"RTS smoother, smoothed / forward ({at}): {what}",
+                    f"{times(ratio)} ({walls['forward']:.2f} s → {walls['smoothed']:.2f} s)",
+                    "≤ 2.5×",
+                    ratio <= 2.5,
+                    command,
+                    ratio,
+                    "x",
+                )
+            )
+    hours = 0.5 if args.quick else 10.0
+    mem = smoother_json("memory", str(hours), str(COVARIANCE_STEP))
+    ten_hours = mem["peak_before_gib"] + mem["bytes_per_imu_sample"] * 3.6e6 / 2**30
+    gib = mem["peak_gib"] if hours == 10 else ten_hours
+    how = "measured" if hours == 10 else f"from {hours:g} h, extrapolated"
+    rows.append(
+        Row(
+            "RTS smoother: peak memory of `run_filter(smooth=True)`, 10 h at 100 Hz, 5 Hz DVL",
+            f"{gib:.2f} GiB ({how}; {mem['bytes_per_imu_sample']:.0f} B per IMU sample)",
+            "≤ 1 GiB",
+            gib <= 1,
+            f"{SCRIPT} --only smoother",
+            gib * 1024,
+            "MiB",
+        )
+    )
     return rows
 
 

@@ -39,6 +39,7 @@ from filter_rows import (
     bench_mechanization,
     bench_monte_carlo,
     bench_rust,
+    bench_smoother,
     bench_soak,
 )
 from peers import bench_numpy_reference, bench_pyins
@@ -61,6 +62,7 @@ BENCHES: dict[str, Callable[[argparse.Namespace, Reference], list[Row]]] = {
     "mechanization": bench_mechanization,
     "monte-carlo": bench_monte_carlo,
     "covariance-step": bench_covariance_step,
+    "smoother": bench_smoother,
     "hybrid": bench_hybrid,
     "dataset": bench_dataset,
     "inference": bench_inference,

@@ -1,13 +1,18 @@
 """The RTS smoother against the filter on every built-in scenario, as docs/filter.md
 shows it ("The RTS smoother", Measured).
 
-    python scripts/smoother.py [--runs 100]
+    python scripts/smoother.py [--runs 100] [--part scenarios|psd|outage]
 
 Per scenario: the constant strategy at the scenario's nominal q, 100 runs (seed 0),
-histories every second. Prints a Markdown table: velocity SRMSE and final horizontal
-error of the filter and the smoother, the share of DVL epochs whose run-averaged NEES
-lies in its 95 % band for velocity and attitude, and the recorded epochs where the
-smoothed velocity error RMS is above 1.05 x the filter's.
+histories every second. ``scenarios`` prints a Markdown table: velocity SRMSE and
+final horizontal error of the filter and the smoother, the share of DVL epochs whose
+run-averaged NEES lies in its 95 % band for each error block (filter / smoother), and
+the recorded epochs where the smoothed velocity error RMS is above 1.05 x the
+filter's. ``psd``: ``paper``'s IMU (no bias walk) with the filter told bias walks
+from the paper's ε = 0.001 down to the matched scenario's: the same two columns.
+``outage``: per DVL outage of ``outage``, the horizontal error RMS over the runs at
+its start and middle, filter and smoother, the drift accrued between them, and the
+σ of the horizontal position each reports at the middle.
 """
 
 from __future__ import annotations
@@ -17,40 +22,114 @@ import argparse
 import numpy as np
 
 import pronet
+from pronet.config import filter_config
 from pronet.results import markdown
-from pronet.sim.scenarios import SCENARIOS
+from pronet.sim.scenarios import MATCHED_BIAS_PSD, SCENARIOS
 
 
-def row(name: str, runs: int) -> list[object]:
-    sc = SCENARIOS[name](0)
-    r = pronet.monte_carlo(
+def _run(sc, runs: int, config: pronet.FilterConfig | None = None) -> pronet.MonteCarloResult:
+    return pronet.monte_carlo(
         sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
-        config=sc.config, n_runs=runs, seed=0, record_every=100, smooth=True,
+        config=config or sc.config, n_runs=runs, seed=0, record_every=100, smooth=True,
     )  # fmt: skip
+
+
+def _worse(r: pronet.MonteCarloResult) -> str:
+    """Recorded epochs whose smoothed velocity error RMS is above 1.05 x the filter's."""
     s = r.smoothed
     assert s is not None and r.error is not None and s.error is not None
     rms_f = np.sqrt(np.nanmean(np.sum(r.error[:, :, 3:6] ** 2, axis=2), axis=0))
     rms_s = np.sqrt(np.nanmean(np.sum(s.error[:, :, 3:6] ** 2, axis=2), axis=0))
-    band = [f"{r.nees_in_band(b):.2f} / {s.nees_in_band(b):.2f}" for b in ("velocity", "attitude")]
+    return f"{int(np.sum(rms_s > 1.05 * rms_f))} / {len(rms_f)}"
+
+
+def row(name: str, runs: int) -> list[object]:
+    r = _run(SCENARIOS[name](0), runs)
+    s = r.smoothed
+    assert s is not None
+    band = [f"{r.nees_in_band(b):.2f} / {s.nees_in_band(b):.2f}" for b in pronet.STATE_BLOCKS]
     return [
         name,
         f"{np.nanmean(r.srmse):.4f} / {np.nanmean(s.srmse):.4f}",
         f"{np.nanmean(r.final_horizontal_error):.2f} / {np.nanmean(s.final_horizontal_error):.2f}",
         *band,
-        f"{int(np.sum(rms_s > 1.05 * rms_f))} / {len(rms_f)}",
+        _worse(r),
     ]
+
+
+def psd_rows(runs: int) -> list[list[object]]:
+    sc = SCENARIOS["paper"](0)
+    rows = []
+    for accel, gyro in ((1e-3, 1e-3), (1e-5, 1e-7), (1e-7, 1e-10), MATCHED_BIAS_PSD[2:4]):
+        walks = {"accel_bias_psd": accel, "gyro_bias_psd": gyro}
+        cfg = filter_config(walks, "psd", sc.config)
+        r = _run(sc, runs, cfg)
+        s = r.smoothed
+        assert s is not None
+        rows.append([
+            f"{accel:g} / {gyro:g}",
+            f"{np.nanmean(r.srmse):.4f} / {np.nanmean(s.srmse):.4f}",
+            f"{r.nees_in_band('attitude'):.2f} / {s.nees_in_band('attitude'):.2f}",
+            _worse(r),
+        ])  # fmt: skip
+    return rows
+
+
+def outage_rows(runs: int) -> list[list[object]]:
+    sc = SCENARIOS["outage"](0)
+    r = _run(sc, runs)
+    s = r.smoothed
+    assert s is not None and r.error is not None and s.error is not None
+    assert r.sigma is not None and s.sigma is not None
+
+    def rms(e: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+
+    rows = []
+    for start, end in sc.dvl_outages:
+        a, m = (int(np.argmin(np.abs(r.record_time - t))) for t in (start, (start + end) / 2))
+        at = [rms(x.error[:, k, :2]) for x in (r, s) for k in (a, m)]
+        drift = [rms(x.error[:, m, :2] - x.error[:, a, :2]) for x in (r, s)]
+        sigma = [float(np.sqrt(np.mean(np.sum(x.sigma[:, m, :2] ** 2, axis=1)))) for x in (r, s)]
+        rows.append([
+            f"{start:g}–{end:g} s",
+            f"{at[0]:.2f} / {at[2]:.2f}",
+            f"{at[1]:.2f} / {at[3]:.2f} ({at[3] / at[1]:.2f})",
+            f"{drift[0]:.2f} / {drift[1]:.2f} ({drift[1] / drift[0]:.2f})",
+            f"{sigma[0]:.2f} / {sigma[1]:.2f}",
+        ])  # fmt: skip
+    return rows
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)
+    parser.add_argument("--part", choices=("scenarios", "psd", "outage"), default="scenarios")
     args = parser.parse_args()
+    if args.part == "psd":
+        header = [
+            "filter's bias walk ε (accel / gyro)",
+            "SRMSE [m/s] filter / smoother",
+            "att. NEES in band",
+            "epochs smoothed > 1.05 x filtered",
+        ]
+        print(markdown(header, psd_rows(args.runs)), end="")
+        return 0
+    if args.part == "outage":
+        header = [
+            "outage",
+            "horiz. error at start [m] filter / smoother",
+            "at middle (ratio)",
+            "drift start → middle (ratio)",
+            "horiz. σ at middle",
+        ]
+        print(markdown(header, outage_rows(args.runs)), end="")
+        return 0
     header = [
         "scenario",
         "SRMSE [m/s] filter / smoother",
         "final horiz. [m]",
-        "vel. NEES in band",
-        "att. NEES in band",
+        *(f"{b.replace('_', ' ')} NEES in band" for b in pronet.STATE_BLOCKS),
         "epochs smoothed > 1.05 x filtered",
     ]
     print(markdown(header, [row(name, args.runs) for name in SCENARIOS]), end="")

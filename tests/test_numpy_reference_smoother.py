@@ -55,9 +55,9 @@ def test_rust_smoother_matches_reference(aiding, lever_arm, formulation, covaria
     np.testing.assert_allclose(s.sigma, ref["sigma"], rtol=rtol, atol=0.0)
     np.testing.assert_allclose(s.lla[:, :2], ref["lla"][:, :2], rtol=0, atol=1e-8 * 60 / 6.4e6)
     np.testing.assert_allclose(s.lla[:, 2], ref["lla"][:, 2], rtol=rtol, atol=1e-8)
-    # Every epoch's smoothed σ is at most the forward one, and equal at the end.
+    # Every epoch's smoothed σ is at most the forward one, and equal at the end (to rounding).
     assert (s.sigma <= rust.sigma * (1 + 1e-12)).all()
-    np.testing.assert_array_equal(s.sigma[-1], rust.sigma[-1])
+    np.testing.assert_allclose(s.sigma[-1], rust.sigma[-1], rtol=1e-14, atol=0)
 
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
@@ -105,4 +105,4 @@ def test_rust_smoother_with_dvl_calibration_states_matches_reference(
     np.testing.assert_allclose(s.calibration, ref["calibration"], rtol=rtol, atol=1e-10)
     np.testing.assert_allclose(s.calibration_sigma, ref["calibration_sigma"], rtol=rtol, atol=0)
     assert (s.calibration_sigma <= rust.calibration_sigma * (1 + 1e-12)).all()
-    np.testing.assert_array_equal(s.calibration_sigma[-1], rust.calibration_sigma[-1])
+    np.testing.assert_allclose(s.calibration_sigma[-1], rust.calibration_sigma[-1], rtol=1e-14)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import pronet
+from pronet.config import filter_config
 from pronet.recorded.alignment import dcm_from_euler
 
 Q = (1e-4,) * 3 + (1e-6,) * 3
@@ -103,13 +104,6 @@ def test_monte_carlo_smooths_every_run_and_leaves_the_filter_as_it_was(matched) 
     np.testing.assert_allclose(s.final_horizontal_error, both.final_horizontal_error, rtol=1e-12)
 
 
-def _with_step(config: pronet.FilterConfig, step: float) -> pronet.FilterConfig:
-    from pronet.config import FILTER_KEYS
-
-    kw = {k: getattr(config, k) for k in FILTER_KEYS}
-    return pronet.FilterConfig(**{**kw, "covariance_step": step})
-
-
 @pytest.mark.parametrize("step", [0.1, 0.2])
 def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
     """With the covariance propagated over 0.1 s or 0.2 s steps (the smoother's grid
@@ -119,8 +113,8 @@ def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
     every = _mc(matched, n_runs=20, smooth=True)
     stepped = pronet.monte_carlo(
         matched.trajectory, pronet.Strategy.constant(matched.q_nominal), sensors=matched.sensors,
-        config=_with_step(matched.config, step), seed=0, record_every=100, n_runs=20,
-        smooth=True,
+        config=filter_config({"covariance_step": step}, "step", matched.config), seed=0,
+        record_every=100, n_runs=20, smooth=True,
     )  # fmt: skip
     s, e = stepped.smoothed, every.smoothed
     assert s is not None and e is not None

@@ -265,10 +265,11 @@ def run_filter(
             (:attr:`FilterResult.smoothed`; every epoch kept, so not with
             ``epochs="last"``; with the DVL calibration states all 19 are smoothed; with a
             covariance step the smoother's grid is the steps' closes). It keeps one
-            covariance per DVL epoch and, while it smooths an interval between two, two
-            per IMU step of that interval (3.6 kB each: a
-            long stretch without an update, an outage, costs memory in proportion), and
-            costs about four forward passes (docs/filter.md, "The RTS smoother").
+            covariance per DVL epoch and, while it smooths an interval between two, a
+            covariance and the error dynamics per IMU step of that interval (about
+            2.5 kB: a long stretch without an update, an outage, costs memory in
+            proportion), and costs 2–5 forward passes (docs/filter.md, "The RTS
+            smoother").
         depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive
             down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
             all three or none.

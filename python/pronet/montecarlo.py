@@ -361,9 +361,9 @@ def monte_carlo(
         smooth: also run the RTS smoother backward over every run
             (:attr:`MonteCarloResult.smoothed`; the filter's numbers are unchanged). A
             run then keeps its solution at every IMU epoch until it is smoothed (~250
-            bytes each) and, while it smooths an interval between two DVL updates, two
-            covariances per IMU step of it (3.6 kB each, per thread); it costs about
-            four plain runs.
+            bytes each) and, while it smooths an interval between two DVL updates, a
+            covariance and the error dynamics per IMU step of it (about 2.5 kB, per
+            thread); it costs 2–3.3 plain runs.
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")

@@ -65,6 +65,34 @@ def test_the_study_table_pairs_every_row_with_the_reference() -> None:
     assert table["srmse_diff"].iloc[0] == 0.0
 
 
+def test_pronet_study_smooth_adds_a_smoothed_row_beside_each(tmp_path) -> None:
+    """``--smooth``: each row followed by its smoothed one, the same runs smoothed (its
+    outage-end error from the smoothed solution), the forward rows as without it."""
+    out = tmp_path / "study"
+    args = [
+        "study",
+        "--runs",
+        "3",
+        "--scenarios",
+        "outage",
+        "--strategies",
+        "constant (true q),oracle",
+    ]
+    assert cli.main([*args, "--smooth", "--out", str(out), "--quiet"]) == 0
+    table = pd.read_csv(out / "study.csv")
+    labels = ["constant (true q)", "constant (true q), smoothed", "oracle", "oracle, smoothed"]
+    assert list(table["strategy"]) == labels
+    plain = run_study(3, 0, scenarios=["outage"], labels=["oracle"])
+    np.testing.assert_array_equal(
+        table["srmse"].iloc[[0, 2]], [r.result.srmse.mean() for r in plain]
+    )
+    forward, smoothed = table.iloc[0], table.iloc[1]
+    assert smoothed["srmse"] < forward["srmse"]
+    assert smoothed["outage_end_error"] != forward["outage_end_error"]
+    config = json.loads((out / "config.json").read_text())
+    assert config["smooth"] is True and config["strategies"]["oracle, smoothed"] == "oracle"
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

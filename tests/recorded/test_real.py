@@ -790,7 +790,8 @@ def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path
     """``--smooth``: each strategy row is followed by its smoothed one, scored at the same
     ground-truth rows (the final error the filter's: nothing comes after the last
     epoch), the variant rows with the DVL calibration states not smoothed; over the
-    default covariance step (0.1 s) and at every IMU sample."""
+    default covariance step (0.1 s, the smoother's grid its closes) and at every IMU
+    sample."""
     from pronet.recorded.passes import smoothed_run
 
     data = tmp_path / "data"

@@ -39,6 +39,13 @@ def add_parser(sub: Subparsers) -> None:
         help="comma-separated row labels of pronet.experiments.study.STUDY_ROWS (default: all)",
     )
     add_monte_carlo_args(parser)
+    parser.add_argument(
+        "--smooth",
+        action="store_true",
+        help="also run the RTS smoother over every run: each row is followed by its "
+        "smoothed one ('<label>, smoothed'); off by default (a smoothed Monte Carlo "
+        "costs 2-3.3 plain ones)",
+    )
     add_result_folder(parser, "study")
     add_output_flags(parser)
     parser.set_defaults(func=run)
@@ -60,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
             say=bars.say,
             on_start=bars.start,
             on_done=bars.done,
+            smooth=args.smooth,
         )
     experiment_result(show, folder, start)
     return 0

@@ -65,6 +65,8 @@ STUDY_ROWS = {
 }
 REFERENCE = "constant (true q)"
 ORACLE = "oracle"
+#: The suffix of a smoothed row's label (``run_study(smooth=True)``).
+SMOOTHED = "smoothed"
 
 
 def study_strategies(
@@ -91,7 +93,8 @@ class StudyRow:
         scenario, label: where and what.
         result: the Monte Carlo metrics.
         hybrid: the learned loop's record (None for native strategies).
-        seconds: wall time of the Monte Carlo [s], inference included.
+        seconds: wall time of the Monte Carlo [s], inference included (with
+            ``smooth``, the smoothed Monte Carlo's, forward and backward, on both rows).
         outage_error: ``(n_runs, k)`` horizontal position error [m] at the end of each
             of the scenario's k DVL outages (the last second without the DVL).
     """
@@ -136,10 +139,14 @@ def run_study(
     tuning_period: float = 1.0,
     on_start: OnStart | None = None,
     on_done: OnDone | None = None,
+    smooth: bool = False,
 ) -> list[StudyRow]:
     """Every row of :data:`STUDY_ROWS` (or ``labels``; the reference first) on every
-    scenario, ``n_runs`` runs each from ``seed`` (the noise schedules too). Everything
-    is checked before anything runs; ``on_done("<scenario>: <label>")`` after each."""
+    scenario, ``n_runs`` runs each from ``seed`` (the noise schedules too). With
+    ``smooth``, each row is followed by its RTS-smoothed one (``"<label>, smoothed"``,
+    the same runs smoothed; its paired differences are still taken from the forward
+    reference); a smoothed Monte Carlo costs 2–3.3 plain ones. Everything is checked
+    before anything runs; ``on_done("<scenario>: <label>")`` after each."""
     chosen = _chosen_rows(n_runs, scenarios, labels, threads)
     regressors = _regressors(chosen)
     if on_start is not None:
@@ -153,14 +160,19 @@ def run_study(
         ).items():
             start = time.perf_counter()
             done = run(
-                chosen_strategy, sc, n_runs=n_runs, seed=seed, threads=threads, record_every=every
-            )
+                chosen_strategy, sc, n_runs=n_runs, seed=seed, threads=threads,
+                record_every=every, smooth=smooth,
+            )  # fmt: skip
             seconds = time.perf_counter() - start
             rows.append(
                 StudyRow(
                     name, label, done.result, done.hybrid, seconds, _outage_error(sc, done.result)
                 )
             )
+            smoothed = done.result.smoothed
+            if smoothed is not None:
+                outage = _outage_error(sc, smoothed)
+                rows.append(StudyRow(name, f"{label}, {SMOOTHED}", smoothed, None, seconds, outage))
             if on_done is not None:
                 on_done(f"{name}: {label}")
     return rows
@@ -390,9 +402,11 @@ def study(
     say: Say | None = None,
     on_start: OnStart | None = None,
     on_done: OnDone | None = None,
+    smooth: bool = False,
 ) -> Path:
-    """Run the study (:func:`run_study`) and write its folder (:func:`write_study`,
-    default ``results/study-<time>``; an existing one is refused); returns the folder."""
+    """Run the study (:func:`run_study`; ``smooth``: with the smoothed rows) and write
+    its folder (:func:`write_study`, default ``results/study-<time>``; an existing one
+    is refused); returns the folder."""
     n_rows = len(_chosen_rows(n_runs, scenarios, labels, threads))  # checked before anything
     folder = new_result_folder(out, "study")
     if say is not None:
@@ -408,10 +422,12 @@ def study(
         threads=threads,
         on_start=on_start,
         on_done=on_done,
+        smooth=smooth,
     )
     config: dict[str, object] = {
         "n_runs": n_runs,
         "seed": seed,
+        "smooth": smooth,
         "scenarios": {
             name: {
                 "filter": repr(sc.config),
@@ -424,6 +440,6 @@ def study(
             for name in scenarios
             for sc in [SCENARIOS[name](seed)]
         },
-        "strategies": {r.label: STUDY_ROWS[r.label] for r in rows},
+        "strategies": {r.label: STUDY_ROWS[r.label.removesuffix(f", {SMOOTHED}")] for r in rows},
     }  # no wall time: identical runs write identical files (study.csv has the timings)
     return write_study(folder, rows, config)

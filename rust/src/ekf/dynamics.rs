@@ -14,6 +14,7 @@ const NAV: usize = 9;
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
 /// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
 /// invariant one has all three (`vel_att` full).
+#[derive(Clone, Debug)]
 pub(super) struct ErrorDynamics {
     pos_pos: Matrix3<f64>,
     pos_att: Matrix3<f64>,
@@ -69,16 +70,6 @@ impl ErrorDynamics {
         }
     }
 
-    /// The navigation rows of `Φ = I + F Δt` of one IMU step (its bias rows are the
-    /// identity's): the smoother's transition.
-    pub(super) fn step_rows(&self, dt: f64) -> SMatrix<f64, NAV, 15> {
-        let mut rows = self.nav_rows() * dt;
-        for i in 0..NAV {
-            rows[(i, i)] += 1.0;
-        }
-        rows
-    }
-
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
     /// multiply-adds instead of 225.
     pub(super) fn apply(&self, x: &[f64]) -> [f64; 9] {
@@ -87,6 +78,34 @@ impl ErrorDynamics {
         } else {
             self.apply_in::<false>(x)
         }
+    }
+
+    /// `Fᵀ x` for a 15-vector `x` (only its navigation rows 0..9 are read, the bias
+    /// rows of F being zero): the smoother's backward products, about 60
+    /// multiply-adds instead of 135.
+    pub(super) fn apply_transposed(&self, x: &[f64]) -> [f64; 15] {
+        let v = |at: usize| Vector3::new(x[at], x[at + 1], x[at + 2]);
+        let (xp, xv, xa) = (v(POS), v(VEL), v(ATT));
+        let pos = self.pos_pos.tr_mul(&xp) + self.vel_pos.component_mul(&xv);
+        let vel = xp + self.vel_vel.tr_mul(&xv);
+        let mut att = self.vel_att.tr_mul(&xv) + self.att_att.tr_mul(&xa);
+        let abias = self.vel_abias.tr_mul(&xv);
+        let mut gbias = self.att_gbias.tr_mul(&xa);
+        if self.invariant {
+            att += self.pos_att.tr_mul(&xp);
+            gbias += self.vel_gbias.tr_mul(&xv);
+        }
+        let mut out = [0.0; 15];
+        for (at, b) in [
+            (POS, pos),
+            (VEL, vel),
+            (ATT, att),
+            (ACC_BIAS, abias),
+            (GYRO_BIAS, gbias),
+        ] {
+            out[at..at + 3].copy_from_slice(b.as_slice());
+        }
+        out
     }
 
     /// [`Self::apply`] for one formulation. The skew-symmetric blocks skip their zero
@@ -411,6 +430,12 @@ impl Transition {
         }
     }
 
+    /// The navigation rows of Φ, `[Φ_nn, Φ_nb]` (9 × 15; its other rows are the
+    /// identity's).
+    pub(super) fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
+        SMatrix::<f64, NAV, 15>::from_fn(|i, k| self.cols[k][i])
+    }
+
     /// The dense 15×15 Φ.
     #[cfg(test)]
     pub(super) fn dense(&self) -> Matrix15 {
@@ -555,6 +580,12 @@ mod tests {
         let sparse = d.apply(&x);
         assert!(
             (0..9).all(|i| (fx[i] - sparse[i]).abs() < 1e-12),
+            "{formulation:?}"
+        );
+        let ftx = f.transpose() * crate::ekf::Vector15::from_column_slice(&x);
+        let sparse = d.apply_transposed(&x);
+        assert!(
+            (0..15).all(|i| (ftx[i] - sparse[i]).abs() < 1e-12),
             "{formulation:?}"
         );
         let p = test_p();

@@ -315,17 +315,6 @@ impl Ekf {
     /// sample. A non-finite result (an overflow from absurd inputs or a diverged
     /// filter) is an `Error::Numerical`, never a silent NaN.
     pub fn propagate(&mut self, raw: &ImuSample, dt: f64, noise: ProcessNoise<'_>) -> Result<()> {
-        self.propagate_closing(raw, dt, noise).map(|_| ())
-    }
-
-    /// [`Ekf::propagate`], giving the transition Φ of a covariance step closed as due
-    /// at the end of this sample (None at every sample without a covariance step).
-    fn propagate_closing(
-        &mut self,
-        raw: &ImuSample,
-        dt: f64,
-        noise: ProcessNoise<'_>,
-    ) -> Result<Option<Transition>> {
         let imu = ImuSample {
             accel: raw.accel - self.accel_bias,
             gyro: raw.gyro - self.gyro_bias,
@@ -345,9 +334,8 @@ impl Ekf {
         self.last_gyro = imu.gyro;
         // P changes at every sample, or where a covariance step closes.
         let mut covariance_changed = every_sample;
-        let mut closed = None;
         if !every_sample && self.interval.as_ref().is_some_and(|i| i.due(&self.cfg)) {
-            closed = self.close_interval();
+            self.bring_up_to_date();
             covariance_changed = true;
         }
         if !self.solution_is_finite() || (covariance_changed && !self.covariance_is_finite()) {
@@ -355,7 +343,7 @@ impl Ekf {
                 "the prediction produced a non-finite state or covariance".into(),
             ));
         }
-        Ok(closed)
+        Ok(())
     }
 
     /// The covariance part of [`Ekf::propagate`] at every IMU sample.
@@ -368,16 +356,58 @@ impl Ekf {
     ) {
         let formulation = self.cfg.formulation;
         let dynamics = ErrorDynamics::new(&self.nav, rates, &imu.accel, formulation);
+        self.propagate_covariance_with(&dynamics, dt, noise);
+    }
+
+    /// The covariance part of [`Ekf::propagate`] over one raw IMU sample of `dt`
+    /// seconds starting from the navigation solution `nav` (the forward pass's, which
+    /// is not integrated again): the smoother's rebuild of a stretch of the forward
+    /// pass, the same numbers bit for bit. Every sample: the step's error dynamics
+    /// (`Φ = I + F Δt`); under a covariance step: the transition of a step closed as
+    /// due.
+    fn predict_covariance_from(
+        &mut self,
+        nav: &NavState,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> (Option<ErrorDynamics>, Option<Transition>) {
+        self.nav = *nav;
+        let accel = raw.accel - self.accel_bias;
+        if self.cfg.covariance_every_sample() {
+            let rates = FrameRates::at(nav);
+            let formulation = self.cfg.formulation;
+            let dynamics = ErrorDynamics::new(nav, &rates, &accel, formulation);
+            self.propagate_covariance_with(&dynamics, dt, noise);
+            return (Some(dynamics), None);
+        }
+        let white = self.cfg.imu_dt * dt;
+        let interval = self
+            .interval
+            .get_or_insert_with(|| Interval::open(nav, false));
+        interval.add(nav, &accel, dt, white, noise);
+        let due = interval.due(&self.cfg);
+        (None, if due { self.close_interval() } else { None })
+    }
+
+    /// [`Ekf::propagate_covariance`] with the step's error dynamics given.
+    fn propagate_covariance_with(
+        &mut self,
+        dynamics: &ErrorDynamics,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) {
+        let formulation = self.cfg.formulation;
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
         if let Some(c) = self.calibration.as_mut() {
-            c.propagate(&dynamics, dt, true);
+            c.propagate(dynamics, dt, true);
         }
         if let Some((m, q)) = self.sensitivity.as_mut() {
             dynamics.propagate_covariance(m, dt);
             add_imu_noise(m, &self.nav, formulation, q, self.cfg.imu_dt * dt);
             if let Some(c) = self.sensitivity_calibration.as_mut() {
-                c.propagate(&dynamics, dt, false);
+                c.propagate(dynamics, dt, false);
             }
         }
     }
@@ -506,16 +536,6 @@ impl Ekf {
             dx,
             formulation,
         );
-    }
-
-    /// The navigation rows of `Φ = I + F Δt` of the next IMU step from the current
-    /// state with the raw sample `raw` (bias-corrected as [`Ekf::propagate`] does): the
-    /// transition that step applies to the covariance (the smoother's backward pass;
-    /// its other rows are the identity's).
-    pub fn transition_rows(&self, raw: &ImuSample, dt: f64) -> smoother::NavRows {
-        let accel = raw.accel - self.accel_bias;
-        let rates = FrameRates::at(&self.nav);
-        ErrorDynamics::new(&self.nav, &rates, &accel, self.cfg.formulation).step_rows(dt)
     }
 
     /// Run the filter with a noise strategy over one IMU sample and an optional

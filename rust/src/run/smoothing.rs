@@ -4,6 +4,7 @@
 
 use super::{bias_array, nees3, solution_error, History, Run};
 use crate::cancel::Cancel;
+use crate::earth;
 use crate::ekf::formulation;
 use crate::ekf::smoother::{smooth, Covariances, Forward, Nodes, Smoothed};
 use crate::ekf::{Ekf, Formulation, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
@@ -97,12 +98,14 @@ fn smoothed_metrics(
         |k: usize| solution_error(&s.nav[k], &s.bias[k], &truth.states[k], &log.true_bias[k]);
     let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
     let mut horizontal = 0.0;
+    // Velocity and horizontal position alone at every epoch (the attitude's logarithm
+    // and the biases only where they are recorded).
     for k in 1..=n {
-        let e = error(k);
-        let dv = Vector3::new(e[VEL], e[VEL + 1], e[VEL + 2]);
+        let dv = s.nav[k].vel - truth.states[k].vel;
         sum_sq += dv.norm_squared();
         sum_abs += dv.abs().sum();
-        let sq = e[POS] * e[POS] + e[POS + 1] * e[POS + 1];
+        let dp = earth::position_error_ned(&s.nav[k].lla, &truth.states[k].lla);
+        let sq = dp[0] * dp[0] + dp[1] * dp[1];
         max_sq = max_sq.max(sq);
         horizontal = sq.sqrt();
     }

@@ -25,14 +25,15 @@
 //! the fixed-interval RTS recursion `C_i = P⁺_i Φ_{i+1}ᵀ (P⁻_{i+1})⁻¹` chained over the
 //! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0` ([`every`]); under a covariance
 //! step the grid is the steps' closes instead ([`steps`]). With the DVL calibration
-//! states the recursion runs on all 19 (`N` below): their rows of Φ are the identity's
-//! and the navigation rows do not read them, so every transition is its nine
-//! navigation rows ([`NavRows`]). `docs/filter.md` ("The RTS smoother") writes it out
+//! states the recursion runs on all 19 (`N` below): their rows of F are zero and the
+//! navigation rows do not read them, so every product with `Φ = I + F Δt` goes through
+//! the sparse F of the first 15. `docs/filter.md` ("The RTS smoother") writes it out
 //! with its sources.
 
 use super::calibration::{correct_mounting, Cross, DvlMounting, N_CALIBRATED, SCALE};
 use super::interval::Interval as CovarianceStep;
-use super::{correct, Ekf, FilterConfig, Matrix15, Vector15};
+use super::{correct, Ekf, FilterConfig, Formulation, Matrix15, Vector15, ATT, VEL};
+use crate::attitude::skew;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
 use crate::mechanization::NavState;
@@ -44,10 +45,6 @@ pub(super) mod steps;
 
 #[cfg(test)]
 pub(super) use every::Interval;
-
-/// The navigation rows of a transition `Φ = [[R], [0, I]]` (9 × 15; its other rows
-/// are the identity's, and with the calibration states its last four columns are 0).
-pub type NavRows = SMatrix<f64, 9, 15>;
 
 /// The process noise of an interval, owned (see [`ProcessNoise`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -338,7 +335,8 @@ impl Forward<'_> {
 /// always does. The mean it computes at every epoch.
 #[derive(Clone, Copy)]
 pub enum Covariances<'a> {
-    /// Every epoch (`run_filter`): the product `Φ_{i→b}ᵀ` is carried back step by step.
+    /// Every epoch (`run_filter`): `Λ_i = Φ_{i→b}ᵀ M Φ_{i→b}` is carried back step by
+    /// step, `Ps_i = P_i + P_i Λ_i P_i`.
     Every,
     /// Only the epochs where this holds (a Monte Carlo's recorded ones), the others'
     /// σ left NaN: the interval's forward product `G_i = Φ_{a→i}` is carried instead,
@@ -425,11 +423,47 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let p: Matrix15 = ps.fixed_view::<15, 15>(0, 0).into_owned();
-        self.sigma[i] = classic_sigma(cfg, &forward.nav[i], &p);
-        if N == N_CALIBRATED {
-            self.calibration_sigma[i] =
-                std::array::from_fn(|k| ps[(SCALE + k, SCALE + k)].max(0.0).sqrt());
+        let invariant = cfg.formulation == Formulation::Invariant;
+        let s = skew(&forward.nav[i].vel);
+        // (U P Uᵀ)_jj, U = I + S at (velocity, attitude): P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr.
+        self.set_variances(i, |j| {
+            let mut v = ps[(j, j)];
+            if invariant && (VEL..VEL + 3).contains(&j) {
+                let r = j - VEL;
+                for k in 0..3 {
+                    v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
+                    for l in 0..3 {
+                        v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
+                    }
+                }
+            }
+            v
+        });
+    }
+
+    /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
+    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone: `diag(U P Uᵀ) + diag(U P Λ P Uᵀ)`
+    /// with `U` the map to the classic coordinates.
+    fn set_sigma_of<const N: usize>(
+        &mut self,
+        i: usize,
+        p: &SMatrix<f64, N, N>,
+        lambda: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let up = classic_rows(cfg, &forward.nav[i], p);
+        let upl = up * lambda;
+        self.set_variances(i, |j| {
+            classic_variance(cfg, &forward.nav[i], &up, j) + upl.row(j).dot(&up.row(j))
+        });
+    }
+
+    /// σ at epoch `i` from each state's variance.
+    fn set_variances(&mut self, i: usize, variance: impl Fn(usize) -> f64) {
+        self.sigma[i] = std::array::from_fn(|j| variance(j).max(0.0).sqrt());
+        if let Some(sigma) = self.calibration_sigma.get_mut(i) {
+            *sigma = std::array::from_fn(|k| variance(SCALE + k).max(0.0).sqrt());
         }
     }
 
@@ -440,28 +474,36 @@ impl Smoothed {
     }
 }
 
-/// `Φᵀ B` for `Φ = [[R], [0, I]]` (`R` its navigation rows) and an `N × C` matrix `B`:
-/// `Rᵀ B_nav` in the first 15 rows, plus the rows of `B` past the navigation ones.
-fn transposed<const N: usize, const C: usize>(
-    rows: &NavRows,
-    b: &SMatrix<f64, N, C>,
-) -> SMatrix<f64, N, C> {
-    let nav = rows.transpose() * b.fixed_rows::<9>(0);
-    let mut out = *b;
-    out.fixed_rows_mut::<9>(0).fill(0.0);
-    let mut top = out.fixed_rows_mut::<15>(0);
-    top += nav;
-    out
+/// `U P`, the rows of a covariance in the filter's coordinates mapped to the classic
+/// ones at `nav`'s velocity (`U = I + [v̂×]` at (velocity, attitude) in the invariant
+/// formulation, `I` in the classic one).
+fn classic_rows<const N: usize>(
+    cfg: &FilterConfig,
+    nav: &NavState,
+    p: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    let mut up = *p;
+    if cfg.formulation == Formulation::Invariant {
+        let att = up.fixed_rows::<3>(ATT).into_owned();
+        let mut vel = up.fixed_rows_mut::<3>(VEL);
+        vel += skew(&nav.vel) * att;
+    }
+    up
 }
 
-/// `Φ G` for such a Φ: the navigation rows change, the others stay.
-fn step_product<const N: usize>(rows: &NavRows, g: &mut SMatrix<f64, N, N>) {
-    let nav = rows * g.fixed_rows::<15>(0);
-    g.fixed_rows_mut::<9>(0).copy_from(&nav);
-}
-
-fn classic_sigma(cfg: &FilterConfig, nav: &NavState, p: &Matrix15) -> [f64; 15] {
-    let mut c = *p;
-    super::formulation::to_classic(cfg.formulation, &mut c, &nav.vel);
-    std::array::from_fn(|i| c[(i, i)].max(0.0).sqrt())
+/// `(U P Uᵀ)_jj` from `up = U P` (see [`classic_rows`]).
+fn classic_variance<const N: usize>(
+    cfg: &FilterConfig,
+    nav: &NavState,
+    up: &SMatrix<f64, N, N>,
+    j: usize,
+) -> f64 {
+    let mut v = up[(j, j)];
+    if cfg.formulation == Formulation::Invariant && (VEL..VEL + 3).contains(&j) {
+        let s = skew(&nav.vel);
+        for k in 0..3 {
+            v += s[(j - VEL, k)] * up[(j, ATT + k)];
+        }
+    }
+    v
 }

@@ -4,9 +4,10 @@
 //! (when due, before every update, at the last epoch): those closes are the smoother's
 //! grid, and each step's `Φ = I + F ΔT + ½(F ΔT)²` is the transition between two of
 //! them. The backward pass rebuilds the closes between two nodes by the filter's own
-//! prediction (bit for bit, as [`super::Interval::rebuild`] does at every sample;
-//! a node inside a step carries the step's sums, so the rebuild resumes it), then runs
-//! the RTS recursion from close to close (`c` the earlier close, `d` the next):
+//! prediction (bit for bit, as the every-sample pass does; a node inside a step
+//! carries the step's sums, so the rebuild resumes it), then runs the RTS recursion
+//! from close to close (`c` the earlier close, `d` the next), chained between updates
+//! as [`smooth_steps`] says:
 //!
 //! ```text
 //! A_c  = P⁺_c Φ_dᵀ (P⁻_d)⁻¹                 (Cholesky solves, no inverse)
@@ -28,25 +29,23 @@ use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
 
-/// A close of the covariance step, rebuilt: its epoch, the step's Φ and the
-/// covariance it left (before the epoch's updates), over `N` states.
+/// The navigation rows of a step's Φ (9 × 15; its other rows are the identity's).
+type NavRows = SMatrix<f64, 9, 15>;
+
+/// A close of the covariance step, rebuilt: its epoch, the navigation rows of the
+/// step's Φ and the covariance it left (before the epoch's updates), over `N` states.
 pub(in crate::ekf) struct Close<const N: usize> {
     pub(in crate::ekf) epoch: usize,
-    phi: Transition,
+    phi: NavRows,
     pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
 }
 
-/// The smoothed close after the ones still to be processed, with its step.
-struct Later<const N: usize> {
-    epoch: usize,
-    /// `δs⁻ = δs + δx̂`: the smoothed error of the forward solution before its updates.
-    ds_prior: SVector<f64, N>,
-    ps: SMatrix<f64, N, N>,
-    phi: Transition,
-    p_prior: SMatrix<f64, N, N>,
-}
-
-/// The backward pass of [`super::smooth`] over `N` states under a covariance step.
+/// The backward pass of [`super::smooth`] over `N` states under a covariance step,
+/// chained as at every sample (see [`super::every`]): between two closes with updates
+/// `P⁺ = P⁻` and `δx̂ = 0`, so `μ ← Φᵀ μ` and `Λ ← Φᵀ Λ Φ` carry `(P⁻_u)⁻¹ δs⁻_u` and
+/// `(P⁻_u)⁻¹ (Ps_u − P⁻_u) (P⁻_u)⁻¹` of the next update `u` back, `δs_c = P_c μ` and
+/// `Ps_c = P_c + P_c Λ P_c`; only at the nodes a Cholesky factor of `P⁻` is solved
+/// with.
 pub(super) fn smooth_steps<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
@@ -59,83 +58,97 @@ pub(super) fn smooth_steps<const N: usize>(
         Covariances::Every => true,
         Covariances::Where(f) => f(i),
     };
-    let mut later: Option<Later<N>> = None;
+    // After the last epoch nothing is left to learn: μ = 0, Λ = 0.
+    let mut mu = SVector::<f64, N>::zeros();
+    let mut lambda = SMatrix::<f64, N, N>::zeros();
+    // The next close: its epoch and `δs⁻` there (the interpolation's far end).
+    let mut later: Option<(usize, SVector<f64, N>)> = None;
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
         let closes = rebuild::<N>(forward, cfg, a, b, cancel)?;
         for close in closes.into_iter().rev() {
-            let (p_post, correction) = if close.epoch == b.epoch {
-                (b.p::<N>(), b.dx::<N>())
-            } else {
-                (close.p_prior, SVector::zeros())
-            };
-            let (ds, ps) = step_back(&p_post, later.as_ref())?;
+            let at_node = close.epoch == b.epoch;
+            let p = if at_node { b.p::<N>() } else { close.p_prior };
+            let ds = p * mu;
+            // Ps where it is read: at the nodes and where σ is wanted before the next close.
+            let end = later.as_ref().map_or(close.epoch + 1, |l| l.0);
+            let read = at_node || (close.epoch..end).any(wanted);
+            let ps = read.then(|| symmetric(&(p + p * lambda * p)));
             fill(
                 &mut out,
                 forward,
                 cfg,
                 close.epoch,
                 &ds,
-                &ps,
+                ps.as_ref(),
                 later.as_ref(),
                 &wanted,
             );
-            if close.epoch == b.epoch {
+            let mut ds_prior = ds;
+            if let (true, Some(ps)) = (at_node, ps) {
                 out.keep_node(b.epoch, &ps);
+                ds_prior += b.dx::<N>();
+                let chol = close.p_prior.cholesky().ok_or_else(|| {
+                    Error::Numerical(format!(
+                        "the smoother: the covariance before epoch {} is not positive definite",
+                        b.epoch
+                    ))
+                })?;
+                mu = chol.solve(&ds_prior);
+                let m = chol.solve(&(ps - close.p_prior));
+                lambda = symmetric(&chol.solve(&m.transpose()));
             }
-            later = Some(Later {
-                epoch: close.epoch,
-                ds_prior: ds + correction,
-                ps,
-                phi: close.phi,
-                p_prior: close.p_prior,
-            });
+            mu = transposed(&close.phi, &mu);
+            lambda = congruence(&close.phi, &lambda);
+            later = Some((close.epoch, ds_prior));
         }
     }
     // The first epoch: the prior, a close of its own.
-    let (ds, ps) = step_back(&nodes[0].p::<N>(), later.as_ref())?;
-    fill(&mut out, forward, cfg, 0, &ds, &ps, later.as_ref(), &wanted);
+    let p = nodes[0].p::<N>();
+    let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
+    fill(
+        &mut out,
+        forward,
+        cfg,
+        0,
+        &ds,
+        Some(&ps),
+        later.as_ref(),
+        &wanted,
+    );
     out.keep_node(0, &ps);
     out.node_covariance.reverse();
     Ok(out)
 }
 
-/// `Φ X` for a step's Φ (its rows past the first 15 are the identity's).
-fn phi_times<const N: usize>(phi: &Transition, x: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
-    let mut top: SMatrix<f64, 15, N> = x.fixed_rows::<15>(0).into_owned();
-    phi.apply(&mut top);
-    let mut out = *x;
-    out.fixed_rows_mut::<15>(0).copy_from(&top);
+fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    (m + m.transpose()) * 0.5
+}
+
+/// `Φᵀ B` for `Φ = [[R], [0, I]]` (`R` its navigation rows) and an `N × C` matrix `B`:
+/// `Rᵀ B_nav` in the first 15 rows, plus the rows of `B` past the navigation ones.
+fn transposed<const N: usize, const C: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, C>,
+) -> SMatrix<f64, N, C> {
+    let nav = rows.transpose() * b.fixed_rows::<9>(0);
+    let mut out = *b;
+    out.fixed_rows_mut::<9>(0).fill(0.0);
+    let mut top = out.fixed_rows_mut::<15>(0);
+    top += nav;
     out
 }
 
-/// The smoothed error and covariance at a close whose covariance after its updates is
-/// `p_post`, from the next close `later` (None: the last epoch, where `δs = 0`,
-/// `Ps = P`).
-type SmoothedAt<const N: usize> = (SVector<f64, N>, SMatrix<f64, N, N>);
-fn step_back<const N: usize>(
-    p_post: &SMatrix<f64, N, N>,
-    later: Option<&Later<N>>,
-) -> Result<SmoothedAt<N>> {
-    let Some(later) = later else {
-        return Ok((SVector::zeros(), *p_post));
-    };
-    let chol = later.p_prior.cholesky().ok_or_else(|| {
-        Error::Numerical(format!(
-            "the smoother: the covariance before epoch {} is not positive definite",
-            later.epoch
-        ))
-    })?;
-    // Aᵀ = (P⁻_d)⁻¹ Φ_d P⁺_c (P⁻ and P⁺ symmetric).
-    let gain_t = chol.solve(&phi_times(&later.phi, p_post));
-    let ds = gain_t.transpose() * later.ds_prior;
-    let ps = p_post + gain_t.transpose() * (later.ps - later.p_prior) * gain_t;
-    Ok((ds, (ps + ps.transpose()) * 0.5))
+/// `Φᵀ Λ Φ` for a symmetric Λ (see [`transposed`]).
+fn congruence<const N: usize>(rows: &NavRows, lambda: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    let half = transposed(rows, lambda); // Φᵀ Λ
+    symmetric(&transposed(rows, &half.transpose()))
 }
 
 /// Apply the smoothed error `ds` at the close `epoch` and interpolate it up to the
-/// next close; σ at the close and, repeated, at the epochs before the next one.
+/// next close `later` (its epoch and `δs⁻` there); σ from `ps` (given where one is
+/// wanted) at the close and, repeated, at the epochs before the next one.
 #[allow(clippy::too_many_arguments)]
 fn fill<const N: usize>(
     out: &mut Smoothed,
@@ -143,20 +156,20 @@ fn fill<const N: usize>(
     cfg: &FilterConfig,
     epoch: usize,
     ds: &SVector<f64, N>,
-    ps: &SMatrix<f64, N, N>,
-    later: Option<&Later<N>>,
+    ps: Option<&SMatrix<f64, N, N>>,
+    later: Option<&(usize, SVector<f64, N>)>,
     wanted: &dyn Fn(usize) -> bool,
 ) {
-    let end = later.map_or(epoch + 1, |l| l.epoch);
+    let end = later.map_or(epoch + 1, |l| l.0);
     let t_close = forward.time(epoch);
     for i in epoch..end {
-        if wanted(i) {
+        if let (true, Some(ps)) = (wanted(i), ps) {
             out.set_sigma(i, ps, cfg, forward);
         }
         let dsi = match later {
-            Some(l) if i > epoch => {
-                let w = (forward.time(i) - t_close) / (forward.time(l.epoch) - t_close);
-                ds * (1.0 - w) + l.ds_prior * w
+            Some((e, ds_end)) if i > epoch => {
+                let w = (forward.time(i) - t_close) / (forward.time(*e) - t_close);
+                ds * (1.0 - w) + ds_end * w
             }
             _ => *ds,
         };
@@ -165,7 +178,7 @@ fn fill<const N: usize>(
 }
 
 /// The closes in `(a, b]` of the covariance step, rebuilt by the filter's prediction
-/// from the forward solution at `a` (and the step `a` was inside, if any), the noise
+/// along the forward solution from `a` (and the step `a` was inside, if any), the noise
 /// of `a` throughout; `b`'s step is closed at `b` where the forward pass closed it.
 pub(in crate::ekf) fn rebuild<const N: usize>(
     forward: &Forward<'_>,
@@ -177,27 +190,27 @@ pub(in crate::ekf) fn rebuild<const N: usize>(
     let mut ekf = restart(forward, cfg, a)?;
     let noise = a.noise.as_process_noise();
     let mut closes = Vec::new();
+    let mut push = |ekf: &crate::ekf::Ekf, epoch: usize, phi: Transition| {
+        closes.push(Close {
+            epoch,
+            phi: phi.nav_rows(),
+            p_prior: full_p::<N>(ekf),
+        });
+    };
     for epoch in a.epoch..b.epoch {
         if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
             cancel.check()?;
         }
         let raw = ImuSample::from_array(&forward.imu[epoch]);
         let dt = forward.step(epoch);
-        if let Some(phi) = ekf.propagate_closing(&raw, dt, noise)? {
-            closes.push(Close {
-                epoch: epoch + 1,
-                phi,
-                p_prior: full_p::<N>(&ekf),
-            });
+        let (_, closed) = ekf.predict_covariance_from(&forward.nav[epoch], &raw, dt, noise);
+        if let Some(phi) = closed {
+            push(&ekf, epoch + 1, phi);
         }
     }
     if b.interval.is_none() {
         if let Some(phi) = ekf.close_interval() {
-            closes.push(Close {
-                epoch: b.epoch,
-                phi,
-                p_prior: full_p::<N>(&ekf),
-            });
+            push(&ekf, b.epoch, phi);
         }
     }
     Ok(closes)

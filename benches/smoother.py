@@ -1,0 +1,123 @@
+"""The RTS smoother's cost and memory (issue 42), each measured in one process.
+
+    python benches/smoother.py cost RUNS REPEAT SECONDS [STEP ...]
+    python benches/smoother.py memory HOURS STEP
+
+``cost``: for each covariance step (default 0 and 0.1 s), the forward and the smoothed
+pass alternating ``repeat`` times, best of each: ``run_filter`` on ``SECONDS`` of a
+100 Hz recording with a 1 Hz DVL (``benches/covariance_step.py``'s) and the constant-Q
+Monte Carlo of ``paper`` (``RUNS`` runs, one thread); prints one JSON object of the
+walls [s] and the ratios smoothed / forward.
+
+``memory``: ``run_filter(smooth=True)`` on ``HOURS`` of a 100 Hz IMU with a 5 Hz DVL,
+in this (fresh) process; prints one JSON object: the peak resident memory [GiB] before
+and after the pass (``VmHWM``), the IMU samples and DVL epochs, and the bytes per IMU
+sample the pass added. ``benches/run.py --only smoother`` runs both and reports the
+rows.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from functools import partial
+from typing import Any
+
+import numpy as np
+from covariance_step import alternating, recording
+
+import pronet
+from pronet.config import filter_config
+from pronet.recorded.alignment import dcm_from_euler
+from pronet.sim import paper, scenarios
+
+
+def peak_gib() -> float:
+    """The process's peak resident memory [GiB] (``VmHWM``)."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 2**20
+    raise RuntimeError("no VmHWM in /proc/self/status")
+
+
+def cost(runs: int, repeat: int, seconds: float, steps: list[float]) -> dict[str, Any]:
+    data = recording(seconds)
+    sc = scenarios.SCENARIOS["paper"](0)
+    out: dict[str, Any] = {"imu_steps": len(data["imu"])}
+    for step in steps:
+        cfg = filter_config({"covariance_step": step}, "covariance_step:", sc.config)
+        passes = {
+            "forward": partial(pronet.run_filter, **data, config=cfg),
+            "smoothed": partial(pronet.run_filter, **data, config=cfg, smooth=True),
+        }
+
+        def mc(smooth: bool, cfg: pronet.FilterConfig = cfg) -> object:
+            return pronet.monte_carlo(
+                sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
+                config=cfg, n_runs=runs, seed=0, threads=1, smooth=smooth,
+            )  # fmt: skip
+
+        walls = alternating(repeat, passes)
+        mcs = alternating(repeat, {"forward": partial(mc, False), "smoothed": partial(mc, True)})
+        out[f"{step:g}"] = {
+            "run_filter_s": walls,
+            "run_filter_ratio": walls["smoothed"] / walls["forward"],
+            "monte_carlo_s": mcs,
+            "monte_carlo_ratio": mcs["smoothed"] / mcs["forward"],
+        }
+    return out
+
+
+def memory(hours: float, step: float) -> dict[str, Any]:
+    """A smoothed pass over ``hours`` of a straight, turning 100 Hz run with a 5 Hz DVL
+    (the paper's IMU noise), its peak memory."""
+    n_legs = max(1, int(hours * 60))
+    legs = [[60.0, 0.0, (-1) ** i * 0.02, 0.0] for i in range(n_legs)]
+    traj = pronet.trajectory_from_segments(
+        legs, lla0=(np.radians(32.0), np.radians(34.0), -5.0), speed0=1.5
+    )
+    rng = np.random.default_rng(0)
+    imu = traj.imu + rng.normal(size=traj.imu.shape) * np.sqrt(paper.PAPER_Q)
+    k = np.arange(20, traj.n_samples + 1, 20)
+    body = np.einsum("nji,nj->ni", dcm_from_euler(traj.rpy[k]), traj.vel_ned[k])
+    dvl = body + rng.normal(size=body.shape) * 0.1
+    args = dict(
+        t0=traj.time[0], lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+        strategy=pronet.Strategy.constant(paper.PAPER_Q),
+        config=filter_config({"covariance_step": step}, "covariance_step:",
+                             paper.paper_filter_config()),
+    )  # fmt: skip
+    times = traj.time[1:], traj.time[k]
+    del traj
+    before = peak_gib()
+    result = pronet.run_filter(imu, times[0], dvl, times[1], **args, smooth=True)
+    after = peak_gib()
+    assert result.smoothed is not None
+    n = len(imu)
+    return {
+        "hours": hours,
+        "imu_samples": n,
+        "dvl_epochs": len(dvl),
+        "peak_before_gib": before,
+        "peak_gib": after,
+        "bytes_per_imu_sample": (after - before) * 2**30 / n,
+    }
+
+
+def main(argv: list[str]) -> int:
+    if argv[0] == "cost":
+        runs, repeat, seconds = int(argv[1]), int(argv[2]), float(argv[3])
+        steps = [float(s) for s in argv[4:]] or [0.0, 0.1]
+        out = cost(runs, repeat, seconds, steps)
+    elif argv[0] == "memory":
+        out = memory(float(argv[1]), float(argv[2]))
+    else:
+        raise SystemExit(f"unknown mode {argv[0]!r}: cost or memory")
+    assert "torch" not in sys.modules
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
