@@ -18,6 +18,16 @@ from pronet.recorded import dvlcalibration
 from pronet.trajectory import builtin_trajectory
 
 
+def test_the_aided_dvl_carries_the_scale_error_and_misalignment() -> None:
+    """The experiment's sensors are dvlcalibration's DVL (0.5 %, 0.5° yaw) plus the
+    fixes and depth, not an ideal DVL."""
+    sensors = aided_calibration.aided_sensors()
+    assert sensors.dvl_scale == dvlcalibration.TRUE_SCALE
+    np.testing.assert_allclose(sensors.dvl_misalignment, dvlcalibration.TRUE_MISALIGNMENT)
+    assert sensors.depth_sigma == aided_calibration.DEPTH_SIGMA
+    assert [f["period"] for f in sensors.fixes] == [aided_calibration.FIX_PERIOD]
+
+
 def test_fixes_and_depth_make_the_calibration_observable_on_a_straight_run() -> None:
     """On ``train-straight`` the DVL alone cannot see the scale or the yaw misalignment
     (they stay near their prior σ); with fixes every 60 s and depth the 19-state filter's
