@@ -371,3 +371,29 @@ def test_keys_over_a_base_keep_its_dvl_calibration_states() -> None:
     assert (tuned.dvl_scale_psd, tuned.dvl_misalignment_psd) == (1e-8, 1e-9)
     plain = config.filter_config({"formulation": "classic"}, "test:")
     assert not plain.dvl_calibration
+
+
+def test_sensor_kwargs_rebuild_every_argument_of_the_sensors() -> None:
+    """``sensor_kwargs`` (what ``sensor_config``, the sweep's noise levels and the aided
+    calibration experiment rebuild a ``SensorConfig`` from) keeps every argument, the
+    simulated DVL's scale error and misalignment too: dropping them silently turned the
+    miscalibrated DVL of ``pronet.experiments.aided_calibration`` into an ideal one."""
+    sensors = pronet.SensorConfig(
+        imu_variance=[2e-4] * 3 + [3e-7] * 3, imu_bias=[1e-3] * 3 + [1e-6] * 3,
+        imu_bias_psd=[1e-9] * 3 + [1e-14] * 3, dvl_variance=[4e-4] * 3, dvl_period=0.5,
+        lever_arm=[0.5, -0.2, 1.0], dvl_outages=[[60.0, 120.0]], dvl_scale=0.005,
+        dvl_misalignment=[0.001, -0.002, 0.0087], dvl_dropout=(120.0, 20.0),
+        depth_sigma=0.1, depth_period=2.0, fixes=[{"sigma": [2.0, 2.0], "period": 60.0}],
+    )  # fmt: skip
+    properties = {name for name in dir(pronet.SensorConfig) if not name.startswith("_")}
+    kwargs = config.sensor_kwargs(sensors)
+    assert set(kwargs) == properties
+    rebuilt = pronet.SensorConfig(**kwargs)
+    for name in sorted(properties):
+        np.testing.assert_array_equal(
+            np.asarray(getattr(rebuilt, name), dtype=object),
+            np.asarray(getattr(sensors, name), dtype=object),
+            err_msg=name,
+        )
+    over = config.sensor_config({"dvl_period": 2.0}, "test:", sensors)  # a file's keys
+    assert over.dvl_scale == 0.005 and over.dvl_misalignment == sensors.dvl_misalignment

@@ -133,6 +133,11 @@ SENSOR_KEYS = (
     "depth_period",
     "fixes",
 )
+#: The simulated DVL's scale-factor error and mounting misalignment: arguments of a
+#: ``SensorConfig`` that are not keys of a file (as :data:`CALIBRATION_KEYS` for the
+#: filter), but kept by :func:`sensor_kwargs` and from the base a ``[sensors]`` table
+#: is laid over.
+DVL_ERROR_KEYS = ("dvl_scale", "dvl_misalignment")
 #: Keys of a ``[trajectory]`` table with their defaults (``builtin`` excludes the rest
 #: but ``dt_s``); the defaults are the paper trajectory's start.
 TRAJECTORY_DEFAULTS: dict[str, Any] = {
@@ -227,8 +232,9 @@ def load_filter_config(
 def sensor_kwargs(sensors: _core.SensorConfig) -> dict[str, Any]:
     """The keyword arguments that rebuild ``sensors`` (``SensorConfig(**kwargs)``): a
     constant IMU variance as 6 values without times, a schedule as ``(k, 6)`` with its
-    ``(k,)`` times [s]."""
-    kwargs = {key: getattr(sensors, key) for key in SENSOR_KEYS}
+    ``(k,)`` times [s]. Every argument is kept, the DVL's scale error and misalignment
+    (:data:`DVL_ERROR_KEYS`) too."""
+    kwargs = {key: getattr(sensors, key) for key in (*SENSOR_KEYS, *DVL_ERROR_KEYS)}
     times = np.asarray(kwargs["imu_variance_times"], dtype=np.float64)
     variance = np.asarray(kwargs["imu_variance"], dtype=np.float64)
     constant = len(times) == 1

@@ -1,8 +1,8 @@
 """The DVL calibration states with position fixes and depth
 (:mod:`pronet.experiments.aided_calibration`): the mechanism on a few runs, and, marked
 slow, the issue's acceptance at 100 runs on every training trajectory. What holds is
-asserted; the horizontal-error comparison with the 15-state filter, which does not hold,
-is measured and reported in docs/filter.md ("With position fixes and depth")."""
+asserted; where it does not (the horizontal error on the helix, a tie) it is measured and
+reported in docs/filter.md ("With position fixes and depth")."""
 
 from __future__ import annotations
 
@@ -16,6 +16,16 @@ from pronet.experiments import aided_calibration
 from pronet.montecarlo import monte_carlo
 from pronet.recorded import dvlcalibration
 from pronet.trajectory import builtin_trajectory
+
+
+def test_the_aided_dvl_carries_the_scale_error_and_misalignment() -> None:
+    """The experiment's sensors are dvlcalibration's DVL (0.5 %, 0.5° yaw) plus the
+    fixes and depth, not an ideal DVL."""
+    sensors = aided_calibration.aided_sensors()
+    assert sensors.dvl_scale == dvlcalibration.TRUE_SCALE
+    np.testing.assert_allclose(sensors.dvl_misalignment, dvlcalibration.TRUE_MISALIGNMENT)
+    assert sensors.depth_sigma == aided_calibration.DEPTH_SIGMA
+    assert [f["period"] for f in sensors.fixes] == [aided_calibration.FIX_PERIOD]
 
 
 def test_fixes_and_depth_make_the_calibration_observable_on_a_straight_run() -> None:
@@ -78,3 +88,16 @@ def test_the_scale_and_misalignment_lie_within_3_sigma_on_every_trajectory(rows)
     for name, r in rows.items():
         assert r.all_inside >= 0.95, (name, r)
         assert abs(r.fix_nis - 1.0) < 0.1, (name, r.fix_nis)
+
+
+@pytest.mark.slow
+def test_the_19_states_navigate_better_where_the_dvl_errors_show(rows) -> None:
+    """The issue's second acceptance where it holds: on the straight, turns and zigzag
+    trajectories the 19-state filter's horizontal error RMS is below the 15-state
+    filter's, the whole 95 % CI of the paired difference below 0 (measured: -0.76,
+    -0.40, -1.22 m). On the helix, whose circles average the DVL's errors out, the two
+    tie (+0.01 [-0.01, +0.03] m): not asserted, reported in docs/filter.md."""
+    for name in ("train-straight", "train-turns", "train-zigzag"):
+        r = rows[name]
+        assert r.rms_19 < r.rms_15 and r.difference[2] < 0.0, (name, r)
+
