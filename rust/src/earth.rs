@@ -267,12 +267,31 @@ pub fn ned_to_lla(origin: &Vector3<f64>, ned: &Vector3<f64>) -> Vector3<f64> {
 /// `truth` (the filter's δp): `[(φ̂−φ)(R_N+h), (λ̂−λ)(R_E+h)cosφ, −(ĥ−h)]`.
 #[inline]
 pub fn position_error_ned(est: &Vector3<f64>, truth: &Vector3<f64>) -> Vector3<f64> {
-    let (r_n, r_e) = radii(truth[0]);
-    Vector3::new(
-        (est[0] - truth[0]) * (r_n + truth[2]),
-        (est[1] - truth[1]) * (r_e + truth[2]) * truth[0].cos(),
-        -(est[2] - truth[2]),
-    )
+    NedScale::at(truth).error(est, truth)
+}
+
+/// What [`position_error_ned`] needs of the true position, for a truth read many times
+/// (a Monte Carlo's runs share one trajectory): `r_N + h`, `r_E + h` [m] and `cos φ`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NedScale([f64; 3]);
+
+impl NedScale {
+    /// The scale at the geodetic position `truth` `[lat, lon, h]`.
+    pub fn at(truth: &Vector3<f64>) -> Self {
+        let (r_n, r_e) = radii(truth[0]);
+        Self([r_n + truth[2], r_e + truth[2], truth[0].cos()])
+    }
+
+    /// [`position_error_ned`] of `est` against `truth`, whose scale this is.
+    #[inline]
+    pub fn error(&self, est: &Vector3<f64>, truth: &Vector3<f64>) -> Vector3<f64> {
+        let [north, east, cos] = self.0;
+        Vector3::new(
+            (est[0] - truth[0]) * north,
+            (est[1] - truth[1]) * east * cos,
+            -(est[2] - truth[2]),
+        )
+    }
 }
 
 /// Geodetic increment `[Δlat, Δlon, Δh]` for a small NED displacement `d` [m] at `lla`.

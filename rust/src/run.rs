@@ -431,7 +431,7 @@ impl Run {
         let dv = self.ekf.nav.vel - state.vel;
         self.sum_sq += dv.norm_squared();
         self.sum_abs += dv.abs().sum();
-        let dp = earth::position_error_ned(&self.ekf.nav.lla, &state.lla);
+        let dp = truth.ned_scale[self.k].error(&self.ekf.nav.lla, &state.lla);
         self.horizontal = [dp[0], dp[1]];
         let sq = dp[0] * dp[0] + dp[1] * dp[1];
         if sq > self.max_horizontal_sq {

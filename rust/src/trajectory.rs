@@ -65,6 +65,9 @@ pub struct Truth {
     pub rpy: Vec<Vector3<f64>>,
     /// Ideal IMU sample k covers `(time[k], time[k+1]]`.
     pub imu: Vec<[f64; 6]>,
+    /// Each epoch's scale for position errors in metres ([`earth::NedScale`]), taken
+    /// once for every run that reads it.
+    pub ned_scale: Vec<earth::NedScale>,
 }
 
 impl Truth {
@@ -258,6 +261,7 @@ impl TrajectorySpec {
                 ),
             ));
         }
+        let ned_scale = states.iter().map(|s| earth::NedScale::at(&s.lla)).collect();
         Ok(Truth {
             name: self.name.clone(),
             dt: self.dt,
@@ -265,6 +269,7 @@ impl TrajectorySpec {
             states,
             rpy,
             imu,
+            ned_scale,
         })
     }
 }

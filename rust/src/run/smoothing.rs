@@ -4,7 +4,6 @@
 
 use super::{bias_array, nees3, solution_error, History, Run};
 use crate::cancel::Cancel;
-use crate::earth;
 use crate::ekf::formulation;
 use crate::ekf::smoother::{smooth, Covariances, Forward, Nodes, Smoothed};
 use crate::ekf::{Ekf, Formulation, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
@@ -104,7 +103,7 @@ fn smoothed_metrics(
         let dv = s.nav[k].vel - truth.states[k].vel;
         sum_sq += dv.norm_squared();
         sum_abs += dv.abs().sum();
-        let dp = earth::position_error_ned(&s.nav[k].lla, &truth.states[k].lla);
+        let dp = truth.ned_scale[k].error(&s.nav[k].lla, &truth.states[k].lla);
         let sq = dp[0] * dp[0] + dp[1] * dp[1];
         max_sq = max_sq.max(sq);
         horizontal = sq.sqrt();
