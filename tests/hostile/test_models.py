@@ -50,3 +50,15 @@ def test_nets_give_nan_beyond_their_range_and_finite_q_inside_it(name) -> None:
     signs = np.where(np.arange(200) % 2, 1.0, -1.0)
     q = regressor(name).predict(np.stack([1e20 * signs, 1e12 * signs, 0.1 * signs]))
     assert np.isnan(q[0]) and finite(q[1:])
+
+
+def test_hcf_reads_no_noise_in_a_constant_window() -> None:
+    """A window with no detrended variance (constant: a sensor at rest with no noise, a
+    zero-filled gap) has q = 0, in the core and in the NumPy walk alike; its scale-free
+    features are 0/0, which gave NaN (found by test_regressors)."""
+    model = regressor("hcf")
+    windows = np.vstack([np.zeros(200), np.full(200, -9.8)])  # the second: d ~ 1e-33
+    for q in (model.predict(windows), model.predict(windows, native=False)):
+        assert q[0] == 0.0 and 0.0 <= q[1] < 1e-20
+    noisy = windows + np.random.default_rng(0).normal(scale=0.01, size=windows.shape)
+    assert (model.predict(noisy) > 0).all()

@@ -231,6 +231,8 @@ class HCFEnsemble:
             x, d = scale_free_features(flat)
         q = np.full(x.shape[0], np.nan)
         ok = np.all(np.isfinite(x), axis=1)  # non-finite windows give NaN, as the nets do
+        # A finite window that is a straight line has no noise: q = d·exp(out) → 0.
+        q[(d == 0) & np.isfinite(flat).all(axis=1)] = 0.0
         if ok.any():
             gb = self.gb_init + self.gb_rate * self.gb.leaf_values(x[ok]).sum(axis=1)
             out = 0.5 * gb + 0.5 * self.rf.leaf_values(x[ok]).mean(axis=1)

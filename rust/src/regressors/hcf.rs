@@ -187,6 +187,11 @@ impl HcfEnsemble {
             // buf holds the scaled detrended window
             let n = w.len() as f64;
             d = ldexp(buf.iter().map(|r| r * r).sum::<f64>() / (n - 2.0), 2 * e);
+            if d == 0.0 && w.iter().all(|v| v.is_finite()) {
+                // A window that is a straight line has no noise: q = d·exp(out) → 0
+                // (its scale-free features would be 0/0).
+                return 0.0;
+            }
             let sd = d.sqrt();
             LINEAR.iter().for_each(|&i| x[i] /= sd);
             SQUARED.iter().for_each(|&i| x[i] /= d);
@@ -417,7 +422,7 @@ mod tests {
         let d = buf.iter().map(|r| r * r).sum::<f64>() / 198.0;
         let q = m.predict(&w).unwrap()[0];
         assert!((q / (d * 0.3f64.exp()) - 1.0).abs() < 1e-12, "{q}");
-        // non-finite windows and a constant window (d = 0) give NaN
+        // non-finite windows give NaN, a constant window (d = 0) q = 0
         let mut bad = w.clone();
         bad[9] = f64::NAN;
         assert!(m.predict(&bad).unwrap()[0].is_nan());
@@ -427,7 +432,9 @@ mod tests {
             m.predict_until(&[1.0; 200], &cancel).is_err(),
             "a set flag stops it"
         );
-        assert!(m.predict(&[1.0; 200]).unwrap()[0].is_nan());
+        assert_eq!(m.predict(&[1.0; 200]).unwrap()[0], 0.0);
+        let line: Vec<f64> = (0..200).map(|k| 0.5 - 0.25 * k as f64).collect();
+        assert_eq!(m.predict(&line).unwrap()[0], 0.0);
     }
 
     #[test]
