@@ -45,7 +45,7 @@ RUNS = 100
 REAL_ROWS = (
     "constant (estimated q)",
     "adaptive",
-    "adaptive xi=5",
+    "mehra xi=5",
     "constant (estimated q), DVL calibration",
 )
 #: Scenario and strategy of each simulated row group.
