@@ -12,9 +12,13 @@
 //! `Φ = I + F ΔT + ½(F ΔT)²` and `P ← Φ (P + ½Q) Φᵀ + ½Q`, with `Q` the accumulated
 //! noise mapped through Γ at the interval's start (`docs/filter.md`, "Covariance
 //! step"). The sensitivity `M` and the DVL calibration blocks go through the same Φ.
+//! Here too: the filter's methods that close a step or read P as if it were closed, and
+//! [`StaleSigma`], the σ a recorded pass reports at the epochs inside a step.
 
+use super::calibration::Calibration;
 use super::dynamics::{ErrorDynamics, ImuNoise, Transition};
-use super::{formulation, Ekf, Matrix15, ACC_BIAS};
+use super::recorded::FilterOutput;
+use super::{formulation, ClosedSigma, Ekf, Matrix15, ACC_BIAS};
 use crate::mechanization::{FrameRates, NavState};
 use crate::noise::ProcessNoise;
 use nalgebra::Vector3;
@@ -132,6 +136,115 @@ impl Interval {
             }
         }
         Some(phi)
+    }
+}
+
+/// The covariance step's part of the filter: closing it, and reading P as if closed.
+impl Ekf {
+    /// Close the covariance step under way, if any: propagate P (and M and the
+    /// calibration blocks) over the samples since it started. The covariance readers
+    /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
+    /// end of the last closed step; every DVL update brings it up to date first.
+    pub fn bring_up_to_date(&mut self) {
+        self.close_interval();
+    }
+
+    /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no
+    /// step was under way): the smoother's backward pass reads it.
+    pub(super) fn close_interval(&mut self) -> Option<Transition> {
+        let phi = self
+            .interval
+            .take()
+            .and_then(|interval| interval.close(self));
+        if self.track_closes && phi.is_some() {
+            let calibration = self.calibration.as_ref().map(Calibration::sigma);
+            self.closed_sigma = Some((self.sigma(), calibration));
+        }
+        phi
+    }
+
+    /// Keep the σ at every close of a covariance step for [`Ekf::take_closed_sigma`].
+    pub fn track_closes(&mut self) {
+        self.track_closes = true;
+    }
+
+    /// The σ at the last close since the previous call, before the updates of its epoch
+    /// (None: no close, or [`Ekf::track_closes`] not asked for).
+    pub fn take_closed_sigma(&mut self) -> Option<ClosedSigma> {
+        self.closed_sigma.take()
+    }
+
+    /// Whether P stands at the current epoch (no covariance step under way).
+    pub fn is_up_to_date(&self) -> bool {
+        self.interval.is_none()
+    }
+
+    /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
+    /// copy), so that reading it does not change the filter's later steps.
+    pub fn sigma_up_to_date(&self) -> [f64; 15] {
+        if self.interval.is_none() {
+            return self.sigma();
+        }
+        let mut copy = self.clone();
+        copy.bring_up_to_date();
+        copy.sigma()
+    }
+
+    /// [`Ekf::covariance`] brought up to date without closing the step under way (on
+    /// a copy), as [`Ekf::sigma_up_to_date`].
+    pub fn covariance_up_to_date(&self) -> Matrix15 {
+        if self.interval.is_none() {
+            return self.covariance();
+        }
+        let mut copy = self.clone();
+        copy.bring_up_to_date();
+        copy.covariance()
+    }
+}
+
+/// The σ of the epochs inside a covariance step. P stands at the step's start there, so
+/// the σ an epoch records is the last close's; once the step closes (before the updates
+/// of its last epoch), the variances of the epochs inside it are interpolated linearly
+/// in time between the σ recorded at the last epoch where P was up to date (after its
+/// updates) and the σ at the close: the growth of P over a step of 0.1 s is smooth, and
+/// a stale σ would read up to the whole step's growth too small (`docs/filter.md`,
+/// "Covariance step"). Without a covariance step every epoch is up to date.
+#[derive(Default)]
+pub(super) struct StaleSigma {
+    /// The last recorded epoch whose P was up to date (index into the output).
+    last_current: usize,
+    /// The recorded epochs since, whose σ is the last close's.
+    pending: Vec<usize>,
+}
+
+impl StaleSigma {
+    /// After the epoch just recorded (the last of `out`).
+    pub(super) fn after_record(&mut self, ekf: &mut Ekf, out: &mut FilterOutput) {
+        let now = out.time.len() - 1;
+        if let Some((sigma, calibration)) = ekf.take_closed_sigma() {
+            let (a, t_a, t_b) = (
+                self.last_current,
+                out.time[self.last_current],
+                out.time[now],
+            );
+            for &e in &self.pending {
+                let w = (out.time[e] - t_a) / (t_b - t_a);
+                let between =
+                    |from: f64, to: f64| (from * from + w * (to * to - from * from)).sqrt();
+                out.sigma[e] = std::array::from_fn(|i| between(out.sigma[a][i], sigma[i]));
+                if let Some(c) = calibration {
+                    let from = out.calibration_sigma[a];
+                    out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));
+                }
+            }
+            self.pending.clear();
+        }
+        if ekf.is_up_to_date() {
+            self.last_current = now;
+            self.pending.clear();
+        } else {
+            self.pending.push(now);
+        }
     }
 }
 

@@ -183,66 +183,6 @@ impl Ekf {
         &self.cfg
     }
 
-    /// Close the covariance step under way, if any: propagate P (and M and the
-    /// calibration blocks) over the samples since it started. The covariance readers
-    /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
-    /// end of the last closed step; every DVL update brings it up to date first.
-    pub fn bring_up_to_date(&mut self) {
-        self.close_interval();
-    }
-
-    /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no
-    /// step was under way): the smoother's backward pass reads it.
-    fn close_interval(&mut self) -> Option<Transition> {
-        let phi = self
-            .interval
-            .take()
-            .and_then(|interval| interval.close(self));
-        if self.track_closes && phi.is_some() {
-            let calibration = self.calibration.as_ref().map(Calibration::sigma);
-            self.closed_sigma = Some((self.sigma(), calibration));
-        }
-        phi
-    }
-
-    /// Keep the σ at every close of a covariance step for [`Ekf::take_closed_sigma`].
-    pub fn track_closes(&mut self) {
-        self.track_closes = true;
-    }
-
-    /// The σ at the last close since the previous call, before the updates of its epoch
-    /// (None: no close, or [`Ekf::track_closes`] not asked for).
-    pub fn take_closed_sigma(&mut self) -> Option<ClosedSigma> {
-        self.closed_sigma.take()
-    }
-
-    /// Whether P stands at the current epoch (no covariance step under way).
-    pub fn is_up_to_date(&self) -> bool {
-        self.interval.is_none()
-    }
-
-    /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
-    /// copy), so that reading it does not change the filter's later steps.
-    pub fn sigma_up_to_date(&self) -> [f64; 15] {
-        if self.interval.is_none() {
-            return self.sigma();
-        }
-        let mut copy = self.clone();
-        copy.bring_up_to_date();
-        copy.sigma()
-    }
-
-    /// [`Ekf::covariance`] brought up to date without closing the step under way (on
-    /// a copy), as [`Ekf::sigma_up_to_date`].
-    pub fn covariance_up_to_date(&self) -> Matrix15 {
-        if self.interval.is_none() {
-            return self.covariance();
-        }
-        let mut copy = self.clone();
-        copy.bring_up_to_date();
-        copy.covariance()
-    }
-
     /// The error covariance in the classic coordinates (`δv = v̂ − v`), whatever the
     /// formulation: the one users read and NEES is taken in.
     pub fn covariance(&self) -> Matrix15 {

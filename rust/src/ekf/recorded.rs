@@ -1,5 +1,6 @@
 //! One filter pass over recorded (or user-simulated) IMU and DVL arrays.
 
+use super::interval::StaleSigma;
 use super::smoother::{self, Covariances, Forward, Nodes, Smoothed};
 use super::{Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, Vector15};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
@@ -404,52 +405,6 @@ fn forward_pass(
     out.fix_epoch.resize(data.fix.len(), None);
     out.fix_nis.resize(data.fix.len(), f64::NAN);
     Ok(out)
-}
-
-/// The σ of the epochs inside a covariance step. P stands at the step's start there, so
-/// the σ an epoch records is the last close's; once the step closes (before the updates
-/// of its last epoch), the variances of the epochs inside it are interpolated linearly
-/// in time between the σ recorded at the last epoch where P was up to date (after its
-/// updates) and the σ at the close: the growth of P over a step of 0.1 s is smooth, and
-/// a stale σ would read up to the whole step's growth too small (`docs/filter.md`,
-/// "Covariance step"). Without a covariance step every epoch is up to date.
-#[derive(Default)]
-struct StaleSigma {
-    /// The last recorded epoch whose P was up to date (index into the output).
-    last_current: usize,
-    /// The recorded epochs since, whose σ is the last close's.
-    pending: Vec<usize>,
-}
-
-impl StaleSigma {
-    /// After the epoch just recorded (the last of `out`).
-    fn after_record(&mut self, ekf: &mut Ekf, out: &mut FilterOutput) {
-        let now = out.time.len() - 1;
-        if let Some((sigma, calibration)) = ekf.take_closed_sigma() {
-            let (a, t_a, t_b) = (
-                self.last_current,
-                out.time[self.last_current],
-                out.time[now],
-            );
-            for &e in &self.pending {
-                let w = (out.time[e] - t_a) / (t_b - t_a);
-                let between =
-                    |from: f64, to: f64| (from * from + w * (to * to - from * from)).sqrt();
-                out.sigma[e] = std::array::from_fn(|i| between(out.sigma[a][i], sigma[i]));
-                if let Some(c) = calibration {
-                    let from = out.calibration_sigma[a];
-                    out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));
-                }
-            }
-            self.pending.clear();
-        }
-        if ekf.is_up_to_date() {
-            self.last_current = now;
-            self.pending.clear();
-        } else {
-            self.pending.push(now);
-        }
-    }
 }
 
 /// The error estimates fed back at an epoch: the 15 states' and the DVL calibration's.
