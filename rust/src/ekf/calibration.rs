@@ -10,7 +10,8 @@
 //! `P_cc` unchanged (plus the walks' PSDs), and the 15×15 block goes through the
 //! 15-state kernel untouched. Every formula is in `docs/filter.md`.
 
-use super::dynamics::{ErrorDynamics, Transition};
+use super::dynamics::ErrorDynamics;
+use super::transition::Transition;
 use super::Matrix15;
 use crate::attitude::{exp_so3, skew};
 use crate::error::{check, Error, Result};

@@ -16,8 +16,9 @@
 //! [`StaleSigma`], the σ a recorded pass reports at the epochs inside a step.
 
 use super::calibration::Calibration;
-use super::dynamics::{ErrorDynamics, ImuNoise, Transition};
+use super::dynamics::{ErrorDynamics, ImuNoise};
 use super::recorded::FilterOutput;
+use super::transition::Transition;
 use super::{formulation, ClosedSigma, Ekf, Matrix15, ACC_BIAS};
 use crate::mechanization::{FrameRates, NavState};
 use crate::noise::ProcessNoise;

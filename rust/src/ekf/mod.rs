@@ -35,16 +35,18 @@ mod interval;
 pub mod position;
 mod recorded;
 pub mod smoother;
+mod transition;
 
 use calibration::{Calibration, N_CALIBRATED, SCALE};
 pub use config::{Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP};
-use dynamics::{add_imu_noise, ErrorDynamics, Transition};
+use dynamics::{add_imu_noise, ErrorDynamics};
 pub use formulation::Formulation;
 use interval::Interval;
 pub use recorded::{
     filter_recorded, filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput,
     RecordedData,
 };
+use transition::Transition;
 
 /// Result of one DVL update.
 #[derive(Clone, Debug)]

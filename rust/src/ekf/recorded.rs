@@ -593,3 +593,7 @@ fn apply_dvl_rows(
 #[cfg(test)]
 #[path = "recorded_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+#[path = "recorded_smoother_tests.rs"]
+mod smoother_tests;

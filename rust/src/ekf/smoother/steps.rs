@@ -23,7 +23,7 @@
 
 use super::{full_p, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
-use crate::ekf::dynamics::Transition;
+use crate::ekf::transition::Transition;
 use crate::ekf::FilterConfig;
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;

@@ -1,0 +1,342 @@
+//! Tests of [`super`]'s smoother passes: the nodes and intervals the forward pass keeps
+//! are rebuilt bit for bit, with and without a covariance step, and a pass without
+//! measurements smooths to the forward solution.
+
+use super::tests::per_sample;
+use super::*;
+use crate::ekf::tests::moving_state;
+use crate::ekf::Formulation;
+use crate::noise::StrategySpec;
+
+/// IMU rows, their times, DVL rows, their times.
+type Pass = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+
+/// A moving pass of `n` steps with a DVL row every second.
+fn moving_pass(n: usize) -> Pass {
+    let imu = (0..n)
+        .map(|k| {
+            let wobble = (k as f64 * 0.07).sin();
+            [0.02 * wobble, -0.01, -9.79, 1e-4, 2e-4 * wobble, 2e-4]
+        })
+        .collect();
+    let imu_time = (1..=n).map(|k| k as f64 * 0.01).collect();
+    let dvl_time: Vec<f64> = (1..=n / 100).map(|k| k as f64).collect();
+    let dvl = dvl_time
+        .iter()
+        .map(|t| [0.5 + 0.01 * t, 0.01, -0.002 * t])
+        .collect();
+    (imu, imu_time, dvl, dvl_time)
+}
+
+/// The smoother's nodes: for every strategy (the noise changing at updates, and at
+/// q schedule rows between them), each interval rebuilt from its first node goes
+/// through the forward pass's covariances, bit for bit (its σ at every epoch).
+#[test]
+fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
+    let (imu, imu_time, dvl, dvl_time) = moving_pass(600);
+    let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+    let cases = [
+        (StrategySpec::Constant { q }, vec![], vec![]),
+        (
+            StrategySpec::Mehra {
+                window: 2,
+                prior_q: q,
+            },
+            vec![],
+            vec![],
+        ),
+        (
+            StrategySpec::Adaptive {
+                window: 2,
+                prior_q: q,
+            },
+            vec![],
+            vec![],
+        ),
+        (
+            StrategySpec::External { prior_q: q },
+            vec![1.504, 3.0, 4.25],
+            vec![[4e-4; 6], q, [2e-4; 6]],
+        ),
+    ];
+    for formulation in [Formulation::Classic, Formulation::Invariant] {
+        let cfg = FilterConfig {
+            formulation,
+            ..per_sample()
+        };
+        for (spec, q_time, q_values) in &cases {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl: &dvl,
+                dvl_time: &dvl_time,
+                q_time,
+                q_values,
+                ..RecordedData::default()
+            };
+            let mut strategy = spec.build(cfg.bias_psd());
+            let mut nodes = Nodes::default();
+            let out = forward_pass(
+                &data,
+                moving_state(),
+                [0.0; 6],
+                &cfg,
+                strategy.as_mut(),
+                Epochs::All,
+                Some(&mut nodes),
+                &Cancel::default(),
+            )
+            .unwrap();
+            let nodes = nodes.0;
+            // A node at the start, at each of the 6 DVL epochs (the last one the
+            // end), and at each q row that fell between them.
+            assert_eq!(nodes.first().unwrap().epoch, 0);
+            assert_eq!(nodes.last().unwrap().epoch, 600);
+            let updates = nodes
+                .iter()
+                .filter(|n| n.correction != Vector15::zeros())
+                .count();
+            assert_eq!(updates, 6, "{spec:?}");
+            assert_eq!(
+                nodes.len(),
+                7 + usize::from(!q_time.is_empty()) * 2,
+                "{spec:?}"
+            );
+            let forward = Forward {
+                imu: &imu,
+                imu_time: &imu_time,
+                t0: 0.0,
+                nav: &out.nav,
+                bias: &out.bias,
+                calibration: &[],
+                dt: None,
+            };
+            for pair in nodes.windows(2) {
+                let interval = smoother::Interval::rebuild(
+                    &forward,
+                    &cfg,
+                    &pair[0],
+                    pair[1].epoch,
+                    None,
+                    &Cancel::default(),
+                )
+                .unwrap();
+                let (a, b) = (pair[0].epoch, pair[1].epoch);
+                assert_eq!(interval.p.len(), b - a);
+                for (k, p) in interval.p.iter().enumerate() {
+                    let zero = Vector3::zeros();
+                    let mut ekf = Ekf::new(&cfg, out.nav[a + k], zero, zero).unwrap();
+                    ekf.p = *p;
+                    let at = a + k;
+                    assert_eq!(ekf.sigma(), out.sigma[at], "{spec:?} {formulation:?} {at}");
+                }
+            }
+        }
+    }
+}
+
+/// Under a covariance step the smoother's grid is the steps' closes: for every
+/// strategy and both formulations (q rows falling inside steps, where a node carries
+/// the step under way), each stretch between nodes rebuilt from its first node closes
+/// where the forward pass closed, with its covariances bit for bit.
+#[test]
+fn covariance_step_closes_are_rebuilt_exactly() {
+    let (imu, imu_time, dvl, dvl_time) = moving_pass(600);
+    let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+    let cases = [
+        (StrategySpec::Constant { q }, vec![], vec![]),
+        (
+            StrategySpec::Mehra {
+                window: 2,
+                prior_q: q,
+            },
+            vec![],
+            vec![],
+        ),
+        (
+            StrategySpec::External { prior_q: q },
+            vec![1.504, 3.0, 4.25],
+            vec![[4e-4; 6], q, [2e-4; 6]],
+        ),
+    ];
+    for formulation in [Formulation::Classic, Formulation::Invariant] {
+        let cfg = FilterConfig {
+            formulation,
+            covariance_step: 0.07,
+            ..per_sample()
+        };
+        for (spec, q_time, q_values) in &cases {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl: &dvl,
+                dvl_time: &dvl_time,
+                q_time,
+                q_values,
+                ..RecordedData::default()
+            };
+            let mut strategy = spec.build(cfg.bias_psd());
+            let mut nodes = Nodes::default();
+            let out = forward_pass(
+                &data,
+                moving_state(),
+                [0.0; 6],
+                &cfg,
+                strategy.as_mut(),
+                Epochs::All,
+                Some(&mut nodes),
+                &Cancel::default(),
+            )
+            .unwrap();
+            let nodes = nodes.0;
+            let inside = nodes.iter().filter(|n| n.interval.is_some()).count();
+            assert_eq!(inside, 2 * usize::from(!q_time.is_empty()), "{spec:?}");
+            let forward = Forward {
+                imu: &imu,
+                imu_time: &imu_time,
+                t0: 0.0,
+                nav: &out.nav,
+                bias: &out.bias,
+                calibration: &[],
+                dt: None,
+            };
+            let mut closes = vec![0];
+            for pair in nodes.windows(2) {
+                let (a, b) = (&pair[0], &pair[1]);
+                let rebuilt =
+                    smoother::steps::rebuild(&forward, &cfg, a, b, &Cancel::default()).unwrap();
+                for close in &rebuilt {
+                    closes.push(close.epoch);
+                    if close.epoch == b.epoch && b.correction != Vector15::zeros() {
+                        continue; // σ after the update there
+                    }
+                    let zero = Vector3::zeros();
+                    let at = close.epoch;
+                    let mut ekf = Ekf::new(&cfg, out.nav[at], zero, zero).unwrap();
+                    ekf.p = close.p_prior;
+                    assert_eq!(ekf.sigma(), out.sigma[at], "{spec:?} {formulation:?} {at}");
+                }
+            }
+            // Closes every 7 samples, restarting at each DVL epoch (100, 200, ...).
+            let want: Vec<usize> = (0..=600)
+                .filter(|k| k % 100 == 0 || (k % 100) % 7 == 0)
+                .collect();
+            assert_eq!(closes, want, "{spec:?}");
+        }
+    }
+}
+
+/// The Monte Carlo's way to the smoothed covariance (the interval's forward product,
+/// inverted where read) gives the σ of the step-by-step way, to rounding, and the
+/// same mean; epochs it is not asked for stay NaN.
+#[test]
+fn covariances_where_asked_equal_the_step_by_step_ones() {
+    let (imu, imu_time, dvl, dvl_time) = moving_pass(400);
+    let cfg = per_sample();
+    let data = RecordedData {
+        imu: &imu,
+        imu_time: &imu_time,
+        dvl: &dvl,
+        dvl_time: &dvl_time,
+        ..RecordedData::default()
+    };
+    let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
+    let mut nodes = Nodes::default();
+    let cancel = Cancel::default();
+    let out = forward_pass(
+        &data,
+        moving_state(),
+        [0.0; 6],
+        &cfg,
+        strategy.as_mut(),
+        Epochs::All,
+        Some(&mut nodes),
+        &cancel,
+    )
+    .unwrap();
+    let forward = Forward {
+        imu: &imu,
+        imu_time: &imu_time,
+        t0: 0.0,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &[],
+        dt: None,
+    };
+    let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
+    let odd = |k: usize| k % 7 == 3;
+    let some = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Where(&odd), &cancel);
+    let (every, some) = (every.unwrap(), some.unwrap());
+    assert_eq!(every.nav, some.nav);
+    let nodes: Vec<usize> = nodes.0.iter().map(|n| n.epoch).collect();
+    for (k, (a, b)) in every.sigma.iter().zip(&some.sigma).enumerate() {
+        if odd(k) || nodes.contains(&k) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).abs() <= 1e-9 * x.abs().max(1e-12), "{k}: {x} {y}");
+            }
+        } else {
+            assert!(b.iter().all(|y| y.is_nan()), "{k}");
+        }
+    }
+}
+
+/// Without a measurement there is nothing to smooth: the smoothed solution is the
+/// forward one. With them, the smoothed σ is below the forward σ inside the pass
+/// and equal at its end, the DVL calibration states' too.
+#[test]
+fn smoothing_without_measurements_changes_nothing() {
+    let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
+    let cfg = per_sample();
+    let spec = StrategySpec::Constant { q: [1e-4; 6] };
+    let pass = |dvl: &[[f64; 3]], dvl_time: &[f64], cfg: &FilterConfig| {
+        let data = RecordedData {
+            imu: &imu,
+            imu_time: &imu_time,
+            dvl,
+            dvl_time,
+            ..RecordedData::default()
+        };
+        smooth_recorded_until(
+            &data,
+            moving_state(),
+            [0.0; 6],
+            cfg,
+            spec.build(cfg.bias_psd()).as_mut(),
+            &Cancel::default(),
+        )
+    };
+    let bare = pass(&[], &[], &cfg).unwrap();
+    let s = bare.smoothed.unwrap();
+    assert_eq!(s.nav, bare.nav);
+    assert_eq!(s.bias, bare.bias);
+    for (a, b) in s.sigma.iter().zip(&bare.sigma) {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() <= 1e-12 * y, "{x} {y}");
+        }
+    }
+    let aided = pass(&dvl, &dvl_time, &cfg).unwrap();
+    let s = aided.smoothed.unwrap();
+    assert_eq!(s.sigma[300], aided.sigma[300]);
+    assert!(s.sigma[150][3] < 0.99 * aided.sigma[150][3]);
+    assert!(s
+        .sigma
+        .iter()
+        .zip(&aided.sigma)
+        .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
+    // With the DVL calibration states the 19 are smoothed: their σ too, never above
+    // the forward one, and equal at the end.
+    let calibrated = FilterConfig {
+        dvl_calibration: Some(super::super::calibration::CalibrationConfig::default()),
+        ..per_sample()
+    };
+    let aided = pass(&dvl, &dvl_time, &calibrated).unwrap();
+    let s = aided.smoothed.unwrap();
+    assert_eq!(s.calibration.len(), aided.calibration.len());
+    assert_eq!(s.calibration_sigma[300], aided.calibration_sigma[300]);
+    assert!(s.calibration[150] != aided.calibration[150]);
+    assert!(s
+        .calibration_sigma
+        .iter()
+        .zip(&aided.calibration_sigma)
+        .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
+}
