@@ -183,7 +183,7 @@ fn run_filter<'py>(
         };
         let mut strat = spec.build(cfg.bias_psd());
         if smooth {
-            smooth_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), cancel)
+            smooth_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         } else {
             filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         }
