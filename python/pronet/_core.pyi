@@ -360,7 +360,8 @@ def run_filter(
     (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
     ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
     ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-    None without). ``depth`` (d,) [m, down] at
+    None without). Key ``adaptive_q``: None where no DVL row has one. ``depth`` (d,)
+    [m, down] at
     ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
     (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
     [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°."""

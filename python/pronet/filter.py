@@ -95,7 +95,8 @@ class FilterResult:
             updates above 25, about 8× the consistent 3), or None.
         adaptive_q: ``(m, 15, 15)`` the per-IMU-step discrete Q_d a Mehra strategy set
             after each update (``K C Kᵀ`` spread over the interval's steps); NaN for
-            other strategies and before Mehra has its ξ innovations.
+            other strategies and before Mehra has its ξ innovations (for other
+            strategies a read-only view of one NaN, which costs no memory).
         depth_epoch, fix_epoch: ``(d,)``, ``(f,)`` the epoch each depth reading and
             position fix was applied at (-1 outside the run).
         depth_nis, fix_nis: their normalized innovation squared (χ² with 1 dof for a
@@ -337,6 +338,8 @@ def run_filter(
         fix_time=None if fix_time is None else float_array(fix_time, "fix_time", (None,)),
         fix_sigma=None if fix_sigma is None else float_array(fix_sigma, "fix_sigma", (None, 3)),
     )
+    if out["adaptive_q"] is None:  # no row has one: all NaN, a read-only view
+        out["adaptive_q"] = np.broadcast_to(np.nan, (len(out["nis"]), 15, 15))
     smoothed = out.pop("smoothed")
     if smoothed is not None:
         smoothed = SmoothedResult(time=out["time"], **smoothed)

@@ -37,8 +37,9 @@ pub struct FilterOutput {
     pub dvl_epoch: Vec<Option<usize>>,
     pub updates: Vec<Option<UpdateInfo>>,
     /// For each DVL row: the per-IMU-step Q_d the strategy set after that update, where
-    /// it sets one directly (Mehra).
-    pub adaptive_q: Vec<Option<Matrix15>>,
+    /// it sets one directly (Mehra); boxed, so that a row without one costs 8 bytes,
+    /// not 1,808.
+    pub adaptive_q: Vec<Option<Box<Matrix15>>>,
     /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
     /// error and the DVL's mounting angles [rad] (empty without the states).
     pub calibration: Vec<[f64; 4]>,
@@ -584,7 +585,7 @@ fn apply_dvl_rows(
             at.steps_since_update = 0;
         }
         // Mehra's Q̂ is built from the reported (classic) gain: classic already.
-        out.adaptive_q[row] = strategy.discrete_q().copied();
+        out.adaptive_q[row] = strategy.discrete_q().map(|q| Box::new(*q));
         out.dvl_epoch[row] = Some(epoch);
         out.updates[row] = Some(info);
         at.next_dvl += 1;
