@@ -13,11 +13,12 @@
 //! smoothed covariances at the nodes are not kept ([`Smoothed::node_covariance`] is
 //! empty).
 
-use super::every::{self, transposed_step, Interval};
+use super::every::{self, transposed_step};
 use super::steps::{self, symmetric, transposed};
-use super::{Forward, Node, Nodes, Smoothed};
-use crate::cancel::Cancel;
+use super::{full_p, restart, Forward, Node, Nodes, Smoothed};
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
+use crate::ekf::dynamics::ErrorDynamics;
 use crate::ekf::{Ekf, FilterConfig};
 use crate::error::{Error, Result};
 use crate::mechanization::{step_with_rates, FrameRates, ImuSample, NavState};
@@ -195,9 +196,10 @@ fn smooth_every<const N: usize>(
     for (j, pair) in nodes.windows(2).enumerate().rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
+        let rows = src.kept_in(a.epoch..b.epoch);
         let (forward, start) = stretch.rebuild(src, j, a, b.epoch);
-        let steps = b.epoch - a.epoch;
-        let interval = Interval::<N>::rebuild(&forward, cfg, &start, steps, None, cancel)?;
+        let keep = |k: usize| k == 0 || src.kept(a.epoch + k).is_some();
+        let interval = Rebuilt::<N>::every(&forward, cfg, &start, b.epoch - a.epoch, keep, cancel)?;
         let chol = interval.p_end.cholesky().ok_or_else(|| {
             Error::Numerical(format!(
                 "the smoother: the covariance before epoch {} is not positive definite",
@@ -208,30 +210,85 @@ fn smooth_every<const N: usize>(
         let m = chol.solve(&(ps - interval.p_end));
         let m = chol.solve(&m.transpose()).transpose();
         let mut lambda = (m + m.transpose()) * 0.5;
+        // The kept rows and the covariances, taken from the end.
+        let (mut row, mut at) = (rows.end, interval.p.len());
         for i in (a.epoch..b.epoch).rev() {
             let k = i - a.epoch;
             let (dynamics, dt) = &interval.steps[k];
             mu = transposed_step(dynamics, *dt, &mu);
-            let dsi = interval.p[k] * mu;
             every::congruence(dynamics, *dt, &mut lambda);
-            let row = src.kept(i);
+            if at == 0 || interval.p[at - 1].0 != k {
+                continue; // neither kept nor the node
+            }
+            at -= 1;
+            let p = &interval.p[at].1;
+            let dsi = p * mu;
+            let kept_row = (row > rows.start && src.epochs[row - 1] == i).then(|| {
+                row -= 1;
+                row
+            });
             if i == a.epoch {
-                let p = &interval.p[k];
                 let psi = p + p * lambda * p;
                 ps = (psi + psi.transpose()) * 0.5;
                 ds = dsi;
-                if let Some(row) = row {
-                    out.set_sigma(row, &ps, cfg, &kept);
+                if let Some(r) = kept_row {
+                    out.set_sigma(r, &ps, cfg, &kept);
                 }
-            } else if let Some(row) = row {
-                out.set_sigma_of(row, &interval.p[k], &lambda, cfg, &kept);
+            } else if let Some(r) = kept_row {
+                out.set_sigma_of(r, p, &lambda, cfg, &kept);
             }
-            if let Some(row) = row {
-                out.apply(row, &dsi, cfg);
+            if let Some(r) = kept_row {
+                out.apply(r, &dsi, cfg);
             }
         }
     }
     Ok(out)
+}
+
+/// An interval rebuilt as [`super::every`]'s `Interval::rebuild` does, every sample, keeping the
+/// forward covariance only at the epochs the backward pass reads it at.
+struct Rebuilt<const N: usize> {
+    /// `(k, P)` at the kept epochs `a + k` (increasing k).
+    p: Vec<(usize, SMatrix<f64, N, N>)>,
+    steps: Vec<(ErrorDynamics, f64)>,
+    p_end: SMatrix<f64, N, N>,
+}
+
+impl<const N: usize> Rebuilt<N> {
+    /// The interval from node `a` (at epoch 0 of `forward`) to the epoch `end`, with
+    /// `P_k` where `keep(k)`.
+    fn every(
+        forward: &Forward<'_>,
+        cfg: &FilterConfig,
+        a: &Node,
+        end: usize,
+        keep: impl Fn(usize) -> bool,
+        cancel: &Cancel,
+    ) -> Result<Self> {
+        let mut ekf = restart(forward, cfg, a)?;
+        let (mut p, mut steps) = (Vec::new(), Vec::with_capacity(end));
+        let noise = a.noise.as_process_noise();
+        for k in 0..end {
+            if k % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
+                cancel.check()?;
+            }
+            let raw = ImuSample::from_array(&forward.imu[k]);
+            let dt = forward.step(k);
+            if keep(k) {
+                p.push((k, full_p::<N>(&ekf)));
+            }
+            let (step, _) = ekf.predict_covariance_from(&forward.nav[k], &raw, dt, noise);
+            let step = step.ok_or_else(|| {
+                Error::Numerical("the smoother: a covariance step where none was".into())
+            })?;
+            steps.push((step, dt));
+        }
+        Ok(Self {
+            p,
+            steps,
+            p_end: full_p::<N>(&ekf),
+        })
+    }
 }
 
 /// [`super::steps::smooth_steps`] at the kept epochs.
