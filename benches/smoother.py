@@ -1,25 +1,30 @@
 """The RTS smoother's cost and memory (issue 42), each measured in one process.
 
     python benches/smoother.py cost RUNS REPEAT SECONDS [STEP ...]
-    python benches/smoother.py memory HOURS STEP
+    python benches/smoother.py memory HOURS STEP [OUTPUT_STEP]
 
 ``cost``: for each covariance step (default 0 and 0.1 s), the forward and the smoothed
-pass alternating ``repeat`` times, best of each: ``run_filter`` on ``SECONDS`` of a
-100 Hz recording with a 1 Hz DVL (``benches/covariance_step.py``'s) and the constant-Q
-Monte Carlo of ``paper`` (``RUNS`` runs, one thread); prints one JSON object of the
-walls [s] and the ratios smoothed / forward.
+passes alternating ``repeat`` times, best of each: ``run_filter`` on ``SECONDS`` of a
+100 Hz recording with a 1 Hz DVL (``benches/covariance_step.py``'s), every epoch kept
+(``forward``, ``smoothed``) and one per second (``forward_thinned``, ``thinned``), and
+the constant-Q Monte Carlo of ``paper`` (``RUNS`` runs, one thread); prints one JSON
+object of the walls [s] and the ratios smoothed / forward.
 
-``memory``: ``run_filter(smooth=True)`` on ``HOURS`` of a 100 Hz IMU with a 5 Hz DVL,
-in this (fresh) process; prints one JSON object: the peak resident memory [GiB] before
-and after the pass (``VmHWM``), the IMU samples and DVL epochs, and the bytes per IMU
-sample the pass added. ``benches/run.py --only smoother`` runs both and reports the
-rows.
+``memory``: ``run_filter(smooth=True)`` on ``HOURS`` of a 100 Hz IMU with a 5 Hz DVL
+(every epoch kept, or one per ``OUTPUT_STEP`` seconds), in a fresh process that loads
+the arrays from files; prints one JSON object: that process's peak resident memory
+[GiB] with the arrays loaded and after the pass (``VmHWM``), the IMU samples, DVL and
+kept epochs, and the bytes per IMU sample the pass added. ``benches/run.py --only
+smoother`` runs both and reports the rows.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
 import sys
+import tempfile
 from functools import partial
 from typing import Any
 
@@ -30,6 +35,9 @@ import pronet
 from pronet.config import filter_config
 from pronet.recorded.alignment import dcm_from_euler
 from pronet.sim import paper, scenarios
+
+#: The output period [s] of the thinned smoothed pass (``run_filter(output_step=...)``).
+OUTPUT_STEP = 1.0
 
 
 def peak_gib() -> float:
@@ -50,6 +58,12 @@ def cost(runs: int, repeat: int, seconds: float, steps: list[float]) -> dict[str
         passes = {
             "forward": partial(pronet.run_filter, **data, config=cfg),
             "smoothed": partial(pronet.run_filter, **data, config=cfg, smooth=True),
+            "forward_thinned": partial(
+                pronet.run_filter, **data, config=cfg, output_step=OUTPUT_STEP
+            ),
+            "thinned": partial(
+                pronet.run_filter, **data, config=cfg, smooth=True, output_step=OUTPUT_STEP
+            ),
         }
 
         def mc(smooth: bool, cfg: pronet.FilterConfig = cfg) -> object:
@@ -63,46 +77,74 @@ def cost(runs: int, repeat: int, seconds: float, steps: list[float]) -> dict[str
         out[f"{step:g}"] = {
             "run_filter_s": walls,
             "run_filter_ratio": walls["smoothed"] / walls["forward"],
+            "run_filter_thinned_ratio": walls["thinned"] / walls["forward_thinned"],
             "monte_carlo_s": mcs,
             "monte_carlo_ratio": mcs["smoothed"] / mcs["forward"],
         }
     return out
 
 
-def memory(hours: float, step: float) -> dict[str, Any]:
+def memory(hours: float, step: float, output_step: float | None) -> dict[str, Any]:
     """A smoothed pass over ``hours`` of a straight, turning 100 Hz run with a 5 Hz DVL
-    (the paper's IMU noise), its peak memory."""
+    (the paper's IMU noise), keeping every epoch or one per ``output_step`` [s]; its
+    peak memory, measured in a fresh process (:func:`smoothed_pass`) that loads the
+    recording's arrays from files: building the trajectory here peaks higher than a
+    10 h pass and would hide its peak."""
     n_legs = max(1, int(hours * 60))
     legs = [[60.0, 0.0, (-1) ** i * 0.02, 0.0] for i in range(n_legs)]
     traj = pronet.trajectory_from_segments(
         legs, lla0=(np.radians(32.0), np.radians(34.0), -5.0), speed0=1.5
     )
     rng = np.random.default_rng(0)
-    imu = traj.imu + rng.normal(size=traj.imu.shape) * np.sqrt(paper.PAPER_Q)
     k = np.arange(20, traj.n_samples + 1, 20)
     body = np.einsum("nji,nj->ni", dcm_from_euler(traj.rpy[k]), traj.vel_ned[k])
-    dvl = body + rng.normal(size=body.shape) * 0.1
-    args = dict(
-        t0=traj.time[0], lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
-        strategy=pronet.Strategy.constant(paper.PAPER_Q),
-        config=filter_config({"covariance_step": step}, "covariance_step:",
-                             paper.paper_filter_config()),
-    )  # fmt: skip
-    times = traj.time[1:], traj.time[k]
+    arrays = {
+        "imu": traj.imu + rng.normal(size=traj.imu.shape) * np.sqrt(paper.PAPER_Q),
+        "imu_time": traj.time[1:],
+        "dvl": body + rng.normal(size=body.shape) * 0.1,
+        "dvl_time": traj.time[k],
+        "initial": np.array([traj.time[0], *traj.lla[0], *traj.vel_ned[0], *traj.rpy[0]]),
+    }
     del traj
+    with tempfile.TemporaryDirectory() as folder:
+        for name, values in arrays.items():
+            np.save(os.path.join(folder, f"{name}.npy"), values)
+        del arrays
+        command = [sys.executable, __file__, "pass", folder, str(step), str(output_step)]
+        done = subprocess.run(command, check=True, capture_output=True, text=True)
+    return {"hours": hours, **json.loads(done.stdout)}
+
+
+def smoothed_pass(folder: str, step: float, output_step: float | None) -> dict[str, Any]:
+    """``run_filter(smooth=True)`` on the arrays :func:`memory` saved in ``folder``; the
+    peak resident memory [GiB] with the arrays loaded and after the pass."""
+    a = {name: np.load(os.path.join(folder, f"{name}.npy")) for name in NAMES}
+    initial = a.pop("initial")
+    config = filter_config(
+        {"covariance_step": step}, "covariance_step:", paper.paper_filter_config()
+    )
     before = peak_gib()
-    result = pronet.run_filter(imu, times[0], dvl, times[1], **args, smooth=True)
+    result = pronet.run_filter(
+        a["imu"], a["imu_time"], a["dvl"], a["dvl_time"], t0=initial[0], lla0=initial[1:4],
+        vel0=initial[4:7], rpy0=initial[7:10], config=config,
+        strategy=pronet.Strategy.constant(paper.PAPER_Q), smooth=True,
+        output_step=output_step,
+    )  # fmt: skip
     after = peak_gib()
     assert result.smoothed is not None
-    n = len(imu)
+    n = len(a["imu"])
     return {
-        "hours": hours,
+        "output_step": output_step,
+        "kept_epochs": len(result.time),
         "imu_samples": n,
-        "dvl_epochs": len(dvl),
+        "dvl_epochs": len(a["dvl"]),
         "peak_before_gib": before,
         "peak_gib": after,
         "bytes_per_imu_sample": (after - before) * 2**30 / n,
     }
+
+
+NAMES = ("imu", "imu_time", "dvl", "dvl_time", "initial")
 
 
 def main(argv: list[str]) -> int:
@@ -111,7 +153,9 @@ def main(argv: list[str]) -> int:
         steps = [float(s) for s in argv[4:]] or [0.0, 0.1]
         out = cost(runs, repeat, seconds, steps)
     elif argv[0] == "memory":
-        out = memory(float(argv[1]), float(argv[2]))
+        out = memory(float(argv[1]), float(argv[2]), float(argv[3]) if len(argv) > 3 else None)
+    elif argv[0] == "pass":
+        out = smoothed_pass(argv[1], float(argv[2]), None if argv[3] == "None" else float(argv[3]))
     else:
         raise SystemExit(f"unknown mode {argv[0]!r}: cost or memory")
     assert "torch" not in sys.modules

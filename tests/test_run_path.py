@@ -225,7 +225,7 @@ def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
         table["sigma_dvl_scale"], calibrated.smoothed.calibration_sigma[:, 0]
     )
     cases = [
-        ({"epochs": "last"}, "^epochs: smooth=True keeps every epoch"),
+        ({"epochs": "last"}, "^epochs: smooth=True keeps the epochs it corrects"),
         ({"smooth": 1}, "^smooth: expected a bool"),
     ]
     for extra, message in cases:

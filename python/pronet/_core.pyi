@@ -342,6 +342,7 @@ def run_filter(
     q_time: ArrayLike | None = None,
     q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
+    output_step: float | None = None,
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
     depth: ArrayLike | None = None,
@@ -353,11 +354,14 @@ def run_filter(
 ) -> dict[str, Any]:
     """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
     [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-    or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
+    or ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
+    with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
+    (key ``epoch``: each row's index among all; empty without). ``covariance_time``
     (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
     ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
     ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-    None without). ``depth`` (d,) [m, down] at
+    None without). Key ``adaptive_q``: None where no DVL row has one. ``depth`` (d,)
+    [m, down] at
     ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
     (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
     [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°."""

@@ -14,8 +14,10 @@ from pronet._util.validate import check_type, float_array, scalar
 
 @dataclass(frozen=True)
 class SmoothedResult:
-    """The RTS-smoothed solution at every epoch of a pass (``run_filter(smooth=True)``):
-    each epoch's estimate given every measurement of the pass, before and after it.
+    """The RTS-smoothed solution at the epochs a pass keeps (``run_filter(smooth=True)``;
+    every epoch, or with ``output_step`` some): each epoch's estimate given every
+    measurement of the pass, before and after it. The rows are the forward pass's
+    (:attr:`FilterResult.time`, :attr:`FilterResult.epoch`); ``n+1`` below.
 
     Attributes:
         time: ``(n+1,)`` epoch times [s], the forward pass's.
@@ -55,8 +57,9 @@ class FilterResult:
 
     Epoch arrays have n + 1 rows: the initial state at ``t0``, then one per IMU sample
     (after the DVL update applied there, if any); a pass run with ``epochs="last"``
-    keeps only the last of them (one row). Update arrays have one row per DVL row;
-    rows that fell outside the run hold NaN and ``dvl_epoch = -1``.
+    keeps only the last of them (one row), one run with ``output_step`` the rows of
+    :attr:`epoch`. Update arrays have one row per DVL row; rows that fell outside the
+    run hold NaN and ``dvl_epoch = -1``.
 
     Attributes:
         time: ``(n+1,)`` epoch times [s].
@@ -92,13 +95,18 @@ class FilterResult:
             updates above 25, about 8× the consistent 3), or None.
         adaptive_q: ``(m, 15, 15)`` the per-IMU-step discrete Q_d a Mehra strategy set
             after each update (``K C Kᵀ`` spread over the interval's steps); NaN for
-            other strategies and before Mehra has its ξ innovations.
+            other strategies and before Mehra has its ξ innovations (for other
+            strategies a read-only view of one NaN, which costs no memory).
         depth_epoch, fix_epoch: ``(d,)``, ``(f,)`` the epoch each depth reading and
             position fix was applied at (-1 outside the run).
         depth_nis, fix_nis: their normalized innovation squared (χ² with 1 dof for a
             depth, 2 or 3 for a fix without or with its height; NaN outside the run).
-        smoothed: the RTS-smoothed solution at every epoch with ``smooth=True``
+        smoothed: the RTS-smoothed solution at the kept epochs with ``smooth=True``
             (:class:`SmoothedResult`), else None.
+        epoch: with ``output_step``, ``(k,)`` the index of each row among all epochs
+            (0 the initial state, j + 1 after IMU sample j: the index ``dvl_epoch``,
+            ``depth_epoch``, ``fix_epoch`` and ``covariance_epoch`` count in); ``(0,)``
+            otherwise (every epoch kept, or the last).
     """
 
     time: NDArray[np.float64]
@@ -125,6 +133,7 @@ class FilterResult:
     fix_epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
     fix_nis: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
     smoothed: SmoothedResult | None = None
+    epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
 
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
         """The result as a pandas table, SI units as the attributes.
@@ -135,7 +144,8 @@ class FilterResult:
         states :data:`CALIBRATION_COLUMNS` and their ``sigma_`` twins. ``rows="updates"``:
         one row per DVL row, columns :data:`UPDATE_COLUMNS` (the epoch and its time, or
         -1 and NaN for a row outside the run, the time NaN too for a pass run with
-        ``epochs="last"``; the innovation [m/s], body x, y, z or with
+        ``epochs="last"`` and, with ``output_step``, where the epoch was not kept; the
+        innovation [m/s], body x, y, z or with
         ``FilterConfig(aiding="nav")`` N, E, D; the NIS; whether it was applied).
         """
         import pandas as pd
@@ -143,7 +153,12 @@ class FilterResult:
         if rows == "updates":
             inside = self.dvl_epoch >= 0
             t = np.full(len(self.dvl_epoch), np.nan)
-            if len(self.time) > int(self.dvl_epoch.max(initial=-1)):  # not epochs="last"
+            if len(self.epoch):  # output_step: the kept epochs' times
+                row = np.searchsorted(self.epoch, self.dvl_epoch)
+                row = np.minimum(row, len(self.epoch) - 1)
+                kept = inside & (self.epoch[row] == self.dvl_epoch)
+                t[kept] = self.time[row[kept]]
+            elif len(self.time) > int(self.dvl_epoch.max(initial=-1)):  # not epochs="last"
                 t[inside] = self.time[self.dvl_epoch[inside]]
             data = {"dvl_epoch": self.dvl_epoch, "time": t}
             data.update(zip(UPDATE_COLUMNS[2:5], self.innovation.T, strict=True))
@@ -221,6 +236,7 @@ def run_filter(
     q_time: ArrayLike | None = None,
     q: ArrayLike | None = None,
     epochs: Literal["all", "last"] = "all",
+    output_step: float | None = None,
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
     depth: ArrayLike | None = None,
@@ -256,20 +272,28 @@ def run_filter(
             last one, for a pass whose updates alone are read (matching R to the
             innovations): it skips storing the estimate (~370 bytes) at every IMU
             sample. ``dvl_epoch`` still counts every epoch.
+        output_step: an output period [s] (finite, > 0; with ``epochs="all"``): keep
+            the initial state, the epoch nearest each multiple of it after ``t0`` and
+            the last epoch (:attr:`FilterResult.epoch` says which), each row bit for bit
+            the one every epoch would give, forward and smoothed. Memory then grows with
+            the kept epochs (and, smoothed, the updates), not the IMU samples: a 10 h,
+            100 Hz pass smoothed with ``output_step=1.0`` fits in 1 GiB
+            (docs/performance.md). None (default): every epoch.
         covariance_time: ``(j,)`` times [s], strictly increasing, at which to keep the
             full 15 × 15 covariance (:attr:`FilterResult.covariances`), each at the
             epoch nearest it. Memory is 1,800 bytes per time asked for, whatever the
             pass's length (every epoch of a 1 h, 100 Hz pass would be 650 MB; σ alone
             is kept at every epoch).
         smooth: also run the Rauch–Tung–Striebel smoother backward over the pass
-            (:attr:`FilterResult.smoothed`; every epoch kept, so not with
+            (:attr:`FilterResult.smoothed`, at the kept epochs: not with
             ``epochs="last"``; with the DVL calibration states all 19 are smoothed; with a
             covariance step the smoother's grid is the steps' closes). It keeps one
             covariance per DVL epoch and, while it smooths an interval between two, a
             covariance and the error dynamics per IMU step of that interval (about
             2.5 kB: a long stretch without an update, an outage, costs memory in
             proportion), and costs 2–5 forward passes (docs/filter.md, "The RTS
-            smoother").
+            smoother"). With ``output_step`` the forward solution is kept at the updates
+            alone and integrated again between them.
         depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive
             down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
             all three or none.
@@ -300,6 +324,7 @@ def run_filter(
         q_time=None if q_time is None else float_array(q_time, "q_time", (None,)),
         q=None if q is None else float_array(q, "q", (None, 6)),
         epochs=epochs,
+        output_step=None if output_step is None else scalar(output_step, "output_step"),
         covariance_time=(
             None
             if covariance_time is None
@@ -313,6 +338,8 @@ def run_filter(
         fix_time=None if fix_time is None else float_array(fix_time, "fix_time", (None,)),
         fix_sigma=None if fix_sigma is None else float_array(fix_sigma, "fix_sigma", (None, 3)),
     )
+    if out["adaptive_q"] is None:  # no row has one: all NaN, a read-only view
+        out["adaptive_q"] = np.broadcast_to(np.nan, (len(out["nis"]), 15, 15))
     smoothed = out.pop("smoothed")
     if smoothed is not None:
         smoothed = SmoothedResult(time=out["time"], **smoothed)

@@ -84,6 +84,7 @@ impl ErrorDynamics {
     /// `Fᵀ x` for a 15-vector `x` (only its navigation rows 0..9 are read, the bias
     /// rows of F being zero): the smoother's backward products, about 60
     /// multiply-adds instead of 135.
+    #[inline]
     pub(super) fn apply_transposed(&self, x: &[f64]) -> [f64; 15] {
         let v = |at: usize| Vector3::new(x[at], x[at + 1], x[at + 2]);
         let (xp, xv, xa) = (v(POS), v(VEL), v(ATT));

@@ -206,45 +206,56 @@ impl Ekf {
 /// The σ of the epochs inside a covariance step. P stands at the step's start there, so
 /// the σ an epoch records is the last close's; once the step closes (before the updates
 /// of its last epoch), the variances of the epochs inside it are interpolated linearly
-/// in time between the σ recorded at the last epoch where P was up to date (after its
-/// updates) and the σ at the close: the growth of P over a step of 0.1 s is smooth, and
-/// a stale σ would read up to the whole step's growth too small (`docs/filter.md`,
-/// "Covariance step"). Without a covariance step every epoch is up to date.
+/// in time between the σ at the last epoch where P was up to date (after its updates)
+/// and the σ at the close: the growth of P over a step of 0.1 s is smooth, and a stale
+/// σ would read up to the whole step's growth too small (`docs/filter.md`, "Covariance
+/// step"). Without a covariance step every epoch is up to date. A pass that records
+/// some epochs only (`Epochs::Step`) interpolates those; the last up-to-date epoch
+/// need not be one of them (its σ is kept here).
 #[derive(Default)]
 pub(super) struct StaleSigma {
-    /// The last recorded epoch whose P was up to date (index into the output).
-    last_current: usize,
-    /// The recorded epochs since, whose σ is the last close's.
+    /// The time [s] and σ of the last epoch whose P was up to date.
+    last_current: Option<(f64, ClosedSigma)>,
+    /// The recorded epochs since (indices into the output), whose σ is the last close's.
     pending: Vec<usize>,
 }
 
 impl StaleSigma {
-    /// After the epoch just recorded (the last of `out`).
-    pub(super) fn after_record(&mut self, ekf: &mut Ekf, out: &mut FilterOutput) {
-        let now = out.time.len() - 1;
+    /// After the epoch at time `t` [s]; `recorded`: it is the last of `out`.
+    pub(super) fn after_epoch(
+        &mut self,
+        ekf: &mut Ekf,
+        out: &mut FilterOutput,
+        t: f64,
+        recorded: bool,
+    ) {
         if let Some((sigma, calibration)) = ekf.take_closed_sigma() {
-            let (a, t_a, t_b) = (
-                self.last_current,
-                out.time[self.last_current],
-                out.time[now],
-            );
-            for &e in &self.pending {
-                let w = (out.time[e] - t_a) / (t_b - t_a);
-                let between =
-                    |from: f64, to: f64| (from * from + w * (to * to - from * from)).sqrt();
-                out.sigma[e] = std::array::from_fn(|i| between(out.sigma[a][i], sigma[i]));
-                if let Some(c) = calibration {
-                    let from = out.calibration_sigma[a];
-                    out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));
+            if let Some((t_a, (from, from_calibration))) = &self.last_current {
+                for &e in &self.pending {
+                    let w = (out.time[e] - t_a) / (t - t_a);
+                    let between =
+                        |from: f64, to: f64| (from * from + w * (to * to - from * from)).sqrt();
+                    out.sigma[e] = std::array::from_fn(|i| between(from[i], sigma[i]));
+                    if let (Some(c), Some(from)) = (calibration, from_calibration) {
+                        out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));
+                    }
                 }
             }
             self.pending.clear();
         }
         if ekf.is_up_to_date() {
-            self.last_current = now;
             self.pending.clear();
-        } else {
-            self.pending.push(now);
+            self.last_current = if recorded {
+                let sigma = out.sigma.last().copied().unwrap_or_default();
+                Some((t, (sigma, out.calibration_sigma.last().copied())))
+            } else if ekf.config().covariance_every_sample() {
+                None // no epoch is ever inside a step
+            } else {
+                let calibration = ekf.calibration.as_ref().map(Calibration::sigma);
+                Some((t, (ekf.sigma(), calibration)))
+            };
+        } else if recorded {
+            self.pending.push(out.time.len() - 1);
         }
     }
 }

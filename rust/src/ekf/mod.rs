@@ -34,6 +34,8 @@ pub mod formulation;
 mod interval;
 pub mod position;
 mod recorded;
+mod recorded_data;
+mod recorded_epochs;
 pub mod smoother;
 mod transition;
 

@@ -1,6 +1,10 @@
 //! One filter pass over recorded (or user-simulated) IMU and DVL arrays.
 
 use super::interval::StaleSigma;
+pub use super::recorded_data::RecordedData;
+pub use super::recorded_epochs::Epochs;
+use super::recorded_epochs::Thinning;
+use super::smoother::thinned::{self, NodeStates, Thinned};
 use super::smoother::{self, Covariances, Forward, Nodes, Smoothed};
 use super::{Ekf, FilterConfig, Matrix15, NisMonitor, UpdateInfo, Vector15};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
@@ -10,13 +14,17 @@ use crate::mechanization::{ImuSample, NavState};
 use crate::noise::NoiseStrategy;
 use nalgebra::Vector3;
 
-/// Output of [`filter_recorded`]: the estimate after every IMU epoch (or the last one
-/// only, [`Epochs::Last`]) and the updates.
+/// Output of [`filter_recorded`]: the estimate after every IMU epoch (or some of them,
+/// see [`Epochs`]) and the updates.
 #[derive(Clone, Debug, Default)]
 pub struct FilterOutput {
     /// Epoch times [s]: `t0` then every IMU sample time (the last one only with
-    /// [`Epochs::Last`]); the per-epoch vectors below follow them.
+    /// [`Epochs::Last`], the kept ones with [`Epochs::Step`]); the per-epoch vectors
+    /// below follow them.
     pub time: Vec<f64>,
+    /// With [`Epochs::Step`]: the index of each kept epoch among all (0 for `t0`, k for
+    /// IMU sample k − 1); empty otherwise (every epoch, or the last).
+    pub epoch: Vec<usize>,
     pub nav: Vec<NavState>,
     /// `[b_a, b_g]` estimates per epoch.
     pub bias: Vec<[f64; 6]>,
@@ -29,8 +37,9 @@ pub struct FilterOutput {
     pub dvl_epoch: Vec<Option<usize>>,
     pub updates: Vec<Option<UpdateInfo>>,
     /// For each DVL row: the per-IMU-step Q_d the strategy set after that update, where
-    /// it sets one directly (Mehra).
-    pub adaptive_q: Vec<Option<Matrix15>>,
+    /// it sets one directly (Mehra); boxed, so that a row without one costs 8 bytes,
+    /// not 1,808.
+    pub adaptive_q: Vec<Option<Box<Matrix15>>>,
     /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
     /// error and the DVL's mounting angles [rad] (empty without the states).
     pub calibration: Vec<[f64; 4]>,
@@ -44,7 +53,7 @@ pub struct FilterOutput {
     pub covariances: Vec<Option<Matrix15>>,
     /// Divergence watch over every update's NIS.
     pub nis_monitor: NisMonitor,
-    /// The RTS-smoothed solution at every epoch, from [`smooth_recorded_until`].
+    /// The RTS-smoothed solution at the kept epochs, from [`smooth_recorded_until`].
     pub smoothed: Option<Smoothed>,
     /// For each depth reading and each position fix: the epoch it was applied at
     /// (None if outside the run) and its NIS (NaN there).
@@ -54,123 +63,12 @@ pub struct FilterOutput {
     pub fix_nis: Vec<f64>,
 }
 
-/// Inputs of one filter pass over recorded (or user-simulated) sensor arrays.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RecordedData<'a> {
-    /// IMU samples; row k covers `(imu_time[k-1], imu_time[k]]`, `imu_time[-1] = t0`.
-    pub imu: &'a [[f64; 6]],
-    /// End time of every IMU sample [s], strictly increasing, after `t0`.
-    pub imu_time: &'a [f64],
-    /// DVL rows (body or NED velocity per the aiding) [m/s].
-    pub dvl: &'a [[f64; 3]],
-    /// DVL times [s], strictly increasing.
-    pub dvl_time: &'a [f64],
-    /// Time of the initial state [s].
-    pub t0: f64,
-    /// Start times [s] of a per-sample IMU variance schedule for an external strategy
-    /// (the ProNet loop on recorded data); empty for none. Strictly increasing.
-    pub q_time: &'a [f64],
-    /// The schedule's IMU variances, one row per `q_time` [(m/s²)², (rad/s)²].
-    pub q_values: &'a [[f64; 6]],
-    /// Times [s] at which to keep the full covariance, strictly increasing (empty for
-    /// none): each is kept at the epoch nearest to it, after that epoch's update, so a
-    /// pass stores 15 × 15 numbers (1,800 bytes) per time asked for, never per epoch.
-    pub covariance_time: &'a [f64],
-    /// Depth readings [m, positive down] at `depth_time` [s] (strictly increasing),
-    /// each of 1σ `depth_sigma` [m] (see [`super::position`]); empty for none.
-    pub depth: &'a [f64],
-    pub depth_time: &'a [f64],
-    pub depth_sigma: f64,
-    /// Position fixes `[φ (rad), λ (rad), h (m, up)]` (a NaN height: horizontal only)
-    /// at `fix_time` [s] (strictly increasing), each with its 1σ `[north, east, down]`
-    /// [m] in `fix_sigma`; empty for none.
-    pub fix: &'a [[f64; 3]],
-    pub fix_time: &'a [f64],
-    pub fix_sigma: &'a [[f64; 3]],
-}
-
-impl RecordedData<'_> {
-    pub fn validate(&self) -> Result<()> {
-        if self.imu.is_empty() {
-            return Err(Error::invalid("imu", "needs at least one sample"));
-        }
-        if self.imu.len() != self.imu_time.len() {
-            return Err(Error::invalid(
-                "imu_time",
-                format!(
-                    "has {} rows but imu has {}",
-                    self.imu_time.len(),
-                    self.imu.len()
-                ),
-            ));
-        }
-        if self.dvl.len() != self.dvl_time.len() {
-            return Err(Error::invalid(
-                "dvl_time",
-                format!(
-                    "has {} rows but dvl has {}",
-                    self.dvl_time.len(),
-                    self.dvl.len()
-                ),
-            ));
-        }
-        for (i, row) in self.imu.iter().enumerate() {
-            check::finite("imu", row)
-                .map_err(|_| Error::invalid("imu", format!("row {i} is not finite: {row:?}")))?;
-        }
-        for (i, row) in self.dvl.iter().enumerate() {
-            check::finite("dvl", row)
-                .map_err(|_| Error::invalid("dvl", format!("row {i} is not finite: {row:?}")))?;
-        }
-        check::finite("t0", &[self.t0])?;
-        check::increasing("imu_time", self.imu_time)?;
-        check::increasing("dvl_time", self.dvl_time)?;
-        if self.q_time.len() != self.q_values.len() {
-            return Err(Error::invalid(
-                "q_time",
-                format!(
-                    "has {} rows but q has {}",
-                    self.q_time.len(),
-                    self.q_values.len()
-                ),
-            ));
-        }
-        check::increasing("q_time", self.q_time)?;
-        check::increasing("covariance_time", self.covariance_time)?;
-        super::position::check_aiding(
-            self.depth,
-            self.depth_time,
-            self.depth_sigma,
-            self.fix,
-            self.fix_time,
-            self.fix_sigma,
-        )?;
-        for (i, row) in self.q_values.iter().enumerate() {
-            check::non_negative("q", row).map_err(|_| {
-                Error::invalid(
-                    "q",
-                    format!("row {i} must be finite and >= 0 (variances), got {row:?}"),
-                )
-            })?;
-        }
-        if self.imu_time[0] <= self.t0 {
-            return Err(Error::invalid(
-                "imu_time",
-                format!(
-                    "the first sample time {} must be after t0 = {} (a positive time step)",
-                    self.imu_time[0], self.t0
-                ),
-            ));
-        }
-        Ok(())
-    }
-}
-
 impl FilterOutput {
     /// Room for `n` epochs and `m` DVL rows.
     fn with_capacity(n: usize, m: usize) -> Self {
         Self {
             time: Vec::with_capacity(n),
+            epoch: Vec::new(),
             nav: Vec::with_capacity(n),
             bias: Vec::with_capacity(n),
             sigma: Vec::with_capacity(n),
@@ -241,19 +139,6 @@ pub fn filter_recorded(
     )
 }
 
-/// Which epochs a pass keeps in its [`FilterOutput`] (the updates are always kept).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Epochs {
-    /// The initial state and the estimate after every IMU sample.
-    #[default]
-    All,
-    /// The estimate after the last IMU sample only: for passes whose updates alone are
-    /// read, such as matching R to the innovations, which then neither compute nor
-    /// store the estimate (~300 bytes here, ~70 more in the binding's arrays) at every
-    /// IMU sample. `dvl_epoch` still counts every epoch.
-    Last,
-}
-
 /// [`filter_recorded`] that keeps `epochs` and stops with [`Error::Cancelled`] soon
 /// after `cancel` is set: it is checked every [`STEPS_PER_CHECK`] IMU samples.
 pub fn filter_recorded_until(
@@ -277,17 +162,30 @@ pub fn filter_recorded_until(
     )
 }
 
-/// [`filter_recorded_until`] keeping every epoch, then the RTS smoother's backward pass
-/// ([`smoother`]): the output's `smoothed` holds the smoothed solution at every epoch
-/// (with the DVL calibration states, theirs too).
+/// [`filter_recorded_until`] keeping `epochs` (all, or [`Epochs::Step`]), then the
+/// RTS smoother's backward pass ([`smoother`]): the output's `smoothed` holds the
+/// smoothed solution at the kept epochs (with the DVL calibration states, theirs too).
 pub fn smooth_recorded_until(
     data: &RecordedData<'_>,
     initial: NavState,
     initial_bias: [f64; 6],
     cfg: &FilterConfig,
     strategy: &mut dyn NoiseStrategy,
+    epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
+    match epochs {
+        Epochs::All => {}
+        Epochs::Last => {
+            return Err(Error::invalid(
+                "epochs",
+                "the smoother corrects the kept epochs: keep all, or some (an output step)",
+            ))
+        }
+        Epochs::Step(_) => {
+            return smooth_thinned(data, initial, initial_bias, cfg, strategy, epochs, cancel)
+        }
+    }
     let mut nodes = Nodes::default();
     let mut out = forward_pass(
         data,
@@ -313,6 +211,45 @@ pub fn smooth_recorded_until(
     Ok(out)
 }
 
+/// [`smooth_recorded_until`] with an [`Epochs::Step`]: the forward pass keeps its
+/// solution at the nodes and the kept epochs only ([`smoother::thinned`]).
+fn smooth_thinned(
+    data: &RecordedData<'_>,
+    initial: NavState,
+    initial_bias: [f64; 6],
+    cfg: &FilterConfig,
+    strategy: &mut dyn NoiseStrategy,
+    epochs: Epochs,
+    cancel: &Cancel,
+) -> Result<FilterOutput> {
+    let mut nodes = Nodes::default();
+    let mut states = NodeStates::default();
+    let keep = Some((&mut nodes, Some(&mut states)));
+    let mut out = forward_pass_keeping(
+        data,
+        initial,
+        initial_bias,
+        cfg,
+        strategy,
+        epochs,
+        keep,
+        cancel,
+    )?;
+    let forward = Thinned {
+        imu: data.imu,
+        imu_time: data.imu_time,
+        t0: data.t0,
+        states: &states,
+        epochs: &out.epoch,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &out.calibration,
+    };
+    let smoothed = thinned::smooth(&forward, cfg, &nodes.0, cancel)?;
+    out.smoothed = Some(smoothed);
+    Ok(out)
+}
+
 /// The forward pass; with `nodes`, keeping what the smoother needs.
 #[allow(clippy::too_many_arguments)]
 fn forward_pass(
@@ -322,20 +259,65 @@ fn forward_pass(
     cfg: &FilterConfig,
     strategy: &mut dyn NoiseStrategy,
     epochs: Epochs,
-    mut nodes: Option<&mut Nodes>,
+    nodes: Option<&mut Nodes>,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
+    let keep = nodes.map(|n| (n, None));
+    forward_pass_keeping(
+        data,
+        initial,
+        initial_bias,
+        cfg,
+        strategy,
+        epochs,
+        keep,
+        cancel,
+    )
+}
+
+/// What a smoothed forward pass keeps: the nodes and, for the node-only backward pass,
+/// the solution at each of them.
+type Keep<'a> = Option<(&'a mut Nodes, Option<&'a mut NodeStates>)>;
+
+/// [`forward_pass`] keeping the nodes, and with `states` the solution at each.
+#[allow(clippy::too_many_arguments)]
+fn forward_pass_keeping(
+    data: &RecordedData<'_>,
+    initial: NavState,
+    initial_bias: [f64; 6],
+    cfg: &FilterConfig,
+    strategy: &mut dyn NoiseStrategy,
+    epochs: Epochs,
+    mut keep: Keep<'_>,
+    cancel: &Cancel,
+) -> Result<FilterOutput> {
+    epochs.validate()?;
     let mut ekf = start(data, initial, initial_bias, cfg, strategy)?;
     let every = epochs == Epochs::All;
-    let kept = if every { data.imu.len() + 1 } else { 1 };
+    let mut thinning = Thinning::of(epochs, data.t0, data.imu_time[0] - data.t0);
+    let n = data.imu.len();
+    let kept = match epochs {
+        Epochs::All => n + 1,
+        Epochs::Last => 1,
+        Epochs::Step(step) => {
+            let span = data.imu_time[n - 1] - data.t0;
+            ((span / step) as usize).saturating_add(2).min(n + 1)
+        }
+    };
     let mut out = FilterOutput::with_capacity(kept, data.dvl.len());
     if ekf.calibration.is_some() {
         out.calibration.reserve_exact(kept);
         out.calibration_sigma.reserve_exact(kept);
     }
     let mut stale = StaleSigma::default();
-    if every {
+    let some = every || thinning.is_some();
+    if some {
         out.record(&ekf, data.t0);
+        if thinning.is_some() {
+            out.epoch.reserve_exact(kept);
+            out.epoch.push(0);
+        }
+        stale.after_epoch(&mut ekf, &mut out, data.t0, true);
         ekf.track_closes();
     }
     let mut at = Cursor::default();
@@ -359,8 +341,11 @@ fn forward_pass(
         if let Some(q) = q_in_force {
             strategy.set_imu_variance(&q)?;
         }
-        if let Some(nodes) = nodes.as_deref_mut() {
+        if let Some((nodes, states)) = keep.as_mut() {
             nodes.before_step(k, &ekf, strategy.process_noise());
+            if let Some(states) = states {
+                states.sync(nodes, &ekf);
+            }
         }
         ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise())
             .map_err(|e| match e {
@@ -377,23 +362,41 @@ fn forward_pass(
             (None, None) => None,
             (a, b) => Some(a.unwrap_or_default().plus(&b.unwrap_or_default())),
         };
-        if let (Some(nodes), Some(fed)) = (nodes.as_deref_mut(), fed) {
+        if let (Some((nodes, states)), Some(fed)) = (keep.as_mut(), fed) {
             let noise = strategy.process_noise();
             nodes.after_updates(k + 1, &ekf, fed.nav, fed.calibration, noise);
+            if let Some(states) = states {
+                states.sync(nodes, &ekf);
+            }
         }
         let next_dt = data.imu_time.get(k + 1).map_or(dt, |&next| next - t);
         keep_covariances(data, &ekf, &mut out, &mut at, k + 1, t, next_dt);
-        if every {
-            out.record(&ekf, t);
-            stale.after_record(&mut ekf, &mut out);
+        if some {
+            let recorded = match thinning.as_mut() {
+                None => true,
+                Some(thin) => {
+                    let nearest = thin.keeps(t, next_dt);
+                    nearest || k + 1 == n
+                }
+            };
+            if recorded {
+                out.record(&ekf, t);
+                if thinning.is_some() {
+                    out.epoch.push(k + 1);
+                }
+            }
+            stale.after_epoch(&mut ekf, &mut out, t, recorded);
         }
         t_prev = t;
     }
-    if !every {
+    if !some {
         out.record(&ekf, t_prev);
     }
-    if let Some(nodes) = nodes {
+    if let Some((nodes, states)) = keep {
         nodes.finish(data.imu.len(), &ekf);
+        if let Some(states) = states {
+            states.sync(nodes, &ekf);
+        }
     }
     out.final_covariance = ekf.covariance();
     // Times beyond the last epoch's half step are outside the run.
@@ -582,7 +585,7 @@ fn apply_dvl_rows(
             at.steps_since_update = 0;
         }
         // Mehra's Q̂ is built from the reported (classic) gain: classic already.
-        out.adaptive_q[row] = strategy.discrete_q().copied();
+        out.adaptive_q[row] = strategy.discrete_q().map(|q| Box::new(*q));
         out.dvl_epoch[row] = Some(epoch);
         out.updates[row] = Some(info);
         at.next_dvl += 1;
@@ -597,3 +600,7 @@ mod tests;
 #[cfg(test)]
 #[path = "recorded_smoother_tests.rs"]
 mod smoother_tests;
+
+#[cfg(test)]
+#[path = "recorded_thinned_tests.rs"]
+mod thinned_tests;

@@ -302,6 +302,7 @@ fn smoothing_without_measurements_changes_nothing() {
             [0.0; 6],
             cfg,
             spec.build(cfg.bias_psd()).as_mut(),
+            Epochs::All,
             &Cancel::default(),
         )
     };

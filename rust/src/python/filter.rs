@@ -2,10 +2,11 @@
 
 use super::config::PyFilterConfig;
 use super::convert::{
-    arg_epochs, arg_t0, as_rows, column, fixed_or, nav_state, readonly_rows, rows, rows_array,
+    arg_epochs, arg_t0, as_rows, as_values, column, fixed_or, nav_state, readonly_column,
+    readonly_rows, rows, rows_array,
 };
 use super::strategy::PyStrategy;
-use super::{interruptible, invalid};
+use super::{interruptible, invalid, to_py_err};
 use crate::attitude::euler_from_dcm;
 use crate::ekf::smoother::Smoothed;
 use crate::ekf::{
@@ -90,17 +91,20 @@ fn q_schedule(
 
 /// One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
 /// [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-/// or ``"last"`` (the epoch arrays keep only the last epoch). ``covariance_time``
+/// or ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
+/// with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
+/// (key ``epoch``: each row's index among all; empty without). ``covariance_time``
 /// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
 /// ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
 /// ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-/// None without). ``depth`` (d,) [m, down] at
+/// None without). Key ``adaptive_q``: None where no DVL row has one. ``depth`` (d,)
+/// [m, down] at
 /// ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
 /// (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
 /// [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°.
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), covariance_time = None, smooth = false, depth = None, depth_time = None, depth_sigma = None, fix = None, fix_time = None, fix_sigma = None),
-    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', covariance_time=None, smooth=False, depth=None, depth_time=None, depth_sigma=None, fix=None, fix_time=None, fix_sigma=None)")]
+#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false, depth = None, depth_time = None, depth_sigma = None, fix = None, fix_time = None, fix_sigma = None),
+    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', output_step=None, covariance_time=None, smooth=False, depth=None, depth_time=None, depth_sigma=None, fix=None, fix_time=None, fix_sigma=None)")]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
@@ -118,6 +122,7 @@ fn run_filter<'py>(
     q_time: Option<&Bound<'py, PyAny>>,
     q: Option<&Bound<'py, PyAny>>,
     #[pyo3(from_py_with = arg_epochs)] epochs: String,
+    output_step: Option<f64>,
     covariance_time: Option<&Bound<'py, PyAny>>,
     smooth: bool,
     depth: Option<&Bound<'py, PyAny>>,
@@ -127,27 +132,39 @@ fn run_filter<'py>(
     fix_time: Option<&Bound<'py, PyAny>>,
     fix_sigma: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let epochs = match epochs.as_str() {
-        "all" => Epochs::All,
-        "last" => Epochs::Last,
-        other => {
+    let epochs = match (epochs.as_str(), output_step) {
+        ("all", None) => Epochs::All,
+        ("all", Some(step)) => Epochs::Step(step),
+        ("last", None) => Epochs::Last,
+        ("last", Some(_)) => {
+            return Err(invalid(
+                "output_step",
+                "keeps the epoch nearest each multiple of the period, not with epochs=\"last\"",
+            ))
+        }
+        (other, _) => {
             return Err(invalid(
                 "epochs",
                 format!("must be \"all\" or \"last\", got {other:?}"),
             ))
         }
     };
+    epochs.validate().map_err(to_py_err)?;
     if smooth && epochs == Epochs::Last {
         return Err(invalid(
             "epochs",
-            "smooth=True keeps every epoch (the smoother corrects each): use epochs=\"all\"",
+            "smooth=True keeps the epochs it corrects: use epochs=\"all\" (with an \
+             output_step to keep some)",
         ));
     }
     let imu_array = readonly_rows::<6>(imu, "imu")?;
     let imu_rows = as_rows::<6>(&imu_array);
     let imu = &*imu_rows;
     let (q_time, q_values) = q_schedule(q_time, q)?;
-    let imu_time = column(imu_time, "imu_time")?;
+    // The IMU's arrays are read in place (~200 MB for 10 h at 100 Hz), not copied.
+    let imu_time_array = readonly_column(imu_time, "imu_time")?;
+    let imu_time = as_values(&imu_time_array);
+    let imu_time = &*imu_time;
     let dvl_array = readonly_rows::<3>(dvl, "dvl")?;
     let dvl_rows = as_rows::<3>(&dvl_array);
     let dvl = &*dvl_rows;
@@ -167,7 +184,7 @@ fn run_filter<'py>(
     let arrays = interruptible(py, move |cancel| {
         let data = RecordedData {
             imu,
-            imu_time: &imu_time,
+            imu_time,
             dvl,
             dvl_time: &dvl_time,
             t0,
@@ -183,7 +200,7 @@ fn run_filter<'py>(
         };
         let mut strat = spec.build(cfg.bias_psd());
         if smooth {
-            smooth_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), cancel)
+            smooth_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         } else {
             filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         }
@@ -196,6 +213,8 @@ fn run_filter<'py>(
 /// takes, owned by Rust until they are handed over.
 struct OutputArrays {
     time: Array1<f64>,
+    /// With an output step, each row's index among all epochs (empty otherwise).
+    epoch: Array1<i64>,
     epochs: EpochArrays,
     /// (0, 4) without the DVL calibration states.
     calibration: Array2<f64>,
@@ -217,7 +236,8 @@ struct OutputArrays {
     nis: Array1<f64>,
     accepted: Array1<bool>,
     gain: Array3<f64>,
-    adaptive_q: Array3<f64>,
+    /// None where no DVL row has one.
+    adaptive_q: Option<Array3<f64>>,
     /// The smoothed solution's (`pronet.SmoothedResult`).
     smoothed: Option<EpochArrays>,
 }
@@ -282,6 +302,7 @@ impl OutputArrays {
         Self {
             epochs: EpochArrays::new(&out.nav, out.bias, out.sigma),
             time: Array1::from(out.time),
+            epoch: out.epoch.iter().map(|&e| e as i64).collect(),
             calibration: Array2::from(out.calibration),
             calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
@@ -316,8 +337,11 @@ impl OutputArrays {
             gain: Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
                 out.updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
             }),
-            adaptive_q: Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
-                out.adaptive_q[k].map_or(f64::NAN, |q| q[(i, j)])
+            // None where no row has one: NumPy gives the all-NaN array as a view.
+            adaptive_q: out.adaptive_q.iter().any(Option::is_some).then(|| {
+                Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
+                    out.adaptive_q[k].as_ref().map_or(f64::NAN, |q| q[(i, j)])
+                })
             }),
             smoothed,
         }
@@ -327,6 +351,7 @@ impl OutputArrays {
     fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("time", self.time.into_pyarray(py))?;
+        d.set_item("epoch", self.epoch.into_pyarray(py))?;
         self.epochs.fill(py, &d)?;
         d.set_item("calibration", self.calibration.into_pyarray(py))?;
         d.set_item("calibration_sigma", self.calibration_sigma.into_pyarray(py))?;
@@ -344,7 +369,10 @@ impl OutputArrays {
         d.set_item("nis", self.nis.into_pyarray(py))?;
         d.set_item("accepted", self.accepted.into_pyarray(py))?;
         d.set_item("gain", self.gain.into_pyarray(py))?;
-        d.set_item("adaptive_q", self.adaptive_q.into_pyarray(py))?;
+        match self.adaptive_q {
+            Some(q) => d.set_item("adaptive_q", q.into_pyarray(py))?,
+            None => d.set_item("adaptive_q", py.None())?,
+        }
         match self.smoothed {
             Some(s) => {
                 let smoothed = PyDict::new(py);

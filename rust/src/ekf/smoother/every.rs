@@ -87,7 +87,7 @@ pub(super) fn smooth_every<const N: usize>(
 /// `G_i = Φ_{a→i}` at the epochs it holds for, and `G_b`.
 pub(in crate::ekf) struct Interval<const N: usize> {
     pub(in crate::ekf) p: Vec<SMatrix<f64, N, N>>,
-    steps: Vec<(ErrorDynamics, f64)>,
+    pub(super) steps: Vec<(ErrorDynamics, f64)>,
     /// The covariance after the last step (before the end node's update).
     pub(in crate::ekf) p_end: SMatrix<f64, N, N>,
     /// `(i − a, G_i)` at the wanted epochs inside the interval.
@@ -173,7 +173,7 @@ fn inverse_transition<const N: usize>(g: &SMatrix<f64, N, N>) -> Option<SMatrix<
 }
 
 /// `Φᵀ x` for a step `Φ = I + F Δt`: `x + Δt Fᵀ x` (F's navigation rows alone read).
-fn transposed_step<const N: usize>(
+pub(super) fn transposed_step<const N: usize>(
     dynamics: &ErrorDynamics,
     dt: f64,
     x: &SVector<f64, N>,
@@ -189,7 +189,11 @@ fn transposed_step<const N: usize>(
 /// `Λ ← Φᵀ Λ Φ = Λ + Δt (W + Wᵀ) + Δt² Fᵀ Wᵀ` with `W = Fᵀ Λ` (Λ symmetric), each
 /// product column by column through the sparse F: about 2 × 60 multiply-adds per
 /// column instead of a dense 9 × 15 product's 135.
-fn congruence<const N: usize>(dynamics: &ErrorDynamics, dt: f64, lambda: &mut SMatrix<f64, N, N>) {
+pub(super) fn congruence<const N: usize>(
+    dynamics: &ErrorDynamics,
+    dt: f64,
+    lambda: &mut SMatrix<f64, N, N>,
+) {
     let mut w = SMatrix::<f64, 15, N>::zeros();
     for c in 0..N {
         let col = dynamics.apply_transposed(&lambda.as_slice()[N * c..N * c + 15]);

@@ -42,6 +42,7 @@ use nalgebra::{Matrix4, SMatrix, SVector, Vector3};
 
 mod every;
 pub(super) mod steps;
+pub mod thinned;
 
 #[cfg(test)]
 pub(super) use every::Interval;

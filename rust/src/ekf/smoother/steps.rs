@@ -36,7 +36,7 @@ type NavRows = SMatrix<f64, 9, 15>;
 /// step's Φ and the covariance it left (before the epoch's updates), over `N` states.
 pub(in crate::ekf) struct Close<const N: usize> {
     pub(in crate::ekf) epoch: usize,
-    phi: NavRows,
+    pub(super) phi: NavRows,
     pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
 }
 
@@ -122,13 +122,13 @@ pub(super) fn smooth_steps<const N: usize>(
     Ok(out)
 }
 
-fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+pub(super) fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     (m + m.transpose()) * 0.5
 }
 
 /// `Φᵀ B` for `Φ = [[R], [0, I]]` (`R` its navigation rows) and an `N × C` matrix `B`:
 /// `Rᵀ B_nav` in the first 15 rows, plus the rows of `B` past the navigation ones.
-fn transposed<const N: usize, const C: usize>(
+pub(super) fn transposed<const N: usize, const C: usize>(
     rows: &NavRows,
     b: &SMatrix<f64, N, C>,
 ) -> SMatrix<f64, N, C> {
@@ -141,7 +141,10 @@ fn transposed<const N: usize, const C: usize>(
 }
 
 /// `Φᵀ Λ Φ` for a symmetric Λ (see [`transposed`]).
-fn congruence<const N: usize>(rows: &NavRows, lambda: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+pub(super) fn congruence<const N: usize>(
+    rows: &NavRows,
+    lambda: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
     let half = transposed(rows, lambda); // Φᵀ Λ
     symmetric(&transposed(rows, &half.transpose()))
 }

@@ -1,0 +1,215 @@
+//! Tests of the thinned output ([`Epochs::Step`]) and of the node-only smoother over
+//! it: the kept epochs are the nearest to each multiple of the period, the forward
+//! solution re-integrated between nodes is the forward pass's bit for bit, and the
+//! thinned forward and smoothed solutions equal the every-epoch ones at the kept
+//! epochs bit for bit.
+
+use super::tests::per_sample;
+use super::*;
+use crate::ekf::calibration::CalibrationConfig;
+use crate::ekf::smoother::thinned::Stretch;
+use crate::ekf::tests::moving_state;
+use crate::ekf::Formulation;
+use crate::noise::StrategySpec;
+
+/// IMU rows, their times, DVL rows, their times.
+type Pass = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+
+/// 6 s of a moving, turning vehicle at 100 Hz with a DVL row every 0.2 s.
+fn pass() -> Pass {
+    let n = 600;
+    let imu = (0..n)
+        .map(|k| {
+            let wobble = (k as f64 * 0.07).sin();
+            [0.02 * wobble, -0.01, -9.79, 1e-4, 2e-4 * wobble, 2e-3]
+        })
+        .collect();
+    let imu_time = (1..=n).map(|k| k as f64 * 0.01).collect();
+    let dvl_time: Vec<f64> = (1..=n / 20).map(|k| k as f64 * 0.2 + 0.003).collect();
+    let dvl = dvl_time
+        .iter()
+        .map(|t| [1.1 + 0.01 * t, 0.01, -0.002 * t])
+        .collect();
+    (imu, imu_time, dvl, dvl_time)
+}
+
+/// The configurations the smoother distinguishes: both formulations, 15 and 19 states,
+/// every sample and a covariance step.
+fn configs() -> Vec<FilterConfig> {
+    let mut out = Vec::new();
+    for formulation in [Formulation::Classic, Formulation::Invariant] {
+        for calibration in [None, Some(CalibrationConfig::default())] {
+            for covariance_step in [0.0, 0.07] {
+                out.push(FilterConfig {
+                    formulation,
+                    covariance_step,
+                    dvl_calibration: calibration,
+                    ..per_sample()
+                });
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn an_output_step_keeps_the_epoch_nearest_each_multiple() {
+    let (imu, imu_time, _, _) = pass();
+    let data = RecordedData {
+        imu: &imu,
+        imu_time: &imu_time,
+        t0: 0.0,
+        ..RecordedData::default()
+    };
+    let spec = StrategySpec::Constant { q: [1e-4; 6] };
+    let run = |epochs: Epochs| {
+        let cfg = per_sample();
+        let mut strategy = spec.build(cfg.bias_psd());
+        let cancel = Cancel::default();
+        filter_recorded_until(
+            &data,
+            moving_state(),
+            [0.0; 6],
+            &cfg,
+            strategy.as_mut(),
+            epochs,
+            &cancel,
+        )
+    };
+    // 0.3337 s: multiples at 0.3337, 0.6674, 1.0011 ... nearest epochs 33 (0.33 s), 67,
+    // 100 ..., 17 of them before the last epoch's half step.
+    let out = run(Epochs::Step(0.3337)).unwrap();
+    let expected: Vec<usize> = std::iter::once(0)
+        .chain((1..=17).map(|m| (m as f64 * 33.37f64).round() as usize))
+        .chain(std::iter::once(600))
+        .collect();
+    assert_eq!(out.epoch, expected);
+    assert_eq!(out.time.len(), expected.len());
+    // A step below the IMU's keeps every epoch, once.
+    let dense = run(Epochs::Step(0.004)).unwrap();
+    assert_eq!(dense.epoch, (0..=600).collect::<Vec<_>>());
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let err = run(Epochs::Step(bad)).unwrap_err().to_string();
+        assert!(err.contains("output_step"), "{err}");
+    }
+}
+
+/// Every strategy's nodes, with depth readings and position fixes, in every
+/// configuration: a thinned pass (forward and smoothed) equals the every-epoch one at
+/// its kept epochs, bit for bit, and the re-integration between nodes gives the forward
+/// solution at every epoch, bit for bit.
+#[test]
+fn thinned_passes_equal_the_every_epoch_pass_at_the_kept_epochs() {
+    let (imu, imu_time, dvl, dvl_time) = pass();
+    let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
+    let lla = moving_state().lla;
+    let depth_time: Vec<f64> = (1..12).map(|k| k as f64 * 0.5 + 0.01).collect();
+    let depth: Vec<f64> = depth_time.iter().map(|t| 10.0 + 0.1 * t).collect();
+    let fix = [
+        [lla[0] + 1e-7, lla[1] - 2e-7, f64::NAN],
+        [lla[0], lla[1], 9.0],
+    ];
+    let (fix_time, fix_sigma) = ([2.456, 4.5], [[2.0, 2.0, 3.0], [1.0, 1.5, 0.5]]);
+    let cases = [
+        (StrategySpec::Constant { q }, vec![], vec![]),
+        (
+            StrategySpec::External { prior_q: q },
+            vec![1.504, 3.0, 4.257],
+            vec![[4e-4; 6], q, [2e-4; 6]],
+        ),
+    ];
+    for cfg in configs() {
+        for (spec, q_time, q_values) in &cases {
+            let data = RecordedData {
+                imu: &imu,
+                imu_time: &imu_time,
+                dvl: &dvl,
+                dvl_time: &dvl_time,
+                q_time,
+                q_values,
+                depth: &depth,
+                depth_time: &depth_time,
+                depth_sigma: 0.1,
+                fix: &fix,
+                fix_time: &fix_time,
+                fix_sigma: &fix_sigma,
+                ..RecordedData::default()
+            };
+            let cancel = Cancel::default();
+            let run = |epochs: Epochs| {
+                let mut strategy = spec.build(cfg.bias_psd());
+                let s = strategy.as_mut();
+                smooth_recorded_until(&data, moving_state(), [0.0; 6], &cfg, s, epochs, &cancel)
+                    .unwrap()
+            };
+            let all = run(Epochs::All);
+            let full = all.smoothed.as_ref().unwrap();
+            for step in [0.25, 0.013] {
+                let thin = run(Epochs::Step(step));
+                let s = thin.smoothed.as_ref().unwrap();
+                let what = format!("{spec:?} {cfg:?} step {step}");
+                assert!(thin.epoch.len() < 601 && thin.epoch.len() > 20, "{what}");
+                for (row, &e) in thin.epoch.iter().enumerate() {
+                    assert_eq!(thin.time[row], all.time[e], "{what}");
+                    assert_eq!(thin.nav[row], all.nav[e], "{what} epoch {e}");
+                    assert_eq!(thin.bias[row], all.bias[e], "{what} epoch {e}");
+                    assert_eq!(thin.sigma[row], all.sigma[e], "{what} epoch {e}");
+                    assert_eq!(s.nav[row], full.nav[e], "{what} epoch {e}");
+                    assert_eq!(s.bias[row], full.bias[e], "{what} epoch {e}");
+                    assert_eq!(s.sigma[row], full.sigma[e], "{what} epoch {e}");
+                    if cfg.dvl_calibration.is_some() {
+                        assert_eq!(thin.calibration[row], all.calibration[e]);
+                        assert_eq!(thin.calibration_sigma[row], all.calibration_sigma[e]);
+                        assert_eq!(s.calibration[row], full.calibration[e], "{what} {e}");
+                        assert_eq!(s.calibration_sigma[row], full.calibration_sigma[e]);
+                    }
+                }
+                assert_eq!(thin.dvl_epoch, all.dvl_epoch);
+                assert_eq!(thin.depth_nis, all.depth_nis);
+                assert_eq!(thin.fix_nis, all.fix_nis);
+                assert_eq!(thin.final_covariance, all.final_covariance);
+            }
+            // The smoothing moved the solution (the comparison above is not vacuous).
+            assert_ne!(full.nav[300], all.nav[300]);
+            reintegration_is_exact(&data, &cfg, spec, &all);
+        }
+    }
+}
+
+/// The forward solution integrated again from each node equals the pass's at every
+/// epoch up to the next node.
+fn reintegration_is_exact(
+    data: &RecordedData<'_>,
+    cfg: &FilterConfig,
+    spec: &StrategySpec,
+    all: &FilterOutput,
+) {
+    let mut nodes = Nodes::default();
+    let mut states = NodeStates::default();
+    let mut strategy = spec.build(cfg.bias_psd());
+    let keep = Some((&mut nodes, Some(&mut states)));
+    let (x, b, c) = (moving_state(), [0.0; 6], Cancel::default());
+    let out =
+        forward_pass_keeping(data, x, b, cfg, strategy.as_mut(), Epochs::All, keep, &c).unwrap();
+    assert_eq!(out.nav, all.nav);
+    let epochs: Vec<usize> = (0..out.nav.len()).collect();
+    let src = Thinned {
+        imu: data.imu,
+        imu_time: data.imu_time,
+        t0: data.t0,
+        states: &states,
+        epochs: &epochs,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &out.calibration,
+    };
+    let mut stretch = Stretch::default();
+    assert!(nodes.0.len() > 30);
+    for (j, pair) in nodes.0.windows(2).enumerate() {
+        let (a, b) = (&pair[0], &pair[1]);
+        let (forward, start) = stretch.rebuild(&src, j, a, b.epoch);
+        assert_eq!(start.epoch, 0);
+        assert_eq!(forward.nav, &out.nav[a.epoch..b.epoch]);
+        assert_eq!(forward.bias[0], out.bias[a.epoch]);
+    }
+}
