@@ -67,7 +67,7 @@ pub(super) fn smooth_steps<const N: usize>(
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
         let closes = rebuild::<N>(forward, cfg, a, b, cancel)?;
-        for close in closes.into_iter().rev() {
+        for close in closes.iter().rev() {
             let at_node = close.epoch == b.epoch;
             let p = if at_node { b.p::<N>() } else { close.p_prior };
             let ds = p * mu;
@@ -126,24 +126,75 @@ fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     (m + m.transpose()) * 0.5
 }
 
-/// `Φᵀ B` for `Φ = [[R], [0, I]]` (`R` its navigation rows) and an `N × C` matrix `B`:
-/// `Rᵀ B_nav` in the first 15 rows, plus the rows of `B` past the navigation ones.
-fn transposed<const N: usize, const C: usize>(
-    rows: &NavRows,
-    b: &SMatrix<f64, N, C>,
-) -> SMatrix<f64, N, C> {
-    let nav = rows.transpose() * b.fixed_rows::<9>(0);
-    let mut out = *b;
-    out.fixed_rows_mut::<9>(0).fill(0.0);
-    let mut top = out.fixed_rows_mut::<15>(0);
-    top += nav;
+/// `Φᵀ x` for `Φ = [[R], [0, I]]` (`R` its navigation rows, 9 × 15): entry `j` is
+/// `Σ_k R_kj x_k` over the 9 navigation rows, plus `x_j` past them (summed in this
+/// order, as nalgebra's product does: the same bits as `Rᵀ x` plus the identity).
+fn transposed<const N: usize>(rows: &NavRows, x: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = *x;
+    for j in 0..15 {
+        let mut v = 0.0;
+        for k in 0..9 {
+            v += rows[(k, j)] * x[k];
+        }
+        out[j] = if j < 9 { v } else { x[j] + v };
+    }
     out
 }
 
-/// `Φᵀ Λ Φ` for a symmetric Λ (see [`transposed`]).
+/// `B Φ` (see [`transposed`]): column `j < 15` is `Σ_k R_kj B_{:,k}` over the 9
+/// navigation columns, plus `B_{:,j}` past them; column by column over contiguous
+/// columns (9 × 15 × N multiply-adds), summed in [`transposed`]'s order.
+fn times_phi<const N: usize>(rows: &NavRows, b: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { times_phi_avx2(rows, b) };
+    }
+    times_phi_portable(rows, b)
+}
+
+/// [`times_phi`] in AVX2 registers (the same products and sums: no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn times_phi_avx2<const N: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    times_phi_portable(rows, b)
+}
+
+#[inline(always)]
+fn times_phi_portable<const N: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    let mut out = *b;
+    let src = b.as_slice();
+    let dst = out.as_mut_slice();
+    for j in 0..15 {
+        let mut col = [0.0; N];
+        for k in 0..9 {
+            let r = rows[(k, j)];
+            for (c, s) in col.iter_mut().zip(&src[N * k..N * (k + 1)]) {
+                *c += r * s;
+            }
+        }
+        if j >= 9 {
+            for (c, s) in col.iter_mut().zip(&src[N * j..N * (j + 1)]) {
+                *c += s;
+            }
+        }
+        dst[N * j..N * (j + 1)].copy_from_slice(&col);
+    }
+    out
+}
+
+/// `Φᵀ Λ Φ` for a symmetric Λ: `W = Λ Φ`, then `Wᵀ Φ = (Φᵀ W)ᵀ`, symmetrized. Each
+/// entry is the sum of the same products in the same order as the dense
+/// `Φᵀ (Φᵀ Λ)ᵀ` (Λ is symmetric bit for bit), so the result is too.
 fn congruence<const N: usize>(rows: &NavRows, lambda: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
-    let half = transposed(rows, lambda); // Φᵀ Λ
-    symmetric(&transposed(rows, &half.transpose()))
+    let w = times_phi(rows, lambda);
+    symmetric(&times_phi(rows, &w.transpose()))
 }
 
 /// Apply the smoothed error `ds` at the close `epoch` and interpolate it up to the
