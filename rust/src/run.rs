@@ -424,7 +424,7 @@ impl Run {
                 log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
             }
             if let Some(log) = self.smoother.as_mut() {
-                log.push(&self.ekf);
+                log.push(self.k, &mut self.ekf);
                 log.true_bias.push(self.true_bias);
             }
         }

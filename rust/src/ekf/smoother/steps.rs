@@ -21,10 +21,10 @@
 //! `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and its σ repeats the smoothed σ at `c`,
 //! as the forward σ repeats the last closed one.
 
-use super::{full_p, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
+use super::{full_p, lift, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
-use crate::ekf::FilterConfig;
+use crate::ekf::{FilterConfig, KeptClose};
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
@@ -50,6 +50,7 @@ pub(super) fn smooth_steps<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
+    kept: Option<&[(usize, KeptClose)]>,
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
@@ -66,7 +67,10 @@ pub(super) fn smooth_steps<const N: usize>(
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let closes = rebuild::<N>(forward, cfg, a, b, cancel)?;
+        let closes = match kept {
+            Some(kept) => kept_between::<N>(kept, a, b),
+            None => rebuild::<N>(forward, cfg, a, b, cancel)?,
+        };
         for close in closes.iter().rev() {
             let at_node = close.epoch == b.epoch;
             let p = if at_node { b.p::<N>() } else { close.p_prior };
@@ -226,6 +230,21 @@ fn fill<const N: usize>(
         };
         out.apply(i, &dsi, cfg);
     }
+}
+
+/// The closes in `(a, b]` of the covariance step that the forward pass kept (see
+/// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them.
+fn kept_between<const N: usize>(kept: &[(usize, KeptClose)], a: &Node, b: &Node) -> Vec<Close<N>> {
+    let lo = kept.partition_point(|(e, _)| *e <= a.epoch);
+    let hi = kept.partition_point(|(e, _)| *e <= b.epoch);
+    kept[lo..hi.max(lo)]
+        .iter()
+        .map(|(epoch, c)| Close {
+            epoch: *epoch,
+            phi: c.phi,
+            p_prior: lift(&c.p, c.calibration.as_deref().map(|(x, v)| (x, v))),
+        })
+        .collect()
 }
 
 /// The closes in `(a, b]` of the covariance step, rebuilt by the filter's prediction
