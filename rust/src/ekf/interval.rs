@@ -191,12 +191,12 @@ impl Ekf {
         self.kept_closes.get_or_insert_with(Vec::new);
     }
 
-    /// The closes kept since the last call (empty without [`Ekf::keep_closes`]).
-    pub fn take_closes(&mut self) -> Vec<KeptClose> {
-        self.kept_closes
-            .as_mut()
-            .map(std::mem::take)
-            .unwrap_or_default()
+    /// Move the closes kept since the last call to `out`, each with `epoch` (none
+    /// without [`Ekf::keep_closes`]).
+    pub fn take_closes(&mut self, epoch: usize, out: &mut Vec<(usize, KeptClose)>) {
+        if let Some(kept) = self.kept_closes.as_mut() {
+            out.extend(kept.drain(..).map(|c| (epoch, c)));
+        }
     }
 
     /// Keep the σ at every close of a covariance step for [`Ekf::take_closed_sigma`].

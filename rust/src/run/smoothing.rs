@@ -51,7 +51,7 @@ impl SmootherLog {
     /// and the closes the filter made there.
     pub(super) fn push(&mut self, epoch: usize, ekf: &mut Ekf) {
         if let Some(closes) = self.closes.as_mut() {
-            closes.extend(ekf.take_closes().into_iter().map(|c| (epoch, c)));
+            ekf.take_closes(epoch, closes);
         }
         self.nav.push(ekf.nav);
         self.bias.push(bias_array(ekf));
@@ -195,7 +195,7 @@ impl Run {
             // The step under way, closed at the last epoch as the nodes close it.
             let mut last = self.ekf.clone();
             last.bring_up_to_date();
-            closes.extend(last.take_closes().into_iter().map(|c| (self.k, c)));
+            last.take_closes(self.k, closes);
         }
         log.nodes.finish(self.k, &self.ekf);
         let forward = Forward {
