@@ -356,7 +356,10 @@ impl Run {
         if let Some(log) = self.smoother.as_mut() {
             log.nodes
                 .before_step(self.k, &self.ekf, self.strategy.process_noise());
-            log.imu.push(raw);
+            if log.closes.is_none() {
+                // Read only where the backward pass rebuilds the closes.
+                log.imu.push(raw);
+            }
         }
         self.k += 1;
         self.steps_since_update += 1;
