@@ -226,10 +226,12 @@ def bench_smoother(args: argparse.Namespace, ref: Reference) -> list[Row]:
             ("monte_carlo", f"constant Q Monte Carlo of paper, {runs} runs, 1 thread"),
         ):
             ratio, walls = m[step][f"{key}_ratio"], m[step][f"{key}_s"]
+            cpu = m[step].get(f"{key}_cpu_ratio")
+            also = "" if cpu is None else f"; CPU time {times(cpu)}"
             rows.append(
                 Row(
                     f"RTS smoother, smoothed / forward ({at}): {what}",
-                    f"{times(ratio)} ({walls['forward']:.2f} s → {walls['smoothed']:.2f} s)",
+                    f"{times(ratio)} ({walls['forward']:.2f} s → {walls['smoothed']:.2f} s{also})",
                     "≤ 2.5×",
                     ratio <= 2.5,
                     command,
