@@ -231,10 +231,12 @@ def bench_smoother(args: argparse.Namespace, ref: Reference) -> list[Row]:
             thinned = key == "run_filter_thinned"
             forward = walls["forward_thinned" if thinned else "forward"]
             smoothed = walls["thinned" if thinned else "smoothed"]
+            cpu = m[step].get(f"{key}_cpu_ratio")
+            also = "" if cpu is None else f"; CPU time {times(cpu)}"
             rows.append(
                 Row(
                     f"RTS smoother, smoothed / forward ({at}): {what}",
-                    f"{times(ratio)} ({forward:.2f} s → {smoothed:.2f} s)",
+                    f"{times(ratio)} ({forward:.2f} s → {smoothed:.2f} s{also})",
                     "≤ 2.5×",
                     ratio <= 2.5,
                     command,

@@ -7,8 +7,9 @@
 passes alternating ``repeat`` times, best of each: ``run_filter`` on ``SECONDS`` of a
 100 Hz recording with a 1 Hz DVL (``benches/covariance_step.py``'s), every epoch kept
 (``forward``, ``smoothed``) and one per second (``forward_thinned``, ``thinned``), and
-the constant-Q Monte Carlo of ``paper`` (``RUNS`` runs, one thread); prints one JSON
-object of the walls [s] and the ratios smoothed / forward.
+the constant-Q Monte Carlo of ``paper`` (``RUNS`` runs, one thread; its CPU time too,
+measured the same way, which other work on a shared machine moves less than the wall);
+prints one JSON object of the times [s] and the ratios smoothed / forward.
 
 ``memory``: ``run_filter(smooth=True)`` on ``HOURS`` of a 100 Hz IMU with a 5 Hz DVL
 (every epoch kept, or one per ``OUTPUT_STEP`` seconds), in a fresh process that loads
@@ -25,6 +26,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from functools import partial
 from typing import Any
 
@@ -73,13 +75,17 @@ def cost(runs: int, repeat: int, seconds: float, steps: list[float]) -> dict[str
             )  # fmt: skip
 
         walls = alternating(repeat, passes)
-        mcs = alternating(repeat, {"forward": partial(mc, False), "smoothed": partial(mc, True)})
+        mc_calls = {"forward": partial(mc, False), "smoothed": partial(mc, True)}
+        mcs = alternating(repeat, mc_calls)
+        cpu = alternating(repeat, mc_calls, time.process_time)
         out[f"{step:g}"] = {
             "run_filter_s": walls,
             "run_filter_ratio": walls["smoothed"] / walls["forward"],
             "run_filter_thinned_ratio": walls["thinned"] / walls["forward_thinned"],
             "monte_carlo_s": mcs,
             "monte_carlo_ratio": mcs["smoothed"] / mcs["forward"],
+            "monte_carlo_cpu_s": cpu,
+            "monte_carlo_cpu_ratio": cpu["smoothed"] / cpu["forward"],
         }
     return out
 

@@ -356,7 +356,10 @@ impl Run {
         if let Some(log) = self.smoother.as_mut() {
             log.nodes
                 .before_step(self.k, &self.ekf, self.strategy.process_noise());
-            log.imu.push(raw);
+            if log.closes.is_none() {
+                // Read only where the backward pass rebuilds the closes.
+                log.imu.push(raw);
+            }
         }
         self.k += 1;
         self.steps_since_update += 1;
@@ -424,7 +427,7 @@ impl Run {
                 log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
             }
             if let Some(log) = self.smoother.as_mut() {
-                log.push(&self.ekf);
+                log.push(self.k, &mut self.ekf);
                 log.true_bias.push(self.true_bias);
             }
         }

@@ -20,6 +20,7 @@ from .contract import (
     VARIANCES,
     as_form,
     attempt,
+    bad_scalars,
     check,
     finite,
     finite_or_not,
@@ -29,6 +30,7 @@ from .contract import (
     in_child,
     one_hostile,
     positions,
+    same,
     split,
     vectors,
     within,
@@ -66,6 +68,11 @@ def _run(**overrides):
     )
 
 
+#: A valid depth group and fix group for ``_run`` (the hostile cases change one part).
+DEPTH = {"depth": [1.0, 2.0], "depth_time": [0.5, 1.5], "depth_sigma": 0.1}
+FIX = {"fix": [[0.56, 0.59, math.nan]], "fix_time": [1.0], "fix_sigma": [[2.0, 2.0, 2.0]]}
+
+
 @pytest.mark.parametrize(
     ("overrides", "arg"),
     [
@@ -93,6 +100,18 @@ def _run(**overrides):
         ({"strategy": "constant"}, "strategy"),
         ({"config": {"aiding": "body"}}, "config"),
         ({"bias0": (0.0,) * 5}, "bias0"),
+        # the aiding groups; a σ given without readings is checked too (it was not)
+        ({**DEPTH, "depth_sigma": math.nan, "depth": [], "depth_time": []}, "depth_sigma"),
+        ({**DEPTH, "depth_sigma": -0.1}, "depth_sigma"),
+        ({**DEPTH, "depth": [1.0, math.nan]}, "depth"),
+        ({**DEPTH, "depth_time": [1.5, 0.5]}, "depth_time"),
+        ({**DEPTH, "depth_time": [0.5]}, "depth_time"),
+        ({**DEPTH, "depth_sigma": None}, "depth"),
+        ({**FIX, "fix_sigma": [[-1.0, 1.0, 1.0]]}, "fix_sigma"),
+        ({**FIX, "fix": [[0.56, 0.59]]}, "fix"),
+        ({**FIX, "fix": [[math.inf, 0.59, 0.0]]}, "fix"),
+        ({**FIX, "fix_time": [math.nan]}, "fix_time"),
+        ({**FIX, "fix_sigma": [[1.0, 1.0, 1.0]] * 2}, "fix_sigma"),
     ],
 )
 def test_run_filter_rejects_bad_arrays_naming_the_argument(overrides, arg) -> None:
@@ -260,6 +279,75 @@ def test_run_filter_aiding_initial_state_and_q_schedule(args, kind) -> None:
         assert out.dvl_epoch.shape == out.nis.shape == (m,) and out.innovation.shape == (m, 3)
         used = out.dvl_epoch >= 0
         assert finite(out.innovation[used], out.nis[used], out.gain[used])
+
+
+@st.composite
+def readings(draw, tail: tuple[int, ...], values, valid: bool, sigma=None):
+    """``((rows, times[, sigma]), refs)``: depth (``tail`` ``()``) or fix (``(3,)``) rows
+    at strictly increasing times inside the 0.3 s run (and the fixes' per-row σ), all
+    valid; or each hostile and unrelated in length (NaN, inf, unsorted or repeated
+    times, wrong shapes, negative σ)."""
+    if valid:
+        m = draw(st.integers(0, 3))
+        t = np.unique(draw(hnp.arrays(np.float64, m, elements=st.floats(0.0, 0.3))))
+        parts = [draw(good((len(t), *tail), values)), as_form(t, draw(st.sampled_from(SAME)))]
+        if sigma is not None:
+            parts.append(draw(good((len(t), 3), sigma)))
+    else:
+        rows = st.tuples(st.integers(0, 4), *(st.sampled_from([n, 2]) for n in tail))
+        parts = [draw(hostile(rows)), draw(hostile(st.tuples(st.integers(0, 4)), within(1.0)))]
+        if sigma is not None:
+            shapes = st.tuples(st.integers(0, 4), st.sampled_from([3, 2]))
+            parts.append(draw(hostile(shapes, within(10.0, low=-10.0))))
+    refs = None if any(r is None for _, r in parts) else tuple(r for _, r in parts)
+    return tuple(v for v, _ in parts), refs
+
+
+#: A fix's latitude, longitude [rad] near LLA0 and height [m] (NaN: a fix without one).
+FIX_VALUES = st.one_of(st.floats(0.55, 0.6), st.just(math.nan))
+
+
+@fuzz(80)
+@given(
+    args=one_hostile(
+        depth=(readings((), st.floats(-10, 100), True), readings((), None, False)),
+        depth_sigma=(
+            same(st.floats(0.01, 10)),
+            st.one_of(bad_scalars, st.floats(max_value=-1e-300)).map(lambda x: (x, None)),
+        ),
+        fix=(
+            readings((3,), FIX_VALUES, True, st.floats(0.1, 10)),
+            readings((3,), None, False, True),
+        ),
+    ),
+)
+def test_run_filter_depth_and_fix_arguments(args) -> None:
+    """The aiding arguments (``depth``, ``depth_time``, ``depth_sigma``, ``fix``,
+    ``fix_time``, ``fix_sigma``) in any layout, or one of them hostile (bad shapes and
+    lengths, NaN and inf, unsorted or repeated times, a negative or missing σ): the pass
+    works with an update at every reading inside it, or raises one ValueError naming the
+    argument; never a panic or a crash."""
+    imu, t = _filter_imu(30)
+    values, refs = split(args)
+
+    def run(a):
+        (depth, depth_time), (fix, fix_time, fix_sigma) = a["depth"], a["fix"]
+        return pronet.run_filter(
+            imu, t, np.empty((0, 3)), np.empty(0), t0=0.0, lla0=LLA0, vel0=(0, 0, 0),
+            rpy0=(0, 0, 0), strategy=STRAT, depth=depth, depth_time=depth_time,
+            depth_sigma=a["depth_sigma"], fix=fix, fix_time=fix_time, fix_sigma=fix_sigma,
+        )  # fmt: skip
+
+    names = ("depth", "depth_time", "depth_sigma", "fix", "fix_time", "fix_sigma")
+    out = check(run, values, refs, (*names, "numerical failure"))
+    if out is not None:
+        (depth, depth_time), (fix, fix_time, fix_sigma) = refs["depth"], refs["fix"]
+        assert (np.diff(depth_time) > 0).all() and (np.diff(fix_time) > 0).all()
+        assert finite(depth, depth_time, fix[:, :2], fix_time, fix_sigma)
+        assert out.depth_epoch.shape == out.depth_nis.shape == depth.shape
+        assert out.fix_epoch.shape == out.fix_nis.shape == fix_time.shape
+        assert (out.depth_epoch >= 0).all() and (out.fix_epoch >= 0).all()
+        assert finite(out.lla, out.vel, out.sigma, out.depth_nis, out.fix_nis)
 
 
 HUGE_FILTER = [

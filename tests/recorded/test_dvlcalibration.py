@@ -152,3 +152,32 @@ def test_the_calibration_prior_can_be_chosen() -> None:
     default_scale = dvlcalibration.filter_config(True).dvl_scale_sigma
     assert default_scale is not None and tight[0].sigma_scale < 0.003 < 0.5 * default_scale
     assert tight[0].sigma_yaw < 0.005
+
+
+def test_both_calibration_tables_report_the_estimates_alike() -> None:
+    """:func:`dvlcalibration.estimate_spread` is the truth plus the errors, averaged
+    (and the σ), and the simulated table and the aided experiment's print it with the
+    same cells and the same DVL in the title."""
+    from pronet.experiments import aided_calibration
+
+    error = np.array([[0.001, 0, 0, -0.002], [-0.001, 0, 0, 0.004]])
+    sigma = np.full((2, 4), 0.003)
+    spread = dvlcalibration.estimate_spread(error, sigma)
+    assert spread.scale == pytest.approx((dvlcalibration.TRUE_SCALE, 0.001))
+    assert spread.yaw == pytest.approx((dvlcalibration.TRUE_MISALIGNMENT[2] + 0.001, 0.003))
+    assert spread.sigma_scale == spread.sigma_yaw == 0.003
+    common = {"trajectory": "t", "runs": 2, **spread._asdict()}
+    plain = dvlcalibration.CalibrationRow(
+        final_15=1.0, final_19=0.5, final_ideal=0.4, srmse_15=0.01, srmse_19=0.01,
+        inside_3sigma=1.0, nis_in_band=1.0, nees_in_band=1.0, **common,
+    )  # fmt: skip
+    aided = aided_calibration.AidedRow(
+        scale_inside=1.0, yaw_inside=1.0, all_inside=1.0, rms_15=2.0, rms_19=1.0,
+        difference=(-1.0, -1.5, -0.5), fix_nis=1.0, **common,
+    )  # fmt: skip
+    cells = dvlcalibration.spread_cells(plain)
+    assert cells == ["0.50 ± 0.10 (0.30)", "0.56 ± 0.17 (0.17)"]
+    tables = (dvlcalibration.calibration_table([plain]), aided_calibration.aided_table([aided]))
+    for table in tables:
+        assert f"| {cells[0]} | {cells[1]} |" in table
+        assert table.startswith(f"### {dvlcalibration.miscalibration()}, ")

@@ -787,11 +787,11 @@ def test_a_lever_arm_beyond_any_vehicle_is_named_as_one(tmp_path, capsys, option
 
 @pytest.mark.slow
 def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path, capsys):
-    """``--smooth``: each strategy row is followed by its smoothed one, scored at the same
-    ground-truth rows (the final error the filter's: nothing comes after the last
-    epoch), the variant rows with the DVL calibration states not smoothed; over the
-    default covariance step (0.1 s, the smoother's grid its closes) and at every IMU
-    sample."""
+    """``--smooth``: each strategy and variant row is followed by its smoothed one,
+    scored at the same ground-truth rows (the final error the filter's: nothing comes
+    after the last epoch; the rows with the DVL calibration states smoothed over all 19,
+    their calibration too); over the default covariance step (0.1 s, the smoother's grid
+    its closes) and at every IMU sample."""
     from pronet.recorded.passes import smoothed_run
 
     data = tmp_path / "data"
@@ -807,7 +807,11 @@ def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path
     others = {*real.REAL_VARIANT_ROWS, f"inertial only, first {passes.INERTIAL_SECONDS:g} s"}
     strategies = [label for label in plain if label not in others]
     assert strategies and all(f"{label}, smoothed" in rows for label in strategies)
-    assert not any(f"{label}, smoothed" in rows for label in real.REAL_VARIANT_ROWS)
+    variants = [label for label in real.REAL_VARIANT_ROWS if label in rows]
+    assert variants == list(real.REAL_VARIANT_ROWS)
+    assert all(f"{label}, smoothed" in rows for label in variants)
+    calibrated = rows[real.DVL_CALIBRATION]
+    assert rows[f"{real.DVL_CALIBRATION}, smoothed"]["srmse"] != calibrated["srmse"]
     first = rows["constant (estimated q)"]
     smoothed = rows["constant (estimated q), smoothed"]
     assert smoothed["srmse"] != first["srmse"]

@@ -5,6 +5,7 @@ requires the lever arms; ``--data`` takes one ``.npz``."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -16,7 +17,7 @@ from pronet.recorded import vehicle
 from pronet.recorded.recordings import write_recording
 from pronet.recorded.tuning import REAL_P0_SIGMA, real_filter_config
 
-from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording
+from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording, with_aiding
 
 
 def _toml(path, text):
@@ -126,10 +127,15 @@ def test_the_generic_format_requires_the_lever_arms(tmp_path, capsys):
     write_recording(tmp_path / "s", rec)
     argv = ["real", "--data", str(tmp_path / "s"), "--format", "generic", "--quiet"]
     out = tmp_path / "o"
+    assert main([*argv, "--out", str(out), "--dvl-lever-arm=0,0,0"]) == 2
+    err = capsys.readouterr().err
+    assert "--format generic: needs the IMU's lever arm (--imu-lever-arm" in err
+    assert not out.exists()
+    # a recording with DVL readings needs the DVL's arm too: the section's one line
     assert main([*argv, "--out", str(out), "--imu-lever-arm=0,0,0"]) == 2
     err = capsys.readouterr().err
-    assert "--format generic: needs the lever arms (--dvl-lever-arm" in err
-    assert not out.exists()
+    assert "has DVL readings: needs the DVL's lever arm (--dvl-lever-arm" in err
+    assert err.count("\n") == 1 and not out.exists()
     # an explicit 0,0,0 is an answer: it runs (on a folder of CSVs as one section)
     zero = ["--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0", "--no-plots", "--no-models"]
     assert main([*argv, "--out", str(out), *zero]) == 0
@@ -138,3 +144,22 @@ def test_the_generic_format_requires_the_lever_arms(tmp_path, capsys):
     metrics = pd.read_csv(out / "metrics.csv")
     assert set(metrics.scenario.str.split(" ").str[0]) == {"s"}
     capsys.readouterr()
+
+
+def test_without_dvl_readings_the_generic_format_needs_no_dvl_lever_arm(tmp_path, capsys):
+    """A depth/fix-only recording, or ``--no-dvl`` on one with a DVL, runs without
+    ``--dvl-lever-arm`` (the DVL's arm is never used there), and the two give the same
+    rows."""
+    aided = with_aiding(synthetic_recording(seed=1, duration=70.0, name="s"), seed=1)
+    with_dvl = write_recording(tmp_path / "dvl" / "s", aided)
+    no_dvl = replace(aided, dvl=np.empty((0, 3)), dvl_time=np.empty(0))
+    without = write_recording(tmp_path / "none" / "s", no_dvl)
+    argv = ["real", "--format", "generic", "--quiet", "--no-plots", "--no-models",
+            "--imu-lever-arm=0,0,0"]  # fmt: skip
+    assert main([*argv, "--data", str(without), "--out", str(tmp_path / "a")]) == 0
+    assert main([*argv, "--data", str(with_dvl), "--no-dvl", "--out", str(tmp_path / "b")]) == 0
+    capsys.readouterr()
+    a, b = (pd.read_csv(tmp_path / o / "metrics.csv") for o in ("a", "b"))
+    assert len(a) and a.strategy.tolist() == b.strategy.tolist()
+    assert np.array_equal(a.srmse.to_numpy(), b.srmse.to_numpy(), equal_nan=True)
+    assert json.loads((tmp_path / "a" / "config.json").read_text())["dvl_lever_arm_m"] is None

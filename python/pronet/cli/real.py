@@ -163,7 +163,8 @@ def add_parser(sub: Subparsers) -> None:
         type=_vector3,
         default=None,
         help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default: "
-        "--filter's, else Snapir's with --format snapir; required with --format generic)",
+        "--filter's, else Snapir's with --format snapir; required with --format generic "
+        "for recordings with DVL readings, unless --no-dvl)",
     )
     add_tuning_period(parser)
     parser.add_argument(

@@ -120,8 +120,6 @@ def aided_calibration_check(
         if error is None or sigma is None:
             raise RuntimeError("the calibrated Monte Carlo reported no calibration states")
         inside = np.abs(error) <= 3 * sigma
-        truth = np.array([dvlcalibration.TRUE_SCALE, *dvlcalibration.TRUE_MISALIGNMENT])
-        estimate = error + truth
         rms_15, rms_19 = horizontal_rms(plain), horizontal_rms(calibrated)
         nis = calibrated.mean_aiding_nis
         diff = mean_ci(rms_19 - rms_15)
@@ -132,10 +130,7 @@ def aided_calibration_check(
                 scale_inside=float(inside[:, 0].mean()),
                 yaw_inside=float(inside[:, 3].mean()),
                 all_inside=float(inside.all(axis=1).mean()),
-                scale=(float(estimate[:, 0].mean()), float(estimate[:, 0].std())),
-                sigma_scale=float(sigma[:, 0].mean()),
-                yaw=(float(estimate[:, 3].mean()), float(estimate[:, 3].std())),
-                sigma_yaw=float(sigma[:, 3].mean()),
+                **dvlcalibration.estimate_spread(error, sigma)._asdict(),
                 rms_15=float(rms_15.mean()),
                 rms_19=float(rms_19.mean()),
                 difference=(diff.mean, diff.low, diff.high),
@@ -162,9 +157,7 @@ def aided_table(rows: list[AidedRow]) -> str:
         lines.append(
             [
                 r.trajectory,
-                f"{100 * r.scale[0]:.2f} ± {100 * r.scale[1]:.2f} ({100 * r.sigma_scale:.2f})",
-                f"{math.degrees(r.yaw[0]):.2f} ± {math.degrees(r.yaw[1]):.2f} "
-                f"({math.degrees(r.sigma_yaw):.2f})",
+                *dvlcalibration.spread_cells(r),
                 f"{100 * r.scale_inside:.0f} % / {100 * r.yaw_inside:.0f} % / "
                 f"{100 * r.all_inside:.0f} %",
                 f"{r.rms_15:.2f} / {r.rms_19:.2f}",
@@ -172,10 +165,8 @@ def aided_table(rows: list[AidedRow]) -> str:
                 f"{r.fix_nis:.2f}",
             ]
         )
-    yaw = math.degrees(dvlcalibration.TRUE_MISALIGNMENT[2])
     title = (
-        f"DVL with a {100 * dvlcalibration.TRUE_SCALE:g} % scale error and {yaw:g}° yaw "
-        f"misalignment, fixes every {FIX_PERIOD:g} s (σ {FIX_SIGMA:g} m) and depth "
-        f"(σ {DEPTH_SIGMA:g} m), {rows[0].runs if rows else 0} runs per trajectory"
+        f"{dvlcalibration.miscalibration()}, fixes every {FIX_PERIOD:g} s (σ {FIX_SIGMA:g} m) "
+        f"and depth (σ {DEPTH_SIGMA:g} m), {rows[0].runs if rows else 0} runs per trajectory"
     )
     return markdown(header, lines, title)

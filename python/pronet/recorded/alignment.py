@@ -399,12 +399,14 @@ def load_section(
     fmt: Format,
     *,
     imu_lever_arm: tuple[float, float, float],
-    dvl_lever_arm: tuple[float, float, float],
+    dvl_lever_arm: tuple[float, float, float] | None,
     handle_alignment: bool = True,
     aiding_clock: str = "imu",
 ) -> tuple[Section, Section]:
     """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
     lever arms applied, and the stamps as given with no lever arms (the comparison).
+    ``dvl_lever_arm`` None: the recording must have no DVL reading (ValueError naming
+    the file otherwise).
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
     (``"bag"``: the default topics). ``aiding_clock`` (:data:`AIDING_CLOCKS`): the
     clock the depth and fixes are stamped on, the IMU's (their stamps as given) or the
@@ -423,6 +425,14 @@ def load_section(
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
     else:
         rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
+    if dvl_lever_arm is None:
+        if len(rec.dvl):
+            raise ValueError(
+                f"{path}: has DVL readings: needs the DVL's lever arm (--dvl-lever-arm, or "
+                "dvl_lever_arm in --filter): its position from the ground-truth point [m, "
+                "body FRD]; give 0,0,0 for a truth at the DVL, or leave the DVL out (--no-dvl)"
+            )
+        dvl_lever_arm = (0.0, 0.0, 0.0)  # never used: no DVL reading
     stamped = align(rec, Alignment(how="none"))
     if not handle_alignment:
         return stamped, stamped

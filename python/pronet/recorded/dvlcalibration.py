@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -78,6 +79,58 @@ def filter_config(
         dvl_scale_sigma=scale,
         dvl_misalignment_sigma=None if angle is None else (angle,) * 3,
     )
+
+
+class Spread(NamedTuple):
+    """The final estimated scale error and yaw misalignment over the runs: mean and
+    standard deviation (``scale``, ``yaw`` [rad]) and the mean of the filter's 1σ."""
+
+    scale: tuple[float, float]
+    sigma_scale: float
+    yaw: tuple[float, float]
+    sigma_yaw: float
+
+
+def estimate_spread(error: np.ndarray, sigma: np.ndarray) -> Spread:
+    """:class:`Spread` of the runs' final calibration errors ``error`` and 1σ ``sigma``
+    (``(n_runs, 4)``: scale error, roll, pitch, yaw), the estimates being the truth
+    (:data:`TRUE_SCALE`, :data:`TRUE_MISALIGNMENT`) plus the errors."""
+    estimate = error + np.array([TRUE_SCALE, *TRUE_MISALIGNMENT])
+    return Spread(
+        scale=(float(np.mean(estimate[:, 0])), float(np.std(estimate[:, 0]))),
+        sigma_scale=float(np.mean(sigma[:, 0])),
+        yaw=(float(np.mean(estimate[:, 3])), float(np.std(estimate[:, 3]))),
+        sigma_yaw=float(np.mean(sigma[:, 3])),
+    )
+
+
+class HasSpread(Protocol):
+    """A table row with a :class:`Spread`'s fields."""
+
+    @property
+    def scale(self) -> tuple[float, float]: ...
+    @property
+    def sigma_scale(self) -> float: ...
+    @property
+    def yaw(self) -> tuple[float, float]: ...
+    @property
+    def sigma_yaw(self) -> float: ...
+
+
+def spread_cells(row: HasSpread) -> list[str]:
+    """The table cells of a row's spread: ``"scale [%] (1σ)"`` and ``"yaw [°] (1σ)"``,
+    each ``mean ± std (mean 1σ)``."""
+    return [
+        f"{100 * row.scale[0]:.2f} ± {100 * row.scale[1]:.2f} ({100 * row.sigma_scale:.2f})",
+        f"{math.degrees(row.yaw[0]):.2f} ± {math.degrees(row.yaw[1]):.2f} "
+        f"({math.degrees(row.sigma_yaw):.2f})",
+    ]
+
+
+def miscalibration() -> str:
+    """The simulated DVL's errors, for a table's title."""
+    yaw = math.degrees(TRUE_MISALIGNMENT[2])
+    return f"DVL with a {100 * TRUE_SCALE:g} % scale error and {yaw:g}° yaw misalignment"
 
 
 @dataclass(frozen=True)
@@ -150,7 +203,7 @@ def calibration_check(
         nees = calibrated.calibration_nees
         if error is None or sigma is None or nees is None:
             raise RuntimeError("the calibrated Monte Carlo reported no calibration states")
-        estimate = error + np.array([TRUE_SCALE, *TRUE_MISALIGNMENT])
+        spread = estimate_spread(error, sigma)
         rows.append(
             CalibrationRow(
                 trajectory=name,
@@ -163,10 +216,7 @@ def calibration_check(
                 inside_3sigma=float(np.mean(np.all(np.abs(error) <= 3 * sigma, axis=1))),
                 nis_in_band=_in_band(calibrated.nis, 3, n_runs),
                 nees_in_band=_in_band(nees, 4, n_runs),
-                scale=(float(np.mean(estimate[:, 0])), float(np.std(estimate[:, 0]))),
-                sigma_scale=float(np.mean(sigma[:, 0])),
-                yaw=(float(np.mean(estimate[:, 3])), float(np.std(estimate[:, 3]))),
-                sigma_yaw=float(np.mean(sigma[:, 3])),
+                **spread._asdict(),
             )
         )
     return rows
@@ -192,18 +242,12 @@ def calibration_table(rows: list[CalibrationRow]) -> str:
                 f"{r.final_15:.2f} / {r.final_19:.2f} ({r.final_ideal:.2f})",
                 f"{r.ratio:.2f}",
                 f"{r.srmse_15:.4f} / {r.srmse_19:.4f}",
-                f"{100 * r.scale[0]:.2f} ± {100 * r.scale[1]:.2f} ({100 * r.sigma_scale:.2f})",
-                f"{math.degrees(r.yaw[0]):.2f} ± {math.degrees(r.yaw[1]):.2f} "
-                f"({math.degrees(r.sigma_yaw):.2f})",
+                *spread_cells(r),
                 f"{100 * r.inside_3sigma:.0f} %",
                 f"{100 * r.nis_in_band:.0f} % / {100 * r.nees_in_band:.0f} %",
             ]
         )
-    yaw = math.degrees(TRUE_MISALIGNMENT[2])
-    title = (
-        f"DVL with a {100 * TRUE_SCALE:g} % scale error and {yaw:g}° yaw misalignment, "
-        f"{rows[0].runs if rows else 0} runs per trajectory"
-    )
+    title = f"{miscalibration()}, {rows[0].runs if rows else 0} runs per trajectory"
     return markdown(header, lines, title)
 
 

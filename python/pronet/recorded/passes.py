@@ -175,11 +175,11 @@ def evaluate_section(
     """Every strategy on ``section`` with ``config``, the first strategy with each of
     ``variants``' configs (by row label), and the pure-inertial run over the first
     :data:`INERTIAL_SECONDS` with the first strategy's noise. With ``smooth``, each
-    strategy row is followed by its smoothed one (:func:`smoothed_run`; the variant
-    rows with the DVL calibration states are not smoothed)."""
+    strategy and variant row is followed by its smoothed one (:func:`smoothed_run`; with
+    the DVL calibration states all 19 are smoothed)."""
     first = next(iter(strategies.values()))
     rows = [(label, chosen, config, smooth) for label, chosen in strategies.items()]
-    rows += [(label, first, cfg, False) for label, cfg in (variants or {}).items()]
+    rows += [(label, first, cfg, smooth) for label, cfg in (variants or {}).items()]
     runs = []
     for label, chosen, cfg, smoothed in rows:
         done = run_section(section, chosen, cfg, label=label, setup=setup, smooth=smoothed)
@@ -207,14 +207,23 @@ SMOOTHED = "smoothed"
 
 def smoothed_run(section: Section, done: SectionRun) -> SectionRun:
     """The row of ``done``'s RTS-smoothed solution (``"<label>, smoothed"``): its
-    result is the filter's with the smoothed position, velocity, attitude, biases and
-    σ (updates, NIS and q the filter's), its metrics taken against the ground truth as
-    the filter's are. ``ValueError`` if the pass was not smoothed."""
+    result is the filter's with the smoothed position, velocity, attitude, biases, DVL
+    calibration (with its states) and σ (updates, NIS and q the filter's), its metrics
+    taken against the ground truth as the filter's are. ``ValueError`` if the pass was
+    not smoothed."""
     s = done.result.smoothed
     if s is None:
         raise ValueError(f"{done.label}: the pass was run without smooth=True")
     result = dataclasses.replace(
-        done.result, lla=s.lla, vel=s.vel, rpy=s.rpy, bias=s.bias, sigma=s.sigma, smoothed=None
+        done.result,
+        lla=s.lla,
+        vel=s.vel,
+        rpy=s.rpy,
+        bias=s.bias,
+        sigma=s.sigma,
+        calibration=s.calibration,
+        calibration_sigma=s.calibration_sigma,
+        smoothed=None,
     )
     metrics = section_metrics(section, result, True)
     return dataclasses.replace(

@@ -380,7 +380,10 @@ def run_real(
             [m, body FRD]; default: ``vehicle``'s, else with ``fmt="snapir"`` the
             Snapir AUV's; the generic format has no default (ValueError: a recording
             of another vehicle with Snapir's arms would run silently wrong; give
-            ``(0, 0, 0)`` for a truth at the sensors).
+            ``(0, 0, 0)`` for a truth at the sensors). The DVL's is needed only where
+            its readings are used: not for a recording without them, nor with
+            ``use_dvl=False`` (a section with DVL readings and no DVL arm is left out,
+            with the reason).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         use_models: False: only the model-based rows.
         plots: False: no plots (the tables and metrics only). The figures are drawn
@@ -433,6 +436,9 @@ def run_real(
         (0.0, 0.0, 0.0), formulation=formulation, base=base, covariance_step=covariance_step
     )
     imu_arm, dvl_arm = lever_arms(fmt, imu_lever_arm, dvl_lever_arm, vehicle)
+    # Without its readings (and not its clock) the DVL's arm is never used: none needed.
+    dvl_used = use_dvl or aiding_clock == "dvl"
+    read_arm = (0.0, 0.0, 0.0) if dvl_arm is None and not dvl_used else dvl_arm
     aiding = AidingTuning(use_depth=use_depth, use_fixes=use_fixes, use_dvl=use_dvl)
     if vehicle is not None:
         aiding = vehicle.aiding(aiding)
@@ -445,7 +451,7 @@ def run_real(
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
             return load_section(
-                path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=dvl_arm, aiding_clock=aiding_clock
+                path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=read_arm, aiding_clock=aiding_clock
             )
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)

@@ -364,7 +364,7 @@ def real_config(
     data: str | Path,
     fmt: Format,
     tuning_period: float,
-    arms: tuple[tuple[float, float, float], tuple[float, float, float]],
+    arms: tuple[tuple[float, float, float], tuple[float, float, float] | None],
     dvl_noise: str,
     done: RealRuns,
     regressors: Mapping[str, Regressor],

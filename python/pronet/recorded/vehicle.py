@@ -200,10 +200,12 @@ def lever_arms(
     imu: tuple[float, float, float] | None,
     dvl: tuple[float, float, float] | None,
     vehicle: VehicleTuning | None,
-) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+) -> tuple[tuple[float, float, float], tuple[float, float, float] | None]:
     """The lever arms of :func:`pronet.recorded.real.run_real` (given, else the
     vehicle's, else Snapir's for its own format), checked; ValueError when the generic
-    format has none."""
+    format has no IMU arm. The DVL's may be None: a recording without DVL readings, or
+    a run without them (``--no-dvl``), does not need it; one with them is refused when
+    read (:func:`pronet.recorded.alignment.load_section`)."""
     from pronet.recorded.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
     if vehicle is not None:
@@ -216,11 +218,10 @@ def lever_arms(
         if value is not None:  # a given arm's own error first, then its length
             lever_arm(value, name)
             long_lever_arm(value, name)
-    missing = [n for n, v in (("--imu-lever-arm", imu), ("--dvl-lever-arm", dvl)) if v is None]
-    if missing or imu is None or dvl is None:
+    if imu is None:
         raise ValueError(
-            f"--format {fmt}: needs the lever arms ({' and '.join(missing)}, or "
-            "imu_lever_arm/dvl_lever_arm in --filter): the IMU's and the DVL's positions "
-            "from the ground-truth point [m, body FRD]; give 0,0,0 for a truth at a sensor"
+            f"--format {fmt}: needs the IMU's lever arm (--imu-lever-arm, or imu_lever_arm "
+            "in --filter): its position from the ground-truth point [m, body FRD]; give "
+            "0,0,0 for a truth at the IMU"
         )
     return imu, dvl

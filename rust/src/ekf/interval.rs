@@ -15,14 +15,24 @@
 //! Here too: the filter's methods that close a step or read P as if it were closed, and
 //! [`StaleSigma`], the σ a recorded pass reports at the epochs inside a step.
 
-use super::calibration::Calibration;
+use super::calibration::{Calibration, Cross};
 use super::dynamics::{ErrorDynamics, ImuNoise};
 use super::recorded::FilterOutput;
 use super::transition::Transition;
 use super::{formulation, ClosedSigma, Ekf, Matrix15, ACC_BIAS};
 use crate::mechanization::{FrameRates, NavState};
 use crate::noise::ProcessNoise;
-use nalgebra::Vector3;
+use nalgebra::{Matrix4, SMatrix, Vector3};
+
+/// A close of the covariance step as the forward pass made it (see
+/// [`Ekf::keep_closes`]): the navigation rows of the step's Φ and the covariance it left
+/// (the calibration blocks too), before any update of its epoch.
+#[derive(Clone, Debug)]
+pub struct KeptClose {
+    pub(super) phi: SMatrix<f64, 9, 15>,
+    pub(super) p: Matrix15,
+    pub(super) calibration: Option<Box<(Cross, Matrix4<f64>)>>,
+}
 
 /// A covariance step under way.
 #[derive(Clone, Debug)]
@@ -161,7 +171,32 @@ impl Ekf {
             let calibration = self.calibration.as_ref().map(Calibration::sigma);
             self.closed_sigma = Some((self.sigma(), calibration));
         }
+        if let (Some(kept), Some(phi)) = (self.kept_closes.as_mut(), phi.as_ref()) {
+            kept.push(KeptClose {
+                phi: phi.nav_rows(),
+                p: self.p,
+                calibration: self
+                    .calibration
+                    .as_ref()
+                    .map(|c| Box::new((c.cross, c.cov))),
+            });
+        }
         phi
+    }
+
+    /// Keep every close of a covariance step from now on (its Φ and the covariance it
+    /// left, 2.9 kB; 3.5 kB with the calibration states) for [`Ekf::take_closes`]:
+    /// the smoother then reads them instead of rebuilding them.
+    pub fn keep_closes(&mut self) {
+        self.kept_closes.get_or_insert_with(Vec::new);
+    }
+
+    /// Move the closes kept since the last call to `out`, each with `epoch` (none
+    /// without [`Ekf::keep_closes`]).
+    pub fn take_closes(&mut self, epoch: usize, out: &mut Vec<(usize, KeptClose)>) {
+        if let Some(kept) = self.kept_closes.as_mut() {
+            out.extend(kept.drain(..).map(|c| (epoch, c)));
+        }
     }
 
     /// Keep the σ at every close of a covariance step for [`Ekf::take_closed_sigma`].

@@ -44,6 +44,7 @@ pub use config::{Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP};
 use dynamics::{add_imu_noise, ErrorDynamics};
 pub use formulation::Formulation;
 use interval::Interval;
+pub use interval::KeptClose;
 pub use recorded::{
     filter_recorded, filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput,
     RecordedData,
@@ -134,6 +135,9 @@ pub struct Ekf {
     /// covariance step, before any update applied at that epoch.
     closed_sigma: Option<ClosedSigma>,
     track_closes: bool,
+    /// With [`Ekf::keep_closes`]: the closes of the covariance step since the last
+    /// [`Ekf::take_closes`], for the smoother.
+    kept_closes: Option<Vec<KeptClose>>,
 }
 
 /// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
@@ -163,6 +167,7 @@ impl Ekf {
             interval: None,
             closed_sigma: None,
             track_closes: false,
+            kept_closes: None,
         })
     }
 

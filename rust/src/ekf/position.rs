@@ -164,6 +164,18 @@ fn scalar_update<const N: usize>(
     Ok((innovation * innovation / s, -(gain * innovation)))
 }
 
+/// The depth sensor's 1σ [m]: finite and > 0 (checked wherever one is given, readings
+/// or not).
+pub fn check_depth_sigma(depth_sigma: f64) -> Result<()> {
+    if depth_sigma > 0.0 && depth_sigma.is_finite() {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "depth_sigma",
+        format!("must be a finite number of metres > 0, got {}", depth_sigma),
+    ))
+}
+
 /// The depth readings and position fixes of a pass: lengths, times, values and σ, each
 /// error naming its argument.
 pub(super) fn check_aiding(
@@ -189,12 +201,8 @@ pub(super) fn check_aiding(
     check::increasing("depth_time", depth_time)?;
     check::increasing("fix_time", fix_time)?;
     check::finite("depth", depth)?;
-    let sigma_ok = depth_sigma > 0.0 && depth_sigma.is_finite();
-    if !depth.is_empty() && !sigma_ok {
-        return Err(Error::invalid(
-            "depth_sigma",
-            format!("must be a finite number of metres > 0, got {}", depth_sigma),
-        ));
+    if !depth.is_empty() {
+        check_depth_sigma(depth_sigma)?;
     }
     for (i, (fix, sigma)) in fix.iter().zip(fix_sigma).enumerate() {
         let vertical = !fix[2].is_nan();

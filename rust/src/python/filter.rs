@@ -8,6 +8,7 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::{interruptible, invalid, to_py_err};
 use crate::attitude::euler_from_dcm;
+use crate::ekf::position::check_depth_sigma;
 use crate::ekf::smoother::Smoothed;
 use crate::ekf::{
     filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData,
@@ -38,7 +39,11 @@ impl Aiding {
         fix_sigma: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let (depth, depth_time, depth_sigma) = match (depth, depth_time, depth_sigma) {
-            (Some(d), Some(t), Some(s)) => (column(d, "depth")?, column(t, "depth_time")?, s),
+            (Some(d), Some(t), Some(s)) => {
+                // A σ given is checked, readings or not (None stands for no sensor).
+                check_depth_sigma(s).map_err(to_py_err)?;
+                (column(d, "depth")?, column(t, "depth_time")?, s)
+            }
             (None, None, None) => (Vec::new(), Vec::new(), f64::NAN),
             _ => {
                 return Err(invalid(

@@ -32,7 +32,7 @@
 
 use super::calibration::{correct_mounting, Cross, DvlMounting, N_CALIBRATED, SCALE};
 use super::interval::Interval as CovarianceStep;
-use super::{correct, Ekf, FilterConfig, Formulation, Matrix15, Vector15, ATT, VEL};
+use super::{correct, Ekf, FilterConfig, Formulation, KeptClose, Matrix15, Vector15, ATT, VEL};
 use crate::attitude::skew;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
@@ -356,6 +356,32 @@ pub fn smooth(
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
+    smooth_with(forward, cfg, nodes, None, covariances, cancel)
+}
+
+/// [`smooth`] reading the closes of the covariance step that the forward pass kept
+/// ([`Ekf::keep_closes`], each with its epoch, in order) instead of rebuilding them: the
+/// same numbers, bit for bit, without the rebuild's prediction. Without a covariance
+/// step they are not read.
+pub fn smooth_kept(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    nodes: &[Node],
+    closes: &[(usize, KeptClose)],
+    covariances: Covariances<'_>,
+    cancel: &Cancel,
+) -> Result<Smoothed> {
+    smooth_with(forward, cfg, nodes, Some(closes), covariances, cancel)
+}
+
+fn smooth_with(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    nodes: &[Node],
+    kept: Option<&[(usize, KeptClose)]>,
+    covariances: Covariances<'_>,
+    cancel: &Cancel,
+) -> Result<Smoothed> {
     let n = forward.nav.len();
     if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
         return Err(Error::Numerical(
@@ -374,8 +400,8 @@ pub fn smooth(
     match (calibrated, cfg.covariance_every_sample()) {
         (false, true) => every::smooth_every::<15>(forward, cfg, nodes, covariances, cancel),
         (true, true) => every::smooth_every::<CAL>(forward, cfg, nodes, covariances, cancel),
-        (false, false) => steps::smooth_steps::<15>(forward, cfg, nodes, covariances, cancel),
-        (true, false) => steps::smooth_steps::<CAL>(forward, cfg, nodes, covariances, cancel),
+        (false, false) => steps::smooth_steps::<15>(forward, cfg, nodes, kept, covariances, cancel),
+        (true, false) => steps::smooth_steps::<CAL>(forward, cfg, nodes, kept, covariances, cancel),
     }
 }
 

@@ -21,10 +21,10 @@
 //! `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and its σ repeats the smoothed σ at `c`,
 //! as the forward σ repeats the last closed one.
 
-use super::{full_p, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
+use super::{full_p, lift, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
-use crate::ekf::FilterConfig;
+use crate::ekf::{FilterConfig, KeptClose};
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
@@ -50,6 +50,7 @@ pub(super) fn smooth_steps<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
+    kept: Option<&[(usize, KeptClose)]>,
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
@@ -66,8 +67,11 @@ pub(super) fn smooth_steps<const N: usize>(
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let closes = rebuild::<N>(forward, cfg, a, b, cancel)?;
-        for close in closes.into_iter().rev() {
+        let closes = match kept {
+            Some(kept) => kept_between::<N>(kept, a, b),
+            None => rebuild::<N>(forward, cfg, a, b, cancel)?,
+        };
+        for close in closes.iter().rev() {
             let at_node = close.epoch == b.epoch;
             let p = if at_node { b.p::<N>() } else { close.p_prior };
             let ds = p * mu;
@@ -89,15 +93,12 @@ pub(super) fn smooth_steps<const N: usize>(
             if let (true, Some(ps)) = (at_node, ps) {
                 out.keep_node(b.epoch, &ps);
                 ds_prior += b.dx::<N>();
-                let chol = close.p_prior.cholesky().ok_or_else(|| {
+                (mu, lambda) = at_update(&close.p_prior, &ps, &ds_prior).ok_or_else(|| {
                     Error::Numerical(format!(
                         "the smoother: the covariance before epoch {} is not positive definite",
                         b.epoch
                     ))
                 })?;
-                mu = chol.solve(&ds_prior);
-                let m = chol.solve(&(ps - close.p_prior));
-                lambda = symmetric(&chol.solve(&m.transpose()));
             }
             mu = transposed(&close.phi, &mu);
             lambda = congruence(&close.phi, &lambda);
@@ -122,31 +123,157 @@ pub(super) fn smooth_steps<const N: usize>(
     Ok(out)
 }
 
+/// `μ = (P⁻)⁻¹ δs⁻` and `Λ = (P⁻)⁻¹ (Ps − P⁻) (P⁻)⁻¹` at an update, by Cholesky
+/// solves (None: `P⁻` not positive definite): `Mᵀ = ((P⁻)⁻¹ D)ᵀ` from `D = Ps − P⁻`,
+/// then `Λᵀ = ((P⁻)⁻¹ Mᵀ)ᵀ` from `M`, each by [`solve_rows`].
+pub(super) fn at_update<const N: usize>(
+    p_prior: &SMatrix<f64, N, N>,
+    ps: &SMatrix<f64, N, N>,
+    ds_prior: &SVector<f64, N>,
+) -> Option<(SVector<f64, N>, SMatrix<f64, N, N>)> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { at_update_avx2(p_prior, ps, ds_prior) };
+    }
+    at_update_portable(p_prior, ps, ds_prior)
+}
+
+/// [`at_update`] in AVX2 registers (the same operations: no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn at_update_avx2<const N: usize>(
+    p_prior: &SMatrix<f64, N, N>,
+    ps: &SMatrix<f64, N, N>,
+    ds_prior: &SVector<f64, N>,
+) -> Option<(SVector<f64, N>, SMatrix<f64, N, N>)> {
+    at_update_portable(p_prior, ps, ds_prior)
+}
+
+#[inline(always)]
+fn at_update_portable<const N: usize>(
+    p_prior: &SMatrix<f64, N, N>,
+    ps: &SMatrix<f64, N, N>,
+    ds_prior: &SVector<f64, N>,
+) -> Option<(SVector<f64, N>, SMatrix<f64, N, N>)> {
+    let chol = p_prior.cholesky()?;
+    let l = chol.l_dirty();
+    let mt = solve_rows(l, &(ps - p_prior));
+    let lambda_t = solve_rows(l, &mt.transpose());
+    Some((chol.solve(ds_prior), symmetric(&lambda_t)))
+}
+
+/// `(P⁻¹ B)ᵀ` for `P = L Lᵀ` (`l`'s lower triangle), given `Bᵀ`: the forward and back
+/// substitutions row by row of `B`, each row a contiguous column of `Bᵀ`, so that every
+/// step is one multiply-add over `N` columns at once.
+#[inline(always)]
+fn solve_rows<const N: usize>(
+    l: &SMatrix<f64, N, N>,
+    bt: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    let mut t = *bt;
+    let s = t.as_mut_slice();
+    let mut substitute = |i: usize, others: std::ops::Range<usize>, lower: bool| {
+        let mut col = [0.0; N];
+        col.copy_from_slice(&s[N * i..N * (i + 1)]);
+        for k in others {
+            let f = if lower { l[(i, k)] } else { l[(k, i)] };
+            for (c, v) in col.iter_mut().zip(&s[N * k..N * (k + 1)]) {
+                *c -= f * v;
+            }
+        }
+        let d = l[(i, i)];
+        for c in col.iter_mut() {
+            *c /= d;
+        }
+        s[N * i..N * (i + 1)].copy_from_slice(&col);
+    };
+    // L Y = B, then Lᵀ X = Y, rows of Y and X in place of those of B.
+    for i in 0..N {
+        substitute(i, 0..i, true);
+    }
+    for i in (0..N).rev() {
+        substitute(i, i + 1..N, false);
+    }
+    t
+}
+
 pub(super) fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     (m + m.transpose()) * 0.5
 }
 
-/// `Φᵀ B` for `Φ = [[R], [0, I]]` (`R` its navigation rows) and an `N × C` matrix `B`:
-/// `Rᵀ B_nav` in the first 15 rows, plus the rows of `B` past the navigation ones.
-pub(super) fn transposed<const N: usize, const C: usize>(
-    rows: &NavRows,
-    b: &SMatrix<f64, N, C>,
-) -> SMatrix<f64, N, C> {
-    let nav = rows.transpose() * b.fixed_rows::<9>(0);
-    let mut out = *b;
-    out.fixed_rows_mut::<9>(0).fill(0.0);
-    let mut top = out.fixed_rows_mut::<15>(0);
-    top += nav;
+/// `Φᵀ x` for `Φ = [[R], [0, I]]` (`R` its navigation rows, 9 × 15): entry `j` is
+/// `Σ_k R_kj x_k` over the 9 navigation rows, plus `x_j` past them (summed in this
+/// order, as nalgebra's product does: the same bits as `Rᵀ x` plus the identity).
+pub(super) fn transposed<const N: usize>(rows: &NavRows, x: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = *x;
+    for j in 0..15 {
+        let mut v = 0.0;
+        for k in 0..9 {
+            v += rows[(k, j)] * x[k];
+        }
+        out[j] = if j < 9 { v } else { x[j] + v };
+    }
     out
 }
 
-/// `Φᵀ Λ Φ` for a symmetric Λ (see [`transposed`]).
+/// `B Φ` (see [`transposed`]): column `j < 15` is `Σ_k R_kj B_{:,k}` over the 9
+/// navigation columns, plus `B_{:,j}` past them; column by column over contiguous
+/// columns (9 × 15 × N multiply-adds), summed in [`transposed`]'s order.
+fn times_phi<const N: usize>(rows: &NavRows, b: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { times_phi_avx2(rows, b) };
+    }
+    times_phi_portable(rows, b)
+}
+
+/// [`times_phi`] in AVX2 registers (the same products and sums: no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn times_phi_avx2<const N: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    times_phi_portable(rows, b)
+}
+
+#[inline(always)]
+fn times_phi_portable<const N: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    let mut out = *b;
+    let src = b.as_slice();
+    let dst = out.as_mut_slice();
+    for j in 0..15 {
+        let mut col = [0.0; N];
+        for k in 0..9 {
+            let r = rows[(k, j)];
+            for (c, s) in col.iter_mut().zip(&src[N * k..N * (k + 1)]) {
+                *c += r * s;
+            }
+        }
+        if j >= 9 {
+            for (c, s) in col.iter_mut().zip(&src[N * j..N * (j + 1)]) {
+                *c += s;
+            }
+        }
+        dst[N * j..N * (j + 1)].copy_from_slice(&col);
+    }
+    out
+}
+
+/// `Φᵀ Λ Φ` for a symmetric Λ: `W = Λ Φ`, then `Wᵀ Φ = (Φᵀ W)ᵀ`, symmetrized. Each
+/// entry is the sum of the same products in the same order as the dense
+/// `Φᵀ (Φᵀ Λ)ᵀ` (Λ is symmetric bit for bit), so the result is too.
 pub(super) fn congruence<const N: usize>(
     rows: &NavRows,
     lambda: &SMatrix<f64, N, N>,
 ) -> SMatrix<f64, N, N> {
-    let half = transposed(rows, lambda); // Φᵀ Λ
-    symmetric(&transposed(rows, &half.transpose()))
+    let w = times_phi(rows, lambda);
+    symmetric(&times_phi(rows, &w.transpose()))
 }
 
 /// Apply the smoothed error `ds` at the close `epoch` and interpolate it up to the
@@ -178,6 +305,21 @@ fn fill<const N: usize>(
         };
         out.apply(i, &dsi, cfg);
     }
+}
+
+/// The closes in `(a, b]` of the covariance step that the forward pass kept (see
+/// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them.
+fn kept_between<const N: usize>(kept: &[(usize, KeptClose)], a: &Node, b: &Node) -> Vec<Close<N>> {
+    let lo = kept.partition_point(|(e, _)| *e <= a.epoch);
+    let hi = kept.partition_point(|(e, _)| *e <= b.epoch);
+    kept[lo..hi.max(lo)]
+        .iter()
+        .map(|(epoch, c)| Close {
+            epoch: *epoch,
+            phi: c.phi,
+            p_prior: lift(&c.p, c.calibration.as_deref().map(|(x, v)| (x, v))),
+        })
+        .collect()
 }
 
 /// The closes in `(a, b]` of the covariance step, rebuilt by the filter's prediction

@@ -324,15 +324,13 @@ fn smooth_steps<const N: usize>(
             let mut ds_prior = ds;
             if let (true, Some(ps)) = (at_node, ps) {
                 ds_prior += b.dx::<N>();
-                let chol = close.p_prior.cholesky().ok_or_else(|| {
-                    Error::Numerical(format!(
-                        "the smoother: the covariance before epoch {} is not positive definite",
-                        b.epoch
-                    ))
-                })?;
-                mu = chol.solve(&ds_prior);
-                let m = chol.solve(&(ps - close.p_prior));
-                lambda = symmetric(&chol.solve(&m.transpose()));
+                (mu, lambda) =
+                    steps::at_update(&close.p_prior, &ps, &ds_prior).ok_or_else(|| {
+                        Error::Numerical(format!(
+                            "the smoother: the covariance before epoch {} is not positive definite",
+                            b.epoch
+                        ))
+                    })?;
             }
             mu = transposed(&close.phi, &mu);
             lambda = steps::congruence(&close.phi, &lambda);
