@@ -64,13 +64,7 @@ def one_pass(cut: Windows, truth: torch.Tensor, q0: torch.Tensor, batch: int) ->
     total = cut.batch.size
     for lo in range(0, total, batch):
         part = slice(lo, min(lo + batch, total))
-        b = tf.Batch(
-            **{
-                k: (v[part] if isinstance(v, torch.Tensor) else v)
-                for k, v in vars(cut.batch).items()
-            }
-        )
-        start = tf.State(**{k: v[part] for k, v in vars(cut.start).items()})
+        b, start = cut.batch.select(part), cut.start.select(part)
         t = time.perf_counter()
         _, out = tf.advance(start, b, 0, b.length, q0[part] * torch.exp(s[part]))
         loss = ((out.vel - truth[part]) ** 2).mean() * (part.stop - part.start) / total
