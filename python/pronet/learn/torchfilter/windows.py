@@ -87,7 +87,9 @@ def state_at(result: FilterResult, epochs: ArrayLike, batch: Batch) -> State:
     biases there and the covariance ``result.covariances`` kept at those epochs (in
     order; classic coordinates, mapped into the filter's own at the epoch's velocity).
     The epochs must be ones where P is up to date (the start, or after a DVL update):
-    the reported σ there is P's own. ``batch``: the pass's (its setup)."""
+    the reported σ there is P's own. ``batch``: the pass's (its setup). The last
+    bias-corrected rate (the lever arm's term) starts at zero: the next sample sets it
+    before any update reads it. No covariance step is under way there."""
     e = np.asarray(epochs, dtype=np.int64)
     if len(result.covariances) != len(e) or not np.array_equal(result.covariance_epoch, e):
         raise ValueError("epochs: the result must keep the covariance at exactly these epochs")
