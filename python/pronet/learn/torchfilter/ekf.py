@@ -1,0 +1,166 @@
+"""The error-state EKF's pieces in torch, batched over B sequences: the error dynamics
+F, the IMU noise mapped through Γ, the per-sample and covariance-step transitions, the
+DVL update (body velocity with the lever arm, or NED velocity) in Joseph form and the
+feedback of the error estimate, in the classic or the invariant formulation
+(``rust/src/ekf/``, docs/filter.md).
+
+Error state (15): ``[δp (NED m), δv (m/s), ψ (rad), δb_a (m/s²), δb_g (rad/s)]``,
+estimate minus truth. In the invariant formulation the velocity error is ``δV = δv −
+[v̂×]ψ`` and P lives in those coordinates (``x_inv = T x_classic``, ``T`` the identity
+but ``−[v̂×]`` at (velocity, attitude))."""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from pronet.learn.torchfilter.attitude import exp_so3, skew
+from pronet.learn.torchfilter.earth import Rates, ned_to_lla_delta
+
+POS, VEL, ATT, ACC_BIAS, GYRO_BIAS = 0, 3, 6, 9, 12
+
+
+def eye15(like: Tensor) -> Tensor:
+    """The 15 × 15 identity in ``like``'s dtype and device."""
+    return torch.eye(15, dtype=like.dtype, device=like.device)
+
+
+def error_dynamics(
+    vel: Tensor, dcm: Tensor, r: Rates, h: Tensor, f_ned: Tensor, invariant: bool
+) -> Tensor:
+    """``(B, 15, 15)`` F at the navigation state ``vel`` ``(B, 3)``, ``dcm``, height
+    ``h`` ``(B,)`` [m] with the frame rates ``r`` there and the NED specific force
+    ``f_ned`` ``(B, 3)`` [m/s²] (docs/filter.md; the core's ``ErrorDynamics``)."""
+    batch = vel.shape[0]
+    fm = vel.new_zeros(batch, 15, 15)
+    eye = torch.eye(3, dtype=vel.dtype, device=vel.device)
+    schuler = r.gravity / ((r.r_n * r.r_e).sqrt() + h)
+    fm[:, 0:3, 0:3] = -skew(r.transport)
+    fm[:, 0:3, 3:6] = eye
+    fm[:, 3:6, 0:3] = torch.diag_embed(torch.stack([-schuler, -schuler, 2.0 * schuler], -1))
+    fm[:, 3:6, 3:6] = -skew(2.0 * r.earth + r.transport)
+    fm[:, 3:6, 9:12] = -dcm
+    fm[:, 6:9, 6:9] = -skew(r.nav_rate)
+    fm[:, 6:9, 12:15] = dcm
+    if invariant:
+        v = skew(vel)
+        fm[:, 0:3, 6:9] = v
+        fm[:, 3:6, 6:9] = -skew(r.gravity_ned) - v @ skew(r.earth)
+        fm[:, 3:6, 12:15] = -v @ dcm
+    else:
+        fm[:, 3:6, 6:9] = skew(f_ned)
+    return fm
+
+
+def imu_noise(vel: Tensor, dcm: Tensor, white: Tensor, walk: Tensor, invariant: bool) -> Tensor:
+    """``(B, 15, 15)`` ``Γ diag(white) Γᵀ`` plus ``diag(walk)`` on the bias states: the
+    discrete noise of IMU white-noise variances ``white`` ``(B, 6)`` (``q Δt_imu Δt``
+    summed, [(m/s)², rad²]) and bias walks ``walk`` ``(B, 6)`` (``ε Δt`` summed), Γ at
+    ``vel``, ``dcm`` (accelerometer noise into δv, gyro noise into −ψ; the invariant
+    formulation also ``[v̂×] C`` of the gyro noise into δV)."""
+    batch = vel.shape[0]
+    ct = dcm.transpose(-1, -2)
+    qa = dcm @ (white[:, 0:3, None] * ct)  # C diag(q_a) Cᵀ
+    qg = dcm @ (white[:, 3:6, None] * ct)
+    q = vel.new_zeros(batch, 15, 15)
+    if invariant:
+        v = skew(vel)
+        vg = v @ qg
+        q[:, 3:6, 3:6] = qa + vg @ v.transpose(-1, -2)
+        q[:, 3:6, 6:9] = -vg
+        q[:, 6:9, 3:6] = -vg.transpose(-1, -2)
+    else:
+        q[:, 3:6, 3:6] = qa
+    q[:, 6:9, 6:9] = qg
+    idx = torch.arange(9, 15, device=vel.device)
+    q[:, idx, idx] = walk
+    return q
+
+
+def symmetric(p: Tensor) -> Tensor:
+    """``(P + Pᵀ) / 2``."""
+    return (p + p.transpose(-1, -2)) * 0.5
+
+
+def propagate_sample(p: Tensor, fm: Tensor, q: Tensor, dt: Tensor) -> Tensor:
+    """Per-sample propagation ``P ← Φ P Φᵀ + Q_d`` with ``Φ = I + F Δt``."""
+    phi = eye15(p) + fm * dt[:, None, None]
+    return symmetric(phi @ p @ phi.transpose(-1, -2) + q)
+
+
+def propagate_interval(p: Tensor, fm: Tensor, q: Tensor, elapsed: Tensor) -> Tensor:
+    """A covariance step's close: ``Φ = I + F ΔT + ½(F ΔT)²``, ``P ← Φ (P + ½Q) Φᵀ +
+    ½Q`` (``q`` the accumulated noise)."""
+    ft = fm * elapsed[:, None, None]
+    phi = eye15(p) + ft + ft @ ft * 0.5
+    half = q * 0.5
+    return symmetric(phi @ (p + half) @ phi.transpose(-1, -2) + half)
+
+
+def coordinates(vel: Tensor, sign: float) -> Tensor:
+    """``(B, 15, 15)`` T with ``sign · [v̂×]`` at (velocity, attitude): ``sign = −1``
+    maps classic errors to invariant ones, ``+1`` back."""
+    t = eye15(vel).expand(vel.shape[0], 15, 15).clone()
+    t[:, 3:6, 6:9] = sign * skew(vel)
+    return t
+
+
+def to_invariant(p_classic: Tensor, vel: Tensor) -> Tensor:
+    """A classic covariance in the invariant coordinates at ``vel``: ``T P Tᵀ``."""
+    t = coordinates(vel, -1.0)
+    return symmetric(t @ p_classic @ t.transpose(-1, -2))
+
+
+def to_classic(p: Tensor, vel: Tensor) -> Tensor:
+    """An invariant covariance in the classic coordinates at ``vel``."""
+    t = coordinates(vel, 1.0)
+    return symmetric(t @ p @ t.transpose(-1, -2))
+
+
+def measurement(
+    vel: Tensor, dcm: Tensor, gyro: Tensor, arm: Tensor, aiding: str, invariant: bool
+) -> tuple[Tensor, Tensor]:
+    """The predicted DVL reading ``(B, 3)`` and its Jacobian H ``(B, 3, 15)``: body
+    aiding ``Ĉᵀ v̂ + ω̂ × r`` (``gyro`` the last bias-corrected rate, ``arm`` the lever
+    arm [m, body]), NED aiding ``v̂``."""
+    batch = vel.shape[0]
+    h = vel.new_zeros(batch, 3, 15)
+    if aiding == "body":
+        ct = dcm.transpose(-1, -2)
+        h[:, :, 3:6] = ct
+        if not invariant:
+            h[:, :, 6:9] = -ct @ skew(vel)
+        h[:, :, 12:15] = skew(arm)
+        pred = (ct @ vel.unsqueeze(-1)).squeeze(-1) + torch.linalg.cross(gyro, arm)
+        return pred, h
+    h[:, :, 3:6] = torch.eye(3, dtype=vel.dtype, device=vel.device)
+    if invariant:
+        h[:, :, 6:9] = skew(vel)
+    return vel, h
+
+
+def kalman_update(p: Tensor, h: Tensor, nu: Tensor, r: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """The Joseph-form update of ``p`` by innovations ``nu`` ``(B, 3)`` with Jacobian
+    ``h`` and noise ``r`` ``(B, 3)`` (variances): the new P (symmetrized), the error
+    estimate ``δx̂ = −K ν`` ``(B, 15)`` and the NIS ``νᵀ S⁻¹ ν`` ``(B,)``."""
+    pht = p @ h.transpose(-1, -2)
+    s = h @ pht + torch.diag_embed(r)
+    s_inv = torch.cholesky_inverse(torch.linalg.cholesky(s))
+    gain = pht @ s_inv
+    nis = (nu.unsqueeze(-2) @ s_inv @ nu.unsqueeze(-1))[:, 0, 0]
+    ikh = eye15(p) - gain @ h
+    new_p = ikh @ p @ ikh.transpose(-1, -2) + gain @ (r.unsqueeze(-1) * gain.transpose(-1, -2))
+    return symmetric(new_p), -(gain @ nu.unsqueeze(-1)).squeeze(-1), nis
+
+
+def feedback(
+    lla: Tensor, vel: Tensor, dcm: Tensor, bias: Tensor, dx: Tensor, invariant: bool
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """Remove the error estimate ``dx`` ``(B, 15)`` from the solution (the core's
+    ``correct``): position in NED metres, velocity (invariant: ``v̂ ← Exp(ψ̂)(v̂ −
+    δV̂)``), attitude ``Ĉ ← Exp(ψ̂) Ĉ`` and the biases."""
+    rotation = exp_so3(dx[:, ATT : ATT + 3])
+    new_lla = lla - ned_to_lla_delta(lla, dx[:, POS : POS + 3])
+    moved = vel - dx[:, VEL : VEL + 3]
+    new_vel = (rotation @ moved.unsqueeze(-1)).squeeze(-1) if invariant else moved
+    return new_lla, new_vel, rotation @ dcm, bias - dx[:, ACC_BIAS:]

@@ -1,0 +1,40 @@
+"""The strapdown step of ``rust/src/mechanization.rs`` (``step_with_rates``) in torch,
+batched over B sequences: attitude by two half-turns split at mid-step, velocity with the
+specific force resolved at mid-step plus gravity and Coriolis, position by the
+trapezoid of the velocities (docs/filter.md, "Strapdown step")."""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from pronet.learn.torchfilter.attitude import exp_so3, orthonormalize
+from pronet.learn.torchfilter.earth import Rates, radii
+
+
+def strapdown_step(
+    lla: Tensor, vel: Tensor, dcm: Tensor, accel: Tensor, gyro: Tensor, dt: Tensor, r: Rates
+) -> tuple[Tensor, Tensor, Tensor]:
+    """One step over ``dt`` ``(B,)`` [s] from ``lla`` ``(B, 3)``, NED ``vel`` ``(B, 3)``
+    [m/s] and ``dcm`` ``(B, 3, 3)`` (``C_b^n``) with the bias-corrected specific force
+    ``accel`` [m/s², body] and rate ``gyro`` [rad/s, body], the frame rates ``r`` taken
+    at the step's start. Returns the new ``(lla, vel, dcm)``."""
+    dt1 = dt.unsqueeze(-1)
+    body_half = exp_so3(gyro * (0.5 * dt1))
+    nav_half = exp_so3(r.nav_rate * (-0.5 * dt1))
+    c_mid = nav_half @ dcm @ body_half
+    new_dcm = orthonormalize(nav_half @ c_mid @ body_half)
+    coriolis = torch.linalg.cross(2.0 * r.earth + r.transport, vel)
+    kinematic = r.gravity_ned - coriolis
+    new_vel = vel + (c_mid @ accel.unsqueeze(-1)).squeeze(-1) * dt1 + kinematic * dt1
+    # advance_position: the trapezoid, radii at the start and at the mid latitude
+    h = lla[..., 2]
+    h1 = h - 0.5 * (vel[..., 2] + new_vel[..., 2]) * dt
+    h_mid = 0.5 * (h + h1)
+    lat1 = lla[..., 0] + 0.5 * (vel[..., 0] + new_vel[..., 0]) * dt / (r.r_n + h_mid)
+    mid = 0.5 * (lla[..., 0] + lat1)
+    _, r_e_mid = radii(torch.sin(mid))
+    lon1 = lla[..., 1] + 0.5 * (vel[..., 1] + new_vel[..., 1]) * dt / (
+        (r_e_mid + h_mid) * torch.cos(mid)
+    )
+    return torch.stack([lat1, lon1, h1], dim=-1), new_vel, new_dcm
