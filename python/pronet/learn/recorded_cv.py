@@ -15,6 +15,7 @@ pair already there is refused, so a held-out set is scored once per model setup.
 from __future__ import annotations
 
 import hashlib
+import math
 import json
 import time
 from collections.abc import Callable, Sequence
@@ -207,9 +208,11 @@ def held_out(
 
 def gain_share(rows: dict[str, dict[str, SectionMetrics]], label: str) -> float:
     """The share of the oracle's gain ``label`` recovers: its mean SRMSE reduction
-    against the constant row over the oracle's, over the sections of both."""
+    against the constant row over the oracle's, over the sections of both (NaN where
+    the oracle has no gain: a schedule that never leaves its first piece)."""
     names = list(rows[ORACLE])
     const = np.array([rows[CONSTANT][n].srmse for n in names])
     oracle = np.array([rows[ORACLE][n].srmse for n in names])
     model = np.array([rows[label][n].srmse for n in names])
-    return float(np.mean(const - model) / np.mean(const - oracle))
+    gain = float(np.mean(const - oracle))
+    return float(np.mean(const - model)) / gain if gain != 0 else math.nan
