@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from recorded.test_real import SNAPIR
 
 from pronet import _core, cli
 from pronet.learn import modelfile
@@ -36,8 +37,6 @@ from pronet.learn.recorded_eval import (
 )
 from pronet.recorded.tuning import real_strategies
 from pronet.strategies import StrategySpec, strategy
-
-from recorded.test_real import SNAPIR
 
 
 @pytest.fixture(scope="module")
@@ -143,6 +142,7 @@ def test_the_torch_filters_loss_equals_the_core_passs(short):
     """Model (b)'s Kalman-informed loss on the windows (torch filter, per-sample q
     from the net's schedule) equals the mean squared velocity error the core's pass
     has at the same truth rows, interpolated the same way."""
+    from pronet.learn.models import DetrendNet
     from pronet.learn.recorded_training import (
         RecordedTraining,
         _schedule,
@@ -151,7 +151,6 @@ def test_the_torch_filters_loss_equals_the_core_passs(short):
         core_plan,
         net_q,
     )
-    from pronet.learn.models import DetrendNet
     from pronet.learn.torchfilter.windows import windows
     from pronet.recorded.passes import section_recorded
 
@@ -162,7 +161,7 @@ def test_the_torch_filters_loss_equals_the_core_passs(short):
     with torch.no_grad():
         plans = [
             core_plan(ts, p, sc, net_q(net, sc.windows).numpy())
-            for ts, p, sc in zip(short[:2], passes, scheds)
+            for ts, p, sc in zip(short[:2], passes, scheds, strict=True)
         ]
     win = windows(passes, plans, short[0].q_nominal, 2.0)
     ends = [int(np.flatnonzero(win.section == k)[e]) for k in (0, 1) for e in (0, -1)]

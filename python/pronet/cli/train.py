@@ -21,11 +21,12 @@ def add_parser(sub: Subparsers) -> None:
     add_output_flags(parser)
     parser.add_argument(
         "--model",
-        choices=("baseline", "detrend", "hcf", "all", "a", "cnn"),
+        choices=("baseline", "detrend", "hcf", "all", "a", "cnn", "akit"),
         default=None,
         help="which regressor to train (default all three); with --recorded or "
         "--simulated a Q model learned through the filter: a (one scale per channel "
-        "group, the default) or cnn (a windowed CNN); docs/learning.md",
+        "group, the default), cnn (a windowed CNN) or akit (A-KIT-like: the IMU and the "
+        "filter's velocity); docs/learning.md",
     )
     parser.add_argument(
         "--out",

@@ -13,7 +13,7 @@ from pronet._util.files import check_new_files
 from pronet.cli._common import Output
 
 #: ``--model`` choices that only exist with --recorded/--simulated.
-RECORDED_ONLY = ("a", "cnn")
+RECORDED_ONLY = ("a", "cnn", "akit")
 
 
 def add_recorded_args(parser: argparse.ArgumentParser) -> None:
@@ -90,7 +90,7 @@ def run_recorded(args: argparse.Namespace) -> int:
 
     model = args.model or "a"
     if model not in RECORDED_MODELS:
-        raise ValueError(f"--model: with --recorded/--simulated one of a, cnn, got {model}")
+        raise ValueError(f"--model: with --recorded/--simulated one of a, cnn, akit, got {model}")
     if args.epochs < 1:
         raise ValueError(f"--epochs: must be at least 1, got {args.epochs}")
     if not args.window_seconds > 0:

@@ -8,6 +8,10 @@
 - The windowed CNN (model (b)) is a scale-free :class:`pronet.learn.models.DetrendNet`
   (``scaling="spread"``: ``ln q = ln s² + z(window)``, s² the detrended window's mean
   square), saved as that kind: it runs frozen in the core like the shipped nets.
+- The A-KIT-like model (c) (kind ``"akit"``, :mod:`pronet.learn.akit`) also reads the
+  filter's velocity: on recorded data its schedule comes from a stepped core run
+  (``recorded_schedule``), which :func:`pronet.run.run` calls instead of the windows-only
+  schedule; it needs torch and cannot run in the simulated hybrid loop.
 
 :func:`load_model_file` opens any of them by path (or a shipped name).
 """
@@ -75,4 +79,8 @@ def load_model_file(name_or_path: str | os.PathLike[str]) -> Any:
     tensors, card, weights, _ = read_model(name_or_path)
     if card.get("kind") == SECTION_SCALE:
         return SectionScale.from_tensors(tensors, card, weights)
+    if card.get("kind") == "akit":  # torch: it runs the filter's velocity through a net
+        from pronet.learn.akit import akit_from_tensors
+
+        return akit_from_tensors(tensors, card, weights)
     return load_frozen(name_or_path)

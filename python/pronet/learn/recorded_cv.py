@@ -15,8 +15,8 @@ pair already there is refused, so a held-out set is scored once per model setup.
 from __future__ import annotations
 
 import hashlib
-import math
 import json
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass

@@ -34,8 +34,9 @@ from pronet.learn.recorded_data import TrainingSection
 from pronet.learn.recorded_eval import comparison_table, paired_rows, scale_grid, score
 
 #: The models ``--model`` names.
-RECORDED_MODELS = ("a", "cnn")
+RECORDED_MODELS = ("a", "cnn", "akit")
 CNN_ROW = "(b) windowed CNN"
+AKIT_ROW = "(c) A-KIT-like (IMU + filter velocity)"
 
 Say = Callable[[str], None]
 
@@ -59,6 +60,24 @@ def _cnn_scorer(net: Any, ts: TrainingSection) -> Any:
     return score(ts, sched.time, sched.q)
 
 
+def _akit_trainer(hp: Any, say: Say | None) -> Trainer:
+    def fit(train: Sequence[TrainingSection], _: Any) -> Any:
+        from pronet.learn.akit import train_akit
+
+        net, _record = train_akit(train, hp, say)
+        return net
+
+    return fit
+
+
+def _akit_scorer(net: Any, ts: TrainingSection) -> Any:
+    from pronet.learn.akit import akit_schedule
+    from pronet.recorded.passes import section_recorded
+
+    sched = akit_schedule(net, section_recorded(ts.section, ts.config), ts.q_nominal)
+    return score(ts, sched.time, sched.q)
+
+
 def trainers(
     models: Sequence[str], hp: Any = None, say: Say | None = None
 ) -> dict[str, tuple[Trainer, Scorer]]:
@@ -69,6 +88,8 @@ def trainers(
             out[SCALE_ROW] = (scale_trainer, scale_scorer)
         elif m == "cnn":
             out[CNN_ROW] = (_cnn_trainer(hp, say), _cnn_scorer)
+        elif m == "akit":
+            out[AKIT_ROW] = (_akit_trainer(hp, say), _akit_scorer)
         else:
             raise ValueError(f"--model: one of {', '.join(RECORDED_MODELS)}, got {m!r}")
     return out
@@ -102,6 +123,12 @@ def train_model(
         from pronet.learn.modelfile import paths
 
         return paths(out)[1], record
+    if model == "akit":
+        from pronet.learn.akit import save_akit, train_akit
+
+        akit, record = train_akit(sections, hp, say)
+        card = save_akit(akit, out, {"training": record, "trained_on": "recorded sections"})
+        return card, record
     raise ValueError(f"--model: one of {', '.join(RECORDED_MODELS)}, got {model!r}")
 
 

@@ -193,13 +193,11 @@ def _window_loss(
     pick: NDArray[np.intp],
     hp: RecordedTraining,
 ) -> torch.Tensor:
-    """The Kalman-informed loss over the windows ``pick`` of ``win``."""
-    from dataclasses import replace
-
-    from pronet.learn.torchfilter import State, advance
+    """The Kalman-informed loss over the windows ``pick`` of ``win``, the net's q."""
+    from pronet.learn.torchfilter import advance
 
     length = int(win.q.shape[1])
-    qs, idx, wts, truth = [], [], [], []
+    qs = []
     for w in pick:
         s, first = int(win.section[w]), int(win.first[w])
         # the schedule rows in force over the window: the net on those instants only
@@ -210,43 +208,72 @@ def _window_loss(
         rows = net_q(net, scheds[s].windows[late - 1]) if len(late) else prior[:0]
         table = torch.cat([prior.expand(int(np.sum(used == 0)), 6), rows])
         qs.append(table[torch.as_tensor(where)])
-        times = np.concatenate([[passes[s].t0], passes[s].imu_time])[first : first + length + 1]
-        i, wt, v, _ = _truth_index(sections[s], times)
-        idx.append(i)
-        wts.append(wt)
-        truth.append(v)
+    state, batch = picked(win, pick)
+    _, out = advance(state, batch, 0, length, torch.stack(qs))
+    targets = window_targets(sections, passes, win, pick)
+    return kalman_loss(state.vel, out, targets, hp.nll)
+
+
+def picked(win: Any, pick: NDArray[np.intp]) -> tuple[Any, Any]:
+    """``(start state, batch)`` of the windows ``pick`` of ``win``."""
+    from dataclasses import replace
+
+    from pronet.learn.torchfilter import State
+
+    at = torch.as_tensor(pick)
     batch = replace(
         win.batch,
         **{
-            k: getattr(win.batch, k)[torch.as_tensor(pick)]
+            k: getattr(win.batch, k)[at]
             for k in ("imu", "dt", "time", "dvl", "dvl_mask", "last", "imu_dt",
                       "dvl_variance", "lever_arm", "bias_psd")
         },
     )  # fmt: skip
-    state = State(
-        **{k: getattr(win.start, k)[torch.as_tensor(pick)] for k in State.__dataclass_fields__}
-    )
-    _, out = advance(state, batch, 0, length, torch.stack(qs))
-    # epoch j of the window is out[:, j - 1]; epoch 0 is the start state
-    vel = torch.cat([state.vel[:, None], out.vel], dim=1)
+    state = State(**{k: getattr(win.start, k)[at] for k in State.__dataclass_fields__})
+    return state, batch
+
+
+#: Per window: the epoch below each truth row, its interpolation weight, the truth velocity.
+Targets = list[tuple[NDArray[np.intp], F64, F64]]
+
+
+def window_targets(
+    sections: Sequence[TrainingSection], passes: Sequence[Any], win: Any, pick: NDArray[np.intp]
+) -> Targets:
+    """The truth rows inside each picked window (:func:`_truth_index`)."""
+    length = int(win.q.shape[1])
+    out = []
+    for w in pick:
+        s, first = int(win.section[w]), int(win.first[w])
+        times = np.concatenate([[passes[s].t0], passes[s].imu_time])[first : first + length + 1]
+        i, wt, v, _ = _truth_index(sections[s], times)
+        out.append((i, wt, v))
+    return out
+
+
+def kalman_loss(vel0: torch.Tensor, out: Any, targets: Targets, nll: float) -> torch.Tensor:
+    """The mean over the truth rows of the squared NED velocity error [(m/s)²] of the
+    filter's outputs ``out`` (``vel0``: the windows' start velocity, epoch 0), plus
+    ``nll`` times the Gaussian negative log-likelihood of the errors under its σ."""
+    vel = torch.cat([vel0[:, None], out.vel], dim=1)  # epoch j: out[:, j - 1]
     sigma = None
-    if hp.nll > 0:
+    if nll > 0:
         sig = out.sigma[..., 3:6]
         sigma = torch.cat([sig[:, :1], sig], dim=1)
-    total, rows = vel.new_zeros(()), 0
-    for b in range(len(pick)):
-        if not len(idx[b]):
+    total, n_rows = vel.new_zeros(()), 0
+    for b, (idx, wts, truth) in enumerate(targets):
+        if not len(idx):
             continue
-        i = torch.as_tensor(idx[b])
-        w = torch.as_tensor(wts[b])[:, None]
-        v = (1 - w) * vel[b, i] + w * vel[b, i + 1]
-        err = v - torch.as_tensor(truth[b])
+        at = torch.as_tensor(idx)
+        weight = torch.as_tensor(wts)[:, None]
+        est = (1 - weight) * vel[b, at] + weight * vel[b, at + 1]
+        err = est - torch.as_tensor(truth)
         total = total + (err**2).sum()
         if sigma is not None:
-            s = (1 - w) * sigma[b, i] + w * sigma[b, i + 1]
-            total = total + hp.nll * 0.5 * ((err / s) ** 2 + 2 * torch.log(s)).sum()
-        rows += len(idx[b])
-    return total / max(rows, 1)
+            sd = (1 - weight) * sigma[b, at] + weight * sigma[b, at + 1]
+            total = total + nll * 0.5 * ((err / sd) ** 2 + 2 * torch.log(sd)).sum()
+        n_rows += len(idx)
+    return total / max(n_rows, 1)
 
 
 def cnn_card(record: dict[str, Any]) -> dict[str, Any]:

@@ -444,8 +444,8 @@ def run_real(
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
-    for path in models:  # a user's model files, each a row "learned:PATH"
-        regressors[f"learned:{path}"] = load_model_file(path)
+    for model in models:  # a user's model files, each a row "learned:PATH"
+        regressors[f"learned:{model}"] = load_model_file(model)
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
 
