@@ -61,7 +61,23 @@ def add_recorded_args(parser: argparse.ArgumentParser) -> None:
         help="the record of (model, test set) pairs already scored; a pair is scored once "
         "(default results/qtrain-ledger.jsonl)",
     )
-    group.add_argument("--epochs", metavar="N", type=int, default=6, help="cnn: epochs (6)")
+    group.add_argument(
+        "--models",
+        metavar="A,B",
+        default=None,
+        help="with --cross-validate/--held-out: several of a, cnn, akit scored side by side "
+        "on the same folds (default: --model)",
+    )
+    group.add_argument(
+        "--epochs", metavar="N", type=int, default=6, help="cnn, akit: epochs (default 6)"
+    )
+    group.add_argument(
+        "--steps",
+        metavar="N",
+        type=int,
+        default=10,
+        help="cnn, akit: gradient steps per epoch, 16 windows each (default 10)",
+    )
     group.add_argument(
         "--window-seconds", metavar="S", type=float, default=5.0, help="cnn: window length (5 s)"
     )
@@ -93,9 +109,17 @@ def run_recorded(args: argparse.Namespace) -> int:
         raise ValueError(f"--model: with --recorded/--simulated one of a, cnn, akit, got {model}")
     if args.epochs < 1:
         raise ValueError(f"--epochs: must be at least 1, got {args.epochs}")
+    if args.steps < 1:
+        raise ValueError(f"--steps: must be at least 1, got {args.steps}")
+    models = args.models.split(",") if args.models else [model]
+    for m in models:
+        if m not in RECORDED_MODELS:
+            raise ValueError(f"--models: each one of a, cnn, akit, got {m!r}")
     if not args.window_seconds > 0:
         raise ValueError(f"--window-seconds: must be > 0, got {args.window_seconds}")
-    hp = RecordedTraining(epochs=args.epochs, seconds=args.window_seconds, seed=args.seed)
+    hp = RecordedTraining(
+        epochs=args.epochs, seconds=args.window_seconds, seed=args.seed, steps=args.steps
+    )
     out = Output(args)
 
     def say(text: str) -> None:
@@ -121,7 +145,7 @@ def run_recorded(args: argparse.Namespace) -> int:
                 raise ValueError(f"--held-out: between 1 and {len(sections) - 1}")
             train, test = sections[: -args.held_out], sections[-args.held_out :]
         table, record = evaluate(
-            train, [model], folder, test=test, ledger=Ledger(args.ledger), hp=hp, say=say
+            train, models, folder, test=test, ledger=Ledger(args.ledger), hp=hp, say=say
         )
         out.result(table, {"folder": str(folder), **record})
         return 0

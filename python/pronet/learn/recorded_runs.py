@@ -45,7 +45,9 @@ def _cnn_trainer(hp: Any, say: Say | None) -> Trainer:
     def fit(train: Sequence[TrainingSection], _: Any) -> Any:
         from pronet.learn.recorded_training import train_cnn
 
-        net, _record = train_cnn(train, hp, say)
+        net, record = train_cnn(train, hp, say)
+        if say is not None:
+            say(f"cnn: trained on {len(train)} sections in {record['seconds']:.0f} s")
         return net
 
     return fit
@@ -64,7 +66,9 @@ def _akit_trainer(hp: Any, say: Say | None) -> Trainer:
     def fit(train: Sequence[TrainingSection], _: Any) -> Any:
         from pronet.learn.akit import train_akit
 
-        net, _record = train_akit(train, hp, say)
+        net, record = train_akit(train, hp, say)
+        if say is not None:
+            say(f"akit: trained on {len(train)} sections in {record['seconds']:.0f} s")
         return net
 
     return fit
