@@ -9,18 +9,16 @@ import numpy as np
 import pytest
 import torch
 
-from pronet.learn.akit import (
-    AkitNet,
+from pronet.experiments.qlearn.akit_training import (
     _chunked_loss,
     _core_velocity_plan,
-    akit_schedule,
-    save_akit,
     train_akit,
 )
+from pronet.experiments.qlearn.gradient import RecordedTraining, _schedule, _truth_index
+from pronet.experiments.qlearn.scoring import run_pass
+from pronet.experiments.qlearn.sections import simulated_sections
+from pronet.learn.akit import AkitNet, akit_schedule, save_akit
 from pronet.learn.qmodels import load_model_file
-from pronet.learn.recorded_data import simulated_sections
-from pronet.learn.recorded_eval import run_pass
-from pronet.learn.recorded_training import RecordedTraining, _schedule, _truth_index
 from pronet.learn.torchfilter.windows import windows
 from pronet.recorded.passes import section_recorded
 from pronet.run import run

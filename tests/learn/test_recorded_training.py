@@ -14,9 +14,7 @@ import torch
 from recorded.test_real import SNAPIR
 
 from pronet import _core, cli
-from pronet.learn import modelfile
-from pronet.learn.qmodels import SectionScale, load_model_file
-from pronet.learn.recorded_cv import (
+from pronet.experiments.qlearn.protocol import (
     BEST_CONSTANT,
     CONSTANT,
     ORACLE,
@@ -26,8 +24,7 @@ from pronet.learn.recorded_cv import (
     gain_share,
     scale_scorer,
 )
-from pronet.learn.recorded_data import recorded_sections, simulated_section, simulated_sections
-from pronet.learn.recorded_eval import (
+from pronet.experiments.qlearn.scoring import (
     ScaleGrid,
     constant_metrics,
     paired_rows,
@@ -35,6 +32,13 @@ from pronet.learn.recorded_eval import (
     scaled_q,
     score,
 )
+from pronet.experiments.qlearn.sections import (
+    recorded_sections,
+    simulated_section,
+    simulated_sections,
+)
+from pronet.learn import modelfile
+from pronet.learn.qmodels import SectionScale, load_model_file
 from pronet.recorded.tuning import real_strategies
 from pronet.strategies import StrategySpec, strategy
 
@@ -142,8 +146,7 @@ def test_the_torch_filters_loss_equals_the_core_passs(short):
     """Model (b)'s Kalman-informed loss on the windows (torch filter, per-sample q
     from the net's schedule) equals the mean squared velocity error the core's pass
     has at the same truth rows, interpolated the same way."""
-    from pronet.learn.models import DetrendNet
-    from pronet.learn.recorded_training import (
+    from pronet.experiments.qlearn.gradient import (
         RecordedTraining,
         _schedule,
         _truth_index,
@@ -151,6 +154,7 @@ def test_the_torch_filters_loss_equals_the_core_passs(short):
         core_plan,
         net_q,
     )
+    from pronet.learn.models import DetrendNet
     from pronet.learn.torchfilter.windows import windows
     from pronet.recorded.passes import section_recorded
 
@@ -187,9 +191,9 @@ def test_the_torch_filters_loss_equals_the_core_passs(short):
 
 
 def test_a_tiny_cnn_trains_and_runs_from_its_model_file(short, tmp_path):
+    from pronet.experiments.qlearn.gradient import RecordedTraining, net_q, train_cnn
     from pronet.learn.hybrid import q_schedule
     from pronet.learn.models import save_net
-    from pronet.learn.recorded_training import RecordedTraining, net_q, train_cnn
 
     hp = RecordedTraining(epochs=2, seconds=2.0, max_windows=2, steps=1)
     net, record = train_cnn(short[:1], hp)

@@ -84,7 +84,7 @@ def add_recorded_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _sections(args: argparse.Namespace) -> list:
-    from pronet.learn.recorded_data import recorded_sections, simulated_sections
+    from pronet.experiments.qlearn.sections import recorded_sections, simulated_sections
 
     if args.recorded is not None and args.simulated is not None:
         raise ValueError("--recorded, --simulated: give one")
@@ -99,10 +99,10 @@ def _sections(args: argparse.Namespace) -> list:
 
 
 def run_recorded(args: argparse.Namespace) -> int:
+    from pronet.experiments.qlearn.commands import RECORDED_MODELS, evaluate, train_model
+    from pronet.experiments.qlearn.gradient import RecordedTraining
+    from pronet.experiments.qlearn.protocol import Ledger
     from pronet.learn.modelfile import paths
-    from pronet.learn.recorded_cv import Ledger
-    from pronet.learn.recorded_runs import RECORDED_MODELS, evaluate, train_model
-    from pronet.learn.recorded_training import RecordedTraining
 
     model = args.model or "a"
     if model not in RECORDED_MODELS:

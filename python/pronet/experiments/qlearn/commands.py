@@ -3,8 +3,8 @@ sections and write it (:func:`train_model`), or score models honestly
 (:func:`evaluate`: leave-one-section-out, or a held-out split) into a result folder.
 
 Models: ``a`` (:class:`pronet.learn.qmodels.SectionScale`, fitted by a 2-D search of
-the Kalman-informed loss on the core, :func:`pronet.learn.recorded_cv.fit_section_scale`)
-and ``cnn`` (:func:`pronet.learn.recorded_training.train_cnn`, the gradient through the
+the Kalman-informed loss on the core, :func:`pronet.experiments.qlearn.protocol.fit_section_scale`)
+and ``cnn`` (:func:`pronet.experiments.qlearn.gradient.train_cnn`, the gradient through the
 torch filter).
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from pronet._util.files import atomic_folder, atomic_write, json_bytes
-from pronet.learn.recorded_cv import (
+from pronet.experiments.qlearn.protocol import (
     CONSTANT,
     ORACLE,
     SCALE_ROW,
@@ -30,8 +30,8 @@ from pronet.learn.recorded_cv import (
     scale_scorer,
     scale_trainer,
 )
-from pronet.learn.recorded_data import TrainingSection
-from pronet.learn.recorded_eval import comparison_table, paired_rows, scale_grid, score
+from pronet.experiments.qlearn.scoring import comparison_table, paired_rows, scale_grid, score
+from pronet.experiments.qlearn.sections import TrainingSection
 
 #: The models ``--model`` names.
 RECORDED_MODELS = ("a", "cnn", "akit")
@@ -43,7 +43,7 @@ Say = Callable[[str], None]
 
 def _cnn_trainer(hp: Any, say: Say | None) -> Trainer:
     def fit(train: Sequence[TrainingSection], _: Any) -> Any:
-        from pronet.learn.recorded_training import train_cnn
+        from pronet.experiments.qlearn.gradient import train_cnn
 
         net, record = train_cnn(train, hp, say)
         if say is not None:
@@ -64,7 +64,7 @@ def _cnn_scorer(net: Any, ts: TrainingSection) -> Any:
 
 def _akit_trainer(hp: Any, say: Say | None) -> Trainer:
     def fit(train: Sequence[TrainingSection], _: Any) -> Any:
-        from pronet.learn.akit import train_akit
+        from pronet.experiments.qlearn.akit_training import train_akit
 
         net, record = train_akit(train, hp, say)
         if say is not None:
@@ -119,8 +119,8 @@ def train_model(
         card = fitted.save(out, {"training": record, "method": "2-D grid search on the core"})
         return card, record
     if model == "cnn":
+        from pronet.experiments.qlearn.gradient import cnn_card, train_cnn
         from pronet.learn.models import save_net
-        from pronet.learn.recorded_training import cnn_card, train_cnn
 
         net, record = train_cnn(sections, hp, say)
         save_net(net, out, cnn_card(record))
@@ -128,7 +128,8 @@ def train_model(
 
         return paths(out)[1], record
     if model == "akit":
-        from pronet.learn.akit import save_akit, train_akit
+        from pronet.experiments.qlearn.akit_training import train_akit
+        from pronet.learn.akit import save_akit
 
         akit, record = train_akit(sections, hp, say)
         card = save_akit(akit, out, {"training": record, "trained_on": "recorded sections"})

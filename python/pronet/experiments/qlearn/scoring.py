@@ -24,8 +24,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.cores import usable_cores
+from pronet.experiments.qlearn.sections import TrainingSection
 from pronet.filter import FilterResult, run_filter
-from pronet.learn.recorded_data import TrainingSection
 from pronet.recorded.metrics import SectionMetrics, section_metrics
 from pronet.recorded.passes import section_recorded
 from pronet.stats import MeanCI, mean_ci

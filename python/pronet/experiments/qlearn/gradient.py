@@ -31,9 +31,9 @@ import torch
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet.experiments.qlearn.sections import TrainingSection
 from pronet.learn.hybrid import DEFAULT_TUNING_PERIOD, DEFAULT_WINDOW
 from pronet.learn.models import DetrendNet
-from pronet.learn.recorded_data import TrainingSection
 from pronet.recorded.passes import section_recorded
 
 F64 = NDArray[np.float64]

@@ -7,7 +7,7 @@ trained without it; the rows beside it are the constant row (``pronet real``'s
 default constant q), the per-section best constant (a 2-D search of the group scales
 on the scored section itself: a ceiling known only after the fact, never a
 prediction) and, in simulation, the oracle (the true q schedule). Differences are
-paired over sections with a 95 % CI (:func:`pronet.learn.recorded_eval.paired_rows`).
+paired over sections with a 95 % CI (:func:`pronet.experiments.qlearn.scoring.paired_rows`).
 Before anything is scored, the (model, test set) pair is written to the ledger; a
 pair already there is refused, so a held-out set is scored once per model setup.
 """
@@ -25,9 +25,14 @@ from typing import Any
 
 import numpy as np
 
+from pronet.experiments.qlearn.scoring import (
+    ScaleGrid,
+    constant_metrics,
+    oracle_metrics,
+    scale_grid,
+)
+from pronet.experiments.qlearn.sections import TrainingSection
 from pronet.learn.qmodels import SectionScale
-from pronet.learn.recorded_data import TrainingSection
-from pronet.learn.recorded_eval import ScaleGrid, constant_metrics, oracle_metrics, scale_grid
 from pronet.recorded.metrics import SectionMetrics
 
 #: Row labels of the comparison tables.
@@ -95,7 +100,7 @@ def fit_section_scale(grids: Sequence[ScaleGrid]) -> SectionScale:
     """Model (a) on training sections: the grid's group scales with the lowest mean
     squared SRMSE over ``grids`` (the Kalman-informed loss, the mean squared velocity
     error at the truth rows, averaged over sections), each grid from the core
-    (:func:`pronet.learn.recorded_eval.scale_grid`). Two parameters: the search is the
+    (:func:`pronet.experiments.qlearn.scoring.scale_grid`). Two parameters: the search is the
     loss's exact minimum on the grid, with no gradient needed."""
     if not grids:
         raise ValueError("grids: needs at least one training section")
