@@ -10,21 +10,31 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from recorded.test_real import SNAPIR
 
 import pronet
 from pronet.filter import FilterResult
 from pronet.learn import torchfilter as tf
 from pronet.learn.torchfilter.windows import per_sample_q, windows
-from pronet.recorded.alignment import align, estimate_alignment, load_snapir_sections
+from pronet.recorded.alignment import align, estimate_alignment
 from pronet.recorded.passes import section_recorded
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.run import Recorded
 
-from recorded.test_real import SNAPIR
 from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording
 
 FORMULATIONS = ["invariant", "classic"]
 STEPS = [0.0, 0.1]  # every sample, and the default covariance step
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    """One torch thread: a batch of one or two sequences runs fastest so, and a thread
+    pool on a busy machine costs milliseconds per small product."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
 
 
 def _schedule(rec: Recorded, period: float = 23.0) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +75,11 @@ def assert_equal_to_core(
     np.testing.assert_allclose(got["vel"], core.vel[epochs], rtol=rtol, atol=1e-9 * 1.0)
     np.testing.assert_allclose(got["rpy"], core.rpy[epochs], rtol=rtol, atol=1e-9 * 1e-2)
     np.testing.assert_allclose(got["bias"], core.bias[epochs], rtol=rtol, atol=1e-9 * 1e-3)
-    np.testing.assert_allclose(got["sigma"], core.sigma[epochs], rtol=rtol, atol=0.0)
+    settled = out.settled[b].numpy()  # σ after a window's last close awaits the next
+    assert settled[: len(settled) - 10].all()
+    np.testing.assert_allclose(
+        got["sigma"][settled], core.sigma[epochs][settled], rtol=rtol, atol=0.0
+    )
     np.testing.assert_allclose(
         got["lla"][:, :2], core.lla[epochs, :2], rtol=0, atol=1e-9 * travel / 6.4e6
     )
@@ -130,3 +144,114 @@ def test_equals_the_core_on_a_snapir_section(snapir_section, formulation, step) 
     core = _core(rec, q_time, q, q[0])
     out = _torch(rec, q_time, q, q[0])
     assert_equal_to_core(out, core, slice(1, None), 0, travel=1000.0)
+
+
+@pytest.mark.parametrize("formulation", FORMULATIONS)
+def test_chunks_of_a_second_equal_one_call(formulation) -> None:
+    """``advance`` resumes exactly: 1 s chunks (and a ragged last one) give the one
+    call's numbers bit for bit, σ interpolated across the chunks' seams included."""
+    rec = _simulated(formulation, 0.1, seconds=30.0)
+    q_time, q = _schedule(rec, period=7.0)
+    batch = tf.sensor_batch(rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, rec.t0, rec.config)
+    p0 = np.diag(np.asarray(rec.config.p0_sigma) ** 2)
+    start = tf.start_state(
+        rec.lla0[None], rec.vel0[None], rec.rpy0[None], p0[None], [rec.t0], batch.setup
+    )
+    in_force = torch.as_tensor(per_sample_q(q_time, q, rec.imu_time, rec.t0, q[0]))[None]
+    whole_state, whole = tf.advance(start, batch, 0, batch.length, in_force)
+    state, chunks = start, []
+    bounds = [*range(0, batch.length, 100), batch.length]
+    for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
+        state, out = tf.advance(state, batch, k0, k1, in_force[:, k0:k1])
+        chunks.append(out)
+    joined = tf.Outputs.cat(chunks)
+    # a covariance step runs across some seams: the seam is inside a step
+    assert not bool(torch.stack([c.current[0, -1] for c in chunks]).all())
+    for name in ("vel", "lla", "dcm", "bias", "sigma", "innovation", "nis"):
+        np.testing.assert_array_equal(getattr(joined, name).numpy(), getattr(whole, name).numpy())
+    np.testing.assert_array_equal(state.p.numpy(), whole_state.p.numpy())
+
+
+@pytest.mark.parametrize("formulation", FORMULATIONS)
+def test_windows_start_from_the_core_and_follow_it(formulation) -> None:
+    """Each window of :func:`windows` starts at the core's state (the pass's start or
+    right after a DVL update) and, run with the q the core had, equals the core's epochs
+    over the window to 1e-9."""
+    passes = [_simulated(formulation, 0.1, seconds=70.0)]
+    rec = passes[0]
+    q_time, q = _schedule(rec, period=11.0)
+    cut = windows(passes, [(q_time, q)], q[0], seconds=20.0)
+    core = cut.core[0]
+    assert core is not None
+    assert cut.batch.size == len(cut.first) >= 3 and cut.batch.length == 2000
+    assert cut.first[0] == 0 and set(cut.first[1:]) <= set(core.dvl_epoch)
+    # the start equals the core's state there
+    e = cut.first
+    np.testing.assert_array_equal(cut.start.vel.numpy(), core.vel[e])
+    np.testing.assert_allclose(cut.start.var_current.numpy(), core.sigma[e] ** 2, rtol=1e-15)
+    _, out = tf.advance(cut.start, cut.batch, 0, cut.batch.length, cut.q)
+    for b, first in enumerate(cut.first):
+        assert_equal_to_core(out, core, slice(first + 1, first + 2001), b, travel=200.0)
+
+
+def _short_window(formulation: str = "invariant"):
+    rec = _simulated(formulation, 0.1, seconds=40.0)
+    q_time, q = _schedule(rec, period=9.0)
+    cut = windows([rec], [(q_time, q)], q[0], seconds=3.0)
+    return cut, q[0]
+
+
+def test_the_gradient_in_q_matches_finite_differences() -> None:
+    """d(loss)/dq through three seconds (three DVL updates) of two windows, against
+    central differences (``torch.autograd.gradcheck``), q = q0·exp(s) per channel and
+    window; the loss a velocity error against the DVL-free truth stand-in plus an NLL
+    term on σ, as a Kalman-informed loss reads the filter."""
+    cut, q0 = _short_window()
+    batch, start = cut.batch, cut.start
+    start = tf.State(**{k: v[:2] for k, v in vars(start).items()})
+    batch = tf.Batch(
+        **{k: (v[:2] if isinstance(v, torch.Tensor) else v) for k, v in vars(batch).items()}
+    )
+    q0t = torch.as_tensor(q0)
+    target = cut.start.vel[:2, None] + 0.05
+
+    def loss(s: torch.Tensor) -> torch.Tensor:
+        _, out = tf.advance(start, batch, 0, batch.length, q0t * torch.exp(s))
+        var = out.sigma[..., 3:6] ** 2
+        err = out.vel - target
+        return ((err**2 / var).sum() + torch.log(var).sum()) / err.numel()
+
+    s = torch.zeros(2, 6, dtype=torch.float64, requires_grad=True)
+    (grad,) = torch.autograd.grad(loss(s), s)
+    assert grad.abs().max() > 0  # q moves the loss: the check is not vacuous
+    assert torch.autograd.gradcheck(loss, (s,), eps=1e-5, atol=1e-8, rtol=1e-4)
+
+
+def test_the_gradient_in_the_start_state_matches_finite_differences() -> None:
+    cut, q0 = _short_window("classic")
+    batch = tf.Batch(
+        **{k: (v[:1] if isinstance(v, torch.Tensor) else v) for k, v in vars(cut.batch).items()}
+    )
+    start = tf.State(**{k: v[:1] for k, v in vars(cut.start).items()})
+
+    def loss(dv: torch.Tensor) -> torch.Tensor:
+        s = tf.State(**{**vars(start), "vel": start.vel + dv})
+        _, out = tf.advance(s, batch, 0, batch.length, torch.as_tensor(q0)[None])
+        return (out.vel**2).sum() + out.sigma[..., 3:6].sum()
+
+    dv = torch.zeros(1, 3, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(loss, (dv,), eps=1e-6, atol=1e-7, rtol=1e-5)
+
+
+def test_bad_input_names_the_argument() -> None:
+    rec = _simulated("invariant", 0.1, seconds=40.0)
+    batch = tf.sensor_batch(rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, rec.t0, rec.config)
+    p0 = np.diag(np.asarray(rec.config.p0_sigma) ** 2)[None]
+    state = tf.start_state(rec.lla0[None], rec.vel0[None], rec.rpy0[None], p0, [0.0], batch.setup)
+    with pytest.raises(ValueError, match=r"^q: expected \(1, 6\) or \(1, 10, 6\), got \(6,\)$"):
+        tf.advance(state, batch, 0, 10, torch.ones(6))
+    with pytest.raises(ValueError, match="^k0, k1: need 0 <= k0 < k1 <= "):
+        tf.advance(state, batch, 5, 5, torch.ones(1, 6))
+    calibrated = pronet.FilterConfig(dvl_calibration=True)
+    with pytest.raises(ValueError, match="^config: the differentiable filter has no DVL"):
+        tf.Setup.from_config(calibrated)

@@ -62,6 +62,14 @@ class Outputs:
         the last close, P's at the step's start (:meth:`cat` the chunks of a run first)."""
         return interpolated_variance(self).clamp_min(0.0).sqrt()
 
+    @property
+    def settled(self) -> Tensor:
+        """``(B, n)`` whether :attr:`sigma` at the epoch is the core's: P up to date
+        there, or the step under way closes within these outputs (the epochs after the
+        last close are not, until the next chunk is joined by :meth:`cat`)."""
+        after = self.current.flip(1).cummax(dim=1).values.flip(1)
+        return self.current | after
+
     @classmethod
     def cat(cls, chunks: list[Outputs]) -> Outputs:
         """The outputs of consecutive calls as one (the first call's start kept)."""
