@@ -237,3 +237,25 @@ def test_snapir_sections_train_and_score():
     assert sections[0].oracle_q is None
     grid = scale_grid(sections[0], np.array([-1.0, 0.0]))
     assert grid.at((1.0, 1.0))[0] == pytest.approx(constant_metrics(sections[0]).srmse)
+
+
+def test_pronet_real_runs_a_model_file_as_a_row(tmp_path):
+    """``pronet real --model PATH``: the model file's row runs beside the others and
+    its card is recorded (its q: the test above)."""
+    from pronet.recorded.recordings import write_recording
+
+    from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording
+
+    folder = write_recording(tmp_path / "sec", synthetic_recording(seed=0, duration=30.0).recording)
+    model = tmp_path / "scale"
+    SectionScale((4.0, 0.25)).save(model, {})
+    arms = [f"--imu-lever-arm={','.join(map(str, IMU_LEVER_ARM))}",
+            f"--dvl-lever-arm={','.join(map(str, DVL_LEVER_ARM))}"]  # fmt: skip
+    argv = ["real", "--data", str(folder), "--format", "generic", "--no-models", "--no-plots"]
+    out = tmp_path / "out"
+    assert cli.main([*argv, *arms, "--model", str(model), "--out", str(out), "--quiet"]) == 0
+    rows = json.loads((out / "metrics.json").read_text())
+    text = json.dumps(rows)
+    assert f"learned:{model}" in text
+    config = json.loads((out / "config.json").read_text())
+    assert f"learned:{model}" in json.dumps(config)
