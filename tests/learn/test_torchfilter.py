@@ -208,10 +208,7 @@ def test_the_gradient_in_q_matches_finite_differences() -> None:
     term on σ, as a Kalman-informed loss reads the filter."""
     cut, q0 = _short_window()
     batch, start = cut.batch, cut.start
-    start = tf.State(**{k: v[:2] for k, v in vars(start).items()})
-    batch = tf.Batch(
-        **{k: (v[:2] if isinstance(v, torch.Tensor) else v) for k, v in vars(batch).items()}
-    )
+    batch, start = batch.select(slice(0, 2)), start.select(slice(0, 2))
     q0t = torch.as_tensor(q0)
     target = cut.start.vel[:2, None] + 0.05
 
@@ -229,10 +226,7 @@ def test_the_gradient_in_q_matches_finite_differences() -> None:
 
 def test_the_gradient_in_the_start_state_matches_finite_differences() -> None:
     cut, q0 = _short_window("classic")
-    batch = tf.Batch(
-        **{k: (v[:1] if isinstance(v, torch.Tensor) else v) for k, v in vars(cut.batch).items()}
-    )
-    start = tf.State(**{k: v[:1] for k, v in vars(cut.start).items()})
+    batch, start = cut.batch.select(slice(0, 1)), cut.start.select(slice(0, 1))
 
     def loss(dv: torch.Tensor) -> torch.Tensor:
         s = tf.State(**{**vars(start), "vel": start.vel + dv})

@@ -17,15 +17,37 @@ The API (shapes: B sequences, T samples, n epochs of a call, K DVL rows per epoc
   with q ``(B, 6)`` (or ``(B, k1 − k0, 6)`` per sample) in force; resumable: chunks
   equal one call. :class:`Outputs` holds per epoch the velocity, position, attitude,
   biases, the reported classic σ (``Outputs.sigma``), and the DVL innovations and NIS.
-- :func:`windows`: the core over whole sections with a q schedule, cut into windows of
+- :func:`windows.windows`: the core over whole sections with a q schedule, cut into windows of
   a given length that start right after a DVL update, with the start states from the
   core's run (truncated back-propagation: gradients within a window only).
 
 Frames: NED navigation, FRD body; positions ``[lat, lon (rad), h (m, up)]``.
+
+Modules: :mod:`~pronet.learn.torchfilter.attitude` (rotations),
+:mod:`~pronet.learn.torchfilter.earth` (WGS-84), :mod:`~pronet.learn.torchfilter.mechanization`
+(the strapdown step), :mod:`~pronet.learn.torchfilter.ekf` (F, the noise, the
+transitions, the update and feedback), :mod:`~pronet.learn.torchfilter.state` (setup,
+batch, state), :mod:`~pronet.learn.torchfilter.loop` (:func:`advance`),
+:mod:`~pronet.learn.torchfilter.outputs` (what it returns, the reported σ),
+:mod:`~pronet.learn.torchfilter.windows` (windows from the core's passes). The names
+above are re-exported here.
 """
 
-from pronet.learn.torchfilter.advance import advance
-from pronet.learn.torchfilter.outputs import Outputs
-from pronet.learn.torchfilter.state import Batch, Setup, State, sensor_batch, start_state
+from pronet.learn.torchfilter.loop import advance as advance
+from pronet.learn.torchfilter.outputs import Outputs as Outputs
+from pronet.learn.torchfilter.state import Batch as Batch
+from pronet.learn.torchfilter.state import Setup as Setup
+from pronet.learn.torchfilter.state import State as State
+from pronet.learn.torchfilter.state import sensor_batch as sensor_batch
+from pronet.learn.torchfilter.state import start_state as start_state
 
-__all__ = ["Batch", "Outputs", "Setup", "State", "advance", "sensor_batch", "start_state"]
+__all__ = [
+    "attitude",
+    "earth",
+    "ekf",
+    "loop",
+    "mechanization",
+    "outputs",
+    "state",
+    "windows",
+]

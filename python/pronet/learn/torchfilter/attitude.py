@@ -46,6 +46,16 @@ def exp_so3(rv: Tensor) -> Tensor:
     return torch.stack(rows, dim=-1).unflatten(-1, (3, 3))
 
 
+def exp_tiny(rv: Tensor) -> Tensor:
+    """``Exp(rv)`` for rotation vectors all below 1e-5 rad (the frame's turn over half an
+    IMU step, about 1e-7 rad): ``I + K + K²/2``, whose omitted terms (``|rv|³/6`` and
+    ``|rv|²·|K|/6``) are below 1e-16 there; :func:`exp_so3` otherwise."""
+    if not bool(((rv * rv).sum(-1) < 1e-10).all()):
+        return exp_so3(rv)
+    k = skew(rv)
+    return torch.eye(3, dtype=rv.dtype, device=rv.device) + k + k @ k * 0.5
+
+
 def orthonormalize(c: Tensor) -> Tensor:
     """One step of ``C ← C (1.5 I − ½ CᵀC)``, the core's re-orthonormalization."""
     eye = torch.eye(3, dtype=c.dtype, device=c.device)

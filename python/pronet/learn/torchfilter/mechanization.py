@@ -8,20 +8,26 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from pronet.learn.torchfilter.attitude import exp_so3, orthonormalize
+from pronet.learn.torchfilter.attitude import exp_so3, exp_tiny, orthonormalize
 from pronet.learn.torchfilter.earth import Rates, radii
 
 
 def strapdown_step(
-    lla: Tensor, vel: Tensor, dcm: Tensor, accel: Tensor, gyro: Tensor, dt: Tensor, r: Rates
+    lla: Tensor,
+    vel: Tensor,
+    dcm: Tensor,
+    accel: Tensor,
+    body_half: Tensor,
+    dt: Tensor,
+    r: Rates,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """One step over ``dt`` ``(B,)`` [s] from ``lla`` ``(B, 3)``, NED ``vel`` ``(B, 3)``
     [m/s] and ``dcm`` ``(B, 3, 3)`` (``C_b^n``) with the bias-corrected specific force
-    ``accel`` [m/s², body] and rate ``gyro`` [rad/s, body], the frame rates ``r`` taken
-    at the step's start. Returns the new ``(lla, vel, dcm)``."""
+    ``accel`` [m/s², body] and the body's half-turn ``body_half`` ``(B, 3, 3)``
+    (:func:`body_half_turns` of the bias-corrected rate), the frame rates ``r`` taken at
+    the step's start. Returns the new ``(lla, vel, dcm)``."""
     dt1 = dt.unsqueeze(-1)
-    body_half = exp_so3(gyro * (0.5 * dt1))
-    nav_half = exp_so3(r.nav_rate * (-0.5 * dt1))
+    nav_half = exp_tiny(r.nav_rate * (-0.5 * dt1))
     c_mid = nav_half @ dcm @ body_half
     new_dcm = orthonormalize(nav_half @ c_mid @ body_half)
     coriolis = torch.linalg.cross(2.0 * r.earth + r.transport, vel)
@@ -38,3 +44,10 @@ def strapdown_step(
         (r_e_mid + h_mid) * torch.cos(mid)
     )
     return torch.stack([lat1, lon1, h1], dim=-1), new_vel, new_dcm
+
+
+def body_half_turns(gyro: Tensor, dt: Tensor) -> Tensor:
+    """``Exp(ω̂ Δt / 2)`` ``(..., 3, 3)`` of bias-corrected rates ``gyro`` ``(..., 3)``
+    [rad/s] over steps ``dt`` ``(...)`` [s]: computed for a stretch of samples at once
+    (the biases change only at updates)."""
+    return exp_so3(gyro * (0.5 * dt.unsqueeze(-1)))

@@ -107,6 +107,11 @@ class Batch:
             raise ValueError("batch: sequences disagree on propagating P at every sample")
         return bool(every.all())
 
+    def select(self, rows: slice | Tensor) -> Batch:
+        """The sequences ``rows`` (a slice or an index tensor) of the batch."""
+        values = {f.name: getattr(self, f.name)[rows] for f in fields(self) if f.name != "setup"}
+        return Batch(**values, setup=self.setup)
+
     @classmethod
     def stack(cls, parts: list[Batch]) -> Batch:
         """One batch of several (same T and setup; K padded)."""
@@ -227,6 +232,10 @@ class State:
     walk: Tensor
     var_current: Tensor
     time_current: Tensor
+
+    def select(self, rows: slice | Tensor) -> State:
+        """The sequences ``rows`` (a slice or an index tensor) of the state."""
+        return State(**{f.name: getattr(self, f.name)[rows] for f in fields(self)})
 
     def detach(self) -> State:
         """The same state cut from the graph (the start of a truncated window)."""

@@ -8,14 +8,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 import torch
 from numpy.typing import ArrayLike, NDArray
 from torch import Tensor
 
-import pronet
-from pronet.filter import FilterResult
+from pronet import _core
+from pronet.filter import FilterResult, run_filter
 from pronet.learn.torchfilter.state import (
     Batch,
     State,
@@ -24,7 +25,30 @@ from pronet.learn.torchfilter.state import (
     sensor_batch,
     start_state,
 )
-from pronet.run import Recorded
+
+
+class Pass(Protocol):
+    """A pass over recorded sensors as :class:`pronet.run.Recorded` holds it (the
+    arrays and start of :func:`pronet.run_filter`, and the filter's config)."""
+
+    @property
+    def imu(self) -> NDArray[np.float64]: ...
+    @property
+    def imu_time(self) -> NDArray[np.float64]: ...
+    @property
+    def dvl(self) -> NDArray[np.float64]: ...
+    @property
+    def dvl_time(self) -> NDArray[np.float64]: ...
+    @property
+    def t0(self) -> float: ...
+    @property
+    def lla0(self) -> NDArray[np.float64]: ...
+    @property
+    def vel0(self) -> NDArray[np.float64]: ...
+    @property
+    def rpy0(self) -> NDArray[np.float64]: ...
+    @property
+    def config(self) -> _core.FilterConfig: ...
 
 
 def per_sample_q(
@@ -63,7 +87,9 @@ def state_at(result: FilterResult, epochs: ArrayLike, batch: Batch) -> State:
     biases there and the covariance ``result.covariances`` kept at those epochs (in
     order; classic coordinates, mapped into the filter's own at the epoch's velocity).
     The epochs must be ones where P is up to date (the start, or after a DVL update):
-    the reported σ there is P's own. ``batch``: the pass's (its setup)."""
+    the reported σ there is P's own. ``batch``: the pass's (its setup). The last
+    bias-corrected rate (the lever arm's term) starts at zero: the next sample sets it
+    before any update reads it. No covariance step is under way there."""
     e = np.asarray(epochs, dtype=np.int64)
     if len(result.covariances) != len(e) or not np.array_equal(result.covariance_epoch, e):
         raise ValueError("epochs: the result must keep the covariance at exactly these epochs")
@@ -114,7 +140,7 @@ def window_starts(
 
 
 def windows(
-    passes: Sequence[Recorded],
+    passes: Sequence[Pass],
     schedules: Sequence[tuple[ArrayLike, ArrayLike]],
     prior_q: ArrayLike,
     seconds: float,
@@ -137,10 +163,10 @@ def windows(
             core.append(None)
             continue
         epoch_time = np.concatenate([[rec.t0], rec.imu_time])
-        result = pronet.run_filter(
+        result = run_filter(
             rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, t0=rec.t0, lla0=rec.lla0,
             vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
-            strategy=pronet.Strategy.external(prior_q), q_time=q_time, q=q,
+            strategy=_core.Strategy.external(prior_q), q_time=q_time, q=q,
             covariance_time=epoch_time[starts],
         )  # fmt: skip
         whole = sensor_batch(rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, rec.t0, rec.config)

@@ -8,6 +8,7 @@ DVL rows of the epoch, each an update with feedback."""
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -17,7 +18,7 @@ from torch import Tensor
 
 from pronet.learn.torchfilter import ekf
 from pronet.learn.torchfilter.earth import rates
-from pronet.learn.torchfilter.mechanization import strapdown_step
+from pronet.learn.torchfilter.mechanization import body_half_turns, strapdown_step
 from pronet.learn.torchfilter.outputs import Outputs, classic_variance
 from pronet.learn.torchfilter.state import Batch, State, as_tensor
 
@@ -84,10 +85,12 @@ def advance(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[St
     every = batch.every_sample()
     sched = step_schedule(state, batch, k0, k1, every)
     white_dt = (batch.imu_dt[:, None] * batch.dt[:, k0:k1])[..., None]  # Δt_imu Δt
-    qdt = (q[:, None, :] if q.dim() == 2 else q) * white_dt
-    loop = _Loop(state, batch, every, k0)
+    # unbound once: indexing a tensor that needs a gradient at every step would make
+    # the backward pass build a zero tensor of the whole chunk per step (quadratic)
+    qdt = ((q[:, None, :] if q.dim() == 2 else q) * white_dt).unbind(1)
+    loop = _Loop(state, batch, every, k0, k1)
     for i in range(n):
-        loop.sample(k0 + i, qdt[:, i], sched, i)
+        loop.sample(k0 + i, qdt[i], sched, i)
         loop.updates(k0 + i)
         loop.record()
     return loop.finish(sched)
@@ -96,13 +99,17 @@ def advance(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[St
 class _Loop:
     """The running filter of one :func:`advance` call and its per-epoch records."""
 
-    def __init__(self, state: State, batch: Batch, every: bool, k0: int) -> None:
+    def __init__(self, state: State, batch: Batch, every: bool, k0: int, k1: int) -> None:
         self.s, self.start, self.batch, self.every, self.k0 = state, state, batch, every, k0
         self.inv = batch.setup.invariant
         self.rows: dict[str, list[Tensor]] = {}
         self._blocks()
         self.closed_blocks = self.blocks
         self.vel_closed = state.vel
+        # the samples after which a bias may change: the batch's DVL epochs, the end
+        events = batch.dvl_mask[:, k0:k1].any(-1).any(0).tolist()
+        self.segment_ends = [k0 + i for i, e in enumerate(events) if e] + [k1 - 1]
+        self.segment: tuple[int, list[Tensor], list[Tensor], list[Tensor]] = (-1, [], [], [])
         self.innovations: list[Tensor] = []
         self.nis: list[Tensor] = []
         self.accepted: list[Tensor] = []
@@ -112,11 +119,27 @@ class _Loop:
         p = self.s.p
         self.blocks = (torch.diagonal(p, dim1=-2, dim2=-1), p[:, 6:9, 6:9], p[:, 6:9, 3:6])
 
+    def _corrected(self, k: int) -> tuple[Tensor, Tensor, Tensor]:
+        """Sample k's bias-corrected specific force and rate and its body half-turn,
+        computed at once for the samples up to the next DVL epoch of the batch (the
+        biases hold until an update)."""
+        end, f, w, turns = self.segment
+        if k > end:
+            b, bias = self.batch, self.s.bias
+            end = self.segment_ends[bisect.bisect_left(self.segment_ends, k)]
+            raw = b.imu[:, k : end + 1]
+            f_all = raw[..., :3] - bias[:, None, :3]
+            w_all = raw[..., 3:] - bias[:, None, 3:]
+            turns_all = body_half_turns(w_all, b.dt[:, k : end + 1])
+            f, w, turns = list(f_all.unbind(1)), list(w_all.unbind(1)), list(turns_all.unbind(1))
+            self.segment = (end, f, w, turns)
+        i = k - (end + 1 - len(f))
+        return f[i], w[i], turns[i]
+
     def sample(self, k: int, qdt: Tensor, sched: Schedule, i: int) -> None:
         """Sample k: P (or the step under way), the strapdown step, a close if due."""
         s, b = self.s, self.batch
-        f = b.imu[:, k, :3] - s.bias[:, :3]
-        w = b.imu[:, k, 3:] - s.bias[:, 3:]
+        f, w, body_half = self._corrected(k)
         dt = b.dt[:, k]
         r = rates(s.lla, s.vel)
         if self.every:
@@ -134,63 +157,71 @@ class _Loop:
                 )
             force = s.force + _rotate(s.dcm, f) * dt[:, None]
             s = replace(s, force=force, white=s.white + qdt)
-        lla, vel, dcm = strapdown_step(s.lla, s.vel, s.dcm, f, w, dt, r)
+        lla, vel, dcm = strapdown_step(s.lla, s.vel, s.dcm, f, body_half, dt, r)
         self.s = replace(s, lla=lla, vel=vel, dcm=dcm, gyro=w, time=b.time[:, k])
         if self.every:
             self._blocks()
             return
-        due = torch.as_tensor(sched.due[:, i])
-        if bool(due.any()):
-            span = torch.as_tensor(np.where(sched.due[:, i], sched.span[:, i], 1.0))
-            self._close(due, span, as_tensor(sched.walk[:, i]))
+        due = sched.due[:, i]
+        if due.any():
+            rows = _Rows(due)
+            self._close(rows, rows.take(as_tensor(sched.span[:, i])), as_tensor(sched.walk[due, i]))
 
-    def _close(self, due: Tensor, span: Tensor, walk: Tensor) -> None:
+    def _close(self, rows: _Rows, span: Tensor, walk: Tensor) -> None:
         """Close the covariance step (of ``span`` [s], bias walks ``walk``) of the
-        sequences ``due``."""
+        sequences ``rows`` (computed on those alone)."""
         s = self.s
-        r = rates(s.step_lla, s.step_vel)
-        f_ned = s.force / span[:, None]
-        fm = ekf.error_dynamics(s.step_vel, s.step_dcm, r, s.step_lla[:, 2], f_ned, self.inv)
-        noise = ekf.imu_noise(s.step_vel, s.step_dcm, s.white, walk, self.inv)
-        p = ekf.propagate_interval(s.p, fm, noise, span)
-        zero3 = torch.zeros_like(s.force)
+        vel, dcm, lla = rows.take(s.step_vel), rows.take(s.step_dcm), rows.take(s.step_lla)
+        r = rates(lla, vel)
+        f_ned = rows.take(s.force) / span[:, None]
+        fm = ekf.error_dynamics(vel, dcm, r, lla[:, 2], f_ned, self.inv)
+        noise = ekf.imu_noise(vel, dcm, rows.take(s.white), walk, self.inv)
+        p = ekf.propagate_interval(rows.take(s.p), fm, noise, span)
         self.s = replace(
             s,
-            p=_pick(due, p, s.p),
-            force=_pick(due, zero3, s.force),
-            white=_pick(due, torch.zeros_like(s.white), s.white),
+            p=rows.put(s.p, p),
+            force=rows.put(s.force, torch.zeros_like(f_ned)),
+            white=rows.put(s.white, torch.zeros_like(walk)),
         )
         self._blocks()
         self.closed_blocks, self.vel_closed = self.blocks, self.s.vel
 
     def updates(self, k: int) -> None:
-        """The DVL rows of epoch k + 1, each an update (where present) and feedback."""
+        """The DVL rows of epoch k + 1, each an update (where present) and feedback,
+        computed on the sequences that have one."""
         b = self.batch
-        rows = b.dvl_mask.shape[2]
-        for j in range(rows):
+        for j in range(b.dvl_mask.shape[2]):
             mask = b.dvl_mask[:, k, j]
-            if not bool(mask.any()):
+            present = mask.numpy()
+            if not present.any():
                 self._no_row()
                 continue
-            s = self.s
-            pred, h = ekf.measurement(s.vel, s.dcm, s.gyro, b.lever_arm, b.setup.aiding, self.inv)
-            nu = b.dvl[:, k, j] - pred
-            p, dx, nis = ekf.kalman_update(s.p, h, nu, b.dvl_variance)
+            rows, s = _Rows(present), self.s
+            vel, dcm, lla, bias = (rows.take(x) for x in (s.vel, s.dcm, s.lla, s.bias))
+            arm = rows.take(b.lever_arm)
+            pred, h = ekf.measurement(vel, dcm, rows.take(s.gyro), arm, b.setup.aiding, self.inv)
+            nu = rows.take(b.dvl[:, k, j]) - pred
+            p_old = rows.take(s.p)
+            p, dx, nis = ekf.kalman_update(p_old, h, nu, rows.take(b.dvl_variance))
             gate = b.setup.innovation_gate
-            take = mask if gate is None else mask & (nis.detach() <= gate)
-            lla, vel, dcm, bias = ekf.feedback(s.lla, s.vel, s.dcm, s.bias, dx, self.inv)
+            ok = torch.ones_like(nis, dtype=torch.bool) if gate is None else nis.detach() <= gate
+            new = ekf.feedback(lla, vel, dcm, bias, dx, self.inv)
+            kept = [
+                _pick(ok, a, o)
+                for a, o in zip((p, *new), (p_old, lla, vel, dcm, bias), strict=True)
+            ]
             self.s = replace(
                 s,
-                p=_pick(take, p, s.p),
-                lla=_pick(take, lla, s.lla),
-                vel=_pick(take, vel, s.vel),
-                dcm=_pick(take, dcm, s.dcm),
-                bias=_pick(take, bias, s.bias),
+                p=rows.put(s.p, kept[0]),
+                lla=rows.put(s.lla, kept[1]),
+                vel=rows.put(s.vel, kept[2]),
+                dcm=rows.put(s.dcm, kept[3]),
+                bias=rows.put(s.bias, kept[4]),
             )
             self._blocks()
-            self.innovations.append(_pick(mask, nu, torch.zeros_like(nu)))
-            self.nis.append(torch.where(mask, nis, torch.zeros_like(nis)))
-            self.accepted.append(take)
+            self.innovations.append(rows.put(torch.zeros_like(s.vel), nu))
+            self.nis.append(rows.put(torch.zeros_like(s.vel[:, 0]), nis))
+            self.accepted.append(rows.put(torch.zeros_like(mask), ok))
 
     def _no_row(self) -> None:
         s = self.s
@@ -257,6 +288,23 @@ class _Loop:
             time_current=_pick(seen, out.time[pick, rows_at], s.time_current),
         )
         return state, out
+
+
+class _Rows:
+    """Some of a batch's sequences (a boolean mask ``(B,)``): a covariance step closes
+    or an update runs on those alone, the others keep their values."""
+
+    def __init__(self, mask: NDArray[np.bool_]) -> None:
+        self.every = bool(mask.all())
+        self.index = torch.as_tensor(np.flatnonzero(mask))
+
+    def take(self, x: Tensor) -> Tensor:
+        """The rows of ``x`` ``(B, ...)``."""
+        return x if self.every else x.index_select(0, self.index)
+
+    def put(self, full: Tensor, part: Tensor) -> Tensor:
+        """``full`` with the rows replaced by ``part`` (out of place)."""
+        return part if self.every else full.index_copy(0, self.index, part)
 
 
 def _rotate(dcm: Tensor, v: Tensor) -> Tensor:
