@@ -147,6 +147,11 @@ def run(
     if not isinstance(target, Scenario):
         raise ValueError(f"target: expected a Scenario or Recorded, got {type(target).__name__}")
     check_acts(strategy, target)
+    if isinstance(strategy, Learned) and hasattr(strategy.regressor, "recorded_schedule"):
+        raise ValueError(
+            "strategy: this model reads the filter's velocity and runs on recorded data "
+            "only (pronet real), not in the simulated hybrid loop"
+        )
     common = dict(
         sensors=target.sensors,
         config=target.config,
@@ -211,13 +216,17 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
     core_strategy = strategy
     if isinstance(strategy, Learned):
         period = strategy.tuning_period
-        schedule = q_schedule(
-            strategy.regressor,
-            rec.imu,
-            rec.imu_time,
-            prior_q=strategy.prior_q,
-            tuning_period=strategy.tuning_period,
-        )
+        own = getattr(strategy.regressor, "recorded_schedule", None)
+        if callable(own):  # a model that reads the filter's state (pronet.learn.akit)
+            schedule = own(rec, strategy.prior_q)
+        else:
+            schedule = q_schedule(
+                strategy.regressor,
+                rec.imu,
+                rec.imu_time,
+                prior_q=strategy.prior_q,
+                tuning_period=strategy.tuning_period,
+            )
         core_strategy = _core.Strategy.external(strategy.prior_q)
         if len(schedule.time):
             q_time, q = schedule.time, schedule.q

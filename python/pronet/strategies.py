@@ -65,7 +65,9 @@ class StrategySpec:
     - ``detvar`` (also ``learned:detvar``): the detrended-variance estimator on the
       learned rows' windows and instants; needs no torch;
     - ``learned:MODEL``: the hybrid loop with a regressor: a shipped model name
-      (``baseline``, ``detrend``, ``hcf``) or the path of a model file.
+      (``baseline``, ``detrend``, ``hcf``) or the path of a model file; a
+      section-scale model (:class:`pronet.learn.qmodels.SectionScale`) is a constant
+      over the run, the nominal q times its group scales, run natively.
 
     Attributes:
         text: the spec as written (the row label in simulations and sweeps).
@@ -151,7 +153,10 @@ def strategy(
     if spec.kind == "detvar":
         return Learned(DetrendedVariance() if regressor is None else regressor, q, tuning_period)
     if regressor is None:  # frozen in the core: no torch
-        from pronet.learn.frozen import load_frozen
+        from pronet.learn.qmodels import load_model_file
 
-        regressor = load_frozen(spec.model)
+        regressor = load_model_file(spec.model)
+    section_q = getattr(regressor, "q_for", None)
+    if callable(section_q):  # a constant over the section (SectionScale): native
+        return _core.Strategy.constant(section_q(q))
     return Learned(regressor, q, tuning_period)

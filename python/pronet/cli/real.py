@@ -227,6 +227,14 @@ def add_parser(sub: Subparsers) -> None:
     )
     _add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
+    parser.add_argument(
+        "--model",
+        metavar="PATH",
+        action="append",
+        default=[],
+        help="also run this model file as a row 'learned:PATH' (repeatable), e.g. a Q model "
+        "trained with 'pronet train --recorded' (docs/learning.md)",
+    )
     add_no_plots(parser)
     add_result_folder(parser, "real")
     add_output_flags(parser)
@@ -261,6 +269,7 @@ def run(args: argparse.Namespace) -> int:
             dvl_lever_arm=args.dvl_lever_arm,
             tuning_period=args.tuning_period,
             use_models=not args.no_models,
+            models=args.model,
             plots=not args.no_plots,
             dvl_noise=args.dvl_noise,
             formulation=args.formulation,

@@ -9,6 +9,7 @@ from typing import Any
 
 from pronet._util.files import check_new_files
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
+from pronet.cli.train_recorded import RECORDED_ONLY, add_recorded_args, run_recorded
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -20,13 +21,22 @@ def add_parser(sub: Subparsers) -> None:
     add_output_flags(parser)
     parser.add_argument(
         "--model",
-        choices=("baseline", "detrend", "hcf", "all"),
-        default="all",
-        help="which regressor to train (default all three)",
+        choices=("baseline", "detrend", "hcf", "all", "a", "cnn", "akit"),
+        default=None,
+        help="which regressor to train (default all three); with --recorded or "
+        "--simulated a Q model learned through the filter: a (one scale per channel "
+        "group, the default), cnn (a windowed CNN) or akit (A-KIT-like: the IMU and the "
+        "filter's velocity); docs/learning.md",
     )
     parser.add_argument(
-        "--out", metavar="PATH", default="models", help="output folder (default models/)"
+        "--out",
+        metavar="PATH",
+        default=None,
+        help="output folder (default models/); with --recorded/--simulated the model "
+        "file to write (NAME -> NAME.safetensors + NAME.json, default models/recorded-MODEL), "
+        "or with --cross-validate/--held-out the result folder (default results/qtrain-TIME)",
     )
+    add_recorded_args(parser)
     parser.add_argument(
         "--seed", metavar="N", type=int, default=0, help="training seed (default 0)"
     )
@@ -45,7 +55,12 @@ def add_parser(sub: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pronet.learn import modelfile, training
 
-    kinds = training.MODEL_KINDS if args.model == "all" else (args.model,)
+    if args.recorded is not None or args.simulated is not None:
+        return run_recorded(args)
+    if args.model in RECORDED_ONLY:
+        raise ValueError(f"--model {args.model}: needs --recorded DIR or --simulated N")
+    args.out = args.out or "models"
+    kinds = training.MODEL_KINDS if args.model in (None, "all") else (args.model,)
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)
     folder = Path(args.out)
     if folder.exists() and not folder.is_dir():

@@ -3,6 +3,9 @@ one result folder each (:mod:`pronet.results`).
 
 - :mod:`~pronet.experiments.aided_calibration`: the DVL calibration states with
   position fixes and depth (``scripts/aided_calibration.py``, ``docs/filter.md``);
+- :mod:`~pronet.experiments.qlearn`: Q models learned from missions with ground truth,
+  trained through the differentiable filter and cross-validated
+  (``pronet train --recorded``, ``docs/learning.md``);
 - :mod:`~pronet.experiments.consistency`: is the filter's σ honest, block by block,
   for every IMU grade (``scripts/consistency.py``, ``docs/accuracy.md``);
 - :mod:`~pronet.experiments.reproduce`: the paper's experiment end to end
@@ -16,4 +19,12 @@ one result folder each (:mod:`pronet.results`).
 Recorded sections have their own experiment, :mod:`pronet.recorded.real`.
 """
 
-__all__ = ["aided_calibration", "consistency", "reproduce", "simulation", "study", "sweep"]
+__all__ = [
+    "aided_calibration",
+    "consistency",
+    "qlearn",
+    "reproduce",
+    "simulation",
+    "study",
+    "sweep",
+]

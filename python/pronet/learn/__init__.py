@@ -14,18 +14,24 @@ per-sample noise variance q out.
 - :mod:`~pronet.learn.training`: training and scoring the regressors;
 - :mod:`~pronet.learn.hybrid`: the ProNet hybrid loop, a regressor setting the process
   noise of running filters;
+- :mod:`~pronet.learn.qmodels`: Q models learned from recorded missions (the section
+  scale; :func:`~pronet.learn.qmodels.load_model_file` opens any model file);
+- :mod:`~pronet.learn.akit`: the A-KIT-like Q model that also reads the filter's
+  velocity (its training: :mod:`pronet.experiments.qlearn`);
 - :mod:`~pronet.learn.torchfilter`: the differentiable filter in torch.
 
 Training needs the ``torch`` extra; loading a shipped model does not.
 """
 
 __all__ = [
+    "akit",
     "dataset",
     "frozen",
     "hcf",
     "hybrid",
     "modelfile",
     "models",
+    "qmodels",
     "torchfilter",
     "training",
     "windowstats",

@@ -13,7 +13,7 @@ section's passes are :mod:`pronet.recorded.passes`'.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing, nullcontext
 from dataclasses import dataclass, field
@@ -352,6 +352,7 @@ def run_real(
     dvl_lever_arm: tuple[float, float, float] | None = None,
     tuning_period: float = 1.0,
     use_models: bool = True,
+    models: Sequence[str] = (),
     plots: bool = True,
     dvl_noise: str = "datasheet",
     formulation: str | None = None,
@@ -386,6 +387,9 @@ def run_real(
             with the reason).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
         use_models: False: only the model-based rows.
+        models: model files (paths) run as rows ``learned:PATH`` beside the others,
+            e.g. a Q model trained on recorded missions (``pronet train --recorded``,
+            docs/learning.md); each read and checked before any section is.
         plots: False: no plots (the tables and metrics only). The figures are drawn
             in worker processes (:class:`pronet.recorded.figures.FigurePool`) while the other
             sections are filtered; on the Snapir data they add about half to the run
@@ -423,6 +427,7 @@ def run_real(
     from pronet._util.files import atomic_folder, json_bytes
     from pronet._util.outputs import new_result_folder
     from pronet.learn.frozen import SHIPPED, load_frozen
+    from pronet.learn.qmodels import load_model_file
 
     folder = new_result_folder(out, "real")
     if not tuning_period > 0:
@@ -445,6 +450,8 @@ def run_real(
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
+    for model in models:  # a user's model files, each a row "learned:PATH"
+        regressors[f"learned:{model}"] = load_model_file(model)
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
 

@@ -423,7 +423,7 @@ def real_config(
             )
             for name, t in done.truth_calibration.items()
         },
-        "models": {k: getattr(m, "card", {}).get("test") for k, m in regressors.items()},
+        "models": {k: (getattr(m, "card", None) or {}).get("test") for k, m in regressors.items()},
     }
 
 

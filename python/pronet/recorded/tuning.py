@@ -168,7 +168,8 @@ def real_strategies(
 ) -> dict[str, StrategyLike]:
     """The paper's seven rows around the estimated ``q`` (relabelled for real data), then
     :data:`REAL_EXTRA_ROWS`; learned rows only for the regressors in ``models`` (by
-    shipped name)."""
+    shipped name), and a row ``learned:PATH`` for each model keyed so (a user's model
+    file, ``pronet real --model PATH``)."""
     rows = paper_strategies(q, dict(models), tuning_period)
     out = {REAL_LABELS.get(label, label): s for label, s in rows.items()}
     for label, text in REAL_EXTRA_ROWS.items():
@@ -176,4 +177,7 @@ def real_strategies(
         if spec.kind == "learned" and spec.model not in models:
             continue  # as the paper's learned rows: only with the models given
         out[label] = strategy(spec, q, tuning_period, models.get(spec.model))
+    for key, model in models.items():  # model files given by path: "learned:PATH"
+        if key.startswith("learned:"):
+            out[key] = strategy(StrategySpec.parse(key), q, tuning_period, model)
     return out
