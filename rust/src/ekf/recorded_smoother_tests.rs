@@ -5,7 +5,7 @@
 use super::tests::per_sample;
 use super::*;
 use crate::ekf::tests::moving_state;
-use crate::ekf::Formulation;
+use crate::ekf::{Formulation, Vector15};
 use crate::noise::StrategySpec;
 
 /// IMU rows, their times, DVL rows, their times.
