@@ -1,9 +1,10 @@
 """The RTS smoother against the filter on every built-in scenario, as docs/filter.md
 shows it ("The RTS smoother", Measured).
 
-    python scripts/smoother.py [--runs 100] [--part scenarios|psd|outage]
+    python scripts/smoother.py [--runs 100] [--part scenarios|psd|outage] [--oracle]
 
-Per scenario: the constant strategy at the scenario's nominal q, 100 runs (seed 0),
+Per scenario: the constant strategy at the scenario's nominal q (``--oracle``: the
+filter told the simulated IMU's true variance at every step), 100 runs (seed 0),
 histories every second. ``scenarios`` prints a Markdown table: velocity SRMSE and
 final horizontal error of the filter and the smoother, the share of DVL epochs whose
 run-averaged NEES lies in its 95 % band for each error block (filter / smoother), and
@@ -27,9 +28,12 @@ from pronet.results import markdown
 from pronet.sim.scenarios import MATCHED_BIAS_PSD, SCENARIOS
 
 
-def _run(sc, runs: int, config: pronet.FilterConfig | None = None) -> pronet.MonteCarloResult:
+def _run(
+    sc, runs: int, config: pronet.FilterConfig | None = None, oracle: bool = False
+) -> pronet.MonteCarloResult:
+    strategy = pronet.Strategy.oracle() if oracle else pronet.Strategy.constant(sc.q_nominal)
     return pronet.monte_carlo(
-        sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
+        sc.trajectory, strategy, sensors=sc.sensors,
         config=config or sc.config, n_runs=runs, seed=0, record_every=100, smooth=True,
     )  # fmt: skip
 
@@ -43,8 +47,8 @@ def _worse(r: pronet.MonteCarloResult) -> str:
     return f"{int(np.sum(rms_s > 1.05 * rms_f))} / {len(rms_f)}"
 
 
-def row(name: str, runs: int) -> list[object]:
-    r = _run(SCENARIOS[name](0), runs)
+def row(name: str, runs: int, oracle: bool = False) -> list[object]:
+    r = _run(SCENARIOS[name](0), runs, oracle=oracle)
     s = r.smoothed
     assert s is not None
     band = [f"{r.nees_in_band(b):.2f} / {s.nees_in_band(b):.2f}" for b in pronet.STATE_BLOCKS]
@@ -105,6 +109,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)
     parser.add_argument("--part", choices=("scenarios", "psd", "outage"), default="scenarios")
+    parser.add_argument(
+        "--oracle", action="store_true", help="scenarios: the filter told the true IMU variance"
+    )
     args = parser.parse_args()
     if args.part == "psd":
         header = [
@@ -132,7 +139,7 @@ def main() -> int:
         *(f"{b.replace('_', ' ')} NEES in band" for b in pronet.STATE_BLOCKS),
         "epochs smoothed > 1.05 x filtered",
     ]
-    print(markdown(header, [row(name, args.runs) for name in SCENARIOS]), end="")
+    print(markdown(header, [row(name, args.runs, args.oracle) for name in SCENARIOS]), end="")
     return 0
 
 

@@ -126,6 +126,29 @@ def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
     assert abs(srmse[0] / srmse[1] - 1) < 0.01, srmse
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["regimes", "outage"])
+def test_told_the_true_noise_the_smoother_is_consistent(name) -> None:
+    """Where the IMU noise switches regimes (and the DVL falls silent), a filter told the
+    true variance at every step (the oracle) is consistent, and so is the smoother: every
+    block in band at most epochs, never worse than the filter beyond noise, and the
+    velocity error well below it (docs/filter.md, "Told the true IMU noise")."""
+    from pronet.sim.scenarios import SCENARIOS
+
+    sc = SCENARIOS[name](0)
+    r = pronet.monte_carlo(
+        sc.trajectory, pronet.Strategy.oracle(), sensors=sc.sensors, config=sc.config,
+        n_runs=50, seed=0, record_every=100, smooth=True,
+    )  # fmt: skip
+    s = r.smoothed
+    assert s is not None
+    for block in pronet.STATE_BLOCKS:
+        assert s.nees_in_band(block) >= 0.85, (block, s.nees_in_band(block))
+    rms = lambda x: np.sqrt(np.mean(np.sum(x.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
+    assert (rms(s) <= 1.05 * rms(r)).all()
+    assert s.summary()["srmse"].mean < 0.7 * r.summary()["srmse"].mean
+
+
 def test_the_ensemble_smooths_as_monte_carlo_does(matched) -> None:
     """An untuned ensemble is a constant strategy's Monte Carlo, smoothed too, the
     19-state filter (DVL calibration states) as well."""
