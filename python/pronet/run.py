@@ -72,6 +72,39 @@ class Recorded:
     smooth: bool = False
     aiding: Mapping[str, Any] = field(default_factory=dict)
 
+    def filter(
+        self,
+        strategy: _core.Strategy,
+        q_time: F64 | None = None,
+        q: F64 | None = None,
+        *,
+        aided: bool = True,
+        **options: Any,
+    ) -> FilterResult:
+        """:func:`pronet.run_filter` over this stretch: its sensors, initial state,
+        tuning, kept epochs and smoothing, with ``strategy`` (a native one; q from
+        ``q_time`` [s] on, ``q (k, 6)``, for an external one) and the depth and fixes
+        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it).
+        ``options``: further :func:`pronet.run_filter` keywords."""
+        return run_filter(
+            self.imu,
+            self.imu_time,
+            self.dvl,
+            self.dvl_time,
+            t0=self.t0,
+            lla0=self.lla0,
+            vel0=self.vel0,
+            rpy0=self.rpy0,
+            config=self.config,
+            strategy=strategy,
+            epochs=self.epochs,
+            smooth=self.smooth,
+            q_time=q_time,
+            q=q,
+            **(dict(self.aiding) if aided else {}),
+            **options,
+        )
+
 
 @dataclass(frozen=True)
 class SimulatedRun:
@@ -230,23 +263,7 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
         core_strategy = _core.Strategy.external(strategy.prior_q)
         if len(schedule.time):
             q_time, q = schedule.time, schedule.q
-    result = run_filter(
-        rec.imu,
-        rec.imu_time,
-        rec.dvl,
-        rec.dvl_time,
-        t0=rec.t0,
-        lla0=rec.lla0,
-        vel0=rec.vel0,
-        rpy0=rec.rpy0,
-        config=rec.config,
-        strategy=core_strategy,  # type: ignore[arg-type]
-        epochs=rec.epochs,
-        smooth=rec.smooth,
-        q_time=q_time,
-        q=q,
-        **rec.aiding,
-    )
+    result = rec.filter(core_strategy, q_time, q)  # type: ignore[arg-type]
     return RecordedRun(result, schedule, time.perf_counter() - start, period)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -19,11 +20,11 @@ from pronet.experiments.qlearn.gradient import (
     RecordedTraining,
     _schedule,
     kalman_loss,
+    minibatch_epoch,
     picked,
     window_targets,
 )
 from pronet.experiments.qlearn.sections import TrainingSection
-from pronet.filter import run_filter
 from pronet.learn.akit import AkitNet
 from pronet.recorded.passes import section_recorded
 from pronet.run import Recorded
@@ -37,11 +38,7 @@ def _core_velocity_plan(
     """One fixed-point step of the closed loop on the core: the velocity at the
     instants from a core pass with the previous plan ``prev``, then the net's q there
     (the windows' start states come from this plan; the gradient does not)."""
-    result = run_filter(
-        rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, t0=rec.t0, lla0=rec.lla0,
-        vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
-        strategy=_core.Strategy.external(tuple(ts.q_nominal)), q_time=prev[0], q=prev[1],
-    )  # fmt: skip
+    result = rec.filter(_core.Strategy.external(tuple(ts.q_nominal)), *prev, aided=False)
     with torch.no_grad():
         q = net(sc.windows, torch.as_tensor(result.vel[sc.ends]))
     return np.concatenate([[rec.t0], sc.time]), np.vstack([np.array([ts.q_nominal]), q.numpy()])
@@ -123,18 +120,14 @@ def train_akit(
                 for ts, p, sc, plan in zip(sections, passes, scheds, plans, strict=True)
             ]
             win = core_windows(passes, plans, sections[0].q_nominal, hp.seconds)
-            order = rng.permutation(len(win.section))
-            step = hp.max_windows or len(order)
-            starts = list(range(0, len(order), step))[: hp.steps or None]
-            losses = []
-            for b0 in starts:
-                pick = order[b0 : b0 + step]
-                loss = _chunked_loss(net, sections, scheds, passes, plans, win, pick, hp)
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                losses.append(float(loss.detach()))
-            history.append(float(np.mean(losses)))
+            loss, *_ = minibatch_epoch(
+                len(win.section),
+                partial(_chunked_loss, net, sections, scheds, passes, plans, win, hp=hp),
+                opt,
+                rng,
+                hp,
+            )
+            history.append(loss)
             if progress is not None:
                 progress(
                     f"akit epoch {epoch + 1}/{hp.epochs}: loss {history[-1]:.4g} "

@@ -24,6 +24,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -155,24 +156,18 @@ def _train_cnn(
                 for ts, p, sc in zip(sections, passes, scheds, strict=True)
             ]
         win = core_windows(passes, plans, sections[0].q_nominal, hp.seconds)
-        order = rng.permutation(len(win.section))
-        step = hp.max_windows or len(order)
-        starts = list(range(0, len(order), step))
-        if hp.steps:
-            starts = starts[: hp.steps]
-        losses = []
-        for b0 in starts:
-            pick = order[b0 : b0 + step]
-            loss = _window_loss(net, sections, scheds, passes, win, pick, hp)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            losses.append(float(loss.detach()))
-        history.append(float(np.mean(losses)))
+        loss, steps, step, n = minibatch_epoch(
+            len(win.section),
+            partial(_window_loss, net, sections, scheds, passes, win, hp=hp),
+            opt,
+            rng,
+            hp,
+        )
+        history.append(loss)
         if progress is not None:
             progress(
-                f"epoch {epoch + 1}/{hp.epochs}: loss {history[-1]:.4g} "
-                f"({len(starts)} steps of {step} of {len(order)} windows, "
+                f"epoch {epoch + 1}/{hp.epochs}: loss {loss:.4g} "
+                f"({steps} steps of {step} of {n} windows, "
                 f"{time.perf_counter() - start_time:.0f} s)"
             )
     record = {
@@ -182,6 +177,30 @@ def _train_cnn(
         "sections": [ts.name for ts in sections],
     }
     return net.float(), record
+
+
+def minibatch_epoch(
+    n: int,
+    loss_of: Callable[[NDArray[np.intp]], torch.Tensor],
+    opt: torch.optim.Optimizer,
+    rng: np.random.Generator,
+    hp: RecordedTraining,
+) -> tuple[float, int, int, int]:
+    """One epoch over ``n`` windows in an order drawn from ``rng``: mini-batches of
+    ``hp.max_windows`` (all when 0), at most ``hp.steps`` of them (all when 0), one
+    optimiser step on ``loss_of(picked window indices)`` each. Returns the mean loss,
+    the steps taken, the batch size and ``n``."""
+    order = rng.permutation(n)
+    step = hp.max_windows or n
+    starts = list(range(0, n, step))[: hp.steps or None]
+    losses = []
+    for b0 in starts:
+        loss = loss_of(order[b0 : b0 + step])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(float(loss.detach()))
+    return float(np.mean(losses)), len(starts), step, n
 
 
 def _window_loss(

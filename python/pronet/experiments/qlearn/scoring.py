@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from pronet import _core
 from pronet._util.cores import usable_cores
 from pronet.experiments.qlearn.sections import TrainingSection
-from pronet.filter import FilterResult, run_filter
+from pronet.filter import FilterResult
 from pronet.recorded.metrics import SectionMetrics, section_metrics
 from pronet.recorded.passes import section_recorded
 from pronet.stats import MeanCI, mean_ci
@@ -57,19 +57,11 @@ def run_pass(
     rec = section_recorded(ts.section, ts.config)
     prior_q = tuple(float(v) for v in (ts.q_nominal if prior is None else prior))
     given = q_time is not None and len(np.asarray(q_time))
-    return run_filter(
-        rec.imu,
-        rec.imu_time,
-        rec.dvl,
-        rec.dvl_time,
-        t0=rec.t0,
-        lla0=rec.lla0,
-        vel0=rec.vel0,
-        rpy0=rec.rpy0,
-        config=rec.config,
-        strategy=_core.Strategy.external(prior_q),
-        q_time=np.asarray(q_time, dtype=np.float64) if given else None,
-        q=np.asarray(q, dtype=np.float64) if given else None,
+    return rec.filter(
+        _core.Strategy.external(prior_q),
+        np.asarray(q_time, dtype=np.float64) if given else None,
+        np.asarray(q, dtype=np.float64) if given else None,
+        aided=False,
     )
 
 
