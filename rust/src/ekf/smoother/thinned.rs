@@ -108,20 +108,25 @@ impl Stretch {
     /// The forward pass from node `a` (the `j`-th) to the epoch `end`, as a
     /// [`Forward`] whose epoch 0 is `a`'s, and `a` moved there: the solution of every
     /// epoch in `[a, end)` integrated again from `a`'s, as the filter's prediction
-    /// integrates it.
+    /// integrates it. Stops with [`Error::Cancelled`] within [`STEPS_PER_CHECK`] steps
+    /// of `cancel` being set (a stretch without updates can be hours of IMU).
     pub(in crate::ekf) fn rebuild<'s>(
         &'s mut self,
         src: &'s Thinned<'_>,
         j: usize,
         a: &Node,
         end: usize,
-    ) -> (Forward<'s>, Node) {
+        cancel: &Cancel,
+    ) -> Result<(Forward<'s>, Node)> {
         let b = &src.states.bias[j];
         let accel_bias = Vector3::new(b[0], b[1], b[2]);
         let gyro_bias = Vector3::new(b[3], b[4], b[5]);
         self.nav.clear();
         let mut nav = src.states.nav[j];
         for i in a.epoch..end {
+            if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
+                cancel.check()?;
+            }
             self.nav.push(nav);
             if i + 1 < end {
                 let raw = ImuSample::from_array(&src.imu[i]);
@@ -144,7 +149,7 @@ impl Stretch {
         };
         let mut start = a.clone();
         start.epoch = 0;
-        (forward, start)
+        Ok((forward, start))
     }
 }
 
@@ -197,7 +202,7 @@ fn smooth_every<const N: usize>(
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
         let rows = src.kept_in(a.epoch..b.epoch);
-        let (forward, start) = stretch.rebuild(src, j, a, b.epoch);
+        let (forward, start) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
         let keep = |k: usize| k == 0 || src.kept(a.epoch + k).is_some();
         let interval = Rebuilt::<N>::every(&forward, cfg, &start, b.epoch - a.epoch, keep, cancel)?;
         let chol = interval.p_end.cholesky().ok_or_else(|| {
@@ -307,7 +312,7 @@ fn smooth_steps<const N: usize>(
     for (j, pair) in nodes.windows(2).enumerate().rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let (forward, start) = stretch.rebuild(src, j, a, b.epoch);
+        let (forward, start) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
         let mut end = b.clone();
         end.epoch -= a.epoch;
         let closes = steps::rebuild::<N>(&forward, cfg, &start, &end, cancel)?;
