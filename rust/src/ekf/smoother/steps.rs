@@ -85,12 +85,12 @@ pub(super) fn smooth_steps<const N: usize>(
             fill(
                 &mut out,
                 forward,
+                cfg,
                 close.epoch,
                 &ds,
                 ps.as_ref(),
                 later.as_ref(),
                 &wanted,
-                cfg,
             );
             let mut ds_prior = ds;
             if let (true, Some(ps)) = (at_node, ps.as_ref()) {
@@ -118,12 +118,12 @@ pub(super) fn smooth_steps<const N: usize>(
     fill(
         &mut out,
         forward,
+        cfg,
         0,
         &ds,
         Some(&ps),
         later.as_ref(),
         &wanted,
-        cfg,
     );
     out.keep_node(0, &ps);
     out.node_covariance.reverse();
@@ -340,12 +340,12 @@ pub(super) fn previous_close<const N: usize>(
 fn fill<const N: usize>(
     out: &mut Smoothed,
     forward: &Forward<'_>,
+    cfg: &FilterConfig,
     epoch: usize,
     ds: &SVector<f64, N>,
     ps: Option<&SMatrix<f64, N, N>>,
     later: Option<&Later<N>>,
     wanted: &dyn Fn(usize) -> bool,
-    cfg: &FilterConfig,
 ) {
     let end = later.map_or(epoch + 1, |l| l.epoch);
     let t_close = forward.time(epoch);
