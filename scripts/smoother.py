@@ -1,7 +1,7 @@
 """The RTS smoother against the filter on every built-in scenario, as docs/filter.md
 shows it ("The RTS smoother", Measured).
 
-    python scripts/smoother.py [--runs 100] [--part scenarios|psd|outage] [--oracle]
+    python scripts/smoother.py [--runs 100] [--part scenarios|psd|outage|steps] [--oracle]
 
 Per scenario: the constant strategy at the scenario's nominal q (``--oracle``: the
 filter told the simulated IMU's true variance at every step), 100 runs (seed 0),
@@ -13,7 +13,12 @@ filter's. ``psd``: ``paper``'s IMU (no bias walk) with the filter told bias walk
 from the paper's ε = 0.001 down to the matched scenario's: the same two columns.
 ``outage``: per DVL outage of ``outage``, the horizontal error RMS over the runs at
 its start and middle, filter and smoother, the drift accrued between them, and the
-σ of the horizontal position each reports at the middle.
+σ of the horizontal position each reports at the middle. ``steps``: ``matched`` with a
+0.1 s covariance step and at every sample, histories at every IMU epoch (9 of 10 inside
+a step at 0.1 s): per error block, the run-averaged σ-normalized squared error
+``Σ (e/σ)²`` over the block's three states (the NEES with σ alone, 3 when consistent),
+its mean over the epochs and the share of epochs inside its 95 % band, filter /
+smoother (docs/filter.md, "With a covariance step").
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import pronet
 from pronet.config import filter_config
 from pronet.results import markdown
 from pronet.sim.scenarios import MATCHED_BIAS_PSD, SCENARIOS
+from pronet.stats import chi2_mean_band
 
 
 def _run(
@@ -105,10 +111,37 @@ def outage_rows(runs: int) -> list[list[object]]:
     return rows
 
 
+def steps_rows(runs: int) -> list[list[object]]:
+    sc = SCENARIOS["matched"](0)
+    low, high = chi2_mean_band(3, runs)
+    rows = []
+    for step in (0.1, 0.0):
+        r = pronet.monte_carlo(
+            sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
+            config=filter_config({"covariance_step": step}, "steps", sc.config), n_runs=runs,
+            seed=0, record_every=1, smooth=True,
+        )  # fmt: skip
+        cells = []
+        for x in (r, r.smoothed):
+            assert x is not None and x.error is not None and x.sigma is not None
+            e, sigma = x.error[:, 1:], x.sigma[:, 1:]  # the first epoch: σ of the prior
+            for b in range(0, 15, 3):
+                nees = np.sum((e[:, :, b : b + 3] / sigma[:, :, b : b + 3]) ** 2, axis=2)
+                mean = nees.mean(axis=0)
+                cells.append((mean.mean(), np.mean((mean >= low) & (mean <= high))))
+        rows.append([
+            f"{step:g} s" if step else "every sample",
+            *(f"{f[0]:.4f} / {m[0]:.4f} ({f[1]:.2f} / {m[1]:.2f})"
+              for f, m in zip(cells[:5], cells[5:], strict=True)),
+        ])  # fmt: skip
+    return rows
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)
-    parser.add_argument("--part", choices=("scenarios", "psd", "outage"), default="scenarios")
+    parts = ("scenarios", "psd", "outage", "steps")
+    parser.add_argument("--part", choices=parts, default="scenarios")
     parser.add_argument(
         "--oracle", action="store_true", help="scenarios: the filter told the true IMU variance"
     )
@@ -131,6 +164,13 @@ def main() -> int:
             "horiz. σ at middle",
         ]
         print(markdown(header, outage_rows(args.runs)), end="")
+        return 0
+    if args.part == "steps":
+        header = [
+            "covariance step",
+            *(f"{b.replace('_', ' ')} Σ(e/σ)² mean (in band)" for b in pronet.STATE_BLOCKS),
+        ]
+        print(markdown(header, steps_rows(args.runs)), end="")
         return 0
     header = [
         "scenario",

@@ -25,7 +25,9 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     The recursion runs from close to close of the covariance (every epoch without a
     covariance step); between two closes the smoothed error of the forward solution is
     interpolated linearly in time, from the one after the earlier close's updates to the
-    one before the later close's, and σ repeats the earlier close's."""
+    one before the later close's, and the smoothed covariance linearly in time between
+    the two closes' (the same before and after an epoch's updates), σ read from it at
+    each epoch's forward velocity."""
     invariant = formulation == "invariant"
     n = len(log)
     keys = ("lla", "vel", "rpy", "bias", "calibration")
@@ -38,28 +40,31 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     later = n - 1
     ds = np.zeros(len(log[-1][3]))
     ps = log[-1][2]
-    _fill(out, forward, later, later + 1, ds, ds, ps, time, invariant)
+    _fill(out, forward, later, later + 1, ds, ds, ps, ps, time, invariant)
     for c in reversed(closes[:-1]):
         phi, p_prior, _, dx = log[later]
         p_post = log[c][2]
         ds_prior = ds + dx  # the error before the later close's updates
         gain = p_post @ phi.T @ np.linalg.inv(p_prior)
         ds = gain @ ds_prior
+        ps_end = ps
         ps = p_post + gain @ (ps - p_prior) @ gain.T
         ps = (ps + ps.T) / 2
-        _fill(out, forward, c, later, ds, ds_prior, ps, time, invariant)
+        _fill(out, forward, c, later, ds, ds_prior, ps, ps_end, time, invariant)
         later = c
     return out
 
 
-def _fill(out, forward, c, end, ds, ds_end, ps, time, invariant) -> None:
-    """The smoothed error at the close ``c`` and, interpolated towards ``ds_end`` at the
-    close ``end``, at the epochs between; σ from ``ps`` at all of them."""
+def _fill(out, forward, c, end, ds, ds_end, ps, ps_end, time, invariant) -> None:
+    """The smoothed error and covariance at the close ``c`` and, interpolated linearly in
+    time towards ``ds_end`` and ``ps_end`` at the close ``end``, at the epochs between;
+    σ from the covariance at each epoch's forward velocity."""
     for i in range(c, end):
         w = 0.0 if i == c else (time[i] - time[c]) / (time[end] - time[c])
-        out["sigma"][i] = _classic_sigma(ps[:15, :15], forward["vel"][i], invariant)
-        if len(ps) > 15:
-            out["calibration_sigma"][i] = np.sqrt(np.maximum(np.diag(ps)[15:], 0.0))
+        p = ps if i == c else (1 - w) * ps + w * ps_end
+        out["sigma"][i] = _classic_sigma(p[:15, :15], forward["vel"][i], invariant)
+        if len(p) > 15:
+            out["calibration_sigma"][i] = np.sqrt(np.maximum(np.diag(p)[15:], 0.0))
         _correct(out, i, (1 - w) * ds + w * ds_end, invariant)
 
 

@@ -30,7 +30,17 @@ def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_st
         lever_arm=lever_arm, aiding=aiding, formulation=formulation, log=log,
         covariance_step=covariance_step, **tuning,
     )  # fmt: skip
-    return rust, forward, rts_smooth(forward, log, formulation)
+    return rust, forward, rts_smooth(forward, log, formulation), log
+
+
+def _closes(log: list) -> tuple[np.ndarray, np.ndarray]:
+    """The epochs inside a covariance step (the reference filter's log has no close
+    there) and, for each, the close before it."""
+    n = len(log)
+    closes = np.array([0] + [i for i in range(1, n) if log[i][0] is not None])
+    before = closes[np.searchsorted(closes, np.arange(n), side="right") - 1]
+    inside = np.flatnonzero(before != np.arange(n))
+    return inside, before[inside]
 
 
 @pytest.mark.parametrize(
@@ -39,8 +49,9 @@ def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_st
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
 @pytest.mark.parametrize("covariance_step", [0.0, 0.1, 0.07])
 def test_rust_smoother_matches_reference(aiding, lever_arm, formulation, covariance_step) -> None:
-    """0.1 s: ten steps between DVL rows; 0.07 s: a short step closed by each row."""
-    rust, forward, ref = _both(aiding, lever_arm, formulation, covariance_step=covariance_step)
+    """0.1 s: ten steps between DVL rows; 0.07 s: a short step closed by each row. σ at
+    every epoch, those inside a step too (interpolated between the closes)."""
+    rust, forward, ref, log = _both(aiding, lever_arm, formulation, covariance_step=covariance_step)
     s = rust.smoothed
     assert s is not None
     np.testing.assert_array_equal(s.time, rust.time)
@@ -58,6 +69,38 @@ def test_rust_smoother_matches_reference(aiding, lever_arm, formulation, covaria
     # Every epoch's smoothed σ is at most the forward one, and equal at the end (to rounding).
     assert (s.sigma <= rust.sigma * (1 + 1e-12)).all()
     np.testing.assert_allclose(s.sigma[-1], rust.sigma[-1], rtol=1e-14, atol=0)
+    if covariance_step > 0:
+        inside, before = _closes(log)
+        assert len(inside) > len(s.sigma) / 2
+        np.testing.assert_allclose(s.sigma[inside], ref["sigma"][inside], rtol=rtol, atol=0.0)
+        # Interpolated, not the close's repeated: the comparison above is not vacuous.
+        assert np.abs(s.sigma[inside] / s.sigma[before] - 1).max() > 1e-3
+
+
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+@pytest.mark.parametrize("covariance_step", [0.1, 0.07, 0.2])
+def test_smoothed_sigma_inside_a_step_follows_the_every_sample_smoother(
+    formulation, covariance_step
+) -> None:
+    """Inside a covariance step the smoothed σ interpolated between the closes lies
+    closer to the every-sample smoother's σ on the same run than the σ of the close
+    before, repeated (what the smoother reported before, exactly so in the classic
+    formulation): over every state, in RMS of the relative gap at the epochs inside a
+    step, and for each state."""
+    arm = (0.5, -0.2, 1.0)
+    every, _, _, _ = _both("body", arm, formulation)
+    rust, _, _, log = _both("body", arm, formulation, covariance_step=covariance_step)
+    assert every.smoothed is not None and rust.smoothed is not None
+    inside, before = _closes(log)
+    truth = every.smoothed.sigma[inside]
+    interpolated = np.abs(rust.smoothed.sigma[inside] / truth - 1)
+    repeated = np.abs(rust.smoothed.sigma[before] / truth - 1)
+    assert _rms(interpolated) < _rms(repeated), (_rms(interpolated), _rms(repeated))
+    assert (_rms(interpolated, 0) <= _rms(repeated, 0)).all()
+
+
+def _rms(gap: np.ndarray, axis: int | None = None) -> np.ndarray:
+    return np.sqrt((gap**2).mean(axis=axis))
 
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])

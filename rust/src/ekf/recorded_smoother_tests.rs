@@ -226,56 +226,82 @@ fn covariance_step_closes_are_rebuilt_exactly() {
     }
 }
 
-/// The Monte Carlo's way to the smoothed covariance (the interval's forward product,
-/// inverted where read) gives the σ of the step-by-step way, to rounding, and the
-/// same mean; epochs it is not asked for stay NaN.
+/// The Monte Carlo's way to the smoothed covariance gives the σ of the step-by-step
+/// way and the same mean; epochs it is not asked for stay NaN (every sample, the nodes'
+/// σ is written too). Every sample (the
+/// interval's forward product, inverted where read: to rounding) and under a covariance
+/// step (σ interpolated inside a step from the closes on either side, which are then
+/// computed where asked: bit for bit), with q schedule rows that put nodes inside a
+/// step.
 #[test]
 fn covariances_where_asked_equal_the_step_by_step_ones() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(400);
-    let cfg = per_sample();
-    let data = RecordedData {
-        imu: &imu,
-        imu_time: &imu_time,
-        dvl: &dvl,
-        dvl_time: &dvl_time,
-        ..RecordedData::default()
-    };
-    let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
-    let mut nodes = Nodes::default();
-    let cancel = Cancel::default();
-    let out = forward_pass(
-        &data,
-        moving_state(),
-        [0.0; 6],
-        &cfg,
-        strategy.as_mut(),
-        Epochs::All,
-        Some(&mut nodes),
-        &cancel,
-    )
-    .unwrap();
-    let forward = Forward {
-        imu: &imu,
-        imu_time: &imu_time,
-        t0: 0.0,
-        nav: &out.nav,
-        bias: &out.bias,
-        calibration: &[],
-        dt: None,
-    };
-    let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
-    let odd = |k: usize| k % 7 == 3;
-    let some = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Where(&odd), &cancel);
-    let (every, some) = (every.unwrap(), some.unwrap());
-    assert_eq!(every.nav, some.nav);
-    let nodes: Vec<usize> = nodes.0.iter().map(|n| n.epoch).collect();
-    for (k, (a, b)) in every.sigma.iter().zip(&some.sigma).enumerate() {
-        if odd(k) || nodes.contains(&k) {
-            for (x, y) in a.iter().zip(b) {
-                assert!((x - y).abs() <= 1e-9 * x.abs().max(1e-12), "{k}: {x} {y}");
-            }
+    let q = [1e-4; 6];
+    let (q_time, q_values) = (vec![0.554, 1.5, 2.873], vec![[4e-4; 6], q, [2e-4; 6]]);
+    for (covariance_step, external) in [(0.0, false), (0.07, false), (0.1, true), (0.07, true)] {
+        let cfg = FilterConfig {
+            covariance_step,
+            ..per_sample()
+        };
+        let (spec, q_time, q_values) = if external {
+            (
+                StrategySpec::External { prior_q: q },
+                &q_time[..],
+                &q_values[..],
+            )
         } else {
-            assert!(b.iter().all(|y| y.is_nan()), "{k}");
+            (StrategySpec::Constant { q }, &[][..], &[][..])
+        };
+        let data = RecordedData {
+            imu: &imu,
+            imu_time: &imu_time,
+            dvl: &dvl,
+            dvl_time: &dvl_time,
+            q_time,
+            q_values,
+            ..RecordedData::default()
+        };
+        let mut strategy = spec.build(cfg.bias_psd());
+        let mut nodes = Nodes::default();
+        let cancel = Cancel::default();
+        let out = forward_pass(
+            &data,
+            moving_state(),
+            [0.0; 6],
+            &cfg,
+            strategy.as_mut(),
+            Epochs::All,
+            Some(&mut nodes),
+            &cancel,
+        )
+        .unwrap();
+        let forward = Forward {
+            imu: &imu,
+            imu_time: &imu_time,
+            t0: 0.0,
+            nav: &out.nav,
+            bias: &out.bias,
+            calibration: &[],
+            dt: None,
+        };
+        let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
+        let odd = |k: usize| k % 13 == 3;
+        let some = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Where(&odd), &cancel);
+        let (every, some) = (every.unwrap(), some.unwrap());
+        assert_eq!(every.nav, some.nav);
+        let inside_a_step = nodes.0.iter().any(|n| n.interval.is_some());
+        assert_eq!(inside_a_step, external, "{covariance_step}");
+        let nodes: Vec<usize> = nodes.0.iter().map(|n| n.epoch).collect();
+        for (k, (a, b)) in every.sigma.iter().zip(&some.sigma).enumerate() {
+            if covariance_step > 0.0 && odd(k) {
+                assert_eq!(a, b, "{covariance_step} {k}");
+            } else if covariance_step == 0.0 && (odd(k) || nodes.contains(&k)) {
+                for (x, y) in a.iter().zip(b) {
+                    assert!((x - y).abs() <= 1e-9 * x.abs().max(1e-12), "{k}: {x} {y}");
+                }
+            } else {
+                assert!(b.iter().all(|y| y.is_nan()), "{k}");
+            }
         }
     }
 }

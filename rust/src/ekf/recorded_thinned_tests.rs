@@ -207,9 +207,74 @@ fn reintegration_is_exact(
     assert!(nodes.0.len() > 30);
     for (j, pair) in nodes.0.windows(2).enumerate() {
         let (a, b) = (&pair[0], &pair[1]);
-        let (forward, start) = stretch.rebuild(&src, j, a, b.epoch);
+        let (forward, start) = stretch.rebuild(&src, j, a, b.epoch, &c).unwrap();
         assert_eq!(start.epoch, 0);
         assert_eq!(forward.nav, &out.nav[a.epoch..b.epoch]);
         assert_eq!(forward.bias[0], out.bias[a.epoch]);
     }
+}
+
+/// A stretch without updates (here 25,000 IMU samples, no aiding at all: one interval
+/// from the first epoch to the last) is re-integrated with the cancel checked as it
+/// goes: a cancelled token stops it within [`STEPS_PER_CHECK`] steps with
+/// [`Error::Cancelled`] (no panic, the rest of the stretch not integrated), a live one
+/// lets it run to the end.
+#[test]
+fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
+    use crate::cancel::STEPS_PER_CHECK;
+    let n = 25_000;
+    let imu: Vec<[f64; 6]> = (0..n)
+        .map(|_| [0.01, -0.01, -9.79, 1e-4, 0.0, 2e-3])
+        .collect();
+    let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
+    let data = RecordedData {
+        imu: &imu,
+        imu_time: &imu_time,
+        t0: 0.0,
+        ..RecordedData::default()
+    };
+    let cfg = per_sample();
+    let (mut nodes, mut states) = (Nodes::default(), NodeStates::default());
+    let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
+    let keep = Some((&mut nodes, Some(&mut states)));
+    let live = Cancel::default();
+    let out = forward_pass_keeping(
+        &data,
+        moving_state(),
+        [0.0; 6],
+        &cfg,
+        strategy.as_mut(),
+        Epochs::Step(1.0),
+        keep,
+        &live,
+    )
+    .unwrap();
+    assert_eq!(nodes.0.len(), 2, "one stretch: the first epoch to the last");
+    let src = Thinned {
+        imu: data.imu,
+        imu_time: data.imu_time,
+        t0: data.t0,
+        states: &states,
+        epochs: &out.epoch,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &out.calibration,
+    };
+    let (a, end) = (&nodes.0[0], nodes.0[1].epoch);
+    assert!(end - a.epoch > 5 * STEPS_PER_CHECK);
+    let mut stretch = Stretch::default();
+    let cancelled = Cancel::default();
+    cancelled.cancel();
+    let err = stretch.rebuild(&src, 0, a, end, &cancelled).err();
+    assert_eq!(err, Some(Error::Cancelled));
+    assert!(stretch.nav.len() < STEPS_PER_CHECK, "{}", stretch.nav.len());
+    // The same buffer, not cancelled: the whole stretch, ending at the kept solution.
+    let (forward, _) = stretch.rebuild(&src, 0, a, end, &live).unwrap();
+    assert_eq!(forward.nav.len(), end - a.epoch);
+    let last_kept = out.epoch.len() - 2; // the kept epoch before the last
+    let e = out.epoch[last_kept];
+    assert_eq!(forward.nav[e - a.epoch], out.nav[last_kept]);
+    // Through the node-only smoother: a cancelled token ends it with the error.
+    let err = thinned::smooth(&src, &cfg, &nodes.0, &cancelled).err();
+    assert_eq!(err, Some(Error::Cancelled));
 }

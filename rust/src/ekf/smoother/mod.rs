@@ -38,7 +38,7 @@ use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
 use crate::mechanization::NavState;
 use crate::noise::ProcessNoise;
-use nalgebra::{Matrix4, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
 
 mod every;
 pub(super) mod steps;
@@ -450,21 +450,28 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let invariant = cfg.formulation == Formulation::Invariant;
-        let s = skew(&forward.nav[i].vel);
-        // (U P Uᵀ)_jj, U = I + S at (velocity, attitude): P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr.
+        let s = velocity_map(cfg, &forward.nav[i]);
+        self.set_variances(i, |j| classic_diagonal(ps, s.as_ref(), j));
+    }
+
+    /// σ at epoch `i` inside a covariance step, a fraction `w` of the way in time from
+    /// the close before it (smoothed covariance `from`) to the one after (`to`): the
+    /// covariance linear in time between the two, mapped to the classic coordinates at
+    /// the forward velocity at `i` (`docs/filter.md`, "With a covariance step").
+    fn set_sigma_between<const N: usize>(
+        &mut self,
+        i: usize,
+        (from, to, w): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>, f64),
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let s = velocity_map(cfg, &forward.nav[i]);
         self.set_variances(i, |j| {
-            let mut v = ps[(j, j)];
-            if invariant && (VEL..VEL + 3).contains(&j) {
-                let r = j - VEL;
-                for k in 0..3 {
-                    v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
-                    for l in 0..3 {
-                        v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
-                    }
-                }
-            }
-            v
+            let (a, b) = (
+                classic_diagonal(from, s.as_ref(), j),
+                classic_diagonal(to, s.as_ref(), j),
+            );
+            (1.0 - w) * a + w * b
         });
     }
 
@@ -499,6 +506,33 @@ impl Smoothed {
         let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
         self.node_covariance.push((epoch, p));
     }
+}
+
+/// `[v̂×]` at `nav`'s velocity in the invariant formulation (the velocity rows of the map
+/// `U = I + [v̂×]` to the classic coordinates), None in the classic one.
+fn velocity_map(cfg: &FilterConfig, nav: &NavState) -> Option<Matrix3<f64>> {
+    (cfg.formulation == Formulation::Invariant).then(|| skew(&nav.vel))
+}
+
+/// `(U P Uᵀ)_jj` of a covariance `ps` in the filter's coordinates, `s` from
+/// [`velocity_map`]: `P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr` at the velocity rows of
+/// the invariant formulation, `P_jj` elsewhere.
+fn classic_diagonal<const N: usize>(
+    ps: &SMatrix<f64, N, N>,
+    s: Option<&Matrix3<f64>>,
+    j: usize,
+) -> f64 {
+    let mut v = ps[(j, j)];
+    if let (Some(s), true) = (s, (VEL..VEL + 3).contains(&j)) {
+        let r = j - VEL;
+        for k in 0..3 {
+            v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
+            for l in 0..3 {
+                v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
+            }
+        }
+    }
+    v
 }
 
 /// `U P`, the rows of a covariance in the filter's coordinates mapped to the classic

@@ -18,8 +18,9 @@
 //! with `δx̂_d` the error estimate fed back at `d` (zero where no update was). Between
 //! two closes the filter has no covariance: the smoothed error of the forward solution
 //! there is interpolated linearly in time between `δs_c` (after `c`'s updates) and
-//! `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and its σ repeats the smoothed σ at `c`,
-//! as the forward σ repeats the last closed one.
+//! `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and its variance linearly in time between
+//! the smoothed ones at `c` and at `d` (the smoothed covariance is the same before and
+//! after `d`'s updates), as the forward σ is interpolated.
 
 use super::{full_p, lift, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
@@ -62,8 +63,8 @@ pub(super) fn smooth_steps<const N: usize>(
     // After the last epoch nothing is left to learn: μ = 0, Λ = 0.
     let mut mu = SVector::<f64, N>::zeros();
     let mut lambda = SMatrix::<f64, N, N>::zeros();
-    // The next close: its epoch and `δs⁻` there (the interpolation's far end).
-    let mut later: Option<(usize, SVector<f64, N>)> = None;
+    // The next close (the interpolation's far end).
+    let mut later: Option<Later<N>> = None;
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
@@ -71,13 +72,15 @@ pub(super) fn smooth_steps<const N: usize>(
             Some(kept) => kept_between::<N>(kept, a, b),
             None => rebuild::<N>(forward, cfg, a, b, cancel)?,
         };
-        for close in closes.iter().rev() {
+        for (k, close) in closes.iter().enumerate().rev() {
             let at_node = close.epoch == b.epoch;
             let p = if at_node { b.p::<N>() } else { close.p_prior };
             let ds = p * mu;
-            // Ps where it is read: at the nodes and where σ is wanted before the next close.
-            let end = later.as_ref().map_or(close.epoch + 1, |l| l.0);
-            let read = at_node || (close.epoch..end).any(wanted);
+            // Ps where it is read: at the nodes and where σ is wanted between the close
+            // before and the next one (σ there is interpolated between the two).
+            let end = later.as_ref().map_or(close.epoch + 1, |l| l.epoch);
+            let since = previous_close(&closes, k, a);
+            let read = at_node || since.is_none_or(|s| (s + 1..end).any(wanted));
             let ps = read.then(|| symmetric(&(p + p * lambda * p)));
             fill(
                 &mut out,
@@ -90,10 +93,10 @@ pub(super) fn smooth_steps<const N: usize>(
                 &wanted,
             );
             let mut ds_prior = ds;
-            if let (true, Some(ps)) = (at_node, ps) {
-                out.keep_node(b.epoch, &ps);
+            if let (true, Some(ps)) = (at_node, ps.as_ref()) {
+                out.keep_node(b.epoch, ps);
                 ds_prior += b.dx::<N>();
-                (mu, lambda) = at_update(&close.p_prior, &ps, &ds_prior).ok_or_else(|| {
+                (mu, lambda) = at_update(&close.p_prior, ps, &ds_prior).ok_or_else(|| {
                     Error::Numerical(format!(
                         "the smoother: the covariance before epoch {} is not positive definite",
                         b.epoch
@@ -102,7 +105,11 @@ pub(super) fn smooth_steps<const N: usize>(
             }
             mu = transposed(&close.phi, &mu);
             lambda = congruence(&close.phi, &lambda);
-            later = Some((close.epoch, ds_prior));
+            later = Some(Later {
+                epoch: close.epoch,
+                ds_prior,
+                ps,
+            });
         }
     }
     // The first epoch: the prior, a close of its own.
@@ -276,9 +283,59 @@ pub(super) fn congruence<const N: usize>(
     symmetric(&times_phi(rows, &w.transpose()))
 }
 
+/// A close already smoothed, seen from the one before it: its epoch, the smoothed error
+/// before its updates `δs⁻` and its smoothed covariance (where it was computed).
+pub(super) struct Later<const N: usize> {
+    pub(super) epoch: usize,
+    pub(super) ds_prior: SVector<f64, N>,
+    pub(super) ps: Option<SMatrix<f64, N, N>>,
+}
+
+impl<const N: usize> Later<N> {
+    /// Write the smoothed solution at the row `row` of `at` (its forward solution), an
+    /// epoch a fraction `w` of the way in time from the close before (its smoothed
+    /// error `ds` and covariance `ps` after its updates; `ps` None where σ is not
+    /// wanted) to this close: the error linear in time from `ds` to this close's `δs⁻`,
+    /// the covariance linear in time from `ps` to this close's. The smoothed covariance
+    /// given all the data is the same before and after an epoch's updates (they move
+    /// the forward estimate by a known amount, not what the smoother knows), so this
+    /// close's is its covariance before them too (`docs/filter.md`, "With a covariance
+    /// step").
+    pub(super) fn write_between(
+        &self,
+        out: &mut Smoothed,
+        (row, at): (usize, &Forward<'_>),
+        w: f64,
+        (ds, ps): (&SVector<f64, N>, Option<&SMatrix<f64, N, N>>),
+        cfg: &FilterConfig,
+    ) {
+        if let Some(ps) = ps {
+            let to = self.ps.as_ref().unwrap_or(ps);
+            out.set_sigma_between(row, (ps, to, w), cfg, at);
+        }
+        out.apply(row, &(ds * (1.0 - w) + self.ds_prior * w), cfg);
+    }
+}
+
+/// The epoch of the close before the `k`-th of `closes` (the closes in `(a, b]`): the
+/// one before it there, else `a`'s where no covariance step was under way after `a`
+/// (the step closed at `a`, or `a` is the first epoch); None where unknown (`a` inside
+/// a step).
+pub(super) fn previous_close<const N: usize>(
+    closes: &[Close<N>],
+    k: usize,
+    a: &Node,
+) -> Option<usize> {
+    match k {
+        0 => a.interval.is_none().then_some(a.epoch),
+        _ => Some(closes[k - 1].epoch),
+    }
+}
+
 /// Apply the smoothed error `ds` at the close `epoch` and interpolate it up to the
-/// next close `later` (its epoch and `δs⁻` there); σ from `ps` (given where one is
-/// wanted) at the close and, repeated, at the epochs before the next one.
+/// next close `later`; σ from `ps` (given where it was computed) at the close and,
+/// the covariance interpolated towards the next close's ([`Later::write_between`]), at
+/// the wanted epochs before the next close.
 #[allow(clippy::too_many_arguments)]
 fn fill<const N: usize>(
     out: &mut Smoothed,
@@ -287,23 +344,25 @@ fn fill<const N: usize>(
     epoch: usize,
     ds: &SVector<f64, N>,
     ps: Option<&SMatrix<f64, N, N>>,
-    later: Option<&(usize, SVector<f64, N>)>,
+    later: Option<&Later<N>>,
     wanted: &dyn Fn(usize) -> bool,
 ) {
-    let end = later.map_or(epoch + 1, |l| l.0);
+    let end = later.map_or(epoch + 1, |l| l.epoch);
     let t_close = forward.time(epoch);
     for i in epoch..end {
-        if let (true, Some(ps)) = (wanted(i), ps) {
-            out.set_sigma(i, ps, cfg, forward);
-        }
-        let dsi = match later {
-            Some((e, ds_end)) if i > epoch => {
-                let w = (forward.time(i) - t_close) / (forward.time(*e) - t_close);
-                ds * (1.0 - w) + ds_end * w
+        let ps = ps.filter(|_| wanted(i));
+        match later {
+            Some(l) if i > epoch => {
+                let w = (forward.time(i) - t_close) / (forward.time(l.epoch) - t_close);
+                l.write_between(out, (i, forward), w, (ds, ps), cfg);
             }
-            _ => *ds,
-        };
-        out.apply(i, &dsi, cfg);
+            _ => {
+                if let Some(ps) = ps {
+                    out.set_sigma(i, ps, cfg, forward);
+                }
+                out.apply(i, ds, cfg);
+            }
+        }
     }
 }
 

@@ -14,7 +14,7 @@
 //! empty).
 
 use super::every::{self, transposed_step};
-use super::steps::{self, symmetric, transposed};
+use super::steps::{self, symmetric, transposed, Later};
 use super::{full_p, restart, Forward, Node, Nodes, Smoothed};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
@@ -108,20 +108,25 @@ impl Stretch {
     /// The forward pass from node `a` (the `j`-th) to the epoch `end`, as a
     /// [`Forward`] whose epoch 0 is `a`'s, and `a` moved there: the solution of every
     /// epoch in `[a, end)` integrated again from `a`'s, as the filter's prediction
-    /// integrates it.
+    /// integrates it. Stops with [`Error::Cancelled`] within [`STEPS_PER_CHECK`] steps
+    /// of `cancel` being set (a stretch without updates can be hours of IMU).
     pub(in crate::ekf) fn rebuild<'s>(
         &'s mut self,
         src: &'s Thinned<'_>,
         j: usize,
         a: &Node,
         end: usize,
-    ) -> (Forward<'s>, Node) {
+        cancel: &Cancel,
+    ) -> Result<(Forward<'s>, Node)> {
         let b = &src.states.bias[j];
         let accel_bias = Vector3::new(b[0], b[1], b[2]);
         let gyro_bias = Vector3::new(b[3], b[4], b[5]);
         self.nav.clear();
         let mut nav = src.states.nav[j];
         for i in a.epoch..end {
+            if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
+                cancel.check()?;
+            }
             self.nav.push(nav);
             if i + 1 < end {
                 let raw = ImuSample::from_array(&src.imu[i]);
@@ -144,7 +149,7 @@ impl Stretch {
         };
         let mut start = a.clone();
         start.epoch = 0;
-        (forward, start)
+        Ok((forward, start))
     }
 }
 
@@ -197,7 +202,7 @@ fn smooth_every<const N: usize>(
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
         let rows = src.kept_in(a.epoch..b.epoch);
-        let (forward, start) = stretch.rebuild(src, j, a, b.epoch);
+        let (forward, start) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
         let keep = |k: usize| k == 0 || src.kept(a.epoch + k).is_some();
         let interval = Rebuilt::<N>::every(&forward, cfg, &start, b.epoch - a.epoch, keep, cancel)?;
         let chol = interval.p_end.cholesky().ok_or_else(|| {
@@ -302,30 +307,32 @@ fn smooth_steps<const N: usize>(
     let mut out = Smoothed::start(&kept, 0);
     let mut mu = SVector::<f64, N>::zeros();
     let mut lambda = SMatrix::<f64, N, N>::zeros();
-    let mut later: Option<(usize, SVector<f64, N>)> = None;
+    let mut later: Option<Later<N>> = None;
     let mut stretch = Stretch::default();
     for (j, pair) in nodes.windows(2).enumerate().rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let (forward, start) = stretch.rebuild(src, j, a, b.epoch);
+        let (forward, start) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
         let mut end = b.clone();
         end.epoch -= a.epoch;
         let closes = steps::rebuild::<N>(&forward, cfg, &start, &end, cancel)?;
-        for close in closes.into_iter().rev() {
+        for (k, close) in closes.iter().enumerate().rev() {
             let epoch = close.epoch + a.epoch;
             let at_node = epoch == b.epoch;
             let p = if at_node { b.p::<N>() } else { close.p_prior };
             let ds = p * mu;
-            // Ps where it is read: at the nodes and at kept epochs before the next close.
-            let until = later.as_ref().map_or(epoch + 1, |l| l.0);
-            let read = at_node || !src.kept_in(epoch..until).is_empty();
+            // Ps where it is read: at the nodes and at kept epochs between the close
+            // before and the next one (σ there is interpolated between the two).
+            let until = later.as_ref().map_or(epoch + 1, |l| l.epoch);
+            let since = steps::previous_close(&closes, k, &start).map(|s| s + a.epoch);
+            let read = at_node || since.is_none_or(|s| !src.kept_in(s + 1..until).is_empty());
             let ps = read.then(|| symmetric(&(p + p * lambda * p)));
             fill(&mut out, src, cfg, epoch, &ds, ps.as_ref(), later.as_ref());
             let mut ds_prior = ds;
-            if let (true, Some(ps)) = (at_node, ps) {
+            if let (true, Some(ps)) = (at_node, ps.as_ref()) {
                 ds_prior += b.dx::<N>();
                 (mu, lambda) =
-                    steps::at_update(&close.p_prior, &ps, &ds_prior).ok_or_else(|| {
+                    steps::at_update(&close.p_prior, ps, &ds_prior).ok_or_else(|| {
                         Error::Numerical(format!(
                             "the smoother: the covariance before epoch {} is not positive definite",
                             b.epoch
@@ -334,7 +341,11 @@ fn smooth_steps<const N: usize>(
             }
             mu = transposed(&close.phi, &mu);
             lambda = steps::congruence(&close.phi, &lambda);
-            later = Some((epoch, ds_prior));
+            later = Some(Later {
+                epoch,
+                ds_prior,
+                ps,
+            });
         }
     }
     let p = nodes[0].p::<N>();
@@ -344,7 +355,8 @@ fn smooth_steps<const N: usize>(
 }
 
 /// [`super::steps`]'s `fill` at the kept epochs: the smoothed error `ds` at the close
-/// `epoch`, interpolated up to the next close `later`, and σ from `ps` where given.
+/// `epoch`, interpolated up to the next close `later`, and σ from `ps` where given (the
+/// covariance interpolated towards the next close's).
 fn fill<const N: usize>(
     out: &mut Smoothed,
     src: &Thinned<'_>,
@@ -352,23 +364,24 @@ fn fill<const N: usize>(
     epoch: usize,
     ds: &SVector<f64, N>,
     ps: Option<&SMatrix<f64, N, N>>,
-    later: Option<&(usize, SVector<f64, N>)>,
+    later: Option<&Later<N>>,
 ) {
-    let until = later.map_or(epoch + 1, |l| l.0);
+    let until = later.map_or(epoch + 1, |l| l.epoch);
     let t_close = src.time(epoch);
     let kept = src.at_kept();
     for row in src.kept_in(epoch..until) {
         let i = src.epochs[row];
-        if let Some(ps) = ps {
-            out.set_sigma(row, ps, cfg, &kept);
-        }
-        let dsi = match later {
-            Some((e, ds_end)) if i > epoch => {
-                let w = (src.time(i) - t_close) / (src.time(*e) - t_close);
-                ds * (1.0 - w) + ds_end * w
+        match later {
+            Some(l) if i > epoch => {
+                let w = (src.time(i) - t_close) / (src.time(l.epoch) - t_close);
+                l.write_between(out, (row, &kept), w, (ds, ps), cfg);
             }
-            _ => *ds,
-        };
-        out.apply(row, &dsi, cfg);
+            _ => {
+                if let Some(ps) = ps {
+                    out.set_sigma(row, ps, cfg, &kept);
+                }
+                out.apply(row, ds, cfg);
+            }
+        }
     }
 }
