@@ -3,14 +3,20 @@
 //! against the truth ([`SmoothedRecord`]), as the run reports its own.
 
 use super::{bias_array, nees3, solution_error, History, Run};
+use crate::attitude::exp_so3;
 use crate::cancel::Cancel;
-use crate::ekf::formulation;
-use crate::ekf::smoother::{smooth, smooth_kept, Covariances, Forward, Nodes, Smoothed};
-use crate::ekf::{Ekf, Formulation, KeptClose, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::ekf::smoother::{
+    classic_variances, classic_variances_of, sigma15, smooth_into, Covariances, Forward, Nodes,
+    Sink,
+};
+use crate::ekf::{correct, corrected_position_velocity, formulation};
+use crate::ekf::{Ekf, FilterConfig, Formulation, KeptClose, Matrix15, Vector15};
+use crate::ekf::{ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::mechanization::NavState;
 use crate::montecarlo::Scenario;
 use crate::trajectory::Truth;
-use nalgebra::Vector3;
+use nalgebra::{SMatrix, SVector, Vector3};
+use std::collections::HashMap;
 
 /// A run's metrics after the RTS smoother: the [`RunSummary`] error metrics, the block
 /// NEES at the DVL updates and the histories of the smoothed solution.
@@ -39,8 +45,10 @@ pub(super) struct SmootherLog {
     pub(super) bias: Vec<[f64; 6]>,
     /// With the DVL calibration states, their estimate at every epoch (empty without).
     pub(super) calibration: Vec<[f64; 4]>,
-    /// The IMU's true bias at each epoch (the one errors there are taken against).
-    pub(super) true_bias: Vec<[f64; 6]>,
+    /// The IMU's true bias (the one errors are taken against) at each epoch where the
+    /// whole smoothed solution is read, in order: the recorded epochs and those of the
+    /// DVL updates (the others read the velocity and position alone).
+    pub(super) true_bias: Vec<(usize, [f64; 6])>,
     /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
     pub(super) update_epochs: Vec<Option<usize>>,
     /// Under a covariance step, each close the filter made and its epoch: the backward
@@ -50,9 +58,16 @@ pub(super) struct SmootherLog {
 }
 
 impl SmootherLog {
-    /// Keep the forward solution of the epoch `epoch` just run (the true bias apart)
-    /// and the closes the filter made there.
-    pub(super) fn push(&mut self, epoch: usize, ekf: &mut Ekf) {
+    /// Keep the forward solution of the epoch `epoch` just run, the closes the filter
+    /// made there and, where the whole solution is read (`recorded`, or a DVL update
+    /// there), the true bias `true_bias`.
+    pub(super) fn push(
+        &mut self,
+        epoch: usize,
+        ekf: &mut Ekf,
+        true_bias: [f64; 6],
+        recorded: bool,
+    ) {
         if let Some(closes) = self.closes.as_mut() {
             ekf.take_closes(epoch, closes);
         }
@@ -61,6 +76,107 @@ impl SmootherLog {
         if let Some(c) = &ekf.calibration {
             self.calibration.push(c.reported());
         }
+        if recorded || self.update_epochs.last() == Some(&Some(epoch)) {
+            self.true_bias.push((epoch, true_bias));
+        }
+    }
+}
+
+/// The smoothed solution of a run reduced to what its metrics read, as the backward
+/// pass gives it ([`Sink`]): at every epoch the terms of the velocity and horizontal
+/// position errors, and the whole solution only where it is read (the epochs whose
+/// true bias the log kept). No copy of the forward solution is made.
+struct Reduced<'a> {
+    log: &'a SmootherLog,
+    truth: &'a Truth,
+    /// Whether the whole solution is read at each epoch.
+    whole: Vec<bool>,
+    /// `[|δv|², Σ|δv_j|, δN² + δE²]` at each epoch the pass corrected.
+    terms: Vec<Option<[f64; 3]>>,
+    /// The smoothed solution and bias estimates where the whole one is read.
+    solutions: Vec<(usize, NavState, [f64; 6])>,
+    sigma: Vec<(usize, [f64; 15])>,
+    node_covariance: Vec<(usize, Matrix15)>,
+}
+
+impl<'a> Reduced<'a> {
+    fn new(log: &'a SmootherLog, truth: &'a Truth) -> Self {
+        let n = log.nav.len();
+        let mut whole = vec![false; n];
+        for (k, _) in &log.true_bias {
+            whole[*k] = true;
+        }
+        Self {
+            log,
+            truth,
+            whole,
+            terms: vec![None; n],
+            solutions: Vec::with_capacity(log.true_bias.len()),
+            sigma: Vec::new(),
+            node_covariance: Vec::with_capacity(log.nodes.0.len()),
+        }
+    }
+
+    /// The error terms of the solution (`lla`, `vel`) at epoch `k`.
+    fn terms_of(&self, k: usize, lla: &Vector3<f64>, vel: &Vector3<f64>) -> [f64; 3] {
+        let truth = &self.truth.states[k];
+        let dv = vel - truth.vel;
+        let dp = self.truth.ned_scale[k].error(lla, &truth.lla);
+        [
+            dv.norm_squared(),
+            dv.abs().sum(),
+            dp[0] * dp[0] + dp[1] * dp[1],
+        ]
+    }
+}
+
+impl Sink for Reduced<'_> {
+    fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
+        let dx: Vector15 = ds.fixed_rows::<15>(0).into_owned();
+        let nav = &self.log.nav[i];
+        let (lla, vel) = if self.whole[i] {
+            let (mut s, b) = (*nav, self.log.bias[i]);
+            let (mut ab, mut gb) = (
+                Vector3::new(b[0], b[1], b[2]),
+                Vector3::new(b[3], b[4], b[5]),
+            );
+            correct(&mut s, &mut ab, &mut gb, &dx, cfg.formulation);
+            let bias = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
+            self.solutions.push((i, s, bias));
+            (s.lla, s.vel)
+        } else {
+            let psi = || exp_so3(&Vector3::new(dx[ATT], dx[ATT + 1], dx[ATT + 2]));
+            corrected_position_velocity(nav, &dx, cfg.formulation, psi)
+        };
+        self.terms[i] = Some(self.terms_of(i, &lla, &vel));
+    }
+
+    fn set_sigma<const N: usize>(
+        &mut self,
+        i: usize,
+        ps: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let sigma = sigma15(&classic_variances(ps, cfg, &forward.nav[i].vel));
+        self.sigma.push((i, sigma));
+    }
+
+    fn set_sigma_of<const N: usize>(
+        &mut self,
+        i: usize,
+        p: &SMatrix<f64, N, N>,
+        lambda: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let variance = classic_variances_of(p, lambda, cfg, &forward.nav[i]);
+        self.sigma.push((i, sigma15(&variance)));
+    }
+
+    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
+        let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
+        self.node_covariance.push((epoch, p));
     }
 }
 
@@ -95,31 +211,48 @@ fn smoothed_block_nees(
     nees
 }
 
-/// The smoothed solution's metrics against the truth, as a forward run reports them.
+/// The smoothed solution's metrics against the truth, as a forward run reports them
+/// (an epoch the pass left as it was, the last without a covariance step, is the
+/// forward solution's).
 fn smoothed_metrics(
-    s: &Smoothed,
-    log: &SmootherLog,
+    s: Reduced<'_>,
     formulation: Formulation,
-    truth: &Truth,
     record_every: usize,
 ) -> SmoothedRecord {
-    let n = s.nav.len() - 1;
-    let error =
-        |k: usize| solution_error(&s.nav[k], &s.bias[k], &truth.states[k], &log.true_bias[k]);
+    let (log, truth) = (s.log, s.truth);
+    let n = log.nav.len() - 1;
+    let solutions: HashMap<usize, (NavState, [f64; 6])> = s
+        .solutions
+        .iter()
+        .map(|(k, nav, b)| (*k, (*nav, *b)))
+        .collect();
+    let solution = |k: usize| {
+        solutions
+            .get(&k)
+            .copied()
+            .unwrap_or((log.nav[k], log.bias[k]))
+    };
+    let true_bias = |k: usize| {
+        let at = log.true_bias.binary_search_by_key(&k, |(e, _)| *e);
+        at.map_or([f64::NAN; 6], |at| log.true_bias[at].1)
+    };
+    let error = |k: usize| {
+        let (nav, bias) = solution(k);
+        solution_error(&nav, &bias, &truth.states[k], &true_bias(k))
+    };
     let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
     let mut horizontal = 0.0;
     // Velocity and horizontal position alone at every epoch (the attitude's logarithm
-    // and the biases only where they are recorded).
+    // and the biases only where they are recorded), summed in the epochs' order.
     for k in 1..=n {
-        let dv = s.nav[k].vel - truth.states[k].vel;
-        sum_sq += dv.norm_squared();
-        sum_abs += dv.abs().sum();
-        let dp = truth.ned_scale[k].error(&s.nav[k].lla, &truth.states[k].lla);
-        let sq = dp[0] * dp[0] + dp[1] * dp[1];
+        let [v2, v1, sq] =
+            s.terms[k].unwrap_or_else(|| s.terms_of(k, &log.nav[k].lla, &log.nav[k].vel));
+        sum_sq += v2;
+        sum_abs += v1;
         max_sq = max_sq.max(sq);
         horizontal = sq.sqrt();
     }
-    let covariance: std::collections::HashMap<usize, &Matrix15> =
+    let covariance: HashMap<usize, &Matrix15> =
         s.node_covariance.iter().map(|(k, p)| (*k, p)).collect();
     let nees = log
         .update_epochs
@@ -129,7 +262,7 @@ fn smoothed_metrics(
                 Some((k, p)) => {
                     let about = &log.nav[k].vel;
                     smoothed_block_nees(
-                        &s.nav[k],
+                        &solution(k).0,
                         p,
                         formulation,
                         about,
@@ -142,10 +275,13 @@ fn smoothed_metrics(
         )
         .collect();
     let history = (record_every > 0).then(|| {
+        let sigma: HashMap<usize, [f64; 15]> = s.sigma.iter().copied().collect();
         let epochs = (0..=n).step_by(record_every);
         History {
             error: epochs.clone().map(error).collect(),
-            sigma: epochs.map(|k| s.sigma[k]).collect(),
+            sigma: epochs
+                .map(|k| sigma.get(&k).copied().unwrap_or([f64::NAN; 15]))
+                .collect(),
             imu_variance: Vec::new(),
         }
     });
@@ -175,7 +311,7 @@ impl Run {
             nav: Vec::with_capacity(n),
             bias: Vec::with_capacity(n),
             calibration: Vec::new(),
-            true_bias: Vec::with_capacity(n),
+            true_bias: Vec::new(),
             update_epochs: Vec::new(),
             closes: None,
         };
@@ -185,8 +321,7 @@ impl Run {
             self.ekf.keep_closes();
             log.closes = Some(Vec::new());
         }
-        log.push(self.k, &mut self.ekf);
-        log.true_bias.push(self.true_bias);
+        log.push(self.k, &mut self.ekf, self.true_bias, self.record_every > 0);
         self.smoother = Some(Box::new(log));
     }
 
@@ -220,11 +355,18 @@ impl Run {
         let recorded = |k: usize| every > 0 && k.is_multiple_of(every);
         let covariances = Covariances::Where(&recorded);
         let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
-        let smoothed = match &log.closes {
-            Some(closes) => smooth_kept(&forward, cfg, nodes, closes, covariances, cancel),
-            None => smooth(&forward, cfg, nodes, covariances, cancel),
-        };
-        let Ok(smoothed) = smoothed else {
+        let mut reduced = Reduced::new(&log, truth);
+        let kept = log.closes.as_deref();
+        let smoothed = smooth_into(
+            &forward,
+            cfg,
+            nodes,
+            kept,
+            covariances,
+            &mut reduced,
+            cancel,
+        );
+        if smoothed.is_err() {
             let nan = f64::NAN;
             return Some(SmoothedRecord {
                 srmse: nan,
@@ -238,12 +380,10 @@ impl Run {
                     imu_variance: Vec::new(),
                 }),
             });
-        };
+        }
         Some(smoothed_metrics(
-            &smoothed,
-            &log,
+            reduced,
             cfg.formulation,
-            truth,
             self.record_every,
         ))
     }

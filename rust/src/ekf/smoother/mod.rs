@@ -382,6 +382,84 @@ fn smooth_with(
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
+    let mut out = Smoothed::start(forward, nodes.len());
+    smooth_into(forward, cfg, nodes, kept, covariances, &mut out, cancel)?;
+    out.node_covariance.reverse();
+    Ok(out)
+}
+
+/// Where a backward pass puts what it finds at each epoch: the smoothed error of the
+/// forward solution there, σ where it is wanted, the smoothed covariance at the nodes
+/// (each epoch's error once, in no set order). [`Smoothed`] keeps the smoothed
+/// solution at every epoch; a Monte Carlo run reduces it to its metrics as the pass
+/// goes (`crate::run`), without a copy of the forward solution.
+pub trait Sink {
+    /// Remove the smoothed error `ds` from the forward solution at epoch `i` (the
+    /// filter's feedback, [`correct`]).
+    fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig);
+    /// σ at epoch `i` from the smoothed covariance `ps` (see [`classic_variances`]).
+    fn set_sigma<const N: usize>(
+        &mut self,
+        i: usize,
+        ps: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    );
+    /// σ at epoch `i` of `Ps = P + P Λ P` (see [`classic_variances_of`]).
+    fn set_sigma_of<const N: usize>(
+        &mut self,
+        i: usize,
+        p: &SMatrix<f64, N, N>,
+        lambda: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    );
+    /// The smoothed covariance at a node's epoch.
+    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>);
+}
+
+impl Sink for Smoothed {
+    fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
+        Smoothed::apply(self, i, ds, cfg);
+    }
+
+    fn set_sigma<const N: usize>(
+        &mut self,
+        i: usize,
+        ps: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        Smoothed::set_sigma(self, i, ps, cfg, forward);
+    }
+
+    fn set_sigma_of<const N: usize>(
+        &mut self,
+        i: usize,
+        p: &SMatrix<f64, N, N>,
+        lambda: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        Smoothed::set_sigma_of(self, i, p, lambda, cfg, forward);
+    }
+
+    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
+        Smoothed::keep_node(self, epoch, ps);
+    }
+}
+
+/// The backward pass of [`smooth`] (reading the kept closes as [`smooth_kept`] where
+/// `kept` gives them) into `out`.
+pub fn smooth_into<S: Sink>(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    nodes: &[Node],
+    kept: Option<&[(usize, KeptClose)]>,
+    covariances: Covariances<'_>,
+    out: &mut S,
+    cancel: &Cancel,
+) -> Result<()> {
     let n = forward.nav.len();
     if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
         return Err(Error::Numerical(
@@ -397,11 +475,12 @@ fn smooth_with(
         ));
     }
     const CAL: usize = N_CALIBRATED;
+    let (f, c) = (forward, covariances);
     match (calibrated, cfg.covariance_every_sample()) {
-        (false, true) => every::smooth_every::<15>(forward, cfg, nodes, covariances, cancel),
-        (true, true) => every::smooth_every::<CAL>(forward, cfg, nodes, covariances, cancel),
-        (false, false) => steps::smooth_steps::<15>(forward, cfg, nodes, kept, covariances, cancel),
-        (true, false) => steps::smooth_steps::<CAL>(forward, cfg, nodes, kept, covariances, cancel),
+        (false, true) => every::smooth_every::<15, S>(f, cfg, nodes, c, out, cancel),
+        (true, true) => every::smooth_every::<CAL, S>(f, cfg, nodes, c, out, cancel),
+        (false, false) => steps::smooth_steps::<15, S>(f, cfg, nodes, kept, c, out, cancel),
+        (true, false) => steps::smooth_steps::<CAL, S>(f, cfg, nodes, kept, c, out, cancel),
     }
 }
 
@@ -450,27 +529,11 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let invariant = cfg.formulation == Formulation::Invariant;
-        let s = skew(&forward.nav[i].vel);
-        // (U P Uᵀ)_jj, U = I + S at (velocity, attitude): P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr.
-        self.set_variances(i, |j| {
-            let mut v = ps[(j, j)];
-            if invariant && (VEL..VEL + 3).contains(&j) {
-                let r = j - VEL;
-                for k in 0..3 {
-                    v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
-                    for l in 0..3 {
-                        v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
-                    }
-                }
-            }
-            v
-        });
+        self.set_variances(i, classic_variances(ps, cfg, &forward.nav[i].vel));
     }
 
     /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
-    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone: `diag(U P Uᵀ) + diag(U P Λ P Uᵀ)`
-    /// with `U` the map to the classic coordinates.
+    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone (see [`classic_variances_of`]).
     fn set_sigma_of<const N: usize>(
         &mut self,
         i: usize,
@@ -479,16 +542,12 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let up = classic_rows(cfg, &forward.nav[i], p);
-        let upl = up * lambda;
-        self.set_variances(i, |j| {
-            classic_variance(cfg, &forward.nav[i], &up, j) + upl.row(j).dot(&up.row(j))
-        });
+        self.set_variances(i, classic_variances_of(p, lambda, cfg, &forward.nav[i]));
     }
 
     /// σ at epoch `i` from each state's variance.
     fn set_variances(&mut self, i: usize, variance: impl Fn(usize) -> f64) {
-        self.sigma[i] = std::array::from_fn(|j| variance(j).max(0.0).sqrt());
+        self.sigma[i] = sigma15(&variance);
         if let Some(sigma) = self.calibration_sigma.get_mut(i) {
             *sigma = std::array::from_fn(|k| variance(SCALE + k).max(0.0).sqrt());
         }
@@ -533,4 +592,49 @@ fn classic_variance<const N: usize>(
         }
     }
     v
+}
+
+/// The variance of each state `j` (classic coordinates at the velocity `vel`) of the
+/// covariance `ps` in the filter's coordinates: `(U P Uᵀ)_jj`, with `U = I + S` at
+/// (velocity, attitude) in the invariant formulation (`S = [v̂×]`):
+/// `P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr`.
+pub(crate) fn classic_variances<'a, const N: usize>(
+    ps: &'a SMatrix<f64, N, N>,
+    cfg: &FilterConfig,
+    vel: &Vector3<f64>,
+) -> impl Fn(usize) -> f64 + 'a {
+    let invariant = cfg.formulation == Formulation::Invariant;
+    let s = skew(vel);
+    move |j| {
+        let mut v = ps[(j, j)];
+        if invariant && (VEL..VEL + 3).contains(&j) {
+            let r = j - VEL;
+            for k in 0..3 {
+                v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
+                for l in 0..3 {
+                    v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
+                }
+            }
+        }
+        v
+    }
+}
+
+/// The variance of each state (as [`classic_variances`]) of `Ps = P + P Λ P`, its
+/// diagonal alone: `diag(U P Uᵀ) + diag(U P Λ P Uᵀ)` with `U` the map to the classic
+/// coordinates at `nav`'s velocity.
+pub(crate) fn classic_variances_of<'a, const N: usize>(
+    p: &SMatrix<f64, N, N>,
+    lambda: &SMatrix<f64, N, N>,
+    cfg: &'a FilterConfig,
+    nav: &'a NavState,
+) -> impl Fn(usize) -> f64 + 'a {
+    let up = classic_rows(cfg, nav, p);
+    let upl = up * lambda;
+    move |j| classic_variance(cfg, nav, &up, j) + upl.row(j).dot(&up.row(j))
+}
+
+/// The 15 σ from each state's variance (a negative one read as zero).
+pub(crate) fn sigma15(variance: &impl Fn(usize) -> f64) -> [f64; 15] {
+    std::array::from_fn(|j| variance(j).max(0.0).sqrt())
 }

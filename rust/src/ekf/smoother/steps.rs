@@ -21,7 +21,7 @@
 //! `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and its σ repeats the smoothed σ at `c`,
 //! as the forward σ repeats the last closed one.
 
-use super::{full_p, lift, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
+use super::{full_p, lift, restart, Covariances, Forward, Node, Sink, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
 use crate::ekf::{FilterConfig, KeptClose};
@@ -46,15 +46,16 @@ pub(in crate::ekf) struct Close<const N: usize> {
 /// `(P⁻_u)⁻¹ (Ps_u − P⁻_u) (P⁻_u)⁻¹` of the next update `u` back, `δs_c = P_c μ` and
 /// `Ps_c = P_c + P_c Λ P_c`; only at the nodes a Cholesky factor of `P⁻` is solved
 /// with.
-pub(super) fn smooth_steps<const N: usize>(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn smooth_steps<const N: usize, S: Sink>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
     kept: Option<&[(usize, KeptClose)]>,
     covariances: Covariances<'_>,
+    out: &mut S,
     cancel: &Cancel,
-) -> Result<Smoothed> {
-    let mut out = Smoothed::start(forward, nodes.len());
+) -> Result<()> {
     let wanted = |i: usize| match covariances {
         Covariances::Every => true,
         Covariances::Where(f) => f(i),
@@ -80,7 +81,7 @@ pub(super) fn smooth_steps<const N: usize>(
             let read = at_node || (close.epoch..end).any(wanted);
             let ps = read.then(|| symmetric(&(p + p * lambda * p)));
             fill(
-                &mut out,
+                out,
                 forward,
                 cfg,
                 close.epoch,
@@ -109,7 +110,7 @@ pub(super) fn smooth_steps<const N: usize>(
     let p = nodes[0].p::<N>();
     let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
     fill(
-        &mut out,
+        out,
         forward,
         cfg,
         0,
@@ -119,8 +120,7 @@ pub(super) fn smooth_steps<const N: usize>(
         &wanted,
     );
     out.keep_node(0, &ps);
-    out.node_covariance.reverse();
-    Ok(out)
+    Ok(())
 }
 
 /// `μ = (P⁻)⁻¹ δs⁻` and `Λ = (P⁻)⁻¹ (Ps − P⁻) (P⁻)⁻¹` at an update, by Cholesky
@@ -281,7 +281,7 @@ pub(super) fn congruence<const N: usize>(
 /// wanted) at the close and, repeated, at the epochs before the next one.
 #[allow(clippy::too_many_arguments)]
 fn fill<const N: usize>(
-    out: &mut Smoothed,
+    out: &mut impl Sink,
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     epoch: usize,
