@@ -10,7 +10,7 @@ use crate::ekf::smoother::{
     Sink,
 };
 use crate::ekf::{correct, corrected_position_velocity, formulation};
-use crate::ekf::{Ekf, FilterConfig, Formulation, KeptClose, Matrix15, Vector15};
+use crate::ekf::{Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15};
 use crate::ekf::{ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::mechanization::NavState;
 use crate::montecarlo::Scenario;
@@ -52,9 +52,10 @@ pub(super) struct SmootherLog {
     /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
     pub(super) update_epochs: Vec<Option<usize>>,
     /// Under a covariance step, each close the filter made and its epoch: the backward
-    /// pass reads them instead of rebuilding them (2.9 kB each, one per step). None:
-    /// not kept (every sample), the backward pass rebuilds what it needs.
-    pub(super) closes: Option<Vec<(usize, KeptClose)>>,
+    /// pass reads them instead of rebuilding them (2.0 kB each, one per step, room
+    /// made for them at the start). None: not kept (every sample), the backward pass
+    /// rebuilds what it needs.
+    pub(super) closes: Option<KeptCloses>,
 }
 
 impl SmootherLog {
@@ -315,11 +316,15 @@ impl Run {
             update_epochs: Vec::new(),
             closes: None,
         };
-        if self.ekf.config().covariance_every_sample() {
+        let cfg = self.ekf.config();
+        if cfg.covariance_every_sample() {
             log.imu.reserve(n);
         } else {
+            // Room for a close per step and one before each DVL update.
+            let per_step = (cfg.covariance_step / scenario.truth.dt).floor().max(1.0) as usize;
+            let updates = self.dvl_every.map_or(0, |every| n / every.max(1));
             self.ekf.keep_closes();
-            log.closes = Some(Vec::new());
+            log.closes = Some(KeptCloses::with_capacity(n / per_step + updates + 2));
         }
         log.push(self.k, &mut self.ekf, self.true_bias, self.record_every > 0);
         self.smoother = Some(Box::new(log));
@@ -356,7 +361,7 @@ impl Run {
         let covariances = Covariances::Where(&recorded);
         let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
         let mut reduced = Reduced::new(&log, truth);
-        let kept = log.closes.as_deref();
+        let kept = log.closes.as_ref();
         let smoothed = smooth_into(
             &forward,
             cfg,

@@ -32,7 +32,7 @@
 
 use super::calibration::{correct_mounting, Cross, DvlMounting, N_CALIBRATED, SCALE};
 use super::interval::Interval as CovarianceStep;
-use super::{correct, Ekf, FilterConfig, Formulation, KeptClose, Matrix15, Vector15, ATT, VEL};
+use super::{correct, Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15, ATT, VEL};
 use crate::attitude::skew;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
@@ -360,14 +360,14 @@ pub fn smooth(
 }
 
 /// [`smooth`] reading the closes of the covariance step that the forward pass kept
-/// ([`Ekf::keep_closes`], each with its epoch, in order) instead of rebuilding them: the
+/// ([`Ekf::keep_closes`]) instead of rebuilding them: the
 /// same numbers, bit for bit, without the rebuild's prediction. Without a covariance
 /// step they are not read.
 pub fn smooth_kept(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    closes: &[(usize, KeptClose)],
+    closes: &KeptCloses,
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
@@ -378,7 +378,7 @@ fn smooth_with(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    kept: Option<&[(usize, KeptClose)]>,
+    kept: Option<&KeptCloses>,
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
@@ -455,7 +455,7 @@ pub fn smooth_into<S: Sink>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    kept: Option<&[(usize, KeptClose)]>,
+    kept: Option<&KeptCloses>,
     covariances: Covariances<'_>,
     out: &mut S,
     cancel: &Cancel,

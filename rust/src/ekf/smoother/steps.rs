@@ -24,7 +24,7 @@
 use super::{full_p, lift, restart, Covariances, Forward, Node, Sink, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
-use crate::ekf::{FilterConfig, KeptClose};
+use crate::ekf::{FilterConfig, KeptCloses};
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
@@ -51,7 +51,7 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    kept: Option<&[(usize, KeptClose)]>,
+    kept: Option<&KeptCloses>,
     covariances: Covariances<'_>,
     out: &mut S,
     cancel: &Cancel,
@@ -309,15 +309,17 @@ fn fill<const N: usize>(
 
 /// The closes in `(a, b]` of the covariance step that the forward pass kept (see
 /// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them.
-fn kept_between<const N: usize>(kept: &[(usize, KeptClose)], a: &Node, b: &Node) -> Vec<Close<N>> {
-    let lo = kept.partition_point(|(e, _)| *e <= a.epoch);
-    let hi = kept.partition_point(|(e, _)| *e <= b.epoch);
-    kept[lo..hi.max(lo)]
-        .iter()
-        .map(|(epoch, c)| Close {
-            epoch: *epoch,
-            phi: c.phi,
-            p_prior: lift(&c.p, c.calibration.as_deref().map(|(x, v)| (x, v))),
+fn kept_between<const N: usize>(kept: &KeptCloses, a: &Node, b: &Node) -> Vec<Close<N>> {
+    let lo = kept.epochs.partition_point(|e| *e <= a.epoch);
+    let hi = kept.epochs.partition_point(|e| *e <= b.epoch).max(lo);
+    (lo..hi)
+        .map(|k| {
+            let c = &kept.closes[k];
+            Close {
+                epoch: kept.epochs[k],
+                phi: c.phi,
+                p_prior: lift(&c.p(), c.calibration.as_deref().map(|(x, v)| (x, v))),
+            }
         })
         .collect()
 }
