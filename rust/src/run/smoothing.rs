@@ -42,13 +42,17 @@ pub(super) struct SmootherLog {
     /// them (every sample; empty under a covariance step).
     pub(super) imu: Vec<[f64; 6]>,
     pub(super) nav: Vec<NavState>,
+    /// The bias estimates `[b_a, b_g]` at every epoch where the backward pass rebuilds
+    /// the covariances (every sample; empty under a covariance step, where they are
+    /// read only at the epochs of `whole`).
     pub(super) bias: Vec<[f64; 6]>,
     /// With the DVL calibration states, their estimate at every epoch (empty without).
     pub(super) calibration: Vec<[f64; 4]>,
-    /// The IMU's true bias (the one errors are taken against) at each epoch where the
-    /// whole smoothed solution is read, in order: the recorded epochs and those of the
-    /// DVL updates (the others read the velocity and position alone).
-    pub(super) true_bias: Vec<(usize, [f64; 6])>,
+    /// At each epoch where the whole smoothed solution is read, in order (the recorded
+    /// epochs and those of the DVL updates; the others read the velocity and position
+    /// alone): the epoch, the filter's bias estimates and the IMU's true bias (the one
+    /// errors are taken against).
+    pub(super) whole: Vec<(usize, [f64; 6], [f64; 6])>,
     /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
     pub(super) update_epochs: Vec<Option<usize>>,
     /// Under a covariance step, each close the filter made and its epoch: the backward
@@ -73,12 +77,39 @@ impl SmootherLog {
             ekf.take_closes(epoch, closes);
         }
         self.nav.push(ekf.nav);
-        self.bias.push(bias_array(ekf));
+        if self.closes.is_none() {
+            self.bias.push(bias_array(ekf));
+        }
         if let Some(c) = &ekf.calibration {
             self.calibration.push(c.reported());
         }
         if recorded || self.update_epochs.last() == Some(&Some(epoch)) {
-            self.true_bias.push((epoch, true_bias));
+            self.whole.push((epoch, bias_array(ekf), true_bias));
+        }
+    }
+}
+
+/// How many epochs back [`Reduced::apply`] asks for its data ahead of time: about a
+/// close of the default covariance step at 100 Hz.
+const PREFETCH: usize = 10;
+
+/// No entry in [`SmootherLog::whole`] at an epoch.
+const NOT_WHOLE: u32 = u32::MAX;
+
+/// Ask the CPU to bring `x` into its cache (a hint; nothing elsewhere).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = (x as *const T).cast::<i8>();
+        // SAFETY: SSE is part of every x86_64 CPU, and a prefetch reads nothing (it
+        // never faults, whatever the address).
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            if std::mem::size_of::<T>() > 64 {
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            }
         }
     }
 }
@@ -90,8 +121,9 @@ impl SmootherLog {
 struct Reduced<'a> {
     log: &'a SmootherLog,
     truth: &'a Truth,
-    /// Whether the whole solution is read at each epoch.
-    whole: Vec<bool>,
+    /// Where the whole solution is read: the index in the log's `whole` at each epoch
+    /// (`NOT_WHOLE` elsewhere).
+    whole: Vec<u32>,
     /// `[|δv|², Σ|δv_j|, δN² + δE²]` at each epoch the pass corrected.
     terms: Vec<Option<[f64; 3]>>,
     /// The smoothed solution and bias estimates where the whole one is read.
@@ -103,16 +135,16 @@ struct Reduced<'a> {
 impl<'a> Reduced<'a> {
     fn new(log: &'a SmootherLog, truth: &'a Truth) -> Self {
         let n = log.nav.len();
-        let mut whole = vec![false; n];
-        for (k, _) in &log.true_bias {
-            whole[*k] = true;
+        let mut whole = vec![NOT_WHOLE; n];
+        for (at, (k, _, _)) in log.whole.iter().enumerate() {
+            whole[*k] = at as u32;
         }
         Self {
             log,
             truth,
             whole,
             terms: vec![None; n],
-            solutions: Vec::with_capacity(log.true_bias.len()),
+            solutions: Vec::with_capacity(log.whole.len()),
             sigma: Vec::new(),
             node_covariance: Vec::with_capacity(log.nodes.0.len()),
         }
@@ -133,10 +165,17 @@ impl<'a> Reduced<'a> {
 
 impl Sink for Reduced<'_> {
     fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
+        // The pass goes back close by close, forward inside each: ask early for the
+        // epochs of the next close back (the run's log is far out of the cache).
+        if let Some(ahead) = i.checked_sub(PREFETCH) {
+            prefetch(&self.log.nav[ahead]);
+            prefetch(&self.truth.states[ahead]);
+            prefetch(&self.truth.ned_scale[ahead]);
+        }
         let dx: Vector15 = ds.fixed_rows::<15>(0).into_owned();
         let nav = &self.log.nav[i];
-        let (lla, vel) = if self.whole[i] {
-            let (mut s, b) = (*nav, self.log.bias[i]);
+        let (lla, vel) = if self.whole[i] != NOT_WHOLE {
+            let (mut s, b) = (*nav, self.log.whole[self.whole[i] as usize].1);
             let (mut ab, mut gb) = (
                 Vector3::new(b[0], b[1], b[2]),
                 Vector3::new(b[3], b[4], b[5]),
@@ -227,19 +266,20 @@ fn smoothed_metrics(
         .iter()
         .map(|(k, nav, b)| (*k, (*nav, *b)))
         .collect();
-    let solution = |k: usize| {
-        solutions
-            .get(&k)
-            .copied()
-            .unwrap_or((log.nav[k], log.bias[k]))
+    // Every epoch read whole has its entry in the log's `whole`.
+    let whole = |k: usize| {
+        let at = log.whole.binary_search_by_key(&k, |(e, _, _)| *e);
+        at.map_or(([f64::NAN; 6], [f64::NAN; 6]), |at| {
+            (log.whole[at].1, log.whole[at].2)
+        })
     };
-    let true_bias = |k: usize| {
-        let at = log.true_bias.binary_search_by_key(&k, |(e, _)| *e);
-        at.map_or([f64::NAN; 6], |at| log.true_bias[at].1)
+    let solution = |k: usize| {
+        let forward = || (log.nav[k], whole(k).0);
+        solutions.get(&k).copied().unwrap_or_else(forward)
     };
     let error = |k: usize| {
         let (nav, bias) = solution(k);
-        solution_error(&nav, &bias, &truth.states[k], &true_bias(k))
+        solution_error(&nav, &bias, &truth.states[k], &whole(k).1)
     };
     let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
     let mut horizontal = 0.0;
@@ -310,15 +350,16 @@ impl Run {
             nodes: Nodes::default(),
             imu: Vec::new(),
             nav: Vec::with_capacity(n),
-            bias: Vec::with_capacity(n),
+            bias: Vec::new(),
             calibration: Vec::new(),
-            true_bias: Vec::new(),
+            whole: Vec::new(),
             update_epochs: Vec::new(),
             closes: None,
         };
         let cfg = self.ekf.config();
         if cfg.covariance_every_sample() {
             log.imu.reserve(n);
+            log.bias.reserve(n);
         } else {
             // Room for a close per step and one before each DVL update.
             let per_step = (cfg.covariance_step / scenario.truth.dt).floor().max(1.0) as usize;
@@ -419,7 +460,10 @@ mod tests {
                 let mut run = Run::new(&sc, &cfg, &spec, 3, 1, 25, None).unwrap();
                 run.keep_for_smoother(&sc);
                 if !kept {
-                    run.smoother.as_mut().unwrap().closes = None;
+                    // Rebuilt: the bias estimates at every epoch, the first's too.
+                    let log = run.smoother.as_mut().unwrap();
+                    log.closes = None;
+                    log.bias.push(super::bias_array(&run.ekf));
                 }
                 // Stop off the step's grid: the last step is closed at the end.
                 for _ in 0..sc.truth.len() - 7 {

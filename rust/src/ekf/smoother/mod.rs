@@ -382,6 +382,11 @@ fn smooth_with(
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
+    if forward.bias.len() != forward.nav.len() {
+        return Err(Error::Numerical(
+            "the smoother needs the bias estimates at every epoch".into(),
+        ));
+    }
     let mut out = Smoothed::start(forward, nodes.len());
     smooth_into(forward, cfg, nodes, kept, covariances, &mut out, cancel)?;
     out.node_covariance.reverse();
@@ -464,6 +469,13 @@ pub fn smooth_into<S: Sink>(
     if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
         return Err(Error::Numerical(
             "the smoother's nodes do not span the pass".into(),
+        ));
+    }
+    if kept.is_none() && forward.bias.len() != n {
+        return Err(Error::Numerical(
+            "the smoother needs the bias estimates at every epoch to rebuild the \
+             covariances"
+                .into(),
         ));
     }
     let calibrated = cfg.dvl_calibration.is_some();
