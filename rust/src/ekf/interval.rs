@@ -245,7 +245,7 @@ impl Ekf {
     pub fn take_closes(&mut self, epoch: usize, out: &mut KeptCloses) {
         if let Some(kept) = self.kept_closes.as_mut() {
             out.epochs.extend(std::iter::repeat_n(epoch, kept.len()));
-            out.closes.extend(kept.drain(..));
+            out.closes.append(kept);
         }
     }
 

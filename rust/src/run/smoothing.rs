@@ -340,10 +340,12 @@ fn smoothed_metrics(
 impl Run {
     /// Keep what the RTS smoother needs from now on (call before the first step): the
     /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
-    /// keeps the forward solution at every IMU epoch (~220 bytes each; the raw sample
-    /// too, 48 bytes, without a covariance step), one covariance per DVL update, and
-    /// under a covariance step each close the filter makes (2.9 kB per step): the
-    /// backward pass reads them instead of rebuilding them, ~20 % of its work.
+    /// keeps the forward solution at every IMU epoch (120 bytes each; the raw sample
+    /// and the bias estimates too, 96 bytes, without a covariance step), one
+    /// covariance per DVL update, the bias estimates and true bias where the whole
+    /// smoothed solution is read, and under a covariance step each close the filter
+    /// makes (2.0 kB per step): the backward pass reads them instead of rebuilding
+    /// them, ~20 % of its work.
     pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
         let n = scenario.truth.len() + 1;
         let mut log = SmootherLog {
