@@ -337,7 +337,40 @@ fn smoothed_metrics(
     }
 }
 
+impl SmootherLog {
+    /// What the backward pass reads of the forward one (the run's epochs so far).
+    fn forward<'a>(&'a self, truth: &'a Truth) -> Forward<'a> {
+        let k = self.nav.len() - 1;
+        Forward {
+            imu: &self.imu,
+            imu_time: &truth.time[1..=k],
+            t0: truth.time[0],
+            nav: &self.nav,
+            bias: &self.bias,
+            calibration: &self.calibration,
+            dt: Some(truth.dt),
+        }
+    }
+}
+
 impl Run {
+    /// The run's log for the smoother, taken and completed at its last epoch (the step
+    /// under way closed, the last node), or None (not kept, or the filter failed).
+    fn finished_log(&mut self) -> Option<Box<SmootherLog>> {
+        let mut log = self.smoother.take()?;
+        if self.failure.is_some() {
+            return None;
+        }
+        if let (Some(closes), false) = (log.closes.as_mut(), self.ekf.is_up_to_date()) {
+            // The step under way, closed at the last epoch as the nodes close it.
+            let mut last = self.ekf.clone();
+            last.bring_up_to_date();
+            last.take_closes(self.k, closes);
+        }
+        log.nodes.finish(self.k, &self.ekf);
+        Some(log)
+    }
+
     /// Keep what the RTS smoother needs from now on (call before the first step): the
     /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
     /// keeps the forward solution at every IMU epoch (120 bytes each; the raw sample
@@ -376,27 +409,9 @@ impl Run {
     /// The smoothed metrics of a run kept for the smoother, or None (not kept, or the
     /// filter failed). A smoother that fails numerically gives NaN metrics.
     pub(super) fn smoothed_record(&mut self, scenario: &Scenario) -> Option<SmoothedRecord> {
-        let mut log = self.smoother.take()?;
-        if self.failure.is_some() {
-            return None;
-        }
+        let log = self.finished_log()?;
         let truth = &*scenario.truth;
-        if let (Some(closes), false) = (log.closes.as_mut(), self.ekf.is_up_to_date()) {
-            // The step under way, closed at the last epoch as the nodes close it.
-            let mut last = self.ekf.clone();
-            last.bring_up_to_date();
-            last.take_closes(self.k, closes);
-        }
-        log.nodes.finish(self.k, &self.ekf);
-        let forward = Forward {
-            imu: &log.imu,
-            imu_time: &truth.time[1..=self.k],
-            t0: truth.time[0],
-            nav: &log.nav,
-            bias: &log.bias,
-            calibration: &log.calibration,
-            dt: Some(truth.dt),
-        };
+        let forward = log.forward(truth);
         let cfg = self.ekf.config();
         // σ where the histories read it; the NEES reads the nodes' covariances.
         let every = self.record_every;
@@ -439,7 +454,9 @@ impl Run {
 
 #[cfg(test)]
 mod tests {
+    use super::{smooth_into, Cancel, Covariances, Formulation, Reduced};
     use crate::ekf::calibration::CalibrationConfig;
+    use crate::ekf::smoother::smooth;
     use crate::ekf::FilterConfig;
     use crate::montecarlo::tests::{short_scenario, tuned_filter, TRUE_Q};
     use crate::noise::StrategySpec;
@@ -476,6 +493,65 @@ mod tests {
             let (kept, rebuilt) = (record(true), record(false));
             assert!(kept.srmse.is_finite() && !kept.nees.is_empty());
             assert_eq!(format!("{kept:?}"), format!("{rebuilt:?}"));
+        }
+    }
+
+    /// What a run's metrics keep of the smoothed solution is the whole smoothed
+    /// solution's, bit for bit: the velocity and position at every epoch (corrected
+    /// alone there) and, where the whole solution is read, the solution and bias, with
+    /// σ at the recorded epochs (both formulations, 15 and 19 states, every sample).
+    #[test]
+    fn the_reduced_solution_is_the_smoothed_one() {
+        let sc = short_scenario(30.0);
+        let spec = StrategySpec::Constant { q: TRUE_Q };
+        for formulation in [Formulation::Classic, Formulation::Invariant] {
+            for calibration in [None, Some(CalibrationConfig::default())] {
+                let cfg = FilterConfig {
+                    covariance_step: 0.0,
+                    formulation,
+                    dvl_calibration: calibration,
+                    ..tuned_filter()
+                };
+                let mut run = Run::new(&sc, &cfg, &spec, 3, 1, 25, None).unwrap();
+                run.keep_for_smoother(&sc);
+                for _ in 0..sc.truth.len() - 7 {
+                    run.step(&sc);
+                }
+                let log = run.finished_log().unwrap();
+                let forward = log.forward(&sc.truth);
+                let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
+                let recorded = |k: usize| k.is_multiple_of(25);
+                let covariances = Covariances::Where(&recorded);
+                let whole = smooth(&forward, &cfg, nodes, covariances, cancel).unwrap();
+                let mut reduced = Reduced::new(&log, &sc.truth);
+                smooth_into(
+                    &forward,
+                    &cfg,
+                    nodes,
+                    None,
+                    covariances,
+                    &mut reduced,
+                    cancel,
+                )
+                .unwrap();
+                assert!(!log.whole.is_empty() && reduced.solutions.len() == log.whole.len());
+                for k in 1..log.nav.len() {
+                    let nav = &whole.nav[k];
+                    let terms = reduced.terms[k].unwrap_or_else(|| {
+                        // The last epoch, left as the forward pass gave it.
+                        assert!(k == log.nav.len() - 1 && *nav == log.nav[k]);
+                        reduced.terms_of(k, &nav.lla, &nav.vel)
+                    });
+                    assert_eq!(terms, reduced.terms_of(k, &nav.lla, &nav.vel), "epoch {k}");
+                }
+                for (k, nav, bias) in &reduced.solutions {
+                    assert_eq!((nav, bias), (&whole.nav[*k], &whole.bias[*k]), "epoch {k}");
+                }
+                let sigma: Vec<_> = (0..log.nav.len()).filter(|k| recorded(*k)).collect();
+                assert!(sigma
+                    .iter()
+                    .all(|k| reduced.sigma.contains(&(*k, whole.sigma[*k]))));
+            }
         }
     }
 }
