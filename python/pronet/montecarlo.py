@@ -360,13 +360,14 @@ def monte_carlo(
             ``first_run .. first_run + n_runs``, identical to those runs of the whole).
         smooth: also run the RTS smoother backward over every run
             (:attr:`MonteCarloResult.smoothed`; the filter's numbers are unchanged). A
-            run then keeps its solution at every IMU epoch until it is smoothed (~220
-            bytes each) and, under a covariance step, each close of the step (2.9 kB:
-            ~290 bytes per IMU epoch at 0.1 s and 100 Hz); at every IMU sample, the raw
-            samples (48 bytes each) and, while it smooths an interval between two DVL
-            updates, a covariance and the error dynamics per IMU step of it (about 2.5
-            kB, per thread). It costs 2–3 plain runs (docs/filter.md, "The RTS
-            smoother").
+            run then keeps its solution at every IMU epoch until it is smoothed (120
+            bytes each, and 32 while it is smoothed) and, under a covariance step, each
+            close of the step (2.0 kB: ~200 bytes per IMU epoch at 0.1 s and 100 Hz); at
+            every IMU sample, the raw samples and the bias estimates (96 bytes an epoch)
+            and, while it smooths an interval between two DVL updates, a covariance and
+            the error dynamics per IMU step of it (about 2.5 kB, per thread). It costs
+            about 2.2 plain runs at the default 0.1 s step, 3 at every IMU sample
+            (docs/filter.md, "The RTS smoother").
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")

@@ -427,8 +427,8 @@ impl Run {
                 log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
             }
             if let Some(log) = self.smoother.as_mut() {
-                log.push(self.k, &mut self.ekf);
-                log.true_bias.push(self.true_bias);
+                let recorded = self.record_every > 0 && self.k.is_multiple_of(self.record_every);
+                log.push(self.k, &mut self.ekf, self.true_bias, recorded);
             }
         }
         let dv = self.ekf.nav.vel - state.vel;

@@ -47,7 +47,7 @@ pub use divergence::{NisMonitor, DIVERGENCE_MEAN_NIS};
 use dynamics::{add_imu_noise, ErrorDynamics};
 pub use formulation::Formulation;
 use interval::Interval;
-pub use interval::KeptClose;
+pub use interval::{KeptClose, KeptCloses};
 pub use recorded::{
     filter_recorded, filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput,
     RecordedData,
@@ -492,16 +492,28 @@ pub fn correct(
     formulation: Formulation,
 ) {
     let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
-    let dp = block(POS);
     let rotation = exp_so3(&block(ATT));
-    nav.lla -= earth::ned_delta_to_lla_delta(&nav.lla, &dp);
-    nav.vel = match formulation {
-        Formulation::Classic => nav.vel - block(VEL),
-        Formulation::Invariant => rotation * (nav.vel - block(VEL)),
-    };
+    (nav.lla, nav.vel) = corrected_position_velocity(nav, dx, formulation, || rotation);
     nav.dcm = rotation * nav.dcm;
     *accel_bias -= block(ACC_BIAS);
     *gyro_bias -= block(GYRO_BIAS);
+}
+
+/// The position and velocity of [`correct`] alone, by the same operations (the same
+/// bits), `rotation` giving `Exp(ψ̂)` where the formulation reads it (the invariant).
+pub fn corrected_position_velocity(
+    nav: &NavState,
+    dx: &Vector15,
+    formulation: Formulation,
+    rotation: impl FnOnce() -> Matrix3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
+    let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
+    let lla = nav.lla - earth::ned_delta_to_lla_delta(&nav.lla, &block(POS));
+    let vel = match formulation {
+        Formulation::Classic => nav.vel - block(VEL),
+        Formulation::Invariant => rotation() * (nav.vel - block(VEL)),
+    };
+    (lla, vel)
 }
 
 /// What [`kalman_update`] did: the update's report (its gain the first 15 rows) and

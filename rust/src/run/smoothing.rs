@@ -3,14 +3,20 @@
 //! against the truth ([`SmoothedRecord`]), as the run reports its own.
 
 use super::{bias_array, nees3, solution_error, History, Run};
+use crate::attitude::exp_so3;
 use crate::cancel::Cancel;
-use crate::ekf::formulation;
-use crate::ekf::smoother::{smooth, smooth_kept, Covariances, Forward, Nodes, Smoothed};
-use crate::ekf::{Ekf, Formulation, KeptClose, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::ekf::smoother::{
+    between_variances, classic_variances, classic_variances_of, sigma15, smooth_into, Covariances,
+    Forward, Nodes, Sink,
+};
+use crate::ekf::{correct, corrected_position_velocity, formulation};
+use crate::ekf::{Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15};
+use crate::ekf::{ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::mechanization::NavState;
 use crate::montecarlo::Scenario;
 use crate::trajectory::Truth;
-use nalgebra::Vector3;
+use nalgebra::{SMatrix, SVector, Vector3};
+use std::collections::HashMap;
 
 /// A run's metrics after the RTS smoother: the [`RunSummary`] error metrics, the block
 /// NEES at the DVL updates and the histories of the smoothed solution.
@@ -36,31 +42,192 @@ pub(super) struct SmootherLog {
     /// them (every sample; empty under a covariance step).
     pub(super) imu: Vec<[f64; 6]>,
     pub(super) nav: Vec<NavState>,
+    /// The bias estimates `[b_a, b_g]` at every epoch where the backward pass rebuilds
+    /// the covariances (every sample; empty under a covariance step, where they are
+    /// read only at the epochs of `whole`).
     pub(super) bias: Vec<[f64; 6]>,
     /// With the DVL calibration states, their estimate at every epoch (empty without).
     pub(super) calibration: Vec<[f64; 4]>,
-    /// The IMU's true bias at each epoch (the one errors there are taken against).
-    pub(super) true_bias: Vec<[f64; 6]>,
+    /// At each epoch where the whole smoothed solution is read, in order (the recorded
+    /// epochs and those of the DVL updates; the others read the velocity and position
+    /// alone): the epoch, the filter's bias estimates and the IMU's true bias (the one
+    /// errors are taken against).
+    pub(super) whole: Vec<(usize, [f64; 6], [f64; 6])>,
     /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
     pub(super) update_epochs: Vec<Option<usize>>,
     /// Under a covariance step, each close the filter made and its epoch: the backward
-    /// pass reads them instead of rebuilding them (2.9 kB each, one per step). None:
-    /// not kept (every sample), the backward pass rebuilds what it needs.
-    pub(super) closes: Option<Vec<(usize, KeptClose)>>,
+    /// pass reads them instead of rebuilding them (2.0 kB each, one per step, room
+    /// made for them at the start). None: not kept (every sample), the backward pass
+    /// rebuilds what it needs.
+    pub(super) closes: Option<KeptCloses>,
 }
 
 impl SmootherLog {
-    /// Keep the forward solution of the epoch `epoch` just run (the true bias apart)
-    /// and the closes the filter made there.
-    pub(super) fn push(&mut self, epoch: usize, ekf: &mut Ekf) {
+    /// Keep the forward solution of the epoch `epoch` just run, the closes the filter
+    /// made there and, where the whole solution is read (`recorded`, or a DVL update
+    /// there), the true bias `true_bias`.
+    pub(super) fn push(
+        &mut self,
+        epoch: usize,
+        ekf: &mut Ekf,
+        true_bias: [f64; 6],
+        recorded: bool,
+    ) {
         if let Some(closes) = self.closes.as_mut() {
             ekf.take_closes(epoch, closes);
         }
         self.nav.push(ekf.nav);
-        self.bias.push(bias_array(ekf));
+        if self.closes.is_none() {
+            self.bias.push(bias_array(ekf));
+        }
         if let Some(c) = &ekf.calibration {
             self.calibration.push(c.reported());
         }
+        if recorded || self.update_epochs.last() == Some(&Some(epoch)) {
+            self.whole.push((epoch, bias_array(ekf), true_bias));
+        }
+    }
+}
+
+/// How many epochs back [`Reduced::apply`] asks for its data ahead of time: about a
+/// close of the default covariance step at 100 Hz.
+const PREFETCH: usize = 10;
+
+/// No entry in [`SmootherLog::whole`] at an epoch.
+const NOT_WHOLE: u32 = u32::MAX;
+
+/// Ask the CPU to bring `x` into its cache (a hint; nothing elsewhere).
+#[inline(always)]
+fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = (x as *const T).cast::<i8>();
+        // SAFETY: SSE is part of every x86_64 CPU, and a prefetch reads nothing (it
+        // never faults, whatever the address).
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            if std::mem::size_of::<T>() > 64 {
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            }
+        }
+    }
+}
+
+/// The smoothed solution of a run reduced to what its metrics read, as the backward
+/// pass gives it ([`Sink`]): at every epoch the terms of the velocity and horizontal
+/// position errors, and the whole solution only where it is read (the epochs whose
+/// true bias the log kept). No copy of the forward solution is made.
+struct Reduced<'a> {
+    log: &'a SmootherLog,
+    truth: &'a Truth,
+    /// Where the whole solution is read: the index in the log's `whole` at each epoch
+    /// (`NOT_WHOLE` elsewhere).
+    whole: Vec<u32>,
+    /// `[|δv|², Σ|δv_j|, δN² + δE²]` at each epoch the pass corrected.
+    terms: Vec<Option<[f64; 3]>>,
+    /// The smoothed solution and bias estimates where the whole one is read.
+    solutions: Vec<(usize, NavState, [f64; 6])>,
+    sigma: Vec<(usize, [f64; 15])>,
+    node_covariance: Vec<(usize, Matrix15)>,
+}
+
+impl<'a> Reduced<'a> {
+    fn new(log: &'a SmootherLog, truth: &'a Truth) -> Self {
+        let n = log.nav.len();
+        let mut whole = vec![NOT_WHOLE; n];
+        for (at, (k, _, _)) in log.whole.iter().enumerate() {
+            whole[*k] = at as u32;
+        }
+        Self {
+            log,
+            truth,
+            whole,
+            terms: vec![None; n],
+            solutions: Vec::with_capacity(log.whole.len()),
+            sigma: Vec::new(),
+            node_covariance: Vec::with_capacity(log.nodes.0.len()),
+        }
+    }
+
+    /// The error terms of the solution (`lla`, `vel`) at epoch `k`.
+    fn terms_of(&self, k: usize, lla: &Vector3<f64>, vel: &Vector3<f64>) -> [f64; 3] {
+        let truth = &self.truth.states[k];
+        let dv = vel - truth.vel;
+        let dp = self.truth.ned_scale[k].error(lla, &truth.lla);
+        [
+            dv.norm_squared(),
+            dv.abs().sum(),
+            dp[0] * dp[0] + dp[1] * dp[1],
+        ]
+    }
+}
+
+impl Sink for Reduced<'_> {
+    fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
+        // The pass goes back close by close, forward inside each: ask early for the
+        // epochs of the next close back (the run's log is far out of the cache).
+        if let Some(ahead) = i.checked_sub(PREFETCH) {
+            prefetch(&self.log.nav[ahead]);
+            prefetch(&self.truth.states[ahead]);
+            prefetch(&self.truth.ned_scale[ahead]);
+        }
+        let dx: Vector15 = ds.fixed_rows::<15>(0).into_owned();
+        let nav = &self.log.nav[i];
+        let (lla, vel) = if self.whole[i] != NOT_WHOLE {
+            let (mut s, b) = (*nav, self.log.whole[self.whole[i] as usize].1);
+            let (mut ab, mut gb) = (
+                Vector3::new(b[0], b[1], b[2]),
+                Vector3::new(b[3], b[4], b[5]),
+            );
+            correct(&mut s, &mut ab, &mut gb, &dx, cfg.formulation);
+            let bias = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
+            self.solutions.push((i, s, bias));
+            (s.lla, s.vel)
+        } else {
+            let psi = || exp_so3(&Vector3::new(dx[ATT], dx[ATT + 1], dx[ATT + 2]));
+            corrected_position_velocity(nav, &dx, cfg.formulation, psi)
+        };
+        self.terms[i] = Some(self.terms_of(i, &lla, &vel));
+    }
+
+    fn set_sigma<const N: usize>(
+        &mut self,
+        i: usize,
+        ps: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let sigma = sigma15(&classic_variances(ps, cfg, &forward.nav[i].vel));
+        self.sigma.push((i, sigma));
+    }
+
+    fn set_sigma_of<const N: usize>(
+        &mut self,
+        i: usize,
+        p: &SMatrix<f64, N, N>,
+        lambda: &SMatrix<f64, N, N>,
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let variance = classic_variances_of(p, lambda, cfg, &forward.nav[i]);
+        self.sigma.push((i, sigma15(&variance)));
+    }
+
+    fn set_sigma_between<const N: usize>(
+        &mut self,
+        i: usize,
+        between: (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>, f64),
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        let variance = between_variances(between, cfg, &forward.nav[i].vel);
+        self.sigma.push((i, sigma15(&variance)));
+    }
+
+    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
+        let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
+        self.node_covariance.push((epoch, p));
     }
 }
 
@@ -95,31 +262,49 @@ fn smoothed_block_nees(
     nees
 }
 
-/// The smoothed solution's metrics against the truth, as a forward run reports them.
+/// The smoothed solution's metrics against the truth, as a forward run reports them
+/// (an epoch the pass left as it was, the last without a covariance step, is the
+/// forward solution's).
 fn smoothed_metrics(
-    s: &Smoothed,
-    log: &SmootherLog,
+    s: Reduced<'_>,
     formulation: Formulation,
-    truth: &Truth,
     record_every: usize,
 ) -> SmoothedRecord {
-    let n = s.nav.len() - 1;
-    let error =
-        |k: usize| solution_error(&s.nav[k], &s.bias[k], &truth.states[k], &log.true_bias[k]);
+    let (log, truth) = (s.log, s.truth);
+    let n = log.nav.len() - 1;
+    let solutions: HashMap<usize, (NavState, [f64; 6])> = s
+        .solutions
+        .iter()
+        .map(|(k, nav, b)| (*k, (*nav, *b)))
+        .collect();
+    // Every epoch read whole has its entry in the log's `whole`.
+    let whole = |k: usize| {
+        let at = log.whole.binary_search_by_key(&k, |(e, _, _)| *e);
+        at.map_or(([f64::NAN; 6], [f64::NAN; 6]), |at| {
+            (log.whole[at].1, log.whole[at].2)
+        })
+    };
+    let solution = |k: usize| {
+        let forward = || (log.nav[k], whole(k).0);
+        solutions.get(&k).copied().unwrap_or_else(forward)
+    };
+    let error = |k: usize| {
+        let (nav, bias) = solution(k);
+        solution_error(&nav, &bias, &truth.states[k], &whole(k).1)
+    };
     let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
     let mut horizontal = 0.0;
     // Velocity and horizontal position alone at every epoch (the attitude's logarithm
-    // and the biases only where they are recorded).
+    // and the biases only where they are recorded), summed in the epochs' order.
     for k in 1..=n {
-        let dv = s.nav[k].vel - truth.states[k].vel;
-        sum_sq += dv.norm_squared();
-        sum_abs += dv.abs().sum();
-        let dp = truth.ned_scale[k].error(&s.nav[k].lla, &truth.states[k].lla);
-        let sq = dp[0] * dp[0] + dp[1] * dp[1];
+        let [v2, v1, sq] =
+            s.terms[k].unwrap_or_else(|| s.terms_of(k, &log.nav[k].lla, &log.nav[k].vel));
+        sum_sq += v2;
+        sum_abs += v1;
         max_sq = max_sq.max(sq);
         horizontal = sq.sqrt();
     }
-    let covariance: std::collections::HashMap<usize, &Matrix15> =
+    let covariance: HashMap<usize, &Matrix15> =
         s.node_covariance.iter().map(|(k, p)| (*k, p)).collect();
     let nees = log
         .update_epochs
@@ -129,7 +314,7 @@ fn smoothed_metrics(
                 Some((k, p)) => {
                     let about = &log.nav[k].vel;
                     smoothed_block_nees(
-                        &s.nav[k],
+                        &solution(k).0,
                         p,
                         formulation,
                         about,
@@ -142,10 +327,13 @@ fn smoothed_metrics(
         )
         .collect();
     let history = (record_every > 0).then(|| {
+        let sigma: HashMap<usize, [f64; 15]> = s.sigma.iter().copied().collect();
         let epochs = (0..=n).step_by(record_every);
         History {
             error: epochs.clone().map(error).collect(),
-            sigma: epochs.map(|k| s.sigma[k]).collect(),
+            sigma: epochs
+                .map(|k| sigma.get(&k).copied().unwrap_or([f64::NAN; 15]))
+                .collect(),
             imu_variance: Vec::new(),
         }
     });
@@ -160,44 +348,30 @@ fn smoothed_metrics(
     }
 }
 
-impl Run {
-    /// Keep what the RTS smoother needs from now on (call before the first step): the
-    /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
-    /// keeps the forward solution at every IMU epoch (~220 bytes each; the raw sample
-    /// too, 48 bytes, without a covariance step), one covariance per DVL update, and
-    /// under a covariance step each close the filter makes (2.9 kB per step): the
-    /// backward pass reads them instead of rebuilding them, ~20 % of its work.
-    pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
-        let n = scenario.truth.len() + 1;
-        let mut log = SmootherLog {
-            nodes: Nodes::default(),
-            imu: Vec::new(),
-            nav: Vec::with_capacity(n),
-            bias: Vec::with_capacity(n),
-            calibration: Vec::new(),
-            true_bias: Vec::with_capacity(n),
-            update_epochs: Vec::new(),
-            closes: None,
-        };
-        if self.ekf.config().covariance_every_sample() {
-            log.imu.reserve(n);
-        } else {
-            self.ekf.keep_closes();
-            log.closes = Some(Vec::new());
+impl SmootherLog {
+    /// What the backward pass reads of the forward one (the run's epochs so far).
+    fn forward<'a>(&'a self, truth: &'a Truth) -> Forward<'a> {
+        let k = self.nav.len() - 1;
+        Forward {
+            imu: &self.imu,
+            imu_time: &truth.time[1..=k],
+            t0: truth.time[0],
+            nav: &self.nav,
+            bias: &self.bias,
+            calibration: &self.calibration,
+            dt: Some(truth.dt),
         }
-        log.push(self.k, &mut self.ekf);
-        log.true_bias.push(self.true_bias);
-        self.smoother = Some(Box::new(log));
     }
+}
 
-    /// The smoothed metrics of a run kept for the smoother, or None (not kept, or the
-    /// filter failed). A smoother that fails numerically gives NaN metrics.
-    pub(super) fn smoothed_record(&mut self, scenario: &Scenario) -> Option<SmoothedRecord> {
+impl Run {
+    /// The run's log for the smoother, taken and completed at its last epoch (the step
+    /// under way closed, the last node), or None (not kept, or the filter failed).
+    fn finished_log(&mut self) -> Option<Box<SmootherLog>> {
         let mut log = self.smoother.take()?;
         if self.failure.is_some() {
             return None;
         }
-        let truth = &*scenario.truth;
         if let (Some(closes), false) = (log.closes.as_mut(), self.ekf.is_up_to_date()) {
             // The step under way, closed at the last epoch as the nodes close it.
             let mut last = self.ekf.clone();
@@ -205,26 +379,68 @@ impl Run {
             last.take_closes(self.k, closes);
         }
         log.nodes.finish(self.k, &self.ekf);
-        let forward = Forward {
-            imu: &log.imu,
-            imu_time: &truth.time[1..=self.k],
-            t0: truth.time[0],
-            nav: &log.nav,
-            bias: &log.bias,
-            calibration: &log.calibration,
-            dt: Some(truth.dt),
+        Some(log)
+    }
+
+    /// Keep what the RTS smoother needs from now on (call before the first step): the
+    /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
+    /// keeps the forward solution at every IMU epoch (120 bytes each; the raw sample
+    /// and the bias estimates too, 96 bytes, without a covariance step), one
+    /// covariance per DVL update, the bias estimates and true bias where the whole
+    /// smoothed solution is read, and under a covariance step each close the filter
+    /// makes (2.0 kB per step): the backward pass reads them instead of rebuilding
+    /// them, ~20 % of its work.
+    pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
+        let n = scenario.truth.len() + 1;
+        let mut log = SmootherLog {
+            nodes: Nodes::default(),
+            imu: Vec::new(),
+            nav: Vec::with_capacity(n),
+            bias: Vec::new(),
+            calibration: Vec::new(),
+            whole: Vec::new(),
+            update_epochs: Vec::new(),
+            closes: None,
         };
+        let cfg = self.ekf.config();
+        if cfg.covariance_every_sample() {
+            log.imu.reserve(n);
+            log.bias.reserve(n);
+        } else {
+            // Room for a close per step and one before each DVL update.
+            let per_step = (cfg.covariance_step / scenario.truth.dt).floor().max(1.0) as usize;
+            let updates = self.dvl_every.map_or(0, |every| n / every.max(1));
+            self.ekf.keep_closes();
+            log.closes = Some(KeptCloses::with_capacity(n / per_step + updates + 2));
+        }
+        log.push(self.k, &mut self.ekf, self.true_bias, self.record_every > 0);
+        self.smoother = Some(Box::new(log));
+    }
+
+    /// The smoothed metrics of a run kept for the smoother, or None (not kept, or the
+    /// filter failed). A smoother that fails numerically gives NaN metrics.
+    pub(super) fn smoothed_record(&mut self, scenario: &Scenario) -> Option<SmoothedRecord> {
+        let log = self.finished_log()?;
+        let truth = &*scenario.truth;
+        let forward = log.forward(truth);
         let cfg = self.ekf.config();
         // σ where the histories read it; the NEES reads the nodes' covariances.
         let every = self.record_every;
         let recorded = |k: usize| every > 0 && k.is_multiple_of(every);
         let covariances = Covariances::Where(&recorded);
         let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
-        let smoothed = match &log.closes {
-            Some(closes) => smooth_kept(&forward, cfg, nodes, closes, covariances, cancel),
-            None => smooth(&forward, cfg, nodes, covariances, cancel),
-        };
-        let Ok(smoothed) = smoothed else {
+        let mut reduced = Reduced::new(&log, truth);
+        let kept = log.closes.as_ref();
+        let smoothed = smooth_into(
+            &forward,
+            cfg,
+            nodes,
+            kept,
+            covariances,
+            &mut reduced,
+            cancel,
+        );
+        if smoothed.is_err() {
             let nan = f64::NAN;
             return Some(SmoothedRecord {
                 srmse: nan,
@@ -238,12 +454,10 @@ impl Run {
                     imu_variance: Vec::new(),
                 }),
             });
-        };
+        }
         Some(smoothed_metrics(
-            &smoothed,
-            &log,
+            reduced,
             cfg.formulation,
-            truth,
             self.record_every,
         ))
     }
@@ -251,11 +465,16 @@ impl Run {
 
 #[cfg(test)]
 mod tests {
+    use super::{smooth_into, Cancel, Covariances, Formulation, Forward, Reduced, Sink};
     use crate::ekf::calibration::CalibrationConfig;
+    use crate::ekf::smoother::smooth;
+    use crate::ekf::smoother::Smoothed;
     use crate::ekf::FilterConfig;
+    use crate::ekf::Matrix15;
     use crate::montecarlo::tests::{short_scenario, tuned_filter, TRUE_Q};
     use crate::noise::StrategySpec;
     use crate::run::Run;
+    use nalgebra::SMatrix;
 
     /// The closes of the covariance step that a run keeps are the ones the backward
     /// pass would rebuild: the smoothed record from either is the same, bit for bit
@@ -274,7 +493,10 @@ mod tests {
                 let mut run = Run::new(&sc, &cfg, &spec, 3, 1, 25, None).unwrap();
                 run.keep_for_smoother(&sc);
                 if !kept {
-                    run.smoother.as_mut().unwrap().closes = None;
+                    // Rebuilt: the bias estimates at every epoch, the first's too.
+                    let log = run.smoother.as_mut().unwrap();
+                    log.closes = None;
+                    log.bias.push(super::bias_array(&run.ekf));
                 }
                 // Stop off the step's grid: the last step is closed at the end.
                 for _ in 0..sc.truth.len() - 7 {
@@ -285,6 +507,98 @@ mod tests {
             let (kept, rebuilt) = (record(true), record(false));
             assert!(kept.srmse.is_finite() && !kept.nees.is_empty());
             assert_eq!(format!("{kept:?}"), format!("{rebuilt:?}"));
+        }
+    }
+
+    /// σ a fraction of the way between the covariances `from` and `to` at a few
+    /// epochs: the same from the whole smoothed solution and from a run's metrics.
+    fn between_alike<const N: usize>(
+        whole: &mut Smoothed,
+        reduced: &mut Reduced<'_>,
+        (from, to): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
+        cfg: &FilterConfig,
+        forward: &Forward<'_>,
+    ) {
+        for (k, w) in [(13, 0.3), (101, 0.7)] {
+            let (before, pr) = (whole.sigma[k], reduced.sigma.len());
+            whole.set_sigma_between(k, (from, to, w), cfg, forward);
+            reduced.set_sigma_between(k, (from, to, w), cfg, forward);
+            assert_ne!(whole.sigma[k], before, "epoch {k}");
+            assert_eq!(reduced.sigma[pr..], [(k, whole.sigma[k])], "epoch {k}");
+        }
+    }
+
+    /// What a run's metrics keep of the smoothed solution is the whole smoothed
+    /// solution's, bit for bit: the velocity and position at every epoch (corrected
+    /// alone there) and, where the whole solution is read, the solution and bias, with
+    /// σ at the recorded epochs (both formulations, 15 and 19 states, every sample).
+    #[test]
+    fn the_reduced_solution_is_the_smoothed_one() {
+        let sc = short_scenario(30.0);
+        let spec = StrategySpec::Constant { q: TRUE_Q };
+        for formulation in [Formulation::Classic, Formulation::Invariant] {
+            for calibration in [None, Some(CalibrationConfig::default())] {
+                let cfg = FilterConfig {
+                    covariance_step: 0.0,
+                    formulation,
+                    dvl_calibration: calibration,
+                    ..tuned_filter()
+                };
+                let mut run = Run::new(&sc, &cfg, &spec, 3, 1, 25, None).unwrap();
+                run.keep_for_smoother(&sc);
+                for _ in 0..sc.truth.len() - 7 {
+                    run.step(&sc);
+                }
+                let log = run.finished_log().unwrap();
+                let forward = log.forward(&sc.truth);
+                let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
+                let recorded = |k: usize| k.is_multiple_of(25);
+                let covariances = Covariances::Where(&recorded);
+                let whole = smooth(&forward, &cfg, nodes, covariances, cancel).unwrap();
+                let mut reduced = Reduced::new(&log, &sc.truth);
+                smooth_into(
+                    &forward,
+                    &cfg,
+                    nodes,
+                    None,
+                    covariances,
+                    &mut reduced,
+                    cancel,
+                )
+                .unwrap();
+                assert!(!log.whole.is_empty() && reduced.solutions.len() == log.whole.len());
+                for k in 1..log.nav.len() {
+                    let nav = &whole.nav[k];
+                    let terms = reduced.terms[k].unwrap_or_else(|| {
+                        // The last epoch, left as the forward pass gave it.
+                        assert!(k == log.nav.len() - 1 && *nav == log.nav[k]);
+                        reduced.terms_of(k, &nav.lla, &nav.vel)
+                    });
+                    assert_eq!(terms, reduced.terms_of(k, &nav.lla, &nav.vel), "epoch {k}");
+                }
+                for (k, nav, bias) in &reduced.solutions {
+                    assert_eq!((nav, bias), (&whole.nav[*k], &whole.bias[*k]), "epoch {k}");
+                }
+                let sigma: Vec<_> = (0..log.nav.len()).filter(|k| recorded(*k)).collect();
+                assert!(sigma
+                    .iter()
+                    .all(|k| reduced.sigma.contains(&(*k, whole.sigma[*k]))));
+                // σ inside a covariance step (a fraction of the way between the
+                // covariances at two closes) is taken alike by both sinks.
+                let (from, to) = (&whole.node_covariance[1].1, &whole.node_covariance[2].1);
+                let mut whole = whole.clone();
+                if calibration.is_some() {
+                    let pad = |p: &Matrix15| {
+                        let mut q = SMatrix::<f64, 19, 19>::identity() * 1e-4;
+                        q.fixed_view_mut::<15, 15>(0, 0).copy_from(p);
+                        q
+                    };
+                    let (from, to) = (pad(from), pad(to));
+                    between_alike(&mut whole, &mut reduced, (&from, &to), &cfg, &forward);
+                } else {
+                    between_alike(&mut whole, &mut reduced, (from, to), &cfg, &forward);
+                }
+            }
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The backward pass with the covariance propagated at every IMU sample: the RTS
 //! recursion chained over the samples between two nodes (see [`super`]).
 
-use super::{full_p, restart, Covariances, Forward, Node, Smoothed};
+use super::{full_p, restart, Covariances, Forward, Node, Sink};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::dynamics::ErrorDynamics;
 use crate::ekf::FilterConfig;
@@ -10,14 +10,14 @@ use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
 
 /// The backward pass of [`super::smooth`] over `N` states, every sample.
-pub(super) fn smooth_every<const N: usize>(
+pub(super) fn smooth_every<const N: usize, S: Sink>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
     covariances: Covariances<'_>,
+    out: &mut S,
     cancel: &Cancel,
-) -> Result<Smoothed> {
-    let mut out = Smoothed::start(forward, nodes.len());
+) -> Result<()> {
     let last = &nodes[nodes.len() - 1];
     // After the last epoch nothing is left to learn: δs = 0, Ps = P.
     let mut ds = SVector::<f64, N>::zeros();
@@ -77,8 +77,7 @@ pub(super) fn smooth_every<const N: usize>(
             }
         }
     }
-    out.node_covariance.reverse();
-    Ok(out)
+    Ok(())
 }
 
 /// The forward covariances `P_i` (epochs `a..b`, `P_a` the node's after its update)

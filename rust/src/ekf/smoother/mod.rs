@@ -32,20 +32,23 @@
 
 use super::calibration::{correct_mounting, Cross, DvlMounting, N_CALIBRATED, SCALE};
 use super::interval::Interval as CovarianceStep;
-use super::{correct, Ekf, FilterConfig, Formulation, KeptClose, Matrix15, Vector15, ATT, VEL};
+use super::{correct, Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15, ATT, VEL};
 use crate::attitude::skew;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
 use crate::mechanization::NavState;
 use crate::noise::ProcessNoise;
-use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix4, SMatrix, SVector, Vector3};
 
 mod every;
+mod sink;
 pub(super) mod steps;
 pub mod thinned;
 
 #[cfg(test)]
 pub(super) use every::Interval;
+pub use sink::Sink;
+pub(crate) use sink::{between_variances, classic_variances, classic_variances_of, sigma15};
 
 /// The process noise of an interval, owned (see [`ProcessNoise`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -360,14 +363,14 @@ pub fn smooth(
 }
 
 /// [`smooth`] reading the closes of the covariance step that the forward pass kept
-/// ([`Ekf::keep_closes`], each with its epoch, in order) instead of rebuilding them: the
+/// ([`Ekf::keep_closes`]) instead of rebuilding them: the
 /// same numbers, bit for bit, without the rebuild's prediction. Without a covariance
 /// step they are not read.
 pub fn smooth_kept(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    closes: &[(usize, KeptClose)],
+    closes: &KeptCloses,
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
@@ -378,14 +381,43 @@ fn smooth_with(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    kept: Option<&[(usize, KeptClose)]>,
+    kept: Option<&KeptCloses>,
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
+    if forward.bias.len() != forward.nav.len() {
+        return Err(Error::Numerical(
+            "the smoother needs the bias estimates at every epoch".into(),
+        ));
+    }
+    let mut out = Smoothed::start(forward, nodes.len());
+    smooth_into(forward, cfg, nodes, kept, covariances, &mut out, cancel)?;
+    out.node_covariance.reverse();
+    Ok(out)
+}
+
+/// The backward pass of [`smooth`] (reading the kept closes as [`smooth_kept`] where
+/// `kept` gives them) into `out`.
+pub fn smooth_into<S: Sink>(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    nodes: &[Node],
+    kept: Option<&KeptCloses>,
+    covariances: Covariances<'_>,
+    out: &mut S,
+    cancel: &Cancel,
+) -> Result<()> {
     let n = forward.nav.len();
     if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
         return Err(Error::Numerical(
             "the smoother's nodes do not span the pass".into(),
+        ));
+    }
+    if kept.is_none() && forward.bias.len() != n {
+        return Err(Error::Numerical(
+            "the smoother needs the bias estimates at every epoch to rebuild the \
+             covariances"
+                .into(),
         ));
     }
     let calibrated = cfg.dvl_calibration.is_some();
@@ -397,11 +429,12 @@ fn smooth_with(
         ));
     }
     const CAL: usize = N_CALIBRATED;
+    let (f, c) = (forward, covariances);
     match (calibrated, cfg.covariance_every_sample()) {
-        (false, true) => every::smooth_every::<15>(forward, cfg, nodes, covariances, cancel),
-        (true, true) => every::smooth_every::<CAL>(forward, cfg, nodes, covariances, cancel),
-        (false, false) => steps::smooth_steps::<15>(forward, cfg, nodes, kept, covariances, cancel),
-        (true, false) => steps::smooth_steps::<CAL>(forward, cfg, nodes, kept, covariances, cancel),
+        (false, true) => every::smooth_every::<15, S>(f, cfg, nodes, c, out, cancel),
+        (true, true) => every::smooth_every::<CAL, S>(f, cfg, nodes, c, out, cancel),
+        (false, false) => steps::smooth_steps::<15, S>(f, cfg, nodes, kept, c, out, cancel),
+        (true, false) => steps::smooth_steps::<CAL, S>(f, cfg, nodes, kept, c, out, cancel),
     }
 }
 
@@ -450,8 +483,7 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let s = velocity_map(cfg, &forward.nav[i]);
-        self.set_variances(i, |j| classic_diagonal(ps, s.as_ref(), j));
+        self.set_variances(i, classic_variances(ps, cfg, &forward.nav[i].vel));
     }
 
     /// σ at epoch `i` inside a covariance step, a fraction `w` of the way in time from
@@ -465,19 +497,14 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let s = velocity_map(cfg, &forward.nav[i]);
-        self.set_variances(i, |j| {
-            let (a, b) = (
-                classic_diagonal(from, s.as_ref(), j),
-                classic_diagonal(to, s.as_ref(), j),
-            );
-            (1.0 - w) * a + w * b
-        });
+        self.set_variances(
+            i,
+            between_variances((from, to, w), cfg, &forward.nav[i].vel),
+        );
     }
 
     /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
-    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone: `diag(U P Uᵀ) + diag(U P Λ P Uᵀ)`
-    /// with `U` the map to the classic coordinates.
+    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone (see [`classic_variances_of`]).
     fn set_sigma_of<const N: usize>(
         &mut self,
         i: usize,
@@ -486,16 +513,12 @@ impl Smoothed {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     ) {
-        let up = classic_rows(cfg, &forward.nav[i], p);
-        let upl = up * lambda;
-        self.set_variances(i, |j| {
-            classic_variance(cfg, &forward.nav[i], &up, j) + upl.row(j).dot(&up.row(j))
-        });
+        self.set_variances(i, classic_variances_of(p, lambda, cfg, &forward.nav[i]));
     }
 
     /// σ at epoch `i` from each state's variance.
     fn set_variances(&mut self, i: usize, variance: impl Fn(usize) -> f64) {
-        self.sigma[i] = std::array::from_fn(|j| variance(j).max(0.0).sqrt());
+        self.sigma[i] = sigma15(&variance);
         if let Some(sigma) = self.calibration_sigma.get_mut(i) {
             *sigma = std::array::from_fn(|k| variance(SCALE + k).max(0.0).sqrt());
         }
@@ -506,33 +529,6 @@ impl Smoothed {
         let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
         self.node_covariance.push((epoch, p));
     }
-}
-
-/// `[v̂×]` at `nav`'s velocity in the invariant formulation (the velocity rows of the map
-/// `U = I + [v̂×]` to the classic coordinates), None in the classic one.
-fn velocity_map(cfg: &FilterConfig, nav: &NavState) -> Option<Matrix3<f64>> {
-    (cfg.formulation == Formulation::Invariant).then(|| skew(&nav.vel))
-}
-
-/// `(U P Uᵀ)_jj` of a covariance `ps` in the filter's coordinates, `s` from
-/// [`velocity_map`]: `P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr` at the velocity rows of
-/// the invariant formulation, `P_jj` elsewhere.
-fn classic_diagonal<const N: usize>(
-    ps: &SMatrix<f64, N, N>,
-    s: Option<&Matrix3<f64>>,
-    j: usize,
-) -> f64 {
-    let mut v = ps[(j, j)];
-    if let (Some(s), true) = (s, (VEL..VEL + 3).contains(&j)) {
-        let r = j - VEL;
-        for k in 0..3 {
-            v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
-            for l in 0..3 {
-                v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
-            }
-        }
-    }
-    v
 }
 
 /// `U P`, the rows of a covariance in the filter's coordinates mapped to the classic

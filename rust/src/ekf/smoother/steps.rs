@@ -22,10 +22,10 @@
 //! the smoothed ones at `c` and at `d` (the smoothed covariance is the same before and
 //! after `d`'s updates), as the forward σ is interpolated.
 
-use super::{full_p, lift, restart, Covariances, Forward, Node, Smoothed, STEPS_PER_CHECK};
+use super::{full_p, lift, restart, Covariances, Forward, Node, Sink, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
-use crate::ekf::{FilterConfig, KeptClose};
+use crate::ekf::{FilterConfig, KeptCloses};
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
@@ -47,15 +47,16 @@ pub(in crate::ekf) struct Close<const N: usize> {
 /// `(P⁻_u)⁻¹ (Ps_u − P⁻_u) (P⁻_u)⁻¹` of the next update `u` back, `δs_c = P_c μ` and
 /// `Ps_c = P_c + P_c Λ P_c`; only at the nodes a Cholesky factor of `P⁻` is solved
 /// with.
-pub(super) fn smooth_steps<const N: usize>(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn smooth_steps<const N: usize, S: Sink>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
-    kept: Option<&[(usize, KeptClose)]>,
+    kept: Option<&KeptCloses>,
     covariances: Covariances<'_>,
+    out: &mut S,
     cancel: &Cancel,
-) -> Result<Smoothed> {
-    let mut out = Smoothed::start(forward, nodes.len());
+) -> Result<()> {
     let wanted = |i: usize| match covariances {
         Covariances::Every => true,
         Covariances::Where(f) => f(i),
@@ -83,7 +84,7 @@ pub(super) fn smooth_steps<const N: usize>(
             let read = at_node || since.is_none_or(|s| (s + 1..end).any(wanted));
             let ps = read.then(|| symmetric(&(p + p * lambda * p)));
             fill(
-                &mut out,
+                out,
                 forward,
                 cfg,
                 close.epoch,
@@ -116,7 +117,7 @@ pub(super) fn smooth_steps<const N: usize>(
     let p = nodes[0].p::<N>();
     let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
     fill(
-        &mut out,
+        out,
         forward,
         cfg,
         0,
@@ -126,8 +127,7 @@ pub(super) fn smooth_steps<const N: usize>(
         &wanted,
     );
     out.keep_node(0, &ps);
-    out.node_covariance.reverse();
-    Ok(out)
+    Ok(())
 }
 
 /// `μ = (P⁻)⁻¹ δs⁻` and `Λ = (P⁻)⁻¹ (Ps − P⁻) (P⁻)⁻¹` at an update, by Cholesky
@@ -303,7 +303,7 @@ impl<const N: usize> Later<N> {
     /// step").
     pub(super) fn write_between(
         &self,
-        out: &mut Smoothed,
+        out: &mut impl Sink,
         (row, at): (usize, &Forward<'_>),
         w: f64,
         (ds, ps): (&SVector<f64, N>, Option<&SMatrix<f64, N, N>>),
@@ -338,7 +338,7 @@ pub(super) fn previous_close<const N: usize>(
 /// the wanted epochs before the next close.
 #[allow(clippy::too_many_arguments)]
 fn fill<const N: usize>(
-    out: &mut Smoothed,
+    out: &mut impl Sink,
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     epoch: usize,
@@ -368,15 +368,17 @@ fn fill<const N: usize>(
 
 /// The closes in `(a, b]` of the covariance step that the forward pass kept (see
 /// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them.
-fn kept_between<const N: usize>(kept: &[(usize, KeptClose)], a: &Node, b: &Node) -> Vec<Close<N>> {
-    let lo = kept.partition_point(|(e, _)| *e <= a.epoch);
-    let hi = kept.partition_point(|(e, _)| *e <= b.epoch);
-    kept[lo..hi.max(lo)]
-        .iter()
-        .map(|(epoch, c)| Close {
-            epoch: *epoch,
-            phi: c.phi,
-            p_prior: lift(&c.p, c.calibration.as_deref().map(|(x, v)| (x, v))),
+fn kept_between<const N: usize>(kept: &KeptCloses, a: &Node, b: &Node) -> Vec<Close<N>> {
+    let lo = kept.epochs.partition_point(|e| *e <= a.epoch);
+    let hi = kept.epochs.partition_point(|e| *e <= b.epoch).max(lo);
+    (lo..hi)
+        .map(|k| {
+            let c = &kept.closes[k];
+            Close {
+                epoch: kept.epochs[k],
+                phi: c.phi,
+                p_prior: lift(&c.p(), c.calibration.as_deref().map(|(x, v)| (x, v))),
+            }
         })
         .collect()
 }
