@@ -30,6 +30,10 @@ import time
 from functools import partial
 from typing import Any
 
+# The timed work is the native core's, on one thread; NumPy's idle BLAS threads would
+# spin beside it and add to the CPU time measured (set before NumPy is imported).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 import numpy as np
 from covariance_step import alternating, recording
 
