@@ -361,7 +361,7 @@ def monte_carlo(
         smooth: also run the RTS smoother backward over every run
             (:attr:`MonteCarloResult.smoothed`; the filter's numbers are unchanged). A
             run then keeps its solution at every IMU epoch until it is smoothed (120
-            bytes each, and 32 while it is smoothed) and, under a covariance step, each
+            bytes each, and 36 while it is smoothed) and, under a covariance step, each
             close of the step (2.0 kB: ~200 bytes per IMU epoch at 0.1 s and 100 Hz); at
             every IMU sample, the raw samples and the bias estimates (96 bytes an epoch)
             and, while it smooths an interval between two DVL updates, a covariance and

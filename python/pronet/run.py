@@ -79,13 +79,11 @@ class Recorded:
         q: F64 | None = None,
         *,
         aided: bool = True,
-        **options: Any,
     ) -> FilterResult:
         """:func:`pronet.run_filter` over this stretch: its sensors, initial state,
         tuning, kept epochs and smoothing, with ``strategy`` (a native one; q from
         ``q_time`` [s] on, ``q (k, 6)``, for an external one) and the depth and fixes
-        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it).
-        ``options``: further :func:`pronet.run_filter` keywords."""
+        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it)."""
         return run_filter(
             self.imu,
             self.imu_time,
@@ -102,7 +100,6 @@ class Recorded:
             q_time=q_time,
             q=q,
             **(dict(self.aiding) if aided else {}),
-            **options,
         )
 
 

@@ -41,6 +41,11 @@ const UPPER: usize = 15 * 16 / 2;
 
 impl KeptClose {
     fn new(phi: SMatrix<f64, 9, 15>, p: &Matrix15, calibration: Option<&Calibration>) -> Self {
+        debug_assert_eq!(
+            *p,
+            p.transpose(),
+            "a kept covariance must be symmetric bit for bit"
+        );
         let mut upper = [0.0; UPPER];
         let mut k = 0;
         for j in 0..15 {

@@ -150,6 +150,23 @@ impl<'a> Reduced<'a> {
         }
     }
 
+    /// Over epochs 1..n in order, from the velocity and horizontal position alone (the
+    /// attitude's logarithm and the biases only where they are recorded): the sums of
+    /// `|δv|²` and `Σ|δv_j|`, the largest `δN² + δE²`, and the last horizontal error.
+    fn error_sums(&self) -> [f64; 4] {
+        let nav = &self.log.nav;
+        let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
+        let mut horizontal = 0.0;
+        for (k, at) in nav.iter().enumerate().skip(1) {
+            let [v2, v1, sq] = self.terms[k].unwrap_or_else(|| self.terms_of(k, &at.lla, &at.vel));
+            sum_sq += v2;
+            sum_abs += v1;
+            max_sq = max_sq.max(sq);
+            horizontal = sq.sqrt();
+        }
+        [sum_sq, sum_abs, max_sq, horizontal]
+    }
+
     /// The error terms of the solution (`lla`, `vel`) at epoch `k`.
     fn terms_of(&self, k: usize, lla: &Vector3<f64>, vel: &Vector3<f64>) -> [f64; 3] {
         let truth = &self.truth.states[k];
@@ -292,18 +309,7 @@ fn smoothed_metrics(
         let (nav, bias) = solution(k);
         solution_error(&nav, &bias, &truth.states[k], &whole(k).1)
     };
-    let (mut sum_sq, mut sum_abs, mut max_sq) = (0.0, 0.0, 0.0_f64);
-    let mut horizontal = 0.0;
-    // Velocity and horizontal position alone at every epoch (the attitude's logarithm
-    // and the biases only where they are recorded), summed in the epochs' order.
-    for k in 1..=n {
-        let [v2, v1, sq] =
-            s.terms[k].unwrap_or_else(|| s.terms_of(k, &log.nav[k].lla, &log.nav[k].vel));
-        sum_sq += v2;
-        sum_abs += v1;
-        max_sq = max_sq.max(sq);
-        horizontal = sq.sqrt();
-    }
+    let [sum_sq, sum_abs, max_sq, horizontal] = s.error_sums();
     let covariance: HashMap<usize, &Matrix15> =
         s.node_covariance.iter().map(|(k, p)| (*k, p)).collect();
     let nees = log

@@ -359,45 +359,21 @@ pub fn smooth(
     covariances: Covariances<'_>,
     cancel: &Cancel,
 ) -> Result<Smoothed> {
-    smooth_with(forward, cfg, nodes, None, covariances, cancel)
-}
-
-/// [`smooth`] reading the closes of the covariance step that the forward pass kept
-/// ([`Ekf::keep_closes`]) instead of rebuilding them: the
-/// same numbers, bit for bit, without the rebuild's prediction. Without a covariance
-/// step they are not read.
-pub fn smooth_kept(
-    forward: &Forward<'_>,
-    cfg: &FilterConfig,
-    nodes: &[Node],
-    closes: &KeptCloses,
-    covariances: Covariances<'_>,
-    cancel: &Cancel,
-) -> Result<Smoothed> {
-    smooth_with(forward, cfg, nodes, Some(closes), covariances, cancel)
-}
-
-fn smooth_with(
-    forward: &Forward<'_>,
-    cfg: &FilterConfig,
-    nodes: &[Node],
-    kept: Option<&KeptCloses>,
-    covariances: Covariances<'_>,
-    cancel: &Cancel,
-) -> Result<Smoothed> {
     if forward.bias.len() != forward.nav.len() {
         return Err(Error::Numerical(
             "the smoother needs the bias estimates at every epoch".into(),
         ));
     }
     let mut out = Smoothed::start(forward, nodes.len());
-    smooth_into(forward, cfg, nodes, kept, covariances, &mut out, cancel)?;
+    smooth_into(forward, cfg, nodes, None, covariances, &mut out, cancel)?;
     out.node_covariance.reverse();
     Ok(out)
 }
 
-/// The backward pass of [`smooth`] (reading the kept closes as [`smooth_kept`] where
-/// `kept` gives them) into `out`.
+/// The backward pass of [`smooth`] into `out`, reading under a covariance step the
+/// closes the forward pass kept ([`Ekf::keep_closes`]) where `kept` gives them instead
+/// of rebuilding them: the same numbers, bit for bit, without the rebuild's prediction
+/// (not read at every sample).
 pub fn smooth_into<S: Sink>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
@@ -413,7 +389,7 @@ pub fn smooth_into<S: Sink>(
             "the smoother's nodes do not span the pass".into(),
         ));
     }
-    if kept.is_none() && forward.bias.len() != n {
+    if (kept.is_none() || cfg.covariance_every_sample()) && forward.bias.len() != n {
         return Err(Error::Numerical(
             "the smoother needs the bias estimates at every epoch to rebuild the \
              covariances"

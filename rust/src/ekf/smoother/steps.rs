@@ -310,6 +310,10 @@ impl<const N: usize> Later<N> {
         cfg: &FilterConfig,
     ) {
         if let Some(ps) = ps {
+            debug_assert!(
+                self.ps.is_some(),
+                "σ wanted between closes, none at the far one"
+            );
             let to = self.ps.as_ref().unwrap_or(ps);
             out.set_sigma_between(row, (ps, to, w), cfg, at);
         }
