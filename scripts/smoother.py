@@ -2,10 +2,11 @@
 shows it ("The RTS smoother", Measured).
 
     python scripts/smoother.py [--runs 100] [--part scenarios|psd|outage|steps] [--oracle]
+                               [--seed 0]
 
 Per scenario: the constant strategy at the scenario's nominal q (``--oracle``: the
-filter told the simulated IMU's true variance at every step), 100 runs (seed 0),
-histories every second. ``scenarios`` prints a Markdown table: velocity SRMSE and
+filter told the simulated IMU's true variance at every step), 100 runs (seed 0, or
+``--seed``), histories every second. ``scenarios`` prints a Markdown table: velocity SRMSE and
 final horizontal error of the filter and the smoother, the share of DVL epochs whose
 run-averaged NEES lies in its 95 % band for each error block (filter / smoother), and
 the recorded epochs where the smoothed velocity error RMS is above 1.05 x the
@@ -35,12 +36,16 @@ from pronet.stats import chi2_mean_band
 
 
 def _run(
-    sc, runs: int, config: pronet.FilterConfig | None = None, oracle: bool = False
+    sc,
+    runs: int,
+    config: pronet.FilterConfig | None = None,
+    oracle: bool = False,
+    seed: int = 0,
 ) -> pronet.MonteCarloResult:
     strategy = pronet.Strategy.oracle() if oracle else pronet.Strategy.constant(sc.q_nominal)
     return pronet.monte_carlo(
         sc.trajectory, strategy, sensors=sc.sensors,
-        config=config or sc.config, n_runs=runs, seed=0, record_every=100, smooth=True,
+        config=config or sc.config, n_runs=runs, seed=seed, record_every=100, smooth=True,
     )  # fmt: skip
 
 
@@ -53,8 +58,8 @@ def _worse(r: pronet.MonteCarloResult) -> str:
     return f"{int(np.sum(rms_s > 1.05 * rms_f))} / {len(rms_f)}"
 
 
-def row(name: str, runs: int, oracle: bool = False) -> list[object]:
-    r = _run(SCENARIOS[name](0), runs, oracle=oracle)
+def row(name: str, runs: int, oracle: bool = False, seed: int = 0) -> list[object]:
+    r = _run(SCENARIOS[name](0), runs, oracle=oracle, seed=seed)
     s = r.smoothed
     assert s is not None
     band = [f"{r.nees_in_band(b):.2f} / {s.nees_in_band(b):.2f}" for b in pronet.STATE_BLOCKS]
@@ -145,6 +150,7 @@ def main() -> int:
     parser.add_argument(
         "--oracle", action="store_true", help="scenarios: the filter told the true IMU variance"
     )
+    parser.add_argument("--seed", type=int, default=0, help="scenarios: the Monte Carlo's seed")
     args = parser.parse_args()
     if args.part == "psd":
         header = [
@@ -179,7 +185,8 @@ def main() -> int:
         *(f"{b.replace('_', ' ')} NEES in band" for b in pronet.STATE_BLOCKS),
         "epochs smoothed > 1.05 x filtered",
     ]
-    print(markdown(header, [row(name, args.runs, args.oracle) for name in SCENARIOS]), end="")
+    rows = [row(name, args.runs, args.oracle, args.seed) for name in SCENARIOS]
+    print(markdown(header, rows), end="")
     return 0
 
 

@@ -130,20 +130,31 @@ def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
 @pytest.mark.parametrize("name", ["regimes", "outage"])
 def test_told_the_true_noise_the_smoother_is_consistent(name) -> None:
     """Where the IMU noise switches regimes (and the DVL falls silent), a filter told the
-    true variance at every step (the oracle) is consistent, and so is the smoother: every
-    block in band at most epochs, never worse than the filter beyond noise, and the
-    velocity error well below it (docs/filter.md, "Told the true IMU noise")."""
+    true variance at every step (the oracle) is consistent, and so is the smoother:
+    the velocity NEES, the fastest of the blocks, in band at most epochs (told the
+    nominal q instead, at a third of them); each block's NEES, averaged over the runs
+    and then over the DVL epochs, inside the 99 % band of an average over the runs
+    (the position, attitude and bias errors change slowly within a run, so their
+    epochs are few samples, not many: the share of epochs in band is nearly all or
+    nothing there, and a consistent smoother misses it now and then, docs/filter.md);
+    never worse than the filter beyond noise, and the velocity error well below it
+    (docs/filter.md, "Told the true IMU noise")."""
+    from scipy.stats import chi2
+
     from pronet.sim.scenarios import SCENARIOS
 
-    sc = SCENARIOS[name](0)
+    sc, runs = SCENARIOS[name](0), 50
     r = pronet.monte_carlo(
         sc.trajectory, pronet.Strategy.oracle(), sensors=sc.sensors, config=sc.config,
-        n_runs=50, seed=0, record_every=100, smooth=True,
+        n_runs=runs, seed=0, record_every=100, smooth=True,
     )  # fmt: skip
     s = r.smoothed
     assert s is not None
-    for block in pronet.STATE_BLOCKS:
-        assert s.nees_in_band(block) >= 0.85, (block, s.nees_in_band(block))
+    assert s.nees_in_band("velocity") >= 0.7, s.nees_in_band("velocity")
+    low, high = chi2.ppf([0.005, 0.995], 3 * runs) / runs
+    for i, block in enumerate(pronet.STATE_BLOCKS):
+        nees = float(np.nanmean(np.nanmean(s.nees[:, :, i], axis=0)))
+        assert low < nees < high, (block, nees, low, high)
     rms = lambda x: np.sqrt(np.mean(np.sum(x.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
     assert (rms(s) <= 1.05 * rms(r)).all()
     assert s.summary()["srmse"].mean < 0.7 * r.summary()["srmse"].mean
