@@ -429,6 +429,16 @@ impl Smoothed {
         }
     }
 
+    /// σ at epoch `i` from each state's variance.
+    fn set_variances(&mut self, i: usize, variance: impl Fn(usize) -> f64) {
+        self.sigma[i] = sigma15(&variance);
+        if let Some(sigma) = self.calibration_sigma.get_mut(i) {
+            *sigma = std::array::from_fn(|k| variance(SCALE + k).max(0.0).sqrt());
+        }
+    }
+}
+
+impl Sink for Smoothed {
     /// Remove the smoothed error `ds` from the forward solution at epoch `i` (the
     /// filter's feedback: [`correct`], and the calibration's).
     fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
@@ -490,14 +500,6 @@ impl Smoothed {
         forward: &Forward<'_>,
     ) {
         self.set_variances(i, classic_variances_of(p, lambda, cfg, &forward.nav[i]));
-    }
-
-    /// σ at epoch `i` from each state's variance.
-    fn set_variances(&mut self, i: usize, variance: impl Fn(usize) -> f64) {
-        self.sigma[i] = sigma15(&variance);
-        if let Some(sigma) = self.calibration_sigma.get_mut(i) {
-            *sigma = std::array::from_fn(|k| variance(SCALE + k).max(0.0).sqrt());
-        }
     }
 
     /// Keep the smoothed covariance at a node's epoch (its 15-state block).

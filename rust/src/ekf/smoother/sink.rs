@@ -1,7 +1,7 @@
 //! Where a backward pass puts what it finds ([`Sink`]), and σ from a smoothed
 //! covariance in the classic coordinates.
 
-use super::{classic_rows, classic_variance, Forward, Smoothed};
+use super::{classic_rows, classic_variance, Forward};
 use crate::attitude::skew;
 use crate::ekf::{FilterConfig, Formulation, ATT, VEL};
 use crate::mechanization::NavState;
@@ -9,7 +9,7 @@ use nalgebra::{SMatrix, SVector, Vector3};
 
 /// Where a backward pass puts what it finds at each epoch: the smoothed error of the
 /// forward solution there, σ where it is wanted, the smoothed covariance at the nodes
-/// (each epoch's error once, in no set order). [`Smoothed`] keeps the smoothed
+/// (each epoch's error once, in no set order). [`super::Smoothed`] keeps the smoothed
 /// solution at every epoch; a Monte Carlo run reduces it to its metrics as the pass
 /// goes (`crate::run`), without a copy of the forward solution.
 pub trait Sink {
@@ -45,47 +45,6 @@ pub trait Sink {
     );
     /// The smoothed covariance at a node's epoch.
     fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>);
-}
-
-impl Sink for Smoothed {
-    fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
-        Smoothed::apply(self, i, ds, cfg);
-    }
-
-    fn set_sigma<const N: usize>(
-        &mut self,
-        i: usize,
-        ps: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        Smoothed::set_sigma(self, i, ps, cfg, forward);
-    }
-
-    fn set_sigma_of<const N: usize>(
-        &mut self,
-        i: usize,
-        p: &SMatrix<f64, N, N>,
-        lambda: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        Smoothed::set_sigma_of(self, i, p, lambda, cfg, forward);
-    }
-
-    fn set_sigma_between<const N: usize>(
-        &mut self,
-        i: usize,
-        between: (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>, f64),
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        Smoothed::set_sigma_between(self, i, between, cfg, forward);
-    }
-
-    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
-        Smoothed::keep_node(self, epoch, ps);
-    }
 }
 
 /// The variance of each state `j` (classic coordinates at the velocity `vel`) of the

@@ -15,7 +15,7 @@
 
 use super::every::{self, transposed_step};
 use super::steps::{self, symmetric, transposed, Later};
-use super::{full_p, restart, Forward, Node, Nodes, Smoothed};
+use super::{full_p, restart, Forward, Node, Nodes, Sink, Smoothed};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
 use crate::ekf::dynamics::ErrorDynamics;
