@@ -2,7 +2,7 @@
 shows it ("The RTS smoother", Measured).
 
     python scripts/smoother.py [--runs 100] [--oracle] [--seed 0]
-                               [--part scenarios|psd|outage|steps|nonlinear]
+                               [--part scenarios|psd|outage|steps|nonlinear|seeds]
 
 Per scenario: the constant strategy at the scenario's nominal q (``--oracle``: the
 filter told the simulated IMU's true variance at every step), 100 runs (seed 0, or
@@ -24,7 +24,10 @@ schedule with every IMU variance scaled by 1, 0.1, 0.01 and 0.001, the filter to
 true variance (the oracle): the tilt error, the down accelerometer bias's error against
 ``g E[θ²]/2`` (the vertical specific force a tilt error θ leaves to second order, which
 the linear error model lacks) and its σ-normalized squared error, filter / smoother
-(docs/filter.md, "Told the true IMU noise").
+(docs/filter.md, "Told the true IMU noise"). ``seeds``: ``matched`` (the filter told the
+simulated model) at seeds 0–9: per block the share of DVL epochs in band and the NEES
+averaged over the runs and the epochs, filter / smoother (docs/filter.md, "One draw of
+100 runs").
 """
 
 from __future__ import annotations
@@ -188,10 +191,26 @@ def nonlinear_rows(runs: int) -> list[list[object]]:
     return rows
 
 
+def seeds_rows(runs: int) -> list[list[object]]:
+    sc = SCENARIOS["matched"](0)
+    rows = []
+    for seed in range(10):
+        r = _run(sc, runs, seed=seed)
+        s = r.smoothed
+        assert s is not None
+        rows.append([
+            str(seed),
+            *(f"{r.nees_in_band(b):.2f} / {s.nees_in_band(b):.2f} "
+              f"({np.nanmean(r.block_nees(b)):.2f} / {np.nanmean(s.block_nees(b)):.2f})"
+              for b in pronet.STATE_BLOCKS),
+        ])  # fmt: skip
+    return rows
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)
-    parts = ("scenarios", "psd", "outage", "steps", "nonlinear")
+    parts = ("scenarios", "psd", "outage", "steps", "nonlinear", "seeds")
     parser.add_argument("--part", choices=parts, default="scenarios")
     parser.add_argument(
         "--oracle", action="store_true", help="scenarios: the filter told the true IMU variance"
@@ -223,6 +242,13 @@ def main() -> int:
             *(f"{b.replace('_', ' ')} Σ(e/σ)² mean (in band)" for b in pronet.STATE_BLOCKS),
         ]
         print(markdown(header, steps_rows(args.runs)), end="")
+        return 0
+    if args.part == "seeds":
+        header = [
+            "seed",
+            *(f"{b.replace('_', ' ')} in band (NEES)" for b in pronet.STATE_BLOCKS),
+        ]
+        print(markdown(header, seeds_rows(args.runs)), end="")
         return 0
     if args.part == "nonlinear":
         header = [
