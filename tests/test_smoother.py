@@ -73,6 +73,21 @@ def matched():
     return SCENARIOS["matched"](0)
 
 
+def _assert_consistent(s: pronet.MonteCarloResult, velocity_share: float) -> None:
+    """The smoothed NEES as a consistent smoother gives it: the velocity's, the fastest
+    block's, in band at most DVL epochs; every block's, averaged over the runs and then
+    over the epochs, inside the 99 % band of an average over the runs. (A slow block's
+    share of epochs in band is nearly all or nothing, a consistent smoother's included:
+    docs/filter.md, "One draw of 100 runs".)"""
+    from scipy.stats import chi2
+
+    assert s.nees_in_band("velocity") >= velocity_share, s.nees_in_band("velocity")
+    low, high = chi2.ppf([0.005, 0.995], 3 * s.n_runs) / s.n_runs
+    for i, block in enumerate(pronet.STATE_BLOCKS):
+        nees = float(np.nanmean(np.nanmean(s.nees[:, :, i], axis=0)))
+        assert low < nees < high, (block, nees, low, high)
+
+
 def _mc(sc, **kw):
     return pronet.monte_carlo(
         sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
@@ -94,8 +109,7 @@ def test_monte_carlo_smooths_every_run_and_leaves_the_filter_as_it_was(matched) 
     assert s is not None and s.smoothed is None and s.q is None
     assert s.nees.shape == both.nees.shape and s.error.shape == both.error.shape
     np.testing.assert_array_equal(s.nis, both.nis)  # the filter's, kept
-    for block in pronet.STATE_BLOCKS:
-        assert s.nees_in_band(block) >= 0.85, (block, s.nees_in_band(block))
+    _assert_consistent(s, 0.85)
     rms = lambda r: np.sqrt(np.mean(np.sum(r.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
     assert (rms(s)[1:-1] < rms(both)[1:-1]).all()
     assert s.summary()["srmse"].mean < 0.7 * both.summary()["srmse"].mean
@@ -118,8 +132,7 @@ def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
     )  # fmt: skip
     s, e = stepped.smoothed, every.smoothed
     assert s is not None and e is not None
-    for block in pronet.STATE_BLOCKS:
-        assert s.nees_in_band(block) >= 0.85, (block, s.nees_in_band(block))
+    _assert_consistent(s, 0.85)
     rms = lambda r: np.sqrt(np.mean(np.sum(r.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
     assert (rms(s)[1:-1] < rms(stepped)[1:-1]).all()
     srmse = s.summary()["srmse"].mean, e.summary()["srmse"].mean
@@ -130,17 +143,10 @@ def test_monte_carlo_smooths_over_a_covariance_step(matched, step) -> None:
 @pytest.mark.parametrize("name", ["regimes", "outage"])
 def test_told_the_true_noise_the_smoother_is_consistent(name) -> None:
     """Where the IMU noise switches regimes (and the DVL falls silent), a filter told the
-    true variance at every step (the oracle) is consistent, and so is the smoother:
-    the velocity NEES, the fastest of the blocks, in band at most epochs (told the
-    nominal q instead, at a third of them); each block's NEES, averaged over the runs
-    and then over the DVL epochs, inside the 99 % band of an average over the runs
-    (the position, attitude and bias errors change slowly within a run, so their
-    epochs are few samples, not many: the share of epochs in band is nearly all or
-    nothing there, and a consistent smoother misses it now and then, docs/filter.md);
-    never worse than the filter beyond noise, and the velocity error well below it
-    (docs/filter.md, "Told the true IMU noise")."""
-    from scipy.stats import chi2
-
+    true variance at every step (the oracle) is consistent, and so is the smoother
+    (``_assert_consistent``; told the nominal q instead, the velocity NEES is in band at
+    a third of the epochs); never worse than the filter beyond noise, and the velocity
+    error well below it (docs/filter.md, "Told the true IMU noise")."""
     from pronet.sim.scenarios import SCENARIOS
 
     sc, runs = SCENARIOS[name](0), 50
@@ -150,11 +156,7 @@ def test_told_the_true_noise_the_smoother_is_consistent(name) -> None:
     )  # fmt: skip
     s = r.smoothed
     assert s is not None
-    assert s.nees_in_band("velocity") >= 0.7, s.nees_in_band("velocity")
-    low, high = chi2.ppf([0.005, 0.995], 3 * runs) / runs
-    for i, block in enumerate(pronet.STATE_BLOCKS):
-        nees = float(np.nanmean(np.nanmean(s.nees[:, :, i], axis=0)))
-        assert low < nees < high, (block, nees, low, high)
+    _assert_consistent(s, 0.7)
     rms = lambda x: np.sqrt(np.mean(np.sum(x.error[:, :, 3:6] ** 2, axis=2), axis=0))  # noqa: E731
     assert (rms(s) <= 1.05 * rms(r)).all()
     assert s.summary()["srmse"].mean < 0.7 * r.summary()["srmse"].mean
