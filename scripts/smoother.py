@@ -14,7 +14,8 @@ filter's. ``psd``: ``paper``'s IMU (no bias walk) with the filter told bias walk
 from the paper's ε = 0.001 down to the matched scenario's: the same two columns.
 ``outage``: per DVL outage of ``outage``, the horizontal error RMS over the runs at
 its start and middle, filter and smoother, the drift accrued between them, and the
-σ of the horizontal position each reports at the middle. ``steps``: ``matched`` with a
+σ of the horizontal position each reports at the middle; then the same without an
+initial error drawn from P0. ``steps``: ``matched`` with a
 0.1 s covariance step and at every sample, histories at every IMU epoch (9 of 10 inside
 a step at 0.1 s): per error block, the run-averaged σ-normalized squared error
 ``Σ (e/σ)²`` over the block's three states (the NEES with σ alone, 3 when consistent),
@@ -56,11 +57,13 @@ def _run(
     config: pronet.FilterConfig | None = None,
     oracle: bool = False,
     seed: int = 0,
+    initial_error: bool = True,
 ) -> pronet.MonteCarloResult:
     strategy = pronet.Strategy.oracle() if oracle else pronet.Strategy.constant(sc.q_nominal)
     return pronet.monte_carlo(
         sc.trajectory, strategy, sensors=sc.sensors,
         config=config or sc.config, n_runs=runs, seed=seed, record_every=100, smooth=True,
+        sample_initial_error=initial_error,
     )  # fmt: skip
 
 
@@ -105,9 +108,9 @@ def psd_rows(runs: int) -> list[list[object]]:
     return rows
 
 
-def outage_rows(runs: int) -> list[list[object]]:
+def outage_rows(runs: int, initial_error: bool = True) -> list[list[object]]:
     sc = SCENARIOS["outage"](0)
-    r = _run(sc, runs)
+    r = _run(sc, runs, initial_error=initial_error)
     s = r.smoothed
     assert s is not None and r.error is not None and s.error is not None
     assert r.sigma is not None and s.sigma is not None
@@ -235,6 +238,8 @@ def main() -> int:
             "horiz. σ at middle",
         ]
         print(markdown(header, outage_rows(args.runs)), end="")
+        print("\nWithout an initial error drawn (sample_initial_error=False):\n")
+        print(markdown(header, outage_rows(args.runs, initial_error=False)), end="")
         return 0
     if args.part == "steps":
         header = [
