@@ -2,6 +2,7 @@
 //! position fixes whose nearest epoch it is, applied in that order, and the covariances
 //! asked for there; [`Cursor`] tracks the next row of each stream.
 
+use super::position::PositionUpdate;
 use super::recorded::FilterOutput;
 use super::recorded_data::RecordedData;
 use super::{Ekf, Matrix15, Vector15};
@@ -46,7 +47,6 @@ impl Fed {
 /// (time `t` [s], step `dt` [s]), as DVL rows are placed; rows before the run's first
 /// half step are outside it. The sum of the error estimates fed back, or None if no row
 /// was there.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn apply_position_rows(
     data: &RecordedData<'_>,
     ekf: &mut Ekf,
@@ -57,44 +57,50 @@ pub(super) fn apply_position_rows(
     dt: f64,
 ) -> Result<Option<Fed>> {
     let first = data.t0 - 0.5 * (data.imu_time[0] - data.t0);
-    let due = |time: f64| time <= t + 0.5 * dt;
     let mut correction: Option<Fed> = None;
-    let numerical = |what: &str, row: usize, e: Error| match e {
-        Error::Numerical(m) => Error::Numerical(format!("{m} ({what} row {row}, t = {t} s)")),
-        other => other,
+    // One stream: each row due from `next` on gets its epoch and NIS (None and NaN
+    // where it falls before the run), and its estimate fed back is summed.
+    let mut drain = |what: &str,
+                     times: &[f64],
+                     next: &mut usize,
+                     (epochs, nis): (&mut Vec<Option<usize>>, &mut Vec<f64>),
+                     update: &dyn Fn(&mut Ekf, usize) -> Result<PositionUpdate>|
+     -> Result<()> {
+        while *next < times.len() && times[*next] <= t + 0.5 * dt {
+            let row = *next;
+            *next += 1;
+            epochs.push(None);
+            nis.push(f64::NAN);
+            if times[row] < first {
+                continue;
+            }
+            let done = update(ekf, row).map_err(|e| match e {
+                Error::Numerical(m) => {
+                    Error::Numerical(format!("{m} ({what} row {row}, t = {t} s)"))
+                }
+                other => other,
+            })?;
+            (epochs[row], nis[row]) = (Some(epoch), done.nis);
+            correction
+                .get_or_insert_with(Fed::default)
+                .add(&done.correction, &done.calibration_correction);
+        }
+        Ok(())
     };
-    while at.next_depth < data.depth.len() && due(data.depth_time[at.next_depth]) {
-        let row = at.next_depth;
-        at.next_depth += 1;
-        out.depth_epoch.push(None);
-        out.depth_nis.push(f64::NAN);
-        if data.depth_time[row] < first {
-            continue;
-        }
-        let done = ekf
-            .update_depth(data.depth[row], data.depth_sigma)
-            .map_err(|e| numerical("depth", row, e))?;
-        (out.depth_epoch[row], out.depth_nis[row]) = (Some(epoch), done.nis);
-        correction
-            .get_or_insert_with(Fed::default)
-            .add(&done.correction, &done.calibration_correction);
-    }
-    while at.next_fix < data.fix.len() && due(data.fix_time[at.next_fix]) {
-        let row = at.next_fix;
-        at.next_fix += 1;
-        out.fix_epoch.push(None);
-        out.fix_nis.push(f64::NAN);
-        if data.fix_time[row] < first {
-            continue;
-        }
-        let done = ekf
-            .update_fix(&data.fix[row], &data.fix_sigma[row])
-            .map_err(|e| numerical("fix", row, e))?;
-        (out.fix_epoch[row], out.fix_nis[row]) = (Some(epoch), done.nis);
-        correction
-            .get_or_insert_with(Fed::default)
-            .add(&done.correction, &done.calibration_correction);
-    }
+    drain(
+        "depth",
+        data.depth_time,
+        &mut at.next_depth,
+        (&mut out.depth_epoch, &mut out.depth_nis),
+        &|ekf, row| ekf.update_depth(data.depth[row], data.depth_sigma),
+    )?;
+    drain(
+        "fix",
+        data.fix_time,
+        &mut at.next_fix,
+        (&mut out.fix_epoch, &mut out.fix_nis),
+        &|ekf, row| ekf.update_fix(&data.fix[row], &data.fix_sigma[row]),
+    )?;
     Ok(correction)
 }
 
