@@ -227,6 +227,11 @@ def test_cli_trains_model_a_on_simulated_recordings(tmp_path, capsys):
     assert card["training"]["sections"] == ["regimes-0", "regimes-1"]
     assert cli.main(["train", "--simulated", "2", "--model", "a", "--out", str(out)]) == 2
     assert "exists; use --force" in capsys.readouterr().err
+    # --data-seed draws the recordings, --seed the training alone.
+    argv = ["train", "--simulated", "2", "--model", "a", "--json", "--seed", "1"]
+    assert cli.main([*argv, "--data-seed", "5", "--out", str(tmp_path / "five")]) == 0
+    card = json.loads((tmp_path / "five.json").read_text())
+    assert card["training"]["sections"] == ["regimes-5", "regimes-6"]
 
 
 @pytest.mark.slow

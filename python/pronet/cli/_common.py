@@ -169,8 +169,9 @@ def add_dataset_args(parser: argparse.ArgumentParser) -> None:
         "--data-seed",
         metavar="N",
         type=int,
-        default=0,
-        help="seed of the regenerated dataset (default 0)",
+        default=None,
+        help="seed of the regenerated dataset (default 0); train --simulated: of the first "
+        "simulated recording",
     )
 
 
@@ -181,6 +182,6 @@ def dataset_for(args: argparse.Namespace) -> tuple[Dataset, DatasetParams]:
 
     if args.dataset:
         return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
-    params = dataset.DatasetParams(seed=args.data_seed)
+    params = dataset.DatasetParams(seed=0 if args.data_seed is None else args.data_seed)
     Output(args).say(f"generating the dataset (seed {params.seed}) ...")
     return dataset.build_dataset(params), params

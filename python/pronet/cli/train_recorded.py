@@ -32,7 +32,8 @@ def add_recorded_args(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=None,
         help="train on N simulated recordings of the study's regimes scenario instead "
-        "(drawn from seeds --seed .. --seed + N - 1)",
+        "(drawn from seeds --data-seed .. --data-seed + N - 1; by default from --seed, "
+        "which also seeds the training)",
     )
     group.add_argument(
         "--format", choices=("snapir", "generic"), default="snapir", help="--recorded's format"
@@ -91,7 +92,8 @@ def _sections(args: argparse.Namespace) -> list:
     if args.simulated is not None:
         if args.simulated < 2:
             raise ValueError(f"--simulated: needs at least 2 recordings, got {args.simulated}")
-        return simulated_sections(args.simulated, seed=args.seed)
+        seed = args.seed if args.data_seed is None else args.data_seed
+        return simulated_sections(args.simulated, seed=seed)
     if not Path(args.recorded).is_dir():
         raise ValueError(f"--recorded: {args.recorded} is not a folder")
     names = args.sections.split(",") if args.sections else None
