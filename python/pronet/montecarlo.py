@@ -191,10 +191,15 @@ class MonteCarloResult:
     def nees_in_band(self, block: str) -> float:
         """The share of DVL epochs at which ``block``'s NEES (:data:`STATE_BLOCKS`),
         averaged over the runs that did not fail, lies inside the 95 % band of a
-        consistent filter's (:func:`pronet.stats.chi2_mean_band`): about 0.95 when
-        consistent; NaN without such runs or epochs. Where readings were lost (a DVL
-        dropout) an epoch's mean is over the runs that had it, against the band of
-        that many runs. Below :data:`IN_BAND_FLAG` the tables flag it."""
+        consistent filter's (:func:`pronet.stats.chi2_mean_band`): 0.95 in expectation
+        when consistent; NaN without such runs or epochs. Where readings were lost (a
+        DVL dropout) an epoch's mean is over the runs that had it, against the band of
+        that many runs. Below :data:`IN_BAND_FLAG` the tables flag it. For a block whose
+        error changes slowly within a run (position, attitude, the biases) the epochs
+        are few independent samples, so one draw of the runs gives a share near 0 or
+        1 even for a consistent filter; the NEES averaged over the epochs
+        (``np.nanmean(block_nees(block))``, 3 when consistent) is steadier
+        (``docs/filter.md``, "One draw of 100 runs")."""
         v = self.block_nees(block)[[f is None for f in self.failure]]
         if v.size == 0:
             return float("nan")
