@@ -216,6 +216,13 @@ def test_cli_errors_name_the_option(tmp_path, capsys):
     assert "--recorded:" in capsys.readouterr().err
     assert cli.main(["train", "--simulated", "1"]) == 2
     assert "--simulated: needs at least 2" in capsys.readouterr().err
+    for argv, name in ((["--simulated", "2", "--data-seed", "-1"], "--data-seed"),
+                       (["--simulated", "2", "--seed", "-2"], "--seed"),
+                       (["--data-seed", "-3"], "--data-seed")):  # fmt: skip
+        assert cli.main(["train", *argv, "--out", str(tmp_path / "m")]) == 2
+        assert f"{name}: must be >= 0, got -" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="seed: must be >= 0"):
+        simulated_sections(2, seed=-1)
 
 
 @pytest.mark.slow

@@ -182,6 +182,8 @@ def dataset_for(args: argparse.Namespace) -> tuple[Dataset, DatasetParams]:
 
     if args.dataset:
         return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
+    if args.data_seed is not None and args.data_seed < 0:
+        raise ValueError(f"--data-seed: must be >= 0, got {args.data_seed}")
     params = dataset.DatasetParams(seed=0 if args.data_seed is None else args.data_seed)
     Output(args).say(f"generating the dataset (seed {params.seed}) ...")
     return dataset.build_dataset(params), params

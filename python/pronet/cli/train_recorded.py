@@ -93,6 +93,9 @@ def _sections(args: argparse.Namespace) -> list:
         if args.simulated < 2:
             raise ValueError(f"--simulated: needs at least 2 recordings, got {args.simulated}")
         seed = args.seed if args.data_seed is None else args.data_seed
+        if seed < 0:
+            name = "--seed" if args.data_seed is None else "--data-seed"
+            raise ValueError(f"{name}: must be >= 0, got {seed}")
         return simulated_sections(args.simulated, seed=seed)
     if not Path(args.recorded).is_dir():
         raise ValueError(f"--recorded: {args.recorded} is not a folder")

@@ -163,4 +163,6 @@ def simulated_sections(
     """``n`` simulated ``regimes`` recordings, seeds ``seed .. seed + n − 1``."""
     if n < 1:
         raise ValueError(f"n: must be at least 1, got {n}")
+    if seed < 0:
+        raise ValueError(f"seed: must be >= 0, got {seed}")
     return [simulated_section(seed + i, duration) for i in range(n)]
