@@ -299,12 +299,7 @@ impl Ekf {
             self.propagate_covariance_with(&dynamics, dt, noise);
             return (Some(dynamics), None);
         }
-        let white = self.cfg.imu_dt * dt;
-        let interval = self
-            .interval
-            .get_or_insert_with(|| Interval::open(nav, false));
-        interval.add(nav, &accel, dt, white, noise);
-        let due = interval.due(&self.cfg);
+        let due = self.add_to_step(nav, raw, dt, noise);
         (None, if due { self.close_interval() } else { None })
     }
 

@@ -190,10 +190,15 @@ fn node_calibration(ekf: &Ekf, correction: [f64; 4]) -> Option<Box<NodeCalibrati
 /// A filter started from node `a` on the forward solution: its covariance (the
 /// calibration blocks too, and the covariance step under way) the node's.
 fn restart(forward: &Forward<'_>, cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
-    let b = &forward.bias[a.epoch];
+    restart_at(forward.nav[a.epoch], &forward.bias[a.epoch], cfg, a)
+}
+
+/// [`restart`] from the solution `nav` and the bias estimates `b` (`[b_a, b_g]`) after
+/// `a`'s updates.
+fn restart_at(nav: NavState, b: &[f64; 6], cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
     let mut ekf = Ekf::new(
         cfg,
-        forward.nav[a.epoch],
+        nav,
         Vector3::new(b[0], b[1], b[2]),
         Vector3::new(b[3], b[4], b[5]),
     )?;
