@@ -422,9 +422,11 @@ impl Run {
                 }
                 (a, b) => a.or(b),
             };
-            if let (Some(log), Some((dx, cal))) = (self.smoother.as_mut(), correction) {
+            let prior = self.ekf.take_prior();
+            if let (Some(log), Some(fed)) = (self.smoother.as_mut(), correction) {
                 let noise = self.strategy.process_noise();
-                log.nodes.after_updates(self.k, &self.ekf, dx, cal, noise);
+                log.nodes
+                    .after_updates(self.k, &self.ekf, fed, noise, prior);
             }
             if let Some(log) = self.smoother.as_mut() {
                 let recorded = self.record_every > 0 && self.k.is_multiple_of(self.record_every);

@@ -20,7 +20,7 @@ use super::dynamics::{ErrorDynamics, ImuNoise};
 use super::recorded::FilterOutput;
 use super::transition::Transition;
 use super::{formulation, ClosedSigma, Ekf, Matrix15, ACC_BIAS};
-use crate::mechanization::{FrameRates, NavState};
+use crate::mechanization::{FrameRates, ImuSample, NavState};
 use crate::noise::ProcessNoise;
 use nalgebra::{Matrix4, SMatrix, Vector3};
 
@@ -217,6 +217,29 @@ impl Ekf {
     /// end of the last closed step; every DVL update brings it up to date first.
     pub fn bring_up_to_date(&mut self) {
         self.close_interval();
+    }
+
+    /// The covariance-step part of the smoother's rebuild ([`Ekf::predict_covariance_from`]
+    /// under a covariance step): one raw IMU sample of `dt` seconds at the forward
+    /// solution `nav` added to the step under way (one opened at `nav` if none); whether
+    /// the step is now due ([`Ekf::close_interval`] closes it). The same operations as
+    /// the forward pass's [`Ekf::propagate`], without moving its transition around.
+    #[inline]
+    pub(super) fn add_to_step(
+        &mut self,
+        nav: &NavState,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> bool {
+        self.nav = *nav;
+        let accel = raw.accel - self.accel_bias;
+        let white = self.cfg.imu_dt * dt;
+        let interval = self
+            .interval
+            .get_or_insert_with(|| Interval::open(nav, false));
+        interval.add(nav, &accel, dt, white, noise);
+        interval.due(&self.cfg)
     }
 
     /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no

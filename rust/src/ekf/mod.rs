@@ -107,6 +107,10 @@ pub struct Ekf {
     /// With [`Ekf::keep_closes`]: the closes of the covariance step since the last
     /// [`Ekf::take_closes`], for the smoother.
     kept_closes: Option<Vec<KeptClose>>,
+    /// With [`Ekf::keep_priors`]: whether to keep the covariance before an epoch's
+    /// first update, and the one kept since the last [`Ekf::take_prior`].
+    keep_prior: bool,
+    prior: Option<Box<Matrix15>>,
 }
 
 /// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
@@ -137,6 +141,8 @@ impl Ekf {
             closed_sigma: None,
             track_closes: false,
             kept_closes: None,
+            keep_prior: false,
+            prior: None,
         })
     }
 
@@ -299,12 +305,7 @@ impl Ekf {
             self.propagate_covariance_with(&dynamics, dt, noise);
             return (Some(dynamics), None);
         }
-        let white = self.cfg.imu_dt * dt;
-        let interval = self
-            .interval
-            .get_or_insert_with(|| Interval::open(nav, false));
-        interval.add(nav, &accel, dt, white, noise);
-        let due = interval.due(&self.cfg);
+        let due = self.add_to_step(nav, raw, dt, noise);
         (None, if due { self.close_interval() } else { None })
     }
 
@@ -385,6 +386,7 @@ impl Ekf {
     /// the update runs on the 19-state covariance (see [`calibration`]).
     pub fn update(&mut self, z: &Vector3<f64>) -> Result<UpdateInfo> {
         self.bring_up_to_date();
+        self.note_prior();
         let r = Matrix3::from_diagonal(&Vector3::from_column_slice(&self.cfg.dvl_variance));
         let gate = self.cfg.innovation_gate;
         let (predicted, h) = self.measurement_model();

@@ -78,6 +78,7 @@ impl Ekf {
         out: &mut PositionUpdate,
     ) -> Result<()> {
         self.bring_up_to_date();
+        self.note_prior();
         let state = POS + axis;
         let (nis, dx) = match self.calibration.as_mut() {
             None => {

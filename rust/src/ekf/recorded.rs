@@ -353,7 +353,7 @@ fn forward_pass_keeping(
         };
         if let (Some((nodes, states)), Some(fed)) = (keep.as_mut(), fed) {
             let noise = strategy.process_noise();
-            nodes.after_updates(k + 1, &ekf, fed.nav, fed.calibration, noise);
+            nodes.after_updates(k + 1, &ekf, (fed.nav, fed.calibration), noise, None);
             if let Some(states) = states {
                 states.sync(nodes, &ekf);
             }

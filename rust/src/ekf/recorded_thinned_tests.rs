@@ -205,13 +205,45 @@ fn reintegration_is_exact(
     };
     let mut stretch = Stretch::default();
     assert!(nodes.0.len() > 30);
+    let every = Forward {
+        imu: data.imu,
+        imu_time: data.imu_time,
+        t0: data.t0,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &out.calibration,
+        dt: None,
+    };
+    let mut closes = Vec::new();
+    let (mut inside_a_step, mut compared) = (0, 0);
     for (j, pair) in nodes.0.windows(2).enumerate() {
         let (a, b) = (&pair[0], &pair[1]);
         let (forward, start) = stretch.rebuild(&src, j, a, b.epoch, &c).unwrap();
         assert_eq!(start.epoch, 0);
         assert_eq!(forward.nav, &out.nav[a.epoch..b.epoch]);
         assert_eq!(forward.bias[0], out.bias[a.epoch]);
+        if cfg.covariance_every_sample() {
+            continue;
+        }
+        // Under a covariance step, the closes rebuilt in the same sweep as the
+        // re-integration are those rebuilt from the kept solution, bit for bit.
+        inside_a_step += usize::from(a.interval.is_some());
+        let want = smoother::steps::rebuild::<19>(&every, cfg, a, b, &c).unwrap();
+        thinned::rebuild_closes::<19>(&src, cfg, j, (a, b), &mut closes, &c).unwrap();
+        compared += want.len();
+        assert_eq!(closes.len(), want.len(), "closes from epoch {}", a.epoch);
+        for (got, want) in closes.iter().zip(&want) {
+            assert_eq!(got.epoch, want.epoch);
+            assert_eq!(got.phi, want.phi, "Φ at epoch {}", want.epoch);
+            assert_eq!(got.p_prior, want.p_prior, "P at epoch {}", want.epoch);
+        }
     }
+    let q_rows = data.q_time.len();
+    assert!(cfg.covariance_every_sample() || q_rows == 0 || inside_a_step > 0);
+    assert!(
+        cfg.covariance_every_sample() || compared > 50,
+        "{compared} closes"
+    );
 }
 
 /// A stretch without updates (here 25,000 IMU samples, no aiding at all: one interval

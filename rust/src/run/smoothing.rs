@@ -412,6 +412,10 @@ impl Run {
         if cfg.covariance_every_sample() {
             log.imu.reserve(n);
             log.bias.reserve(n);
+            if cfg.dvl_calibration.is_none() {
+                // The backward pass skips the covariance where no σ is wanted.
+                self.ekf.keep_priors();
+            }
         } else {
             // Room for a close per step and one before each DVL update.
             let per_step = (cfg.covariance_step / scenario.truth.dt).floor().max(1.0) as usize;

@@ -1,13 +1,15 @@
 //! The backward pass with the covariance propagated at every IMU sample: the RTS
 //! recursion chained over the samples between two nodes (see [`super`]).
 
-use super::{full_p, restart, Covariances, Forward, Node, Sink};
+use super::{full_p, lift, restart, Covariances, Forward, Node, Sink};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
-use crate::ekf::dynamics::ErrorDynamics;
-use crate::ekf::FilterConfig;
+use crate::ekf::dynamics::{add_imu_noise, ErrorDynamics};
+use crate::ekf::formulation::from_classic;
+use crate::ekf::{FilterConfig, Matrix15, ACC_BIAS};
 use crate::error::{Error, Result};
-use crate::mechanization::ImuSample;
-use nalgebra::{SMatrix, SVector};
+use crate::mechanization::{FrameRates, ImuSample, NavState};
+use crate::noise::ProcessNoise;
+use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The backward pass of [`super::smooth`] over `N` states, every sample.
 pub(super) fn smooth_every<const N: usize, S: Sink>(
@@ -31,6 +33,14 @@ pub(super) fn smooth_every<const N: usize, S: Sink>(
     for pair in nodes.windows(2).rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
+        // No σ wanted inside the interval and the covariance before b's updates kept:
+        // the mean needs no covariance inside it ([`bryson_frazier`]).
+        let inside = |w: &dyn Fn(usize) -> bool| (a.epoch + 1..b.epoch).any(w);
+        if let (15, Some(p_prior), Some(false)) = (N, &b.p_prior, wanted.map(inside)) {
+            let p_prior = lift::<N>(p_prior, None);
+            (ds, ps) = bryson_frazier(forward, cfg, (a, b), &p_prior, (&ds, &ps), out, cancel)?;
+            continue;
+        }
         let interval = Interval::<N>::rebuild(forward, cfg, a, b.epoch, wanted, cancel)?;
         let chol = interval.p_end.cholesky().ok_or_else(|| {
             Error::Numerical(format!(
@@ -80,6 +90,128 @@ pub(super) fn smooth_every<const N: usize, S: Sink>(
     Ok(())
 }
 
+/// The interval from node `a` to node `b` of [`smooth_every`] where no σ is wanted
+/// inside it, given the forward covariance `p_prior` before `b`'s updates and the
+/// smoothed error `ds` and covariance `ps` at `b` (after its updates): the
+/// Bryson–Frazier form of the same recursion. `μ_i = Φ_iᵀ μ_{i+1}` back from
+/// `μ_b = (P⁻_b)⁻¹ δs⁻_b`, then forward from `δs_a = P_a μ_a`:
+/// `δs_{i+1} = P_{i+1} μ_{i+1} = (Φ_i P_i Φ_iᵀ + Q_i) μ_{i+1} = Φ_i δs_i + Q_i μ_{i+1}`
+/// (`Q_i` the noise the filter adds after `Φ_i` at sample `i`), so no `P_i` is
+/// re-predicted inside; `Ps_a = P_a + P_a G_bᵀ M G_b P_a` (`G_b = Φ_{a→b}`) as in the
+/// re-predicting pass. Writes the smoothed error at `[a, b)` and σ at `a`; gives `δs_a`
+/// and `Ps_a`. In exact arithmetic the same numbers; in floating point the errors inside
+/// the interval differ by rounding, those at the nodes are the same bits.
+fn bryson_frazier<const N: usize, S: Sink>(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    (a, b): (&Node, &Node),
+    p_prior: &SMatrix<f64, N, N>,
+    (ds, ps): (&SVector<f64, N>, &SMatrix<f64, N, N>),
+    out: &mut S,
+    cancel: &Cancel,
+) -> Result<(SVector<f64, N>, SMatrix<f64, N, N>)> {
+    let (steps, g_end) = transitions::<N>(forward, cfg, a, b.epoch, cancel)?;
+    let chol = p_prior.cholesky().ok_or_else(|| {
+        Error::Numerical(format!(
+            "the smoother: the covariance before epoch {} is not positive definite",
+            b.epoch
+        ))
+    })?;
+    let mut mu = chol.solve(&(ds + b.dx::<N>()));
+    let m = chol.solve(&(ps - p_prior));
+    let m = chol.solve(&m.transpose()).transpose();
+    let m = (m + m.transpose()) * 0.5;
+    // μ at every epoch of [a, b], back from b.
+    let mut mus = vec![SVector::<f64, N>::zeros(); steps.len() + 1];
+    mus[steps.len()] = mu;
+    for (k, (dynamics, dt)) in steps.iter().enumerate().rev() {
+        mu = transposed_step(dynamics, *dt, &mu);
+        mus[k] = mu;
+    }
+    let p_a = a.p::<N>();
+    let ds_a = p_a * mus[0];
+    let mut dsi = ds_a;
+    let noise = a.noise.as_process_noise();
+    for (k, (dynamics, dt)) in steps.iter().enumerate() {
+        let i = a.epoch + k;
+        out.apply(i, &dsi, cfg);
+        if k + 1 < steps.len() {
+            let q = discrete_noise(cfg, &forward.nav[i], noise, *dt);
+            let q_mu = q * mus[k + 1].fixed_rows::<15>(0);
+            let f = dynamics.apply(&dsi.as_slice()[..15]);
+            for (r, v) in f.iter().enumerate() {
+                dsi[r] += dt * v;
+            }
+            for (r, v) in q_mu.iter().enumerate() {
+                dsi[r] += v;
+            }
+        }
+    }
+    let gain = p_a * g_end.transpose();
+    let psi = p_a + gain * m * gain.transpose();
+    let ps_a = (psi + psi.transpose()) * 0.5;
+    out.set_sigma(a.epoch, &ps_a, cfg, forward);
+    out.keep_node(a.epoch, &ps_a);
+    Ok((ds_a, ps_a))
+}
+
+/// The error dynamics and step of each sample from node `a` to the epoch `end`, at the
+/// forward solution (as [`Interval::rebuild`] makes them, without the covariances), and
+/// their product `G = Φ_{a→end}`.
+#[allow(clippy::type_complexity)]
+fn transitions<const N: usize>(
+    forward: &Forward<'_>,
+    cfg: &FilterConfig,
+    a: &Node,
+    end: usize,
+    cancel: &Cancel,
+) -> Result<(Vec<(ErrorDynamics, f64)>, SMatrix<f64, N, N>)> {
+    let b = &forward.bias[a.epoch];
+    let accel_bias = Vector3::new(b[0], b[1], b[2]);
+    let mut steps = Vec::with_capacity(end - a.epoch);
+    let mut g = Product::<N>::identity();
+    for epoch in a.epoch..end {
+        if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
+            cancel.check()?;
+        }
+        let raw = ImuSample::from_array(&forward.imu[epoch]);
+        let dt = forward.step(epoch);
+        let nav = &forward.nav[epoch];
+        let accel = raw.accel - accel_bias;
+        let dynamics = ErrorDynamics::new(nav, &FrameRates::at(nav), &accel, cfg.formulation);
+        g.step(&dynamics, dt);
+        steps.push((dynamics, dt));
+    }
+    Ok((steps, g.get()))
+}
+
+/// The discrete noise `Q` the filter adds after `Φ` at one sample of `dt` seconds at
+/// the solution `nav` (its `add_process_noise`, added to zeros).
+fn discrete_noise(
+    cfg: &FilterConfig,
+    nav: &NavState,
+    noise: ProcessNoise<'_>,
+    dt: f64,
+) -> Matrix15 {
+    let mut q = Matrix15::zeros();
+    match noise {
+        ProcessNoise::Continuous {
+            imu_variance,
+            bias_psd,
+        } => {
+            add_imu_noise(&mut q, nav, cfg.formulation, imu_variance, cfg.imu_dt * dt);
+            for (i, psd) in bias_psd.iter().enumerate() {
+                q[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
+            }
+        }
+        ProcessNoise::Discrete(qd) => {
+            q = (qd + qd.transpose()) * 0.5;
+            from_classic(cfg.formulation, &mut q, &nav.vel);
+        }
+    }
+    q
+}
+
 /// The forward covariances `P_i` (epochs `a..b`, `P_a` the node's after its update)
 /// and the error dynamics F and step Δt of the steps `i → i+1` (`Φ = I + F Δt`),
 /// rebuilt from the forward solution; with a covariance predicate, the product
@@ -111,7 +243,7 @@ impl<const N: usize> Interval<N> {
         let steps = end - a.epoch;
         let (mut p, mut phi) = (Vec::with_capacity(steps), Vec::with_capacity(steps));
         let mut g_at = Vec::new();
-        let mut g = SMatrix::<f64, N, N>::identity();
+        let mut g = Product::<N>::identity();
         let noise = a.noise.as_process_noise();
         for epoch in a.epoch..end {
             if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
@@ -127,9 +259,9 @@ impl<const N: usize> Interval<N> {
             })?;
             if let Some(wanted) = wanted {
                 if epoch > a.epoch && wanted(epoch) {
-                    g_at.push((epoch - a.epoch, g));
+                    g_at.push((epoch - a.epoch, g.get()));
                 }
-                step_product(&step, dt, &mut g);
+                g.step(&step, dt);
             }
             phi.push((step, dt));
         }
@@ -138,7 +270,7 @@ impl<const N: usize> Interval<N> {
             steps: phi,
             p_end: full_p::<N>(&ekf),
             g: g_at,
-            g_end: g,
+            g_end: g.get(),
         })
     }
 
@@ -220,12 +352,38 @@ pub(super) fn congruence<const N: usize>(
     }
 }
 
-/// `G ← Φ G = G + Δt F G` (F's navigation rows alone nonzero).
-fn step_product<const N: usize>(dynamics: &ErrorDynamics, dt: f64, g: &mut SMatrix<f64, N, N>) {
-    for c in 0..N {
-        let f = dynamics.apply(&g.as_slice()[N * c..N * c + 15]);
-        for (r, v) in f.iter().enumerate() {
-            g[(r, c)] += dt * v;
+/// A product of transitions `G = Φ_{a→i}` as it is carried: for 15 states its
+/// transpose `H`, `H ← H Φᵀ` through whole columns of H
+/// ([`ErrorDynamics::advance_transposed`]); for 19, `G ← Φ G` column by column through
+/// F.
+struct Product<const N: usize>(SMatrix<f64, N, N>);
+
+impl<const N: usize> Product<N> {
+    fn identity() -> Self {
+        Self(SMatrix::identity())
+    }
+
+    /// `G ← Φ G` with `Φ = I + F Δt` (F's navigation rows alone nonzero).
+    fn step(&mut self, dynamics: &ErrorDynamics, dt: f64) {
+        if N == 15 {
+            dynamics.advance_transposed(self.0.as_mut_slice(), dt);
+            return;
+        }
+        let g = &mut self.0;
+        for c in 0..N {
+            let f = dynamics.apply(&g.as_slice()[N * c..N * c + 15]);
+            for (r, v) in f.iter().enumerate() {
+                g[(r, c)] += dt * v;
+            }
+        }
+    }
+
+    /// G itself.
+    fn get(&self) -> SMatrix<f64, N, N> {
+        if N == 15 {
+            self.0.transpose()
+        } else {
+            self.0
         }
     }
 }

@@ -126,6 +126,38 @@ pub struct Node {
     /// With the DVL calibration states: their blocks of the covariance after the
     /// updates and their estimate fed back (boxed, 320 bytes).
     pub calibration: Option<Box<NodeCalibration>>,
+    /// The covariance before the epoch's updates (`p_post` where it had none), where
+    /// the forward pass kept it ([`Ekf::keep_priors`]: a Monte Carlo at every sample
+    /// without the calibration states); the backward pass then needs no covariance
+    /// inside an interval where no σ is wanted ([`every`]).
+    pub p_prior: Option<Box<Matrix15>>,
+}
+
+/// Keeping the covariance before each epoch's updates for the nodes.
+impl Ekf {
+    /// Keep, from now on, the covariance before the first update of each epoch, for
+    /// [`Ekf::take_prior`] (1.8 kB per epoch with updates).
+    pub fn keep_priors(&mut self) {
+        self.keep_prior = true;
+    }
+
+    /// The covariance kept before the updates since the last call (None: no update, or
+    /// [`Ekf::keep_priors`] not asked for).
+    pub fn take_prior(&mut self) -> Option<Box<Matrix15>> {
+        self.prior.take()
+    }
+
+    /// Before an update: keep the covariance if asked and none is kept yet.
+    pub(super) fn note_prior(&mut self) {
+        if self.keep_prior && self.prior.is_none() {
+            self.prior = Some(Box::new(self.p));
+        }
+    }
+
+    /// The covariance as a node's prior, where priors are kept.
+    fn prior_here(&self) -> Option<Box<Matrix15>> {
+        self.keep_prior.then(|| Box::new(self.p))
+    }
 }
 
 /// The calibration part of a [`Node`].
@@ -190,10 +222,15 @@ fn node_calibration(ekf: &Ekf, correction: [f64; 4]) -> Option<Box<NodeCalibrati
 /// A filter started from node `a` on the forward solution: its covariance (the
 /// calibration blocks too, and the covariance step under way) the node's.
 fn restart(forward: &Forward<'_>, cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
-    let b = &forward.bias[a.epoch];
+    restart_at(forward.nav[a.epoch], &forward.bias[a.epoch], cfg, a)
+}
+
+/// [`restart`] from the solution `nav` and the bias estimates `b` (`[b_a, b_g]`) after
+/// `a`'s updates.
+fn restart_at(nav: NavState, b: &[f64; 6], cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
     let mut ekf = Ekf::new(
         cfg,
-        forward.nav[a.epoch],
+        nav,
         Vector3::new(b[0], b[1], b[2]),
         Vector3::new(b[3], b[4], b[5]),
     )?;
@@ -223,6 +260,7 @@ impl Nodes {
                 noise: Noise::of(noise),
                 interval: open_step(ekf),
                 calibration: node_calibration(ekf, [0.0; 4]),
+                p_prior: ekf.prior_here(),
             }),
         }
     }
@@ -230,14 +268,14 @@ impl Nodes {
     /// After the updates at `epoch`: `correction` the sum of the estimates fed back
     /// (the calibration states' in `calibration`, zero without them), `noise` the
     /// strategy's noise after them (Mehra and the adaptive strategy change it at
-    /// updates).
+    /// updates); `prior` the covariance before them where kept ([`Ekf::take_prior`]).
     pub fn after_updates(
         &mut self,
         epoch: usize,
         ekf: &Ekf,
-        correction: Vector15,
-        calibration: [f64; 4],
+        (correction, calibration): (Vector15, [f64; 4]),
         noise: ProcessNoise<'_>,
+        prior: Option<Box<Matrix15>>,
     ) {
         self.0.push(Node {
             epoch,
@@ -246,6 +284,7 @@ impl Nodes {
             noise: Noise::of(noise),
             interval: open_step(ekf),
             calibration: node_calibration(ekf, calibration),
+            p_prior: prior,
         });
     }
 
@@ -275,6 +314,7 @@ impl Nodes {
             noise: noise.unwrap_or(Noise::Discrete(Box::new(Matrix15::zeros()))),
             interval: None,
             calibration: node_calibration(ekf, [0.0; 4]),
+            p_prior: ekf.prior_here(),
         });
     }
 }

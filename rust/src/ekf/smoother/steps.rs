@@ -25,7 +25,7 @@
 use super::{full_p, lift, restart, Covariances, Forward, Node, Sink, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
-use crate::ekf::{FilterConfig, KeptCloses};
+use crate::ekf::{Ekf, FilterConfig, KeptCloses};
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
 use nalgebra::{SMatrix, SVector};
@@ -37,8 +37,19 @@ type NavRows = SMatrix<f64, 9, 15>;
 /// step's Φ and the covariance it left (before the epoch's updates), over `N` states.
 pub(in crate::ekf) struct Close<const N: usize> {
     pub(in crate::ekf) epoch: usize,
-    pub(super) phi: NavRows,
+    pub(in crate::ekf) phi: NavRows,
     pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
+}
+
+impl<const N: usize> Close<N> {
+    /// The close `ekf` just made at `epoch` with the transition `phi`.
+    pub(super) fn of(ekf: &Ekf, epoch: usize, phi: &Transition) -> Self {
+        Self {
+            epoch,
+            phi: phi.nav_rows(),
+            p_prior: full_p::<N>(ekf),
+        }
+    }
 }
 
 /// The backward pass of [`super::smooth`] over `N` states under a covariance step,
@@ -400,13 +411,8 @@ pub(in crate::ekf) fn rebuild<const N: usize>(
     let mut ekf = restart(forward, cfg, a)?;
     let noise = a.noise.as_process_noise();
     let mut closes = Vec::new();
-    let mut push = |ekf: &crate::ekf::Ekf, epoch: usize, phi: Transition| {
-        closes.push(Close {
-            epoch,
-            phi: phi.nav_rows(),
-            p_prior: full_p::<N>(ekf),
-        });
-    };
+    let mut push =
+        |ekf: &Ekf, epoch: usize, phi: Transition| closes.push(Close::of(ekf, epoch, &phi));
     for epoch in a.epoch..b.epoch {
         if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
             cancel.check()?;

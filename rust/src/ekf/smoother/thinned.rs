@@ -14,8 +14,8 @@
 //! empty).
 
 use super::every::{self, transposed_step};
-use super::steps::{self, symmetric, transposed, Later};
-use super::{full_p, restart, Forward, Node, Nodes, Sink, Smoothed};
+use super::steps::{self, symmetric, transposed, Close, Later};
+use super::{full_p, restart, restart_at, Forward, Node, Nodes, Sink, Smoothed};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
 use crate::ekf::dynamics::ErrorDynamics;
@@ -308,23 +308,20 @@ fn smooth_steps<const N: usize>(
     let mut mu = SVector::<f64, N>::zeros();
     let mut lambda = SMatrix::<f64, N, N>::zeros();
     let mut later: Option<Later<N>> = None;
-    let mut stretch = Stretch::default();
+    let mut closes = Vec::new();
     for (j, pair) in nodes.windows(2).enumerate().rev() {
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
-        let (forward, start) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
-        let mut end = b.clone();
-        end.epoch -= a.epoch;
-        let closes = steps::rebuild::<N>(&forward, cfg, &start, &end, cancel)?;
+        rebuild_closes::<N>(src, cfg, j, (a, b), &mut closes, cancel)?;
         for (k, close) in closes.iter().enumerate().rev() {
-            let epoch = close.epoch + a.epoch;
+            let epoch = close.epoch;
             let at_node = epoch == b.epoch;
             let p = if at_node { b.p::<N>() } else { close.p_prior };
             let ds = p * mu;
             // Ps where it is read: at the nodes and at kept epochs between the close
             // before and the next one (σ there is interpolated between the two).
             let until = later.as_ref().map_or(epoch + 1, |l| l.epoch);
-            let since = steps::previous_close(&closes, k, &start).map(|s| s + a.epoch);
+            let since = steps::previous_close(&closes, k, a);
             let read = at_node || since.is_none_or(|s| !src.kept_in(s + 1..until).is_empty());
             let ps = read.then(|| symmetric(&(p + p * lambda * p)));
             fill(&mut out, src, cfg, epoch, &ds, ps.as_ref(), later.as_ref());
@@ -352,6 +349,52 @@ fn smooth_steps<const N: usize>(
     let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
     fill(&mut out, src, cfg, 0, &ds, Some(&ps), later.as_ref());
     Ok(out)
+}
+
+/// The closes in `(a, b]` of the covariance step (`a` the `j`-th node), as
+/// [`steps::rebuild`] makes them from the forward solution, with that solution
+/// integrated again on the way as [`Stretch::rebuild`] integrates it: one sweep, the
+/// same operations on the same numbers, so each close is the forward pass's bit for bit,
+/// and no interval's worth of solutions is written and read back. Into `closes`, whose
+/// buffer each interval reuses.
+pub(in crate::ekf) fn rebuild_closes<const N: usize>(
+    src: &Thinned<'_>,
+    cfg: &FilterConfig,
+    j: usize,
+    (a, b): (&Node, &Node),
+    closes: &mut Vec<Close<N>>,
+    cancel: &Cancel,
+) -> Result<()> {
+    closes.clear();
+    let mut nav = src.states.nav[j];
+    let mut ekf = restart_at(nav, &src.states.bias[j], cfg, a)?;
+    let (accel_bias, gyro_bias) = (ekf.accel_bias, ekf.gyro_bias);
+    let noise = a.noise.as_process_noise();
+    for i in a.epoch..b.epoch {
+        if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
+            cancel.check()?;
+        }
+        let raw = ImuSample::from_array(&src.imu[i]);
+        let dt = src.imu_time[i] - src.time(i);
+        if ekf.add_to_step(&nav, &raw, dt, noise) {
+            if let Some(phi) = ekf.close_interval() {
+                closes.push(Close::of(&ekf, i + 1, &phi));
+            }
+        }
+        if i + 1 < b.epoch {
+            let imu = ImuSample {
+                accel: raw.accel - accel_bias,
+                gyro: raw.gyro - gyro_bias,
+            };
+            nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
+        }
+    }
+    if b.interval.is_none() {
+        if let Some(phi) = ekf.close_interval() {
+            closes.push(Close::of(&ekf, b.epoch, &phi));
+        }
+    }
+    Ok(())
 }
 
 /// [`super::steps`]'s `fill` at the kept epochs: the smoothed error `ds` at the close
