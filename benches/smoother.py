@@ -158,6 +158,8 @@ NAMES = ("imu", "imu_time", "dvl", "dvl_time", "initial")
 
 
 def main(argv: list[str]) -> int:
+    if not argv:
+        raise SystemExit(__doc__.split("\n\n")[1])  # the usage lines
     if argv[0] == "cost":
         runs, repeat, seconds = int(argv[1]), int(argv[2]), float(argv[3])
         steps = [float(s) for s in argv[4:]] or [0.0, 0.1]
