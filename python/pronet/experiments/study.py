@@ -145,7 +145,7 @@ def run_study(
     scenario, ``n_runs`` runs each from ``seed`` (the noise schedules too). With
     ``smooth``, each row is followed by its RTS-smoothed one (``"<label>, smoothed"``,
     the same runs smoothed; its paired differences are still taken from the forward
-    reference); a smoothed Monte Carlo costs 2–3 plain ones. Everything is checked
+    reference); a smoothed Monte Carlo costs about 2.1–2.3 plain ones. Everything is checked
     before anything runs; ``on_done("<scenario>: <label>")`` after each."""
     chosen = _chosen_rows(n_runs, scenarios, labels, threads)
     regressors = _regressors(chosen)
