@@ -75,13 +75,20 @@ def _worse(r: pronet.MonteCarloResult) -> str:
     (resampled alike for both) above 1."""
     s = r.smoothed
     assert s is not None and r.error is not None and s.error is not None
-    ef = np.sum(r.error[:, :, 3:6] ** 2, axis=2)
+    ef = np.sum(r.error[:, :, 3:6] ** 2, axis=2)  # (runs, epochs)
     es = np.sum(s.error[:, :, 3:6] ** 2, axis=2)
     ratio = np.sqrt(np.nanmean(es, axis=0) / np.nanmean(ef, axis=0))
-    draws = np.random.default_rng(0).integers(0, len(ef), (2000, len(ef)))
-    low = np.quantile(
-        np.sqrt(np.nanmean(es[draws], axis=1) / np.nanmean(ef[draws], axis=1)), 0.025, axis=0
-    )
+    # Each bootstrap draw as how often it takes each run: (2000, runs) weights, so the
+    # draws' means are two matrix products (not 2000 copies of the runs).
+    runs = len(ef)
+    draws = np.random.default_rng(0).integers(0, runs, (2000, runs))
+    weights = np.zeros((2000, runs))
+    np.add.at(weights, (np.arange(2000)[:, None], draws), 1.0)
+
+    def mean(e: np.ndarray) -> np.ndarray:
+        return (weights @ np.nan_to_num(e)) / (weights @ np.isfinite(e))
+
+    low = np.quantile(np.sqrt(mean(es) / mean(ef)), 0.025, axis=0)
     return f"{int(np.sum(ratio > 1.05))} / {len(ratio)} ({int(np.sum(low > 1))})"
 
 

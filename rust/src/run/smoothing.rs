@@ -182,8 +182,10 @@ impl<'a> Reduced<'a> {
 
 impl Sink for Reduced<'_> {
     fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig) {
-        // The pass goes back close by close, forward inside each: ask early for the
-        // epochs of the next close back (the run's log is far out of the cache).
+        // The pass goes back close by close, forward inside each (and forward through
+        // an interval taken by the Bryson–Frazier form, where this asks for epochs
+        // already read: a wasted hint, no more): ask early for the epochs of the next
+        // close back (the run's log is far out of the cache).
         if let Some(ahead) = i.checked_sub(PREFETCH) {
             prefetch(&self.log.nav[ahead]);
             prefetch(&self.truth.states[ahead]);
@@ -391,8 +393,9 @@ impl Run {
     /// Keep what the RTS smoother needs from now on (call before the first step): the
     /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
     /// keeps the forward solution at every IMU epoch (120 bytes each; the raw sample
-    /// and the bias estimates too, 96 bytes, without a covariance step), one
-    /// covariance per DVL update, the bias estimates and true bias where the whole
+    /// and the bias estimates too, 96 bytes, without a covariance step), the covariance
+    /// after each node's updates (and at every sample, with 15 states, the one before
+    /// them: 1.8 kB each), the bias estimates and true bias where the whole
     /// smoothed solution is read, and under a covariance step each close the filter
     /// makes (2.0 kB per step): the backward pass reads them instead of rebuilding
     /// them, ~20 % of its work.

@@ -216,11 +216,11 @@ fn discrete_noise(
 /// and the error dynamics F and step Δt of the steps `i → i+1` (`Φ = I + F Δt`),
 /// rebuilt from the forward solution; with a covariance predicate, the product
 /// `G_i = Φ_{a→i}` at the epochs it holds for, and `G_b`.
-pub(in crate::ekf) struct Interval<const N: usize> {
+pub(crate) struct Interval<const N: usize> {
     pub(in crate::ekf) p: Vec<SMatrix<f64, N, N>>,
     pub(super) steps: Vec<(ErrorDynamics, f64)>,
     /// The covariance after the last step (before the end node's update).
-    pub(in crate::ekf) p_end: SMatrix<f64, N, N>,
+    pub(crate) p_end: SMatrix<f64, N, N>,
     /// `(i − a, G_i)` at the wanted epochs inside the interval.
     g: Vec<(usize, SMatrix<f64, N, N>)>,
     g_end: SMatrix<f64, N, N>,
@@ -231,7 +231,7 @@ impl<const N: usize> Interval<N> {
     /// prediction along the forward solution (read, not integrated again): the same
     /// steps on the same numbers, so its last covariance is the forward pass's before
     /// `end`'s update, bit for bit.
-    pub(in crate::ekf) fn rebuild(
+    pub(crate) fn rebuild(
         forward: &Forward<'_>,
         cfg: &FilterConfig,
         a: &Node,

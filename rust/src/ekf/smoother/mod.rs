@@ -46,7 +46,7 @@ pub(super) mod steps;
 pub mod thinned;
 
 #[cfg(test)]
-pub(super) use every::Interval;
+pub(crate) use every::Interval;
 pub use sink::Sink;
 pub(crate) use sink::{between_variances, classic_variances, classic_variances_of, sigma15};
 
@@ -113,7 +113,7 @@ pub struct Node {
     /// The epoch's index in the forward output.
     pub epoch: usize,
     /// The covariance after the epoch's updates (the one before them is rebuilt by the
-    /// backward pass, bit for bit, and not kept).
+    /// backward pass, bit for bit, unless the forward pass kept it: `p_prior`).
     pub p_post: Matrix15,
     /// The sum of the error estimates fed back at the epoch (zero where none).
     pub correction: Vector15,
@@ -136,7 +136,8 @@ pub struct Node {
 /// Keeping the covariance before each epoch's updates for the nodes.
 impl Ekf {
     /// Keep, from now on, the covariance before the first update of each epoch, for
-    /// [`Ekf::take_prior`] (1.8 kB per epoch with updates).
+    /// [`Ekf::take_prior`] (1.8 kB per node: an epoch with updates, or where the noise
+    /// changes).
     pub fn keep_priors(&mut self) {
         self.keep_prior = true;
     }

@@ -5,10 +5,13 @@
 //! Between two nodes `a` and `b` the forward filter only predicts: its solution there
 //! is the strapdown mechanization of the IMU samples from the solution after `a`'s
 //! feedback, with the bias (and DVL calibration) estimates of `a`. The backward pass
-//! re-integrates it ([`Stretch`]), the same operations on the same numbers, so the
-//! forward solution of every epoch in `[a, b)` comes back bit for bit; then it rebuilds
-//! the interval's covariances from it as the every-epoch pass does ([`super::every`],
-//! [`super::steps`]) and runs the same recursion, writing the smoothed solution (and σ)
+//! re-integrates it, the same operations on the same numbers, so the forward solution
+//! of every epoch in `[a, b)` comes back bit for bit, and rebuilds the interval's
+//! covariances from it as the every-epoch pass does: at every sample first the
+//! solution ([`Stretch`]) and then the covariances ([`super::every`]); under a
+//! covariance step both in one sweep, each sample added to the step as it is
+//! integrated ([`rebuild_closes`], the closes [`super::steps`] would rebuild). It runs
+//! the same recursion, writing the smoothed solution (and σ)
 //! at the kept epochs alone: each equals the every-epoch pass's bit for bit. The
 //! smoothed covariances at the nodes are not kept ([`Smoothed::node_covariance`] is
 //! empty).
