@@ -139,16 +139,13 @@ pub fn filter_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
-    forward_pass(
+    let pass = Pass {
         data,
         initial,
         initial_bias,
         cfg,
-        strategy,
-        epochs,
-        None,
-        cancel,
-    )
+    };
+    pass.forward(strategy, epochs, None, cancel)
 }
 
 /// [`filter_recorded_until`] keeping `epochs` (all, or [`Epochs::Step`]), then the
@@ -163,127 +160,235 @@ pub fn smooth_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
+    let pass = Pass {
+        data,
+        initial,
+        initial_bias,
+        cfg,
+    };
     match epochs {
-        Epochs::All => {}
-        Epochs::Last => {
-            return Err(Error::invalid(
-                "epochs",
-                "the smoother corrects the kept epochs: keep all, or some (an output step)",
-            ))
-        }
-        Epochs::Step(_) => {
-            return smooth_thinned(data, initial, initial_bias, cfg, strategy, epochs, cancel)
-        }
+        Epochs::All => pass.smooth_every(strategy, cancel),
+        Epochs::Last => Err(Error::invalid(
+            "epochs",
+            "the smoother corrects the kept epochs: keep all, or some (an output step)",
+        )),
+        Epochs::Step(_) => pass.smooth_thinned(strategy, epochs, cancel),
     }
-    let mut nodes = Nodes::default();
-    let mut out = forward_pass(
-        data,
-        initial,
-        initial_bias,
-        cfg,
-        strategy,
-        Epochs::All,
-        Some(&mut nodes),
-        cancel,
-    )?;
-    let forward = Forward {
-        imu: data.imu,
-        imu_time: data.imu_time,
-        t0: data.t0,
-        nav: &out.nav,
-        bias: &out.bias,
-        calibration: &out.calibration,
-        dt: None,
-    };
-    let smoothed = smoother::smooth(&forward, cfg, &nodes.0, Covariances::Every, cancel)?;
-    out.smoothed = Some(smoothed);
-    Ok(out)
-}
-
-/// [`smooth_recorded_until`] with an [`Epochs::Step`]: the forward pass keeps its
-/// solution at the nodes and the kept epochs only ([`smoother::thinned`]).
-fn smooth_thinned(
-    data: &RecordedData<'_>,
-    initial: NavState,
-    initial_bias: [f64; 6],
-    cfg: &FilterConfig,
-    strategy: &mut dyn NoiseStrategy,
-    epochs: Epochs,
-    cancel: &Cancel,
-) -> Result<FilterOutput> {
-    let mut nodes = Nodes::default();
-    let mut states = NodeStates::default();
-    let keep = Some((&mut nodes, Some(&mut states)));
-    let mut out = forward_pass_keeping(
-        data,
-        initial,
-        initial_bias,
-        cfg,
-        strategy,
-        epochs,
-        keep,
-        cancel,
-    )?;
-    let forward = Thinned {
-        imu: data.imu,
-        imu_time: data.imu_time,
-        t0: data.t0,
-        states: &states,
-        epochs: &out.epoch,
-        nav: &out.nav,
-        bias: &out.bias,
-        calibration: &out.calibration,
-    };
-    let smoothed = thinned::smooth(&forward, cfg, &nodes.0, cancel)?;
-    out.smoothed = Some(smoothed);
-    Ok(out)
-}
-
-/// The forward pass; with `nodes`, keeping what the smoother needs.
-#[allow(clippy::too_many_arguments)]
-fn forward_pass(
-    data: &RecordedData<'_>,
-    initial: NavState,
-    initial_bias: [f64; 6],
-    cfg: &FilterConfig,
-    strategy: &mut dyn NoiseStrategy,
-    epochs: Epochs,
-    nodes: Option<&mut Nodes>,
-    cancel: &Cancel,
-) -> Result<FilterOutput> {
-    let keep = nodes.map(|n| (n, None));
-    forward_pass_keeping(
-        data,
-        initial,
-        initial_bias,
-        cfg,
-        strategy,
-        epochs,
-        keep,
-        cancel,
-    )
 }
 
 /// What a smoothed forward pass keeps: the nodes and, for the node-only backward pass,
 /// the solution at each of them.
 type Keep<'a> = Option<(&'a mut Nodes, Option<&'a mut NodeStates>)>;
 
-/// [`forward_pass`] keeping the nodes, and with `states` the solution at each.
-#[allow(clippy::too_many_arguments)]
-fn forward_pass_keeping(
-    data: &RecordedData<'_>,
+/// What one pass starts from: the recording, the initial state and bias estimates
+/// (`[b_a, b_g]`), and the filter's configuration.
+struct Pass<'a> {
+    data: &'a RecordedData<'a>,
     initial: NavState,
     initial_bias: [f64; 6],
-    cfg: &FilterConfig,
-    strategy: &mut dyn NoiseStrategy,
-    epochs: Epochs,
-    mut keep: Keep<'_>,
-    cancel: &Cancel,
-) -> Result<FilterOutput> {
-    epochs.validate()?;
-    let mut ekf = start(data, initial, initial_bias, cfg, strategy)?;
-    let every = epochs == Epochs::All;
-    let mut thinning = Thinning::of(epochs, data.t0, data.imu_time[0] - data.t0);
+    cfg: &'a FilterConfig,
+}
+
+impl<'a> Pass<'a> {
+    /// A pass from the moving test state with zero bias estimates.
+    #[cfg(test)]
+    fn of(data: &'a RecordedData<'a>, cfg: &'a FilterConfig) -> Self {
+        Pass {
+            data,
+            initial: super::tests::moving_state(),
+            initial_bias: [0.0; 6],
+            cfg,
+        }
+    }
+
+    /// Every epoch kept, then the backward pass over them.
+    fn smooth_every(
+        &self,
+        strategy: &mut dyn NoiseStrategy,
+        cancel: &Cancel,
+    ) -> Result<FilterOutput> {
+        let mut nodes = Nodes::default();
+        let keep = Some((&mut nodes, None));
+        let mut out = self.forward(strategy, Epochs::All, keep, cancel)?;
+        let data = self.data;
+        let forward = Forward {
+            imu: data.imu,
+            imu_time: data.imu_time,
+            t0: data.t0,
+            nav: &out.nav,
+            bias: &out.bias,
+            calibration: &out.calibration,
+            dt: None,
+        };
+        let smoothed = smoother::smooth(&forward, self.cfg, &nodes.0, Covariances::Every, cancel)?;
+        out.smoothed = Some(smoothed);
+        Ok(out)
+    }
+
+    /// With an [`Epochs::Step`]: the forward pass keeps its solution at the nodes and
+    /// the kept epochs only ([`smoother::thinned`]).
+    fn smooth_thinned(
+        &self,
+        strategy: &mut dyn NoiseStrategy,
+        epochs: Epochs,
+        cancel: &Cancel,
+    ) -> Result<FilterOutput> {
+        let mut nodes = Nodes::default();
+        let mut states = NodeStates::default();
+        let keep = Some((&mut nodes, Some(&mut states)));
+        let mut out = self.forward(strategy, epochs, keep, cancel)?;
+        let data = self.data;
+        let forward = Thinned {
+            imu: data.imu,
+            imu_time: data.imu_time,
+            t0: data.t0,
+            states: &states,
+            epochs: &out.epoch,
+            nav: &out.nav,
+            bias: &out.bias,
+            calibration: &out.calibration,
+        };
+        let smoothed = thinned::smooth(&forward, self.cfg, &nodes.0, cancel)?;
+        out.smoothed = Some(smoothed);
+        Ok(out)
+    }
+
+    /// The forward pass keeping `epochs`; with `keep`, what the smoother needs (the
+    /// nodes, and with `states` the solution at each).
+    fn forward(
+        &self,
+        strategy: &mut dyn NoiseStrategy,
+        epochs: Epochs,
+        mut keep: Keep<'_>,
+        cancel: &Cancel,
+    ) -> Result<FilterOutput> {
+        epochs.validate()?;
+        let data = self.data;
+        let mut ekf = self.start(strategy)?;
+        let every = epochs == Epochs::All;
+        let mut thinning = Thinning::of(epochs, data.t0, data.imu_time[0] - data.t0);
+        let n = data.imu.len();
+        let mut out = output_for(data, epochs, ekf.calibration.is_some());
+        let mut stale = StaleSigma::default();
+        let some = every || thinning.is_some();
+        if some {
+            out.record(&ekf, data.t0);
+            if thinning.is_some() {
+                out.epoch.push(0);
+            }
+            stale.after_epoch(&mut ekf, &mut out, data.t0, true);
+            ekf.track_closes();
+        }
+        let mut at = Cursor::default();
+        let first_dt = data.imu_time[0] - data.t0;
+        keep_covariances(data, &ekf, &mut out, &mut at, 0, data.t0, first_dt);
+        let mut t_prev = data.t0;
+        for (k, (sample, &t)) in data.imu.iter().zip(data.imu_time).enumerate() {
+            if k % STEPS_PER_CHECK == 0 {
+                cancel.check()?;
+            }
+            let dt = t - t_prev;
+            // DVL rows that fell before the first epoch cannot be used.
+            while at.next_dvl < data.dvl.len() && data.dvl_time[at.next_dvl] < data.t0 - 0.5 * dt {
+                at.next_dvl += 1;
+            }
+            set_scheduled_q(data, strategy, &mut at, t_prev + 0.5 * dt)?;
+            if let Some((nodes, states)) = keep.as_mut() {
+                nodes.before_step(k, &ekf, strategy.process_noise());
+                sync(states, nodes, &ekf);
+            }
+            ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise())
+                .map_err(|e| match e {
+                    Error::Numerical(m) => Error::Numerical(format!("{m} (t = {t} s)")),
+                    other => other,
+                })?;
+            at.steps_since_update += 1;
+            if k + 1 == n {
+                ekf.bring_up_to_date(); // the end of the pass
+            }
+            let dvl = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
+            let aiding = apply_position_rows(data, &mut ekf, &mut out, &mut at, k + 1, t, dt)?;
+            let fed = match (dvl, aiding) {
+                (None, None) => None,
+                (a, b) => Some(a.unwrap_or_default().plus(&b.unwrap_or_default())),
+            };
+            if let (Some((nodes, states)), Some(fed)) = (keep.as_mut(), fed) {
+                let noise = strategy.process_noise();
+                nodes.after_updates(k + 1, &ekf, (fed.nav, fed.calibration), noise, None);
+                sync(states, nodes, &ekf);
+            }
+            let next_dt = data.imu_time.get(k + 1).map_or(dt, |&next| next - t);
+            keep_covariances(data, &ekf, &mut out, &mut at, k + 1, t, next_dt);
+            if some {
+                let recorded = match thinning.as_mut() {
+                    None => true,
+                    Some(thin) => thin.keeps(t, next_dt) || k + 1 == n,
+                };
+                if recorded {
+                    out.record(&ekf, t);
+                    if thinning.is_some() {
+                        out.epoch.push(k + 1);
+                    }
+                }
+                stale.after_epoch(&mut ekf, &mut out, t, recorded);
+            }
+            t_prev = t;
+        }
+        if !some {
+            out.record(&ekf, t_prev);
+        }
+        if let Some((nodes, mut states)) = keep {
+            nodes.finish(n, &ekf);
+            sync(&mut states, nodes, &ekf);
+        }
+        out.final_covariance = ekf.covariance();
+        out.close_rows(data);
+        Ok(out)
+    }
+
+    /// The filter at the start of the pass, once the data, the initial state and the
+    /// strategy have been checked for it.
+    fn start(&self, strategy: &dyn NoiseStrategy) -> Result<Ekf> {
+        let (data, initial, bias) = (self.data, &self.initial, &self.initial_bias);
+        earth::check_latitude("lla0", initial.lla[0])?;
+        data.validate()?;
+        if !data.q_time.is_empty() && !strategy.takes_outside_q() {
+            return Err(Error::invalid(
+                "strategy",
+                "a q schedule needs an external strategy (Strategy.external)",
+            ));
+        }
+        if strategy.wants_true_variance() {
+            return Err(Error::invalid(
+                "strategy",
+                "oracle needs the simulated IMU's true variance, which recorded data does not have",
+            ));
+        }
+        check::finite("initial state", initial.lla.as_slice())?;
+        check::finite("initial state", initial.vel.as_slice())?;
+        check::finite("initial bias", bias)?;
+        let mut ekf = Ekf::new(
+            self.cfg,
+            *initial,
+            Vector3::new(bias[0], bias[1], bias[2]),
+            Vector3::new(bias[3], bias[4], bias[5]),
+        )?;
+        if let Some(q) = strategy.sensitivity_q() {
+            ekf.track_sensitivity(q);
+        }
+        Ok(ekf)
+    }
+}
+
+/// The solution at each node, where the node-only backward pass wants it.
+fn sync(states: &mut Option<&mut NodeStates>, nodes: &Nodes, ekf: &Ekf) {
+    if let Some(states) = states {
+        states.sync(nodes, ekf);
+    }
+}
+
+/// An empty output with room for the epochs `epochs` keeps of `data` and its DVL rows.
+fn output_for(data: &RecordedData<'_>, epochs: Epochs, calibrated: bool) -> FilterOutput {
     let n = data.imu.len();
     let kept = match epochs {
         Epochs::All => n + 1,
@@ -294,147 +399,47 @@ fn forward_pass_keeping(
         }
     };
     let mut out = FilterOutput::with_capacity(kept, data.dvl.len());
-    if ekf.calibration.is_some() {
+    if calibrated {
         out.calibration.reserve_exact(kept);
         out.calibration_sigma.reserve_exact(kept);
     }
-    let mut stale = StaleSigma::default();
-    let some = every || thinning.is_some();
-    if some {
-        out.record(&ekf, data.t0);
-        if thinning.is_some() {
-            out.epoch.reserve_exact(kept);
-            out.epoch.push(0);
-        }
-        stale.after_epoch(&mut ekf, &mut out, data.t0, true);
-        ekf.track_closes();
+    if matches!(epochs, Epochs::Step(_)) {
+        out.epoch.reserve_exact(kept);
     }
-    let mut at = Cursor::default();
-    let first_dt = data.imu_time[0] - data.t0;
-    keep_covariances(data, &ekf, &mut out, &mut at, 0, data.t0, first_dt);
-    let mut t_prev = data.t0;
-    for (k, (sample, &t)) in data.imu.iter().zip(data.imu_time).enumerate() {
-        if k % STEPS_PER_CHECK == 0 {
-            cancel.check()?;
-        }
-        let dt = t - t_prev;
-        // DVL rows that fell before the first epoch cannot be used.
-        while at.next_dvl < data.dvl.len() && data.dvl_time[at.next_dvl] < data.t0 - 0.5 * dt {
-            at.next_dvl += 1;
-        }
-        let mut q_in_force: Option<[f64; 6]> = None;
-        while at.next_q < data.q_time.len() && data.q_time[at.next_q] <= t_prev + 0.5 * dt {
-            q_in_force = Some(data.q_values[at.next_q]);
-            at.next_q += 1;
-        }
-        if let Some(q) = q_in_force {
-            strategy.set_imu_variance(&q)?;
-        }
-        if let Some((nodes, states)) = keep.as_mut() {
-            nodes.before_step(k, &ekf, strategy.process_noise());
-            if let Some(states) = states {
-                states.sync(nodes, &ekf);
-            }
-        }
-        ekf.propagate(&ImuSample::from_array(sample), dt, strategy.process_noise())
-            .map_err(|e| match e {
-                Error::Numerical(m) => Error::Numerical(format!("{m} (t = {t} s)")),
-                other => other,
-            })?;
-        at.steps_since_update += 1;
-        if k + 1 == data.imu.len() {
-            ekf.bring_up_to_date(); // the end of the pass
-        }
-        let dvl = apply_dvl_rows(data, &mut ekf, strategy, &mut out, &mut at, k + 1, t, dt)?;
-        let aiding = apply_position_rows(data, &mut ekf, &mut out, &mut at, k + 1, t, dt)?;
-        let fed = match (dvl, aiding) {
-            (None, None) => None,
-            (a, b) => Some(a.unwrap_or_default().plus(&b.unwrap_or_default())),
-        };
-        if let (Some((nodes, states)), Some(fed)) = (keep.as_mut(), fed) {
-            let noise = strategy.process_noise();
-            nodes.after_updates(k + 1, &ekf, (fed.nav, fed.calibration), noise, None);
-            if let Some(states) = states {
-                states.sync(nodes, &ekf);
-            }
-        }
-        let next_dt = data.imu_time.get(k + 1).map_or(dt, |&next| next - t);
-        keep_covariances(data, &ekf, &mut out, &mut at, k + 1, t, next_dt);
-        if some {
-            let recorded = match thinning.as_mut() {
-                None => true,
-                Some(thin) => {
-                    let nearest = thin.keeps(t, next_dt);
-                    nearest || k + 1 == n
-                }
-            };
-            if recorded {
-                out.record(&ekf, t);
-                if thinning.is_some() {
-                    out.epoch.push(k + 1);
-                }
-            }
-            stale.after_epoch(&mut ekf, &mut out, t, recorded);
-        }
-        t_prev = t;
-    }
-    if !some {
-        out.record(&ekf, t_prev);
-    }
-    if let Some((nodes, states)) = keep {
-        nodes.finish(data.imu.len(), &ekf);
-        if let Some(states) = states {
-            states.sync(nodes, &ekf);
-        }
-    }
-    out.final_covariance = ekf.covariance();
-    // Times beyond the last epoch's half step are outside the run.
-    out.covariance_epoch
-        .resize(data.covariance_time.len(), None);
-    out.covariances.resize(data.covariance_time.len(), None);
-    out.depth_epoch.resize(data.depth.len(), None);
-    out.depth_nis.resize(data.depth.len(), f64::NAN);
-    out.fix_epoch.resize(data.fix.len(), None);
-    out.fix_nis.resize(data.fix.len(), f64::NAN);
-    Ok(out)
+    out
 }
 
-/// The filter at the start of a pass, once the data, the initial state and the
-/// strategy have been checked for it.
-fn start(
+/// Set the last q schedule row stamped at or before `until` [s] (the epoch's start
+/// plus half its step) not yet set: a row takes effect from the epoch nearest to it.
+fn set_scheduled_q(
     data: &RecordedData<'_>,
-    initial: NavState,
-    initial_bias: [f64; 6],
-    cfg: &FilterConfig,
-    strategy: &dyn NoiseStrategy,
-) -> Result<Ekf> {
-    earth::check_latitude("lla0", initial.lla[0])?;
-    data.validate()?;
-    if !data.q_time.is_empty() && !strategy.takes_outside_q() {
-        return Err(Error::invalid(
-            "strategy",
-            "a q schedule needs an external strategy (Strategy.external)",
-        ));
+    strategy: &mut dyn NoiseStrategy,
+    at: &mut Cursor,
+    until: f64,
+) -> Result<()> {
+    let mut q_in_force: Option<[f64; 6]> = None;
+    while at.next_q < data.q_time.len() && data.q_time[at.next_q] <= until {
+        q_in_force = Some(data.q_values[at.next_q]);
+        at.next_q += 1;
     }
-    if strategy.wants_true_variance() {
-        return Err(Error::invalid(
-            "strategy",
-            "oracle needs the simulated IMU's true variance, which recorded data does not have",
-        ));
+    if let Some(q) = q_in_force {
+        strategy.set_imu_variance(&q)?;
     }
-    check::finite("initial state", initial.lla.as_slice())?;
-    check::finite("initial state", initial.vel.as_slice())?;
-    check::finite("initial bias", &initial_bias)?;
-    let mut ekf = Ekf::new(
-        cfg,
-        initial,
-        Vector3::new(initial_bias[0], initial_bias[1], initial_bias[2]),
-        Vector3::new(initial_bias[3], initial_bias[4], initial_bias[5]),
-    )?;
-    if let Some(q) = strategy.sensitivity_q() {
-        ekf.track_sensitivity(q);
+    Ok(())
+}
+
+impl FilterOutput {
+    /// At the end of a pass: the rows of the asked-for covariances, depth readings and
+    /// fixes beyond the last epoch's half step are outside the run.
+    fn close_rows(&mut self, data: &RecordedData<'_>) {
+        self.covariance_epoch
+            .resize(data.covariance_time.len(), None);
+        self.covariances.resize(data.covariance_time.len(), None);
+        self.depth_epoch.resize(data.depth.len(), None);
+        self.depth_nis.resize(data.depth.len(), f64::NAN);
+        self.fix_epoch.resize(data.fix.len(), None);
+        self.fix_nis.resize(data.fix.len(), f64::NAN);
     }
-    Ok(ekf)
 }
 
 #[cfg(test)]

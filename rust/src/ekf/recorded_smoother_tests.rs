@@ -9,10 +9,11 @@ use crate::ekf::{Formulation, Vector15};
 use crate::noise::StrategySpec;
 
 /// IMU rows, their times, DVL rows, their times.
-type Pass = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+/// A recording's arrays: IMU rows, their times, DVL rows, their times.
+type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
 
 /// A moving pass of `n` steps with a DVL row every second.
-fn moving_pass(n: usize) -> Pass {
+fn moving_pass(n: usize) -> Arrays {
     let imu = (0..n)
         .map(|k| {
             let wobble = (k as f64 * 0.07).sin();
@@ -76,17 +77,14 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
             };
             let mut strategy = spec.build(cfg.bias_psd());
             let mut nodes = Nodes::default();
-            let out = forward_pass(
-                &data,
-                moving_state(),
-                [0.0; 6],
-                &cfg,
-                strategy.as_mut(),
-                Epochs::All,
-                Some(&mut nodes),
-                &Cancel::default(),
-            )
-            .unwrap();
+            let out = Pass::of(&data, &cfg)
+                .forward(
+                    strategy.as_mut(),
+                    Epochs::All,
+                    Some((&mut nodes, None)),
+                    &Cancel::default(),
+                )
+                .unwrap();
             let nodes = nodes.0;
             // A node at the start, at each of the 6 DVL epochs (the last one the
             // end), and at each q row that fell between them.
@@ -177,17 +175,14 @@ fn covariance_step_closes_are_rebuilt_exactly() {
             };
             let mut strategy = spec.build(cfg.bias_psd());
             let mut nodes = Nodes::default();
-            let out = forward_pass(
-                &data,
-                moving_state(),
-                [0.0; 6],
-                &cfg,
-                strategy.as_mut(),
-                Epochs::All,
-                Some(&mut nodes),
-                &Cancel::default(),
-            )
-            .unwrap();
+            let out = Pass::of(&data, &cfg)
+                .forward(
+                    strategy.as_mut(),
+                    Epochs::All,
+                    Some((&mut nodes, None)),
+                    &Cancel::default(),
+                )
+                .unwrap();
             let nodes = nodes.0;
             let inside = nodes.iter().filter(|n| n.interval.is_some()).count();
             assert_eq!(inside, 2 * usize::from(!q_time.is_empty()), "{spec:?}");
@@ -264,17 +259,14 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
         let mut strategy = spec.build(cfg.bias_psd());
         let mut nodes = Nodes::default();
         let cancel = Cancel::default();
-        let out = forward_pass(
-            &data,
-            moving_state(),
-            [0.0; 6],
-            &cfg,
-            strategy.as_mut(),
-            Epochs::All,
-            Some(&mut nodes),
-            &cancel,
-        )
-        .unwrap();
+        let out = Pass::of(&data, &cfg)
+            .forward(
+                strategy.as_mut(),
+                Epochs::All,
+                Some((&mut nodes, None)),
+                &cancel,
+            )
+            .unwrap();
         let forward = Forward {
             imu: &imu,
             imu_time: &imu_time,

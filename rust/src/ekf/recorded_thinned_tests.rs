@@ -13,10 +13,11 @@ use crate::ekf::Formulation;
 use crate::noise::StrategySpec;
 
 /// IMU rows, their times, DVL rows, their times.
-type Pass = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
+/// A recording's arrays: IMU rows, their times, DVL rows, their times.
+type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
 
 /// 6 s of a moving, turning vehicle at 100 Hz with a DVL row every 0.2 s.
-fn pass() -> Pass {
+fn pass() -> Arrays {
     let n = 600;
     let imu = (0..n)
         .map(|k| {
@@ -189,8 +190,14 @@ fn reintegration_is_exact(
     let mut strategy = spec.build(cfg.bias_psd());
     let keep = Some((&mut nodes, Some(&mut states)));
     let (x, b, c) = (moving_state(), [0.0; 6], Cancel::default());
-    let out =
-        forward_pass_keeping(data, x, b, cfg, strategy.as_mut(), Epochs::All, keep, &c).unwrap();
+    let out = Pass {
+        data,
+        initial: x,
+        initial_bias: b,
+        cfg,
+    }
+    .forward(strategy.as_mut(), Epochs::All, keep, &c)
+    .unwrap();
     assert_eq!(out.nav, all.nav);
     let epochs: Vec<usize> = (0..out.nav.len()).collect();
     let src = Thinned {
@@ -270,17 +277,9 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
     let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
     let keep = Some((&mut nodes, Some(&mut states)));
     let live = Cancel::default();
-    let out = forward_pass_keeping(
-        &data,
-        moving_state(),
-        [0.0; 6],
-        &cfg,
-        strategy.as_mut(),
-        Epochs::Step(1.0),
-        keep,
-        &live,
-    )
-    .unwrap();
+    let out = Pass::of(&data, &cfg)
+        .forward(strategy.as_mut(), Epochs::Step(1.0), keep, &live)
+        .unwrap();
     assert_eq!(nodes.0.len(), 2, "one stretch: the first epoch to the last");
     let src = Thinned {
         imu: data.imu,
