@@ -29,12 +29,52 @@ fn moving_pass(n: usize) -> Arrays {
     (imu, imu_time, dvl, dvl_time)
 }
 
+/// The every-epoch forward pass over `arrays` with the q schedule `q` (times [s],
+/// rows), keeping the smoother's nodes.
+fn forward_keeping_nodes(
+    arrays: &Arrays,
+    (q_time, q_values): (&[f64], &[[f64; 6]]),
+    cfg: &FilterConfig,
+    spec: &StrategySpec,
+) -> (FilterOutput, Vec<smoother::Node>) {
+    let (imu, imu_time, dvl, dvl_time) = arrays;
+    let data = RecordedData {
+        imu,
+        imu_time,
+        dvl,
+        dvl_time,
+        q_time,
+        q_values,
+        ..RecordedData::default()
+    };
+    let mut strategy = spec.build(cfg.bias_psd());
+    let mut nodes = Nodes::default();
+    let keep = Some((&mut nodes, None));
+    let out = Pass::of(&data, cfg)
+        .forward(strategy.as_mut(), Epochs::All, keep, &Cancel::default())
+        .unwrap();
+    (out, nodes.0)
+}
+
+/// The forward solution `out` over `arrays`, as the backward pass reads it.
+fn forward_of<'a>(arrays: &'a Arrays, out: &'a FilterOutput) -> Forward<'a> {
+    Forward {
+        imu: &arrays.0,
+        imu_time: &arrays.1,
+        t0: 0.0,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &[],
+        dt: None,
+    }
+}
+
 /// The smoother's nodes: for every strategy (the noise changing at updates, and at
 /// q schedule rows between them), each interval rebuilt from its first node goes
 /// through the forward pass's covariances, bit for bit (its σ at every epoch).
 #[test]
 fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
-    let (imu, imu_time, dvl, dvl_time) = moving_pass(600);
+    let arrays = moving_pass(600);
     let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
     let cases = [
         (StrategySpec::Constant { q }, vec![], vec![]),
@@ -66,26 +106,7 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
             ..per_sample()
         };
         for (spec, q_time, q_values) in &cases {
-            let data = RecordedData {
-                imu: &imu,
-                imu_time: &imu_time,
-                dvl: &dvl,
-                dvl_time: &dvl_time,
-                q_time,
-                q_values,
-                ..RecordedData::default()
-            };
-            let mut strategy = spec.build(cfg.bias_psd());
-            let mut nodes = Nodes::default();
-            let out = Pass::of(&data, &cfg)
-                .forward(
-                    strategy.as_mut(),
-                    Epochs::All,
-                    Some((&mut nodes, None)),
-                    &Cancel::default(),
-                )
-                .unwrap();
-            let nodes = nodes.0;
+            let (out, nodes) = forward_keeping_nodes(&arrays, (q_time, q_values), &cfg, spec);
             // A node at the start, at each of the 6 DVL epochs (the last one the
             // end), and at each q row that fell between them.
             assert_eq!(nodes.first().unwrap().epoch, 0);
@@ -100,15 +121,7 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
                 7 + usize::from(!q_time.is_empty()) * 2,
                 "{spec:?}"
             );
-            let forward = Forward {
-                imu: &imu,
-                imu_time: &imu_time,
-                t0: 0.0,
-                nav: &out.nav,
-                bias: &out.bias,
-                calibration: &[],
-                dt: None,
-            };
+            let forward = forward_of(&arrays, &out);
             for pair in nodes.windows(2) {
                 let interval = smoother::Interval::rebuild(
                     &forward,
@@ -139,7 +152,7 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
 /// where the forward pass closed, with its covariances bit for bit.
 #[test]
 fn covariance_step_closes_are_rebuilt_exactly() {
-    let (imu, imu_time, dvl, dvl_time) = moving_pass(600);
+    let arrays = moving_pass(600);
     let q = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6];
     let cases = [
         (StrategySpec::Constant { q }, vec![], vec![]),
@@ -164,37 +177,10 @@ fn covariance_step_closes_are_rebuilt_exactly() {
             ..per_sample()
         };
         for (spec, q_time, q_values) in &cases {
-            let data = RecordedData {
-                imu: &imu,
-                imu_time: &imu_time,
-                dvl: &dvl,
-                dvl_time: &dvl_time,
-                q_time,
-                q_values,
-                ..RecordedData::default()
-            };
-            let mut strategy = spec.build(cfg.bias_psd());
-            let mut nodes = Nodes::default();
-            let out = Pass::of(&data, &cfg)
-                .forward(
-                    strategy.as_mut(),
-                    Epochs::All,
-                    Some((&mut nodes, None)),
-                    &Cancel::default(),
-                )
-                .unwrap();
-            let nodes = nodes.0;
+            let (out, nodes) = forward_keeping_nodes(&arrays, (q_time, q_values), &cfg, spec);
             let inside = nodes.iter().filter(|n| n.interval.is_some()).count();
             assert_eq!(inside, 2 * usize::from(!q_time.is_empty()), "{spec:?}");
-            let forward = Forward {
-                imu: &imu,
-                imu_time: &imu_time,
-                t0: 0.0,
-                nav: &out.nav,
-                bias: &out.bias,
-                calibration: &[],
-                dt: None,
-            };
+            let forward = forward_of(&arrays, &out);
             let mut closes = vec![0];
             for pair in nodes.windows(2) {
                 let (a, b) = (&pair[0], &pair[1]);
@@ -230,7 +216,7 @@ fn covariance_step_closes_are_rebuilt_exactly() {
 /// step.
 #[test]
 fn covariances_where_asked_equal_the_step_by_step_ones() {
-    let (imu, imu_time, dvl, dvl_time) = moving_pass(400);
+    let arrays = moving_pass(400);
     let q = [1e-4; 6];
     let (q_time, q_values) = (vec![0.554, 1.5, 2.873], vec![[4e-4; 6], q, [2e-4; 6]]);
     for (covariance_step, external) in [(0.0, false), (0.07, false), (0.1, true), (0.07, true)] {
@@ -247,43 +233,16 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
         } else {
             (StrategySpec::Constant { q }, &[][..], &[][..])
         };
-        let data = RecordedData {
-            imu: &imu,
-            imu_time: &imu_time,
-            dvl: &dvl,
-            dvl_time: &dvl_time,
-            q_time,
-            q_values,
-            ..RecordedData::default()
-        };
-        let mut strategy = spec.build(cfg.bias_psd());
-        let mut nodes = Nodes::default();
-        let cancel = Cancel::default();
-        let out = Pass::of(&data, &cfg)
-            .forward(
-                strategy.as_mut(),
-                Epochs::All,
-                Some((&mut nodes, None)),
-                &cancel,
-            )
-            .unwrap();
-        let forward = Forward {
-            imu: &imu,
-            imu_time: &imu_time,
-            t0: 0.0,
-            nav: &out.nav,
-            bias: &out.bias,
-            calibration: &[],
-            dt: None,
-        };
-        let every = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Every, &cancel);
+        let (out, nodes) = forward_keeping_nodes(&arrays, (q_time, q_values), &cfg, &spec);
+        let (forward, cancel) = (forward_of(&arrays, &out), Cancel::default());
+        let every = smoother::smooth(&forward, &cfg, &nodes, Covariances::Every, &cancel);
         let odd = |k: usize| k % 13 == 3;
-        let some = smoother::smooth(&forward, &cfg, &nodes.0, Covariances::Where(&odd), &cancel);
+        let some = smoother::smooth(&forward, &cfg, &nodes, Covariances::Where(&odd), &cancel);
         let (every, some) = (every.unwrap(), some.unwrap());
         assert_eq!(every.nav, some.nav);
-        let inside_a_step = nodes.0.iter().any(|n| n.interval.is_some());
+        let inside_a_step = nodes.iter().any(|n| n.interval.is_some());
         assert_eq!(inside_a_step, external, "{covariance_step}");
-        let nodes: Vec<usize> = nodes.0.iter().map(|n| n.epoch).collect();
+        let nodes: Vec<usize> = nodes.iter().map(|n| n.epoch).collect();
         for (k, (a, b)) in every.sigma.iter().zip(&some.sigma).enumerate() {
             if covariance_step > 0.0 && odd(k) {
                 assert_eq!(a, b, "{covariance_step} {k}");
