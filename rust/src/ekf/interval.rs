@@ -277,13 +277,15 @@ impl Ekf {
         }
     }
 
-    /// Keep the σ at every close of a covariance step for [`Ekf::take_closed_sigma`].
-    pub fn track_closes(&mut self) {
-        self.track_closes = true;
+    /// Whether to keep the σ at the closes of a covariance step from now on, for
+    /// [`Ekf::take_closed_sigma`] (σ maps P to the classic coordinates: a pass asks
+    /// for it only while it will read it).
+    pub fn track_next_close(&mut self, wanted: bool) {
+        self.track_closes = wanted;
     }
 
     /// The σ at the last close since the previous call, before the updates of its epoch
-    /// (None: no close, or [`Ekf::track_closes`] not asked for).
+    /// (None: no close, or [`Ekf::track_next_close`] not asked for).
     pub fn take_closed_sigma(&mut self) -> Option<ClosedSigma> {
         self.closed_sigma.take()
     }
@@ -324,13 +326,43 @@ impl Ekf {
 /// σ would read up to the whole step's growth too small (`docs/filter.md`, "Covariance
 /// step"). Without a covariance step every epoch is up to date. A pass that records
 /// some epochs only (`Epochs::Step`) interpolates those; the last up-to-date epoch
-/// need not be one of them (its σ is kept here).
+/// need not be one of them. σ is computed only where a recorded epoch inside a step
+/// reads it: the filter is asked for the σ at a close only while such an epoch is
+/// pending, and at an up-to-date epoch that is not recorded its P and velocity are
+/// copied (1.8 kB, cheap beside the mapping to classic coordinates), their σ computed
+/// at the close, with the same operations, only if an epoch inside the step reads it.
 #[derive(Default)]
 pub(super) struct StaleSigma {
-    /// The time [s] and σ of the last epoch whose P was up to date.
-    last_current: Option<(f64, ClosedSigma)>,
+    /// The time [s] of the last epoch whose P was up to date, and its σ.
+    last_current: Option<(f64, Current)>,
     /// The recorded epochs since (indices into the output), whose σ is the last close's.
     pending: Vec<usize>,
+}
+
+/// The σ at an up-to-date epoch: its row's, or, at an epoch not recorded, what it is
+/// computed from (see [`super::classic_sigma`]). One value, overwritten in place at
+/// each up-to-date epoch: boxing the covariance would allocate there instead.
+#[allow(clippy::large_enum_variant)]
+enum Current {
+    Recorded(ClosedSigma),
+    Unrecorded {
+        p: Matrix15,
+        vel: Vector3<f64>,
+        calibration: Option<[f64; 4]>,
+    },
+}
+
+impl Current {
+    fn sigma(&self, formulation: super::Formulation) -> ClosedSigma {
+        match self {
+            Current::Recorded(sigma) => *sigma,
+            Current::Unrecorded {
+                p,
+                vel,
+                calibration,
+            } => (super::classic_sigma(formulation, p, vel), *calibration),
+        }
+    }
 }
 
 impl StaleSigma {
@@ -343,7 +375,8 @@ impl StaleSigma {
         recorded: bool,
     ) {
         if let Some((sigma, calibration)) = ekf.take_closed_sigma() {
-            if let Some((t_a, (from, from_calibration))) = &self.last_current {
+            if let Some((t_a, current)) = &self.last_current {
+                let (from, from_calibration) = current.sigma(ekf.cfg.formulation);
                 for &e in &self.pending {
                     let w = (out.time[e] - t_a) / (t - t_a);
                     let between =
@@ -360,16 +393,27 @@ impl StaleSigma {
             self.pending.clear();
             self.last_current = if recorded {
                 let sigma = out.sigma.last().copied().unwrap_or_default();
-                Some((t, (sigma, out.calibration_sigma.last().copied())))
+                let current = (sigma, out.calibration_sigma.last().copied());
+                Some((t, Current::Recorded(current)))
             } else if ekf.config().covariance_every_sample() {
                 None // no epoch is ever inside a step
             } else {
                 let calibration = ekf.calibration.as_ref().map(Calibration::sigma);
-                Some((t, (ekf.sigma(), calibration)))
+                let (p, vel) = (ekf.p, ekf.nav.vel);
+                Some((
+                    t,
+                    Current::Unrecorded {
+                        p,
+                        vel,
+                        calibration,
+                    },
+                ))
             };
         } else if recorded {
             self.pending.push(out.time.len() - 1);
         }
+        // The σ at the next close is read by the recorded epochs inside its step only.
+        ekf.track_next_close(!self.pending.is_empty());
     }
 }
 

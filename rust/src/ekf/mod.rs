@@ -100,8 +100,8 @@ pub struct Ekf {
     /// The covariance step under way (see [`FilterConfig::covariance_step`]): P, M and
     /// the calibration blocks stand at its start.
     interval: Option<Interval>,
-    /// With [`Ekf::track_closes`]: the σ (and the calibration σ) at the last close of a
-    /// covariance step, before any update applied at that epoch.
+    /// With [`Ekf::track_next_close`]: the σ (and the calibration σ) at the last close
+    /// of a covariance step, before any update applied at that epoch.
     closed_sigma: Option<ClosedSigma>,
     track_closes: bool,
     /// With [`Ekf::keep_closes`]: the closes of the covariance step since the last
@@ -116,6 +116,22 @@ pub struct Ekf {
 /// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
 /// any, at the close of a covariance step (see [`Ekf::take_closed_sigma`]).
 pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
+
+/// [`Ekf::sigma`] of a covariance `p` in `formulation`'s coordinates at the velocity
+/// estimate `vel` [m/s, NED]: the same operations, so that a σ computed later from a
+/// copy of an epoch's P and velocity is the one computed there, bit for bit.
+fn classic_sigma(formulation: Formulation, p: &Matrix15, vel: &Vector3<f64>) -> [f64; 15] {
+    let mut p = *p;
+    formulation::to_classic(formulation, &mut p, vel);
+    std::array::from_fn(|i| {
+        let v = p[(i, i)];
+        if v < 0.0 {
+            0.0
+        } else {
+            v.sqrt()
+        }
+    })
+}
 
 impl Ekf {
     pub fn new(
@@ -195,15 +211,7 @@ impl Ekf {
     /// 1σ of each error state in the classic coordinates, `sqrt(diag P)`.
     /// A negative rounding residue gives 0; a NaN variance stays NaN (never "known").
     pub fn sigma(&self) -> [f64; 15] {
-        let p = self.covariance();
-        std::array::from_fn(|i| {
-            let v = p[(i, i)];
-            if v < 0.0 {
-                0.0
-            } else {
-                v.sqrt()
-            }
-        })
+        classic_sigma(self.cfg.formulation, &self.p, &self.nav.vel)
     }
 
     /// Whether the navigation solution, the bias estimates and the variances are all

@@ -277,7 +277,6 @@ impl<'a> Pass<'a> {
                 out.epoch.push(0);
             }
             stale.after_epoch(&mut ekf, &mut out, data.t0, true);
-            ekf.track_closes();
         }
         let mut at = Cursor::default();
         let first_dt = data.imu_time[0] - data.t0;

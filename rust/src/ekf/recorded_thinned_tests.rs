@@ -309,3 +309,104 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
     let err = thinned::smooth(&src, &cfg, &nodes.0, &cancelled).err();
     assert_eq!(err, Some(Error::Cancelled));
 }
+
+/// A kept epoch inside a covariance step reads σ interpolated between the σ at the
+/// last up-to-date epoch, kept or not (after its updates), and the σ at the close that
+/// ends its step (before the updates there). [`StaleSigma`] computes them only where
+/// they are read (the close's while a kept epoch is pending, the up-to-date epoch's
+/// from a copy of its P and velocity); here both are computed at every such epoch, and
+/// the rows must match bit for bit. The ends a wrong choice would take (the close
+/// before the kept epoch, the up-to-date epoch before the last) give other values.
+#[test]
+fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
+    use crate::ekf::{calibration::Calibration, ClosedSigma};
+    use crate::noise::ProcessNoise;
+    let (imu, _, dvl, _) = pass();
+    let (q, sigmas) = ([1e-4; 6], |ekf: &Ekf| -> ClosedSigma {
+        (
+            ekf.sigma(),
+            ekf.calibration.as_ref().map(Calibration::sigma),
+        )
+    });
+    let between = |t: f64, (t_a, a): (f64, ClosedSigma), (t_b, b): (f64, ClosedSigma)| {
+        let w = (t - t_a) / (t_b - t_a);
+        let f = |from: f64, to: f64| (from * from + w * (to * to - from * from)).sqrt();
+        let c = std::array::from_fn(|i| f(a.1.unwrap()[i], b.1.unwrap()[i]));
+        (std::array::from_fn(|i| f(a.0[i], b.0[i])), Some(c))
+    };
+    for formulation in [Formulation::Classic, Formulation::Invariant] {
+        let cfg = FilterConfig {
+            formulation,
+            covariance_step: 0.07,
+            dvl_calibration: Some(CalibrationConfig::default()),
+            ..per_sample()
+        };
+        let bias = cfg.bias_psd();
+        let noise = ProcessNoise::Continuous {
+            imu_variance: &q,
+            bias_psd: &bias,
+        };
+        let zero = Vector3::zeros();
+        let mut ekf = Ekf::new(&cfg, moving_state(), zero, zero).unwrap();
+        let (mut stale, mut out) = (StaleSigma::default(), FilterOutput::default());
+        let record = |out: &mut FilterOutput, ekf: &Ekf, t: f64| {
+            let (sigma, calibration) = sigmas(ekf);
+            out.time.push(t);
+            out.sigma.push(sigma);
+            out.calibration_sigma.push(calibration.unwrap());
+        };
+        record(&mut out, &ekf, 0.0);
+        stale.after_epoch(&mut ekf, &mut out, 0.0, true);
+        // Every up-to-date epoch and every close, as an eager pass takes them; the kept
+        // epochs inside a step: (row, its start in `current`, its end in `closes`).
+        let (mut current, mut closes) = (vec![(0.0, sigmas(&ekf), true)], Vec::new());
+        let mut inside = Vec::new();
+        for (k, sample) in imu.iter().enumerate().map(|(k, s)| (k + 1, s)) {
+            let t = k as f64 * 0.01;
+            ekf.propagate(&ImuSample::from_array(sample), 0.01, noise)
+                .unwrap();
+            let aided = k % 20 == 0;
+            if aided {
+                ekf.bring_up_to_date();
+            }
+            let up_to_date = ekf.is_up_to_date(); // a close at this epoch
+            if up_to_date {
+                closes.push((t, sigmas(&ekf)));
+            }
+            if aided {
+                ekf.update(&Vector3::from(dvl[k / 20 - 1])).unwrap();
+            }
+            let kept = k % 9 == 4;
+            if kept {
+                record(&mut out, &ekf, t);
+            }
+            stale.after_epoch(&mut ekf, &mut out, t, kept);
+            if up_to_date {
+                current.push((t, sigmas(&ekf), kept));
+            } else if kept {
+                inside.push((out.time.len() - 1, current.len() - 1, closes.len()));
+            }
+        }
+        let (mut unkept_start, mut updated_start) = (0, 0);
+        for &(row, a, b) in inside.iter().filter(|&&(_, _, b)| b < closes.len()) {
+            let (t, start) = (out.time[row], (current[a].0, current[a].1));
+            let want = between(t, start, closes[b]);
+            let what = format!("{formulation:?} row {row} at {t} s");
+            assert_eq!(out.sigma[row], want.0, "{what}");
+            assert_eq!(Some(out.calibration_sigma[row]), want.1, "{what}");
+            // The wrong ends give other values: the comparison tells them apart.
+            if a > 0 && b > 0 {
+                let stale_start = (current[a - 1].0, current[a - 1].1);
+                assert_ne!(between(t, stale_start, closes[b]).0, want.0, "{what}");
+                assert_ne!(between(t, start, closes[b - 1]).0, want.0, "{what}");
+            }
+            unkept_start += usize::from(!current[a].2);
+            updated_start +=
+                usize::from(!current[a].2 && (current[a].0 * 100.0).round() % 20.0 == 0.0);
+        }
+        assert!(
+            unkept_start > 30 && updated_start > 5,
+            "{unkept_start} {updated_start}"
+        );
+    }
+}
