@@ -30,9 +30,10 @@ pub struct FilterOutput {
     /// `[b_a, b_g]` estimates per epoch.
     pub bias: Vec<[f64; 6]>,
     /// 1σ of the 15 errors per epoch. With a covariance step
-    /// ([`super::FilterConfig::covariance_step`]), an epoch inside a step repeats the
-    /// σ of the last closed one; steps close when due, at every DVL update and at the
-    /// last epoch.
+    /// ([`super::FilterConfig::covariance_step`]), an epoch inside a step reads σ
+    /// interpolated linearly in variance between the last up-to-date epoch (after its
+    /// updates) and the close that ends the step (before the updates there); steps close
+    /// when due, at every DVL update and at the last epoch.
     pub sigma: Vec<[f64; 15]>,
     /// For each DVL row: the epoch index it was applied at (None if outside the run).
     pub dvl_epoch: Vec<Option<usize>>,

@@ -8,7 +8,6 @@ use crate::ekf::tests::moving_state;
 use crate::ekf::{Formulation, Vector15};
 use crate::noise::StrategySpec;
 
-/// IMU rows, their times, DVL rows, their times.
 /// A recording's arrays: IMU rows, their times, DVL rows, their times.
 type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
 

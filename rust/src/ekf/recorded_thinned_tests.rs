@@ -12,7 +12,6 @@ use crate::ekf::tests::moving_state;
 use crate::ekf::Formulation;
 use crate::noise::StrategySpec;
 
-/// IMU rows, their times, DVL rows, their times.
 /// A recording's arrays: IMU rows, their times, DVL rows, their times.
 type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
 
@@ -315,8 +314,11 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
 /// ends its step (before the updates there). [`StaleSigma`] computes them only where
 /// they are read (the close's while a kept epoch is pending, the up-to-date epoch's
 /// from a copy of its P and velocity); here both are computed at every such epoch, and
-/// the rows must match bit for bit. The ends a wrong choice would take (the close
-/// before the kept epoch, the up-to-date epoch before the last) give other values.
+/// the rows must match bit for bit, the calibration σ too (its states walk, so it
+/// grows over a step). The ends a wrong choice would take (the close before the kept
+/// epoch, the up-to-date epoch before the last) give other values of σ (not of the
+/// calibration σ: a random walk's variance grows linearly between updates, and any two
+/// points of it interpolate alike); some steps hold two kept epochs.
 #[test]
 fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
     use crate::ekf::{calibration::Calibration, ClosedSigma};
@@ -338,7 +340,11 @@ fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
         let cfg = FilterConfig {
             formulation,
             covariance_step: 0.07,
-            dvl_calibration: Some(CalibrationConfig::default()),
+            dvl_calibration: Some(CalibrationConfig {
+                scale_psd: 1e-6,
+                misalignment_psd: 1e-8,
+                ..CalibrationConfig::default()
+            }),
             ..per_sample()
         };
         let bias = cfg.bias_psd();
@@ -376,7 +382,7 @@ fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
             if aided {
                 ekf.update(&Vector3::from(dvl[k / 20 - 1])).unwrap();
             }
-            let kept = k % 9 == 4;
+            let kept = k % 9 == 4 || k % 9 == 6;
             if kept {
                 record(&mut out, &ekf, t);
             }
@@ -397,16 +403,25 @@ fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
             // The wrong ends give other values: the comparison tells them apart.
             if a > 0 && b > 0 {
                 let stale_start = (current[a - 1].0, current[a - 1].1);
-                assert_ne!(between(t, stale_start, closes[b]).0, want.0, "{what}");
-                assert_ne!(between(t, start, closes[b - 1]).0, want.0, "{what}");
+                let (early, late) = (
+                    between(t, stale_start, closes[b]),
+                    between(t, start, closes[b - 1]),
+                );
+                assert_ne!(early.0, want.0, "{what}");
+                assert_ne!(late.0, want.0, "{what}");
             }
             unkept_start += usize::from(!current[a].2);
             updated_start +=
                 usize::from(!current[a].2 && (current[a].0 * 100.0).round() % 20.0 == 0.0);
         }
+        // Two kept epochs inside one step: the same start and the same close.
+        let pairs = inside
+            .windows(2)
+            .filter(|w| (w[0].1, w[0].2) == (w[1].1, w[1].2))
+            .count();
         assert!(
-            unkept_start > 30 && updated_start > 5,
-            "{unkept_start} {updated_start}"
+            unkept_start > 30 && updated_start > 5 && pairs > 10,
+            "{unkept_start} {updated_start} {pairs}"
         );
     }
 }
