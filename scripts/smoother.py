@@ -35,6 +35,7 @@ averaged over the runs and the epochs, filter / smoother (docs/filter.md, "One d
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 import numpy as np
 
@@ -226,73 +227,69 @@ def seeds_rows(runs: int) -> list[list[object]]:
     return rows
 
 
+def _blocks(suffix: str) -> list[str]:
+    return [f"{b.replace('_', ' ')} {suffix}" for b in pronet.STATE_BLOCKS]
+
+
+#: Each part's table header.
+HEADERS: dict[str, list[str]] = {
+    "scenarios": [
+        "scenario",
+        "SRMSE [m/s] filter / smoother",
+        "final horiz. [m]",
+        *_blocks("NEES in band"),
+        "epochs smoothed > 1.05 x filtered (beyond noise)",
+    ],
+    "psd": [
+        "filter's bias walk ε (accel / gyro)",
+        "SRMSE [m/s] filter / smoother",
+        "att. NEES in band",
+        "epochs smoothed > 1.05 x filtered (beyond noise)",
+    ],
+    "outage": [
+        "outage",
+        "horiz. error at start [m] filter / smoother",
+        "at middle (ratio)",
+        "drift start → middle (ratio)",
+        "horiz. σ at middle",
+    ],
+    "steps": ["covariance step", *_blocks("Σ(e/σ)² mean (in band)")],
+    "nonlinear": [
+        "IMU variance x",
+        "tilt error RMS [°]",
+        "heading error at end [°]",
+        "g E[θ²]/2 [m/s²]",
+        "down accel bias error at end, mean / RMS [m/s²]",
+        "its σ",
+        "mean / (g E[θ²]/2)",
+        "its (e/σ)² filter / smoother",
+    ],
+    "seeds": ["seed", *_blocks("in band (NEES)")],
+}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100)
-    parts = ("scenarios", "psd", "outage", "steps", "nonlinear", "seeds")
-    parser.add_argument("--part", choices=parts, default="scenarios")
+    parser.add_argument("--part", choices=tuple(HEADERS), default="scenarios")
     parser.add_argument(
         "--oracle", action="store_true", help="scenarios: the filter told the true IMU variance"
     )
     parser.add_argument("--seed", type=int, default=0, help="scenarios: the Monte Carlo's seed")
     args = parser.parse_args()
-    if args.part == "psd":
-        header = [
-            "filter's bias walk ε (accel / gyro)",
-            "SRMSE [m/s] filter / smoother",
-            "att. NEES in band",
-            "epochs smoothed > 1.05 x filtered (beyond noise)",
-        ]
-        print(markdown(header, psd_rows(args.runs)), end="")
-        return 0
+    header, runs = HEADERS[args.part], args.runs
+    parts: dict[str, Callable[[], list[list[object]]]] = {
+        "scenarios": lambda: [row(name, runs, args.oracle, args.seed) for name in SCENARIOS],
+        "psd": lambda: psd_rows(runs),
+        "outage": lambda: outage_rows(runs),
+        "steps": lambda: steps_rows(runs),
+        "nonlinear": lambda: nonlinear_rows(runs),
+        "seeds": lambda: seeds_rows(runs),
+    }
+    print(markdown(header, parts[args.part]()), end="")
     if args.part == "outage":
-        header = [
-            "outage",
-            "horiz. error at start [m] filter / smoother",
-            "at middle (ratio)",
-            "drift start → middle (ratio)",
-            "horiz. σ at middle",
-        ]
-        print(markdown(header, outage_rows(args.runs)), end="")
         print("\nWithout an initial error drawn (sample_initial_error=False):\n")
-        print(markdown(header, outage_rows(args.runs, initial_error=False)), end="")
-        return 0
-    if args.part == "steps":
-        header = [
-            "covariance step",
-            *(f"{b.replace('_', ' ')} Σ(e/σ)² mean (in band)" for b in pronet.STATE_BLOCKS),
-        ]
-        print(markdown(header, steps_rows(args.runs)), end="")
-        return 0
-    if args.part == "seeds":
-        header = [
-            "seed",
-            *(f"{b.replace('_', ' ')} in band (NEES)" for b in pronet.STATE_BLOCKS),
-        ]
-        print(markdown(header, seeds_rows(args.runs)), end="")
-        return 0
-    if args.part == "nonlinear":
-        header = [
-            "IMU variance x",
-            "tilt error RMS [°]",
-            "heading error at end [°]",
-            "g E[θ²]/2 [m/s²]",
-            "down accel bias error at end, mean / RMS [m/s²]",
-            "its σ",
-            "mean / (g E[θ²]/2)",
-            "its (e/σ)² filter / smoother",
-        ]
-        print(markdown(header, nonlinear_rows(args.runs)), end="")
-        return 0
-    header = [
-        "scenario",
-        "SRMSE [m/s] filter / smoother",
-        "final horiz. [m]",
-        *(f"{b.replace('_', ' ')} NEES in band" for b in pronet.STATE_BLOCKS),
-        "epochs smoothed > 1.05 x filtered (beyond noise)",
-    ]
-    rows = [row(name, args.runs, args.oracle, args.seed) for name in SCENARIOS]
-    print(markdown(header, rows), end="")
+        print(markdown(header, outage_rows(runs, initial_error=False)), end="")
     return 0
 
 
