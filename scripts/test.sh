@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Install what is missing and run every check and test: Rust (fmt, clippy, unit tests),
-# Python (ruff, stubtest, mypy), the wheel (scripts/check_wheel.sh: manylinux2014, the
-# light install) and pytest. Exits non-zero on the first failure.
+# Python (ruff check and format, stubtest, mypy), the wheel (scripts/check_wheel.sh:
+# manylinux2014, the light install) and pytest. Exits non-zero on the first failure.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
@@ -18,6 +18,7 @@ echo "== cargo test"
 cargo test --quiet
 echo "== ruff"
 "$VENV/bin/ruff" check python tests benches examples scripts
+"$VENV/bin/ruff" format --check --quiet python tests benches examples scripts
 echo "== stubtest (python/pronet/_core.pyi against the built module)"
 "$VENV/bin/python" -m mypy.stubtest pronet._core
 echo "== mypy (the package's and the benchmarks' types)"

@@ -124,9 +124,11 @@ WINDOWS = np.random.default_rng(0).normal(0.0, 0.01, size=(3, 200))
 CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
     "trajectory": (
         ("_core.trajectory_from_segments", "pronet.trajectory_from_segments"),
-        lambda f: pronet.trajectory_from_segments(
-            f(SEGMENTS), lla0=f(LLA0), speed0=1.0, rpy0=f([0.0, 0.0, 0.1])
-        ).lla,
+        lambda f: (
+            pronet.trajectory_from_segments(
+                f(SEGMENTS), lla0=f(LLA0), speed0=1.0, rpy0=f([0.0, 0.0, 0.1])
+            ).lla
+        ),
     ),
     "mechanize": (
         ("_core.mechanize", "pronet.mechanize"),
@@ -147,11 +149,17 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
         lambda f: (repr(_filter_config(f)), repr(_sensors(f)), _sensors(f).dvl_outages),
     ),
     "strategies": (
-        ("_core.Strategy.constant", "_core.Strategy.mehra", "_core.Strategy.adaptive",
-         "_core.Strategy.external"),
+        (
+            "_core.Strategy.constant",
+            "_core.Strategy.mehra",
+            "_core.Strategy.adaptive",
+            "_core.Strategy.external",
+        ),
         lambda f: [
-            repr(_core.Strategy.constant(f(PAPER_Q))), repr(_core.Strategy.mehra(3, f(PAPER_Q))),
-            repr(_core.Strategy.adaptive(3, f(PAPER_Q))), repr(_core.Strategy.external(f(PAPER_Q))),
+            repr(_core.Strategy.constant(f(PAPER_Q))),
+            repr(_core.Strategy.mehra(3, f(PAPER_Q))),
+            repr(_core.Strategy.adaptive(3, f(PAPER_Q))),
+            repr(_core.Strategy.external(f(PAPER_Q))),
         ],
     ),  # fmt: skip
     "run_filter": (
@@ -176,8 +184,12 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
     "clock_costs": (
         ("_core.attitude_increment_costs",),
         lambda f: _core.attitude_increment_costs(
-            f(np.linspace(0.0, 20.0, 21)), f(np.cumsum(np.full((21, 3), 0.01), axis=0)),
-            f(np.linspace(0.0, 19.0, 20)), f(np.full((19, 3), 0.01)), f([0.0, 0.5]), 1.0,
+            f(np.linspace(0.0, 20.0, 21)),
+            f(np.cumsum(np.full((21, 3), 0.01), axis=0)),
+            f(np.linspace(0.0, 19.0, 20)),
+            f(np.full((19, 3), 0.01)),
+            f([0.0, 0.5]),
+            1.0,
         ),
     ),  # fmt: skip
 }

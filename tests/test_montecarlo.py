@@ -24,14 +24,17 @@ TOLD = pronet.FilterConfig(accel_bias_psd=TOLD_EPS[0], gyro_bias_psd=TOLD_EPS[1]
 
 
 def matched_monte_carlo(
-    trajectory: pronet.Trajectory, n_runs: int, imu_bias: list[float] | None = None,
+    trajectory: pronet.Trajectory,
+    n_runs: int,
+    imu_bias: list[float] | None = None,
     sample_initial_error: bool = True,
 ) -> pronet.MonteCarloResult:
     """Constant true q, white noise q, bias walks of :data:`TOLD_EPS` in both the
     simulated IMU and the filter (:data:`TOLD`), seed 11."""
     eps_a, eps_g = TOLD_EPS
     sensors = pronet.SensorConfig(
-        imu_variance=PAPER_Q, imu_bias_psd=[eps_a] * 3 + [eps_g] * 3,
+        imu_variance=PAPER_Q,
+        imu_bias_psd=[eps_a] * 3 + [eps_g] * 3,
         imu_bias=[0.0] * 6 if imu_bias is None else imu_bias,
     )
     return pronet.monte_carlo(

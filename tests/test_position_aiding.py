@@ -133,15 +133,23 @@ def test_fixes_alone_bound_the_drift_and_depth_holds_the_height() -> None:
         (dict(depth=[1.0], depth_time=[1.0, 2.0], depth_sigma=0.1), "^depth_time: has 2 rows"),
         (dict(depth=[1.0], depth_time=[1.0], depth_sigma=0.0), "^depth_sigma: must be a fin"),
         (dict(depth=[np.nan], depth_time=[1.0], depth_sigma=0.1), "^depth"),
-        (dict(fix=[[0.5, 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0, 0.0, 2.0]]),
-         "^fix_sigma: row 0 must hold 3 finite"),
+        (
+            dict(fix=[[0.5, 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0, 0.0, 2.0]]),
+            "^fix_sigma: row 0 must hold 3 finite",
+        ),
         (dict(fix=[[0.5, 0.6, np.nan]], fix_time=[1.0], fix_sigma=[[2.0, 2.0, np.nan]]), None),
-        (dict(fix=[[math.radians(89.5), 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
-         "^fix: latitude must be within"),
-        (dict(fix=[[0.5, np.inf, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
-         "^fix: row 0 must hold a finite latitude"),
-        (dict(fix=[[0.5, 0.6, 0.0]], fix_time=[2.0, 1.0], fix_sigma=[[2.0] * 3]),
-         "^fix_time: has 2 rows"),
+        (
+            dict(fix=[[math.radians(89.5), 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
+            "^fix: latitude must be within",
+        ),
+        (
+            dict(fix=[[0.5, np.inf, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
+            "^fix: row 0 must hold a finite latitude",
+        ),
+        (
+            dict(fix=[[0.5, 0.6, 0.0]], fix_time=[2.0, 1.0], fix_sigma=[[2.0] * 3]),
+            "^fix_time: has 2 rows",
+        ),
     ],
 )
 def test_bad_aiding_is_refused_by_name(aiding, message) -> None:

@@ -200,6 +200,7 @@ def test_the_smoother_cuts_the_drift_of_each_dvl_outage() -> None:
     assert s is not None
     for start, end in sc.sensors.dvl_outages:
         a, m = (int(np.argmin(np.abs(r.record_time - t))) for t in (start, (start + end) / 2))
+
         def rms(e: np.ndarray) -> float:
             return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
 

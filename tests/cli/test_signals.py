@@ -307,8 +307,6 @@ def test_ctrl_c_while_sections_are_read_cancels_the_reads_not_started(
     monkeypatch.setattr(real, "load_section", slow_load)
     began = time.monotonic()
     with pytest.raises(KeyboardInterrupt):
-        real.run_real(
-            "/nowhere", tmp_path / "out", use_models=False, plots=False, on_done=on_done
-        )
+        real.run_real("/nowhere", tmp_path / "out", use_models=False, plots=False, on_done=on_done)
     assert len(started) <= 4, started  # before: all 16, one after the other (4 s)
     assert time.monotonic() - began < 2.0

@@ -100,4 +100,3 @@ def test_the_19_states_navigate_better_where_the_dvl_errors_show(rows) -> None:
     for name in ("train-straight", "train-turns", "train-zigzag"):
         r = rows[name]
         assert r.rms_19 < r.rms_15 and r.difference[2] < 0.0, (name, r)
-

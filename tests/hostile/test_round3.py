@@ -298,13 +298,15 @@ def test_a_lever_arm_beyond_any_vehicle_is_named(call, key) -> None:
 @pytest.mark.parametrize(
     ("line", "message"),
     [
-        ("lat_deg = 89.5", "[trajectory] lat_deg: must be within ±89° (NED is singular at the "
-         "poles), got 89.5°"),
+        (
+            "lat_deg = 89.5",
+            "[trajectory] lat_deg: must be within ±89° (NED is singular at the poles), got 89.5°",
+        ),
         ("lat_deg = -90", "[trajectory] lat_deg: must be within ±89°"),
     ],
 )
 def test_a_latitude_is_answered_in_degrees(where, capsys, line, message) -> None:
-    trajectory = '[trajectory]\nsegments = [[20, 0, 0, 0]]'
+    trajectory = "[trajectory]\nsegments = [[20, 0, 0, 0]]"
     (where / "bad.toml").write_text(f'name = "x"\n{trajectory}\n{line}\n')
     argv = ["simulate", "--scenario", str(where / "bad.toml"), "--out", str(where / "res")]
     line_out = refused(capsys, argv, str(where / "bad.toml"))

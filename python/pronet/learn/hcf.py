@@ -289,8 +289,7 @@ class HCFEnsemble:
         window = arch.get("window") if isinstance(arch, dict) else None
         if isinstance(window, bool) or not isinstance(window, int) or window < 3:
             raise modelfile.ModelFileError(
-                f"{weights}: card architecture window: expected a whole number >= 3, "
-                f"got {window!r}"
+                f"{weights}: card architecture window: expected a whole number >= 3, got {window!r}"
             )
         if arch.get("features") != list(FEATURE_NAMES):
             raise modelfile.ModelFileError(f"{weights}: card lists other features than pronet's")

@@ -75,7 +75,6 @@ def scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, float
     }
 
 
-
 def log_scores(pred: NDArray[np.float64], q: NDArray[np.float64]) -> dict[str, Any]:
     """RMSE of log10 q overall (``log10_rmse``) and per decade of the label
     (``log10_rmse_by_decade``: ``{"-7": ...}`` for q in [1e-7, 1e-6)); a non-positive or

@@ -454,32 +454,7 @@ def run_real(
         regressors[f"learned:{model}"] = load_model_file(model)
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
-
-    def read(path: Path) -> tuple[Section, Section] | str:
-        try:
-            return load_section(
-                path, fmt, imu_lever_arm=imu_arm, dvl_lever_arm=read_arm, aiding_clock=aiding_clock
-            )
-        except (ValueError, OSError) as exc:  # the reason (it names the file)
-            return str(exc)
-
-    loaded: list[tuple[Section, Section]] = []
-    unread: dict[str, str] = {}
-    with (
-        ThreadPoolExecutor(max_workers=usable_cores()) as pool,
-        closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
-    ):  # closed however the loop ends: the reads not yet started are cancelled
-        for path, section in zip(paths, reading, strict=True):  # in order
-            try:  # the streams --no-dvl/--no-depth/--no-fixes leave, their sigma
-                if isinstance(section, str):
-                    raise ValueError(section)
-                loaded.append(
-                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
-                )
-            except ValueError as exc:
-                unread[section_name(path)] = str(exc)
-            if on_done is not None:
-                on_done(path.name)
+    loaded, unread = _read_sections(paths, fmt, (imu_arm, read_arm), aiding_clock, aiding, on_done)
     if not loaded:  # nothing to run: the first reason, before any filter
         raise ValueError(_no_section_left(unread))
     if on_start is not None:
@@ -527,6 +502,48 @@ def run_real(
                     on_start(len(done.sections), "section", "plots")
                 figures.write(tmp, [a.name for a, _ in done.sections], on_done)
     return folder
+
+
+def _read_sections(
+    paths: Sequence[Path],
+    fmt: Format,
+    arms: tuple[tuple[float, float, float], tuple[float, float, float] | None],
+    aiding_clock: str,
+    aiding: AidingTuning,
+    on_done: Callable[[str], None] | None,
+) -> tuple[list[tuple[Section, Section]], dict[str, str]]:
+    """Every section under ``paths`` read and aligned on the usable cores, in order, with
+    the streams ``aiding`` leaves (``--no-dvl``/``--no-depth``/``--no-fixes``) and their
+    σ: the sections read, and the reason (naming the file) for each one that could not be,
+    by section name. ``arms``: the IMU's and the DVL's lever arm [m, body FRD], the
+    DVL's None where its readings go unused."""
+
+    def read(path: Path) -> tuple[Section, Section] | str:
+        try:
+            return load_section(
+                path, fmt, imu_lever_arm=arms[0], dvl_lever_arm=arms[1], aiding_clock=aiding_clock
+            )
+        except (ValueError, OSError) as exc:  # the reason (it names the file)
+            return str(exc)
+
+    loaded: list[tuple[Section, Section]] = []
+    unread: dict[str, str] = {}
+    with (
+        ThreadPoolExecutor(max_workers=usable_cores()) as pool,
+        closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
+    ):  # closed however the loop ends: the reads not yet started are cancelled
+        for path, section in zip(paths, reading, strict=True):  # in order
+            try:
+                if isinstance(section, str):
+                    raise ValueError(section)
+                loaded.append(
+                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
+                )
+            except ValueError as exc:
+                unread[section_name(path)] = str(exc)
+            if on_done is not None:
+                on_done(path.name)
+    return loaded, unread
 
 
 def _drawn_by(
