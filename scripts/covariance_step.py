@@ -101,7 +101,8 @@ def _nees(result: MonteCarloResult, block: str) -> str:
 
 def simulated_table(runs: int, threads: int | None) -> tuple[str, list[dict[str, object]]]:
     """The scenarios' table and its rows as records."""
-    rows, records = [], []
+    rows: list[list[str]] = []
+    records: list[dict[str, object]] = []
     for name, kind in SIMULATED:
         base: MonteCarloResult | None = None
         for step in STEPS:

@@ -58,11 +58,8 @@ def filter_table(runs: int) -> str:
             gyro_bias_psd=gyro_psd,
             dvl_variance=(dvlcalibration.DVL_VARIANCE,) * 3,
             dvl_calibration=prior is not None,
-            **(
-                {}
-                if prior is None
-                else {"dvl_scale_sigma": prior, "dvl_misalignment_sigma": angles}
-            ),
+            dvl_scale_sigma=prior,
+            dvl_misalignment_sigma=None if prior is None else angles,
         )
         res = monte_carlo(
             traj, _core.Strategy.constant(q), sensors=sensors, config=config, n_runs=runs, seed=0

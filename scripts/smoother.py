@@ -45,9 +45,9 @@ from pronet.results import markdown
 from pronet.sim.scenarios import (
     MATCHED_BIAS_PSD,
     SCENARIOS,
-    _scheduled,
     matched_filter_config,
     noise_schedule,
+    scheduled_scenario,
 )
 from pronet.stats import chi2_mean_band
 from pronet.trajectory import builtin_trajectory
@@ -93,7 +93,7 @@ def _worse(r: pronet.MonteCarloResult) -> str:
     return f"{int(np.sum(ratio > 1.05))} / {len(ratio)} ({int(np.sum(low > 1))})"
 
 
-def row(name: str, runs: int, oracle: bool = False, seed: int = 0) -> list[object]:
+def row(name: str, runs: int, oracle: bool = False, seed: int = 0) -> list[str]:
     r = _run(SCENARIOS[name](0), runs, oracle=oracle, seed=seed)
     s = r.smoothed
     assert s is not None
@@ -107,7 +107,7 @@ def row(name: str, runs: int, oracle: bool = False, seed: int = 0) -> list[objec
     ]
 
 
-def psd_rows(runs: int) -> list[list[object]]:
+def psd_rows(runs: int) -> list[list[str]]:
     sc = SCENARIOS["paper"](0)
     rows = []
     for accel, gyro in ((1e-3, 1e-3), (1e-5, 1e-7), (1e-7, 1e-10), MATCHED_BIAS_PSD[2:4]):
@@ -125,7 +125,7 @@ def psd_rows(runs: int) -> list[list[object]]:
     return rows
 
 
-def outage_rows(runs: int, initial_error: bool = True) -> list[list[object]]:
+def outage_rows(runs: int, initial_error: bool = True) -> list[list[str]]:
     sc = SCENARIOS["outage"](0)
     r = _run(sc, runs, initial_error=initial_error)
     s = r.smoothed
@@ -135,12 +135,13 @@ def outage_rows(runs: int, initial_error: bool = True) -> list[list[object]]:
     def rms(e: np.ndarray) -> float:
         return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
 
+    errors, sigmas = (r.error, s.error), (r.sigma, s.sigma)  # filter, smoother
     rows = []
     for start, end in sc.dvl_outages:
         a, m = (int(np.argmin(np.abs(r.record_time - t))) for t in (start, (start + end) / 2))
-        at = [rms(x.error[:, k, :2]) for x in (r, s) for k in (a, m)]
-        drift = [rms(x.error[:, m, :2] - x.error[:, a, :2]) for x in (r, s)]
-        sigma = [float(np.sqrt(np.mean(np.sum(x.sigma[:, m, :2] ** 2, axis=1)))) for x in (r, s)]
+        at = [rms(e[:, k, :2]) for e in errors for k in (a, m)]
+        drift = [rms(e[:, m, :2] - e[:, a, :2]) for e in errors]
+        sigma = [float(np.sqrt(np.mean(np.sum(x[:, m, :2] ** 2, axis=1)))) for x in sigmas]
         rows.append([
             f"{start:g}–{end:g} s",
             f"{at[0]:.2f} / {at[2]:.2f}",
@@ -151,7 +152,7 @@ def outage_rows(runs: int, initial_error: bool = True) -> list[list[object]]:
     return rows
 
 
-def steps_rows(runs: int) -> list[list[object]]:
+def steps_rows(runs: int) -> list[list[str]]:
     sc = SCENARIOS["matched"](0)
     low, high = chi2_mean_band(3, runs)
     rows = []
@@ -177,13 +178,13 @@ def steps_rows(runs: int) -> list[list[object]]:
     return rows
 
 
-def nonlinear_rows(runs: int) -> list[list[object]]:
+def nonlinear_rows(runs: int) -> list[list[str]]:
     trajectory = builtin_trajectory("paper")
     times, q = noise_schedule(trajectory.duration, 0)
     g = 9.81
     rows = []
     for scale in (1.0, 0.1, 0.01, 0.001):
-        sc = _scheduled(
+        sc = scheduled_scenario(
             "varying-matched", trajectory, times, q * scale, matched_filter_config(), 0,
             MATCHED_BIAS_PSD,
         )  # fmt: skip
@@ -196,7 +197,8 @@ def nonlinear_rows(runs: int) -> list[list[object]]:
         second_order = g * float(np.mean(tilt2[:, -150:])) / 2  # the last 150 s
         bias = e[:, -1, 11]  # the down (body z) accelerometer bias at the end
         normalized = [
-            float(np.mean((x.error[:, 1:, 11] / x.sigma[:, 1:, 11]) ** 2)) for x in (r, s)
+            float(np.mean((x[:, 1:, 11] / sx[:, 1:, 11]) ** 2))
+            for x, sx in ((r.error, r.sigma), (s.error, s.sigma))
         ]
         rows.append([
             f"{scale:g}",
@@ -211,7 +213,7 @@ def nonlinear_rows(runs: int) -> list[list[object]]:
     return rows
 
 
-def seeds_rows(runs: int) -> list[list[object]]:
+def seeds_rows(runs: int) -> list[list[str]]:
     sc = SCENARIOS["matched"](0)
     rows = []
     for seed in range(10):
@@ -278,7 +280,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0, help="scenarios: the Monte Carlo's seed")
     args = parser.parse_args()
     header, runs = HEADERS[args.part], args.runs
-    parts: dict[str, Callable[[], list[list[object]]]] = {
+    parts: dict[str, Callable[[], list[list[str]]]] = {
         "scenarios": lambda: [row(name, runs, args.oracle, args.seed) for name in SCENARIOS],
         "psd": lambda: psd_rows(runs),
         "outage": lambda: outage_rows(runs),

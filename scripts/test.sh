@@ -21,10 +21,13 @@ echo "== ruff"
 "$VENV/bin/ruff" format --check --quiet python tests benches examples scripts
 echo "== stubtest (python/pronet/_core.pyi against the built module)"
 "$VENV/bin/python" -m mypy.stubtest pronet._core
-echo "== mypy (the package's and the benchmarks' types)"
+echo "== mypy (the package's, the benchmarks' and the scripts' types)"
 # Its cache lives beside the venv, outside the checkout: a fresh clone does not redo
-# the third-party modules (mypy re-checks every file whose contents changed).
-"$VENV/bin/python" -m mypy --cache-dir "${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
+# the third-party modules (mypy re-checks every file whose contents changed). The
+# scripts apart: two of them share a module name with a benchmark.
+MYPY_CACHE="${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
+"$VENV/bin/python" -m mypy --cache-dir "$MYPY_CACHE"
+"$VENV/bin/python" -m mypy --cache-dir "$MYPY_CACHE" scripts
 echo "== the wheel: manylinux2014, installed without extras into a fresh venv"
 bash "$ROOT/scripts/check_wheel.sh"
 echo "== pytest (a worker per core, up to 4; each test file in one worker)"

@@ -112,10 +112,10 @@ def varying_noise_scenario(seed: int = 0) -> Scenario:
     from ``seed``). The constant rows are told each channel's time-averaged variance."""
     trajectory = builtin_trajectory("paper")
     times, q = noise_schedule(trajectory.duration, seed)
-    return _scheduled("varying-noise", trajectory, times, q, paper_filter_config(), seed)
+    return scheduled_scenario("varying-noise", trajectory, times, q, paper_filter_config(), seed)
 
 
-def _scheduled(
+def scheduled_scenario(
     name: str,
     trajectory: _core.Trajectory,
     times: np.ndarray,
@@ -127,9 +127,14 @@ def _scheduled(
     dvl_outages: np.ndarray | None = None,
     **aiding: Any,
 ) -> Scenario:
-    """A scenario whose IMU follows the schedule ``times``, ``q``; the constant rows are
-    told its time average. ``aiding``: the aiding sensors' arguments of
-    ``SensorConfig`` (``depth_sigma``, ``fixes`` ...)."""
+    """A scenario named ``name`` on ``trajectory`` whose simulated IMU follows the noise
+    schedule ``times`` ``(k,)`` [s], ``q`` ``(k, 6)`` (per-sample variances, accelerometer
+    [(m/s²)²] then gyro [(rad/s)²], body FRD; e.g. :func:`noise_schedule`'s), filtered
+    with ``config``; the constant rows are told the schedule's time average.
+    ``seed``: the seed the schedule was drawn from, recorded (None: not drawn).
+    ``bias_psd``: the simulated IMU's bias random walks (``SensorConfig.imu_bias_psd``),
+    ``dvl_variance`` [(m/s)²] and ``dvl_outages`` ``(n, 2)`` [s] its DVL's; ``aiding``:
+    the aiding sensors' arguments of ``SensorConfig`` (``depth_sigma``, ``fixes`` ...)."""
     sensors = _core.SensorConfig(
         imu_variance=q,
         imu_variance_times=times,
@@ -184,7 +189,7 @@ def varying_matched_scenario(seed: int = 0) -> Scenario:
     """``varying-noise``'s schedule (drawn from ``seed``) with the bias walk matched."""
     trajectory = builtin_trajectory("paper")
     times, q = noise_schedule(trajectory.duration, seed)
-    return _scheduled(
+    return scheduled_scenario(
         "varying-matched",
         trajectory,
         times,
@@ -258,7 +263,7 @@ def _realistic(
 ) -> Scenario:
     trajectory = trajectory if trajectory is not None else builtin_trajectory("paper")
     times, q, _ = regime_schedule(trajectory.duration, seed)
-    return _scheduled(
+    return scheduled_scenario(
         name,
         trajectory,
         times,
