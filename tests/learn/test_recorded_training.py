@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -33,6 +34,7 @@ from pronet.experiments.qlearn.scoring import (
     score,
 )
 from pronet.experiments.qlearn.sections import (
+    SIM_BYTES_PER_SAMPLE,
     recorded_sections,
     simulated_section,
     simulated_sections,
@@ -223,6 +225,26 @@ def test_cli_errors_name_the_option(tmp_path, capsys):
         assert f"{name}: must be >= 0, got -" in capsys.readouterr().err
     with pytest.raises(ValueError, match="seed: must be >= 0"):
         simulated_sections(2, seed=-1)
+    # too many recordings for memory: refused before any is built or anything written
+    assert cli.main(["train", "--simulated", "100000", "--out", str(tmp_path / "m")]) == 2
+    assert "--simulated: 100000 simulated recordings of 330 s would hold 1" in (
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "m").exists()
+    with pytest.raises(ValueError, match="n: 3000 simulated recordings"):
+        simulated_sections(3000)
+
+
+def test_the_memory_limit_counts_what_a_simulated_recording_holds():
+    simulated_sections(1, duration=10.0)  # the trajectory and imports cached first
+    tracemalloc.start()
+    try:
+        held = simulated_sections(2, duration=60.0)
+        per_sample = tracemalloc.get_traced_memory()[0] / 2 / 6000
+    finally:
+        tracemalloc.stop()
+    assert len(held) == 2
+    assert 0.8 * SIM_BYTES_PER_SAMPLE <= per_sample <= SIM_BYTES_PER_SAMPLE
 
 
 @pytest.mark.slow

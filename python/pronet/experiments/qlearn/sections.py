@@ -49,6 +49,9 @@ F64 = NDArray[np.float64]
 
 #: Ground-truth rows per simulated second (the DVL's rate; Snapir's truth is 1 Hz too).
 SIM_TRUTH_RATE = 1.0
+#: Memory [bytes] a simulated recording holds per IMU sample (its IMU and clock, 56,
+#: and the DVL and truth at 1 Hz; measured 57-58 with tracemalloc: 1.9 MB per 330 s).
+SIM_BYTES_PER_SAMPLE = 64
 
 
 @dataclass(frozen=True)
@@ -160,9 +163,29 @@ def simulated_section(seed: int, duration: float | None = None) -> TrainingSecti
 def simulated_sections(
     n: int, seed: int = 0, duration: float | None = None
 ) -> list[TrainingSection]:
-    """``n`` simulated ``regimes`` recordings, seeds ``seed .. seed + n − 1``."""
+    """``n`` simulated ``regimes`` recordings, seeds ``seed .. seed + n − 1``. Raises
+    ValueError before building any when they would hold more than
+    :data:`pronet.learn.dataset.MAX_DATASET_BYTES` (4 GiB: about 2,000 of 330 s)."""
     if n < 1:
         raise ValueError(f"n: must be at least 1, got {n}")
     if seed < 0:
         raise ValueError(f"seed: must be >= 0, got {seed}")
+    check_simulated_memory(n, duration)
     return [simulated_section(seed + i, duration) for i in range(n)]
+
+
+def check_simulated_memory(n: int, duration: float | None = None, name: str = "n") -> None:
+    """Raises ValueError, naming the argument ``name``, when ``n`` simulated recordings
+    of ``duration`` [s] (default the paper's 330 s) would hold more memory than
+    :data:`pronet.learn.dataset.MAX_DATASET_BYTES`."""
+    from pronet.learn.dataset import MAX_DATASET_BYTES
+
+    trajectory = builtin_trajectory("paper")
+    span = trajectory.duration if duration is None else duration
+    each = int(span / trajectory.dt) * SIM_BYTES_PER_SAMPLE
+    if n * each > MAX_DATASET_BYTES:
+        raise ValueError(
+            f"{name}: {n} simulated recordings of {span:g} s would hold "
+            f"{n * each / 2**30:.1f} GiB; at most {MAX_DATASET_BYTES / 2**30:.0f} GiB "
+            f"({MAX_DATASET_BYTES // each} recordings)"
+        )
