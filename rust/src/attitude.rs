@@ -71,7 +71,7 @@ pub fn log_so3(c: &Matrix3<f64>) -> Vector3<f64> {
     v * scale
 }
 
-/// DCM `C_b^n = Rz(yaw) · Ry(pitch) · Rx(roll)` from ZYX Euler angles [rad].
+/// DCM `C_b^n = Rz(yaw) · Ry(pitch) · Rx(roll)` from ZYX Euler angles \[rad\].
 pub fn dcm_from_euler(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
     let (sr, cr) = roll.sin_cos();
     let (sp, cp) = pitch.sin_cos();
@@ -89,7 +89,7 @@ pub fn dcm_from_euler(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
     )
 }
 
-/// ZYX Euler angles `[roll, pitch, yaw]` [rad] of `C_b^n`; yaw in (−π, π].
+/// ZYX Euler angles `[roll, pitch, yaw]` \[rad\] of `C_b^n`; yaw in (−π, π].
 pub fn euler_from_dcm(c: &Matrix3<f64>) -> Vector3<f64> {
     let roll = c[(2, 1)].atan2(c[(2, 2)]);
     let pitch = (-c[(2, 0)]).clamp(-1.0, 1.0).asin();
@@ -115,7 +115,7 @@ pub fn orthonormalize(c: &Matrix3<f64>) -> Matrix3<f64> {
     c * (Matrix3::identity() * 1.5 - c.transpose() * c * 0.5)
 }
 
-/// Wrap an angle [rad] to (−π, π].
+/// Wrap an angle \[rad\] to (−π, π].
 #[inline]
 pub fn wrap_angle(a: f64) -> f64 {
     let w =

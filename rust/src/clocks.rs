@@ -41,9 +41,9 @@ fn lerp(xp: &[f64], fp: &[[f64; 3]], j: usize, x: f64, c: usize) -> f64 {
 /// The attitude-increment cost (see the module docs) of the clocks `(offset, scale)`
 /// for every `offset` in `offsets`.
 ///
-/// Args: `edges` `(K,)` the IMU sample edges [s], increasing; `cum` `(K, 3)` the
-/// integrated Euler rates at the edges [rad]; `gt_time` `(R,)` the truth's stamps [s];
-/// `gt_step` `(R - 1, 3)` its Euler-angle steps [rad]; `scale` > 0.
+/// Args: `edges` `(K,)` the IMU sample edges \[s\], increasing; `cum` `(K, 3)` the
+/// integrated Euler rates at the edges \[rad\]; `gt_time` `(R,)` the truth's stamps \[s\];
+/// `gt_step` `(R - 1, 3)` its Euler-angle steps \[rad\]; `scale` > 0.
 pub fn attitude_increment_costs(
     edges: &[f64],
     cum: &[[f64; 3]],

@@ -8,21 +8,21 @@
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
 
-/// Semi-major axis [m].
+/// Semi-major axis \[m\].
 pub const A: f64 = 6_378_137.0;
 /// Flattening.
 pub const F: f64 = 1.0 / 298.257_223_563;
 /// First eccentricity squared.
 pub const E2: f64 = F * (2.0 - F);
-/// Semi-minor axis [m].
+/// Semi-minor axis \[m\].
 pub const B: f64 = A * (1.0 - F);
-/// Earth rotation rate [rad/s].
+/// Earth rotation rate \[rad/s\].
 pub const OMEGA_IE: f64 = 7.292_115e-5;
-/// Earth gravitational constant GM [m³/s²].
+/// Earth gravitational constant GM \[m³/s²\].
 pub const GM: f64 = 3.986_004_418e14;
-/// Normal gravity at the equator [m/s²].
+/// Normal gravity at the equator \[m/s²\].
 pub const GAMMA_EQUATOR: f64 = 9.780_325_335_9;
-/// Normal gravity at the poles [m/s²].
+/// Normal gravity at the poles \[m/s²\].
 pub const GAMMA_POLE: f64 = 9.832_184_937_8;
 
 /// The terms of one geodetic latitude that every local quantity derives from, computed
@@ -30,18 +30,18 @@ pub const GAMMA_POLE: f64 = 9.832_184_937_8;
 /// `sin_cos` (and a `tan` for the transport rate) instead of five transcendental calls.
 #[derive(Clone, Copy, Debug)]
 pub struct Latitude {
-    /// The latitude itself [rad].
+    /// The latitude itself \[rad\].
     pub lat: f64,
     pub sin: f64,
     pub cos: f64,
-    /// Meridian (north-south) radius of curvature [m].
+    /// Meridian (north-south) radius of curvature \[m\].
     pub r_n: f64,
-    /// Prime-vertical (east-west) radius of curvature [m].
+    /// Prime-vertical (east-west) radius of curvature \[m\].
     pub r_e: f64,
 }
 
 impl Latitude {
-    /// The terms at geodetic latitude `lat` [rad].
+    /// The terms at geodetic latitude `lat` \[rad\].
     #[inline]
     pub fn new(lat: f64) -> Self {
         let (sin, cos) = lat.sin_cos();
@@ -60,7 +60,7 @@ impl Latitude {
         }
     }
 
-    /// WGS-84 normal gravity magnitude [m/s²] at height `h` [m]: Somigliana's formula
+    /// WGS-84 normal gravity magnitude \[m/s²\] at height `h` \[m\]: Somigliana's formula
     /// with the second-order height correction (NIMA TR8350.2, 4-3). It includes the
     /// centrifugal part, so at rest the accelerometer reads `-gravity`.
     #[inline]
@@ -72,14 +72,14 @@ impl Latitude {
         gamma0 * (1.0 - 2.0 * h / A * (1.0 + F + m - 2.0 * F * s2) + 3.0 * h * h / (A * A))
     }
 
-    /// Earth rotation rate expressed in NED [rad/s].
+    /// Earth rotation rate expressed in NED \[rad/s\].
     #[inline]
     pub fn earth_rate_ned(&self) -> Vector3<f64> {
         Vector3::new(OMEGA_IE * self.cos, 0.0, -OMEGA_IE * self.sin)
     }
 
-    /// Transport rate (rotation of NED relative to the Earth) [rad/s] for NED velocity
-    /// `v` [m/s] at height `h` [m].
+    /// Transport rate (rotation of NED relative to the Earth) \[rad/s\] for NED velocity
+    /// `v` \[m/s\] at height `h` \[m\].
     #[inline]
     pub fn transport_rate_ned(&self, h: f64, v: &Vector3<f64>) -> Vector3<f64> {
         Vector3::new(
@@ -89,7 +89,7 @@ impl Latitude {
         )
     }
 
-    /// The terms at a latitude `lat` [rad] near this one. Within [`NEAR_LATITUDE`] the
+    /// The terms at a latitude `lat` \[rad\] near this one. Within [`NEAR_LATITUDE`] the
     /// sine and cosine come from this one's by their Taylor series to second order in
     /// δ = lat − self.lat, whose first omitted term (|δ|³/6 < 2e-19) is far below the
     /// rounding of `sin_cos` itself; farther away it is [`Latitude::new`]. The
@@ -108,11 +108,11 @@ impl Latitude {
     }
 }
 
-/// How far [rad] [`Latitude::near`] uses its series (about 6 m of latitude).
+/// How far \[rad\] [`Latitude::near`] uses its series (about 6 m of latitude).
 pub const NEAR_LATITUDE: f64 = 1e-6;
 
-/// Meridian (north-south) and prime-vertical (east-west) radii of curvature [m]
-/// at geodetic latitude `lat` [rad]: `(R_N, R_E)`.
+/// Meridian (north-south) and prime-vertical (east-west) radii of curvature \[m\]
+/// at geodetic latitude `lat` \[rad\]: `(R_N, R_E)`.
 #[inline]
 pub fn radii(lat: f64) -> (f64, f64) {
     radii_from_sin(lat.sin())
@@ -125,18 +125,18 @@ fn radii_from_sin(sin: f64) -> (f64, f64) {
     (A * (1.0 - E2) / (d * sqrt_d), A / sqrt_d)
 }
 
-/// WGS-84 normal gravity magnitude [m/s²] at latitude `lat` [rad] and height `h` [m]
+/// WGS-84 normal gravity magnitude \[m/s²\] at latitude `lat` \[rad\] and height `h` \[m\]
 /// (see [`Latitude::gravity`]).
 #[inline]
 pub fn gravity(lat: f64, h: f64) -> f64 {
     Latitude::new(lat).gravity(h)
 }
 
-/// Heights [m] within which [`checked_gravity`] answers: the Somigliana series with its
+/// Heights \[m\] within which [`checked_gravity`] answers: the Somigliana series with its
 /// second-order height term is a near-surface model.
 pub const MAX_GRAVITY_HEIGHT: f64 = 100_000.0;
 
-/// Largest |latitude| [°] a navigation state may start at. Nearer a pole the NED frame
+/// Largest |latitude| \[°\] a navigation state may start at. Nearer a pole the NED frame
 /// turns singular: the east axis and the transport rate's `tan(lat)` blow up.
 pub const MAX_LATITUDE_DEG: f64 = 89.0;
 
@@ -161,7 +161,7 @@ pub fn check_latitude(arg: &str, lat: f64) -> Result<()> {
     Ok(())
 }
 
-/// [`gravity`] for outside callers: finite `lat` [rad] and `h` [m] with
+/// [`gravity`] for outside callers: finite `lat` \[rad\] and `h` \[m\] with
 /// `|h| <= MAX_GRAVITY_HEIGHT`, else an error naming the argument.
 pub fn checked_gravity(lat: f64, h: f64) -> Result<f64> {
     let h = finite_scalar("h", h)?;
@@ -176,31 +176,31 @@ pub fn checked_gravity(lat: f64, h: f64) -> Result<f64> {
     Ok(gravity(finite_scalar("lat", lat)?, h))
 }
 
-/// [`radii`] for outside callers: a finite `lat` [rad], else an error naming it.
+/// [`radii`] for outside callers: a finite `lat` \[rad\], else an error naming it.
 pub fn checked_radii(lat: f64) -> Result<(f64, f64)> {
     Ok(radii(finite_scalar("lat", lat)?))
 }
 
-/// Normal gravity vector in NED [m/s²]: `[0, 0, gravity(lat, h)]`.
+/// Normal gravity vector in NED \[m/s²\]: `[0, 0, gravity(lat, h)]`.
 #[inline]
 pub fn gravity_ned(lat: f64, h: f64) -> Vector3<f64> {
     Vector3::new(0.0, 0.0, gravity(lat, h))
 }
 
-/// Earth rotation rate expressed in NED [rad/s].
+/// Earth rotation rate expressed in NED \[rad/s\].
 #[inline]
 pub fn earth_rate_ned(lat: f64) -> Vector3<f64> {
     Latitude::new(lat).earth_rate_ned()
 }
 
-/// Transport rate (rotation of NED relative to the Earth) [rad/s] for NED velocity
-/// `v` [m/s] at latitude `lat` [rad] and height `h` [m].
+/// Transport rate (rotation of NED relative to the Earth) \[rad/s\] for NED velocity
+/// `v` \[m/s\] at latitude `lat` \[rad\] and height `h` \[m\].
 #[inline]
 pub fn transport_rate_ned(lat: f64, h: f64, v: &Vector3<f64>) -> Vector3<f64> {
     Latitude::new(lat).transport_rate_ned(h, v)
 }
 
-/// Geodetic `[lat, lon, h]` to Earth-centred Earth-fixed coordinates [m].
+/// Geodetic `[lat, lon, h]` to Earth-centred Earth-fixed coordinates \[m\].
 pub fn lla_to_ecef(lla: &Vector3<f64>) -> Vector3<f64> {
     let (lat, lon, h) = (lla[0], lla[1], lla[2]);
     let (_, r_e) = radii(lat);
@@ -211,7 +211,7 @@ pub fn lla_to_ecef(lla: &Vector3<f64>) -> Vector3<f64> {
     )
 }
 
-/// ECEF [m] to geodetic `[lat, lon, h]` (iterative; converges to machine precision
+/// ECEF \[m\] to geodetic `[lat, lon, h]` (iterative; converges to machine precision
 /// within a few iterations anywhere outside the Earth's centre).
 pub fn ecef_to_lla(r: &Vector3<f64>) -> Vector3<f64> {
     let p = (r[0] * r[0] + r[1] * r[1]).sqrt();
@@ -249,14 +249,14 @@ pub fn dcm_ecef_to_ned(lat: f64, lon: f64) -> Matrix3<f64> {
     )
 }
 
-/// Offset [m, NED] of the point `lla` from the reference point `origin`, both geodetic.
+/// Offset \[m, NED\] of the point `lla` from the reference point `origin`, both geodetic.
 /// Exact (through ECEF), valid for any distance.
 pub fn lla_to_ned(origin: &Vector3<f64>, lla: &Vector3<f64>) -> Vector3<f64> {
     let d = lla_to_ecef(lla) - lla_to_ecef(origin);
     dcm_ecef_to_ned(origin[0], origin[1]) * d
 }
 
-/// Geodetic position of the point at offset `ned` [m] from `origin`. Inverse of
+/// Geodetic position of the point at offset `ned` \[m\] from `origin`. Inverse of
 /// [`lla_to_ned`].
 pub fn ned_to_lla(origin: &Vector3<f64>, ned: &Vector3<f64>) -> Vector3<f64> {
     let d = dcm_ecef_to_ned(origin[0], origin[1]).transpose() * ned;
@@ -271,7 +271,7 @@ pub fn position_error_ned(est: &Vector3<f64>, truth: &Vector3<f64>) -> Vector3<f
 }
 
 /// What [`position_error_ned`] needs of the true position, for a truth read many times
-/// (a Monte Carlo's runs share one trajectory): `r_N + h`, `r_E + h` [m] and `cos φ`.
+/// (a Monte Carlo's runs share one trajectory): `r_N + h`, `r_E + h` \[m\] and `cos φ`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NedScale([f64; 3]);
 
@@ -294,7 +294,7 @@ impl NedScale {
     }
 }
 
-/// Geodetic increment `[Δlat, Δlon, Δh]` for a small NED displacement `d` [m] at `lla`.
+/// Geodetic increment `[Δlat, Δlon, Δh]` for a small NED displacement `d` \[m\] at `lla`.
 #[inline]
 pub fn ned_delta_to_lla_delta(lla: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f64> {
     let (r_n, r_e) = radii(lla[0]);

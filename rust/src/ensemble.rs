@@ -12,7 +12,7 @@ use crate::run::Run;
 use rayon::prelude::*;
 use std::sync::Arc;
 
-/// The hybrid loop's tuning instants over `n_samples` IMU samples of step `dt` [s]:
+/// The hybrid loop's tuning instants over `n_samples` IMU samples of step `dt` \[s\]:
 /// every `round(tuning_period / dt)` samples (Rust's `f64::round`, half away from zero;
 /// at least 1), from the first such multiple at which `window` samples exist. An instant
 /// is the number of samples before it; the last sample is no instant (nothing is left
@@ -104,7 +104,7 @@ pub struct Ensemble {
 }
 
 impl Ensemble {
-    /// `window`: samples handed out (1 to the trajectory's length); `tuning_period` [s]:
+    /// `window`: samples handed out (1 to the trajectory's length); `tuning_period` \[s\]:
     /// time between tuning instants (see [`TuningSchedule`]). Until the first instant
     /// every run uses `prior_q`.
     pub fn new(
@@ -172,7 +172,7 @@ impl Ensemble {
         self.k
     }
 
-    /// Time of the current epoch [s].
+    /// Time of the current epoch \[s\].
     pub fn time(&self) -> f64 {
         self.scenario.truth.time[self.k]
     }

@@ -11,8 +11,8 @@ use crate::earth;
 use crate::error::{check, Error, Result};
 use nalgebra::{Matrix3, Vector3};
 
-/// Navigation state: geodetic position `[lat, lon, h]` [rad, rad, m], NED velocity
-/// [m/s] and the body(FRD)-to-NED DCM.
+/// Navigation state: geodetic position `[lat, lon, h]` \[rad, rad, m\], NED velocity
+/// \[m/s\] and the body(FRD)-to-NED DCM.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NavState {
     pub lla: Vector3<f64>,
@@ -20,7 +20,7 @@ pub struct NavState {
     pub dcm: Matrix3<f64>,
 }
 
-/// One IMU sample: specific force [m/s²] and angular rate [rad/s], body frame, each the
+/// One IMU sample: specific force \[m/s²\] and angular rate \[rad/s\], body frame, each the
 /// mean over the sample interval.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ImuSample {
@@ -52,8 +52,8 @@ impl ImuSample {
     }
 }
 
-/// Rates that the step evaluates at its start: Earth rate and transport rate [rad/s,
-/// NED] and gravity [m/s², NED].
+/// Rates that the step evaluates at its start: Earth rate and transport rate \[rad/s,
+/// NED\] and gravity \[m/s², NED\].
 #[derive(Clone, Copy, Debug)]
 pub struct FrameRates {
     pub earth: Vector3<f64>,
@@ -109,7 +109,7 @@ pub fn advance_position(
     Vector3::new(lat1, lon1, h1)
 }
 
-/// One strapdown step over `dt` [s] with IMU sample `imu`.
+/// One strapdown step over `dt` \[s\] with IMU sample `imu`.
 #[inline]
 pub fn step(state: &NavState, imu: &ImuSample, dt: f64) -> NavState {
     let rates = FrameRates::at(state);
@@ -131,7 +131,7 @@ pub fn step_with_rates(state: &NavState, imu: &ImuSample, dt: f64, rates: &Frame
     NavState { lla, vel, dcm }
 }
 
-/// The IMU sample that [`step`] needs to take `s0` to `s1` in `dt` [s]: the exact inverse
+/// The IMU sample that [`step`] needs to take `s0` to `s1` in `dt` \[s\]: the exact inverse
 /// of the attitude and velocity updates. (Position follows from the velocities.)
 pub fn invert_step(s0: &NavState, s1: &NavState, dt: f64) -> ImuSample {
     let rates = FrameRates::at(s0);
@@ -145,7 +145,7 @@ pub fn invert_step(s0: &NavState, s1: &NavState, dt: f64) -> ImuSample {
 }
 
 /// [`integrate`] for outside callers, with the rules of the `mechanize` entry point:
-/// finite IMU rows, `dt > 0` [s], a start within [`earth::MAX_LATITUDE_DEG`] of the
+/// finite IMU rows, `dt > 0` \[s\], a start within [`earth::MAX_LATITUDE_DEG`] of the
 /// equator, and no overflow: finite but absurd inputs (1e300 m/s², a 1e10 s step) are an
 /// error, never NaN states.
 pub fn mechanize(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Result<Vec<NavState>> {
@@ -183,7 +183,7 @@ pub fn mechanize_until(
     Ok(states)
 }
 
-/// Mechanize `imu` (samples at a constant step `dt` [s]) from `initial`. Returns n + 1
+/// Mechanize `imu` (samples at a constant step `dt` \[s\]) from `initial`. Returns n + 1
 /// states: the initial one, then the state after each sample.
 pub fn integrate(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Vec<NavState> {
     let mut out = Vec::with_capacity(imu.len() + 1);

@@ -92,7 +92,7 @@ impl Scenario {
         Ok(())
     }
 
-    /// Times [s] of the DVL epochs (every `dvl_every` IMU steps) outside the outages;
+    /// Times \[s\] of the DVL epochs (every `dvl_every` IMU steps) outside the outages;
     /// none without a DVL.
     pub fn dvl_epoch_times(&self, dvl_every: Option<usize>) -> Vec<f64> {
         let Some(dvl_every) = dvl_every else {
@@ -104,7 +104,7 @@ impl Scenario {
     }
 }
 
-/// The most memory [bytes] the records of one Monte Carlo call may take (4 GiB; the
+/// The most memory \[bytes\] the records of one Monte Carlo call may take (4 GiB; the
 /// Python arrays made from them take as much again). About 190,000 runs of the `paper`
 /// scenario without histories.
 pub const MAX_RESULT_BYTES: u64 = 4 << 30;
@@ -158,9 +158,9 @@ impl McOptions {
 #[derive(Clone, Debug, PartialEq)]
 pub struct McResult {
     pub runs: Vec<RunRecord>,
-    /// Times of the DVL epochs [s].
+    /// Times of the DVL epochs \[s\].
     pub dvl_time: Vec<f64>,
-    /// Times of the recorded history epochs [s] (empty without history).
+    /// Times of the recorded history epochs \[s\] (empty without history).
     pub record_time: Vec<f64>,
 }
 

@@ -24,13 +24,13 @@ use smoothing::SmootherLog;
 /// Per-run scalar metrics. Velocity errors are taken at every IMU epoch.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunSummary {
-    /// `sqrt(mean_k Σ_{N,E,D} δv²)` [m/s].
+    /// `sqrt(mean_k Σ_{N,E,D} δv²)` \[m/s\].
     pub srmse: f64,
-    /// `mean_k Σ_{N,E,D} |δv|` [m/s].
+    /// `mean_k Σ_{N,E,D} |δv|` \[m/s\].
     pub smae: f64,
-    /// Horizontal position error at the end [m].
+    /// Horizontal position error at the end \[m\].
     pub final_horizontal_error: f64,
-    /// Largest horizontal position error over the run [m].
+    /// Largest horizontal position error over the run \[m\].
     pub max_horizontal_error: f64,
     /// Mean NIS over the applied DVL updates.
     pub mean_nis: f64,
@@ -45,7 +45,7 @@ pub struct RunSummary {
     /// mean per degree of freedom is 1 when the filter is consistent).
     pub aiding_nis: f64,
     pub aiding_dof: usize,
-    /// Time [s] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
+    /// Time \[s\] at which the NIS showed divergence (see [`NisMonitor`]), if it did.
     pub diverged_at: Option<f64>,
     /// Set when the filter failed numerically; the run's metrics are then NaN.
     pub failure: Option<String>,
@@ -143,7 +143,7 @@ pub struct Run {
     true_bias: [f64; 6],
     sum_sq: f64,
     sum_abs: f64,
-    /// North and east position error [m] now, and where its norm was largest (the norm
+    /// North and east position error \[m\] now, and where its norm was largest (the norm
     /// is taken once at the end: `hypot` every step cost ~3 % of a Monte Carlo).
     horizontal: [f64; 2],
     max_horizontal: [f64; 2],

@@ -65,7 +65,7 @@ impl VarianceSchedule {
         }
     }
 
-    /// A schedule starting at `times[0] = 0` [s], strictly increasing.
+    /// A schedule starting at `times[0] = 0` \[s\], strictly increasing.
     pub fn new(times: Vec<f64>, values: Vec<[f64; 6]>) -> Result<Self> {
         if times.is_empty() || times.len() != values.len() {
             return Err(Error::invalid(
@@ -115,16 +115,16 @@ pub struct ImuErrorModel {
     pub variance: VarianceSchedule,
     /// Constant bias `[b_a (m/s²), b_g (rad/s)]`.
     pub bias: [f64; 6],
-    /// Bias random-walk PSD per channel [(m/s²)²/s, (rad/s)²/s].
+    /// Bias random-walk PSD per channel \[(m/s²)²/s, (rad/s)²/s\].
     pub bias_rw_psd: [f64; 6],
 }
 
-/// The longest lever arm a sensor may have from the point it is referred to [m]: 1 km,
+/// The longest lever arm a sensor may have from the point it is referred to \[m\]: 1 km,
 /// beyond any vehicle. A longer one is a mistake (a unit slip), and left unchecked it
 /// turns into an error about something else (a latitude beyond the poles).
 pub const MAX_LEVER_ARM: f64 = 1000.0;
 
-/// `Err` naming `arg` unless the lever arm `values` [m] is finite and no component is
+/// `Err` naming `arg` unless the lever arm `values` \[m\] is finite and no component is
 /// longer than [`MAX_LEVER_ARM`].
 pub fn check_lever_arm(arg: &str, values: &[f64]) -> Result<()> {
     check::finite(arg, values)?;
@@ -271,7 +271,7 @@ impl SensorSim {
         &self.bias
     }
 
-    /// Noisy IMU sample for the interval starting at `t_start` [s] of length `dt`,
+    /// Noisy IMU sample for the interval starting at `t_start` \[s\] of length `dt`,
     /// given the ideal sample. The bias then takes one random-walk step.
     pub fn imu(
         &mut self,
@@ -304,8 +304,8 @@ impl SensorSim {
         self.locked
     }
 
-    /// Noisy DVL reading `(1 + k) M (C_n^b v^n + ω × r) + n` [m/s, the DVL's axes] for
-    /// the true state and the true body rate `gyro` [rad/s]; with the ideal mounting
+    /// Noisy DVL reading `(1 + k) M (C_n^b v^n + ω × r) + n` \[m/s, the DVL's axes\] for
+    /// the true state and the true body rate `gyro` \[rad/s\]; with the ideal mounting
     /// (the default) `C_n^b v^n + ω × r + n`, in the body axes.
     pub fn dvl(&mut self, cfg: &DvlModel, truth: &NavState, gyro: &Vector3<f64>) -> Vector3<f64> {
         let mut v_b = truth.dcm.transpose() * truth.vel + gyro.cross(&cfg.lever_arm);

@@ -16,9 +16,9 @@ use crate::error::{check, Error, Result};
 use crate::mechanization::{advance_position, invert_step, NavState};
 use nalgebra::Vector3;
 
-/// One piece of a trajectory: for `duration` [s], forward acceleration `accel` [m/s²],
-/// yaw rate `yaw_rate` [rad/s, positive turns right] and pitch rate `pitch_rate`
-/// [rad/s, positive noses up] are constant.
+/// One piece of a trajectory: for `duration` \[s\], forward acceleration `accel` \[m/s²\],
+/// yaw rate `yaw_rate` \[rad/s, positive turns right\] and pitch rate `pitch_rate`
+/// \[rad/s, positive noses up\] are constant.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Segment {
     pub duration: f64,
@@ -42,14 +42,14 @@ impl Segment {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrajectorySpec {
     pub name: String,
-    /// Initial geodetic position `[lat, lon, h]` [rad, rad, m].
+    /// Initial geodetic position `[lat, lon, h]` \[rad, rad, m\].
     pub lla0: Vector3<f64>,
-    /// Initial forward speed [m/s].
+    /// Initial forward speed \[m/s\].
     pub speed0: f64,
-    /// Initial `[roll, pitch, yaw]` [rad]; roll stays constant.
+    /// Initial `[roll, pitch, yaw]` \[rad\]; roll stays constant.
     pub rpy0: Vector3<f64>,
     pub segments: Vec<Segment>,
-    /// Sample period [s].
+    /// Sample period \[s\].
     pub dt: f64,
 }
 
@@ -58,10 +58,10 @@ pub struct TrajectorySpec {
 pub struct Truth {
     pub name: String,
     pub dt: f64,
-    /// Epoch times [s], `time[0] = 0`.
+    /// Epoch times \[s\], `time[0] = 0`.
     pub time: Vec<f64>,
     pub states: Vec<NavState>,
-    /// `[roll, pitch, yaw]` [rad] at each epoch, yaw wrapped to (−π, π].
+    /// `[roll, pitch, yaw]` \[rad\] at each epoch, yaw wrapped to (−π, π].
     pub rpy: Vec<Vector3<f64>>,
     /// Ideal IMU sample k covers `(time[k], time[k+1]]`.
     pub imu: Vec<[f64; 6]>,
@@ -88,10 +88,10 @@ impl Truth {
 /// Longest trajectory accepted (samples): 10 hours at 100 Hz, with room.
 const MAX_SAMPLES: usize = 20_000_000;
 
-/// Largest speed a trajectory may reach [m/s].
+/// Largest speed a trajectory may reach \[m/s\].
 pub const MAX_SPEED: f64 = 1000.0;
 
-/// Largest yaw or pitch rate of a segment [rad/s]: 10 rad/s (573°/s) is far beyond any
+/// Largest yaw or pitch rate of a segment \[rad/s\]: 10 rad/s (573°/s) is far beyond any
 /// vehicle (an AUV turns at a few °/s, an agile drone at a few hundred), and keeps a
 /// step's rotation far below the half turn at which the ideal gyro would alias (a
 /// 1e4 rad/s segment at 100 Hz would read as −53 rad/s).
@@ -182,7 +182,7 @@ impl TrajectorySpec {
         Ok(())
     }
 
-    /// Total duration [s] (the sum of the segment durations).
+    /// Total duration \[s\] (the sum of the segment durations).
     pub fn duration(&self) -> f64 {
         self.segments.iter().map(|s| s.duration).sum()
     }
@@ -300,7 +300,7 @@ pub fn paper_origin() -> Vector3<f64> {
     Vector3::new(deg(32.0), deg(34.0), -5.0)
 }
 
-/// A built-in trajectory by name, sampled at `dt` [s] (0.01 s in the paper).
+/// A built-in trajectory by name, sampled at `dt` \[s\] (0.01 s in the paper).
 ///
 /// - `paper`: the evaluation trajectory, 330 s: straight legs, a left and a right 90°
 ///   turn, a 10° dive and level-off, a further right turn and a speed-up;

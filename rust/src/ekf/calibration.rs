@@ -3,7 +3,7 @@
 //!
 //! The DVL reads `z = (1 + k) M v_b + n`, with `v_b = Cᵀ v + ω × r` the body-frame
 //! velocity at the DVL, `k` the scale-factor error and `M = C_b^d` the rotation from the
-//! body to the DVL's axes. The estimate `M̂` carries the error `δμ` [rad, body axes]
+//! body to the DVL's axes. The estimate `M̂` carries the error `δμ` \[rad, body axes\]
 //! as `M̂ = M (I + [δμ×])`, the scale the error `δk = k̂ − k`: state 15 is `δk`,
 //! states 16..19 are `δμ`. Both are constants (optionally random walks), so their rows
 //! of F are zero: propagation carries the cross-covariance `P_xc ← Φ P_xc` and leaves
@@ -35,11 +35,11 @@ pub const MISALIGNMENT: usize = 16;
 pub struct CalibrationConfig {
     /// Initial 1σ of the scale-factor error (0.01 = 1 %).
     pub scale_sigma: f64,
-    /// Initial 1σ of the misalignment about body x, y, z [rad].
+    /// Initial 1σ of the misalignment about body x, y, z \[rad\].
     pub misalignment_sigma: [f64; 3],
-    /// Random-walk PSD of the scale factor [1/s] (0: a constant).
+    /// Random-walk PSD of the scale factor \[1/s\] (0: a constant).
     pub scale_psd: f64,
-    /// Random-walk PSD of each misalignment angle [rad²/s] (0: constants).
+    /// Random-walk PSD of each misalignment angle \[rad²/s\] (0: constants).
     pub misalignment_psd: f64,
 }
 
@@ -193,7 +193,7 @@ impl Calibration {
         std::array::from_fn(|i| self.cov[(i, i)].max(0.0).sqrt())
     }
 
-    /// `[k̂, roll, pitch, yaw]`: the scale and the DVL's mounting angles [rad].
+    /// `[k̂, roll, pitch, yaw]`: the scale and the DVL's mounting angles \[rad\].
     pub fn reported(&self) -> [f64; 4] {
         let a = self.estimate.angles();
         [self.estimate.scale, a[0], a[1], a[2]]

@@ -21,16 +21,16 @@ pub enum Aiding {
 pub struct FilterConfig {
     /// Initial 1σ of the 15 error states (units as the state).
     pub p0_sigma: [f64; 15],
-    /// Accelerometer-bias random-walk PSD ε_a [(m/s²)²/s] (paper: 0.001).
+    /// Accelerometer-bias random-walk PSD ε_a \[(m/s²)²/s\] (paper: 0.001).
     pub accel_bias_psd: f64,
-    /// Gyro-bias random-walk PSD ε_g [(rad/s)²/s] (paper: 0.001).
+    /// Gyro-bias random-walk PSD ε_g \[(rad/s)²/s\] (paper: 0.001).
     pub gyro_bias_psd: f64,
-    /// DVL noise variance per axis [(m/s)²] (R).
+    /// DVL noise variance per axis \[(m/s)²\] (R).
     pub dvl_variance: [f64; 3],
-    /// DVL lever arm in the body frame [m].
+    /// DVL lever arm in the body frame \[m\].
     pub lever_arm: Vector3<f64>,
     pub aiding: Aiding,
-    /// Nominal IMU period [s]: the white-noise PSD is q·imu_dt.
+    /// Nominal IMU period \[s\]: the white-noise PSD is q·imu_dt.
     pub imu_dt: f64,
     /// Chi-square innovation gate: a DVL update whose NIS exceeds this is rejected (not
     /// applied, and unseen by the noise strategy). With 3 dof, 16.27 rejects 0.1 % of
@@ -42,7 +42,7 @@ pub struct FilterConfig {
     /// The coordinates of the velocity error the filter runs in (see
     /// [`super::formulation`]); `p0_sigma` is always given in the classic ones.
     pub formulation: Formulation,
-    /// The interval [s] over which the covariance is propagated in one step (Φ and Q_d
+    /// The interval \[s\] over which the covariance is propagated in one step (Φ and Q_d
     /// accumulated over it, see `docs/filter.md`, "Covariance step"); the navigation
     /// solution is still integrated at every IMU sample. [`DEFAULT_COVARIANCE_STEP`]
     /// (0.1 s) by default; 0, or anything shorter than 1.5 IMU periods: at every IMU
@@ -71,7 +71,7 @@ impl Default for FilterConfig {
     }
 }
 
-/// The default covariance step [s]: pyins's default, and the step that issue 43's
+/// The default covariance step \[s\]: pyins's default, and the step that issue 43's
 /// accuracy measurement found free (`docs/covariance-step.md`: on every built-in
 /// scenario and the Snapir sections SRMSE inside the per-sample filter's 95 % CI, the
 /// NEES shares in band within a point) at about half the per-sample filter's cost.

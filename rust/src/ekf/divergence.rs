@@ -12,14 +12,14 @@ pub const DIVERGENCE_MEAN_NIS: f64 = 25.0;
 pub struct NisMonitor {
     recent: [f64; NisMonitor::WINDOW],
     count: usize,
-    /// Time [s] at which divergence was first detected.
+    /// Time \[s\] at which divergence was first detected.
     pub diverged_at: Option<f64>,
 }
 
 impl NisMonitor {
     pub const WINDOW: usize = 20;
 
-    /// Record the NIS of an update at time `t` [s].
+    /// Record the NIS of an update at time `t` \[s\].
     pub fn push(&mut self, nis: f64, t: f64) {
         self.recent[self.count % Self::WINDOW] = nis;
         self.count += 1;

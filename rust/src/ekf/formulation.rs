@@ -68,7 +68,7 @@ fn shear(p: &mut Matrix15, s: &Matrix3<f64>) {
 }
 
 /// A covariance in classic coordinates mapped into `f`'s, at the velocity estimate `v`
-/// [m/s, NED].
+/// \[m/s, NED\].
 pub fn from_classic(f: Formulation, p: &mut Matrix15, v: &Vector3<f64>) {
     if f == Formulation::Invariant {
         shear(p, &(-skew(v)));
@@ -76,7 +76,7 @@ pub fn from_classic(f: Formulation, p: &mut Matrix15, v: &Vector3<f64>) {
 }
 
 /// A covariance in `f`'s coordinates mapped into the classic ones, at the velocity
-/// estimate `v` [m/s, NED]: `T⁻¹ P T⁻ᵀ` with `T⁻¹ = I + [v̂×]` in the same block.
+/// estimate `v` \[m/s, NED\]: `T⁻¹ P T⁻ᵀ` with `T⁻¹ = I + [v̂×]` in the same block.
 pub fn to_classic(f: Formulation, p: &mut Matrix15, v: &Vector3<f64>) {
     if f == Formulation::Invariant {
         shear(p, &skew(v));
@@ -84,7 +84,7 @@ pub fn to_classic(f: Formulation, p: &mut Matrix15, v: &Vector3<f64>) {
 }
 
 /// A Kalman gain in `f`'s coordinates mapped into the classic ones at the velocity
-/// estimate `v` [m/s, NED]: `K ← T⁻¹ K`, whose velocity rows gain `[v̂×]` times its
+/// estimate `v` \[m/s, NED\]: `K ← T⁻¹ K`, whose velocity rows gain `[v̂×]` times its
 /// attitude rows (so that `−K ν` is the classic error estimate).
 pub fn gain_to_classic(f: Formulation, k: &mut Gain, v: &Vector3<f64>) {
     if f == Formulation::Invariant {

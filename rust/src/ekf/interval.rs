@@ -98,9 +98,9 @@ impl KeptCloses {
 pub(super) struct Interval {
     /// The navigation solution at the interval's start (F and Γ are evaluated there).
     start: NavState,
-    /// `ΔT` [s].
+    /// `ΔT` \[s\].
     elapsed: f64,
-    /// `Σ Ĉ_k f̂_k Δt_k` [m/s]: the bias-corrected specific force in NED, integrated.
+    /// `Σ Ĉ_k f̂_k Δt_k` \[m/s\]: the bias-corrected specific force in NED, integrated.
     force: Vector3<f64>,
     /// `Σ q_k Δt_imu Δt_k` per IMU channel (the white noise of `Continuous` samples).
     imu_noise: [f64; 6],
@@ -333,7 +333,7 @@ impl Ekf {
 /// at the close, with the same operations, only if an epoch inside the step reads it.
 #[derive(Default)]
 pub(super) struct StaleSigma {
-    /// The time [s] of the last epoch whose P was up to date, and its σ.
+    /// The time \[s\] of the last epoch whose P was up to date, and its σ.
     last_current: Option<(f64, Current)>,
     /// The recorded epochs since (indices into the output), whose σ is the last close's.
     pending: Vec<usize>,
@@ -366,7 +366,7 @@ impl Current {
 }
 
 impl StaleSigma {
-    /// After the epoch at time `t` [s]; `recorded`: it is the last of `out`.
+    /// After the epoch at time `t` \[s\]; `recorded`: it is the last of `out`.
     pub(super) fn after_epoch(
         &mut self,
         ekf: &mut Ekf,

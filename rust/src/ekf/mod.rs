@@ -4,7 +4,7 @@
 //! estimate minus truth; `Ĉ = (I − [ψ×]) C`; the velocity error in the coordinates of
 //! the configured [`Formulation`] (`δv`, or `δV = δv − [v̂×]ψ`). Propagation
 //! `Φ = I + FΔt`, `Q_d = Γ Q^c Γᵀ Δt` at every IMU sample, or over a covariance step
-//! ([`FilterConfig::covariance_step`], [`interval`]); DVL updates in Joseph form with
+//! ([`FilterConfig::covariance_step`], `interval`); DVL updates in Joseph form with
 //! feedback and reset. Every formula is in `docs/filter.md`.
 
 use crate::attitude::{exp_so3, skew};
@@ -57,7 +57,7 @@ use transition::Transition;
 /// Result of one DVL update.
 #[derive(Clone, Debug)]
 pub struct UpdateInfo {
-    /// `ν = z − h(x̂)` [m/s].
+    /// `ν = z − h(x̂)` \[m/s\].
     pub innovation: Vector3<f64>,
     /// Innovation covariance `S = H P Hᵀ + R`.
     pub s: Matrix3<f64>,
@@ -80,14 +80,14 @@ pub struct UpdateInfo {
 #[derive(Clone, Debug)]
 pub struct Ekf {
     pub nav: NavState,
-    /// Accelerometer bias estimate [m/s²].
+    /// Accelerometer bias estimate \[m/s²\].
     pub accel_bias: Vector3<f64>,
-    /// Gyro bias estimate [rad/s].
+    /// Gyro bias estimate \[rad/s\].
     pub gyro_bias: Vector3<f64>,
     /// The error covariance in the coordinates of [`FilterConfig::formulation`]
     /// ([`Ekf::covariance`] gives it in the classic ones users read).
     pub p: Matrix15,
-    /// Last bias-corrected gyro sample [rad/s] (for the lever-arm term).
+    /// Last bias-corrected gyro sample \[rad/s\] (for the lever-arm term).
     last_gyro: Vector3<f64>,
     cfg: FilterConfig,
     /// `M = ∂P/∂λ` and the IMU variances `q` it is taken for (see
@@ -118,7 +118,7 @@ pub struct Ekf {
 pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
 
 /// [`Ekf::sigma`] of a covariance `p` in `formulation`'s coordinates at the velocity
-/// estimate `vel` [m/s, NED]: the same operations, so that a σ computed later from a
+/// estimate `vel` \[m/s, NED\]: the same operations, so that a σ computed later from a
 /// copy of an epoch's P and velocity is the one computed there, bit for bit.
 fn classic_sigma(formulation: Formulation, p: &Matrix15, vel: &Vector3<f64>) -> [f64; 15] {
     let mut p = *p;
@@ -241,7 +241,7 @@ impl Ekf {
             && self.calibration.as_ref().is_none_or(Calibration::is_finite)
     }
 
-    /// Propagate over one raw IMU sample (`dt` [s]): covariance with F and Q_d from
+    /// Propagate over one raw IMU sample (`dt` \[s\]): covariance with F and Q_d from
     /// the state at the start of the step (or the sample added to the covariance step
     /// under way, closed when due), then the strapdown step with the bias-corrected
     /// sample. A non-finite result (an overflow from absurd inputs or a diverged
@@ -389,7 +389,7 @@ impl Ekf {
         }
     }
 
-    /// DVL update with measurement `z` [m/s] (body or NED per the aiding), Joseph form,
+    /// DVL update with measurement `z` \[m/s\] (body or NED per the aiding), Joseph form,
     /// then feedback of the error estimate and reset. With the DVL calibration states
     /// the update runs on the 19-state covariance (see [`calibration`]).
     pub fn update(&mut self, z: &Vector3<f64>) -> Result<UpdateInfo> {

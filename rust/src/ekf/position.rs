@@ -32,7 +32,7 @@ pub struct PositionUpdate {
 }
 
 impl Ekf {
-    /// A position fix `fix = [φ (rad), λ (rad), h (m, up)]` with 1σ `sigma` [m] north,
+    /// A position fix `fix = [φ (rad), λ (rad), h (m, up)]` with 1σ `sigma` \[m\] north,
     /// east, down; a NaN height (and its σ) leaves the vertical out.
     pub fn update_fix(&mut self, fix: &[f64; 3], sigma: &[f64; 3]) -> Result<PositionUpdate> {
         let components = if fix[2].is_nan() { 2 } else { 3 };
@@ -55,7 +55,7 @@ impl Ekf {
         Ok(out)
     }
 
-    /// A depth reading `depth` [m, positive down] with 1σ `sigma` [m].
+    /// A depth reading `depth` \[m, positive down\] with 1σ `sigma` \[m\].
     pub fn update_depth(&mut self, depth: f64, sigma: f64) -> Result<PositionUpdate> {
         let mut out = PositionUpdate {
             nis: 0.0,
@@ -69,7 +69,7 @@ impl Ekf {
     }
 
     /// One scalar update of `δp[axis]` (0 north, 1 east, 2 down) with innovation `ν`
-    /// [m] and variance `r` [m²], fed back; its NIS and correction added to `out`.
+    /// \[m\] and variance `r` \[m²\], fed back; its NIS and correction added to `out`.
     fn scalar_position_update(
         &mut self,
         axis: usize,
@@ -165,7 +165,7 @@ fn scalar_update<const N: usize>(
     Ok((innovation * innovation / s, -(gain * innovation)))
 }
 
-/// The depth sensor's 1σ [m]: finite and > 0 (checked wherever one is given, readings
+/// The depth sensor's 1σ \[m\]: finite and > 0 (checked wherever one is given, readings
 /// or not).
 pub fn check_depth_sigma(depth_sigma: f64) -> Result<()> {
     if depth_sigma > 0.0 && depth_sigma.is_finite() {

@@ -19,7 +19,7 @@ use nalgebra::Vector3;
 /// see [`Epochs`]) and the updates.
 #[derive(Clone, Debug, Default)]
 pub struct FilterOutput {
-    /// Epoch times [s]: `t0` then every IMU sample time (the last one only with
+    /// Epoch times \[s\]: `t0` then every IMU sample time (the last one only with
     /// [`Epochs::Last`], the kept ones with [`Epochs::Step`]); the per-epoch vectors
     /// below follow them.
     pub time: Vec<f64>,
@@ -43,7 +43,7 @@ pub struct FilterOutput {
     /// not 1,808.
     pub adaptive_q: Vec<Option<Box<Matrix15>>>,
     /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
-    /// error and the DVL's mounting angles [rad] (empty without the states).
+    /// error and the DVL's mounting angles \[rad\] (empty without the states).
     pub calibration: Vec<[f64; 4]>,
     /// 1σ of `[δk, δμ]` per epoch (empty without the calibration states).
     pub calibration_sigma: Vec<[f64; 4]>,
@@ -91,7 +91,7 @@ impl FilterOutput {
         }
     }
 
-    /// Append the estimate at epoch time `t` [s].
+    /// Append the estimate at epoch time `t` \[s\].
     fn record(&mut self, ekf: &Ekf, t: f64) {
         self.time.push(t);
         self.nav.push(ekf.nav);
@@ -409,7 +409,7 @@ fn output_for(data: &RecordedData<'_>, epochs: Epochs, calibrated: bool) -> Filt
     out
 }
 
-/// Set the last q schedule row stamped at or before `until` [s] (the epoch's start
+/// Set the last q schedule row stamped at or before `until` \[s\] (the epoch's start
 /// plus half its step) not yet set: a row takes effect from the epoch nearest to it.
 fn set_scheduled_q(
     data: &RecordedData<'_>,

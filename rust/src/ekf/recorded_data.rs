@@ -7,31 +7,31 @@ use crate::error::{check, Error, Result};
 pub struct RecordedData<'a> {
     /// IMU samples; row k covers `(imu_time[k-1], imu_time[k]]`, `imu_time[-1] = t0`.
     pub imu: &'a [[f64; 6]],
-    /// End time of every IMU sample [s], strictly increasing, after `t0`.
+    /// End time of every IMU sample \[s\], strictly increasing, after `t0`.
     pub imu_time: &'a [f64],
-    /// DVL rows (body or NED velocity per the aiding) [m/s].
+    /// DVL rows (body or NED velocity per the aiding) \[m/s\].
     pub dvl: &'a [[f64; 3]],
-    /// DVL times [s], strictly increasing.
+    /// DVL times \[s\], strictly increasing.
     pub dvl_time: &'a [f64],
-    /// Time of the initial state [s].
+    /// Time of the initial state \[s\].
     pub t0: f64,
-    /// Start times [s] of a per-sample IMU variance schedule for an external strategy
+    /// Start times \[s\] of a per-sample IMU variance schedule for an external strategy
     /// (the ProNet loop on recorded data); empty for none. Strictly increasing.
     pub q_time: &'a [f64],
-    /// The schedule's IMU variances, one row per `q_time` [(m/s²)², (rad/s)²].
+    /// The schedule's IMU variances, one row per `q_time` \[(m/s²)², (rad/s)²\].
     pub q_values: &'a [[f64; 6]],
-    /// Times [s] at which to keep the full covariance, strictly increasing (empty for
+    /// Times \[s\] at which to keep the full covariance, strictly increasing (empty for
     /// none): each is kept at the epoch nearest to it, after that epoch's update, so a
     /// pass stores 15 × 15 numbers (1,800 bytes) per time asked for, never per epoch.
     pub covariance_time: &'a [f64],
-    /// Depth readings [m, positive down] at `depth_time` [s] (strictly increasing),
-    /// each of 1σ `depth_sigma` [m] (see [`super::position`]); empty for none.
+    /// Depth readings \[m, positive down\] at `depth_time` \[s\] (strictly increasing),
+    /// each of 1σ `depth_sigma` \[m\] (see [`super::position`]); empty for none.
     pub depth: &'a [f64],
     pub depth_time: &'a [f64],
     pub depth_sigma: f64,
     /// Position fixes `[φ (rad), λ (rad), h (m, up)]` (a NaN height: horizontal only)
-    /// at `fix_time` [s] (strictly increasing), each with its 1σ `[north, east, down]`
-    /// [m] in `fix_sigma`; empty for none.
+    /// at `fix_time` \[s\] (strictly increasing), each with its 1σ `[north, east, down]`
+    /// \[m\] in `fix_sigma`; empty for none.
     pub fix: &'a [[f64; 3]],
     pub fix_time: &'a [f64],
     pub fix_sigma: &'a [[f64; 3]],

@@ -13,7 +13,7 @@ pub enum Epochs {
     /// store the estimate (~300 bytes here, ~70 more in the binding's arrays) at every
     /// IMU sample. `dvl_epoch` still counts every epoch.
     Last,
-    /// An output period [s] (finite, > 0): the initial state, the epoch nearest each
+    /// An output period \[s\] (finite, > 0): the initial state, the epoch nearest each
     /// multiple of it after `t0` (as a `covariance_time` is placed) and the last epoch,
     /// each with its estimate bit for bit as with [`Epochs::All`]. A long pass then
     /// stores ~300 bytes per kept epoch, not per IMU sample; smoothed
@@ -47,7 +47,7 @@ pub(super) struct Thinning {
 
 impl Thinning {
     /// With [`Epochs::Step`], the multiples placed at the first epoch (`t0`, then a
-    /// step of `first_dt` [s]) taken.
+    /// step of `first_dt` \[s\]) taken.
     pub(super) fn of(epochs: Epochs, t0: f64, first_dt: f64) -> Option<Self> {
         let Epochs::Step(step) = epochs else {
             return None;
@@ -61,7 +61,7 @@ impl Thinning {
         Some(thinning)
     }
 
-    /// Whether the epoch at `t` [s] (`next_dt` [s] the step after it) is the nearest to
+    /// Whether the epoch at `t` \[s\] (`next_dt` \[s\] the step after it) is the nearest to
     /// a multiple not yet placed: one at or before `t + next_dt/2`.
     pub(super) fn keeps(&mut self, t: f64, next_dt: f64) -> bool {
         let limit = t + 0.5 * next_dt;

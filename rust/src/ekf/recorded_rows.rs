@@ -44,7 +44,7 @@ impl Fed {
 }
 
 /// Apply every depth reading, then every position fix, whose nearest epoch is `epoch`
-/// (time `t` [s], step `dt` [s]), as DVL rows are placed; rows before the run's first
+/// (time `t` \[s\], step `dt` \[s\]), as DVL rows are placed; rows before the run's first
 /// half step are outside it. The sum of the error estimates fed back, or None if no row
 /// was there.
 pub(super) fn apply_position_rows(
@@ -105,7 +105,7 @@ pub(super) fn apply_position_rows(
 }
 
 /// Keep the covariance (classic coordinates) for every asked-for time whose nearest
-/// epoch is `epoch` (time `t` [s]; `next_dt` [s] the step after it): the times before
+/// epoch is `epoch` (time `t` \[s\]; `next_dt` \[s\] the step after it): the times before
 /// or at `t + next_dt/2` not yet taken. Times before the run's first half step are outside
 /// it (None), as DVL rows are.
 pub(super) fn keep_covariances(
@@ -133,7 +133,7 @@ pub(super) fn keep_covariances(
     }
 }
 
-/// Apply every DVL row whose nearest epoch is `epoch` (time `t` [s], step `dt` [s]);
+/// Apply every DVL row whose nearest epoch is `epoch` (time `t` \[s\], step `dt` \[s\]);
 /// the sum of the error estimates fed back, or None if no row was there.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn apply_dvl_rows(

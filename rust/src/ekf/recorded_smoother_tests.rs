@@ -28,7 +28,7 @@ fn moving_pass(n: usize) -> Arrays {
     (imu, imu_time, dvl, dvl_time)
 }
 
-/// The every-epoch forward pass over `arrays` with the q schedule `q` (times [s],
+/// The every-epoch forward pass over `arrays` with the q schedule `q` (times \[s\],
 /// rows), keeping the smoother's nodes.
 fn forward_keeping_nodes(
     arrays: &Arrays,

@@ -26,7 +26,7 @@
 //! the CPU has them (the same bits on every path). With AVX-512, a block whose channels
 //! fill at most four whole vectors (the shipped nets' 16 and 32) normalises each tile
 //! of steps while it is still in registers, instead of in passes over a buffer. The
-//! weights and activations start on cache lines ([`super::aligned`]). Windows are spread
+//! weights and activations start on cache lines (`super::aligned`). Windows are spread
 //! over rayon's threads.
 
 use super::aligned::Aligned;
@@ -195,7 +195,7 @@ impl ConvNet {
         self.window
     }
 
-    /// q `(n,)` [(unit)² per sample] for `n` windows of [`Self::window`] samples each,
+    /// q `(n,)` \[(unit)² per sample\] for `n` windows of [`Self::window`] samples each,
     /// `windows` row-major `(n, window)`; windows run in parallel on rayon's threads.
     pub fn predict(&self, windows: &[f32]) -> Result<Vec<f64>> {
         self.predict_until(windows, &Cancel::default())

@@ -20,13 +20,15 @@ use std::collections::HashMap;
 
 /// A run's metrics after the RTS smoother: the [`RunSummary`] error metrics, the block
 /// NEES at the DVL updates and the histories of the smoothed solution.
+///
+/// [`RunSummary`]: super::RunSummary
 #[derive(Clone, Debug, PartialEq)]
 pub struct SmoothedRecord {
     pub srmse: f64,
     pub smae: f64,
     pub final_horizontal_error: f64,
     pub max_horizontal_error: f64,
-    /// As [`RunRecord::nees`], at the same epochs.
+    /// As [`RunRecord::nees`](super::RunRecord::nees), at the same epochs.
     pub nees: Vec<[f64; 5]>,
     /// Error and σ at the recorded epochs (`imu_variance` empty).
     pub history: Option<History>,
@@ -252,6 +254,8 @@ impl Sink for Reduced<'_> {
 
 /// [`block_nees`] of a smoothed solution `nav` whose covariance `p` is in the
 /// coordinates of `formulation` about the velocity `about` (the forward solution's).
+///
+/// [`block_nees`]: super::block_nees
 fn smoothed_block_nees(
     nav: &NavState,
     p: &Matrix15,
@@ -399,6 +403,8 @@ impl Run {
     /// smoothed solution is read, and under a covariance step each close the filter
     /// makes (2.0 kB per step): the backward pass reads them instead of rebuilding
     /// them, ~20 % of its work.
+    ///
+    /// [`RunRecord::smoothed`]: super::RunRecord::smoothed
     pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
         let n = scenario.truth.len() + 1;
         let mut log = SmootherLog {

@@ -17,30 +17,30 @@ use crate::trajectory::Truth;
 use nalgebra::Vector3;
 use rand_chacha::ChaCha8Rng;
 
-/// A pressure depth sensor: the depth of the IMU's point [m, positive down] with white
+/// A pressure depth sensor: the depth of the IMU's point \[m, positive down\] with white
 /// noise, every `period` seconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthModel {
-    /// 1σ [m]; the filter is told the same.
+    /// 1σ \[m\]; the filter is told the same.
     pub sigma: f64,
-    /// Reading period [s] (a whole number of IMU periods).
+    /// Reading period \[s\] (a whole number of IMU periods).
     pub period: f64,
 }
 
-/// A source of position fixes of the IMU's point: white noise of 1σ `sigma` [m] north,
+/// A source of position fixes of the IMU's point: white noise of 1σ `sigma` \[m\] north,
 /// east, down (a NaN down σ: horizontal fixes, no height), on a schedule: every
-/// `period` seconds (0: not periodic) and at the listed `times` [s] (each taken at the
+/// `period` seconds (0: not periodic) and at the listed `times` \[s\] (each taken at the
 /// IMU epoch nearest it, as a recording's rows are), and with `max_depth` only while the
-/// vehicle's true depth is at most that [m] (at the surface: GNSS).
+/// vehicle's true depth is at most that \[m\] (at the surface: GNSS).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FixModel {
-    /// 1σ [m] north, east, down; the filter is told the same.
+    /// 1σ \[m\] north, east, down; the filter is told the same.
     pub sigma: [f64; 3],
-    /// Period [s] (0: only the listed times).
+    /// Period \[s\] (0: only the listed times).
     pub period: f64,
-    /// Times [s] of single fixes, strictly increasing.
+    /// Times \[s\] of single fixes, strictly increasing.
     pub times: Vec<f64>,
-    /// Fixes only while the true depth is at most this [m, positive down] (None: at
+    /// Fixes only while the true depth is at most this \[m, positive down\] (None: at
     /// any depth).
     pub max_depth: Option<f64>,
 }
@@ -104,7 +104,7 @@ impl FixModel {
     }
 }
 
-/// IMU steps per `period` [s] of a trajectory of step `dt` [s]: `Err` naming `arg`
+/// IMU steps per `period` \[s\] of a trajectory of step `dt` \[s\]: `Err` naming `arg`
 /// unless the period is a whole number (≥ 1) of steps.
 pub(crate) fn steps_per(period: f64, dt: f64, arg: &str) -> Result<usize> {
     let ratio = period / dt;
@@ -118,7 +118,7 @@ pub(crate) fn steps_per(period: f64, dt: f64, arg: &str) -> Result<usize> {
     Ok(steps as usize)
 }
 
-/// The epoch (1 ..= n) a reading at time `t` [s] is applied at: the first whose time
+/// The epoch (1 ..= n) a reading at time `t` \[s\] is applied at: the first whose time
 /// plus half a step reaches it (the rule of a recording's rows); None past the end.
 fn epoch_of(t: f64, truth: &Truth) -> Option<usize> {
     let k = ((t - truth.time[0]) / truth.dt - 0.5).ceil().max(1.0) as usize;
@@ -162,9 +162,9 @@ fn offset_rng(seed: u64, run_index: u64, offset: u128) -> ChaCha8Rng {
 /// One reading due at an epoch.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Reading {
-    /// Depth [m, positive down] and its 1σ [m].
+    /// Depth \[m, positive down\] and its 1σ \[m\].
     Depth(f64, f64),
-    /// Fix `[φ (rad), λ (rad), h (m, up; NaN without a height)]` and its 1σ [m] north,
+    /// Fix `[φ (rad), λ (rad), h (m, up; NaN without a height)]` and its 1σ \[m\] north,
     /// east, down.
     Fix([f64; 3], [f64; 3]),
 }
@@ -268,7 +268,7 @@ mod tests {
         }
     }
 
-    /// Every reading of `n` epochs of a stationary truth at `depth` [m].
+    /// Every reading of `n` epochs of a stationary truth at `depth` \[m\].
     fn draw(
         depth: Option<&DepthModel>,
         fix: &[FixModel],

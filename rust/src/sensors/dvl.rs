@@ -26,7 +26,7 @@ impl Default for DvlMounting {
 
 impl DvlMounting {
     /// A mounting from the scale error and the DVL's roll, pitch, yaw in the body frame
-    /// [rad] (ZYX, the DVL's axes rotated from the body's: `C_d^b = R(roll, pitch, yaw)`).
+    /// \[rad\] (ZYX, the DVL's axes rotated from the body's: `C_d^b = R(roll, pitch, yaw)`).
     pub fn from_angles(scale: f64, rpy: [f64; 3]) -> Self {
         Self {
             scale,
@@ -34,7 +34,7 @@ impl DvlMounting {
         }
     }
 
-    /// The DVL's roll, pitch, yaw in the body frame [rad].
+    /// The DVL's roll, pitch, yaw in the body frame \[rad\].
     pub fn angles(&self) -> [f64; 3] {
         let e = euler_from_dcm(&self.body_to_dvl.transpose());
         [e[0], e[1], e[2]]
@@ -60,7 +60,7 @@ impl DvlMounting {
         self.scale == 0.0 && self.body_to_dvl == Matrix3::identity()
     }
 
-    /// What the DVL reads of the body-frame velocity `v_b` at its position [m/s], in
+    /// What the DVL reads of the body-frame velocity `v_b` at its position \[m/s\], in
     /// its own axes: `(1 + k) M v_b`.
     pub fn reading(&self, v_b: &Vector3<f64>) -> Vector3<f64> {
         (1.0 + self.scale) * (self.body_to_dvl * v_b)
@@ -83,9 +83,9 @@ impl DvlMounting {
 /// locked.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DvlDropout {
-    /// Mean time between losses of bottom lock (the mean locked stretch) [s].
+    /// Mean time between losses of bottom lock (the mean locked stretch) \[s\].
     pub mean_interval: f64,
-    /// Mean length of a loss [s].
+    /// Mean length of a loss \[s\].
     pub mean_length: f64,
 }
 
@@ -106,7 +106,7 @@ impl DvlDropout {
     }
 
     /// The probabilities of losing lock and of regaining it between two readings
-    /// `period` [s] apart.
+    /// `period` \[s\] apart.
     pub fn probabilities(&self, period: f64) -> (f64, f64) {
         (
             -(-period / self.mean_interval).exp_m1(),
@@ -118,13 +118,13 @@ impl DvlDropout {
 /// DVL model: body-frame velocity at the DVL, every `period` seconds, white noise.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DvlModel {
-    /// Per-axis noise variance [(m/s)²].
+    /// Per-axis noise variance \[(m/s)²\].
     pub variance: [f64; 3],
-    /// Measurement period [s] (1 s in the paper); 0: no DVL.
+    /// Measurement period \[s\] (1 s in the paper); 0: no DVL.
     pub period: f64,
-    /// DVL position relative to the IMU, body frame [m].
+    /// DVL position relative to the IMU, body frame \[m\].
     pub lever_arm: Vector3<f64>,
-    /// Outages `[start, end)` [s]: no reading is due inside one (bottom lock lost,
+    /// Outages `[start, end)` \[s\]: no reading is due inside one (bottom lock lost,
     /// acoustic dropouts). Sorted, not overlapping.
     pub outages: Vec<[f64; 2]>,
     /// The true scale factor and mounting of the DVL (ideal by default): it reads
@@ -141,7 +141,7 @@ impl DvlModel {
         self.period != 0.0
     }
 
-    /// Whether a reading due at time `t` [s] exists (`t` is in no outage).
+    /// Whether a reading due at time `t` \[s\] exists (`t` is in no outage).
     #[inline]
     pub fn available(&self, t: f64) -> bool {
         !self.outages.iter().any(|o| t >= o[0] && t < o[1])

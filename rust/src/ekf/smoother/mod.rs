@@ -23,8 +23,8 @@
 //! ```
 //!
 //! the fixed-interval RTS recursion `C_i = P⁺_i Φ_{i+1}ᵀ (P⁻_{i+1})⁻¹` chained over the
-//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0` ([`every`]); under a covariance
-//! step the grid is the steps' closes instead ([`steps`]). With the DVL calibration
+//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0` (`every`); under a covariance
+//! step the grid is the steps' closes instead (`steps`). With the DVL calibration
 //! states the recursion runs on all 19 (`N` below): their rows of F are zero and the
 //! navigation rows do not read them, so every product with `Φ = I + F Δt` goes through
 //! the sparse F of the first 15. `docs/filter.md` ("The RTS smoother") writes it out
@@ -129,7 +129,7 @@ pub struct Node {
     /// The covariance before the epoch's updates (`p_post` where it had none), where
     /// the forward pass kept it ([`Ekf::keep_priors`]: a Monte Carlo at every sample
     /// without the calibration states); the backward pass then needs no covariance
-    /// inside an interval where no σ is wanted ([`every`]).
+    /// inside an interval where no σ is wanted (`every`).
     pub p_prior: Option<Box<Matrix15>>,
 }
 
@@ -361,7 +361,7 @@ pub struct Forward<'a> {
 }
 
 impl Forward<'_> {
-    /// The time [s] of epoch `i` (`t0` for the first).
+    /// The time \[s\] of epoch `i` (`t0` for the first).
     fn time(&self, i: usize) -> f64 {
         if i == 0 {
             self.t0
@@ -370,7 +370,7 @@ impl Forward<'_> {
         }
     }
 
-    /// The step [s] from epoch `i` to `i + 1` (the one IMU row `i` is propagated over).
+    /// The step \[s\] from epoch `i` to `i + 1` (the one IMU row `i` is propagated over).
     fn step(&self, i: usize) -> f64 {
         self.dt.unwrap_or_else(|| self.imu_time[i] - self.time(i))
     }
@@ -531,7 +531,7 @@ impl Sink for Smoothed {
     }
 
     /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
-    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone (see [`classic_variances_of`]).
+    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone (see `classic_variances_of`).
     fn set_sigma_of<const N: usize>(
         &mut self,
         i: usize,

@@ -16,7 +16,7 @@ pub trait Sink {
     /// Remove the smoothed error `ds` from the forward solution at epoch `i` (the
     /// filter's feedback, [`crate::ekf::correct`]).
     fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig);
-    /// σ at epoch `i` from the smoothed covariance `ps` (see [`classic_variances`]).
+    /// σ at epoch `i` from the smoothed covariance `ps` (see `classic_variances`).
     fn set_sigma<const N: usize>(
         &mut self,
         i: usize,
@@ -24,7 +24,7 @@ pub trait Sink {
         cfg: &FilterConfig,
         forward: &Forward<'_>,
     );
-    /// σ at epoch `i` of `Ps = P + P Λ P` (see [`classic_variances_of`]).
+    /// σ at epoch `i` of `Ps = P + P Λ P` (see `classic_variances_of`).
     fn set_sigma_of<const N: usize>(
         &mut self,
         i: usize,
@@ -35,7 +35,7 @@ pub trait Sink {
     );
     /// σ at epoch `i` inside a covariance step, a fraction `w` of the way in time from
     /// the close before it (smoothed covariance `from`) to the one after (`to`): see
-    /// [`between_variances`].
+    /// `between_variances`.
     fn set_sigma_between<const N: usize>(
         &mut self,
         i: usize,

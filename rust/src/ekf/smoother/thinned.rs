@@ -8,9 +8,9 @@
 //! re-integrates it, the same operations on the same numbers, so the forward solution
 //! of every epoch in `[a, b)` comes back bit for bit, and rebuilds the interval's
 //! covariances from it as the every-epoch pass does: at every sample first the
-//! solution ([`Stretch`]) and then the covariances ([`super::every`]); under a
+//! solution (`Stretch`) and then the covariances (`super::every`); under a
 //! covariance step both in one sweep, each sample added to the step as it is
-//! integrated ([`rebuild_closes`], the closes [`super::steps`] would rebuild). It runs
+//! integrated (`rebuild_closes`, the closes `super::steps` would rebuild). It runs
 //! the same recursion, writing the smoothed solution (and σ)
 //! at the kept epochs alone: each equals the every-epoch pass's bit for bit. The
 //! smoothed covariances at the nodes are not kept ([`Smoothed::node_covariance`] is
@@ -66,7 +66,7 @@ pub struct Thinned<'a> {
 }
 
 impl Thinned<'_> {
-    /// The time [s] of epoch `i` (`t0` for the first).
+    /// The time \[s\] of epoch `i` (`t0` for the first).
     fn time(&self, i: usize) -> f64 {
         if i == 0 {
             self.t0
