@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Install what is missing and run every check and test: Rust (fmt, clippy, unit tests),
+# Install what is missing and run every check and test: Rust (fmt, clippy, unit tests, doc),
 # Python (ruff check and format, stubtest, mypy), the wheel (scripts/check_wheel.sh:
 # manylinux2014, the light install) and pytest. Exits non-zero on the first failure.
 set -euo pipefail
@@ -16,6 +16,9 @@ echo "== cargo clippy (core, bindings, tests, benchmarks)"
 cargo clippy --quiet --all-targets --features python,bench -- -D warnings
 echo "== cargo test"
 cargo test --quiet
+# A unit in a doc comment is escaped, \[m/s\], or rustdoc reads it as a link.
+echo "== cargo doc (no warnings)"
+RUSTDOCFLAGS="-D warnings" cargo doc --quiet --no-deps --features python,bench
 echo "== ruff"
 "$VENV/bin/ruff" check python tests benches examples scripts
 "$VENV/bin/ruff" format --check --quiet python tests benches examples scripts
