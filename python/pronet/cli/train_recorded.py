@@ -85,7 +85,11 @@ def add_recorded_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _sections(args: argparse.Namespace) -> list:
-    from pronet.experiments.qlearn.sections import recorded_sections, simulated_sections
+    from pronet.experiments.qlearn.sections import (
+        check_simulated_memory,
+        recorded_sections,
+        simulated_sections,
+    )
 
     if args.recorded is not None and args.simulated is not None:
         raise ValueError("--recorded, --simulated: give one")
@@ -96,6 +100,7 @@ def _sections(args: argparse.Namespace) -> list:
         if seed < 0:
             name = "--seed" if args.data_seed is None else "--data-seed"
             raise ValueError(f"{name}: must be >= 0, got {seed}")
+        check_simulated_memory(args.simulated, name="--simulated")
         return simulated_sections(args.simulated, seed=seed)
     if not Path(args.recorded).is_dir():
         raise ValueError(f"--recorded: {args.recorded} is not a folder")
