@@ -34,19 +34,20 @@ def test_updates_follow_the_schedule() -> None:
     """Depth every 2 s; fixes every 60 s and at listed times (merged, none twice, none past
     the end); fixes limited to the surface only while the true depth is above the limit
     (the trajectory is at 5 m or deeper throughout)."""
-    res = _mc(
-        _sensors(
-            depth_sigma=0.1,
-            depth_period=2.0,
-            fixes=[
-                {"sigma": [2.0, 2.0], "period": 60.0, "times": [0.0, 60.0, 100.0, 500.0]},
-                {"sigma": [2.0, 2.0, 2.0], "period": 1.0, "max_depth": 4.9},
-            ],
-        ),
-        n_runs=2,
+    sensors = _sensors(
+        depth_sigma=0.1,
+        depth_period=2.0,
+        fixes=[
+            {"sigma": [2.0, 2.0], "period": 60.0, "times": [0.0, 60.0, 100.0, 500.0]},
+            {"sigma": [2.0, 2.0, 2.0], "period": 1.0, "max_depth": 4.9},
+        ],
     )
+    res = _mc(sensors, n_runs=2)
     assert res.depth_updates.tolist() == [165, 165]  # 330 s / 2 s
     assert res.fix_updates.tolist() == [5 + 2, 5 + 2]  # 60..300 s, and 0 and 100 s
+    # the Monte Carlo runs the source that never fires; a scenario file is refused with it
+    with pytest.raises(ValueError, match=r"^fixes\[1\]\.max_depth: no scheduled fix"):
+        _core.check_fixes_fire(TRAJ, sensors)
     deeper = _mc(_sensors(fixes=[{"sigma": [2.0, 2.0], "period": 1.0, "max_depth": 13.0}]), 2)
     assert deeper.fix_updates.tolist() == [330, 330]
     # the DVL's epochs are as before, and a run without aiding sensors has none
@@ -117,6 +118,7 @@ def test_aiding_does_not_move_the_other_draws() -> None:
         ({"dvl_period": -1.0}, "dvl_period: must be finite and >= 0 s (0: no DVL)"),
         ({"depth_sigma": 0.0}, "depth_sigma: must be finite and > 0"),
         ({"depth_sigma": 0.1, "depth_period": math.nan}, "depth_period: must be finite"),
+        ({"depth_period": 0.5}, "depth_period: needs depth_sigma beside it"),
         ({"fixes": {"sigma": [1, 1]}}, "fixes: expected a list of dicts"),
         ({"fixes": [[1, 1]]}, "fixes[0]: expected a dict"),
         ({"fixes": [{"period": 1.0}]}, "fixes[0].sigma: missing"),
@@ -145,14 +147,14 @@ def test_scenario_files_take_the_aiding_keys(tmp_path) -> None:
     path = tmp_path / "gnss.toml"
     path.write_text(
         'base = "matched"\n[sensors]\ndvl_period = 0\ndepth_sigma = 0.1\ndepth_period = 0.5\n'
-        "[[sensors.fixes]]\nsigma = [2.5, 2.5]\nperiod = 1.0\nmax_depth = 0.5\n"
+        "[[sensors.fixes]]\nsigma = [2.5, 2.5]\nperiod = 1.0\nmax_depth = 20.0\n"
         "[[sensors.fixes]]\nsigma = [3, 3, 3]\ntimes = [10.0, 20.0]\n"
     )
     sc = load_scenario(path)
     assert sc.sensors.dvl_period == 0.0
     assert (sc.sensors.depth_sigma, sc.sensors.depth_period) == (0.1, 0.5)
     assert sc.sensors.fixes == [
-        {"sigma": [2.5, 2.5], "period": 1.0, "times": [], "max_depth": 0.5},
+        {"sigma": [2.5, 2.5], "period": 1.0, "times": [], "max_depth": 20.0},
         {"sigma": [3.0, 3.0, 3.0], "period": 0.0, "times": [10.0, 20.0], "max_depth": None},
     ]
     # a file over a base with fixes: an empty list removes them, other keys keep them
@@ -171,6 +173,15 @@ def test_scenario_files_take_the_aiding_keys(tmp_path) -> None:
         ("[[sensors.fixes]]\nsigma = [2, 2]\nperiod = 1\n[[sensors.fixes]]\nsigma = [2]\n",
          "[sensors] fixes[1].sigma: expected 2"),
         ("[sensors]\nfixes = 3\n", "[sensors] fixes: expected a list of dicts"),
+        ("[sensors]\ndepth_period = 0.5\n", "[sensors] depth_period: needs depth_sigma"),
+        # a source that takes no fix on the trajectory (paper's: 330 s, 5 m deep or more)
+        ("[[sensors.fixes]]\nsigma = [2, 2]\nperiod = 1\nmax_depth = 0.5\n",
+         "[sensors] fixes[0].max_depth: no scheduled fix comes at a true depth of at most "
+         "0.5 m (the trajectory is never shallower than 5.000 m)"),
+        ("[[sensors.fixes]]\nsigma = [2, 2]\nperiod = 60\n[[sensors.fixes]]\nsigma = [2, 2]\n"
+         "times = [400.0]\n", "[sensors] fixes[1]: schedules no fix inside the trajectory's 330 s"),
+        ('base = "mission"\n[trajectory]\nsegments = [[30, 0, 0, 0]]\n',
+         "[trajectory], with mission's fixes[0]"),
     ],
 )  # fmt: skip
 def test_bad_scenario_keys_name_file_table_and_key(tmp_path, text: str, message: str) -> None:

@@ -39,6 +39,7 @@ __all__ = [
     "run_filter",
     "monte_carlo",
     "check_result_size",
+    "check_fixes_fire",
     "check_threads",
     "max_threads",
     "Ensemble",
@@ -263,14 +264,15 @@ class SensorConfig:
     ``MonteCarloResult.missed_updates``). ``dvl_period=0``: no DVL (a GNSS/INS or
     depth-only run; the other DVL arguments are then unused). The aiding sensors,
     applied by the filter's position updates with the σ they are simulated with:
-    ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s], the depth
-    of the IMU's point; ``fixes``, a list of position-fix sources, each a dict with
-    ``sigma`` (1σ [m] north, east and optionally down: without it the fixes carry no
-    height), and a schedule: ``period`` [s] (0 or absent: none), ``times`` [s] (single
-    fixes, each at the IMU epoch nearest it) and ``max_depth`` [m] (fixes only while
-    the true depth is at most this: at the surface). Each aiding sensor draws from its
-    own seeded stream: the other sensors' draws are the same with and without it.
-    Defaults: the paper's (an ideal DVL, no dropout, no depth sensor, no fixes)."""
+    ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s] (default 1;
+    refused without ``depth_sigma``), the depth of the IMU's point; ``fixes``, a list of
+    position-fix sources, each a dict with ``sigma`` (1σ [m] north, east and optionally
+    down: without it the fixes carry no height), and a schedule: ``period`` [s] (0 or
+    absent: none), ``times`` [s] (single fixes, each at the IMU epoch nearest it) and
+    ``max_depth`` [m] (fixes only while the true depth is at most this: at the surface).
+    Each aiding sensor draws from its own seeded stream: the other sensors' draws are
+    the same with and without it. Defaults: the paper's (an ideal DVL, no dropout, no
+    depth sensor, no fixes)."""
 
     def __new__(
         cls,
@@ -287,7 +289,7 @@ class SensorConfig:
         dvl_misalignment: Any | None = None,
         dvl_dropout: Any | None = None,
         depth_sigma: float | None = None,
-        depth_period: float = 1.0,
+        depth_period: float | None = None,
         fixes: Any | None = None,
     ) -> SensorConfig: ...
     @property
@@ -320,8 +322,8 @@ class SensorConfig:
     def depth_sigma(self) -> float | None:
         """1σ of the depth sensor [m], or None without one."""
     @property
-    def depth_period(self) -> float:
-        """Period of the depth sensor [s] (1 without one)."""
+    def depth_period(self) -> float | None:
+        """Period of the depth sensor [s], or None without one."""
     @property
     def fixes(self) -> list[dict[str, Any]]:
         """The position-fix sources, as the dicts the constructor takes."""
@@ -394,6 +396,13 @@ def check_result_size(
     """``ValueError`` naming ``n_runs`` if the records of ``n_runs`` runs of
     ``trajectory`` would exceed the core's memory limit (4 GiB), as :func:`monte_carlo`
     checks before it allocates; nothing is run."""
+
+def check_fixes_fire(trajectory: Trajectory, sensors: SensorConfig) -> None:
+    """``ValueError`` naming ``fixes[j]`` (or its ``max_depth``) if fix source ``j`` of
+    ``sensors`` takes no fix on ``trajectory``: none of its scheduled epochs falls inside
+    it, or none comes at a true depth of at most its ``max_depth``. :func:`monte_carlo`
+    runs such a source (``fix_updates`` counts the fixes taken); a scenario file is
+    refused with it (:func:`pronet.config.load_scenario`)."""
 
 def check_threads(threads: int | None = None) -> int:
     """The thread count a call given ``threads`` runs on: ``threads`` itself if it is 1

@@ -9,7 +9,8 @@ mistakes too, so a misspelt key never silently falls back to a default.
 
     name = "fast-turns"        # default: the file name without .toml
     base = "paper"             # built-in scenario it starts from (pronet.sim.scenarios.SCENARIOS):
-                               # paper, varying-noise, matched, varying-matched, regimes, outage
+                               # paper, varying-noise, matched, varying-matched, regimes, outage,
+                               # mission
     q_nominal = [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6]   # optional, see below
     schedule_seed = 3          # optional: the seed of a drawn noise schedule (varying-noise,
                                # varying-matched, regimes, outage); default: the run's seed
@@ -37,9 +38,10 @@ mistakes too, so a misspelt key never silently falls back to a default.
 
     [[sensors.fixes]]          # optional, repeatable: a source of position fixes
     sigma = [2.5, 2.5]         # 1σ [m] north, east (and down: then the fix has a height)
-    period = 1.0               # [s]; 0 or absent: only the listed times
+    period = 60.0              # [s]; 0 or absent: only the listed times
     # times = [0.0, 600.0]     # [s] single fixes, each at the IMU epoch nearest it
-    max_depth = 0.5            # optional: fixes only while the true depth <= this [m]
+    # max_depth = 0.5          # fixes only while the true depth <= this [m] (GNSS)
+    # A source that would take no fix on the trajectory is refused.
 
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
     dvl_variance = [0.01, 0.01, 0.01]
@@ -358,6 +360,11 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         "[sensors]" if any(k in data.get("sensors", {}) for k in periods) else "[trajectory] dt_s:"
     )
     _native(f"{where}: {period_key}", lambda: _core.check_result_size(traj, sensors, n_runs=1))
+    # a fix source that never fires on this trajectory is a mistake in the file
+    fixes_key = (
+        "[sensors]" if "fixes" in data.get("sensors", {}) else f"[trajectory], with {base_name}'s"
+    )
+    _native(f"{where}: {fixes_key}", lambda: _core.check_fixes_fire(traj, sensors))
     times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
     schedule = np.asarray(sensors.imu_variance, dtype=np.float64)
     if "q_nominal" in data:

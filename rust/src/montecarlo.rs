@@ -92,6 +92,16 @@ impl Scenario {
         Ok(())
     }
 
+    /// `Err` naming `fixes[j]` where fix source `j` takes no fix on this truth
+    /// ([`crate::sensors::FixModel::check_fires`]). The Monte Carlo runs such a source
+    /// (its runs report the fixes taken); a scenario file is refused with it.
+    pub fn check_fixes_fire(&self) -> Result<()> {
+        for (j, f) in self.sensors.fixes.iter().enumerate() {
+            f.check_fires(j, &self.truth)?;
+        }
+        Ok(())
+    }
+
     /// Times \[s\] of the DVL epochs (every `dvl_every` IMU steps) outside the outages;
     /// none without a DVL.
     pub fn dvl_epoch_times(&self, dvl_every: Option<usize>) -> Vec<f64> {

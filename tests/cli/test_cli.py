@@ -233,6 +233,15 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     assert "| mehra:5, smoothed |" in (smoothed / "table.md").read_text()
 
 
+def test_simulate_help_lists_every_built_in_scenario(capsys) -> None:
+    from pronet.sim.scenarios import SCENARIOS
+
+    with pytest.raises(SystemExit):
+        cli.main(["simulate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps the lines
+    assert all(name in text for name in SCENARIOS), text
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [

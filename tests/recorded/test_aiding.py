@@ -273,9 +273,12 @@ def test_the_vehicle_file_sets_the_sigma_a_recording_lacks(tmp_path) -> None:
     tuning = vehicle.aiding(AidingTuning())
     assert tuning.depth_sigma == 0.2 and tuning.fix_sigma == (5.0, 5.0, 10.0)
     assert load_vehicle("mems").aiding(AidingTuning()).fix_sigma == DEFAULT_FIX_SIGMA
-    toml.write_text("fix_sigma = [5.0, 0.0]\n")
-    with pytest.raises(ValueError, match=r"auv\.toml: depth_sigma, fix_sigma: a number"):
-        load_vehicle(toml)
+    # a σ of the wrong length, zero, or not a number (true or "0.3" read as one before)
+    for text in ("fix_sigma = [5.0, 0.0]", "depth_sigma = true", 'depth_sigma = "0.3"',
+                 'fix_sigma = ["1", "1", "1"]', "fix_sigma = 2.0"):  # fmt: skip
+        toml.write_text(text + "\n")
+        with pytest.raises(ValueError, match=r"auv\.toml: depth_sigma, fix_sigma: a number"):
+            load_vehicle(toml)
 
 
 def test_the_command_line_ignores_the_fixes_on_request(tmp_path, aided_80s, capsys) -> None:

@@ -17,6 +17,7 @@ from pronet.cli._common import (
     experiment_result,
 )
 from pronet.sim.paper import PAPER_ROWS
+from pronet.sim.scenarios import SCENARIOS
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -31,9 +32,8 @@ def add_parser(sub: Subparsers) -> None:
         "--scenario",
         metavar="NAME|FILE",
         default="paper",
-        help="built-in scenario (paper, varying-noise, matched, varying-matched, regimes, "
-        "outage) or a scenario .toml file (default paper); a drawn noise schedule follows "
-        "--seed",
+        help=f"built-in scenario ({', '.join(SCENARIOS)}) or a scenario .toml file "
+        "(default paper); a drawn noise schedule follows --seed",
     )
     parser.add_argument(
         "--filter",

@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
+from pronet._util.validate import scalar
 from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
 from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import Format, lever_arm
@@ -178,10 +179,12 @@ def _aiding_sigma(
 ) -> tuple[float | None, tuple[float, float, float] | None]:
     """The file's ``depth_sigma`` and ``fix_sigma`` [m] (None where absent), checked."""
     depth, fix = table.get("depth_sigma"), table.get("fix_sigma")
-    try:
+    try:  # numbers, not true or "0.3" read as one
+        if fix is not None and not isinstance(fix, list):
+            raise ValueError(fix)
         tuning = AidingTuning(
-            depth_sigma=1.0 if depth is None else float(depth),
-            fix_sigma=(1.0,) * 3 if fix is None else tuple(float(v) for v in fix),  # type: ignore[arg-type]
+            depth_sigma=1.0 if depth is None else scalar(depth, "depth_sigma"),
+            fix_sigma=(1.0,) * 3 if fix is None else tuple(scalar(v, "fix_sigma") for v in fix),  # type: ignore[arg-type]
         )
     except (TypeError, ValueError):
         shown = {k: table[k] for k in ("depth_sigma", "fix_sigma") if k in table}

@@ -299,7 +299,6 @@ arg_converters! {
     arg_imu_dt: f64 = real_arg("imu_dt");
     arg_covariance_step: f64 = real_arg("covariance_step");
     arg_dvl_period: f64 = real_arg("dvl_period");
-    arg_depth_period: f64 = real_arg("depth_period");
     arg_tuning_period: f64 = real_arg("tuning_period");
     arg_aiding: String = text_arg("aiding");
     arg_formulation: String = text_arg("formulation");
@@ -327,6 +326,7 @@ arg_converters! {
     arg_dvl_scale_sigma: Option<f64> = optional_real("dvl_scale_sigma");
     arg_dvl_scale_psd: Option<f64> = optional_real("dvl_scale_psd");
     arg_dvl_misalignment_psd: Option<f64> = optional_real("dvl_misalignment_psd");
+    arg_depth_period: Option<f64> = optional_real("depth_period");
 }
 
 pub fn arg_innovation_gate(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {

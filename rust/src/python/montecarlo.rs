@@ -257,6 +257,18 @@ fn py_check_result_size(
     sc.check_result_size(&opts, dvl_every, 0).map_err(to_py_err)
 }
 
+/// ``ValueError`` naming ``fixes[j]`` (or its ``max_depth``) if fix source ``j`` of
+/// ``sensors`` takes no fix on ``trajectory``: none of its scheduled epochs falls inside
+/// it, or none comes at a true depth of at most its ``max_depth``. :func:`monte_carlo`
+/// runs such a source (``fix_updates`` counts the fixes taken); a scenario file is
+/// refused with it (:func:`pronet.config.load_scenario`).
+#[pyfunction(name = "check_fixes_fire")]
+fn py_check_fixes_fire(trajectory: &PyTrajectory, sensors: &PySensorConfig) -> PyResult<()> {
+    let sc = scenario(trajectory, sensors, true);
+    sc.dvl_every().map_err(to_py_err)?;
+    sc.check_fixes_fire().map_err(to_py_err)
+}
+
 /// The thread count a call given ``threads`` runs on: ``threads`` itself if it is 1
 /// to :func:`max_threads` (else ``ValueError`` naming ``threads``); for None,
 /// ``RAYON_NUM_THREADS`` if set (checked the same way, the error naming the variable),
@@ -282,5 +294,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(py_monte_carlo, m)?)?;
     m.add_function(wrap_pyfunction!(py_check_threads, m)?)?;
     m.add_function(wrap_pyfunction!(py_max_threads, m)?)?;
-    m.add_function(wrap_pyfunction!(py_check_result_size, m)?)
+    m.add_function(wrap_pyfunction!(py_check_result_size, m)?)?;
+    m.add_function(wrap_pyfunction!(py_check_fixes_fire, m)?)
 }

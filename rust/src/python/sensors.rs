@@ -28,14 +28,15 @@ use pyo3::types::{PyDict, PyList, PyString};
 /// ``MonteCarloResult.missed_updates``). ``dvl_period=0``: no DVL (a GNSS/INS or
 /// depth-only run; the other DVL arguments are then unused). The aiding sensors,
 /// applied by the filter's position updates with the σ they are simulated with:
-/// ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s], the depth
-/// of the IMU's point; ``fixes``, a list of position-fix sources, each a dict with
-/// ``sigma`` (1σ [m] north, east and optionally down: without it the fixes carry no
-/// height), and a schedule: ``period`` [s] (0 or absent: none), ``times`` [s] (single
-/// fixes, each at the IMU epoch nearest it) and ``max_depth`` [m] (fixes only while
-/// the true depth is at most this: at the surface). Each aiding sensor draws from its
-/// own seeded stream: the other sensors' draws are the same with and without it.
-/// Defaults: the paper's (an ideal DVL, no dropout, no depth sensor, no fixes).
+/// ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s] (default 1;
+/// refused without ``depth_sigma``), the depth of the IMU's point; ``fixes``, a list of
+/// position-fix sources, each a dict with ``sigma`` (1σ [m] north, east and optionally
+/// down: without it the fixes carry no height), and a schedule: ``period`` [s] (0 or
+/// absent: none), ``times`` [s] (single fixes, each at the IMU epoch nearest it) and
+/// ``max_depth`` [m] (fixes only while the true depth is at most this: at the surface).
+/// Each aiding sensor draws from its own seeded stream: the other sensors' draws are
+/// the same with and without it. Defaults: the paper's (an ideal DVL, no dropout, no
+/// depth sensor, no fixes).
 #[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PySensorConfig {
@@ -64,7 +65,7 @@ fn variance(
 impl PySensorConfig {
     #[new]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = 1.0, fixes = None))]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = None, fixes = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -78,7 +79,7 @@ impl PySensorConfig {
         dvl_misalignment: Option<&Bound<'_, PyAny>>,
         dvl_dropout: Option<&Bound<'_, PyAny>>,
         depth_sigma: Option<&Bound<'_, PyAny>>,
-        #[pyo3(from_py_with = arg_depth_period)] depth_period: f64,
+        #[pyo3(from_py_with = arg_depth_period)] depth_period: Option<f64>,
         fixes: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let dropout = match dvl_dropout {
@@ -117,12 +118,18 @@ impl PySensorConfig {
                 },
                 dropout,
             },
-            depth: match depth_sigma {
-                Some(s) => Some(DepthModel {
+            depth: match (depth_sigma, depth_period) {
+                (Some(s), period) => Some(DepthModel {
                     sigma: real_arg(s, "depth_sigma")?,
-                    period: depth_period,
+                    period: period.unwrap_or(1.0),
                 }),
-                None => None,
+                (None, Some(_)) => {
+                    return Err(invalid(
+                        "depth_period",
+                        "needs depth_sigma beside it (the depth sensor's 1σ [m])",
+                    ))
+                }
+                (None, None) => None,
             },
             fixes: match fixes {
                 Some(f) => fix_models(f)?,
@@ -188,10 +195,10 @@ impl PySensorConfig {
     fn depth_sigma(&self) -> Option<f64> {
         self.inner.depth.map(|d| d.sigma)
     }
-    /// Period of the depth sensor [s] (1 without one).
+    /// Period of the depth sensor [s], or None without one.
     #[getter]
-    fn depth_period(&self) -> f64 {
-        self.inner.depth.map_or(1.0, |d| d.period)
+    fn depth_period(&self) -> Option<f64> {
+        self.inner.depth.map(|d| d.period)
     }
     /// The position-fix sources, as the dicts the constructor takes.
     #[getter]

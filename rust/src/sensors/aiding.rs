@@ -125,16 +125,35 @@ fn epoch_of(t: f64, truth: &Truth) -> Option<usize> {
     (k <= truth.len()).then_some(k)
 }
 
-/// One fix source's schedule and random stream in a run.
-struct FixSim {
+/// One fix source's schedule on a truth, stepped along its epochs.
+struct Schedule {
     every: Option<usize>,
     /// Epochs of the listed times, increasing, deduplicated.
     epochs: Vec<usize>,
     next: usize,
-    rng: ChaCha8Rng,
 }
 
-impl FixSim {
+impl Schedule {
+    /// Source `j`'s schedule on `truth`: `Err` naming its period unless that is a whole
+    /// number of IMU steps.
+    fn new(model: &FixModel, j: usize, truth: &Truth) -> Result<Self> {
+        let every = match model.period {
+            0.0 => None,
+            p => Some(steps_per(p, truth.dt, &format!("fixes[{j}].period"))?),
+        };
+        let mut epochs: Vec<usize> = model
+            .times
+            .iter()
+            .filter_map(|&t| epoch_of(t, truth))
+            .collect();
+        epochs.dedup();
+        Ok(Self {
+            every,
+            epochs,
+            next: 0,
+        })
+    }
+
     /// Whether a fix is scheduled at epoch `k` (called with increasing `k`).
     fn scheduled(&mut self, k: usize) -> bool {
         let mut listed = false;
@@ -143,6 +162,57 @@ impl FixSim {
             self.next += 1;
         }
         listed || self.every.is_some_and(|e| k.is_multiple_of(e))
+    }
+}
+
+/// One fix source's schedule and random stream in a run.
+struct FixSim {
+    schedule: Schedule,
+    rng: ChaCha8Rng,
+}
+
+impl FixModel {
+    /// `Err` naming `fixes[j]` unless this source, as source `j`, takes a fix on
+    /// `truth`: at a scheduled epoch inside it, at a true depth of at most `max_depth`
+    /// where one is set. A source that never fires would leave every run silently
+    /// without the fixes it was configured for.
+    pub fn check_fires(&self, j: usize, truth: &Truth) -> Result<()> {
+        let mut schedule = Schedule::new(self, j, truth)?;
+        let mut scheduled = false;
+        for k in 1..=truth.len() {
+            if schedule.scheduled(k) {
+                scheduled = true;
+                if self.max_depth.is_none_or(|d| -truth.states[k].lla[2] <= d) {
+                    return Ok(());
+                }
+            }
+        }
+        let duration = truth.duration();
+        Err(match (scheduled, self.max_depth) {
+            (true, Some(d)) => {
+                let shallowest = truth
+                    .states
+                    .iter()
+                    .map(|s| -s.lla[2])
+                    .fold(f64::INFINITY, f64::min);
+                Error::invalid(
+                    format!("fixes[{j}].max_depth"),
+                    format!(
+                        "no scheduled fix comes at a true depth of at most {d} m (the \
+                         trajectory is never shallower than {shallowest:.3} m): the source \
+                         would take no fix"
+                    ),
+                )
+            }
+            _ => Error::invalid(
+                format!("fixes[{j}]"),
+                format!(
+                    "schedules no fix inside the trajectory's {duration} s (period {} s, \
+                     times {:?}): the source would take no fix",
+                    self.period, self.times
+                ),
+            ),
+        })
     }
 }
 
@@ -194,18 +264,9 @@ impl AidingSim {
             .iter()
             .enumerate()
             .map(|(j, f)| {
-                let every = match f.period {
-                    0.0 => None,
-                    p => Some(steps_per(p, truth.dt, &format!("fixes[{j}].period"))?),
-                };
-                let mut epochs: Vec<usize> =
-                    f.times.iter().filter_map(|&t| epoch_of(t, truth)).collect();
-                epochs.dedup();
                 let offset = (1u128 << 67) + ((j as u128) << 60);
                 Ok(FixSim {
-                    every,
-                    epochs,
-                    next: 0,
+                    schedule: Schedule::new(f, j, truth)?,
                     rng: offset_rng(seed, run_index, offset),
                 })
             })
@@ -234,7 +295,7 @@ impl AidingSim {
             }
         }
         for (sim, model) in self.fixes.iter_mut().zip(fixes) {
-            let scheduled = sim.scheduled(k);
+            let scheduled = sim.schedule.scheduled(k);
             if !scheduled || model.max_depth.is_some_and(|d| true_depth > d) {
                 continue;
             }
@@ -368,6 +429,36 @@ mod tests {
                 .starts_with("fixes[1].period: must be a whole"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_source_that_takes_no_fix_is_refused_by_name() {
+        // the paper's 330 s trajectory, never shallower than its 5 m
+        let truth = builtin("paper", 0.01).unwrap().generate().unwrap();
+        let err = |f: FixModel| f.check_fires(1, &truth).unwrap_err().to_string();
+        for fires in [
+            fixes(60.0, vec![], None),
+            fixes(0.0, vec![329.99], None),
+            fixes(400.0, vec![100.0], None),
+            fixes(1.0, vec![], Some(5.5)),
+        ] {
+            assert!(fires.check_fires(1, &truth).is_ok(), "{fires:?}");
+        }
+        for late in [
+            fixes(400.0, vec![], None),
+            fixes(0.0, vec![330.5, 500.0], None),
+        ] {
+            assert!(
+                err(late).starts_with("fixes[1]: schedules no fix inside the trajectory's 330 s"),
+            );
+        }
+        let surface = err(fixes(1.0, vec![], Some(0.5)));
+        assert!(
+            surface.starts_with("fixes[1].max_depth: no scheduled fix comes at a true depth")
+                && surface.contains("never shallower than 5.000 m"),
+            "{surface}"
+        );
+        assert!(err(fixes(0.015, vec![], None)).starts_with("fixes[1].period: must be a whole"));
     }
 
     #[test]
