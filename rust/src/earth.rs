@@ -171,6 +171,12 @@ pub const LONGITUDE_RANGE_DEG: (f64, f64) = (-180.0, 360.0);
 pub fn check_longitude(arg: &str, lon: f64) -> Result<()> {
     let (lo, hi) = LONGITUDE_RANGE_DEG;
     if !(lo.to_radians()..=hi.to_radians()).contains(&lon) {
+        // a huge value in full would be hundreds of digits
+        let lon = if lon.abs() < 1e6 {
+            format!("{lon}")
+        } else {
+            format!("{lon:e}")
+        };
         return Err(Error::invalid(
             arg,
             format!(
@@ -341,6 +347,11 @@ mod tests {
         );
         assert!(check_longitude("fix", -std::f64::consts::PI).is_ok());
         assert!(check_longitude("fix", 2.0 * std::f64::consts::PI).is_ok());
+        assert_eq!(
+            check_longitude("fix", 1e300).unwrap_err().to_string(),
+            "fix: longitude 1e300 rad must be within [−π, 2π] (-180° … 360°: the ±180° and \
+             0–360° conventions)"
+        );
         for bad in [7.0, -3.2, f64::NAN] {
             let err = check_longitude("fix", bad).unwrap_err().to_string();
             assert!(err.starts_with("fix: longitude "), "{err}");

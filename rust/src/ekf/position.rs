@@ -49,9 +49,7 @@ impl Ekf {
             let (lat, lon, h) = (self.nav.lla[0], self.nav.lla[1], self.nav.lla[2]);
             let innovation = match axis {
                 0 => (fix[0] - lat) * (r_n + h),
-                // longitude is periodic: the difference wrapped into (−π, π] (a fix
-                // across the antimeridian, or given 0–360° against an estimate in ±180°)
-                1 => wrap_angle(fix[1] - lon) * (r_e + h) * lat.cos(),
+                1 => longitude_difference(fix[1], lon) * (r_e + h) * lat.cos(),
                 _ => h - fix[2],
             };
             self.scalar_position_update(axis, innovation, sigma * sigma, &mut out)?;
@@ -135,6 +133,18 @@ impl Ekf {
             }
         }
         Ok(())
+    }
+}
+
+/// `lon − lon_hat` \[rad\] wrapped into (−π, π]: longitude is periodic (a fix across the
+/// antimeridian, or given 0–360° against an estimate in ±180°, is metres away, not a
+/// turn of the Earth). Within (−π, π] the difference is kept to the bit.
+fn longitude_difference(lon: f64, lon_hat: f64) -> f64 {
+    let d = lon - lon_hat;
+    if d > -std::f64::consts::PI && d <= std::f64::consts::PI {
+        d
+    } else {
+        wrap_angle(d)
     }
 }
 
