@@ -38,6 +38,13 @@ def gravity(lat: float, h: float) -> float:
     return g0 * (1.0 - 2.0 * h / A * (1.0 + F_FLAT + m - 2.0 * F_FLAT * s2) + 3.0 * h**2 / A**2)
 
 
+def _lon_difference(lon: float, lon_hat: float) -> float:
+    """``lon - lon_hat`` [rad] wrapped into (−π, π] (longitude is periodic), as given
+    within it."""
+    d = lon - lon_hat
+    return d if -math.pi < d <= math.pi else math.pi - (math.pi - d) % (2 * math.pi)
+
+
 def skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -273,7 +280,7 @@ def run_reference_filter(
                     nu = (
                         (z[0] - lla[0]) * (rn + lla[2])
                         if axis == 0
-                        else (z[1] - lla[1]) * (re + lla[2]) * math.cos(lla[0])
+                        else _lon_difference(z[1], lla[1]) * (re + lla[2]) * math.cos(lla[0])
                         if axis == 1
                         else lla[2] - z[2]
                     )

@@ -24,6 +24,7 @@ __all__ = [
     "MAX_RUN_INDEX",
     "MAX_GRAVITY_HEIGHT",
     "MAX_LATITUDE_DEG",
+    "LONGITUDE_RANGE_DEG",
     "WGS84_A",
     "WGS84_F",
     "Trajectory",
@@ -67,6 +68,10 @@ MAX_RUN_INDEX: int
 MAX_GRAVITY_HEIGHT: float
 #: Largest |latitude| [°] a navigation state may start at (``earth::MAX_LATITUDE_DEG``).
 MAX_LATITUDE_DEG: float
+#: The longitudes [°] a position fix may be given in, ``(-180.0, 360.0)``: the ±180°
+#: and the 0–360° conventions (``earth::LONGITUDE_RANGE_DEG``; the fix update wraps the
+#: longitude difference into (−π, π]).
+LONGITUDE_RANGE_DEG: tuple[float, float]
 #: WGS-84 semi-major axis [m] and flattening (``earth::A``, ``earth::F``).
 WGS84_A: float
 WGS84_F: float

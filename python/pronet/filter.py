@@ -301,12 +301,14 @@ def run_filter(
             down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
             all three or none.
         fix, fix_time, fix_sigma: position fixes (GNSS, USBL, LBL) ``(f, 3)`` ``[lat,
-            lon (rad), h (m, up)]`` (a NaN height: a horizontal fix) at ``(f,)`` times
-            [s] (strictly increasing), each with its 1σ ``(f, 3)`` [m] north, east,
-            down; all three or none. Depth and fixes refer to the IMU's point; each is
-            applied at the epoch nearest its time, after the DVL rows there, as scalar
-            updates of the position error (docs/filter.md, "Position and depth
-            updates"). The DVL may be empty: a GNSS/INS or depth-only pass works too.
+            lon (rad), h (m, up)]`` (a NaN height: a horizontal fix; ``|lat|`` <= 89°,
+            ``lon`` within [−π, 2π]: ±180° or 0–360°, its difference from the estimate
+            wrapped into (−π, π]) at ``(f,)`` times [s] (strictly increasing), each
+            with its 1σ ``(f, 3)`` [m] north, east, down; all three or none. Depth and
+            fixes refer to the IMU's point; each is applied at the epoch nearest its
+            time, after the DVL rows there, as scalar updates of the position error
+            (docs/filter.md, "Position and depth updates"). The DVL may be empty: a
+            GNSS/INS or depth-only pass works too.
     """
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")

@@ -161,6 +161,33 @@ pub fn check_latitude(arg: &str, lat: f64) -> Result<()> {
     Ok(())
 }
 
+/// The longitudes \[°\] a position may be given in, `[−180°, 360°]`: both the ±180° and
+/// the 0–360° conventions. Longitude is periodic (a fix's innovation is wrapped into
+/// (−π, π]), so any value within is a place; one beyond is a unit or column slip.
+pub const LONGITUDE_RANGE_DEG: (f64, f64) = (-180.0, 360.0);
+
+/// The longitude rule of every entry point taking positions: `lon` \[rad\] within
+/// [`LONGITUDE_RANGE_DEG`], else an error naming `arg`.
+pub fn check_longitude(arg: &str, lon: f64) -> Result<()> {
+    let (lo, hi) = LONGITUDE_RANGE_DEG;
+    if !(lo.to_radians()..=hi.to_radians()).contains(&lon) {
+        // a huge value in full would be hundreds of digits
+        let lon = if lon.abs() < 1e6 {
+            format!("{lon}")
+        } else {
+            format!("{lon:e}")
+        };
+        return Err(Error::invalid(
+            arg,
+            format!(
+                "longitude {lon} rad must be within [−π, 2π] ({lo}° … {hi}°: the ±180° and \
+                 0–360° conventions)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// [`gravity`] for outside callers: finite `lat` \[rad\] and `h` \[m\] with
 /// `|h| <= MAX_GRAVITY_HEIGHT`, else an error naming the argument.
 pub fn checked_gravity(lat: f64, h: f64) -> Result<f64> {
@@ -318,6 +345,17 @@ mod tests {
             check_latitude("lla0", 1.56).unwrap_err().to_string(),
             "lla0: latitude must be within ±89° (given in radians; NED is singular at the poles)"
         );
+        assert!(check_longitude("fix", -std::f64::consts::PI).is_ok());
+        assert!(check_longitude("fix", 2.0 * std::f64::consts::PI).is_ok());
+        assert_eq!(
+            check_longitude("fix", 1e300).unwrap_err().to_string(),
+            "fix: longitude 1e300 rad must be within [−π, 2π] (-180° … 360°: the ±180° and \
+             0–360° conventions)"
+        );
+        for bad in [7.0, -3.2, f64::NAN] {
+            let err = check_longitude("fix", bad).unwrap_err().to_string();
+            assert!(err.starts_with("fix: longitude "), "{err}");
+        }
         assert_eq!(
             checked_gravity(0.5, 100_001.0).unwrap_err().to_string(),
             "h: normal gravity holds within ±100000 m of the ellipsoid, got 100001"

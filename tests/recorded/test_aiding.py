@@ -7,6 +7,7 @@ ignores them on request and runs without a DVL."""
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -108,6 +109,25 @@ def _scale(folder: Path, name: str, column: str, factor: float, offset: float = 
     table.to_csv(folder / name, index=False, float_format="%.17g")
 
 
+def _degrees(folder: Path) -> None:
+    """fix.csv's latitude and longitude in degrees, under ``[deg]`` headers."""
+    table = pd.read_csv(folder / "fix.csv")
+    for name in ("lat", "lon"):
+        table[f"{name} [rad]"] = np.degrees(table[f"{name} [rad]"])
+    table.columns = [c.replace("[rad]", "[deg]") for c in table.columns]
+    table.to_csv(folder / "fix.csv", index=False, float_format="%.17g")
+
+
+def _add_column(folder: Path, name: str, label: str, value: str) -> None:
+    lines = (folder / name).read_text().splitlines()
+    lines = [f"{lines[0]},{label}"] + [f"{line},{value}" for line in lines[1:]]
+    (folder / name).write_text("\n".join(lines) + "\n")
+
+
+_LAT = r"beyond -1\.55334 … 1\.55334 rad \(-89° … 89°: the filter's latitudes"
+_LON = r"beyond -3\.14159 … 6\.28319 rad \(-180° … 360°: a longitude in the ±180° or the 0–360°"
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
@@ -120,7 +140,23 @@ def _scale(folder: Path, name: str, column: str, factor: float, offset: float = 
         (lambda f: _edit(f, "fix.csv", 3, "time", "1.0"),
          r"fix\.csv, row 3: time 1\.0 s does not increase"),
         (lambda f: _edit(f, "fix.csv", 5, "lat", "2.0"),
-         r"fix\.csv, row 5: latitude 2\.0 rad is outside ±π/2"),
+         rf"fix\.csv, row 5: 'lat \[rad\]' is 2, {_LAT}"),
+        (lambda f: _edit(f, "fix.csv", 3, "lat", str(math.radians(89.5))),  # the core's ±89°
+         rf"fix\.csv, row 3: 'lat \[rad\]' is 1\.562069681, {_LAT}"),
+        (lambda f: (_degrees(f), _edit(f, "fix.csv", 2, "lat", "95")),  # the file's unit
+         r"fix\.csv, row 2: 'lat \[deg\]' is 95, beyond -89 … 89 deg \(the filter's latitudes"),
+        (lambda f: _edit(f, "fix.csv", 3, "lon", "7.0"),
+         rf"fix\.csv, row 3: 'lon \[rad\]' is 7, {_LON}"),
+        (lambda f: _edit(f, "fix.csv", 4, "lon", "-3.2"),
+         rf"fix\.csv, row 4: 'lon \[rad\]' is -3\.2, {_LON}"),
+        (lambda f: (_degrees(f), _scale(f, "fix.csv", "lon", 1.0, 360.0)),
+         r"fix\.csv, row 1: 'lon \[deg\]' is 394\.\d+, beyond -180 … 360 deg \(a longitude in"),
+        (lambda f: _add_column(f, "fix.csv", "sigma [m]", "3"),  # one σ: not the fixes' three
+         r"fix\.csv: column 'sigma \[m\]' is not a σ column of the fix table; its σ columns "
+         r"are sigma_n \[m\], sigma_e \[m\], sigma_d \[m\]$"),
+        (lambda f: _add_column(f, "depth.csv", "sigma_d [m]", "0.2"),
+         r"depth\.csv: column 'sigma_d \[m\]' is not a σ column of the depth table; its σ "
+         r"columns are sigma \[m\]$"),
         (lambda f: _edit(f, "fix.csv", 5, "lon", "inf"),
          r"fix\.csv, row 5: 'lon \[rad\]' is inf, not finite"),
         (lambda f: _scale(f, "depth.csv", "depth", -1.0),  # a height, not a depth
@@ -130,13 +166,16 @@ def _scale(folder: Path, name: str, column: str, factor: float, offset: float = 
         (lambda f: _scale(f, "depth.csv", "depth", 3.28084),  # feet
          r"depth\.csv: column 'depth' lies a median \+\d+\.?\d* m"),
         (lambda f: _scale(f, "fix.csv", "lat", 180 / np.pi),  # degrees under [rad]
-         r"fix\.csv, row 1: latitude 32\.\d+ rad is outside ±π/2"),
+         rf"fix\.csv, row 1: 'lat \[rad\]' is 32\.\d+, {_LAT}"),
         (lambda f: _scale(f, "fix.csv", "lon", 1.001),
          r"fix\.csv: columns 'lat', 'lon' lie a median \d+ m from the ground truth"),
         (lambda f: _scale(f, "fix.csv", "time", 1.0, 1.7e9),  # Unix stamps on one stream
          r"fix\.csv: column 'time \[s\]' runs .* the fix and IMU stamps do not overlap"),
         (lambda f: (f / "fix.csv").write_text(
             (f / "fix.csv").read_text().replace("sigma_d [m]", "sigma_down [m]")),
+         r"fix\.csv: column 'sigma_down \[m\]' is not a σ column of the fix table"),
+        (lambda f: (f / "fix.csv").write_text(
+            (f / "fix.csv").read_text().replace(",sigma_d [m]", ",notes")),
          r"fix\.csv: has sigma_n, sigma_e but not sigma_d; give all three or none"),
         (lambda f: (f / "depth.csv").write_text(
             (f / "depth.csv").read_text().replace("depth [m]", "depth [ft]")),
@@ -153,6 +192,37 @@ def test_a_bad_depth_or_fix_table_is_one_line_naming_file_row_and_column(
     with pytest.raises(RecordingError, match=message) as caught:
         read_recording(folder)
     assert "\n" not in str(caught.value) and str(folder) in str(caught.value)
+
+
+def test_fixes_in_degrees_and_the_npz_arrays_obey_the_same_rules(tmp_path, aided_80s) -> None:
+    """Degrees read as the radians they are, within the ranges; an ``.npz``'s fix and
+    depth arrays are refused as a folder's tables are, naming the array and row."""
+    folder = write_recording(tmp_path / "sec", aided_80s)
+    _degrees(folder)
+    assert aided_80s.fixes is not None
+    back = read_recording(folder).fixes
+    assert back is not None
+    np.testing.assert_allclose(back.lla, aided_80s.fixes.lla, rtol=1e-15)
+    npz = write_recording(tmp_path / "sec.npz", aided_80s)
+    arrays = dict(np.load(npz))
+    arrays["fix"][2, 2] = 7.0
+    np.savez(tmp_path / "lon.npz", **arrays)
+    with pytest.raises(
+        RecordingError, match=rf"lon\.npz\[fix\], row 3: 'lon \[rad\]' is 7, {_LON}"
+    ):
+        read_recording(tmp_path / "lon.npz")
+    arrays = dict(np.load(npz))
+    arrays["fix"][1, 1] = np.radians(89.5)
+    np.savez(tmp_path / "lat.npz", **arrays)
+    with pytest.raises(
+        RecordingError, match=rf"lat\.npz\[fix\], row 2: 'lat \[rad\]' is 1\.56\d+, {_LAT}"
+    ):
+        read_recording(tmp_path / "lat.npz")
+    arrays = dict(np.load(npz))
+    arrays["depth_columns"] = np.array(["time [s]", "depth [m]", "sigma_d [m]"])
+    np.savez(tmp_path / "sigma.npz", **arrays)
+    with pytest.raises(RecordingError, match=r"sigma\.npz\[depth\]: column 'sigma_d \[m\]' is not"):
+        read_recording(tmp_path / "sigma.npz")
 
 
 def test_the_dvl_is_optional_but_one_aiding_stream_is_needed(tmp_path, aided_80s) -> None:
@@ -213,7 +283,8 @@ def test_fixes_bound_the_horizontal_error_where_the_dvl_alone_drifts(tmp_path, m
     assert used["fixes"]["rows"] == 13 and used["depth"]["rows"] == 800
     assert used["fixes"]["sigma_m"] == [2.0, 2.0, 2.0] and used["depth"]["sigma_m"] == 0.05
     table = (tmp_path / "aided" / "table.md").read_text()
-    assert "### Depth and position fixes" in table and "| sec | 800 (0) | 0.05 |" in table
+    assert "### Depth and position fixes" in table
+    assert "| sec | 800 (0 skipped, 1 outside the run) | 0.05 |" in table
     assert "### Depth and position fixes" not in (tmp_path / "alone" / "table.md").read_text()
     ignored = json.loads((tmp_path / "alone" / "config.json").read_text())["aiding"]
     assert ignored["sections"]["sec"] == {"depth": None, "fixes": None}
@@ -290,6 +361,53 @@ def test_the_command_line_ignores_the_fixes_on_request(tmp_path, aided_80s, caps
     aiding = json.loads((tmp_path / "out" / "config.json").read_text())["aiding"]
     assert aiding["use_fixes"] is False and aiding["sections"]["sec"]["fixes"] is None
     assert aiding["sections"]["sec"]["depth"]["rows"] == 160
+
+
+def test_rows_outside_the_run_are_counted_apart_from_those_used(tmp_path, aided_80s) -> None:
+    """A fix stamped before the run and fixes after its end (the IMU's 80 s) are applied
+    at no epoch: table.md and config.json count them apart (``outside_run``), so that
+    what is reported as used was; the first depth row (0.5 s) lies before the run's
+    start (the first truth row at or after the first IMU sample)."""
+    folder = write_recording(tmp_path / "sec", aided_80s)
+    _scale(folder, "fix.csv", "time", 1.0, 25.0)  # 35 … 105 s: 85, 95, 105 s after the end
+    _edit(folder, "fix.csv", 1, "time", "-5")
+    _run(folder, tmp_path / "out")
+    config = json.loads((tmp_path / "out" / "config.json").read_text())
+    used = config["aiding"]["sections"]["sec"]
+    assert used["fixes"]["rows"] == 8 and used["fixes"]["skipped"] == 0
+    assert used["fixes"]["outside_run"] == 4 and used["depth"]["outside_run"] == 1
+    table = (tmp_path / "out" / "table.md").read_text()
+    assert "| sec | 160 (0 skipped, 1 outside the run) | 0.05 |" in table
+    assert "| 8 (0 skipped, 4 outside the run) | 2 / 2 / 2 |" in table
+    section, _ = load_section(folder, "generic", **ARMS)
+    q, cfg = white_noise_q(section.imu), real_filter_config(section.alignment.filter_lever_arm)
+    result = run_section(section, pronet.Strategy.constant(q), cfg).result
+    assert (result.fix_epoch < 0).tolist() == [True] + [False] * 4 + [True] * 3
+    assert (result.depth_epoch < 0).tolist() == [True] + [False] * 159
+
+
+def test_the_dvl_clock_is_refused_for_a_recording_without_a_dvl(tmp_path, aided_80s) -> None:
+    """``--aiding-clock dvl`` on a recording without DVL readings names the file (it
+    once stamped the depth and fixes on the ground truth's clock, reported as the
+    DVL's), once per section prefix, before any filter runs."""
+    no_dvl = replace(aided_80s, dvl=np.empty((0, 3)), dvl_time=np.empty(0))
+    folder = write_recording(tmp_path / "data" / "sec", no_dvl)
+    with pytest.raises(ValueError, match=r"^--aiding-clock dvl: .*sec has no DVL reading"):
+        load_section(folder, "generic", **ARMS, aiding_clock="dvl")
+    with pytest.raises(ValueError) as caught:
+        _run(folder.parent, tmp_path / "out", aiding_clock="dvl")
+    assert str(caught.value).startswith("section sec: --aiding-clock dvl: ")
+    assert not (tmp_path / "out").exists()
+    on_gt, _ = load_section(folder, "generic", **ARMS, aiding_clock="gt")
+    assert on_gt.fixes is not None
+
+
+def test_a_section_level_reason_names_its_section_once(tmp_path, aided_80s) -> None:
+    folder = write_recording(tmp_path / "data" / "sec", replace(aided_80s, depth=None, fixes=None))
+    with pytest.raises(ValueError) as caught:
+        _run(folder.parent, tmp_path / "out", use_dvl=False)
+    assert str(caught.value).startswith("section sec: no DVL reading, depth or position fix")
+    assert str(caught.value).count("section sec") == 1
 
 
 def test_depth_and_fixes_stamped_on_another_streams_clock(tmp_path, aided_80s) -> None:

@@ -23,10 +23,20 @@ ground truth's as estimated (:func:`pronet.recorded.alignment.load_section`'s
 ``aiding_clock``, :class:`~pronet.recorded.alignment.Alignment`'s): no clock is
 estimated from the depth or the fixes themselves.
 
+Extra columns are ignored, as in every table, but for one whose name starts with
+``sigma`` and is none of the σ columns above (``sigma [m]`` in a fix table, ``sigma_d
+[m]`` in a depth table): refused (:func:`unknown_sigma`), as it would leave the default σ
+in use. A fix's latitude must lie within ±89° (``_core.MAX_LATITUDE_DEG``, the filter's
+rule) and its longitude within −180° … 360° (``_core.LONGITUDE_RANGE_DEG``: the ±180°
+and the 0–360° conventions; the filter wraps the longitude difference), each error
+naming file, row and column, in the column's unit.
+
 Missing values are skipped, never fatal, as the DVL's
 (:mod:`pronet.recorded.missing`): a depth row with a NaN or empty depth or σ cell, a
 fix row with a NaN or empty latitude, longitude or σ, is left out of the filter and
-kept with the reason ``"nan"`` (:attr:`DepthReadings.skipped_time`). A σ of 0 or
+kept with the reason ``"nan"`` (:attr:`DepthReadings.skipped_time`). Rows stamped
+before the run's start or after its end are applied at no epoch (``depth_epoch``,
+``fix_epoch`` −1) and ``pronet real`` counts them apart (``outside_run``). A σ of 0 or
 below is an error naming its row. Checks against the ground truth (at each row's
 stamp, as given; :func:`against_truth`): the median depth within
 :data:`MAX_DEPTH_OFFSET` of the truth's (a depth from absolute pressure, feet, or a
@@ -49,6 +59,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet import _core
 from pronet.recorded.plausible import Table, parse_header
 
 F64 = NDArray[np.float64]
@@ -160,6 +171,43 @@ def _check_sigma(table: Table, names: list[str], wanted: list[str]) -> None:
             )
 
 
+def _check_angle(table: Table, j: int, lo: float, hi: float, why: str) -> None:
+    """Column ``j`` of ``table`` (an angle, SI values) within ``[lo, hi]`` [°] (a NaN: a
+    missing value), else ValueError naming the file, row and column, with the value and
+    the range in the column's unit and ``why``."""
+    v = table.values[:, j]
+    bad = (v < np.radians(lo)) | (v > np.radians(hi))
+    if not bad.any():
+        return
+    r = int(np.argmax(bad))
+    unit = parse_header(table.labels[j])[1]
+    if unit == "deg":
+        bounds = f"{lo:g} … {hi:g} deg ({why})"
+    else:
+        bounds = f"{np.radians(lo):.6g} … {np.radians(hi):.6g} rad ({lo:g}° … {hi:g}°: {why})"
+    raise ValueError(
+        f"{table.where}, row {r + 1}: {table.labels[j]!r} is {v[r] / _ANGLE[unit]:.10g}, "
+        f"beyond {bounds}"
+    )
+
+
+def unknown_sigma(where: str, kind: str, names: list[str], header: list[str]) -> str | None:
+    """A column of the ``depth`` or ``fix`` table (``names``: the parsed names of its
+    ``header``) whose name starts with ``sigma`` but is none of the σ columns: a σ that
+    would otherwise be ignored (extra columns are) and the default used. One line
+    naming the file, the column and the accepted σ columns, or None."""
+    if kind not in OPTIONAL:
+        return None
+    accepted = [n for n in OPTIONAL[kind] if n.startswith("sigma")]
+    for name, label in zip(names, header, strict=True):
+        if name.startswith("sigma") and name not in accepted:
+            return (
+                f"{where}: column {label.strip()!r} is not a σ column of the {kind} table; "
+                f"its σ columns are {', '.join(f'{n} [m]' for n in accepted)}"
+            )
+    return None
+
+
 def depth_readings(table: Table, names: list[str]) -> DepthReadings:
     """The depth stream of a finished ``depth`` table (``names``: its parsed column
     names); ValueError, one line naming file, row and column, for a problem."""
@@ -200,10 +248,10 @@ def position_fixes(table: Table, names: list[str]) -> PositionFixes:
     lat, lon = table.values[:, 1], table.values[:, 2]
     height = _column(table, names, "height")
     h = np.full(len(t), np.nan) if height is None else height
-    bad_lat = np.abs(lat) > np.pi / 2
-    if bad_lat.any():
-        r = int(np.argmax(bad_lat))
-        raise ValueError(f"{table.where}, row {r + 1}: latitude {lat[r]} rad is outside ±π/2")
+    limit = _core.MAX_LATITUDE_DEG
+    _check_angle(table, 1, -limit, limit, "the filter's latitudes: NED is singular at the poles")
+    lo, hi = _core.LONGITUDE_RANGE_DEG
+    _check_angle(table, 2, lo, hi, "a longitude in the ±180° or the 0–360° convention")
     missing = np.isnan(lat) | np.isnan(lon)
     sigma: F64 | None = None
     if given:
@@ -277,7 +325,8 @@ def against_truth(
         lat = np.interp(fixes.time, t_gt, lla[:, 0])
         lon = np.interp(fixes.time, t_gt, lla[:, 1])
         north = (fixes.lla[:, 0] - lat) * radius
-        east = (fixes.lla[:, 1] - lon) * radius * np.cos(lat)
+        wrapped = np.angle(np.exp(1j * (fixes.lla[:, 1] - lon)))  # a 0–360° fix, ±180° truth
+        east = wrapped * radius * np.cos(lat)
         distance = float(np.median(np.hypot(north, east)))
         if distance > MAX_FIX_OFFSET:
             return (

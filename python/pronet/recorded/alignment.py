@@ -304,7 +304,8 @@ def estimate_alignment(
     gt_clock = estimate_gt_clock(rec)
     return Alignment(
         gt_clock=gt_clock,
-        # without a DVL (a GNSS/INS recording) its clock is never used: the truth's
+        # without a DVL (a GNSS/INS recording) a placeholder, the truth's: no DVL row is
+        # put on it, and load_section refuses it as the depth and fixes' clock
         dvl_clock=estimate_dvl_clock(rec, gt_clock, dvl_arm) if len(rec.dvl) else gt_clock,
         imu_lever_arm=tuple(float(v) for v in imu_arm),  # type: ignore[arg-type]
         dvl_lever_arm=tuple(float(v) for v in dvl_arm),  # type: ignore[arg-type]
@@ -410,7 +411,8 @@ def load_section(
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
     (``"bag"``: the default topics). ``aiding_clock`` (:data:`AIDING_CLOCKS`): the
     clock the depth and fixes are stamped on, the IMU's (their stamps as given) or the
-    estimated clock of the DVL or of the ground truth (one logger stamping both)."""
+    estimated clock of the DVL or of the ground truth (one logger stamping both); the
+    DVL's only for a recording with DVL readings (ValueError naming the file otherwise)."""
     if aiding_clock not in AIDING_CLOCKS:
         raise ValueError(
             f"aiding_clock: expected one of {', '.join(AIDING_CLOCKS)}, got {aiding_clock!r}"
@@ -433,6 +435,11 @@ def load_section(
                 "body FRD]; give 0,0,0 for a truth at the DVL, or leave the DVL out (--no-dvl)"
             )
         dvl_lever_arm = (0.0, 0.0, 0.0)  # never used: no DVL reading
+    if aiding_clock == "dvl" and not len(rec.dvl):
+        raise ValueError(
+            f"--aiding-clock dvl: {path} has no DVL reading, so no DVL clock to put its "
+            "depth and fixes on; use --aiding-clock imu or gt"
+        )
     stamped = align(rec, Alignment(how="none"))
     if not handle_alignment:
         return stamped, stamped

@@ -283,7 +283,8 @@ def _no_section_left(reasons: Mapping[str, str]) -> str:
         return "no sections to run"
     name, reason = next(iter(reasons.items()))
     more = f" (and {len(reasons) - 1} more sections failed)" if len(reasons) > 1 else ""
-    return f"section {name}: {reason}{more}"
+    # a reason raised by the section's own pass already names it: not twice
+    return f"section {name}: {reason.removeprefix(f'section {name}: ')}{more}"
 
 
 @dataclass(frozen=True)
@@ -491,7 +492,7 @@ def run_real(
         config["smooth"] = smooth
         config["aiding"] = {
             "clock": aiding_clock,
-            **aiding_record(aiding, [a for a, _ in done.sections]),
+            **aiding_record(aiding, done),
         }
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial

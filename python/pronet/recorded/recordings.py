@@ -25,12 +25,13 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
         (ZYX): the ground truth at its reference point
   ===== ============================================================================
 
-  Extra columns are ignored; column order is free. The DVL table may hold an optional
-  ``valid`` column (1 valid, 0 not; no unit). Two more tables are optional: ``depth``
-  (a pressure depth) and ``fix`` (position fixes: GNSS, USBL, LBL), each on its own
-  stamps and rate; their columns, missing values and checks are
-  :mod:`pronet.recorded.aiding`'s. The DVL is optional when either is there (a GNSS/INS
-  or a depth-and-fix recording); a recording needs at least one of the three.
+  Extra columns are ignored (in the ``depth`` and ``fix`` tables, one named ``sigma…``
+  that is none of their σ columns is refused); column order is free. The DVL table may
+  hold an optional ``valid`` column (1 valid, 0 not; no unit). Two more tables are
+  optional: ``depth`` (a pressure depth) and ``fix`` (position fixes: GNSS, USBL,
+  LBL), each on its own stamps and rate; their columns, missing values and checks are
+  :mod:`pronet.recorded.aiding`'s. The DVL is optional when either is there (a
+  GNSS/INS or a depth-and-fix recording); a recording needs at least one of the three.
 
 Missing DVL readings (NaN or empty cells, no-lock markers such as RDI's −32.768 m/s,
 all-zero rows while the vehicle moves, ``valid`` = 0) are not errors: they are taken out
@@ -311,6 +312,8 @@ def _select_columns(
     wanted = set(_SPEC[kind]) | set(OPTIONAL.get(kind, {}))
     if (twice := plausible.duplicate_columns(where, ours_all, header, wanted)) is not None:
         raise RecordingError(twice)
+    if (sigma := aiding.unknown_sigma(where, kind, ours_all, header)) is not None:
+        raise RecordingError(sigma)
     found: dict[str, tuple[int, str]] = {}
     for i, (name, unit) in enumerate(parsed):
         ours = names.get(name, name) if names is not None else name

@@ -10,7 +10,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
+from pronet.filter import FilterResult
 from pronet.recorded import missing
 from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes
 from pronet.recorded.alignment import Format, Section
@@ -438,39 +440,62 @@ def _noise_record(noise: SectionDvlNoise | str) -> dict[str, object]:
     return out
 
 
-def aiding_record(tuning: AidingTuning, sections: list[Section]) -> dict[str, object]:
-    """``config.json``'s ``aiding``: what was used, the default σ, and per section the
-    rows used and skipped of each stream with their median σ [m]."""
+def _first_result(done: RealRuns, name: str) -> FilterResult | None:
+    """Section ``name``'s first strategy row's result (every aided row applies the same
+    depth readings and fixes at the same epochs), or None without a row."""
+    return next((r.result for r in done.runs if r.section == name), None)
 
-    def stream(x: DepthReadings | PositionFixes | None) -> dict[str, object] | None:
+
+def _outside_run(epochs: NDArray[np.int64] | None) -> int | None:
+    """The rows applied at no epoch (``depth_epoch``/``fix_epoch`` −1: stamped before
+    the run's start or after its end), or None without a result."""
+    return None if epochs is None else int(np.sum(epochs < 0))
+
+
+def aiding_record(tuning: AidingTuning, done: RealRuns) -> dict[str, object]:
+    """``config.json``'s ``aiding``: what was used, the default σ, and per section of
+    ``done`` each stream's rows read (``rows``), those skipped as missing values (not
+    among ``rows``), those of ``rows`` outside the run (``outside_run``: stamped before
+    its start or after its end, applied at no epoch) and their median σ [m]."""
+
+    def stream(
+        x: DepthReadings | PositionFixes | None, epochs: NDArray[np.int64] | None
+    ) -> dict[str, object] | None:
         if x is None:
             return None
         sigma = None if x.sigma is None else np.median(x.sigma, axis=0).tolist()
-        return {"rows": len(x.time), "skipped": len(x.skipped_time), "sigma_m": sigma}
+        rows = {"rows": len(x.time), "skipped": len(x.skipped_time)}
+        return {**rows, "outside_run": _outside_run(epochs), "sigma_m": sigma}
 
+    sections = {}
+    for a, _ in done.sections:
+        first = _first_result(done, a.name)
+        sections[a.name] = {
+            "depth": stream(a.depth, None if first is None else first.depth_epoch),
+            "fixes": stream(a.fixes, None if first is None else first.fix_epoch),
+        }
     return {
         "use_depth": tuning.use_depth,
         "use_fixes": tuning.use_fixes,
         "use_dvl": tuning.use_dvl,
         "depth_sigma_m": tuning.depth_sigma,
         "fix_sigma_m": list(tuning.fix_sigma),
-        "sections": {
-            a.name: {"depth": stream(a.depth), "fixes": stream(a.fixes)} for a in sections
-        },
+        "sections": sections,
     }
 
 
 def aiding_table(done: RealRuns) -> str:
-    """Markdown: each section's depth readings and position fixes as used (rows,
-    skipped as missing, median σ) and the first strategy row's mean NIS of each (χ² of
-    1 dof for a depth, 2 or 3 for a fix when the filter is consistent)."""
+    """Markdown: each section's depth readings and position fixes (rows read, those
+    skipped as missing values, those outside the run: applied at no epoch), their
+    median σ and the first strategy row's mean NIS of each (χ² of 1 dof for a depth, 2
+    or 3 for a fix when the filter is consistent)."""
     lines = []
     for aligned, _ in done.sections:
-        first = next((r for r in done.runs if r.section == aligned.name), None)
+        first = _first_result(done, aligned.name)
         cells: list[str] = [aligned.name]
-        for stream, nis in (
-            (aligned.depth, None if first is None else first.result.depth_nis),
-            (aligned.fixes, None if first is None else first.result.fix_nis),
+        for stream, epochs, nis in (
+            (aligned.depth, *((first.depth_epoch, first.depth_nis) if first else (None, None))),
+            (aligned.fixes, *((first.fix_epoch, first.fix_nis) if first else (None, None))),
         ):
             if stream is None:
                 cells += ["—", "—", "—"]
@@ -479,9 +504,12 @@ def aiding_table(done: RealRuns) -> str:
             shown = " / ".join(f"{v:.3g}" for v in np.atleast_1d(sigma))
             finite = np.empty(0) if nis is None else nis[np.isfinite(nis)]
             mean = format_number(float(np.mean(finite)), "{:.2f}") if len(finite) else "undefined"
-            cells += [f"{len(stream.time)} ({len(stream.skipped_time)})", shown, mean]
+            outside = _outside_run(epochs)
+            rows = f"{len(stream.time)} ({len(stream.skipped_time)} skipped, "
+            rows += "outside the run unknown)" if outside is None else f"{outside} outside the run)"
+            cells += [rows, shown, mean]
         lines.append(cells)
-    header = ["section", "depth rows (skipped)", "depth σ [m]", "depth mean NIS",
-              "fixes (skipped)", "fix σ N / E / D [m]", "fix mean NIS"]  # fmt: skip
+    header = ["section", "depth rows", "depth σ [m]", "depth mean NIS",
+              "fixes", "fix σ N / E / D [m]", "fix mean NIS"]  # fmt: skip
     title = f"Depth and position fixes (mean NIS: {done.runs[0].label})"
     return markdown(header, lines, title)

@@ -13,6 +13,7 @@
 
 use super::calibration::{Calibration, N_CALIBRATED, SCALE};
 use super::{Ekf, Vector15, POS};
+use crate::attitude::wrap_angle;
 use crate::earth;
 use crate::error::{check, Error, Result};
 use nalgebra::{SMatrix, SVector};
@@ -33,7 +34,8 @@ pub struct PositionUpdate {
 
 impl Ekf {
     /// A position fix `fix = [φ (rad), λ (rad), h (m, up)]` with 1σ `sigma` \[m\] north,
-    /// east, down; a NaN height (and its σ) leaves the vertical out.
+    /// east, down; a NaN height (and its σ) leaves the vertical out. The longitude
+    /// innovation `λ − λ̂` is wrapped into (−π, π] (longitude is periodic).
     pub fn update_fix(&mut self, fix: &[f64; 3], sigma: &[f64; 3]) -> Result<PositionUpdate> {
         let components = if fix[2].is_nan() { 2 } else { 3 };
         let mut out = PositionUpdate {
@@ -47,7 +49,7 @@ impl Ekf {
             let (lat, lon, h) = (self.nav.lla[0], self.nav.lla[1], self.nav.lla[2]);
             let innovation = match axis {
                 0 => (fix[0] - lat) * (r_n + h),
-                1 => (fix[1] - lon) * (r_e + h) * lat.cos(),
+                1 => longitude_difference(fix[1], lon) * (r_e + h) * lat.cos(),
                 _ => h - fix[2],
             };
             self.scalar_position_update(axis, innovation, sigma * sigma, &mut out)?;
@@ -134,6 +136,18 @@ impl Ekf {
     }
 }
 
+/// `lon − lon_hat` \[rad\] wrapped into (−π, π]: longitude is periodic (a fix across the
+/// antimeridian, or given 0–360° against an estimate in ±180°, is metres away, not a
+/// turn of the Earth). Within (−π, π] the difference is kept to the bit.
+fn longitude_difference(lon: f64, lon_hat: f64) -> f64 {
+    let d = lon - lon_hat;
+    if d > -std::f64::consts::PI && d <= std::f64::consts::PI {
+        d
+    } else {
+        wrap_angle(d)
+    }
+}
+
 /// The scalar update of state `i` of an `N`-state covariance `p` (and of the
 /// sensitivity `m`, if tracked) with `H = e_i`, innovation `ν` and variance `r`:
 /// `S = P_ii + r`, `K = P e_i / S`, Joseph form, symmetrized; its NIS `ν²/S` and the
@@ -216,7 +230,14 @@ pub(super) fn check_aiding(
                 ),
             ));
         }
-        earth::check_latitude("fix", fix[0])?;
+        let row = |e: Error| match e {
+            Error::InvalidArgument { arg, reason } => {
+                Error::invalid(arg, format!("row {i}: {reason}"))
+            }
+            other => other,
+        };
+        earth::check_latitude("fix", fix[0]).map_err(row)?;
+        earth::check_longitude("fix", fix[1]).map_err(row)?;
         let wanted = if vertical { 3 } else { 2 };
         if !sigma[..wanted].iter().all(|s| *s > 0.0 && s.is_finite()) {
             let axes = if vertical {
@@ -276,6 +297,66 @@ mod tests {
         assert!((ekf.p[(1, 1)] - p0[(1, 1)] / 2.0).abs() < 1e-12);
         assert_eq!(ekf.p[(2, 2)], p0[(2, 2)]);
         assert!((out.correction[0] + 5.0).abs() < 1e-6);
+    }
+
+    /// Longitude is periodic: a fix 3 m east of the antimeridian, 5 m east of an
+    /// estimate 2 m west of it, moves the estimate 2.5 m east (the Kalman share) with the
+    /// same NIS whether its longitude is given beyond +π, near −π (±180°) or a turn
+    /// higher (without the wrap: an innovation of 40 000 km).
+    #[test]
+    fn a_fix_across_the_antimeridian_pulls_the_estimate_by_the_same_share() {
+        use std::f64::consts::PI;
+        let mut ekf = filter();
+        let (_, r_e) = earth::radii(ekf.nav.lla[0]);
+        let per_metre = 1.0 / ((r_e + ekf.nav.lla[2]) * ekf.nav.lla[0].cos());
+        ekf.nav.lla[1] = PI - 2.0 * per_metre;
+        let start = ekf.nav.lla;
+        let east = start[1] + 5.0 * per_metre; // beyond +π: the unwrapped fix
+        let sigma = ekf.p[(0, 0)].sqrt();
+        let mut reference = None;
+        // the same place three ways: beyond +π, in ±180° (near −π), one turn higher
+        for lon in [east, east - 2.0 * PI, east + 2.0 * PI] {
+            let mut e = ekf.clone();
+            let out = e
+                .update_fix(&[start[0], lon, f64::NAN], &[sigma, sigma, f64::NAN])
+                .unwrap();
+            let moved = wrap_angle(e.nav.lla[1] - start[1]) / per_metre;
+            assert!((moved - 2.5).abs() < 1e-6, "lon {lon}: moved {moved} m");
+            let nis = *reference.get_or_insert(out.nis);
+            assert!((out.nis - nis).abs() < 1e-9 * nis, "lon {lon}: {out:?}");
+        }
+        assert!((reference.unwrap() - 25.0 / (2.0 * ekf.p[(1, 1)])).abs() < 1e-6);
+    }
+
+    /// The fix rows' latitude (±89°) and longitude ([−π, 2π]) rules, each error naming
+    /// `fix` and its row.
+    #[test]
+    fn fix_rows_beyond_the_latitude_or_longitude_range_are_named() {
+        let sigma = [[1.0; 3]; 3];
+        let time = [1.0, 2.0, 3.0];
+        let check = |fix: &[[f64; 3]]| check_aiding(&[], &[], 0.1, fix, &time, &sigma);
+        let good = [0.5, 0.6, f64::NAN];
+        for lon in [-std::f64::consts::PI, 2.0 * std::f64::consts::PI, 6.0] {
+            assert!(check(&[good, [0.5, lon, 1.0], good]).is_ok(), "{lon}");
+        }
+        let err = check(&[good, good, [0.5, 7.0, f64::NAN]])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("fix: row 2: longitude 7 rad must be within"),
+            "{err}"
+        );
+        let err = check(&[good, [0.5, -3.2, f64::NAN], good])
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("fix: row 1: longitude -3.2 rad"), "{err}");
+        let err = check(&[good, [1.56, 0.6, f64::NAN], good])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("fix: row 1: latitude must be within ±89°"),
+            "{err}"
+        );
     }
 
     /// A depth 2 m deeper than the estimate moves it down (lower height) by the

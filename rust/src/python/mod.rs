@@ -126,6 +126,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;
     m.add("MAX_GRAVITY_HEIGHT", crate::earth::MAX_GRAVITY_HEIGHT)?;
     m.add("MAX_LATITUDE_DEG", crate::earth::MAX_LATITUDE_DEG)?;
+    m.add("LONGITUDE_RANGE_DEG", crate::earth::LONGITUDE_RANGE_DEG)?;
     m.add("WGS84_A", crate::earth::A)?;
     m.add("WGS84_F", crate::earth::F)?;
     trajectory::register(m)?;
