@@ -291,8 +291,9 @@ def test_the_smoothed_sigma_is_never_above_the_forward_one(
     no_dvl = measured == "nothing"
     aiding = {}
     if measured == "aided":
-        aiding = dict(depth=aided.depth.depth, depth_time=aided.depth.time, depth_sigma=0.05,
-                      fix=aided.fixes.lla, fix_time=aided.fixes.time, fix_sigma=aided.fixes.sigma)  # fmt: skip
+        depth, fixes = aided.depth, aided.fixes
+        aiding = dict(depth=depth.depth, depth_time=depth.time, depth_sigma=0.05,
+                      fix=fixes.lla, fix_time=fixes.time, fix_sigma=fixes.sigma)  # fmt: skip
     r = pronet.run_filter(
         rec.imu, traj.time[1:], np.empty((0, 3)) if no_dvl else dvl,
         np.empty(0) if no_dvl else dvl_time, t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
