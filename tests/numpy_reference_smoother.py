@@ -67,9 +67,7 @@ def _fill(out, forward, log, closes, errors, covariances, time, invariant) -> No
     near = _variances(ps, vel[c], invariant) - _variances(log[c][2], vel[c], invariant)
     far = near
     if end < len(log):  # the forward covariance at end before its updates
-        far = _variances(ps_end, vel[end], invariant) - _variances(
-            log[end][1], vel[end], invariant
-        )
+        far = _variances(ps_end, vel[end], invariant) - _variances(log[end][1], vel[end], invariant)
     calibrated = len(ps) > 15
     for i in range(c, end):
         w = 0.0 if i == c else (time[i] - time[c]) / (time[end] - time[c])
