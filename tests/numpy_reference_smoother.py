@@ -25,9 +25,11 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     The recursion runs from close to close of the covariance (every epoch without a
     covariance step); between two closes the smoothed error of the forward solution is
     interpolated linearly in time, from the one after the earlier close's updates to the
-    one before the later close's, and the smoothed covariance linearly in time between
-    the two closes' (the same before and after an epoch's updates), σ read from it at
-    each epoch's forward velocity."""
+    one before the later close's. So is the change the smoother makes to each classic
+    variance (smoothed minus forward, both at the close's forward velocity): from the
+    earlier close's after its updates to the later close's before them (the smoothed
+    covariance is the same before and after an epoch's updates), added to the forward
+    variance at the epoch (``forward["sigma"]``, itself interpolated so)."""
     invariant = formulation == "invariant"
     n = len(log)
     keys = ("lla", "vel", "rpy", "bias", "calibration")
@@ -40,7 +42,7 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     later = n - 1
     ds = np.zeros(len(log[-1][3]))
     ps = log[-1][2]
-    _fill(out, forward, later, later + 1, ds, ds, ps, ps, time, invariant)
+    _fill(out, forward, log, (later, later + 1), (ds, ds), (ps, ps), time, invariant)
     for c in reversed(closes[:-1]):
         phi, p_prior, _, dx = log[later]
         p_post = log[c][2]
@@ -50,30 +52,55 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
         ps_end = ps
         ps = p_post + gain @ (ps - p_prior) @ gain.T
         ps = (ps + ps.T) / 2
-        _fill(out, forward, c, later, ds, ds_prior, ps, ps_end, time, invariant)
+        _fill(out, forward, log, (c, later), (ds, ds_prior), (ps, ps_end), time, invariant)
         later = c
     return out
 
 
-def _fill(out, forward, c, end, ds, ds_end, ps, ps_end, time, invariant) -> None:
-    """The smoothed error and covariance at the close ``c`` and, interpolated linearly in
-    time towards ``ds_end`` and ``ps_end`` at the close ``end``, at the epochs between;
-    σ from the covariance at each epoch's forward velocity."""
+def _fill(out, forward, log, closes, errors, covariances, time, invariant) -> None:
+    """The smoothed error and σ at the close ``c`` and, interpolated linearly in time
+    towards the close ``end``, at the epochs between (``closes = (c, end)``; ``errors``
+    and ``covariances`` the smoothed ones at the two, ``δs`` at ``end`` before its
+    updates)."""
+    (c, end), (ds, ds_end), (ps, ps_end) = closes, errors, covariances
+    vel = forward["vel"]
+    near = _variances(ps, vel[c], invariant) - _variances(log[c][2], vel[c], invariant)
+    far = near
+    if end < len(log):  # the forward covariance at end before its updates
+        far = _variances(ps_end, vel[end], invariant) - _variances(log[end][1], vel[end], invariant)
+    calibrated = len(ps) > 15
     for i in range(c, end):
         w = 0.0 if i == c else (time[i] - time[c]) / (time[end] - time[c])
-        p = ps if i == c else (1 - w) * ps + w * ps_end
-        out["sigma"][i] = _classic_sigma(p[:15, :15], forward["vel"][i], invariant)
-        if len(p) > 15:
-            out["calibration_sigma"][i] = np.sqrt(np.maximum(np.diag(p)[15:], 0.0))
+        if i == c:
+            out["sigma"][i] = _classic_sigma(ps[:15, :15], vel[i], invariant)
+            if calibrated:
+                out["calibration_sigma"][i] = np.sqrt(np.maximum(np.diag(ps)[15:], 0.0))
+        else:
+            sigma = np.asarray(forward["sigma"][i], dtype=float)
+            if calibrated:
+                sigma = np.concatenate([sigma, forward["calibration_sigma"][i]])
+            smoothed = np.sqrt(np.maximum(sigma**2 + (1 - w) * near + w * far, 0.0))
+            out["sigma"][i] = smoothed[:15]
+            if calibrated:
+                out["calibration_sigma"][i] = smoothed[15:]
         _correct(out, i, (1 - w) * ds + w * ds_end, invariant)
 
 
-def _classic_sigma(p: np.ndarray, vel: np.ndarray, invariant: bool) -> np.ndarray:
+def _variances(p: np.ndarray, vel: np.ndarray, invariant: bool) -> np.ndarray:
+    """The classic variances of the covariance ``p`` (15 or 19 states) at ``vel``."""
+    v = np.diag(p).copy()
+    v[:15] = _classic_sigma(p[:15, :15], vel, invariant, squared=True)
+    return v
+
+
+def _classic_sigma(
+    p: np.ndarray, vel: np.ndarray, invariant: bool, squared: bool = False
+) -> np.ndarray:
     if invariant:  # dv = dV + [v x] psi
         t = np.eye(15)
         t[3:6, 6:9] = skew(vel)
         p = t @ p @ t.T
-    return np.sqrt(np.maximum(np.diag(p), 0.0))
+    return np.diag(p).copy() if squared else np.sqrt(np.maximum(np.diag(p), 0.0))
 
 
 def _correct(out: dict, i: int, dx: np.ndarray, invariant: bool) -> None:

@@ -256,3 +256,73 @@ def test_nees_in_band_with_lost_readings_uses_each_epochs_run_count() -> None:
         nis=nees[:, :, 0], nees=nees,
     )  # fmt: skip
     assert 0.92 <= result.nees_in_band("velocity") <= 0.98
+
+
+@pytest.fixture(scope="module")
+def dive():
+    """60 s of the synthetic recording (IMU at 100 Hz), a 1 Hz body DVL from its truth,
+    and depth readings every 0.5 s and fixes every 10 s on the IMU's clock."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from synthetic_recording import synthetic_recording, with_aiding
+
+    syn = synthetic_recording(seed=3, duration=60.0)
+    traj, n = syn.trajectory, len(syn.recording.imu_time)
+    k = np.arange(100, n + 1, 100)
+    body = np.einsum("kji,kj->ki", dcm_from_euler(traj.rpy[k]), traj.vel_ned[k])
+    dvl = body + np.random.default_rng(1).normal(size=body.shape) * 0.01
+    return syn, dvl, traj.time[k], with_aiding(syn, seed=3, fix_every=10.0)
+
+
+@pytest.mark.parametrize("output_step", [None, 1.0])
+@pytest.mark.parametrize("measured", ["nothing", "dvl", "aided"])
+@pytest.mark.parametrize("covariance_step", [0.1, 0.0])
+@pytest.mark.parametrize("formulation", ["invariant", "classic"])
+def test_the_smoothed_sigma_is_never_above_the_forward_one(
+    dive, formulation, covariance_step, measured, output_step
+) -> None:
+    """At every kept epoch and state, those inside a covariance step too (docs/api.md,
+    ``SmoothedResult.sigma``); with no measurement at all the smoothed σ is the forward
+    σ, bit for bit."""
+    syn, dvl, dvl_time, aided = dive
+    rec, traj = syn.recording, syn.trajectory
+    no_dvl = measured == "nothing"
+    aiding = {}
+    if measured == "aided":
+        depth, fixes = aided.depth, aided.fixes
+        aiding = dict(depth=depth.depth, depth_time=depth.time, depth_sigma=0.05,
+                      fix=fixes.lla, fix_time=fixes.time, fix_sigma=fixes.sigma)  # fmt: skip
+    r = pronet.run_filter(
+        rec.imu, traj.time[1:], np.empty((0, 3)) if no_dvl else dvl,
+        np.empty(0) if no_dvl else dvl_time, t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
+        rpy0=traj.rpy[0], strategy=pronet.Strategy.constant([1e-4] * 3 + [1e-8] * 3),
+        config=pronet.FilterConfig(formulation=formulation, covariance_step=covariance_step),
+        smooth=True, output_step=output_step, **aiding,
+    )  # fmt: skip
+    s = r.smoothed
+    assert s is not None and np.isfinite(s.sigma).all()
+    if no_dvl:
+        np.testing.assert_array_equal(s.sigma, r.sigma)
+        return
+    assert (s.sigma <= r.sigma * (1 + 1e-12)).all(), (s.sigma / r.sigma).max(axis=0)
+    assert (s.sigma[:, 3:6] < 0.9 * r.sigma[:, 3:6]).any()  # the smoother did something
+
+
+@pytest.mark.parametrize("covariance_step", [0.1, 0.0])
+@pytest.mark.parametrize("formulation", ["invariant", "classic"])
+def test_the_monte_carlo_smoothed_sigma_is_never_above_the_forward_one(
+    formulation, covariance_step
+) -> None:
+    """Recorded every 7 samples, mostly inside a 0.1 s step, where the run's forward σ
+    is its covariance brought up to date there (not interpolated)."""
+    r = pronet.monte_carlo(
+        pronet.builtin_trajectory("paper"), pronet.Strategy.constant([1e-4] * 3 + [1e-8] * 3),
+        config=pronet.FilterConfig(formulation=formulation, covariance_step=covariance_step),
+        n_runs=2, seed=0, record_every=7, smooth=True,
+    )  # fmt: skip
+    s = r.smoothed
+    assert s is not None and np.isfinite(s.sigma).all()
+    assert (s.sigma <= r.sigma * (1 + 1e-12)).all(), (s.sigma / r.sigma).max(axis=(0, 1))
+    assert (s.sigma[..., 3:6] < 0.9 * r.sigma[..., 3:6]).any()

@@ -26,10 +26,10 @@ class SmoothedResult:
         rpy: ``(n+1, 3)`` roll, pitch, yaw [rad].
         bias: ``(n+1, 6)`` accelerometer [m/s²] and gyro [rad/s] bias estimates.
         sigma: ``(n+1, 15)`` smoothed 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a,
-            δb_g]`` (:data:`ERROR_STATES`), never above the forward pass's (with a
-            covariance step, at an epoch inside a step its covariance is interpolated
-            linearly in time between the steps' closes on either side, as the forward
-            σ's is).
+            δb_g]`` (:data:`ERROR_STATES`), never above the forward pass's: the
+            forward σ with each variance changed by the smoothing (with a covariance
+            step, at an epoch inside a step that change is interpolated linearly in
+            time between the steps' closes on either side).
         calibration: ``(n+1, 4)`` with ``FilterConfig(dvl_calibration=True)``, the
             smoothed DVL scale-factor error and mounting roll, pitch, yaw [rad] (as
             :attr:`FilterResult.calibration`); ``(0, 4)`` without.

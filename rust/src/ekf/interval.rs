@@ -318,6 +318,13 @@ impl Ekf {
     }
 }
 
+/// A variance linear in time between `from` and `to`, a fraction `w` of the way: how
+/// the forward pass interpolates its variances inside a covariance step ([`StaleSigma`])
+/// and the smoother the change it makes to them (`super::smoother`).
+pub(in crate::ekf) fn variance_between(from: f64, to: f64, w: f64) -> f64 {
+    from + w * (to - from)
+}
+
 /// The σ of the epochs inside a covariance step. P stands at the step's start there, so
 /// the σ an epoch records is the last close's; once the step closes (before the updates
 /// of its last epoch), the variances of the epochs inside it are interpolated linearly
@@ -380,7 +387,7 @@ impl StaleSigma {
                 for &e in &self.pending {
                     let w = (out.time[e] - t_a) / (t - t_a);
                     let between =
-                        |from: f64, to: f64| (from * from + w * (to * to - from * from)).sqrt();
+                        |from: f64, to: f64| variance_between(from * from, to * to, w).sqrt();
                     out.sigma[e] = std::array::from_fn(|i| between(from[i], sigma[i]));
                     if let (Some(c), Some(from)) = (calibration, from_calibration) {
                         out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));

@@ -219,6 +219,8 @@ impl<'a> Pass<'a> {
             nav: &out.nav,
             bias: &out.bias,
             calibration: &out.calibration,
+            sigma: &out.sigma,
+            calibration_sigma: &out.calibration_sigma,
             dt: None,
         };
         let smoothed = smoother::smooth(&forward, self.cfg, &nodes.0, Covariances::Every, cancel)?;
@@ -248,6 +250,8 @@ impl<'a> Pass<'a> {
             nav: &out.nav,
             bias: &out.bias,
             calibration: &out.calibration,
+            sigma: &out.sigma,
+            calibration_sigma: &out.calibration_sigma,
         };
         let smoothed = thinned::smooth(&forward, self.cfg, &nodes.0, cancel)?;
         out.smoothed = Some(smoothed);

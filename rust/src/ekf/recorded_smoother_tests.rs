@@ -64,6 +64,8 @@ fn forward_of<'a>(arrays: &'a Arrays, out: &'a FilterOutput) -> Forward<'a> {
         nav: &out.nav,
         bias: &out.bias,
         calibration: &[],
+        sigma: &out.sigma,
+        calibration_sigma: &[],
         dt: None,
     }
 }

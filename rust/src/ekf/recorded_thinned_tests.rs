@@ -208,6 +208,8 @@ fn reintegration_is_exact(
         nav: &out.nav,
         bias: &out.bias,
         calibration: &out.calibration,
+        sigma: &out.sigma,
+        calibration_sigma: &out.calibration_sigma,
     };
     let mut stretch = Stretch::default();
     assert!(nodes.0.len() > 30);
@@ -218,6 +220,8 @@ fn reintegration_is_exact(
         nav: &out.nav,
         bias: &out.bias,
         calibration: &out.calibration,
+        sigma: &out.sigma,
+        calibration_sigma: &out.calibration_sigma,
         dt: None,
     };
     let mut closes = Vec::new();
@@ -289,6 +293,8 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
         nav: &out.nav,
         bias: &out.bias,
         calibration: &out.calibration,
+        sigma: &out.sigma,
+        calibration_sigma: &out.calibration_sigma,
     };
     let (a, end) = (&nodes.0[0], nodes.0[1].epoch);
     assert!(end - a.epoch > 5 * STEPS_PER_CHECK);

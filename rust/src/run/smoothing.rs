@@ -5,10 +5,7 @@
 use super::{bias_array, nees3, solution_error, History, Run};
 use crate::attitude::exp_so3;
 use crate::cancel::Cancel;
-use crate::ekf::smoother::{
-    between_variances, classic_variances, classic_variances_of, sigma15, smooth_into, Covariances,
-    Forward, Nodes, Sink,
-};
+use crate::ekf::smoother::{changed_sigma, smooth_into, Covariances, Forward, Nodes, Sink};
 use crate::ekf::{correct, corrected_position_velocity, formulation};
 use crate::ekf::{Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15};
 use crate::ekf::{ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
@@ -128,6 +125,10 @@ struct Reduced<'a> {
     whole: Vec<u32>,
     /// `[|δv|², Σ|δv_j|, δN² + δE²]` at each epoch the pass corrected.
     terms: Vec<Option<[f64; 3]>>,
+    /// The forward σ at the recorded epochs (every `record_every`-th), the smoothed σ
+    /// is changed from (empty without a history).
+    forward_sigma: &'a [[f64; 15]],
+    record_every: usize,
     /// The smoothed solution and bias estimates where the whole one is read.
     solutions: Vec<(usize, NavState, [f64; 6])>,
     sigma: Vec<(usize, [f64; 15])>,
@@ -135,7 +136,11 @@ struct Reduced<'a> {
 }
 
 impl<'a> Reduced<'a> {
-    fn new(log: &'a SmootherLog, truth: &'a Truth) -> Self {
+    fn new(
+        log: &'a SmootherLog,
+        truth: &'a Truth,
+        (forward_sigma, record_every): (&'a [[f64; 15]], usize),
+    ) -> Self {
         let n = log.nav.len();
         let mut whole = vec![NOT_WHOLE; n];
         for (at, (k, _, _)) in log.whole.iter().enumerate() {
@@ -146,6 +151,8 @@ impl<'a> Reduced<'a> {
             truth,
             whole,
             terms: vec![None; n],
+            forward_sigma,
+            record_every,
             solutions: Vec::with_capacity(log.whole.len()),
             sigma: Vec::new(),
             node_covariance: Vec::with_capacity(log.nodes.0.len()),
@@ -212,38 +219,24 @@ impl Sink for Reduced<'_> {
         self.terms[i] = Some(self.terms_of(i, &lla, &vel));
     }
 
-    fn set_sigma<const N: usize>(
+    /// σ at a recorded epoch `i`: its forward σ in the run's history changed by
+    /// `change` (no σ kept elsewhere: only the histories read it).
+    fn set_change<const N: usize>(
         &mut self,
         i: usize,
-        ps: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
+        change: &SVector<f64, N>,
+        _forward: &Forward<'_>,
     ) {
-        let sigma = sigma15(&classic_variances(ps, cfg, &forward.nav[i].vel));
-        self.sigma.push((i, sigma));
-    }
-
-    fn set_sigma_of<const N: usize>(
-        &mut self,
-        i: usize,
-        p: &SMatrix<f64, N, N>,
-        lambda: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        let variance = classic_variances_of(p, lambda, cfg, &forward.nav[i]);
-        self.sigma.push((i, sigma15(&variance)));
-    }
-
-    fn set_sigma_between<const N: usize>(
-        &mut self,
-        i: usize,
-        between: (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>, f64),
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        let variance = between_variances(between, cfg, &forward.nav[i].vel);
-        self.sigma.push((i, sigma15(&variance)));
+        let every = self.record_every;
+        let recorded = every > 0 && i.is_multiple_of(every);
+        if let Some(sigma) = self
+            .forward_sigma
+            .get(i / every.max(1))
+            .filter(|_| recorded)
+        {
+            let smoothed = std::array::from_fn(|j| changed_sigma(sigma[j], change[j]));
+            self.sigma.push((i, smoothed));
+        }
     }
 
     fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
@@ -371,6 +364,8 @@ impl SmootherLog {
             nav: &self.nav,
             bias: &self.bias,
             calibration: &self.calibration,
+            sigma: &[],
+            calibration_sigma: &[],
             dt: Some(truth.dt),
         }
     }
@@ -448,7 +443,8 @@ impl Run {
         let recorded = |k: usize| every > 0 && k.is_multiple_of(every);
         let covariances = Covariances::Where(&recorded);
         let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
-        let mut reduced = Reduced::new(&log, truth);
+        let history = self.history.as_ref().map_or(&[][..], |h| &h.sigma[..]);
+        let mut reduced = Reduced::new(&log, truth, (history, every));
         let kept = log.closes.as_ref();
         let smoothed = smooth_into(
             &forward,

@@ -1,7 +1,7 @@
 //! Tests of the smoother over a simulated run (`super`): kept closes against rebuilt
 //! ones, and the metrics' reduced solution against the whole smoothed one.
 
-use super::{smooth_into, Cancel, Covariances, Formulation, Reduced};
+use super::{smooth_into, Cancel, Covariances, Formulation, Forward, Reduced};
 use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::smoother::smooth;
 use crate::ekf::FilterConfig;
@@ -82,8 +82,20 @@ fn the_reduced_solution_is_the_smoothed_one() {
         let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
         let recorded = |k: usize| k.is_multiple_of(25);
         let covariances = Covariances::Where(&recorded);
-        let whole = smooth(&forward, &cfg, nodes, covariances, cancel).unwrap();
-        let mut reduced = Reduced::new(&log, &sc.truth);
+        // The forward σ the run's history kept (every 25th epoch), NaN elsewhere.
+        let history = &run.history.as_ref().unwrap().sigma;
+        let sigma: Vec<_> = (0..log.nav.len())
+            .map(|k| match recorded(k) {
+                true => history[k / 25],
+                false => [f64::NAN; 15],
+            })
+            .collect();
+        let with_sigma = Forward {
+            sigma: &sigma,
+            ..log.forward(&sc.truth)
+        };
+        let whole = smooth(&with_sigma, &cfg, nodes, covariances, cancel).unwrap();
+        let mut reduced = Reduced::new(&log, &sc.truth, (history, 25));
         smooth_into(
             &forward,
             &cfg,

@@ -24,7 +24,7 @@ pub(super) fn smooth_every<const N: usize, S: Sink>(
     // After the last epoch nothing is left to learn: δs = 0, Ps = P.
     let mut ds = SVector::<f64, N>::zeros();
     let mut ps = last.p::<N>();
-    out.set_sigma(last.epoch, &ps, cfg, forward);
+    out.set_sigma(last.epoch, (&ps, &ps), cfg, forward);
     out.keep_node(last.epoch, &ps);
     let wanted = match covariances {
         Covariances::Every => None,
@@ -66,7 +66,7 @@ pub(super) fn smooth_every<const N: usize, S: Sink>(
                     let p = &interval.p[k];
                     let psi = p + p * lambda * p;
                     ps = (psi + psi.transpose()) * 0.5;
-                    out.set_sigma(i, &ps, cfg, forward);
+                    out.set_sigma(i, (&ps, p), cfg, forward);
                     out.keep_node(i, &ps);
                 } else {
                     out.set_sigma_of(i, &interval.p[k], &lambda, cfg, forward);
@@ -75,7 +75,7 @@ pub(super) fn smooth_every<const N: usize, S: Sink>(
                 let gain = interval.p[k] * bk;
                 let psi = interval.p[k] + gain * m * gain.transpose();
                 let psi = (psi + psi.transpose()) * 0.5;
-                out.set_sigma(i, &psi, cfg, forward);
+                out.set_sigma(i, (&psi, &interval.p[k]), cfg, forward);
                 if i == a.epoch {
                     ps = psi;
                     out.keep_node(i, &psi);
@@ -150,7 +150,7 @@ fn bryson_frazier<const N: usize, S: Sink>(
     let gain = p_a * g_end.transpose();
     let psi = p_a + gain * m * gain.transpose();
     let ps_a = (psi + psi.transpose()) * 0.5;
-    out.set_sigma(a.epoch, &ps_a, cfg, forward);
+    out.set_sigma(a.epoch, (&ps_a, &p_a), cfg, forward);
     out.keep_node(a.epoch, &ps_a);
     Ok((ds_a, ps_a))
 }

@@ -47,8 +47,8 @@ pub mod thinned;
 
 #[cfg(test)]
 pub(crate) use every::Interval;
+pub(crate) use sink::changed_sigma;
 pub use sink::Sink;
-pub(crate) use sink::{between_variances, classic_variances, classic_variances_of, sigma15};
 
 /// The process noise of an interval, owned (see [`ProcessNoise`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -354,6 +354,12 @@ pub struct Forward<'a> {
     /// With the DVL calibration states, their estimate `[k̂, roll, pitch, yaw]` at every
     /// epoch (empty without).
     pub calibration: &'a [[f64; 4]],
+    /// The forward σ of the 15 states at every epoch, and of the calibration states'
+    /// (empty without them), that [`Smoothed`] changes into the smoothed σ (NaN at an
+    /// epoch without it: empty where σ is not wanted, or a [`Sink`] reads the forward
+    /// σ elsewhere).
+    pub sigma: &'a [[f64; 15]],
+    pub calibration_sigma: &'a [[f64; 4]],
     /// The step every sample was propagated over, when the forward pass used one
     /// (a simulation's `truth.dt`), so that the rebuilt steps are its steps bit for bit;
     /// None: each sample's stamped step.
@@ -469,14 +475,6 @@ impl Smoothed {
             node_covariance: Vec::with_capacity(nodes),
         }
     }
-
-    /// σ at epoch `i` from each state's variance.
-    fn set_variances(&mut self, i: usize, variance: impl Fn(usize) -> f64) {
-        self.sigma[i] = sigma15(&variance);
-        if let Some(sigma) = self.calibration_sigma.get_mut(i) {
-            *sigma = std::array::from_fn(|k| variance(SCALE + k).max(0.0).sqrt());
-        }
-    }
 }
 
 impl Sink for Smoothed {
@@ -501,46 +499,20 @@ impl Sink for Smoothed {
         }
     }
 
-    /// σ at epoch `i` from the smoothed covariance `ps` (classic coordinates at the
-    /// forward velocity there).
-    fn set_sigma<const N: usize>(
+    /// σ at epoch `i`: the forward σ there (`forward.sigma`) changed by `change`.
+    fn set_change<const N: usize>(
         &mut self,
         i: usize,
-        ps: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
+        change: &SVector<f64, N>,
         forward: &Forward<'_>,
     ) {
-        self.set_variances(i, classic_variances(ps, cfg, &forward.nav[i].vel));
-    }
-
-    /// σ at epoch `i` inside a covariance step, a fraction `w` of the way in time from
-    /// the close before it (smoothed covariance `from`) to the one after (`to`): the
-    /// covariance linear in time between the two, mapped to the classic coordinates at
-    /// the forward velocity at `i` (`docs/filter.md`, "With a covariance step").
-    fn set_sigma_between<const N: usize>(
-        &mut self,
-        i: usize,
-        (from, to, w): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>, f64),
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        self.set_variances(
-            i,
-            between_variances((from, to, w), cfg, &forward.nav[i].vel),
-        );
-    }
-
-    /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
-    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`), its diagonal alone (see `classic_variances_of`).
-    fn set_sigma_of<const N: usize>(
-        &mut self,
-        i: usize,
-        p: &SMatrix<f64, N, N>,
-        lambda: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        self.set_variances(i, classic_variances_of(p, lambda, cfg, &forward.nav[i]));
+        let sigma = forward.sigma.get(i).copied().unwrap_or([f64::NAN; 15]);
+        self.sigma[i] = std::array::from_fn(|j| changed_sigma(sigma[j], change[j]));
+        if let (true, Some(out)) = (N == N_CALIBRATED, self.calibration_sigma.get_mut(i)) {
+            let sigma = forward.calibration_sigma.get(i).copied();
+            let sigma = sigma.unwrap_or([f64::NAN; 4]);
+            *out = std::array::from_fn(|k| changed_sigma(sigma[k], change[SCALE + k]));
+        }
     }
 
     /// Keep the smoothed covariance at a node's epoch (its 15-state block).
@@ -565,21 +537,4 @@ fn classic_rows<const N: usize>(
         vel += skew(&nav.vel) * att;
     }
     up
-}
-
-/// `(U P Uᵀ)_jj` from `up = U P` (see [`classic_rows`]).
-fn classic_variance<const N: usize>(
-    cfg: &FilterConfig,
-    nav: &NavState,
-    up: &SMatrix<f64, N, N>,
-    j: usize,
-) -> f64 {
-    let mut v = up[(j, j)];
-    if cfg.formulation == Formulation::Invariant && (VEL..VEL + 3).contains(&j) {
-        let s = skew(&nav.vel);
-        for k in 0..3 {
-            v += s[(j - VEL, k)] * up[(j, ATT + k)];
-        }
-    }
-    v
 }

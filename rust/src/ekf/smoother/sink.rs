@@ -1,8 +1,19 @@
-//! Where a backward pass puts what it finds ([`Sink`]), and σ from a smoothed
-//! covariance in the classic coordinates.
+//! Where a backward pass puts what it finds ([`Sink`]), and the change the smoother
+//! makes to each state's variance in the classic coordinates.
+//!
+//! The smoothed σ of an epoch is its forward σ with the change added: the smoothed
+//! variance minus the forward one, both read from their covariances by the same
+//! operations at the same velocity. Without a measurement ahead the two covariances
+//! are the same bits, the change is zero, and the smoothed σ is the forward σ exactly;
+//! since `Ps ≤ P` the change is never positive, whatever map to the classic coordinates
+//! reads them. Inside a covariance step the change is interpolated linearly in time
+//! between the two closes around the epoch (`docs/filter.md`, "With a covariance
+//! step"), so the smoothed σ stays below the forward one however the forward pass read
+//! its own σ there.
 
-use super::{classic_rows, classic_variance, Forward};
+use super::{classic_rows, Forward};
 use crate::attitude::skew;
+use crate::ekf::interval::variance_between;
 use crate::ekf::{FilterConfig, Formulation, ATT, VEL};
 use crate::mechanization::NavState;
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -16,15 +27,34 @@ pub trait Sink {
     /// Remove the smoothed error `ds` from the forward solution at epoch `i` (the
     /// filter's feedback, [`crate::ekf::correct`]).
     fn apply<const N: usize>(&mut self, i: usize, ds: &SVector<f64, N>, cfg: &FilterConfig);
-    /// σ at epoch `i` from the smoothed covariance `ps` (see `classic_variances`).
+    /// σ at epoch `i`: the forward σ there with each state's variance changed by
+    /// `change` (the smoothed variance minus the forward one, classic coordinates; the
+    /// calibration states' past the first 15).
+    fn set_change<const N: usize>(
+        &mut self,
+        i: usize,
+        change: &SVector<f64, N>,
+        forward: &Forward<'_>,
+    );
+    /// The smoothed covariance at a node's epoch.
+    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>);
+
+    /// σ at epoch `i` from the smoothed covariance `ps` and the forward one `p` there
+    /// (see [`change`]).
     fn set_sigma<const N: usize>(
         &mut self,
         i: usize,
-        ps: &SMatrix<f64, N, N>,
+        (ps, p): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
         cfg: &FilterConfig,
         forward: &Forward<'_>,
-    );
-    /// σ at epoch `i` of `Ps = P + P Λ P` (see `classic_variances_of`).
+    ) {
+        let vel = &forward.nav[i].vel;
+        self.set_change(i, &change(ps, p, cfg, vel), forward);
+    }
+
+    /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
+    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`): the change is `diag(U P Λ P Uᵀ)` (see
+    /// [`change_of`]).
     fn set_sigma_of<const N: usize>(
         &mut self,
         i: usize,
@@ -32,19 +62,22 @@ pub trait Sink {
         lambda: &SMatrix<f64, N, N>,
         cfg: &FilterConfig,
         forward: &Forward<'_>,
-    );
+    ) {
+        self.set_change(i, &change_of(p, lambda, cfg, &forward.nav[i]), forward);
+    }
+
     /// σ at epoch `i` inside a covariance step, a fraction `w` of the way in time from
-    /// the close before it (smoothed covariance `from`) to the one after (`to`): see
-    /// `between_variances`.
+    /// the close before it (the change `from` there, after its updates) to the one
+    /// after (`to`, before its updates): the change linear in time between the two.
     fn set_sigma_between<const N: usize>(
         &mut self,
         i: usize,
-        between: (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>, f64),
-        cfg: &FilterConfig,
+        (from, to, w): (&SVector<f64, N>, &SVector<f64, N>, f64),
         forward: &Forward<'_>,
-    );
-    /// The smoothed covariance at a node's epoch.
-    fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>);
+    ) {
+        let between = SVector::<f64, N>::from_fn(|j, _| variance_between(from[j], to[j], w));
+        self.set_change(i, &between, forward);
+    }
 }
 
 /// The variance of each state `j` (classic coordinates at the velocity `vel`) of the
@@ -73,37 +106,38 @@ pub(crate) fn classic_variances<'a, const N: usize>(
     }
 }
 
-/// The variance of each state (as [`classic_variances`]) of the covariance linear in
-/// time between two closes, a fraction `w` of the way from `from` to `to`, mapped at
-/// the velocity `vel` of the epoch between them: `(1 − w) (U P_from Uᵀ)_jj + w (U P_to
-/// Uᵀ)_jj` (`docs/filter.md`, "With a covariance step").
-pub(crate) fn between_variances<'a, const N: usize>(
-    (from, to, w): (&'a SMatrix<f64, N, N>, &'a SMatrix<f64, N, N>, f64),
+/// The change of each state's variance (classic coordinates at the velocity `vel`)
+/// from the forward covariance `p` to the smoothed one `ps` (both in the filter's
+/// coordinates): [`classic_variances`] of the two, subtracted. Zero, bit for bit, where
+/// they are the same bits.
+pub(crate) fn change<const N: usize>(
+    ps: &SMatrix<f64, N, N>,
+    p: &SMatrix<f64, N, N>,
     cfg: &FilterConfig,
     vel: &Vector3<f64>,
-) -> impl Fn(usize) -> f64 + 'a {
-    let (a, b) = (
-        classic_variances(from, cfg, vel),
-        classic_variances(to, cfg, vel),
+) -> SVector<f64, N> {
+    let (smoothed, filtered) = (
+        classic_variances(ps, cfg, vel),
+        classic_variances(p, cfg, vel),
     );
-    move |j| (1.0 - w) * a(j) + w * b(j)
+    SVector::<f64, N>::from_fn(|j, _| smoothed(j) - filtered(j))
 }
 
-/// The variance of each state (as [`classic_variances`]) of `Ps = P + P Λ P`, its
-/// diagonal alone: `diag(U P Uᵀ) + diag(U P Λ P Uᵀ)` with `U` the map to the classic
-/// coordinates at `nav`'s velocity.
-pub(crate) fn classic_variances_of<'a, const N: usize>(
+/// The change of each state's variance (as [`change`]) of `Ps = P + P Λ P` from `P`:
+/// `diag(U P Λ P Uᵀ)` with `U` the map to the classic coordinates at `nav`'s velocity.
+pub(crate) fn change_of<const N: usize>(
     p: &SMatrix<f64, N, N>,
     lambda: &SMatrix<f64, N, N>,
-    cfg: &'a FilterConfig,
-    nav: &'a NavState,
-) -> impl Fn(usize) -> f64 + 'a {
+    cfg: &FilterConfig,
+    nav: &NavState,
+) -> SVector<f64, N> {
     let up = classic_rows(cfg, nav, p);
     let upl = up * lambda;
-    move |j| classic_variance(cfg, nav, &up, j) + upl.row(j).dot(&up.row(j))
+    SVector::<f64, N>::from_fn(|j, _| upl.row(j).dot(&up.row(j)))
 }
 
-/// The 15 σ from each state's variance (a negative one read as zero).
-pub(crate) fn sigma15(variance: &impl Fn(usize) -> f64) -> [f64; 15] {
-    std::array::from_fn(|j| variance(j).max(0.0).sqrt())
+/// A forward σ with its variance changed by `change` (a negative variance read as
+/// zero): `√(σ² + change)`, `σ` itself where the change is zero.
+pub(crate) fn changed_sigma(sigma: f64, change: f64) -> f64 {
+    (sigma * sigma + change).max(0.0).sqrt()
 }

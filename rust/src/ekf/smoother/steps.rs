@@ -22,32 +22,38 @@
 //! the smoothed ones at `c` and at `d` (the smoothed covariance is the same before and
 //! after `d`'s updates), as the forward σ is interpolated.
 
+use super::sink::change;
 use super::{full_p, lift, restart, Covariances, Forward, Node, Sink, STEPS_PER_CHECK};
 use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
 use crate::ekf::{Ekf, FilterConfig, KeptCloses};
 use crate::error::{Error, Result};
 use crate::mechanization::ImuSample;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The navigation rows of a step's Φ (9 × 15; its other rows are the identity's).
 type NavRows = SMatrix<f64, 9, 15>;
 
 /// A close of the covariance step, rebuilt: its epoch, the navigation rows of the
-/// step's Φ and the covariance it left (before the epoch's updates), over `N` states.
+/// step's Φ and the covariance it left (before the epoch's updates), over `N` states,
+/// and the forward velocity \[m/s, NED\] at its epoch (after the updates there) that
+/// σ is read at.
 pub(in crate::ekf) struct Close<const N: usize> {
     pub(in crate::ekf) epoch: usize,
     pub(in crate::ekf) phi: NavRows,
     pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
+    pub(in crate::ekf) vel: Vector3<f64>,
 }
 
 impl<const N: usize> Close<N> {
-    /// The close `ekf` just made at `epoch` with the transition `phi`.
-    pub(super) fn of(ekf: &Ekf, epoch: usize, phi: &Transition) -> Self {
+    /// The close `ekf` just made at `epoch` with the transition `phi`, the forward
+    /// velocity there `vel`.
+    pub(super) fn of(ekf: &Ekf, epoch: usize, phi: &Transition, vel: Vector3<f64>) -> Self {
         Self {
             epoch,
             phi: phi.nav_rows(),
             p_prior: full_p::<N>(ekf),
+            vel,
         }
     }
 }
@@ -81,7 +87,7 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
         let (a, b) = (&pair[0], &pair[1]);
         cancel.check()?;
         let closes = match kept {
-            Some(kept) => kept_between::<N>(kept, a, b),
+            Some(kept) => kept_between::<N>(forward, kept, a, b),
             None => rebuild::<N>(forward, cfg, a, b, cancel)?,
         };
         for (k, close) in closes.iter().enumerate().rev() {
@@ -92,15 +98,22 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
             // before and the next one (σ there is interpolated between the two).
             let end = later.as_ref().map_or(close.epoch + 1, |l| l.epoch);
             let since = previous_close(&closes, k, a);
-            let read = at_node || since.is_none_or(|s| (s + 1..end).any(wanted));
-            let ps = read.then(|| symmetric(&(p + p * lambda * p)));
+            let (before, after) = (
+                since.is_none_or(|s| (s + 1..close.epoch).any(wanted)),
+                (close.epoch..end).any(wanted),
+            );
+            let ps = (at_node || before || after).then(|| symmetric(&(p + p * lambda * p)));
+            let changes = ps
+                .as_ref()
+                .map(|ps| Changes::at(close, (ps, &p), cfg, at_node));
+            let near = changes.as_ref().filter(|_| after).map(|c| &c.after);
             fill(
                 out,
                 forward,
                 cfg,
                 close.epoch,
                 &ds,
-                ps.as_ref(),
+                near,
                 later.as_ref(),
                 &wanted,
             );
@@ -120,25 +133,55 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
             later = Some(Later {
                 epoch: close.epoch,
                 ds_prior,
-                ps,
+                change: changes.filter(|_| before).map(|c| c.before),
             });
         }
     }
     // The first epoch: the prior, a close of its own.
     let p = nodes[0].p::<N>();
     let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
+    let near = change(&ps, &p, cfg, &forward.nav[0].vel);
     fill(
         out,
         forward,
         cfg,
         0,
         &ds,
-        Some(&ps),
+        Some(&near),
         later.as_ref(),
         &wanted,
     );
     out.keep_node(0, &ps);
     Ok(())
+}
+
+/// The change the smoother makes to each state's variance at a close (see
+/// [`super::sink`]), at the forward velocity there: `after` its updates (from the
+/// forward covariance after them, the near end of the step after the close) and
+/// `before` them (from the covariance the close left, the far end of the step before
+/// it; the smoothed covariance is the same before and after the updates).
+pub(super) struct Changes<const N: usize> {
+    pub(super) after: SVector<f64, N>,
+    pub(super) before: SVector<f64, N>,
+}
+
+impl<const N: usize> Changes<N> {
+    /// At `close`, from the smoothed covariance `ps` and the forward one after the
+    /// updates `p` (`at_node`: the close has updates, or a noise change, after it).
+    pub(super) fn at(
+        close: &Close<N>,
+        (ps, p): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
+        cfg: &FilterConfig,
+        at_node: bool,
+    ) -> Self {
+        let after = change(ps, p, cfg, &close.vel);
+        let before = if at_node {
+            change(ps, &close.p_prior, cfg, &close.vel)
+        } else {
+            after
+        };
+        Self { after, before }
+    }
 }
 
 /// `μ = (P⁻)⁻¹ δs⁻` and `Λ = (P⁻)⁻¹ (Ps − P⁻) (P⁻)⁻¹` at an update, by Cholesky
@@ -295,38 +338,40 @@ pub(super) fn congruence<const N: usize>(
 }
 
 /// A close already smoothed, seen from the one before it: its epoch, the smoothed error
-/// before its updates `δs⁻` and its smoothed covariance (where it was computed).
+/// before its updates `δs⁻` and the change the smoother makes to the variances there
+/// before them ([`Changes::before`], where σ is wanted in the step before it).
 pub(super) struct Later<const N: usize> {
     pub(super) epoch: usize,
     pub(super) ds_prior: SVector<f64, N>,
-    pub(super) ps: Option<SMatrix<f64, N, N>>,
+    pub(super) change: Option<SVector<f64, N>>,
 }
 
 impl<const N: usize> Later<N> {
     /// Write the smoothed solution at the row `row` of `at` (its forward solution), an
     /// epoch a fraction `w` of the way in time from the close before (its smoothed
-    /// error `ds` and covariance `ps` after its updates; `ps` None where σ is not
-    /// wanted) to this close: the error linear in time from `ds` to this close's `δs⁻`,
-    /// the covariance linear in time from `ps` to this close's. The smoothed covariance
-    /// given all the data is the same before and after an epoch's updates (they move
-    /// the forward estimate by a known amount, not what the smoother knows), so this
-    /// close's is its covariance before them too (`docs/filter.md`, "With a covariance
-    /// step").
+    /// error `ds`, and the change `near` to the variances after its updates, None where
+    /// σ is not wanted) to this close: the error linear in time from `ds` to this
+    /// close's `δs⁻`, the change to the variances linear in time from `near` to this
+    /// close's before its updates, added to the forward variances at the epoch. The
+    /// smoothed covariance given all the data is the same before and after an epoch's
+    /// updates (they move the forward estimate by a known amount, not what the
+    /// smoother knows); the forward pass interpolates its own variances between the
+    /// same two ends (`docs/filter.md`, "With a covariance step").
     pub(super) fn write_between(
         &self,
         out: &mut impl Sink,
         (row, at): (usize, &Forward<'_>),
         w: f64,
-        (ds, ps): (&SVector<f64, N>, Option<&SMatrix<f64, N, N>>),
+        (ds, near): (&SVector<f64, N>, Option<&SVector<f64, N>>),
         cfg: &FilterConfig,
     ) {
-        if let Some(ps) = ps {
+        if let Some(near) = near {
             debug_assert!(
-                self.ps.is_some(),
+                self.change.is_some(),
                 "σ wanted between closes, none at the far one"
             );
-            let to = self.ps.as_ref().unwrap_or(ps);
-            out.set_sigma_between(row, (ps, to, w), cfg, at);
+            let far = self.change.as_ref().unwrap_or(near);
+            out.set_sigma_between(row, (near, far, w), at);
         }
         out.apply(row, &(ds * (1.0 - w) + self.ds_prior * w), cfg);
     }
@@ -348,9 +393,9 @@ pub(super) fn previous_close<const N: usize>(
 }
 
 /// Apply the smoothed error `ds` at the close `epoch` and interpolate it up to the
-/// next close `later`; σ from `ps` (given where it was computed) at the close and,
-/// the covariance interpolated towards the next close's ([`Later::write_between`]), at
-/// the wanted epochs before the next close.
+/// next close `later`; σ, at the wanted epochs, from the change `near` to the
+/// variances after the close's updates (given where it was computed): at the close,
+/// and interpolated towards the next close's ([`Later::write_between`]) before it.
 #[allow(clippy::too_many_arguments)]
 fn fill<const N: usize>(
     out: &mut impl Sink,
@@ -358,22 +403,22 @@ fn fill<const N: usize>(
     cfg: &FilterConfig,
     epoch: usize,
     ds: &SVector<f64, N>,
-    ps: Option<&SMatrix<f64, N, N>>,
+    near: Option<&SVector<f64, N>>,
     later: Option<&Later<N>>,
     wanted: &dyn Fn(usize) -> bool,
 ) {
     let end = later.map_or(epoch + 1, |l| l.epoch);
     let t_close = forward.time(epoch);
     for i in epoch..end {
-        let ps = ps.filter(|_| wanted(i));
+        let near = near.filter(|_| wanted(i));
         match later {
             Some(l) if i > epoch => {
                 let w = (forward.time(i) - t_close) / (forward.time(l.epoch) - t_close);
-                l.write_between(out, (i, forward), w, (ds, ps), cfg);
+                l.write_between(out, (i, forward), w, (ds, near), cfg);
             }
             _ => {
-                if let Some(ps) = ps {
-                    out.set_sigma(i, ps, cfg, forward);
+                if let Some(near) = near {
+                    out.set_change(i, near, forward);
                 }
                 out.apply(i, ds, cfg);
             }
@@ -383,16 +428,23 @@ fn fill<const N: usize>(
 
 /// The closes in `(a, b]` of the covariance step that the forward pass kept (see
 /// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them.
-fn kept_between<const N: usize>(kept: &KeptCloses, a: &Node, b: &Node) -> Vec<Close<N>> {
+fn kept_between<const N: usize>(
+    forward: &Forward<'_>,
+    kept: &KeptCloses,
+    a: &Node,
+    b: &Node,
+) -> Vec<Close<N>> {
     let lo = kept.epochs.partition_point(|e| *e <= a.epoch);
     let hi = kept.epochs.partition_point(|e| *e <= b.epoch).max(lo);
     (lo..hi)
         .map(|k| {
             let c = &kept.closes[k];
+            let epoch = kept.epochs[k];
             Close {
-                epoch: kept.epochs[k],
+                epoch,
                 phi: c.phi,
                 p_prior: lift(&c.p(), c.calibration.as_deref().map(|(x, v)| (x, v))),
+                vel: forward.nav[epoch].vel,
             }
         })
         .collect()
@@ -411,8 +463,9 @@ pub(in crate::ekf) fn rebuild<const N: usize>(
     let mut ekf = restart(forward, cfg, a)?;
     let noise = a.noise.as_process_noise();
     let mut closes = Vec::new();
-    let mut push =
-        |ekf: &Ekf, epoch: usize, phi: Transition| closes.push(Close::of(ekf, epoch, &phi));
+    let mut push = |ekf: &Ekf, epoch: usize, phi: Transition| {
+        closes.push(Close::of(ekf, epoch, &phi, forward.nav[epoch].vel));
+    };
     for epoch in a.epoch..b.epoch {
         if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
             cancel.check()?;

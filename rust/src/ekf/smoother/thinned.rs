@@ -17,7 +17,8 @@
 //! empty).
 
 use super::every::{self, transposed_step};
-use super::steps::{self, symmetric, transposed, Close, Later};
+use super::sink::change;
+use super::steps::{self, symmetric, transposed, Changes, Close, Later};
 use super::{full_p, restart, restart_at, Forward, Node, Nodes, Sink, Smoothed};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
@@ -63,6 +64,10 @@ pub struct Thinned<'a> {
     /// With the DVL calibration states, their estimate at each kept epoch (empty
     /// without).
     pub calibration: &'a [[f64; 4]],
+    /// The forward σ at each kept epoch, and the calibration states' (empty without),
+    /// as [`Forward::sigma`].
+    pub sigma: &'a [[f64; 15]],
+    pub calibration_sigma: &'a [[f64; 4]],
 }
 
 impl Thinned<'_> {
@@ -96,6 +101,8 @@ impl Thinned<'_> {
             nav: self.nav,
             bias: self.bias,
             calibration: self.calibration,
+            sigma: self.sigma,
+            calibration_sigma: self.calibration_sigma,
             dt: None,
         }
     }
@@ -148,6 +155,8 @@ impl Stretch {
             nav: &self.nav,
             bias: &src.states.bias[j..=j],
             calibration: &[],
+            sigma: &[],
+            calibration_sigma: &[],
             dt: None,
         };
         let mut start = a.clone();
@@ -199,7 +208,7 @@ fn smooth_every<const N: usize>(
     let last = &nodes[nodes.len() - 1];
     let mut ds = SVector::<f64, N>::zeros();
     let mut ps = last.p::<N>();
-    out.set_sigma(src.epochs.len() - 1, &ps, cfg, &kept);
+    out.set_sigma(src.epochs.len() - 1, (&ps, &ps), cfg, &kept);
     let mut stretch = Stretch::default();
     for (j, pair) in nodes.windows(2).enumerate().rev() {
         let (a, b) = (&pair[0], &pair[1]);
@@ -240,7 +249,7 @@ fn smooth_every<const N: usize>(
                 ps = (psi + psi.transpose()) * 0.5;
                 ds = dsi;
                 if let Some(r) = kept_row {
-                    out.set_sigma(r, &ps, cfg, &kept);
+                    out.set_sigma(r, (&ps, p), cfg, &kept);
                 }
             } else if let Some(r) = kept_row {
                 out.set_sigma_of(r, p, &lambda, cfg, &kept);
@@ -325,9 +334,16 @@ fn smooth_steps<const N: usize>(
             // before and the next one (σ there is interpolated between the two).
             let until = later.as_ref().map_or(epoch + 1, |l| l.epoch);
             let since = steps::previous_close(&closes, k, a);
-            let read = at_node || since.is_none_or(|s| !src.kept_in(s + 1..until).is_empty());
-            let ps = read.then(|| symmetric(&(p + p * lambda * p)));
-            fill(&mut out, src, cfg, epoch, &ds, ps.as_ref(), later.as_ref());
+            let (before, after) = (
+                since.is_none_or(|s| !src.kept_in(s + 1..epoch).is_empty()),
+                !src.kept_in(epoch..until).is_empty(),
+            );
+            let ps = (at_node || before || after).then(|| symmetric(&(p + p * lambda * p)));
+            let changes = ps
+                .as_ref()
+                .map(|ps| Changes::at(close, (ps, &p), cfg, at_node));
+            let near = changes.as_ref().filter(|_| after).map(|c| &c.after);
+            fill(&mut out, src, cfg, epoch, &ds, near, later.as_ref());
             let mut ds_prior = ds;
             if let (true, Some(ps)) = (at_node, ps.as_ref()) {
                 ds_prior += b.dx::<N>();
@@ -344,13 +360,14 @@ fn smooth_steps<const N: usize>(
             later = Some(Later {
                 epoch,
                 ds_prior,
-                ps,
+                change: changes.filter(|_| before).map(|c| c.before),
             });
         }
     }
     let p = nodes[0].p::<N>();
     let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
-    fill(&mut out, src, cfg, 0, &ds, Some(&ps), later.as_ref());
+    let near = change(&ps, &p, cfg, &src.states.nav[0].vel);
+    fill(&mut out, src, cfg, 0, &ds, Some(&near), later.as_ref());
     Ok(out)
 }
 
@@ -373,17 +390,15 @@ pub(in crate::ekf) fn rebuild_closes<const N: usize>(
     let mut ekf = restart_at(nav, &src.states.bias[j], cfg, a)?;
     let (accel_bias, gyro_bias) = (ekf.accel_bias, ekf.gyro_bias);
     let noise = a.noise.as_process_noise();
+    // The forward solution at b, after its updates.
+    let at_b = src.states.nav[j + 1].vel;
     for i in a.epoch..b.epoch {
         if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
             cancel.check()?;
         }
         let raw = ImuSample::from_array(&src.imu[i]);
         let dt = src.imu_time[i] - src.time(i);
-        if ekf.add_to_step(&nav, &raw, dt, noise) {
-            if let Some(phi) = ekf.close_interval() {
-                closes.push(Close::of(&ekf, i + 1, &phi));
-            }
-        }
+        let due = ekf.add_to_step(&nav, &raw, dt, noise);
         if i + 1 < b.epoch {
             let imu = ImuSample {
                 accel: raw.accel - accel_bias,
@@ -391,25 +406,32 @@ pub(in crate::ekf) fn rebuild_closes<const N: usize>(
             };
             nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
         }
+        if due {
+            if let Some(phi) = ekf.close_interval() {
+                let vel = if i + 1 < b.epoch { nav.vel } else { at_b };
+                closes.push(Close::of(&ekf, i + 1, &phi, vel));
+            }
+        }
     }
     if b.interval.is_none() {
         if let Some(phi) = ekf.close_interval() {
-            closes.push(Close::of(&ekf, b.epoch, &phi));
+            closes.push(Close::of(&ekf, b.epoch, &phi, at_b));
         }
     }
     Ok(())
 }
 
 /// [`super::steps`]'s `fill` at the kept epochs: the smoothed error `ds` at the close
-/// `epoch`, interpolated up to the next close `later`, and σ from `ps` where given (the
-/// covariance interpolated towards the next close's).
+/// `epoch`, interpolated up to the next close `later`, and σ from the change `near` to
+/// the variances after the close's updates where given (interpolated towards the next
+/// close's).
 fn fill<const N: usize>(
     out: &mut Smoothed,
     src: &Thinned<'_>,
     cfg: &FilterConfig,
     epoch: usize,
     ds: &SVector<f64, N>,
-    ps: Option<&SMatrix<f64, N, N>>,
+    near: Option<&SVector<f64, N>>,
     later: Option<&Later<N>>,
 ) {
     let until = later.map_or(epoch + 1, |l| l.epoch);
@@ -420,11 +442,11 @@ fn fill<const N: usize>(
         match later {
             Some(l) if i > epoch => {
                 let w = (src.time(i) - t_close) / (src.time(l.epoch) - t_close);
-                l.write_between(out, (row, &kept), w, (ds, ps), cfg);
+                l.write_between(out, (row, &kept), w, (ds, near), cfg);
             }
             _ => {
-                if let Some(ps) = ps {
-                    out.set_sigma(row, ps, cfg, &kept);
+                if let Some(near) = near {
+                    out.set_change(row, near, &kept);
                 }
                 out.apply(row, ds, cfg);
             }
