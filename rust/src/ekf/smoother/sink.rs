@@ -40,7 +40,7 @@ pub trait Sink {
     fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>);
 
     /// σ at epoch `i` from the smoothed covariance `ps` and the forward one `p` there
-    /// (see [`change`]).
+    /// (see `change`).
     fn set_sigma<const N: usize>(
         &mut self,
         i: usize,
@@ -54,7 +54,7 @@ pub trait Sink {
 
     /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
     /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`): the change is `diag(U P Λ P Uᵀ)` (see
-    /// [`change_of`]).
+    /// `change_of`).
     fn set_sigma_of<const N: usize>(
         &mut self,
         i: usize,
