@@ -132,6 +132,14 @@ def edit_line(path: Path, index: int, edit) -> None:
             "unit [ft]",
         ),
         ("imu", lambda p: edit_line(p, 9, lambda s: s + ",1.0"), "row 9: has 8 fields"),
+        (  # in the file's unit: 95 deg, not 1.658 rad
+            "gt",
+            lambda p: (
+                edit_line(p, 0, lambda s: s.replace("lat [rad]", "lat [deg]")),
+                edit_line(p, 4, lambda s: ",".join([s.split(",")[0], "95", *s.split(",")[2:]])),
+            ),
+            "row 4: 'lat [deg]' is 95, beyond -90 … 90 deg (a latitude)",
+        ),
         (
             "dvl",
             lambda p: p.write_text(p.read_text().splitlines()[0] + "\n"),
@@ -147,6 +155,7 @@ def edit_line(path: Path, index: int, edit) -> None:
         "not-a-number",
         "unknown-unit",
         "ragged-row",
+        "latitude-beyond",
         "header-only",
     ],
 )

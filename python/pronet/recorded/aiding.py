@@ -60,16 +60,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet.recorded.plausible import Table, parse_header
+from pronet.recorded.plausible import ANGLE_UNITS, Table, angle_beyond, parse_header
 
 F64 = NDArray[np.float64]
 
-_ANGLE = {"rad": 1.0, "deg": np.pi / 180}
 _METRE = {"m": 1.0}
 #: Required columns of the aiding tables: name → accepted units and their SI factor.
 COLUMNS: dict[str, dict[str, dict[str, float]]] = {
     "depth": {"time": {"s": 1.0}, "depth": _METRE},
-    "fix": {"time": {"s": 1.0}, "lat": _ANGLE, "lon": _ANGLE},
+    "fix": {"time": {"s": 1.0}, "lat": ANGLE_UNITS, "lon": ANGLE_UNITS},
 }
 #: Optional columns of the aiding tables.
 OPTIONAL: dict[str, dict[str, dict[str, float]]] = {
@@ -171,26 +170,6 @@ def _check_sigma(table: Table, names: list[str], wanted: list[str]) -> None:
             )
 
 
-def _check_angle(table: Table, j: int, lo: float, hi: float, why: str) -> None:
-    """Column ``j`` of ``table`` (an angle, SI values) within ``[lo, hi]`` [°] (a NaN: a
-    missing value), else ValueError naming the file, row and column, with the value and
-    the range in the column's unit and ``why``."""
-    v = table.values[:, j]
-    bad = (v < np.radians(lo)) | (v > np.radians(hi))
-    if not bad.any():
-        return
-    r = int(np.argmax(bad))
-    unit = parse_header(table.labels[j])[1]
-    if unit == "deg":
-        bounds = f"{lo:g} … {hi:g} deg ({why})"
-    else:
-        bounds = f"{np.radians(lo):.6g} … {np.radians(hi):.6g} rad ({lo:g}° … {hi:g}°: {why})"
-    raise ValueError(
-        f"{table.where}, row {r + 1}: {table.labels[j]!r} is {v[r] / _ANGLE[unit]:.10g}, "
-        f"beyond {bounds}"
-    )
-
-
 def unknown_sigma(where: str, kind: str, names: list[str], header: list[str]) -> str | None:
     """A column of the ``depth`` or ``fix`` table (``names``: the parsed names of its
     ``header``) whose name starts with ``sigma`` but is none of the σ columns: a σ that
@@ -248,10 +227,14 @@ def position_fixes(table: Table, names: list[str]) -> PositionFixes:
     lat, lon = table.values[:, 1], table.values[:, 2]
     height = _column(table, names, "height")
     h = np.full(len(t), np.nan) if height is None else height
-    limit = _core.MAX_LATITUDE_DEG
-    _check_angle(table, 1, -limit, limit, "the filter's latitudes: NED is singular at the poles")
-    lo, hi = _core.LONGITUDE_RANGE_DEG
-    _check_angle(table, 2, lo, hi, "a longitude in the ±180° or the 0–360° convention")
+    limit, (lo, hi) = _core.MAX_LATITUDE_DEG, _core.LONGITUDE_RANGE_DEG
+    poles = "the filter's latitudes: NED is singular at the poles"
+    for beyond in (
+        angle_beyond(table, 1, -limit, limit, poles),
+        angle_beyond(table, 2, lo, hi, "a longitude in the ±180° or the 0–360° convention"),
+    ):
+        if beyond is not None:
+            raise ValueError(beyond)
     missing = np.isnan(lat) | np.isnan(lon)
     sigma: F64 | None = None
     if given:

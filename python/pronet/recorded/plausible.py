@@ -71,6 +71,28 @@ class Table(NamedTuple):
     labels: list[str]
 
 
+#: The units an angle column may be given in, and their factor to radians.
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180}
+
+
+def angle_beyond(table: Table, j: int, lo: float, hi: float, why: str) -> str | None:
+    """Column ``j`` of ``table`` (an angle, its values in radians) outside ``[lo, hi]``
+    [°] (a NaN, a missing value, is not): one line naming the file, row and column,
+    with the value and the range in the column's unit and ``why``; None if within."""
+    v = table.values[:, j]
+    bad = (v < np.radians(lo)) | (v > np.radians(hi))
+    if not bad.any():
+        return None
+    r = int(np.argmax(bad))
+    unit = parse_header(table.labels[j])[1]
+    if unit == "deg":
+        bounds = f"{lo:g} … {hi:g} deg ({why})"
+    else:
+        bounds = f"{np.radians(lo):.6g} … {np.radians(hi):.6g} rad ({lo:g}° … {hi:g}°: {why})"
+    value = v[r] / ANGLE_UNITS[unit]
+    return f"{table.where}, row {r + 1}: {table.labels[j]!r} is {value:.10g}, beyond {bounds}"
+
+
 def parse_header(cell: str) -> tuple[str, str]:
     """A column header ``name [unit]`` as its lower-case name and its unit."""
     name, _, unit = cell.strip().partition("[")

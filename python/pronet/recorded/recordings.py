@@ -84,7 +84,6 @@ class RecordingError(ValueError):
 
 
 #: Required columns of each table: name → accepted units and their factor to SI.
-_ANGLE = {"rad": 1.0, "deg": np.pi / 180}
 _RATE = {"rad/s": 1.0, "deg/s": np.pi / 180}
 COLUMNS: dict[str, dict[str, dict[str, float]]] = {
     "imu": {
@@ -95,11 +94,11 @@ COLUMNS: dict[str, dict[str, dict[str, float]]] = {
     "dvl": {"time": {"s": 1.0}, **{f"vel_{a}": {"m/s": 1.0} for a in "xyz"}},
     "gt": {
         "time": {"s": 1.0},
-        "lat": _ANGLE,
-        "lon": _ANGLE,
+        "lat": plausible.ANGLE_UNITS,
+        "lon": plausible.ANGLE_UNITS,
         "height": {"m": 1.0},
         **{f"vel_{a}": {"m/s": 1.0} for a in "ned"},
-        **{a: _ANGLE for a in ("roll", "pitch", "yaw")},
+        **{a: plausible.ANGLE_UNITS for a in ("roll", "pitch", "yaw")},
     },
 }
 
@@ -550,10 +549,8 @@ def _skipped_dvl(dvl: F64, gt: F64, source: str) -> tuple[F64, NDArray[np.str_]]
 def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
     imu, gt = tables["imu"].values, tables["gt"].values
     raw_dvl = tables["dvl"].values if "dvl" in tables else np.empty((0, 4))
-    lat = gt[:, 1]
-    if (np.abs(lat) > np.pi / 2).any():
-        r = int(np.argmax(np.abs(lat) > np.pi / 2)) + 1
-        raise RecordingError(f"{source} gt, row {r}: latitude {lat[r - 1]} rad is outside ±π/2")
+    if (beyond := plausible.angle_beyond(tables["gt"], 1, -90.0, 90.0, "a latitude")) is not None:
+        raise RecordingError(beyond)
     for kind in (k for k in tables if k != "imu"):
         if (apart := plausible.disjoint_streams(tables["imu"], tables[kind], kind)) is not None:
             raise RecordingError(apart)
