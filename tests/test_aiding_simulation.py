@@ -177,7 +177,7 @@ def test_scenario_files_take_the_aiding_keys(tmp_path) -> None:
         # a source that takes no fix on the trajectory (paper's: 330 s, 5 m deep or more)
         ("[[sensors.fixes]]\nsigma = [2, 2]\nperiod = 1\nmax_depth = 0.5\n",
          "[sensors] fixes[0].max_depth: no scheduled fix comes at a true depth of at most "
-         "0.5 m (the trajectory is never shallower than 5.000 m)"),
+         "0.5 m (at the scheduled epochs the trajectory is never shallower than 5.000 m)"),
         ("[[sensors.fixes]]\nsigma = [2, 2]\nperiod = 60\n[[sensors.fixes]]\nsigma = [2, 2]\n"
          "times = [400.0]\n", "[sensors] fixes[1]: schedules no fix inside the trajectory's 330 s"),
         ('base = "mission"\n[trajectory]\nsegments = [[30, 0, 0, 0]]\n',

@@ -166,8 +166,10 @@ pub fn check_latitude(arg: &str, lat: f64) -> Result<()> {
 /// (−π, π]), so any value within is a place; one beyond is a unit or column slip.
 pub const LONGITUDE_RANGE_DEG: (f64, f64) = (-180.0, 360.0);
 
-/// The longitude rule of every entry point taking positions: `lon` \[rad\] within
-/// [`LONGITUDE_RANGE_DEG`], else an error naming `arg`.
+/// The longitude rule of the position fixes (their rows in `run_filter`, and the
+/// recordings' fix tables, which apply it in the file's unit): `lon` \[rad\] within
+/// [`LONGITUDE_RANGE_DEG`], else an error naming `arg`. An initial position's
+/// longitude (`lla0`) is not held to it.
 pub fn check_longitude(arg: &str, lon: f64) -> Result<()> {
     let (lo, hi) = LONGITUDE_RANGE_DEG;
     if !(lo.to_radians()..=hi.to_radians()).contains(&lon) {

@@ -233,6 +233,9 @@ def test_cli_errors_name_the_option(tmp_path, capsys):
     assert not (tmp_path / "m").exists()
     with pytest.raises(ValueError, match="n: 3000 simulated recordings"):
         simulated_sections(3000)
+    for duration in (math.nan, math.inf, 1.0):  # named, before the memory estimate
+        with pytest.raises(ValueError, match=r"^duration: must be within \[2, 330\] s"):
+            simulated_sections(2, duration=duration)
 
 
 def test_the_memory_limit_counts_what_a_simulated_recording_holds():

@@ -392,11 +392,13 @@ def test_the_dvl_clock_is_refused_for_a_recording_without_a_dvl(tmp_path, aided_
     DVL's), once per section prefix, before any filter runs."""
     no_dvl = replace(aided_80s, dvl=np.empty((0, 3)), dvl_time=np.empty(0))
     folder = write_recording(tmp_path / "data" / "sec", no_dvl)
-    with pytest.raises(ValueError, match=r"^--aiding-clock dvl: .*sec has no DVL reading"):
+    with pytest.raises(
+        ValueError, match=r"^aiding_clock 'dvl' \(--aiding-clock dvl\): .*sec has no DVL"
+    ):
         load_section(folder, "generic", **ARMS, aiding_clock="dvl")
     with pytest.raises(ValueError) as caught:
         _run(folder.parent, tmp_path / "out", aiding_clock="dvl")
-    assert str(caught.value).startswith("section sec: --aiding-clock dvl: ")
+    assert str(caught.value).startswith("section sec: aiding_clock 'dvl' (--aiding-clock dvl): ")
     assert not (tmp_path / "out").exists()
     on_gt, _ = load_section(folder, "generic", **ARMS, aiding_clock="gt")
     assert on_gt.fixes is not None

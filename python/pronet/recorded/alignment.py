@@ -437,8 +437,8 @@ def load_section(
         dvl_lever_arm = (0.0, 0.0, 0.0)  # never used: no DVL reading
     if aiding_clock == "dvl" and not len(rec.dvl):
         raise ValueError(
-            f"--aiding-clock dvl: {path} has no DVL reading, so no DVL clock to put its "
-            "depth and fixes on; use --aiding-clock imu or gt"
+            f"aiding_clock 'dvl' (--aiding-clock dvl): {path} has no DVL reading, so no "
+            "DVL clock to put its depth and fixes on; use 'imu' or 'gt'"
         )
     stamped = align(rec, Alignment(how="none"))
     if not handle_alignment:

@@ -178,32 +178,27 @@ impl FixModel {
     /// without the fixes it was configured for.
     pub fn check_fires(&self, j: usize, truth: &Truth) -> Result<()> {
         let mut schedule = Schedule::new(self, j, truth)?;
-        let mut scheduled = false;
+        // the shallowest true depth [m] at a scheduled epoch (None: none scheduled)
+        let mut shallowest: Option<f64> = None;
         for k in 1..=truth.len() {
             if schedule.scheduled(k) {
-                scheduled = true;
-                if self.max_depth.is_none_or(|d| -truth.states[k].lla[2] <= d) {
+                let depth = -truth.states[k].lla[2];
+                if self.max_depth.is_none_or(|d| depth <= d) {
                     return Ok(());
                 }
+                shallowest = Some(shallowest.map_or(depth, |s| s.min(depth)));
             }
         }
         let duration = truth.duration();
-        Err(match (scheduled, self.max_depth) {
-            (true, Some(d)) => {
-                let shallowest = truth
-                    .states
-                    .iter()
-                    .map(|s| -s.lla[2])
-                    .fold(f64::INFINITY, f64::min);
-                Error::invalid(
-                    format!("fixes[{j}].max_depth"),
-                    format!(
-                        "no scheduled fix comes at a true depth of at most {d} m (the \
-                         trajectory is never shallower than {shallowest:.3} m): the source \
-                         would take no fix"
-                    ),
-                )
-            }
+        Err(match (shallowest, self.max_depth) {
+            (Some(shallowest), Some(d)) => Error::invalid(
+                format!("fixes[{j}].max_depth"),
+                format!(
+                    "no scheduled fix comes at a true depth of at most {d} m (at the \
+                     scheduled epochs the trajectory is never shallower than \
+                     {shallowest:.3} m): the source would take no fix"
+                ),
+            ),
             _ => Error::invalid(
                 format!("fixes[{j}]"),
                 format!(
@@ -457,6 +452,20 @@ mod tests {
             surface.starts_with("fixes[1].max_depth: no scheduled fix comes at a true depth")
                 && surface.contains("never shallower than 5.000 m"),
             "{surface}"
+        );
+        // the depth it names is the shallowest at the scheduled epochs, not anywhere
+        let deepest = truth
+            .states
+            .iter()
+            .map(|s| -s.lla[2])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let at = (0..=truth.len())
+            .find(|&k| -truth.states[k].lla[2] == deepest)
+            .unwrap();
+        let once = err(fixes(0.0, vec![truth.time[at]], Some(deepest - 1.0)));
+        assert!(
+            once.contains(&format!("never shallower than {deepest:.3} m")),
+            "{once}"
         );
         assert!(err(fixes(0.015, vec![], None)).starts_with("fixes[1].period: must be a whole"));
     }

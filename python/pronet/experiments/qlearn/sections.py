@@ -121,8 +121,7 @@ def simulated_section(seed: int, duration: float | None = None) -> TrainingSecti
     trajectory = builtin_trajectory("paper")
     n = trajectory.n_samples
     if duration is not None:
-        if not 2.0 <= duration <= trajectory.duration:
-            raise ValueError(f"duration: must be within [2, {trajectory.duration:g}] s")
+        _check_duration(duration, trajectory)
         n = int(round(duration / trajectory.dt))
     span = n * trajectory.dt
     times, q, _ = regime_schedule(span, seed)
@@ -174,6 +173,12 @@ def simulated_sections(
     return [simulated_section(seed + i, duration) for i in range(n)]
 
 
+def _check_duration(duration: float, trajectory: _core.Trajectory) -> None:
+    """ValueError naming ``duration`` [s] unless it lies within [2 s, the trajectory's]."""
+    if not 2.0 <= duration <= trajectory.duration:  # NaN too
+        raise ValueError(f"duration: must be within [2, {trajectory.duration:g}] s")
+
+
 def check_simulated_memory(n: int, duration: float | None = None, name: str = "n") -> None:
     """Raises ValueError, naming the argument ``name``, when ``n`` simulated recordings
     of ``duration`` [s] (default the paper's 330 s) would hold more memory than
@@ -181,6 +186,8 @@ def check_simulated_memory(n: int, duration: float | None = None, name: str = "n
     from pronet.learn.dataset import MAX_DATASET_BYTES
 
     trajectory = builtin_trajectory("paper")
+    if duration is not None:
+        _check_duration(duration, trajectory)
     span = trajectory.duration if duration is None else duration
     each = int(span / trajectory.dt) * SIM_BYTES_PER_SAMPLE
     if n * each > MAX_DATASET_BYTES:
