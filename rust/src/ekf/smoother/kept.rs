@@ -5,17 +5,19 @@
 use crate::ekf::calibration::Cross;
 use crate::ekf::transition::Transition;
 use crate::ekf::{Ekf, Matrix15};
-use nalgebra::{Matrix4, SMatrix};
+use nalgebra::{Matrix4, SMatrix, Vector3};
 
 /// A close of the covariance step as the forward pass made it (see
-/// [`Ekf::keep_closes`]): the navigation rows of the step's Φ and the covariance it left
-/// (the calibration blocks too), before any update of its epoch. The covariance is
-/// symmetric bit for bit (every step writes it so), so its upper triangle alone is
+/// [`Ekf::keep_closes`]): the navigation rows of the step's Φ, the covariance it left
+/// (the calibration blocks too) and the forward velocity \[m/s, NED\] there, before any
+/// update of its epoch (the one the forward σ at the close is read at). The covariance
+/// is symmetric bit for bit (every step writes it so), so its upper triangle alone is
 /// kept: 2.0 kB a close instead of 2.9.
 #[derive(Clone, Debug)]
 pub struct KeptClose {
     pub(in crate::ekf) phi: SMatrix<f64, 9, 15>,
     upper: [f64; UPPER],
+    pub(in crate::ekf) vel: Vector3<f64>,
     pub(in crate::ekf) calibration: Option<Box<(Cross, Matrix4<f64>)>>,
 }
 
@@ -58,8 +60,8 @@ impl KeptCloses {
 
 /// Keeping the closes of the covariance step for the smoother.
 impl Ekf {
-    /// Keep every close of a covariance step from now on (its Φ and the covariance it
-    /// left, 2.0 kB; 2.6 kB with the calibration states) for
+    /// Keep every close of a covariance step from now on (its Φ, the covariance it left
+    /// and the velocity there, 2.0 kB; 2.6 kB with the calibration states) for
     /// [`Ekf::take_closes`]: the smoother then reads them instead of rebuilding them.
     pub fn keep_closes(&mut self) {
         self.kept_closes.get_or_insert_with(Vec::new);
@@ -97,6 +99,7 @@ impl Ekf {
         kept.push(KeptClose {
             phi: phi.nav_rows(),
             upper,
+            vel: self.nav.vel,
             calibration: self
                 .calibration
                 .as_ref()
