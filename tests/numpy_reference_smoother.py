@@ -26,8 +26,9 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     covariance step); between two closes the smoothed error of the forward solution is
     interpolated linearly in time, from the one after the earlier close's updates to the
     one before the later close's. So is the change the smoother makes to each classic
-    variance (smoothed minus forward, both at the close's forward velocity): from the
-    earlier close's after its updates to the later close's before them (the smoothed
+    variance (smoothed minus forward, both at the forward velocity the forward σ there
+    was read at): from the earlier close's after its updates (at the velocity after
+    them) to the later close's before them (at the velocity before them; the smoothed
     covariance is the same before and after an epoch's updates), added to the forward
     variance at the epoch (``forward["sigma"]``, itself interpolated so)."""
     invariant = formulation == "invariant"
@@ -44,7 +45,7 @@ def rts_smooth(forward: dict, log: list, formulation: str = "classic") -> dict:
     ps = log[-1][2]
     _fill(out, forward, log, (later, later + 1), (ds, ds), (ps, ps), time, invariant)
     for c in reversed(closes[:-1]):
-        phi, p_prior, _, dx = log[later]
+        phi, p_prior, _, dx, _ = log[later]
         p_post = log[c][2]
         ds_prior = ds + dx  # the error before the later close's updates
         gain = p_post @ phi.T @ np.linalg.inv(p_prior)
@@ -66,8 +67,9 @@ def _fill(out, forward, log, closes, errors, covariances, time, invariant) -> No
     vel = forward["vel"]
     near = _variances(ps, vel[c], invariant) - _variances(log[c][2], vel[c], invariant)
     far = near
-    if end < len(log):  # the forward covariance at end before its updates
-        far = _variances(ps_end, vel[end], invariant) - _variances(log[end][1], vel[end], invariant)
+    if end < len(log):  # the forward covariance and velocity at end before its updates
+        p_prior, v_prior = log[end][1], log[end][4]
+        far = _variances(ps_end, v_prior, invariant) - _variances(p_prior, v_prior, invariant)
     calibrated = len(ps) > 15
     for i in range(c, end):
         w = 0.0 if i == c else (time[i] - time[c]) / (time[end] - time[c])

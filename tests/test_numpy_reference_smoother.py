@@ -86,7 +86,12 @@ def test_smoothed_sigma_inside_a_step_follows_the_every_sample_smoother(
     closer to the every-sample smoother's σ on the same run than the σ of the close
     before, repeated (what the smoother reported before, exactly so in the classic
     formulation): over every state, in RMS of the relative gap at the epochs inside a
-    step, and for each state."""
+    step, and for each state. And at every epoch inside a step within 0.1 % of it (at
+    most 0.08 % here; the forward σ is within 0.09 % of the every-sample filter's): the
+    change at the far close, before its updates, is read at the velocity before them,
+    as the forward σ there was (in the invariant formulation the map to the classic
+    coordinates moves with the velocity: read after the updates, velocity north one
+    sample before a DVL update at a 0.2 s step was 0.54 % off)."""
     arm = (0.5, -0.2, 1.0)
     every, _, _, _ = _both("body", arm, formulation)
     rust, _, _, log = _both("body", arm, formulation, covariance_step=covariance_step)
@@ -97,6 +102,8 @@ def test_smoothed_sigma_inside_a_step_follows_the_every_sample_smoother(
     repeated = np.abs(rust.smoothed.sigma[before] / truth - 1)
     assert _rms(interpolated) < _rms(repeated), (_rms(interpolated), _rms(repeated))
     assert (_rms(interpolated, 0) <= _rms(repeated, 0)).all()
+    worst = np.unravel_index(np.argmax(interpolated), interpolated.shape)
+    assert interpolated.max() < 1e-3, (interpolated.max(), inside[worst[0]], worst[1])
 
 
 def _rms(gap: np.ndarray, axis: int | None = None) -> np.ndarray:

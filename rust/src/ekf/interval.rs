@@ -15,83 +15,14 @@
 //! Here too: the filter's methods that close a step or read P as if it were closed, and
 //! [`StaleSigma`], the σ a recorded pass reports at the epochs inside a step.
 
-use super::calibration::{Calibration, Cross};
+use super::calibration::Calibration;
 use super::dynamics::{ErrorDynamics, ImuNoise};
 use super::recorded::FilterOutput;
 use super::transition::Transition;
 use super::{formulation, ClosedSigma, Ekf, Matrix15, ACC_BIAS};
 use crate::mechanization::{FrameRates, ImuSample, NavState};
 use crate::noise::ProcessNoise;
-use nalgebra::{Matrix4, SMatrix, Vector3};
-
-/// A close of the covariance step as the forward pass made it (see
-/// [`Ekf::keep_closes`]): the navigation rows of the step's Φ and the covariance it left
-/// (the calibration blocks too), before any update of its epoch. The covariance is
-/// symmetric bit for bit (every step writes it so), so its upper triangle alone is kept:
-/// 2.0 kB a close instead of 2.9.
-#[derive(Clone, Debug)]
-pub struct KeptClose {
-    pub(super) phi: SMatrix<f64, 9, 15>,
-    upper: [f64; UPPER],
-    pub(super) calibration: Option<Box<(Cross, Matrix4<f64>)>>,
-}
-
-/// The entries of a 15 × 15 matrix's upper triangle, the diagonal included.
-const UPPER: usize = 15 * 16 / 2;
-
-impl KeptClose {
-    fn new(phi: SMatrix<f64, 9, 15>, p: &Matrix15, calibration: Option<&Calibration>) -> Self {
-        debug_assert_eq!(
-            *p,
-            p.transpose(),
-            "a kept covariance must be symmetric bit for bit"
-        );
-        let mut upper = [0.0; UPPER];
-        let mut k = 0;
-        for j in 0..15 {
-            let column = &p.as_slice()[15 * j..15 * j + j + 1];
-            upper[k..k + j + 1].copy_from_slice(column);
-            k += j + 1;
-        }
-        Self {
-            phi,
-            upper,
-            calibration: calibration.map(|c| Box::new((c.cross, c.cov))),
-        }
-    }
-
-    /// The covariance the close left (15 states).
-    pub(super) fn p(&self) -> Matrix15 {
-        let mut p = Matrix15::zeros();
-        let mut k = 0;
-        for j in 0..15 {
-            for i in 0..=j {
-                p[(i, j)] = self.upper[k];
-                p[(j, i)] = self.upper[k];
-                k += 1;
-            }
-        }
-        p
-    }
-}
-
-/// The closes of the covariance step a forward pass kept (see [`Ekf::keep_closes`]),
-/// in order, each with the epoch it was made at (the epoch whose step closed it).
-#[derive(Clone, Debug, Default)]
-pub struct KeptCloses {
-    pub(super) epochs: Vec<usize>,
-    pub(super) closes: Vec<KeptClose>,
-}
-
-impl KeptCloses {
-    /// None kept yet, with room for `capacity`.
-    pub fn with_capacity(capacity: usize) -> Self {
-        Self {
-            epochs: Vec::with_capacity(capacity),
-            closes: Vec::with_capacity(capacity),
-        }
-    }
-}
+use nalgebra::Vector3;
 
 /// A covariance step under way.
 #[derive(Clone, Debug)]
@@ -253,28 +184,10 @@ impl Ekf {
             let calibration = self.calibration.as_ref().map(Calibration::sigma);
             self.closed_sigma = Some((self.sigma(), calibration));
         }
-        if let (Some(kept), Some(phi)) = (self.kept_closes.as_mut(), phi.as_ref()) {
-            let close = KeptClose::new(phi.nav_rows(), &self.p, self.calibration.as_ref());
-            kept.push(close);
+        if let Some(phi) = phi.as_ref() {
+            self.note_close(phi);
         }
         phi
-    }
-
-    /// Keep every close of a covariance step from now on (its Φ and the covariance it
-    /// left, 2.0 kB; 2.6 kB with the calibration states) for [`Ekf::take_closes`]:
-    /// the smoother then reads them instead of rebuilding them.
-    pub fn keep_closes(&mut self) {
-        self.kept_closes.get_or_insert_with(Vec::new);
-    }
-
-    /// Move the closes kept since the last call to `out`, each with `epoch` (none
-    /// without [`Ekf::keep_closes`]). The filter's own list stays short (a copy of the
-    /// filter, to read its σ brought up to date, copies it).
-    pub fn take_closes(&mut self, epoch: usize, out: &mut KeptCloses) {
-        if let Some(kept) = self.kept_closes.as_mut() {
-            out.epochs.extend(std::iter::repeat_n(epoch, kept.len()));
-            out.closes.append(kept);
-        }
     }
 
     /// Whether to keep the σ at the closes of a covariance step from now on, for

@@ -47,11 +47,11 @@ pub use divergence::{NisMonitor, DIVERGENCE_MEAN_NIS};
 use dynamics::{add_imu_noise, ErrorDynamics};
 pub use formulation::Formulation;
 use interval::Interval;
-pub use interval::{KeptClose, KeptCloses};
 pub use recorded::{
     filter_recorded, filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput,
     RecordedData,
 };
+pub use smoother::{KeptClose, KeptCloses};
 use transition::Transition;
 
 /// Result of one DVL update.

@@ -32,7 +32,7 @@
 
 use super::calibration::{correct_mounting, Cross, DvlMounting, N_CALIBRATED, SCALE};
 use super::interval::Interval as CovarianceStep;
-use super::{correct, Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15, ATT, VEL};
+use super::{correct, Ekf, FilterConfig, Formulation, Matrix15, Vector15, ATT, VEL};
 use crate::attitude::skew;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::error::{Error, Result};
@@ -41,12 +41,14 @@ use crate::noise::ProcessNoise;
 use nalgebra::{Matrix4, SMatrix, SVector, Vector3};
 
 mod every;
+mod kept;
 mod sink;
 pub(super) mod steps;
 pub mod thinned;
 
 #[cfg(test)]
 pub(crate) use every::Interval;
+pub use kept::{KeptClose, KeptCloses};
 pub(crate) use sink::changed_sigma;
 pub use sink::Sink;
 

@@ -28,7 +28,7 @@ use crate::cancel::Cancel;
 use crate::ekf::transition::Transition;
 use crate::ekf::{Ekf, FilterConfig, KeptCloses};
 use crate::error::{Error, Result};
-use crate::mechanization::ImuSample;
+use crate::mechanization::{step_with_rates, FrameRates, ImuSample};
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The navigation rows of a step's Φ (9 × 15; its other rows are the identity's).
@@ -36,23 +36,31 @@ type NavRows = SMatrix<f64, 9, 15>;
 
 /// A close of the covariance step, rebuilt: its epoch, the navigation rows of the
 /// step's Φ and the covariance it left (before the epoch's updates), over `N` states,
-/// and the forward velocity \[m/s, NED\] at its epoch (after the updates there) that
-/// σ is read at.
+/// and the forward velocity \[m/s, NED\] at its epoch before the updates there and
+/// after them: σ is read at the one the forward σ was (the covariance the close left
+/// before the updates, the one after them after).
 pub(in crate::ekf) struct Close<const N: usize> {
     pub(in crate::ekf) epoch: usize,
     pub(in crate::ekf) phi: NavRows,
     pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
+    pub(in crate::ekf) vel_prior: Vector3<f64>,
     pub(in crate::ekf) vel: Vector3<f64>,
 }
 
 impl<const N: usize> Close<N> {
     /// The close `ekf` just made at `epoch` with the transition `phi`, the forward
-    /// velocity there `vel`.
-    pub(super) fn of(ekf: &Ekf, epoch: usize, phi: &Transition, vel: Vector3<f64>) -> Self {
+    /// velocity there before the epoch's updates and after them `(vel_prior, vel)`.
+    pub(super) fn of(
+        ekf: &Ekf,
+        epoch: usize,
+        phi: &Transition,
+        (vel_prior, vel): (Vector3<f64>, Vector3<f64>),
+    ) -> Self {
         Self {
             epoch,
             phi: phi.nav_rows(),
             p_prior: full_p::<N>(ekf),
+            vel_prior,
             vel,
         }
     }
@@ -102,39 +110,20 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
                 since.is_none_or(|s| (s + 1..close.epoch).any(wanted)),
                 (close.epoch..end).any(wanted),
             );
-            let ps = (at_node || before || after).then(|| symmetric(&(p + p * lambda * p)));
-            let changes = ps
-                .as_ref()
-                .map(|ps| Changes::at(close, (ps, &p), cfg, at_node));
-            let near = changes.as_ref().filter(|_| after).map(|c| &c.after);
+            let at = AtClose::read(close, (&p, &lambda), (at_node, before, after), cfg);
+            let near = at.near.as_ref();
             fill(
                 out,
                 forward,
                 cfg,
-                close.epoch,
-                &ds,
-                near,
+                (close.epoch, &ds, near),
                 later.as_ref(),
                 &wanted,
             );
-            let mut ds_prior = ds;
-            if let (true, Some(ps)) = (at_node, ps.as_ref()) {
+            if let (true, Some(ps)) = (at_node, at.ps.as_ref()) {
                 out.keep_node(b.epoch, ps);
-                ds_prior += b.dx::<N>();
-                (mu, lambda) = at_update(&close.p_prior, ps, &ds_prior).ok_or_else(|| {
-                    Error::Numerical(format!(
-                        "the smoother: the covariance before epoch {} is not positive definite",
-                        b.epoch
-                    ))
-                })?;
             }
-            mu = transposed(&close.phi, &mu);
-            lambda = congruence(&close.phi, &lambda);
-            later = Some(Later {
-                epoch: close.epoch,
-                ds_prior,
-                change: changes.filter(|_| before).map(|c| c.before),
-            });
+            later = Some(at.back_through(close, (b, at_node), &ds, (&mut mu, &mut lambda))?);
         }
     }
     // The first epoch: the prior, a close of its own.
@@ -145,9 +134,7 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
         out,
         forward,
         cfg,
-        0,
-        &ds,
-        Some(&near),
+        (0, &ds, Some(&near)),
         later.as_ref(),
         &wanted,
     );
@@ -155,32 +142,74 @@ pub(super) fn smooth_steps<const N: usize, S: Sink>(
     Ok(())
 }
 
-/// The change the smoother makes to each state's variance at a close (see
-/// [`super::sink`]), at the forward velocity there: `after` its updates (from the
-/// forward covariance after them, the near end of the step after the close) and
-/// `before` them (from the covariance the close left, the far end of the step before
-/// it; the smoothed covariance is the same before and after the updates).
-pub(super) struct Changes<const N: usize> {
-    pub(super) after: SVector<f64, N>,
-    pub(super) before: SVector<f64, N>,
+/// What a backward pass reads at a close: the smoothed covariance `Ps = P + P Λ P`
+/// (`P` the forward one after the close's updates) where it is read, and the change
+/// the smoother makes to each state's variance there (see [`super::sink`]) where σ is
+/// wanted in the steps around it. Each change is read at the forward velocity the
+/// forward σ it changes was read at: `near` after the updates (from `P`, at the
+/// velocity after them: the near end of the step after the close), `far` before them
+/// (from the covariance the close left, at the velocity before them: the far end of
+/// the step before it; the smoothed covariance is the same before and after the
+/// updates).
+pub(super) struct AtClose<const N: usize> {
+    pub(super) ps: Option<SMatrix<f64, N, N>>,
+    pub(super) near: Option<SVector<f64, N>>,
+    pub(super) far: Option<SVector<f64, N>>,
 }
 
-impl<const N: usize> Changes<N> {
-    /// At `close`, from the smoothed covariance `ps` and the forward one after the
-    /// updates `p` (`at_node`: the close has updates, or a noise change, after it).
-    pub(super) fn at(
+impl<const N: usize> AtClose<N> {
+    /// At `close`, from the forward covariance after its updates `p` and `Λ` there;
+    /// `at_node`: the close is a node's (updates, or a noise change, after it);
+    /// `before`/`after`: σ is wanted in the step before the close / after it.
+    pub(super) fn read(
         close: &Close<N>,
-        (ps, p): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
+        (p, lambda): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
+        (at_node, before, after): (bool, bool, bool),
         cfg: &FilterConfig,
-        at_node: bool,
     ) -> Self {
-        let after = change(ps, p, cfg, &close.vel);
-        let before = if at_node {
-            change(ps, &close.p_prior, cfg, &close.vel)
-        } else {
-            after
+        let ps = (at_node || before || after).then(|| symmetric(&(p + p * lambda * p)));
+        let (near, far) = match &ps {
+            Some(ps) => {
+                let near = change(ps, p, cfg, &close.vel);
+                let far = match at_node {
+                    true => before.then(|| change(ps, &close.p_prior, cfg, &close.vel_prior)),
+                    false => before.then_some(near),
+                };
+                (after.then_some(near), far)
+            }
+            None => (None, None),
         };
-        Self { after, before }
+        Self { ps, near, far }
+    }
+
+    /// Carry `μ` and `Λ` back through `close` (of the interval that ends at the node
+    /// `b`; `at_node`: the close is `b`'s): through `b`'s updates there
+    /// ([`at_update`], from `Ps` and `δs⁻ = δs + δx̂`, `ds` the smoothed error after
+    /// them), then through the step's Φ. The close as the one before it sees it.
+    pub(super) fn back_through(
+        self,
+        close: &Close<N>,
+        (b, at_node): (&Node, bool),
+        ds: &SVector<f64, N>,
+        (mu, lambda): (&mut SVector<f64, N>, &mut SMatrix<f64, N, N>),
+    ) -> Result<Later<N>> {
+        let mut ds_prior = *ds;
+        if let (true, Some(ps)) = (at_node, self.ps.as_ref()) {
+            ds_prior += b.dx::<N>();
+            (*mu, *lambda) = at_update(&close.p_prior, ps, &ds_prior).ok_or_else(|| {
+                Error::Numerical(format!(
+                    "the smoother: the covariance before epoch {} is not positive definite",
+                    b.epoch
+                ))
+            })?;
+        }
+        *mu = transposed(&close.phi, mu);
+        *lambda = congruence(&close.phi, lambda);
+        Ok(Later {
+            epoch: close.epoch,
+            ds_prior,
+            change: self.far,
+        })
     }
 }
 
@@ -339,7 +368,7 @@ pub(super) fn congruence<const N: usize>(
 
 /// A close already smoothed, seen from the one before it: its epoch, the smoothed error
 /// before its updates `δs⁻` and the change the smoother makes to the variances there
-/// before them ([`Changes::before`], where σ is wanted in the step before it).
+/// before them ([`AtClose::far`], where σ is wanted in the step before it).
 pub(super) struct Later<const N: usize> {
     pub(super) epoch: usize,
     pub(super) ds_prior: SVector<f64, N>,
@@ -396,14 +425,11 @@ pub(super) fn previous_close<const N: usize>(
 /// next close `later`; σ, at the wanted epochs, from the change `near` to the
 /// variances after the close's updates (given where it was computed): at the close,
 /// and interpolated towards the next close's ([`Later::write_between`]) before it.
-#[allow(clippy::too_many_arguments)]
 fn fill<const N: usize>(
     out: &mut impl Sink,
     forward: &Forward<'_>,
     cfg: &FilterConfig,
-    epoch: usize,
-    ds: &SVector<f64, N>,
-    near: Option<&SVector<f64, N>>,
+    (epoch, ds, near): (usize, &SVector<f64, N>, Option<&SVector<f64, N>>),
     later: Option<&Later<N>>,
     wanted: &dyn Fn(usize) -> bool,
 ) {
@@ -427,7 +453,8 @@ fn fill<const N: usize>(
 }
 
 /// The closes in `(a, b]` of the covariance step that the forward pass kept (see
-/// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them.
+/// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them (the velocity before
+/// the updates the one the forward pass kept at the close).
 fn kept_between<const N: usize>(
     forward: &Forward<'_>,
     kept: &KeptCloses,
@@ -444,6 +471,7 @@ fn kept_between<const N: usize>(
                 epoch,
                 phi: c.phi,
                 p_prior: lift(&c.p(), c.calibration.as_deref().map(|(x, v)| (x, v))),
+                vel_prior: c.vel,
                 vel: forward.nav[epoch].vel,
             }
         })
@@ -452,7 +480,9 @@ fn kept_between<const N: usize>(
 
 /// The closes in `(a, b]` of the covariance step, rebuilt by the filter's prediction
 /// along the forward solution from `a` (and the step `a` was inside, if any), the noise
-/// of `a` throughout; `b`'s step is closed at `b` where the forward pass closed it.
+/// of `a` throughout; `b`'s step is closed at `b` where the forward pass closed it
+/// (the velocity there before `b`'s updates from [`velocity_before_updates`]; no
+/// update between the nodes: before and after are the same elsewhere).
 pub(in crate::ekf) fn rebuild<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
@@ -463,8 +493,11 @@ pub(in crate::ekf) fn rebuild<const N: usize>(
     let mut ekf = restart(forward, cfg, a)?;
     let noise = a.noise.as_process_noise();
     let mut closes = Vec::new();
+    let at_b = velocity_before_updates(forward, b.epoch);
     let mut push = |ekf: &Ekf, epoch: usize, phi: Transition| {
-        closes.push(Close::of(ekf, epoch, &phi, forward.nav[epoch].vel));
+        let vel = forward.nav[epoch].vel;
+        let vel_prior = if epoch == b.epoch { at_b } else { vel };
+        closes.push(Close::of(ekf, epoch, &phi, (vel_prior, vel)));
     };
     for epoch in a.epoch..b.epoch {
         if (epoch - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
@@ -483,4 +516,18 @@ pub(in crate::ekf) fn rebuild<const N: usize>(
         }
     }
     Ok(closes)
+}
+
+/// The forward velocity \[m/s, NED\] at `epoch` (≥ 1) before its updates: the strapdown
+/// step from the solution after the updates of the epoch before, with its bias
+/// estimates, as the forward pass took it (the same operations on the same numbers).
+fn velocity_before_updates(forward: &Forward<'_>, epoch: usize) -> Vector3<f64> {
+    let (nav, b) = (&forward.nav[epoch - 1], &forward.bias[epoch - 1]);
+    let raw = ImuSample::from_array(&forward.imu[epoch - 1]);
+    let imu = ImuSample {
+        accel: raw.accel - Vector3::new(b[0], b[1], b[2]),
+        gyro: raw.gyro - Vector3::new(b[3], b[4], b[5]),
+    };
+    let dt = forward.step(epoch - 1);
+    step_with_rates(nav, &imu, dt, &FrameRates::at(nav)).vel
 }

@@ -18,7 +18,7 @@
 
 use super::every::{self, transposed_step};
 use super::sink::change;
-use super::steps::{self, symmetric, transposed, Changes, Close, Later};
+use super::steps::{self, symmetric, AtClose, Close, Later};
 use super::{full_p, restart, restart_at, Forward, Node, Nodes, Sink, Smoothed};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
@@ -338,30 +338,17 @@ fn smooth_steps<const N: usize>(
                 since.is_none_or(|s| !src.kept_in(s + 1..epoch).is_empty()),
                 !src.kept_in(epoch..until).is_empty(),
             );
-            let ps = (at_node || before || after).then(|| symmetric(&(p + p * lambda * p)));
-            let changes = ps
-                .as_ref()
-                .map(|ps| Changes::at(close, (ps, &p), cfg, at_node));
-            let near = changes.as_ref().filter(|_| after).map(|c| &c.after);
-            fill(&mut out, src, cfg, epoch, &ds, near, later.as_ref());
-            let mut ds_prior = ds;
-            if let (true, Some(ps)) = (at_node, ps.as_ref()) {
-                ds_prior += b.dx::<N>();
-                (mu, lambda) =
-                    steps::at_update(&close.p_prior, ps, &ds_prior).ok_or_else(|| {
-                        Error::Numerical(format!(
-                            "the smoother: the covariance before epoch {} is not positive definite",
-                            b.epoch
-                        ))
-                    })?;
-            }
-            mu = transposed(&close.phi, &mu);
-            lambda = steps::congruence(&close.phi, &lambda);
-            later = Some(Later {
+            let at = AtClose::read(close, (&p, &lambda), (at_node, before, after), cfg);
+            fill(
+                &mut out,
+                src,
+                cfg,
                 epoch,
-                ds_prior,
-                change: changes.filter(|_| before).map(|c| c.before),
-            });
+                &ds,
+                at.near.as_ref(),
+                later.as_ref(),
+            );
+            later = Some(at.back_through(close, (b, at_node), &ds, (&mut mu, &mut lambda))?);
         }
     }
     let p = nodes[0].p::<N>();
@@ -390,7 +377,8 @@ pub(in crate::ekf) fn rebuild_closes<const N: usize>(
     let mut ekf = restart_at(nav, &src.states.bias[j], cfg, a)?;
     let (accel_bias, gyro_bias) = (ekf.accel_bias, ekf.gyro_bias);
     let noise = a.noise.as_process_noise();
-    // The forward solution at b, after its updates.
+    // The forward velocity at b after its updates (before them: `nav` after the last
+    // sample, integrated as the forward pass integrated it).
     let at_b = src.states.nav[j + 1].vel;
     for i in a.epoch..b.epoch {
         if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
@@ -399,23 +387,21 @@ pub(in crate::ekf) fn rebuild_closes<const N: usize>(
         let raw = ImuSample::from_array(&src.imu[i]);
         let dt = src.imu_time[i] - src.time(i);
         let due = ekf.add_to_step(&nav, &raw, dt, noise);
-        if i + 1 < b.epoch {
-            let imu = ImuSample {
-                accel: raw.accel - accel_bias,
-                gyro: raw.gyro - gyro_bias,
-            };
-            nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
-        }
+        let imu = ImuSample {
+            accel: raw.accel - accel_bias,
+            gyro: raw.gyro - gyro_bias,
+        };
+        nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
         if due {
             if let Some(phi) = ekf.close_interval() {
                 let vel = if i + 1 < b.epoch { nav.vel } else { at_b };
-                closes.push(Close::of(&ekf, i + 1, &phi, vel));
+                closes.push(Close::of(&ekf, i + 1, &phi, (nav.vel, vel)));
             }
         }
     }
     if b.interval.is_none() {
         if let Some(phi) = ekf.close_interval() {
-            closes.push(Close::of(&ekf, b.epoch, &phi, at_b));
+            closes.push(Close::of(&ekf, b.epoch, &phi, (nav.vel, at_b)));
         }
     }
     Ok(())
