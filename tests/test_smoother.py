@@ -326,3 +326,23 @@ def test_the_monte_carlo_smoothed_sigma_is_never_above_the_forward_one(
     assert s is not None and np.isfinite(s.sigma).all()
     assert (s.sigma <= r.sigma * (1 + 1e-12)).all(), (s.sigma / r.sigma).max(axis=(0, 1))
     assert (s.sigma[..., 3:6] < 0.9 * r.sigma[..., 3:6]).any()
+
+
+@pytest.mark.parametrize("formulation", ["invariant", "classic"])
+def test_a_monte_carlo_ending_off_the_step_grid_has_smoothed_sigma_to_its_end(
+    formulation,
+) -> None:
+    """A run of 30.37 s (off the DVL's and the 0.1 s step's grid) recorded at every
+    sample: the close that brings its last step up to date is kept with the others, so
+    σ is finite at its last epochs too (they were NaN: that close was lost)."""
+    segments = [pronet.Segment(20.0), pronet.Segment(10.37, yaw_rate=0.02)]
+    trajectory = pronet.trajectory_from_segments(segments, lla0=(0.5, 0.1, -10.0), speed0=1.0)
+    r = pronet.monte_carlo(
+        trajectory, pronet.Strategy.constant([1e-4] * 3 + [1e-6] * 3),
+        config=pronet.FilterConfig(formulation=formulation, covariance_step=0.1),
+        n_runs=1, seed=0, record_every=1, smooth=True,
+    )  # fmt: skip
+    s = r.smoothed
+    assert s is not None and s.sigma.shape[1] == trajectory.n_samples + 1
+    assert np.isfinite(s.sigma).all()
+    assert (s.sigma <= r.sigma * (1 + 1e-12)).all()

@@ -246,6 +246,13 @@ fn reintegration_is_exact(
             assert_eq!(got.epoch, want.epoch);
             assert_eq!(got.phi, want.phi, "Φ at epoch {}", want.epoch);
             assert_eq!(got.p_prior, want.p_prior, "P at epoch {}", want.epoch);
+            let velocities = |c: &smoother::steps::Close<19>| (c.vel_prior, c.vel);
+            assert_eq!(
+                velocities(got),
+                velocities(want),
+                "v at epoch {}",
+                want.epoch
+            );
         }
     }
     let q_rows = data.q_time.len();

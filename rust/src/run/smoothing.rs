@@ -379,11 +379,17 @@ impl Run {
         if self.failure.is_some() {
             return None;
         }
-        if let (Some(closes), false) = (log.closes.as_mut(), self.ekf.is_up_to_date()) {
-            // The step under way, closed at the last epoch as the nodes close it.
-            let mut last = self.ekf.clone();
-            last.bring_up_to_date();
-            last.take_closes(self.k, closes);
+        if let Some(closes) = log.closes.as_mut() {
+            if self.ekf.is_up_to_date() {
+                // The closes since the last node, the one that brought the step under
+                // way up to date at the end ([`Run::finish`]) among them.
+                self.ekf.take_closes(self.k, closes);
+            } else {
+                // The step under way, closed at the last epoch as the nodes close it.
+                let mut last = self.ekf.clone();
+                last.bring_up_to_date();
+                last.take_closes(self.k, closes);
+            }
         }
         log.nodes.finish(self.k, &self.ekf);
         Some(log)
