@@ -177,6 +177,28 @@ pub fn smooth_recorded_until(
     }
 }
 
+/// What the node-only backward pass reads of a forward pass `out` over `data` that
+/// kept the node states `states` and the epochs `epochs` (`out.epoch`, or every one).
+fn thinned_source<'a>(
+    data: &'a RecordedData<'a>,
+    states: &'a NodeStates,
+    out: &'a FilterOutput,
+    epochs: &'a [usize],
+) -> Thinned<'a> {
+    Thinned {
+        imu: data.imu,
+        imu_time: data.imu_time,
+        t0: data.t0,
+        states,
+        epochs,
+        nav: &out.nav,
+        bias: &out.bias,
+        calibration: &out.calibration,
+        sigma: &out.sigma,
+        calibration_sigma: &out.calibration_sigma,
+    }
+}
+
 /// What a smoothed forward pass keeps: the nodes and, for the node-only backward pass,
 /// the solution at each of them.
 type Keep<'a> = Option<(&'a mut Nodes, Option<&'a mut NodeStates>)>;
@@ -240,19 +262,7 @@ impl<'a> Pass<'a> {
         let mut states = NodeStates::default();
         let keep = Some((&mut nodes, Some(&mut states)));
         let mut out = self.forward(strategy, epochs, keep, cancel)?;
-        let data = self.data;
-        let forward = Thinned {
-            imu: data.imu,
-            imu_time: data.imu_time,
-            t0: data.t0,
-            states: &states,
-            epochs: &out.epoch,
-            nav: &out.nav,
-            bias: &out.bias,
-            calibration: &out.calibration,
-            sigma: &out.sigma,
-            calibration_sigma: &out.calibration_sigma,
-        };
+        let forward = thinned_source(self.data, &states, &out, &out.epoch);
         let smoothed = thinned::smooth(&forward, self.cfg, &nodes.0, cancel)?;
         out.smoothed = Some(smoothed);
         Ok(out)

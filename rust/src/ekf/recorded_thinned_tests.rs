@@ -199,18 +199,7 @@ fn reintegration_is_exact(
     .unwrap();
     assert_eq!(out.nav, all.nav);
     let epochs: Vec<usize> = (0..out.nav.len()).collect();
-    let src = Thinned {
-        imu: data.imu,
-        imu_time: data.imu_time,
-        t0: data.t0,
-        states: &states,
-        epochs: &epochs,
-        nav: &out.nav,
-        bias: &out.bias,
-        calibration: &out.calibration,
-        sigma: &out.sigma,
-        calibration_sigma: &out.calibration_sigma,
-    };
+    let src = thinned_source(data, &states, &out, &epochs);
     let mut stretch = Stretch::default();
     assert!(nodes.0.len() > 30);
     let every = Forward {
@@ -291,18 +280,7 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
         .forward(strategy.as_mut(), Epochs::Step(1.0), keep, &live)
         .unwrap();
     assert_eq!(nodes.0.len(), 2, "one stretch: the first epoch to the last");
-    let src = Thinned {
-        imu: data.imu,
-        imu_time: data.imu_time,
-        t0: data.t0,
-        states: &states,
-        epochs: &out.epoch,
-        nav: &out.nav,
-        bias: &out.bias,
-        calibration: &out.calibration,
-        sigma: &out.sigma,
-        calibration_sigma: &out.calibration_sigma,
-    };
+    let src = thinned_source(&data, &states, &out, &out.epoch);
     let (a, end) = (&nodes.0[0], nodes.0[1].epoch);
     assert!(end - a.epoch > 5 * STEPS_PER_CHECK);
     let mut stretch = Stretch::default();
