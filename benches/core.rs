@@ -8,9 +8,9 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use nalgebra::Vector3;
 use pronet::attitude::dcm_from_euler;
-use pronet::ekf::{Ekf, FilterConfig, Formulation};
+use pronet::ekf::{Ekf, FilterConfig, Formulation, ProcessNoise};
+use pronet::measurement::Velocity;
 use pronet::mechanization::{step, ImuSample, NavState};
-use pronet::noise::ProcessNoise;
 use std::hint::black_box;
 
 const DT: f64 = 0.01;
@@ -103,11 +103,18 @@ fn benches(c: &mut Criterion) {
             .propagate(&sample, DT, noise)
             .expect("a finite prediction");
     }
-    let z = Vector3::new(1.4, 0.3, 0.1);
+    let cfg = predicted.config();
+    let dvl = Velocity {
+        z: Vector3::new(1.4, 0.3, 0.1),
+        variance: cfg.dvl_variance,
+        lever_arm: cfg.lever_arm,
+        frame: cfg.aiding,
+        gate: cfg.innovation_gate,
+    };
     c.bench_function("ekf dvl update (Joseph form + feedback)", |b| {
         b.iter_batched_ref(
             || predicted.clone(),
-            |f| f.update(black_box(&z)).expect("a consistent update"),
+            |f| f.apply(black_box(&dvl)).expect("a consistent update"),
             criterion::BatchSize::SmallInput,
         )
     });

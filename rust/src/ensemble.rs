@@ -6,9 +6,10 @@
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::FilterConfig;
 use crate::error::{check, Error, Result};
-use crate::montecarlo::{check_strategy, epoch_times, McOptions, McResult, Scenario};
+use crate::montecarlo::{check_result_size, check_strategy, McOptions, McResult};
 use crate::noise::StrategySpec;
 use crate::run::Run;
+use crate::scenario::{epoch_times, Scenario};
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -130,7 +131,7 @@ impl Ensemble {
         let tuning = TuningSchedule::new(truth.len(), truth.dt, window, tuning_period)?;
         let dvl_every = scenario.dvl_every()?;
         // Each run keeps its last `window` raw samples, and hands them out as float32.
-        scenario.check_result_size(opts, dvl_every, window * 6 * (8 + 4))?;
+        check_result_size(&scenario, opts, dvl_every, window * 6 * (8 + 4))?;
         let runs = (0..opts.n_runs)
             .map(|i| {
                 let mut run = Run::new(

@@ -12,107 +12,10 @@ use crate::ekf::FilterConfig;
 use crate::error::{Error, Result};
 use crate::noise::StrategySpec;
 pub use crate::run::{History, Run, RunRecord, RunSummary};
-use crate::sensors::aiding::steps_per;
-use crate::sensors::SensorConfig;
-use crate::trajectory::Truth;
+use crate::scenario::epoch_times;
+use crate::scenario::Scenario;
 use rayon::prelude::*;
 use std::sync::Arc;
-
-/// A simulated scenario: a truth with its ideal IMU, and the sensor models.
-#[derive(Clone, Debug)]
-pub struct Scenario {
-    /// Shared, so that many scenarios (strategies, sweeps) over one trajectory do not
-    /// copy it.
-    pub truth: Arc<Truth>,
-    pub sensors: SensorConfig,
-    /// Start each run from the truth plus an error drawn from N(0, P0) (true), or
-    /// exactly at the truth (false).
-    pub sample_initial_error: bool,
-}
-
-impl Scenario {
-    /// IMU steps per DVL period (None without a DVL), checking that the period is a
-    /// whole number of steps, and the aiding sensors' periods too.
-    pub fn dvl_every(&self) -> Result<Option<usize>> {
-        self.sensors.validate()?;
-        if self.truth.is_empty() {
-            return Err(Error::invalid("trajectory", "has no IMU samples"));
-        }
-        if let Some(d) = &self.sensors.depth {
-            steps_per(d.period, self.truth.dt, "depth_period")?;
-        }
-        for (j, f) in self.sensors.fixes.iter().enumerate() {
-            if f.period > 0.0 {
-                steps_per(f.period, self.truth.dt, &format!("fixes[{j}].period"))?;
-            }
-        }
-        if !self.sensors.dvl.enabled() {
-            return Ok(None);
-        }
-        steps_per(self.sensors.dvl.period, self.truth.dt, "dvl_period").map(Some)
-    }
-
-    /// `Err` naming `n_runs` when the records of `opts` on this scenario would take more
-    /// than [`MAX_RESULT_BYTES`], checked before anything is allocated. Per run: the
-    /// NIS, five NEES blocks and the DVL calibration states' NEES of every DVL epoch
-    /// (counted whether or not the filter has those states: the check does not know the
-    /// filter), the error, 1σ and q (36 values) of every recorded epoch, `state_bytes`
-    /// of running state, and 4 KiB of filter (the calibration summary included).
-    pub fn check_result_size(
-        &self,
-        opts: &McOptions,
-        dvl_every: Option<usize>,
-        state_bytes: usize,
-    ) -> Result<()> {
-        let steps = self.truth.len() as f64;
-        let epochs = dvl_every.map_or(0.0, |every| (steps / every.max(1) as f64).floor());
-        let records = match opts.record_every {
-            0 => 0.0,
-            every => (steps / every as f64).floor() + 1.0,
-        };
-        // A smoothed run records its epochs' NEES and its histories twice.
-        let twice = if opts.smooth { 2.0 } else { 1.0 };
-        let per_run = 8.0 * twice * (7.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
-        let total = per_run * opts.n_runs as f64;
-        if total > MAX_RESULT_BYTES as f64 {
-            let gib = |b: f64| b / (1u64 << 30) as f64;
-            return Err(Error::invalid(
-                "n_runs",
-                format!(
-                    "{} runs of this scenario would hold {:.1} GiB of results; at most {:.0} \
-                     GiB per call (here about {} runs): split them into shards (first_run, \
-                     or a sweep's shard_runs), or record less",
-                    opts.n_runs,
-                    gib(total),
-                    gib(MAX_RESULT_BYTES as f64),
-                    (MAX_RESULT_BYTES as f64 / per_run).floor()
-                ),
-            ));
-        }
-        Ok(())
-    }
-
-    /// `Err` naming `fixes[j]` where fix source `j` takes no fix on this truth
-    /// ([`crate::sensors::FixModel::check_fires`]). The Monte Carlo runs such a source
-    /// (its runs report the fixes taken); a scenario file is refused with it.
-    pub fn check_fixes_fire(&self) -> Result<()> {
-        for (j, f) in self.sensors.fixes.iter().enumerate() {
-            f.check_fires(j, &self.truth)?;
-        }
-        Ok(())
-    }
-
-    /// Times \[s\] of the DVL epochs (every `dvl_every` IMU steps) outside the outages;
-    /// none without a DVL.
-    pub fn dvl_epoch_times(&self, dvl_every: Option<usize>) -> Vec<f64> {
-        let Some(dvl_every) = dvl_every else {
-            return Vec::new();
-        };
-        let mut times = epoch_times(&self.truth, dvl_every, false);
-        times.retain(|&t| self.sensors.dvl.available(t));
-        times
-    }
-}
 
 /// The most memory \[bytes\] the records of one Monte Carlo call may take (4 GiB; the
 /// Python arrays made from them take as much again). About 190,000 runs of the `paper`
@@ -121,6 +24,46 @@ pub const MAX_RESULT_BYTES: u64 = 4 << 30;
 
 /// One past the largest run index: run i's random streams are numbered 4·i + k.
 pub const MAX_RUN_INDEX: u64 = 1 << 62;
+
+/// `Err` naming `n_runs` when the records of `opts` on `scenario` would take more
+/// than [`MAX_RESULT_BYTES`], checked before anything is allocated. Per run: the
+/// NIS, five NEES blocks and the DVL calibration states' NEES of every DVL epoch
+/// (counted whether or not the filter has those states: the check does not know the
+/// filter), the error, 1σ and q (36 values) of every recorded epoch, `state_bytes`
+/// of running state, and 4 KiB of filter (the calibration summary included).
+pub fn check_result_size(
+    scenario: &Scenario,
+    opts: &McOptions,
+    dvl_every: Option<usize>,
+    state_bytes: usize,
+) -> Result<()> {
+    let steps = scenario.truth.len() as f64;
+    let epochs = dvl_every.map_or(0.0, |every| (steps / every.max(1) as f64).floor());
+    let records = match opts.record_every {
+        0 => 0.0,
+        every => (steps / every as f64).floor() + 1.0,
+    };
+    // A smoothed run records its epochs' NEES and its histories twice.
+    let twice = if opts.smooth { 2.0 } else { 1.0 };
+    let per_run = 8.0 * twice * (7.0 * epochs + 36.0 * records) + state_bytes as f64 + 4096.0;
+    let total = per_run * opts.n_runs as f64;
+    if total > MAX_RESULT_BYTES as f64 {
+        let gib = |b: f64| b / (1u64 << 30) as f64;
+        return Err(Error::invalid(
+            "n_runs",
+            format!(
+                "{} runs of this scenario would hold {:.1} GiB of results; at most {:.0} \
+                 GiB per call (here about {} runs): split them into shards (first_run, \
+                 or a sweep's shard_runs), or record less",
+                opts.n_runs,
+                gib(total),
+                gib(MAX_RESULT_BYTES as f64),
+                (MAX_RESULT_BYTES as f64 / per_run).floor()
+            ),
+        ));
+    }
+    Ok(())
+}
 
 /// Monte Carlo size and recording options.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -174,14 +117,6 @@ pub struct McResult {
     pub record_time: Vec<f64>,
 }
 
-pub(crate) fn epoch_times(truth: &Truth, every: usize, include_start: bool) -> Vec<f64> {
-    let start = if include_start { 0 } else { every };
-    (start..=truth.len())
-        .step_by(every)
-        .map(|k| truth.time[k])
-        .collect()
-}
-
 pub(crate) fn check_strategy(
     filter: &FilterConfig,
     strategy: &StrategySpec,
@@ -225,7 +160,7 @@ pub fn run_monte_carlo_until(
     }
     check_strategy(filter, strategy, opts)?;
     let dvl_every = scenario.dvl_every()?;
-    scenario.check_result_size(opts, dvl_every, 0)?;
+    check_result_size(scenario, opts, dvl_every, 0)?;
     let n_steps = scenario.truth.len();
     let runs = (0..opts.n_runs)
         .into_par_iter()
@@ -266,6 +201,7 @@ pub fn run_monte_carlo_until(
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::sensors::SensorConfig;
     use crate::threads::with_threads;
     use crate::trajectory::builtin;
 
@@ -360,7 +296,7 @@ pub(crate) mod tests {
             first_run: 0,
             smooth: false,
         };
-        assert!(sc.check_result_size(&opts(1000, 100), dvl_every, 0).is_ok());
+        assert!(check_result_size(&sc, &opts(1000, 100), dvl_every, 0).is_ok());
         // A trillion runs: refused at once (the runs would take petabytes).
         let err = run_monte_carlo(
             &sc,
@@ -373,7 +309,7 @@ pub(crate) mod tests {
         assert!(err.starts_with("n_runs: 1000000000000 runs of this scenario would hold "));
         assert!(err.contains("GiB per call (here about "), "{err}");
         // The limit is on bytes: recording every step makes fewer runs fit.
-        let fits = |n, every| sc.check_result_size(&opts(n, every), dvl_every, 0).is_ok();
+        let fits = |n, every| check_result_size(&sc, &opts(n, every), dvl_every, 0).is_ok();
         assert!(fits(100_000, 0) && !fits(100_000, 1));
     }
 

@@ -6,23 +6,10 @@
 //! `q` is always the per-sample variance of each IMU channel `[f_x, f_y, f_z, ω_x, ω_y,
 //! ω_z]` in (m/s²)² and (rad/s)²; the filter turns it into the PSD `q·Δt_imu`.
 
-use crate::ekf::{Matrix15, UpdateInfo};
+use crate::ekf::{Matrix15, ProcessNoise, UpdateInfo};
 use crate::error::{check, Error, Result};
 use nalgebra::Matrix3;
 use std::collections::VecDeque;
-
-/// Process noise for one IMU step, as the filter consumes it.
-#[derive(Clone, Copy, Debug)]
-pub enum ProcessNoise<'a> {
-    /// `Q^c = diag(q·Δt_imu, bias_psd)`, discretized by the filter as `Γ Q^c Γᵀ Δt`.
-    Continuous {
-        imu_variance: &'a [f64; 6],
-        bias_psd: &'a [f64; 6],
-    },
-    /// A discrete 15×15 matrix in the classic error coordinates, added at each IMU step
-    /// (mapped into the filter's formulation first).
-    Discrete(&'a Matrix15),
-}
 
 /// A process-noise strategy: tells the filter its noise for the next step and sees
 /// every measurement update.
@@ -546,7 +533,8 @@ mod tests {
                 ekf.propagate(&sample, 0.01, noise).unwrap();
                 if k % 100 == 0 {
                     let z = ekf.nav.dcm.transpose() * ekf.nav.vel; // zero innovation
-                    hmh = ekf.update(&z).unwrap().sensitivity;
+                    let dvl = crate::ekf::tests::dvl(&ekf, z);
+                    hmh = ekf.apply(&dvl).unwrap().report.unwrap().sensitivity;
                 }
             }
             (ekf, hmh)

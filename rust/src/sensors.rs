@@ -16,36 +16,15 @@
 use crate::error::{check, Error, Result};
 use crate::mechanization::NavState;
 use nalgebra::Vector3;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 
 pub mod aiding;
 mod dvl;
+mod rng;
 pub use aiding::{AidingSim, DepthModel, FixModel, Reading};
 pub use dvl::{DvlDropout, DvlModel, DvlMounting};
-
-/// Which random stream of a run.
-#[derive(Clone, Copy, Debug)]
-pub enum Stream {
-    Imu = 0,
-    Dvl = 1,
-    InitialError = 2,
-    DvlDropout = 3,
-}
-
-/// The RNG of one stream of one run.
-pub fn stream_rng(seed: u64, run_index: u64, stream: Stream) -> ChaCha8Rng {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(run_index * 4 + stream as u64);
-    rng
-}
-
-/// Standard normal draw.
-#[inline]
-pub fn normal(rng: &mut ChaCha8Rng) -> f64 {
-    rng.sample(StandardNormal)
-}
+pub use rng::{normal, stream_rng, Stream};
 
 /// Per-channel IMU noise variance, piecewise constant in time: `values[i]` holds from
 /// `times[i]` until `times[i+1]`. The sample covering `(t, t+dt]` uses the value at `t`.

@@ -11,8 +11,8 @@
 //! 15-state kernel untouched. Every formula is in `docs/filter.md`.
 
 use super::dynamics::ErrorDynamics;
+use super::state::Matrix15;
 use super::transition::Transition;
-use super::Matrix15;
 use crate::attitude::{exp_so3, skew};
 use crate::error::{check, Error, Result};
 pub use crate::sensors::DvlMounting;

@@ -3,7 +3,7 @@
 
 use super::calibration::{check_aiding, CalibrationConfig};
 use super::formulation::Formulation;
-use super::{Matrix15, Vector15};
+use super::state::{Matrix15, Vector15};
 use crate::error::{check, Error, Result};
 use nalgebra::Vector3;
 
@@ -124,7 +124,7 @@ impl FilterConfig {
 
     /// Whether an interval that has run `elapsed` seconds is due to close: within half
     /// an IMU period of the covariance step.
-    pub(super) fn interval_due(&self, elapsed: f64) -> bool {
+    pub(crate) fn interval_due(&self, elapsed: f64) -> bool {
         elapsed + 0.5 * self.imu_dt >= self.covariance_step
     }
 

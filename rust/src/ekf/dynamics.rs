@@ -3,20 +3,17 @@
 //! in either [`Formulation`]. Every formula is in `docs/filter.md`.
 
 use super::formulation::Formulation;
+use super::state::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};
 use super::transition::Transition;
-use super::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::attitude::skew;
 use crate::mechanization::{FrameRates, NavState};
 use nalgebra::{Matrix3, SMatrix, Vector3};
-
-/// The navigation rows and columns of the error state (position, velocity, attitude).
-pub(super) const NAV: usize = 9;
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
 /// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
 /// invariant one has all three (`vel_att` full).
 #[derive(Clone, Debug)]
-pub(super) struct ErrorDynamics {
+pub(crate) struct ErrorDynamics {
     pos_pos: Matrix3<f64>,
     pos_att: Matrix3<f64>,
     vel_pos: Vector3<f64>,
@@ -30,7 +27,7 @@ pub(super) struct ErrorDynamics {
 }
 
 impl ErrorDynamics {
-    pub(super) fn new(
+    pub(crate) fn new(
         nav: &NavState,
         rates: &FrameRates,
         f_body: &Vector3<f64>,
@@ -41,7 +38,7 @@ impl ErrorDynamics {
 
     /// [`Self::new`] with the specific force given in NED, `Ĉ f̂` (a covariance step's
     /// mean over its interval).
-    pub(super) fn with_force(
+    pub(crate) fn with_force(
         nav: &NavState,
         rates: &FrameRates,
         f_ned: &Vector3<f64>,
@@ -73,7 +70,7 @@ impl ErrorDynamics {
 
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
     /// multiply-adds instead of 225.
-    pub(super) fn apply(&self, x: &[f64]) -> [f64; 9] {
+    pub(crate) fn apply(&self, x: &[f64]) -> [f64; 9] {
         if self.invariant {
             self.apply_in::<true>(x)
         } else {
@@ -85,7 +82,7 @@ impl ErrorDynamics {
     /// rows of F being zero): the smoother's backward products, about 60
     /// multiply-adds instead of 135.
     #[inline]
-    pub(super) fn apply_transposed(&self, x: &[f64]) -> [f64; 15] {
+    pub(crate) fn apply_transposed(&self, x: &[f64]) -> [f64; 15] {
         let v = |at: usize| Vector3::new(x[at], x[at + 1], x[at + 2]);
         let (xp, xv, xa) = (v(POS), v(VEL), v(ATT));
         let pos = self.pos_pos.tr_mul(&xp) + self.vel_pos.component_mul(&xv);
@@ -169,7 +166,7 @@ impl ErrorDynamics {
     /// vectorizes; an AVX2 copy of the same code is chosen at run time where the CPU
     /// has it. Both copies do the same additions in the same order (no FMA), so the
     /// result does not depend on the CPU.
-    pub(super) fn propagate_covariance(&self, p: &mut Matrix15, dt: f64) {
+    pub(crate) fn propagate_covariance(&self, p: &mut Matrix15, dt: f64) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
@@ -291,7 +288,7 @@ impl ErrorDynamics {
     /// `H = Gᵀ`, the product of transitions `G ← Φ G` carried transposed. Column `i < 9`
     /// of `H Fᵀ` is `Σ_k F_ik H_{:,k}`, a combination of whole columns of H
     /// ([`Self::times`] reads them so); its other columns are zero.
-    pub(super) fn advance_transposed(&self, h: &mut [f64], dt: f64) {
+    pub(crate) fn advance_transposed(&self, h: &mut [f64], dt: f64) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
@@ -343,7 +340,7 @@ impl ErrorDynamics {
 
     /// The transition over a covariance step of `dt` seconds with F held constant:
     /// `Φ = I + F Δt + ½ (F Δt)²`, second order in Δt.
-    pub(super) fn transition(&self, dt: f64) -> Transition {
+    pub(crate) fn transition(&self, dt: f64) -> Transition {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
@@ -369,7 +366,7 @@ impl ErrorDynamics {
 /// each added symmetrized so that `p` stays exactly symmetric. In the invariant
 /// formulation the gyro noise also drives `δV = δv − [v×]ψ`: the velocity block gains
 /// `[v×] Q_g [v×]ᵀ` and the velocity–attitude block `−[v×] Q_g`.
-pub(super) fn add_imu_noise(
+pub(crate) fn add_imu_noise(
     p: &mut Matrix15,
     nav: &NavState,
     formulation: Formulation,
@@ -381,7 +378,7 @@ pub(super) fn add_imu_noise(
 
 /// The blocks that [`add_imu_noise`] adds, built once so that a covariance step can add
 /// them on either side of Φ without building them twice.
-pub(super) struct ImuNoise {
+pub(crate) struct ImuNoise {
     /// Added to the velocity block (symmetrized).
     vel: Matrix3<f64>,
     /// Added to the attitude block (symmetrized).
@@ -391,7 +388,7 @@ pub(super) struct ImuNoise {
 }
 
 impl ImuNoise {
-    pub(super) fn new(nav: &NavState, formulation: Formulation, q: &[f64; 6], white: f64) -> Self {
+    pub(crate) fn new(nav: &NavState, formulation: Formulation, q: &[f64; 6], white: f64) -> Self {
         let c = &nav.dcm;
         let qa = c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
         let qg = c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
@@ -413,7 +410,7 @@ impl ImuNoise {
         }
     }
 
-    pub(super) fn add_to(&self, p: &mut Matrix15) {
+    pub(crate) fn add_to(&self, p: &mut Matrix15) {
         let mut blk = |at: usize, m: &Matrix3<f64>| {
             let mut view = p.fixed_view_mut::<3, 3>(at, at);
             view += (m + m.transpose()) * 0.5;

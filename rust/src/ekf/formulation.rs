@@ -20,7 +20,7 @@
 //! the classic coordinates: the prior is given in them and [`to_classic`] maps every
 //! covariance the filter reports. Every formula is in `docs/filter.md`.
 
-use super::{Gain, Matrix15, ATT, VEL};
+use super::state::{Gain, Matrix15, ATT, VEL};
 use crate::attitude::skew;
 use nalgebra::{Matrix3, Vector3};
 

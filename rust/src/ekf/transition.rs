@@ -3,8 +3,7 @@
 //! step"). Φ's navigation rows are kept as 15 columns padded to 12 rows, three 4-lane
 //! vectors, so that every column operation vectorizes whole.
 
-use super::dynamics::NAV;
-use super::Matrix15;
+use super::state::{Matrix15, NAV};
 use nalgebra::SMatrix;
 
 /// The navigation rows (0..9) padded to 12, so that a column is three 4-lane vectors.
@@ -20,9 +19,9 @@ fn axpy(acc: &mut [f64; PAD], x: &[f64; PAD], c: f64) {
 
 /// A transition matrix whose bias rows are those of the identity,
 /// `Φ = [[Φ_nn, Φ_nb], [0, I]]`, kept as the 15 columns of its 9 navigation rows
-/// (each padded with zeros to [`PAD`] rows).
+/// (each padded with zeros to 12 rows).
 #[derive(Clone, Debug)]
-pub(super) struct Transition {
+pub struct Transition {
     cols: [[f64; PAD]; 15],
 }
 
@@ -32,7 +31,7 @@ impl Transition {
     /// so column j of Φ's navigation rows is `(F Δt)[:, j] + ½ Σ_k (F Δt)[:, k] (F Δt)[k, j]`
     /// over the nine navigation columns k.
     #[inline(always)]
-    pub(super) fn second_order(fd: &SMatrix<f64, NAV, 15>) -> Self {
+    pub(crate) fn second_order(fd: &SMatrix<f64, NAV, 15>) -> Self {
         let mut f = [[0.0; PAD]; 15];
         for (k, col) in f.iter_mut().enumerate() {
             col[..NAV].copy_from_slice(&fd.as_slice()[NAV * k..NAV * k + NAV]);
@@ -56,7 +55,7 @@ impl Transition {
     /// The noise of a covariance step is added around it (see `super::interval`). An
     /// AVX2 copy is chosen at run time where the CPU has it (no FMA: the same bits
     /// either way).
-    pub(super) fn propagate(&self, p: &mut Matrix15) {
+    pub(crate) fn propagate(&self, p: &mut Matrix15) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
@@ -102,7 +101,7 @@ impl Transition {
     }
 
     /// `X ← Φ X` for the 15 rows of `X` (a cross-covariance with other states).
-    pub(super) fn apply<const C: usize>(&self, x: &mut SMatrix<f64, 15, C>) {
+    pub(crate) fn apply<const C: usize>(&self, x: &mut SMatrix<f64, 15, C>) {
         for c in 0..C {
             let mut acc = [0.0; PAD];
             for (k, wk) in self.cols.iter().enumerate() {
@@ -116,13 +115,13 @@ impl Transition {
 
     /// The navigation rows of Φ, `[Φ_nn, Φ_nb]` (9 × 15; its other rows are the
     /// identity's).
-    pub(super) fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
+    pub(crate) fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
         SMatrix::<f64, NAV, 15>::from_fn(|i, k| self.cols[k][i])
     }
 
     /// The dense 15×15 Φ.
     #[cfg(test)]
-    pub(super) fn dense(&self) -> Matrix15 {
+    pub(crate) fn dense(&self) -> Matrix15 {
         let mut phi = Matrix15::identity();
         for (k, col) in self.cols.iter().enumerate() {
             for i in 0..NAV {

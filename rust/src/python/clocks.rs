@@ -1,8 +1,8 @@
 //! `attitude_increment_costs`: the clock-alignment cost of recorded data (the grid search
 //! around it is `pronet.alignment`).
 
+use super::call::detached;
 use super::convert::{as_rows, as_values, column, readonly_column, readonly_rows, real_arg, rows};
-use super::detached;
 use crate::clocks;
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;

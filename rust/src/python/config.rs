@@ -1,11 +1,11 @@
 //! `FilterConfig`: the EKF's tuning.
 
+use super::call::{invalid, to_py_err};
 use super::convert::{
     arg_accel_bias_psd, arg_aiding, arg_covariance_step, arg_dvl_calibration,
     arg_dvl_misalignment_psd, arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_formulation,
     arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate, fixed, fixed_or,
 };
-use super::{invalid, to_py_err};
 use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::{Aiding, FilterConfig, Formulation, DEFAULT_COVARIANCE_STEP};
 use nalgebra::Vector3;

@@ -2,7 +2,7 @@
 //! the Rust value, or a `ValueError` naming the argument. They check types and shapes
 //! only (and finiteness of fixed-size vectors); the core checks the values.
 
-use super::invalid;
+use super::call::invalid;
 use crate::attitude::{dcm_from_euler, euler_from_dcm};
 use crate::mechanization::NavState;
 use nalgebra::Vector3;

@@ -1,8 +1,8 @@
 //! `ConvNet`: the forward pass of a ProNet CNN regressor in the core, built from the
 //! torch model's weights (`pronet.models.BaselineNet.native`).
 
+use super::call::{detached, interruptible, invalid};
 use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
-use super::{detached, interruptible, invalid};
 use crate::regressors::convnet::{ConvBlockWeights, ConvNet, DenseWeights, Prepare, Scaling};
 use crate::threads::Workers;
 use numpy::{

@@ -1,6 +1,7 @@
 //! `Ensemble` (lockstep runs for outside tuning) and `tuning_instants`, the rule it
 //! shares with the hybrid loop on recorded data.
 
+use super::call::{detached, interruptible, invalid};
 use super::config::PyFilterConfig;
 use super::convert::{
     arg_dt, arg_first_run, arg_n_runs, arg_n_samples, arg_record_every, arg_sample_initial_error,
@@ -9,7 +10,6 @@ use super::convert::{
 use super::montecarlo::{result_dict, scenario};
 use super::sensors::PySensorConfig;
 use super::trajectory::PyTrajectory;
-use super::{detached, interruptible, invalid};
 use crate::cancel::Cancel;
 use crate::ensemble::{Ensemble, TuningSchedule};
 use crate::error::Error;

@@ -1,19 +1,20 @@
 //! `run_filter`: one filter pass over given IMU and DVL arrays.
 
+use super::call::{interruptible, invalid, to_py_err};
 use super::config::PyFilterConfig;
 use super::convert::{
     arg_epochs, arg_t0, as_rows, as_values, column, fixed_or, nav_state, readonly_column,
     readonly_rows, rows, rows_array,
 };
 use super::strategy::PyStrategy;
-use super::{interruptible, invalid, to_py_err};
 use crate::attitude::euler_from_dcm;
-use crate::ekf::position::check_depth_sigma;
-use crate::ekf::smoother::Smoothed;
-use crate::ekf::{
-    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData,
-};
+use crate::measurement::check_depth_sigma;
 use crate::mechanization::NavState;
+use crate::recorded::{
+    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, Stream,
+    StreamRecord,
+};
+use crate::smoother::Smoothed;
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
@@ -21,6 +22,8 @@ use pyo3::types::PyDict;
 
 /// The depth readings and position fixes of a pass, each group all or none.
 struct Aiding {
+    depth_given: bool,
+    fix_given: bool,
     depth: Vec<f64>,
     depth_time: Vec<f64>,
     depth_sigma: f64,
@@ -52,6 +55,7 @@ impl Aiding {
                 ))
             }
         };
+        let fix_sigma_given = fix_sigma.is_some();
         let (fix, fix_time, fix_sigma) = match (fix, fix_time, fix_sigma) {
             (Some(f), Some(t), Some(s)) => (
                 rows::<3>(f, "fix")?,
@@ -67,6 +71,8 @@ impl Aiding {
             }
         };
         Ok(Self {
+            depth_given: depth_sigma.is_finite(),
+            fix_given: fix_sigma_given,
             depth,
             depth_time,
             depth_sigma,
@@ -187,21 +193,29 @@ fn run_filter<'py>(
     // runs sections on threads, which would otherwise queue for it while one of them
     // copies its ~40 MB of results.
     let arrays = interruptible(py, move |cancel| {
+        let mut streams = vec![Stream::dvl(dvl, &dvl_time, &cfg)];
+        if aiding.depth_given {
+            streams.push(Stream::depth(
+                &aiding.depth,
+                &aiding.depth_time,
+                aiding.depth_sigma,
+            ));
+        }
+        if aiding.fix_given {
+            streams.push(Stream::fix(
+                &aiding.fix,
+                &aiding.fix_time,
+                &aiding.fix_sigma,
+            ));
+        }
         let data = RecordedData {
             imu,
             imu_time,
-            dvl,
-            dvl_time: &dvl_time,
             t0,
+            streams,
             q_time: &q_time,
             q_values: &q_values,
             covariance_time: &covariance_time,
-            depth: &aiding.depth,
-            depth_time: &aiding.depth_time,
-            depth_sigma: aiding.depth_sigma,
-            fix: &aiding.fix,
-            fix_time: &aiding.fix_time,
-            fix_sigma: &aiding.fix_sigma,
         };
         let mut strat = spec.build(cfg.bias_psd());
         if smooth {
@@ -209,7 +223,7 @@ fn run_filter<'py>(
         } else {
             filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         }
-        .map(OutputArrays::new)
+        .map(|out| OutputArrays::new(out, aiding.depth_given, aiding.fix_given))
     })?;
     arrays.into_dict(py)
 }
@@ -299,11 +313,21 @@ impl EpochArrays {
 impl OutputArrays {
     /// The epochs' time, bias, sigma and calibration arrays take over the output's
     /// vectors without a copy.
-    fn new(mut out: FilterOutput) -> Self {
-        let m = out.updates.len();
+    fn new(mut out: FilterOutput, depth: bool, fix: bool) -> Self {
+        let mut streams = std::mem::take(&mut out.streams).into_iter();
+        let dvl = streams.next().unwrap_or_default();
+        let depth = if depth { streams.next() } else { None }.unwrap_or_default();
+        let fix = if fix { streams.next() } else { None }.unwrap_or_default();
+        let m = dvl.updates.len();
         let smoothed = out.smoothed.take().map(EpochArrays::smoothed);
         let p = out.final_covariance;
         let nan3 = [f64::NAN; 3];
+        let StreamRecord {
+            epoch: dvl_epoch,
+            updates,
+            adaptive_q,
+            ..
+        } = dvl;
         Self {
             epochs: EpochArrays::new(&out.nav, out.bias, out.sigma),
             time: Array1::from(out.time),
@@ -312,40 +336,38 @@ impl OutputArrays {
             calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
             covariance_epoch: epochs_array(&out.covariance_epoch),
-            depth_epoch: epochs_array(&out.depth_epoch),
-            depth_nis: Array1::from(std::mem::take(&mut out.depth_nis)),
-            fix_epoch: epochs_array(&out.fix_epoch),
-            fix_nis: Array1::from(std::mem::take(&mut out.fix_nis)),
+            depth_epoch: epochs_array(&depth.epoch),
+            depth_nis: Array1::from(depth.nis),
+            fix_epoch: epochs_array(&fix.epoch),
+            fix_nis: Array1::from(fix.nis),
             covariances: Array3::from_shape_fn((out.covariances.len(), 15, 15), |(k, i, j)| {
                 out.covariances[k].map_or(f64::NAN, |p| p[(i, j)])
             }),
-            dvl_epoch: epochs_array(&out.dvl_epoch),
+            dvl_epoch: epochs_array(&dvl_epoch),
             diverged_at: out.nis_monitor.diverged_at,
             innovation: rows_array(
-                out.updates
+                updates
                     .iter()
                     .map(|u| u.as_ref().map_or(nan3, |u| u.innovation.into())),
             ),
             innovation_cov: Array3::from_shape_fn((m, 3, 3), |(k, i, j)| {
-                out.updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
+                updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
             }),
-            nis: out
-                .updates
+            nis: updates
                 .iter()
                 .map(|u| u.as_ref().map_or(f64::NAN, |u| u.nis))
                 .collect(),
-            accepted: out
-                .updates
+            accepted: updates
                 .iter()
                 .map(|u| u.as_ref().is_some_and(|u| u.accepted))
                 .collect(),
             gain: Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
-                out.updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
+                updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
             }),
             // None where no row has one: NumPy gives the all-NaN array as a view.
-            adaptive_q: out.adaptive_q.iter().any(Option::is_some).then(|| {
+            adaptive_q: adaptive_q.iter().any(Option::is_some).then(|| {
                 Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
-                    out.adaptive_q[k].as_ref().map_or(f64::NAN, |q| q[(i, j)])
+                    adaptive_q[k].as_ref().map_or(f64::NAN, |q| q[(i, j)])
                 })
             }),
             smoothed,

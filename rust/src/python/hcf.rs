@@ -1,8 +1,8 @@
 //! `HcfEnsemble`: the handcrafted-feature ensemble's prediction in the core, built from
 //! the exported trees (`pronet.hcf.HCFEnsemble.frozen`).
 
+use super::call::{detached, interruptible, invalid};
 use super::convert::{arg_threads, describe, real_array, text_arg, window_rows};
-use super::{detached, interruptible, invalid};
 use crate::regressors::hcf::{HcfEnsemble, Target, TreeSet};
 use crate::threads::Workers;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};

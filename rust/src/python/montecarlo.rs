@@ -1,5 +1,6 @@
 //! `monte_carlo` and the result dict it shares with `Ensemble.finish`.
 
+use super::call::{interruptible, to_py_err};
 use super::config::PyFilterConfig;
 use super::convert::{
     arg_first_run, arg_n_runs, arg_record_every, arg_sample_initial_error, arg_seed, arg_threads,
@@ -7,11 +8,11 @@ use super::convert::{
 use super::sensors::PySensorConfig;
 use super::strategy::PyStrategy;
 use super::trajectory::PyTrajectory;
-use super::{interruptible, to_py_err};
 use crate::montecarlo::{
-    run_monte_carlo_until, History, McOptions, McResult, RunSummary, Scenario,
+    check_result_size, run_monte_carlo_until, History, McOptions, McResult, RunSummary,
 };
 use crate::run::SmoothedRecord;
+use crate::scenario::Scenario;
 use crate::threads::{check_threads, default_threads, max_threads, with_threads};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
@@ -254,7 +255,7 @@ fn py_check_result_size(
         smooth: false,
     };
     let dvl_every = sc.dvl_every().map_err(to_py_err)?;
-    sc.check_result_size(&opts, dvl_every, 0).map_err(to_py_err)
+    check_result_size(&sc, &opts, dvl_every, 0).map_err(to_py_err)
 }
 
 /// ``ValueError`` naming ``fixes[j]`` (or its ``max_depth``) if fix source ``j`` of

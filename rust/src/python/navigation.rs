@@ -1,7 +1,7 @@
 //! Earth model and strapdown mechanization: `normal_gravity`, `earth_radii`, `mechanize`.
 
+use super::call::{interruptible, to_py_err};
 use super::convert::{arg_dt, arg_h, arg_lat, as_rows, nav_arrays, nav_state, readonly_rows};
-use super::{interruptible, to_py_err};
 use crate::{earth, mechanization};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

@@ -1,10 +1,10 @@
 //! `SensorConfig`: the simulated IMU, DVL, depth sensor and position fixes.
 
+use super::call::{invalid, to_py_err};
 use super::convert::{
     arg_depth_period, arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, real_arg,
     rows,
 };
-use super::{invalid, to_py_err};
 use crate::sensors::{
     DepthModel, DvlDropout, DvlModel, DvlMounting, FixModel, ImuErrorModel, SensorConfig,
     VarianceSchedule,

@@ -1,7 +1,7 @@
 //! `Strategy`: a process-noise strategy.
 
+use super::call::to_py_err;
 use super::convert::{arg_window, fixed};
-use super::to_py_err;
 use crate::noise::StrategySpec;
 use pyo3::prelude::*;
 

@@ -1,7 +1,7 @@
 //! `Trajectory` and the functions that make one.
 
+use super::call::{interruptible, to_py_err};
 use super::convert::{arg_dt, arg_speed0, fixed, fixed_or, matrix, rows};
-use super::{interruptible, to_py_err};
 use crate::trajectory::{self, Segment, TrajectorySpec, Truth};
 use nalgebra::Vector3;
 use numpy::{IntoPyArray, PyArray1, PyArray2};

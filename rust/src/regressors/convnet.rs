@@ -40,6 +40,7 @@ use crate::error::{Error, Result};
 #[path = "convnet_layout.rs"]
 mod layout;
 use layout::{check_head, sized, Block, Dense};
+pub use layout::{ConvBlockWeights, DenseWeights};
 
 /// How a window is prepared before the first convolution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,34 +58,6 @@ pub enum Scaling {
     Fixed { input_scale: f64, q_scale: f64 },
     /// Divide by the window's RMS s; q = s²·exp(z).
     Spread,
-}
-
-/// One Conv1d → LayerNorm → LeakyReLU block, in torch's layouts.
-#[derive(Clone, Debug)]
-pub struct ConvBlockWeights {
-    /// `(c_out, c_in, kernel)` row-major (`nn.Conv1d.weight`).
-    pub weight: Vec<f32>,
-    /// `(c_out,)`.
-    pub bias: Vec<f32>,
-    pub c_in: usize,
-    pub c_out: usize,
-    pub kernel: usize,
-    pub stride: usize,
-    /// LayerNorm's `weight`, `bias` (`(c_out,)` each) and `eps`.
-    pub norm_weight: Vec<f32>,
-    pub norm_bias: Vec<f32>,
-    pub norm_eps: f32,
-}
-
-/// One Linear layer, in torch's layout.
-#[derive(Clone, Debug)]
-pub struct DenseWeights {
-    /// `(n_out, n_in)` row-major (`nn.Linear.weight`).
-    pub weight: Vec<f32>,
-    /// `(n_out,)`.
-    pub bias: Vec<f32>,
-    pub n_in: usize,
-    pub n_out: usize,
 }
 
 /// A ProNet CNN regressor's forward pass; see the module docs.

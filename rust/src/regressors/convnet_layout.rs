@@ -1,11 +1,39 @@
-//! How the torch weights of a ProNet CNN are checked and laid out for its forward pass
-//! ([`super::ConvNet`]): each block's kernel as a `(kernel·c_in) × c_pad` matrix for
-//! the tiled convolution, each Linear layer input-major in float64.
+//! The torch weights of a ProNet CNN ([`ConvBlockWeights`], [`DenseWeights`]), and how
+//! they are checked and laid out for its forward pass ([`super::ConvNet`]): each
+//! block's kernel as a `(kernel·c_in) × c_pad` matrix for the tiled convolution, each
+//! Linear layer input-major in float64.
 
 use super::super::aligned::Aligned;
 use super::super::conv1d::LANES;
-use super::{ConvBlockWeights, DenseWeights};
 use crate::error::{Error, Result};
+
+/// One Conv1d → LayerNorm → LeakyReLU block, in torch's layouts.
+#[derive(Clone, Debug)]
+pub struct ConvBlockWeights {
+    /// `(c_out, c_in, kernel)` row-major (`nn.Conv1d.weight`).
+    pub weight: Vec<f32>,
+    /// `(c_out,)`.
+    pub bias: Vec<f32>,
+    pub c_in: usize,
+    pub c_out: usize,
+    pub kernel: usize,
+    pub stride: usize,
+    /// LayerNorm's `weight`, `bias` (`(c_out,)` each) and `eps`.
+    pub norm_weight: Vec<f32>,
+    pub norm_bias: Vec<f32>,
+    pub norm_eps: f32,
+}
+
+/// One Linear layer, in torch's layout.
+#[derive(Clone, Debug)]
+pub struct DenseWeights {
+    /// `(n_out, n_in)` row-major (`nn.Linear.weight`).
+    pub weight: Vec<f32>,
+    /// `(n_out,)`.
+    pub bias: Vec<f32>,
+    pub n_in: usize,
+    pub n_out: usize,
+}
 
 /// A block laid out for the tiled convolution.
 #[derive(Clone, Debug)]

@@ -1,13 +1,12 @@
 //! The aiding sensors of a simulated run: the depth readings and position fixes due at
-//! an epoch, simulated from the truth ([`crate::sensors::aiding`]) and applied by the
-//! filter's position updates ([`crate::ekf::position`]) after the DVL's, as a
-//! recording's are.
+//! an epoch, simulated from the truth ([`crate::sensors::aiding`]) as the filter reads
+//! them ([`crate::measurement`]), each at its sensor's lever arm, and what their
+//! updates did ([`AidingTally`]).
 
-use super::Run;
-use crate::ekf::Vector15;
-use crate::mechanization::NavState;
-use crate::montecarlo::Scenario;
-use crate::sensors::Reading;
+use crate::ekf::Applied;
+use crate::measurement::{Depth, Fix, Reading};
+use crate::sensors;
+use nalgebra::Vector3;
 
 /// What a run's aiding updates did, for its summary.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -18,56 +17,32 @@ pub(super) struct AidingTally {
     pub(super) dof: usize,
 }
 
-/// The error estimates fed back at an epoch: the 15 states' and the DVL calibration's.
-pub(super) type Fed = (Vector15, [f64; 4]);
-
-impl Run {
-    /// Apply the depth readings and fixes due at this epoch (true state `truth`): the
-    /// sums of the error estimates fed back (the 15 states', the DVL calibration's),
-    /// None when nothing was due. A numerical
-    /// failure ends the run's filtering, as the DVL's does.
-    pub(super) fn apply_aiding(
-        &mut self,
-        scenario: &Scenario,
-        truth: &NavState,
-        t: f64,
-    ) -> Option<Fed> {
-        let sim = self.aiding.as_mut()?;
-        let sensors = &scenario.sensors;
-        sim.readings(
-            sensors.depth.as_ref(),
-            &sensors.fixes,
-            self.k,
-            truth,
-            &mut self.readings,
-        );
-        let mut correction: Option<Fed> = None;
-        for reading in &self.readings {
-            let done = match reading {
-                Reading::Depth(z, sigma) => self.ekf.update_depth(*z, *sigma),
-                Reading::Fix(fix, sigma) => self.ekf.update_fix(fix, sigma),
-            };
-            match done {
-                Ok(done) => {
-                    match reading {
-                        Reading::Depth(..) => self.tally.depth_updates += 1,
-                        Reading::Fix(..) => self.tally.fix_updates += 1,
-                    }
-                    self.tally.nis_sum += done.nis;
-                    self.tally.dof += done.dof;
-                    let (nav, cal) = correction.get_or_insert((Vector15::zeros(), [0.0; 4]));
-                    *nav += done.correction;
-                    for (c, d) in cal.iter_mut().zip(done.calibration_correction) {
-                        *c += d;
-                    }
-                }
-                Err(e) => {
-                    self.failure = Some(format!("t = {t} s: {e}"));
-                    break;
-                }
-            }
+impl AidingTally {
+    /// An aiding reading applied.
+    pub(super) fn add(&mut self, reading: &Reading, applied: &Applied) {
+        match reading {
+            Reading::Depth(_) => self.depth_updates += 1,
+            Reading::Fix(_) => self.fix_updates += 1,
+            Reading::Velocity(_) => return,
         }
-        correction
+        self.nis_sum += applied.nis;
+        self.dof += applied.dof;
+    }
+}
+
+/// The filter's reading of a simulated aiding reading.
+pub(super) fn reading(sensed: &sensors::Reading) -> Reading {
+    match *sensed {
+        sensors::Reading::Depth(z, sigma) => Reading::Depth(Depth {
+            z,
+            sigma,
+            lever_arm: Vector3::zeros(),
+        }),
+        sensors::Reading::Fix(lla, sigma) => Reading::Fix(Fix {
+            lla,
+            sigma,
+            lever_arm: Vector3::zeros(),
+        }),
     }
 }
 
@@ -79,7 +54,7 @@ mod tests {
     use crate::sensors::{DepthModel, FixModel};
     use std::sync::Arc;
 
-    fn final_errors(sc: &crate::montecarlo::Scenario) -> Vec<(f64, usize, usize, usize)> {
+    fn final_errors(sc: &crate::scenario::Scenario) -> Vec<(f64, usize, usize, usize)> {
         let opts = McOptions {
             n_runs: 4,
             seed: 3,

@@ -2,15 +2,19 @@
 //! ([`SmootherLog`]), the backward pass at the end, and the smoothed solution's metrics
 //! against the truth ([`SmoothedRecord`]), as the run reports its own.
 
-use super::{bias_array, nees3, solution_error, History, Run};
+use super::metrics::{nees3, solution_error};
+use super::History;
 use crate::attitude::exp_so3;
 use crate::cancel::Cancel;
-use crate::ekf::smoother::{changed_sigma, smooth_into, Covariances, Forward, Nodes, Sink};
 use crate::ekf::{correct, corrected_position_velocity, formulation};
-use crate::ekf::{Ekf, FilterConfig, Formulation, KeptCloses, Matrix15, Vector15};
-use crate::ekf::{ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::ekf::{Applied, Ekf, FilterConfig, Formulation, Matrix15, ProcessNoise, Transition};
+use crate::ekf::{Vector15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::measurement::Reading;
 use crate::mechanization::NavState;
-use crate::montecarlo::Scenario;
+use crate::noise::NoiseStrategy;
+use crate::pass::{Epoch, Observer, Updated};
+use crate::smoother::{changed_sigma, smooth_into, Covariances, Forward, ForwardLog};
+use crate::smoother::{KeptCloses, Sink};
 use crate::trajectory::Truth;
 use nalgebra::{SMatrix, SVector, Vector3};
 use std::collections::HashMap;
@@ -31,12 +35,15 @@ pub struct SmoothedRecord {
     pub history: Option<History>,
 }
 
-/// What the smoother reads of a run, kept as it steps: the nodes (see
-/// [`crate::ekf::smoother`]), the forward solution at every epoch, the epochs of the DVL
-/// updates, and the raw IMU samples (every sample) or the closes of the covariance step
-/// (under one).
+/// What the smoother reads of a run, kept as it steps: the nodes and, under a covariance
+/// step, the closes (see [`crate::smoother`]), the forward solution at every epoch, the
+/// epochs of the DVL updates, and the raw IMU samples (every sample).
 pub(super) struct SmootherLog {
-    pub(super) nodes: Nodes,
+    /// The nodes; under a covariance step, each close the filter made and its epoch
+    /// (the backward pass reads them instead of rebuilding them: 2.0 kB each, one per
+    /// step, room made for them at the start; None at every sample, where the
+    /// backward pass rebuilds what it needs).
+    pub(super) forward: ForwardLog,
     /// The raw IMU samples, where the backward pass rebuilds the covariances from
     /// them (every sample; empty under a covariance step).
     pub(super) imu: Vec<[f64; 6]>,
@@ -54,37 +61,90 @@ pub(super) struct SmootherLog {
     pub(super) whole: Vec<(usize, [f64; 6], [f64; 6])>,
     /// The epoch of each DVL update, None for a reading lost (as the run's `nees`).
     pub(super) update_epochs: Vec<Option<usize>>,
-    /// Under a covariance step, each close the filter made and its epoch: the backward
-    /// pass reads them instead of rebuilding them (2.0 kB each, one per step, room
-    /// made for them at the start). None: not kept (every sample), the backward pass
-    /// rebuilds what it needs.
-    pub(super) closes: Option<KeptCloses>,
 }
 
 impl SmootherLog {
-    /// Keep the forward solution of the epoch `epoch` just run, the closes the filter
-    /// made there and, where the whole solution is read (`recorded`, or a DVL update
-    /// there), the true bias `true_bias`.
-    pub(super) fn push(
-        &mut self,
-        epoch: usize,
-        ekf: &mut Ekf,
-        true_bias: [f64; 6],
-        recorded: bool,
-    ) {
-        if let Some(closes) = self.closes.as_mut() {
-            ekf.take_closes(epoch, closes);
-        }
+    /// Keep the forward solution of the epoch `epoch` just run and, where the whole
+    /// solution is read (`recorded`, or a DVL update there), the true bias
+    /// `true_bias`.
+    pub(super) fn push(&mut self, epoch: usize, ekf: &Ekf, true_bias: [f64; 6], recorded: bool) {
         self.nav.push(ekf.nav);
-        if self.closes.is_none() {
-            self.bias.push(bias_array(ekf));
+        if self.forward.closes.is_none() {
+            self.bias.push(ekf.bias());
         }
         if let Some(c) = &ekf.calibration {
             self.calibration.push(c.reported());
         }
         if recorded || self.update_epochs.last() == Some(&Some(epoch)) {
-            self.whole.push((epoch, bias_array(ekf), true_bias));
+            self.whole.push((epoch, ekf.bias(), true_bias));
         }
+    }
+
+    /// The log as the observer of the epoch under way: its raw IMU sample `raw`, the
+    /// IMU's true bias there and whether the epoch is recorded.
+    pub(super) fn at_epoch(
+        &mut self,
+        raw: [f64; 6],
+        true_bias: [f64; 6],
+        recorded: bool,
+    ) -> EpochLog<'_> {
+        EpochLog {
+            log: self,
+            raw,
+            true_bias,
+            recorded,
+        }
+    }
+}
+
+/// A [`SmootherLog`] told of one epoch of the run's pass.
+pub(super) struct EpochLog<'a> {
+    log: &'a mut SmootherLog,
+    raw: [f64; 6],
+    true_bias: [f64; 6],
+    recorded: bool,
+}
+
+impl Observer for EpochLog<'_> {
+    fn before_step(&mut self, at: &Epoch<'_>, ekf: &Ekf, noise: ProcessNoise<'_>) {
+        self.log.forward.before_step(at, ekf, noise);
+        if self.log.forward.closes.is_none() {
+            // Read only where the backward pass rebuilds the closes.
+            self.log.imu.push(self.raw);
+        }
+    }
+
+    fn on_close(&mut self, epoch: usize, ekf: &Ekf, phi: &Transition) {
+        self.log.forward.on_close(epoch, ekf, phi);
+    }
+
+    fn wants_prior(&self) -> bool {
+        self.log.forward.wants_prior()
+    }
+
+    fn on_reading(
+        &mut self,
+        at: &Epoch<'_>,
+        _i: usize,
+        reading: &Reading,
+        _applied: &mut Applied,
+        _ekf: &Ekf,
+        _strategy: &dyn NoiseStrategy,
+    ) {
+        if let Reading::Velocity(_) = reading {
+            self.log.update_epochs.push(Some(at.index));
+        }
+    }
+
+    fn after_epoch(
+        &mut self,
+        at: &Epoch<'_>,
+        ekf: &Ekf,
+        updated: Option<&mut Updated>,
+        noise: ProcessNoise<'_>,
+    ) {
+        self.log.forward.after_epoch(at, ekf, updated, noise);
+        self.log.push(at.index, ekf, self.true_bias, self.recorded);
     }
 }
 
@@ -155,7 +215,7 @@ impl<'a> Reduced<'a> {
             record_every,
             solutions: Vec::with_capacity(log.whole.len()),
             sigma: Vec::new(),
-            node_covariance: Vec::with_capacity(log.nodes.0.len()),
+            node_covariance: Vec::with_capacity(log.forward.nodes.0.len()),
         }
     }
 
@@ -371,87 +431,52 @@ impl SmootherLog {
     }
 }
 
-impl Run {
-    /// The run's log for the smoother, taken and completed at its last epoch (the step
-    /// under way closed, the last node), or None (not kept, or the filter failed).
-    fn finished_log(&mut self) -> Option<Box<SmootherLog>> {
-        let mut log = self.smoother.take()?;
-        if self.failure.is_some() {
-            return None;
-        }
-        if let Some(closes) = log.closes.as_mut() {
-            if self.ekf.is_up_to_date() {
-                // The closes since the last node, the one that brought the step under
-                // way up to date at the end ([`Run::finish`]) among them.
-                self.ekf.take_closes(self.k, closes);
-            } else {
-                // The step under way, closed at the last epoch as the nodes close it.
-                let mut last = self.ekf.clone();
-                last.bring_up_to_date();
-                last.take_closes(self.k, closes);
-            }
-        }
-        log.nodes.finish(self.k, &self.ekf);
-        Some(log)
-    }
-
-    /// Keep what the RTS smoother needs from now on (call before the first step): the
-    /// run's record then holds the smoothed metrics too ([`RunRecord::smoothed`]). It
-    /// keeps the forward solution at every IMU epoch (120 bytes each; the raw sample
-    /// and the bias estimates too, 96 bytes, without a covariance step), the covariance
-    /// after each node's updates (and at every sample, with 15 states, the one before
-    /// them: 1.8 kB each), the bias estimates and true bias where the whole
-    /// smoothed solution is read, and under a covariance step each close the filter
-    /// makes (2.0 kB per step): the backward pass reads them instead of rebuilding
-    /// them, ~20 % of its work.
-    ///
-    /// [`RunRecord::smoothed`]: super::RunRecord::smoothed
-    pub fn keep_for_smoother(&mut self, scenario: &Scenario) {
-        let n = scenario.truth.len() + 1;
+impl SmootherLog {
+    /// An empty log for a run of `cfg` over `truth` (a DVL reading every `dvl_every`
+    /// IMU steps): under a covariance step, room for a close per step and one before
+    /// each DVL update; at every sample, room for the raw samples and bias estimates,
+    /// and (with 15 states) the covariance before each node's updates kept.
+    pub(super) fn new(cfg: &FilterConfig, truth: &Truth, dvl_every: Option<usize>) -> Self {
+        let n = truth.len() + 1;
         let mut log = SmootherLog {
-            nodes: Nodes::default(),
+            forward: ForwardLog::default(),
             imu: Vec::new(),
             nav: Vec::with_capacity(n),
             bias: Vec::new(),
             calibration: Vec::new(),
             whole: Vec::new(),
             update_epochs: Vec::new(),
-            closes: None,
         };
-        let cfg = self.ekf.config();
         if cfg.covariance_every_sample() {
             log.imu.reserve(n);
             log.bias.reserve(n);
-            if cfg.dvl_calibration.is_none() {
-                // The backward pass skips the covariance where no σ is wanted.
-                self.ekf.keep_priors();
-            }
+            // The backward pass skips the covariance where no σ is wanted.
+            log.forward.priors = cfg.dvl_calibration.is_none();
         } else {
-            // Room for a close per step and one before each DVL update.
-            let per_step = (cfg.covariance_step / scenario.truth.dt).floor().max(1.0) as usize;
-            let updates = self.dvl_every.map_or(0, |every| n / every.max(1));
-            self.ekf.keep_closes();
-            log.closes = Some(KeptCloses::with_capacity(n / per_step + updates + 2));
+            let per_step = (cfg.covariance_step / truth.dt).floor().max(1.0) as usize;
+            let updates = dvl_every.map_or(0, |every| n / every.max(1));
+            log.forward.closes = Some(KeptCloses::with_capacity(n / per_step + updates + 2));
         }
-        log.push(self.k, &mut self.ekf, self.true_bias, self.record_every > 0);
-        self.smoother = Some(Box::new(log));
+        log
     }
 
-    /// The smoothed metrics of a run kept for the smoother, or None (not kept, or the
-    /// filter failed). A smoother that fails numerically gives NaN metrics.
-    pub(super) fn smoothed_record(&mut self, scenario: &Scenario) -> Option<SmoothedRecord> {
-        let log = self.finished_log()?;
-        let truth = &*scenario.truth;
-        let forward = log.forward(truth);
-        let cfg = self.ekf.config();
+    /// The smoothed metrics of a run over `truth` whose forward σ at every
+    /// `record_every`-th epoch is `history_sigma`. A smoother that fails numerically
+    /// gives NaN metrics.
+    pub(super) fn smoothed_record(
+        &self,
+        truth: &Truth,
+        cfg: &FilterConfig,
+        (history_sigma, record_every): (&[[f64; 15]], usize),
+    ) -> SmoothedRecord {
+        let forward = self.forward(truth);
         // σ where the histories read it; the NEES reads the nodes' covariances.
-        let every = self.record_every;
+        let every = record_every;
         let recorded = |k: usize| every > 0 && k.is_multiple_of(every);
         let covariances = Covariances::Where(&recorded);
-        let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
-        let history = self.history.as_ref().map_or(&[][..], |h| &h.sigma[..]);
-        let mut reduced = Reduced::new(&log, truth, (history, every));
-        let kept = log.closes.as_ref();
+        let (nodes, cancel) = (&self.forward.nodes.0, &Cancel::default());
+        let mut reduced = Reduced::new(self, truth, (history_sigma, every));
+        let kept = self.forward.closes.as_ref();
         let smoothed = smooth_into(
             &forward,
             cfg,
@@ -463,24 +488,21 @@ impl Run {
         );
         if smoothed.is_err() {
             let nan = f64::NAN;
-            return Some(SmoothedRecord {
+            let history = (record_every > 0).then(|| History {
+                error: vec![[nan; 15]; history_sigma.len()],
+                sigma: vec![[nan; 15]; history_sigma.len()],
+                imu_variance: Vec::new(),
+            });
+            return SmoothedRecord {
                 srmse: nan,
                 smae: nan,
                 final_horizontal_error: nan,
                 max_horizontal_error: nan,
-                nees: vec![[nan; 5]; log.update_epochs.len()],
-                history: self.history.as_ref().map(|h| History {
-                    error: vec![[nan; 15]; h.error.len()],
-                    sigma: vec![[nan; 15]; h.sigma.len()],
-                    imu_variance: Vec::new(),
-                }),
-            });
+                nees: vec![[nan; 5]; self.update_epochs.len()],
+                history,
+            };
         }
-        Some(smoothed_metrics(
-            reduced,
-            cfg.formulation,
-            self.record_every,
-        ))
+        smoothed_metrics(reduced, cfg.formulation, record_every)
     }
 }
 

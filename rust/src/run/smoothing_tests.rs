@@ -3,11 +3,11 @@
 
 use super::{smooth_into, Cancel, Covariances, Formulation, Forward, Reduced};
 use crate::ekf::calibration::CalibrationConfig;
-use crate::ekf::smoother::smooth;
 use crate::ekf::FilterConfig;
 use crate::montecarlo::tests::{short_scenario, tuned_filter, TRUE_Q};
 use crate::noise::StrategySpec;
 use crate::run::Run;
+use crate::smoother::smooth;
 
 /// The closes of the covariance step that a run keeps are the ones the backward
 /// pass would rebuild: the smoothed record from either is the same, bit for bit
@@ -31,8 +31,8 @@ fn kept_closes_smooth_as_the_rebuilt_ones() {
             if !kept {
                 // Rebuilt: the bias estimates at every epoch, the first's too.
                 let log = run.smoother.as_mut().unwrap();
-                log.closes = None;
-                log.bias.push(super::bias_array(&run.ekf));
+                log.forward.closes = None;
+                log.bias.push(run.pass.ekf.bias());
             }
             // Stop off the step's grid (the last step is closed at the end), at a
             // recorded epoch after the last close on it: 2996 = 7 · 428.
@@ -78,15 +78,15 @@ fn the_reduced_solution_is_the_smoothed_one() {
             // (the closes rebuilt, as kept_closes_smooth_as_the_rebuilt_ones has
             // them equal to the kept ones), the first's too.
             let log = run.smoother.as_mut().unwrap();
-            log.closes = None;
-            log.bias.push(super::bias_array(&run.ekf));
+            log.forward.closes = None;
+            log.bias.push(run.pass.ekf.bias());
         }
         for _ in 0..sc.truth.len() - 7 {
             run.step(&sc);
         }
         let log = run.finished_log().unwrap();
         let forward = log.forward(&sc.truth);
-        let (nodes, cancel) = (&log.nodes.0, &Cancel::default());
+        let (nodes, cancel) = (&log.forward.nodes.0, &Cancel::default());
         let recorded = |k: usize| k.is_multiple_of(25);
         let covariances = Covariances::Where(&recorded);
         // The forward σ the run's history kept (every 25th epoch), NaN elsewhere.
@@ -143,12 +143,12 @@ fn the_reduced_solution_is_the_smoothed_one() {
 /// path did run); with σ wanted at some epochs (those intervals re-predict, the
 /// others do not) the σ there is the re-predicting pass's, bit for bit.
 fn assert_bryson_frazier_is_re_predicted(
-    sc: &crate::montecarlo::Scenario,
+    sc: &crate::scenario::Scenario,
     formulation: Formulation,
     spec: StrategySpec,
 ) {
-    use crate::ekf::smoother::Interval;
     use crate::mechanization::NavState;
+    use crate::smoother::Interval;
     let cfg = FilterConfig {
         formulation,
         covariance_step: 0.0,
@@ -162,7 +162,7 @@ fn assert_bryson_frazier_is_re_predicted(
     assert!(run.failure.is_none(), "{:?}", run.failure);
     let log = run.finished_log().unwrap();
     let forward = log.forward(&sc.truth);
-    let nodes = &log.nodes.0;
+    let nodes = &log.forward.nodes.0;
     let cancel = &Cancel::default();
     assert!(nodes.len() > 20, "{} nodes", nodes.len());
     for pair in nodes.windows(2) {

@@ -1,6 +1,6 @@
 //! The aiding sensors of a simulation: a pressure depth sensor and position fixes (GNSS
 //! at the surface, USBL or LBL acoustic fixes), simulated from the truth with white
-//! noise and applied by the filter's position updates ([`crate::ekf::position`]), the
+//! noise and applied by the filter as depth and fix measurements ([`crate::measurement`]), the
 //! same updates a recording's depth and fixes go through.
 //!
 //! Random numbers: each aiding sensor draws from its own part of the run's

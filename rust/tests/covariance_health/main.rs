@@ -1,8 +1,8 @@
 //! Covariance health of the INS/DVL EKF over long, hostile missions.
 //!
 //! Every test flies a simulated mission through the public API (trajectory segments →
-//! truth and ideal IMU → `SensorSim` noisy IMU/DVL → `Ekf::propagate` / `Ekf::update`,
-//! as `Ekf::step` does them) and checks the error covariance P at every DVL epoch
+//! truth and ideal IMU → `SensorSim` noisy IMU/DVL → `Ekf::propagate` / `Ekf::apply`,
+//! as a pass's epoch does them) and checks the error covariance P at every DVL epoch
 //! (1 Hz, whether or not a measurement is applied there, so outage epochs are checked
 //! too):
 //!

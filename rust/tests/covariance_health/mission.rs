@@ -4,7 +4,8 @@
 //! epoch.
 
 use nalgebra::Vector3;
-use pronet::ekf::{Aiding, Ekf, FilterConfig, POS, VEL};
+use pronet::ekf::{Aiding, Applied, Ekf, FilterConfig, POS, VEL};
+use pronet::measurement::Velocity;
 use pronet::mechanization::ImuSample;
 use pronet::noise::StrategySpec;
 use pronet::sensors::{SensorConfig, SensorSim, VarianceSchedule};
@@ -236,10 +237,10 @@ pub(crate) fn fly(
             let gyro = Vector3::new(ideal[3], ideal[4], ideal[5]);
             sim.dvl(&sensors.dvl, &truth.states[k1], &gyro)
         });
-        // Propagate, then update (what `Ekf::step` does), so that σ at the end of an
+        // Propagate, then update (what a pass's epoch does), so that σ at the end of an
         // outage can be read between the two.
         match ekf.propagate(&raw, dt, strategy.process_noise()) {
-            Ok(()) => {}
+            Ok(_) => {}
             Err(e) if allow_filter_error => {
                 report.failure = Some((t, e));
                 break;
@@ -248,8 +249,19 @@ pub(crate) fn fly(
         }
         let sigma_end_of_outage = horizontal_vel_sigma(&ekf);
         if let Some(z) = z {
-            match ekf.update(&z) {
-                Ok(info) => strategy.after_update(&info, steps_since_update),
+            let cfg = ekf.config();
+            let reading = Velocity {
+                z,
+                variance: cfg.dvl_variance,
+                lever_arm: cfg.lever_arm,
+                frame: cfg.aiding,
+                gate: cfg.innovation_gate,
+            };
+            match ekf.apply(&reading) {
+                Ok(Applied {
+                    report: Some(info), ..
+                }) => strategy.after_update(&info, steps_since_update),
+                Ok(_) => unreachable!("a velocity update reports"),
                 Err(e) if allow_filter_error => {
                     report.failure = Some((t, e));
                     break;

@@ -211,7 +211,8 @@ fn check_output(out: &FilterOutput, n_imu: usize, n_dvl: usize) -> Result<(), Te
     prop_assert_eq!(out.time.len(), n_imu + 1);
     prop_assert_eq!(out.nav.len(), n_imu + 1);
     prop_assert_eq!(out.sigma.len(), n_imu + 1);
-    prop_assert_eq!(out.updates.len(), n_dvl);
+    let dvl = &out.streams[0];
+    prop_assert_eq!(dvl.updates.len(), n_dvl);
     prop_assert!(all_finite(&out.time));
     for (k, s) in out.nav.iter().enumerate() {
         prop_assert!(nav_finite(s), "non-finite state at epoch {}: {:?}", k, s);
@@ -241,8 +242,8 @@ fn check_output(out: &FilterOutput, n_imu: usize, n_dvl: usize) -> Result<(), Te
             var
         );
     }
-    for (j, u) in out.updates.iter().enumerate() {
-        prop_assert_eq!(u.is_some(), out.dvl_epoch[j].is_some());
+    for (j, u) in dvl.updates.iter().enumerate() {
+        prop_assert_eq!(u.is_some(), dvl.epoch[j].is_some());
         if let Some(u) = u {
             prop_assert!(
                 u.nis.is_finite()
@@ -255,7 +256,7 @@ fn check_output(out: &FilterOutput, n_imu: usize, n_dvl: usize) -> Result<(), Te
             );
         }
     }
-    for (j, q) in out.adaptive_q.iter().enumerate() {
+    for (j, q) in dvl.adaptive_q.iter().enumerate() {
         if let Some(q) = q {
             prop_assert!(all_finite(q.iter()), "non-finite adaptive Q at row {}", j);
         }
@@ -375,12 +376,8 @@ fn filter_case(
     let data = RecordedData {
         imu: &imu,
         imu_time: &rec.imu_time,
-        dvl: &dvl,
-        dvl_time: &dvl_time,
         t0,
-        q_time: &[],
-        q_values: &[],
-        covariance_time: &[],
+        streams: vec![Stream::dvl(&dvl, &dvl_time, cfg)],
         ..RecordedData::default()
     };
     let mut strategy = spec.build(cfg.bias_psd());

@@ -30,12 +30,12 @@
 
 use nalgebra::Vector3;
 use pronet::ekf::calibration::CalibrationConfig;
-use pronet::ekf::{
-    filter_recorded, Aiding, Ekf, FilterConfig, FilterOutput, Formulation, RecordedData,
-};
+use pronet::ekf::{Aiding, Ekf, FilterConfig, Formulation};
 use pronet::mechanization::NavState;
-use pronet::montecarlo::{run_monte_carlo, McOptions, RunSummary, Scenario};
+use pronet::montecarlo::{run_monte_carlo, McOptions, RunSummary};
 use pronet::noise::StrategySpec;
+use pronet::recorded::{filter_recorded, FilterOutput, RecordedData, Stream};
+use pronet::scenario::Scenario;
 use pronet::sensors::{SensorConfig, SensorSim, VarianceSchedule};
 use pronet::trajectory::{paper_origin, Segment, TrajectorySpec, Truth, MAX_SPEED};
 use proptest::prelude::*;

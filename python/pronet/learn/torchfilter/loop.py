@@ -1,7 +1,7 @@
 """The filter's loop over epochs: :func:`advance` runs B sequences from a
 :class:`~pronet.learn.torchfilter.state.State` over samples ``k0..k1`` of a
 :class:`~pronet.learn.torchfilter.state.Batch` with given IMU variances q, the same
-algorithm as the core's ``filter_recorded`` (``rust/src/ekf/recorded.rs``): at each
+algorithm as the core's ``filter_recorded`` (``rust/src/recorded/filter.rs``): at each
 sample the covariance step accumulates (or P moves, at every sample), the strapdown
 step, the step's close when due (or at a DVL update, or at the pass's end), then the
 DVL rows of the epoch, each an update with feedback."""

@@ -17,9 +17,12 @@
 //! empty).
 
 use super::every::{self, transposed_step};
+use super::forward::Forward;
+use super::node::{full_p, restart, restart_at, Node, Nodes};
 use super::sink::change;
+use super::sink::Sink;
+use super::smoothed::Smoothed;
 use super::steps::{self, symmetric, AtClose, Close, Later};
-use super::{full_p, restart, restart_at, Forward, Node, Nodes, Sink, Smoothed};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
 use crate::ekf::dynamics::ErrorDynamics;
@@ -110,8 +113,8 @@ impl Thinned<'_> {
 
 /// One interval's forward solution, re-integrated; its buffer is reused.
 #[derive(Default)]
-pub(in crate::ekf) struct Stretch {
-    pub(in crate::ekf) nav: Vec<NavState>,
+pub(crate) struct Stretch {
+    pub(crate) nav: Vec<NavState>,
 }
 
 impl Stretch {
@@ -120,7 +123,7 @@ impl Stretch {
     /// epoch in `[a, end)` integrated again from `a`'s, as the filter's prediction
     /// integrates it. Stops with [`Error::Cancelled`] within [`STEPS_PER_CHECK`] steps
     /// of `cancel` being set (a stretch without updates can be hours of IMU).
-    pub(in crate::ekf) fn rebuild<'s>(
+    pub(crate) fn rebuild<'s>(
         &'s mut self,
         src: &'s Thinned<'_>,
         j: usize,
@@ -364,7 +367,7 @@ fn smooth_steps<const N: usize>(
 /// same operations on the same numbers, so each close is the forward pass's bit for bit,
 /// and no interval's worth of solutions is written and read back. Into `closes`, whose
 /// buffer each interval reuses.
-pub(in crate::ekf) fn rebuild_closes<const N: usize>(
+pub(crate) fn rebuild_closes<const N: usize>(
     src: &Thinned<'_>,
     cfg: &FilterConfig,
     j: usize,
@@ -393,14 +396,14 @@ pub(in crate::ekf) fn rebuild_closes<const N: usize>(
         };
         nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
         if due {
-            if let Some(phi) = ekf.close_interval() {
+            if let Some(phi) = ekf.bring_up_to_date() {
                 let vel = if i + 1 < b.epoch { nav.vel } else { at_b };
                 closes.push(Close::of(&ekf, i + 1, &phi, (nav.vel, vel)));
             }
         }
     }
-    if b.interval.is_none() {
-        if let Some(phi) = ekf.close_interval() {
+    if b.step.is_none() {
+        if let Some(phi) = ekf.bring_up_to_date() {
             closes.push(Close::of(&ekf, b.epoch, &phi, (nav.vel, at_b)));
         }
     }

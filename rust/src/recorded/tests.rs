@@ -1,12 +1,20 @@
 //! Tests of [`super`]: one filter pass over recorded arrays and the covariances kept at
-//! chosen times (the smoother's nodes and intervals: `recorded_smoother_tests.rs`).
+//! chosen times (the smoother's nodes and intervals: `smoother_tests.rs`).
 
-use super::*;
+use super::data::RecordedData;
+use super::epochs::Epochs;
+use super::filter::{filter_recorded, filter_recorded_until};
+use super::stream::Stream;
+use crate::cancel::Cancel;
 use crate::ekf::tests::moving_state;
+use crate::ekf::FilterConfig;
+use crate::error::{Error, Result};
+use crate::mechanization::NavState;
 use crate::noise::StrategySpec;
+use nalgebra::Vector3;
 
 /// The filter these tests were written for: the covariance propagated at every IMU
-/// sample (the default steps it every 0.1 s; `ekf::interval` and the Python tests cover
+/// sample (the default steps it every 0.1 s; `ekf::step` and the Python tests cover
 /// that).
 pub(super) fn per_sample() -> FilterConfig {
     FilterConfig {
@@ -22,12 +30,7 @@ fn recorded_data_is_validated() {
         RecordedData {
             imu: &imu[..imu_time.len().min(3)],
             imu_time,
-            dvl: &[],
-            dvl_time: &[],
             t0,
-            q_time: &[],
-            q_values: &[],
-            covariance_time: &[],
             ..RecordedData::default()
         }
         .validate()
@@ -44,12 +47,7 @@ fn recorded_data_is_validated() {
     let err = RecordedData {
         imu: &imu4,
         imu_time: &[0.1, 0.2],
-        dvl: &[],
-        dvl_time: &[],
-        t0: 0.0,
-        q_time: &[],
-        q_values: &[],
-        covariance_time: &[],
+        streams: vec![Stream::dvl(&[], &[], &FilterConfig::default())],
         ..RecordedData::default()
     }
     .validate()
@@ -62,12 +60,7 @@ fn imu_only<'a>(imu: &'a [[f64; 6]], imu_time: &'a [f64]) -> RecordedData<'a> {
     RecordedData {
         imu,
         imu_time,
-        dvl: &[],
-        dvl_time: &[],
-        t0: 0.0,
-        q_time: &[],
-        q_values: &[],
-        covariance_time: &[],
+        streams: vec![Stream::dvl(&[], &[], &FilterConfig::default())],
         ..RecordedData::default()
     }
 }
@@ -109,17 +102,12 @@ fn keeping_the_last_epoch_changes_no_update_and_no_final_estimate() {
     let data = RecordedData {
         imu: &imu,
         imu_time: &imu_time,
-        dvl: &dvl,
-        dvl_time: &dvl_time,
-        t0: 0.0,
-        q_time: &[],
-        q_values: &[],
-        covariance_time: &[],
+        streams: vec![Stream::dvl(&dvl, &dvl_time, &FilterConfig::default())],
         ..RecordedData::default()
     };
     for calibration in [
         None,
-        Some(super::super::calibration::CalibrationConfig::default()),
+        Some(crate::ekf::calibration::CalibrationConfig::default()),
     ] {
         let cfg = FilterConfig {
             dvl_calibration: calibration,
@@ -153,8 +141,9 @@ fn keeping_the_last_epoch_changes_no_update_and_no_final_estimate() {
         );
         assert_eq!(last.calibration_sigma.len(), k);
         assert_eq!(last.final_covariance, all.final_covariance);
-        assert_eq!(last.dvl_epoch, all.dvl_epoch);
-        for (a, b) in all.updates.iter().zip(&last.updates) {
+        let (dvl_all, dvl_last) = (&all.streams[0], &last.streams[0]);
+        assert_eq!(dvl_last.epoch, dvl_all.epoch);
+        for (a, b) in dvl_all.updates.iter().zip(&dvl_last.updates) {
             let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
             assert_eq!((a.innovation, a.s, a.nis), (b.innovation, b.s, b.nis));
         }
@@ -178,8 +167,7 @@ fn covariances_are_kept_at_the_epochs_nearest_the_times_asked_for() {
         let data = RecordedData {
             imu: &imu,
             imu_time: &imu_time,
-            dvl: &dvl,
-            dvl_time: &dvl_time,
+            streams: vec![Stream::dvl(&dvl, &dvl_time, &FilterConfig::default())],
             covariance_time,
             ..RecordedData::default()
         };
@@ -245,13 +233,11 @@ fn q_schedule_sets_external_q_from_its_epoch_on() {
         let data = RecordedData {
             imu: &imu,
             imu_time: &imu_time,
-            dvl: &dvl,
-            dvl_time: &dvl_time,
+            streams: vec![Stream::dvl(&dvl, &dvl_time, &FilterConfig::default())],
             t0: 0.0,
             q_time,
             q_values,
             covariance_time: &[],
-            ..RecordedData::default()
         };
         filter_recorded(
             &data,

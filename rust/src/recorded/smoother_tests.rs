@@ -2,11 +2,18 @@
 //! are rebuilt bit for bit, with and without a covariance step, and a pass without
 //! measurements smooths to the forward solution.
 
+use super::data::RecordedData;
+use super::epochs::Epochs;
+use super::filter::{smooth_recorded_until, Recording};
+use super::output::FilterOutput;
+use super::stream::Stream;
 use super::tests::per_sample;
-use super::*;
+use crate::cancel::Cancel;
 use crate::ekf::tests::moving_state;
-use crate::ekf::{Formulation, Vector15};
+use crate::ekf::{Ekf, FilterConfig, Formulation, Vector15};
 use crate::noise::StrategySpec;
+use crate::smoother::{self, Covariances, Forward, ForwardLog};
+use nalgebra::Vector3;
 
 /// A recording's arrays: IMU rows, their times, DVL rows, their times.
 type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
@@ -40,19 +47,22 @@ fn forward_keeping_nodes(
     let data = RecordedData {
         imu,
         imu_time,
-        dvl,
-        dvl_time,
+        streams: vec![Stream::dvl(dvl, dvl_time, &FilterConfig::default())],
         q_time,
         q_values,
         ..RecordedData::default()
     };
     let mut strategy = spec.build(cfg.bias_psd());
-    let mut nodes = Nodes::default();
-    let keep = Some((&mut nodes, None));
-    let out = Pass::of(&data, cfg)
-        .forward(strategy.as_mut(), Epochs::All, keep, &Cancel::default())
+    let mut log = ForwardLog::default();
+    let out = Recording::of(&data, cfg)
+        .forward(
+            strategy.as_mut(),
+            Epochs::All,
+            Some(&mut log),
+            &Cancel::default(),
+        )
         .unwrap();
-    (out, nodes.0)
+    (out, log.nodes.0)
 }
 
 /// The forward solution `out` over `arrays`, as the backward pass reads it.
@@ -179,7 +189,7 @@ fn covariance_step_closes_are_rebuilt_exactly() {
         };
         for (spec, q_time, q_values) in &cases {
             let (out, nodes) = forward_keeping_nodes(&arrays, (q_time, q_values), &cfg, spec);
-            let inside = nodes.iter().filter(|n| n.interval.is_some()).count();
+            let inside = nodes.iter().filter(|n| n.step.is_some()).count();
             assert_eq!(inside, 2 * usize::from(!q_time.is_empty()), "{spec:?}");
             let forward = forward_of(&arrays, &out);
             let mut closes = vec![0];
@@ -241,7 +251,7 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
         let some = smoother::smooth(&forward, &cfg, &nodes, Covariances::Where(&odd), &cancel);
         let (every, some) = (every.unwrap(), some.unwrap());
         assert_eq!(every.nav, some.nav);
-        let inside_a_step = nodes.iter().any(|n| n.interval.is_some());
+        let inside_a_step = nodes.iter().any(|n| n.step.is_some());
         assert_eq!(inside_a_step, external, "{covariance_step}");
         let nodes: Vec<usize> = nodes.iter().map(|n| n.epoch).collect();
         for (k, (a, b)) in every.sigma.iter().zip(&some.sigma).enumerate() {
@@ -270,8 +280,7 @@ fn smoothing_without_measurements_changes_nothing() {
         let data = RecordedData {
             imu: &imu,
             imu_time: &imu_time,
-            dvl,
-            dvl_time,
+            streams: vec![Stream::dvl(dvl, dvl_time, &FilterConfig::default())],
             ..RecordedData::default()
         };
         smooth_recorded_until(
@@ -305,7 +314,7 @@ fn smoothing_without_measurements_changes_nothing() {
     // With the DVL calibration states the 19 are smoothed: their σ too, never above
     // the forward one, and equal at the end.
     let calibrated = FilterConfig {
-        dvl_calibration: Some(super::super::calibration::CalibrationConfig::default()),
+        dvl_calibration: Some(crate::ekf::calibration::CalibrationConfig::default()),
         ..per_sample()
     };
     let aided = pass(&dvl, &dvl_time, &calibrated).unwrap();

@@ -4,13 +4,20 @@
 //! thinned forward and smoothed solutions equal the every-epoch ones at the kept
 //! epochs bit for bit.
 
+use super::data::RecordedData;
+use super::epochs::Epochs;
+use super::filter::{filter_recorded_until, smooth_recorded_until, thinned_source, Recording};
+use super::output::FilterOutput;
+use super::stream::Stream;
 use super::tests::per_sample;
-use super::*;
+use crate::cancel::Cancel;
 use crate::ekf::calibration::CalibrationConfig;
-use crate::ekf::smoother::thinned::Stretch;
 use crate::ekf::tests::moving_state;
-use crate::ekf::Formulation;
+use crate::ekf::{FilterConfig, Formulation};
+use crate::error::Error;
 use crate::noise::StrategySpec;
+use crate::smoother::thinned::{self, NodeStates, Stretch};
+use crate::smoother::{steps, Forward, ForwardLog};
 
 /// A recording's arrays: IMU rows, their times, DVL rows, their times.
 type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
@@ -123,16 +130,13 @@ fn thinned_passes_equal_the_every_epoch_pass_at_the_kept_epochs() {
             let data = RecordedData {
                 imu: &imu,
                 imu_time: &imu_time,
-                dvl: &dvl,
-                dvl_time: &dvl_time,
+                streams: vec![
+                    Stream::dvl(&dvl, &dvl_time, &FilterConfig::default()),
+                    Stream::depth(&depth, &depth_time, 0.1),
+                    Stream::fix(&fix, &fix_time, &fix_sigma),
+                ],
                 q_time,
                 q_values,
-                depth: &depth,
-                depth_time: &depth_time,
-                depth_sigma: 0.1,
-                fix: &fix,
-                fix_time: &fix_time,
-                fix_sigma: &fix_sigma,
                 ..RecordedData::default()
             };
             let cancel = Cancel::default();
@@ -164,9 +168,9 @@ fn thinned_passes_equal_the_every_epoch_pass_at_the_kept_epochs() {
                         assert_eq!(s.calibration_sigma[row], full.calibration_sigma[e]);
                     }
                 }
-                assert_eq!(thin.dvl_epoch, all.dvl_epoch);
-                assert_eq!(thin.depth_nis, all.depth_nis);
-                assert_eq!(thin.fix_nis, all.fix_nis);
+                for (a, b) in thin.streams.iter().zip(&all.streams) {
+                    assert_eq!((&a.epoch, &a.nis), (&b.epoch, &b.nis));
+                }
                 assert_eq!(thin.final_covariance, all.final_covariance);
             }
             // The smoothing moved the solution (the comparison above is not vacuous).
@@ -184,12 +188,14 @@ fn reintegration_is_exact(
     spec: &StrategySpec,
     all: &FilterOutput,
 ) {
-    let mut nodes = Nodes::default();
-    let mut states = NodeStates::default();
+    let mut log = ForwardLog {
+        states: Some(NodeStates::default()),
+        ..ForwardLog::default()
+    };
     let mut strategy = spec.build(cfg.bias_psd());
-    let keep = Some((&mut nodes, Some(&mut states)));
+    let keep = Some(&mut log);
     let (x, b, c) = (moving_state(), [0.0; 6], Cancel::default());
-    let out = Pass {
+    let out = Recording {
         data,
         initial: x,
         initial_bias: b,
@@ -199,7 +205,8 @@ fn reintegration_is_exact(
     .unwrap();
     assert_eq!(out.nav, all.nav);
     let epochs: Vec<usize> = (0..out.nav.len()).collect();
-    let src = thinned_source(data, &states, &out, &epochs);
+    let (nodes, states) = (&log.nodes, log.states.as_ref().unwrap());
+    let src = thinned_source(data, states, &out, &epochs);
     let mut stretch = Stretch::default();
     assert!(nodes.0.len() > 30);
     let every = Forward {
@@ -226,8 +233,8 @@ fn reintegration_is_exact(
         }
         // Under a covariance step, the closes rebuilt in the same sweep as the
         // re-integration are those rebuilt from the kept solution, bit for bit.
-        inside_a_step += usize::from(a.interval.is_some());
-        let want = smoother::steps::rebuild::<19>(&every, cfg, a, b, &c).unwrap();
+        inside_a_step += usize::from(a.step.is_some());
+        let want = steps::rebuild::<19>(&every, cfg, a, b, &c).unwrap();
         thinned::rebuild_closes::<19>(&src, cfg, j, (a, b), &mut closes, &c).unwrap();
         compared += want.len();
         assert_eq!(closes.len(), want.len(), "closes from epoch {}", a.epoch);
@@ -235,7 +242,7 @@ fn reintegration_is_exact(
             assert_eq!(got.epoch, want.epoch);
             assert_eq!(got.phi, want.phi, "Φ at epoch {}", want.epoch);
             assert_eq!(got.p_prior, want.p_prior, "P at epoch {}", want.epoch);
-            let velocities = |c: &smoother::steps::Close<19>| (c.vel_prior, c.vel);
+            let velocities = |c: &steps::Close<19>| (c.vel_prior, c.vel);
             assert_eq!(
                 velocities(got),
                 velocities(want),
@@ -272,15 +279,18 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
         ..RecordedData::default()
     };
     let cfg = per_sample();
-    let (mut nodes, mut states) = (Nodes::default(), NodeStates::default());
+    let mut log = ForwardLog {
+        states: Some(NodeStates::default()),
+        ..ForwardLog::default()
+    };
     let mut strategy = StrategySpec::Constant { q: [1e-4; 6] }.build(cfg.bias_psd());
-    let keep = Some((&mut nodes, Some(&mut states)));
     let live = Cancel::default();
-    let out = Pass::of(&data, &cfg)
-        .forward(strategy.as_mut(), Epochs::Step(1.0), keep, &live)
+    let out = Recording::of(&data, &cfg)
+        .forward(strategy.as_mut(), Epochs::Step(1.0), Some(&mut log), &live)
         .unwrap();
+    let (nodes, states) = (&log.nodes, log.states.as_ref().unwrap());
     assert_eq!(nodes.0.len(), 2, "one stretch: the first epoch to the last");
-    let src = thinned_source(&data, &states, &out, &out.epoch);
+    let src = thinned_source(&data, states, &out, &out.epoch);
     let (a, end) = (&nodes.0[0], nodes.0[1].epoch);
     assert!(end - a.epoch > 5 * STEPS_PER_CHECK);
     let mut stretch = Stretch::default();
@@ -312,8 +322,11 @@ fn the_reintegration_of_a_long_stretch_stops_when_cancelled() {
 /// points of it interpolate alike); some steps hold two kept epochs.
 #[test]
 fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
-    use crate::ekf::{calibration::Calibration, ClosedSigma};
-    use crate::noise::ProcessNoise;
+    use super::stale::StaleSigma;
+    use crate::ekf::tests::dvl as dvl_reading;
+    use crate::ekf::{calibration::Calibration, ClosedSigma, Ekf, ProcessNoise};
+    use crate::mechanization::ImuSample;
+    use nalgebra::Vector3;
     let (imu, _, dvl, _) = pass();
     let (q, sigmas) = ([1e-4; 6], |ekf: &Ekf| -> ClosedSigma {
         (
@@ -353,31 +366,36 @@ fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
             out.calibration_sigma.push(calibration.unwrap());
         };
         record(&mut out, &ekf, 0.0);
-        stale.after_epoch(&mut ekf, &mut out, 0.0, true);
+        stale.after_epoch(&ekf, &mut out, 0.0, true);
         // Every up-to-date epoch and every close, as an eager pass takes them; the kept
         // epochs inside a step: (row, its start in `current`, its end in `closes`).
         let (mut current, mut closes) = (vec![(0.0, sigmas(&ekf), true)], Vec::new());
         let mut inside = Vec::new();
         for (k, sample) in imu.iter().enumerate().map(|(k, s)| (k + 1, s)) {
             let t = k as f64 * 0.01;
-            ekf.propagate(&ImuSample::from_array(sample), 0.01, noise)
+            let closed = ekf
+                .propagate(&ImuSample::from_array(sample), 0.01, noise)
                 .unwrap();
+            if closed.is_some() {
+                stale.on_close(&ekf);
+            }
             let aided = k % 20 == 0;
-            if aided {
-                ekf.bring_up_to_date();
+            if aided && ekf.bring_up_to_date().is_some() {
+                stale.on_close(&ekf);
             }
             let up_to_date = ekf.is_up_to_date(); // a close at this epoch
             if up_to_date {
                 closes.push((t, sigmas(&ekf)));
             }
             if aided {
-                ekf.update(&Vector3::from(dvl[k / 20 - 1])).unwrap();
+                let z = Vector3::from(dvl[k / 20 - 1]);
+                ekf.apply(&dvl_reading(&ekf, z)).unwrap();
             }
             let kept = k % 9 == 4 || k % 9 == 6;
             if kept {
                 record(&mut out, &ekf, t);
             }
-            stale.after_epoch(&mut ekf, &mut out, t, kept);
+            stale.after_epoch(&ekf, &mut out, t, kept);
             if up_to_date {
                 current.push((t, sigmas(&ekf), kept));
             } else if kept {

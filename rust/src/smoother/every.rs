@@ -1,14 +1,15 @@
 //! The backward pass with the covariance propagated at every IMU sample: the RTS
 //! recursion chained over the samples between two nodes (see [`super`]).
 
-use super::{full_p, lift, restart, Covariances, Forward, Node, Sink};
+use super::forward::{Covariances, Forward};
+use super::node::{full_p, lift, restart, Node};
+use super::sink::Sink;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::dynamics::{add_imu_noise, ErrorDynamics};
 use crate::ekf::formulation::from_classic;
-use crate::ekf::{FilterConfig, Matrix15, ACC_BIAS};
+use crate::ekf::{FilterConfig, Matrix15, ProcessNoise, ACC_BIAS};
 use crate::error::{Error, Result};
 use crate::mechanization::{FrameRates, ImuSample, NavState};
-use crate::noise::ProcessNoise;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// The backward pass of [`super::smooth`] over `N` states, every sample.
@@ -217,7 +218,7 @@ fn discrete_noise(
 /// rebuilt from the forward solution; with a covariance predicate, the product
 /// `G_i = Φ_{a→i}` at the epochs it holds for, and `G_b`.
 pub(crate) struct Interval<const N: usize> {
-    pub(in crate::ekf) p: Vec<SMatrix<f64, N, N>>,
+    pub(crate) p: Vec<SMatrix<f64, N, N>>,
     pub(super) steps: Vec<(ErrorDynamics, f64)>,
     /// The covariance after the last step (before the end node's update).
     pub(crate) p_end: SMatrix<f64, N, N>,

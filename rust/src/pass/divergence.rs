@@ -33,3 +33,32 @@ impl NisMonitor {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nis_monitor_flags_a_sustained_large_nis_only() {
+        let mut m = NisMonitor::default();
+        // A consistent filter: mean 3, with single outliers.
+        for k in 0..200 {
+            m.push(if k % 37 == 0 { 60.0 } else { 3.0 }, k as f64);
+        }
+        assert_eq!(m.diverged_at, None);
+        // Innovations 4× their predicted σ (NIS ≈ 48) from t = 200 s on.
+        for k in 200..260 {
+            m.push(48.0, k as f64);
+        }
+        let t = m.diverged_at.expect("a sustained NIS of 48 is divergence");
+        assert!((200.0..220.0).contains(&t), "detected at {t}");
+        // The first detection is kept; a NaN NIS also counts.
+        m.push(f64::NAN, 999.0);
+        assert_eq!(m.diverged_at, Some(t));
+        let mut m = NisMonitor::default();
+        for k in 0..NisMonitor::WINDOW {
+            m.push(if k == 5 { f64::NAN } else { 3.0 }, k as f64);
+        }
+        assert!(m.diverged_at.is_some());
+    }
+}

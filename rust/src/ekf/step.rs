@@ -12,21 +12,30 @@
 //! `Φ = I + F ΔT + ½(F ΔT)²` and `P ← Φ (P + ½Q) Φᵀ + ½Q`, with `Q` the accumulated
 //! noise mapped through Γ at the interval's start (`docs/filter.md`, "Covariance
 //! step"). The sensitivity `M` and the DVL calibration blocks go through the same Φ.
-//! Here too: the filter's methods that close a step or read P as if it were closed, and
-//! [`StaleSigma`], the σ a recorded pass reports at the epochs inside a step.
 
 use super::calibration::Calibration;
 use super::dynamics::{ErrorDynamics, ImuNoise};
-use super::recorded::FilterOutput;
+use super::formulation::{self, Formulation};
+use super::process_noise::ProcessNoise;
+use super::state::{Matrix15, ACC_BIAS};
 use super::transition::Transition;
-use super::{formulation, ClosedSigma, Ekf, Matrix15, ACC_BIAS};
-use crate::mechanization::{FrameRates, ImuSample, NavState};
-use crate::noise::ProcessNoise;
+use super::FilterConfig;
+use crate::mechanization::{FrameRates, NavState};
 use nalgebra::Vector3;
+
+/// What closing a covariance step propagates: the covariance `p` in `formulation`'s
+/// coordinates, the DVL calibration blocks, and the sensitivity `M`, the IMU
+/// variances it is taken for and its calibration blocks.
+pub(crate) struct Covariance<'a> {
+    pub(crate) formulation: Formulation,
+    pub(crate) p: &'a mut Matrix15,
+    pub(crate) calibration: Option<&'a mut Calibration>,
+    pub(crate) sensitivity: Option<(&'a mut Matrix15, &'a [f64; 6], Option<&'a mut Calibration>)>,
+}
 
 /// A covariance step under way.
 #[derive(Clone, Debug)]
-pub(super) struct Interval {
+pub struct CovarianceStep {
     /// The navigation solution at the interval's start (F and Γ are evaluated there).
     start: NavState,
     /// `ΔT` \[s\].
@@ -43,9 +52,9 @@ pub(super) struct Interval {
     sensitivity_white: Option<f64>,
 }
 
-impl Interval {
+impl CovarianceStep {
     /// An interval starting at `nav`; `sensitivity`: whether M is tracked.
-    pub(super) fn open(nav: &NavState, sensitivity: bool) -> Self {
+    pub(crate) fn open(nav: &NavState, sensitivity: bool) -> Self {
         Self {
             start: *nav,
             elapsed: 0.0,
@@ -59,7 +68,7 @@ impl Interval {
 
     /// Add one IMU sample of `dt` seconds taken at `nav` with the bias-corrected
     /// specific force `f_body`, white-noise factor `white = Δt_imu Δt` and `noise`.
-    pub(super) fn add(
+    pub(crate) fn add(
         &mut self,
         nav: &NavState,
         f_body: &Vector3<f64>,
@@ -89,18 +98,18 @@ impl Interval {
     }
 
     /// Whether the interval has reached the configured covariance step.
-    pub(super) fn due(&self, cfg: &super::FilterConfig) -> bool {
+    pub(crate) fn due(&self, cfg: &FilterConfig) -> bool {
         cfg.interval_due(self.elapsed)
     }
 
     /// Propagate the filter's P, M and calibration blocks over the interval:
     /// `P ← Φ (P + ½Q) Φᵀ + ½Q`, the noise added to the blocks it has, half on either
     /// side of Φ. The interval's Φ, or None for an empty interval (P unchanged).
-    pub(super) fn close(self, ekf: &mut Ekf) -> Option<Transition> {
+    pub(crate) fn close(self, covariance: Covariance<'_>) -> Option<Transition> {
         if self.elapsed <= 0.0 {
             return None;
         }
-        let formulation = ekf.cfg.formulation;
+        let formulation = covariance.formulation;
         let start = &self.start;
         let rates = FrameRates::at(start);
         let force = self.force / self.elapsed;
@@ -121,18 +130,20 @@ impl Interval {
                 *p += qd;
             }
         };
-        noise(&mut ekf.p);
-        phi.propagate(&mut ekf.p);
-        noise(&mut ekf.p);
-        if let Some(c) = ekf.calibration.as_mut() {
+        noise(covariance.p);
+        phi.propagate(covariance.p);
+        noise(covariance.p);
+        if let Some(c) = covariance.calibration {
             c.propagate_interval(&phi, self.elapsed, true);
         }
-        if let (Some((m, qm)), Some(white)) = (ekf.sensitivity.as_mut(), self.sensitivity_white) {
+        if let (Some((m, qm, calibration)), Some(white)) =
+            (covariance.sensitivity, self.sensitivity_white)
+        {
             let noise = ImuNoise::new(start, formulation, qm, 0.5 * white);
             noise.add_to(m);
             phi.propagate(m);
             noise.add_to(m);
-            if let Some(c) = ekf.sensitivity_calibration.as_mut() {
+            if let Some(c) = calibration {
                 c.propagate_interval(&phi, self.elapsed, false);
             }
         }
@@ -140,210 +151,20 @@ impl Interval {
     }
 }
 
-/// The covariance step's part of the filter: closing it, and reading P as if closed.
-impl Ekf {
-    /// Close the covariance step under way, if any: propagate P (and M and the
-    /// calibration blocks) over the samples since it started. The covariance readers
-    /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
-    /// end of the last closed step; every DVL update brings it up to date first.
-    pub fn bring_up_to_date(&mut self) {
-        self.close_interval();
-    }
-
-    /// The covariance-step part of the smoother's rebuild ([`Ekf::predict_covariance_from`]
-    /// under a covariance step): one raw IMU sample of `dt` seconds at the forward
-    /// solution `nav` added to the step under way (one opened at `nav` if none); whether
-    /// the step is now due ([`Ekf::close_interval`] closes it). The same operations as
-    /// the forward pass's [`Ekf::propagate`], without moving its transition around.
-    #[inline]
-    pub(super) fn add_to_step(
-        &mut self,
-        nav: &NavState,
-        raw: &ImuSample,
-        dt: f64,
-        noise: ProcessNoise<'_>,
-    ) -> bool {
-        self.nav = *nav;
-        let accel = raw.accel - self.accel_bias;
-        let white = self.cfg.imu_dt * dt;
-        let interval = self
-            .interval
-            .get_or_insert_with(|| Interval::open(nav, false));
-        interval.add(nav, &accel, dt, white, noise);
-        interval.due(&self.cfg)
-    }
-
-    /// [`Ekf::bring_up_to_date`], giving the closed step's transition Φ (None when no
-    /// step was under way): the smoother's backward pass reads it.
-    pub(super) fn close_interval(&mut self) -> Option<Transition> {
-        let phi = self
-            .interval
-            .take()
-            .and_then(|interval| interval.close(self));
-        if self.track_closes && phi.is_some() {
-            let calibration = self.calibration.as_ref().map(Calibration::sigma);
-            self.closed_sigma = Some((self.sigma(), calibration));
-        }
-        if let Some(phi) = phi.as_ref() {
-            self.note_close(phi);
-        }
-        phi
-    }
-
-    /// Whether to keep the σ at the closes of a covariance step from now on, for
-    /// [`Ekf::take_closed_sigma`] (σ maps P to the classic coordinates: a pass asks
-    /// for it only while it will read it).
-    pub fn track_next_close(&mut self, wanted: bool) {
-        self.track_closes = wanted;
-    }
-
-    /// The σ at the last close since the previous call, before the updates of its epoch
-    /// (None: no close, or [`Ekf::track_next_close`] not asked for).
-    pub fn take_closed_sigma(&mut self) -> Option<ClosedSigma> {
-        self.closed_sigma.take()
-    }
-
-    /// Whether P stands at the current epoch (no covariance step under way).
-    pub fn is_up_to_date(&self) -> bool {
-        self.interval.is_none()
-    }
-
-    /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
-    /// copy), so that reading it does not change the filter's later steps.
-    pub fn sigma_up_to_date(&self) -> [f64; 15] {
-        if self.interval.is_none() {
-            return self.sigma();
-        }
-        let mut copy = self.clone();
-        copy.bring_up_to_date();
-        copy.sigma()
-    }
-
-    /// [`Ekf::covariance`] brought up to date without closing the step under way (on
-    /// a copy), as [`Ekf::sigma_up_to_date`].
-    pub fn covariance_up_to_date(&self) -> Matrix15 {
-        if self.interval.is_none() {
-            return self.covariance();
-        }
-        let mut copy = self.clone();
-        copy.bring_up_to_date();
-        copy.covariance()
-    }
-}
-
 /// A variance linear in time between `from` and `to`, a fraction `w` of the way: how
-/// the forward pass interpolates its variances inside a covariance step ([`StaleSigma`])
-/// and the smoother the change it makes to them (`super::smoother`).
-pub(in crate::ekf) fn variance_between(from: f64, to: f64, w: f64) -> f64 {
+/// a pass interpolates its variances inside a covariance step and the smoother the
+/// change it makes to them.
+pub fn variance_between(from: f64, to: f64, w: f64) -> f64 {
     from + w * (to - from)
-}
-
-/// The σ of the epochs inside a covariance step. P stands at the step's start there, so
-/// the σ an epoch records is the last close's; once the step closes (before the updates
-/// of its last epoch), the variances of the epochs inside it are interpolated linearly
-/// in time between the σ at the last epoch where P was up to date (after its updates)
-/// and the σ at the close: the growth of P over a step of 0.1 s is smooth, and a stale
-/// σ would read up to the whole step's growth too small (`docs/filter.md`, "Covariance
-/// step"). Without a covariance step every epoch is up to date. A pass that records
-/// some epochs only (`Epochs::Step`) interpolates those; the last up-to-date epoch
-/// need not be one of them. σ is computed only where a recorded epoch inside a step
-/// reads it: the filter is asked for the σ at a close only while such an epoch is
-/// pending, and at an up-to-date epoch that is not recorded its P and velocity are
-/// copied (1.8 kB, cheap beside the mapping to classic coordinates), their σ computed
-/// at the close, with the same operations, only if an epoch inside the step reads it.
-#[derive(Default)]
-pub(super) struct StaleSigma {
-    /// The time \[s\] of the last epoch whose P was up to date, and its σ.
-    last_current: Option<(f64, Current)>,
-    /// The recorded epochs since (indices into the output), whose σ is the last close's.
-    pending: Vec<usize>,
-}
-
-/// The σ at an up-to-date epoch: its row's, or, at an epoch not recorded, what it is
-/// computed from (see [`super::classic_sigma`]). One value, overwritten in place at
-/// each up-to-date epoch: boxing the covariance would allocate there instead.
-#[allow(clippy::large_enum_variant)]
-enum Current {
-    Recorded(ClosedSigma),
-    Unrecorded {
-        p: Matrix15,
-        vel: Vector3<f64>,
-        calibration: Option<[f64; 4]>,
-    },
-}
-
-impl Current {
-    fn sigma(&self, formulation: super::Formulation) -> ClosedSigma {
-        match self {
-            Current::Recorded(sigma) => *sigma,
-            Current::Unrecorded {
-                p,
-                vel,
-                calibration,
-            } => (super::classic_sigma(formulation, p, vel), *calibration),
-        }
-    }
-}
-
-impl StaleSigma {
-    /// After the epoch at time `t` \[s\]; `recorded`: it is the last of `out`.
-    pub(super) fn after_epoch(
-        &mut self,
-        ekf: &mut Ekf,
-        out: &mut FilterOutput,
-        t: f64,
-        recorded: bool,
-    ) {
-        if let Some((sigma, calibration)) = ekf.take_closed_sigma() {
-            if let Some((t_a, current)) = &self.last_current {
-                let (from, from_calibration) = current.sigma(ekf.cfg.formulation);
-                for &e in &self.pending {
-                    let w = (out.time[e] - t_a) / (t - t_a);
-                    let between =
-                        |from: f64, to: f64| variance_between(from * from, to * to, w).sqrt();
-                    out.sigma[e] = std::array::from_fn(|i| between(from[i], sigma[i]));
-                    if let (Some(c), Some(from)) = (calibration, from_calibration) {
-                        out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));
-                    }
-                }
-            }
-            self.pending.clear();
-        }
-        if ekf.is_up_to_date() {
-            self.pending.clear();
-            self.last_current = if recorded {
-                let sigma = out.sigma.last().copied().unwrap_or_default();
-                let current = (sigma, out.calibration_sigma.last().copied());
-                Some((t, Current::Recorded(current)))
-            } else if ekf.config().covariance_every_sample() {
-                None // no epoch is ever inside a step
-            } else {
-                let calibration = ekf.calibration.as_ref().map(Calibration::sigma);
-                let (p, vel) = (ekf.p, ekf.nav.vel);
-                Some((
-                    t,
-                    Current::Unrecorded {
-                        p,
-                        vel,
-                        calibration,
-                    },
-                ))
-            };
-        } else if recorded {
-            self.pending.push(out.time.len() - 1);
-        }
-        // The σ at the next close is read by the recorded epochs inside its step only.
-        ekf.track_next_close(!self.pending.is_empty());
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::calibration::CalibrationConfig;
-    use super::super::tests::moving_state;
-    use super::super::{FilterConfig, Formulation, Vector15};
-    use super::*;
+    use super::super::tests::{dvl_at_estimate, moving_state};
+    use super::super::{Ekf, Formulation, Vector15};
     use crate::mechanization::ImuSample;
+    use super::*;
 
     const Q: [f64; 6] = [1e-4, 2e-4, 1e-4, 1e-6, 3e-6, 1e-6];
 
@@ -380,9 +201,8 @@ mod tests {
             };
             ekf.propagate(&sample, 0.01, noise).unwrap();
             if k % 100 == 0 {
-                let (predicted, _) = ekf.measurement_model();
-                let c = ekf.calibration.as_ref().unwrap();
-                ekf.update(&c.estimate.reading(&predicted)).unwrap();
+                ekf.bring_up_to_date();
+                ekf.apply(&dvl_at_estimate(&ekf)).unwrap();
             }
         }
         ekf.bring_up_to_date();
@@ -477,7 +297,7 @@ mod tests {
         for _ in 0..5 {
             ekf.propagate(&sample, 0.01, noise).unwrap();
         }
-        assert!(ekf.interval.is_none());
+        assert!(ekf.step.is_none());
     }
 
     /// A q changed inside a step counts from its sample on: P is affine in the summed
@@ -501,7 +321,7 @@ mod tests {
                 };
                 ekf.propagate(&sample, 0.01, noise).unwrap();
             }
-            assert!(ekf.interval.is_none(), "the tenth sample closes the step");
+            assert!(ekf.step.is_none(), "the tenth sample closes the step");
             ekf.p
         };
         let loud = Q.map(|v| 9.0 * v);

@@ -11,16 +11,15 @@
 //! step"), so the smoothed σ stays below the forward one however the forward pass read
 //! its own σ there.
 
-use super::{classic_rows, Forward};
+use super::forward::Forward;
 use crate::attitude::skew;
-use crate::ekf::interval::variance_between;
-use crate::ekf::{FilterConfig, Formulation, ATT, VEL};
+use crate::ekf::{variance_between, FilterConfig, Formulation, ATT, VEL};
 use crate::mechanization::NavState;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// Where a backward pass puts what it finds at each epoch: the smoothed error of the
 /// forward solution there, σ where it is wanted, the smoothed covariance at the nodes
-/// (each epoch's error once, in no set order). [`super::Smoothed`] keeps the smoothed
+/// (each epoch's error once, in no set order). [`super::smoothed::Smoothed`] keeps the smoothed
 /// solution at every epoch; a Monte Carlo run reduces it to its metrics as the pass
 /// goes (`crate::run`), without a copy of the forward solution.
 pub trait Sink {
@@ -140,4 +139,21 @@ pub(crate) fn change_of<const N: usize>(
 /// zero): `√(σ² + change)`, `σ` itself where the change is zero.
 pub(crate) fn changed_sigma(sigma: f64, change: f64) -> f64 {
     (sigma * sigma + change).max(0.0).sqrt()
+}
+
+/// `U P`, the rows of a covariance in the filter's coordinates mapped to the classic
+/// ones at `nav`'s velocity (`U = I + [v̂×]` at (velocity, attitude) in the invariant
+/// formulation, `I` in the classic one).
+pub(super) fn classic_rows<const N: usize>(
+    cfg: &FilterConfig,
+    nav: &NavState,
+    p: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    let mut up = *p;
+    if cfg.formulation == Formulation::Invariant {
+        let att = up.fixed_rows::<3>(ATT).into_owned();
+        let mut vel = up.fixed_rows_mut::<3>(VEL);
+        vel += skew(&nav.vel) * att;
+    }
+    up
 }

@@ -11,15 +11,15 @@ pub enum Epochs {
     /// The estimate after the last IMU sample only: for passes whose updates alone are
     /// read, such as matching R to the innovations, which then neither compute nor
     /// store the estimate (~300 bytes here, ~70 more in the binding's arrays) at every
-    /// IMU sample. `dvl_epoch` still counts every epoch.
+    /// IMU sample. Each stream still counts every epoch.
     Last,
     /// An output period \[s\] (finite, > 0): the initial state, the epoch nearest each
     /// multiple of it after `t0` (as a `covariance_time` is placed) and the last epoch,
     /// each with its estimate bit for bit as with [`Epochs::All`]. A long pass then
     /// stores ~300 bytes per kept epoch, not per IMU sample; smoothed
     /// ([`super::smooth_recorded_until`]), the forward pass keeps its solution at the nodes
-    /// only and the backward pass re-integrates it between them ([`super::smoother::thinned`]).
-    /// `dvl_epoch` still counts every epoch; [`super::FilterOutput::epoch`] maps the rows.
+    /// only and the backward pass re-integrates it between them ([`crate::smoother::thinned`]).
+    /// Each stream still counts every epoch; [`super::FilterOutput::epoch`] maps the rows.
     Step(f64),
 }
 

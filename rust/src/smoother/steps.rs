@@ -22,11 +22,13 @@
 //! the smoothed ones at `c` and at `d` (the smoothed covariance is the same before and
 //! after `d`'s updates), as the forward σ is interpolated.
 
+use super::forward::{Covariances, Forward};
+use super::kept::KeptCloses;
+use super::node::{full_p, lift, restart, Node};
 use super::sink::change;
-use super::{full_p, lift, restart, Covariances, Forward, Node, Sink, STEPS_PER_CHECK};
-use crate::cancel::Cancel;
-use crate::ekf::transition::Transition;
-use crate::ekf::{Ekf, FilterConfig, KeptCloses};
+use super::sink::Sink;
+use crate::cancel::{Cancel, STEPS_PER_CHECK};
+use crate::ekf::{Ekf, FilterConfig, Transition};
 use crate::error::{Error, Result};
 use crate::mechanization::{step_with_rates, FrameRates, ImuSample};
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -39,12 +41,12 @@ type NavRows = SMatrix<f64, 9, 15>;
 /// and the forward velocity \[m/s, NED\] at its epoch before the updates there and
 /// after them: σ is read at the one the forward σ was (the covariance the close left
 /// before the updates, the one after them after).
-pub(in crate::ekf) struct Close<const N: usize> {
-    pub(in crate::ekf) epoch: usize,
-    pub(in crate::ekf) phi: NavRows,
-    pub(in crate::ekf) p_prior: SMatrix<f64, N, N>,
-    pub(in crate::ekf) vel_prior: Vector3<f64>,
-    pub(in crate::ekf) vel: Vector3<f64>,
+pub(crate) struct Close<const N: usize> {
+    pub(crate) epoch: usize,
+    pub(crate) phi: NavRows,
+    pub(crate) p_prior: SMatrix<f64, N, N>,
+    pub(crate) vel_prior: Vector3<f64>,
+    pub(crate) vel: Vector3<f64>,
 }
 
 impl<const N: usize> Close<N> {
@@ -416,7 +418,7 @@ pub(super) fn previous_close<const N: usize>(
     a: &Node,
 ) -> Option<usize> {
     match k {
-        0 => a.interval.is_none().then_some(a.epoch),
+        0 => a.step.is_none().then_some(a.epoch),
         _ => Some(closes[k - 1].epoch),
     }
 }
@@ -453,7 +455,7 @@ fn fill<const N: usize>(
 }
 
 /// The closes in `(a, b]` of the covariance step that the forward pass kept (see
-/// [`crate::ekf::Ekf::keep_closes`]), as [`rebuild`] makes them (the velocity before
+/// [`KeptCloses::note`]), as [`rebuild`] makes them (the velocity before
 /// the updates the one the forward pass kept at the close).
 fn kept_between<const N: usize>(
     forward: &Forward<'_>,
@@ -483,7 +485,7 @@ fn kept_between<const N: usize>(
 /// of `a` throughout; `b`'s step is closed at `b` where the forward pass closed it
 /// (the velocity there before `b`'s updates from [`velocity_before_updates`]; no
 /// update between the nodes: before and after are the same elsewhere).
-pub(in crate::ekf) fn rebuild<const N: usize>(
+pub(crate) fn rebuild<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     a: &Node,
@@ -510,8 +512,8 @@ pub(in crate::ekf) fn rebuild<const N: usize>(
             push(&ekf, epoch + 1, phi);
         }
     }
-    if b.interval.is_none() {
-        if let Some(phi) = ekf.close_interval() {
+    if b.step.is_none() {
+        if let Some(phi) = ekf.bring_up_to_date() {
             push(&ekf, b.epoch, phi);
         }
     }

@@ -1,0 +1,470 @@
+//! The filter's state and its prediction: the navigation solution, the bias estimates,
+//! the error covariance (and the DVL calibration states and the sensitivity beside it),
+//! propagated over one IMU sample at a time (the covariance at every sample, or over a
+//! covariance step: `super::step`), and the feedback of an error estimate.
+
+use super::calibration::Calibration;
+use super::dynamics::{add_imu_noise, ErrorDynamics};
+use super::formulation::{self, Formulation};
+use super::process_noise::ProcessNoise;
+use super::state::{Matrix15, Vector15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use super::step::{Covariance, CovarianceStep};
+use super::transition::Transition;
+use super::FilterConfig;
+use crate::attitude::exp_so3;
+use crate::earth;
+use crate::error::{Error, Result};
+use crate::mechanization::{step_with_rates, FrameRates, ImuSample, NavState};
+use nalgebra::{Matrix3, Vector3};
+
+/// Filter state: navigation solution, bias estimates, covariance. Nothing of the
+/// output or of the smoother: a pass keeps what it reports (`crate::pass`).
+#[derive(Clone, Debug)]
+pub struct Ekf {
+    pub nav: NavState,
+    /// Accelerometer bias estimate \[m/s²\].
+    pub accel_bias: Vector3<f64>,
+    /// Gyro bias estimate \[rad/s\].
+    pub gyro_bias: Vector3<f64>,
+    /// The error covariance in the coordinates of [`FilterConfig::formulation`]
+    /// ([`Ekf::covariance`] gives it in the classic ones users read).
+    pub p: Matrix15,
+    /// Last bias-corrected gyro sample \[rad/s\] (for the lever-arm terms).
+    pub(super) last_gyro: Vector3<f64>,
+    pub(super) cfg: FilterConfig,
+    /// `M = ∂P/∂λ` and the IMU variances `q` it is taken for (see
+    /// [`Ekf::track_sensitivity`]).
+    pub(super) sensitivity: Option<(Matrix15, [f64; 6])>,
+    /// The DVL calibration states, when [`FilterConfig::dvl_calibration`] asks for them.
+    pub calibration: Option<Calibration>,
+    /// The calibration blocks of `M` (with [`Ekf::track_sensitivity`] and calibration).
+    pub(super) sensitivity_calibration: Option<Calibration>,
+    /// The covariance step under way (see [`FilterConfig::covariance_step`]): P, M and
+    /// the calibration blocks stand at its start.
+    pub(super) step: Option<CovarianceStep>,
+}
+
+/// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
+/// any.
+pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
+
+/// [`Ekf::sigma`] of a covariance `p` in `formulation`'s coordinates at the velocity
+/// estimate `vel` \[m/s, NED\]: the same operations, so that a σ computed later from a
+/// copy of an epoch's P and velocity is the one computed there, bit for bit.
+pub fn classic_sigma(formulation: Formulation, p: &Matrix15, vel: &Vector3<f64>) -> [f64; 15] {
+    let mut p = *p;
+    formulation::to_classic(formulation, &mut p, vel);
+    std::array::from_fn(|i| {
+        let v = p[(i, i)];
+        if v < 0.0 {
+            0.0
+        } else {
+            v.sqrt()
+        }
+    })
+}
+
+impl Ekf {
+    pub fn new(
+        cfg: &FilterConfig,
+        nav: NavState,
+        accel_bias: Vector3<f64>,
+        gyro_bias: Vector3<f64>,
+    ) -> Result<Self> {
+        cfg.validate()?;
+        let mut p = cfg.p0();
+        formulation::from_classic(cfg.formulation, &mut p, &nav.vel);
+        Ok(Self {
+            nav,
+            accel_bias,
+            gyro_bias,
+            p,
+            last_gyro: Vector3::zeros(),
+            cfg: cfg.clone(),
+            sensitivity: None,
+            calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
+            sensitivity_calibration: None,
+            step: None,
+        })
+    }
+
+    /// A filter at the solution `nav` with the bias estimates `bias` (`[b_a, b_g]`)
+    /// whose covariance (the calibration blocks too, where given) and covariance step
+    /// under way are given: where the smoother restarts the forward pass's prediction.
+    pub fn restart(
+        cfg: &FilterConfig,
+        nav: NavState,
+        bias: &[f64; 6],
+        p: Matrix15,
+        calibration: Option<(&super::calibration::Cross, &nalgebra::Matrix4<f64>)>,
+        step: Option<CovarianceStep>,
+    ) -> Result<Self> {
+        let b = bias;
+        let mut ekf = Ekf::new(
+            cfg,
+            nav,
+            Vector3::new(b[0], b[1], b[2]),
+            Vector3::new(b[3], b[4], b[5]),
+        )?;
+        ekf.p = p;
+        if let (Some(c), Some((cross, cov))) = (ekf.calibration.as_mut(), calibration) {
+            (c.cross, c.cov) = (*cross, *cov);
+        }
+        ekf.step = step;
+        Ok(ekf)
+    }
+
+    /// Carry `M = ∂P/∂λ` beside P from now on: the derivative of the covariance with
+    /// respect to a common scale λ on the IMU variances (the IMU part of Q^c being
+    /// `λ·q·Δt_imu`). M starts at 0, is propagated as P is with the IMU noise of `q`
+    /// alone, and goes through each applied update as `(I − K H) M (I − K H)ᵀ`, which is
+    /// exact to first order because ∂P⁺/∂K vanishes at the Kalman gain. Each velocity
+    /// update then reports `H M Hᵀ` ([`super::UpdateInfo::sensitivity`]); the adaptive
+    /// strategy reads it.
+    pub fn track_sensitivity(&mut self, q: [f64; 6]) {
+        self.bring_up_to_date();
+        self.sensitivity = Some((Matrix15::zeros(), q));
+        self.sensitivity_calibration = self.calibration.as_ref().map(Calibration::zeroed_like);
+    }
+
+    /// The sensitivity `M = ∂P/∂λ` carried since [`Ekf::track_sensitivity`], if any.
+    pub fn sensitivity_matrix(&self) -> Option<&Matrix15> {
+        self.sensitivity.as_ref().map(|(m, _)| m)
+    }
+
+    pub fn config(&self) -> &FilterConfig {
+        &self.cfg
+    }
+
+    /// The last bias-corrected gyro sample \[rad/s, body\].
+    pub fn last_gyro(&self) -> &Vector3<f64> {
+        &self.last_gyro
+    }
+
+    /// The bias estimates `[b_a, b_g]`.
+    pub fn bias(&self) -> [f64; 6] {
+        let (a, g) = (self.accel_bias, self.gyro_bias);
+        [a[0], a[1], a[2], g[0], g[1], g[2]]
+    }
+
+    /// The error covariance in the classic coordinates (`δv = v̂ − v`), whatever the
+    /// formulation: the one users read and NEES is taken in.
+    pub fn covariance(&self) -> Matrix15 {
+        self.to_classic(&self.p)
+    }
+
+    /// The error covariance in the coordinates of `formulation` (mapped from the
+    /// filter's own at the current velocity estimate when they differ).
+    pub fn covariance_in(&self, formulation: Formulation) -> Matrix15 {
+        if formulation == self.cfg.formulation {
+            return self.p;
+        }
+        let mut p = self.covariance();
+        formulation::from_classic(formulation, &mut p, &self.nav.vel);
+        p
+    }
+
+    /// A matrix in the filter's error coordinates (a covariance, a discrete Q) mapped
+    /// into the classic ones at the current velocity estimate.
+    pub fn to_classic(&self, m: &Matrix15) -> Matrix15 {
+        let mut m = *m;
+        formulation::to_classic(self.cfg.formulation, &mut m, &self.nav.vel);
+        m
+    }
+
+    /// 1σ of each error state in the classic coordinates, `sqrt(diag P)`.
+    /// A negative rounding residue gives 0; a NaN variance stays NaN (never "known").
+    pub fn sigma(&self) -> [f64; 15] {
+        classic_sigma(self.cfg.formulation, &self.p, &self.nav.vel)
+    }
+
+    /// [`Ekf::sigma`] and the DVL calibration states' σ, if any.
+    pub fn sigmas(&self) -> ClosedSigma {
+        (
+            self.sigma(),
+            self.calibration.as_ref().map(Calibration::sigma),
+        )
+    }
+
+    /// Whether the navigation solution, the bias estimates and the variances are all
+    /// finite. A non-finite P reaches its diagonal within a step, so the diagonal is
+    /// enough.
+    pub fn is_finite(&self) -> bool {
+        self.solution_is_finite() && self.covariance_is_finite()
+    }
+
+    /// The navigation solution and the bias estimates of [`Ekf::is_finite`].
+    fn solution_is_finite(&self) -> bool {
+        // `0·x` is ±0 for a finite x and NaN for ±∞ and NaN, so the sum is NaN exactly
+        // when a value is not finite: one branch-free pass over the 21 values.
+        let nav = &self.nav;
+        let values = nav.lla.iter().chain(&nav.vel).chain(&nav.dcm);
+        let sum: f64 = values
+            .chain(&self.accel_bias)
+            .chain(&self.gyro_bias)
+            .map(|x| x * 0.0)
+            .sum();
+        !sum.is_nan()
+    }
+
+    /// The variances (and the calibration states) of [`Ekf::is_finite`].
+    fn covariance_is_finite(&self) -> bool {
+        (0..15).all(|i| self.p[(i, i)].is_finite())
+            && self.calibration.as_ref().is_none_or(Calibration::is_finite)
+    }
+
+    /// Propagate over one raw IMU sample (`dt` \[s\]): covariance with F and Q_d from
+    /// the state at the start of the step (or the sample added to the covariance step
+    /// under way, closed when due), then the strapdown step with the bias-corrected
+    /// sample. The transition of a covariance step closed here, if one was. A
+    /// non-finite result (an overflow from absurd inputs or a diverged filter) is an
+    /// `Error::Numerical`, never a silent NaN.
+    pub fn propagate(
+        &mut self,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> Result<Option<Transition>> {
+        let imu = ImuSample {
+            accel: raw.accel - self.accel_bias,
+            gyro: raw.gyro - self.gyro_bias,
+        };
+        let rates = FrameRates::at(&self.nav);
+        let every_sample = self.cfg.covariance_every_sample();
+        if every_sample {
+            self.propagate_covariance(&imu, &rates, dt, noise);
+        } else {
+            let white = self.cfg.imu_dt * dt;
+            let tracked = self.sensitivity.is_some();
+            self.step
+                .get_or_insert_with(|| CovarianceStep::open(&self.nav, tracked))
+                .add(&self.nav, &imu.accel, dt, white, noise);
+        }
+        self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
+        self.last_gyro = imu.gyro;
+        // P changes at every sample, or where a covariance step closes.
+        let mut covariance_changed = every_sample;
+        let mut closed = None;
+        if !every_sample && self.step.as_ref().is_some_and(|s| s.due(&self.cfg)) {
+            closed = self.bring_up_to_date();
+            covariance_changed = true;
+        }
+        if !self.solution_is_finite() || (covariance_changed && !self.covariance_is_finite()) {
+            return Err(Error::Numerical(
+                "the prediction produced a non-finite state or covariance".into(),
+            ));
+        }
+        Ok(closed)
+    }
+
+    /// The covariance part of [`Ekf::propagate`] at every IMU sample.
+    fn propagate_covariance(
+        &mut self,
+        imu: &ImuSample,
+        rates: &FrameRates,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) {
+        let formulation = self.cfg.formulation;
+        let dynamics = ErrorDynamics::new(&self.nav, rates, &imu.accel, formulation);
+        self.propagate_covariance_with(&dynamics, dt, noise);
+    }
+
+    /// The covariance part of [`Ekf::propagate`] over one raw IMU sample of `dt`
+    /// seconds starting from the navigation solution `nav` (the forward pass's, which
+    /// is not integrated again): the smoother's rebuild of a stretch of the forward
+    /// pass, the same numbers bit for bit. Every sample: the step's error dynamics
+    /// (`Φ = I + F Δt`); under a covariance step: the transition of a step closed as
+    /// due.
+    pub(crate) fn predict_covariance_from(
+        &mut self,
+        nav: &NavState,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> (Option<ErrorDynamics>, Option<Transition>) {
+        self.nav = *nav;
+        let accel = raw.accel - self.accel_bias;
+        if self.cfg.covariance_every_sample() {
+            let rates = FrameRates::at(nav);
+            let formulation = self.cfg.formulation;
+            let dynamics = ErrorDynamics::new(nav, &rates, &accel, formulation);
+            self.propagate_covariance_with(&dynamics, dt, noise);
+            return (Some(dynamics), None);
+        }
+        let due = self.add_to_step(nav, raw, dt, noise);
+        (None, if due { self.bring_up_to_date() } else { None })
+    }
+
+    /// [`Ekf::propagate_covariance`] with the step's error dynamics given.
+    fn propagate_covariance_with(
+        &mut self,
+        dynamics: &ErrorDynamics,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) {
+        let formulation = self.cfg.formulation;
+        dynamics.propagate_covariance(&mut self.p, dt);
+        self.add_process_noise(noise, dt);
+        if let Some(c) = self.calibration.as_mut() {
+            c.propagate(dynamics, dt, true);
+        }
+        if let Some((m, q)) = self.sensitivity.as_mut() {
+            dynamics.propagate_covariance(m, dt);
+            add_imu_noise(m, &self.nav, formulation, q, self.cfg.imu_dt * dt);
+            if let Some(c) = self.sensitivity_calibration.as_mut() {
+                c.propagate(dynamics, dt, false);
+            }
+        }
+    }
+
+    fn add_process_noise(&mut self, noise: ProcessNoise<'_>, dt: f64) {
+        match noise {
+            ProcessNoise::Continuous {
+                imu_variance: q,
+                bias_psd,
+            } => {
+                let white = self.cfg.imu_dt * dt;
+                add_imu_noise(&mut self.p, &self.nav, self.cfg.formulation, q, white);
+                for (i, psd) in bias_psd.iter().enumerate() {
+                    self.p[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
+                }
+            }
+            ProcessNoise::Discrete(qd) => {
+                let mut qd = (qd + qd.transpose()) * 0.5;
+                formulation::from_classic(self.cfg.formulation, &mut qd, &self.nav.vel);
+                self.p += qd;
+            }
+        }
+    }
+
+    /// Apply an error estimate `δx̂` (estimate minus truth, in the formulation's
+    /// coordinates) to the navigation solution and biases. The invariant velocity is
+    /// corrected exactly, `v̂ ← Exp(ψ̂)(v̂ − δV̂)` (`δV = v̂ − Ĉ Cᵀ v` and `C = Exp(ψ) Ĉ`):
+    /// to first order `v̂ − δV̂ − [v̂×]ψ̂`, but a rotation of the corrected velocity, so
+    /// that a large attitude correction cannot scale the speed.
+    pub(super) fn feedback(&mut self, dx: &Vector15) {
+        let formulation = self.cfg.formulation;
+        correct(
+            &mut self.nav,
+            &mut self.accel_bias,
+            &mut self.gyro_bias,
+            dx,
+            formulation,
+        );
+    }
+}
+
+/// The covariance step's part of the filter: closing it, and reading P as if closed.
+impl Ekf {
+    /// Close the covariance step under way, if any: propagate P (and M and the
+    /// calibration blocks) over the samples since it started; the closed step's
+    /// transition Φ (None when no step was under way). The covariance readers
+    /// ([`Ekf::covariance`], [`Ekf::sigma`], the field `p`) give the covariance at the
+    /// end of the last closed step; a pass brings it up to date before an epoch's
+    /// updates and at its end.
+    pub fn bring_up_to_date(&mut self) -> Option<Transition> {
+        let step = self.step.take()?;
+        let sensitivity = self.sensitivity.as_mut().map(|(m, q)| {
+            let calibration = self.sensitivity_calibration.as_mut();
+            (m, &*q, calibration)
+        });
+        step.close(Covariance {
+            formulation: self.cfg.formulation,
+            p: &mut self.p,
+            calibration: self.calibration.as_mut(),
+            sensitivity,
+        })
+    }
+
+    /// The covariance-step part of the smoother's rebuild (`Ekf::predict_covariance_from`
+    /// under a covariance step): one raw IMU sample of `dt` seconds at the forward
+    /// solution `nav` added to the step under way (one opened at `nav` if none); whether
+    /// the step is now due ([`Ekf::bring_up_to_date`] closes it). The same operations as
+    /// the forward pass's [`Ekf::propagate`], without moving its transition around.
+    #[inline]
+    pub fn add_to_step(
+        &mut self,
+        nav: &NavState,
+        raw: &ImuSample,
+        dt: f64,
+        noise: ProcessNoise<'_>,
+    ) -> bool {
+        self.nav = *nav;
+        let accel = raw.accel - self.accel_bias;
+        let white = self.cfg.imu_dt * dt;
+        let step = self
+            .step
+            .get_or_insert_with(|| CovarianceStep::open(nav, false));
+        step.add(nav, &accel, dt, white, noise);
+        step.due(&self.cfg)
+    }
+
+    /// The covariance step under way, if any.
+    pub fn step_under_way(&self) -> Option<&CovarianceStep> {
+        self.step.as_ref()
+    }
+
+    /// Whether P stands at the current epoch (no covariance step under way).
+    pub fn is_up_to_date(&self) -> bool {
+        self.step.is_none()
+    }
+
+    /// [`Ekf::sigma`] brought up to date without closing the step under way (on a
+    /// copy), so that reading it does not change the filter's later steps.
+    pub fn sigma_up_to_date(&self) -> [f64; 15] {
+        if self.step.is_none() {
+            return self.sigma();
+        }
+        let mut copy = self.clone();
+        copy.bring_up_to_date();
+        copy.sigma()
+    }
+
+    /// [`Ekf::covariance`] brought up to date without closing the step under way (on
+    /// a copy), as [`Ekf::sigma_up_to_date`].
+    pub fn covariance_up_to_date(&self) -> Matrix15 {
+        if self.step.is_none() {
+            return self.covariance();
+        }
+        let mut copy = self.clone();
+        copy.bring_up_to_date();
+        copy.covariance()
+    }
+}
+
+/// Remove an error estimate `δx̂` (estimate minus truth, in the coordinates of
+/// `formulation`) from a navigation solution and its bias estimates: the filter's
+/// feedback, and the smoother's correction of the forward solution. The invariant
+/// velocity is corrected exactly, `v̂ ← Exp(ψ̂)(v̂ − δV̂)` (the filter's own feedback).
+pub fn correct(
+    nav: &mut NavState,
+    accel_bias: &mut Vector3<f64>,
+    gyro_bias: &mut Vector3<f64>,
+    dx: &Vector15,
+    formulation: Formulation,
+) {
+    let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
+    let rotation = exp_so3(&block(ATT));
+    (nav.lla, nav.vel) = corrected_position_velocity(nav, dx, formulation, || rotation);
+    nav.dcm = rotation * nav.dcm;
+    *accel_bias -= block(ACC_BIAS);
+    *gyro_bias -= block(GYRO_BIAS);
+}
+
+/// The position and velocity of [`correct`] alone, by the same operations (the same
+/// bits), `rotation` giving `Exp(ψ̂)` where the formulation reads it (the invariant).
+pub fn corrected_position_velocity(
+    nav: &NavState,
+    dx: &Vector15,
+    formulation: Formulation,
+    rotation: impl FnOnce() -> Matrix3<f64>,
+) -> (Vector3<f64>, Vector3<f64>) {
+    let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
+    let lla = nav.lla - earth::ned_delta_to_lla_delta(&nav.lla, &block(POS));
+    let vel = match formulation {
+        Formulation::Classic => nav.vel - block(VEL),
+        Formulation::Invariant => rotation() * (nav.vel - block(VEL)),
+    };
+    (lla, vel)
+}

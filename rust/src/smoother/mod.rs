@@ -1,0 +1,59 @@
+//! The Rauch–Tung–Striebel smoother over the closed-loop error-state filter.
+//!
+//! The forward pass (a [`crate::pass::Pass`] told to a [`ForwardLog`]) keeps a
+//! [`Node`] at every epoch where the covariance was updated or the process noise
+//! changed: the covariance before and after the update, the error estimate fed back,
+//! and the noise in force until the next node. Between nodes the filter only
+//! predicts, so the backward pass rebuilds each interval's covariances and transitions
+//! from the forward solution (kept at every epoch) and the node it starts from, and
+//! never stores them for the whole pass: memory grows with the nodes (DVL epochs), not
+//! with the IMU samples.
+//!
+//! After every update the forward filter resets its error estimate to zero, so every
+//! error below is relative to the forward solution at its epoch. With `δs` the smoothed
+//! error of the solution after an epoch's update (the prior's is `δs⁻ = δs + δx̂`, the
+//! feedback being `x̂⁺ = x̂⁻ ⊖ δx̂`), an interval from node `a` to node `b` gives, at
+//! each epoch `i` in it (`P_i` the forward covariance there, `Φ_{i→b}` the product of
+//! the step transitions from `i` to `b`, `P⁻_b` the covariance before `b`'s update):
+//!
+//! ```text
+//! A_i  = P_i Φ_{i→b}ᵀ (P⁻_b)⁻¹
+//! δs_i = A_i δs⁻_b
+//! Ps_i = P_i + A_i (Ps_b − P⁻_b) A_iᵀ
+//! ```
+//!
+//! the fixed-interval RTS recursion `C_i = P⁺_i Φ_{i+1}ᵀ (P⁻_{i+1})⁻¹` chained over the
+//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0` (`every`); under a covariance
+//! step the grid is the steps' closes instead (`steps`). With the DVL calibration
+//! states the recursion runs on all 19 (`N` below): their rows of F are zero and the
+//! navigation rows do not read them, so every product with `Φ = I + F Δt` goes through
+//! the sparse F of the first 15. `docs/filter.md` ("The RTS smoother") writes it out
+//! with its sources.
+//!
+//! - `node`: the [`Node`]s and how the prediction restarts from one;
+//! - `log`: [`ForwardLog`], the forward pass's observer that keeps them;
+//! - `forward`, `smoothed`, `sink`: what the backward pass reads, the smoothed
+//!   solution, and where it writes;
+//! - `backward`, `every`, `steps`, `thinned`, `kept`: the backward pass.
+
+mod backward;
+mod every;
+mod forward;
+mod kept;
+mod log;
+mod node;
+mod sink;
+mod smoothed;
+pub(crate) mod steps;
+pub mod thinned;
+
+pub use backward::{smooth, smooth_into};
+#[cfg(test)]
+pub(crate) use every::Interval;
+pub use forward::{Covariances, Forward};
+pub use kept::{KeptClose, KeptCloses};
+pub use log::ForwardLog;
+pub use node::{Node, NodeCalibration, Nodes, Noise};
+pub(crate) use sink::changed_sigma;
+pub use sink::Sink;
+pub use smoothed::Smoothed;
