@@ -163,8 +163,8 @@ mod tests {
     use super::super::calibration::CalibrationConfig;
     use super::super::tests::{dvl_at_estimate, moving_state};
     use super::super::{Ekf, Formulation, Vector15};
-    use crate::mechanization::ImuSample;
     use super::*;
+    use crate::mechanization::ImuSample;
 
     const Q: [f64; 6] = [1e-4, 2e-4, 1e-4, 1e-6, 3e-6, 1e-6];
 
