@@ -42,7 +42,7 @@ pub struct FilterOutput {
     /// updates) and the close that ends the step (before the updates there); steps close
     /// when due, at every epoch with a reading and at the last epoch.
     pub sigma: Vec<[f64; 15]>,
-    /// Each stream's rows, in the order of [`RecordedData::streams`].
+    /// Each stream's rows, in the order of [`super::RecordedData::streams`].
     pub streams: Vec<StreamRecord>,
     /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
     /// error and the DVL's mounting angles \[rad\] (empty without the states).
