@@ -149,26 +149,36 @@ impl<'a> Stream<'a> {
     /// Lengths, times, values and noise, each error naming the array.
     pub fn validate(&self) -> Result<()> {
         let name = &self.name;
-        let same = |what: String, m: usize| {
-            if m == self.len() {
+        // Each array as long as the times, the σ rows as the values.
+        let same = |time: usize, values: usize| {
+            if time == values {
                 return Ok(());
             }
             Err(Error::invalid(
                 format!("{name}_time"),
-                format!("has {} rows but {what} has {m}", self.len()),
+                format!("has {time} rows but {name} has {values}"),
+            ))
+        };
+        let sigma_rows = |rows: usize, sigma: usize| {
+            if rows == sigma {
+                return Ok(());
+            }
+            Err(Error::invalid(
+                format!("{name}_sigma"),
+                format!("has {sigma} rows but {name} has {rows}"),
             ))
         };
         check::finite("lever_arm", self.lever_arm.as_slice())?;
         match self.values {
             Values::Velocity { rows, variance, .. } => {
-                same(name.clone(), rows.len())?;
+                same(self.len(), rows.len())?;
                 for (i, row) in rows.iter().enumerate() {
                     check::finite(name, row).map_err(|_| {
                         Error::invalid(name, format!("row {i} is not finite: {row:?}"))
                     })?;
                 }
                 if let PerRow::Each(v) = variance {
-                    same(format!("{name}_sigma"), v.len())?;
+                    sigma_rows(rows.len(), v.len())?;
                 }
                 let bad = |v: &[f64; 3]| !v.iter().all(|x| *x > 0.0 && x.is_finite());
                 let all: &[[f64; 3]] = match &variance {
@@ -186,12 +196,12 @@ impl<'a> Stream<'a> {
                 }
             }
             Values::Depth { rows, sigma } => {
-                same(name.clone(), rows.len())?;
+                same(self.len(), rows.len())?;
                 check::finite(name, rows)?;
                 match sigma {
                     PerRow::One(s) => check_depth_sigma(s)?,
                     PerRow::Each(s) => {
-                        same(format!("{name}_sigma"), s.len())?;
+                        sigma_rows(rows.len(), s.len())?;
                         for (i, s) in s.iter().enumerate() {
                             check_depth_sigma(*s).map_err(|e| row_error(e, i))?;
                         }
@@ -199,9 +209,9 @@ impl<'a> Stream<'a> {
                 }
             }
             Values::Fix { rows, sigma } => {
-                same(name.clone(), rows.len())?;
+                same(self.len(), rows.len())?;
                 if let PerRow::Each(s) = sigma {
-                    same(format!("{name}_sigma"), s.len())?;
+                    sigma_rows(rows.len(), s.len())?;
                 }
                 for (i, fix) in rows.iter().enumerate() {
                     check_fix(name, i, fix, &sigma.at(i))?;
