@@ -38,11 +38,15 @@ def gravity(lat: float, h: float) -> float:
     return g0 * (1.0 - 2.0 * h / A * (1.0 + F_FLAT + m - 2.0 * F_FLAT * s2) + 3.0 * h**2 / A**2)
 
 
+def _wrap(d: float) -> float:
+    """An angle difference [rad] wrapped into (−π, π], as given within it."""
+    return d if -math.pi < d <= math.pi else math.pi - (math.pi - d) % (2 * math.pi)
+
+
 def _lon_difference(lon: float, lon_hat: float) -> float:
     """``lon - lon_hat`` [rad] wrapped into (−π, π] (longitude is periodic), as given
     within it."""
-    d = lon - lon_hat
-    return d if -math.pi < d <= math.pi else math.pi - (math.pi - d) % (2 * math.pi)
+    return _wrap(lon - lon_hat)
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -129,6 +133,102 @@ def error_dynamics(lla, v, c, f_ned, invariant):
     return fm, gam
 
 
+# Measurement models of docs/filter.md, "Lever arms and heading": each predicted
+# measurement h(x) and its H row(s) over the error state (n_x columns, zero past the
+# 15). ``c`` is the body-to-NED DCM, ``r`` a lever arm [m, body FRD] from the IMU.
+
+
+def _arm(r) -> np.ndarray:
+    return np.asarray(r, dtype=float)
+
+
+def position_h_row(axis: int, c: np.ndarray, r, n_x: int = 15) -> np.ndarray:
+    """H of the NED component ``axis`` (0 N, 1 E, 2 D) of the point ``p + C r``:
+    ``e_axis`` on δp and row ``axis`` of ``[(C r)×]`` on ψ."""
+    h = np.zeros(n_x)
+    h[axis] = 1.0
+    h[6:9] = skew(c @ _arm(r))[axis]
+    return h
+
+
+def depth_prediction(lla: np.ndarray, c: np.ndarray, r=(0.0, 0.0, 0.0)) -> float:
+    """The depth [m, positive down] a pressure sensor at ``r`` reads: ``−h + (C r)_D``."""
+    return -lla[2] + (c @ _arm(r))[2]
+
+
+def depth_h_row(c: np.ndarray, r=(0.0, 0.0, 0.0), n_x: int = 15) -> np.ndarray:
+    """H of ``depth_prediction``: ``e_D`` on δp, ``[−(Cr)_E, (Cr)_N, 0]`` on ψ."""
+    return position_h_row(2, c, r, n_x)
+
+
+def fix_prediction(lla: np.ndarray, c: np.ndarray, r=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """``[lat, lon, h]`` of an antenna at ``r``: the IMU's position moved by ``C r`` NED
+    metres with the radii at ``lla`` (the map ``fix_innovation`` inverts; first order in
+    |r|/R, 1e-7 m at 1 m)."""
+    a = c @ _arm(r)
+    rn, re = radii(lla[0])
+    return np.array(
+        [
+            lla[0] + a[0] / (rn + lla[2]),
+            lla[1] + a[1] / ((re + lla[2]) * math.cos(lla[0])),
+            lla[2] - a[2],
+        ]
+    )
+
+
+def fix_innovation(z, lla: np.ndarray, c: np.ndarray, r, axis: int) -> float:
+    """``ν_axis`` [m] of a fix ``z = [lat, lon, h]`` of an antenna at ``r`` against the
+    estimate ``lla, c``: the fix minus the predicted antenna, NED metres at ``lla``."""
+    rn, re = radii(lla[0])
+    a = c @ _arm(r)
+    if axis == 0:
+        return (z[0] - lla[0]) * (rn + lla[2]) - a[0]
+    if axis == 1:
+        return _lon_difference(z[1], lla[1]) * (re + lla[2]) * math.cos(lla[0]) - a[1]
+    return lla[2] - z[2] - a[2]
+
+
+def heading_prediction(c: np.ndarray) -> float:
+    """Yaw [rad] of the body from true north (ZYX, as ``euler_from_dcm``)."""
+    return math.atan2(c[1, 0], c[0, 0])
+
+
+def heading_innovation(z: float, c: np.ndarray) -> float:
+    """``wrap(z − ŷ)`` into (−π, π]."""
+    return _wrap(z - heading_prediction(c))
+
+
+def heading_h_row(c: np.ndarray, n_x: int = 15) -> np.ndarray:
+    """H of ``heading_prediction`` on ψ, ``[C20 C00/d, C20 C10/d, −1]`` with
+    ``d = C00² + C10²`` (either formulation): from ``Ĉ − C = −[ψ×]C``,
+    ``δyaw = (C00 δC10 − C10 δC00)/d = −ψ_z + C20 (C00 ψ_x + C10 ψ_y)/d``."""
+    d = c[0, 0] ** 2 + c[1, 0] ** 2
+    h = np.zeros(n_x)
+    h[6:9] = [c[2, 0] * c[0, 0] / d, c[2, 0] * c[1, 0] / d, -1.0]
+    return h
+
+
+def nav_velocity_prediction(v: np.ndarray, c: np.ndarray, w: np.ndarray, r) -> np.ndarray:
+    """NED velocity [m/s] of the point ``r`` with the body rate ``w`` (corrected gyro):
+    ``v + C (w × r)``; ``v`` itself (a copy) when ``r`` is zero."""
+    r = _arm(r)
+    return v + c @ np.cross(w, r) if np.any(r != 0.0) else v.copy()
+
+
+def nav_velocity_h(v: np.ndarray, c: np.ndarray, w: np.ndarray, r, invariant: bool) -> np.ndarray:
+    """H (3×15) of ``nav_velocity_prediction``: ``I`` on δv (δV), on ψ
+    ``[(C (w×r))×]`` (+ ``[v×]`` invariant), ``C [r×]`` on δb_g; the terms of ``r``
+    only when it is not zero."""
+    r = _arm(r)
+    h = np.zeros((3, 15))
+    h[:, 3:6] = np.eye(3)
+    h[:, 6:9] = skew(v) if invariant else 0.0
+    if np.any(r != 0.0):
+        h[:, 6:9] += skew(c @ np.cross(w, r))
+        h[:, 12:15] = c @ skew(r)
+    return h
+
+
 def run_reference_filter(
     imu,
     imu_time,
@@ -157,6 +257,11 @@ def run_reference_filter(
     fix=(),
     fix_time=(),
     fix_sigma=(),
+    depth_lever_arm=(0.0, 0.0, 0.0),
+    fix_lever_arm=(0.0, 0.0, 0.0),
+    heading=(),
+    heading_time=(),
+    heading_sigma=None,
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
     innovation, nis (one row per DVL measurement applied, in order).
@@ -183,11 +288,16 @@ def run_reference_filter(
     ``numpy_reference_smoother.py``; epoch 0 has no transition (None). Without a
     covariance step every epoch has its step's Φ.
 
-    ``depth`` [m, down] at ``depth_time`` with 1σ ``depth_sigma``, and ``fix`` rows
-    ``[lat, lon, h (NaN: none)]`` at ``fix_time`` with 1σ rows ``fix_sigma`` [m, N E D]:
-    after an epoch's DVL rows, each available component a scalar update of the position
-    error (``H = e_i``, Joseph form) fed back before the next; the output then has
-    ``depth_nis`` and ``fix_nis`` (one per row applied)."""
+    ``depth`` [m, down] at ``depth_time`` with 1σ ``depth_sigma`` (a scalar or one per
+    row) from a sensor at ``depth_lever_arm`` [m, body], and ``fix`` rows ``[lat, lon, h
+    (NaN: none)]`` at ``fix_time`` with 1σ rows ``fix_sigma`` [m, N E D] of an antenna
+    at ``fix_lever_arm``: after an epoch's DVL rows, each available component a scalar
+    update (``H = e_i`` on the position error, ``[(Ĉr)×]`` row i on ψ; Joseph form) fed
+    back before the next; then ``heading`` [rad, yaw from true north] at
+    ``heading_time`` with 1σ ``heading_sigma`` (scalar or per row), a scalar update each
+    (``heading_h_row``). Rows before the run are skipped. The output has ``depth_nis``,
+    ``fix_nis`` and ``heading_nis`` (one per row applied). ``lever_arm`` with
+    ``aiding="nav"``: ``h = v̂ + Ĉ (ω̂ × r)`` (``nav_velocity_h``)."""
     invariant = formulation == "invariant"
     every_sample = covariance_step < 1.5 * imu_dt
     interval = None
@@ -231,7 +341,8 @@ def run_reference_filter(
     rmat = np.diag(dvl_variance)
     q = np.asarray(q, dtype=float)
     keys = ("time", "lla", "vel", "rpy", "bias", "sigma", "innovation", "nis")
-    out = {k: [] for k in (*keys, "calibration", "calibration_sigma", "depth_nis", "fix_nis")}
+    extra = ("calibration", "calibration_sigma", "depth_nis", "fix_nis", "heading_nis")
+    out = {k: [] for k in (*keys, *extra)}
 
     def feed(dx):
         """The filter's feedback of the error estimate ``dx``."""
@@ -249,27 +360,35 @@ def run_reference_filter(
             k_scale = k_scale - dx[15]
             m_dvl = m_dvl @ exp_so3(-dx[16:19])
 
-    def scalar(i, nu, r):
-        """A scalar update of position error i (0 N, 1 E, 2 D); its dx and NIS."""
+    def scalar(h_row, nu, r):
+        """A scalar update with the H row ``h_row`` (n_x), innovation ``nu`` and
+        variance ``r``; its dx and NIS. With ``h_row = e_i`` the numbers are those of
+        ``P[:, i]`` and ``P[i, i]`` exactly (the products with zeros add nothing)."""
         nonlocal p
-        s_i = p[i, i] + r
-        gain = p[:, i] / s_i
-        h_row = np.zeros((1, n_x))
-        h_row[0, i] = 1.0
-        ikh = np.eye(n_x) - gain[:, None] @ h_row
+        ph = p @ h_row
+        s_i = h_row @ ph + r
+        gain = ph / s_i
+        ikh = np.eye(n_x) - np.outer(gain, h_row)
         p = ikh @ p @ ikh.T + r * np.outer(gain, gain)
         p = (p + p.T) / 2
         dx = -gain * nu
         feed(dx)
         return dx, nu * nu / s_i
 
-    def position_rows(t, dt, first):
-        """The depth readings and fixes due at the epoch of time t; their dx summed."""
-        nonlocal jd, jf
+    def per_row(sigma, i):
+        """Row i's σ of a scalar or per-row ``sigma``."""
+        return sigma if np.ndim(sigma) == 0 else sigma[i]
+
+    def aiding_rows(t, dt, first):
+        """The depth readings, fixes and headings due at the epoch of time t, in that
+        order; their dx summed."""
+        nonlocal jd, jf, jh
         total = np.zeros(n_x)
         while jd < len(depth) and depth_time[jd] <= t + dt / 2:
             if depth_time[jd] >= first:
-                dx, nis = scalar(2, depth[jd] + lla[2], depth_sigma**2)
+                nu = depth[jd] - depth_prediction(lla, c, depth_arm)
+                h_row = depth_h_row(c, depth_arm, n_x)
+                dx, nis = scalar(h_row, nu, per_row(depth_sigma, jd) ** 2)
                 total += dx
                 out["depth_nis"].append(nis)
             jd += 1
@@ -277,22 +396,25 @@ def run_reference_filter(
             if fix_time[jf] >= first:
                 z, sig, nis = fix[jf], fix_sigma[jf], 0.0
                 for axis in range(2 if math.isnan(z[2]) else 3):
-                    rn, re = radii(lla[0])
-                    nu = (
-                        (z[0] - lla[0]) * (rn + lla[2])
-                        if axis == 0
-                        else _lon_difference(z[1], lla[1]) * (re + lla[2]) * math.cos(lla[0])
-                        if axis == 1
-                        else lla[2] - z[2]
-                    )
-                    dx, one = scalar(axis, nu, sig[axis] ** 2)
+                    # re-linearized at the estimate the last component corrected
+                    nu = fix_innovation(z, lla, c, fix_arm, axis)
+                    h_row = position_h_row(axis, c, fix_arm, n_x)
+                    dx, one = scalar(h_row, nu, sig[axis] ** 2)
                     total += dx
                     nis += one
                 out["fix_nis"].append(nis)
             jf += 1
+        while jh < len(heading) and heading_time[jh] <= t + dt / 2:
+            if heading_time[jh] >= first:
+                nu = heading_innovation(heading[jh], c)
+                dx, nis = scalar(heading_h_row(c, n_x), nu, per_row(heading_sigma, jh) ** 2)
+                total += dx
+                out["heading_nis"].append(nis)
+            jh += 1
         return total
 
-    jd = jf = 0
+    jd = jf = jh = 0
+    depth_arm, fix_arm = _arm(depth_lever_arm), _arm(fix_lever_arm)
 
     def sigmas():
         """The 15 states' σ (classic coordinates) and the calibration's, from P now."""
@@ -365,10 +487,10 @@ def run_reference_filter(
             walks = np.array([accel_bias_psd] * 3 + [gyro_bias_psd] * 3) * dt
             interval["q"] = interval["q"] + np.concatenate([q * imu_dt * dt, walks])
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
-        # A reading stamped before the run is skipped (position_rows) and closes no step.
+        # A reading stamped before the run is skipped (aiding_rows) and closes no step.
         updating = (j < len(dvl_time) and dvl_time[j] <= t + dt / 2) or any(
             first <= times[i] <= t + dt / 2
-            for start, times in ((jd, depth_time), (jf, fix_time))
+            for start, times in ((jd, depth_time), (jf, fix_time), (jh, heading_time))
             for i in range(start, int(np.searchsorted(times, t + dt / 2, side="right")))
         )
         closed = None
@@ -386,10 +508,9 @@ def run_reference_filter(
                 h[:, 3:6] = c.T
                 h[:, 6:9] = 0.0 if invariant else -c.T @ skew(v)
                 h[:, 12:15] = skew(r_arm)
-            else:
-                pred = v.copy()
-                h[:, 3:6] = np.eye(3)
-                h[:, 6:9] = skew(v) if invariant else 0.0
+            else:  # the terms of the lever arm only when it is not zero
+                pred = nav_velocity_prediction(v, c, w_hat, r_arm)
+                h = nav_velocity_h(v, c, w_hat, r_arm, invariant)
             if calibration is not None:  # z = (1 + k) M v_b
                 v_b = pred
                 pred = (1 + k_scale) * m_dvl @ v_b
@@ -412,7 +533,7 @@ def run_reference_filter(
             out["innovation"].append(nu)
             out["nis"].append(float(nu @ np.linalg.solve(s, nu)))
             j += 1
-        dx_sum += position_rows(t, dt, first)
+        dx_sum += aiding_rows(t, dt, first)
         record(t)
         interpolate_stale(closed)
         if log is not None:

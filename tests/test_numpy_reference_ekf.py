@@ -1,4 +1,5 @@
-"""The Rust filter agrees with the independent NumPy implementation of docs/filter.md."""
+"""The Rust filter agrees with the independent NumPy implementation of docs/filter.md;
+the reference's own measurement models (lever arms, heading) against their derivatives."""
 
 from __future__ import annotations
 
@@ -11,7 +12,26 @@ import pronet
 from pronet.run import Recorded
 from pronet.run import run as pronet_run
 
-from numpy_reference_ekf import dcm_from_euler, gravity, rates, run_reference_filter, strapdown_step
+from numpy_reference_ekf import (
+    dcm_from_euler,
+    depth_h_row,
+    depth_prediction,
+    euler_from_dcm,
+    exp_so3,
+    fix_innovation,
+    fix_prediction,
+    gravity,
+    heading_h_row,
+    heading_innovation,
+    heading_prediction,
+    nav_velocity_h,
+    nav_velocity_prediction,
+    position_h_row,
+    radii,
+    rates,
+    run_reference_filter,
+    strapdown_step,
+)
 
 Q = np.array([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6])
 P0 = np.array([1, 1, 1, 0.1, 0.1, 0.1, 1e-3, 1e-3, 5e-3, 1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4])
@@ -242,3 +262,240 @@ def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
         )
     # Constant Q sets Q^c, never a discrete Q directly.
     assert np.all(np.isnan(run(pronet.Strategy.constant(Q)).adaptive_q))
+
+
+# The reference alone (no call into the core): the lever arms and the heading measurement
+# (docs/filter.md, "Lever arms and heading").
+
+LLA = np.array([math.radians(32.5), math.radians(34.8), -12.0])
+VEL = np.array([1.3, -0.4, 0.2])
+C_TRUE = dcm_from_euler(0.05, -0.08, 2.3)
+RATE = np.array([0.02, -0.03, 0.1])  # the true body rate [rad/s]
+ARM = np.array([0.7, -0.3, 1.2])
+#: Perturbation scales per block: δp [m] (it enters linearly but for the radii), and
+#: δv, ψ, δb_a, δb_g.
+SCALES = np.repeat([1e-2, 1e-5, 1e-5, 1e-5, 1e-5], 3)
+
+
+def _estimate(dx: np.ndarray, invariant: bool):
+    """``(lla, v, C, ω)`` of the estimate whose error from the truth above is ``dx``
+    (15; δV in place of δv when ``invariant``): ``Ĉ = Exp(−ψ) C``, ``v̂ = v + δv`` or
+    ``v̂ = Ĉ Cᵀ v + δV`` (docs/filter.md's exact ``δV``), ``ω̂ = ω − δb_g``."""
+    rn, re = radii(LLA[0])
+    lla = LLA + np.array(
+        [dx[0] / (rn + LLA[2]), dx[1] / ((re + LLA[2]) * math.cos(LLA[0])), -dx[2]]
+    )
+    c = exp_so3(-dx[6:9]) @ C_TRUE
+    v = (c @ C_TRUE.T @ VEL if invariant else VEL) + dx[3:6]
+    return lla, v, c, RATE - dx[12:15]
+
+
+def _model(name: str, invariant: bool):
+    """``(h, H)`` of a measurement at an estimate ``(lla, v, C, ω)``: ``h(x̂) − h(x) ≈
+    H δx``. The fix is read through the filter's innovation, ``−ν``, against the fix
+    of the true antenna."""
+    z_fix = fix_prediction(LLA, C_TRUE, ARM)
+    models = {
+        "depth": (
+            lambda s: np.array([depth_prediction(s[0], s[2], ARM)]),
+            lambda s: depth_h_row(s[2], ARM)[None],
+        ),
+        "fix": (
+            lambda s: -np.array([fix_innovation(z_fix, s[0], s[2], ARM, i) for i in range(3)]),
+            lambda s: np.array([position_h_row(i, s[2], ARM) for i in range(3)]),
+        ),
+        "heading": (
+            lambda s: np.array([heading_prediction(s[2])]),
+            lambda s: heading_h_row(s[2])[None],
+        ),
+        "nav velocity": (
+            lambda s: nav_velocity_prediction(s[1], s[2], s[3], ARM),
+            lambda s: nav_velocity_h(s[1], s[2], s[3], ARM, invariant),
+        ),
+    }
+    return models[name]
+
+
+MODELS = ["depth", "fix", "heading", "nav velocity"]
+
+
+@pytest.mark.parametrize("name", MODELS)
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+def test_measurement_h_is_the_derivative_of_the_prediction(name, formulation) -> None:
+    """Every column of H against central differences of the prediction (zero columns
+    included). The fix's position columns carry terms of order |r|/R (2e-7 here: the
+    metres of an arm at the estimate's latitude and height against the truth's), which
+    the filter leaves out; everything else agrees to rounding."""
+    invariant = formulation == "invariant"
+    h, big_h = _model(name, invariant)
+    truth = _estimate(np.zeros(15), invariant)
+    steps = np.repeat([1.0, 1e-4, 1e-5, 1e-4, 1e-6], 3)
+    jac = np.zeros_like(big_h(truth))
+    for k in range(15):
+        e = np.zeros(15)
+        e[k] = steps[k]
+        jac[:, k] = (h(_estimate(e, invariant)) - h(_estimate(-e, invariant))) / (2 * steps[k])
+    atol = 1e-9 + (2 * np.linalg.norm(ARM) / 6.36e6 if name == "fix" else 0.0)
+    np.testing.assert_allclose(jac, big_h(truth), rtol=0, atol=atol)
+
+
+@pytest.mark.parametrize("name", MODELS)
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+def test_measurement_h_predicts_the_change_to_second_order(name, formulation) -> None:
+    """``h(x̂) − h(x)`` against ``H δx`` for one estimate off the truth in every state at
+    once: with H at the truth, the central difference agrees to 1e-6 relative (its
+    remainder is third order); with H at the estimate, as the filter linearizes, the
+    remainder is second order: under 10 ε relative at perturbations ε (ψ, δv, δb; δp
+    1e-2 m) and 100 times less when they shrink tenfold (but for the fix, whose
+    remainder is the rounding of the latitude, 1e-9 m)."""
+    invariant = formulation == "invariant"
+    h, big_h = _model(name, invariant)
+    truth = _estimate(np.zeros(15), invariant)
+    u = np.random.default_rng(3).normal(size=15)
+    dx = u * SCALES
+    central = (h(_estimate(dx, invariant)) - h(_estimate(-dx, invariant))) / 2
+    linear = big_h(truth) @ dx
+    assert np.linalg.norm(central - linear) <= 1e-6 * np.linalg.norm(linear)
+    remainders = []
+    for eps in (1e-5, 1e-6):
+        dx = u * np.where(SCALES == 1e-2, 1e-2, eps)
+        est = _estimate(dx, invariant)
+        linear = big_h(est) @ dx
+        remainder = np.linalg.norm(h(est) - h(truth) - linear)
+        assert remainder <= 10 * eps * np.linalg.norm(linear)
+        remainders.append(remainder)
+    if name != "fix":
+        assert 50 < remainders[0] / remainders[1] < 200
+
+
+def test_measurement_models_read_their_signs_and_wrap() -> None:
+    """A pressure sensor 1 m below a level IMU reads 1 m deeper; an antenna 2 m above it
+    is 2 m higher; a heading across ±π wraps; zero arms leave the plain models."""
+    level = dcm_from_euler(0.0, 0.0, 0.4)
+    assert depth_prediction(LLA, level, (0.0, 0.0, 1.0)) == pytest.approx(-LLA[2] + 1.0)
+    assert fix_prediction(LLA, level, (0.0, 0.0, -2.0))[2] == pytest.approx(LLA[2] + 2.0)
+    c = dcm_from_euler(0.0, 0.0, -math.pi + 1e-3)
+    assert heading_innovation(math.pi - 1e-3, c) == pytest.approx(-2e-3, abs=1e-12)
+    assert heading_innovation(-math.pi + 2e-3, c) == pytest.approx(1e-3, abs=1e-12)
+    zero = np.zeros(3)
+    assert depth_prediction(LLA, C_TRUE, zero) == -LLA[2]
+    np.testing.assert_array_equal(depth_h_row(C_TRUE, zero, 19), np.eye(19)[2])
+    np.testing.assert_array_equal(nav_velocity_prediction(VEL, C_TRUE, RATE, zero), VEL)
+    assert heading_h_row(C_TRUE, 19)[8] == -1.0 and not heading_h_row(C_TRUE, 19)[15:].any()
+
+
+# A vehicle at rest (the noise-free IMU of test_reference_strapdown_stays_at_rest keeps
+# it there), a body-frame DVL reading zero every second, the estimate started 2 m,
+# 0.05 m/s and a few mrad off.
+REST_LLA = np.array([math.radians(32), math.radians(34), -5.0])
+REST_C = dcm_from_euler(0.02, -0.01, 0.7)
+
+
+def _rest_inputs(seconds: float):
+    w_ie, _, g = rates(REST_LLA, np.zeros(3))
+    n = int(round(seconds / 0.01))
+    imu = np.tile(np.concatenate([-REST_C.T @ g, REST_C.T @ w_ie]), (n, 1))
+    imu_time = 0.01 * np.arange(1, n + 1)
+    dvl_time = np.arange(1.0, seconds + 1e-9, 1.0)
+    lla0 = REST_LLA + np.array([2.0 / 6.36e6, 0.0, 0.5])
+    rpy0 = euler_from_dcm(REST_C) + np.array([1e-3, -1e-3, 4e-3])
+    return imu, imu_time, np.zeros((len(dvl_time), 3)), dvl_time, lla0, (0.05, -0.03, 0.01), rpy0
+
+
+def _rest_run(seconds: float = 10.0, **kwargs):
+    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _rest_inputs(seconds)
+    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3)
+    return run_reference_filter(
+        imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, q=Q, p0_sigma=P0, imu_dt=0.01,
+        **tuning, **kwargs,
+    )  # fmt: skip
+
+
+def _rest_aiding(seconds: float, depth_arm=(0.0, 0.0, 0.0), fix_arm=(0.0, 0.0, 0.0)):
+    """Depth every second and fixes every 3 s (every other one without its height),
+    noise-free, of sensors at ``depth_arm`` and ``fix_arm``; a fix before the run."""
+    depth_time = np.arange(0.503, seconds, 1.0)
+    depth = np.full(len(depth_time), depth_prediction(REST_LLA, REST_C, depth_arm))
+    fix_time = np.concatenate([[-1.0], np.arange(2.996, seconds, 3.0)])
+    fix = np.tile(fix_prediction(REST_LLA, REST_C, fix_arm), (len(fix_time), 1))
+    fix[2::2, 2] = np.nan
+    return dict(depth=depth, depth_time=depth_time, depth_sigma=0.1, fix=fix,
+                fix_time=fix_time, fix_sigma=np.full((len(fix_time), 3), 0.05))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("aiding", "formulation", "covariance_step", "calibration"),
+    [
+        ("body", "classic", 0.0, None),
+        ("body", "invariant", 0.1, (0.01, (0.02, 0.02, 0.03), 1e-8, 1e-9)),
+        ("nav", "classic", 0.1, None),
+        ("nav", "invariant", 0.0, None),
+    ],
+)
+def test_zero_lever_arms_are_the_run_without_them(
+    aiding, formulation, covariance_step, calibration
+) -> None:
+    """Explicit zero arms (depth, fix, and the DVL's with navigation-frame aiding) and a
+    per-row σ equal to the scalar one give the run without them bit for bit."""
+    common = dict(aiding=aiding, formulation=formulation, covariance_step=covariance_step,
+                  calibration=calibration, **_rest_aiding(8.0))  # fmt: skip
+    plain = _rest_run(8.0, **common)
+    common["depth_sigma"] = np.full(len(common["depth"]), 0.1)
+    zeros = _rest_run(8.0, depth_lever_arm=np.zeros(3), fix_lever_arm=(0, 0, 0),
+                      lever_arm=np.zeros(3), **common)  # fmt: skip
+    assert len(plain["depth_nis"]) == 8 and len(plain["fix_nis"]) == 2
+    assert plain.keys() == zeros.keys()
+    for key in plain:
+        np.testing.assert_array_equal(zeros[key], plain[key], err_msg=key)
+
+
+def test_lever_arms_of_depth_and_fixes_are_taken_off() -> None:
+    """Readings of a pressure sensor 1.2 m below the IMU and an antenna on a 2 m mast
+    (fixes σ 5 cm): told the arms, the filter puts the IMU where it is and the NIS stay
+    small; told nothing, it is pulled half a metre and more towards the sensors, and
+    their NIS say so."""
+    depth_arm, fix_arm = np.array([0.3, 0.1, 1.2]), np.array([-0.5, 0.2, -2.0])
+    aiding = _rest_aiding(10.0, depth_arm, fix_arm)
+    told = _rest_run(depth_lever_arm=depth_arm, fix_lever_arm=fix_arm, **aiding)
+    untold = _rest_run(**aiding)
+    rn, re = radii(REST_LLA[0])
+
+    def error(out):
+        d = out["lla"][-1] - REST_LLA
+        return np.array([d[0] * (rn + d[2]), d[1] * (re + d[2]) * math.cos(REST_LLA[0]), -d[2]])
+
+    assert np.abs(error(told)).max() < 0.05 and np.abs(error(untold)).max() > 0.4
+    assert told["depth_nis"][-3:].max() < 0.1 < untold["depth_nis"][-3:].max()
+    assert told["fix_nis"][1:].max() < 1.0 and untold["fix_nis"][-1] > 100.0
+
+
+@pytest.mark.parametrize("covariance_step", [0.0, 0.1])
+@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+def test_heading_updates_shrink_the_heading_sigma(formulation, covariance_step) -> None:
+    """Headings every 2 s (1 mrad) besides the DVL: σ of ψ_z drops at every heading
+    epoch, ends far below the run without them, and one NIS per row applied (a row
+    before the run is skipped). At a covariance step the epoch closes one early."""
+    yaw = euler_from_dcm(REST_C)[2]
+    heading_time = np.concatenate([[-0.5], np.arange(2.037, 10.0, 2.0)])
+    offsets = np.array([0.0, 4e-4, -7e-4, 2e-4, 9e-4])
+    heading = yaw + offsets  # z's within 1 mrad of the truth
+    common = dict(formulation=formulation, covariance_step=covariance_step)
+    log: list = []
+    out = _rest_run(heading=heading, heading_time=heading_time, heading_sigma=1e-3, log=log,
+                    **common)  # fmt: skip
+    without = _rest_run(**common)
+    assert len(out["heading_nis"]) == len(heading) - 1
+    epochs = [int(np.argmin(np.abs(out["time"] - t))) for t in heading_time[1:]]
+    for e in epochs:
+        assert out["sigma"][e, 8] < out["sigma"][e - 1, 8]
+        assert log[e][0] is not None  # a covariance step closed here
+    last = epochs[-1]
+    assert out["sigma"][last, 8] < 1e-3 < 0.005 < without["sigma"][last, 8]
+    assert out["sigma"][-1, 8] < 0.25 * without["sigma"][-1, 8]
+    # The estimate is pulled to the readings: within its σ (a few) of the truth.
+    assert abs(out["rpy"][-1, 2] - yaw) < 3 * out["sigma"][-1, 8]
+    # A per-row σ the same for every row is the scalar one.
+    again = _rest_run(heading=heading, heading_time=heading_time,
+                      heading_sigma=np.full(len(heading), 1e-3), **common)  # fmt: skip
+    np.testing.assert_array_equal(again["heading_nis"], out["heading_nis"])
+    np.testing.assert_array_equal(again["sigma"], out["sigma"])
