@@ -284,44 +284,9 @@ impl ErrorDynamics {
 }
 
 impl ErrorDynamics {
-    /// `H ← H Φᵀ = H + Δt H Fᵀ` for a 15 × 15 `H` (its column-major entries): with
-    /// `H = Gᵀ`, the product of transitions `G ← Φ G` carried transposed. Column `i < 9`
-    /// of `H Fᵀ` is `Σ_k F_ik H_{:,k}`, a combination of whole columns of H
-    /// ([`Self::times`] reads them so); its other columns are zero.
-    pub(crate) fn advance_transposed(&self, h: &mut [f64], dt: f64) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.advance_transposed_avx2(h, dt) };
-        }
-        self.advance_transposed_portable(h, dt)
-    }
-
-    /// [`Self::advance_transposed`] in AVX2 registers (the same operations: no FMA).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn advance_transposed_avx2(&self, h: &mut [f64], dt: f64) {
-        self.advance_transposed_portable(h, dt)
-    }
-
-    #[inline(always)]
-    fn advance_transposed_portable(&self, h: &mut [f64], dt: f64) {
-        let m = Matrix15::from_column_slice(h);
-        let a = if self.invariant {
-            self.times::<true>(&m)
-        } else {
-            self.times::<false>(&m)
-        };
-        for (i, row) in a.iter().enumerate() {
-            for (v, x) in h[15 * i..15 * i + 15].iter_mut().zip(row) {
-                *v += dt * x;
-            }
-        }
-    }
-
     /// Rows 0..9 of F, dense (its bias rows are zero).
     #[inline(always)]
-    fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
+    pub(crate) fn nav_rows(&self) -> SMatrix<f64, NAV, 15> {
         let mut f = SMatrix::<f64, NAV, 15>::zeros();
         let mut put =
             |r: usize, c: usize, m: &Matrix3<f64>| f.fixed_view_mut::<3, 3>(r, c).copy_from(m);

@@ -17,7 +17,7 @@ use crate::ekf::{FilterConfig, Formulation};
 use crate::error::Error;
 use crate::noise::StrategySpec;
 use crate::smoother::thinned::{self, NodeStates, Stretch};
-use crate::smoother::{steps, Forward, ForwardLog};
+use crate::smoother::{closes, Forward, ForwardLog};
 
 /// A recording's arrays: IMU rows, their times, DVL rows, their times.
 type Arrays = (Vec<[f64; 6]>, Vec<f64>, Vec<[f64; 3]>, Vec<f64>);
@@ -234,7 +234,8 @@ fn reintegration_is_exact(
         // Under a covariance step, the closes rebuilt in the same sweep as the
         // re-integration are those rebuilt from the kept solution, bit for bit.
         inside_a_step += usize::from(a.step.is_some());
-        let want = steps::rebuild::<19>(&every, cfg, a, b, &c).unwrap();
+        let mut want = Vec::new();
+        closes::steps::<19>(&every, cfg, (a, b), &mut want, &c).unwrap();
         thinned::rebuild_closes::<19>(&src, cfg, j, (a, b), &mut closes, &c).unwrap();
         compared += want.len();
         assert_eq!(closes.len(), want.len(), "closes from epoch {}", a.epoch);
@@ -242,7 +243,7 @@ fn reintegration_is_exact(
             assert_eq!(got.epoch, want.epoch);
             assert_eq!(got.phi, want.phi, "Φ at epoch {}", want.epoch);
             assert_eq!(got.p_prior, want.p_prior, "P at epoch {}", want.epoch);
-            let velocities = |c: &steps::Close<19>| (c.vel_prior, c.vel);
+            let velocities = |c: &closes::Close<19, _>| (c.vel_prior, c.vel);
             assert_eq!(
                 velocities(got),
                 velocities(want),

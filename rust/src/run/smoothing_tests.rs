@@ -148,7 +148,7 @@ fn assert_bryson_frazier_is_re_predicted(
     spec: StrategySpec,
 ) {
     use crate::mechanization::NavState;
-    use crate::smoother::Interval;
+    use crate::smoother::closes;
     let cfg = FilterConfig {
         formulation,
         covariance_step: 0.0,
@@ -171,12 +171,12 @@ fn assert_bryson_frazier_is_re_predicted(
             .p_prior
             .as_ref()
             .unwrap_or_else(|| panic!("no prior at {}", b.epoch));
-        let rebuilt = Interval::<15>::rebuild(&forward, &cfg, a, b.epoch, None, cancel).unwrap();
-        assert_eq!(
-            rebuilt.p_end, **prior,
-            "the prior kept at epoch {}",
-            b.epoch
-        );
+        let (mut rebuilt, every, vel_b) = (Vec::new(), |_| true, log.nav[b.epoch].vel);
+        let at = (a, b.epoch);
+        closes::samples::<15>(&forward, &cfg, at, (0, vel_b), &every, &mut rebuilt, cancel)
+            .unwrap();
+        let p_end = rebuilt.last().and_then(|c| c.p_prior).unwrap();
+        assert_eq!(p_end, **prior, "the prior kept at epoch {}", b.epoch);
     }
     let nowhere = |_: usize| false;
     let bf = smooth(&forward, &cfg, nodes, Covariances::Where(&nowhere), cancel).unwrap();

@@ -43,14 +43,14 @@ impl Forward<'_> {
 }
 
 /// Which epochs' smoothed covariance (σ) a backward pass computes; the nodes' it
-/// always does. The mean it computes at every epoch.
+/// always does (for the recursion). The mean it computes at every epoch.
 #[derive(Clone, Copy)]
 pub enum Covariances<'a> {
     /// Every epoch (`run_filter`): `Λ_i = Φ_{i→b}ᵀ M Φ_{i→b}` is carried back step by
     /// step, `Ps_i = P_i + P_i Λ_i P_i`.
     Every,
     /// Only the epochs where this holds (a Monte Carlo's recorded ones), the others'
-    /// σ left NaN: the interval's forward product `G_i = Φ_{a→i}` is carried instead,
-    /// and `Φ_{i→b} = G_b G_i⁻¹` formed at those epochs alone.
+    /// σ left NaN; at every IMU sample Λ is carried as the product of the transitions
+    /// where it is not read.
     Where(&'a dyn Fn(usize) -> bool),
 }

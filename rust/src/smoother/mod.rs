@@ -23,33 +23,37 @@
 //! ```
 //!
 //! the fixed-interval RTS recursion `C_i = P⁺_i Φ_{i+1}ᵀ (P⁻_{i+1})⁻¹` chained over the
-//! steps without an update, where `P⁺ = P⁻` and `δx̂ = 0` (`every`); under a covariance
-//! step the grid is the steps' closes instead (`steps`). With the DVL calibration
+//! closes without an update, where `P⁺ = P⁻` and `δx̂ = 0`: every IMU sample at every
+//! sample, the steps' closes under a covariance step. One backward pass (`backward`)
+//! runs it, whatever the closes are and wherever it writes. With the DVL calibration
 //! states the recursion runs on all 19 (`N` below): their rows of F are zero and the
-//! navigation rows do not read them, so every product with `Φ = I + F Δt` goes through
-//! the sparse F of the first 15. `docs/filter.md` ("The RTS smoother") writes it out
+//! navigation rows do not read them, so every product with `Φ` goes through the
+//! navigation rows of the first 15. `docs/filter.md` ("The RTS smoother") writes it out
 //! with its sources.
 //!
 //! - `node`: the [`Node`]s and how the prediction restarts from one;
-//! - `log`: [`ForwardLog`], the forward pass's observer that keeps them;
+//! - `log`: [`ForwardLog`], the forward pass's observer that keeps them (and, under a
+//!   covariance step, the closes: `kept`);
+//! - `closes`, `transition`: where the backward pass's transitions come from (each
+//!   sample's, a step's, rebuilt or kept) and how it goes back through one;
+//! - `backward`, `solve`: the one backward pass and the solves at an update;
+//! - `thinned`: the closes of a pass that kept some epochs only, re-integrated;
 //! - `forward`, `smoothed`, `sink`: what the backward pass reads, the smoothed
-//!   solution, and where it writes;
-//! - `backward`, `every`, `steps`, `thinned`, `kept`: the backward pass.
+//!   solution, and where it writes.
 
 mod backward;
-mod every;
+pub(crate) mod closes;
 mod forward;
 mod kept;
 mod log;
 mod node;
 mod sink;
 mod smoothed;
-pub(crate) mod steps;
+mod solve;
 pub mod thinned;
+mod transition;
 
 pub use backward::{smooth, smooth_into};
-#[cfg(test)]
-pub(crate) use every::Interval;
 pub use forward::{Covariances, Forward};
 pub use kept::{KeptClose, KeptCloses};
 pub use log::ForwardLog;

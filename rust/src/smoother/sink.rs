@@ -14,7 +14,6 @@
 use super::forward::Forward;
 use crate::attitude::skew;
 use crate::ekf::{variance_between, FilterConfig, Formulation, ATT, VEL};
-use crate::mechanization::NavState;
 use nalgebra::{SMatrix, SVector, Vector3};
 
 /// Where a backward pass puts what it finds at each epoch: the smoothed error of the
@@ -37,33 +36,6 @@ pub trait Sink {
     );
     /// The smoothed covariance at a node's epoch.
     fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>);
-
-    /// σ at epoch `i` from the smoothed covariance `ps` and the forward one `p` there
-    /// (see `change`).
-    fn set_sigma<const N: usize>(
-        &mut self,
-        i: usize,
-        (ps, p): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        let vel = &forward.nav[i].vel;
-        self.set_change(i, &change(ps, p, cfg, vel), forward);
-    }
-
-    /// σ at epoch `i` of `Ps = P + P Λ P` (the forward covariance `p` there and
-    /// `Λ = Φ_{i→b}ᵀ M Φ_{i→b}`): the change is `diag(U P Λ P Uᵀ)` (see
-    /// `change_of`).
-    fn set_sigma_of<const N: usize>(
-        &mut self,
-        i: usize,
-        p: &SMatrix<f64, N, N>,
-        lambda: &SMatrix<f64, N, N>,
-        cfg: &FilterConfig,
-        forward: &Forward<'_>,
-    ) {
-        self.set_change(i, &change_of(p, lambda, cfg, &forward.nav[i]), forward);
-    }
 
     /// σ at epoch `i` inside a covariance step, a fraction `w` of the way in time from
     /// the close before it (the change `from` there, after its updates) to the one
@@ -123,14 +95,15 @@ pub(crate) fn change<const N: usize>(
 }
 
 /// The change of each state's variance (as [`change`]) of `Ps = P + P Λ P` from `P`:
-/// `diag(U P Λ P Uᵀ)` with `U` the map to the classic coordinates at `nav`'s velocity.
+/// `diag(U P Λ P Uᵀ)` with `U` the map to the classic coordinates at the velocity
+/// `vel`, read directly (no `Ps` formed).
 pub(crate) fn change_of<const N: usize>(
     p: &SMatrix<f64, N, N>,
     lambda: &SMatrix<f64, N, N>,
     cfg: &FilterConfig,
-    nav: &NavState,
+    vel: &Vector3<f64>,
 ) -> SVector<f64, N> {
-    let up = classic_rows(cfg, nav, p);
+    let up = classic_rows(cfg, vel, p);
     let upl = up * lambda;
     SVector::<f64, N>::from_fn(|j, _| upl.row(j).dot(&up.row(j)))
 }
@@ -142,18 +115,18 @@ pub(crate) fn changed_sigma(sigma: f64, change: f64) -> f64 {
 }
 
 /// `U P`, the rows of a covariance in the filter's coordinates mapped to the classic
-/// ones at `nav`'s velocity (`U = I + [v̂×]` at (velocity, attitude) in the invariant
+/// ones at the velocity `vel` (`U = I + [v̂×]` at (velocity, attitude) in the invariant
 /// formulation, `I` in the classic one).
-pub(super) fn classic_rows<const N: usize>(
+fn classic_rows<const N: usize>(
     cfg: &FilterConfig,
-    nav: &NavState,
+    vel: &Vector3<f64>,
     p: &SMatrix<f64, N, N>,
 ) -> SMatrix<f64, N, N> {
     let mut up = *p;
     if cfg.formulation == Formulation::Invariant {
         let att = up.fixed_rows::<3>(ATT).into_owned();
-        let mut vel = up.fixed_rows_mut::<3>(VEL);
-        vel += skew(&nav.vel) * att;
+        let mut rows = up.fixed_rows_mut::<3>(VEL);
+        rows += skew(vel) * att;
     }
     up
 }

@@ -24,6 +24,8 @@ pub struct Smoothed {
     /// the filter's own error coordinates about the forward solution's velocity (the
     /// 15 navigation and bias states).
     pub node_covariance: Vec<(usize, Matrix15)>,
+    /// Whether `node_covariance` is kept (not for a thinned pass).
+    keeps_nodes: bool,
 }
 
 impl Smoothed {
@@ -38,6 +40,16 @@ impl Smoothed {
             calibration: forward.calibration.to_vec(),
             calibration_sigma: vec![[f64::NAN; 4]; if calibrated { n } else { 0 }],
             node_covariance: Vec::with_capacity(nodes),
+            keeps_nodes: true,
+        }
+    }
+
+    /// [`Smoothed::start`] at the kept rows of a thinned pass (`forward` holds them),
+    /// without the smoothed covariance at the nodes.
+    pub(super) fn rows(forward: &Forward<'_>) -> Self {
+        Self {
+            keeps_nodes: false,
+            ..Self::start(forward, 0)
         }
     }
 }
@@ -82,7 +94,9 @@ impl Sink for Smoothed {
 
     /// Keep the smoothed covariance at a node's epoch (its 15-state block).
     fn keep_node<const N: usize>(&mut self, epoch: usize, ps: &SMatrix<f64, N, N>) {
-        let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
-        self.node_covariance.push((epoch, p));
+        if self.keeps_nodes {
+            let p = ps.fixed_view::<15, 15>(0, 0).into_owned();
+            self.node_covariance.push((epoch, p));
+        }
     }
 }

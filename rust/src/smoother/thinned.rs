@@ -8,29 +8,25 @@
 //! re-integrates it, the same operations on the same numbers, so the forward solution
 //! of every epoch in `[a, b)` comes back bit for bit, and rebuilds the interval's
 //! covariances from it as the every-epoch pass does: at every sample first the
-//! solution (`Stretch`) and then the covariances (`super::every`); under a
-//! covariance step both in one sweep, each sample added to the step as it is
-//! integrated (`rebuild_closes`, the closes `super::steps` would rebuild). It runs
-//! the same recursion, writing the smoothed solution (and σ)
-//! at the kept epochs alone: each equals the every-epoch pass's bit for bit. The
-//! smoothed covariances at the nodes are not kept ([`Smoothed::node_covariance`] is
-//! empty).
+//! solution (`Stretch`) and then the closes (`super::closes::samples`, the covariance
+//! kept at the kept epochs and the nodes only); under a covariance step both in one
+//! sweep, each sample added to the step as it is integrated (`rebuild_closes`, the
+//! closes `super::closes::steps` would rebuild). The one backward pass
+//! (`super::backward`) then writes the smoothed solution (and σ) at the kept epochs
+//! alone: each equals the every-epoch pass's bit for bit. The smoothed covariances at
+//! the nodes are not kept ([`Smoothed::node_covariance`] is empty).
 
-use super::every::{self, transposed_step};
+use super::backward::{pass, Rows};
+use super::closes::{self, integrate, Close};
 use super::forward::Forward;
-use super::node::{full_p, restart, restart_at, Node, Nodes};
-use super::sink::change;
-use super::sink::Sink;
+use super::node::{restart_at, Node, Nodes};
 use super::smoothed::Smoothed;
-use super::steps::{self, symmetric, AtClose, Close, Later};
+use super::transition::{NavRows, Sample};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::calibration::N_CALIBRATED;
-use crate::ekf::dynamics::ErrorDynamics;
 use crate::ekf::{Ekf, FilterConfig};
 use crate::error::{Error, Result};
-use crate::mechanization::{step_with_rates, FrameRates, ImuSample, NavState};
-use nalgebra::{SMatrix, SVector, Vector3};
-use std::ops::Range;
+use crate::mechanization::{ImuSample, NavState};
 
 /// The forward solution after each node's updates, in the order of the nodes: where
 /// the node-only backward pass starts each interval's re-integration.
@@ -88,13 +84,6 @@ impl Thinned<'_> {
         self.epochs.binary_search(&i).ok()
     }
 
-    /// The kept rows whose epochs lie in `epochs`.
-    fn kept_in(&self, epochs: Range<usize>) -> Range<usize> {
-        let from = self.epochs.partition_point(|&e| e < epochs.start);
-        let to = self.epochs.partition_point(|&e| e < epochs.end);
-        from..to
-    }
-
     /// The kept solution as a [`Forward`] indexed by kept row (no IMU rows).
     fn at_kept(&self) -> Forward<'_> {
         Forward {
@@ -131,9 +120,7 @@ impl Stretch {
         end: usize,
         cancel: &Cancel,
     ) -> Result<(Forward<'s>, Node)> {
-        let b = &src.states.bias[j];
-        let accel_bias = Vector3::new(b[0], b[1], b[2]);
-        let gyro_bias = Vector3::new(b[3], b[4], b[5]);
+        let bias = &src.states.bias[j];
         self.nav.clear();
         let mut nav = src.states.nav[j];
         for i in a.epoch..end {
@@ -142,13 +129,8 @@ impl Stretch {
             }
             self.nav.push(nav);
             if i + 1 < end {
-                let raw = ImuSample::from_array(&src.imu[i]);
-                let imu = ImuSample {
-                    accel: raw.accel - accel_bias,
-                    gyro: raw.gyro - gyro_bias,
-                };
                 let dt = src.imu_time[i] - src.time(i);
-                nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
+                nav = integrate(&nav, &src.imu[i], bias, dt);
             }
         }
         let forward = Forward {
@@ -190,179 +172,72 @@ pub fn smooth(
             "the smoother's nodes or kept epochs do not span the pass".into(),
         ));
     }
+    let kept = src.at_kept();
+    let mut out = Smoothed::rows(&kept);
+    let mut rows = Rows {
+        sink: &mut out,
+        view: &kept,
+        kept: Some(src.epochs),
+        wanted: &|_| true,
+        time: &|i| src.time(i),
+        lazy: false,
+    };
     const CAL: usize = N_CALIBRATED;
     match (cfg.dvl_calibration.is_some(), cfg.covariance_every_sample()) {
-        (false, true) => smooth_every::<15>(src, cfg, nodes, cancel),
-        (true, true) => smooth_every::<CAL>(src, cfg, nodes, cancel),
-        (false, false) => smooth_steps::<15>(src, cfg, nodes, cancel),
-        (true, false) => smooth_steps::<CAL>(src, cfg, nodes, cancel),
+        (false, true) => every_sample::<15>(src, cfg, nodes, &mut rows, cancel)?,
+        (true, true) => every_sample::<CAL>(src, cfg, nodes, &mut rows, cancel)?,
+        (false, false) => steps::<15>(src, cfg, nodes, &mut rows, cancel)?,
+        (true, false) => steps::<CAL>(src, cfg, nodes, &mut rows, cancel)?,
     }
+    Ok(out)
 }
 
-/// [`super::every::smooth_every`] at the kept epochs.
-fn smooth_every<const N: usize>(
+/// The backward pass at every IMU sample, each interval's solution re-integrated
+/// ([`Stretch`]) and its covariance rebuilt at the kept epochs and the nodes only.
+fn every_sample<const N: usize>(
     src: &Thinned<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
+    rows: &mut Rows<'_, Smoothed>,
     cancel: &Cancel,
-) -> Result<Smoothed> {
-    let kept = src.at_kept();
-    let mut out = Smoothed::start(&kept, 0);
-    let last = &nodes[nodes.len() - 1];
-    let mut ds = SVector::<f64, N>::zeros();
-    let mut ps = last.p::<N>();
-    out.set_sigma(src.epochs.len() - 1, (&ps, &ps), cfg, &kept);
+) -> Result<()> {
     let mut stretch = Stretch::default();
-    for (j, pair) in nodes.windows(2).enumerate().rev() {
-        let (a, b) = (&pair[0], &pair[1]);
-        cancel.check()?;
-        let rows = src.kept_in(a.epoch..b.epoch);
-        let (forward, start) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
-        let keep = |k: usize| k == 0 || src.kept(a.epoch + k).is_some();
-        let interval = Rebuilt::<N>::every(&forward, cfg, &start, b.epoch - a.epoch, keep, cancel)?;
-        let chol = interval.p_end.cholesky().ok_or_else(|| {
-            Error::Numerical(format!(
-                "the smoother: the covariance before epoch {} is not positive definite",
-                b.epoch
-            ))
-        })?;
-        let mut mu = chol.solve(&(ds + b.dx::<N>()));
-        let m = chol.solve(&(ps - interval.p_end));
-        let m = chol.solve(&m.transpose()).transpose();
-        let mut lambda = (m + m.transpose()) * 0.5;
-        // The kept rows and the covariances, taken from the end.
-        let (mut row, mut at) = (rows.end, interval.p.len());
-        for i in (a.epoch..b.epoch).rev() {
-            let k = i - a.epoch;
-            let (dynamics, dt) = &interval.steps[k];
-            mu = transposed_step(dynamics, *dt, &mu);
-            every::congruence(dynamics, *dt, &mut lambda);
-            if at == 0 || interval.p[at - 1].0 != k {
-                continue; // neither kept nor the node
-            }
-            at -= 1;
-            let p = &interval.p[at].1;
-            let dsi = p * mu;
-            let kept_row = (row > rows.start && src.epochs[row - 1] == i).then(|| {
-                row -= 1;
-                row
-            });
-            if i == a.epoch {
-                let psi = p + p * lambda * p;
-                ps = (psi + psi.transpose()) * 0.5;
-                ds = dsi;
-                if let Some(r) = kept_row {
-                    out.set_sigma(r, (&ps, p), cfg, &kept);
-                }
-            } else if let Some(r) = kept_row {
-                out.set_sigma_of(r, p, &lambda, cfg, &kept);
-            }
-            if let Some(r) = kept_row {
-                out.apply(r, &dsi, cfg);
-            }
-        }
-    }
-    Ok(out)
+    let keep = |e: usize| src.kept(e).is_some();
+    let closes = |j: usize, a: &Node, b: &Node, c: &mut Vec<Close<N, Sample>>| {
+        let (forward, _) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
+        let vel_b = src.states.nav[j + 1].vel;
+        closes::samples(
+            &forward,
+            cfg,
+            (a, b.epoch),
+            (a.epoch, vel_b),
+            &keep,
+            c,
+            cancel,
+        )
+    };
+    let vel0 = src.states.nav[0].vel;
+    pass::<N, Sample, Smoothed>(nodes, closes, (vel0, cfg, rows, cancel))
 }
 
-/// An interval rebuilt as [`super::every`]'s `Interval::rebuild` does, every sample, keeping the
-/// forward covariance only at the epochs the backward pass reads it at.
-struct Rebuilt<const N: usize> {
-    /// `(k, P)` at the kept epochs `a + k` (increasing k).
-    p: Vec<(usize, SMatrix<f64, N, N>)>,
-    steps: Vec<(ErrorDynamics, f64)>,
-    p_end: SMatrix<f64, N, N>,
-}
-
-impl<const N: usize> Rebuilt<N> {
-    /// The interval from node `a` (at epoch 0 of `forward`) to the epoch `end`, with
-    /// `P_k` where `keep(k)`.
-    fn every(
-        forward: &Forward<'_>,
-        cfg: &FilterConfig,
-        a: &Node,
-        end: usize,
-        keep: impl Fn(usize) -> bool,
-        cancel: &Cancel,
-    ) -> Result<Self> {
-        let mut ekf = restart(forward, cfg, a)?;
-        let (mut p, mut steps) = (Vec::new(), Vec::with_capacity(end));
-        let noise = a.noise.as_process_noise();
-        for k in 0..end {
-            if k % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
-                cancel.check()?;
-            }
-            let raw = ImuSample::from_array(&forward.imu[k]);
-            let dt = forward.step(k);
-            if keep(k) {
-                p.push((k, full_p::<N>(&ekf)));
-            }
-            let (step, _) = ekf.predict_covariance_from(&forward.nav[k], &raw, dt, noise);
-            let step = step.ok_or_else(|| {
-                Error::Numerical("the smoother: a covariance step where none was".into())
-            })?;
-            steps.push((step, dt));
-        }
-        Ok(Self {
-            p,
-            steps,
-            p_end: full_p::<N>(&ekf),
-        })
-    }
-}
-
-/// [`super::steps::smooth_steps`] at the kept epochs.
-fn smooth_steps<const N: usize>(
+/// The backward pass under a covariance step, each interval's closes rebuilt in the
+/// same sweep as its solution is re-integrated ([`rebuild_closes`]).
+fn steps<const N: usize>(
     src: &Thinned<'_>,
     cfg: &FilterConfig,
     nodes: &[Node],
+    rows: &mut Rows<'_, Smoothed>,
     cancel: &Cancel,
-) -> Result<Smoothed> {
-    let kept = src.at_kept();
-    let mut out = Smoothed::start(&kept, 0);
-    let mut mu = SVector::<f64, N>::zeros();
-    let mut lambda = SMatrix::<f64, N, N>::zeros();
-    let mut later: Option<Later<N>> = None;
-    let mut closes = Vec::new();
-    for (j, pair) in nodes.windows(2).enumerate().rev() {
-        let (a, b) = (&pair[0], &pair[1]);
-        cancel.check()?;
-        rebuild_closes::<N>(src, cfg, j, (a, b), &mut closes, cancel)?;
-        for (k, close) in closes.iter().enumerate().rev() {
-            let epoch = close.epoch;
-            let at_node = epoch == b.epoch;
-            let p = if at_node { b.p::<N>() } else { close.p_prior };
-            let ds = p * mu;
-            // Ps where it is read: at the nodes and at kept epochs between the close
-            // before and the next one (σ there is interpolated between the two).
-            let until = later.as_ref().map_or(epoch + 1, |l| l.epoch);
-            let since = steps::previous_close(&closes, k, a);
-            let (before, after) = (
-                since.is_none_or(|s| !src.kept_in(s + 1..epoch).is_empty()),
-                !src.kept_in(epoch..until).is_empty(),
-            );
-            let at = AtClose::read(close, (&p, &lambda), (at_node, before, after), cfg);
-            fill(
-                &mut out,
-                src,
-                cfg,
-                epoch,
-                &ds,
-                at.near.as_ref(),
-                later.as_ref(),
-            );
-            later = Some(at.back_through(close, (b, at_node), &ds, (&mut mu, &mut lambda))?);
-        }
-    }
-    let p = nodes[0].p::<N>();
-    let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
-    let near = change(&ps, &p, cfg, &src.states.nav[0].vel);
-    fill(&mut out, src, cfg, 0, &ds, Some(&near), later.as_ref());
-    Ok(out)
+) -> Result<()> {
+    let closes = |j: usize, a: &Node, b: &Node, c: &mut Vec<Close<N, NavRows>>| {
+        rebuild_closes(src, cfg, j, (a, b), c, cancel)
+    };
+    let vel0 = src.states.nav[0].vel;
+    pass::<N, NavRows, Smoothed>(nodes, closes, (vel0, cfg, rows, cancel))
 }
 
 /// The closes in `(a, b]` of the covariance step (`a` the `j`-th node), as
-/// [`steps::rebuild`] makes them from the forward solution, with that solution
+/// [`closes::steps`] makes them from the forward solution, with that solution
 /// integrated again on the way as [`Stretch::rebuild`] integrates it: one sweep, the
 /// same operations on the same numbers, so each close is the forward pass's bit for bit,
 /// and no interval's worth of solutions is written and read back. Into `closes`, whose
@@ -372,13 +247,13 @@ pub(crate) fn rebuild_closes<const N: usize>(
     cfg: &FilterConfig,
     j: usize,
     (a, b): (&Node, &Node),
-    closes: &mut Vec<Close<N>>,
+    closes: &mut Vec<Close<N, NavRows>>,
     cancel: &Cancel,
 ) -> Result<()> {
     closes.clear();
     let mut nav = src.states.nav[j];
-    let mut ekf = restart_at(nav, &src.states.bias[j], cfg, a)?;
-    let (accel_bias, gyro_bias) = (ekf.accel_bias, ekf.gyro_bias);
+    let bias = &src.states.bias[j];
+    let mut ekf = restart_at(nav, bias, cfg, a)?;
     let noise = a.noise.as_process_noise();
     // The forward velocity at b after its updates (before them: `nav` after the last
     // sample, integrated as the forward pass integrated it).
@@ -390,11 +265,7 @@ pub(crate) fn rebuild_closes<const N: usize>(
         let raw = ImuSample::from_array(&src.imu[i]);
         let dt = src.imu_time[i] - src.time(i);
         let due = ekf.add_to_step(&nav, &raw, dt, noise);
-        let imu = ImuSample {
-            accel: raw.accel - accel_bias,
-            gyro: raw.gyro - gyro_bias,
-        };
-        nav = step_with_rates(&nav, &imu, dt, &FrameRates::at(&nav));
+        nav = integrate(&nav, &src.imu[i], bias, dt);
         if due {
             if let Some(phi) = ekf.bring_up_to_date() {
                 let vel = if i + 1 < b.epoch { nav.vel } else { at_b };
@@ -408,37 +279,4 @@ pub(crate) fn rebuild_closes<const N: usize>(
         }
     }
     Ok(())
-}
-
-/// [`super::steps`]'s `fill` at the kept epochs: the smoothed error `ds` at the close
-/// `epoch`, interpolated up to the next close `later`, and σ from the change `near` to
-/// the variances after the close's updates where given (interpolated towards the next
-/// close's).
-fn fill<const N: usize>(
-    out: &mut Smoothed,
-    src: &Thinned<'_>,
-    cfg: &FilterConfig,
-    epoch: usize,
-    ds: &SVector<f64, N>,
-    near: Option<&SVector<f64, N>>,
-    later: Option<&Later<N>>,
-) {
-    let until = later.map_or(epoch + 1, |l| l.epoch);
-    let t_close = src.time(epoch);
-    let kept = src.at_kept();
-    for row in src.kept_in(epoch..until) {
-        let i = src.epochs[row];
-        match later {
-            Some(l) if i > epoch => {
-                let w = (src.time(i) - t_close) / (src.time(l.epoch) - t_close);
-                l.write_between(out, (row, &kept), w, (ds, near), cfg);
-            }
-            _ => {
-                if let Some(near) = near {
-                    out.set_change(row, near, &kept);
-                }
-                out.apply(row, ds, cfg);
-            }
-        }
-    }
 }

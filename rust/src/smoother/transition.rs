@@ -1,0 +1,222 @@
+//! The transition between two closes of the forward pass, as the backward pass carries
+//! `μ ← Φᵀ μ` and `Λ ← Φᵀ Λ Φ` through it ([`Step`]): one IMU sample's `Φ = I + F Δt`
+//! through the sparse F ([`Sample`]), or a covariance step's
+//! `Φ = I + F ΔT + ½(F ΔT)²` through its nine navigation rows ([`NavRows`]). With the DVL
+//! calibration states (`N` = 19) their rows of F are zero and the navigation rows do
+//! not read them: every product goes through the first 15.
+
+use crate::ekf::dynamics::ErrorDynamics;
+use crate::ekf::Matrix15;
+use nalgebra::{SMatrix, SVector};
+
+/// How the backward pass goes back through a transition `Φ` over `N` states.
+pub(crate) trait Step<const N: usize> {
+    /// Whether every epoch closes: no epoch lies between two closes, so nothing is
+    /// interpolated (one IMU sample's Φ).
+    const EVERY_EPOCH: bool;
+    /// `Φᵀ x`.
+    fn transposed(&self, x: &SVector<f64, N>) -> SVector<f64, N>;
+    /// `Φᵀ Λ Φ` of a symmetric Λ, symmetric.
+    fn congruence(&self, lambda: &mut SMatrix<f64, N, N>);
+    /// `K ← K Φ`: a product of transitions carried instead of Λ over closes where Λ is
+    /// not read (`Kᵀ Λ K` where it is next read).
+    fn accumulate(&self, k: &mut SMatrix<f64, N, N>);
+    /// The smoothed error after the step from the one before it `ds` and `μ` after it,
+    /// without the covariance: `Φ δs + Q μ` (the Bryson–Frazier form, `Q` the noise the
+    /// filter added after `Φ`), where the step carries its `Q`; None where not.
+    fn next_mean(&self, ds: &SVector<f64, N>, mu: &SVector<f64, N>) -> Option<SVector<f64, N>>;
+}
+
+/// The navigation rows of a covariance step's Φ (9 × 15; its other rows are the
+/// identity's).
+pub(crate) type NavRows = SMatrix<f64, 9, 15>;
+
+impl<const N: usize> Step<N> for NavRows {
+    const EVERY_EPOCH: bool = false;
+
+    fn transposed(&self, x: &SVector<f64, N>) -> SVector<f64, N> {
+        transposed(self, x)
+    }
+
+    fn congruence(&self, lambda: &mut SMatrix<f64, N, N>) {
+        *lambda = congruence(self, lambda);
+    }
+
+    fn accumulate(&self, k: &mut SMatrix<f64, N, N>) {
+        *k = times_phi(self, k);
+    }
+
+    fn next_mean(&self, _: &SVector<f64, N>, _: &SVector<f64, N>) -> Option<SVector<f64, N>> {
+        None // a close always carries its covariance
+    }
+}
+
+/// One IMU sample's transition `Φ = I + F Δt`: its error dynamics and step \[s\], and
+/// where the backward pass takes the mean alone, the discrete noise `Q` the filter added
+/// after it.
+#[derive(Clone, Debug)]
+pub(crate) struct Sample {
+    pub(crate) dynamics: ErrorDynamics,
+    pub(crate) dt: f64,
+    pub(crate) q: Option<Matrix15>,
+}
+
+impl<const N: usize> Step<N> for Sample {
+    const EVERY_EPOCH: bool = true;
+
+    fn transposed(&self, x: &SVector<f64, N>) -> SVector<f64, N> {
+        transposed_step(&self.dynamics, self.dt, x)
+    }
+
+    fn congruence(&self, lambda: &mut SMatrix<f64, N, N>) {
+        congruence_sparse(&self.dynamics, self.dt, lambda);
+    }
+
+    /// Through Φ's navigation rows `[I 0] + F Δt` as a covariance step's are (whole
+    /// columns of K combined).
+    fn accumulate(&self, k: &mut SMatrix<f64, N, N>) {
+        let mut rows = self.dynamics.nav_rows() * self.dt;
+        for i in 0..9 {
+            rows[(i, i)] += 1.0;
+        }
+        *k = times_phi(&rows, k);
+    }
+
+    fn next_mean(&self, ds: &SVector<f64, N>, mu: &SVector<f64, N>) -> Option<SVector<f64, N>> {
+        let q_mu = self.q.as_ref()? * mu.fixed_rows::<15>(0);
+        let f = self.dynamics.apply(&ds.as_slice()[..15]);
+        let mut next = *ds;
+        for (r, v) in f.iter().enumerate() {
+            next[r] += self.dt * v;
+        }
+        for (r, v) in q_mu.iter().enumerate() {
+            next[r] += v;
+        }
+        Some(next)
+    }
+}
+
+/// `Φᵀ x` for a step `Φ = I + F Δt`: `x + Δt Fᵀ x` (F's navigation rows alone read).
+fn transposed_step<const N: usize>(
+    dynamics: &ErrorDynamics,
+    dt: f64,
+    x: &SVector<f64, N>,
+) -> SVector<f64, N> {
+    let ft = dynamics.apply_transposed(&x.as_slice()[..15]);
+    let mut out = *x;
+    for (o, v) in out.iter_mut().zip(ft) {
+        *o += dt * v;
+    }
+    out
+}
+
+/// `Λ ← Φᵀ Λ Φ = Λ + Δt (W + Wᵀ) + Δt² Fᵀ Wᵀ` with `W = Fᵀ Λ` (Λ symmetric), each
+/// product column by column through the sparse F: about 2 × 60 multiply-adds per
+/// column instead of a dense 9 × 15 product's 135.
+fn congruence_sparse<const N: usize>(
+    dynamics: &ErrorDynamics,
+    dt: f64,
+    lambda: &mut SMatrix<f64, N, N>,
+) {
+    let mut w = SMatrix::<f64, 15, N>::zeros();
+    for c in 0..N {
+        let col = dynamics.apply_transposed(&lambda.as_slice()[N * c..N * c + 15]);
+        w.column_mut(c).copy_from_slice(&col);
+    }
+    // Column c of Fᵀ Wᵀ is Fᵀ times row c of W; Fᵀ Λ F is its transpose.
+    let mut z = SMatrix::<f64, 15, 15>::zeros();
+    for c in 0..15 {
+        let row: [f64; 15] = std::array::from_fn(|k| w[(c, k)]);
+        z.column_mut(c)
+            .copy_from_slice(&dynamics.apply_transposed(&row));
+    }
+    for c in 0..N {
+        for r in 0..15 {
+            let v = dt * w[(r, c)];
+            lambda[(r, c)] += v;
+            lambda[(c, r)] += v;
+        }
+    }
+    let dt2 = dt * dt;
+    for c in 0..15 {
+        for r in 0..15 {
+            lambda[(r, c)] += dt2 * z[(c, r)];
+        }
+    }
+}
+
+/// `Φᵀ x` for `Φ = [[R], [0, I]]` (`R` its navigation rows, 9 × 15): entry `j` is
+/// `Σ_k R_kj x_k` over the 9 navigation rows, plus `x_j` past them (summed in this
+/// order, as nalgebra's product does: the same bits as `Rᵀ x` plus the identity).
+fn transposed<const N: usize>(rows: &NavRows, x: &SVector<f64, N>) -> SVector<f64, N> {
+    let mut out = *x;
+    for j in 0..15 {
+        let mut v = 0.0;
+        for k in 0..9 {
+            v += rows[(k, j)] * x[k];
+        }
+        out[j] = if j < 9 { v } else { x[j] + v };
+    }
+    out
+}
+
+/// `B Φ` (see [`transposed`]): column `j < 15` is `Σ_k R_kj B_{:,k}` over the 9
+/// navigation columns, plus `B_{:,j}` past them; column by column over contiguous
+/// columns (9 × 15 × N multiply-adds), summed in [`transposed`]'s order.
+fn times_phi<const N: usize>(rows: &NavRows, b: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { times_phi_avx2(rows, b) };
+    }
+    times_phi_portable(rows, b)
+}
+
+/// [`times_phi`] in AVX2 registers (the same products and sums: no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn times_phi_avx2<const N: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    times_phi_portable(rows, b)
+}
+
+#[inline(always)]
+fn times_phi_portable<const N: usize>(
+    rows: &NavRows,
+    b: &SMatrix<f64, N, N>,
+) -> SMatrix<f64, N, N> {
+    let mut out = *b;
+    let src = b.as_slice();
+    let dst = out.as_mut_slice();
+    for j in 0..15 {
+        let mut col = [0.0; N];
+        for k in 0..9 {
+            let r = rows[(k, j)];
+            for (c, s) in col.iter_mut().zip(&src[N * k..N * (k + 1)]) {
+                *c += r * s;
+            }
+        }
+        if j >= 9 {
+            for (c, s) in col.iter_mut().zip(&src[N * j..N * (j + 1)]) {
+                *c += s;
+            }
+        }
+        dst[N * j..N * (j + 1)].copy_from_slice(&col);
+    }
+    out
+}
+
+/// `Φᵀ Λ Φ` for a symmetric Λ: `W = Λ Φ`, then `Wᵀ Φ = (Φᵀ W)ᵀ`, symmetrized. Each
+/// entry is the sum of the same products in the same order as the dense
+/// `Φᵀ (Φᵀ Λ)ᵀ` (Λ is symmetric bit for bit), so the result is too.
+fn congruence<const N: usize>(rows: &NavRows, lambda: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    let w = times_phi(rows, lambda);
+    symmetric(&times_phi(rows, &w.transpose()))
+}
+
+/// `(M + Mᵀ) / 2`.
+pub(super) fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    (m + m.transpose()) * 0.5
+}
