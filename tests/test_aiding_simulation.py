@@ -147,15 +147,24 @@ def test_scenario_files_take_the_aiding_keys(tmp_path) -> None:
     path = tmp_path / "gnss.toml"
     path.write_text(
         'base = "matched"\n[sensors]\ndvl_period = 0\ndepth_sigma = 0.1\ndepth_period = 0.5\n'
+        "depth_lever_arm = [0.2, 0, 0.5]\n"
         "[[sensors.fixes]]\nsigma = [2.5, 2.5]\nperiod = 1.0\nmax_depth = 20.0\n"
-        "[[sensors.fixes]]\nsigma = [3, 3, 3]\ntimes = [10.0, 20.0]\n"
+        "[[sensors.fixes]]\nsigma = [3, 3, 3]\ntimes = [10.0, 20.0]\nlever_arm = [0, 0, -1.5]\n"
     )
     sc = load_scenario(path)
     assert sc.sensors.dvl_period == 0.0
     assert (sc.sensors.depth_sigma, sc.sensors.depth_period) == (0.1, 0.5)
+    assert sc.sensors.depth_lever_arm == [0.2, 0.0, 0.5]
+    no_arm = [0.0, 0.0, 0.0]
     assert sc.sensors.fixes == [
-        {"sigma": [2.5, 2.5], "period": 1.0, "times": [], "max_depth": 20.0},
-        {"sigma": [3.0, 3.0, 3.0], "period": 0.0, "times": [10.0, 20.0], "max_depth": None},
+        {"sigma": [2.5, 2.5], "period": 1.0, "times": [], "max_depth": 20.0, "lever_arm": no_arm},
+        {
+            "sigma": [3.0, 3.0, 3.0],
+            "period": 0.0,
+            "times": [10.0, 20.0],
+            "max_depth": None,
+            "lever_arm": [0.0, 0.0, -1.5],
+        },
     ]
     # a file over a base with fixes: an empty list removes them, other keys keep them
     over = tmp_path / "over.toml"

@@ -28,18 +28,19 @@ SRC = Path(__file__).resolve().parents[1] / "rust" / "src"
 #: belongs to its top-level module's layer (``smoother/steps.rs``: ``smoother``) and
 #: imports only files of its own layer or of the layers before it; ``lib.rs`` is exempt.
 #: The order (docs/development.md, "The Rust crate, room by room"): utilities, the Earth
-#: and attitude → ``mechanization`` → ``trajectory``/``sensors`` → the filter ``ekf`` →
-#: the measurements and the noise strategies → the one epoch loop ``pass`` → the
-#: ``smoother`` → the drivers (``recorded``, ``scenario``, ``run``) → ``montecarlo``/
-#: ``ensemble`` → ``python``. A new module goes in here; a module that moves, moves here
-#: too.
+#: and attitude → ``mechanization`` → ``trajectory`` → the filter ``ekf`` → the
+#: measurements and the noise strategies → the simulated ``sensors`` (readings as the
+#: filter reads them) → the one epoch loop ``pass`` → the ``smoother`` → the drivers
+#: (``recorded``, ``scenario``, ``run``) → ``montecarlo``/``ensemble`` → ``python``. A
+#: new module goes in here; a module that moves, moves here too.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("error", "cancel", "threads"),
     ("attitude", "earth", "clocks", "regressors"),
     ("mechanization",),
-    ("trajectory", "sensors"),
+    ("trajectory",),
     ("ekf",),
     ("measurement", "noise"),
+    ("sensors",),
     ("pass",),
     ("smoother",),
     ("recorded", "scenario", "run"),

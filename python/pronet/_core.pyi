@@ -267,17 +267,19 @@ class SensorConfig:
     length of a loss; its own seeded stream, so a Monte Carlo stays the same for any
     thread count; a lost reading is a missed update, counted in
     ``MonteCarloResult.missed_updates``). ``dvl_period=0``: no DVL (a GNSS/INS or
-    depth-only run; the other DVL arguments are then unused). The aiding sensors,
-    applied by the filter's position updates with the σ they are simulated with:
-    ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s] (default 1;
-    refused without ``depth_sigma``), the depth of the IMU's point; ``fixes``, a list of
-    position-fix sources, each a dict with ``sigma`` (1σ [m] north, east and optionally
-    down: without it the fixes carry no height), and a schedule: ``period`` [s] (0 or
-    absent: none), ``times`` [s] (single fixes, each at the IMU epoch nearest it) and
-    ``max_depth`` [m] (fixes only while the true depth is at most this: at the surface).
-    Each aiding sensor draws from its own seeded stream: the other sensors' draws are
-    the same with and without it. Defaults: the paper's (an ideal DVL, no dropout, no
-    depth sensor, no fixes)."""
+    depth-only run; the other DVL arguments are then unused). The aiding sensors, each
+    read at its lever arm and applied by the filter with the σ and the lever arm it is
+    simulated with: ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period``
+    [s] (default 1; refused without ``depth_sigma``), the depth of a pressure sensor at
+    ``depth_lever_arm`` [m, body FRD from the IMU; default 0: the IMU's point];
+    ``fixes``, a list of position-fix sources, each a dict with ``sigma`` (1σ [m] north,
+    east and optionally down: without it the fixes carry no height), a schedule:
+    ``period`` [s] (0 or absent: none), ``times`` [s] (single fixes, each at the IMU
+    epoch nearest it) and ``max_depth`` [m] (fixes only while the true depth is at most
+    this: at the surface), and ``lever_arm`` [m, body FRD] of the antenna or transponder
+    (default 0). Each aiding sensor draws from its own seeded stream: the other sensors'
+    draws are the same with and without it. Defaults: the paper's (an ideal DVL, no
+    dropout, no depth sensor, no fixes)."""
 
     def __new__(
         cls,
@@ -295,6 +297,7 @@ class SensorConfig:
         dvl_dropout: Any | None = None,
         depth_sigma: float | None = None,
         depth_period: float | None = None,
+        depth_lever_arm: Any | None = None,
         fixes: Any | None = None,
     ) -> SensorConfig: ...
     @property
@@ -329,6 +332,9 @@ class SensorConfig:
     @property
     def depth_period(self) -> float | None:
         """Period of the depth sensor [s], or None without one."""
+    @property
+    def depth_lever_arm(self) -> list[float] | None:
+        """The depth sensor's lever arm [m, body FRD], or None without one."""
     @property
     def fixes(self) -> list[dict[str, Any]]:
         """The position-fix sources, as the dicts the constructor takes."""

@@ -34,6 +34,7 @@ mistakes too, so a misspelt key never silently falls back to a default.
     # dvl_period = 0            no DVL (a GNSS/INS or depth-only run)
     depth_sigma = 0.1          # optional: a depth sensor, 1σ [m] ...
     depth_period = 1.0         # ... every this many s
+    # depth_lever_arm = [0.0, 0.0, 0.5]   # ... at this point [m, body FRD from the IMU]
     # fixes = []               no position fixes (over a base that has them)
 
     [[sensors.fixes]]          # optional, repeatable: a source of position fixes
@@ -41,6 +42,7 @@ mistakes too, so a misspelt key never silently falls back to a default.
     period = 60.0              # [s]; 0 or absent: only the listed times
     # times = [0.0, 600.0]     # [s] single fixes, each at the IMU epoch nearest it
     # max_depth = 0.5          # fixes only while the true depth <= this [m] (GNSS)
+    # lever_arm = [0.0, 0.0, -1.0]   # the antenna's point [m, body FRD from the IMU]
     # A source that would take no fix on the trajectory is refused.
 
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
@@ -133,6 +135,7 @@ SENSOR_KEYS = (
     "dvl_dropout",
     "depth_sigma",
     "depth_period",
+    "depth_lever_arm",
     "fixes",
 )
 #: The simulated DVL's scale-factor error and mounting misalignment: arguments of a

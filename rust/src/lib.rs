@@ -6,7 +6,7 @@
 //!
 //! The modules in layers, each importing only those before it: `error`, `cancel`,
 //! `threads`; `attitude`, `earth`, `clocks`, `regressors`; `mechanization`;
-//! `trajectory`, `sensors`; `ekf`; `measurement`, `noise`; `pass`; `smoother`;
+//! `trajectory`; `ekf`; `measurement`, `noise`; `sensors`; `pass`; `smoother`;
 //! `recorded`, `scenario`, `run`; `montecarlo`, `ensemble`; `python`
 //! (`tests/test_rust_layout.py` checks it).
 //!

@@ -11,7 +11,7 @@ use crate::mechanization::{ImuSample, NavState};
 use crate::noise::{NoiseStrategy, StrategySpec};
 use crate::pass::{Epoch, Pass};
 use crate::scenario::Scenario;
-use crate::sensors::{self, normal, stream_rng, AidingSim, SensorSim, Stream};
+use crate::sensors::{normal, stream_rng, AidingSim, SensorSim, Stream};
 use crate::trajectory::Truth;
 use nalgebra::Vector3;
 
@@ -84,8 +84,7 @@ pub struct Run {
     dvl_every: Option<usize>,
     /// The depth sensor and position fixes; None without them.
     aiding: Option<AidingSim>,
-    /// The aiding readings simulated at the epoch under way, and every reading due.
-    sensed: Vec<sensors::Reading>,
+    /// The readings due at the epoch under way.
     readings: Vec<Reading>,
     record_every: usize,
     k: usize,
@@ -164,7 +163,6 @@ impl Run {
             strategy,
             dvl_every,
             aiding,
-            sensed: Vec::new(),
             readings: Vec::new(),
             record_every,
             k: 0,
@@ -309,10 +307,8 @@ impl Run {
                 &sensors.fixes,
                 self.k,
                 state,
-                &mut self.sensed,
+                &mut self.readings,
             );
-            self.readings
-                .extend(self.sensed.iter().map(aiding::reading));
         }
     }
 

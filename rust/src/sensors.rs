@@ -13,6 +13,7 @@
 //! The aiding sensors (a depth sensor, position fixes) are in [`aiding`]. The DVL is
 //! optional: a period of 0 means none (a GNSS/INS or depth-only simulation).
 
+use crate::ekf::{check_lever_arm, DvlMounting};
 use crate::error::{check, Error, Result};
 use crate::mechanization::NavState;
 use nalgebra::Vector3;
@@ -22,8 +23,8 @@ use rand_chacha::ChaCha8Rng;
 pub mod aiding;
 mod dvl;
 mod rng;
-pub use aiding::{AidingSim, DepthModel, FixModel, Reading};
-pub use dvl::{DvlDropout, DvlModel, DvlMounting};
+pub use aiding::{AidingSim, DepthModel, FixModel};
+pub use dvl::{DvlDropout, DvlModel};
 pub use rng::{normal, stream_rng, Stream};
 
 /// Per-channel IMU noise variance, piecewise constant in time: `values[i]` holds from
@@ -96,27 +97,6 @@ pub struct ImuErrorModel {
     pub bias: [f64; 6],
     /// Bias random-walk PSD per channel \[(m/s²)²/s, (rad/s)²/s\].
     pub bias_rw_psd: [f64; 6],
-}
-
-/// The longest lever arm a sensor may have from the point it is referred to \[m\]: 1 km,
-/// beyond any vehicle. A longer one is a mistake (a unit slip), and left unchecked it
-/// turns into an error about something else (a latitude beyond the poles).
-pub const MAX_LEVER_ARM: f64 = 1000.0;
-
-/// `Err` naming `arg` unless the lever arm `values` \[m\] is finite and no component is
-/// longer than [`MAX_LEVER_ARM`].
-pub fn check_lever_arm(arg: &str, values: &[f64]) -> Result<()> {
-    check::finite(arg, values)?;
-    match values.iter().position(|v| v.abs() > MAX_LEVER_ARM) {
-        None => Ok(()),
-        Some(i) => Err(Error::invalid(
-            arg,
-            format!(
-                "must be within ±{MAX_LEVER_ARM} m (no vehicle is longer), element {i} is {} m",
-                values[i]
-            ),
-        )),
-    }
 }
 
 /// All simulated sensors of a scenario.
@@ -454,7 +434,7 @@ mod tests {
     #[test]
     fn a_lever_arm_beyond_any_vehicle_is_refused_by_name() {
         let mut cfg = SensorConfig::paper();
-        cfg.dvl.lever_arm = Vector3::new(0.0, -MAX_LEVER_ARM, 2.0);
+        cfg.dvl.lever_arm = Vector3::new(0.0, -crate::ekf::MAX_LEVER_ARM, 2.0);
         assert!(cfg.validate().is_ok());
         cfg.dvl.lever_arm = Vector3::new(1e9, 0.0, 0.0);
         let err = cfg.validate().unwrap_err().to_string();

@@ -11,11 +11,11 @@
 //! 15-state kernel untouched. Every formula is in `docs/filter.md`.
 
 use super::dynamics::ErrorDynamics;
+use super::mounting::DvlMounting;
 use super::state::Matrix15;
 use super::transition::Transition;
 use crate::attitude::{exp_so3, skew};
 use crate::error::{check, Error, Result};
-pub use crate::sensors::DvlMounting;
 use nalgebra::{Matrix4, SMatrix, Vector3, Vector4};
 
 /// Error states with the calibration appended.

@@ -95,7 +95,7 @@ impl FilterConfig {
                 format!("must be > 0 on every axis, got {:?}", self.dvl_variance),
             ));
         }
-        check::finite("lever_arm", self.lever_arm.as_slice())?;
+        check_lever_arm("lever_arm", self.lever_arm.as_slice())?;
         check::positive("imu_dt", self.imu_dt)?;
         if !(self.covariance_step.is_finite() && self.covariance_step >= 0.0) {
             return Err(Error::invalid(
@@ -139,6 +139,27 @@ impl FilterConfig {
     pub fn bias_psd(&self) -> [f64; 6] {
         let (a, g) = (self.accel_bias_psd, self.gyro_bias_psd);
         [a, a, a, g, g, g]
+    }
+}
+
+/// The longest lever arm a sensor may have from the point it is referred to \[m\]: 1 km,
+/// beyond any vehicle. A longer one is a mistake (a unit slip), and left unchecked it
+/// turns into an error about something else (a latitude beyond the poles).
+pub const MAX_LEVER_ARM: f64 = 1000.0;
+
+/// `Err` naming `arg` unless the lever arm `values` \[m\] is finite and no component is
+/// longer than [`MAX_LEVER_ARM`].
+pub fn check_lever_arm(arg: &str, values: &[f64]) -> Result<()> {
+    check::finite(arg, values)?;
+    match values.iter().position(|v| v.abs() > MAX_LEVER_ARM) {
+        None => Ok(()),
+        Some(i) => Err(Error::invalid(
+            arg,
+            format!(
+                "must be within ±{MAX_LEVER_ARM} m (no vehicle is longer), element {i} is {} m",
+                values[i]
+            ),
+        )),
     }
 }
 

@@ -21,15 +21,17 @@ mod config;
 pub(crate) mod dynamics;
 mod filter;
 pub mod formulation;
+mod mounting;
 mod process_noise;
 mod state;
 mod step;
 pub(crate) mod transition;
 mod update;
 
-pub use config::{Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP};
+pub use config::{check_lever_arm, Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP, MAX_LEVER_ARM};
 pub use filter::{classic_sigma, correct, corrected_position_velocity, ClosedSigma, Ekf};
 pub use formulation::Formulation;
+pub use mounting::DvlMounting;
 pub use process_noise::ProcessNoise;
 pub use state::{Gain, Matrix15, Row15, Rows3, Vector15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};
 pub use step::{variance_between, CovarianceStep};

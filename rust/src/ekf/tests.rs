@@ -296,7 +296,7 @@ fn calibrated_measurement_jacobian_matches_finite_differences() {
     .unwrap();
     ekf.last_gyro = Vector3::new(0.01, -0.02, 0.05);
     ekf.calibration.as_mut().unwrap().estimate =
-        calibration::DvlMounting::from_angles(0.004, [0.01, -0.02, 0.03]);
+        DvlMounting::from_angles(0.004, [0.01, -0.02, 0.03]);
     let predict = |e: &Ekf| {
         let (v_b, h_body) = measurement_model(e);
         e.calibration.as_ref().unwrap().measurement(&v_b, &h_body)

@@ -5,9 +5,9 @@ use super::convert::{
     arg_depth_period, arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, real_arg,
     rows,
 };
+use crate::ekf::DvlMounting;
 use crate::sensors::{
-    DepthModel, DvlDropout, DvlModel, DvlMounting, FixModel, ImuErrorModel, SensorConfig,
-    VarianceSchedule,
+    DepthModel, DvlDropout, DvlModel, FixModel, ImuErrorModel, SensorConfig, VarianceSchedule,
 };
 use nalgebra::Vector3;
 use numpy::PyArray2;
@@ -26,17 +26,19 @@ use pyo3::types::{PyDict, PyList, PyString};
 /// length of a loss; its own seeded stream, so a Monte Carlo stays the same for any
 /// thread count; a lost reading is a missed update, counted in
 /// ``MonteCarloResult.missed_updates``). ``dvl_period=0``: no DVL (a GNSS/INS or
-/// depth-only run; the other DVL arguments are then unused). The aiding sensors,
-/// applied by the filter's position updates with the σ they are simulated with:
-/// ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period`` [s] (default 1;
-/// refused without ``depth_sigma``), the depth of the IMU's point; ``fixes``, a list of
-/// position-fix sources, each a dict with ``sigma`` (1σ [m] north, east and optionally
-/// down: without it the fixes carry no height), and a schedule: ``period`` [s] (0 or
-/// absent: none), ``times`` [s] (single fixes, each at the IMU epoch nearest it) and
-/// ``max_depth`` [m] (fixes only while the true depth is at most this: at the surface).
-/// Each aiding sensor draws from its own seeded stream: the other sensors' draws are
-/// the same with and without it. Defaults: the paper's (an ideal DVL, no dropout, no
-/// depth sensor, no fixes).
+/// depth-only run; the other DVL arguments are then unused). The aiding sensors, each
+/// read at its lever arm and applied by the filter with the σ and the lever arm it is
+/// simulated with: ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period``
+/// [s] (default 1; refused without ``depth_sigma``), the depth of a pressure sensor at
+/// ``depth_lever_arm`` [m, body FRD from the IMU; default 0: the IMU's point];
+/// ``fixes``, a list of position-fix sources, each a dict with ``sigma`` (1σ [m] north,
+/// east and optionally down: without it the fixes carry no height), a schedule:
+/// ``period`` [s] (0 or absent: none), ``times`` [s] (single fixes, each at the IMU
+/// epoch nearest it) and ``max_depth`` [m] (fixes only while the true depth is at most
+/// this: at the surface), and ``lever_arm`` [m, body FRD] of the antenna or transponder
+/// (default 0). Each aiding sensor draws from its own seeded stream: the other sensors'
+/// draws are the same with and without it. Defaults: the paper's (an ideal DVL, no
+/// dropout, no depth sensor, no fixes).
 #[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PySensorConfig {
@@ -65,7 +67,7 @@ fn variance(
 impl PySensorConfig {
     #[new]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = None, fixes = None))]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = None, depth_lever_arm = None, fixes = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -80,6 +82,7 @@ impl PySensorConfig {
         dvl_dropout: Option<&Bound<'_, PyAny>>,
         depth_sigma: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = arg_depth_period)] depth_period: Option<f64>,
+        depth_lever_arm: Option<&Bound<'_, PyAny>>,
         fixes: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let dropout = match dvl_dropout {
@@ -118,18 +121,25 @@ impl PySensorConfig {
                 },
                 dropout,
             },
-            depth: match (depth_sigma, depth_period) {
-                (Some(s), period) => Some(DepthModel {
+            depth: match (depth_sigma, depth_period, depth_lever_arm) {
+                (Some(s), period, arm) => Some(DepthModel {
                     sigma: real_arg(s, "depth_sigma")?,
                     period: period.unwrap_or(1.0),
+                    lever_arm: Vector3::from(fixed_or::<3>(arm, "depth_lever_arm", [0.0; 3])?),
                 }),
-                (None, Some(_)) => {
+                (None, Some(_), _) => {
                     return Err(invalid(
                         "depth_period",
                         "needs depth_sigma beside it (the depth sensor's 1σ [m])",
                     ))
                 }
-                (None, None) => None,
+                (None, None, Some(_)) => {
+                    return Err(invalid(
+                        "depth_lever_arm",
+                        "needs depth_sigma beside it (the depth sensor's 1σ [m])",
+                    ))
+                }
+                (None, None, None) => None,
             },
             fixes: match fixes {
                 Some(f) => fix_models(f)?,
@@ -200,6 +210,11 @@ impl PySensorConfig {
     fn depth_period(&self) -> Option<f64> {
         self.inner.depth.map(|d| d.period)
     }
+    /// The depth sensor's lever arm [m, body FRD], or None without one.
+    #[getter]
+    fn depth_lever_arm(&self) -> Option<[f64; 3]> {
+        self.inner.depth.map(|d| d.lever_arm.into())
+    }
     /// The position-fix sources, as the dicts the constructor takes.
     #[getter]
     fn fixes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
@@ -211,6 +226,7 @@ impl PySensorConfig {
             d.set_item("period", f.period)?;
             d.set_item("times", f.times.clone())?;
             d.set_item("max_depth", f.max_depth)?;
+            d.set_item("lever_arm", <[f64; 3]>::from(f.lever_arm))?;
             list.append(d)?;
         }
         Ok(list)
@@ -221,7 +237,7 @@ impl PySensorConfig {
 }
 
 /// The keys of a position-fix source's dict.
-const FIX_KEYS: [&str; 4] = ["sigma", "period", "times", "max_depth"];
+const FIX_KEYS: [&str; 5] = ["sigma", "period", "times", "max_depth", "lever_arm"];
 
 /// The position-fix sources of `fixes`: a list of dicts of [`FIX_KEYS`], each error
 /// naming `fixes[i].key`.
@@ -229,7 +245,7 @@ fn fix_models(fixes: &Bound<'_, PyAny>) -> PyResult<Vec<FixModel>> {
     let refuse = || {
         invalid(
             "fixes",
-            "expected a list of dicts (sigma, period, times, max_depth)",
+            "expected a list of dicts (sigma, period, times, max_depth, lever_arm)",
         )
     };
     if fixes.is_instance_of::<PyString>() || fixes.is_instance_of::<PyDict>() {
@@ -241,7 +257,7 @@ fn fix_models(fixes: &Bound<'_, PyAny>) -> PyResult<Vec<FixModel>> {
         let d = item.cast::<PyDict>().map_err(|_| {
             invalid(
                 &format!("fixes[{i}]"),
-                "expected a dict with sigma, period, times, max_depth",
+                "expected a dict with sigma, period, times, max_depth, lever_arm",
             )
         })?;
         for key in d.keys() {
@@ -285,6 +301,10 @@ fn fix_models(fixes: &Bound<'_, PyAny>) -> PyResult<Vec<FixModel>> {
                 _ => Vec::new(),
             },
             max_depth: scalar("max_depth")?,
+            lever_arm: match d.get_item("lever_arm")? {
+                Some(a) if !a.is_none() => Vector3::from(fixed::<3>(&a, &name("lever_arm"))?),
+                _ => Vector3::zeros(),
+            },
         });
     }
     Ok(out)

@@ -2,7 +2,7 @@
 //! rows, or one per row), the sensor's lever arm, and the reading each row is.
 
 use crate::earth;
-use crate::ekf::{Aiding, FilterConfig};
+use crate::ekf::{check_lever_arm, Aiding, FilterConfig};
 use crate::error::{check, Error, Result};
 use crate::measurement::{check_depth_sigma, Depth, Fix, Reading, Velocity};
 use nalgebra::Vector3;
@@ -168,7 +168,7 @@ impl<'a> Stream<'a> {
                 format!("has {sigma} rows but {name} has {rows}"),
             ))
         };
-        check::finite("lever_arm", self.lever_arm.as_slice())?;
+        check_lever_arm(&format!("{name}_lever_arm"), self.lever_arm.as_slice())?;
         match self.values {
             Values::Velocity { rows, variance, .. } => {
                 same(self.len(), rows.len())?;

@@ -1,12 +1,8 @@
-//! The aiding sensors of a simulated run: the depth readings and position fixes due at
-//! an epoch, simulated from the truth ([`crate::sensors::aiding`]) as the filter reads
-//! them ([`crate::measurement`]), each at its sensor's lever arm, and what their
-//! updates did ([`AidingTally`]).
+//! What the aiding sensors' updates did in a simulated run ([`AidingTally`]); their
+//! readings are simulated by [`crate::sensors::aiding`].
 
 use crate::ekf::Applied;
-use crate::measurement::{Depth, Fix, Reading};
-use crate::sensors;
-use nalgebra::Vector3;
+use crate::measurement::Reading;
 
 /// What a run's aiding updates did, for its summary.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -27,22 +23,6 @@ impl AidingTally {
         }
         self.nis_sum += applied.nis;
         self.dof += applied.dof;
-    }
-}
-
-/// The filter's reading of a simulated aiding reading.
-pub(super) fn reading(sensed: &sensors::Reading) -> Reading {
-    match *sensed {
-        sensors::Reading::Depth(z, sigma) => Reading::Depth(Depth {
-            z,
-            sigma,
-            lever_arm: Vector3::zeros(),
-        }),
-        sensors::Reading::Fix(lla, sigma) => Reading::Fix(Fix {
-            lla,
-            sigma,
-            lever_arm: Vector3::zeros(),
-        }),
     }
 }
 
@@ -88,12 +68,14 @@ mod tests {
         aided.sensors.depth = Some(DepthModel {
             sigma: 0.1,
             period: 1.0,
+            lever_arm: nalgebra::Vector3::zeros(),
         });
         aided.sensors.fixes = vec![FixModel {
             sigma: [2.0, 2.0, f64::NAN],
             period: 10.0,
             times: vec![],
             max_depth: None,
+            lever_arm: nalgebra::Vector3::zeros(),
         }];
         let drift = final_errors(&free);
         let bounded = final_errors(&aided);

@@ -5,12 +5,12 @@
 use super::aiding::AidingTally;
 use crate::attitude::log_so3;
 use crate::earth;
+use crate::ekf::DvlMounting;
 use crate::ekf::{Applied, Ekf, Formulation, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::measurement::Reading;
 use crate::mechanization::NavState;
 use crate::noise::NoiseStrategy;
 use crate::pass::{Epoch, NisMonitor, Observer};
-use crate::sensors::DvlMounting;
 use nalgebra::{Vector3, Vector4};
 
 /// Per-run scalar metrics. Velocity errors are taken at every IMU epoch.

@@ -264,12 +264,14 @@ fn the_bryson_frazier_mean_is_the_re_predicted_one_with_aiding_and_a_schedule() 
     sc.sensors.depth = Some(DepthModel {
         sigma: 0.1,
         period: 9.1,
+        lever_arm: nalgebra::Vector3::zeros(),
     });
     sc.sensors.fixes = vec![FixModel {
         sigma: [2.0, 2.0, f64::NAN],
         period: 7.0,
         times: vec![],
         max_depth: None,
+        lever_arm: nalgebra::Vector3::zeros(),
     }];
     sc.sensors.dvl.dropout = Some(DvlDropout {
         mean_interval: 5.0,

@@ -1,7 +1,7 @@
 //! The aiding sensors of a simulation: a pressure depth sensor and position fixes (GNSS
-//! at the surface, USBL or LBL acoustic fixes), simulated from the truth with white
-//! noise and applied by the filter as depth and fix measurements ([`crate::measurement`]), the
-//! same updates a recording's depth and fixes go through.
+//! at the surface, USBL or LBL acoustic fixes), each at its lever arm from the IMU,
+//! simulated from the truth with white noise as the filter reads them
+//! ([`crate::measurement`]): the same readings a recording's depth and fixes are.
 //!
 //! Random numbers: each aiding sensor draws from its own part of the run's
 //! initial-error stream, `2^66` words in for the depth sensor and `2^67 + j·2^60` for
@@ -10,24 +10,29 @@
 //! and a run's aiding draws depend only on the seed and the run index.
 
 use crate::earth;
+use crate::ekf::check_lever_arm;
 use crate::error::{check, Error, Result};
+use crate::measurement::{Depth, Fix, Reading};
 use crate::mechanization::NavState;
 use crate::sensors::{normal, stream_rng, Stream};
 use crate::trajectory::Truth;
 use nalgebra::Vector3;
 use rand_chacha::ChaCha8Rng;
 
-/// A pressure depth sensor: the depth of the IMU's point \[m, positive down\] with white
-/// noise, every `period` seconds.
+/// A pressure depth sensor at `lever_arm` from the IMU: its depth \[m, positive down\]
+/// with white noise, every `period` seconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthModel {
     /// 1σ \[m\]; the filter is told the same.
     pub sigma: f64,
     /// Reading period \[s\] (a whole number of IMU periods).
     pub period: f64,
+    /// The sensor's position from the IMU \[m, body FRD\]; the filter is told the same.
+    pub lever_arm: Vector3<f64>,
 }
 
-/// A source of position fixes of the IMU's point: white noise of 1σ `sigma` \[m\] north,
+/// A source of position fixes of an antenna or transponder at `lever_arm` from the IMU:
+/// white noise of 1σ `sigma` \[m\] north,
 /// east, down (a NaN down σ: horizontal fixes, no height), on a schedule: every
 /// `period` seconds (0: not periodic) and at the listed `times` \[s\] (each taken at the
 /// IMU epoch nearest it, as a recording's rows are), and with `max_depth` only while the
@@ -43,13 +48,16 @@ pub struct FixModel {
     /// Fixes only while the true depth is at most this \[m, positive down\] (None: at
     /// any depth).
     pub max_depth: Option<f64>,
+    /// The antenna's position from the IMU \[m, body FRD\]; the filter is told the same.
+    pub lever_arm: Vector3<f64>,
 }
 
 impl DepthModel {
     /// `Err` naming `depth_sigma` or `depth_period` unless both are finite and > 0.
     pub fn validate(&self) -> Result<()> {
         check::positive("depth_sigma", self.sigma)?;
-        check::positive("depth_period", self.period)
+        check::positive("depth_period", self.period)?;
+        check_lever_arm("depth_lever_arm", self.lever_arm.as_slice())
     }
 }
 
@@ -94,6 +102,7 @@ impl FixModel {
         if let Some(d) = self.max_depth {
             check::finite(&name("max_depth"), &[d])?;
         }
+        check_lever_arm(&name("lever_arm"), self.lever_arm.as_slice())?;
         if self.period == 0.0 && self.times.is_empty() {
             return Err(Error::invalid(
                 name("period"),
@@ -224,16 +233,6 @@ fn offset_rng(seed: u64, run_index: u64, offset: u128) -> ChaCha8Rng {
     rng
 }
 
-/// One reading due at an epoch.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Reading {
-    /// Depth \[m, positive down\] and its 1σ \[m\].
-    Depth(f64, f64),
-    /// Fix `[φ (rad), λ (rad), h (m, up; NaN without a height)]` and its 1σ \[m\] north,
-    /// east, down.
-    Fix([f64; 3], [f64; 3]),
-}
-
 impl AidingSim {
     /// The aiding sensors of `depth` and `fixes` on `truth` for run `run_index` of
     /// `seed`; None when there are none. `Err` naming a period that is not a whole
@@ -270,7 +269,8 @@ impl AidingSim {
     }
 
     /// The readings due at epoch `k` (called once per epoch, `k` increasing) of the
-    /// true state `truth`: the depth first, then each fix source's in order.
+    /// true state `truth`, appended to `out`: the depth first, then each fix source's in
+    /// order, each read at its sensor's lever arm.
     pub fn readings(
         &mut self,
         depth: Option<&DepthModel>,
@@ -279,14 +279,20 @@ impl AidingSim {
         truth: &NavState,
         out: &mut Vec<Reading>,
     ) {
-        out.clear();
         let true_depth = -truth.lla[2];
+        // The NED offset of a sensor at `arm` (none at the IMU: the IMU's point exactly).
+        let offset = |arm: &Vector3<f64>| (*arm != Vector3::zeros()).then(|| truth.dcm * arm);
         if let (Some((every, rng)), Some(model)) = (self.depth.as_mut(), depth) {
             if k.is_multiple_of(*every) {
-                out.push(Reading::Depth(
-                    true_depth + model.sigma * normal(rng),
-                    model.sigma,
-                ));
+                let z = match offset(&model.lever_arm) {
+                    Some(arm) => true_depth + arm[2],
+                    None => true_depth,
+                };
+                out.push(Reading::Depth(Depth {
+                    z: z + model.sigma * normal(rng),
+                    sigma: model.sigma,
+                    lever_arm: model.lever_arm,
+                }));
             }
         }
         for (sim, model) in self.fixes.iter_mut().zip(fixes) {
@@ -303,9 +309,16 @@ impl AidingSim {
             if model.has_height() {
                 noise[2] = s[2] * normal(&mut sim.rng);
             }
+            if let Some(arm) = offset(&model.lever_arm) {
+                noise += arm;
+            }
             let lla = truth.lla + earth::ned_delta_to_lla_delta(&truth.lla, &noise);
             let height = if model.has_height() { lla[2] } else { f64::NAN };
-            out.push(Reading::Fix([lla[0], lla[1], height], s));
+            out.push(Reading::Fix(Fix {
+                lla: [lla[0], lla[1], height],
+                sigma: s,
+                lever_arm: model.lever_arm,
+            }));
         }
     }
 }
@@ -321,6 +334,7 @@ mod tests {
             period,
             times,
             max_depth,
+            lever_arm: Vector3::zeros(),
         }
     }
 
@@ -338,6 +352,7 @@ mod tests {
         let mut out = Vec::new();
         let mut all = Vec::new();
         for k in 1..=truth.len() {
+            out.clear();
             sim.readings(depth, fix, k, &state, &mut out);
             all.extend(out.iter().map(|r| (k, *r)));
         }
@@ -350,6 +365,7 @@ mod tests {
         let depth = DepthModel {
             sigma: 0.2,
             period: 0.01,
+            lever_arm: Vector3::zeros(),
         };
         let mut fix = fixes(0.01, vec![], None);
         fix.sigma[2] = 4.0;
@@ -361,13 +377,14 @@ mod tests {
         let (mut d, mut f) = (Vec::new(), Vec::new());
         for r in draw(Some(&depth), std::slice::from_ref(&fix), &truth, 30.0, 2) {
             match r.1 {
-                Reading::Depth(z, sigma) => {
-                    assert_eq!(sigma, 0.2);
-                    d.push(z - 30.0);
+                Reading::Depth(m) => {
+                    assert_eq!(m.sigma, 0.2);
+                    d.push(m.z - 30.0);
                 }
-                Reading::Fix(lla, _) => {
-                    f.push(earth::position_error_ned(&Vector3::from(lla), &state.lla))
+                Reading::Fix(m) => {
+                    f.push(earth::position_error_ned(&Vector3::from(m.lla), &state.lla))
                 }
+                other => panic!("not an aiding reading: {other:?}"),
             }
         }
         // 33,000 draws each: the sample σ within 2 % (its standard error is 0.4 %), the
@@ -402,7 +419,7 @@ mod tests {
             vec![6000, 12000, 18000, 24000, 30000]
         );
         let one = draw(None, std::slice::from_ref(&periodic), &truth, 5.0, 0)[0].1;
-        assert!(matches!(one, Reading::Fix(lla, _) if lla[2].is_nan()));
+        assert!(matches!(one, Reading::Fix(m) if m.lla[2].is_nan()));
         // listed times at the nearest epoch (the start's at the first), merged with the
         // period without doubles; times past the end are dropped
         let listed = fixes(100.0, vec![0.0, 12.344, 100.0, 329.99, 400.0], None);
@@ -476,6 +493,7 @@ mod tests {
         let depth = DepthModel {
             sigma: 0.1,
             period: 1.0,
+            lever_arm: Vector3::zeros(),
         };
         let a = draw(Some(&depth), &[], &truth, 10.0, 4);
         let b = draw(Some(&depth), &[fixes(1.0, vec![], None)], &truth, 10.0, 4);
@@ -503,6 +521,7 @@ mod tests {
         let d = DepthModel {
             sigma: 0.0,
             period: 1.0,
+            lever_arm: Vector3::zeros(),
         };
         assert!(d
             .validate()

@@ -3,7 +3,8 @@
 
 use super::forward::Forward;
 use super::sink::{changed_sigma, Sink};
-use crate::ekf::calibration::{correct_mounting, DvlMounting, N_CALIBRATED, SCALE};
+use crate::ekf::calibration::{correct_mounting, N_CALIBRATED, SCALE};
+use crate::ekf::DvlMounting;
 use crate::ekf::{correct, FilterConfig, Matrix15, Vector15};
 use crate::mechanization::NavState;
 use nalgebra::{SMatrix, SVector, Vector3};

@@ -79,6 +79,9 @@ pub(super) fn config_is_valid(c: &FilterConfig) -> bool {
         && nonneg(c.gyro_bias_psd)
         && c.dvl_variance.iter().all(|v| v.is_finite() && *v > 0.0)
         && all_finite(c.lever_arm.iter())
+        && c.lever_arm
+            .iter()
+            .all(|v| v.abs() <= pronet::ekf::MAX_LEVER_ARM)
         && c.imu_dt.is_finite()
         && c.imu_dt > 0.0
         && c.innovation_gate.is_none_or(|g| g.is_finite() && g > 0.0)

@@ -45,7 +45,7 @@ fn sensors_are_valid(s: &SensorConfig) -> bool {
         && s.dvl
             .lever_arm
             .iter()
-            .all(|v| v.abs() <= pronet::sensors::MAX_LEVER_ARM)
+            .all(|v| v.abs() <= pronet::ekf::MAX_LEVER_ARM)
 }
 
 fn short_trajectory() -> impl Strategy<Value = TrajectorySpec> {
