@@ -10,6 +10,7 @@ argument's name.
 Heavy calls release the GIL.
 """
 
+from collections.abc import Sequence
 from typing import Any, Literal, final
 
 import numpy as np
@@ -37,6 +38,9 @@ __all__ = [
     "FilterConfig",
     "Strategy",
     "SensorConfig",
+    "Dvl",
+    "Depth",
+    "Fix",
     "run_filter",
     "monte_carlo",
     "check_result_size",
@@ -333,11 +337,131 @@ class SensorConfig:
     def fixes(self) -> list[dict[str, Any]]:
         """The position-fix sources, as the dicts the constructor takes."""
 
+@final
+class Dvl:
+    """A velocity stream for :func:`run_filter`: a DVL's readings, or velocities in NED.
+
+    ``time`` ``(m,)`` [s], strictly increasing: each row is applied at the IMU epoch
+    nearest it. ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
+    bottom-track velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``),
+    or ``"ned"``, the north, east, down velocity of the point at r
+    (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ [m/s] per axis of the frame, a number, ``(3,)``
+    or ``(m, 3)`` one row per reading; R is ``diag(σ²)`` (``sigma=0.1`` is
+    ``dvl_variance=0.01``). ``lever_arm`` ``(3,)`` [m, body FRD] of the sensor from the
+    IMU, each component within ±:data:`MAX_LEVER_ARM`. ``gate``: a χ² threshold (3 dof,
+    > 0): a row whose NIS exceeds it is rejected. Each None is the pass's
+    :class:`FilterConfig`'s (``dvl_variance``, ``aiding``, ``lever_arm``,
+    ``innovation_gate``), resolved when the pass runs, so ``Dvl(time, velocity)`` is
+    the DVL the config describes. The DVL calibration states
+    (``FilterConfig(dvl_calibration=True)``) read every body-frame stream; a ``"ned"``
+    stream beside them is refused. The arrays are copied; a bad argument is a
+    ValueError naming it."""
+
+    def __new__(
+        cls,
+        time: ArrayLike,
+        velocity: ArrayLike,
+        *,
+        sigma: Any | None = None,
+        frame: Literal["body", "ned"] | None = None,
+        lever_arm: Any | None = None,
+        gate: float | None = None,
+    ) -> Dvl: ...
+    def __len__(self) -> int: ...
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """``(m,)`` reading times [s] (a copy)."""
+    @property
+    def velocity(self) -> NDArray[np.float64]:
+        """``(m, 3)`` velocities [m/s] in :attr:`frame` (a copy)."""
+    @property
+    def sigma(self) -> NDArray[np.float64] | None:
+        """1σ [m/s], ``(3,)`` for every row or ``(m, 3)`` per row; None: the config's R."""
+    @property
+    def frame(self) -> Literal["body", "ned"] | None:
+        """``"body"`` or ``"ned"``; None: the config's ``aiding``."""
+    @property
+    def lever_arm(self) -> list[float] | None:
+        """[m, body FRD]; None: the config's."""
+    @property
+    def gate(self) -> float | None:
+        """χ² threshold (3 dof); None: the config's ``innovation_gate``."""
+
+@final
+class Depth:
+    """A depth stream for :func:`run_filter`: a pressure sensor's readings.
+
+    ``time`` ``(d,)`` [s], strictly increasing: each row is applied at the IMU epoch
+    nearest it. ``depth`` ``(d,)`` [m, positive down] of the sensor, which sits at
+    ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU (``h = −ĥ + (Ĉ r)_D``: a sensor 1 m
+    below a level IMU reads 1 m deeper; each component within ±:data:`MAX_LEVER_ARM`).
+    ``sigma``: 1σ [m], a number or ``(d,)`` one per reading. A scalar update of the
+    position error (NIS χ² with 1 dof; no gate). The arrays are copied; a bad argument
+    is a ValueError naming it."""
+
+    def __new__(
+        cls,
+        time: ArrayLike,
+        depth: ArrayLike,
+        *,
+        sigma: Any,
+        lever_arm: Any = (0.0, 0.0, 0.0),
+    ) -> Depth: ...
+    def __len__(self) -> int: ...
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """``(d,)`` reading times [s] (a copy)."""
+    @property
+    def depth(self) -> NDArray[np.float64]:
+        """``(d,)`` depths [m, positive down] (a copy)."""
+    @property
+    def sigma(self) -> float | NDArray[np.float64]:
+        """1σ [m]: one for every row, or ``(d,)`` per row."""
+    @property
+    def lever_arm(self) -> list[float]:
+        """[m, body FRD]."""
+
+@final
+class Fix:
+    """A position-fix stream for :func:`run_filter`: GNSS, USBL or LBL fixes.
+
+    ``time`` ``(f,)`` [s], strictly increasing: each row is applied at the IMU epoch
+    nearest it. ``lla`` ``(f, 3)`` ``[lat, lon (rad), h (m, up)]`` of the antenna or
+    transponder, which sits at ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU (each
+    component within ±:data:`MAX_LEVER_ARM`); a NaN height is a horizontal fix;
+    ``|lat|`` <= 89°, ``lon`` within [−π, 2π] (±180° or 0–360°: its difference from
+    the estimate is wrapped into (−π, π]). ``sigma``: 1σ [m] north, east, down,
+    ``(3,)`` for every fix or ``(f, 3)`` one per fix (the down σ is unused, and may be
+    NaN, for a horizontal fix). Scalar updates of the position error, north, east and
+    down (NIS χ² with 2 or 3 dof; no gate). The arrays are copied; a bad argument is a
+    ValueError naming it."""
+
+    def __new__(
+        cls,
+        time: ArrayLike,
+        lla: ArrayLike,
+        *,
+        sigma: Any,
+        lever_arm: Any = (0.0, 0.0, 0.0),
+    ) -> Fix: ...
+    def __len__(self) -> int: ...
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """``(f,)`` fix times [s] (a copy)."""
+    @property
+    def lla(self) -> NDArray[np.float64]:
+        """``(f, 3)`` latitude, longitude [rad], height [m, up; NaN: none] (a copy)."""
+    @property
+    def sigma(self) -> NDArray[np.float64]:
+        """1σ [m] north, east, down: ``(3,)`` for every fix, or ``(f, 3)`` per fix."""
+    @property
+    def lever_arm(self) -> list[float]:
+        """[m, body FRD]."""
+
 def run_filter(
     imu: ArrayLike,
     imu_time: ArrayLike,
-    dvl: ArrayLike,
-    dvl_time: ArrayLike,
+    streams: Sequence[Dvl | Depth | Fix],
     *,
     t0: float,
     lla0: Any,
@@ -352,26 +476,25 @@ def run_filter(
     output_step: float | None = None,
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
-    depth: ArrayLike | None = None,
-    depth_time: ArrayLike | None = None,
-    depth_sigma: float | None = None,
-    fix: ArrayLike | None = None,
-    fix_time: ArrayLike | None = None,
-    fix_sigma: ArrayLike | None = None,
 ) -> dict[str, Any]:
-    """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
-    [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-    or ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
+    """One filter pass over the IMU and ``streams``, a sequence of :class:`Dvl`,
+    :class:`Depth` and :class:`Fix` (any number of each; at an epoch their due rows are
+    applied stream by stream, in this order); see :class:`pronet.FilterResult` for the
+    keys. Key ``streams``: one dict per stream, in order, of ``epoch`` (r,) (-1 outside
+    the run) and ``nis`` (r,) (NaN outside) and, for a velocity stream, ``innovation``,
+    ``innovation_cov``, ``gain``, ``accepted`` and ``adaptive_q`` (None where no row
+    has one). The top-level ``dvl_epoch``, ``innovation``, ``innovation_cov``, ``nis``,
+    ``accepted``, ``gain``, ``adaptive_q`` are the first velocity stream's (the same
+    arrays), ``depth_epoch``, ``depth_nis`` the first depth stream's, ``fix_epoch``,
+    ``fix_nis`` the first fix stream's (no rows without one). ``q_time`` (k,) [s] and
+    ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"`` or
+    ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
     with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
     (key ``epoch``: each row's index among all; empty without). ``covariance_time``
     (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
     ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
     ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-    None without). Key ``adaptive_q``: None where no DVL row has one. ``depth`` (d,)
-    [m, down] at
-    ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
-    (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
-    [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°."""
+    None without). ``|lla0[0]|`` <= 89°."""
 
 def monte_carlo(
     trajectory: Trajectory,

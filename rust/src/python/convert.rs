@@ -148,7 +148,7 @@ pub fn readonly_column<'py>(
 /// Whether `obj` is a real number: a Python int or float (not a bool), or a NumPy value
 /// of integer or float dtype. Extraction to f64 alone would let bools through as 1.0 and
 /// drop the imaginary part of complex NumPy values.
-fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
+pub fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
     if obj.is_instance_of::<PyBool>() {
         return false;
     }
@@ -315,7 +315,7 @@ arg_converters! {
 }
 
 /// An optional real argument (None stays None).
-fn optional_real(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Option<f64>> {
+pub fn optional_real(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Option<f64>> {
     if obj.is_none() {
         return Ok(None);
     }
