@@ -164,25 +164,15 @@ class FilterConfig:
     number of IMU periods, and the covariance is brought up to date before every DVL
     update and at the end of a pass. See ``docs/filter.md``."""
 
-    def __new__(
-        cls,
-        *,
-        p0_sigma: Any | None = None,
-        accel_bias_psd: float = 1e-3,
-        gyro_bias_psd: float = 1e-3,
-        dvl_variance: Any | None = None,
-        lever_arm: Any | None = None,
-        aiding: Literal["body", "nav"] = "body",
-        imu_dt: float = 0.01,
-        innovation_gate: float | None = None,
-        dvl_calibration: bool = False,
-        dvl_scale_sigma: float | None = None,
-        dvl_misalignment_sigma: Any | None = None,
-        dvl_scale_psd: float | None = None,
-        dvl_misalignment_psd: float | None = None,
-        formulation: Literal["invariant", "classic"] = "invariant",
-        covariance_step: float = 0.1,
-    ) -> FilterConfig: ...
+    def __new__(cls, *, p0_sigma: Any | None = None, accel_bias_psd: float = 1e-3,
+                gyro_bias_psd: float = 1e-3, dvl_variance: Any | None = None,
+                lever_arm: Any | None = None, aiding: Literal["body", "nav"] = "body",
+                imu_dt: float = 0.01, innovation_gate: float | None = None,
+                dvl_calibration: bool = False, dvl_scale_sigma: float | None = None,
+                dvl_misalignment_sigma: Any | None = None, dvl_scale_psd: float | None = None,
+                dvl_misalignment_psd: float | None = None,
+                formulation: Literal["invariant", "classic"] = "invariant",
+                covariance_step: float = 0.1) -> FilterConfig: ...  # fmt: skip
     @property
     def p0_sigma(self) -> list[float]: ...
     @property
@@ -283,24 +273,14 @@ class SensorConfig:
     the same with and without it. Defaults: the paper's (an ideal DVL, no dropout, no
     depth sensor, no fixes)."""
 
-    def __new__(
-        cls,
-        *,
-        imu_variance: Any | None = None,
-        imu_variance_times: Any | None = None,
-        imu_bias: Any | None = None,
-        imu_bias_psd: Any | None = None,
-        dvl_variance: Any | None = None,
-        dvl_period: float = 1.0,
-        lever_arm: Any | None = None,
-        dvl_outages: Any | None = None,
-        dvl_scale: float = 0.0,
-        dvl_misalignment: Any | None = None,
-        dvl_dropout: Any | None = None,
-        depth_sigma: float | None = None,
-        depth_period: float | None = None,
-        fixes: Any | None = None,
-    ) -> SensorConfig: ...
+    def __new__(cls, *, imu_variance: Any | None = None, imu_variance_times: Any | None = None,
+                imu_bias: Any | None = None, imu_bias_psd: Any | None = None,
+                dvl_variance: Any | None = None, dvl_period: float = 1.0,
+                lever_arm: Any | None = None, dvl_outages: Any | None = None,
+                dvl_scale: float = 0.0, dvl_misalignment: Any | None = None,
+                dvl_dropout: Any | None = None, depth_sigma: float | None = None,
+                depth_period: float | None = None,
+                fixes: Any | None = None) -> SensorConfig: ...  # fmt: skip
     @property
     def imu_variance_times(self) -> list[float]: ...
     @property
@@ -341,175 +321,105 @@ class SensorConfig:
 class Dvl:
     """A velocity stream for :func:`run_filter`: a DVL's readings, or velocities in NED.
 
-    ``time`` ``(m,)`` [s], strictly increasing: each row is applied at the IMU epoch
-    nearest it. ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
-    bottom-track velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``),
-    or ``"ned"``, the north, east, down velocity of the point at r
-    (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ [m/s] per axis of the frame, a number, ``(3,)``
-    or ``(m, 3)`` one row per reading; R is ``diag(σ²)`` (``sigma=0.1`` is
-    ``dvl_variance=0.01``). ``lever_arm`` ``(3,)`` [m, body FRD] of the sensor from the
-    IMU, each component within ±:data:`MAX_LEVER_ARM`. ``gate``: a χ² threshold (3 dof,
-    > 0): a row whose NIS exceeds it is rejected. Each None is the pass's
-    :class:`FilterConfig`'s (``dvl_variance``, ``aiding``, ``lever_arm``,
-    ``innovation_gate``), resolved when the pass runs, so ``Dvl(time, velocity)`` is
-    the DVL the config describes. The DVL calibration states
-    (``FilterConfig(dvl_calibration=True)``) read every body-frame stream; a ``"ned"``
-    stream beside them is refused. The arrays are copied; a bad argument is a
-    ValueError naming it."""
+    ``time`` ``(m,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
+    velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``), or
+    ``"ned"``, the NED velocity of the point at r (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ
+    [m/s] per axis, a number, ``(3,)`` or ``(m, 3)`` one per row; R is ``diag(σ²)``.
+    ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`.
+    ``gate``: a χ² threshold (3 dof, > 0): a row whose NIS exceeds it is rejected. Each
+    None is the pass's :class:`FilterConfig`'s (``dvl_variance``, ``aiding``,
+    ``lever_arm``, ``innovation_gate``), so ``Dvl(time, velocity)`` is the DVL it
+    describes. Beside the DVL calibration states (``dvl_calibration=True``: they read
+    every body-frame stream) a ``"ned"`` stream is refused. The arrays are copied, the
+    getters give them back as given (None: not given); a bad argument is a ValueError
+    naming it."""
 
-    def __new__(
-        cls,
-        time: ArrayLike,
-        velocity: ArrayLike,
-        *,
-        sigma: Any | None = None,
-        frame: Literal["body", "ned"] | None = None,
-        lever_arm: Any | None = None,
-        gate: float | None = None,
-    ) -> Dvl: ...
-    def __len__(self) -> int: ...
+    def __new__(cls, time: ArrayLike, velocity: ArrayLike, *, sigma: Any | None = None,
+                frame: Literal["body", "ned"] | None = None, lever_arm: Any | None = None,
+                gate: float | None = None) -> Dvl: ...  # fmt: skip
     @property
-    def time(self) -> NDArray[np.float64]:
-        """``(m,)`` reading times [s] (a copy)."""
+    def time(self) -> NDArray[np.float64]: ...
     @property
-    def velocity(self) -> NDArray[np.float64]:
-        """``(m, 3)`` velocities [m/s] in :attr:`frame` (a copy)."""
+    def velocity(self) -> NDArray[np.float64]: ...
     @property
     def sigma(self) -> NDArray[np.float64] | None:
-        """1σ [m/s], ``(3,)`` for every row or ``(m, 3)`` per row; None: the config's R."""
+        """1σ [m/s]: ``(3,)`` for every row (a number given: three), or ``(m, 3)``."""
     @property
-    def frame(self) -> Literal["body", "ned"] | None:
-        """``"body"`` or ``"ned"``; None: the config's ``aiding``."""
+    def frame(self) -> Literal["body", "ned"] | None: ...
     @property
-    def lever_arm(self) -> list[float] | None:
-        """[m, body FRD]; None: the config's."""
+    def lever_arm(self) -> list[float] | None: ...
     @property
-    def gate(self) -> float | None:
-        """χ² threshold (3 dof); None: the config's ``innovation_gate``."""
+    def gate(self) -> float | None: ...
 
 @final
 class Depth:
     """A depth stream for :func:`run_filter`: a pressure sensor's readings.
 
-    ``time`` ``(d,)`` [s], strictly increasing: each row is applied at the IMU epoch
-    nearest it. ``depth`` ``(d,)`` [m, positive down] of the sensor, which sits at
-    ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU (``h = −ĥ + (Ĉ r)_D``: a sensor 1 m
-    below a level IMU reads 1 m deeper; each component within ±:data:`MAX_LEVER_ARM`).
-    ``sigma``: 1σ [m], a number or ``(d,)`` one per reading. A scalar update of the
-    position error (NIS χ² with 1 dof; no gate). The arrays are copied; a bad argument
-    is a ValueError naming it."""
+    ``time`` ``(d,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``depth`` ``(d,)`` [m, positive down] of the sensor at ``lever_arm``
+    ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`
+    (``h = −ĥ + (Ĉ r)_D``: 1 m below a level IMU reads 1 m deeper). ``sigma``: 1σ [m], a
+    number or ``(d,)`` one per reading. A scalar update of the position error (NIS χ²,
+    1 dof; no gate). The arrays are copied; a bad argument is a ValueError naming it."""
 
-    def __new__(
-        cls,
-        time: ArrayLike,
-        depth: ArrayLike,
-        *,
-        sigma: Any,
-        lever_arm: Any = (0.0, 0.0, 0.0),
-    ) -> Depth: ...
-    def __len__(self) -> int: ...
+    def __new__(cls, time: ArrayLike, depth: ArrayLike, *, sigma: Any,
+                lever_arm: Any = (0.0, 0.0, 0.0)) -> Depth: ...  # fmt: skip
     @property
-    def time(self) -> NDArray[np.float64]:
-        """``(d,)`` reading times [s] (a copy)."""
+    def time(self) -> NDArray[np.float64]: ...
     @property
-    def depth(self) -> NDArray[np.float64]:
-        """``(d,)`` depths [m, positive down] (a copy)."""
+    def depth(self) -> NDArray[np.float64]: ...
     @property
-    def sigma(self) -> float | NDArray[np.float64]:
-        """1σ [m]: one for every row, or ``(d,)`` per row."""
+    def sigma(self) -> float | NDArray[np.float64]: ...
     @property
-    def lever_arm(self) -> list[float]:
-        """[m, body FRD]."""
+    def lever_arm(self) -> list[float]: ...
 
 @final
 class Fix:
     """A position-fix stream for :func:`run_filter`: GNSS, USBL or LBL fixes.
 
-    ``time`` ``(f,)`` [s], strictly increasing: each row is applied at the IMU epoch
-    nearest it. ``lla`` ``(f, 3)`` ``[lat, lon (rad), h (m, up)]`` of the antenna or
-    transponder, which sits at ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU (each
-    component within ±:data:`MAX_LEVER_ARM`); a NaN height is a horizontal fix;
-    ``|lat|`` <= 89°, ``lon`` within [−π, 2π] (±180° or 0–360°: its difference from
-    the estimate is wrapped into (−π, π]). ``sigma``: 1σ [m] north, east, down,
-    ``(3,)`` for every fix or ``(f, 3)`` one per fix (the down σ is unused, and may be
-    NaN, for a horizontal fix). Scalar updates of the position error, north, east and
-    down (NIS χ² with 2 or 3 dof; no gate). The arrays are copied; a bad argument is a
+    ``time`` ``(f,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``lla`` ``(f, 3)`` ``[lat, lon (rad), h (m, up; NaN: a horizontal
+    fix)]`` of the antenna or transponder at ``lever_arm`` ``(3,)`` [m, body FRD] from
+    the IMU, within ±:data:`MAX_LEVER_ARM`; ``|lat|`` <= 89°, ``lon`` within [−π, 2π]
+    (±180° or 0–360°: its difference from the estimate is wrapped into (−π, π]).
+    ``sigma``: 1σ [m] north, east, down, ``(3,)`` or ``(f, 3)`` one per fix (a
+    horizontal fix's down σ unused, NaN allowed). Scalar updates of the position error
+    (NIS χ², 2 or 3 dof; no gate). The arrays are copied; a bad argument is a
     ValueError naming it."""
 
-    def __new__(
-        cls,
-        time: ArrayLike,
-        lla: ArrayLike,
-        *,
-        sigma: Any,
-        lever_arm: Any = (0.0, 0.0, 0.0),
-    ) -> Fix: ...
-    def __len__(self) -> int: ...
+    def __new__(cls, time: ArrayLike, lla: ArrayLike, *, sigma: Any,
+                lever_arm: Any = (0.0, 0.0, 0.0)) -> Fix: ...  # fmt: skip
     @property
-    def time(self) -> NDArray[np.float64]:
-        """``(f,)`` fix times [s] (a copy)."""
+    def time(self) -> NDArray[np.float64]: ...
     @property
-    def lla(self) -> NDArray[np.float64]:
-        """``(f, 3)`` latitude, longitude [rad], height [m, up; NaN: none] (a copy)."""
+    def lla(self) -> NDArray[np.float64]: ...
     @property
-    def sigma(self) -> NDArray[np.float64]:
-        """1σ [m] north, east, down: ``(3,)`` for every fix, or ``(f, 3)`` per fix."""
+    def sigma(self) -> NDArray[np.float64]: ...
     @property
-    def lever_arm(self) -> list[float]:
-        """[m, body FRD]."""
+    def lever_arm(self) -> list[float]: ...
 
-def run_filter(
-    imu: ArrayLike,
-    imu_time: ArrayLike,
-    streams: Sequence[Dvl | Depth | Fix],
-    *,
-    t0: float,
-    lla0: Any,
-    vel0: Any,
-    rpy0: Any,
-    config: FilterConfig,
-    strategy: Strategy,
-    bias0: Any | None = None,
-    q_time: ArrayLike | None = None,
-    q: ArrayLike | None = None,
-    epochs: Literal["all", "last"] = "all",
-    output_step: float | None = None,
-    covariance_time: ArrayLike | None = None,
-    smooth: bool = False,
-) -> dict[str, Any]:
-    """One filter pass over the IMU and ``streams``, a sequence of :class:`Dvl`,
-    :class:`Depth` and :class:`Fix` (any number of each; at an epoch their due rows are
-    applied stream by stream, in this order); see :class:`pronet.FilterResult` for the
-    keys. Key ``streams``: one dict per stream, in order, of ``epoch`` (r,) (-1 outside
-    the run) and ``nis`` (r,) (NaN outside) and, for a velocity stream, ``innovation``,
-    ``innovation_cov``, ``gain``, ``accepted`` and ``adaptive_q`` (None where no row
-    has one). The top-level ``dvl_epoch``, ``innovation``, ``innovation_cov``, ``nis``,
-    ``accepted``, ``gain``, ``adaptive_q`` are the first velocity stream's (the same
-    arrays), ``depth_epoch``, ``depth_nis`` the first depth stream's, ``fix_epoch``,
-    ``fix_nis`` the first fix stream's (no rows without one). ``q_time`` (k,) [s] and
-    ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"`` or
-    ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
-    with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
-    (key ``epoch``: each row's index among all; empty without). ``covariance_time``
-    (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
-    ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-    ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-    None without). ``|lla0[0]|`` <= 89°."""
+def run_filter(imu: ArrayLike, imu_time: ArrayLike, streams: Sequence[Dvl | Depth | Fix], *,
+               t0: float, lla0: Any, vel0: Any, rpy0: Any, config: FilterConfig,
+               strategy: Strategy, bias0: Any | None = None, q_time: ArrayLike | None = None,
+               q: ArrayLike | None = None, epochs: Literal["all", "last"] = "all",
+               output_step: float | None = None, covariance_time: ArrayLike | None = None,
+               smooth: bool = False) -> dict[str, Any]:  # fmt: skip
+    """One filter pass: :func:`pronet.run_filter` (its arguments, ``config`` required),
+    returning the dict :class:`pronet.FilterResult` is made of. ``streams``: a sequence
+    of :class:`Dvl`, :class:`Depth` and :class:`Fix`, applied at an epoch in this order.
+    Key ``streams``: a dict per stream, in order, of ``kind`` (``"velocity"``,
+    ``"depth"`` or ``"fix"``), ``epoch`` (r,) (-1 outside the run), ``nis`` (r,) (NaN
+    outside) and, for a velocity stream, ``innovation``, ``innovation_cov``, ``gain``,
+    ``accepted``, ``adaptive_q`` (None where no row has one, as the top-level key). The
+    top-level update keys are the first velocity, depth and fix stream's (the same
+    arrays; no rows without one). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``,
+    ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch, or None."""
 
-def monte_carlo(
-    trajectory: Trajectory,
-    sensors: SensorConfig,
-    config: FilterConfig,
-    strategy: Strategy,
-    *,
-    n_runs: int,
-    seed: int = 0,
-    record_every: int = 0,
-    sample_initial_error: bool = True,
-    threads: int | None = None,
-    first_run: int = 0,
-    smooth: bool = False,
-) -> dict[str, Any]:
+def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
+                strategy: Strategy, *, n_runs: int, seed: int = 0, record_every: int = 0,
+                sample_initial_error: bool = True, threads: int | None = None, first_run: int = 0,
+                smooth: bool = False) -> dict[str, Any]:  # fmt: skip
     """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
     ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :func:`max_threads`
     (None: :func:`check_threads`'s default). An external strategy is refused: nothing
@@ -556,23 +466,11 @@ class Ensemble:
     :func:`monte_carlo`'s.
     """
 
-    def __new__(
-        cls,
-        trajectory: Trajectory,
-        sensors: SensorConfig,
-        config: FilterConfig,
-        prior_q: Any,
-        *,
-        n_runs: int,
-        seed: int = 0,
-        window: int = 200,
-        tuning_period: float = 1.0,
-        record_every: int = 0,
-        sample_initial_error: bool = True,
-        threads: int | None = None,
-        first_run: int = 0,
-        smooth: bool = False,
-    ) -> Ensemble: ...
+    def __new__(cls, trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
+                prior_q: Any, *, n_runs: int, seed: int = 0, window: int = 200,
+                tuning_period: float = 1.0, record_every: int = 0,
+                sample_initial_error: bool = True, threads: int | None = None, first_run: int = 0,
+                smooth: bool = False) -> Ensemble: ...  # fmt: skip
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""

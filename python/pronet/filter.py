@@ -23,8 +23,8 @@ class StreamResult:
     """What a pass did with each of one stream's r rows (:attr:`FilterResult.streams`).
 
     Attributes:
-        stream: the stream as given (:class:`~pronet.Dvl`, :class:`~pronet.Depth` or
-            :class:`~pronet.Fix`).
+        kind: ``"velocity"`` (a :class:`~pronet.Dvl`), ``"depth"``
+            (:class:`~pronet.Depth`) or ``"fix"`` (:class:`~pronet.Fix`).
         epoch: ``(r,)`` the epoch index each row was applied at (the index
             :attr:`FilterResult.epoch` counts in: 0 the initial state, j + 1 after IMU
             sample j), -1 where it fell outside the run.
@@ -41,7 +41,7 @@ class StreamResult:
             each update (as :attr:`FilterResult.adaptive_q`).
     """
 
-    stream: Stream
+    kind: Literal["velocity", "depth", "fix"]
     epoch: NDArray[np.int64]
     nis: NDArray[np.float64]
     innovation: NDArray[np.float64] | None = None
@@ -446,10 +446,7 @@ def run_filter(
         ),
         smooth=smooth,
     )
-    per_stream = tuple(
-        StreamResult(stream=s, **_with_adaptive_q(d))
-        for s, d in zip(given, out.pop("streams"), strict=True)
-    )
+    per_stream = tuple(StreamResult(**_with_adaptive_q(d)) for d in out.pop("streams"))
     _with_adaptive_q(out)
     smoothed = out.pop("smoothed")
     if smoothed is not None:

@@ -315,7 +315,7 @@ arg_converters! {
 }
 
 /// An optional real argument (None stays None).
-pub fn optional_real(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Option<f64>> {
+fn optional_real(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Option<f64>> {
     if obj.is_none() {
         return Ok(None);
     }

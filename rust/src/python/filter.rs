@@ -36,24 +36,16 @@ fn q_schedule(
     }
 }
 
-/// One filter pass over the IMU and ``streams``, a sequence of :class:`Dvl`,
-/// :class:`Depth` and :class:`Fix` (any number of each; at an epoch their due rows are
-/// applied stream by stream, in this order); see :class:`pronet.FilterResult` for the
-/// keys. Key ``streams``: one dict per stream, in order, of ``epoch`` (r,) (-1 outside
-/// the run) and ``nis`` (r,) (NaN outside) and, for a velocity stream, ``innovation``,
-/// ``innovation_cov``, ``gain``, ``accepted`` and ``adaptive_q`` (None where no row
-/// has one). The top-level ``dvl_epoch``, ``innovation``, ``innovation_cov``, ``nis``,
-/// ``accepted``, ``gain``, ``adaptive_q`` are the first velocity stream's (the same
-/// arrays), ``depth_epoch``, ``depth_nis`` the first depth stream's, ``fix_epoch``,
-/// ``fix_nis`` the first fix stream's (no rows without one). ``q_time`` (k,) [s] and
-/// ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"`` or
-/// ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
-/// with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
-/// (key ``epoch``: each row's index among all; empty without). ``covariance_time``
-/// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
-/// ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-/// ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-/// None without). ``|lla0[0]|`` <= 89°.
+/// One filter pass: :func:`pronet.run_filter` (its arguments, ``config`` required),
+/// returning the dict :class:`pronet.FilterResult` is made of. ``streams``: a sequence
+/// of :class:`Dvl`, :class:`Depth` and :class:`Fix`, applied at an epoch in this order.
+/// Key ``streams``: a dict per stream, in order, of ``kind`` (``"velocity"``,
+/// ``"depth"`` or ``"fix"``), ``epoch`` (r,) (-1 outside the run), ``nis`` (r,) (NaN
+/// outside) and, for a velocity stream, ``innovation``, ``innovation_cov``, ``gain``,
+/// ``accepted``, ``adaptive_q`` (None where no row has one, as the top-level key). The
+/// top-level update keys are the first velocity, depth and fix stream's (the same
+/// arrays; no rows without one). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``,
+/// ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch, or None.
 #[pyfunction]
 #[pyo3(signature = (imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false),
     text_signature = "(imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', output_step=None, covariance_time=None, smooth=False)")]
@@ -171,6 +163,14 @@ impl Kind {
         }
     }
 
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Velocity => "velocity",
+            Kind::Depth => "depth",
+            Kind::Fix => "fix",
+        }
+    }
+
     /// The top-level keys of the first stream of the kind: its epochs and NIS.
     fn keys(self) -> (&'static str, &'static str) {
         match self {
@@ -281,6 +281,7 @@ impl StreamArrays {
         top: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
+        d.set_item("kind", kind.name())?;
         let (epoch_key, nis_key) = kind.keys();
         let mut items = vec![
             ("epoch", epoch_key, self.epoch.into_pyarray(py).into_any()),

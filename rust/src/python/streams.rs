@@ -4,7 +4,7 @@
 
 use super::call::{invalid, to_py_err};
 use super::convert::{
-    column, describe, fixed, is_real_number, optional_real, real_arg, real_array, rows, text_arg,
+    column, describe, fixed, is_real_number, real_arg, real_array, rows, text_arg,
 };
 use crate::ekf::{Aiding, FilterConfig};
 use crate::error::Error;
@@ -38,11 +38,12 @@ impl<T: Copy> Rows<T> {
     }
 }
 
-/// `obj` as one real number (not an array of several), or None.
-fn number(obj: &Bound<'_, PyAny>) -> Option<f64> {
+/// `obj` as one real number (not an array of any shape: `real_arg` would take a
+/// one-element array), or None.
+fn number(obj: &Bound<'_, PyAny>, arg: &str) -> Option<f64> {
     let ndim = obj.getattr("ndim").and_then(|n| n.extract::<usize>());
     (is_real_number(obj) && ndim.unwrap_or(0) == 0)
-        .then(|| real_arg(obj, "sigma").ok())
+        .then(|| real_arg(obj, arg).ok())
         .flatten()
 }
 
@@ -55,7 +56,7 @@ fn sigma3(obj: &Bound<'_, PyAny>, scalar: bool, unit: &str) -> PyResult<Rows<[f6
         }
     } else if real_array::<f64, Ix2>(obj, "float64").is_some() {
         return Ok(Rows::Each(rows::<3>(obj, "sigma")?));
-    } else if let Some(s) = scalar.then(|| number(obj)).flatten() {
+    } else if let Some(s) = scalar.then(|| number(obj, "sigma")).flatten() {
         return Ok(Rows::One([s; 3]));
     }
     let forms = if scalar {
@@ -77,7 +78,7 @@ fn sigma1(obj: &Bound<'_, PyAny>) -> PyResult<Rows<f64>> {
     if real_array::<f64, Ix1>(obj, "float64").is_some() {
         return Ok(Rows::Each(column(obj, "sigma")?));
     }
-    if let Some(s) = number(obj) {
+    if let Some(s) = number(obj, "sigma") {
         return Ok(Rows::One(s));
     }
     Err(invalid(
@@ -177,21 +178,19 @@ struct VelocitySigma {
 
 /// A velocity stream for :func:`run_filter`: a DVL's readings, or velocities in NED.
 ///
-/// ``time`` ``(m,)`` [s], strictly increasing: each row is applied at the IMU epoch
-/// nearest it. ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
-/// bottom-track velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``),
-/// or ``"ned"``, the north, east, down velocity of the point at r
-/// (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ [m/s] per axis of the frame, a number, ``(3,)``
-/// or ``(m, 3)`` one row per reading; R is ``diag(σ²)`` (``sigma=0.1`` is
-/// ``dvl_variance=0.01``). ``lever_arm`` ``(3,)`` [m, body FRD] of the sensor from the
-/// IMU, each component within ±:data:`MAX_LEVER_ARM`. ``gate``: a χ² threshold (3 dof,
-/// > 0): a row whose NIS exceeds it is rejected. Each None is the pass's
-/// :class:`FilterConfig`'s (``dvl_variance``, ``aiding``, ``lever_arm``,
-/// ``innovation_gate``), resolved when the pass runs, so ``Dvl(time, velocity)`` is
-/// the DVL the config describes. The DVL calibration states
-/// (``FilterConfig(dvl_calibration=True)``) read every body-frame stream; a ``"ned"``
-/// stream beside them is refused. The arrays are copied; a bad argument is a
-/// ValueError naming it.
+/// ``time`` ``(m,)`` [s], strictly increasing (each row is applied at the IMU epoch
+/// nearest it); ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
+/// velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``), or
+/// ``"ned"``, the NED velocity of the point at r (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ
+/// [m/s] per axis, a number, ``(3,)`` or ``(m, 3)`` one per row; R is ``diag(σ²)``.
+/// ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`.
+/// ``gate``: a χ² threshold (3 dof, > 0): a row whose NIS exceeds it is rejected. Each
+/// None is the pass's :class:`FilterConfig`'s (``dvl_variance``, ``aiding``,
+/// ``lever_arm``, ``innovation_gate``), so ``Dvl(time, velocity)`` is the DVL it
+/// describes. Beside the DVL calibration states (``dvl_calibration=True``: they read
+/// every body-frame stream) a ``"ned"`` stream is refused. The arrays are copied, the
+/// getters give them back as given (None: not given); a bad argument is a ValueError
+/// naming it.
 #[pyclass(name = "Dvl", module = "pronet._core", frozen)]
 pub struct PyDvl {
     time: Vec<f64>,
@@ -235,8 +234,16 @@ impl PyDvl {
         };
         let frame = frame.map(parse_frame).transpose()?;
         let lever_arm = lever_arm.map(self::lever_arm).transpose()?;
-        let gate = match gate {
-            Some(g) => optional_real(g, "gate")?,
+        let gate = match gate.filter(|g| !g.is_none()) {
+            Some(g) => Some(number(g, "gate").ok_or_else(|| {
+                invalid(
+                    "gate",
+                    format!(
+                        "expected a real number (a χ² threshold), got {}",
+                        describe(g)
+                    ),
+                )
+            })?),
             None => None,
         };
         let dvl = Self {
@@ -252,20 +259,15 @@ impl PyDvl {
         Ok(dvl)
     }
 
-    fn __len__(&self) -> usize {
-        self.time.len()
-    }
-    /// ``(m,)`` reading times [s] (a copy).
     #[getter]
     fn time<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.time.clone().into_pyarray(py)
     }
-    /// ``(m, 3)`` velocities [m/s] in :attr:`frame` (a copy).
     #[getter]
     fn velocity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         numpy::ndarray::Array2::from(self.velocity.clone()).into_pyarray(py)
     }
-    /// 1σ [m/s], ``(3,)`` for every row or ``(m, 3)`` per row; None: the config's R.
+    /// 1σ [m/s]: ``(3,)`` for every row (a number given: three), or ``(m, 3)``.
     #[getter]
     fn sigma<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyAny>> {
         self.sigma.as_ref().map(|s| match &s.sigma {
@@ -275,17 +277,14 @@ impl PyDvl {
                 .into_any(),
         })
     }
-    /// ``"body"`` or ``"ned"``; None: the config's ``aiding``.
     #[getter]
     fn frame(&self) -> Option<&'static str> {
         self.frame.map(frame_name)
     }
-    /// [m, body FRD]; None: the config's.
     #[getter]
     fn lever_arm(&self) -> Option<Vec<f64>> {
         self.lever_arm.map(|a| a.to_vec())
     }
-    /// χ² threshold (3 dof); None: the config's ``innovation_gate``.
     #[getter]
     fn gate(&self) -> Option<f64> {
         self.gate
@@ -328,13 +327,12 @@ impl PyDvl {
 
 /// A depth stream for :func:`run_filter`: a pressure sensor's readings.
 ///
-/// ``time`` ``(d,)`` [s], strictly increasing: each row is applied at the IMU epoch
-/// nearest it. ``depth`` ``(d,)`` [m, positive down] of the sensor, which sits at
-/// ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU (``h = −ĥ + (Ĉ r)_D``: a sensor 1 m
-/// below a level IMU reads 1 m deeper; each component within ±:data:`MAX_LEVER_ARM`).
-/// ``sigma``: 1σ [m], a number or ``(d,)`` one per reading. A scalar update of the
-/// position error (NIS χ² with 1 dof; no gate). The arrays are copied; a bad argument
-/// is a ValueError naming it.
+/// ``time`` ``(d,)`` [s], strictly increasing (each row is applied at the IMU epoch
+/// nearest it); ``depth`` ``(d,)`` [m, positive down] of the sensor at ``lever_arm``
+/// ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`
+/// (``h = −ĥ + (Ĉ r)_D``: 1 m below a level IMU reads 1 m deeper). ``sigma``: 1σ [m], a
+/// number or ``(d,)`` one per reading. A scalar update of the position error (NIS χ²,
+/// 1 dof; no gate). The arrays are copied; a bad argument is a ValueError naming it.
 #[pyclass(name = "Depth", module = "pronet._core", frozen)]
 pub struct PyDepth {
     time: Vec<f64>,
@@ -364,20 +362,14 @@ impl PyDepth {
         Ok(out)
     }
 
-    fn __len__(&self) -> usize {
-        self.time.len()
-    }
-    /// ``(d,)`` reading times [s] (a copy).
     #[getter]
     fn time<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.time.clone().into_pyarray(py)
     }
-    /// ``(d,)`` depths [m, positive down] (a copy).
     #[getter]
     fn depth<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.depth.clone().into_pyarray(py)
     }
-    /// 1σ [m]: one for every row, or ``(d,)`` per row.
     #[getter]
     fn sigma<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
         match &self.sigma {
@@ -385,7 +377,6 @@ impl PyDepth {
             Rows::Each(s) => s.clone().into_pyarray(py).into_any(),
         }
     }
-    /// [m, body FRD].
     #[getter]
     fn lever_arm(&self) -> Vec<f64> {
         self.lever_arm.to_vec()
@@ -416,15 +407,14 @@ impl PyDepth {
 
 /// A position-fix stream for :func:`run_filter`: GNSS, USBL or LBL fixes.
 ///
-/// ``time`` ``(f,)`` [s], strictly increasing: each row is applied at the IMU epoch
-/// nearest it. ``lla`` ``(f, 3)`` ``[lat, lon (rad), h (m, up)]`` of the antenna or
-/// transponder, which sits at ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU (each
-/// component within ±:data:`MAX_LEVER_ARM`); a NaN height is a horizontal fix;
-/// ``|lat|`` <= 89°, ``lon`` within [−π, 2π] (±180° or 0–360°: its difference from
-/// the estimate is wrapped into (−π, π]). ``sigma``: 1σ [m] north, east, down,
-/// ``(3,)`` for every fix or ``(f, 3)`` one per fix (the down σ is unused, and may be
-/// NaN, for a horizontal fix). Scalar updates of the position error, north, east and
-/// down (NIS χ² with 2 or 3 dof; no gate). The arrays are copied; a bad argument is a
+/// ``time`` ``(f,)`` [s], strictly increasing (each row is applied at the IMU epoch
+/// nearest it); ``lla`` ``(f, 3)`` ``[lat, lon (rad), h (m, up; NaN: a horizontal
+/// fix)]`` of the antenna or transponder at ``lever_arm`` ``(3,)`` [m, body FRD] from
+/// the IMU, within ±:data:`MAX_LEVER_ARM`; ``|lat|`` <= 89°, ``lon`` within [−π, 2π]
+/// (±180° or 0–360°: its difference from the estimate is wrapped into (−π, π]).
+/// ``sigma``: 1σ [m] north, east, down, ``(3,)`` or ``(f, 3)`` one per fix (a
+/// horizontal fix's down σ unused, NaN allowed). Scalar updates of the position error
+/// (NIS χ², 2 or 3 dof; no gate). The arrays are copied; a bad argument is a
 /// ValueError naming it.
 #[pyclass(name = "Fix", module = "pronet._core", frozen)]
 pub struct PyFix {
@@ -455,20 +445,14 @@ impl PyFix {
         Ok(out)
     }
 
-    fn __len__(&self) -> usize {
-        self.time.len()
-    }
-    /// ``(f,)`` fix times [s] (a copy).
     #[getter]
     fn time<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         self.time.clone().into_pyarray(py)
     }
-    /// ``(f, 3)`` latitude, longitude [rad], height [m, up; NaN: none] (a copy).
     #[getter]
     fn lla<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         numpy::ndarray::Array2::from(self.lla.clone()).into_pyarray(py)
     }
-    /// 1σ [m] north, east, down: ``(3,)`` for every fix, or ``(f, 3)`` per fix.
     #[getter]
     fn sigma<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
         match &self.sigma {
@@ -478,7 +462,6 @@ impl PyFix {
                 .into_any(),
         }
     }
-    /// [m, body FRD].
     #[getter]
     fn lever_arm(&self) -> Vec<f64> {
         self.lever_arm.to_vec()
