@@ -90,8 +90,8 @@ fn sigma1(obj: &Bound<'_, PyAny>) -> PyResult<Rows<f64>> {
     ))
 }
 
-/// A lever arm \[m\]: 3 finite numbers, none longer than [`crate::sensors::MAX_LEVER_ARM`] (as a
-/// `FilterConfig`'s).
+/// A lever arm \[m\]: 3 finite numbers, none longer than
+/// [`crate::sensors::MAX_LEVER_ARM`] (as a `FilterConfig`'s).
 fn lever_arm(obj: &Bound<'_, PyAny>) -> PyResult<[f64; 3]> {
     let arm = fixed::<3>(obj, "lever_arm")?;
     check_lever_arm("lever_arm", &arm).map_err(to_py_err)?;
