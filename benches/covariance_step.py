@@ -43,8 +43,7 @@ def recording(seconds: float) -> dict[str, Any]:
     return dict(
         imu=imu,
         imu_time=traj.time[1:],
-        dvl=body + rng.normal(size=body.shape) * 0.1,
-        dvl_time=traj.time[k],
+        streams=[pronet.Dvl(traj.time[k], body + rng.normal(size=body.shape) * 0.1)],
         t0=traj.time[0],
         lla0=traj.lla[0],
         vel0=traj.vel_ned[0],
@@ -105,7 +104,7 @@ def main(argv: list[str]) -> int:
     for epochs in ("last", "all"):
 
         def run(s: float, epochs: str = epochs) -> object:
-            return pronet.run_filter(**data, config=config(s), epochs=epochs)  # type: ignore[arg-type]
+            return pronet.run_filter(**data, config=config(s), epochs=epochs)  # type: ignore[call-overload]
 
         calls = {name: partial(run, s) for name, s in settings.items()}
         for name, wall in alternating(repeat, calls).items():

@@ -133,9 +133,10 @@ def smoothed_pass(folder: str, step: float, output_step: float | None) -> dict[s
     config = filter_config(
         {"covariance_step": step}, "covariance_step:", paper.paper_filter_config()
     )
+    dvl = pronet.Dvl(a["dvl_time"], a["dvl"])
     before = peak_gib()
     result = pronet.run_filter(
-        a["imu"], a["imu_time"], a["dvl"], a["dvl_time"], t0=initial[0], lla0=initial[1:4],
+        a["imu"], a["imu_time"], [dvl], t0=initial[0], lla0=initial[1:4],
         vel0=initial[4:7], rpy0=initial[7:10], config=config,
         strategy=pronet.Strategy.constant(paper.PAPER_Q), smooth=True,
         output_step=output_step,

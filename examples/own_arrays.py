@@ -32,19 +32,19 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     truth = pronet.builtin_trajectory("paper")
     # Your arrays: IMU rows [f (m/s²), ω (rad/s)] in the body frame (forward-right-down),
-    # row k covering (imu_time[k-1], imu_time[k]]; DVL body velocity [m/s] at dvl_time.
+    # row k covering (imu_time[k-1], imu_time[k]]; a stream per aiding sensor, here the
+    # DVL's body velocity [m/s] with its 1σ [m/s] (pronet.Depth, pronet.Fix: the others).
     imu = truth.imu + rng.normal(size=truth.imu.shape) * np.sqrt(Q)
     imu_time = truth.time[1:]
     k = np.arange(DVL_EVERY, truth.n_samples + 1, DVL_EVERY)
     c_nb = dcm_from_euler(truth.rpy[k])  # body to NED
     dvl = np.einsum("kji,kj->ki", c_nb, truth.vel_ned[k])  # C_nᵇ v_NED
     dvl += rng.normal(size=dvl.shape) * DVL_SIGMA
+    streams = [pronet.Dvl(truth.time[k], dvl, sigma=DVL_SIGMA)]
     out = pronet.run_filter(
-        imu, imu_time, dvl, truth.time[k],
+        imu, imu_time, streams,
         t0=0.0, lla0=truth.lla[0], vel0=truth.vel_ned[0], rpy0=truth.rpy[0],
-        config=pronet.FilterConfig(  # your vehicle's tuning: R, and bias walks [PSD]
-            dvl_variance=[DVL_SIGMA**2] * 3, accel_bias_psd=1e-10, gyro_bias_psd=1e-14
-        ),
+        config=pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14),  # bias walks
         strategy=pronet.Strategy.constant(Q),
         covariance_time=[60.0, 180.0, 300.0],
     )  # fmt: skip

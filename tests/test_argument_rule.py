@@ -68,13 +68,19 @@ def _filter_config(f: Form) -> Any:
     )
 
 
+def _streams(f: Form) -> list[Any]:
+    return [
+        _core.Dvl(f(DVL_T), f(DVL), sigma=f([[0.1] * 3] * 2), lever_arm=f([0.1, 0.0, 0.2])),
+        _core.Depth(f([1.5]), f([5.0]), sigma=f([0.1]), lever_arm=f([0.0, 0.0, 0.3])),
+        _core.Fix(f([2.0]), f([LLA0]), sigma=f([2.0, 2.0, 2.0]), lever_arm=f([0.0, 0.0, -1.0])),
+    ]
+
+
 def _run_filter(run: Callable[..., Any], f: Form) -> Any:
     return run(
-        f(IMU), f(IMU_T), f(DVL), f(DVL_T), t0=0.0, **{k: f(v) for k, v in NAV0.items()},
+        f(IMU), f(IMU_T), _streams(f), t0=0.0, **{k: f(v) for k, v in NAV0.items()},
         config=_core.FilterConfig(), strategy=_core.Strategy.external(f(PAPER_Q)),
         bias0=f([0.0] * 6), q_time=f([1.0]), q=f([[2e-4] * 6]), covariance_time=f([0.5, 1.0]),
-        depth=f([5.0]), depth_time=f([1.5]), depth_sigma=0.1, fix=f([LLA0]), fix_time=f([2.0]),
-        fix_sigma=f([[2.0, 2.0, 2.0]]),
     )  # fmt: skip
 
 
@@ -163,7 +169,7 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
         ],
     ),  # fmt: skip
     "run_filter": (
-        ("_core.run_filter", "pronet.run_filter"),
+        ("_core.run_filter", "pronet.run_filter", "_core.Dvl", "_core.Depth", "_core.Fix"),
         lambda f: (
             _run_filter(_core.run_filter, f)["covariances"],
             _run_filter(pronet.run_filter, f).covariances,

@@ -47,8 +47,6 @@ def test_latitude_rule_is_the_cores_for_every_entry_point(lla0) -> None:
         pronet.run_filter(
             zeros,
             [0.01, 0.02],
-            np.zeros((0, 3)),
-            np.zeros(0),
             t0=0.0,
             lla0=lla0,
             vel0=(0, 0, 0),

@@ -16,8 +16,8 @@ def _run(step: float, calibrated: bool) -> pronet.FilterResult:
                               gyro_bias_psd=1e-8, covariance_step=step,
                               dvl_calibration=calibrated)  # fmt: skip
     q = pronet.Strategy.constant(Q)
-    return pronet.run_filter(imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0,
-                             rpy0=rpy0, config=cfg, strategy=q)  # fmt: skip
+    return pronet.run_filter(imu, imu_time, [pronet.Dvl(dvl_time, dvl)], t0=0.0, lla0=lla0,
+                             vel0=vel0, rpy0=rpy0, config=cfg, strategy=q)  # fmt: skip
 
 
 @pytest.mark.parametrize("calibrated", [False, True])

@@ -98,8 +98,7 @@ def test_rust_filter_matches_reference(aiding, lever_arm, formulation, covarianc
     rust = pronet.run_filter(
         imu,
         imu_time,
-        dvl,
-        dvl_time,
+        [pronet.Dvl(dvl_time, dvl)],
         t0=0.0,
         lla0=lla0,
         vel0=vel0,
@@ -174,8 +173,9 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(
     )
     args = (imu, imu_time, dvl, dvl_time)
     start = dict(lla0=lla0, vel0=vel0, rpy0=rpy0)
+    streams = [pronet.Dvl(dvl_time, dvl)]
     rust = pronet.run_filter(
-        *args, t0=0.0, **start, config=cfg, strategy=pronet.Strategy.constant(Q)
+        imu, imu_time, streams, t0=0.0, **start, config=cfg, strategy=pronet.Strategy.constant(Q)
     )
     ref = run_reference_filter(
         *args, 0.0, lla0, vel0, rpy0, q=Q, accel_bias_psd=1e-6, gyro_bias_psd=1e-8,
@@ -198,7 +198,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(
     assert np.abs(rust.calibration[-1] - rust.calibration[0]).max() > 1e-4
     # Without the states the arrays are empty.
     plain = pronet.run_filter(
-        *args, t0=0.0, **start, config=pronet.FilterConfig(p0_sigma=P0),
+        imu, imu_time, streams, t0=0.0, **start, config=pronet.FilterConfig(p0_sigma=P0),
         strategy=pronet.Strategy.constant(Q),
     )  # fmt: skip
     assert plain.calibration.shape == plain.calibration_sigma.shape == (0, 4)
@@ -213,7 +213,7 @@ def test_a_pass_keeping_the_last_epoch_is_the_same_pass(calibration) -> None:
 
     def run(epochs: str) -> pronet.FilterResult:
         return pronet.run_filter(
-            imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
+            imu, imu_time, [pronet.Dvl(dvl_time, dvl)], t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
             config=cfg, strategy=pronet.Strategy.mehra(5, Q), epochs=epochs,  # type: ignore[arg-type]
         )  # fmt: skip
 
@@ -243,7 +243,7 @@ def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
 
     def run(strategy: pronet.Strategy) -> pronet.FilterResult:
         return pronet.run_filter(
-            imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
+            imu, imu_time, [pronet.Dvl(dvl_time, dvl)], t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
             config=pronet.FilterConfig(p0_sigma=P0), strategy=strategy,
         )  # fmt: skip
 

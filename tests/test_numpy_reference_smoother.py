@@ -21,7 +21,8 @@ def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_st
         covariance_step=covariance_step, **tuning,
     )  # fmt: skip
     rust = pronet.run_filter(
-        imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
+        imu, imu_time, [pronet.Dvl(dvl_time, dvl)], t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
+        config=cfg,
         strategy=strategy or pronet.Strategy.constant(Q), smooth=True,
     )  # fmt: skip
     log: list = []
@@ -132,7 +133,8 @@ def test_rust_smoother_with_dvl_calibration_states_matches_reference(
         dvl_misalignment_psd=calibration[3], **tuning,
     )  # fmt: skip
     rust = pronet.run_filter(
-        imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
+        imu, imu_time, [pronet.Dvl(dvl_time, dvl)], t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0,
+        config=cfg,
         strategy=pronet.Strategy.constant(Q), smooth=True,
     )  # fmt: skip
     log: list = []

@@ -1,6 +1,6 @@
-"""Position fixes and depth readings as filter updates (``run_filter(depth=..., fix=...)``):
-equal to the NumPy reference to 1e-8 (both formulations, the 19 states, the smoother),
-what they do to the error, and the inputs they refuse."""
+"""Position fixes and depth readings as filter updates (``run_filter`` with ``Depth`` and
+``Fix`` streams): equal to the NumPy reference to 1e-8 (both formulations, the 19 states,
+the smoother), what they do to the error, and the inputs they refuse."""
 
 from __future__ import annotations
 
@@ -35,6 +35,15 @@ def _aiding(traj: pronet.Trajectory, seconds: float, rng: np.random.Generator):
                 fix_time=fix_time, fix_sigma=sigma)  # fmt: skip
 
 
+def _streams(aiding: dict) -> list:
+    """The depth and fix streams of ``_aiding``'s arrays (the reference's keywords)."""
+    a = aiding
+    return [
+        pronet.Depth(a["depth_time"], a["depth"], sigma=a["depth_sigma"]),
+        pronet.Fix(a["fix_time"], a["fix"], sigma=a["fix_sigma"]),
+    ]
+
+
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
 @pytest.mark.parametrize("calibrated", [False, True])
 @pytest.mark.parametrize("covariance_step", [0.0, 0.1])
@@ -53,8 +62,8 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance
     cfg = pronet.FilterConfig(p0_sigma=P0, lever_arm=arm, formulation=formulation,
                               **tuning, **extra)  # fmt: skip
     rust = pronet.run_filter(
-        imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
-        strategy=pronet.Strategy.constant(Q), smooth=True, **aiding,
+        imu, imu_time, [pronet.Dvl(dvl_time, dvl), *_streams(aiding)], t0=0.0, lla0=lla0,
+        vel0=vel0, rpy0=rpy0, config=cfg, strategy=pronet.Strategy.constant(Q), smooth=True,
     )  # fmt: skip
     log: list = []
     ref = run_reference_filter(
@@ -91,8 +100,9 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance
         )
 
 
-def _pass(seconds: float, seed: int, **aiding):
-    """A noisy IMU along the paper's trajectory, no DVL, from the truth."""
+def _pass(seconds: float, seed: int, streams: list | None = None):
+    """A noisy IMU along the paper's trajectory, no DVL (``streams``: its aiding), from
+    the truth."""
     traj = pronet.builtin_trajectory("paper")
     n = int(round(seconds / traj.dt))
     rng = np.random.default_rng(seed)
@@ -100,9 +110,9 @@ def _pass(seconds: float, seed: int, **aiding):
     imu = traj.imu[:n] + rng.normal(size=(n, 6)) * np.sqrt(Q) + bias
     cfg = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14)
     out = pronet.run_filter(
-        imu, traj.time[1 : n + 1], np.zeros((0, 3)), np.zeros(0), t0=0.0, lla0=traj.lla[0],
+        imu, traj.time[1 : n + 1], streams or [], t0=0.0, lla0=traj.lla[0],
         vel0=traj.vel_ned[0], rpy0=traj.rpy[0], config=cfg,
-        strategy=pronet.Strategy.constant(Q), **aiding,
+        strategy=pronet.Strategy.constant(Q),
     )  # fmt: skip
     origin = traj.lla[0]
     error = pronet.local_ned(out.lla, origin) - pronet.local_ned(traj.lla[: n + 1], origin)
@@ -116,7 +126,7 @@ def test_fixes_alone_bound_the_drift_and_depth_holds_the_height() -> None:
     seconds, rng = 300.0, np.random.default_rng(3)
     free_traj, _, free = _pass(seconds, 1)
     aiding = _aiding(free_traj, seconds, rng)
-    _, out, aided = _pass(seconds, 1, **aiding)
+    _, out, aided = _pass(seconds, 1, _streams(aiding))
     horizontal = np.hypot(aided[:, 0], aided[:, 1])
     assert np.hypot(*free[-1, :2]) > 100.0  # free inertial: 2 mg of bias for 300 s
     assert horizontal[3000:].max() < 15.0, horizontal.max()
@@ -141,16 +151,19 @@ def test_a_fix_across_the_antimeridian_is_the_fix_it_names() -> None:
     imu = traj.imu + rng.normal(size=(n, 6)) * np.sqrt(Q) + np.array([2e-3] * 3 + [2e-5] * 3)
     f = np.arange(1000, n + 1, 1000)
     fix = traj.lla[f] + rng.normal(size=(len(f), 3)) * [2 / R_EARTH, 2 / R_EARTH, 2]
-    common = dict(fix_time=traj.time[f], fix_sigma=np.full((len(f), 3), 2.0))
     kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
               config=pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14),
               strategy=pronet.Strategy.constant(Q))  # fmt: skip
-    args = (imu, traj.time[1:], np.zeros((0, 3)), np.zeros(0))
-    unwrapped = pronet.run_filter(*args, **kw, fix=fix, **common)  # type: ignore[arg-type]
+
+    def run(lla):
+        fixes = pronet.Fix(traj.time[f], lla, sigma=[2.0, 2.0, 2.0])
+        return pronet.run_filter(imu, traj.time[1:], [fixes], **kw)  # type: ignore[arg-type]
+
+    unwrapped = run(fix)
     plus_minus = fix.copy()
     plus_minus[:, 1] = np.angle(np.exp(1j * fix[:, 1]))  # ±180°: near −π once across
     assert (plus_minus[:, 1] < 0).sum() >= 3 and (plus_minus[:, 1] > 0).any()
-    wrapped = pronet.run_filter(*args, **kw, fix=plus_minus, **common)  # type: ignore[arg-type]
+    wrapped = run(plus_minus)
     np.testing.assert_allclose(wrapped.fix_nis, unwrapped.fix_nis, rtol=1e-9)
     assert unwrapped.fix_nis.max() < 30.0
     error = pronet.local_ned(wrapped.lla, traj.lla[0]) - pronet.local_ned(
@@ -160,51 +173,45 @@ def test_a_fix_across_the_antimeridian_is_the_fix_it_names() -> None:
 
 
 @pytest.mark.parametrize(
-    ("aiding", "message"),
+    ("stream", "message"),
     [
-        (dict(depth=[1.0], depth_time=[1.0]), "^depth: depth, depth_time and depth_sigma"),
-        (dict(depth=[1.0], depth_time=[1.0, 2.0], depth_sigma=0.1), "^depth_time: has 2 rows"),
-        (dict(depth=[1.0], depth_time=[1.0], depth_sigma=0.0), "^depth_sigma: must be a fin"),
-        (dict(depth=[np.nan], depth_time=[1.0], depth_sigma=0.1), "^depth"),
+        (lambda: pronet.Depth([1.0, 2.0], [1.0], sigma=0.1), "^time: has 2 rows"),
+        (lambda: pronet.Depth([1.0], [1.0], sigma=0.0), "^sigma: must be a fin"),
+        (lambda: pronet.Depth([1.0], [np.nan], sigma=0.1), "^depth"),
         (
-            dict(fix=[[0.5, 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0, 0.0, 2.0]]),
-            "^fix_sigma: row 0 must hold 3 finite",
+            lambda: pronet.Fix([1.0], [[0.5, 0.6, 0.0]], sigma=[[2.0, 0.0, 2.0]]),
+            "^sigma: row 0 must hold 3 finite",
         ),
-        (dict(fix=[[0.5, 0.6, np.nan]], fix_time=[1.0], fix_sigma=[[2.0, 2.0, np.nan]]), None),
+        (lambda: pronet.Fix([1.0], [[0.5, 0.6, np.nan]], sigma=[[2.0, 2.0, np.nan]]), None),
         (
-            dict(fix=[[math.radians(89.5), 0.6, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
-            "^fix: row 0: latitude must be within ±89°",
-        ),
-        (
-            dict(
-                fix=[[0.5, 0.6, 0.0], [0.5, 7.0, 0.0]],
-                fix_time=[1.0, 2.0],
-                fix_sigma=[[2.0] * 3] * 2,
-            ),
-            r"^fix: row 1: longitude 7 rad must be within \[−π, 2π\]",
+            lambda: pronet.Fix([1.0], [[math.radians(89.5), 0.6, 0.0]], sigma=[2.0] * 3),
+            "^lla: row 0: latitude must be within ±89°",
         ),
         (
-            dict(fix=[[0.5, -3.5, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
-            r"^fix: row 0: longitude -3.5 rad must be within \[−π, 2π\]",
+            lambda: pronet.Fix([1.0, 2.0], [[0.5, 0.6, 0.0], [0.5, 7.0, 0.0]], sigma=[2.0] * 3),
+            r"^lla: row 1: longitude 7 rad must be within \[−π, 2π\]",
         ),
         (
-            dict(fix=[[0.5, np.inf, 0.0]], fix_time=[1.0], fix_sigma=[[2.0] * 3]),
-            "^fix: row 0 must hold a finite latitude",
+            lambda: pronet.Fix([1.0], [[0.5, -3.5, 0.0]], sigma=[2.0] * 3),
+            r"^lla: row 0: longitude -3.5 rad must be within \[−π, 2π\]",
         ),
         (
-            dict(fix=[[0.5, 0.6, 0.0]], fix_time=[2.0, 1.0], fix_sigma=[[2.0] * 3]),
-            "^fix_time: has 2 rows",
+            lambda: pronet.Fix([1.0], [[0.5, np.inf, 0.0]], sigma=[2.0] * 3),
+            "^lla: row 0 must hold a finite latitude",
+        ),
+        (
+            lambda: pronet.Fix([2.0, 1.0], [[0.5, 0.6, 0.0]], sigma=[2.0] * 3),
+            "^time: has 2 rows",
         ),
     ],
 )
-def test_bad_aiding_is_refused_by_name(aiding, message) -> None:
+def test_bad_aiding_is_refused_by_name(stream, message) -> None:
     traj = pronet.builtin_trajectory("paper")
-    args = (traj.imu[:300], traj.time[1:301], np.zeros((0, 3)), np.zeros(0))
     kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
               strategy=pronet.Strategy.constant(Q))  # fmt: skip
     if message is None:  # a horizontal fix: its vertical σ is not read
-        out = pronet.run_filter(*args, **kw, **aiding)  # type: ignore[arg-type]
+        out = pronet.run_filter(traj.imu[:300], traj.time[1:301], [stream()], **kw)  # type: ignore[arg-type]
         assert out.fix_epoch.tolist() == [100] and np.isfinite(out.fix_nis[0])
         return
     with pytest.raises(ValueError, match=message):
-        pronet.run_filter(*args, **kw, **aiding)  # type: ignore[arg-type]
+        stream()

@@ -32,8 +32,7 @@ def _recording(seed: int, spike_every: int):
     args = dict(
         imu=imu,
         imu_time=traj.time[1 : n + 1],
-        dvl=dvl,
-        dvl_time=traj.time[k],
+        streams=[pronet.Dvl(traj.time[k], dvl)],  # NED: the configs' aiding="nav"
         t0=traj.time[0],
         lla0=traj.lla[0],
         vel0=traj.vel_ned[0],

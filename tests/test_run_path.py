@@ -137,10 +137,10 @@ def test_filter_result_to_dataframe_has_every_epoch_and_update() -> None:
     traj = pronet.builtin_trajectory("paper")
     n = 500
     dvl_t = np.array([1.0, 2.0, 3.0, 99.0])  # the last after the run
+    ned = pronet.Dvl(dvl_t, np.tile(traj.vel_ned[0], (4, 1)), frame="ned")
     out = pronet.run_filter(
-        traj.imu[:n], traj.time[1 : n + 1], np.tile(traj.vel_ned[0], (4, 1)), dvl_t,
-        t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
-        config=pronet.FilterConfig(aiding="nav"), strategy=pronet.Strategy.constant(PAPER_Q),
+        traj.imu[:n], traj.time[1 : n + 1], [ned], t0=0.0, lla0=traj.lla[0],
+        vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(PAPER_Q),
     )  # fmt: skip
     epochs = out.to_dataframe()
     assert tuple(epochs.columns) == EPOCH_COLUMNS and len(epochs) == n + 1
@@ -166,7 +166,8 @@ def test_run_filter_keeps_the_covariance_at_the_times_asked_for() -> None:
     the same; a bad time is refused by name."""
     traj = pronet.builtin_trajectory("paper")
     n = 400
-    args = (traj.imu[:n], traj.time[1 : n + 1], np.tile([1.0, 0, 0], (3, 1)), [1.0, 2.0, 3.0])
+    dvl = pronet.Dvl([1.0, 2.0, 3.0], np.tile([1.0, 0, 0], (3, 1)))
+    args = (traj.imu[:n], traj.time[1 : n + 1], [dvl])
     kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
               strategy=pronet.Strategy.mehra(2, PAPER_Q))  # fmt: skip
     plain = pronet.run_filter(*args, **kw)  # type: ignore[arg-type]
@@ -199,7 +200,8 @@ def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
 
     traj = pronet.builtin_trajectory("paper")
     n = 400
-    args = (traj.imu[:n], traj.time[1 : n + 1], np.tile([1.0, 0, 0], (3, 1)), [1.0, 2.0, 3.0])
+    dvl = pronet.Dvl([1.0, 2.0, 3.0], np.tile([1.0, 0, 0], (3, 1)))
+    args = (traj.imu[:n], traj.time[1 : n + 1], [dvl])
     kw = dict(t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
               strategy=pronet.Strategy.constant(PAPER_Q))  # fmt: skip
     plain = pronet.run_filter(*args, **kw)  # type: ignore[arg-type]

@@ -39,7 +39,7 @@ def _passes(formulation: str) -> tuple[np.ndarray, ...]:
         d = rng.normal(size=9) * P0[:9]
         start = pronet.lla_from_ned(d[:3], truth.lla[0])
         res = pronet.run_filter(
-            imu, truth.time[1 : n + 1], dvl, truth.time[k], t0=0.0, lla0=start,
+            imu, truth.time[1 : n + 1], [pronet.Dvl(truth.time[k], dvl)], t0=0.0, lla0=start,
             vel0=truth.vel_ned[0] + d[3:6], rpy0=truth.rpy[0] + d[6:9], config=cfg,
             strategy=pronet.Strategy.constant(Q), smooth=True,
         )  # fmt: skip
@@ -289,17 +289,16 @@ def test_the_smoothed_sigma_is_never_above_the_forward_one(
     syn, dvl, dvl_time, aided = dive
     rec, traj = syn.recording, syn.trajectory
     no_dvl = measured == "nothing"
-    aiding = {}
+    streams = [] if no_dvl else [pronet.Dvl(dvl_time, dvl)]
     if measured == "aided":
         depth, fixes = aided.depth, aided.fixes
-        aiding = dict(depth=depth.depth, depth_time=depth.time, depth_sigma=0.05,
-                      fix=fixes.lla, fix_time=fixes.time, fix_sigma=fixes.sigma)  # fmt: skip
+        streams += [pronet.Depth(depth.time, depth.depth, sigma=0.05),
+                    pronet.Fix(fixes.time, fixes.lla, sigma=fixes.sigma)]  # fmt: skip
     r = pronet.run_filter(
-        rec.imu, traj.time[1:], np.empty((0, 3)) if no_dvl else dvl,
-        np.empty(0) if no_dvl else dvl_time, t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
+        rec.imu, traj.time[1:], streams, t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
         rpy0=traj.rpy[0], strategy=pronet.Strategy.constant([1e-4] * 3 + [1e-8] * 3),
         config=pronet.FilterConfig(formulation=formulation, covariance_step=covariance_step),
-        smooth=True, output_step=output_step, **aiding,
+        smooth=True, output_step=output_step,
     )  # fmt: skip
     s = r.smoothed
     assert s is not None and np.isfinite(s.sigma).all()

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_position_aiding import _aiding
+from test_position_aiding import _aiding, _streams
 
 import pronet
 
@@ -27,8 +27,8 @@ def _run(formulation: str, calibrated: bool, covariance_step: float, **kw):
         covariance_step=covariance_step,
     )  # fmt: skip
     return pronet.run_filter(
-        imu, imu_time, dvl, dvl_time, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, config=cfg,
-        strategy=pronet.Strategy.constant(Q), **aiding, **kw,
+        imu, imu_time, [pronet.Dvl(dvl_time, dvl), *_streams(aiding)], t0=0.0, lla0=lla0,
+        vel0=vel0, rpy0=rpy0, config=cfg, strategy=pronet.Strategy.constant(Q), **kw,
     )  # fmt: skip
 
 

@@ -12,7 +12,10 @@ attitude is roll, pitch, yaw (ZYX) in rad; IMU samples are
 """
 
 from pronet._core import (
+    Depth,
+    Dvl,
     FilterConfig,
+    Fix,
     SensorConfig,
     Strategy,
     Trajectory,
@@ -21,15 +24,18 @@ from pronet._core import (
     earth_radii,
     normal_gravity,
 )
-from pronet.filter import FilterResult, SmoothedResult, run_filter
+from pronet.filter import FilterResult, SmoothedResult, StreamResult, run_filter
 from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
 from pronet.navigation import NavSolution, lla_from_ned, local_ned, mechanize
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
 
 __all__ = [
+    "Depth",
+    "Dvl",
     "Ensemble",
     "FilterConfig",
     "FilterResult",
+    "Fix",
     "MonteCarloResult",
     "NavSolution",
     "STATE_BLOCKS",
@@ -37,6 +43,7 @@ __all__ = [
     "SmoothedResult",
     "SensorConfig",
     "Strategy",
+    "StreamResult",
     "Trajectory",
     "__version__",
     "builtin_trajectory",

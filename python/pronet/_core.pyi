@@ -10,6 +10,7 @@ argument's name.
 Heavy calls release the GIL.
 """
 
+from collections.abc import Sequence
 from typing import Any, Literal, final
 
 import numpy as np
@@ -37,6 +38,9 @@ __all__ = [
     "FilterConfig",
     "Strategy",
     "SensorConfig",
+    "Dvl",
+    "Depth",
+    "Fix",
     "run_filter",
     "monte_carlo",
     "check_result_size",
@@ -160,25 +164,15 @@ class FilterConfig:
     number of IMU periods, and the covariance is brought up to date before every DVL
     update and at the end of a pass. See ``docs/filter.md``."""
 
-    def __new__(
-        cls,
-        *,
-        p0_sigma: Any | None = None,
-        accel_bias_psd: float = 1e-3,
-        gyro_bias_psd: float = 1e-3,
-        dvl_variance: Any | None = None,
-        lever_arm: Any | None = None,
-        aiding: Literal["body", "nav"] = "body",
-        imu_dt: float = 0.01,
-        innovation_gate: float | None = None,
-        dvl_calibration: bool = False,
-        dvl_scale_sigma: float | None = None,
-        dvl_misalignment_sigma: Any | None = None,
-        dvl_scale_psd: float | None = None,
-        dvl_misalignment_psd: float | None = None,
-        formulation: Literal["invariant", "classic"] = "invariant",
-        covariance_step: float = 0.1,
-    ) -> FilterConfig: ...
+    def __new__(cls, *, p0_sigma: Any | None = None, accel_bias_psd: float = 1e-3,
+                gyro_bias_psd: float = 1e-3, dvl_variance: Any | None = None,
+                lever_arm: Any | None = None, aiding: Literal["body", "nav"] = "body",
+                imu_dt: float = 0.01, innovation_gate: float | None = None,
+                dvl_calibration: bool = False, dvl_scale_sigma: float | None = None,
+                dvl_misalignment_sigma: Any | None = None, dvl_scale_psd: float | None = None,
+                dvl_misalignment_psd: float | None = None,
+                formulation: Literal["invariant", "classic"] = "invariant",
+                covariance_step: float = 0.1) -> FilterConfig: ...  # fmt: skip
     @property
     def p0_sigma(self) -> list[float]: ...
     @property
@@ -281,25 +275,14 @@ class SensorConfig:
     draws are the same with and without it. Defaults: the paper's (an ideal DVL, no
     dropout, no depth sensor, no fixes)."""
 
-    def __new__(
-        cls,
-        *,
-        imu_variance: Any | None = None,
-        imu_variance_times: Any | None = None,
-        imu_bias: Any | None = None,
-        imu_bias_psd: Any | None = None,
-        dvl_variance: Any | None = None,
-        dvl_period: float = 1.0,
-        lever_arm: Any | None = None,
-        dvl_outages: Any | None = None,
-        dvl_scale: float = 0.0,
-        dvl_misalignment: Any | None = None,
-        dvl_dropout: Any | None = None,
-        depth_sigma: float | None = None,
-        depth_period: float | None = None,
-        depth_lever_arm: Any | None = None,
-        fixes: Any | None = None,
-    ) -> SensorConfig: ...
+    def __new__(cls, *, imu_variance: Any | None = None, imu_variance_times: Any | None = None,
+                imu_bias: Any | None = None, imu_bias_psd: Any | None = None,
+                dvl_variance: Any | None = None, dvl_period: float = 1.0,
+                lever_arm: Any | None = None, dvl_outages: Any | None = None,
+                dvl_scale: float = 0.0, dvl_misalignment: Any | None = None,
+                dvl_dropout: Any | None = None, depth_sigma: float | None = None,
+                depth_period: float | None = None, depth_lever_arm: Any | None = None,
+                fixes: Any | None = None) -> SensorConfig: ...  # fmt: skip
     @property
     def imu_variance_times(self) -> list[float]: ...
     @property
@@ -339,60 +322,109 @@ class SensorConfig:
     def fixes(self) -> list[dict[str, Any]]:
         """The position-fix sources, as the dicts the constructor takes."""
 
-def run_filter(
-    imu: ArrayLike,
-    imu_time: ArrayLike,
-    dvl: ArrayLike,
-    dvl_time: ArrayLike,
-    *,
-    t0: float,
-    lla0: Any,
-    vel0: Any,
-    rpy0: Any,
-    config: FilterConfig,
-    strategy: Strategy,
-    bias0: Any | None = None,
-    q_time: ArrayLike | None = None,
-    q: ArrayLike | None = None,
-    epochs: Literal["all", "last"] = "all",
-    output_step: float | None = None,
-    covariance_time: ArrayLike | None = None,
-    smooth: bool = False,
-    depth: ArrayLike | None = None,
-    depth_time: ArrayLike | None = None,
-    depth_sigma: float | None = None,
-    fix: ArrayLike | None = None,
-    fix_time: ArrayLike | None = None,
-    fix_sigma: ArrayLike | None = None,
-) -> dict[str, Any]:
-    """One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
-    [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-    or ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
-    with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
-    (key ``epoch``: each row's index among all; empty without). ``covariance_time``
-    (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
-    ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-    ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-    None without). Key ``adaptive_q``: None where no DVL row has one. ``depth`` (d,)
-    [m, down] at
-    ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
-    (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
-    [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°."""
+@final
+class Dvl:
+    """A velocity stream for :func:`run_filter`: a DVL's readings, or velocities in NED.
 
-def monte_carlo(
-    trajectory: Trajectory,
-    sensors: SensorConfig,
-    config: FilterConfig,
-    strategy: Strategy,
-    *,
-    n_runs: int,
-    seed: int = 0,
-    record_every: int = 0,
-    sample_initial_error: bool = True,
-    threads: int | None = None,
-    first_run: int = 0,
-    smooth: bool = False,
-) -> dict[str, Any]:
+    ``time`` ``(m,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
+    velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``), or
+    ``"ned"``, the NED velocity of the point at r (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ
+    [m/s] per axis, a number, ``(3,)`` or ``(m, 3)`` one per row; R is ``diag(σ²)``.
+    ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`.
+    ``gate``: a χ² threshold (3 dof, > 0): a row whose NIS exceeds it is rejected. Each
+    None is the pass's :class:`FilterConfig`'s (``dvl_variance``, ``aiding``,
+    ``lever_arm``, ``innovation_gate``), so ``Dvl(time, velocity)`` is the DVL it
+    describes. Beside the DVL calibration states (``dvl_calibration=True``: they read
+    every body-frame stream) a ``"ned"`` stream is refused. The arrays are copied, the
+    getters give them back as given (None: not given); a bad argument is a ValueError
+    naming it."""
+
+    def __new__(cls, time: ArrayLike, velocity: ArrayLike, *, sigma: Any | None = None,
+                frame: Literal["body", "ned"] | None = None, lever_arm: Any | None = None,
+                gate: float | None = None) -> Dvl: ...  # fmt: skip
+    @property
+    def time(self) -> NDArray[np.float64]: ...
+    @property
+    def velocity(self) -> NDArray[np.float64]: ...
+    @property
+    def sigma(self) -> NDArray[np.float64] | None:
+        """1σ [m/s]: ``(3,)`` for every row (a number given: three), or ``(m, 3)``."""
+    @property
+    def frame(self) -> Literal["body", "ned"] | None: ...
+    @property
+    def lever_arm(self) -> list[float] | None: ...
+    @property
+    def gate(self) -> float | None: ...
+
+@final
+class Depth:
+    """A depth stream for :func:`run_filter`: a pressure sensor's readings.
+
+    ``time`` ``(d,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``depth`` ``(d,)`` [m, positive down] of the sensor at ``lever_arm``
+    ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`
+    (``h = −ĥ + (Ĉ r)_D``: 1 m below a level IMU reads 1 m deeper). ``sigma``: 1σ [m], a
+    number or ``(d,)`` one per reading. A scalar update of the position error (NIS χ²,
+    1 dof; no gate). The arrays are copied; a bad argument is a ValueError naming it."""
+
+    def __new__(cls, time: ArrayLike, depth: ArrayLike, *, sigma: Any,
+                lever_arm: Any = (0.0, 0.0, 0.0)) -> Depth: ...  # fmt: skip
+    @property
+    def time(self) -> NDArray[np.float64]: ...
+    @property
+    def depth(self) -> NDArray[np.float64]: ...
+    @property
+    def sigma(self) -> float | NDArray[np.float64]: ...
+    @property
+    def lever_arm(self) -> list[float]: ...
+
+@final
+class Fix:
+    """A position-fix stream for :func:`run_filter`: GNSS, USBL or LBL fixes.
+
+    ``time`` ``(f,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``lla`` ``(f, 3)`` ``[lat, lon (rad), h (m, up; NaN: a horizontal
+    fix)]`` of the antenna or transponder at ``lever_arm`` ``(3,)`` [m, body FRD] from
+    the IMU, within ±:data:`MAX_LEVER_ARM`; ``|lat|`` <= 89°, ``lon`` within [−π, 2π]
+    (±180° or 0–360°: its difference from the estimate is wrapped into (−π, π]).
+    ``sigma``: 1σ [m] north, east, down, ``(3,)`` or ``(f, 3)`` one per fix (a
+    horizontal fix's down σ unused, NaN allowed). Scalar updates of the position error
+    (NIS χ², 2 or 3 dof; no gate). The arrays are copied; a bad argument is a
+    ValueError naming it."""
+
+    def __new__(cls, time: ArrayLike, lla: ArrayLike, *, sigma: Any,
+                lever_arm: Any = (0.0, 0.0, 0.0)) -> Fix: ...  # fmt: skip
+    @property
+    def time(self) -> NDArray[np.float64]: ...
+    @property
+    def lla(self) -> NDArray[np.float64]: ...
+    @property
+    def sigma(self) -> NDArray[np.float64]: ...
+    @property
+    def lever_arm(self) -> list[float]: ...
+
+def run_filter(imu: ArrayLike, imu_time: ArrayLike, streams: Sequence[Dvl | Depth | Fix], *,
+               t0: float, lla0: Any, vel0: Any, rpy0: Any, config: FilterConfig,
+               strategy: Strategy, bias0: Any | None = None, q_time: ArrayLike | None = None,
+               q: ArrayLike | None = None, epochs: Literal["all", "last"] = "all",
+               output_step: float | None = None, covariance_time: ArrayLike | None = None,
+               smooth: bool = False) -> dict[str, Any]:  # fmt: skip
+    """One filter pass: :func:`pronet.run_filter` (its arguments, ``config`` required),
+    returning the dict :class:`pronet.FilterResult` is made of. ``streams``: a sequence
+    of :class:`Dvl`, :class:`Depth` and :class:`Fix`, applied at an epoch in this order.
+    Key ``streams``: a dict per stream, in order, of ``kind`` (``"velocity"``,
+    ``"depth"`` or ``"fix"``), ``epoch`` (r,) (-1 outside the run), ``nis`` (r,) (NaN
+    outside) and, for a velocity stream, ``innovation``, ``innovation_cov``, ``gain``,
+    ``accepted``, ``adaptive_q`` (None where no row has one, as the top-level key). The
+    top-level update keys are the first velocity, depth and fix stream's (the same
+    arrays; no rows without one). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``,
+    ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch, or None."""
+
+def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
+                strategy: Strategy, *, n_runs: int, seed: int = 0, record_every: int = 0,
+                sample_initial_error: bool = True, threads: int | None = None, first_run: int = 0,
+                smooth: bool = False) -> dict[str, Any]:  # fmt: skip
     """A Monte Carlo; see :class:`pronet.MonteCarloResult` for the keys. ``n_runs`` >= 1,
     ``first_run + n_runs`` <= :data:`MAX_RUN_INDEX`, ``threads`` 1 to :func:`max_threads`
     (None: :func:`check_threads`'s default). An external strategy is refused: nothing
@@ -439,23 +471,11 @@ class Ensemble:
     :func:`monte_carlo`'s.
     """
 
-    def __new__(
-        cls,
-        trajectory: Trajectory,
-        sensors: SensorConfig,
-        config: FilterConfig,
-        prior_q: Any,
-        *,
-        n_runs: int,
-        seed: int = 0,
-        window: int = 200,
-        tuning_period: float = 1.0,
-        record_every: int = 0,
-        sample_initial_error: bool = True,
-        threads: int | None = None,
-        first_run: int = 0,
-        smooth: bool = False,
-    ) -> Ensemble: ...
+    def __new__(cls, trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
+                prior_q: Any, *, n_runs: int, seed: int = 0, window: int = 200,
+                tuning_period: float = 1.0, record_every: int = 0,
+                sample_initial_error: bool = True, threads: int | None = None, first_run: int = 0,
+                smooth: bool = False) -> Ensemble: ...  # fmt: skip
     def advance(self) -> NDArray[np.float32] | None:
         """Step all runs to the next tuning instant; the windows ``(n_runs, 6, window)``
         float32, oldest sample first, or None at the end."""

@@ -1,15 +1,54 @@
-"""One filter pass over given IMU and DVL arrays: the way recorded data is filtered."""
+"""One filter pass over given IMU arrays and sensor streams (:class:`~pronet.Dvl`,
+:class:`~pronet.Depth`, :class:`~pronet.Fix`): the way recorded data is filtered."""
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal, TypeAlias, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type, float_array, scalar
+
+#: An aiding sensor's stream, as :func:`run_filter` takes them.
+Stream: TypeAlias = _core.Dvl | _core.Depth | _core.Fix
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """What a pass did with each of one stream's r rows (:attr:`FilterResult.streams`).
+
+    Attributes:
+        kind: ``"velocity"`` (a :class:`~pronet.Dvl`), ``"depth"``
+            (:class:`~pronet.Depth`) or ``"fix"`` (:class:`~pronet.Fix`).
+        epoch: ``(r,)`` the epoch index each row was applied at (the index
+            :attr:`FilterResult.epoch` counts in: 0 the initial state, j + 1 after IMU
+            sample j), -1 where it fell outside the run.
+        nis: ``(r,)`` normalized innovation squared (χ² with 3 dof for a velocity, 1
+            for a depth, 2 or 3 for a fix without or with its height, when
+            consistent); NaN outside the run.
+        innovation: a velocity stream's ``(r, 3)`` ``z − h(x̂)`` [m/s] in its frame
+            (NaN outside the run); None for depths and fixes, as the three below.
+        innovation_cov: ``(r, 3, 3)`` innovation covariance S [(m/s)²].
+        gain: ``(r, 15, 3)`` Kalman gains.
+        accepted: ``(r,)`` whether each row was applied (False where the innovation
+            gate rejected it, or it fell outside the run).
+        adaptive_q: ``(r, 15, 15)`` the per-IMU-step Q_d a Mehra strategy set after
+            each update (as :attr:`FilterResult.adaptive_q`).
+    """
+
+    kind: Literal["velocity", "depth", "fix"]
+    epoch: NDArray[np.int64]
+    nis: NDArray[np.float64]
+    innovation: NDArray[np.float64] | None = None
+    innovation_cov: NDArray[np.float64] | None = None
+    gain: NDArray[np.float64] | None = None
+    accepted: NDArray[np.bool_] | None = None
+    adaptive_q: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)
@@ -56,13 +95,16 @@ class SmoothedResult:
 
 @dataclass(frozen=True)
 class FilterResult:
-    """The estimate at every IMU epoch and every DVL update.
+    """The estimate at every IMU epoch and what became of every stream's rows.
 
     Epoch arrays have n + 1 rows: the initial state at ``t0``, then one per IMU sample
-    (after the DVL update applied there, if any); a pass run with ``epochs="last"``
+    (after the updates applied there, if any); a pass run with ``epochs="last"``
     keeps only the last of them (one row), one run with ``output_step`` the rows of
-    :attr:`epoch`. Update arrays have one row per DVL row; rows that fell outside the
-    run hold NaN and ``dvl_epoch = -1``.
+    :attr:`epoch`. Each stream's rows are in :attr:`streams`; the update arrays below
+    (``dvl_epoch`` to ``adaptive_q``) are the first velocity stream's, one row per
+    row of it (rows that fell outside the run hold NaN and ``dvl_epoch = -1``; no rows
+    without a velocity stream), and ``depth_*``, ``fix_*`` the first depth and fix
+    stream's.
 
     Attributes:
         time: ``(n+1,)`` epoch times [s].
@@ -87,7 +129,8 @@ class FilterResult:
             the run); its diagonal is ``sigma**2`` there (with a covariance step, at an
             epoch inside a step this covariance is brought up to date and ``sigma`` is
             interpolated, so the two differ slightly).
-        dvl_epoch: ``(m,)`` epoch index each DVL row was applied at.
+        dvl_epoch: ``(m,)`` epoch index each DVL row was applied at (the first velocity
+            stream's, as the keys to ``adaptive_q``).
         innovation: ``(m, 3)`` ``z − h(x̂)`` [m/s].
         innovation_cov: ``(m, 3, 3)`` innovation covariance S [(m/s)²].
         nis: ``(m,)`` normalized innovation squared (χ², 3 dof when consistent).
@@ -101,7 +144,8 @@ class FilterResult:
             other strategies and before Mehra has its ξ innovations (for other
             strategies a read-only view of one NaN, which costs no memory).
         depth_epoch, fix_epoch: ``(d,)``, ``(f,)`` the epoch each depth reading and
-            position fix was applied at (-1 outside the run).
+            position fix of the first depth and fix stream was applied at (-1 outside
+            the run; no rows without one).
         depth_nis, fix_nis: their normalized innovation squared (χ² with 1 dof for a
             depth, 2 or 3 for a fix without or with its height; NaN outside the run).
         smoothed: the RTS-smoothed solution at the kept epochs with ``smooth=True``
@@ -110,6 +154,7 @@ class FilterResult:
             (0 the initial state, j + 1 after IMU sample j: the index ``dvl_epoch``,
             ``depth_epoch``, ``fix_epoch`` and ``covariance_epoch`` count in); ``(0,)``
             otherwise (every epoch kept, or the last).
+        streams: one :class:`StreamResult` per stream given, in their order.
     """
 
     time: NDArray[np.float64]
@@ -137,6 +182,7 @@ class FilterResult:
     fix_nis: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
     smoothed: SmoothedResult | None = None
     epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
+    streams: tuple[StreamResult, ...] = ()
 
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
         """The result as a pandas table, SI units as the attributes.
@@ -145,11 +191,11 @@ class FilterResult:
         ``lat``, ``lon`` [rad], ``h`` [m], NED velocity, roll, pitch, yaw, the bias
         estimates and the 1σ of the 15 error states), then with the DVL calibration
         states :data:`CALIBRATION_COLUMNS` and their ``sigma_`` twins. ``rows="updates"``:
-        one row per DVL row, columns :data:`UPDATE_COLUMNS` (the epoch and its time, or
-        -1 and NaN for a row outside the run, the time NaN too for a pass run with
-        ``epochs="last"`` and, with ``output_step``, where the epoch was not kept; the
-        innovation [m/s], body x, y, z or with
-        ``FilterConfig(aiding="nav")`` N, E, D; the NIS; whether it was applied).
+        one row per row of the first velocity stream, columns :data:`UPDATE_COLUMNS` (the
+        epoch and its time, or -1 and NaN for a row outside the run, the time NaN too
+        for a pass run with ``epochs="last"`` and, with ``output_step``, where the epoch
+        was not kept; the innovation [m/s], body x, y, z or, for a ``frame="ned"``
+        stream, N, E, D; the NIS; whether it was applied).
         """
         import pandas as pd
 
@@ -223,11 +269,48 @@ UPDATE_COLUMNS = (
 )
 
 
+#: The deprecated keywords of :func:`run_filter` (its arrays before streams).
+_DEPRECATED = (
+    "dvl",
+    "dvl_time",
+    "depth",
+    "depth_time",
+    "depth_sigma",
+    "fix",
+    "fix_time",
+    "fix_sigma",
+)
+
+
+@overload
 def run_filter(
+    imu: ArrayLike,
+    imu_time: ArrayLike,
+    streams: Sequence[Stream] = (),
+    *,
+    t0: float,
+    lla0: ArrayLike,
+    vel0: ArrayLike,
+    rpy0: ArrayLike,
+    config: _core.FilterConfig | None = None,
+    strategy: _core.Strategy,
+    bias0: ArrayLike | None = None,
+    q_time: ArrayLike | None = None,
+    q: ArrayLike | None = None,
+    epochs: Literal["all", "last"] = "all",
+    output_step: float | None = None,
+    covariance_time: ArrayLike | None = None,
+    smooth: bool = False,
+) -> FilterResult: ...
+
+
+@overload
+def run_filter(  # deprecated: the arrays before streams
     imu: ArrayLike,
     imu_time: ArrayLike,
     dvl: ArrayLike,
     dvl_time: ArrayLike,
+    /,
     *,
     t0: float,
     lla0: ArrayLike,
@@ -248,21 +331,49 @@ def run_filter(
     fix: ArrayLike | None = None,
     fix_time: ArrayLike | None = None,
     fix_sigma: ArrayLike | None = None,
+) -> FilterResult: ...
+
+
+def run_filter(
+    imu: ArrayLike,
+    imu_time: ArrayLike,
+    streams: Sequence[Stream] | ArrayLike = (),
+    *deprecated: ArrayLike,
+    t0: float,
+    lla0: ArrayLike,
+    vel0: ArrayLike,
+    rpy0: ArrayLike,
+    config: _core.FilterConfig | None = None,
+    strategy: _core.Strategy,
+    bias0: ArrayLike | None = None,
+    q_time: ArrayLike | None = None,
+    q: ArrayLike | None = None,
+    epochs: Literal["all", "last"] = "all",
+    output_step: float | None = None,
+    covariance_time: ArrayLike | None = None,
+    smooth: bool = False,
+    **deprecated_keywords: Any,
 ) -> FilterResult:
-    """Run the INS/DVL error-state EKF over sensor arrays.
+    """Run the INS error-state EKF over IMU arrays and aiding sensors' streams.
 
     Args:
         imu: ``(n, 6)`` raw IMU samples ``[f (m/s²), w (rad/s)]``, body frame FRD; row k
             covers ``(imu_time[k-1], imu_time[k]]`` with ``imu_time[-1] = t0``.
         imu_time: ``(n,)`` sample end times [s], strictly increasing, all after ``t0``.
-        dvl: ``(m, 3)`` DVL velocities [m/s], body frame (or NED with
-            ``FilterConfig(aiding="nav")``).
-        dvl_time: ``(m,)`` DVL times [s], strictly increasing. Each row is applied at the
-            IMU epoch nearest to it.
+        streams: the aiding sensors, any number of each kind in any order:
+            :class:`~pronet.Dvl` (a DVL's body-frame velocity, or a NED velocity),
+            :class:`~pronet.Depth` (a pressure sensor's depth) and :class:`~pronet.Fix`
+            (GNSS, USBL, LBL position fixes), each with its times, noise and lever arm.
+            Each row is applied at the IMU epoch nearest its time; at an epoch the rows
+            due are applied stream by stream, in this order (docs/filter.md,
+            "Position and depth updates"). None (the default, ``()``) is a pure
+            inertial pass. ``Dvl(dvl_time, dvl)`` with nothing else is the DVL the
+            ``config`` describes (its R, aiding frame, lever arm and gate).
         t0: time of the initial state [s].
         lla0, vel0, rpy0: initial position [rad, rad, m], NED velocity [m/s], attitude [rad].
         config: filter tuning (defaults: ``FilterConfig()``).
-        strategy: process-noise strategy, e.g. ``Strategy.constant(q)``.
+        strategy: process-noise strategy, e.g. ``Strategy.constant(q)``; the adaptive
+            ones (Mehra, adaptive) read every velocity stream's innovations.
         bias0: initial ``[b_a (m/s²), b_g (rad/s)]`` estimate (default zeros).
         q_time, q: a schedule of per-sample IMU variances for an external strategy,
             ``(k,)`` times [s] strictly increasing and ``(k, 6)`` variances
@@ -297,28 +408,26 @@ def run_filter(
             proportion), and costs 2–5 forward passes (docs/filter.md, "The RTS
             smoother"). With ``output_step`` the forward solution is kept at the updates
             alone and integrated again between them.
-        depth, depth_time, depth_sigma: depth (pressure) readings ``(d,)`` [m, positive
-            down] at ``(d,)`` times [s] (strictly increasing), of 1σ ``depth_sigma`` [m];
-            all three or none.
-        fix, fix_time, fix_sigma: position fixes (GNSS, USBL, LBL) ``(f, 3)`` ``[lat,
-            lon (rad), h (m, up)]`` (a NaN height: a horizontal fix; ``|lat|`` <= 89°,
-            ``lon`` within [−π, 2π]: ±180° or 0–360°, its difference from the estimate
-            wrapped into (−π, π]) at ``(f,)`` times [s] (strictly increasing), each
-            with its 1σ ``(f, 3)`` [m] north, east, down; all three or none. Depth and
-            fixes refer to the IMU's point; each is applied at the epoch nearest its
-            time, after the DVL rows there, as scalar updates of the position error
-            (docs/filter.md, "Position and depth updates"). The DVL may be empty: a
-            GNSS/INS or depth-only pass works too.
+
+    Deprecated (for one release): the arrays before streams,
+    ``run_filter(imu, imu_time, dvl, dvl_time, *, ..., depth=, depth_time=,
+    depth_sigma=, fix=, fix_time=, fix_sigma=)``, warns (``DeprecationWarning``) and runs
+    ``streams=[Dvl(dvl_time, dvl), Depth(depth_time, depth, sigma=depth_sigma),
+    Fix(fix_time, fix, sigma=fix_sigma)]`` (the depth and fix streams where given, all
+    three of a group or none), with the same result bit for bit. Streams and these
+    arrays together are a ``ValueError``.
     """
+    if deprecated or deprecated_keywords:
+        streams = _deprecated_streams(streams, deprecated, deprecated_keywords)
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
     check_type(strategy, _core.Strategy, "strategy")
     check_type(smooth, bool, "smooth")
+    given = _stream_list(streams)
     out = _core.run_filter(
         float_array(imu, "imu", (None, 6)),
         float_array(imu_time, "imu_time", (None,)),
-        float_array(dvl, "dvl", (None, 3)),
-        float_array(dvl_time, "dvl_time", (None,)),
+        given,
         t0=scalar(t0, "t0"),
         lla0=float_array(lla0, "lla0", (3,)),
         vel0=float_array(vel0, "vel0", (3,)),
@@ -336,16 +445,127 @@ def run_filter(
             else float_array(covariance_time, "covariance_time", (None,))
         ),
         smooth=smooth,
-        depth=None if depth is None else float_array(depth, "depth", (None,)),
-        depth_time=None if depth_time is None else float_array(depth_time, "depth_time", (None,)),
-        depth_sigma=None if depth_sigma is None else scalar(depth_sigma, "depth_sigma"),
-        fix=None if fix is None else float_array(fix, "fix", (None, 3)),
-        fix_time=None if fix_time is None else float_array(fix_time, "fix_time", (None,)),
-        fix_sigma=None if fix_sigma is None else float_array(fix_sigma, "fix_sigma", (None, 3)),
     )
-    if out["adaptive_q"] is None:  # no row has one: all NaN, a read-only view
-        out["adaptive_q"] = np.broadcast_to(np.nan, (len(out["nis"]), 15, 15))
+    per_stream = tuple(StreamResult(**_with_adaptive_q(d)) for d in out.pop("streams"))
+    _with_adaptive_q(out)
     smoothed = out.pop("smoothed")
     if smoothed is not None:
         smoothed = SmoothedResult(time=out["time"], **smoothed)
-    return FilterResult(**out, smoothed=smoothed)
+    return FilterResult(**out, smoothed=smoothed, streams=per_stream)
+
+
+def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:
+    """``out`` (a velocity stream's arrays) with an ``adaptive_q`` of None, where no
+    row has one, made the all-NaN ``(m, 15, 15)`` (a read-only view of one NaN)."""
+    if "adaptive_q" in out and out["adaptive_q"] is None:
+        out["adaptive_q"] = np.broadcast_to(np.nan, (len(out["nis"]), 15, 15))
+    return out
+
+
+def _stream_list(streams: object) -> list[Stream]:
+    """``streams`` as a list, or ``ValueError`` naming it or the item that is no stream."""
+    kinds = (_core.Dvl, _core.Depth, _core.Fix)
+    if not isinstance(streams, Sequence) or isinstance(streams, str | bytes):
+        raise ValueError(
+            "streams: expected a sequence (a list or tuple) of Dvl, Depth and Fix streams, "
+            f"got {type(streams).__name__}"
+        )
+    for i, s in enumerate(streams):
+        if not isinstance(s, kinds):
+            raise ValueError(f"streams[{i}]: expected a Dvl, Depth or Fix, got {type(s).__name__}")
+    return list(streams)
+
+
+def _deprecated_streams(
+    first: object, positional: tuple[object, ...], keywords: dict[str, Any]
+) -> list[Stream]:
+    """The streams of the deprecated form ``run_filter(imu, imu_time, dvl, dvl_time, *,
+    depth=, depth_time=, depth_sigma=, fix=, fix_time=, fix_sigma=)``, with its warning;
+    an error as Python's or the old form's own would be."""
+    unknown = [k for k in keywords if k not in _DEPRECATED]
+    if unknown:
+        raise TypeError(f"run_filter() got an unexpected keyword argument {unknown[0]!r}")
+    if len(positional) > 1:
+        raise TypeError(
+            f"run_filter() takes from 2 to 4 positional arguments but {3 + len(positional)} "
+            "were given"
+        )
+    old = dict(keywords)
+    if positional:
+        for name, value in (("dvl", first), ("dvl_time", positional[0])):
+            if name in old:
+                raise TypeError(f"run_filter() got multiple values for argument {name!r}")
+            old[name] = value
+    elif not (isinstance(first, tuple | list) and len(first) == 0):
+        raise ValueError(
+            "streams: give the sensors as streams or as the deprecated arrays "
+            f"({', '.join(sorted(old))}), not both"
+        )
+    for name in ("dvl", "dvl_time"):
+        if name not in old:
+            raise TypeError(f"run_filter() missing required argument: {name!r}")
+    warnings.warn(
+        "run_filter(imu, imu_time, dvl, dvl_time, depth=..., fix=...) is deprecated: pass "
+        "the sensors as streams, run_filter(imu, imu_time, [pronet.Dvl(dvl_time, dvl), "
+        "pronet.Depth(depth_time, depth, sigma=depth_sigma), pronet.Fix(fix_time, fix, "
+        "sigma=fix_sigma)], ...)",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    streams: list[Stream] = [
+        _old_names(
+            lambda: _core.Dvl(
+                float_array(old["dvl_time"], "dvl_time", (None,)),
+                float_array(old["dvl"], "dvl", (None, 3)),
+            ),
+            {"time": "dvl_time", "velocity": "dvl"},
+        )
+    ]
+    if _group(old, "depth"):
+        streams.append(
+            _old_names(
+                lambda: _core.Depth(
+                    float_array(old["depth_time"], "depth_time", (None,)),
+                    float_array(old["depth"], "depth", (None,)),
+                    sigma=scalar(old["depth_sigma"], "depth_sigma"),
+                ),
+                {"time": "depth_time", "sigma": "depth_sigma"},
+            )
+        )
+    if _group(old, "fix"):
+        streams.append(
+            _old_names(
+                lambda: _core.Fix(
+                    float_array(old["fix_time"], "fix_time", (None,)),
+                    float_array(old["fix"], "fix", (None, 3)),
+                    sigma=float_array(old["fix_sigma"], "fix_sigma", (None, 3)),
+                ),
+                {"time": "fix_time", "lla": "fix", "sigma": "fix_sigma"},
+            )
+        )
+    return streams
+
+
+def _group(old: dict[str, Any], name: str) -> bool:
+    """Whether the deprecated keywords ``old`` give the group ``name`` (``name``,
+    ``name_time``, ``name_sigma``: all three or none, else ``ValueError``)."""
+    names = (name, f"{name}_time", f"{name}_sigma")
+    given = [old.get(n) is not None for n in names]
+    if any(given) and not all(given):
+        raise ValueError(
+            f"{name}: {name}, {name}_time and {name}_sigma go together: give all three or none"
+        )
+    return all(given)
+
+
+def _old_names(make: Any, names: dict[str, str]) -> Stream:
+    """``make()``, its ``ValueError`` naming the deprecated form's argument (``names``:
+    the stream's argument to it)."""
+    try:
+        stream: Stream = make()
+    except ValueError as e:
+        arg, sep, reason = str(e).partition(": ")
+        if sep and arg in names:
+            raise ValueError(f"{names[arg]}: {reason}") from None
+        raise
+    return stream

@@ -19,15 +19,15 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from typing import Any, Literal, overload
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet.filter import FilterResult, run_filter
+from pronet.filter import FilterResult, Stream, run_filter
 from pronet.learn.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.shards import ShardStore
@@ -54,9 +54,9 @@ class Recorded:
         epochs: which epochs the result keeps: ``"all"``, or ``"last"`` for a pass
             whose updates alone are read (see :func:`pronet.run_filter`).
         smooth: also the RTS smoother over the pass (``FilterResult.smoothed``).
-        aiding: depth readings and position fixes, as :func:`pronet.run_filter`'s
-            keywords (``depth``, ``depth_time``, ``depth_sigma``, ``fix``, ``fix_time``,
-            ``fix_sigma``); empty for none.
+        aiding: the streams applied after the DVL's, as :func:`pronet.run_filter`
+            takes them (depth readings :class:`pronet.Depth`, position fixes
+            :class:`pronet.Fix`, ...); empty for none.
     """
 
     imu: F64
@@ -70,7 +70,12 @@ class Recorded:
     config: _core.FilterConfig
     epochs: Literal["all", "last"] = "all"
     smooth: bool = False
-    aiding: Mapping[str, Any] = field(default_factory=dict)
+    aiding: tuple[Stream, ...] = ()
+
+    def streams(self, *, aided: bool = True) -> list[Stream]:
+        """The streams of a pass: the DVL (:class:`pronet.Dvl`, its noise, frame,
+        lever arm and gate :attr:`config`'s), then with ``aided`` :attr:`aiding`."""
+        return [_core.Dvl(self.dvl_time, self.dvl), *(self.aiding if aided else ())]
 
     def filter(
         self,
@@ -87,8 +92,7 @@ class Recorded:
         return run_filter(
             self.imu,
             self.imu_time,
-            self.dvl,
-            self.dvl_time,
+            self.streams(aided=aided),
             t0=self.t0,
             lla0=self.lla0,
             vel0=self.vel0,
@@ -99,7 +103,6 @@ class Recorded:
             smooth=self.smooth,
             q_time=q_time,
             q=q,
-            **(dict(self.aiding) if aided else {}),
         )
 
 

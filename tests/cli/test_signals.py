@@ -153,8 +153,6 @@ def test_ctrl_c_ends_a_long_filter_pass_and_mechanization_at_once() -> None:
         "run_filter": lambda: pronet.run_filter(
             imu,
             imu_time,
-            np.zeros((0, 3)),
-            np.zeros(0),
             t0=0.0,
             strategy=pronet.Strategy.constant([1e-4] * 3 + [1e-6] * 3),
             **start,

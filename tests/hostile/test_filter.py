@@ -1,5 +1,6 @@
-"""Hostile inputs to ``run_filter``: bad arrays raise ValueError naming the argument,
-before any computation; no Rust panic ever reaches Python."""
+"""Hostile inputs to ``run_filter`` and its streams (``Dvl``, ``Depth``, ``Fix``): bad
+arrays raise ValueError naming the argument, before any computation; no Rust panic ever
+reaches Python."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import pronet
 from pronet import _core
 
 from .contract import (
+    CORE_FORMS,
     LLA0,
     SAME,
     VARIANCES,
@@ -38,6 +40,10 @@ from .contract import (
 from conftest import PAPER_Q
 
 STRAT = pronet.Strategy.constant(PAPER_Q)
+#: Scalars that are no σ (a (1,) array is one per row of a one-row stream) and no gate
+#: (None is one: the config's).
+BAD_SIGMAS = bad_scalars.filter(lambda x: not isinstance(x, np.ndarray))
+BAD_GATES = BAD_SIGMAS.filter(lambda x: x is not None)
 
 
 def _filter_inputs(n: int = 300):
@@ -54,8 +60,7 @@ def _run(**overrides):
     args = dict(
         imu=imu,
         imu_time=t,
-        dvl=dvl,
-        dvl_time=dvl_t,
+        streams=[pronet.Dvl(dvl_t, dvl)],
         t0=0.0,
         lla0=LLA0,
         vel0=(1.0, 0.0, 0.0),
@@ -63,14 +68,7 @@ def _run(**overrides):
         strategy=STRAT,
     )
     args.update(overrides)
-    return pronet.run_filter(
-        args.pop("imu"), args.pop("imu_time"), args.pop("dvl"), args.pop("dvl_time"), **args
-    )
-
-
-#: A valid depth group and fix group for ``_run`` (the hostile cases change one part).
-DEPTH = {"depth": [1.0, 2.0], "depth_time": [0.5, 1.5], "depth_sigma": 0.1}
-FIX = {"fix": [[0.56, 0.59, math.nan]], "fix_time": [1.0], "fix_sigma": [[2.0, 2.0, 2.0]]}
+    return pronet.run_filter(args.pop("imu"), args.pop("imu_time"), args.pop("streams"), **args)
 
 
 @pytest.mark.parametrize(
@@ -82,8 +80,6 @@ FIX = {"fix": [[0.56, 0.59, math.nan]], "fix_time": [1.0], "fix_sigma": [[2.0, 2
         ({"imu": np.zeros((300, 6), dtype=complex)}, "imu"),
         ({"imu": np.where(np.eye(300, 6) > 0, np.nan, 0.0)}, "imu"),
         ({"imu": np.full((300, 6), np.inf)}, "imu"),
-        ({"dvl": np.zeros((3, 2))}, "dvl"),
-        ({"dvl": np.array([[np.nan, 0, 0]] * 3)}, "dvl"),
         ({"imu_time": np.zeros(300)}, "imu_time"),
         ({"imu_time": np.arange(300.0)[::-1].copy()}, "imu_time"),
         ({"imu_time": np.arange(10.0)}, "imu_time"),
@@ -91,7 +87,10 @@ FIX = {"fix": [[0.56, 0.59, math.nan]], "fix_time": [1.0], "fix_sigma": [[2.0, 2
         ({"t0": 5.0}, "imu_time"),
         ({"t0": math.nan}, "t0"),
         ({"t0": "zero"}, "t0"),
-        ({"dvl_time": np.array([1.0, 1.0, 2.0])}, "dvl_time"),
+        ({"streams": pronet.Dvl([1.0], [[1.0, 0.0, 0.0]])}, "streams"),
+        ({"streams": "dvl"}, "streams"),
+        ({"streams": [np.zeros((3, 3))]}, r"streams\[0\]"),
+        ({"streams": [pronet.Dvl([1.0], [[1.0, 0.0, 0.0]]), None]}, r"streams\[1\]"),
         ({"lla0": (0.1, 0.2)}, "lla0"),
         ({"lla0": (math.nan, 0.2, 0.0)}, "lla0"),
         ({"lla0": (1.6, 0.2, 0.0)}, "lla0"),
@@ -100,23 +99,68 @@ FIX = {"fix": [[0.56, 0.59, math.nan]], "fix_time": [1.0], "fix_sigma": [[2.0, 2
         ({"strategy": "constant"}, "strategy"),
         ({"config": {"aiding": "body"}}, "config"),
         ({"bias0": (0.0,) * 5}, "bias0"),
-        # the aiding groups; a σ given without readings is checked too (it was not)
-        ({**DEPTH, "depth_sigma": math.nan, "depth": [], "depth_time": []}, "depth_sigma"),
-        ({**DEPTH, "depth_sigma": -0.1}, "depth_sigma"),
-        ({**DEPTH, "depth": [1.0, math.nan]}, "depth"),
-        ({**DEPTH, "depth_time": [1.5, 0.5]}, "depth_time"),
-        ({**DEPTH, "depth_time": [0.5]}, "depth_time"),
-        ({**DEPTH, "depth_sigma": None}, "depth"),
-        ({**FIX, "fix_sigma": [[-1.0, 1.0, 1.0]]}, "fix_sigma"),
-        ({**FIX, "fix": [[0.56, 0.59]]}, "fix"),
-        ({**FIX, "fix": [[math.inf, 0.59, 0.0]]}, "fix"),
-        ({**FIX, "fix_time": [math.nan]}, "fix_time"),
-        ({**FIX, "fix_sigma": [[1.0, 1.0, 1.0]] * 2}, "fix_sigma"),
     ],
 )
 def test_run_filter_rejects_bad_arrays_naming_the_argument(overrides, arg) -> None:
-    with pytest.raises(ValueError, match=rf"^{arg}\b"):
+    with pytest.raises(ValueError, match=rf"^{arg}(\b|:)"):
         _run(**overrides)
+
+
+T2 = [0.5, 1.5]
+V2 = [[1.0, 0.0, 0.0]] * 2
+FIX1 = ([1.0], [[0.56, 0.59, math.nan]])
+
+
+@pytest.mark.parametrize(
+    ("make", "arg"),
+    [
+        (lambda: pronet.Dvl(T2, np.zeros((2, 2))), "velocity"),
+        (lambda: pronet.Dvl(T2, [[np.nan, 0, 0]] * 2), "velocity"),
+        (lambda: pronet.Dvl([1.0, 1.0], V2), "time"),
+        (lambda: pronet.Dvl([0.5], V2), "time"),
+        (lambda: pronet.Dvl(T2, V2, sigma=-0.1), "sigma"),
+        (lambda: pronet.Dvl(T2, V2, sigma=[0.1, 0.1]), "sigma"),
+        (lambda: pronet.Dvl(T2, V2, sigma=[[0.1] * 3] * 3), "sigma"),
+        (lambda: pronet.Dvl(T2, V2, sigma=[0.1, math.nan, 0.1]), "sigma"),
+        (lambda: pronet.Dvl(T2, V2, sigma="0.1"), "sigma"),
+        (lambda: pronet.Dvl(T2, V2, frame="nav"), "frame"),
+        (lambda: pronet.Dvl(T2, V2, frame="Body"), "frame"),
+        (lambda: pronet.Dvl(T2, V2, lever_arm=[0.0, 1001.0, 0.0]), "lever_arm"),
+        (lambda: pronet.Dvl(T2, V2, lever_arm=[0.0, 0.5]), "lever_arm"),
+        (lambda: pronet.Dvl(T2, V2, gate=0.0), "gate"),
+        (lambda: pronet.Dvl(T2, V2, gate=np.array([16.0])), "gate"),
+        (lambda: pronet.Depth(T2, [1.0, 2.0], sigma=math.nan), "sigma"),
+        (lambda: pronet.Depth(T2, [1.0, 2.0], sigma=-0.1), "sigma"),
+        (lambda: pronet.Depth(T2, [1.0, 2.0], sigma=[0.1, 0.0]), "sigma"),
+        (lambda: pronet.Depth(T2, [1.0, 2.0], sigma=[0.1] * 3), "sigma"),
+        (lambda: pronet.Depth(T2, [1.0, math.nan], sigma=0.1), "depth"),
+        (lambda: pronet.Depth([1.5, 0.5], [1.0, 2.0], sigma=0.1), "time"),
+        (lambda: pronet.Depth([0.5], [1.0, 2.0], sigma=0.1), "time"),
+        (lambda: pronet.Depth(T2, [1.0, 2.0], sigma=0.1, lever_arm=[0, 0, -2e3]), "lever_arm"),
+        (lambda: pronet.Fix(*FIX1, sigma=[[-1.0, 1.0, 1.0]]), "sigma"),
+        (lambda: pronet.Fix(*FIX1, sigma=2.0), "sigma"),
+        (lambda: pronet.Fix(*FIX1, sigma=[[1.0, 1.0, 1.0]] * 2), "sigma"),
+        (lambda: pronet.Fix([1.0], [[0.56, 0.59]], sigma=[2.0] * 3), "lla"),
+        (lambda: pronet.Fix([1.0], [[math.inf, 0.59, 0.0]], sigma=[2.0] * 3), "lla"),
+        (lambda: pronet.Fix([1.0], [[1.6, 0.59, 0.0]], sigma=[2.0] * 3), "lla"),
+        (lambda: pronet.Fix([math.nan], FIX1[1], sigma=[2.0] * 3), "time"),
+        (lambda: pronet.Fix(*FIX1, sigma=[2.0] * 3, lever_arm=[math.inf, 0, 0]), "lever_arm"),
+    ],
+)
+def test_streams_reject_bad_arrays_naming_the_argument(make, arg) -> None:
+    """One ValueError line naming the constructor's argument, when the stream is made."""
+    with pytest.raises(ValueError, match=rf"^{arg}: ") as info:
+        make()
+    assert "\n" not in str(info.value)
+
+
+def test_a_ned_stream_beside_the_calibration_states_is_refused_naming_it() -> None:
+    calibrated = pronet.FilterConfig(dvl_calibration=True)
+    body, ned = pronet.Dvl([1.0], [[1.0, 0, 0]]), pronet.Dvl([1.5], [[1.0, 0, 0]], frame="ned")
+    with pytest.raises(ValueError, match=r"^streams\[1\]: a NED velocity stream"):
+        _run(streams=[body, ned], config=calibrated)
+    _run(streams=[body], config=calibrated)
+    _run(streams=[ned])
 
 
 def test_native_core_takes_any_real_numbers_and_refuses_the_rest_naming_the_argument() -> None:
@@ -129,18 +173,23 @@ def test_native_core_takes_any_real_numbers_and_refuses_the_rest_naming_the_argu
         config=pronet.FilterConfig(),
         strategy=STRAT,
     )
-    ref = _core.run_filter(imu, t, dvl, dvl_t, **kwargs)
-    as_lists = _core.run_filter(imu.tolist(), list(t), dvl.tolist(), tuple(dvl_t), **kwargs)
+    streams = [_core.Dvl(dvl_t, dvl)]
+    ref = _core.run_filter(imu, t, streams, **kwargs)
+    as_lists = _core.run_filter(
+        imu.tolist(), list(t), (_core.Dvl(tuple(dvl_t), dvl.tolist()),), **kwargs
+    )
     np.testing.assert_array_equal(as_lists["vel"], ref["vel"])
-    narrow = _core.run_filter(imu.astype(np.float32), t, dvl, dvl_t, **kwargs)
-    exact = _core.run_filter(imu.astype(np.float32).astype(np.float64), t, dvl, dvl_t, **kwargs)
+    narrow = _core.run_filter(imu.astype(np.float32), t, streams, **kwargs)
+    exact = _core.run_filter(imu.astype(np.float32).astype(np.float64), t, streams, **kwargs)
     np.testing.assert_array_equal(narrow["vel"], exact["vel"])
     with pytest.raises(ValueError, match="^imu: expected real numbers of shape"):
-        _core.run_filter(imu.astype(np.complex128), t, dvl, dvl_t, **kwargs)
-    with pytest.raises(ValueError, match="^dvl_time: expected real numbers of shape"):
-        _core.run_filter(imu, t, dvl, [str(x) for x in dvl_t], **kwargs)
-    with pytest.raises(ValueError, match="^dvl: expected real numbers of shape"):
-        _core.run_filter(imu, t, dvl != 0, dvl_t, **kwargs)
+        _core.run_filter(imu.astype(np.complex128), t, streams, **kwargs)
+    with pytest.raises(ValueError, match="^time: expected real numbers of shape"):
+        _core.Dvl([str(x) for x in dvl_t], dvl)
+    with pytest.raises(ValueError, match="^velocity: expected real numbers of shape"):
+        _core.Dvl(dvl_t, dvl != 0)
+    with pytest.raises(ValueError, match=r"^streams\[0\]: expected a Dvl, Depth or Fix"):
+        _core.run_filter(imu, t, [dvl], **kwargs)
 
 
 def test_layouts_are_accepted_and_agree() -> None:
@@ -151,8 +200,8 @@ def test_layouts_are_accepted_and_agree() -> None:
     strided = _run(imu=np.repeat(imu, 2, axis=0)[::2], imu_time=np.repeat(t, 2)[::2])
     np.testing.assert_array_equal(ref.vel, fortran.vel)
     np.testing.assert_array_equal(ref.vel, strided.vel)
-    as_int = _run(dvl=dvl.astype(np.int64))
-    np.testing.assert_array_equal(as_int.vel, _run(dvl=dvl.astype(float)).vel)
+    as_int = _run(streams=[pronet.Dvl(dvl_t, dvl.astype(np.int64))])
+    np.testing.assert_array_equal(as_int.vel, _run(streams=[pronet.Dvl(dvl_t, dvl)]).vel)
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -179,8 +228,6 @@ def test_hostile_filter_inputs_work_or_raise_value_error(imu, t_step, t0, q) -> 
             out = pronet.run_filter(
                 imu,
                 times,
-                np.empty((0, 3)),
-                np.empty(0),
                 t0=t0,
                 lla0=LLA0,
                 vel0=(0, 0, 0),
@@ -262,11 +309,12 @@ def test_run_filter_aiding_initial_state_and_q_schedule(args, kind) -> None:
         dvl, dvl_time = a.pop("dvl")
         if "q" in a:
             a["q"], a["q_time"] = a.pop("q")
-        return pronet.run_filter(imu, t, dvl, dvl_time, t0=0.0, strategy=strategy, **a)
+        streams = [pronet.Dvl(dvl_time, dvl)]
+        return pronet.run_filter(imu, t, streams, t0=0.0, strategy=strategy, **a)
 
     # DVL rows near 1e300 make the update diverge: the core reports "numerical failure:
     # ... (DVL row i, t = ...)", which names the row.
-    names = (*args, "dvl_time", "q_time", "strategy", "numerical failure")
+    names = (*args, "time", "velocity", "q_time", "strategy", "numerical failure")
     out = check(run, values, refs, names)
     if out is not None:
         dvl, dvl_time = refs["dvl"]
@@ -313,7 +361,8 @@ FIX_VALUES = st.one_of(st.floats(0.55, 0.6), st.just(math.nan))
         depth=(readings((), st.floats(-10, 100), True), readings((), None, False)),
         depth_sigma=(
             same(st.floats(0.01, 10)),
-            st.one_of(bad_scalars, st.floats(max_value=-1e-300)).map(lambda x: (x, None)),
+            # not a (1,) array: one σ per reading of a one-reading stream
+            st.one_of(BAD_SIGMAS, st.floats(max_value=-1e-300)).map(lambda x: (x, None)),
         ),
         fix=(
             readings((3,), FIX_VALUES, True, st.floats(0.1, 10)),
@@ -321,9 +370,9 @@ FIX_VALUES = st.one_of(st.floats(0.55, 0.6), st.just(math.nan))
         ),
     ),
 )
-def test_run_filter_depth_and_fix_arguments(args) -> None:
-    """The aiding arguments (``depth``, ``depth_time``, ``depth_sigma``, ``fix``,
-    ``fix_time``, ``fix_sigma``) in any layout, or one of them hostile (bad shapes and
+def test_run_filter_depth_and_fix_streams(args) -> None:
+    """The depth and fix streams' arguments (``Depth(time, depth, sigma=)``,
+    ``Fix(time, lla, sigma=)``) in any layout, or one of them hostile (bad shapes and
     lengths, NaN and inf, unsorted or repeated times, a negative or missing σ): the pass
     works with an update at every reading inside it, or raises one ValueError naming the
     argument; never a panic or a crash."""
@@ -332,13 +381,15 @@ def test_run_filter_depth_and_fix_arguments(args) -> None:
 
     def run(a):
         (depth, depth_time), (fix, fix_time, fix_sigma) = a["depth"], a["fix"]
+        streams = [
+            pronet.Depth(depth_time, depth, sigma=a["depth_sigma"]),
+            pronet.Fix(fix_time, fix, sigma=fix_sigma),
+        ]
         return pronet.run_filter(
-            imu, t, np.empty((0, 3)), np.empty(0), t0=0.0, lla0=LLA0, vel0=(0, 0, 0),
-            rpy0=(0, 0, 0), strategy=STRAT, depth=depth, depth_time=depth_time,
-            depth_sigma=a["depth_sigma"], fix=fix, fix_time=fix_time, fix_sigma=fix_sigma,
-        )  # fmt: skip
+            imu, t, streams, t0=0.0, lla0=LLA0, vel0=(0, 0, 0), rpy0=(0, 0, 0), strategy=STRAT
+        )
 
-    names = ("depth", "depth_time", "depth_sigma", "fix", "fix_time", "fix_sigma")
+    names = ("time", "depth", "sigma", "lla")
     out = check(run, values, refs, (*names, "numerical failure"))
     if out is not None:
         (depth, depth_time), (fix, fix_time, fix_sigma) = refs["depth"], refs["fix"]
@@ -348,6 +399,50 @@ def test_run_filter_depth_and_fix_arguments(args) -> None:
         assert out.fix_epoch.shape == out.fix_nis.shape == fix_time.shape
         assert (out.depth_epoch >= 0).all() and (out.fix_epoch >= 0).all()
         assert finite(out.lla, out.vel, out.sigma, out.depth_nis, out.fix_nis)
+
+
+@fuzz(80)
+@given(
+    args=one_hostile(
+        velocity=(
+            readings((3,), st.floats(-5, 5), True, st.floats(0.01, 1)),
+            readings((3,), None, False, True),
+        ),
+        lever_arm=(
+            good((3,), st.floats(-10, 10)),
+            vectors(3, within(2000.0), forms=CORE_FORMS, object_ok=True),
+        ),
+        gate=(same(st.floats(0.1, 100)), BAD_GATES.map(lambda x: (x, None))),
+    ),
+    frame=st.sampled_from([None, "body", "ned"]),
+    one_sigma=st.booleans(),
+)
+def test_run_filter_velocity_streams(args, frame, one_sigma) -> None:
+    """A velocity stream's arguments (``Dvl(time, velocity, sigma=, frame=, lever_arm=,
+    gate=)``, σ per row or one for all) in any layout, or one of them hostile (bad
+    shapes and lengths, NaN and inf, unsorted or repeated times, a negative σ, a lever
+    arm beyond ``MAX_LEVER_ARM``, a gate that is no number): the pass works with an
+    update at every row inside it, or raises one ValueError naming the argument."""
+    imu, t = _filter_imu(30)
+    values, refs = split(args)
+
+    def run(a):
+        velocity, time, sigma = a["velocity"]
+        if one_sigma and len(np.asarray(sigma, dtype=object)):
+            sigma = np.asarray(sigma)[0]
+        dvl = pronet.Dvl(
+            time, velocity, sigma=sigma, frame=frame, lever_arm=a["lever_arm"], gate=a["gate"]
+        )
+        return pronet.run_filter(
+            imu, t, [dvl], t0=0.0, lla0=LLA0, vel0=(0, 0, 0), rpy0=(0, 0, 0), strategy=STRAT
+        )
+
+    names = ("time", "velocity", "sigma", "lever_arm", "gate", "numerical failure")
+    out = check(run, values, refs, names)
+    if out is not None:
+        velocity, time, _ = refs["velocity"]
+        assert out.nis.shape == time.shape and out.streams[0].nis is out.nis
+        assert (out.dvl_epoch >= 0).all() and finite(out.lla, out.vel, out.sigma, out.nis)
 
 
 HUGE_FILTER = [
@@ -370,8 +465,6 @@ def test_run_filter_refuses_a_huge_input_or_stays_finite(overrides, arg) -> None
         lambda: pronet.run_filter(
             kwargs.pop("imu"),
             kwargs.pop("imu_time"),
-            np.empty((0, 3)),
-            np.empty(0),
             t0=0.0,
             rpy0=(0, 0, 0),
             strategy=pronet.Strategy.constant(PAPER_Q),
@@ -390,7 +483,7 @@ def test_huge_mehra_window_does_not_crash(window) -> None:
         s = pronet.Strategy.mehra({window}, PAPER_Q)
         imu = np.tile([0, 0, -9.8, 0, 0, 0.0], (20, 1))
         try:
-            pronet.run_filter(imu, 0.01 * np.arange(1, 21), np.ones((1, 3)), np.array([0.1]),
+            pronet.run_filter(imu, 0.01 * np.arange(1, 21), [pronet.Dvl([0.1], np.ones((1, 3)))],
                               t0=0.0, lla0=(0.5, 0.6, 0), vel0=(0, 0, 0), rpy0=(0, 0, 0),
                               strategy=s)
             print("ok")

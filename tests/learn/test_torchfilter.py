@@ -48,7 +48,7 @@ def _schedule(rec: Recorded, period: float = 23.0) -> tuple[np.ndarray, np.ndarr
 
 def _core(rec: Recorded, q_time, q, prior) -> FilterResult:
     return pronet.run_filter(
-        rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, t0=rec.t0, lla0=rec.lla0,
+        rec.imu, rec.imu_time, rec.streams(aided=False), t0=rec.t0, lla0=rec.lla0,
         vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
         strategy=pronet.Strategy.external(prior), q_time=q_time, q=q,
     )  # fmt: skip

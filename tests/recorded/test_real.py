@@ -254,8 +254,6 @@ def test_run_filter_checks_its_q_schedule(synthetic):
     args = dict(
         imu=section.imu[100:400],
         imu_time=section.imu_time[100:400],
-        dvl=section.dvl[:0],
-        dvl_time=section.dvl_time[:0],
         t0=section.imu_time[99],
         lla0=section.truth_lla[i0],
         vel0=section.truth_vel[i0],

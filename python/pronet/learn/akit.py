@@ -143,7 +143,7 @@ def akit_schedule(net: AkitNet, rec: Any, prior_q: Sequence[float]) -> QSchedule
     for j, end in enumerate(ends):
         take = rec.dvl_time < rec.imu_time[end - 1] + 0.5 * dt
         result = run_filter(
-            rec.imu[:end], rec.imu_time[:end], rec.dvl[take], rec.dvl_time[take],
+            rec.imu[:end], rec.imu_time[:end], [_core.Dvl(rec.dvl_time[take], rec.dvl[take])],
             t0=rec.t0, lla0=rec.lla0, vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
             strategy=_core.Strategy.external(tuple(prior)),
             q_time=times[:j] if j else None, q=np.array(rows) if j else None, epochs="last",

@@ -16,8 +16,9 @@ fix   ``time [s]``, ``lat``, ``lon [rad | deg]``; optional ``height [m]`` (up: a
       ``sigma_e``, ``sigma_d [m]`` (1σ north, east, down; the three together)
 ===== =============================================================================
 
-Both refer to the IMU's point (the filter's rule, ``run_filter(depth=, fix=)``): a
-depth sensor or an antenna away from it is not moved. Their stamps are taken on the
+Both refer to the IMU's point (their streams, :func:`filter_aiding`'s
+:class:`pronet.Depth` and :class:`pronet.Fix`, have no lever arm): a depth sensor or an
+antenna away from it is not moved. Their stamps are taken on the
 IMU's clock, counted from the section's epoch as every stream's, or on the DVL's or the
 ground truth's as estimated (:func:`pronet.recorded.alignment.load_section`'s
 ``aiding_clock``, :class:`~pronet.recorded.alignment.Alignment`'s): no clock is
@@ -54,7 +55,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -358,16 +359,19 @@ def tuned(
     return (depth if tuning.use_depth else None), (fixes if tuning.use_fixes else None)
 
 
-def filter_aiding(depth: DepthReadings | None, fixes: PositionFixes | None) -> dict[str, Any]:
-    """The ``run_filter`` keywords (``depth``, ``depth_time``, ``depth_sigma``, ``fix``,
-    ``fix_time``, ``fix_sigma``) of a section's streams, their σ the file's, else the
-    defaults (:func:`tuned` puts a vehicle's in first); empty for none. The filter
-    takes one depth σ per pass: the median of the rows'."""
+def filter_aiding(
+    depth: DepthReadings | None, fixes: PositionFixes | None
+) -> tuple[_core.Depth | _core.Fix, ...]:
+    """The streams a pass takes after the DVL (:func:`pronet.run_filter`): a section's
+    depth readings (:class:`pronet.Depth`) and position fixes (:class:`pronet.Fix`),
+    both at the IMU's point, their σ the file's, else the defaults (:func:`tuned` puts
+    a vehicle's in first); empty for none. The depth stream takes one σ per pass: the
+    median of the rows'."""
     depth, fixes = tuned(depth, fixes, AidingTuning())
-    out: dict[str, Any] = {}
+    out: list[_core.Depth | _core.Fix] = []
     if depth is not None and depth.sigma is not None:
         sigma = float(np.median(depth.sigma))
-        out.update(depth=depth.depth, depth_time=depth.time, depth_sigma=sigma)
+        out.append(_core.Depth(depth.time, depth.depth, sigma=sigma))
     if fixes is not None:
-        out.update(fix=fixes.lla, fix_time=fixes.time, fix_sigma=fixes.sigma)
-    return out
+        out.append(_core.Fix(fixes.time, fixes.lla, sigma=fixes.sigma))
+    return tuple(out)

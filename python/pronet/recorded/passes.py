@@ -154,7 +154,7 @@ def section_recorded(
         config=config,
         epochs=epochs,
         smooth=smooth,
-        aiding=filter_aiding(section.depth, section.fixes) if flag(aided, "aided") else {},
+        aiding=filter_aiding(section.depth, section.fixes) if flag(aided, "aided") else (),
     )
 
 

@@ -148,7 +148,7 @@ pub fn readonly_column<'py>(
 /// Whether `obj` is a real number: a Python int or float (not a bool), or a NumPy value
 /// of integer or float dtype. Extraction to f64 alone would let bools through as 1.0 and
 /// drop the imaginary part of complex NumPy values.
-fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
+pub fn is_real_number(obj: &Bound<'_, PyAny>) -> bool {
     if obj.is_instance_of::<PyBool>() {
         return false;
     }

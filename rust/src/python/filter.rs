@@ -1,4 +1,4 @@
-//! `run_filter`: one filter pass over given IMU and DVL arrays.
+//! `run_filter`: one filter pass over given IMU arrays and sensor streams.
 
 use super::call::{interruptible, invalid, to_py_err};
 use super::config::PyFilterConfig;
@@ -7,81 +7,17 @@ use super::convert::{
     readonly_rows, rows, rows_array,
 };
 use super::strategy::PyStrategy;
+use super::streams::{stream_items, stream_ref, StreamRef};
 use crate::attitude::euler_from_dcm;
-use crate::measurement::check_depth_sigma;
 use crate::mechanization::NavState;
 use crate::recorded::{
-    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, Stream,
-    StreamRecord,
+    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, StreamRecord,
 };
 use crate::smoother::Smoothed;
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
-
-/// The depth readings and position fixes of a pass, each group all or none.
-struct Aiding {
-    depth_given: bool,
-    fix_given: bool,
-    depth: Vec<f64>,
-    depth_time: Vec<f64>,
-    depth_sigma: f64,
-    fix: Vec<[f64; 3]>,
-    fix_time: Vec<f64>,
-    fix_sigma: Vec<[f64; 3]>,
-}
-
-impl Aiding {
-    fn new(
-        depth: Option<&Bound<'_, PyAny>>,
-        depth_time: Option<&Bound<'_, PyAny>>,
-        depth_sigma: Option<f64>,
-        fix: Option<&Bound<'_, PyAny>>,
-        fix_time: Option<&Bound<'_, PyAny>>,
-        fix_sigma: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let (depth, depth_time, depth_sigma) = match (depth, depth_time, depth_sigma) {
-            (Some(d), Some(t), Some(s)) => {
-                // A σ given is checked, readings or not (None stands for no sensor).
-                check_depth_sigma(s).map_err(to_py_err)?;
-                (column(d, "depth")?, column(t, "depth_time")?, s)
-            }
-            (None, None, None) => (Vec::new(), Vec::new(), f64::NAN),
-            _ => {
-                return Err(invalid(
-                    "depth",
-                    "depth, depth_time and depth_sigma go together: give all three or none",
-                ))
-            }
-        };
-        let fix_sigma_given = fix_sigma.is_some();
-        let (fix, fix_time, fix_sigma) = match (fix, fix_time, fix_sigma) {
-            (Some(f), Some(t), Some(s)) => (
-                rows::<3>(f, "fix")?,
-                column(t, "fix_time")?,
-                rows::<3>(s, "fix_sigma")?,
-            ),
-            (None, None, None) => (Vec::new(), Vec::new(), Vec::new()),
-            _ => {
-                return Err(invalid(
-                    "fix",
-                    "fix, fix_time and fix_sigma go together: give all three or none",
-                ))
-            }
-        };
-        Ok(Self {
-            depth_given: depth_sigma.is_finite(),
-            fix_given: fix_sigma_given,
-            depth,
-            depth_time,
-            depth_sigma,
-            fix,
-            fix_time,
-            fix_sigma,
-        })
-    }
-}
+use pyo3::types::{PyDict, PyList};
 
 /// The q schedule `(q_time, q)`: both or neither.
 type QSchedule = (Vec<f64>, Vec<[f64; 6]>);
@@ -100,29 +36,25 @@ fn q_schedule(
     }
 }
 
-/// One filter pass; see :class:`pronet.FilterResult` for the keys. ``q_time`` (k,)
-/// [s] and ``q`` (k, 6): a q schedule for an external strategy. ``epochs``: ``"all"``
-/// or ``"last"`` (the epoch arrays keep only the last epoch). ``output_step`` [s] (> 0,
-/// with ``"all"``): keep ``t0``, the epoch nearest each multiple of it and the last
-/// (key ``epoch``: each row's index among all; empty without). ``covariance_time``
-/// (j,) [s], strictly increasing: keep the full covariance at the epoch nearest each.
-/// ``smooth``: also run the RTS smoother (key ``smoothed``: a dict of ``lla``, ``vel``,
-/// ``rpy``, ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch;
-/// None without). Key ``adaptive_q``: None where no DVL row has one. ``depth`` (d,)
-/// [m, down] at
-/// ``depth_time`` (d,) [s] with 1σ ``depth_sigma`` [m]; ``fix`` (f, 3) ``[lat, lon
-/// (rad), h (m; NaN: none)]`` at ``fix_time`` (f,) [s] with 1σ ``fix_sigma`` (f, 3)
-/// [m, N E D]: position and depth updates, each group all or none. ``|lla0[0]|`` <= 89°.
+/// One filter pass: :func:`pronet.run_filter` (its arguments, ``config`` required),
+/// returning the dict :class:`pronet.FilterResult` is made of. ``streams``: a sequence
+/// of :class:`Dvl`, :class:`Depth` and :class:`Fix`, applied at an epoch in this order.
+/// Key ``streams``: a dict per stream, in order, of ``kind`` (``"velocity"``,
+/// ``"depth"`` or ``"fix"``), ``epoch`` (r,) (-1 outside the run), ``nis`` (r,) (NaN
+/// outside) and, for a velocity stream, ``innovation``, ``innovation_cov``, ``gain``,
+/// ``accepted``, ``adaptive_q`` (None where no row has one, as the top-level key). The
+/// top-level update keys are the first velocity, depth and fix stream's (the same
+/// arrays; no rows without one). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``,
+/// ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch, or None.
 #[pyfunction]
-#[pyo3(signature = (imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false, depth = None, depth_time = None, depth_sigma = None, fix = None, fix_time = None, fix_sigma = None),
-    text_signature = "(imu, imu_time, dvl, dvl_time, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', output_step=None, covariance_time=None, smooth=False, depth=None, depth_time=None, depth_sigma=None, fix=None, fix_time=None, fix_sigma=None)")]
+#[pyo3(signature = (imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false),
+    text_signature = "(imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', output_step=None, covariance_time=None, smooth=False)")]
 #[allow(clippy::too_many_arguments)]
 fn run_filter<'py>(
     py: Python<'py>,
     imu: &Bound<'py, PyAny>,
     imu_time: &Bound<'py, PyAny>,
-    dvl: &Bound<'py, PyAny>,
-    dvl_time: &Bound<'py, PyAny>,
+    streams: &Bound<'py, PyAny>,
     #[pyo3(from_py_with = arg_t0)] t0: f64,
     lla0: &Bound<'py, PyAny>,
     vel0: &Bound<'py, PyAny>,
@@ -136,12 +68,6 @@ fn run_filter<'py>(
     output_step: Option<f64>,
     covariance_time: Option<&Bound<'py, PyAny>>,
     smooth: bool,
-    depth: Option<&Bound<'py, PyAny>>,
-    depth_time: Option<&Bound<'py, PyAny>>,
-    depth_sigma: Option<f64>,
-    fix: Option<&Bound<'py, PyAny>>,
-    fix_time: Option<&Bound<'py, PyAny>>,
-    fix_sigma: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let epochs = match (epochs.as_str(), output_step) {
         ("all", None) => Epochs::All,
@@ -176,15 +102,13 @@ fn run_filter<'py>(
     let imu_time_array = readonly_column(imu_time, "imu_time")?;
     let imu_time = as_values(&imu_time_array);
     let imu_time = &*imu_time;
-    let dvl_array = readonly_rows::<3>(dvl, "dvl")?;
-    let dvl_rows = as_rows::<3>(&dvl_array);
-    let dvl = &*dvl_rows;
-    let dvl_time = column(dvl_time, "dvl_time")?;
+    // The streams are frozen objects holding their arrays: borrowed, not copied.
+    let items = stream_items(streams)?;
+    let sources: Vec<StreamRef<'_>> = items.iter().map(stream_ref).collect();
     let covariance_time = match covariance_time {
         Some(times) => column(times, "covariance_time")?,
         None => Vec::new(),
     };
-    let aiding = Aiding::new(depth, depth_time, depth_sigma, fix, fix_time, fix_sigma)?;
     let init = nav_state(lla0, vel0, rpy0)?;
     let bias0 = fixed_or::<6>(bias0, "bias0", [0.0; 6])?;
     let cfg = config.inner.clone();
@@ -193,21 +117,11 @@ fn run_filter<'py>(
     // runs sections on threads, which would otherwise queue for it while one of them
     // copies its ~40 MB of results.
     let arrays = interruptible(py, move |cancel| {
-        let mut streams = vec![Stream::dvl(dvl, &dvl_time, &cfg)];
-        if aiding.depth_given {
-            streams.push(Stream::depth(
-                &aiding.depth,
-                &aiding.depth_time,
-                aiding.depth_sigma,
-            ));
-        }
-        if aiding.fix_given {
-            streams.push(Stream::fix(
-                &aiding.fix,
-                &aiding.fix_time,
-                &aiding.fix_sigma,
-            ));
-        }
+        let streams = sources
+            .iter()
+            .enumerate()
+            .map(|(i, s)| s.stream(i, &cfg))
+            .collect();
         let data = RecordedData {
             imu,
             imu_time,
@@ -218,14 +132,53 @@ fn run_filter<'py>(
             covariance_time: &covariance_time,
         };
         let mut strat = spec.build(cfg.bias_psd());
+        let kinds: Vec<Kind> = data.streams.iter().map(Kind::of).collect();
         if smooth {
             smooth_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         } else {
             filter_recorded_until(&data, init, bias0, &cfg, strat.as_mut(), epochs, cancel)
         }
-        .map(|out| OutputArrays::new(out, aiding.depth_given, aiding.fix_given))
+        .map(|out| OutputArrays::new(out, &kinds))
     })?;
     arrays.into_dict(py)
+}
+
+/// What a stream reads, for the top-level keys (the first stream of each kind).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Velocity,
+    Depth,
+    Fix,
+}
+
+impl Kind {
+    const ALL: [Kind; 3] = [Kind::Velocity, Kind::Depth, Kind::Fix];
+
+    fn of(stream: &crate::recorded::Stream<'_>) -> Self {
+        use crate::recorded::Values;
+        match stream.values {
+            Values::Velocity { .. } => Kind::Velocity,
+            Values::Depth { .. } => Kind::Depth,
+            Values::Fix { .. } => Kind::Fix,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Velocity => "velocity",
+            Kind::Depth => "depth",
+            Kind::Fix => "fix",
+        }
+    }
+
+    /// The top-level keys of the first stream of the kind: its epochs and NIS.
+    fn keys(self) -> (&'static str, &'static str) {
+        match self {
+            Kind::Velocity => ("dvl_epoch", "nis"),
+            Kind::Depth => ("depth_epoch", "depth_nis"),
+            Kind::Fix => ("fix_epoch", "fix_nis"),
+        }
+    }
 }
 
 /// The pass's epochs and updates as the arrays of the dict `pronet.FilterResult`
@@ -239,26 +192,134 @@ struct OutputArrays {
     calibration: Array2<f64>,
     calibration_sigma: Array2<f64>,
     covariance: Array2<f64>,
-    /// Per depth reading and position fix: the epoch (-1 outside the run) and NIS.
-    depth_epoch: Array1<i64>,
-    depth_nis: Array1<f64>,
-    fix_epoch: Array1<i64>,
-    fix_nis: Array1<f64>,
     /// Per asked-for time: -1 and NaN where a time fell outside the run.
     covariance_epoch: Array1<i64>,
     covariances: Array3<f64>,
-    dvl_epoch: Array1<i64>,
     diverged_at: Option<f64>,
-    /// Per DVL row: NaN (and not accepted) where a row fell outside the run.
-    innovation: Array2<f64>,
-    innovation_cov: Array3<f64>,
-    nis: Array1<f64>,
-    accepted: Array1<bool>,
-    gain: Array3<f64>,
-    /// None where no DVL row has one.
-    adaptive_q: Option<Array3<f64>>,
+    /// Each stream's rows, in the order given, with its kind.
+    streams: Vec<(Kind, StreamArrays)>,
     /// The smoothed solution's (`pronet.SmoothedResult`).
     smoothed: Option<EpochArrays>,
+}
+
+/// What a pass did with each row of one stream: the epoch (-1 outside the run) and
+/// the NIS (NaN outside), and a velocity stream's updates.
+struct StreamArrays {
+    epoch: Array1<i64>,
+    nis: Array1<f64>,
+    velocity: Option<VelocityArrays>,
+}
+
+/// A velocity stream's updates, per row: NaN (and not accepted) where a row fell
+/// outside the run.
+struct VelocityArrays {
+    innovation: Array2<f64>,
+    innovation_cov: Array3<f64>,
+    accepted: Array1<bool>,
+    gain: Array3<f64>,
+    /// None where no row has one.
+    adaptive_q: Option<Array3<f64>>,
+}
+
+impl StreamArrays {
+    fn new(record: StreamRecord, kind: Kind) -> Self {
+        let StreamRecord {
+            epoch,
+            nis,
+            updates,
+            adaptive_q,
+        } = record;
+        if kind != Kind::Velocity {
+            return Self {
+                epoch: epochs_array(&epoch),
+                nis: Array1::from(nis),
+                velocity: None,
+            };
+        }
+        let m = updates.len();
+        let nan3 = [f64::NAN; 3];
+        let velocity = VelocityArrays {
+            innovation: rows_array(
+                updates
+                    .iter()
+                    .map(|u| u.as_ref().map_or(nan3, |u| u.innovation.into())),
+            ),
+            innovation_cov: Array3::from_shape_fn((m, 3, 3), |(k, i, j)| {
+                updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
+            }),
+            accepted: updates
+                .iter()
+                .map(|u| u.as_ref().is_some_and(|u| u.accepted))
+                .collect(),
+            gain: Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
+                updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
+            }),
+            // None where no row has one: NumPy gives the all-NaN array as a view.
+            adaptive_q: adaptive_q.iter().any(Option::is_some).then(|| {
+                Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
+                    adaptive_q[k].as_ref().map_or(f64::NAN, |q| q[(i, j)])
+                })
+            }),
+        };
+        Self {
+            epoch: epochs_array(&epoch),
+            // A velocity row's NIS is its update's (NaN outside the run).
+            nis: updates
+                .iter()
+                .map(|u| u.as_ref().map_or(f64::NAN, |u| u.nis))
+                .collect(),
+            velocity: Some(velocity),
+        }
+    }
+
+    /// The stream's dict, each array handed to NumPy without a copy; the first
+    /// stream of its kind also fills the top-level keys of `top` with the same arrays.
+    fn into_dict<'py>(
+        self,
+        py: Python<'py>,
+        kind: Kind,
+        top: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("kind", kind.name())?;
+        let (epoch_key, nis_key) = kind.keys();
+        let mut items = vec![
+            ("epoch", epoch_key, self.epoch.into_pyarray(py).into_any()),
+            ("nis", nis_key, self.nis.into_pyarray(py).into_any()),
+        ];
+        if let Some(v) = self.velocity {
+            let adaptive_q = match v.adaptive_q {
+                Some(q) => q.into_pyarray(py).into_any(),
+                None => py.None().into_bound(py),
+            };
+            items.extend([
+                (
+                    "innovation",
+                    "innovation",
+                    v.innovation.into_pyarray(py).into_any(),
+                ),
+                (
+                    "innovation_cov",
+                    "innovation_cov",
+                    v.innovation_cov.into_pyarray(py).into_any(),
+                ),
+                (
+                    "accepted",
+                    "accepted",
+                    v.accepted.into_pyarray(py).into_any(),
+                ),
+                ("gain", "gain", v.gain.into_pyarray(py).into_any()),
+                ("adaptive_q", "adaptive_q", adaptive_q),
+            ]);
+        }
+        for (key, top_key, value) in items {
+            if let Some(top) = top {
+                top.set_item(top_key, &value)?;
+            }
+            d.set_item(key, value)?;
+        }
+        Ok(d)
+    }
 }
 
 /// A solution's arrays at every epoch: position, velocity, attitude, biases, σ (and
@@ -313,21 +374,10 @@ impl EpochArrays {
 impl OutputArrays {
     /// The epochs' time, bias, sigma and calibration arrays take over the output's
     /// vectors without a copy.
-    fn new(mut out: FilterOutput, depth: bool, fix: bool) -> Self {
-        let mut streams = std::mem::take(&mut out.streams).into_iter();
-        let dvl = streams.next().unwrap_or_default();
-        let depth = if depth { streams.next() } else { None }.unwrap_or_default();
-        let fix = if fix { streams.next() } else { None }.unwrap_or_default();
-        let m = dvl.updates.len();
+    fn new(mut out: FilterOutput, kinds: &[Kind]) -> Self {
+        let streams = std::mem::take(&mut out.streams);
         let smoothed = out.smoothed.take().map(EpochArrays::smoothed);
         let p = out.final_covariance;
-        let nan3 = [f64::NAN; 3];
-        let StreamRecord {
-            epoch: dvl_epoch,
-            updates,
-            adaptive_q,
-            ..
-        } = dvl;
         Self {
             epochs: EpochArrays::new(&out.nav, out.bias, out.sigma),
             time: Array1::from(out.time),
@@ -336,40 +386,15 @@ impl OutputArrays {
             calibration_sigma: Array2::from(out.calibration_sigma),
             covariance: Array2::from_shape_fn((15, 15), |(i, j)| p[(i, j)]),
             covariance_epoch: epochs_array(&out.covariance_epoch),
-            depth_epoch: epochs_array(&depth.epoch),
-            depth_nis: Array1::from(depth.nis),
-            fix_epoch: epochs_array(&fix.epoch),
-            fix_nis: Array1::from(fix.nis),
             covariances: Array3::from_shape_fn((out.covariances.len(), 15, 15), |(k, i, j)| {
                 out.covariances[k].map_or(f64::NAN, |p| p[(i, j)])
             }),
-            dvl_epoch: epochs_array(&dvl_epoch),
             diverged_at: out.nis_monitor.diverged_at,
-            innovation: rows_array(
-                updates
-                    .iter()
-                    .map(|u| u.as_ref().map_or(nan3, |u| u.innovation.into())),
-            ),
-            innovation_cov: Array3::from_shape_fn((m, 3, 3), |(k, i, j)| {
-                updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
-            }),
-            nis: updates
-                .iter()
-                .map(|u| u.as_ref().map_or(f64::NAN, |u| u.nis))
+            streams: streams
+                .into_iter()
+                .zip(kinds)
+                .map(|(record, &kind)| (kind, StreamArrays::new(record, kind)))
                 .collect(),
-            accepted: updates
-                .iter()
-                .map(|u| u.as_ref().is_some_and(|u| u.accepted))
-                .collect(),
-            gain: Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
-                updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
-            }),
-            // None where no row has one: NumPy gives the all-NaN array as a view.
-            adaptive_q: adaptive_q.iter().any(Option::is_some).then(|| {
-                Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
-                    adaptive_q[k].as_ref().map_or(f64::NAN, |q| q[(i, j)])
-                })
-            }),
             smoothed,
         }
     }
@@ -384,22 +409,22 @@ impl OutputArrays {
         d.set_item("calibration_sigma", self.calibration_sigma.into_pyarray(py))?;
         d.set_item("covariance", self.covariance.into_pyarray(py))?;
         d.set_item("covariance_epoch", self.covariance_epoch.into_pyarray(py))?;
-        d.set_item("depth_epoch", self.depth_epoch.into_pyarray(py))?;
-        d.set_item("depth_nis", self.depth_nis.into_pyarray(py))?;
-        d.set_item("fix_epoch", self.fix_epoch.into_pyarray(py))?;
-        d.set_item("fix_nis", self.fix_nis.into_pyarray(py))?;
         d.set_item("covariances", self.covariances.into_pyarray(py))?;
-        d.set_item("dvl_epoch", self.dvl_epoch.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
-        d.set_item("innovation", self.innovation.into_pyarray(py))?;
-        d.set_item("innovation_cov", self.innovation_cov.into_pyarray(py))?;
-        d.set_item("nis", self.nis.into_pyarray(py))?;
-        d.set_item("accepted", self.accepted.into_pyarray(py))?;
-        d.set_item("gain", self.gain.into_pyarray(py))?;
-        match self.adaptive_q {
-            Some(q) => d.set_item("adaptive_q", q.into_pyarray(py))?,
-            None => d.set_item("adaptive_q", py.None())?,
+        let mut first = Kind::ALL.map(|_| true);
+        let per_stream = PyList::empty(py);
+        for (kind, arrays) in self.streams {
+            let slot = &mut first[kind as usize];
+            let top = std::mem::replace(slot, false).then_some(&d);
+            per_stream.append(arrays.into_dict(py, kind, top)?)?;
         }
+        // Without a stream of a kind, its top-level keys hold no rows.
+        for (kind, missing) in Kind::ALL.into_iter().zip(first) {
+            if missing {
+                StreamArrays::new(StreamRecord::default(), kind).into_dict(py, kind, Some(&d))?;
+            }
+        }
+        d.set_item("streams", per_stream)?;
         match self.smoothed {
             Some(s) => {
                 let smoothed = PyDict::new(py);

@@ -17,6 +17,7 @@ mod montecarlo;
 mod navigation;
 mod sensors;
 mod strategy;
+mod streams;
 mod trajectory;
 
 use pyo3::prelude::*;
@@ -43,6 +44,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     config::register(m)?;
     strategy::register(m)?;
     sensors::register(m)?;
+    streams::register(m)?;
     filter::register(m)?;
     montecarlo::register(m)?;
     ensemble::register(m)?;

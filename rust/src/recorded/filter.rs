@@ -255,6 +255,9 @@ impl<'a> Recording<'a> {
         let (data, initial, bias) = (self.data, &self.initial, &self.initial_bias);
         earth::check_latitude("lla0", initial.lla[0])?;
         data.validate()?;
+        for stream in &data.streams {
+            stream.check_config(self.cfg)?;
+        }
         if !data.q_time.is_empty() && !strategy.takes_outside_q() {
             return Err(Error::invalid(
                 "strategy",

@@ -21,13 +21,16 @@ pub use data::RecordedData;
 pub use epochs::Epochs;
 pub use filter::{filter_recorded, filter_recorded_until, smooth_recorded_until};
 pub use output::{FilterOutput, StreamRecord};
-pub use stream::{PerRow, Stream, Values};
+pub use stream::{velocity_variance, PerRow, Stream, Values};
 
 #[cfg(test)]
 mod tests;
 
 #[cfg(test)]
 mod smoother_tests;
+
+#[cfg(test)]
+mod stream_tests;
 
 #[cfg(test)]
 mod thinned_tests;

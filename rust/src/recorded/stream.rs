@@ -146,7 +146,28 @@ impl<'a> Stream<'a> {
         }
     }
 
-    /// Lengths, times, values and noise, each error naming the array.
+    /// Whether the stream can feed a filter of configuration `cfg`: the DVL
+    /// calibration states read body-frame velocities, so a NED velocity stream is
+    /// refused beside them (named by the stream's `name`).
+    pub fn check_config(&self, cfg: &FilterConfig) -> Result<()> {
+        if let Values::Velocity {
+            frame: Aiding::Nav, ..
+        } = self.values
+        {
+            if cfg.dvl_calibration.is_some() {
+                return Err(Error::invalid(
+                    &self.name,
+                    "a NED velocity stream beside the DVL calibration states \
+                     (FilterConfig(dvl_calibration=True)), which need body-frame DVL \
+                     readings: give body-frame velocities, or a filter without the states",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Lengths, times, values, noise, gate and lever arm (finite), each error naming
+    /// the array (`lever_arm`, `{name}_gate`).
     pub fn validate(&self) -> Result<()> {
         let name = &self.name;
         // Each array as long as the times, the σ rows as the values.
@@ -170,7 +191,15 @@ impl<'a> Stream<'a> {
         };
         check_lever_arm(&format!("{name}_lever_arm"), self.lever_arm.as_slice())?;
         match self.values {
-            Values::Velocity { rows, variance, .. } => {
+            Values::Velocity {
+                rows,
+                variance,
+                gate,
+                ..
+            } => {
+                if let Some(gate) = gate {
+                    check::positive(&format!("{name}_gate"), gate)?;
+                }
                 same(self.len(), rows.len())?;
                 for (i, row) in rows.iter().enumerate() {
                     check::finite(name, row).map_err(|_| {
@@ -220,6 +249,28 @@ impl<'a> Stream<'a> {
         }
         check::increasing(&format!("{name}_time"), self.time)
     }
+}
+
+/// The variances \[(m/s)²\] of a velocity stream's 1σ rows `sigma` \[m/s\] (one row for
+/// all, or one per row): each σ finite and > 0 with a square finite and > 0, or an
+/// error naming `{name}_sigma` and the row.
+pub fn velocity_variance(name: &str, sigma: &[[f64; 3]]) -> Result<Vec<[f64; 3]>> {
+    let square = |s: &[f64; 3]| s.map(|x| x * x);
+    let good = |s: &[f64; 3]| {
+        let v = square(s);
+        (0..3).all(|j| s[j] > 0.0 && s[j].is_finite() && v[j] > 0.0 && v[j].is_finite())
+    };
+    if let Some(i) = sigma.iter().position(|s| !good(s)) {
+        return Err(Error::invalid(
+            format!("{name}_sigma"),
+            format!(
+                "row {i} must hold 3 finite 1σ > 0 [m/s] whose squares (the variances) \
+                 are finite and > 0, got {:?}",
+                sigma[i]
+            ),
+        ));
+    }
+    Ok(sigma.iter().map(square).collect())
 }
 
 /// An error about row `i` of an array: the row named after the array's name.

@@ -159,9 +159,9 @@ def sensor_batch(
     ends_pass: bool = True,
 ) -> Batch:
     """One sequence (B = 1) from a pass's arrays as :func:`pronet.run_filter` takes them
-    (``imu`` ``(n, 6)``, ``imu_time`` ``(n,)`` [s], ``dvl`` ``(m, 3)`` at ``dvl_time``
-    [s], start time ``t0`` [s]) filtered with ``config``; ``ends_pass``: the last sample
-    is the pass's last (the core closes its covariance step there)."""
+    (``imu`` ``(n, 6)``, ``imu_time`` ``(n,)`` [s], the DVL stream's ``dvl`` ``(m, 3)``
+    at ``dvl_time`` [s], start time ``t0`` [s]) filtered with ``config``; ``ends_pass``:
+    the last sample is the pass's last (the core closes its covariance step there)."""
     t = np.asarray(imu_time, dtype=np.float64)
     rows = np.asarray(dvl, dtype=np.float64).reshape(-1, 3)
     epoch = dvl_epochs(t, float(t0), np.asarray(dvl_time, dtype=np.float64))

@@ -164,7 +164,7 @@ def windows(
             continue
         epoch_time = np.concatenate([[rec.t0], rec.imu_time])
         result = run_filter(
-            rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, t0=rec.t0, lla0=rec.lla0,
+            rec.imu, rec.imu_time, [_core.Dvl(rec.dvl_time, rec.dvl)], t0=rec.t0, lla0=rec.lla0,
             vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
             strategy=_core.Strategy.external(prior_q), q_time=q_time, q=q,
             covariance_time=epoch_time[starts],
