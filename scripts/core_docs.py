@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     docs = stub_docs()
     found: set[str] = set()
     stale = []
-    for path in sorted(BINDINGS.glob("*.rs")):
+    for path in sorted(BINDINGS.rglob("*.rs")):
         text = path.read_text(encoding="utf-8")
         new = rewrite(text, docs, found)
         if new != text:
