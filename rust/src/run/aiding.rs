@@ -16,11 +16,13 @@ pub(super) struct AidingTally {
 impl AidingTally {
     /// An aiding reading applied.
     pub(super) fn add(&mut self, reading: &Reading, applied: &Applied) {
-        match reading {
-            Reading::Depth(_) => self.depth_updates += 1,
-            Reading::Fix(_) => self.fix_updates += 1,
-            Reading::Velocity(_) => return,
+        // The velocity readings have their own tally; every other reading's NIS is
+        // summed here, the depths and fixes counted too.
+        if let Reading::Velocity(_) = reading {
+            return;
         }
+        self.depth_updates += usize::from(matches!(reading, Reading::Depth(_)));
+        self.fix_updates += usize::from(matches!(reading, Reading::Fix(_)));
         self.nis_sum += applied.nis;
         self.dof += applied.dof;
     }
