@@ -73,6 +73,7 @@ def _streams(f: Form) -> list[Any]:
         _core.Dvl(f(DVL_T), f(DVL), sigma=f([[0.1] * 3] * 2), lever_arm=f([0.1, 0.0, 0.2])),
         _core.Depth(f([1.5]), f([5.0]), sigma=f([0.1]), lever_arm=f([0.0, 0.0, 0.3])),
         _core.Fix(f([2.0]), f([LLA0]), sigma=f([2.0, 2.0, 2.0]), lever_arm=f([0.0, 0.0, -1.0])),
+        _core.Heading(f([1.0, 2.5]), f([0.01, 0.02]), sigma=f([0.01, 0.02])),
     ]
 
 
@@ -169,7 +170,14 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
         ],
     ),  # fmt: skip
     "run_filter": (
-        ("_core.run_filter", "pronet.run_filter", "_core.Dvl", "_core.Depth", "_core.Fix"),
+        (
+            "_core.run_filter",
+            "pronet.run_filter",
+            "_core.Dvl",
+            "_core.Depth",
+            "_core.Fix",
+            "_core.Heading",
+        ),
         lambda f: (
             _run_filter(_core.run_filter, f)["covariances"],
             _run_filter(pronet.run_filter, f).covariances,

@@ -11,7 +11,7 @@ import pytest
 
 import pronet
 
-from numpy_reference_ekf import run_reference_filter
+from numpy_reference_ekf import dcm_from_euler, run_reference_filter
 from numpy_reference_smoother import rts_smooth
 from test_numpy_reference_ekf import P0, Q, _inputs
 
@@ -44,13 +44,74 @@ def _streams(aiding: dict) -> list:
     ]
 
 
+DEPTH_ARM, FIX_ARM = (0.3, 0.1, 1.2), (-0.5, 0.2, -2.0)  # [m, body FRD]
+
+
+def _arms_and_headings(traj: pronet.Trajectory, seconds: float, rng: np.random.Generator):
+    """``_aiding``'s readings taken by a pressure sensor at ``DEPTH_ARM`` and an
+    antenna at ``FIX_ARM``, told to the filter, and headings every 5 s (the truth plus
+    2 mrad, σ per row): the first before the run, one given a turn away (±2π)."""
+    aiding = _aiding(traj, seconds, rng)
+    for key, arm, time in (("depth", DEPTH_ARM, aiding["depth_time"]),
+                           ("fix", FIX_ARM, aiding["fix_time"][1:])):  # fmt: skip
+        k = np.rint(time * 100).astype(int)
+        offset = np.einsum("kij,j->ki", [dcm_from_euler(*traj.rpy[i]) for i in k], arm)
+        if key == "depth":
+            aiding["depth"] = aiding["depth"] + offset[:, 2]
+        else:  # the truth plus noise moved by the arm's NED offset
+            noisy = aiding["fix"][1:]
+            at = np.nan_to_num(noisy)  # a horizontal fix: moved about height 0
+            moved = [pronet.lla_from_ned(o, p) for o, p in zip(offset, at, strict=True)]
+            aiding["fix"][1:] = np.where(np.isnan(noisy), np.nan, moved)
+    h = np.arange(500, int(seconds * 100) + 1, 500)
+    heading = traj.rpy[h, 2] + rng.normal(size=len(h)) * 2e-3
+    heading[3] += -2 * math.pi if heading[3] > 0 else 2 * math.pi
+    return dict(aiding, depth_lever_arm=DEPTH_ARM, fix_lever_arm=FIX_ARM,
+                heading=np.concatenate([[0.3], heading]),
+                heading_time=np.concatenate([[-2.0], traj.time[h]]),
+                heading_sigma=np.r_[2e-3, np.linspace(2e-3, 4e-3, len(h))])  # fmt: skip
+
+
+def _streams_with_arms(aiding: dict) -> list:
+    """The depth, fix and heading streams of ``_arms_and_headings``'s arrays."""
+    a = aiding
+    return [
+        pronet.Depth(a["depth_time"], a["depth"], sigma=a["depth_sigma"],
+                     lever_arm=a["depth_lever_arm"]),
+        pronet.Fix(a["fix_time"], a["fix"], sigma=a["fix_sigma"], lever_arm=a["fix_lever_arm"]),
+        pronet.Heading(a["heading_time"], a["heading"], sigma=a["heading_sigma"]),
+    ]  # fmt: skip
+
+
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
 @pytest.mark.parametrize("calibrated", [False, True])
 @pytest.mark.parametrize("covariance_step", [0.0, 0.1])
 def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance_step) -> None:
+    _match_the_reference(formulation, calibrated, covariance_step, arms=False)
+
+
+@pytest.mark.parametrize(
+    ("formulation", "calibrated", "covariance_step"),
+    [("classic", False, 0.0), ("invariant", True, 0.1), ("classic", True, 0.1),
+     ("invariant", False, 0.0)],
+)  # fmt: skip
+def test_lever_arms_and_headings_match_the_reference(
+    formulation, calibrated, covariance_step
+) -> None:
+    """A depth sensor and a fix's antenna at their lever arms, and a heading stream
+    (docs/filter.md, "Lever arms and heading"): the core is the reference to 1e-8, the
+    smoother too."""
+    _match_the_reference(formulation, calibrated, covariance_step, arms=True)
+
+
+def _match_the_reference(formulation, calibrated, covariance_step, arms: bool) -> None:
+    """60 s of the paper's trajectory with a DVL, depths and fixes (and with ``arms``
+    their lever arms and headings) through the core and the reference: every output to
+    1e-8, and the smoother's."""
     arm = (0.5, -0.2, 1.0)
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(arm), "body")
-    aiding = _aiding(pronet.builtin_trajectory("paper"), 60.0, np.random.default_rng(8))
+    make, to_streams = (_arms_and_headings, _streams_with_arms) if arms else (_aiding, _streams)
+    aiding = make(pronet.builtin_trajectory("paper"), 60.0, np.random.default_rng(8))
     calibration = (0.01, (0.02, 0.02, 0.03), 1e-8, 1e-9) if calibrated else None
     extra = {}
     if calibrated:
@@ -62,7 +123,7 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance
     cfg = pronet.FilterConfig(p0_sigma=P0, lever_arm=arm, formulation=formulation,
                               **tuning, **extra)  # fmt: skip
     rust = pronet.run_filter(
-        imu, imu_time, [pronet.Dvl(dvl_time, dvl), *_streams(aiding)], t0=0.0, lla0=lla0,
+        imu, imu_time, [pronet.Dvl(dvl_time, dvl), *to_streams(aiding)], t0=0.0, lla0=lla0,
         vel0=vel0, rpy0=rpy0, config=cfg, strategy=pronet.Strategy.constant(Q), smooth=True,
     )  # fmt: skip
     log: list = []
@@ -77,6 +138,12 @@ def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance
     rtol = 1e-8
     np.testing.assert_allclose(rust.depth_nis, ref["depth_nis"], rtol=rtol)
     np.testing.assert_allclose(rust.fix_nis[1:], ref["fix_nis"], rtol=rtol)
+    if arms:
+        heading = rust.streams[-1]
+        assert heading.kind == "heading" and heading.epoch[0] == -1
+        np.testing.assert_array_equal(heading.epoch[1:], np.arange(1, 13) * 500)
+        np.testing.assert_allclose(heading.nis[1:], ref["heading_nis"], rtol=rtol)
+        assert np.mean(heading.nis[1:]) < 5.0  # readings where the sensors sit: consistent
     np.testing.assert_allclose(rust.vel, ref["vel"], rtol=rtol, atol=1e-8)
     np.testing.assert_allclose(rust.rpy, ref["rpy"], rtol=rtol, atol=1e-10)
     np.testing.assert_allclose(rust.bias, ref["bias"], rtol=rtol, atol=1e-11)

@@ -223,3 +223,31 @@ def test_streams_show_what_they_hold() -> None:
     fix = pronet.Fix([1.0, 2.0], [[0.5, 0.6, np.nan]] * 2, sigma=np.full((2, 3), 2.0))
     assert repr(fix) == "Fix(2 rows over [1, 2] s, sigma=(2, 3) per row, lever_arm=[0.0, 0.0, 0.0])"
     assert np.isnan(fix.lla[:, 2]).all() and fix.sigma.shape == (2, 3)
+    heading = pronet.Heading([1.0, 2.0, 3.0], [0.1, -3.1, 6.2], sigma=0.01)
+    assert repr(heading) == "Heading(3 rows over [1, 3] s, sigma=0.01)"
+    assert heading.sigma == 0.01 and heading.heading.tolist() == [0.1, -3.1, 6.2]
+
+
+def test_a_heading_stream_is_applied_in_turn_and_has_no_top_level_keys() -> None:
+    """A compass (truth + 2 mrad, 5 Hz) beside the DVL: its result is the stream's
+    (kind ``"heading"``, one NIS per row, χ² of 1 dof), the top-level keys are the
+    DVL's as without it, and the heading's σ ends far below the DVL-only pass's."""
+    traj = pronet.builtin_trajectory("paper")
+    k = np.arange(20, int(SECONDS * 100) + 1, 20)
+    rng = np.random.default_rng(5)
+    compass = pronet.Heading(traj.time[k], traj.rpy[k, 2] + rng.normal(size=len(k)) * 2e-3,
+                             sigma=2e-3)  # fmt: skip
+    dvl = _dvl(lever_arm=ARM)
+    alone, aided = _pass([dvl]), _pass([dvl, compass])
+    assert [s.kind for s in aided.streams] == ["velocity", "heading"]
+    h = aided.streams[1]
+    np.testing.assert_array_equal(h.epoch, k)
+    assert h.innovation is h.gain is h.accepted is h.adaptive_q is None
+    assert 0.5 < np.mean(h.nis) < 1.6  # χ² of 1 dof over 300 rows
+    assert aided.nis is aided.streams[0].nis and aided.depth_nis.shape == (0,)
+    assert aided.sigma[-1, 8] < 0.2 * alone.sigma[-1, 8]
+    # The order given is the order at an epoch: with the heading first, another pass,
+    # apart only by where each update is linearized (≪ the compass's 2 mrad).
+    first = _pass([compass, dvl])
+    assert not np.array_equal(first.rpy, aided.rpy)
+    np.testing.assert_allclose(first.rpy, aided.rpy, atol=1e-4)

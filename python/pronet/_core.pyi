@@ -17,42 +17,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "__version__",
-    "MAX_THREADS",
-    "THREADS_PER_CORE",
-    "THREADS_ENV",
-    "MAX_LEVER_ARM",
-    "MAX_RUN_INDEX",
-    "MAX_GRAVITY_HEIGHT",
-    "MAX_LATITUDE_DEG",
-    "LONGITUDE_RANGE_DEG",
-    "WGS84_A",
-    "WGS84_F",
-    "Trajectory",
-    "builtin_trajectory",
-    "builtin_trajectory_names",
-    "trajectory_from_segments",
-    "normal_gravity",
-    "earth_radii",
-    "mechanize",
-    "FilterConfig",
-    "Strategy",
-    "SensorConfig",
-    "Dvl",
-    "Depth",
-    "Fix",
-    "run_filter",
-    "monte_carlo",
-    "check_result_size",
-    "check_fixes_fire",
-    "check_threads",
-    "max_threads",
-    "Ensemble",
-    "tuning_instants",
-    "ConvNet",
-    "HcfEnsemble",
-    "attitude_increment_costs",
-]
+    "__version__", "MAX_THREADS", "THREADS_PER_CORE", "THREADS_ENV", "MAX_LEVER_ARM",
+    "MAX_RUN_INDEX", "MAX_GRAVITY_HEIGHT", "MAX_LATITUDE_DEG", "LONGITUDE_RANGE_DEG",
+    "WGS84_A", "WGS84_F", "Trajectory", "builtin_trajectory", "builtin_trajectory_names",
+    "trajectory_from_segments", "normal_gravity", "earth_radii", "mechanize",
+    "FilterConfig", "Strategy", "SensorConfig", "Dvl", "Depth", "Fix", "Heading",
+    "run_filter", "monte_carlo", "check_result_size", "check_fixes_fire", "check_threads",
+    "max_threads", "Ensemble", "tuning_instants", "ConvNet", "HcfEnsemble",
+    "attitude_increment_costs"]  # fmt: skip
 
 __version__: str
 #: Most worker threads a pool may have on any machine (``threads::MAX_THREADS``).
@@ -404,22 +376,45 @@ class Fix:
     @property
     def lever_arm(self) -> list[float]: ...
 
-def run_filter(imu: ArrayLike, imu_time: ArrayLike, streams: Sequence[Dvl | Depth | Fix], *,
-               t0: float, lla0: Any, vel0: Any, rpy0: Any, config: FilterConfig,
+@final
+class Heading:
+    """A heading stream for :func:`run_filter`: a compass's, an AHRS's or a gyrocompass's
+    yaw.
+
+    ``time`` ``(n,)`` [s], strictly increasing (each row is applied at the IMU epoch
+    nearest it); ``heading`` ``(n,)`` [rad], the yaw of the body from true north (ZYX, as
+    the filter's ``rpy``; a magnetic heading corrected for declination first), within
+    ±2π (the innovation is wrapped into (−π, π]; degrees are refused). ``sigma``: 1σ
+    [rad], > 0 and at most π, a number or ``(n,)`` one per reading. A scalar update of
+    the attitude error (``h = atan2(Ĉ₁₀, Ĉ₀₀)``; NIS χ², 1 dof; no gate), no lever arm.
+    The arrays are copied; a bad argument is a ValueError naming it."""
+
+    def __new__(cls, time: ArrayLike, heading: ArrayLike, *, sigma: Any) -> Heading: ...
+    @property
+    def time(self) -> NDArray[np.float64]: ...
+    @property
+    def heading(self) -> NDArray[np.float64]: ...
+    @property
+    def sigma(self) -> float | NDArray[np.float64]: ...
+
+def run_filter(imu: ArrayLike, imu_time: ArrayLike,
+               streams: Sequence[Dvl | Depth | Fix | Heading], *, t0: float, lla0: Any,
+               vel0: Any, rpy0: Any, config: FilterConfig,
                strategy: Strategy, bias0: Any | None = None, q_time: ArrayLike | None = None,
                q: ArrayLike | None = None, epochs: Literal["all", "last"] = "all",
                output_step: float | None = None, covariance_time: ArrayLike | None = None,
                smooth: bool = False) -> dict[str, Any]:  # fmt: skip
     """One filter pass: :func:`pronet.run_filter` (its arguments, ``config`` required),
     returning the dict :class:`pronet.FilterResult` is made of. ``streams``: a sequence
-    of :class:`Dvl`, :class:`Depth` and :class:`Fix`, applied at an epoch in this order.
-    Key ``streams``: a dict per stream, in order, of ``kind`` (``"velocity"``,
-    ``"depth"`` or ``"fix"``), ``epoch`` (r,) (-1 outside the run), ``nis`` (r,) (NaN
-    outside) and, for a velocity stream, ``innovation``, ``innovation_cov``, ``gain``,
-    ``accepted``, ``adaptive_q`` (None where no row has one, as the top-level key). The
-    top-level update keys are the first velocity, depth and fix stream's (the same
-    arrays; no rows without one). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``,
-    ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch, or None."""
+    of :class:`Dvl`, :class:`Depth`, :class:`Fix` and :class:`Heading`, applied at an
+    epoch in this order. Key ``streams``: a dict per stream, in order, of ``kind``
+    (``"velocity"``, ``"depth"``, ``"fix"`` or ``"heading"``), ``epoch`` (r,) (-1
+    outside the run), ``nis`` (r,) (NaN outside) and, for a velocity stream,
+    ``innovation``, ``innovation_cov``, ``gain``, ``accepted``, ``adaptive_q`` (None where
+    no row has one, as the top-level key). The top-level update keys are the first
+    velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
+    none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
+    ``calibration``, ``calibration_sigma`` per epoch, or None."""
 
 def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
                 strategy: Strategy, *, n_runs: int, seed: int = 0, record_every: int = 0,

@@ -1,5 +1,6 @@
 """One filter pass over given IMU arrays and sensor streams (:class:`~pronet.Dvl`,
-:class:`~pronet.Depth`, :class:`~pronet.Fix`): the way recorded data is filtered."""
+:class:`~pronet.Depth`, :class:`~pronet.Fix`, :class:`~pronet.Heading`): the way recorded
+data is filtered."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from pronet import _core
 from pronet._util.validate import check_type, float_array, scalar
 
 #: An aiding sensor's stream, as :func:`run_filter` takes them.
-Stream: TypeAlias = _core.Dvl | _core.Depth | _core.Fix
+Stream: TypeAlias = _core.Dvl | _core.Depth | _core.Fix | _core.Heading
 
 
 @dataclass(frozen=True)
@@ -24,15 +25,16 @@ class StreamResult:
 
     Attributes:
         kind: ``"velocity"`` (a :class:`~pronet.Dvl`), ``"depth"``
-            (:class:`~pronet.Depth`) or ``"fix"`` (:class:`~pronet.Fix`).
+            (:class:`~pronet.Depth`), ``"fix"`` (:class:`~pronet.Fix`) or ``"heading"``
+            (:class:`~pronet.Heading`).
         epoch: ``(r,)`` the epoch index each row was applied at (the index
             :attr:`FilterResult.epoch` counts in: 0 the initial state, j + 1 after IMU
             sample j), -1 where it fell outside the run.
         nis: ``(r,)`` normalized innovation squared (χ² with 3 dof for a velocity, 1
-            for a depth, 2 or 3 for a fix without or with its height, when
-            consistent); NaN outside the run.
+            for a depth or a heading, 2 or 3 for a fix without or with its height,
+            when consistent); NaN outside the run.
         innovation: a velocity stream's ``(r, 3)`` ``z − h(x̂)`` [m/s] in its frame
-            (NaN outside the run); None for depths and fixes, as the three below.
+            (NaN outside the run); None for the other kinds, as the four below.
         innovation_cov: ``(r, 3, 3)`` innovation covariance S [(m/s)²].
         gain: ``(r, 15, 3)`` Kalman gains.
         accepted: ``(r,)`` whether each row was applied (False where the innovation
@@ -41,7 +43,7 @@ class StreamResult:
             each update (as :attr:`FilterResult.adaptive_q`).
     """
 
-    kind: Literal["velocity", "depth", "fix"]
+    kind: Literal["velocity", "depth", "fix", "heading"]
     epoch: NDArray[np.int64]
     nis: NDArray[np.float64]
     innovation: NDArray[np.float64] | None = None
@@ -362,8 +364,9 @@ def run_filter(
         imu_time: ``(n,)`` sample end times [s], strictly increasing, all after ``t0``.
         streams: the aiding sensors, any number of each kind in any order:
             :class:`~pronet.Dvl` (a DVL's body-frame velocity, or a NED velocity),
-            :class:`~pronet.Depth` (a pressure sensor's depth) and :class:`~pronet.Fix`
-            (GNSS, USBL, LBL position fixes), each with its times, noise and lever arm.
+            :class:`~pronet.Depth` (a pressure sensor's depth), :class:`~pronet.Fix`
+            (GNSS, USBL, LBL position fixes), each with its times, noise and lever arm,
+            and :class:`~pronet.Heading` (a compass's or an AHRS's yaw).
             Each row is applied at the IMU epoch nearest its time; at an epoch the rows
             due are applied stream by stream, in this order (docs/filter.md,
             "Position and depth updates"). None (the default, ``()``) is a pure
@@ -464,15 +467,18 @@ def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:
 
 def _stream_list(streams: object) -> list[Stream]:
     """``streams`` as a list, or ``ValueError`` naming it or the item that is no stream."""
-    kinds = (_core.Dvl, _core.Depth, _core.Fix)
+    kinds = (_core.Dvl, _core.Depth, _core.Fix, _core.Heading)
     if not isinstance(streams, Sequence) or isinstance(streams, str | bytes):
         raise ValueError(
-            "streams: expected a sequence (a list or tuple) of Dvl, Depth and Fix streams, "
+            "streams: expected a sequence (a list or tuple) of Dvl, Depth, Fix and Heading "
+            "streams, "
             f"got {type(streams).__name__}"
         )
     for i, s in enumerate(streams):
         if not isinstance(s, kinds):
-            raise ValueError(f"streams[{i}]: expected a Dvl, Depth or Fix, got {type(s).__name__}")
+            raise ValueError(
+                f"streams[{i}]: expected a Dvl, Depth, Fix or Heading, got {type(s).__name__}"
+            )
     return list(streams)
 
 

@@ -1,6 +1,6 @@
-"""Hostile inputs to ``run_filter`` and its streams (``Dvl``, ``Depth``, ``Fix``): bad
-arrays raise ValueError naming the argument, before any computation; no Rust panic ever
-reaches Python."""
+"""Hostile inputs to ``run_filter`` and its streams (``Dvl``, ``Depth``, ``Fix``,
+``Heading``): bad arrays raise ValueError naming the argument, before any computation;
+no Rust panic ever reaches Python."""
 
 from __future__ import annotations
 
@@ -145,6 +145,16 @@ FIX1 = ([1.0], [[0.56, 0.59, math.nan]])
         (lambda: pronet.Fix([1.0], [[1.6, 0.59, 0.0]], sigma=[2.0] * 3), "lla"),
         (lambda: pronet.Fix([math.nan], FIX1[1], sigma=[2.0] * 3), "time"),
         (lambda: pronet.Fix(*FIX1, sigma=[2.0] * 3, lever_arm=[math.inf, 0, 0]), "lever_arm"),
+        (lambda: pronet.Heading(T2, [0.5, 270.0], sigma=0.01), "heading"),
+        (lambda: pronet.Heading(T2, [0.5, math.nan], sigma=0.01), "heading"),
+        (lambda: pronet.Heading(T2, [0.5, 0.6], sigma=5.0), "sigma"),
+        (lambda: pronet.Heading(T2, [0.5, 0.6], sigma=0.0), "sigma"),
+        (lambda: pronet.Heading(T2, [0.5, 0.6], sigma=[0.01, math.inf]), "sigma"),
+        (lambda: pronet.Heading(T2, [0.5, 0.6], sigma=[0.01]), "sigma"),
+        (lambda: pronet.Heading(T2, [0.5, 0.6], sigma=[[0.01, 0.01]]), "sigma"),
+        (lambda: pronet.Heading(T2, [[0.5, 0.6]], sigma=0.01), "heading"),
+        (lambda: pronet.Heading([2.0, 1.0], [0.5, 0.6], sigma=0.01), "time"),
+        (lambda: pronet.Heading([1.0], [0.5, 0.6], sigma=0.01), "time"),
     ],
 )
 def test_streams_reject_bad_arrays_naming_the_argument(make, arg) -> None:
@@ -188,7 +198,7 @@ def test_native_core_takes_any_real_numbers_and_refuses_the_rest_naming_the_argu
         _core.Dvl([str(x) for x in dvl_t], dvl)
     with pytest.raises(ValueError, match="^velocity: expected real numbers of shape"):
         _core.Dvl(dvl_t, dvl != 0)
-    with pytest.raises(ValueError, match=r"^streams\[0\]: expected a Dvl, Depth or Fix"):
+    with pytest.raises(ValueError, match=r"^streams\[0\]: expected a Dvl, Depth, Fix or Heading"):
         _core.run_filter(imu, t, [dvl], **kwargs)
 
 

@@ -6,14 +6,17 @@
 //!   states) or a NED velocity, at a lever arm;
 //! - [`Depth`] (`depth`): a pressure sensor at a lever arm;
 //! - [`Fix`] (`fix`): a position fix of an antenna or transponder at a lever arm;
+//! - [`Heading`] (`heading`): the yaw from a compass, an AHRS or a gyrocompass;
 //! - [`Reading`] (`reading`): one reading of any of them, as a pass applies it.
 
 mod depth;
 mod fix;
+mod heading;
 mod reading;
 mod velocity;
 
 pub use depth::{check_depth_sigma, Depth};
 pub use fix::Fix;
+pub use heading::Heading;
 pub use reading::Reading;
 pub use velocity::Velocity;

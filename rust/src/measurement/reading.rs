@@ -2,6 +2,7 @@
 
 use super::depth::Depth;
 use super::fix::Fix;
+use super::heading::Heading;
 use super::velocity::Velocity;
 use crate::ekf::{Applied, Ekf};
 use crate::error::Result;
@@ -12,6 +13,7 @@ pub enum Reading {
     Velocity(Velocity),
     Depth(Depth),
     Fix(Fix),
+    Heading(Heading),
 }
 
 impl Reading {
@@ -21,6 +23,7 @@ impl Reading {
             Reading::Velocity(m) => ekf.apply(m),
             Reading::Depth(m) => ekf.apply(m),
             Reading::Fix(m) => ekf.apply(m),
+            Reading::Heading(m) => ekf.apply(m),
         }
     }
 
@@ -31,6 +34,7 @@ impl Reading {
             Reading::Velocity(m) => m.name(),
             Reading::Depth(m) => m.name(),
             Reading::Fix(m) => m.name(),
+            Reading::Heading(m) => m.name(),
         }
     }
 }

@@ -38,14 +38,15 @@ fn q_schedule(
 
 /// One filter pass: :func:`pronet.run_filter` (its arguments, ``config`` required),
 /// returning the dict :class:`pronet.FilterResult` is made of. ``streams``: a sequence
-/// of :class:`Dvl`, :class:`Depth` and :class:`Fix`, applied at an epoch in this order.
-/// Key ``streams``: a dict per stream, in order, of ``kind`` (``"velocity"``,
-/// ``"depth"`` or ``"fix"``), ``epoch`` (r,) (-1 outside the run), ``nis`` (r,) (NaN
-/// outside) and, for a velocity stream, ``innovation``, ``innovation_cov``, ``gain``,
-/// ``accepted``, ``adaptive_q`` (None where no row has one, as the top-level key). The
-/// top-level update keys are the first velocity, depth and fix stream's (the same
-/// arrays; no rows without one). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``,
-/// ``bias``, ``sigma``, ``calibration``, ``calibration_sigma`` per epoch, or None.
+/// of :class:`Dvl`, :class:`Depth`, :class:`Fix` and :class:`Heading`, applied at an
+/// epoch in this order. Key ``streams``: a dict per stream, in order, of ``kind``
+/// (``"velocity"``, ``"depth"``, ``"fix"`` or ``"heading"``), ``epoch`` (r,) (-1
+/// outside the run), ``nis`` (r,) (NaN outside) and, for a velocity stream,
+/// ``innovation``, ``innovation_cov``, ``gain``, ``accepted``, ``adaptive_q`` (None where
+/// no row has one, as the top-level key). The top-level update keys are the first
+/// velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
+/// none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
+/// ``calibration``, ``calibration_sigma`` per epoch, or None.
 #[pyfunction]
 #[pyo3(signature = (imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false),
     text_signature = "(imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', output_step=None, covariance_time=None, smooth=False)")]
@@ -104,7 +105,9 @@ fn run_filter<'py>(
     let imu_time = &*imu_time;
     // The streams are frozen objects holding their arrays: borrowed, not copied.
     let items = stream_items(streams)?;
-    let sources: Vec<StreamRef<'_>> = items.iter().map(stream_ref).collect();
+    let sources: Vec<StreamRef<'_>> = (items.iter().enumerate())
+        .map(|(i, item)| stream_ref(i, item))
+        .collect::<PyResult<_>>()?;
     let covariance_time = match covariance_time {
         Some(times) => column(times, "covariance_time")?,
         None => Vec::new(),
@@ -149,10 +152,11 @@ enum Kind {
     Velocity,
     Depth,
     Fix,
+    Heading,
 }
 
 impl Kind {
-    const ALL: [Kind; 3] = [Kind::Velocity, Kind::Depth, Kind::Fix];
+    const ALL: [Kind; 4] = [Kind::Velocity, Kind::Depth, Kind::Fix, Kind::Heading];
 
     fn of(stream: &crate::recorded::Stream<'_>) -> Self {
         use crate::recorded::Values;
@@ -160,6 +164,7 @@ impl Kind {
             Values::Velocity { .. } => Kind::Velocity,
             Values::Depth { .. } => Kind::Depth,
             Values::Fix { .. } => Kind::Fix,
+            Values::Heading { .. } => Kind::Heading,
         }
     }
 
@@ -168,15 +173,19 @@ impl Kind {
             Kind::Velocity => "velocity",
             Kind::Depth => "depth",
             Kind::Fix => "fix",
+            Kind::Heading => "heading",
         }
     }
 
-    /// The top-level keys of the first stream of the kind: its epochs and NIS.
-    fn keys(self) -> (&'static str, &'static str) {
+    /// The top-level keys of the first stream of the kind, its epochs and NIS: the
+    /// sensors `pronet.FilterResult` had keys for before the streams (a heading has
+    /// none: its stream's result is in `streams` only).
+    fn keys(self) -> Option<(&'static str, &'static str)> {
         match self {
-            Kind::Velocity => ("dvl_epoch", "nis"),
-            Kind::Depth => ("depth_epoch", "depth_nis"),
-            Kind::Fix => ("fix_epoch", "fix_nis"),
+            Kind::Velocity => Some(("dvl_epoch", "nis")),
+            Kind::Depth => Some(("depth_epoch", "depth_nis")),
+            Kind::Fix => Some(("fix_epoch", "fix_nis")),
+            Kind::Heading => None,
         }
     }
 }
@@ -273,7 +282,8 @@ impl StreamArrays {
     }
 
     /// The stream's dict, each array handed to NumPy without a copy; the first
-    /// stream of its kind also fills the top-level keys of `top` with the same arrays.
+    /// stream of its kind also fills the top-level keys of `top` with the same arrays
+    /// (a kind that has them: [`Kind::keys`]).
     fn into_dict<'py>(
         self,
         py: Python<'py>,
@@ -282,7 +292,8 @@ impl StreamArrays {
     ) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
         d.set_item("kind", kind.name())?;
-        let (epoch_key, nis_key) = kind.keys();
+        let (epoch_key, nis_key) = kind.keys().unwrap_or_default();
+        let top = top.filter(|_| kind.keys().is_some());
         let mut items = vec![
             ("epoch", epoch_key, self.epoch.into_pyarray(py).into_any()),
             ("nis", nis_key, self.nis.into_pyarray(py).into_any()),
@@ -420,7 +431,7 @@ impl OutputArrays {
         }
         // Without a stream of a kind, its top-level keys hold no rows.
         for (kind, missing) in Kind::ALL.into_iter().zip(first) {
-            if missing {
+            if missing && kind.keys().is_some() {
                 StreamArrays::new(StreamRecord::default(), kind).into_dict(py, kind, Some(&d))?;
             }
         }

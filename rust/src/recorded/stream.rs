@@ -4,7 +4,7 @@
 use crate::earth;
 use crate::ekf::{check_lever_arm, Aiding, FilterConfig};
 use crate::error::{check, Error, Result};
-use crate::measurement::{check_depth_sigma, Depth, Fix, Reading, Velocity};
+use crate::measurement::{check_depth_sigma, Depth, Fix, Heading, Reading, Velocity};
 use nalgebra::Vector3;
 
 /// A value that is the same for every row of a stream, or given per row.
@@ -46,6 +46,12 @@ pub enum Values<'a> {
     Fix {
         rows: &'a [[f64; 3]],
         sigma: PerRow<'a, [f64; 3]>,
+    },
+    /// Headings \[rad, from true north, within ±2π\] of 1σ `sigma` \[rad\]; no lever
+    /// arm (a heading is the body's, wherever its sensor sits).
+    Heading {
+        rows: &'a [f64],
+        sigma: PerRow<'a, f64>,
     },
 }
 
@@ -142,6 +148,10 @@ impl<'a> Stream<'a> {
                 lla: rows[row],
                 sigma: sigma.at(row),
                 lever_arm,
+            }),
+            Values::Heading { rows, sigma } => Reading::Heading(Heading {
+                y: rows[row],
+                sigma: sigma.at(row),
             }),
         }
     }
@@ -246,6 +256,13 @@ impl<'a> Stream<'a> {
                     check_fix(name, i, fix, &sigma.at(i))?;
                 }
             }
+            Values::Heading { rows, sigma } => {
+                same(self.len(), rows.len())?;
+                if let PerRow::Each(s) = sigma {
+                    sigma_rows(rows.len(), s.len())?;
+                }
+                check_heading(self, rows, sigma)?;
+            }
         }
         check::increasing(&format!("{name}_time"), self.time)
     }
@@ -279,6 +296,43 @@ fn row_error(e: Error, i: usize) -> Error {
         Error::InvalidArgument { arg, reason } => Error::invalid(arg, format!("row {i}: {reason}")),
         other => other,
     }
+}
+
+/// A heading stream's rows (finite, within ±2π: degrees are refused), 1σ (finite,
+/// > 0 and at most π \[rad\]) and lever arm (none).
+fn check_heading(stream: &Stream<'_>, rows: &[f64], sigma: PerRow<'_, f64>) -> Result<()> {
+    let name = &stream.name;
+    let turn = 2.0 * std::f64::consts::PI;
+    if let Some(i) = rows.iter().position(|y| y.is_nan() || y.abs() > turn) {
+        return Err(Error::invalid(
+            name,
+            format!(
+                "row {i} must be a heading in radians within ±2π, got {} (degrees?)",
+                rows[i]
+            ),
+        ));
+    }
+    let bad = |s: &f64| s.is_nan() || *s <= 0.0 || *s > std::f64::consts::PI;
+    let (which, value) = match sigma {
+        PerRow::One(s) => (bad(&s).then_some(String::new()), s),
+        PerRow::Each(s) => match s.iter().position(bad) {
+            Some(i) => (Some(format!("row {i} ")), s[i]),
+            None => (None, 0.0),
+        },
+    };
+    if let Some(which) = which {
+        return Err(Error::invalid(
+            format!("{name}_sigma"),
+            format!("{which}must be a 1σ > 0 and at most π [rad], got {value} (degrees?)"),
+        ));
+    }
+    if stream.lever_arm != Vector3::zeros() {
+        return Err(Error::invalid(
+            format!("{name}_lever_arm"),
+            "a heading is the body's own, wherever its sensor sits: give no lever arm",
+        ));
+    }
+    Ok(())
 }
 
 /// Fix row `i` of the stream `name`: a finite latitude within the filter's range, a

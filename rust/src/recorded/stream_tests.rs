@@ -3,7 +3,7 @@
 
 use super::data::RecordedData;
 use super::filter::filter_recorded;
-use super::stream::{velocity_variance, Stream, Values};
+use super::stream::{velocity_variance, PerRow, Stream, Values};
 use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::tests::moving_state;
 use crate::ekf::{Aiding, FilterConfig};
@@ -114,4 +114,109 @@ fn a_ned_velocity_stream_is_refused_beside_the_calibration_states() {
         strategy.as_mut(),
     );
     assert_eq!(arg(e.unwrap_err()), "streams[1]");
+}
+
+/// A heading stream of `rows` \[rad\] with one 1σ `sigma` \[rad\].
+fn heading<'a>(rows: &'a [f64], time: &'a [f64], sigma: f64) -> Stream<'a> {
+    Stream {
+        name: "heading".into(),
+        time,
+        values: Values::Heading {
+            rows,
+            sigma: PerRow::One(sigma),
+        },
+        lever_arm: Vector3::zeros(),
+    }
+}
+
+#[test]
+fn a_heading_stream_refuses_degrees_a_bad_sigma_and_a_lever_arm() {
+    let time = [1.0, 2.0];
+    assert!(heading(&[0.5, -6.0], &time, 0.01).validate().is_ok());
+    let e = heading(&[0.5, 270.0], &time, 0.01).validate().unwrap_err();
+    assert!(e.to_string().starts_with("heading: row 1 "), "{e}");
+    assert!(e.to_string().contains("degrees?"), "{e}");
+    assert_eq!(
+        arg(heading(&[0.5, f64::NAN], &time, 0.01)
+            .validate()
+            .unwrap_err()),
+        "heading"
+    );
+    for sigma in [0.0, -0.1, 5.0, f64::NAN, f64::INFINITY] {
+        let e = heading(&[0.5, 0.6], &time, sigma).validate().unwrap_err();
+        assert_eq!(arg(e), "heading_sigma", "{sigma}");
+    }
+    let each = [0.01, 0.0];
+    let per_row = Stream {
+        values: Values::Heading {
+            rows: &[0.5, 0.6],
+            sigma: PerRow::Each(&each),
+        },
+        ..heading(&[], &time, 0.01)
+    };
+    assert!(per_row
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .starts_with("heading_sigma: row 1 "));
+    let short = Stream {
+        values: Values::Heading {
+            rows: &[0.5, 0.6],
+            sigma: PerRow::Each(&each[..1]),
+        },
+        ..heading(&[], &time, 0.01)
+    };
+    assert_eq!(arg(short.validate().unwrap_err()), "heading_sigma");
+    let armed = Stream {
+        lever_arm: Vector3::new(0.0, 0.0, 1.0),
+        ..heading(&[0.5, 0.6], &time, 0.01)
+    };
+    assert_eq!(arg(armed.validate().unwrap_err()), "heading_lever_arm");
+}
+
+#[test]
+fn a_pass_with_headings_pulls_the_yaw_to_them_and_records_their_nis() {
+    // At rest, level, the estimate's yaw 0.8 rad; a compass reads 0.9 rad at 10 Hz.
+    let g = crate::earth::gravity(0.55, -10.0);
+    let imu = vec![[0.0, 0.0, -g, 0.0, 0.0, 0.0]; 2000];
+    let imu_time: Vec<f64> = (1..=2000).map(|k| k as f64 * 0.01).collect();
+    let time: Vec<f64> = (1..=200).map(|k| k as f64 * 0.1).collect();
+    let rows = vec![0.9; 200];
+    let data = RecordedData {
+        imu: &imu,
+        imu_time: &imu_time,
+        streams: vec![heading(&rows, &time, 0.01)],
+        ..RecordedData::default()
+    };
+    let mut start = moving_state();
+    start.vel = Vector3::zeros();
+    start.dcm = crate::attitude::dcm_from_euler(0.0, 0.0, 0.8);
+    // Yaw unknown to 0.2 rad (1σ), biases that barely wander.
+    let mut cfg = FilterConfig {
+        accel_bias_psd: 1e-10,
+        gyro_bias_psd: 1e-14,
+        ..FilterConfig::default()
+    };
+    cfg.p0_sigma[8] = 0.2;
+    let mut strategy = StrategySpec::Constant { q: [1e-8; 6] }.build(cfg.bias_psd());
+    let out = filter_recorded(&data, start, [0.0; 6], &cfg, strategy.as_mut()).unwrap();
+    let last = out.nav.last().unwrap();
+    let yaw = last.dcm[(1, 0)].atan2(last.dcm[(0, 0)]);
+    assert!((yaw - 0.9).abs() < 2e-3, "{yaw}");
+    let record = &out.streams[0];
+    assert_eq!(record.epoch.len(), 200);
+    assert_eq!(record.epoch[0], Some(10)); // epoch 0 is t0
+    assert!(record.nis.iter().all(|n| n.is_finite() && *n >= 0.0));
+    // The first reading is 0.1 rad off the estimate whose yaw σ is 0.2 rad:
+    // NIS = 0.1² / (0.2² + 0.01²); the last ones agree with it.
+    let first = 0.01 / (0.04 + 1e-4);
+    assert!(
+        (record.nis[0] / first - 1.0).abs() < 0.01,
+        "{}",
+        record.nis[0]
+    );
+    assert!(record.nis[199] < 0.1 * first);
+    // 200 readings of 0.01 rad: the yaw's σ well under one reading's.
+    let yaw_sigma = out.sigma.last().unwrap()[8];
+    assert!(yaw_sigma < 0.005 && yaw_sigma > 0.0, "{yaw_sigma}");
 }

@@ -66,8 +66,8 @@ pub(super) fn sigma3(obj: &Bound<'_, PyAny>, scalar: bool, unit: &str) -> PyResu
     ))
 }
 
-/// A 1σ of one axis: a number, or `(n,)` one per row.
-pub(super) fn sigma1(obj: &Bound<'_, PyAny>) -> PyResult<Rows<f64>> {
+/// A 1σ \[`unit`\] of one axis: a number, or `(n,)` one per row.
+pub(super) fn sigma1(obj: &Bound<'_, PyAny>, unit: &str) -> PyResult<Rows<f64>> {
     if real_array::<f64, Ix1>(obj, "float64").is_some() {
         return Ok(Rows::Each(column(obj, "sigma")?));
     }
@@ -77,7 +77,7 @@ pub(super) fn sigma1(obj: &Bound<'_, PyAny>) -> PyResult<Rows<f64>> {
     Err(invalid(
         "sigma",
         format!(
-            "expected a number or (n,) real numbers [m], got {}",
+            "expected a number or (n,) real numbers [{unit}], got {}",
             describe(obj)
         ),
     ))

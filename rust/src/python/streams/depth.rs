@@ -38,7 +38,7 @@ impl PyDepth {
         let out = Self {
             time: column(time, "time")?,
             depth: column(depth, "depth")?,
-            sigma: sigma1(sigma)?,
+            sigma: sigma1(sigma, "m")?,
             lever_arm: lever_arm_or_zero(lever_arm)?,
         };
         check(&out.stream("depth".into()))?;

@@ -1,4 +1,4 @@
-//! `Dvl`, `Depth`, `Fix`: the aiding sensors' streams a filter pass takes, one file per
+//! `Dvl`, `Depth`, `Fix`, `Heading`: the aiding sensors' streams a filter pass takes, one file per
 //! type, each checked when it is made ([`Stream::validate`]) and resolved against the
 //! pass's `FilterConfig` when the pass runs ([`StreamRef::stream`]).
 
@@ -6,10 +6,12 @@ mod args;
 mod depth;
 mod dvl;
 mod fix;
+mod heading;
 
 use self::depth::PyDepth;
 use self::dvl::PyDvl;
 use self::fix::PyFix;
+use self::heading::PyHeading;
 use super::call::invalid;
 use super::convert::describe;
 use crate::ekf::FilterConfig;
@@ -23,6 +25,7 @@ pub(super) enum StreamRef<'a> {
     Dvl(&'a PyDvl),
     Depth(&'a PyDepth),
     Fix(&'a PyFix),
+    Heading(&'a PyHeading),
 }
 
 impl<'a> StreamRef<'a> {
@@ -33,61 +36,64 @@ impl<'a> StreamRef<'a> {
             StreamRef::Dvl(d) => d.stream(name, cfg),
             StreamRef::Depth(d) => d.stream(name),
             StreamRef::Fix(f) => f.stream(name),
+            StreamRef::Heading(h) => h.stream(name),
         }
     }
 }
 
-/// The items of `streams` (a sequence of `Dvl`, `Depth` and `Fix`), type-checked.
+/// The items of `streams`, a sequence (each item's type is [`stream_ref`]'s to check).
 pub(super) fn stream_items<'py>(streams: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyAny>>> {
     let refuse = || {
         invalid(
             "streams",
             format!(
-                "expected a sequence (a list or tuple) of Dvl, Depth and Fix streams, got {}",
+                "expected a sequence (a list or tuple) of Dvl, Depth, Fix and Heading \
+                 streams, got {}",
                 describe(streams)
             ),
         )
     };
-    if streams.is_instance_of::<pyo3::types::PyString>()
-        || streams.is_instance_of::<PyDvl>()
-        || streams.is_instance_of::<PyDepth>()
-        || streams.is_instance_of::<PyFix>()
-    {
+    if streams.is_instance_of::<pyo3::types::PyString>() || as_stream(streams).is_some() {
         return Err(refuse());
     }
     let items: Vec<Bound<'py, PyAny>> = streams
         .try_iter()
         .map_err(|_| refuse())?
         .collect::<PyResult<_>>()?;
-    for (i, item) in items.iter().enumerate() {
-        if !(item.is_instance_of::<PyDvl>()
-            || item.is_instance_of::<PyDepth>()
-            || item.is_instance_of::<PyFix>())
-        {
-            return Err(invalid(
-                &format!("streams[{i}]"),
-                format!("expected a Dvl, Depth or Fix, got {}", describe(item)),
-            ));
-        }
-    }
     Ok(items)
 }
 
-/// The stream an item of [`stream_items`] is.
-pub(super) fn stream_ref<'a>(item: &'a Bound<'_, PyAny>) -> StreamRef<'a> {
+/// The stream `item` is, or None for any other object.
+fn as_stream<'a>(item: &'a Bound<'_, PyAny>) -> Option<StreamRef<'a>> {
     if let Ok(d) = item.cast::<PyDvl>() {
-        StreamRef::Dvl(d.get())
+        Some(StreamRef::Dvl(d.get()))
     } else if let Ok(d) = item.cast::<PyDepth>() {
-        StreamRef::Depth(d.get())
+        Some(StreamRef::Depth(d.get()))
     } else if let Ok(f) = item.cast::<PyFix>() {
-        StreamRef::Fix(f.get())
+        Some(StreamRef::Fix(f.get()))
+    } else if let Ok(h) = item.cast::<PyHeading>() {
+        Some(StreamRef::Heading(h.get()))
     } else {
-        unreachable!("stream_items checked the type")
+        None
     }
+}
+
+/// The stream item `i` of [`stream_items`] is, or an error naming `streams[i]`.
+pub(super) fn stream_ref<'a>(i: usize, item: &'a Bound<'_, PyAny>) -> PyResult<StreamRef<'a>> {
+    as_stream(item).ok_or_else(|| {
+        invalid(
+            &format!("streams[{i}]"),
+            format!(
+                "expected a Dvl, Depth, Fix or Heading, got {}",
+                describe(item)
+            ),
+        )
+    })
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDvl>()?;
     m.add_class::<PyDepth>()?;
-    m.add_class::<PyFix>()
+    m.add_class::<PyFix>()?;
+    m.add_class::<PyHeading>()
 }
