@@ -33,7 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     truth = pronet.builtin_trajectory("paper")
     # Your arrays: IMU rows [f (m/s²), ω (rad/s)] in the body frame (forward-right-down),
     # row k covering (imu_time[k-1], imu_time[k]]; a stream per aiding sensor, here the
-    # DVL's body velocity [m/s] with its 1σ [m/s] (pronet.Depth, pronet.Fix: the others).
+    # DVL's body velocity [m/s] with its 1σ [m/s] (the others: pronet.Depth, pronet.Fix,
+    # pronet.Heading).
     imu = truth.imu + rng.normal(size=truth.imu.shape) * np.sqrt(Q)
     imu_time = truth.time[1:]
     k = np.arange(DVL_EVERY, truth.n_samples + 1, DVL_EVERY)
