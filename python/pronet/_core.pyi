@@ -238,14 +238,17 @@ class SensorConfig:
     simulated with: ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period``
     [s] (default 1; refused without ``depth_sigma``), the depth of a pressure sensor at
     ``depth_lever_arm`` [m, body FRD from the IMU; default 0: the IMU's point];
-    ``fixes``, a list of position-fix sources, each a dict with ``sigma`` (1σ [m] north,
-    east and optionally down: without it the fixes carry no height), a schedule:
-    ``period`` [s] (0 or absent: none), ``times`` [s] (single fixes, each at the IMU
-    epoch nearest it) and ``max_depth`` [m] (fixes only while the true depth is at most
-    this: at the surface), and ``lever_arm`` [m, body FRD] of the antenna or transponder
-    (default 0). Each aiding sensor draws from its own seeded stream: the other sensors'
-    draws are the same with and without it. Defaults: the paper's (an ideal DVL, no
-    dropout, no depth sensor, no fixes)."""
+    ``heading_sigma`` [rad] (None: no heading sensor; at most π) every ``heading_period``
+    [s] (default 1; refused without ``heading_sigma``), the body's yaw from true north
+    (a compass corrected for declination, an AHRS); ``fixes``, a list of position-fix
+    sources, each a dict with ``sigma`` (1σ [m] north, east and optionally down: without
+    it the fixes carry no height), a schedule: ``period`` [s] (0 or absent: none),
+    ``times`` [s] (single fixes, each at the IMU epoch nearest it) and ``max_depth`` [m]
+    (fixes only while the true depth is at most this: at the surface), and ``lever_arm``
+    [m, body FRD] of the antenna or transponder (default 0). Each aiding sensor draws
+    from its own seeded stream: the other sensors' draws are the same with and without
+    it. Defaults: the paper's (an ideal DVL, no dropout, no depth sensor, no heading
+    sensor, no fixes)."""
 
     def __new__(cls, *, imu_variance: Any | None = None, imu_variance_times: Any | None = None,
                 imu_bias: Any | None = None, imu_bias_psd: Any | None = None,
@@ -254,6 +257,7 @@ class SensorConfig:
                 dvl_scale: float = 0.0, dvl_misalignment: Any | None = None,
                 dvl_dropout: Any | None = None, depth_sigma: float | None = None,
                 depth_period: float | None = None, depth_lever_arm: Any | None = None,
+                heading_sigma: float | None = None, heading_period: float | None = None,
                 fixes: Any | None = None) -> SensorConfig: ...  # fmt: skip
     @property
     def imu_variance_times(self) -> list[float]: ...
@@ -290,6 +294,12 @@ class SensorConfig:
     @property
     def depth_lever_arm(self) -> list[float] | None:
         """The depth sensor's lever arm [m, body FRD], or None without one."""
+    @property
+    def heading_sigma(self) -> float | None:
+        """1σ of the heading sensor [rad], or None without one."""
+    @property
+    def heading_period(self) -> float | None:
+        """Period of the heading sensor [s], or None without one."""
     @property
     def fixes(self) -> list[dict[str, Any]]:
         """The position-fix sources, as the dicts the constructor takes."""

@@ -35,6 +35,8 @@ mistakes too, so a misspelt key never silently falls back to a default.
     depth_sigma = 0.1          # optional: a depth sensor, 1σ [m] ...
     depth_period = 1.0         # ... every this many s
     # depth_lever_arm = [0.0, 0.0, 0.5]   # ... at this point [m, body FRD from the IMU]
+    # heading_sigma = 0.01     # optional: a heading sensor (compass, AHRS), 1σ [rad] ...
+    # heading_period = 1.0     # ... every this many s
     # fixes = []               no position fixes (over a base that has them)
 
     [[sensors.fixes]]          # optional, repeatable: a source of position fixes
@@ -136,6 +138,8 @@ SENSOR_KEYS = (
     "depth_sigma",
     "depth_period",
     "depth_lever_arm",
+    "heading_sigma",
+    "heading_period",
     "fixes",
 )
 #: The simulated DVL's scale-factor error and mounting misalignment: arguments of a
@@ -358,7 +362,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         config = filter_config({"imu_dt": traj.dt}, f"{where}: [trajectory] dt_s", config)
     # the DVL period must be a whole number of IMU periods: named with the file now,
     # not by the first Monte Carlo
-    periods = ("dvl_period", "depth_period", "fixes")
+    periods = ("dvl_period", "depth_period", "heading_period", "fixes")
     period_key = (
         "[sensors]" if any(k in data.get("sensors", {}) for k in periods) else "[trajectory] dt_s:"
     )

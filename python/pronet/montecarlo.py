@@ -84,9 +84,9 @@ class MonteCarloResult:
         depth_updates: ``(n_runs,)`` depth readings applied (the sensors'
             ``depth_sigma``); 0 without a depth sensor.
         fix_updates: ``(n_runs,)`` position fixes applied (the sensors' ``fixes``).
-        mean_aiding_nis: ``(n_runs,)`` the mean NIS per degree of freedom over the depth
-            and fix updates (1 when the filter is consistent with their σ); NaN without
-            any, or for a failed run.
+        mean_aiding_nis: ``(n_runs,)`` the mean NIS per degree of freedom over the depth,
+            fix and heading updates (1 when the filter is consistent with their σ); NaN
+            without any, or for a failed run.
         smoothed: with ``smooth=True``, the same result for the RTS-smoothed solution
             of every run: its ``srmse``, ``smae``, horizontal errors, ``nees`` (at the
             same DVL epochs) and ``error``/``sigma`` histories; the NIS, failures,

@@ -148,14 +148,7 @@ impl Run {
             ekf.track_sensitivity(q);
         }
         let n_epochs = dvl_every.map_or(0, |every| scenario.truth.len() / every);
-        let sensors = &scenario.sensors;
-        let aiding = AidingSim::new(
-            sensors.depth.as_ref(),
-            &sensors.fixes,
-            &scenario.truth,
-            seed,
-            run_index,
-        )?;
+        let aiding = AidingSim::new(scenario.sensors.aiding(), &scenario.truth, seed, run_index)?;
         let mut run = Self {
             sim: SensorSim::new(&scenario.sensors, seed, run_index).with_turn_on_bias(true_bias),
             pass: Pass::new(ekf),
@@ -301,14 +294,7 @@ impl Run {
             }
         }
         if let Some(sim) = self.aiding.as_mut() {
-            let sensors = &scenario.sensors;
-            sim.readings(
-                sensors.depth.as_ref(),
-                &sensors.fixes,
-                self.k,
-                state,
-                &mut self.readings,
-            );
+            sim.readings(scenario.sensors.aiding(), self.k, state, &mut self.readings);
         }
     }
 

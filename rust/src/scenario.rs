@@ -29,6 +29,9 @@ impl Scenario {
         if let Some(d) = &self.sensors.depth {
             steps_per(d.period, self.truth.dt, "depth_period")?;
         }
+        if let Some(h) = &self.sensors.heading {
+            steps_per(h.period, self.truth.dt, "heading_period")?;
+        }
         for (j, f) in self.sensors.fixes.iter().enumerate() {
             if f.period > 0.0 {
                 steps_per(f.period, self.truth.dt, &format!("fixes[{j}].period"))?;

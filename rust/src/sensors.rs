@@ -10,7 +10,8 @@
 //! is drawn only when a dropout model is set, and a missed reading still draws its DVL
 //! noise: the other streams are the same with and without dropout.
 //!
-//! The aiding sensors (a depth sensor, position fixes) are in [`aiding`]. The DVL is
+//! The aiding sensors (a depth sensor, a heading sensor, position fixes) are in
+//! [`aiding`]. The DVL is
 //! optional: a period of 0 means none (a GNSS/INS or depth-only simulation).
 
 use crate::ekf::{check_lever_arm, DvlMounting};
@@ -23,7 +24,7 @@ use rand_chacha::ChaCha8Rng;
 pub mod aiding;
 mod dvl;
 mod rng;
-pub use aiding::{AidingSim, DepthModel, FixModel};
+pub use aiding::{AidingModels, AidingSim, DepthModel, FixModel, HeadingModel};
 pub use dvl::{DvlDropout, DvlModel};
 pub use rng::{normal, stream_rng, Stream};
 
@@ -107,6 +108,8 @@ pub struct SensorConfig {
     pub dvl: DvlModel,
     /// A pressure depth sensor (None: none).
     pub depth: Option<DepthModel>,
+    /// A heading sensor (None: none).
+    pub heading: Option<HeadingModel>,
     /// Sources of position fixes (none: empty).
     pub fixes: Vec<FixModel>,
 }
@@ -130,13 +133,18 @@ impl SensorConfig {
                 dropout: None,
             },
             depth: None,
+            heading: None,
             fixes: Vec::new(),
         }
     }
 
-    /// Whether any aiding sensor besides the DVL is configured.
-    pub fn has_aiding(&self) -> bool {
-        self.depth.is_some() || !self.fixes.is_empty()
+    /// The aiding sensors besides the DVL.
+    pub fn aiding(&self) -> AidingModels<'_> {
+        AidingModels {
+            depth: self.depth.as_ref(),
+            heading: self.heading.as_ref(),
+            fixes: &self.fixes,
+        }
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -158,6 +166,9 @@ impl SensorConfig {
         }
         if let Some(d) = &self.depth {
             d.validate()?;
+        }
+        if let Some(h) = &self.heading {
+            h.validate()?;
         }
         for (i, f) in self.fixes.iter().enumerate() {
             f.validate(i)?;

@@ -327,6 +327,7 @@ arg_converters! {
     arg_dvl_scale_psd: Option<f64> = optional_real("dvl_scale_psd");
     arg_dvl_misalignment_psd: Option<f64> = optional_real("dvl_misalignment_psd");
     arg_depth_period: Option<f64> = optional_real("depth_period");
+    arg_heading_period: Option<f64> = optional_real("heading_period");
 }
 
 pub fn arg_innovation_gate(obj: &Bound<'_, PyAny>) -> PyResult<Option<f64>> {

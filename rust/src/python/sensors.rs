@@ -1,13 +1,15 @@
-//! `SensorConfig`: the simulated IMU, DVL, depth sensor and position fixes.
+//! `SensorConfig`: the simulated IMU, DVL, depth sensor, heading sensor and position
+//! fixes.
 
 use super::call::{invalid, to_py_err};
 use super::convert::{
-    arg_depth_period, arg_dvl_period, arg_dvl_scale, column, fixed, fixed_or, matrix, real_arg,
-    rows,
+    arg_depth_period, arg_dvl_period, arg_dvl_scale, arg_heading_period, column, fixed, fixed_or,
+    matrix, real_arg, rows,
 };
 use crate::ekf::DvlMounting;
 use crate::sensors::{
-    DepthModel, DvlDropout, DvlModel, FixModel, ImuErrorModel, SensorConfig, VarianceSchedule,
+    DepthModel, DvlDropout, DvlModel, FixModel, HeadingModel, ImuErrorModel, SensorConfig,
+    VarianceSchedule,
 };
 use nalgebra::Vector3;
 use numpy::PyArray2;
@@ -31,14 +33,17 @@ use pyo3::types::{PyDict, PyList, PyString};
 /// simulated with: ``depth_sigma`` [m] (None: no depth sensor) every ``depth_period``
 /// [s] (default 1; refused without ``depth_sigma``), the depth of a pressure sensor at
 /// ``depth_lever_arm`` [m, body FRD from the IMU; default 0: the IMU's point];
-/// ``fixes``, a list of position-fix sources, each a dict with ``sigma`` (1σ [m] north,
-/// east and optionally down: without it the fixes carry no height), a schedule:
-/// ``period`` [s] (0 or absent: none), ``times`` [s] (single fixes, each at the IMU
-/// epoch nearest it) and ``max_depth`` [m] (fixes only while the true depth is at most
-/// this: at the surface), and ``lever_arm`` [m, body FRD] of the antenna or transponder
-/// (default 0). Each aiding sensor draws from its own seeded stream: the other sensors'
-/// draws are the same with and without it. Defaults: the paper's (an ideal DVL, no
-/// dropout, no depth sensor, no fixes).
+/// ``heading_sigma`` [rad] (None: no heading sensor; at most π) every ``heading_period``
+/// [s] (default 1; refused without ``heading_sigma``), the body's yaw from true north
+/// (a compass corrected for declination, an AHRS); ``fixes``, a list of position-fix
+/// sources, each a dict with ``sigma`` (1σ [m] north, east and optionally down: without
+/// it the fixes carry no height), a schedule: ``period`` [s] (0 or absent: none),
+/// ``times`` [s] (single fixes, each at the IMU epoch nearest it) and ``max_depth`` [m]
+/// (fixes only while the true depth is at most this: at the surface), and ``lever_arm``
+/// [m, body FRD] of the antenna or transponder (default 0). Each aiding sensor draws
+/// from its own seeded stream: the other sensors' draws are the same with and without
+/// it. Defaults: the paper's (an ideal DVL, no dropout, no depth sensor, no heading
+/// sensor, no fixes).
 #[pyclass(name = "SensorConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PySensorConfig {
@@ -67,7 +72,7 @@ fn variance(
 impl PySensorConfig {
     #[new]
     #[allow(clippy::too_many_arguments)] // the keyword arguments of the Python constructor
-    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = None, depth_lever_arm = None, fixes = None))]
+    #[pyo3(signature = (*, imu_variance = None, imu_variance_times = None, imu_bias = None, imu_bias_psd = None, dvl_variance = None, dvl_period = 1.0, lever_arm = None, dvl_outages = None, dvl_scale = 0.0, dvl_misalignment = None, dvl_dropout = None, depth_sigma = None, depth_period = None, depth_lever_arm = None, heading_sigma = None, heading_period = None, fixes = None))]
     fn new(
         imu_variance: Option<&Bound<'_, PyAny>>,
         imu_variance_times: Option<&Bound<'_, PyAny>>,
@@ -83,6 +88,8 @@ impl PySensorConfig {
         depth_sigma: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = arg_depth_period)] depth_period: Option<f64>,
         depth_lever_arm: Option<&Bound<'_, PyAny>>,
+        heading_sigma: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_heading_period)] heading_period: Option<f64>,
         fixes: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let dropout = match dvl_dropout {
@@ -121,26 +128,8 @@ impl PySensorConfig {
                 },
                 dropout,
             },
-            depth: match (depth_sigma, depth_period, depth_lever_arm) {
-                (Some(s), period, arm) => Some(DepthModel {
-                    sigma: real_arg(s, "depth_sigma")?,
-                    period: period.unwrap_or(1.0),
-                    lever_arm: Vector3::from(fixed_or::<3>(arm, "depth_lever_arm", [0.0; 3])?),
-                }),
-                (None, Some(_), _) => {
-                    return Err(invalid(
-                        "depth_period",
-                        "needs depth_sigma beside it (the depth sensor's 1σ [m])",
-                    ))
-                }
-                (None, None, Some(_)) => {
-                    return Err(invalid(
-                        "depth_lever_arm",
-                        "needs depth_sigma beside it (the depth sensor's 1σ [m])",
-                    ))
-                }
-                (None, None, None) => None,
-            },
+            depth: depth_model(depth_sigma, depth_period, depth_lever_arm)?,
+            heading: heading_model(heading_sigma, heading_period)?,
             fixes: match fixes {
                 Some(f) => fix_models(f)?,
                 None => Vec::new(),
@@ -215,6 +204,16 @@ impl PySensorConfig {
     fn depth_lever_arm(&self) -> Option<[f64; 3]> {
         self.inner.depth.map(|d| d.lever_arm.into())
     }
+    /// 1σ of the heading sensor [rad], or None without one.
+    #[getter]
+    fn heading_sigma(&self) -> Option<f64> {
+        self.inner.heading.map(|h| h.sigma)
+    }
+    /// Period of the heading sensor [s], or None without one.
+    #[getter]
+    fn heading_period(&self) -> Option<f64> {
+        self.inner.heading.map(|h| h.period)
+    }
     /// The position-fix sources, as the dicts the constructor takes.
     #[getter]
     fn fixes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
@@ -233,6 +232,45 @@ impl PySensorConfig {
     }
     fn __repr__(&self) -> String {
         format!("SensorConfig({:?})", self.inner)
+    }
+}
+
+/// The depth sensor of `depth_sigma` (None: none), its period (default 1 s) and lever
+/// arm (default 0), each refused without the σ.
+fn depth_model(
+    sigma: Option<&Bound<'_, PyAny>>,
+    period: Option<f64>,
+    lever_arm: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<DepthModel>> {
+    let needs = || "needs depth_sigma beside it (the depth sensor's 1σ [m])";
+    match (sigma, period, lever_arm) {
+        (Some(s), period, arm) => Ok(Some(DepthModel {
+            sigma: real_arg(s, "depth_sigma")?,
+            period: period.unwrap_or(1.0),
+            lever_arm: Vector3::from(fixed_or::<3>(arm, "depth_lever_arm", [0.0; 3])?),
+        })),
+        (None, Some(_), _) => Err(invalid("depth_period", needs())),
+        (None, None, Some(_)) => Err(invalid("depth_lever_arm", needs())),
+        (None, None, None) => Ok(None),
+    }
+}
+
+/// The heading sensor of `heading_sigma` (None: none) and its period (default 1 s;
+/// refused without the σ).
+fn heading_model(
+    sigma: Option<&Bound<'_, PyAny>>,
+    period: Option<f64>,
+) -> PyResult<Option<HeadingModel>> {
+    match (sigma, period) {
+        (Some(s), period) => Ok(Some(HeadingModel {
+            sigma: real_arg(s, "heading_sigma")?,
+            period: period.unwrap_or(1.0),
+        })),
+        (None, Some(_)) => Err(invalid(
+            "heading_period",
+            "needs heading_sigma beside it (the heading sensor's 1σ [rad])",
+        )),
+        (None, None) => Ok(None),
     }
 }
 

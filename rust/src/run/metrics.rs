@@ -33,8 +33,8 @@ pub struct RunSummary {
     /// Depth readings and position fixes applied (the aiding sensors').
     pub depth_updates: usize,
     pub fix_updates: usize,
-    /// The sum of the depth and fix updates' NIS, and of their degrees of freedom (its
-    /// mean per degree of freedom is 1 when the filter is consistent).
+    /// The sum of the aiding updates' NIS (depth, fix, heading), and of their degrees of
+    /// freedom (its mean per degree of freedom is 1 when the filter is consistent).
     pub aiding_nis: f64,
     pub aiding_dof: usize,
     /// Time \[s\] at which the NIS showed divergence (see [`NisMonitor`]), if it did.

@@ -1,18 +1,21 @@
-//! The aiding sensors of a simulation: a pressure depth sensor and position fixes (GNSS
-//! at the surface, USBL or LBL acoustic fixes), each at its lever arm from the IMU,
-//! simulated from the truth with white noise as the filter reads them
-//! ([`crate::measurement`]): the same readings a recording's depth and fixes are.
+//! The aiding sensors of a simulation: a pressure depth sensor, a heading sensor (a
+//! compass or an AHRS) and position fixes (GNSS at the surface, USBL or LBL acoustic
+//! fixes), each at its lever arm from the IMU (a heading has none), simulated from the
+//! truth with white noise as the filter reads them ([`crate::measurement`]): the same
+//! readings a recording's streams are.
 //!
 //! Random numbers: each aiding sensor draws from its own part of the run's
-//! initial-error stream, `2^66` words in for the depth sensor and `2^67 + j·2^60` for
-//! fix source `j` (the initial error itself takes 15 draws at its start), so the IMU,
-//! DVL, initial-error and dropout draws are the same with and without aiding sensors,
-//! and a run's aiding draws depend only on the seed and the run index.
+//! initial-error stream, `2^66` words in for the depth sensor, `3·2^65` for the heading
+//! sensor and `2^67 + j·2^60` for fix source `j` (the initial error itself takes 15
+//! draws at its start), so the IMU, DVL, initial-error and dropout draws are the same
+//! with and without aiding sensors, and a run's aiding draws depend only on the seed
+//! and the run index.
 
+use crate::attitude::wrap_angle;
 use crate::earth;
 use crate::ekf::check_lever_arm;
 use crate::error::{check, Error, Result};
-use crate::measurement::{Depth, Fix, Reading};
+use crate::measurement::{Depth, Fix, Heading, Reading};
 use crate::mechanization::NavState;
 use crate::sensors::{normal, stream_rng, Stream};
 use crate::trajectory::Truth;
@@ -29,6 +32,31 @@ pub struct DepthModel {
     pub period: f64,
     /// The sensor's position from the IMU \[m, body FRD\]; the filter is told the same.
     pub lever_arm: Vector3<f64>,
+}
+
+/// A heading sensor (a compass corrected for declination, an AHRS, a gyrocompass): the
+/// body's true yaw \[rad, from true north\] with white noise, every `period` seconds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeadingModel {
+    /// 1σ \[rad\], at most π; the filter is told the same.
+    pub sigma: f64,
+    /// Reading period \[s\] (a whole number of IMU periods).
+    pub period: f64,
+}
+
+impl HeadingModel {
+    /// `Err` naming `heading_sigma` or `heading_period` unless both are finite and > 0,
+    /// the σ at most π (a σ in degrees is refused).
+    pub fn validate(&self) -> Result<()> {
+        check::positive("heading_sigma", self.sigma)?;
+        if self.sigma > std::f64::consts::PI {
+            return Err(Error::invalid(
+                "heading_sigma",
+                format!("must be at most π [rad], got {} (degrees?)", self.sigma),
+            ));
+        }
+        check::positive("heading_period", self.period)
+    }
 }
 
 /// A source of position fixes of an antenna or transponder at `lever_arm` from the IMU:
@@ -220,9 +248,26 @@ impl FixModel {
     }
 }
 
+/// The aiding sensors of a scenario (borrowed from its `SensorConfig`): what an
+/// [`AidingSim`] simulates.
+#[derive(Clone, Copy, Debug)]
+pub struct AidingModels<'a> {
+    pub depth: Option<&'a DepthModel>,
+    pub heading: Option<&'a HeadingModel>,
+    pub fixes: &'a [FixModel],
+}
+
+impl AidingModels<'_> {
+    /// Whether there is any.
+    pub fn any(&self) -> bool {
+        self.depth.is_some() || self.heading.is_some() || !self.fixes.is_empty()
+    }
+}
+
 /// The aiding sensors of one run, stepping along the truth.
 pub struct AidingSim {
     depth: Option<(usize, ChaCha8Rng)>,
+    heading: Option<(usize, ChaCha8Rng)>,
     fixes: Vec<FixSim>,
 }
 
@@ -234,27 +279,33 @@ fn offset_rng(seed: u64, run_index: u64, offset: u128) -> ChaCha8Rng {
 }
 
 impl AidingSim {
-    /// The aiding sensors of `depth` and `fixes` on `truth` for run `run_index` of
-    /// `seed`; None when there are none. `Err` naming a period that is not a whole
-    /// number of IMU steps.
+    /// The aiding sensors `sensors` on `truth` for run `run_index` of `seed`; None when
+    /// there are none. `Err` naming a period that is not a whole number of IMU steps.
     pub fn new(
-        depth: Option<&DepthModel>,
-        fixes: &[FixModel],
+        sensors: AidingModels<'_>,
         truth: &Truth,
         seed: u64,
         run_index: u64,
     ) -> Result<Option<Self>> {
-        if depth.is_none() && fixes.is_empty() {
+        if !sensors.any() {
             return Ok(None);
         }
-        let depth = match depth {
+        let depth = match sensors.depth {
             Some(d) => Some((
                 steps_per(d.period, truth.dt, "depth_period")?,
                 offset_rng(seed, run_index, 1 << 66),
             )),
             None => None,
         };
-        let fixes = fixes
+        let heading = match sensors.heading {
+            Some(h) => Some((
+                steps_per(h.period, truth.dt, "heading_period")?,
+                offset_rng(seed, run_index, 3 << 65),
+            )),
+            None => None,
+        };
+        let fixes = sensors
+            .fixes
             .iter()
             .enumerate()
             .map(|(j, f)| {
@@ -265,20 +316,25 @@ impl AidingSim {
                 })
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(Some(Self { depth, fixes }))
+        Ok(Some(Self {
+            depth,
+            heading,
+            fixes,
+        }))
     }
 
     /// The readings due at epoch `k` (called once per epoch, `k` increasing) of the
-    /// true state `truth`, appended to `out`: the depth first, then each fix source's in
-    /// order, each read at its sensor's lever arm.
+    /// true state `truth` by the aiding sensors `sensors` (the ones [`Self::new`] was
+    /// given), appended to `out`: the depth first, then each fix source's in order,
+    /// each read at its sensor's lever arm, then the heading.
     pub fn readings(
         &mut self,
-        depth: Option<&DepthModel>,
-        fixes: &[FixModel],
+        sensors: AidingModels<'_>,
         k: usize,
         truth: &NavState,
         out: &mut Vec<Reading>,
     ) {
+        let (depth, fixes) = (sensors.depth, sensors.fixes);
         let true_depth = -truth.lla[2];
         // The NED offset of a sensor at `arm` (none at the IMU: the IMU's point exactly).
         let offset = |arm: &Vector3<f64>| (*arm != Vector3::zeros()).then(|| truth.dcm * arm);
@@ -320,213 +376,18 @@ impl AidingSim {
                 lever_arm: model.lever_arm,
             }));
         }
+        if let (Some((every, rng)), Some(model)) = (self.heading.as_mut(), sensors.heading) {
+            if k.is_multiple_of(*every) {
+                let yaw = truth.dcm[(1, 0)].atan2(truth.dcm[(0, 0)]);
+                out.push(Reading::Heading(Heading {
+                    y: wrap_angle(yaw + model.sigma * normal(rng)),
+                    sigma: model.sigma,
+                }));
+            }
+        }
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::trajectory::builtin;
-
-    fn fixes(period: f64, times: Vec<f64>, max_depth: Option<f64>) -> FixModel {
-        FixModel {
-            sigma: [2.0, 3.0, f64::NAN],
-            period,
-            times,
-            max_depth,
-            lever_arm: Vector3::zeros(),
-        }
-    }
-
-    /// Every reading of `n` epochs of a stationary truth at `depth` \[m\].
-    fn draw(
-        depth: Option<&DepthModel>,
-        fix: &[FixModel],
-        truth: &Truth,
-        at_depth: f64,
-        run: u64,
-    ) -> Vec<(usize, Reading)> {
-        let mut sim = AidingSim::new(depth, fix, truth, 11, run).unwrap().unwrap();
-        let mut state = truth.states[0];
-        state.lla[2] = -at_depth;
-        let mut out = Vec::new();
-        let mut all = Vec::new();
-        for k in 1..=truth.len() {
-            out.clear();
-            sim.readings(depth, fix, k, &state, &mut out);
-            all.extend(out.iter().map(|r| (k, *r)));
-        }
-        all
-    }
-
-    #[test]
-    fn readings_have_the_configured_noise() {
-        let truth = builtin("paper", 0.01).unwrap().generate().unwrap();
-        let depth = DepthModel {
-            sigma: 0.2,
-            period: 0.01,
-            lever_arm: Vector3::zeros(),
-        };
-        let mut fix = fixes(0.01, vec![], None);
-        fix.sigma[2] = 4.0;
-        let state = {
-            let mut s = truth.states[0];
-            s.lla[2] = -30.0;
-            s
-        };
-        let (mut d, mut f) = (Vec::new(), Vec::new());
-        for r in draw(Some(&depth), std::slice::from_ref(&fix), &truth, 30.0, 2) {
-            match r.1 {
-                Reading::Depth(m) => {
-                    assert_eq!(m.sigma, 0.2);
-                    d.push(m.z - 30.0);
-                }
-                Reading::Fix(m) => {
-                    f.push(earth::position_error_ned(&Vector3::from(m.lla), &state.lla))
-                }
-                other => panic!("not an aiding reading: {other:?}"),
-            }
-        }
-        // 33,000 draws each: the sample σ within 2 % (its standard error is 0.4 %), the
-        // mean within 4 standard errors of 0.
-        let n = d.len() as f64;
-        assert_eq!(d.len(), truth.len());
-        let sd = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
-        assert!((sd(&d) / 0.2 - 1.0).abs() < 0.02, "{}", sd(&d));
-        assert!((d.iter().sum::<f64>() / n).abs() < 4.0 * 0.2 / n.sqrt());
-        for (axis, sigma) in [2.0, 3.0, 4.0].iter().enumerate() {
-            let e: Vec<f64> = f.iter().map(|v| v[axis]).collect();
-            assert!((sd(&e) / sigma - 1.0).abs() < 0.02, "{axis}: {}", sd(&e));
-        }
-        // depth and fix draws are independent of each other
-        let c = d.iter().zip(&f).map(|(a, b)| a * b[0]).sum::<f64>() / n / (0.2 * 2.0);
-        assert!(c.abs() < 4.0 / n.sqrt(), "{c}");
-    }
-
-    #[test]
-    fn fixes_follow_their_schedule() {
-        let truth = builtin("paper", 0.01).unwrap().generate().unwrap();
-        let epochs = |f: &FixModel, depth: f64| -> Vec<usize> {
-            draw(None, std::slice::from_ref(f), &truth, depth, 0)
-                .into_iter()
-                .map(|(k, _)| k)
-                .collect()
-        };
-        // every 60 s: epochs 6000, 12000, ...; no height without a down σ
-        let periodic = fixes(60.0, vec![], None);
-        assert_eq!(
-            epochs(&periodic, 5.0),
-            vec![6000, 12000, 18000, 24000, 30000]
-        );
-        let one = draw(None, std::slice::from_ref(&periodic), &truth, 5.0, 0)[0].1;
-        assert!(matches!(one, Reading::Fix(m) if m.lla[2].is_nan()));
-        // listed times at the nearest epoch (the start's at the first), merged with the
-        // period without doubles; times past the end are dropped
-        let listed = fixes(100.0, vec![0.0, 12.344, 100.0, 329.99, 400.0], None);
-        assert_eq!(
-            epochs(&listed, 5.0),
-            vec![1, 1234, 10000, 20000, 30000, 32999]
-        );
-        // at the surface only
-        let surface = fixes(1.0, vec![], Some(0.5));
-        assert_eq!(epochs(&surface, 5.0), Vec::<usize>::new());
-        assert_eq!(epochs(&surface, 0.3).len(), 330);
-        // a period that is no whole number of steps is refused by name
-        let odd = fixes(0.015, vec![], None);
-        let err = AidingSim::new(None, &[periodic, odd], &truth, 0, 0)
-            .err()
-            .unwrap();
-        assert!(
-            err.to_string()
-                .starts_with("fixes[1].period: must be a whole"),
-            "{err}"
-        );
-    }
-
-    #[test]
-    fn a_source_that_takes_no_fix_is_refused_by_name() {
-        // the paper's 330 s trajectory, never shallower than its 5 m
-        let truth = builtin("paper", 0.01).unwrap().generate().unwrap();
-        let err = |f: FixModel| f.check_fires(1, &truth).unwrap_err().to_string();
-        for fires in [
-            fixes(60.0, vec![], None),
-            fixes(0.0, vec![329.99], None),
-            fixes(400.0, vec![100.0], None),
-            fixes(1.0, vec![], Some(5.5)),
-        ] {
-            assert!(fires.check_fires(1, &truth).is_ok(), "{fires:?}");
-        }
-        for late in [
-            fixes(400.0, vec![], None),
-            fixes(0.0, vec![330.5, 500.0], None),
-        ] {
-            assert!(
-                err(late).starts_with("fixes[1]: schedules no fix inside the trajectory's 330 s"),
-            );
-        }
-        let surface = err(fixes(1.0, vec![], Some(0.5)));
-        assert!(
-            surface.starts_with("fixes[1].max_depth: no scheduled fix comes at a true depth")
-                && surface.contains("never shallower than 5.000 m"),
-            "{surface}"
-        );
-        // the depth it names is the shallowest at the scheduled epochs, not anywhere
-        let deepest = truth
-            .states
-            .iter()
-            .map(|s| -s.lla[2])
-            .fold(f64::NEG_INFINITY, f64::max);
-        let at = (0..=truth.len())
-            .find(|&k| -truth.states[k].lla[2] == deepest)
-            .unwrap();
-        let once = err(fixes(0.0, vec![truth.time[at]], Some(deepest - 1.0)));
-        assert!(
-            once.contains(&format!("never shallower than {deepest:.3} m")),
-            "{once}"
-        );
-        assert!(err(fixes(0.015, vec![], None)).starts_with("fixes[1].period: must be a whole"));
-    }
-
-    #[test]
-    fn draws_depend_on_seed_and_run_only() {
-        let truth = builtin("paper", 0.01).unwrap().generate().unwrap();
-        let depth = DepthModel {
-            sigma: 0.1,
-            period: 1.0,
-            lever_arm: Vector3::zeros(),
-        };
-        let a = draw(Some(&depth), &[], &truth, 10.0, 4);
-        let b = draw(Some(&depth), &[fixes(1.0, vec![], None)], &truth, 10.0, 4);
-        let b: Vec<_> = b
-            .into_iter()
-            .filter(|r| matches!(r.1, Reading::Depth(..)))
-            .collect();
-        assert_eq!(a, b);
-        assert_ne!(a, draw(Some(&depth), &[], &truth, 10.0, 5));
-        // none configured: nothing to simulate
-        assert!(AidingSim::new(None, &[], &truth, 0, 0).unwrap().is_none());
-    }
-
-    #[test]
-    fn bad_models_are_named() {
-        let bad = |f: FixModel| f.validate(2).unwrap_err().to_string();
-        let mut f = fixes(1.0, vec![], None);
-        f.sigma[1] = 0.0;
-        assert!(bad(f).starts_with("fixes[2].sigma: needs"));
-        assert!(bad(fixes(-1.0, vec![], None)).starts_with("fixes[2].period: must be"));
-        assert!(bad(fixes(0.0, vec![], None)).starts_with("fixes[2].period: no fix"));
-        assert!(bad(fixes(0.0, vec![2.0, 1.0], None)).starts_with("fixes[2].times: must inc"));
-        assert!(bad(fixes(0.0, vec![-1.0], None)).starts_with("fixes[2].times: must be >= 0"));
-        assert!(bad(fixes(1.0, vec![], Some(f64::NAN))).starts_with("fixes[2].max_depth"));
-        let d = DepthModel {
-            sigma: 0.0,
-            period: 1.0,
-            lever_arm: Vector3::zeros(),
-        };
-        assert!(d
-            .validate()
-            .unwrap_err()
-            .to_string()
-            .starts_with("depth_sigma"));
-    }
-}
+#[path = "aiding_tests.rs"]
+mod tests;
