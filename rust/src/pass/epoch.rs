@@ -233,13 +233,12 @@ impl Pass {
     ) -> Result<(), Failure> {
         let failed = |reading: Option<usize>| move |error| Failure { reading, error };
         observer.before_step(at, &self.ekf, strategy.process_noise());
-        let closed = self
-            .ekf
-            .propagate(at.raw, at.dt, strategy.process_noise())
+        let noise = strategy.process_noise();
+        self.ekf
+            .propagate_observed(at.raw, at.dt, noise, |ekf, phi| {
+                observer.on_close(at.index, ekf, phi)
+            })
             .map_err(failed(None))?;
-        if let Some(phi) = closed {
-            observer.on_close(at.index, &self.ekf, &phi);
-        }
         self.steps_since_update += 1;
         if at.last || !readings.is_empty() {
             self.close(at.index, observer);

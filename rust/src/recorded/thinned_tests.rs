@@ -374,10 +374,12 @@ fn a_kept_epoch_inside_a_step_reads_the_sigma_at_its_steps_ends() {
         let mut inside = Vec::new();
         for (k, sample) in imu.iter().enumerate().map(|(k, s)| (k + 1, s)) {
             let t = k as f64 * 0.01;
-            let closed = ekf
-                .propagate(&ImuSample::from_array(sample), 0.01, noise)
-                .unwrap();
-            if closed.is_some() {
+            let mut closed = false;
+            ekf.propagate_observed(&ImuSample::from_array(sample), 0.01, noise, |_, _| {
+                closed = true
+            })
+            .unwrap();
+            if closed {
                 stale.on_close(&ekf);
             }
             let aided = k % 20 == 0;

@@ -261,10 +261,13 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
         let mut read = false;
         for (k, close) in closes.iter().enumerate().rev() {
             let at_node = close.epoch == b.epoch;
+            // Borrowed, not copied: most closes of a Monte Carlo's run carry none.
+            let node_p;
             let p = if at_node {
-                Some(b.p::<N>())
+                node_p = b.p::<N>();
+                Some(&node_p)
             } else {
-                close.p_prior
+                close.p_prior.as_ref()
             };
             let Some(p) = p else {
                 // No covariance (a thinned pass's sample between kept epochs, or one
@@ -291,7 +294,7 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
                 rows.wanted_in(close.epoch..end),
             );
             let at = match at_node || before || after {
-                true => AtClose::read(close, (&p, lambda.get()), (at_node, before, after), cfg),
+                true => AtClose::read(close, (p, lambda.get()), (at_node, before, after), cfg),
                 false => AtClose::default(),
             };
             rows.fill(cfg, (close.epoch, &ds, at.near.as_ref()), later.as_ref());

@@ -118,11 +118,13 @@ pub(crate) fn samples_mean<const N: usize>(
     closes: &mut Vec<Close<N, Sample>>,
     cancel: &Cancel,
 ) -> Result<()> {
-    closes.clear();
+    // The closes are overwritten in place, not pushed: a Monte Carlo's run rebuilds
+    // one per IMU sample, each 4 kB with its Q, and a push would move every byte.
+    closes.truncate(b - a.epoch);
     let bias = &forward.bias[a.epoch];
     let accel_bias = Vector3::new(bias[0], bias[1], bias[2]);
     let noise = a.noise.as_process_noise();
-    for i in a.epoch..b {
+    for (n, i) in (a.epoch..b).enumerate() {
         if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
             cancel.check()?;
         }
@@ -134,46 +136,59 @@ pub(crate) fn samples_mean<const N: usize>(
             true => (vel_b, Some(lift::<N>(prior, None))),
             false => (forward.nav[epoch].vel, None),
         };
-        closes.push(Close {
-            epoch,
-            phi: Sample {
-                dynamics,
-                dt,
-                q: Some(discrete_noise(cfg, nav, noise, dt)),
-            },
-            p_prior,
-            vel_prior: vel,
-            vel,
-        });
+        if n == closes.len() {
+            closes.push(Close {
+                epoch,
+                phi: Sample {
+                    dynamics,
+                    dt,
+                    q: Some(Matrix15::zeros()),
+                },
+                p_prior,
+                vel_prior: vel,
+                vel,
+            });
+        } else {
+            let c = &mut closes[n];
+            (c.epoch, c.phi.dynamics, c.phi.dt) = (epoch, dynamics, dt);
+            (c.p_prior, c.vel_prior, c.vel) = (p_prior, vel, vel);
+            c.phi
+                .q
+                .get_or_insert_with(Matrix15::zeros)
+                .as_mut_slice()
+                .fill(0.0);
+        }
+        if let Some(q) = closes[n].phi.q.as_mut() {
+            discrete_noise(cfg, nav, noise, dt, q);
+        }
     }
     Ok(())
 }
 
 /// The discrete noise `Q` the filter adds after `Φ` at one sample of `dt` seconds at
-/// the solution `nav` (its prediction's, added to zeros).
+/// the solution `nav` (its prediction's), added to `q` (zeros).
 fn discrete_noise(
     cfg: &FilterConfig,
     nav: &NavState,
     noise: ProcessNoise<'_>,
     dt: f64,
-) -> Matrix15 {
-    let mut q = Matrix15::zeros();
+    q: &mut Matrix15,
+) {
     match noise {
         ProcessNoise::Continuous {
             imu_variance,
             bias_psd,
         } => {
-            add_imu_noise(&mut q, nav, cfg.formulation, imu_variance, cfg.imu_dt * dt);
+            add_imu_noise(q, nav, cfg.formulation, imu_variance, cfg.imu_dt * dt);
             for (i, psd) in bias_psd.iter().enumerate() {
                 q[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
             }
         }
         ProcessNoise::Discrete(qd) => {
-            q = (qd + qd.transpose()) * 0.5;
-            from_classic(cfg.formulation, &mut q, &nav.vel);
+            *q = (qd + qd.transpose()) * 0.5;
+            from_classic(cfg.formulation, q, &nav.vel);
         }
     }
-    q
 }
 
 /// The closes in `(a, b]` of the covariance step that the forward pass kept (see

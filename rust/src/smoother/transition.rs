@@ -43,7 +43,7 @@ impl<const N: usize> Step<N> for NavRows {
     }
 
     fn accumulate(&self, k: &mut SMatrix<f64, N, N>) {
-        *k = times_phi(self, k);
+        times_phi_in_place(self, k);
     }
 
     fn next_mean(&self, _: &SVector<f64, N>, _: &SVector<f64, N>) -> Option<SVector<f64, N>> {
@@ -79,7 +79,7 @@ impl<const N: usize> Step<N> for Sample {
         for i in 0..9 {
             rows[(i, i)] += 1.0;
         }
-        *k = times_phi(&rows, k);
+        times_phi_in_place(&rows, k);
     }
 
     fn next_mean(&self, ds: &SVector<f64, N>, mu: &SVector<f64, N>) -> Option<SVector<f64, N>> {
@@ -164,6 +164,14 @@ fn transposed<const N: usize>(rows: &NavRows, x: &SVector<f64, N>) -> SVector<f6
 /// navigation columns, plus `B_{:,j}` past them; column by column over contiguous
 /// columns (9 × 15 × N multiply-adds), summed in [`transposed`]'s order.
 fn times_phi<const N: usize>(rows: &NavRows, b: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    let mut out = *b;
+    times_phi_in_place(rows, &mut out);
+    out
+}
+
+/// `B ← B Φ` ([`times_phi`] in place: a product carried at every IMU sample moves no
+/// matrix).
+fn times_phi_in_place<const N: usize>(rows: &NavRows, b: &mut SMatrix<f64, N, N>) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
@@ -172,40 +180,38 @@ fn times_phi<const N: usize>(rows: &NavRows, b: &SMatrix<f64, N, N>) -> SMatrix<
     times_phi_portable(rows, b)
 }
 
-/// [`times_phi`] in AVX2 registers (the same products and sums: no fused multiply-add).
+/// [`times_phi_in_place`] in AVX2 registers (the same products and sums: no fused
+/// multiply-add).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn times_phi_avx2<const N: usize>(
-    rows: &NavRows,
-    b: &SMatrix<f64, N, N>,
-) -> SMatrix<f64, N, N> {
+unsafe fn times_phi_avx2<const N: usize>(rows: &NavRows, b: &mut SMatrix<f64, N, N>) {
     times_phi_portable(rows, b)
 }
 
+/// Column `j` of `B Φ` reads B's nine navigation columns (kept aside: they are
+/// overwritten first) and, past them, B's column `j` itself (not yet overwritten).
 #[inline(always)]
-fn times_phi_portable<const N: usize>(
-    rows: &NavRows,
-    b: &SMatrix<f64, N, N>,
-) -> SMatrix<f64, N, N> {
-    let mut out = *b;
-    let src = b.as_slice();
-    let dst = out.as_mut_slice();
+fn times_phi_portable<const N: usize>(rows: &NavRows, b: &mut SMatrix<f64, N, N>) {
+    let mut nav = [[0.0; N]; 9];
+    for (k, col) in nav.iter_mut().enumerate() {
+        col.copy_from_slice(&b.as_slice()[N * k..N * (k + 1)]);
+    }
+    let dst = b.as_mut_slice();
     for j in 0..15 {
         let mut col = [0.0; N];
-        for k in 0..9 {
+        for (k, src) in nav.iter().enumerate() {
             let r = rows[(k, j)];
-            for (c, s) in col.iter_mut().zip(&src[N * k..N * (k + 1)]) {
+            for (c, s) in col.iter_mut().zip(src) {
                 *c += r * s;
             }
         }
         if j >= 9 {
-            for (c, s) in col.iter_mut().zip(&src[N * j..N * (j + 1)]) {
+            for (c, s) in col.iter_mut().zip(&dst[N * j..N * (j + 1)]) {
                 *c += s;
             }
         }
         dst[N * j..N * (j + 1)].copy_from_slice(&col);
     }
-    out
 }
 
 /// `Φᵀ Λ Φ` for a symmetric Λ: `W = Λ Φ`, then `Wᵀ Φ = (Φᵀ W)ᵀ`, symmetrized. Each
