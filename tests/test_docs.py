@@ -1,6 +1,7 @@
 """The documentation: docs/api.md matches the docstrings, every relative link in the
 Markdown pages points to a file that exists (and to a heading that exists, when it
-names one), and every page is reachable from the README."""
+names one), every page is reachable from the README, and docs/development.md's layer
+tables name every file of the Rust crate and every module of the Python package."""
 
 from __future__ import annotations
 
@@ -23,6 +24,10 @@ PAGES = sorted(ROOT.glob("*.md")) + sorted((ROOT / "docs").rglob("*.md"))
 LINK = re.compile(r"\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
 FENCE = re.compile(r"^(```|~~~).*?^\1", flags=re.S | re.M)
 INLINE_CODE = re.compile(r"(`+)(?:(?!\1).)+?\1", flags=re.S)
+DEVELOPMENT = ROOT / "docs" / "development.md"
+RUST_SRC = ROOT / "rust" / "src"
+PACKAGE = ROOT / "python" / "pronet"
+CODE_SPAN = re.compile(r"`([^`\n]+)`")
 
 
 @functools.cache
@@ -248,3 +253,106 @@ def test_binding_doc_comments_are_written_from_the_stub(capsys) -> None:
     rust = (ROOT / "rust" / "src" / "python" / "strategy.rs").read_text(encoding="utf-8")
     stale = rust.replace("/// Constant Q^c from 6", "/// Constant Q from 6")
     assert core_docs.rewrite(stale, core_docs.stub_docs(), set()) == rust
+
+
+def layer_rows(text: str) -> list[set[str]]:
+    """The code spans of each row of the layer tables (a table whose first column is
+    ``layer``) in the section "## Layout" of ``text``, a version of docs/development.md;
+    other tables (``| before | now |``) and the prose around them are not read."""
+    section = re.search(r"^## Layout[ \t]*$(.*?)(?=^## |\Z)", text, flags=re.M | re.S)
+    rows: list[set[str]] = []
+    header = ""
+    for line in (section.group(1) if section else "").splitlines():
+        if not line.startswith("|"):
+            header = ""
+            continue
+        header = header or line
+        if header.split("|")[1].strip() == "layer":
+            rows.append(set(CODE_SPAN.findall(line)))
+    return rows
+
+
+def rust_files() -> list[str]:
+    """The crate's files relative to rust/src, but ``lib.rs`` and the test files
+    (``tests.rs``, ``*_tests.rs``)."""
+    return sorted(
+        p.relative_to(RUST_SRC).as_posix()
+        for p in RUST_SRC.rglob("*.rs")
+        if p.name != "lib.rs" and not p.name.endswith("tests.rs")
+    )
+
+
+def python_modules() -> list[str]:
+    """Every module of the package by dotted name, private ones too; a package by its
+    own name (its ``__init__``), the stub ``_core.pyi`` as ``pronet._core``."""
+    names = []
+    for path in [*PACKAGE.rglob("*.py"), PACKAGE / "_core.pyi"]:
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        names.append(".".join(parts))
+    return sorted(names)
+
+
+def unnamed_in_layout(text: str) -> list[str]:
+    """The Rust files and Python modules that the layer tables of ``text`` (a version of
+    docs/development.md) do not name. A name counts in code marks, inside one row:
+
+    - a Rust file by its path from rust/src (``smoother/backward.rs``, ``run.rs``), or
+      by its folder with a slash and its file name in the same row (``smoother/`` and
+      ``backward.rs``; ``python/streams/`` and ``dvl.rs``);
+    - a Python module by its dotted name (``pronet.strategies``), or by its package and
+      its last part in the same row (``pronet.learn`` and ``models``; ``pronet`` and
+      ``filter``).
+
+    A bare file name or last part counts only beside its folder or package: the crate
+    has three ``filter.rs`` and the package two ``figures``, so one mention must not
+    stand for the others.
+    """
+    rows = layer_rows(text)
+
+    def named(name: str, parent: str, leaf: str) -> bool:
+        return any(name in row or {parent, leaf} <= row for row in rows)
+
+    missing = []
+    for path in rust_files():
+        folder, _, name = path.rpartition("/")
+        if not named(path, f"{folder}/", name):
+            missing.append(f"rust/src/{path}")
+    for module in python_modules():
+        package, _, last = module.rpartition(".")
+        if not named(module, package, last):
+            missing.append(module)
+    return missing
+
+
+def test_the_layout_names_every_module() -> None:
+    """A new file or module goes into its layer's row of docs/development.md, "Layout"
+    (the Rust layers: tests/test_rust_layout.py; the Python ones: tests/test_layout.py)."""
+    missing = unnamed_in_layout(DEVELOPMENT.read_text(encoding="utf-8"))
+    assert missing == [], f"docs/development.md, Layout: no layer table names {missing}"
+
+
+def test_the_layout_check_sees_what_is_missing() -> None:
+    # It must see the files and modules, or it passes vacuously; a name counts in a
+    # layer table's row only, beside its folder or package.
+    assert {"ekf/update.rs", "python/streams/dvl.rs", "run.rs"} <= set(rust_files())
+    assert not [f for f in rust_files() if f.endswith("tests.rs") or f == "lib.rs"]
+    assert {"pronet", "pronet._core", "pronet.cli.__main__"} <= set(python_modules())
+    assert {"pronet.learn.torchfilter", "pronet.learn.torchfilter.loop"} <= set(python_modules())
+    text = (
+        "## Layout\n\n`pass/`: `epoch.rs`, `pronet.learn` (`models`)\n\n"
+        "| layer | modules |\n|---|---|\n"
+        "| a | `ekf/`: `filter.rs`; `run.rs`; `smoother/backward.rs` |\n"
+        "| b | `pronet.learn` (`hybrid`); `pronet.strategies`; `pronet` |\n\n"
+        "| before | now |\n|---|---|\n| `sim/`: `paper.rs` | `pronet.sim.paper` |\n\n"
+        "## Build\n\n| layer | x |\n|---|---|\n| c | `trajectory.rs` |\n"
+    )
+    missing = set(unnamed_in_layout(text))
+    named = {"ekf/filter.rs", "run.rs", "smoother/backward.rs"}
+    assert not {f"rust/src/{f}" for f in named} & missing
+    assert not {"pronet.learn.hybrid", "pronet.strategies", "pronet"} & missing
+    assert "rust/src/recorded/filter.rs" in missing  # filter.rs names ekf's only
+    assert "rust/src/pass/epoch.rs" in missing  # outside a layer table
+    assert "rust/src/trajectory.rs" in missing  # after the section
+    assert {"pronet.learn.models", "pronet.sim.paper", "pronet.learn.akit"} <= missing
