@@ -24,7 +24,7 @@ use nalgebra::{Matrix3, Vector3};
 // every IMU step, and where P lies against a cache line moved a whole Monte Carlo by
 // up to 7 %. P 48 bytes past a 64-byte boundary (after the two bias vectors) was the
 // fastest of the placements measured, 64-byte aligned the slowest, the compiler's
-// choice 3 % slower (`benches/compare_builds.py --monte-carlo`, 2026-12-06).
+// choice 3 % slower (`benches/compare_builds.py --monte-carlo`).
 #[repr(C, align(64))]
 pub struct Ekf {
     /// Accelerometer bias estimate \[m/s²\].
