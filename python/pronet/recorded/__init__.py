@@ -33,6 +33,10 @@ Running and reporting (``pronet real``):
 - :mod:`~pronet.recorded.metrics`: errors against the ground truth;
 - :mod:`~pronet.recorded.tables`: the tables, ``metrics.csv`` and ``config.json``;
 - :mod:`~pronet.recorded.figures`: the section figures, drawn in worker processes.
+
+Navigating a recording without ground truth (``pronet navigate``):
+
+- :mod:`~pronet.recorded.solution`: what it produces, as plain records.
 """
 
 __all__ = [
@@ -50,6 +54,7 @@ __all__ = [
     "real",
     "recordings",
     "runs",
+    "solution",
     "tables",
     "tuning",
     "vehicle",
