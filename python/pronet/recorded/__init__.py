@@ -36,7 +36,9 @@ Running and reporting (``pronet real``):
 
 Navigating a recording without ground truth (``pronet navigate``):
 
-- :mod:`~pronet.recorded.solution`: what it produces, as plain records.
+- :mod:`~pronet.recorded.solution`: what it produces, as plain records;
+- :mod:`~pronet.recorded.health`: what a pass says about each stream (counts, the mean
+  NIS against its χ² band, one line naming the likely causes when out of it).
 """
 
 __all__ = [
@@ -47,6 +49,7 @@ __all__ = [
     "dvlnoise",
     "dvltruth",
     "figures",
+    "health",
     "metrics",
     "missing",
     "passes",

@@ -1,0 +1,101 @@
+"""What a pass says about its streams (:mod:`pronet.recorded.health`): counts, the mean
+NIS against its χ² band, and one line naming the likely causes when a stream disagrees
+with the filter (fixes 300 m off, a DVL told a σ ten times too small, a magnetic heading
+with its declination left out); none for streams told their true σ. (A heading in
+degrees is refused when its stream is made.)"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pronet
+from pronet.recorded.alignment import dcm_from_euler
+from pronet.recorded.health import stream_report, stream_reports
+
+SECONDS = 120.0
+Q = np.array([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6])
+
+
+def _streams(rng: np.random.Generator, *, fix_offset: float = 0.0, dvl_told: float = 0.1,
+             heading_offset: float = 0.0) -> tuple[list, dict]:  # fmt: skip
+    """The paper trajectory's first ``SECONDS``: a 1 Hz DVL (σ 0.1 m/s, told
+    ``dvl_told``), fixes every 5 s (σ 1 m, moved ``fix_offset`` m north), a 2 Hz heading
+    (σ 0.01 rad, ``heading_offset`` rad off: a magnetic heading taken for a true one)."""
+    traj = pronet.builtin_trajectory("paper")
+    k = np.arange(100, int(SECONDS * 100) + 1, 100)
+    c = dcm_from_euler(traj.rpy[k])
+    dvl = np.einsum("kji,kj->ki", c, traj.vel_ned[k]) + rng.normal(size=(len(k), 3)) * 0.1
+    f = np.arange(500, int(SECONDS * 100) + 1, 500)
+    ned = rng.normal(size=(len(f), 3)) * 1.0 + [fix_offset, 0.0, 0.0]
+    fix = np.array([pronet.lla_from_ned(o, p) for o, p in zip(ned, traj.lla[f], strict=True)])
+    fix[1::2, 2] = np.nan  # every other fix horizontal: 2 dof
+    h = np.arange(50, int(SECONDS * 100) + 1, 50)
+    heading = traj.rpy[h, 2] + rng.normal(size=len(h)) * 0.01 + heading_offset
+    streams = [
+        pronet.Dvl(traj.time[k], dvl, sigma=dvl_told),
+        pronet.Fix(traj.time[f], fix, sigma=[1.0, 1.0, 1.0]),
+        pronet.Heading(traj.time[h], heading, sigma=0.01),
+    ]
+    return streams, {"fix": fix}
+
+
+def _pass(streams: list) -> pronet.FilterResult:
+    traj = pronet.builtin_trajectory("paper")
+    n = int(SECONDS * 100)
+    imu = traj.imu[:n] + np.random.default_rng(1).normal(size=(n, 6)) * np.sqrt(Q)
+    return pronet.run_filter(
+        imu, traj.time[1 : n + 1], streams, t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
+        rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+        config=pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14),
+    )  # fmt: skip
+
+
+def _reports(**kw) -> dict[str, pronet.recorded.solution.StreamReport]:
+    streams, rows = _streams(np.random.default_rng(3), **kw)
+    out = _pass(streams)
+    names = ["dvl", "fix", "heading"]
+    times = [s.time for s in streams]
+    return {r.name: r for r in stream_reports(out, names, times, lla={1: rows["fix"]})}
+
+
+def test_streams_told_their_sigma_are_in_band_and_counted() -> None:
+    r = _reports()
+    assert (r["dvl"].applied, r["fix"].applied, r["heading"].applied) == (120, 24, 240)
+    assert r["dvl"].dof == 3.0 and r["heading"].dof == 1.0
+    assert r["fix"].dof == pytest.approx(2.5)  # half the fixes horizontal
+    for rep in r.values():
+        lo, hi = rep.band
+        assert lo < rep.mean_nis < hi and rep.flag == "", rep
+        assert rep.rejected == 0 and rep.skipped == {}
+        assert np.isfinite(rep.nis).all() and len(rep.time) == rep.rows
+
+
+@pytest.mark.parametrize(
+    ("kw", "stream", "words"),
+    [
+        ({"fix_offset": 300.0}, "fix", "the antenna's lever arm"),
+        ({"dvl_told": 0.01}, "dvl", "the DVL's σ too small"),
+        ({"heading_offset": 0.2}, "heading", "a magnetic heading without its declination"),
+    ],
+)
+def test_a_stream_that_disagrees_with_the_filter_is_named_with_its_causes(
+    kw: dict, stream: str, words: str
+) -> None:
+    rep = _reports(**kw)[stream]
+    assert rep.mean_nis > rep.band[1]
+    assert rep.flag.startswith(f"{stream}: mean NIS ") and words in rep.flag, rep.flag
+    assert "\n" not in rep.flag
+
+
+def test_a_sigma_too_large_reads_below_the_band_and_outside_rows_are_skipped() -> None:
+    streams, _ = _streams(np.random.default_rng(3), dvl_told=1.0)
+    late = pronet.Heading([500.0, 501.0], [0.1, 0.1], sigma=0.01)  # past the pass
+    out = _pass([streams[0], late])
+    dvl = stream_report("dvl", out.streams[0], streams[0].time)
+    assert dvl.mean_nis < dvl.band[0] and "larger than the readings' scatter" in dvl.flag
+    rep = stream_report("heading", out.streams[1], late.time, skipped={"nan": 3})
+    assert rep.applied == 0 and rep.flag == "heading: no reading applied"
+    assert rep.skipped == {"nan": 3, "outside the pass": 2} and rep.rows == 5
+    with pytest.raises(ValueError, match="^names, times: one per stream"):
+        stream_reports(out, ["dvl"], [streams[0].time])
