@@ -38,7 +38,8 @@ Navigating a recording without ground truth (``pronet navigate``):
 
 - :mod:`~pronet.recorded.solution`: what it produces, as plain records;
 - :mod:`~pronet.recorded.health`: what a pass says about each stream (counts, the mean
-  NIS against its χ² band, one line naming the likely causes when out of it).
+  NIS against its χ² band, one line naming the likely causes when out of it);
+- :mod:`~pronet.recorded.surface`: the depth's surface reference measured at the surface.
 """
 
 __all__ = [
@@ -58,6 +59,7 @@ __all__ = [
     "recordings",
     "runs",
     "solution",
+    "surface",
     "tables",
     "tuning",
     "vehicle",

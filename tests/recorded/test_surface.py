@@ -1,0 +1,45 @@
+"""The depth's surface reference measured at the surface (:mod:`pronet.recorded.surface`):
+readings beside GNSS fixes at the surface give the offset of a wrong surface pressure;
+fixes at depth (USBL) or none leave it, and say so."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pronet.recorded.surface import surface_offset
+
+
+def _dive(offset: float, rng: np.random.Generator):
+    """10 Hz depth for 300 s: 30 s at the surface, a dive to 10 m, 30 s at the surface
+    at the end; a wrong surface pressure adds ``offset`` [m] to every reading (σ 2 cm).
+    Fixes at 1 Hz: at the surface with heights near 0, at depth (USBL) at −depth."""
+    t = np.arange(0.0, 300.0, 0.1)
+    true = np.clip(np.minimum(t - 30.0, 270.0 - t) * 0.2, 0.0, 10.0)
+    depth = true + offset + rng.normal(size=t.size) * 0.02
+    ft = np.arange(0.0, 300.0, 1.0)
+    at = np.interp(ft, t, true)
+    height = -at + rng.normal(size=ft.size) * 0.3
+    return t, depth, ft, height
+
+
+def test_readings_beside_surface_fixes_give_the_offset() -> None:
+    t, depth, ft, height = _dive(0.057, np.random.default_rng(0))
+    s = surface_offset(t, depth, ft, height)
+    assert s.offset == pytest.approx(0.057, abs=0.005) and s.readings > 300
+    assert s.span is not None and s.span[0] < 1.0 and s.span[1] > 269.0
+    assert "from" in s.note and "readings at the surface" in s.note
+    # 5.7 cm of water at 1025 kg/m³: 573 Pa above the standard atmosphere
+    assert s.pressure(101_325.0, 1025.0) == pytest.approx(101_325 + 573, abs=60)
+
+
+def test_without_surface_fixes_the_reference_stays_and_is_stated() -> None:
+    t, depth, ft, height = _dive(0.057, np.random.default_rng(1))
+    deep = height < -2.0  # USBL fixes only: at depth
+    s = surface_offset(t, depth, ft[deep], height[deep])
+    assert s.offset == 0.0 and s.span is None and "keeps the reader's" in s.note
+    horizontal = surface_offset(t, depth, ft, np.full(ft.size, np.nan))
+    assert horizontal.offset == 0.0
+    assert surface_offset(t, depth, ft, height, given=-0.02).offset == -0.02
+    with pytest.raises(ValueError, match="^surface offset: must be a finite"):
+        surface_offset(t, depth, ft, height, given=float("nan"))
