@@ -313,6 +313,26 @@ def estimate_alignment(
     )
 
 
+def moved_point(lla: F64, vel: F64, rpy: F64, arm: ArrayLike, gyro: F64) -> tuple[F64, F64]:
+    """Position ``(k, 3)`` [rad, rad, m up] and NED velocity ``(k, 3)`` [m/s] of the point
+    at ``arm`` [m, body FRD] from the point whose are ``lla``, ``vel``, at attitude
+    ``rpy`` ``(k, 3)`` [rad] and body rate ``gyro`` ``(k, 3)`` [rad/s]:
+    ``p + C r`` (NED metres at the point's radii) and ``v + C (ω × r)``."""
+    r = np.asarray(arm, dtype=np.float64)
+    lla, vel = np.array(lla, dtype=np.float64), np.array(vel, dtype=np.float64)
+    if not r.any():
+        return lla, vel
+    c = dcm_from_euler(rpy)
+    offset_ned = c @ r
+    radii = np.array([_core.earth_radii(float(lat)) for lat in lla[:, 0]])
+    h = lla[:, 2]
+    lla[:, 0] += offset_ned[:, 0] / (radii[:, 0] + h)
+    lla[:, 1] += offset_ned[:, 1] / ((radii[:, 1] + h) * np.cos(lla[:, 0]))
+    lla[:, 2] -= offset_ned[:, 2]
+    vel += np.einsum("kij,kj->ki", c, np.cross(gyro, r))
+    return lla, vel
+
+
 def align(rec: Recording, alignment: Alignment) -> Section:
     """Put ``rec`` on the IMU clock since its epoch and move its truth to the IMU (see
     the module docstring)."""

@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+
+from pronet.recorded.alignment import moved_point
 
 F64 = NDArray[np.float64]
 
@@ -157,3 +159,33 @@ class Navigation:
     def solutions(self) -> tuple[Solution, ...]:
         """The forward solution, then the smoothed one where there is one."""
         return (self.forward,) if self.smoothed is None else (self.forward, self.smoothed)
+
+
+def solution_of(
+    label: Literal["forward", "smoothed"],
+    estimate: Any,
+    epoch: float,
+    imu: F64,
+    reference_arm: ArrayLike = (0.0, 0.0, 0.0),
+) -> Solution:
+    """The :class:`Solution` of a pass's ``estimate`` at every epoch (a
+    :class:`pronet.FilterResult`, or its :class:`pronet.SmoothedResult`: ``time``,
+    ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma`` of the IMU's point), moved to the
+    vehicle's reference point, which lies at ``reference_arm`` [m, body FRD] from the IMU
+    (the IMU's lever arm, negated). ``imu`` ``(n, 6)``: the pass's raw samples, whose
+    gyro less the bias estimate turns the arm into a velocity (epoch ``k`` after sample
+    ``k − 1``). The σ are the IMU point's (the arm's share of the position σ, ``|r| σ_ψ``,
+    is centimetres at the most for an arm of a metre)."""
+    time = np.asarray(estimate.time, dtype=np.float64)
+    k = np.maximum(np.arange(len(time)) - 1, 0)
+    gyro = np.asarray(imu, dtype=np.float64)[k, 3:6] - np.asarray(estimate.bias)[:, 3:6]
+    lla, vel = moved_point(estimate.lla, estimate.vel, estimate.rpy, reference_arm, gyro)
+    return Solution(
+        label=label,
+        time=time,
+        epoch=float(epoch),
+        lla=lla,
+        vel=vel,
+        rpy=np.array(estimate.rpy, dtype=np.float64),
+        sigma=np.array(estimate.sigma, dtype=np.float64),
+    )
