@@ -7,6 +7,7 @@ pronet's own bag reader as a truth topic to 1e-6 m / 1e-9 rad, the figures and
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import math
 import sys
@@ -336,6 +337,12 @@ def test_a_non_finite_position_is_left_out_of_the_geojson_and_written_as_nan(tmp
     assert len(line["geometry"]["coordinates"]) == 299
     table = pd.read_csv(export.write_trajectory(broken, tmp_path / "t.csv"))
     assert table["lat [deg]"].isna().sum() == 1
+    if importlib.util.find_spec("rosbags") is not None:  # nor is it in the bag
+        options = odometry.OdometryOptions(rate=None)
+        bag = odometry.write_odometry_bag(tmp_path / "o.bag", broken, "rosbag1", options)
+        origin = odometry.bag_origin(broken, options)
+        got, _ = _read_truth(bag, "/pronet/odometry", origin, "enu", "flu")
+        np.testing.assert_allclose(got[:, 0], EPOCH + np.delete(nav.forward.time, 10), atol=3e-7)
 
 
 def test_track_geojson_is_valid_for_geojson_and_shapely_when_installed(tmp_path, nav):
@@ -510,10 +517,12 @@ def test_report_md_states_the_initial_state_streams_pressure_notes_and_score(nav
     row = (
         f"| dvl | velocity | 120 | {dvl.applied} | {dvl.rejected} | missing 3 | {dvl.mean_nis:.3f}"
     )
-    row += " | 2.400 – 3.600 | 3 |"
+    inside = "yes" if 2.4 <= dvl.mean_nis <= 3.6 else "no"
+    row += f" | 2.400 – 3.600 | {inside} | 3 |"
     assert row in text
     assert f"| depth | depth | 60 | {depth.applied} | {depth.rejected} | missing 3 |" in text
-    assert "Out of band:\n- dvl: mean NIS above its band: R too small?\n" in text
+    assert "Flagged:\n- dvl: mean NIS above its band: R too small?\n" in text
+    assert text.count("| yes |") + text.count("| no |") == 2
     assert "101900.0 Pa, the first fix at the surface." in text
     assert "- the heading stream's σ is the default" in text
     assert "| final_horizontal | 0.42 | 0.17 |" in text
@@ -538,9 +547,26 @@ def test_write_all_writes_every_file_and_the_report_lists_them(tmp_path, nav):
     assert all(f"- `{name}`" in text for name in names)
 
 
+def test_write_all_without_smoothing_streams_or_readings(tmp_path):
+    """A forward pass alone, with no aiding stream and no readings: every file but the
+    bag, the innovations figure saying so."""
+    nav = _navigation(smooth=False, streams=(), readings={}, score=None)
+    paths = export.write_all(nav, tmp_path / "out")
+    assert [p.name for p in paths] == [
+        "trajectory.csv", "track.geojson", "config.json", *report.FIGURES, "report.md"
+    ]  # fmt: skip
+    assert set(pd.read_csv(paths[0])["solution"]) == {"forward"}
+    kinds = {f["properties"]["kind"] for f in json.loads(paths[1].read_text())["features"]}
+    assert kinds == {"track", "point"}
+    assert "No aiding stream was used." in paths[-1].read_text()
+
+
 def test_write_all_writes_nothing_on_bad_input(tmp_path, nav):
     with pytest.raises(ValueError, match="^storage: expected one of"):
         export.write_all(nav, tmp_path / "a", bag="ros3")
     with pytest.raises(TypeError, match=r"^navigation.config\['tuning'\]: JSON output: a object"):
         export.write_all(replace(nav, config={"tuning": object()}), tmp_path / "b")
-    assert not list(tmp_path.iterdir())
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ValueError, match="^out_dir: .*file is a file, not a folder"):
+        export.write_all(nav, tmp_path / "file")
+    assert [p.name for p in tmp_path.iterdir()] == ["file"]

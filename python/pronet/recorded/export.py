@@ -318,11 +318,12 @@ def write_all(
     the paths written, in that order."""
     check_navigation(navigation)
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"out_dir: {out} is a file, not a folder")
     check_writable(out, "out_dir")
     options = bag_options or odometry.OdometryOptions()
-    bag_path = None if bag is None else out / odometry.bag_name(bag)
-    if bag_path is not None:
-        odometry.check_bag(bag_path, navigation, bag or "", options)
+    if bag is not None:
+        odometry.check_bag(out / odometry.bag_name(bag), navigation, bag, options)
     config_bytes(navigation)  # a config that is not plain data: before any file
     out.mkdir(parents=True, exist_ok=True)
     paths = [
@@ -331,8 +332,9 @@ def write_all(
         write_config(navigation, out / CONFIG),
     ]
     origin = None
-    if bag_path is not None:
-        paths.append(odometry.write_odometry_bag(bag_path, navigation, bag or "", options))
+    if bag is not None:
+        bag_path = out / odometry.bag_name(bag)
+        paths.append(odometry.write_odometry_bag(bag_path, navigation, bag, options))
         origin = odometry.bag_origin(navigation, options)
     if figures:
         paths.extend(report.write_figures(navigation, out))

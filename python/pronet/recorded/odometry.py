@@ -8,7 +8,8 @@ topic, origin=bag_origin(...))``, the positions and attitudes come back as writt
 Topics (:class:`OdometryOptions`): the forward solution on ``/pronet/odometry``, the
 smoothed one on ``/pronet/odometry_smoothed``, each message stamped ``epoch + time`` (as
 recorded: Unix time for a bag), at most ``rate`` messages a second (the first epoch of
-each 1/rate interval; default 10 Hz); and one ``sensor_msgs/msg/NavSatFix`` on
+each 1/rate interval; default 10 Hz; an epoch whose position, velocity or attitude is not
+finite is left out); and one ``sensor_msgs/msg/NavSatFix`` on
 ``/pronet/origin`` holding the local frame's geodetic origin (latitude, longitude [deg],
 height [m, up]).
 
@@ -287,6 +288,8 @@ def _odometry_messages(
     """``(stamp [ns], topic, type, serialised message)`` of one solution, in time order."""
     kind = "nav_msgs/msg/Odometry"
     rows = decimate(np.asarray(sol.time, dtype=np.float64), options.rate)
+    state = np.hstack([sol.lla, sol.vel, sol.rpy])[rows]
+    rows = rows[np.isfinite(state).all(axis=1)]  # a diverged epoch has no pose
     frames = _frames(sol, rows, options, origin)
     for k, row in enumerate(rows.tolist()):
         stamp = _stamp(sol.epoch, float(sol.time[row]))

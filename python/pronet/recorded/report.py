@@ -337,18 +337,21 @@ def _streams_section(navigation: Navigation) -> list[str]:
     for r in navigation.streams:
         skipped = ", ".join(f"{why} {n}" for why, n in r.skipped.items() if n) or "none"
         band = f"{_g(r.band[0], '.3f')} – {_g(r.band[1], '.3f')}"
+        inside = "—" if not math.isfinite(r.mean_nis) else "no"
+        if math.isfinite(r.mean_nis) and r.band[0] <= r.mean_nis <= r.band[1]:
+            inside = "yes"
         rows.append(
             [r.name, r.kind, str(r.rows), str(r.applied), str(r.rejected), skipped,
-             _g(r.mean_nis, ".3f"), band, _g(r.dof, ".3g")]
+             _g(r.mean_nis, ".3f"), band, inside, _g(r.dof, ".3g")]
         )  # fmt: skip
         if r.flag:
             flags.append(f"- {r.name}: {r.flag}")
     header = ("stream", "kind", "readings", "applied", "rejected", "skipped", "mean NIS",
-              "95 % band", "dof")  # fmt: skip
+              "95 % band", "in band", "dof")  # fmt: skip
     if not rows:
         return ["## Sensors", "", "No aiding stream was used.", ""]
-    ok = "Every stream's mean NIS lies in its band." if not flags else "Out of band:"
-    return ["## Sensors", "", *_table(header, rows), "", ok, *flags, ""]
+    said = ["Flagged:", *flags] if flags else ["No stream is flagged."]
+    return ["## Sensors", "", *_table(header, rows), "", *said, ""]
 
 
 def surface_pressure(config: Mapping[str, Any]) -> tuple[float | None, str]:
