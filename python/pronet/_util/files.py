@@ -14,7 +14,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -58,14 +58,16 @@ def check_new_files(paths: list[Path], option: str, force: bool = False) -> None
         check_writable(path, option)
 
 
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temporary sibling and a rename, so ``path`` is
-    either the old file or the complete new one, never a partial write."""
+def atomic_write(path: Path, data: bytes | Iterable[bytes]) -> None:
+    """Write ``data`` (bytes, or pieces of them written one after the other: a large
+    file need not be held whole) to ``path`` via a temporary sibling and a rename, so
+    ``path`` is either the old file or the complete new one, never a partial write."""
     prefix = sibling(path, ".", hidden=True, room=_TEMP_CHARS).name
     fd, tmp = tempfile.mkstemp(prefix=prefix, dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            for piece in [data] if isinstance(data, bytes | bytearray | memoryview) else data:
+                fh.write(piece)
         os.chmod(tmp, 0o644)  # mkstemp makes it private; a saved file is an ordinary one
         os.replace(tmp, path)
     except OSError as exc:

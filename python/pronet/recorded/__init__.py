@@ -39,24 +39,35 @@ Navigating a recording without ground truth (``pronet navigate``):
 - :mod:`~pronet.recorded.solution`: what it produces, as plain records;
 - :mod:`~pronet.recorded.health`: what a pass says about each stream (counts, the mean
   NIS against its χ² band, one line naming the likely causes when out of it);
-- :mod:`~pronet.recorded.surface`: the depth's surface reference measured at the surface.
+- :mod:`~pronet.recorded.surface`: the depth's surface reference measured at the surface;
+- :mod:`~pronet.recorded.attitude`: its attitude as users read it (yaw in [0, 360),
+  roll, pitch and yaw σ from the filter's attitude-error σ);
+- :mod:`~pronet.recorded.export`: the files a user loads (``trajectory.csv``,
+  ``track.geojson``, ``config.json``) and :func:`~pronet.recorded.export.write_all`;
+- :mod:`~pronet.recorded.odometry`: the solution as ``nav_msgs/Odometry`` in a ROS 1 or
+  ROS 2 bag (the ``rosbags`` extra);
+- :mod:`~pronet.recorded.report`: its figures and ``report.md``.
 """
 
 __all__ = [
     "aiding",
     "alignment",
+    "attitude",
     "bags",
     "dvlcalibration",
     "dvlnoise",
     "dvltruth",
+    "export",
     "figures",
     "health",
     "metrics",
     "missing",
+    "odometry",
     "passes",
     "plausible",
     "real",
     "recordings",
+    "report",
     "runs",
     "solution",
     "surface",
