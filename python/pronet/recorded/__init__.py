@@ -36,7 +36,11 @@ Running and reporting (``pronet real``):
 
 Navigating a recording without ground truth (``pronet navigate``):
 
-- :mod:`~pronet.recorded.solution`: what it produces, as plain records.
+- :mod:`~pronet.recorded.solution`: what it produces, as plain records;
+- :mod:`~pronet.recorded.initial`: the initial state from the data (or given), each part
+  with the P0 its method earns;
+- :mod:`~pronet.recorded.initialinputs`: its inputs checked, the readings around t0;
+- :mod:`~pronet.recorded.levelling`: still intervals, levelling and gyrocompassing.
 """
 
 __all__ = [
@@ -47,6 +51,9 @@ __all__ = [
     "dvlnoise",
     "dvltruth",
     "figures",
+    "initial",
+    "initialinputs",
+    "levelling",
     "metrics",
     "missing",
     "passes",
