@@ -214,32 +214,31 @@ def test_given_parts_win_with_their_sigma():
     assert state.methods["depth"] == "given" and state.methods["position"] != "given"
 
 
-def test_still_interval_is_found_then_the_vehicle_moves():
+def test_still_interval_ends_where_a_steady_acceleration_starts():
+    """At rest for 25 s, then a steady acceleration from a window's boundary (no window's
+    spread shows it: only its mean moves), then a turn: the still interval ends at 25 s
+    and the levelling is within its σ (levelling into the acceleration would tilt it by
+    a/g = 0.01 rad, 10σ)."""
     tr = pronet.trajectory_from_segments(
-        [[25.0, 0.0, 0.0, 0.0], [20.0, 0.1, 0.03, 0.0]],
+        [[25.0, 0.0, 0.0, 0.0], [15.0, 0.1, 0.0, 0.0], [10.0, 0.0, 0.03, 0.0]],
         lla0=LLA,
         speed0=0.0,
         rpy0=[0.04, -0.05, 0.7],
         dt=0.01,
     )
     rng = np.random.default_rng(6)
-    imu = (
-        tr.imu
-        + rng.normal(0.0, MEMS_P0[9:])
-        + rng.normal(0.0, 1.0, tr.imu.shape) * np.repeat(MEMS_NOISE, 3)
-    )
+    noise = rng.normal(0.0, 1.0, tr.imu.shape) * np.repeat(MEMS_NOISE, 3)
+    imu = tr.imu + np.concatenate([rng.normal(0.0, MEMS_P0[9:12]), [0.0] * 3]) + noise
     time = tr.time[1:]
     found = still_intervals(time, imu, float(MEMS_P0[12]), StillSettings())
-    assert len(found) == 1
-    a, b = found[0]
-    assert a == time[0] and 23.0 <= b <= 25.0
+    assert found[0][0] == time[0] and 24.0 <= found[0][1] <= 25.0
     state = initial_state(time, imu, MEMS_P0, given=GivenState(lla=LLA, heading=0.7))
-    assert state.t0 == pytest.approx(b)
+    assert state.t0 == pytest.approx(found[0][1])
     psi = attitude_error(state.rpy, tr.rpy[0])
     assert np.all(np.abs(psi[:2]) <= 3 * state.p0_sigma[6:8])
-    # the moving part alone has no still interval
-    moving = time > 26.0
-    assert still_intervals(time[moving], imu[moving], float(MEMS_P0[12]), StillSettings()) == []
+    # the turn alone has no still interval
+    turning = time > 41.0
+    assert still_intervals(time[turning], imu[turning], float(MEMS_P0[12]), StillSettings()) == []
 
 
 def test_moving_start_from_an_ahrs_a_dvl_and_the_nearest_fix():
@@ -435,3 +434,82 @@ def test_settings_are_checked():
         InitialSettings(max_fixes=0)
     with pytest.raises(ValueError, match="^StillSettings.factor: expected a number above 1"):
         StillSettings(factor=0.5)
+
+
+def _survey(seed):
+    """A MEMS vehicle at rest for 60 s, then under way for 240 s, with fixes (σ 1.5 m),
+    a depth (σ 5 cm), each 1 m off the IMU, and a 1° heading at 1 Hz."""
+    rng = np.random.default_rng(seed)
+    segments = [[60, 0, 0, 0], [10, 0.15, 0, 0], [60, 0, 0.02, 0], [60, 0, -0.03, 0]]
+    segments += [[60, 0, 0, 0], [60, 0, 0.02, 0]]
+    tr = pronet.trajectory_from_segments(
+        segments, lla0=LLA, speed0=0.0, rpy0=[0.03, -0.02, 0.8], dt=0.01
+    )
+    noise = np.repeat(MEMS_NOISE, 3)
+    bias = np.concatenate([rng.normal(0.0, MEMS_P0[9:12]), rng.normal(0.0, MEMS_P0[12:])])
+    imu = tr.imu + bias + rng.normal(0.0, 1.0, tr.imu.shape) * noise
+    arm_fix, arm_depth = np.array([1.0, 0.0, -0.5]), np.array([-0.8, 0.2, 0.4])
+    k = np.arange(100, len(tr.time), 100)
+    c = np.array([rotation(r) for r in tr.rpy[k]])
+    ned = c @ arm_fix + rng.normal(0.0, [1.5, 1.5, 3.0], (len(k), 3))
+    fix = np.array([pronet.lla_from_ned(ned[i], tr.lla[j]) for i, j in enumerate(k)])
+    depth = -tr.lla[k, 2] + (c @ arm_depth)[:, 2] + rng.normal(0.0, 0.05, len(k))
+    sigma_y = math.radians(1.0)
+    yaw = np.angle(np.exp(1j * (tr.rpy[k, 2] + rng.normal(0.0, sigma_y, len(k)))))
+    streams = dict(
+        fixes=(tr.time[k], fix, [1.5, 1.5, 3.0]),
+        depth=(tr.time[k], depth, 0.05),
+        heading=(tr.time[k], yaw, sigma_y),
+    )
+    filter_streams = [
+        pronet.Depth(tr.time[k], depth, sigma=0.05, lever_arm=arm_depth),
+        pronet.Fix(tr.time[k], fix, sigma=[1.5, 1.5, 3.0], lever_arm=arm_fix),
+        pronet.Heading(tr.time[k], yaw, sigma=sigma_y),
+    ]
+    arms = dict(fix_lever_arm=arm_fix, depth_lever_arm=arm_depth)
+    return tr, imu, streams, filter_streams, arms, noise
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pass_started_from_the_data_is_as_good_and_as_honest_as_from_the_truth(seed):
+    tr, imu, streams, filter_streams, arms, noise = _survey(seed)
+    time = tr.time[1:]
+    state = initial_state(time, imu, MEMS_P0, **streams, **arms)
+    assert state.t0 == pytest.approx(60.0, abs=1.0)
+    k0 = int(np.argmin(np.abs(tr.time - state.t0)))
+    truth_p0 = np.concatenate([[0.1] * 3, [0.02] * 3, [2e-4, 2e-4, 1e-3], MEMS_P0[9:]])
+    starts = {
+        "data": (state.lla, state.vel, state.rpy, state.p0_sigma),
+        "truth": (tr.lla[k0], tr.vel_ned[k0], tr.rpy[k0], truth_p0),
+    }
+    rms = {}
+    for label, (lla0, vel0, rpy0, p0) in starts.items():
+        config = pronet.FilterConfig(
+            p0_sigma=p0,
+            accel_bias_psd=MEMS_P0[9] ** 2 / 400,
+            gyro_bias_psd=MEMS_P0[12] ** 2 / 400,
+            imu_dt=0.01,
+        )
+        after = time > state.t0
+        result = pronet.run_filter(
+            imu[after],
+            time[after],
+            filter_streams,
+            t0=state.t0,
+            lla0=lla0,
+            vel0=vel0,
+            rpy0=rpy0,
+            config=config,
+            strategy=pronet.Strategy.constant(noise**2),
+        )
+        rows = k0 + np.arange(len(result.time))
+        dp = pronet.local_ned(result.lla, LLA) - pronet.local_ned(tr.lla[rows], LLA)
+        rms[label] = float(np.sqrt(np.mean(dp[:, 0] ** 2 + dp[:, 1] ** 2)))
+        if label == "data":
+            every = slice(None, None, 10)
+            pairs = zip(result.rpy[every], tr.rpy[rows][every], strict=True)
+            psi = np.array([attitude_error(a, b) for a, b in pairs])
+            sigma = result.sigma[every]
+            z = np.abs(np.c_[dp[every] / sigma[:, :3], psi / sigma[:, 6:9]])
+            assert np.all(np.mean(z <= 3.0, axis=0) >= 0.95), np.mean(z <= 3.0, axis=0)
+    assert rms["data"] <= 1.1 * rms["truth"], rms

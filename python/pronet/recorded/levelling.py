@@ -15,10 +15,16 @@ noise-free IMU would otherwise give zero). A window is still when ``s_ω ≤ k n
 ``s_f ≤ k n_f`` (``k = factor``, 3 by default) and its mean rate is no more than the
 Earth's plus a gyro bias and noise could make it, ``|ω̄| ≤ Ω + 3 σ_bg + k n_ω``; and
 only while the quietest spreads are those of a vehicle at rest at all, ``n_ω ≤ 0.02
-rad/s`` and ``n_f ≤ 0.2 m/s²`` (else no window is still). Runs of consecutive still
-windows lasting ``min_duration`` or more are the still intervals. An IMU alone cannot
-tell rest from uniform straight motion (both read ``f = −Cᵀ g``, ``ω ≈ Cᵀ ω_ie``): a
-vehicle drifting steadily may be taken as still; give the interval (or none) then.
+rad/s`` and ``n_f ≤ 0.2 m/s²`` (else no window is still). A run of still windows
+continues while each window's mean stays within ``n_f`` (per accelerometer axis) and
+``n_ω`` (per gyro axis) of the run's first window's mean: the per-sample noise, many
+times the noise of a 1 s mean, so that rest is not split but the onset of a steady
+acceleration or turn (which a window's spread does not show when it starts between two
+windows) ends the run. Runs lasting ``min_duration`` or more are the still intervals.
+An IMU alone cannot tell rest from uniform straight motion (both read ``f = −Cᵀ g``,
+``ω ≈ Cᵀ ω_ie``), nor from an acceleration that builds up more slowly than the
+tolerance: a vehicle drifting steadily may be taken as still; give the interval (or
+none) then.
 """
 
 from __future__ import annotations
@@ -144,17 +150,19 @@ def still_intervals(
         & (spread_f <= k * noise_f)
         & (rate <= EARTH_RATE + 3.0 * gyro_bias_sigma + k * noise_w)
     )
+    means = blocks.mean(axis=1)
+    tolerance = np.array([noise_f] * 3 + [noise_w] * 3)
     found = []
     start = None
     for i in range(count + 1):
-        if i < count and still[i]:
-            start = i if start is None else start
+        steady = i < count and start is not None
+        if steady and still[i] and np.all(np.abs(means[i] - means[start]) <= tolerance):
             continue
         if start is not None:
             t_a, t_b = float(imu_time[start * size]), float(imu_time[i * size - 1])
             if t_b - t_a >= settings.min_duration:
                 found.append((t_a, t_b))
-            start = None
+        start = i if i < count and still[i] else None
     return found
 
 
