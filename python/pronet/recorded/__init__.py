@@ -46,7 +46,11 @@ Navigating a recording without ground truth (``pronet navigate``):
   ``track.geojson``, ``config.json``) and :func:`~pronet.recorded.export.write_all`;
 - :mod:`~pronet.recorded.odometry`: the solution as ``nav_msgs/Odometry`` in a ROS 1 or
   ROS 2 bag (the ``rosbags`` extra);
-- :mod:`~pronet.recorded.report`: its figures and ``report.md``.
+- :mod:`~pronet.recorded.report`: its figures and ``report.md``;
+- :mod:`~pronet.recorded.initial`: the initial state from the data (or given), each part
+  with the P0 its method earns;
+- :mod:`~pronet.recorded.initialinputs`: its inputs checked, the readings around t0;
+- :mod:`~pronet.recorded.levelling`: still intervals, levelling and gyrocompassing.
 """
 
 __all__ = [
@@ -60,6 +64,9 @@ __all__ = [
     "export",
     "figures",
     "health",
+    "initial",
+    "initialinputs",
+    "levelling",
     "metrics",
     "missing",
     "odometry",
