@@ -99,3 +99,14 @@ def test_a_sigma_too_large_reads_below_the_band_and_outside_rows_are_skipped() -
     assert rep.skipped == {"nan": 3, "outside the pass": 2} and rep.rows == 5
     with pytest.raises(ValueError, match="^names, times: one per stream"):
         stream_reports(out, ["dvl"], [streams[0].time])
+
+
+def test_rejected_readings_keep_their_nis_and_are_marked() -> None:
+    streams, _ = _streams(np.random.default_rng(3))
+    gated = pronet.Dvl(streams[0].time, streams[0].velocity, sigma=0.1, gate=3.0)
+    out = _pass([gated])
+    rep = stream_report("dvl", out.streams[0], gated.time)
+    assert rep.accepted is not None and 0 < rep.rejected == int((~rep.accepted).sum())
+    assert np.isfinite(rep.nis).all()  # a rejected reading's NIS too
+    assert (rep.nis[~rep.accepted] > 3.0).all() and (rep.nis[rep.accepted] <= 3.0).all()
+    assert rep.applied == int(rep.accepted.sum()) and "gate rejected" in rep.flag

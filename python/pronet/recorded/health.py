@@ -70,13 +70,15 @@ def stream_report(
     if outside:
         skipped["outside the pass"] = skipped.get("outside the pass", 0) + outside
     n = int(applied.sum())
-    dof = _dof(result, lla)[applied]
-    nis_applied = nis[applied]
-    if n == 0:
+    # The mean over every reading the filter predicted, the gate's rejected ones too:
+    # a gate cuts off the tail a consistent stream's mean needs.
+    seen = inside & np.isfinite(nis)
+    dof = _dof(result, lla)[seen]
+    if not seen.any():
         mean, mean_dof, band = math.nan, float(DOF[result.kind]), (math.nan, math.nan)
     else:
-        mean, total = float(nis_applied.mean()), int(round(dof.sum()))
-        mean_dof = total / n
+        mean, total = float(nis[seen].mean()), int(round(dof.sum()))
+        mean_dof = total / int(seen.sum())
         lo, hi = chi2_mean_band(1, total)
         band = (lo * mean_dof, hi * mean_dof)
     return StreamReport(
@@ -90,8 +92,9 @@ def stream_report(
         dof=mean_dof,
         band=band,
         time=np.asarray(time, dtype=np.float64),
-        nis=np.where(applied, nis, np.nan),
+        nis=np.where(inside, nis, np.nan),
         flag=_flag(name, result.kind, mean, band, rejected, n),
+        accepted=None if result.accepted is None else inside & result.accepted,
     )
 
 
@@ -100,9 +103,10 @@ def _flag(
 ) -> str:
     """One line when the stream's mean NIS is out of its band or the gate rejected more
     than a few readings; empty otherwise."""
-    if n == 0:
+    if n == 0 and rejected == 0:
         return f"{name}: no reading applied"
     lo, hi = band
+    n += rejected  # the readings the mean is over
     if mean > hi:
         return (
             f"{name}: mean NIS {mean:.3g} above its 95 % band [{lo:.3g}, {hi:.3g}] over "
@@ -114,8 +118,8 @@ def _flag(
             f"{name}: mean NIS {mean:.3g} below its 95 % band [{lo:.3g}, {hi:.3g}] over "
             f"{n} readings: their σ are larger than the readings' scatter"
         )
-    if rejected > 0.01 * (n + rejected):
-        return f"{name}: the innovation gate rejected {rejected} of {n + rejected} readings"
+    if rejected > 0.01 * n:
+        return f"{name}: the innovation gate rejected {rejected} of {n} readings"
     return ""
 
 

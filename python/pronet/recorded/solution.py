@@ -100,10 +100,15 @@ class StreamReport:
         mean_nis: mean NIS of the applied readings (NaN without any).
         dof: the NIS's degrees of freedom per reading (mean over the applied ones).
         band: the 95 % band of ``mean_nis`` for a filter consistent with the stream's σ
-            (χ² of ``dof × applied`` degrees of freedom, divided by ``applied``).
+            (χ² of ``dof × k`` degrees of freedom divided by ``k``, the ``k`` readings
+            the mean is over).
         time: ``(r,)`` times [s] of the readings (the IMU clock).
-        nis: ``(r,)`` each reading's NIS (NaN where not applied).
+        nis: ``(r,)`` each reading's NIS, a rejected reading's too (NaN outside the
+            pass).
         flag: one line when the mean NIS is out of band (what it suggests), else "".
+        accepted: ``(r,)`` whether each reading was applied (False where the gate
+            rejected it or it fell outside the pass); None: every reading inside the
+            pass was (a stream without a gate).
     """
 
     name: str
@@ -118,6 +123,7 @@ class StreamReport:
     time: F64
     nis: F64
     flag: str = ""
+    accepted: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True)
