@@ -1,11 +1,16 @@
 """A recording written as a ROS bag with the rosbags library's own writers (ROS 1
 ``.bag``, ROS 2 sqlite3 or mcap), in ROS's frames (REP-103: body FLU, world ENU), as a
-ROS vehicle would record it: the inverse of :mod:`pronet.recorded.bags`."""
+ROS vehicle would record it: the inverse of :mod:`pronet.recorded.bags`.
+
+:func:`write_bag` writes a :class:`~pronet.recorded.recordings.Recording`;
+:class:`BagMessages` builds the messages of each stream (IMU, DVL, truth, pressure,
+fixes) for it and for other writers (``mission_recording.write_mission_bag``)."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -18,6 +23,204 @@ from pronet.recorded.recordings import Recording
 UNIX = 1_700_000_000
 _FLU = np.diag([1.0, -1.0, -1.0])
 _ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+STORAGES = ("rosbag1", "sqlite3", "mcap")
+
+
+def ros_quaternions(rpy: np.ndarray) -> np.ndarray:
+    """``(k, 4)`` quaternions ``x, y, z, w`` of the body FLU → world ENU rotation of the
+    attitudes ``rpy`` ``(k, 3)`` [rad] (ZYX, body FRD → NED)."""
+    from scipy.spatial.transform import Rotation
+
+    c_wb = _ENU @ dcm_from_euler(rpy) @ _FLU
+    return np.asarray(Rotation.from_matrix(c_wb).as_quat())
+
+
+class BagMessages:
+    """The messages of one bag, built stream by stream in ROS's frames and written at
+    once (:meth:`write`), sorted by stamp. ``storage``: ``rosbag1``, ``sqlite3`` or
+    ``mcap``; ``unix``: added to every stamp [s] (0 for stamps already in Unix time)."""
+
+    def __init__(self, storage: str, unix: float = UNIX) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        if storage not in STORAGES:
+            raise ValueError(f"storage: expected one of {', '.join(STORAGES)}, got {storage!r}")
+        self.storage, self.unix = storage, unix
+        self.ros1 = storage == "rosbag1"
+        self.store = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        self.types = self.store.types
+        self.msgs: list[tuple[float, str, str, object]] = []
+
+    def header(self, stamp: float) -> Any:
+        t = self.types
+        sec = int(np.floor(stamp))
+        ns = min(int(round((stamp - sec) * 1e9)), 999_999_999)
+        time = t["builtin_interfaces/msg/Time"](sec=sec + int(self.unix), nanosec=ns)
+        seq = {"seq": 0} if self.ros1 else {}
+        return t["std_msgs/msg/Header"](**seq, stamp=time, frame_id="base_link")
+
+    def vec(self, v: np.ndarray, kind: str = "geometry_msgs/msg/Vector3") -> Any:
+        return self.types[kind](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+    def imu(
+        self,
+        topic: str,
+        stamps: np.ndarray,
+        imu: np.ndarray,
+        quaternions: np.ndarray | None = None,
+        orientation_covariance: np.ndarray | None = None,
+    ) -> None:
+        """``sensor_msgs/Imu`` per row of ``imu`` ``(n, 6)`` (body FRD, flipped to FLU);
+        ``quaternions`` ``(n, 4)`` (:func:`ros_quaternions`) the orientation, with
+        ``orientation_covariance`` (9,) [rad²]; None: no orientation (covariance[0] −1)."""
+        t, kind = self.types, "sensor_msgs/msg/Imu"
+        zeros9 = np.zeros(9)
+        quat0 = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
+        unknown = np.array([-1.0, *zeros9[1:]])
+        cov = unknown if orientation_covariance is None else np.asarray(orientation_covariance)
+        for k, (stamp, row) in enumerate(zip(stamps, imu, strict=True)):
+            quat = quat0
+            if quaternions is not None:
+                quat = t["geometry_msgs/msg/Quaternion"](*map(float, quaternions[k]))
+            msg = t[kind](
+                header=self.header(stamp),
+                orientation=quat,
+                orientation_covariance=cov,
+                angular_velocity=self.vec(_FLU @ row[3:]),
+                angular_velocity_covariance=zeros9,
+                linear_acceleration=self.vec(_FLU @ row[:3]),
+                linear_acceleration_covariance=zeros9,
+            )
+            self.msgs.append((stamp, topic, kind, msg))
+
+    def twist(
+        self,
+        topic: str,
+        stamps: np.ndarray,
+        vel: np.ndarray,
+        covariance: np.ndarray | None = None,
+    ) -> None:
+        """A DVL's body velocity ``vel`` ``(m, 3)`` [m/s, FRD]: a
+        TwistWithCovarianceStamped with ``covariance`` ``(m, 3)`` the per-message
+        diagonals, else a TwistStamped."""
+        t = self.types
+        kind = "geometry_msgs/msg/Twist" + ("WithCovariance" if covariance is not None else "")
+        kind += "Stamped"
+        for i, (stamp, v) in enumerate(zip(stamps, vel, strict=True)):
+            twist = t["geometry_msgs/msg/Twist"](
+                linear=self.vec(_FLU @ v), angular=self.vec(np.zeros(3))
+            )
+            if covariance is not None:
+                cov = np.zeros(36)
+                cov[[0, 7, 14]] = covariance[i]
+                twist = t["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=cov)
+            self.msgs.append((stamp, topic, kind, t[kind](header=self.header(stamp), twist=twist)))
+
+    def truth(
+        self,
+        topic: str,
+        stamps: np.ndarray,
+        lla: np.ndarray,
+        vel: np.ndarray,
+        rpy: np.ndarray,
+        origin: np.ndarray,
+        kind: str = "odometry",
+    ) -> None:
+        """The truth as ``nav_msgs/Odometry`` (``kind`` ``odometry``) or PoseStamped
+        (``pose``): ENU metres about ``origin`` [rad, rad, m], the body's attitude."""
+        t = self.types
+        ned = local_ned(lla, origin)
+        c_nb = dcm_from_euler(rpy)
+        quats = ros_quaternions(rpy)
+        msg_type = (
+            "nav_msgs/msg/Odometry" if kind == "odometry" else "geometry_msgs/msg/PoseStamped"
+        )
+        for k, stamp in enumerate(stamps):
+            pose = t["geometry_msgs/msg/Pose"](
+                position=self.vec(_ENU @ ned[k], "geometry_msgs/msg/Point"),
+                orientation=t["geometry_msgs/msg/Quaternion"](*map(float, quats[k])),
+            )
+            if kind == "odometry":
+                v_body = _FLU @ c_nb[k].T @ vel[k]
+                twist = t["geometry_msgs/msg/Twist"](
+                    linear=self.vec(v_body), angular=self.vec(np.zeros(3))
+                )
+                msg = t[msg_type](
+                    header=self.header(stamp),
+                    child_frame_id="base_link",
+                    pose=t["geometry_msgs/msg/PoseWithCovariance"](
+                        pose=pose, covariance=np.zeros(36)
+                    ),
+                    twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                        twist=twist, covariance=np.zeros(36)
+                    ),
+                )
+            else:
+                msg = t[msg_type](header=self.header(stamp), pose=pose)
+            self.msgs.append((stamp, topic, msg_type, msg))
+
+    def pressure(
+        self, topic: str, stamps: np.ndarray, pressure: np.ndarray, variance: np.ndarray
+    ) -> None:
+        """``sensor_msgs/FluidPressure``: ``pressure`` [Pa] and its ``variance`` [Pa²]."""
+        kind = "sensor_msgs/msg/FluidPressure"
+        for stamp, p, v in zip(stamps, pressure, variance, strict=True):
+            msg = self.types[kind](
+                header=self.header(stamp), fluid_pressure=float(p), variance=float(v)
+            )
+            self.msgs.append((stamp, topic, kind, msg))
+
+    def navsat(
+        self,
+        topic: str,
+        stamps: np.ndarray,
+        lla: np.ndarray,
+        sigma: np.ndarray | None = None,
+        no_fix: tuple[int, ...] = (),
+    ) -> None:
+        """``sensor_msgs/NavSatFix`` per row of ``lla`` ``(f, 3)`` [rad, rad, m]: σ north,
+        east, down ``sigma`` ``(f, 3)`` [m] as a DIAGONAL_KNOWN covariance (UNKNOWN
+        without); the fixes of index ``no_fix`` with the status NO_FIX."""
+        t, kind = self.types, "sensor_msgs/msg/NavSatFix"
+        for k, stamp in enumerate(stamps):
+            lat, lon, h = lla[k]
+            cov = np.zeros(9)
+            if sigma is not None:
+                cov[[4, 0, 8]] = sigma[k] ** 2  # N, E, D into ENU order
+            msg = t[kind](
+                header=self.header(stamp),
+                status=t["sensor_msgs/msg/NavSatStatus"](
+                    status=-1 if k in no_fix else 0, service=1
+                ),
+                latitude=float(np.degrees(lat)),
+                longitude=float(np.degrees(lon)),
+                altitude=float(h),
+                position_covariance=cov,
+                position_covariance_type=0 if sigma is None else 2,
+            )
+            self.msgs.append((stamp, topic, kind, msg))
+
+    def write(self, path: Path) -> Path:
+        """Write the messages (sorted by stamp) as a bag at ``path``."""
+        from rosbags.rosbag1 import Writer as Writer1
+        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import Writer as Writer2
+
+        self.msgs.sort(key=lambda m: m[0])
+        if self.ros1:
+            writer: Any = Writer1(path)
+        else:
+            plugin = StoragePlugin.MCAP if self.storage == "mcap" else StoragePlugin.SQLITE3
+            writer = Writer2(path, version=9, storage_plugin=plugin)
+        serialize = self.store.serialize_ros1 if self.ros1 else self.store.serialize_cdr
+        with writer:
+            conns = {}
+            for _, topic, kind, _ in self.msgs:
+                if topic not in conns:
+                    conns[topic] = writer.add_connection(topic, kind, typestore=self.store)
+            for stamp, topic, kind, msg in self.msgs:
+                writer.write(conns[topic], int((stamp + self.unix) * 1e9), serialize(msg, kind))
+        return path
 
 
 def write_bag(
@@ -38,121 +241,24 @@ def write_bag(
     ``/depth/pressure`` and ``/gnss/fix`` in the returned topics) as FluidPressure (the
     inverse of the bag reader's conversion, variance 0 where the depth has no σ) and
     NavSatFix (σ as a DIAGONAL_KNOWN covariance, or UNKNOWN without; the fixes of
-    index ``no_fix`` with the status NO_FIX)."""
-    from rosbags.rosbag1 import Writer as Writer1
-    from rosbags.rosbag2 import StoragePlugin
-    from rosbags.rosbag2 import Writer as Writer2
-    from rosbags.typesys import Stores, get_typestore
-    from scipy.spatial.transform import Rotation
-
-    ros1 = storage == "rosbag1"
-    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    t = ts.types
+    index ``no_fix`` with the status NO_FIX). Stamps get :data:`UNIX` added."""
     origin = np.degrees(rec.gt_lla[0, :2]).tolist() + [float(rec.gt_lla[0, 2])]
     topics = topics or BagTopics(origin=(origin[0], origin[1], origin[2]))
     if topics.depth is None and rec.depth is not None:
         topics = replace(topics, depth="/depth/pressure")
     if topics.fix is None and rec.fixes is not None:
         topics = replace(topics, fix="/gnss/fix")
-
-    def header(stamp: float):  # noqa: ANN202
-        sec = int(np.floor(stamp))
-        ns = min(int(round((stamp - sec) * 1e9)), 999_999_999)
-        time = t["builtin_interfaces/msg/Time"](sec=sec + UNIX, nanosec=ns)
-        seq = {"seq": 0} if ros1 else {}
-        return t["std_msgs/msg/Header"](**seq, stamp=time, frame_id="base_link")
-
-    def vec(v: np.ndarray, kind: str = "geometry_msgs/msg/Vector3"):  # noqa: ANN202
-        return t[kind](x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-    zeros9 = np.zeros(9)
-    quat0 = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
-    msgs: list[tuple[float, str, str, object]] = []
-    imu_type = "sensor_msgs/msg/Imu"
-    for stamp, row in zip(rec.imu_time, rec.imu, strict=True):
-        flu = np.concatenate([_FLU @ row[:3], _FLU @ row[3:]])
-        msg = t[imu_type](
-            header=header(stamp),
-            orientation=quat0,
-            orientation_covariance=np.array([-1.0, *zeros9[1:]]),
-            angular_velocity=vec(flu[3:]),
-            angular_velocity_covariance=zeros9,
-            linear_acceleration=vec(flu[:3]),
-            linear_acceleration_covariance=zeros9,
-        )
-        msgs.append((stamp, topics.imu, imu_type, msg))
-    dvl_type = "geometry_msgs/msg/Twist" + ("WithCovariance" if dvl_covariance is not None else "")
-    dvl_type += "Stamped"
-    for i, (stamp, v) in enumerate(zip(rec.dvl_time, rec.dvl, strict=True)):
-        twist = t["geometry_msgs/msg/Twist"](linear=vec(_FLU @ v), angular=vec(np.zeros(3)))
-        if dvl_covariance is not None:
-            cov = np.zeros(36)
-            cov[[0, 7, 14]] = dvl_covariance[i]
-            twist = t["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=cov)
-        msgs.append((stamp, topics.dvl, dvl_type, t[dvl_type](header=header(stamp), twist=twist)))
-    ned = local_ned(rec.gt_lla, np.array([np.radians(origin[0]), np.radians(origin[1]), origin[2]]))
-    c_nb = dcm_from_euler(rec.gt_rpy)
-    c_wb = _ENU @ c_nb @ _FLU  # body FLU → world ENU
-    quats = Rotation.from_matrix(c_wb).as_quat()  # x, y, z, w
-    truth_type = "nav_msgs/msg/Odometry" if truth == "odometry" else "geometry_msgs/msg/PoseStamped"
-    for k, stamp in enumerate(rec.gt_time):
-        pose = t["geometry_msgs/msg/Pose"](
-            position=vec(_ENU @ ned[k], "geometry_msgs/msg/Point"),
-            orientation=t["geometry_msgs/msg/Quaternion"](*map(float, quats[k])),
-        )
-        if truth == "odometry":
-            v_body = _FLU @ c_nb[k].T @ rec.gt_vel[k]
-            twist = t["geometry_msgs/msg/Twist"](linear=vec(v_body), angular=vec(np.zeros(3)))
-            msg = t[truth_type](
-                header=header(stamp),
-                child_frame_id="base_link",
-                pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
-                twist=t["geometry_msgs/msg/TwistWithCovariance"](
-                    twist=twist, covariance=np.zeros(36)
-                ),
-            )
-        else:
-            msg = t[truth_type](header=header(stamp), pose=pose)
-        msgs.append((stamp, topics.truth, truth_type, msg))
+    bag = BagMessages(storage)
+    bag.imu(topics.imu, rec.imu_time, rec.imu)
+    if topics.dvl is not None:
+        bag.twist(topics.dvl, rec.dvl_time, rec.dvl, dvl_covariance)
+    lla0 = np.array([np.radians(origin[0]), np.radians(origin[1]), origin[2]])
+    bag.truth(topics.truth, rec.gt_time, rec.gt_lla, rec.gt_vel, rec.gt_rpy, lla0, truth)
     if rec.depth is not None and topics.depth is not None:
-        kind = "sensor_msgs/msg/FluidPressure"
         rho_g = topics.water_density * STANDARD_GRAVITY
         sigma = np.zeros(len(rec.depth.time)) if rec.depth.sigma is None else rec.depth.sigma
-        for stamp, depth, s in zip(rec.depth.time, rec.depth.depth, sigma, strict=True):
-            p = float(depth * rho_g + topics.surface_pressure)
-            msg = t[kind](header=header(stamp), fluid_pressure=p, variance=float((s * rho_g) ** 2))
-            msgs.append((stamp, topics.depth, kind, msg))
+        pressure = rec.depth.depth * rho_g + topics.surface_pressure
+        bag.pressure(topics.depth, rec.depth.time, pressure, (sigma * rho_g) ** 2)
     if rec.fixes is not None and topics.fix is not None:
-        kind = "sensor_msgs/msg/NavSatFix"
-        for k, stamp in enumerate(rec.fixes.time):
-            lat, lon, h = rec.fixes.lla[k]
-            cov = np.zeros(9)
-            if rec.fixes.sigma is not None:
-                cov[[4, 0, 8]] = rec.fixes.sigma[k] ** 2  # N, E, D into ENU order
-            msg = t[kind](
-                header=header(stamp),
-                status=t["sensor_msgs/msg/NavSatStatus"](
-                    status=-1 if k in no_fix else 0, service=1
-                ),
-                latitude=float(np.degrees(lat)),
-                longitude=float(np.degrees(lon)),
-                altitude=float(h),
-                position_covariance=cov,
-                position_covariance_type=0 if rec.fixes.sigma is None else 2,
-            )
-            msgs.append((stamp, topics.fix, kind, msg))
-    msgs.sort(key=lambda m: m[0])
-    if ros1:
-        writer = Writer1(path)
-    else:
-        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-        writer = Writer2(path, version=9, storage_plugin=plugin)
-    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
-    with writer:
-        conns = {}
-        for _, topic, kind, _ in msgs:
-            if topic not in conns:
-                conns[topic] = writer.add_connection(topic, kind, typestore=ts)
-        for stamp, topic, kind, msg in msgs:
-            writer.write(conns[topic], int((stamp + UNIX) * 1e9), serialize(msg, kind))
-    return path, topics
+        bag.navsat(topics.fix, rec.fixes.time, rec.fixes.lla, rec.fixes.sigma, no_fix)
+    return bag.write(path), topics
