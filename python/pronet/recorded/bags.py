@@ -272,6 +272,20 @@ def _dcm(q: Any) -> F64:
     )
 
 
+def _dcms(xyzw: F64) -> F64:
+    """Body → world DCMs ``(n, 3, 3)`` of quaternions ``(n, 4)`` (x, y, z, w;
+    normalised here): :func:`_dcm` for many at once, the same arithmetic."""
+    x, y, z, w = xyzw.T
+    n = np.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
 def euler_from_dcm(c: F64) -> F64:
     """Roll, pitch, yaw ``(…, 3)`` [rad] (ZYX) of body → NED DCMs ``(…, 3, 3)``, the
     inverse of :func:`pronet.recorded.alignment.dcm_from_euler`."""
@@ -370,11 +384,11 @@ def _heading_rows(msgs: list[Any], topics: BagTopics) -> BagTable:
         none = np.zeros(len(msgs), bool)
         variance = np.array([float(m.pose.covariance[35]) if covariance else 0.0 for m in msgs])
     t_w, d_b = _frames(topics)
-    norm = np.array([np.hypot(np.hypot(q.x, q.y), np.hypot(q.z, q.w)) for q in quats])
-    zero = ~(norm > 0) & ~none
+    xyzw = np.array([[q.x, q.y, q.z, q.w] for q in quats], dtype=np.float64).reshape(-1, 4)
+    zero = ~(np.linalg.norm(xyzw, axis=1) > 0) & ~none
     yaw = np.full(len(msgs), np.nan)
-    for i in np.flatnonzero(~none & ~zero):
-        yaw[i] = euler_from_dcm(t_w @ _dcm(quats[i]) @ d_b)[2]
+    ok = ~none & ~zero
+    yaw[ok] = euler_from_dcm(t_w @ _dcms(xyzw[ok]) @ d_b)[:, 2]
     reasons = np.where(none, "no orientation", np.where(zero, "nan", ""))
     rows = [np.array([_stamp(m) for m in msgs]), yaw]
     name = "magnetic_heading" if topics.heading_magnetic else "heading"
