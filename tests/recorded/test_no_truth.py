@@ -19,6 +19,7 @@ from pronet.recorded.alignment import (
     estimate_gt_clock,
     load_section,
 )
+from pronet.recorded.bags import topic_types
 from pronet.recorded.dvltruth import truth_calibration
 from pronet.recorded.metrics import section_metrics
 from pronet.recorded.passes import start_index
@@ -172,6 +173,12 @@ def test_ros_bags_without_truth_read(tmp_path, mission, storage):
     np.testing.assert_allclose(got.depth.depth, rec.depth.depth, rtol=0, atol=1e-9)
     aligned, _ = load_section(path, topics, **ARMS)
     assert not aligned.has_truth and aligned.alignment.how == "assumed"
+    assert topic_types(path) == {
+        "/imu/data": "sensor_msgs/msg/Imu",
+        "/dvl/twist": "geometry_msgs/msg/TwistStamped",
+        "/depth/pressure": "sensor_msgs/msg/FluidPressure",
+        "/gnss/fix": "sensor_msgs/msg/NavSatFix",
+    }
     # read as pronet real reads it (a truth topic named): one line naming the topic
     with pytest.raises(RecordingError) as err:
         read_recording(path, replace(topics, truth="/odometry", origin=(32.0, 35.0, 0.0)))

@@ -357,7 +357,10 @@ def against_truth(
     """The depth and fixes against the ground truth ``gt`` (its table: time, lat, lon,
     height, ...; stamps as given): the median depth offset beyond
     :data:`MAX_DEPTH_OFFSET`, the median horizontal distance of the fixes beyond
-    :data:`MAX_FIX_OFFSET`. One line naming the file, or None."""
+    :data:`MAX_FIX_OFFSET`. One line naming the file, or None (also for an empty
+    ``gt``: no ground truth to check against)."""
+    if len(gt.values) == 0:
+        return None
     t_gt, lla = gt.values[:, 0], gt.values[:, 1:4]
     if depth is not None:
         offset = float(np.median(depth.depth + np.interp(depth.time, t_gt, lla[:, 2])))

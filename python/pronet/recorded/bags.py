@@ -250,6 +250,25 @@ def require_rosbags() -> None:
         raise missing("rosbags", "reading ROS bags") from None
 
 
+def topic_types(path: str | Path) -> dict[str, str]:
+    """The topics of the bag at ``path`` and their message types (e.g. to tell whether
+    it has a truth topic before choosing :class:`BagTopics`); :class:`BagError` naming
+    the bag when it is none or cannot be read."""
+    require_rosbags()
+    from rosbags.highlevel import AnyReader, AnyReaderError
+
+    path = Path(path)
+    if not is_bag(path):
+        raise BagError(
+            f"{path}: not a ROS bag (a .bag file, or a ROS 2 bag folder with metadata.yaml)"
+        )
+    try:
+        with AnyReader([path]) as reader:
+            return {c.topic: c.msgtype for c in reader.connections}
+    except AnyReaderError as exc:
+        raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
+
+
 def _stamp(msg: Any) -> float:
     return float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) * 1e-9
 
