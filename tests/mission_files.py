@@ -147,9 +147,10 @@ def write_mission_bag(
     FluidPressure (absolute [Pa], variance set), NavSatFix (horizontal: altitude NaN,
     σ diagonal known) unless there are no fixes, and no truth topic unless ``truth``
     (``nav_msgs/Odometry`` at ``truth_rate`` [Hz], a test's round trip). Returns the path
-    and the :class:`~pronet.recorded.bags.BagTopics` that read it: :data:`BAG_TOPICS`,
-    the truth's first position as origin, the TRUE surface pressure and density (a
-    user who does not know them reads with the default ``surface_pressure``)."""
+    and the :class:`~pronet.recorded.bags.BagTopics` that read it: :data:`BAG_TOPICS`
+    (with ``truth``, the truth's topic and its first position as origin; without, none),
+    the TRUE surface pressure and density (a user who does not know them reads with the
+    default ``surface_pressure``)."""
     from ros_bag import BagMessages, ros_quaternions
 
     path = Path(path)
@@ -160,8 +161,8 @@ def write_mission_bag(
     topics = BagTopics(
         imu=BAG_TOPICS["imu"],
         dvl=BAG_TOPICS["dvl"],
-        truth=BAG_TOPICS["truth"],
-        origin=origin,
+        truth=BAG_TOPICS["truth"] if truth else None,
+        origin=origin if truth else None,
         depth=BAG_TOPICS["depth"],
         fix=fix_topic if has_fix else None,
         water_density=mission.water_density,
@@ -188,5 +189,5 @@ def write_mission_bag(
     if truth:
         k = _truth_rows(mission, truth_rate)
         lla0 = t.lla[0]
-        bag.truth(topics.truth, t.time[k], t.lla[k], t.vel[k], t.rpy[k], lla0)
+        bag.truth(str(topics.truth), t.time[k], t.lla[k], t.vel[k], t.rpy[k], lla0)
     return bag.write(path), topics

@@ -1,6 +1,7 @@
 """A recording written as a ROS bag with the rosbags library's own writers (ROS 1
-``.bag``, ROS 2 sqlite3 or mcap), in ROS's frames (REP-103: body FLU, world ENU), as a
-ROS vehicle would record it: the inverse of :mod:`pronet.recorded.bags`.
+``.bag``, ROS 2 sqlite3 or mcap), in ROS's frames (REP-103: body FLU, world ENU; or the
+topics' FRD and NED), as a ROS vehicle would record it: the inverse of
+:mod:`pronet.recorded.bags`.
 
 :func:`write_bag` writes a :class:`~pronet.recorded.recordings.Recording`;
 :class:`BagMessages` builds the messages of each stream (IMU, DVL, truth, pressure,
@@ -24,28 +25,62 @@ UNIX = 1_700_000_000
 _FLU = np.diag([1.0, -1.0, -1.0])
 _ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 STORAGES = ("rosbag1", "sqlite3", "mcap")
+#: The heading topics :func:`write_bag` writes, by name: their message types.
+HEADING_TYPES = {
+    "imu": "sensor_msgs/msg/Imu",
+    "quaternion": "geometry_msgs/msg/QuaternionStamped",
+    "pose": "geometry_msgs/msg/PoseStamped",
+    "pose_covariance": "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "own": "sensor_msgs/msg/Imu",
+}
 
 
-def ros_quaternions(rpy: np.ndarray) -> np.ndarray:
-    """``(k, 4)`` quaternions ``x, y, z, w`` of the body FLU → world ENU rotation of the
-    attitudes ``rpy`` ``(k, 3)`` [rad] (ZYX, body FRD → NED)."""
+def _frames(body_frame: str = "flu", world_frame: str = "enu") -> tuple[np.ndarray, np.ndarray]:
+    """The body frame from FRD and the world frame from NED, as matrices."""
+    return (_FLU if body_frame == "flu" else np.eye(3)), (
+        _ENU if world_frame == "enu" else np.eye(3)
+    )
+
+
+def ros_quaternions(
+    rpy: np.ndarray, body_frame: str = "flu", world_frame: str = "enu"
+) -> np.ndarray:
+    """``(k, 4)`` quaternions ``x, y, z, w`` of the body → world rotation (default FLU →
+    ENU) of the attitudes ``rpy`` ``(k, 3)`` [rad] (ZYX, body FRD → NED)."""
     from scipy.spatial.transform import Rotation
 
-    c_wb = _ENU @ dcm_from_euler(rpy) @ _FLU
+    d_b, t_w = _frames(body_frame, world_frame)
+    c_wb = t_w @ dcm_from_euler(rpy) @ d_b
     return np.asarray(Rotation.from_matrix(c_wb).as_quat())
+
+
+def heading_attitude(rec: Recording, heading: str) -> tuple[np.ndarray, np.ndarray]:
+    """The stamps [s, as ``rec``'s] and roll, pitch, yaw [rad] :func:`write_bag` writes
+    on a heading topic of kind ``heading``: the truth's rows, or (``"own"``: in the IMU
+    messages) the truth's angles interpolated (unwrapped) at the IMU's stamps."""
+    if heading != "own":
+        return rec.gt_time, rec.gt_rpy
+    rpy = np.unwrap(rec.gt_rpy, axis=0)
+    at = np.column_stack([np.interp(rec.imu_time, rec.gt_time, rpy[:, j]) for j in range(3)])
+    return rec.imu_time, at
 
 
 class BagMessages:
     """The messages of one bag, built stream by stream in ROS's frames and written at
     once (:meth:`write`), sorted by stamp. ``storage``: ``rosbag1``, ``sqlite3`` or
-    ``mcap``; ``unix``: added to every stamp [s] (0 for stamps already in Unix time)."""
+    ``mcap``; ``unix``: added to every stamp [s] (0 for stamps already in Unix time);
+    ``body_frame``, ``world_frame``: the frames written (default REP-103's)."""
 
-    def __init__(self, storage: str, unix: float = UNIX) -> None:
+    def __init__(
+        self, storage: str, unix: float = UNIX, body_frame: str = "flu", world_frame: str = "enu"
+    ) -> None:
         from rosbags.typesys import Stores, get_typestore
 
         if storage not in STORAGES:
             raise ValueError(f"storage: expected one of {', '.join(STORAGES)}, got {storage!r}")
         self.storage, self.unix = storage, unix
+        self.frames = (body_frame, world_frame)
+        self.d_b, self.t_w = _frames(body_frame, world_frame)
         self.ros1 = storage == "rosbag1"
         self.store = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
         self.types = self.store.types
@@ -70,14 +105,16 @@ class BagMessages:
         quaternions: np.ndarray | None = None,
         orientation_covariance: np.ndarray | None = None,
     ) -> None:
-        """``sensor_msgs/Imu`` per row of ``imu`` ``(n, 6)`` (body FRD, flipped to FLU);
-        ``quaternions`` ``(n, 4)`` (:func:`ros_quaternions`) the orientation, with
-        ``orientation_covariance`` (9,) [rad²]; None: no orientation (covariance[0] −1)."""
+        """``sensor_msgs/Imu`` per row of ``imu`` ``(n, 6)`` (body FRD, turned to the
+        bag's body frame); ``quaternions`` ``(n, 4)`` (:func:`ros_quaternions`) the
+        orientation, with ``orientation_covariance`` (9,) or ``(n, 9)`` [rad²]; None: no
+        orientation (covariance[0] −1)."""
         t, kind = self.types, "sensor_msgs/msg/Imu"
         zeros9 = np.zeros(9)
         quat0 = t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
         unknown = np.array([-1.0, *zeros9[1:]])
         cov = unknown if orientation_covariance is None else np.asarray(orientation_covariance)
+        covs = np.broadcast_to(cov, (len(stamps), 9))
         for k, (stamp, row) in enumerate(zip(stamps, imu, strict=True)):
             quat = quat0
             if quaternions is not None:
@@ -85,10 +122,10 @@ class BagMessages:
             msg = t[kind](
                 header=self.header(stamp),
                 orientation=quat,
-                orientation_covariance=cov,
-                angular_velocity=self.vec(_FLU @ row[3:]),
+                orientation_covariance=np.array(covs[k]),
+                angular_velocity=self.vec(self.d_b @ row[3:]),
                 angular_velocity_covariance=zeros9,
-                linear_acceleration=self.vec(_FLU @ row[:3]),
+                linear_acceleration=self.vec(self.d_b @ row[:3]),
                 linear_acceleration_covariance=zeros9,
             )
             self.msgs.append((stamp, topic, kind, msg))
@@ -108,7 +145,7 @@ class BagMessages:
         kind += "Stamped"
         for i, (stamp, v) in enumerate(zip(stamps, vel, strict=True)):
             twist = t["geometry_msgs/msg/Twist"](
-                linear=self.vec(_FLU @ v), angular=self.vec(np.zeros(3))
+                linear=self.vec(self.d_b @ v), angular=self.vec(np.zeros(3))
             )
             if covariance is not None:
                 cov = np.zeros(36)
@@ -127,21 +164,22 @@ class BagMessages:
         kind: str = "odometry",
     ) -> None:
         """The truth as ``nav_msgs/Odometry`` (``kind`` ``odometry``) or PoseStamped
-        (``pose``): ENU metres about ``origin`` [rad, rad, m], the body's attitude."""
+        (``pose``): the world frame's metres about ``origin`` [rad, rad, m], the body's
+        attitude."""
         t = self.types
         ned = local_ned(lla, origin)
         c_nb = dcm_from_euler(rpy)
-        quats = ros_quaternions(rpy)
+        quats = ros_quaternions(rpy, *self.frames)
         msg_type = (
             "nav_msgs/msg/Odometry" if kind == "odometry" else "geometry_msgs/msg/PoseStamped"
         )
         for k, stamp in enumerate(stamps):
             pose = t["geometry_msgs/msg/Pose"](
-                position=self.vec(_ENU @ ned[k], "geometry_msgs/msg/Point"),
+                position=self.vec(self.t_w @ ned[k], "geometry_msgs/msg/Point"),
                 orientation=t["geometry_msgs/msg/Quaternion"](*map(float, quats[k])),
             )
             if kind == "odometry":
-                v_body = _FLU @ c_nb[k].T @ vel[k]
+                v_body = self.d_b @ c_nb[k].T @ vel[k]
                 twist = t["geometry_msgs/msg/Twist"](
                     linear=self.vec(v_body), angular=self.vec(np.zeros(3))
                 )
@@ -156,6 +194,42 @@ class BagMessages:
                     ),
                 )
             else:
+                msg = t[msg_type](header=self.header(stamp), pose=pose)
+            self.msgs.append((stamp, topic, msg_type, msg))
+
+    def orientation(
+        self,
+        topic: str,
+        kind: str,
+        stamps: np.ndarray,
+        quaternions: np.ndarray,
+        covariance: np.ndarray,
+    ) -> None:
+        """An attitude topic of ``kind`` (a key of :data:`HEADING_TYPES` but ``"own"``):
+        ``quaternions`` ``(k, 4)`` body → world, ``covariance`` ``(k, 9)`` the orientation
+        covariance (its [8], the yaw's variance, as a pose's [35])."""
+        t, msg_type = self.types, HEADING_TYPES[kind]
+        zeros9 = np.zeros(9)
+        for k, stamp in enumerate(stamps):
+            q = t["geometry_msgs/msg/Quaternion"](*map(float, quaternions[k]))
+            if kind == "imu":
+                msg = t[msg_type](
+                    header=self.header(stamp), orientation=q,
+                    orientation_covariance=np.array(covariance[k]),
+                    angular_velocity=self.vec(np.zeros(3)), angular_velocity_covariance=zeros9,
+                    linear_acceleration=self.vec(np.zeros(3)),
+                    linear_acceleration_covariance=zeros9,
+                )  # fmt: skip
+            elif kind == "quaternion":
+                msg = t[msg_type](header=self.header(stamp), quaternion=q)
+            else:
+                pose = t["geometry_msgs/msg/Pose"](
+                    position=self.vec(np.zeros(3), "geometry_msgs/msg/Point"), orientation=q
+                )
+                if kind == "pose_covariance":
+                    cov = np.zeros(36)
+                    cov[35] = covariance[k][8]
+                    pose = t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov)
                 msg = t[msg_type](header=self.header(stamp), pose=pose)
             self.msgs.append((stamp, topic, msg_type, msg))
 
@@ -232,28 +306,62 @@ def write_bag(
     truth: str = "odometry",
     dvl_covariance: np.ndarray | None = None,
     no_fix: tuple[int, ...] = (),
+    heading: str | None = None,
+    heading_variance: np.ndarray | None = None,
+    no_orientation: tuple[int, ...] = (),
+    magnetic_declination: float | None = None,
 ) -> tuple[Path, BagTopics]:
     """Write ``rec`` as a bag at ``path`` (``storage``: ``rosbag1``, ``sqlite3`` or
     ``mcap``) and return it with the topics (origin: the truth's first row) to read it.
-    ``truth``: ``odometry`` or ``pose``; ``dvl_covariance``: ``(m, 3)`` per-message
-    diagonals (a TwistWithCovarianceStamped; None: a TwistStamped). The recording's
-    depth and fixes, if any, go on ``topics.depth`` and ``topics.fix`` (default
-    ``/depth/pressure`` and ``/gnss/fix`` in the returned topics) as FluidPressure (the
-    inverse of the bag reader's conversion, variance 0 where the depth has no σ) and
-    NavSatFix (σ as a DIAGONAL_KNOWN covariance, or UNKNOWN without; the fixes of
-    index ``no_fix`` with the status NO_FIX). Stamps get :data:`UNIX` added."""
+    ``truth``: ``odometry``, ``pose`` or ``none`` (no truth topic: the returned topics'
+    ``truth`` and ``origin`` None); ``dvl_covariance``: ``(m, 3)`` per-message
+    diagonals (a TwistWithCovarianceStamped; None: a TwistStamped). The frames are the
+    topics' (default FLU and ENU). ``heading``: a heading topic (one of
+    :data:`HEADING_TYPES`, ``topics.heading``, default ``/ahrs``; ``"own"``: the IMU
+    messages carry the orientation, ``topics.heading = topics.imu``) with the attitude
+    of :func:`heading_attitude`, its yaw variance ``heading_variance`` per message
+    (default 0: unknown), the Imu messages of index ``no_orientation`` without an
+    orientation (covariance[0] −1), and with ``magnetic_declination`` [deg] its yaw
+    from magnetic north (``heading_magnetic`` set). The recording's depth and fixes,
+    if any, go on ``topics.depth`` and ``topics.fix`` (default ``/depth/pressure`` and
+    ``/gnss/fix`` in the returned topics) as FluidPressure (the inverse of the bag
+    reader's conversion, variance 0 where the depth has no σ) and NavSatFix (σ as a
+    DIAGONAL_KNOWN covariance, or UNKNOWN without; the fixes of index ``no_fix`` with
+    the status NO_FIX). Stamps get :data:`UNIX` added."""
     origin = np.degrees(rec.gt_lla[0, :2]).tolist() + [float(rec.gt_lla[0, 2])]
     topics = topics or BagTopics(origin=(origin[0], origin[1], origin[2]))
     if topics.depth is None and rec.depth is not None:
         topics = replace(topics, depth="/depth/pressure")
     if topics.fix is None and rec.fixes is not None:
         topics = replace(topics, fix="/gnss/fix")
-    bag = BagMessages(storage)
-    bag.imu(topics.imu, rec.imu_time, rec.imu)
+    if heading == "own":
+        topics = replace(topics, heading=topics.imu)
+    elif heading is not None and topics.heading is None:
+        topics = replace(topics, heading="/ahrs")
+    if magnetic_declination is not None:
+        topics = replace(topics, heading_magnetic=True)
+    bag = BagMessages(storage, body_frame=topics.body_frame, world_frame=topics.world_frame)
+    own: tuple[np.ndarray, np.ndarray] | tuple[None, None] = (None, None)
+    if heading is not None:
+        h_time, h_rpy = heading_attitude(rec, heading)
+        h_rpy = h_rpy.copy()
+        h_rpy[:, 2] -= np.radians(magnetic_declination or 0.0)
+        quats = ros_quaternions(h_rpy, *bag.frames)
+        cov = np.zeros((len(h_time), 9))
+        cov[:, 8] = 0.0 if heading_variance is None else heading_variance
+        cov[list(no_orientation), 0] = -1.0
+        if heading == "own":
+            own = (quats, cov)
+        else:
+            bag.orientation(str(topics.heading), heading, h_time, quats, cov)
+    bag.imu(topics.imu, rec.imu_time, rec.imu, *own)
     if topics.dvl is not None:
         bag.twist(topics.dvl, rec.dvl_time, rec.dvl, dvl_covariance)
-    lla0 = np.array([np.radians(origin[0]), np.radians(origin[1]), origin[2]])
-    bag.truth(topics.truth, rec.gt_time, rec.gt_lla, rec.gt_vel, rec.gt_rpy, lla0, truth)
+    if truth == "none":
+        topics = replace(topics, truth=None, origin=None)
+    else:
+        lla0 = np.array([np.radians(origin[0]), np.radians(origin[1]), origin[2]])
+        bag.truth(str(topics.truth), rec.gt_time, rec.gt_lla, rec.gt_vel, rec.gt_rpy, lla0, truth)
     if rec.depth is not None and topics.depth is not None:
         rho_g = topics.water_density * STANDARD_GRAVITY
         sigma = np.zeros(len(rec.depth.time)) if rec.depth.sigma is None else rec.depth.sigma

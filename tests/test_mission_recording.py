@@ -32,8 +32,7 @@ from mission_recording import (
 from scipy.spatial.transform import Rotation
 
 import pronet
-from pronet.recorded import aiding
-from pronet.recorded.recordings import RecordingError, read_recording
+from pronet.recorded.recordings import read_recording
 
 DEG = math.pi / 180.0
 
@@ -332,12 +331,8 @@ def test_the_generic_folder_reads_back_as_the_missions_arrays(tmp_path, short, m
 
 def test_the_generic_folder_reads_without_its_truth(tmp_path, short):
     folder = write_generic(short, tmp_path / "mission")
-    try:
-        rec = read_recording(folder)
-    except RecordingError as exc:
-        if "no gt.csv" not in str(exc):
-            raise
-        pytest.skip("read_recording does not yet read a recording without ground truth (gt.csv)")
+    rec = read_recording(folder)
+    assert not rec.has_truth
     np.testing.assert_array_equal(rec.imu, short.imu)
     np.testing.assert_array_equal(rec.dvl, short.dvl[short.dvl_valid])
     assert rec.depth is not None and rec.fixes is not None
@@ -346,10 +341,9 @@ def test_the_generic_folder_reads_without_its_truth(tmp_path, short):
 
 
 def test_the_heading_table_reads_back(tmp_path, short):
-    if "heading" not in aiding.COLUMNS:
-        pytest.skip("pronet.recorded.aiding has no heading table yet (heading.csv is not read)")
-    folder = write_generic(short, tmp_path / "mission", truth=True)
-    heading = read_recording(folder).heading  # type: ignore[attr-defined]
+    folder = write_generic(short, tmp_path / "mission")
+    heading = read_recording(folder).heading
+    assert heading is not None
     np.testing.assert_array_equal(heading.time, short.heading_time)
     np.testing.assert_allclose(heading.heading, short.heading, rtol=0, atol=1e-15)
 
@@ -414,12 +408,9 @@ def test_the_bag_has_no_truth_topic_and_the_ahrs_orientation_in_each_imu_message
 def test_the_bag_reads_without_its_truth(tmp_path, tiny, storage):
     pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
     path, topics = write_mission_bag(tiny, _storage_path(tmp_path, storage), storage)
-    try:
-        rec = read_recording(path, replace(topics, origin=None))
-    except RecordingError as exc:
-        if "for the truth" not in str(exc):
-            raise
-        pytest.skip("read_recording does not yet read a bag without a truth topic")
+    assert topics.truth is None and topics.origin is None
+    rec = read_recording(path, topics)
+    assert not rec.has_truth
     np.testing.assert_array_equal(rec.imu, tiny.imu)
     np.testing.assert_array_equal(rec.dvl, tiny.dvl[tiny.dvl_valid])
     assert rec.depth is not None

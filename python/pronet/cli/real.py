@@ -55,6 +55,12 @@ def _add_bag_options(parser: argparse.ArgumentParser) -> None:
         ("truth", "ground truth", "nav_msgs/msg/Odometry or geometry_msgs/msg/PoseStamped"),
         ("depth", "depth (pressure)", "sensor_msgs/msg/FluidPressure"),
         ("fix", "position-fix", "sensor_msgs/msg/NavSatFix"),
+        (
+            "heading",
+            "heading",
+            "the orientation of sensor_msgs/msg/Imu (may be the IMU topic: an AHRS's), "
+            "geometry_msgs/msg/QuaternionStamped, PoseStamped or PoseWithCovarianceStamped",
+        ),
     ):
         bag.add_argument(
             f"--{name}-topic",
@@ -77,6 +83,12 @@ def _add_bag_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         help=f"the pressure at the surface taken off the depth topic's (default "
         f"{defaults.surface_pressure:g}, the standard atmosphere; 0 for a gauge sensor)",
+    )
+    bag.add_argument(
+        "--heading-magnetic",
+        action="store_true",
+        default=None,
+        help="the heading topic's yaw is from magnetic north (turned true with --declination)",
     )
     bag.add_argument(
         "--origin",
@@ -112,6 +124,8 @@ def bag_topics(args: argparse.Namespace) -> BagTopics | None:
         "world_frame": ("--world-frame", args.world_frame),
         "depth": ("--depth-topic", args.depth_topic),
         "fix": ("--fix-topic", args.fix_topic),
+        "heading": ("--heading-topic", args.heading_topic),
+        "heading_magnetic": ("--heading-magnetic", args.heading_magnetic),
         "water_density": ("--water-density", args.water_density),
         "surface_pressure": ("--surface-pressure", args.surface_pressure),
     }
@@ -123,6 +137,8 @@ def bag_topics(args: argparse.Namespace) -> BagTopics | None:
         return None
     if args.no_dvl:
         given["dvl"] = None
+    if args.no_heading:
+        given["heading"] = None
     return BagTopics(**given)
 
 
@@ -196,7 +212,8 @@ def add_parser(sub: Subparsers) -> None:
         default=None,
         help="your vehicle's tuning: a TOML file with a scenario's [filter] keys (p0_sigma, "
         "accel_bias_psd, gyro_bias_psd, dvl_variance, ...), grade = mems|tactical|fog and "
-        "imu_lever_arm/dvl_lever_arm, depth_sigma/fix_sigma (pronet.recorded.vehicle), or "
+        "imu_lever_arm/dvl_lever_arm, depth_sigma/fix_sigma/heading_sigma [deg], declination "
+        "[deg] (pronet.recorded.vehicle), or "
         "a grade's name alone "
         "(default: the FOG tuning of the Snapir AUV)",
     )
@@ -209,6 +226,10 @@ def add_parser(sub: Subparsers) -> None:
     for stream, what in (
         ("depth", "depth readings (a depth table or --depth-topic; pronet.recorded.aiding)"),
         ("fixes", "position fixes (a fix table or --fix-topic; pronet.recorded.aiding)"),
+        (
+            "heading",
+            "heading readings (a heading table or --heading-topic; pronet.recorded.heading)",
+        ),
         ("dvl", "DVL (a bag's DVL topic is then not read): a GNSS/INS or depth-and-fix run"),
     ):
         parser.add_argument(
@@ -218,10 +239,19 @@ def add_parser(sub: Subparsers) -> None:
             "aided filter",
         )
     parser.add_argument(
+        "--declination",
+        metavar="DEG",
+        type=float,
+        default=None,
+        help="the magnetic declination [deg, east positive] that turns a magnetic heading "
+        "(a magnetic_heading column, --heading-magnetic) true (default: --filter's "
+        "declination; a magnetic heading without one is refused)",
+    )
+    parser.add_argument(
         "--aiding-clock",
         choices=AIDING_CLOCKS,
         default="imu",
-        help="the clock the depth and fixes are stamped on: the IMU's (their stamps as "
+        help="the clock the depth, fixes and heading are stamped on: the IMU's (their stamps as "
         "given, the default), or the DVL's or the ground truth's as estimated (one logger "
         "stamping both)",
     )
@@ -280,6 +310,8 @@ def run(args: argparse.Namespace) -> int:
             use_fixes=not args.no_fixes,
             use_dvl=not args.no_dvl,
             aiding_clock=args.aiding_clock,
+            use_heading=not args.no_heading,
+            declination=args.declination,
             on_start=bars.start,
             on_done=bars.done,
         )

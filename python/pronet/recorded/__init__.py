@@ -1,16 +1,20 @@
-"""Recorded missions: reading a vehicle's IMU, DVL and ground truth, aligning their
+"""Recorded missions: reading a vehicle's IMU, DVL and (optional) ground truth, aligning their
 clocks and lever arms, tuning the filter for them, running every strategy and reporting.
 
 Reading and preparing:
 
 - :mod:`~pronet.recorded.recordings`: the readers (the Snapir layout, the generic CSV
-  and ``.npz`` formats), validated before any computation;
+  and ``.npz`` formats, the ground truth optional), validated before any computation;
+- :mod:`~pronet.recorded.csvtext`: CSV text as numbers, fast, or naming the bad row
+  and cell;
 - :mod:`~pronet.recorded.alignment`: clocks and lever arms, a recording turned into a
   filter-ready :class:`~pronet.recorded.alignment.Section`;
 - :mod:`~pronet.recorded.bags`: ROS 1 and ROS 2 bags as recordings (the ``rosbags``
   extra): topics, frames (REP-103 FLU/ENU to FRD/NED), the DVL covariance as R;
 - :mod:`~pronet.recorded.aiding`: depth readings and position fixes (the generic
   format's optional ``depth`` and ``fix`` tables), their missing values, checks and σ;
+- :mod:`~pronet.recorded.heading`: heading readings (the optional ``heading`` table, a
+  bag's heading topic), true or magnetic, their σ and missing values;
 - :mod:`~pronet.recorded.missing`: missing DVL readings (no bottom lock), skipped as
   updates and counted;
 - :mod:`~pronet.recorded.plausible`: plausibility checks naming file and column (stuck
@@ -58,11 +62,13 @@ __all__ = [
     "alignment",
     "attitude",
     "bags",
+    "csvtext",
     "dvlcalibration",
     "dvlnoise",
     "dvltruth",
     "export",
     "figures",
+    "heading",
     "health",
     "initial",
     "initialinputs",

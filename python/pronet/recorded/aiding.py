@@ -1,6 +1,7 @@
 """Depth readings and position fixes in recorded data: the generic format's optional
 ``depth`` and ``fix`` streams, their missing values, their checks against the ground
-truth, and the σ the filter gives them (issue 42, point 3).
+truth, and the σ the filter gives them (issue 42, point 3); with the heading readings of
+:mod:`pronet.recorded.heading`, the streams that aid a recorded pass after the DVL.
 
 Two optional tables beside ``imu``, ``dvl`` and ``gt`` (a folder's ``depth.csv`` and
 ``fix.csv``, each optionally ``.gz``; an ``.npz``'s arrays ``depth``/``depth_columns``
@@ -10,11 +11,22 @@ and ``fix``/``fix_columns``), each on its own stamps and at its own rate:
 table columns (accepted units; converted to the first)
 ===== =============================================================================
 depth ``time [s]``, ``depth [m]`` (pressure depth, positive down); optional
-      ``sigma [m]``, its 1σ
+      ``sigma [m]``, its 1σ, and ``pressure [Pa | hPa | mbar | kPa | bar]``, the
+      absolute pressure the depth was computed from (a bag's, below)
 fix   ``time [s]``, ``lat``, ``lon [rad | deg]``; optional ``height [m]`` (up: a fix
       without it, or with an empty height cell, is horizontal), ``sigma_n``,
       ``sigma_e``, ``sigma_d [m]`` (1σ north, east, down; the three together)
 ===== =============================================================================
+
+The raw pressure. A ROS bag's depth is computed from absolute pressure at read time
+(:mod:`pronet.recorded.bags`: ``(p − p_surface) / (ρ g)`` with the topics'
+``surface_pressure`` and ``water_density``); the pressure is kept
+(:attr:`DepthReadings.pressure`, with :attr:`DepthReadings.water_density`), so that a
+surface pressure measured from the data (the pressure while a fix says the vehicle is
+at the surface) can replace the assumed one: :meth:`DepthReadings.rereferenced`. A
+generic table may carry the same ``pressure`` column (it is then written back by
+:func:`pronet.recorded.recordings.write_recording`); a row with a missing pressure is
+skipped as one with a missing depth.
 
 Both refer to the IMU's point (their streams, :func:`filter_aiding`'s
 :class:`pronet.Depth` and :class:`pronet.Fix`, have no lever arm): a depth sensor or an
@@ -61,24 +73,37 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet.recorded.plausible import ANGLE_UNITS, Table, angle_beyond, parse_header
+from pronet.recorded import heading as _heading
+from pronet.recorded.heading import HeadingReadings
+from pronet.recorded.plausible import (
+    ANGLE_UNITS,
+    STANDARD_GRAVITY,
+    Table,
+    angle_beyond,
+    parse_header,
+)
 
 F64 = NDArray[np.float64]
 
 _METRE = {"m": 1.0}
-#: Required columns of the aiding tables: name → accepted units and their SI factor.
+#: The units a pressure may be given in, and their factor to pascals.
+PRESSURE_UNITS = {"Pa": 1.0, "hPa": 100.0, "mbar": 100.0, "kPa": 1000.0, "bar": 1e5}
+#: Required columns of the aiding tables (the heading's:
+#: :mod:`pronet.recorded.heading`): name → accepted units and their SI factor.
 COLUMNS: dict[str, dict[str, dict[str, float]]] = {
     "depth": {"time": {"s": 1.0}, "depth": _METRE},
     "fix": {"time": {"s": 1.0}, "lat": ANGLE_UNITS, "lon": ANGLE_UNITS},
+    **_heading.COLUMNS,
 }
 #: Optional columns of the aiding tables.
 OPTIONAL: dict[str, dict[str, dict[str, float]]] = {
-    "depth": {"sigma": _METRE},
+    "depth": {"sigma": _METRE, "pressure": PRESSURE_UNITS},
     "fix": {"height": _METRE, "sigma_n": _METRE, "sigma_e": _METRE, "sigma_d": _METRE},
+    **_heading.OPTIONAL,
 }
 #: Plausible sample rates [Hz]: a pressure sensor; fixes on any schedule (a GNSS fix
-#: at 10 Hz at the surface, a USBL fix every few minutes).
-RATE_RANGE = {"depth": (0.01, 1000.0), "fix": (1e-4, 100.0)}
+#: at 10 Hz at the surface, a USBL fix every few minutes); a heading.
+RATE_RANGE = {"depth": (0.01, 1000.0), "fix": (1e-4, 100.0), **_heading.RATE_RANGE}
 #: The median depth may differ from the ground truth's by at most this [m]: a depth
 #: from absolute pressure (the atmosphere's 10 m), in feet, or a height, differs more.
 MAX_DEPTH_OFFSET = 5.0
@@ -118,6 +143,10 @@ class DepthReadings(_Stream):
         skipped_time: ``(j,)`` stamps of the rows skipped as missing values.
         skipped_reason: why each was skipped (``"nan"``).
         source: where it was read from.
+        pressure: ``(d,)`` the absolute pressure [Pa] each depth was computed from (a
+            bag's, or a table's ``pressure`` column), or None.
+        water_density: the water's density [kg/m³] the depth was computed with (a
+            bag's), or None.
     """
 
     time: F64
@@ -126,6 +155,29 @@ class DepthReadings(_Stream):
     skipped_time: F64 = field(default_factory=lambda: np.empty(0))
     skipped_reason: tuple[str, ...] = ()
     source: str = ""
+    pressure: F64 | None = None
+    water_density: float | None = None
+
+    def rereferenced(
+        self, surface_pressure: float, water_density: float | None = None
+    ) -> DepthReadings:
+        """The depth recomputed from :attr:`pressure` against ``surface_pressure`` [Pa]
+        (e.g. measured from the data): ``(p − p_surface) / (ρ g)``, ρ ``water_density``
+        [kg/m³], else :attr:`water_density`, g standard gravity; σ as read. ValueError
+        naming the source without a pressure or a density."""
+        if self.pressure is None:
+            raise ValueError(f"{self.source}: the depth holds no pressure to re-reference")
+        rho = self.water_density if water_density is None else float(water_density)
+        if rho is None or not (np.isfinite(rho) and rho > 0):
+            raise ValueError(
+                f"{self.source}: re-referencing the depth needs the water's density, got {rho}"
+            )
+        if not (np.isfinite(surface_pressure) and surface_pressure >= 0):
+            raise ValueError(
+                f"surface_pressure: must be finite and >= 0 Pa, got {surface_pressure}"
+            )
+        depth = (self.pressure - float(surface_pressure)) / (rho * STANDARD_GRAVITY)
+        return replace(self, depth=depth, water_density=rho)
 
 
 @dataclass(frozen=True)
@@ -179,11 +231,12 @@ def unknown_sigma(where: str, kind: str, names: list[str], header: list[str]) ->
     if kind not in OPTIONAL:
         return None
     accepted = [n for n in OPTIONAL[kind] if n.startswith("sigma")]
+    shown = ", ".join(f"{n} [{' | '.join(OPTIONAL[kind][n])}]" for n in accepted)
     for name, label in zip(names, header, strict=True):
         if name.startswith("sigma") and name not in accepted:
             return (
                 f"{where}: column {label.strip()!r} is not a σ column of the {kind} table; "
-                f"its σ columns are {', '.join(f'{n} [m]' for n in accepted)}"
+                f"its σ columns are {shown}"
             )
     return None
 
@@ -196,7 +249,9 @@ def depth_readings(table: Table, names: list[str]) -> DepthReadings:
         _check_sigma(table, names, ["sigma"])
     t, depth = table.values[:, 0], table.values[:, 1]
     sigma = _column(table, names, "sigma")
+    pressure = _column(table, names, "pressure")
     missing = np.isnan(depth) | (np.isnan(sigma) if sigma is not None else False)
+    missing |= np.isnan(pressure) if pressure is not None else False
     if missing.all():
         raise ValueError(
             f"{table.where}: no usable depth in its {len(t)} rows (every one NaN or empty)"
@@ -209,6 +264,7 @@ def depth_readings(table: Table, names: list[str]) -> DepthReadings:
         skipped_time=t[missing].copy(),
         skipped_reason=("nan",) * int(missing.sum()),
         source=table.where,
+        pressure=None if pressure is None else pressure[keep].copy(),
     )
 
 
@@ -269,14 +325,19 @@ def streams(tables: Mapping[str, Table]) -> tuple[DepthReadings | None, Position
 
 
 def as_tables(
-    depth: DepthReadings | None, fixes: PositionFixes | None
+    depth: DepthReadings | None,
+    fixes: PositionFixes | None,
+    heading: HeadingReadings | None = None,
 ) -> dict[str, tuple[list[str], F64]]:
     """The streams as the generic format's tables, header and SI values (the rows the
-    filter uses), for :func:`pronet.recorded.recordings.write_recording`."""
+    filter uses; the heading true), for :func:`pronet.recorded.recordings.write_recording`."""
     out = {}
     if depth is not None:
-        columns = [depth.time, depth.depth] + ([] if depth.sigma is None else [depth.sigma])
-        header = ["time [s]", "depth [m]", "sigma [m]"][: len(columns)]
+        header, columns = ["time [s]", "depth [m]"], [depth.time, depth.depth]
+        for label, values in (("sigma [m]", depth.sigma), ("pressure [Pa]", depth.pressure)):
+            if values is not None:
+                header.append(label)
+                columns.append(values)
         out["depth"] = (header, np.column_stack(columns))
     if fixes is not None:
         header = ["time [s]", "lat [rad]", "lon [rad]", "height [m]"]
@@ -285,6 +346,8 @@ def as_tables(
             header += [f"sigma_{a} [m]" for a in "ned"]
             parts.append(fixes.sigma)
         out["fix"] = (header, np.hstack(parts))
+    if heading is not None:
+        out["heading"] = _heading.as_table(heading)
     return out
 
 
@@ -294,7 +357,10 @@ def against_truth(
     """The depth and fixes against the ground truth ``gt`` (its table: time, lat, lon,
     height, ...; stamps as given): the median depth offset beyond
     :data:`MAX_DEPTH_OFFSET`, the median horizontal distance of the fixes beyond
-    :data:`MAX_FIX_OFFSET`. One line naming the file, or None."""
+    :data:`MAX_FIX_OFFSET`. One line naming the file, or None (also for an empty
+    ``gt``: no ground truth to check against)."""
+    if len(gt.values) == 0:
+        return None
     t_gt, lla = gt.values[:, 0], gt.values[:, 1:4]
     if depth is not None:
         offset = float(np.median(depth.depth + np.interp(depth.time, t_gt, lla[:, 2])))
@@ -322,13 +388,17 @@ def against_truth(
 
 @dataclass(frozen=True)
 class AidingTuning:
-    """What ``pronet real`` does with a section's aiding sensors: DVL, depth, fixes.
+    """What ``pronet real`` does with a section's aiding sensors: DVL, depth, fixes,
+    heading.
 
     Attributes:
         depth_sigma: the depth's 1σ [m] where the file has none.
         fix_sigma: the fixes' 1σ north, east, down [m] where the file has none.
         use_depth, use_fixes, use_dvl: False ignores the stream (``--no-depth``,
             ``--no-fixes``, ``--no-dvl``).
+        heading_sigma: the heading's 1σ [rad] where the recording has none, or None
+            (no default: such a heading stream is refused, :func:`tuned_heading`).
+        use_heading: False ignores the heading stream (``--no-heading``).
     """
 
     depth_sigma: float = DEFAULT_DEPTH_SIGMA
@@ -336,6 +406,8 @@ class AidingTuning:
     use_depth: bool = True
     use_fixes: bool = True
     use_dvl: bool = True
+    heading_sigma: float | None = None
+    use_heading: bool = True
 
     def __post_init__(self) -> None:
         sigma = (self.depth_sigma, *self.fix_sigma)
@@ -344,6 +416,9 @@ class AidingTuning:
                 f"depth_sigma, fix_sigma: must be finite numbers of metres > 0 (fix_sigma "
                 f"three: north, east, down), got {self.depth_sigma}, {self.fix_sigma}"
             )
+        h = self.heading_sigma
+        if h is not None and not (np.isfinite(h) and 0 < h <= np.pi):
+            raise ValueError(f"heading_sigma: must be > 0 and at most π rad, got {h}")
 
 
 def tuned(
@@ -359,19 +434,42 @@ def tuned(
     return (depth if tuning.use_depth else None), (fixes if tuning.use_fixes else None)
 
 
+def tuned_heading(heading: HeadingReadings | None, tuning: AidingTuning) -> HeadingReadings | None:
+    """The heading with ``tuning``'s σ where the recording has none (its own kept), None
+    without one or when ``tuning`` ignores it; a heading without σ when ``tuning`` has
+    none either is a ValueError naming its source and the vehicle key ``heading_sigma``."""
+    if heading is None or not tuning.use_heading:
+        return None
+    if heading.sigma is None:
+        if tuning.heading_sigma is None:
+            raise ValueError(
+                f"{heading.source}: the heading has no σ (no sigma column, or a covariance "
+                "not set in every message): give heading_sigma [deg] in the vehicle file"
+            )
+        heading = replace(heading, sigma=np.full(len(heading.time), float(tuning.heading_sigma)))
+    return heading
+
+
 def filter_aiding(
-    depth: DepthReadings | None, fixes: PositionFixes | None
-) -> tuple[_core.Depth | _core.Fix, ...]:
+    depth: DepthReadings | None,
+    fixes: PositionFixes | None,
+    heading: HeadingReadings | None = None,
+) -> tuple[_core.Depth | _core.Fix | _core.Heading, ...]:
     """The streams a pass takes after the DVL (:func:`pronet.run_filter`): a section's
-    depth readings (:class:`pronet.Depth`) and position fixes (:class:`pronet.Fix`),
-    both at the IMU's point, their σ the file's, else the defaults (:func:`tuned` puts
-    a vehicle's in first); empty for none. The depth stream takes one σ per pass: the
-    median of the rows'."""
+    depth readings (:class:`pronet.Depth`), position fixes (:class:`pronet.Fix`), both
+    at the IMU's point, and heading readings (:class:`pronet.Heading`), their σ the
+    file's, else the defaults (:func:`tuned` and :func:`tuned_heading` put a vehicle's
+    in first; a heading has no default σ: without one it is refused); empty for none.
+    The depth stream takes one σ per pass: the median of the rows'; the heading one per
+    row."""
     depth, fixes = tuned(depth, fixes, AidingTuning())
-    out: list[_core.Depth | _core.Fix] = []
+    out: list[_core.Depth | _core.Fix | _core.Heading] = []
     if depth is not None and depth.sigma is not None:
         sigma = float(np.median(depth.sigma))
         out.append(_core.Depth(depth.time, depth.depth, sigma=sigma))
     if fixes is not None:
         out.append(_core.Fix(fixes.time, fixes.lla, sigma=fixes.sigma))
+    heading = tuned_heading(heading, AidingTuning())
+    if heading is not None:
+        out.append(_core.Heading(heading.time, heading.heading, sigma=heading.sigma))
     return tuple(out)

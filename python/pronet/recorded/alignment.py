@@ -21,6 +21,13 @@ truth is shifted by about ±0.45 s. Both clocks can be given or estimated per se
   (``Cᵀ v + ω × r``), over the same kind of grid of offsets, with the ground truth's
   scale.
 
+Without a ground truth (:attr:`Section.has_truth`) neither clock can be estimated: the
+DVL's is then the identity unless given (:func:`estimate_alignment`'s ``dvl_clock``),
+and :class:`Alignment` says which clock was given, estimated or assumed
+(``gt_clock_how``, ``dvl_clock_how``). Whatever scores against a truth (``pronet
+real``, :func:`pronet.recorded.passes.start_index`, the metrics) refuses such a section
+in one line (:func:`no_truth`).
+
 Lever arms (body frame FRD, metres, relative to the point the ground truth describes):
 the ground truth is moved to the IMU, ``p_imu = p_gt + C r_imu``,
 ``v_imu = v_gt + C (ω × r_imu)`` (ω the gyro rate; the Earth's rate over a few metres
@@ -40,6 +47,7 @@ from pronet import _core
 from pronet._util.validate import check_type, float_array, real_array, scalar
 from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagTopics, is_bag
+from pronet.recorded.heading import HeadingReadings
 from pronet.recorded.recordings import Recording
 
 F64 = NDArray[np.float64]
@@ -88,6 +96,11 @@ def lever_arm(value: ArrayLike, name: str) -> F64:
     return arm
 
 
+#: How a clock of an :class:`Alignment` was found: given, estimated from the data,
+#: assumed (the identity, nothing to estimate it from), or none (no such stream).
+CLOCK_HOW = ("given", "estimated", "assumed", "none")
+
+
 @dataclass(frozen=True)
 class Alignment:
     """How a recording's streams are put on the IMU clock and at the IMU point.
@@ -96,9 +109,13 @@ class Alignment:
         gt_clock, dvl_clock: stamp → IMU time of the ground truth and of the DVL.
         imu_lever_arm: IMU position [m, body FRD] relative to the ground-truth point.
         dvl_lever_arm: DVL position [m, body FRD] relative to the ground-truth point.
-        how: ``"estimated"``, ``"given"`` or ``"none"`` (stamps and no lever arms).
-        aiding_clock: stamp → IMU time of the depth readings and position fixes
-            (:mod:`pronet.recorded.aiding`; never estimated: identity unless given).
+        how: ``"estimated"``, ``"given"`` or ``"none"`` (stamps and no lever arms), or
+            ``"assumed"`` (no ground truth to estimate a clock from: identities).
+        aiding_clock: stamp → IMU time of the depth readings, position fixes and
+            heading readings (:mod:`pronet.recorded.aiding`; never estimated: identity
+            unless given).
+        gt_clock_how, dvl_clock_how: how each clock was found, one of
+            :data:`CLOCK_HOW` (``"none"``: the recording has no such stream).
     """
 
     gt_clock: Clock = field(default_factory=Clock)
@@ -107,6 +124,8 @@ class Alignment:
     dvl_lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     how: str = "given"
     aiding_clock: Clock = field(default_factory=Clock)
+    gt_clock_how: str = "given"
+    dvl_clock_how: str = "given"
 
     def __post_init__(self) -> None:
         check_type(self.gt_clock, Clock, "gt_clock")
@@ -114,6 +133,11 @@ class Alignment:
         check_type(self.aiding_clock, Clock, "aiding_clock")
         lever_arm(self.imu_lever_arm, "imu_lever_arm")
         lever_arm(self.dvl_lever_arm, "dvl_lever_arm")
+        for name in ("gt_clock_how", "dvl_clock_how"):
+            if getattr(self, name) not in CLOCK_HOW:
+                raise ValueError(
+                    f"{name}: expected one of {', '.join(CLOCK_HOW)}, got {getattr(self, name)!r}"
+                )
 
     @property
     def filter_lever_arm(self) -> tuple[float, float, float]:
@@ -124,7 +148,8 @@ class Alignment:
 
 @dataclass(frozen=True)
 class Section:
-    """A recording on the IMU clock with its truth at the IMU, ready for the filter.
+    """A recording on the IMU clock with its truth at the IMU, ready for the filter
+    (the truth optional: :attr:`has_truth`).
 
     Attributes:
         name: section name.
@@ -132,7 +157,8 @@ class Section:
         imu: ``(n, 6)`` ``[f (m/s²), ω (rad/s)]``, body FRD.
         dvl_time: ``(m,)`` DVL times on the IMU clock [s].
         dvl: ``(m, 3)`` DVL body velocity [m/s].
-        truth_time: ``(k,)`` ground-truth times on the IMU clock [s].
+        truth_time: ``(k,)`` ground-truth times on the IMU clock [s]; ``(0,)`` without
+            a ground truth, the three below then ``(0, 3)``.
         truth_lla, truth_vel, truth_rpy: ``(k, 3)`` the truth moved to the IMU:
             lat, lon [rad], height [m, up]; NED velocity [m/s]; roll, pitch, yaw [rad].
         alignment: how it was aligned.
@@ -145,6 +171,8 @@ class Section:
             bag's covariance), used as the strategy rows' R; None: R as tuned.
         depth, fixes: the depth readings and position fixes on the IMU clock
             (:mod:`pronet.recorded.aiding`), or None.
+        heading: the heading readings (true north) on the IMU clock
+            (:mod:`pronet.recorded.heading`), or None.
     """
 
     name: str
@@ -163,6 +191,22 @@ class Section:
     dvl_variance: tuple[float, float, float] | None = None
     depth: DepthReadings | None = None
     fixes: PositionFixes | None = None
+    heading: HeadingReadings | None = None
+
+    @property
+    def has_truth(self) -> bool:
+        """Whether the section has a ground truth (``truth_time`` not empty)."""
+        return len(self.truth_time) > 0
+
+
+#: Why ``pronet real`` refuses a section without a ground truth.
+NO_TRUTH_FOR_REAL = "pronet real scores against one; pronet navigate runs without"
+
+
+def no_truth(name: str, why: str = NO_TRUTH_FOR_REAL) -> str:
+    """The one line that refuses section ``name`` without a ground truth where one is
+    needed (``why``: what needs it; default ``pronet real``)."""
+    return f"section {name} has no ground truth: {why}"
 
 
 def dcm_from_euler(rpy: ArrayLike) -> F64:
@@ -229,14 +273,21 @@ def since_epoch(rec: Recording) -> tuple[Recording, float]:
             dvl_skipped_time=rec.dvl_skipped_time - epoch,
             depth=None if rec.depth is None else rec.depth.on_clock(lambda t: t - epoch),
             fixes=None if rec.fixes is None else rec.fixes.on_clock(lambda t: t - epoch),
+            heading=None if rec.heading is None else rec.heading.on_clock(lambda t: t - epoch),
         ),
         epoch,
     )
 
 
+def _truth_needed(rec: Recording, what: str) -> None:
+    if not rec.has_truth:
+        raise ValueError(f"{rec.source}: no ground truth to estimate {what} from")
+
+
 def estimate_gt_clock(rec: Recording) -> Clock:
     """The ground truth's clock (since the epoch: see the module docstring), from its
-    attitude increments against the gyro's."""
+    attitude increments against the gyro's; ValueError without a ground truth."""
+    _truth_needed(rec, "its clock")
     rec, _ = since_epoch(rec)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     t_imu = rec.imu_time
@@ -268,7 +319,8 @@ def estimate_dvl_clock(
     scale is taken as the ground truth's (one logger stamps both, as in the Snapir
     data): body velocity varies slowly, so it pins an offset well but cannot also
     separate a scale from it over a short section. ``gt_clock`` and the result count
-    from the epoch (see the module docstring)."""
+    from the epoch (see the module docstring). ValueError without a ground truth."""
+    _truth_needed(rec, "the DVL's clock")
     rec, _ = since_epoch(rec)
     r = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
@@ -296,20 +348,45 @@ def estimate_alignment(
     rec: Recording,
     imu_lever_arm: ArrayLike = (0.0, 0.0, 0.0),
     dvl_lever_arm: ArrayLike = (0.0, 0.0, 0.0),
+    dvl_clock: Clock | None = None,
 ) -> Alignment:
-    """Both clocks estimated from the data, with the given lever arms [m, body FRD,
-    relative to the ground-truth point]."""
+    """Both clocks estimated from the data (the DVL's given as ``dvl_clock``, counted
+    from the epoch, when known), with the given lever arms [m, body FRD, relative to the
+    ground-truth point]. Without a ground truth nothing can be estimated: the truth's
+    clock is none, the DVL's ``dvl_clock`` or else the identity, assumed (``how``
+    ``"assumed"`` unless it was given)."""
     imu_arm = lever_arm(imu_lever_arm, "imu_lever_arm")
     dvl_arm = lever_arm(dvl_lever_arm, "dvl_lever_arm")
+    if dvl_clock is not None:
+        check_type(dvl_clock, Clock, "dvl_clock")
+    arms = {
+        "imu_lever_arm": tuple(float(v) for v in imu_arm),
+        "dvl_lever_arm": tuple(float(v) for v in dvl_arm),
+    }
+    if not rec.has_truth:
+        given = dvl_clock is not None
+        return Alignment(
+            dvl_clock=dvl_clock or Clock(),
+            how="given" if given else "assumed",
+            gt_clock_how="none",
+            dvl_clock_how="none" if not len(rec.dvl) else ("given" if given else "assumed"),
+            **arms,  # type: ignore[arg-type]
+        )
     gt_clock = estimate_gt_clock(rec)
-    return Alignment(
-        gt_clock=gt_clock,
+    if dvl_clock is None:
         # without a DVL (a GNSS/INS recording) a placeholder, the truth's: no DVL row is
         # put on it, and load_section refuses it as the depth and fixes' clock
-        dvl_clock=estimate_dvl_clock(rec, gt_clock, dvl_arm) if len(rec.dvl) else gt_clock,
-        imu_lever_arm=tuple(float(v) for v in imu_arm),  # type: ignore[arg-type]
-        dvl_lever_arm=tuple(float(v) for v in dvl_arm),  # type: ignore[arg-type]
+        dvl_clock = estimate_dvl_clock(rec, gt_clock, dvl_arm) if len(rec.dvl) else gt_clock
+        dvl_how = "estimated" if len(rec.dvl) else "none"
+    else:
+        dvl_how = "given"
+    return Alignment(
+        gt_clock=gt_clock,
+        dvl_clock=dvl_clock,
         how="estimated",
+        gt_clock_how="estimated",
+        dvl_clock_how=dvl_how,
+        **arms,  # type: ignore[arg-type]
     )
 
 
@@ -338,19 +415,10 @@ def align(rec: Recording, alignment: Alignment) -> Section:
     the module docstring)."""
     rec, epoch = since_epoch(rec)
     truth_time = alignment.gt_clock(rec.gt_time)
-    c = dcm_from_euler(rec.gt_rpy)
-    r = np.asarray(alignment.imu_lever_arm, dtype=np.float64)
-    lla = rec.gt_lla.copy()
-    vel = rec.gt_vel.copy()
-    if r.any():
-        offset_ned = c @ r
-        radii = np.array([_core.earth_radii(float(lat)) for lat in lla[:, 0]])
-        h = lla[:, 2]
-        lla[:, 0] += offset_ned[:, 0] / (radii[:, 0] + h)
-        lla[:, 1] += offset_ned[:, 1] / ((radii[:, 1] + h) * np.cos(lla[:, 0]))
-        lla[:, 2] -= offset_ned[:, 2]
+    lla, vel = rec.gt_lla.copy(), rec.gt_vel.copy()
+    if len(lla):
         w = _interp(truth_time, rec.imu_time, rec.imu[:, 3:6])
-        vel += np.einsum("kij,kj->ki", c, np.cross(w, r))
+        lla, vel = moved_point(lla, vel, rec.gt_rpy, alignment.imu_lever_arm, w)
     return Section(
         name=rec.name,
         imu_time=rec.imu_time,
@@ -368,6 +436,7 @@ def align(rec: Recording, alignment: Alignment) -> Section:
         dvl_variance=rec.dvl_variance,
         depth=None if rec.depth is None else rec.depth.on_clock(alignment.aiding_clock),
         fixes=None if rec.fixes is None else rec.fixes.on_clock(alignment.aiding_clock),
+        heading=None if rec.heading is None else rec.heading.on_clock(alignment.aiding_clock),
     )
 
 
@@ -423,16 +492,25 @@ def load_section(
     dvl_lever_arm: tuple[float, float, float] | None,
     handle_alignment: bool = True,
     aiding_clock: str = "imu",
+    declination: float | None = None,
+    dvl_clock: Clock | None = None,
+    read_heading: bool = True,
 ) -> tuple[Section, Section]:
     """Read one section and return it ``(aligned, as_stamped)``: clocks estimated and
     lever arms applied, and the stamps as given with no lever arms (the comparison).
+    The ground truth is optional (:attr:`Section.has_truth`; without one no clock is
+    estimated: :func:`estimate_alignment`, the DVL's ``dvl_clock`` when given, counted
+    from the epoch).
     ``dvl_lever_arm`` None: the recording must have no DVL reading (ValueError naming
     the file otherwise).
     ``fmt``: one of :data:`FORMATS`, or a bag's :class:`~pronet.recorded.bags.BagTopics`
     (``"bag"``: the default topics). ``aiding_clock`` (:data:`AIDING_CLOCKS`): the
     clock the depth and fixes are stamped on, the IMU's (their stamps as given) or the
     estimated clock of the DVL or of the ground truth (one logger stamping both); the
-    DVL's only for a recording with DVL readings (ValueError naming the file otherwise)."""
+    DVL's only for a recording with DVL readings, the ground truth's only for one with a
+    ground truth (ValueError naming the file otherwise). ``declination``: the magnetic
+    declination [deg, east positive] of a magnetic heading, ``read_heading`` False: no
+    heading read (:func:`pronet.recorded.recordings.read_recording`)."""
     if aiding_clock not in AIDING_CLOCKS:
         raise ValueError(
             f"aiding_clock: expected one of {', '.join(AIDING_CLOCKS)}, got {aiding_clock!r}"
@@ -442,11 +520,16 @@ def load_section(
     if is_bag(path) and not (isinstance(fmt, BagTopics) or fmt == "bag"):
         raise RecordingError(f"{path}: a ROS bag; read it with --format bag (format {fmt})")
     if isinstance(fmt, BagTopics) or fmt == "bag":
-        rec = read_recording(path, fmt if isinstance(fmt, BagTopics) else None)
+        topics = fmt if isinstance(fmt, BagTopics) else None
+        rec = read_recording(path, topics, declination=declination, read_heading=read_heading)
     elif fmt not in FORMATS:
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
     else:
-        rec = read_snapir(path) if fmt == "snapir" else read_recording(path)
+        rec = (
+            read_snapir(path)
+            if fmt == "snapir"
+            else read_recording(path, declination=declination, read_heading=read_heading)
+        )
     if dvl_lever_arm is None:
         if len(rec.dvl):
             raise ValueError(
@@ -460,10 +543,22 @@ def load_section(
             f"aiding_clock 'dvl' (--aiding-clock dvl): {path} has no DVL reading, so no "
             "DVL clock to put its depth and fixes on; use 'imu' or 'gt'"
         )
-    stamped = align(rec, Alignment(how="none"))
+    if aiding_clock == "gt" and not rec.has_truth:
+        raise ValueError(
+            f"aiding_clock 'gt' (--aiding-clock gt): {path} has no ground truth, so no "
+            "truth clock to put its depth, fixes and heading on; use 'imu' or 'dvl'"
+        )
+    stamped = align(
+        rec,
+        Alignment(
+            how="none",  # every clock the identity: the stamps as given
+            gt_clock_how="given" if rec.has_truth else "none",
+            dvl_clock_how="given" if len(rec.dvl) else "none",
+        ),
+    )
     if not handle_alignment:
         return stamped, stamped
-    alignment = estimate_alignment(rec, imu_lever_arm, dvl_lever_arm)
+    alignment = estimate_alignment(rec, imu_lever_arm, dvl_lever_arm, dvl_clock)
     if aiding_clock != "imu":
         clock = alignment.dvl_clock if aiding_clock == "dvl" else alignment.gt_clock
         alignment = replace(alignment, aiding_clock=clock)

@@ -3,7 +3,9 @@
 `rosbags <https://gitlab.com/ternaris/rosbags>`_ library (no ROS installation), an
 optional extra: ``pip install 'pronet[rosbags]'``.
 
-Three topics, named by :class:`BagTopics` (``pronet real --format bag --imu-topic …``):
+Three topics, named by :class:`BagTopics` (``pronet real --format bag --imu-topic …``);
+the truth is optional (``BagTopics(truth=None)``: not read, and no ``origin`` needed, a
+vehicle's own recording; ``pronet real`` scores against one and needs it):
 
 ===== ======================================= =========================================
 topic message type                            used
@@ -17,8 +19,9 @@ truth ``nav_msgs/msg/Odometry`` or            ``pose`` (position [m] in a local 
                                               Odometry's ``twist.linear`` [m/s, body]
 ===== ======================================= =========================================
 
-Two more topics are optional, read only when named (``--depth-topic``, ``--fix-topic``),
-as the generic format's ``depth`` and ``fix`` tables (:mod:`pronet.recorded.aiding`):
+Three more topics are optional, read only when named (``--depth-topic``,
+``--fix-topic``, ``--heading-topic``), as the generic format's ``depth``, ``fix`` and
+``heading`` tables (:mod:`pronet.recorded.aiding`, :mod:`pronet.recorded.heading`):
 
 ===== ======================================= =========================================
 topic message type                            used
@@ -29,13 +32,30 @@ depth ``sensor_msgs/msg/FluidPressure``       ``fluid_pressure`` [Pa] → depth
 fix   ``sensor_msgs/msg/NavSatFix``           ``latitude``, ``longitude`` [deg],
                                               ``altitude`` [m, up; NaN: horizontal];
                                               ``position_covariance`` (ENU) → σ N, E, D
+head- ``sensor_msgs/msg/Imu``,                the orientation's yaw (body → world,
+ing   ``geometry_msgs/msg/QuaternionStamped``, converted as the truth's: below);
+      ``…/PoseStamped`` or                    the yaw variance (Imu's
+      ``…/PoseWithCovarianceStamped``         ``orientation_covariance[8]``, the
+                                              pose's ``covariance[35]``) → σ
 ===== ======================================= =========================================
+
+The heading topic may be the IMU's own (``heading == imu``): an AHRS's orientation in
+each ``sensor_msgs/Imu`` message. An Imu message whose ``orientation_covariance[0]`` is
+−1 (ROS's "no orientation") is a missing value, skipped with the reason ``"no
+orientation"``; a quaternion of zero norm with ``"nan"``. The yaw is from the world
+frame's north (``world_frame``): a true heading, or with ``heading_magnetic`` a magnetic
+one, turned true with the declination given to
+:func:`pronet.recorded.recordings.read_recording` (refused without one). Its σ is the
+square root of the yaw variance when every used message sets it (> 0; 0 is "unknown",
+−1 "not provided"), else σ as tuned (a vehicle file's ``heading_sigma``).
 
 The pressure is absolute, as ``sensor_msgs/FluidPressure`` defines it: the surface
 pressure ``p_surface`` (:attr:`BagTopics.surface_pressure`, default the standard
 atmosphere, 101 325 Pa; 0 for a gauge sensor) is taken off and the rest divided by the
 water's density ρ (:attr:`BagTopics.water_density`, default 1025 kg/m³, sea water) and
-standard gravity: the hydrostatic depth of a column of constant density. The UNESCO
+standard gravity: the hydrostatic depth of a column of constant density (the pressure
+is kept, :attr:`pronet.recorded.aiding.DepthReadings.pressure`, to re-reference the
+depth to a surface pressure measured from the data). The UNESCO
 formula (N. P. Fofonoff and R. C. Millard, UNESCO technical papers in marine science 44,
 1983), with the latitude's gravity and the water's compressibility, gives depths
 0.04 % (equator) to 0.6 % (poles) smaller at 100 m and 0.3–0.8 % smaller at 1000 m; a
@@ -85,7 +105,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,6 +121,12 @@ class BagError(ValueError):
 
 
 IMU_TYPES = ("sensor_msgs/msg/Imu",)
+HEADING_TYPES = (
+    "sensor_msgs/msg/Imu",
+    "geometry_msgs/msg/QuaternionStamped",
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+)
 DVL_TYPES = (
     "geometry_msgs/msg/TwistWithCovarianceStamped",
     "geometry_msgs/msg/TwistStamped",
@@ -123,22 +149,28 @@ class BagTopics:
 
     Attributes:
         imu, dvl, truth: topic names (see the module docstring for their types); ``dvl``
-            None: the DVL is not read (the bag then needs a depth or a fix topic).
+            None: the DVL is not read (the bag then needs a depth or a fix topic);
+            ``truth`` None: no ground truth is read.
         origin: the truth's local origin: latitude, longitude [deg], height [m, up]
-            (required: a bag's poses are local metres).
-        body_frame: ``"flu"`` (REP-103, the default) or ``"frd"``: the IMU's, the DVL's
-            and the truth's body frame.
-        world_frame: ``"enu"`` (REP-103, the default) or ``"ned"``: the truth's world frame.
+            (required with a truth: a bag's poses are local metres).
+        body_frame: ``"flu"`` (REP-103, the default) or ``"frd"``: the IMU's, the DVL's,
+            the truth's and the heading's body frame.
+        world_frame: ``"enu"`` (REP-103, the default) or ``"ned"``: the truth's and the
+            heading's world frame.
         depth, fix: the optional depth (pressure) and position-fix topics, or None (not
             read).
         water_density: the water's density [kg/m³] of the pressure-to-depth conversion.
         surface_pressure: the pressure at the surface [Pa] taken off the readings (the
             standard atmosphere; 0 for a gauge sensor).
+        heading: the optional heading topic (may be ``imu``: an AHRS's orientation), or
+            None (not read).
+        heading_magnetic: the heading's world frame points to magnetic north (turned
+            true with the reader's ``declination``).
     """
 
     imu: str = "/imu/data"
     dvl: str | None = "/dvl/twist"
-    truth: str = "/odometry"
+    truth: str | None = "/odometry"
     origin: tuple[float, float, float] | None = None
     body_frame: str = "flu"
     world_frame: str = "enu"
@@ -146,6 +178,8 @@ class BagTopics:
     fix: str | None = None
     water_density: float = 1025.0
     surface_pressure: float = 101_325.0
+    heading: str | None = None
+    heading_magnetic: bool = False
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.water_density) and 900.0 <= self.water_density <= 1100.0):
@@ -184,7 +218,20 @@ class BagTopics:
             "fix_topic": self.fix,
             "water_density_kg_m3": self.water_density,
             "surface_pressure_pa": self.surface_pressure,
+            "heading_topic": self.heading,
+            "heading_magnetic": self.heading_magnetic,
         }
+
+
+class BagTable(NamedTuple):
+    """One stream of a bag as a table: where it came from (``bag[topic]``), its rows
+    (SI, body FRD, NED), the labels of its columns (``name [unit]``, the generic
+    format's) and, for the heading, why each row is missing (``""``: not), else None."""
+
+    where: str
+    values: F64
+    labels: list[str]
+    reasons: tuple[str, ...] | None = None
 
 
 def is_bag(path: Path) -> bool:
@@ -201,6 +248,25 @@ def require_rosbags() -> None:
         import rosbags.highlevel  # noqa: F401
     except ImportError:
         raise missing("rosbags", "reading ROS bags") from None
+
+
+def topic_types(path: str | Path) -> dict[str, str]:
+    """The topics of the bag at ``path`` and their message types (e.g. to tell whether
+    it has a truth topic before choosing :class:`BagTopics`); :class:`BagError` naming
+    the bag when it is none or cannot be read."""
+    require_rosbags()
+    from rosbags.highlevel import AnyReader, AnyReaderError
+
+    path = Path(path)
+    if not is_bag(path):
+        raise BagError(
+            f"{path}: not a ROS bag (a .bag file, or a ROS 2 bag folder with metadata.yaml)"
+        )
+    try:
+        with AnyReader([path]) as reader:
+            return {c.topic: c.msgtype for c in reader.connections}
+    except AnyReaderError as exc:
+        raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
 
 
 def _stamp(msg: Any) -> float:
@@ -225,6 +291,20 @@ def _dcm(q: Any) -> F64:
     )
 
 
+def _dcms(xyzw: F64) -> F64:
+    """Body → world DCMs ``(n, 3, 3)`` of quaternions ``(n, 4)`` (x, y, z, w;
+    normalised here): :func:`_dcm` for many at once, the same arithmetic."""
+    x, y, z, w = xyzw.T
+    n = np.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
 def euler_from_dcm(c: F64) -> F64:
     """Roll, pitch, yaw ``(…, 3)`` [rad] (ZYX) of body → NED DCMs ``(…, 3, 3)``, the
     inverse of :func:`pronet.recorded.alignment.dcm_from_euler`."""
@@ -242,7 +322,8 @@ def _messages(
     found = [c for c in reader.connections if c.topic == topic]
     if not found:
         have = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections))
-        raise BagError(f"{path}: no topic {topic!r} for the {kind}; the bag has: {have}")
+        hint = "; pronet navigate runs without a truth" if kind == "truth" else ""
+        raise BagError(f"{path}: no topic {topic!r} for the {kind}; the bag has: {have}{hint}")
     bad = sorted({c.msgtype for c in found} - set(types))
     if bad:
         raise BagError(
@@ -269,29 +350,73 @@ def _dvl_variance(msgs: list[Any]) -> tuple[float, float, float] | None:
     return (float(r[0]), float(r[1]), float(r[2]))
 
 
-def _depth_rows(msgs: list[Any], topics: BagTopics) -> F64:
-    """``[time, depth (m, down)]`` per message, and its σ [m] when every one sets a
-    variance (module docstring)."""
+def _depth_rows(msgs: list[Any], topics: BagTopics) -> tuple[F64, list[str]]:
+    """``[time, depth (m, down)]`` per message, its σ [m] when every one sets a
+    variance, and the pressure [Pa] (module docstring); with the columns' labels."""
     rho_g = topics.water_density * STANDARD_GRAVITY
     p = np.array([float(m.fluid_pressure) for m in msgs])
     rows = [np.array([_stamp(m) for m in msgs]), (p - topics.surface_pressure) / rho_g]
+    labels = ["time [s]", "depth [m]"]
     variance = np.array([float(m.variance) for m in msgs])
     if (variance > 0).all() and np.isfinite(variance).all():
         rows.append(np.sqrt(variance) / rho_g)
-    return np.column_stack(rows)
+        labels.append("sigma [m]")
+    return np.column_stack([*rows, p]), [*labels, "pressure [Pa]"]
 
 
-def _fix_rows(msgs: list[Any]) -> F64:
+def _fix_rows(msgs: list[Any]) -> tuple[F64, list[str]]:
     """``[time, lat, lon (rad), height (m)]`` per NavSatFix, NaN where it has no fix,
-    and σ north, east, down [m] when every one states its covariance."""
+    and σ north, east, down [m] when every one states its covariance; with the labels."""
     lla = np.array([[m.latitude, m.longitude, m.altitude] for m in msgs], dtype=np.float64)
     lla[:, :2] = np.radians(lla[:, :2])
     lla[[int(m.status.status) < 0 for m in msgs], :2] = np.nan  # STATUS_NO_FIX
     rows = [np.array([_stamp(m) for m in msgs])[:, None], lla]
+    labels = ["time [s]", "lat [rad]", "lon [rad]", "height [m]"]
     diag = np.array([[float(m.position_covariance[i]) for i in (4, 0, 8)] for m in msgs])
     if all(int(m.position_covariance_type) > 0 for m in msgs) and (diag > 0).all():
         rows.append(np.sqrt(diag))
-    return np.hstack(rows)
+        labels += ["sigma_n [m]", "sigma_e [m]", "sigma_d [m]"]
+    return np.hstack(rows), labels
+
+
+def _frames(topics: BagTopics) -> tuple[F64, F64]:
+    """``T_w`` (world → NED) and ``D_b`` (body FRD → the bag's body) of ``topics``."""
+    t_w = _ENU_TO_NED if topics.world_frame == "enu" else np.eye(3)
+    d_b = np.diag(_FLU) if topics.body_frame == "flu" else np.eye(3)
+    return t_w, d_b
+
+
+def _heading_rows(msgs: list[Any], topics: BagTopics) -> BagTable:
+    """``[time, heading (rad)]`` per message, the yaw of ``C_nb = T_w C_wb D_b`` (as
+    the truth's), with σ [rad] when every used message sets a yaw variance; NaN and a
+    reason where a message has no orientation (module docstring)."""
+    if hasattr(msgs[0], "orientation_covariance"):  # sensor_msgs/Imu
+        quats = [m.orientation for m in msgs]
+        none = np.array([float(m.orientation_covariance[0]) == -1.0 for m in msgs])
+        variance = np.array([float(m.orientation_covariance[8]) for m in msgs])
+    elif hasattr(msgs[0], "quaternion"):  # QuaternionStamped
+        quats, none = [m.quaternion for m in msgs], np.zeros(len(msgs), bool)
+        variance = np.zeros(len(msgs))
+    else:  # PoseStamped or PoseWithCovarianceStamped
+        covariance = hasattr(msgs[0].pose, "covariance")
+        quats = [m.pose.pose.orientation if covariance else m.pose.orientation for m in msgs]
+        none = np.zeros(len(msgs), bool)
+        variance = np.array([float(m.pose.covariance[35]) if covariance else 0.0 for m in msgs])
+    t_w, d_b = _frames(topics)
+    xyzw = np.array([[q.x, q.y, q.z, q.w] for q in quats], dtype=np.float64).reshape(-1, 4)
+    zero = ~(np.linalg.norm(xyzw, axis=1) > 0) & ~none
+    yaw = np.full(len(msgs), np.nan)
+    ok = ~none & ~zero
+    yaw[ok] = euler_from_dcm(t_w @ _dcms(xyzw[ok]) @ d_b)[:, 2]
+    reasons = np.where(none, "no orientation", np.where(zero, "nan", ""))
+    rows = [np.array([_stamp(m) for m in msgs]), yaw]
+    name = "magnetic_heading" if topics.heading_magnetic else "heading"
+    labels = ["time [s]", f"{name} [rad]"]
+    used = variance[reasons == ""]
+    if len(used) and (used > 0).all() and np.isfinite(used).all():
+        rows.append(np.where(reasons == "", np.sqrt(np.abs(variance)), np.nan))
+        labels.append("sigma [rad]")
+    return BagTable("", np.column_stack(rows), labels, tuple(str(r) for r in reasons))
 
 
 def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[float]]:
@@ -302,8 +427,7 @@ def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[flo
             f"{path}[{topics.truth}]: the truth's positions are local metres; give their "
             "geodetic origin (--origin LAT,LON,HEIGHT in deg, deg, m)"
         )
-    t_w = _ENU_TO_NED if topics.world_frame == "enu" else np.eye(3)
-    d_b = np.diag(_FLU) if topics.body_frame == "flu" else np.eye(3)
+    t_w, d_b = _frames(topics)
     time = np.array([_stamp(m) for m in msgs])
     odometry = hasattr(msgs[0], "twist")
     pose = [m.pose.pose if odometry else m.pose for m in msgs]
@@ -321,13 +445,24 @@ def _truth_rows(msgs: list[Any], topics: BagTopics, path: Path) -> list[list[flo
     return np.column_stack([time, lla, vel, rpy]).tolist()
 
 
+_IMU_LABELS = [
+    "time [s]",
+    *(f"acc_{a} [m/s^2]" for a in "xyz"),
+    *(f"gyro_{a} [rad/s]" for a in "xyz"),
+]
+_DVL_LABELS = ["time [s]", *(f"vel_{a} [m/s]" for a in "xyz")]
+_GT_LABELS = ["time [s]", "lat [rad]", "lon [rad]", "height [m]"]
+_GT_LABELS += [*(f"vel_{a} [m/s]" for a in "ned"), "roll [rad]", "pitch [rad]", "yaw [rad]"]
+
+
 def bag_streams(
     path: str | Path, topics: BagTopics | None = None
-) -> tuple[dict[str, tuple[str, F64]], tuple[float, float, float] | None]:
-    """The IMU, DVL and truth of one ROS 1 or ROS 2 bag as the generic format's tables
-    (``{"imu" | "dvl" | "gt": (where, rows)}``, ``where`` naming bag and topic, the rows
-    in :data:`pronet.recorded.recordings.COLUMNS` order, SI, body FRD, NED; with
-    ``topics.depth`` and ``topics.fix`` also ``"depth"`` and ``"fix"``, their required
+) -> tuple[dict[str, BagTable], tuple[float, float, float] | None]:
+    """The streams of one ROS 1 or ROS 2 bag as the generic format's tables
+    (``{"imu" | "dvl" | "gt": BagTable}``, ``where`` naming bag and topic, the rows in
+    :data:`pronet.recorded.recordings.COLUMNS` order, SI, body FRD, NED; ``"gt"`` only
+    with ``topics.truth``; with ``topics.depth``, ``topics.fix`` and ``topics.heading``
+    also ``"depth"`` (its pressure last), ``"fix"`` and ``"heading"``, their required
     columns then the optional ones present, :mod:`pronet.recorded.aiding`) and the R its
     DVL covariance states (None: not set); see the module docstring. Not yet checked:
     :func:`pronet.recorded.recordings.read_recording` reads a bag through this and checks
@@ -353,17 +488,24 @@ def bag_streams(
             dvl_msgs = (
                 [] if topics.dvl is None else _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
             )
-            truth_msgs = _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
+            truth_msgs = (
+                []
+                if topics.truth is None
+                else _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
+            )
             aiding = {
                 kind: (topic, _messages(reader, path, topic, kind, types, least=1))
                 for kind, topic, types in (
                     ("depth", topics.depth, DEPTH_TYPES),
                     ("fix", topics.fix, FIX_TYPES),
+                    ("heading", topics.heading, HEADING_TYPES),
                 )
-                if topic is not None
+                if topic is not None and not (kind == "heading" and topic == topics.imu)
             }
     except AnyReaderError as exc:
         raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
+    if topics.heading is not None and topics.heading == topics.imu:  # an AHRS's orientation
+        aiding["heading"] = (topics.imu, imu_msgs)
     imu = [
         [_stamp(m), *(np.array(_xyz(m.linear_acceleration)) * flip)]
         + list(np.array(_xyz(m.angular_velocity)) * flip)
@@ -373,21 +515,22 @@ def bag_streams(
     def velocity(m: Any) -> Any:
         return m.twist.twist.linear if hasattr(m.twist, "twist") else m.twist.linear
 
-    dvl = [[_stamp(m), *(np.array(_xyz(velocity(m))) * flip)] for m in dvl_msgs]
-    truth = _truth_rows(truth_msgs, topics, path)
-    streams = {
-        kind: (f"{path}[{topic}]", np.array(rows, dtype=np.float64))
-        for kind, topic, rows in (
-            ("imu", topics.imu, imu),
-            ("dvl", topics.dvl, dvl),
-            ("gt", topics.truth, truth),
-        )
-        if topic is not None
-    }
+    def table(topic: str, rows: Any, labels: list[str]) -> BagTable:
+        return BagTable(f"{path}[{topic}]", np.array(rows, dtype=np.float64), labels)
+
+    streams = {"imu": table(topics.imu, imu, _IMU_LABELS)}
+    if topics.dvl is not None:
+        dvl = [[_stamp(m), *(np.array(_xyz(velocity(m))) * flip)] for m in dvl_msgs]
+        streams["dvl"] = table(topics.dvl, dvl, _DVL_LABELS)
+    if topics.truth is not None:
+        streams["gt"] = table(topics.truth, _truth_rows(truth_msgs, topics, path), _GT_LABELS)
     if "depth" in aiding:
         topic, msgs = aiding["depth"]
-        streams["depth"] = (f"{path}[{topic}]", _depth_rows(msgs, topics))
+        streams["depth"] = table(topic, *_depth_rows(msgs, topics))
     if "fix" in aiding:
         topic, msgs = aiding["fix"]
-        streams["fix"] = (f"{path}[{topic}]", _fix_rows(msgs))
+        streams["fix"] = table(topic, *_fix_rows(msgs))
+    if "heading" in aiding:
+        topic, msgs = aiding["heading"]
+        streams["heading"] = _heading_rows(msgs, topics)._replace(where=f"{path}[{topic}]")
     return streams, _dvl_variance(dvl_msgs)

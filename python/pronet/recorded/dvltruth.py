@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet.recorded.alignment import Section, dcm_from_euler
+from pronet.recorded.alignment import Section, dcm_from_euler, no_truth
 
 F64 = NDArray[np.float64]
 
@@ -67,7 +67,10 @@ def truth_body_velocity(section: Section) -> tuple[NDArray[np.intp], F64]:
     """``(rows, v_b)``: the indices of the DVL rows inside the truth's time span and the
     truth's body-frame velocity at the DVL there [m/s, FRD]: ``C_bᵀ v`` of the truth
     (at the IMU) plus ``ω × r`` for the DVL's lever arm from the IMU, ``ω`` the gyro's
-    rate, everything linearly interpolated to the DVL rows (angles unwrapped)."""
+    rate, everything linearly interpolated to the DVL rows (angles unwrapped). A section
+    without a ground truth is refused in one line."""
+    if not section.has_truth:
+        raise ValueError(no_truth(section.name, "the DVL is fitted against one"))
     t = section.dvl_time
     rows = np.flatnonzero((t >= section.truth_time[0]) & (t <= section.truth_time[-1]))
     t = t[rows]

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet.filter import FilterResult
-from pronet.recorded.alignment import Section
+from pronet.recorded.alignment import Section, no_truth
 
 F64 = NDArray[np.float64]
 
@@ -89,7 +89,10 @@ def _heading_ratio(section: Section, result: FilterResult, rows: NDArray[np.intp
 
 def section_metrics(section: Section, result: FilterResult, use_dvl: bool = True) -> SectionMetrics:
     """Errors of ``result`` against the truth of ``section`` (see :class:`SectionMetrics`;
-    ``use_dvl``: whether the run had the DVL, for its missed updates)."""
+    ``use_dvl``: whether the run had the DVL, for its missed updates); a section
+    without a ground truth is refused in one line."""
+    if not section.has_truth:
+        raise ValueError(no_truth(section.name, "its errors are taken against one"))
     rows, lla, vel = estimate_at_truth(section, result)
     if rows.size == 0:
         raise ValueError(f"section {section.name}: no ground-truth row inside the run")

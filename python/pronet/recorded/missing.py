@@ -12,7 +12,10 @@ row is a *skipped* reading, counted by reason (:data:`REASONS`):
   at 32 m/s;
 - ``zero``: all three components exactly 0 while the ground truth (stamps as given,
   interpolated) moves faster than :data:`MOVING_SPEED`: several loggers write zeros for
-  a ping without lock; a vehicle at rest may read exact zeros and keeps them;
+  a ping without lock; a vehicle at rest may read exact zeros and keeps them. Without a
+  ground truth the vehicle's speed there is the DVL's own, interpolated between its
+  nearest usable rows that are not all zero (:func:`own_speed`): zeros amid readings of
+  a moving vehicle are a dropout, zeros amid readings near rest are kept;
 - ``invalid``: the optional ``valid`` column of the generic format (``valid``, no unit
   or ``[-]``, 1 valid and 0 not) is 0.
 
@@ -79,3 +82,48 @@ def longest_gap(kept_time: F64, skipped_time: F64) -> float:
         ends = [skipped_time.max() - kept_time[-1], kept_time[0] - skipped_time.min()]
         finite.append(float(max(e for e in ends)))
     return float(max(finite))
+
+
+def own_speed(time: F64, vel: F64, valid: F64 | None) -> F64:
+    """The DVL's speed [m/s] at each row's ``time``, interpolated between the rows of
+    ``vel (m, 3)`` that are none of :data:`REASONS` nor all zero (0 without any): the
+    speed :func:`classify` takes for an all-zero row without a ground truth."""
+    with np.errstate(invalid="ignore"):
+        usable = ~np.any(np.isnan(vel) | (np.abs(vel) >= DVL_SENTINEL), axis=1)
+        usable &= ~np.all(vel == 0.0, axis=1)
+    if valid is not None:
+        usable &= valid != 0.0
+    if not usable.any():
+        return np.zeros(len(time))
+    return np.interp(time, time[usable], np.linalg.norm(vel[usable], axis=1))
+
+
+def usable_rows(
+    dvl: F64, truth: tuple[F64, F64] | None, source: str
+) -> tuple[F64, NDArray[np.str_]]:
+    """The DVL rows ``dvl`` (``(m, 4)`` time and velocity, or ``(m, 5)`` with the
+    ``valid`` column) the filter uses, and the reason each row is skipped (``""``:
+    used; :func:`classify`). ``truth``: the ground truth's stamps and speed [m/s], or
+    None (the DVL's own speed, :func:`own_speed`). A DVL with no usable row is a
+    ValueError naming ``source``."""
+    valid = dvl[:, 4] if dvl.shape[1] > 4 else None
+    if truth is not None:
+        speed = truth[1]
+        moving = np.interp(dvl[:, 0], truth[0], speed)
+    else:
+        moving = own_speed(dvl[:, 0], dvl[:, 1:4], valid)
+    why = classify(dvl[:, 1:4], valid, moving)
+    if (why == "sentinel").all():  # every row beyond any vehicle: a unit, not a dropout
+        speed_dvl = float(np.median(np.linalg.norm(dvl[:, 1:4], axis=1)))
+        against = "" if truth is None else f" against the ground truth's {np.median(speed):.4g} m/s"
+        raise ValueError(
+            f"{source} dvl: its median speed {speed_dvl:.4g} m/s{against}, every row at or "
+            f"beyond the no-lock marker ±{DVL_SENTINEL} m/s; are the DVL velocities in m/s?"
+        )
+    if (why != "").all():
+        seen = ", ".join(f"{n} {r}" for r, n in counts(tuple(why)).items() if n)
+        raise ValueError(
+            f"{source} dvl: no usable reading in its {len(dvl)} rows ({seen}); see "
+            "pronet.recorded.missing for the markers recognised"
+        )
+    return dvl[why == "", :4], why

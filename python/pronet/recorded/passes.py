@@ -17,8 +17,8 @@ import numpy as np
 
 from pronet import _core
 from pronet._util.validate import flag, scalar
-from pronet.recorded.aiding import AidingTuning, filter_aiding, tuned
-from pronet.recorded.alignment import Section
+from pronet.recorded.aiding import AidingTuning, filter_aiding, tuned, tuned_heading
+from pronet.recorded.alignment import Section, no_truth
 from pronet.recorded.metrics import section_metrics
 from pronet.recorded.runs import SectionRun
 from pronet.run import Recorded, run
@@ -27,7 +27,9 @@ from pronet.strategies import StrategyLike
 
 def start_index(section: Section) -> int:
     """The ground-truth row a run starts from: the first at or after the first IMU
-    sample's time."""
+    sample's time; a section without a ground truth is refused in one line."""
+    if not section.has_truth:
+        raise ValueError(no_truth(section.name))
     inside = np.flatnonzero(section.truth_time >= section.imu_time[0])
     if inside.size < 2:
         raise ValueError(f"section {section.name}: the ground truth does not overlap the IMU")
@@ -35,10 +37,12 @@ def start_index(section: Section) -> int:
 
 
 def aided_section(section: Section, tuning: AidingTuning) -> Section:
-    """``section`` with its DVL, depth and fixes as ``tuning`` has them (σ where the
-    file has none, a stream ignored: ``use_dvl=False`` leaves no DVL row, used or
-    skipped); ValueError when nothing is left to aid the IMU."""
+    """``section`` with its DVL, depth, fixes and heading as ``tuning`` has them (σ
+    where the file has none, a stream ignored: ``use_dvl=False`` leaves no DVL row, used
+    or skipped); ValueError when nothing is left to aid the IMU's position, or for a
+    heading without σ (:func:`pronet.recorded.aiding.tuned_heading`)."""
     depth, fixes = tuned(section.depth, section.fixes, tuning)
+    heading = tuned_heading(section.heading, tuning)
     if not tuning.use_dvl:
         empty = np.empty(0)
         section = dataclasses.replace(
@@ -64,7 +68,7 @@ def aided_section(section: Section, tuning: AidingTuning) -> Section:
             f"section {section.name}: no DVL reading, depth or position fix{why}: nothing "
             "aids the IMU"
         )
-    return dataclasses.replace(section, depth=depth, fixes=fixes)
+    return dataclasses.replace(section, depth=depth, fixes=fixes, heading=heading)
 
 
 #: Set (to an event) on the threads of :func:`run_sections`: once the event is set,
@@ -93,7 +97,7 @@ def run_section(
 ) -> SectionRun:
     """Run one strategy over ``section`` from the ground truth at :func:`start_index`,
     for ``duration`` seconds (default: to the end), with or without the DVL, with or
-    without (``aided``) its depth and fixes; with ``smooth``, the pass's result carries
+    without (``aided``) its depth, fixes and heading; with ``smooth``, the pass's result carries
     the smoothed solution (:func:`smoothed_run`)."""
     recorded = section_recorded(
         section, config, duration=duration, use_dvl=use_dvl, smooth=smooth, aided=aided
@@ -124,7 +128,7 @@ def section_recorded(
 ) -> Recorded:
     """``section``'s sensors from the ground truth at :func:`start_index` on, for
     ``duration`` seconds (default: to the end), with or without the DVL, with or
-    without (``aided``) its depth readings and position fixes
+    without (``aided``) its depth readings, position fixes and heading readings
     (:func:`pronet.recorded.aiding.filter_aiding`), ready to filter with ``config``
     (``epochs``: see :class:`pronet.run.Recorded`). Inside
     :func:`run_sections`, it stops the section's thread once the run is told to stop."""
@@ -154,7 +158,11 @@ def section_recorded(
         config=config,
         epochs=epochs,
         smooth=smooth,
-        aiding=filter_aiding(section.depth, section.fixes) if flag(aided, "aided") else (),
+        aiding=(
+            filter_aiding(section.depth, section.fixes, section.heading)
+            if flag(aided, "aided")
+            else ()
+        ),
     )
 
 

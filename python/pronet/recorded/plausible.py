@@ -8,7 +8,7 @@ increasing time, rate):
 
 - magnitudes that fit their units (:func:`magnitudes`): the mean specific force near
   gravity, angular rates within :data:`MAX_RECORDED_RATE`, the DVL's speed near the
-  ground truth's;
+  ground truth's (without one, within :data:`MAX_DVL_SPEED`);
 - a column named twice (:func:`duplicate_columns`; otherwise the first would be used);
 - streams that do not share a clock (:func:`disjoint_streams`): the DVL's or the
   ground truth's stamps beside none of the IMU's (another epoch, another unit);
@@ -55,6 +55,9 @@ STANDARD_GRAVITY = 9.80665
 GRAVITY_RANGE = (0.8, 1.2)
 MAX_RECORDED_RATE = 10.0
 DVL_SPEED_RATIO = (0.5, 2.0)
+#: Without a ground truth, the DVL's median speed at most this [m/s] (no vehicle a DVL
+#: tracks the bottom from moves so fast; cm/s under an m/s header does).
+MAX_DVL_SPEED = 10.0
 
 
 class PlausibilityWarning(UserWarning):
@@ -103,7 +106,7 @@ def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     """Magnitudes that fit their units, checked before anything is filtered (a unit
     mix-up otherwise runs to the end and only shows as a huge error): ``imu`` ``(n, 6)``
     SI samples, ``dvl`` ``(m, 3)`` the used DVL readings [m/s] (may be empty),
-    ``gt_vel`` ``(k, 3)`` the truth's velocity [m/s]."""
+    ``gt_vel`` ``(k, 3)`` the truth's velocity [m/s] (empty: no ground truth)."""
     specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
     lo, hi = GRAVITY_RANGE
     if not lo <= specific_force / STANDARD_GRAVITY <= hi:
@@ -119,6 +122,14 @@ def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
         )
     if not len(dvl):
         return None
+    if not len(gt_vel):
+        dvl_speed = float(np.median(np.linalg.norm(dvl, axis=1)))
+        if dvl_speed <= MAX_DVL_SPEED:
+            return None
+        return (
+            f"{source} dvl: its median speed {dvl_speed:.4g} m/s is beyond any vehicle (at most "
+            f"{MAX_DVL_SPEED:g} without a ground truth to compare); are the DVL velocities in m/s?"
+        )
     truth, dvl_speed = (float(np.median(np.linalg.norm(v, axis=1))) for v in (gt_vel, dvl))
     lo, hi = DVL_SPEED_RATIO
     if truth > 0.2 and not lo <= dvl_speed / truth <= hi:

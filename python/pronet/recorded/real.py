@@ -27,6 +27,7 @@ from pronet.filter import FilterResult
 from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import (
     AIDING_CLOCKS,
+    NO_TRUTH_FOR_REAL,
     Format,
     Section,
     load_section,
@@ -36,6 +37,7 @@ from pronet.recorded.alignment import (
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool, section_curves
+from pronet.recorded.heading import check_declination
 from pronet.recorded.passes import (
     STOP,
     aided_section,
@@ -364,6 +366,8 @@ def run_real(
     use_fixes: bool = True,
     use_dvl: bool = True,
     aiding_clock: str = "imu",
+    use_heading: bool = True,
+    declination: float | None = None,
     on_start: Callable[[int, str, str | None], None] | None = None,
     on_done: Callable[[str], None] | None = None,
 ) -> Path:
@@ -415,6 +419,13 @@ def run_real(
             ``depth_sigma``/``fix_sigma``, else the defaults of that module.
         use_dvl: False ignores the sections' DVL (``--no-dvl``): a GNSS/INS or
             depth-and-fix run of a recording that has one.
+        use_heading: False ignores the sections' heading readings (``--no-heading``;
+            a heading table, or a bag's ``--heading-topic``, then not read;
+            :mod:`pronet.recorded.heading`).
+            Used, they aid every row as the depth and fixes do, their σ the recording's,
+            else ``vehicle``'s ``heading_sigma`` (no default: refused without one).
+        declination: the magnetic declination [deg, east positive] of a magnetic
+            heading (``--declination``; default ``vehicle``'s ``declination``).
         aiding_clock: the clock of the depth and fixes' stamps, ``"imu"`` (as given),
             ``"dvl"`` or ``"gt"`` (that stream's estimated clock; ``--aiding-clock``).
         vehicle: the vehicle's own tuning (``--filter``,
@@ -445,9 +456,13 @@ def run_real(
     # Without its readings (and not its clock) the DVL's arm is never used: none needed.
     dvl_used = use_dvl or aiding_clock == "dvl"
     read_arm = (0.0, 0.0, 0.0) if dvl_arm is None and not dvl_used else dvl_arm
-    aiding = AidingTuning(use_depth=use_depth, use_fixes=use_fixes, use_dvl=use_dvl)
+    aiding = AidingTuning(
+        use_depth=use_depth, use_fixes=use_fixes, use_dvl=use_dvl, use_heading=use_heading
+    )
     if vehicle is not None:
         aiding = vehicle.aiding(aiding)
+        declination = vehicle.declination if declination is None else declination
+    check_declination(declination, "--declination")
     paths = select_sections(data, sections)
     # frozen in the core, loaded without torch
     regressors: dict[str, Regressor] = {k: load_frozen(k) for k in SHIPPED} if use_models else {}
@@ -455,7 +470,9 @@ def run_real(
         regressors[f"learned:{model}"] = load_model_file(model)
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
-    loaded, unread = _read_sections(paths, fmt, (imu_arm, read_arm), aiding_clock, aiding, on_done)
+    loaded, unread = _read_sections(
+        paths, fmt, (imu_arm, read_arm), (aiding_clock, declination), aiding, on_done
+    )
     if not loaded:  # nothing to run: the first reason, before any filter
         raise ValueError(_no_section_left(unread))
     if on_start is not None:
@@ -493,6 +510,7 @@ def run_real(
         config["aiding"] = {
             "clock": aiding_clock,
             **aiding_record(aiding, done),
+            "declination_deg": declination,
         }
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
@@ -509,20 +527,28 @@ def _read_sections(
     paths: Sequence[Path],
     fmt: Format,
     arms: tuple[tuple[float, float, float], tuple[float, float, float] | None],
-    aiding_clock: str,
+    clock_declination: tuple[str, float | None],
     aiding: AidingTuning,
     on_done: Callable[[str], None] | None,
 ) -> tuple[list[tuple[Section, Section]], dict[str, str]]:
     """Every section under ``paths`` read and aligned on the usable cores, in order, with
-    the streams ``aiding`` leaves (``--no-dvl``/``--no-depth``/``--no-fixes``) and their
-    σ: the sections read, and the reason (naming the file) for each one that could not be,
-    by section name. ``arms``: the IMU's and the DVL's lever arm [m, body FRD], the
-    DVL's None where its readings go unused."""
+    the streams ``aiding`` leaves (``--no-dvl``/``--no-depth``/``--no-fixes``/
+    ``--no-heading``) and their σ: the sections read, and the reason (naming the file)
+    for each one that could not be (or has no ground truth to score against), by
+    section name. ``arms``: the IMU's and the DVL's lever arm [m, body FRD], the DVL's
+    None where its readings go unused; ``clock_declination``: the depth, fixes and
+    heading's clock and a magnetic heading's declination [deg]."""
 
     def read(path: Path) -> tuple[Section, Section] | str:
         try:
             return load_section(
-                path, fmt, imu_lever_arm=arms[0], dvl_lever_arm=arms[1], aiding_clock=aiding_clock
+                path,
+                fmt,
+                imu_lever_arm=arms[0],
+                dvl_lever_arm=arms[1],
+                aiding_clock=clock_declination[0],
+                declination=clock_declination[1],
+                read_heading=aiding.use_heading,
             )
         except (ValueError, OSError) as exc:  # the reason (it names the file)
             return str(exc)
@@ -537,6 +563,8 @@ def _read_sections(
             try:
                 if isinstance(section, str):
                     raise ValueError(section)
+                if not section[0].has_truth:
+                    raise ValueError(f"no ground truth: {NO_TRUTH_FOR_REAL}")
                 loaded.append(
                     (aided_section(section[0], aiding), aided_section(section[1], aiding))
                 )

@@ -10,7 +10,9 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
   bags, :mod:`pronet.recorded.bags`): either a folder holding ``imu.csv``, ``dvl.csv``
   and ``gt.csv`` (each optionally ``.gz``), or one ``.npz`` file with 2-D float arrays
   ``imu``, ``dvl``, ``gt`` and string arrays ``imu_columns``, ``dvl_columns``,
-  ``gt_columns`` naming their columns. Every column is named ``name [unit]``:
+  ``gt_columns`` naming their columns. The ground truth is optional (a vehicle's own
+  recording has none: :attr:`Recording.has_truth`; its arrays are then empty and the
+  checks against it are not made). Every column is named ``name [unit]``:
 
   ===== ============================================================================
   table columns (accepted units; converted to the first)
@@ -27,11 +29,14 @@ Two readers, one result (:class:`Recording`, SI units, stamps as recorded):
 
   Extra columns are ignored (in the ``depth`` and ``fix`` tables, one named ``sigma…``
   that is none of their σ columns is refused); column order is free. The DVL table may
-  hold an optional ``valid`` column (1 valid, 0 not; no unit). Two more tables are
+  hold an optional ``valid`` column (1 valid, 0 not; no unit). Three more tables are
   optional: ``depth`` (a pressure depth) and ``fix`` (position fixes: GNSS, USBL,
-  LBL), each on its own stamps and rate; their columns, missing values and checks are
-  :mod:`pronet.recorded.aiding`'s. The DVL is optional when either is there (a
-  GNSS/INS or a depth-and-fix recording); a recording needs at least one of the three.
+  LBL), each on its own stamps and rate, their columns, missing values and checks
+  :mod:`pronet.recorded.aiding`'s, and ``heading`` (a compass's or an AHRS's yaw, true
+  or magnetic with the ``declination`` given to the reader:
+  :mod:`pronet.recorded.heading`). The DVL is optional when a depth or fixes are there
+  (a GNSS/INS or a depth-and-fix recording); a recording needs at least one of the
+  three.
 
 Missing DVL readings (NaN or empty cells, no-lock markers such as RDI's −32.768 m/s,
 all-zero rows while the vehicle moves, ``valid`` = 0) are not errors: they are taken out
@@ -46,7 +51,8 @@ finite number (the DVL's velocities aside: missing readings, above), time increa
 strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz,
 ground truth 0.05–1000 Hz), the IMU time has no gap longer than five median steps, and the
 magnitudes fit their units (the mean specific force near gravity, angular rates within
-10 rad/s, the DVL's speed within a factor 2 of the ground truth's; see
+10 rad/s, the DVL's speed within a factor 2 of the ground truth's, or without one at
+most :data:`pronet.recorded.plausible.MAX_DVL_SPEED`; see
 :func:`pronet.recorded.plausible.magnitudes`). A folder holding both a ``.csv`` and a ``.csv.gz``
 of one stream is ambiguous and refused. Row numbers count data rows from 1 (the header
 is row 0).
@@ -60,9 +66,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
-import re
 import zipfile
-from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, cast
@@ -70,9 +74,12 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet.recorded import aiding, missing, plausible
+from pronet.recorded import aiding, heading, missing, plausible
 from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagError, BagTopics, bag_streams, is_bag
+from pronet.recorded.csvtext import parse_numbers as _parse_numbers
+from pronet.recorded.csvtext import parse_rows
+from pronet.recorded.heading import HeadingReadings
 from pronet.recorded.plausible import Table, parse_header
 
 F64 = NDArray[np.float64]
@@ -151,7 +158,8 @@ class Recording:
         imu: ``(n, 6)`` ``[f (m/s²), ω (rad/s)]``, body frame FRD.
         dvl_time: ``(m,)`` DVL stamps [s].
         dvl: ``(m, 3)`` DVL body-frame velocity [m/s].
-        gt_time: ``(k,)`` ground-truth stamps [s].
+        gt_time: ``(k,)`` ground-truth stamps [s]; ``(0,)`` without a ground truth
+            (:attr:`has_truth`), the three below then ``(0, 3)``.
         gt_lla: ``(k, 3)`` latitude, longitude [rad], height [m, up].
         gt_vel: ``(k, 3)`` NED velocity [m/s].
         gt_rpy: ``(k, 3)`` roll, pitch, yaw [rad] (ZYX).
@@ -165,6 +173,8 @@ class Recording:
             None (R as tuned).
         depth, fixes: the optional depth readings and position fixes
             (:mod:`pronet.recorded.aiding`), or None. ``dvl`` may then be empty.
+        heading: the optional heading readings, true north
+            (:mod:`pronet.recorded.heading`), or None.
     """
 
     name: str
@@ -182,11 +192,17 @@ class Recording:
     dvl_variance: tuple[float, float, float] | None = None
     depth: DepthReadings | None = None
     fixes: PositionFixes | None = None
+    heading: HeadingReadings | None = None
 
     @property
     def duration(self) -> float:
         """IMU time span [s]."""
         return float(self.imu_time[-1] - self.imu_time[0])
+
+    @property
+    def has_truth(self) -> bool:
+        """Whether the recording has a ground truth (``gt_time`` not empty)."""
+        return len(self.gt_time) > 0
 
 
 def read_snapir(folder: str | Path) -> Recording:
@@ -197,24 +213,40 @@ def read_snapir(folder: str | Path) -> Recording:
     return _recording(folder.name, tables, str(folder))
 
 
-def read_recording(path: str | Path, topics: BagTopics | None = None) -> Recording:
+def read_recording(
+    path: str | Path,
+    topics: BagTopics | None = None,
+    *,
+    declination: float | None = None,
+    read_heading: bool = True,
+) -> Recording:
     """Read a recording in the generic format (a folder of ``imu``/``dvl``/``gt`` CSV
-    files, or one ``.npz``), validated; see the module docstring for the columns. A ROS
-    bag is read with ``topics`` (:func:`pronet.recorded.bags.bag_streams`)."""
+    files, or one ``.npz``; the ground truth optional), validated; see the module
+    docstring for the columns. A ROS bag is read with ``topics``
+    (:func:`pronet.recorded.bags.bag_streams`). ``declination``: the magnetic
+    declination [deg, east positive] that turns a magnetic heading true (a magnetic one
+    without it is refused; :mod:`pronet.recorded.heading`); ``read_heading`` False: the
+    heading table or topic is not read (``--no-heading``)."""
     path = Path(path)
+    heading.check_declination(declination, "declination")
     if is_bag(path):
-        return _read_bag(path, topics)
+        if not read_heading:
+            topics = replace(topics or BagTopics(), heading=None)
+        return _read_bag(path, topics, declination)
     if path.is_dir():
         found = {
-            kind: _find_optional(path, kind) if kind in _OPTIONAL_TABLES else _find(path, kind)
+            kind: _find_optional(path, kind) if kind in _MAY_LACK else _find(path, kind)
             for kind in _SPEC
         }
         if not any(found[kind] for kind in _OPTIONAL_TABLES):
             _find(path, "dvl")  # the error: none of the three
+        if not read_heading:
+            found["heading"] = None
         tables = {k: _read_csv(f, k, None) for k, f in found.items() if f is not None}
-        return _recording(path.name, tables, str(path))
+        return _recording(path.name, tables, str(path), declination)
     if path.suffix == ".npz":
-        return _recording(path.stem, _read_npz(path), str(path))
+        tables = _read_npz(path, () if read_heading else ("heading",))
+        return _recording(path.stem, tables, str(path), declination)
     raise RecordingError(
         f"{path}: expected a folder of imu/dvl/gt CSV files or an .npz file"
         + ("" if path.exists() else " (it does not exist)")
@@ -223,9 +255,10 @@ def read_recording(path: str | Path, topics: BagTopics | None = None) -> Recordi
 
 def write_recording(path: str | Path, recording: Recording) -> Path:
     """Write ``recording`` in the generic format: an ``.npz`` file if ``path`` ends in
-    ``.npz``, else a folder of CSV files (SI units, full precision): ``imu``, ``gt``,
-    ``dvl`` unless it is empty, ``depth`` and ``fix`` when it has them. The rows skipped
-    as missing values are not in it (only the readings the filter uses)."""
+    ``.npz``, else a folder of CSV files (SI units, full precision): ``imu``, ``gt``
+    when it has one, ``dvl`` unless it is empty, ``depth``, ``fix`` and ``heading``
+    (true) when it has them. The rows skipped as missing values are not in it (only the
+    readings the filter uses)."""
     path = Path(path)
     tables = _as_tables(recording)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -245,21 +278,25 @@ def write_recording(path: str | Path, recording: Recording) -> Path:
     return path
 
 
-def _read_bag(path: Path, topics: BagTopics | None) -> Recording:
+def _read_bag(path: Path, topics: BagTopics | None, declination: float | None) -> Recording:
     """A ROS bag's streams (:func:`pronet.recorded.bags.bag_streams`), checked as the
-    generic format's tables are, with the R its DVL covariance states."""
+    generic format's tables are, with the R its DVL covariance states and the water
+    density its depth was computed with."""
+    topics = topics or BagTopics()
     try:
         streams, variance = bag_streams(path, topics)
     except BagError as exc:
         raise RecordingError(str(exc)) from None
     tables = {}
-    for kind, (where, values) in streams.items():
-        columns = [*_SPEC[kind].items(), *OPTIONAL.get(kind, {}).items()][: values.shape[1]]
-        labels = [f"{name} [{next(iter(units))}]" for name, units in columns]
-        picks = [(i, 1.0) for i in range(values.shape[1])]
-        tables[kind] = Table(_finish(where, values, picks, labels, kind), where, labels)
+    for kind, got in streams.items():
+        picks = [(i, 1.0) for i in range(len(got.labels))]
+        values = _finish(got.where, got.values, picks, got.labels, kind)
+        tables[kind] = Table(values, got.where, got.labels)
     name = path.stem if path.is_file() else path.name
-    return replace(_recording(name, tables, str(path)), dvl_variance=variance)
+    reasons = streams["heading"].reasons if "heading" in streams else None
+    rec = _recording(name, tables, str(path), declination, reasons)
+    depth = None if rec.depth is None else replace(rec.depth, water_density=topics.water_density)
+    return replace(rec, dvl_variance=variance, depth=depth)
 
 
 def _as_tables(rec: Recording) -> dict[str, tuple[list[str], F64]]:
@@ -274,12 +311,16 @@ def _as_tables(rec: Recording) -> dict[str, tuple[list[str], F64]]:
     }
     if not len(rec.dvl_time):
         del out["dvl"]
-    out.update(aiding.as_tables(rec.depth, rec.fixes))
+    if not rec.has_truth:
+        del out["gt"]
+    out.update(aiding.as_tables(rec.depth, rec.fixes, rec.heading))
     return out
 
 
 #: The tables of which a recording needs at least one (and may lack the others).
 _OPTIONAL_TABLES = ("dvl", "depth", "fix")
+#: Every table a recording may lack: those, the ground truth and the heading.
+_MAY_LACK = (*_OPTIONAL_TABLES, "gt", "heading")
 
 
 def _find(folder: Path, kind: str) -> Path:
@@ -369,64 +410,12 @@ def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> Table:
         blank_ok = set(columns[1:4]) if kind == "dvl" else set()
         parsed = [parse_header(header[i])[0] for i in columns]
         blank_ok |= {columns[j] for j in aiding.may_be_missing(kind, parsed)}
-        out = _parse_rows(path, header, reader, columns, blank_ok)
+        try:
+            out = parse_rows(path, header, reader, columns, blank_ok)
+        except ValueError as exc:
+            raise RecordingError(str(exc)) from None
     labels = [header[i].strip() for i, _ in picks]
     return Table(_finish(str(path), out, picks, labels, kind), str(path), labels)
-
-
-_LINE_STARTING_BLANK = re.compile(r"\n[ \t\f\v]")
-
-
-def _parse_numbers(text: str, width: int) -> F64 | None:
-    """The data rows of ``text`` (after its one-line header) as a ``(rows, width)``
-    float array, with pandas' C parser (exact, as ``float()``); None unless every row
-    is ``width`` finite-or-infinite numbers (a NaN, a short or long row, a cell that is
-    not a number, a quoted header: the careful reader then decides)."""
-    import pandas as pd
-
-    first = text.partition("\n")[0]
-    # pandas would skip a line of blanks that the careful reader reports as a short row:
-    # any line starting with a blank goes to the careful reader (a quick scan)
-    if '"' in first or _LINE_STARTING_BLANK.search(text):
-        return None
-    try:
-        table = pd.read_csv(
-            io.StringIO(text), header=None, skiprows=1, dtype=np.float64, na_filter=False
-        ).to_numpy(dtype=np.float64)
-    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
-        return None
-    if table.ndim != 2 or table.shape[1] != width or table.shape[0] == 0 or np.isnan(table).any():
-        return None
-    return table
-
-
-def _parse_rows(
-    path: Path,
-    header: list[str],
-    reader: Iterator[list[str]],
-    columns: list[int],
-    blank_ok: set[int] | None = None,
-) -> F64:
-    """The ``columns`` of the data rows, cell by cell: a row of the wrong width or a
-    cell of those columns that ``float()`` refuses is a :class:`RecordingError` naming
-    the row and the column; an empty cell of a column in ``blank_ok`` is NaN."""
-    blank = blank_ok or set()
-    body = [r for r in reader if r]
-    if not body:
-        raise RecordingError(f"{path}: has a header but no data rows")
-    out = np.empty((len(body), len(columns)))
-    width = len(header)
-    for r, row in enumerate(body, start=1):
-        if len(row) != width:
-            raise RecordingError(f"{path}, row {r}: has {len(row)} fields, the header {width}")
-        for j, i in enumerate(columns):
-            try:
-                out[r - 1, j] = np.nan if i in blank and not row[i].strip() else float(row[i])
-            except ValueError:
-                raise RecordingError(
-                    f"{path}, row {r}: {header[i].strip()!r} is {row[i]!r}, not a number"
-                ) from None
-    return out
 
 
 def _npz_array(archive: Any, path: Path, name: str, fix: str) -> NDArray[Any]:
@@ -442,7 +431,7 @@ def _npz_array(archive: Any, path: Path, name: str, fix: str) -> NDArray[Any]:
         ) from None
 
 
-def _read_npz(path: Path) -> dict[str, Table]:
+def _read_npz(path: Path, skip: tuple[str, ...] = ()) -> dict[str, Table]:
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
@@ -450,9 +439,11 @@ def _read_npz(path: Path) -> dict[str, Table]:
     tables = {}
     with archive:
         has = {k for k in _SPEC if k in archive.files or f"{k}_columns" in archive.files}
-        for kind in _SPEC:
+        for kind in (k for k in _SPEC if k not in skip):
             where = f"{path}[{kind}]"
-            if kind not in has and (kind in _OPTIONAL_TABLES and has & set(_OPTIONAL_TABLES)):
+            optional = kind in _MAY_LACK and kind not in _OPTIONAL_TABLES
+            some = kind in _OPTIONAL_TABLES and has & set(_OPTIONAL_TABLES)
+            if kind not in has and (optional or some):
                 continue  # an optional table left out (a half of one is an error, below)
             if kind not in archive.files or f"{kind}_columns" not in archive.files:
                 raise RecordingError(f"{path}: needs arrays {kind!r} and '{kind}_columns'")
@@ -523,52 +514,53 @@ def _finish(
     return values * np.array([factor for _, factor in picks])
 
 
-def _skipped_dvl(dvl: F64, gt: F64, source: str) -> tuple[F64, NDArray[np.str_]]:
-    """The DVL rows the filter uses and the reason each row is skipped (``""``: used),
-    :func:`pronet.recorded.missing.classify`; a DVL with no usable row is an error."""
-    speed = np.linalg.norm(gt[:, 4:7], axis=1)
-    truth_speed = np.interp(dvl[:, 0], gt[:, 0], speed)
-    valid = dvl[:, 4] if dvl.shape[1] > 4 else None
-    why = missing.classify(dvl[:, 1:4], valid, truth_speed)
-    if (why == "sentinel").all():  # every row beyond any vehicle: a unit, not a dropout
-        speed_dvl = float(np.median(np.linalg.norm(dvl[:, 1:4], axis=1)))
-        raise RecordingError(
-            f"{source} dvl: its median speed {speed_dvl:.4g} m/s against the ground truth's "
-            f"{float(np.median(speed)):.4g} m/s, every row at or beyond the no-lock marker "
-            f"±{missing.DVL_SENTINEL} m/s; are the DVL velocities in m/s?"
-        )
-    if (why != "").all():
-        seen = ", ".join(f"{n} {r}" for r, n in missing.counts(tuple(why)).items() if n)
-        raise RecordingError(
-            f"{source} dvl: no usable reading in its {len(dvl)} rows ({seen}); see "
-            "pronet.recorded.missing for the markers recognised"
-        )
-    return dvl[why == "", :4], why
-
-
-def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
-    imu, gt = tables["imu"].values, tables["gt"].values
+def _recording(
+    name: str,
+    tables: dict[str, Table],
+    source: str,
+    declination: float | None = None,
+    heading_reasons: tuple[str, ...] | None = None,
+) -> Recording:
+    imu = tables["imu"].values
+    truth = tables.get("gt")
+    gt = np.empty((0, 10)) if truth is None else truth.values
     raw_dvl = tables["dvl"].values if "dvl" in tables else np.empty((0, 4))
-    if (beyond := plausible.angle_beyond(tables["gt"], 1, -90.0, 90.0, "a latitude")) is not None:
+    if truth is not None and (beyond := plausible.angle_beyond(truth, 1, -90, 90, "a latitude")):
         raise RecordingError(beyond)
     for kind in (k for k in tables if k != "imu"):
         if (apart := plausible.disjoint_streams(tables["imu"], tables[kind], kind)) is not None:
             raise RecordingError(apart)
-    if (beyond := plausible.beyond_bounds(tables["gt"])) is not None:
+    if truth is not None and (beyond := plausible.beyond_bounds(truth)) is not None:
         raise RecordingError(beyond)
-    dvl, why = _skipped_dvl(raw_dvl, gt, source) if len(raw_dvl) else (raw_dvl, np.empty(0, str))
-    skipped = why != ""
     try:
+        speed = None if truth is None else (gt[:, 0], np.linalg.norm(gt[:, 4:7], axis=1))
+        dvl, why = (
+            missing.usable_rows(raw_dvl, speed, source)
+            if len(raw_dvl)
+            else (raw_dvl, np.empty(0, str))
+        )
         depth, fixes = aiding.streams(tables)
+        yaw = None
+        if "heading" in tables:
+            names = [plausible.parse_header(label)[0] for label in tables["heading"].labels]
+            yaw = heading.heading_readings(tables["heading"], names, declination, heading_reasons)
     except ValueError as exc:
         raise RecordingError(str(exc)) from None
+    skipped = why != ""
     for problem in (
         plausible.magnitudes(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source),
         plausible.stuck_channels(tables["imu"], range(1, 7)),
         plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped) if len(dvl) else None,
-        plausible.attitude_units(tables["imu"], tables["gt"]),
-        plausible.position_units(tables["gt"]),
-        aiding.against_truth(depth, fixes, tables["gt"]),
+        *(
+            ()
+            if truth is None
+            else (
+                plausible.attitude_units(tables["imu"], truth),
+                plausible.position_units(truth),
+                aiding.against_truth(depth, fixes, truth),
+                heading.against_truth(yaw, truth),
+            )
+        ),
     ):
         if problem is not None:
             raise RecordingError(problem)
@@ -587,4 +579,5 @@ def _recording(name: str, tables: dict[str, Table], source: str) -> Recording:
         dvl_skipped_reason=tuple(str(r) for r in why[skipped]),
         depth=depth,
         fixes=fixes,
+        heading=yaw,
     )

@@ -342,6 +342,11 @@ def real_tables(done: RealRuns) -> str:
                 else []
             ),
             *(
+                [heading_table(done)]
+                if any(a.heading is not None for a, _ in done.sections)
+                else []
+            ),
+            *(
                 [dvl_skipped_table(done)]
                 if any(len(a.dvl_skipped_time) for a, _ in done.sections)
                 else []
@@ -467,21 +472,62 @@ def aiding_record(tuning: AidingTuning, done: RealRuns) -> dict[str, object]:
         rows = {"rows": len(x.time), "skipped": len(x.skipped_time)}
         return {**rows, "outside_run": _outside_run(epochs), "sigma_m": sigma}
 
-    sections = {}
+    sections: dict[str, dict[str, object]] = {}
     for a, _ in done.sections:
         first = _first_result(done, a.name)
         sections[a.name] = {
             "depth": stream(a.depth, None if first is None else first.depth_epoch),
             "fixes": stream(a.fixes, None if first is None else first.fix_epoch),
         }
+        if a.heading is not None:  # [deg]; only where a section has one
+            epochs, _ = _heading_updates(first)
+            sigma = None if a.heading.sigma is None else math.degrees(np.median(a.heading.sigma))
+            rows = {"rows": len(a.heading.time), "skipped": len(a.heading.skipped_time)}
+            sections[a.name]["heading"] = {
+                **rows,
+                "outside_run": _outside_run(epochs),
+                "sigma_deg": sigma,
+            }
+    sigma = tuning.heading_sigma
     return {
         "use_depth": tuning.use_depth,
         "use_fixes": tuning.use_fixes,
         "use_dvl": tuning.use_dvl,
+        "use_heading": tuning.use_heading,
         "depth_sigma_m": tuning.depth_sigma,
         "fix_sigma_m": list(tuning.fix_sigma),
+        "heading_sigma_deg": None if sigma is None else math.degrees(sigma),
         "sections": sections,
     }
+
+
+def _heading_updates(
+    first: FilterResult | None,
+) -> tuple[NDArray[np.int64] | None, NDArray[np.float64] | None]:
+    """The epochs and NIS of ``first``'s heading stream, or None, None."""
+    found = None if first is None else next((s for s in first.streams if s.kind == "heading"), None)
+    return (None, None) if found is None else (found.epoch, found.nis)
+
+
+def heading_table(done: RealRuns) -> str:
+    """Markdown: each section's heading readings (rows read, skipped as missing values,
+    outside the run), their median σ and the first strategy row's mean NIS (χ² of 1 dof
+    when the filter is consistent)."""
+    lines = []
+    for aligned, _ in done.sections:
+        if aligned.heading is None:
+            continue
+        epochs, nis = _heading_updates(_first_result(done, aligned.name))
+        h = aligned.heading
+        sigma = "" if h.sigma is None else f"{math.degrees(np.median(h.sigma)):.3g}"
+        finite = np.empty(0) if nis is None else nis[np.isfinite(nis)]
+        mean = format_number(float(np.mean(finite)), "{:.2f}") if len(finite) else "undefined"
+        outside = _outside_run(epochs)
+        rows = f"{len(h.time)} ({len(h.skipped_time)} skipped, "
+        rows += "outside the run unknown)" if outside is None else f"{outside} outside the run)"
+        lines.append([aligned.name, rows, sigma, mean])
+    header = ["section", "heading rows", "heading σ [deg]", "heading mean NIS"]
+    return markdown(header, lines, f"Heading (mean NIS: {done.runs[0].label})")
 
 
 def aiding_table(done: RealRuns) -> str:

@@ -16,6 +16,9 @@ A file, every key optional::
     dvl_lever_arm = [0.5, 0.0, 0.3]     # DVL from the ground-truth point [m, body FRD]
     depth_sigma = 0.1                   # the depth's 1σ [m] where a recording has none
     fix_sigma = [2.0, 2.0, 4.0]         # the fixes' 1σ N, E, D [m] where it has none
+    heading_sigma = 1.0                 # the heading's 1σ [deg] where it has none
+    declination = 4.5                   # magnetic declination [deg, east positive] of
+                                        # a magnetic heading (pronet.recorded.heading)
     # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
                                         # imu_lever_arm beside it (not dvl_lever_arm)
 
@@ -52,6 +55,7 @@ from pronet._util.validate import scalar
 from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
 from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import Format, lever_arm
+from pronet.recorded.heading import check_declination
 from pronet.recorded.plausible import long_lever_arm
 from pronet.recorded.tuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
 
@@ -81,7 +85,15 @@ GRADES: dict[str, dict[str, Any]] = {
 }
 
 #: Keys of a ``--filter`` file beside :data:`pronet.config.FILTER_KEYS`.
-VEHICLE_KEYS = ("grade", "imu_lever_arm", "dvl_lever_arm", "depth_sigma", "fix_sigma")
+VEHICLE_KEYS = (
+    "grade",
+    "imu_lever_arm",
+    "dvl_lever_arm",
+    "depth_sigma",
+    "fix_sigma",
+    "heading_sigma",
+    "declination",
+)
 
 
 @dataclass(frozen=True)
@@ -95,6 +107,10 @@ class VehicleTuning:
         source: the file, or the grade's name.
         depth_sigma, fix_sigma: the depth's 1σ [m] and the fixes' 1σ north, east, down
             [m] where a recording has none (:mod:`pronet.recorded.aiding`), or None.
+        heading_sigma: the heading's 1σ [rad] where a recording has none (the file's
+            ``heading_sigma`` is in degrees), or None.
+        declination: the magnetic declination [deg, east positive] of a magnetic
+            heading (:mod:`pronet.recorded.heading`), or None.
     """
 
     base: _core.FilterConfig
@@ -103,6 +119,8 @@ class VehicleTuning:
     source: str
     depth_sigma: float | None = None
     fix_sigma: tuple[float, float, float] | None = None
+    heading_sigma: float | None = None
+    declination: float | None = None
 
     def aiding(self, given: AidingTuning) -> AidingTuning:
         """``given`` with this vehicle's σ where it has them."""
@@ -110,6 +128,8 @@ class VehicleTuning:
             given = replace(given, depth_sigma=self.depth_sigma)
         if self.fix_sigma is not None:
             given = replace(given, fix_sigma=self.fix_sigma)
+        if self.heading_sigma is not None:
+            given = replace(given, heading_sigma=self.heading_sigma)
         return given
 
 
@@ -171,7 +191,28 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
         arm = _arm(table["lever_arm"], f"{where} lever_arm")
         d = np.add(imu, arm)
         dvl = (float(d[0]), float(d[1]), float(d[2]))
-    return VehicleTuning(base, imu, dvl, str(path), *_aiding_sigma(table, where))
+    return VehicleTuning(
+        base, imu, dvl, str(path), *_aiding_sigma(table, where), *_heading(table, where)
+    )
+
+
+def _heading(table: dict[str, Any], where: str) -> tuple[float | None, float | None]:
+    """The file's ``heading_sigma`` [deg, > 0, at most 180] as radians and
+    ``declination`` [deg, east positive] (None where absent), checked."""
+    sigma = table.get("heading_sigma")
+    if sigma is not None and (
+        isinstance(sigma, bool)
+        or not isinstance(sigma, int | float)
+        or not (math.isfinite(sigma) and 0 < sigma <= 180)
+    ):
+        raise ConfigError(
+            f"{where} heading_sigma: a number of degrees > 0 and at most 180, got {sigma!r}"
+        )
+    try:
+        declination = check_declination(table.get("declination"), f"{where} declination")
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return (None if sigma is None else math.radians(sigma)), declination
 
 
 def _aiding_sigma(
