@@ -174,4 +174,5 @@ def test_the_gate_is_a_developer_tool_not_a_user_command(capsys):
     listed = capsys.readouterr().out
     assert "reproduce" in listed and "baselines" not in listed
     package = ROOT / "python" / "pronet"
-    assert not list(package.rglob("baselines.py")) and not list(package.rglob("*gate*.py"))
+    gates = [*package.rglob("*accuracy_gate*.py"), *package.rglob("gate.py")]
+    assert not list(package.rglob("baselines.py")) and not gates

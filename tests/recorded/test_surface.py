@@ -1,6 +1,7 @@
 """The depth's surface reference measured at the surface (:mod:`pronet.recorded.surface`):
-readings beside GNSS fixes at the surface give the offset of a wrong surface pressure;
-fixes at depth (USBL) or none leave it, and say so."""
+readings beside fixes at the surface give the offset of a wrong surface pressure (less
+the sensor's depth while the vehicle floats); fixes at depth (USBL) or none leave it,
+and say so."""
 
 from __future__ import annotations
 
@@ -25,21 +26,23 @@ def _dive(offset: float, rng: np.random.Generator):
 
 def test_readings_beside_surface_fixes_give_the_offset() -> None:
     t, depth, ft, height = _dive(0.057, np.random.default_rng(0))
-    s = surface_offset(t, depth, ft, height)
+    s = surface_offset(t, depth, ft)
     assert s.offset == pytest.approx(0.057, abs=0.005) and s.readings > 300
     assert s.span is not None and s.span[0] < 1.0 and s.span[1] > 269.0
     assert "from" in s.note and "readings at the surface" in s.note
     # 5.7 cm of water at 1025 kg/m³: 573 Pa above the standard atmosphere
     assert s.pressure(101_325.0, 1025.0) == pytest.approx(101_325 + 573, abs=60)
+    # a sensor 0.2 m below the waterline while the vehicle floats
+    floating = surface_offset(t, depth + 0.2, ft, surface_depth=0.2)
+    assert floating.offset == pytest.approx(0.057, abs=0.005) and "0.2 m deep" in floating.note
 
 
 def test_without_surface_fixes_the_reference_stays_and_is_stated() -> None:
     t, depth, ft, height = _dive(0.057, np.random.default_rng(1))
     deep = height < -2.0  # USBL fixes only: at depth
-    s = surface_offset(t, depth, ft[deep], height[deep])
+    s = surface_offset(t, depth, ft[deep])
     assert s.offset == 0.0 and s.span is None and "keeps the reader's" in s.note
-    horizontal = surface_offset(t, depth, ft, np.full(ft.size, np.nan))
-    assert horizontal.offset == 0.0
-    assert surface_offset(t, depth, ft, height, given=-0.02).offset == -0.02
+    assert surface_offset(t, depth, np.empty(0)).offset == 0.0
+    assert surface_offset(t, depth, ft, given=-0.02).offset == -0.02
     with pytest.raises(ValueError, match="^surface offset: must be a finite"):
-        surface_offset(t, depth, ft, height, given=float("nan"))
+        surface_offset(t, depth, ft, given=float("nan"))

@@ -27,6 +27,7 @@ from pronet.cli import (
     dataset,
     evaluate,
     info,
+    navigate,
     real,
     reproduce,
     simulate,
@@ -36,7 +37,7 @@ from pronet.cli import (
 )
 
 #: The commands, in the order ``pronet --help`` lists them.
-COMMANDS = (info, reproduce, study, dataset, train, evaluate, real, simulate, sweep)
+COMMANDS = (info, reproduce, study, dataset, train, evaluate, real, navigate, simulate, sweep)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -13,133 +13,18 @@ from pronet.cli._common import (
     Bars,
     Output,
     Subparsers,
+    add_bag_options,
     add_no_plots,
     add_output_flags,
     add_result_folder,
     add_tuning_period,
+    bag_topics,
+    vector3,
 )
 from pronet.recorded.alignment import AIDING_CLOCKS, FORMATS
-from pronet.recorded.bags import BagTopics, require_rosbags
+from pronet.recorded.bags import require_rosbags
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
 from pronet.recorded.plausible import PlausibilityWarning
-
-
-def _vector3(text: str) -> tuple[float, float, float]:
-    """``x,y,z`` as three floats [m], or the error argparse reports."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected x,y,z in metres, got {text!r}") from None
-    if len(values) != 3:
-        raise argparse.ArgumentTypeError(f"expected three comma-separated numbers, got {text!r}")
-    return values[0], values[1], values[2]
-
-
-def _origin(text: str) -> tuple[float, float, float]:
-    """``lat,lon,height`` [deg, deg, m] as three floats, or the error argparse reports."""
-    try:
-        return _vector3(text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(
-            f"expected LAT,LON,HEIGHT in deg, deg, m, got {text!r}"
-        ) from None
-
-
-def _add_bag_options(parser: argparse.ArgumentParser) -> None:
-    """The options of ``--format bag`` (:class:`pronet.recorded.bags.BagTopics`)."""
-    bag = parser.add_argument_group("ROS bags (--format bag; pip install 'pronet[rosbags]')")
-    defaults = BagTopics()
-    for name, what, types in (
-        ("imu", "IMU", "sensor_msgs/msg/Imu"),
-        ("dvl", "DVL", "geometry_msgs/msg/TwistWithCovarianceStamped or TwistStamped"),
-        ("truth", "ground truth", "nav_msgs/msg/Odometry or geometry_msgs/msg/PoseStamped"),
-        ("depth", "depth (pressure)", "sensor_msgs/msg/FluidPressure"),
-        ("fix", "position-fix", "sensor_msgs/msg/NavSatFix"),
-        (
-            "heading",
-            "heading",
-            "the orientation of sensor_msgs/msg/Imu (may be the IMU topic: an AHRS's), "
-            "geometry_msgs/msg/QuaternionStamped, PoseStamped or PoseWithCovarianceStamped",
-        ),
-    ):
-        bag.add_argument(
-            f"--{name}-topic",
-            metavar="TOPIC",
-            default=None,
-            help=f"the {what} topic, {types} (default {getattr(defaults, name) or 'none read'})",
-        )
-    bag.add_argument(
-        "--water-density",
-        metavar="KG_M3",
-        type=float,
-        default=None,
-        help=f"the water's density of the pressure-to-depth conversion (default "
-        f"{defaults.water_density:g}, sea water)",
-    )
-    bag.add_argument(
-        "--surface-pressure",
-        metavar="PA",
-        type=float,
-        default=None,
-        help=f"the pressure at the surface taken off the depth topic's (default "
-        f"{defaults.surface_pressure:g}, the standard atmosphere; 0 for a gauge sensor)",
-    )
-    bag.add_argument(
-        "--heading-magnetic",
-        action="store_true",
-        default=None,
-        help="the heading topic's yaw is from magnetic north (turned true with --declination)",
-    )
-    bag.add_argument(
-        "--origin",
-        metavar="LAT,LON,HEIGHT",
-        type=_origin,
-        default=None,
-        help="the geodetic origin [deg, deg, m up] of the truth's local positions (required "
-        "with --format bag: a bag's poses are metres in a local frame)",
-    )
-    bag.add_argument(
-        "--body-frame",
-        choices=("flu", "frd"),
-        default=None,
-        help="the IMU's, DVL's and truth's body frame (default flu, REP-103)",
-    )
-    bag.add_argument(
-        "--world-frame",
-        choices=("enu", "ned"),
-        default=None,
-        help="the truth's local world frame (default enu, REP-103)",
-    )
-
-
-def bag_topics(args: argparse.Namespace) -> BagTopics | None:
-    """The bag's topics and frames from the options (None unless ``--format bag``);
-    ValueError for a bag option with another format."""
-    options = {  # field: (option, value)
-        "imu": ("--imu-topic", args.imu_topic),
-        "dvl": ("--dvl-topic", args.dvl_topic),
-        "truth": ("--truth-topic", args.truth_topic),
-        "origin": ("--origin", args.origin),
-        "body_frame": ("--body-frame", args.body_frame),
-        "world_frame": ("--world-frame", args.world_frame),
-        "depth": ("--depth-topic", args.depth_topic),
-        "fix": ("--fix-topic", args.fix_topic),
-        "heading": ("--heading-topic", args.heading_topic),
-        "heading_magnetic": ("--heading-magnetic", args.heading_magnetic),
-        "water_density": ("--water-density", args.water_density),
-        "surface_pressure": ("--surface-pressure", args.surface_pressure),
-    }
-    given = {k: value for k, (_, value) in options.items() if value is not None}
-    if args.format != "bag":
-        if given:
-            names = ", ".join(options[k][0] for k in given)
-            raise ValueError(f"{names}: only with --format bag")
-        return None
-    if args.no_dvl:
-        given["dvl"] = None
-    if args.no_heading:
-        given["heading"] = None
-    return BagTopics(**given)
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -168,7 +53,7 @@ def add_parser(sub: Subparsers) -> None:
     parser.add_argument(
         "--imu-lever-arm",
         metavar="X,Y,Z",
-        type=_vector3,
+        type=vector3,
         default=None,
         help="IMU position from the ground-truth point, x,y,z [m, body FRD] (default: "
         "--filter's, else Snapir's with --format snapir; required with --format generic)",
@@ -176,7 +61,7 @@ def add_parser(sub: Subparsers) -> None:
     parser.add_argument(
         "--dvl-lever-arm",
         metavar="X,Y,Z",
-        type=_vector3,
+        type=vector3,
         default=None,
         help="DVL position from the ground-truth point, x,y,z [m, body FRD] (default: "
         "--filter's, else Snapir's with --format snapir; required with --format generic "
@@ -255,7 +140,7 @@ def add_parser(sub: Subparsers) -> None:
         "given, the default), or the DVL's or the ground truth's as estimated (one logger "
         "stamping both)",
     )
-    _add_bag_options(parser)
+    add_bag_options(parser)
     parser.add_argument("--no-models", action="store_true", help="only the model-based rows")
     parser.add_argument(
         "--model",

@@ -40,6 +40,8 @@ Running and reporting (``pronet real``):
 
 Navigating a recording without ground truth (``pronet navigate``):
 
+- :mod:`~pronet.recorded.navigate`: one filter over every stream, forward and smoothed,
+  from an initial state found in the data (:func:`~pronet.recorded.navigate.navigate`);
 - :mod:`~pronet.recorded.solution`: what it produces, as plain records;
 - :mod:`~pronet.recorded.health`: what a pass says about each stream (counts, the mean
   NIS against its χ² band, one line naming the likely causes when out of it);
@@ -75,6 +77,7 @@ __all__ = [
     "levelling",
     "metrics",
     "missing",
+    "navigate",
     "odometry",
     "passes",
     "plausible",

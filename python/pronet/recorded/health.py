@@ -93,13 +93,19 @@ def stream_report(
         band=band,
         time=np.asarray(time, dtype=np.float64),
         nis=np.where(inside, nis, np.nan),
-        flag=_flag(name, result.kind, mean, band, rejected, n),
+        flag=_flag(name, result.kind, mean, mean_dof, band, rejected, n),
         accepted=None if result.accepted is None else inside & result.accepted,
     )
 
 
 def _flag(
-    name: str, kind: str, mean: float, band: tuple[float, float], rejected: int, n: int
+    name: str,
+    kind: str,
+    mean: float,
+    dof: float,
+    band: tuple[float, float],
+    rejected: int,
+    n: int,
 ) -> str:
     """One line when the stream's mean NIS is out of its band or the gate rejected more
     than a few readings; empty otherwise."""
@@ -107,16 +113,17 @@ def _flag(
         return f"{name}: no reading applied"
     lo, hi = band
     n += rejected  # the readings the mean is over
+    per_dof = f"{mean / dof:.3g} per degree of freedom"
     if mean > hi:
         return (
-            f"{name}: mean NIS {mean:.3g} above its 95 % band [{lo:.3g}, {hi:.3g}] over "
-            f"{n} readings: the readings disagree with the filter more than their σ "
-            f"allow; check {CAUSES_HIGH[kind]}"
+            f"{name}: mean NIS {mean:.3g} ({per_dof}) above its 95 % band [{lo:.3g}, "
+            f"{hi:.3g}] over {n} readings: the readings disagree with the filter more than "
+            f"their σ allow; check {CAUSES_HIGH[kind]}"
         )
     if mean < lo:
         return (
-            f"{name}: mean NIS {mean:.3g} below its 95 % band [{lo:.3g}, {hi:.3g}] over "
-            f"{n} readings: their σ are larger than the readings' scatter"
+            f"{name}: mean NIS {mean:.3g} ({per_dof}) below its 95 % band [{lo:.3g}, "
+            f"{hi:.3g}] over {n} readings: their σ are larger than the readings' scatter"
         )
     if rejected > 0.01 * n:
         return f"{name}: the innovation gate rejected {rejected} of {n} readings"

@@ -2,11 +2,15 @@
 only once the atmosphere's pressure on the surface is taken off, and a weather day moves
 that pressure by ±2 kPa (±0.2 m of water) from the standard 101,325 Pa a reader assumes.
 
-When the vehicle is at the surface with a position fix (GNSS works only there; a fix
-whose height is near the surface), the depth sensor is at the surface too, within its
-lever arm: the readings there measure the offset (:func:`surface_offset`), which is
-taken off every reading. Without such readings the reader's reference stays, and the
-report says so.
+When the vehicle floats at the surface with position fixes (GNSS works only there), its
+depth sensor lies at its known depth below the waterline (``surface_depth``, 0 by
+default: the sensor at the surface): the readings there measure the offset
+(:func:`surface_offset`), which is taken off every reading. Without such readings the
+reader's reference stays, and the report says so. A fix does not tell the surface by
+its height (a GNSS height is ellipsoidal, tens of metres off the sea; a USBL fix has
+none): a reading beside a fix is taken at the surface when it reads within
+:data:`SURFACE_DEPTH` of ``surface_depth``, as no wrong surface pressure moves it
+further.
 """
 
 from __future__ import annotations
@@ -17,12 +21,10 @@ import numpy as np
 
 from pronet.recorded.solution import F64
 
-#: A fix is taken at the surface when its height is within this of 0 m [m].
-SURFACE_HEIGHT = 1.0
-#: A depth reading is taken at the surface when it is within this of 0 m [m] (a wrong
-#: surface pressure is ±0.3 m at the most on Earth's weather) and within this long
-#: [s] of a surface fix.
-SURFACE_DEPTH = 1.0
+#: A reading beside a fix is taken at the surface when it reads within this of the
+#: sensor's depth there [m] (a wrong surface pressure is ±0.3 m at the most on Earth's
+#: weather) and within this long [s] of a fix.
+SURFACE_DEPTH = 0.5
 SURFACE_WINDOW = 1.0
 #: At least this many surface readings, or none is used.
 MIN_SURFACE_READINGS = 5
@@ -56,46 +58,43 @@ def surface_offset(
     depth_time: F64,
     depth: F64,
     fix_time: F64,
-    fix_height: F64,
     *,
+    surface_depth: float = 0.0,
     given: float | None = None,
 ) -> SurfaceOffset:
     """The offset of the depth readings (``depth_time`` [s], ``depth`` [m, down]) at the
-    surface: the median of the readings within :data:`SURFACE_WINDOW` of a fix whose
-    height (``fix_height`` [m, up]; NaN: a horizontal fix, not used) lies within
-    :data:`SURFACE_HEIGHT` of 0, where the reading itself is within
-    :data:`SURFACE_DEPTH` of 0. ``given`` [m] (a known offset) wins."""
+    surface: the median of the readings within :data:`SURFACE_WINDOW` of a fix
+    (``fix_time`` [s]) that read within :data:`SURFACE_DEPTH` of ``surface_depth`` [m,
+    the sensor's depth while the vehicle floats], less ``surface_depth``. ``given`` [m]
+    (a known offset) wins."""
     if given is not None:
         if not np.isfinite(given):
             raise ValueError(f"surface offset: must be a finite number of metres, got {given}")
         return SurfaceOffset(float(given), 0, None, f"depth offset {given:+.3f} m, given")
     t = np.asarray(depth_time, dtype=np.float64)
     d = np.asarray(depth, dtype=np.float64)
-    ft = np.asarray(fix_time, dtype=np.float64)
-    fh = np.asarray(fix_height, dtype=np.float64)
-    surface_fixes = ft[np.abs(np.nan_to_num(fh, nan=np.inf)) <= SURFACE_HEIGHT]
+    ft = np.sort(np.asarray(fix_time, dtype=np.float64))
     near = np.zeros(len(t), dtype=bool)
-    if surface_fixes.size and t.size:
-        i = np.clip(np.searchsorted(surface_fixes, t), 1, len(surface_fixes)) - 1
-        j = np.clip(i + 1, 0, len(surface_fixes) - 1)
-        gap = np.minimum(np.abs(t - surface_fixes[i]), np.abs(t - surface_fixes[j]))
-        near = gap <= SURFACE_WINDOW
-    use = near & (np.abs(d) <= SURFACE_DEPTH)
+    if ft.size and t.size:
+        i = np.clip(np.searchsorted(ft, t), 1, len(ft)) - 1
+        j = np.clip(i + 1, 0, len(ft) - 1)
+        near = np.minimum(np.abs(t - ft[i]), np.abs(t - ft[j])) <= SURFACE_WINDOW
+    use = near & (np.abs(d - surface_depth) <= SURFACE_DEPTH)
     n = int(use.sum())
     if n < MIN_SURFACE_READINGS:
         return SurfaceOffset(
             0.0,
             n,
             None,
-            "no surface reading beside a fix at the surface: the depth keeps the reader's "
-            "surface reference (a wrong one is up to ±0.3 m of depth)",
+            "no reading at the surface beside a fix: the depth keeps the reader's surface "
+            "reference (a wrong one is up to ±0.3 m of depth)",
         )
-    offset = float(np.median(d[use]))
+    offset = float(np.median(d[use])) - surface_depth
     span = (float(t[use][0]), float(t[use][-1]))
     return SurfaceOffset(
         offset,
         n,
         span,
         f"depth offset {offset:+.3f} m from {n} readings at the surface beside fixes "
-        f"({span[0]:.1f}–{span[1]:.1f} s)",
+        f"({span[0]:.1f}–{span[1]:.1f} s), the sensor {surface_depth:g} m deep there",
     )

@@ -19,6 +19,10 @@ A file, every key optional::
     heading_sigma = 1.0                 # the heading's 1σ [deg] where it has none
     declination = 4.5                   # magnetic declination [deg, east positive] of
                                         # a magnetic heading (pronet.recorded.heading)
+    depth_lever_arm = [0.0, 0.2, 0.3]   # the pressure sensor from the ground-truth point
+    fix_lever_arm = [0.0, 0.0, -1.0]    # the fix's antenna or transponder, likewise
+    surface_depth = 0.1                 # the pressure sensor's depth [m] while the
+                                        # vehicle floats (pronet.recorded.surface)
     # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
                                         # imu_lever_arm beside it (not dvl_lever_arm)
 
@@ -93,6 +97,9 @@ VEHICLE_KEYS = (
     "fix_sigma",
     "heading_sigma",
     "declination",
+    "depth_lever_arm",
+    "fix_lever_arm",
+    "surface_depth",
 )
 
 
@@ -111,6 +118,9 @@ class VehicleTuning:
             ``heading_sigma`` is in degrees), or None.
         declination: the magnetic declination [deg, east positive] of a magnetic
             heading (:mod:`pronet.recorded.heading`), or None.
+        depth_lever_arm, fix_lever_arm: the pressure sensor and the fix's antenna or
+            transponder from the ground-truth point [m, body FRD], or None.
+        surface_depth: the pressure sensor's depth [m] while the vehicle floats, or None.
     """
 
     base: _core.FilterConfig
@@ -121,6 +131,9 @@ class VehicleTuning:
     fix_sigma: tuple[float, float, float] | None = None
     heading_sigma: float | None = None
     declination: float | None = None
+    depth_lever_arm: tuple[float, float, float] | None = None
+    fix_lever_arm: tuple[float, float, float] | None = None
+    surface_depth: float | None = None
 
     def aiding(self, given: AidingTuning) -> AidingTuning:
         """``given`` with this vehicle's σ where it has them."""
@@ -191,9 +204,27 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
         arm = _arm(table["lever_arm"], f"{where} lever_arm")
         d = np.add(imu, arm)
         dvl = (float(d[0]), float(d[1]), float(d[2]))
-    return VehicleTuning(
-        base, imu, dvl, str(path), *_aiding_sigma(table, where), *_heading(table, where)
+    depth_arm, fix_arm = (
+        _arm(table[key], f"{where} {key}") if key in table else None
+        for key in ("depth_lever_arm", "fix_lever_arm")
     )
+    return VehicleTuning(
+        base, imu, dvl, str(path), *_aiding_sigma(table, where), *_heading(table, where),
+        depth_arm, fix_arm, _surface_depth(table, where),
+    )  # fmt: skip
+
+
+def _surface_depth(table: dict[str, Any], where: str) -> float | None:
+    """The file's ``surface_depth`` [m, 0 to 10] (None where absent), checked."""
+    value = table.get("surface_depth")
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 10:
+        raise ConfigError(
+            f"{where} surface_depth: the pressure sensor's depth while the vehicle floats, "
+            f"a number of metres from 0 to 10, got {value!r}"
+        )
+    return float(value)
 
 
 def _heading(table: dict[str, Any], where: str) -> tuple[float | None, float | None]:

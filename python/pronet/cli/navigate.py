@@ -1,0 +1,238 @@
+"""``pronet navigate``: navigate a recording of your own vehicle, with or without a
+ground truth (:func:`pronet.recorded.navigate.navigate_recording`), and write the
+trajectory, the track, the report and the figures (:func:`pronet.recorded.export.
+write_all`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+from pronet.cli._common import (
+    Output,
+    Subparsers,
+    add_bag_options,
+    add_no_plots,
+    add_output_flags,
+    add_result_folder,
+    bag_topics,
+    vector3,
+)
+from pronet.recorded.alignment import FORMATS
+from pronet.recorded.bags import require_rosbags
+from pronet.recorded.plausible import PlausibilityWarning
+
+#: The storages of ``--bag``.
+BAG_STORAGES = ("rosbag1", "sqlite3", "mcap")
+
+
+def _still(text: str) -> tuple[float, float] | str:  # "auto" or "none" as given
+    """``auto``, ``none`` or ``START,END`` [s]."""
+    if text in ("auto", "none"):
+        return text
+    try:
+        a, b = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected auto, none or START,END in seconds, got {text!r}"
+        ) from None
+    return a, b
+
+
+def _add_init(parser: argparse.ArgumentParser) -> None:
+    """The initial-state options (:mod:`pronet.recorded.initial`)."""
+    init = parser.add_argument_group("initial state (pronet.recorded.initial)")
+    init.add_argument(
+        "--init",
+        choices=("data", "truth"),
+        default="data",
+        help="data: from the recording (fixes and depth, levelling while still, a heading "
+        "stream or gyrocompassing), the given parts winning; truth: the ground truth's "
+        "first row with the vehicle's P0, as pronet real (default data)",
+    )
+    init.add_argument(
+        "--init-position",
+        metavar="LAT,LON,DEPTH",
+        type=vector3,
+        default=None,
+        help="the IMU's starting latitude, longitude [deg] and depth [m, down]",
+    )
+    init.add_argument(
+        "--init-heading",
+        metavar="DEG",
+        type=float,
+        default=None,
+        help="the starting heading [deg, from true north]",
+    )
+    init.add_argument(
+        "--init-heading-sigma",
+        metavar="DEG",
+        type=float,
+        default=None,
+        help="its 1σ [deg] (default the given state's, 5°)",
+    )
+    init.add_argument(
+        "--still",
+        metavar="START,END",
+        type=_still,
+        default="auto",
+        help="the interval the vehicle rests in for levelling [s from the recording's "
+        "start], or auto (detected, the default) or none",
+    )
+
+
+def add_parser(sub: Subparsers) -> None:
+    parser = sub.add_parser(
+        "navigate",
+        help="navigate a recording of your own vehicle (no ground truth needed): "
+        "trajectory.csv, track.geojson, report.md",
+    )
+    parser.add_argument(
+        "--data",
+        metavar="PATH",
+        required=True,
+        help="one recording: a folder of CSVs, one .npz, or a ROS bag (never copied)",
+    )
+    parser.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="generic",
+        help="generic (the default), snapir or bag (ROS 1 or ROS 2; pronet.recorded.bags)",
+    )
+    parser.add_argument(
+        "--filter",
+        metavar="FILE",
+        default="mems",
+        help="your vehicle's tuning: a TOML file (pronet.recorded.vehicle: grade, P0, R, "
+        "lever arms, σ, declination, surface_depth) or a grade's name (default mems)",
+    )
+    for sensor, what in (
+        ("imu", "IMU"),
+        ("dvl", "DVL"),
+        ("depth", "pressure sensor"),
+        ("fix", "fix's antenna or transponder"),
+    ):
+        parser.add_argument(
+            f"--{sensor}-lever-arm",
+            metavar="X,Y,Z",
+            type=vector3,
+            default=None,
+            help=f"the {what}'s position from the vehicle's reference point, x,y,z [m, "
+            "body FRD] (default --filter's, else "
+            + ("0: the trajectory is the IMU's)" if sensor == "imu" else "at the IMU)"),
+        )
+    for stream in ("dvl", "depth", "fixes", "heading"):
+        parser.add_argument(
+            f"--no-{stream}", action="store_true", help=f"do not use the recording's {stream}"
+        )
+    parser.add_argument(
+        "--declination",
+        metavar="DEG",
+        type=float,
+        default=None,
+        help="the magnetic declination [deg, east positive] of a magnetic heading "
+        "(default --filter's)",
+    )
+    parser.add_argument(
+        "--surface-depth",
+        metavar="M",
+        type=float,
+        default=None,
+        help="the pressure sensor's depth while the vehicle floats [m] (default --filter's, "
+        "else 0): the surface pressure is measured there, beside fixes",
+    )
+    parser.add_argument(
+        "--strategy",
+        default="constant",
+        help="the process-noise strategy (constant, mehra:N, adaptive:N, detvar, "
+        "learned:NAME), around the recording's own IMU noise (default constant)",
+    )
+    parser.add_argument("--no-smooth", action="store_true", help="the filter alone")
+    parser.add_argument(
+        "--bag",
+        choices=BAG_STORAGES,
+        default=None,
+        help="also write the solution as nav_msgs/Odometry in a bag of this storage",
+    )
+    _add_init(parser)
+    add_bag_options(parser)
+    add_no_plots(parser)
+    add_result_folder(parser, "navigate")
+    add_output_flags(parser)
+    parser.set_defaults(func=run)
+
+
+def _given(args: argparse.Namespace):  # noqa: ANN202
+    """The given parts of the initial state (None for none)."""
+    from pronet.recorded.initialinputs import GivenState
+
+    if args.init_position is None and args.init_heading is None:
+        return None
+    lla = depth = None
+    if args.init_position is not None:
+        lat, lon, d = args.init_position
+        lla, depth = (math.radians(lat), math.radians(lon), math.nan), d
+    heading = None if args.init_heading is None else math.radians(args.init_heading)
+    sigma = None if args.init_heading_sigma is None else math.radians(args.init_heading_sigma)
+    return GivenState(lla=lla, depth=depth, heading=heading, heading_sigma=sigma)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pronet.recorded.export import write_all
+    from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate_recording
+    from pronet.recorded.vehicle import load_vehicle
+
+    topics = bag_topics(args)
+    if topics is not None:
+        require_rosbags()
+        if args.truth_topic is None:  # a truth is read only where named
+            topics = replace(topics, truth=None, origin=None)
+    if args.bag is not None:
+        require_rosbags()
+    vehicle = load_vehicle(args.filter)
+    if args.declination is not None:
+        vehicle = replace(vehicle, declination=args.declination)
+    arms = lever_arms(
+        vehicle, imu=args.imu_lever_arm, dvl=args.dvl_lever_arm,
+        depth=args.depth_lever_arm, fix=args.fix_lever_arm,
+    )  # fmt: skip
+    options = NavigateOptions(
+        use_dvl=not args.no_dvl, use_depth=not args.no_depth, use_fixes=not args.no_fixes,
+        use_heading=not args.no_heading, smooth=not args.no_smooth, init=args.init,
+        given=_given(args), strategy=args.strategy, still=args.still,
+        surface_depth=args.surface_depth if args.surface_depth is not None
+        else (vehicle.surface_depth or 0.0),
+    )  # fmt: skip
+    out = Path(args.out or f"results/navigate-{time.strftime('%Y%m%d-%H%M%S')}")
+    show = Output(args)
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", PlausibilityWarning)
+        warnings.showwarning = lambda m, *_, **__: print(f"pronet: warning: {m}", file=sys.stderr)
+        navigation = navigate_recording(
+            args.data, args.format if topics is None else topics, vehicle, arms, options
+        )
+    paths = write_all(navigation, out, bag=args.bag, figures=not args.no_plots)
+    for note in navigation.notes:  # what the filter knows, also with --quiet and --json
+        print(f"pronet: {note}", file=sys.stderr)
+    lines = [f"{navigation.name}: {len(navigation.forward.time)} epochs"]
+    lines += [
+        f"  {s.name}: {s.applied} applied, mean NIS {s.mean_nis:.3g}" for s in navigation.streams
+    ]
+    lines.append(f"written to {out} in {time.perf_counter() - start:.0f} s")
+    show.result(
+        "\n".join(lines),
+        {
+            "folder": str(out),
+            "files": [str(p) for p in paths],
+            "notes": list(navigation.notes),
+            "initial_state": dict(navigation.initial.methods),
+            "score": navigation.score,
+        },
+    )
+    return 0

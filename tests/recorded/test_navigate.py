@@ -1,0 +1,222 @@
+"""``pronet navigate`` on a simulated MEMS survey whose truth is kept outside the
+recording (``tests/mission_recording.py``): one command on a bag without truth writes
+the trajectory, the track, an odometry bag and the report; the accuracy and consistency
+of the data-initialised filter with fixes, with a compass alone, against the truth-
+initialised one; the lever arms of the depth sensor and the fix antenna; the files read
+back; and, on a recording with truth, the same score as ``pronet real``'s row."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from mission_recording import LeverArms as MissionArms
+from mission_recording import Mission, simulate_mission, write_generic, write_mission_bag
+
+import pronet
+from pronet.recorded.initialinputs import GivenState
+from pronet.recorded.navigate import (
+    LeverArms,
+    NavigateOptions,
+    lever_arms,
+    navigate_recording,
+)
+from pronet.recorded.solution import Navigation, Solution
+from pronet.recorded.vehicle import load_vehicle
+
+MINUTES_FAST = 6.0
+MINUTES = 22.0
+
+
+def _vehicle_file(tmp_path: Path, m: Mission, *, arms: bool = True) -> Path:
+    """A vehicle file as the mission's team would write it: the MEMS grade, the DVL's σ,
+    the lever arms (with ``arms``), the compass's σ and the sensor's depth afloat."""
+    la = m.lever_arms
+    lines = [
+        'grade = "mems"',
+        f"dvl_variance = {[m.sensors.dvl_sigma**2] * 3}",
+        f"dvl_lever_arm = {list(map(float, la.dvl))}",
+        f"heading_sigma = {np.degrees(m.sensors.heading_sigma)}",
+        # the survey floats with its IMU 0.3 m deep, level
+        f"surface_depth = {0.3 + la.depth[2]}",
+    ]
+    if arms:
+        lines += [
+            f"depth_lever_arm = {list(map(float, la.depth))}",
+            f"fix_lever_arm = {list(map(float, la.fix))}",
+        ]
+    path = tmp_path / "vehicle.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _errors(solution: Solution, m: Mission) -> tuple[np.ndarray, np.ndarray]:
+    """The solution's NED position error [m] and heading error [rad] against the
+    mission's truth at the same stamps (the truth at every IMU epoch)."""
+    stamps = solution.epoch + solution.time
+    k = np.clip(np.searchsorted(m.truth.time, stamps - 1e-6), 0, len(m.truth.time) - 1)
+    # every epoch an IMU sample's, the first (the initial state's time) within a step
+    assert np.abs(m.truth.time[k] - stamps)[1:].max() < 1e-5
+    origin = m.truth.lla[0]
+    ned = pronet.local_ned(solution.lla, origin) - pronet.local_ned(m.truth.lla[k], origin)
+    yaw = np.angle(np.exp(1j * (solution.rpy[:, 2] - m.truth.rpy[k, 2])))
+    return ned, yaw
+
+
+def _horizontal_rms(solution: Solution, m: Mission) -> float:
+    ned, _ = _errors(solution, m)
+    return float(np.sqrt(np.mean(ned[:, 0] ** 2 + ned[:, 1] ** 2)))
+
+
+def _within_3_sigma(solution: Solution, m: Mission) -> tuple[float, float]:
+    """The shares of epochs whose position (every axis) and heading lie within 3σ."""
+    ned, yaw = _errors(solution, m)
+    position = np.all(np.abs(ned) <= 3 * solution.sigma[:, :3], axis=1).mean()
+    return float(position), float(np.mean(np.abs(yaw) <= 3 * solution.sigma[:, 8]))
+
+
+def _navigate(folder: Path, vehicle: Path, **options) -> Navigation:
+    tuning = load_vehicle(vehicle)
+    opts = NavigateOptions(surface_depth=tuning.surface_depth or 0.0, **options)
+    return navigate_recording(folder, "generic", tuning, lever_arms(tuning), opts)
+
+
+@pytest.fixture(scope="module")
+def short() -> Mission:
+    return simulate_mission(0, minutes=MINUTES_FAST)
+
+
+def test_one_command_on_a_bag_without_truth_writes_the_files(tmp_path, short) -> None:
+    pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
+    from pronet.cli import main
+
+    for storage in ("rosbag1", "mcap"):
+        bag = tmp_path / ("mission.bag" if storage == "rosbag1" else "mission")
+        _, topics = write_mission_bag(short, bag, storage)
+        assert topics.truth is None
+        out = tmp_path / f"out-{storage}"
+        code = main([
+            "navigate", "--data", str(bag), "--format", "bag", "--depth-topic", str(topics.depth),
+            "--fix-topic", str(topics.fix), "--heading-topic", topics.imu, "--filter",
+            str(_vehicle_file(tmp_path, short)), "--out", str(out), "--bag", storage,
+            "--no-plots", "--quiet",
+        ])  # fmt: skip
+        assert code == 0
+        written = {p.name for p in out.iterdir()}
+        odometry = "odometry.bag" if storage == "rosbag1" else "odometry"
+        assert {"trajectory.csv", "track.geojson", "report.md", "config.json", odometry} <= written
+        config = json.loads((out / "config.json").read_text())
+        assert config["streams_used"] == {"dvl": True, "depth": True, "fix": True, "heading": True}
+        # the surface pressure measured beside the fixes at the surface: 101,900 Pa
+        assert config["surface_pressure"]["pa"] == pytest.approx(short.surface_pressure, abs=100)
+        report = (out / "report.md").read_text()
+        assert "levelled" in report and "heading stream" in report
+
+
+def test_the_files_read_back_with_the_solutions_sigma(tmp_path, short) -> None:
+    folder = write_generic(short, tmp_path / "mission")
+    nav = _navigate(folder, _vehicle_file(tmp_path, short))
+    from pronet.recorded.export import write_all
+
+    write_all(nav, tmp_path / "out", figures=False)
+    table = pd.read_csv(tmp_path / "out" / "trajectory.csv")
+    for solution in nav.solutions:
+        rows = table[table["solution"] == solution.label]
+        assert len(rows) == len(solution.time)
+        np.testing.assert_allclose(rows["sigma_n [m]"], solution.sigma[:, 0], rtol=1e-12)
+        np.testing.assert_allclose(rows["sigma_d [m]"], solution.sigma[:, 2], rtol=1e-12)
+        np.testing.assert_allclose(rows["lat [deg]"], np.degrees(solution.lla[:, 0]), rtol=1e-12)
+    track = json.loads((tmp_path / "out" / "track.geojson").read_text())
+    assert track["type"] == "FeatureCollection"
+    lines = [f for f in track["features"] if f["geometry"]["type"] == "LineString"]
+    assert {f["properties"]["solution"] for f in lines} == {"forward", "smoothed"}
+    lon, lat = lines[0]["geometry"]["coordinates"][0]
+    assert lon == pytest.approx(np.degrees(nav.forward.lla[0, 1]), abs=1e-9)
+    assert lat == pytest.approx(np.degrees(nav.forward.lla[0, 0]), abs=1e-9)
+
+
+@pytest.mark.slow
+def test_lever_arms_of_a_metre_are_needed_and_flagged_when_left_out(tmp_path) -> None:
+    """The depth sensor and the fix antenna 1 m from the IMU each: told, the position
+    within 3σ at ≥ 95 % of epochs; left out, the report's NIS flags both (over the 22
+    minutes: over 6 the fixes' NIS does not see 0.8 m against their 1.5 m; and a depth
+    sensor's arm straight down is a height offset no NIS can see, its forward part
+    shows as the vehicle pitches)."""
+    arms = MissionArms(depth=(0.8, 0.0, 0.6), fix=(0.8, 0.0, -0.6))
+    m = simulate_mission(1, minutes=MINUTES, lever_arms=arms)
+    folder = write_generic(m, tmp_path / "mission")
+    told = _navigate(folder, _vehicle_file(tmp_path, m))
+    position, _ = _within_3_sigma(told.forward, m)
+    assert position >= 0.95, position
+    assert not any(r.flag for r in told.streams if r.name in ("depth", "fix"))
+    untold = _navigate(folder, _vehicle_file(tmp_path, m, arms=False))
+    flags = {r.name: r.flag for r in untold.streams}
+    for stream in ("depth", "fix"):
+        assert flags[stream].startswith(f"{stream}: mean NIS "), flags
+        assert "lever arm" in flags[stream]
+        assert any(n.startswith(f"{stream}: no lever arm given") for n in untold.notes)
+    assert _within_3_sigma(untold.forward, m)[0] < 0.95
+
+
+def test_a_recording_with_truth_scores_as_pronet_real(tmp_path, short) -> None:
+    """The same tuning, the truth's first row as start: navigate's score of the filter is
+    pronet real's constant row's, number for number."""
+    from pronet.recorded.alignment import load_section
+    from pronet.recorded.passes import run_section
+    from pronet.recorded.real import plan_section
+
+    folder = write_generic(short, tmp_path / "mission", truth=True)
+    vehicle = load_vehicle(_vehicle_file(tmp_path, short, arms=False))
+    arms = LeverArms(dvl=vehicle.dvl_lever_arm)
+    opts = NavigateOptions(init="truth", smooth=False, use_heading=False, surface_offset=0.0)
+    nav = navigate_recording(folder, "generic", vehicle, arms, opts)
+    section, _ = load_section(folder, "generic", imu_lever_arm=(0.0, 0.0, 0.0),
+                              dvl_lever_arm=vehicle.dvl_lever_arm, read_heading=False)  # fmt: skip
+    plan = plan_section(section, {}, 1.0, base=vehicle.base)
+    row = run_section(section, next(iter(plan.strategies.values())), plan.config)
+    assert nav.score is not None
+    assert nav.score["forward"] == dataclasses.asdict(row.metrics)
+
+
+@pytest.mark.slow
+def test_a_22_minute_survey_with_fixes_navigates_to_decimetres(tmp_path) -> None:
+    """Fixes at 1 Hz (σ 1.5 m), the compass, from the data alone: forward horizontal RMS
+    ≤ 0.5 m, smoothed ≤ 0.25 m, heading within 3σ at ≥ 95 % of epochs; and within 10 % of
+    the truth-initialised pass, consistent (position within 3σ at ≥ 95 %)."""
+    m = simulate_mission(0, minutes=MINUTES)
+    folder = write_generic(m, tmp_path / "mission", truth=True)
+    vehicle = _vehicle_file(tmp_path, m)
+    nav = _navigate(folder, vehicle)
+    assert nav.smoothed is not None
+    forward, smoothed = _horizontal_rms(nav.forward, m), _horizontal_rms(nav.smoothed, m)
+    assert forward <= 0.5 and smoothed <= 0.25, (forward, smoothed)
+    position, heading = _within_3_sigma(nav.forward, m)
+    assert heading >= 0.95 and position >= 0.95, (position, heading)
+    truth = _navigate(folder, vehicle, init="truth")
+    assert forward <= 1.1 * _horizontal_rms(truth.forward, m), (forward, truth)
+
+
+@pytest.mark.slow
+def test_a_compass_without_fixes_holds_the_heading_and_halves_the_drift(tmp_path) -> None:
+    """No fixes, a 1° compass: heading within 3σ at ≥ 95 % of epochs and the final
+    horizontal error at most half the DVL-only one."""
+    m = simulate_mission(0, minutes=MINUTES)
+    folder = write_generic(m, tmp_path / "mission")
+    vehicle = _vehicle_file(tmp_path, m)
+    # the start needs a position and, DVL-only, a heading (a MEMS gyro cannot
+    # gyrocompass): both runs are given them, as a surface fix and a compass would
+    given = GivenState(
+        lla=m.truth.lla[0], lla_sigma=(1.5,) * 3, heading=float(m.truth.rpy[0, 2]),
+        heading_sigma=float(m.sensors.heading_sigma),
+    )  # fmt: skip
+    compass = _navigate(folder, vehicle, use_fixes=False, given=given, smooth=False)
+    dvl_only = _navigate(folder, vehicle, use_fixes=False, use_heading=False, given=given,
+                         smooth=False)  # fmt: skip
+    _, heading = _within_3_sigma(compass.forward, m)
+    final = [np.hypot(*_errors(n.forward, m)[0][-1, :2]) for n in (compass, dvl_only)]
+    assert heading >= 0.95, heading
+    assert final[0] <= 0.5 * final[1], final
