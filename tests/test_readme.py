@@ -70,8 +70,22 @@ def _realdata_md(ns: dict) -> None:
     assert ns["aided"][constant] < ns["final"]["depth-only"][constant] / 3
 
 
+def _navigate_md(ns: dict) -> None:
+    assert (Path("nav") / "trajectory.csv").is_file() and (Path("nav") / "report.md").is_file()
+    names = {s.name for s in ns["nav"].streams}
+    assert names == {"dvl", "depth", "fix", "heading"}
+    # every stream told its noise: its NIS per degree of freedom near 1 (a 3-minute
+    # recording's band is wide and may be left by chance; the flag says so, not this)
+    assert all(0.7 < s.mean_nis / s.dof < 1.3 for s in ns["nav"].streams)
+
+
 #: What each page's session must have produced, beyond running without an error.
-CHECKS = {"learning.md": _learning_md, "cli.md": _cli_md, "realdata.md": _realdata_md}
+CHECKS = {
+    "learning.md": _learning_md,
+    "cli.md": _cli_md,
+    "realdata.md": _realdata_md,
+    "navigate.md": _navigate_md,
+}
 
 
 def _realdata_files() -> None:
@@ -95,8 +109,20 @@ def _realdata_files() -> None:
     write_bag(Path("mission.bag"), recording, "rosbag1")
 
 
+def _navigate_files() -> None:
+    """navigate.md's examples read ``mission/`` (a 3-minute simulated MEMS survey, no
+    truth; ``tests/mission_recording.py``, its sensors where the page's vehicle file
+    puts them) and ``vehicle.toml``, the page's own TOML block."""
+    from mission_recording import simulate_mission, write_generic
+
+    write_generic(simulate_mission(0, minutes=3.0), Path("mission"))
+    page = (ROOT / "docs" / "navigate.md").read_text(encoding="utf-8")
+    (toml,) = re.findall(r"```toml\n(.*?)```", page, flags=re.S)
+    Path("vehicle.toml").write_text(toml)
+
+
 #: What a page's blocks read, made in a temporary current folder before they run.
-SETUP = {"realdata.md": _realdata_files}
+SETUP = {"realdata.md": _realdata_files, "navigate.md": _navigate_files}
 
 
 @pytest.mark.parametrize("page", pages_with_python(), ids=lambda p: p.name)

@@ -102,8 +102,7 @@ def test_one_command_on_a_bag_without_truth_writes_the_files(tmp_path, short) ->
         code = main([
             "navigate", "--data", str(bag), "--format", "bag", "--depth-topic", str(topics.depth),
             "--fix-topic", str(topics.fix), "--heading-topic", topics.imu, "--filter",
-            str(_vehicle_file(tmp_path, short)), "--out", str(out), "--bag", storage,
-            "--no-plots", "--quiet",
+            str(_vehicle_file(tmp_path, short)), "--out", str(out), "--no-plots", "--quiet",
         ])  # fmt: skip
         assert code == 0
         written = {p.name for p in out.iterdir()}

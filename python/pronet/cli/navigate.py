@@ -27,8 +27,8 @@ from pronet.recorded.alignment import FORMATS
 from pronet.recorded.bags import require_rosbags
 from pronet.recorded.plausible import PlausibilityWarning
 
-#: The storages of ``--bag``.
-BAG_STORAGES = ("rosbag1", "sqlite3", "mcap")
+#: The storages of ``--bag`` (``none``: no odometry bag).
+BAG_STORAGES = ("rosbag1", "sqlite3", "mcap", "none")
 
 
 def _still(text: str) -> tuple[float, float] | str:  # "auto" or "none" as given
@@ -157,7 +157,9 @@ def add_parser(sub: Subparsers) -> None:
         "--bag",
         choices=BAG_STORAGES,
         default=None,
-        help="also write the solution as nav_msgs/Odometry in a bag of this storage",
+        help="also write the solution as nav_msgs/Odometry in a bag of this storage "
+        "(default: with --format bag, the input's, rosbag1 for a .bag file and mcap for a "
+        "ROS 2 bag; else none)",
     )
     _add_init(parser)
     add_bag_options(parser)
@@ -192,7 +194,11 @@ def run(args: argparse.Namespace) -> int:
         require_rosbags()
         if args.truth_topic is None:  # a truth is read only where named
             topics = replace(topics, truth=None, origin=None)
-    if args.bag is not None:
+    bag = args.bag
+    if bag is None and topics is not None:  # a bag in: the solution as a bag out
+        bag = "rosbag1" if Path(args.data).suffix == ".bag" else "mcap"
+    bag = None if bag == "none" else bag
+    if bag is not None:
         require_rosbags()
     vehicle = load_vehicle(args.filter)
     if args.declination is not None:
@@ -217,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
         navigation = navigate_recording(
             args.data, args.format if topics is None else topics, vehicle, arms, options
         )
-    paths = write_all(navigation, out, bag=args.bag, figures=not args.no_plots)
+    paths = write_all(navigation, out, bag=bag, figures=not args.no_plots)
     for note in navigation.notes:  # what the filter knows, also with --quiet and --json
         print(f"pronet: {note}", file=sys.stderr)
     lines = [f"{navigation.name}: {len(navigation.forward.time)} epochs"]
