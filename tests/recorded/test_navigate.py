@@ -161,7 +161,7 @@ def test_lever_arms_of_a_metre_are_needed_and_flagged_when_left_out(tmp_path) ->
     assert _within_3_sigma(untold.forward, m)[0] < 0.95
 
 
-def test_a_recording_with_truth_scores_as_pronet_real(tmp_path, short) -> None:
+def test_a_recording_with_truth_scores_as_pronet_real(tmp_path, short, capsys) -> None:
     """The same tuning, the truth's first row as start: navigate's score of the filter is
     pronet real's constant row's, number for number."""
     from pronet.recorded.alignment import load_section
@@ -179,6 +179,18 @@ def test_a_recording_with_truth_scores_as_pronet_real(tmp_path, short) -> None:
     row = run_section(section, next(iter(plan.strategies.values())), plan.config)
     assert nav.score is not None
     assert nav.score["forward"] == dataclasses.asdict(row.metrics)
+    # the same by the command: its JSON result holds the score
+    from pronet.cli import main
+
+    vehicle_file = _vehicle_file(tmp_path, short, arms=False)
+    code = main([
+        "navigate", "--data", str(folder), "--filter", str(vehicle_file), "--init", "truth",
+        "--surface-offset", "0", "--no-heading", "--no-smooth", "--no-plots", "--json",
+        "--out", str(tmp_path / "out"),
+    ])  # fmt: skip
+    assert code == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["score"]["forward"] == pytest.approx(nav.score["forward"], rel=1e-15)
 
 
 @pytest.mark.slow

@@ -147,6 +147,14 @@ def add_parser(sub: Subparsers) -> None:
         "else 0): the surface pressure is measured there, beside fixes",
     )
     parser.add_argument(
+        "--surface-offset",
+        metavar="M",
+        type=float,
+        default=None,
+        help="the depth's surface offset to take off [m] (default: measured at the surface "
+        "beside fixes; 0: the reader's surface pressure as it is)",
+    )
+    parser.add_argument(
         "--strategy",
         default="constant",
         help="the process-noise strategy (constant, mehra:N, adaptive:N, detvar, "
@@ -211,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
         use_dvl=not args.no_dvl, use_depth=not args.no_depth, use_fixes=not args.no_fixes,
         use_heading=not args.no_heading, smooth=not args.no_smooth, init=args.init,
         given=_given(args), strategy=args.strategy, still=args.still,
+        surface_offset=args.surface_offset,
         surface_depth=args.surface_depth if args.surface_depth is not None
         else (vehicle.surface_depth or 0.0),
     )  # fmt: skip
