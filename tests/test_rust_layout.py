@@ -45,6 +45,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("smoother",),
     ("recorded", "scenario", "run"),
     ("montecarlo", "ensemble"),
+    ("online",),
     ("python",),
 )
 MAX_LINES = 600

@@ -26,6 +26,7 @@ pub mod measurement;
 pub mod mechanization;
 pub mod montecarlo;
 pub mod noise;
+pub mod online;
 pub mod pass;
 pub mod recorded;
 pub mod regressors;

@@ -13,7 +13,7 @@ use std::collections::VecDeque;
 
 /// A process-noise strategy: tells the filter its noise for the next step and sees
 /// every measurement update.
-pub trait NoiseStrategy: Send + Sync {
+pub trait NoiseStrategy: Send + Sync + CloneStrategy {
     /// Noise for the next IMU step.
     fn process_noise(&self) -> ProcessNoise<'_>;
 
@@ -58,6 +58,18 @@ pub trait NoiseStrategy: Send + Sync {
     /// (Mehra, once it has its innovations) rather than through Q^c.
     fn discrete_q(&self) -> Option<&Matrix15> {
         None
+    }
+}
+
+/// A copy of a strategy in its present state (a navigator's checkpoint, to run a stretch
+/// again): every strategy that is `Clone`.
+pub trait CloneStrategy {
+    fn clone_box(&self) -> Box<dyn NoiseStrategy>;
+}
+
+impl<T: NoiseStrategy + Clone + 'static> CloneStrategy for T {
+    fn clone_box(&self) -> Box<dyn NoiseStrategy> {
+        Box::new(self.clone())
     }
 }
 

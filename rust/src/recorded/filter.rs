@@ -252,8 +252,8 @@ impl<'a> Recording<'a> {
     /// The filter at the start of the pass, once the data, the initial state and the
     /// strategy have been checked for it.
     fn start(&self, strategy: &dyn NoiseStrategy) -> Result<Ekf> {
-        let (data, initial, bias) = (self.data, &self.initial, &self.initial_bias);
-        earth::check_latitude("lla0", initial.lla[0])?;
+        let data = self.data;
+        earth::check_latitude("lla0", self.initial.lla[0])?;
         data.validate()?;
         for stream in &data.streams {
             stream.check_config(self.cfg)?;
@@ -264,26 +264,40 @@ impl<'a> Recording<'a> {
                 "a q schedule needs an external strategy (Strategy.external)",
             ));
         }
-        if strategy.wants_true_variance() {
-            return Err(Error::invalid(
-                "strategy",
-                "oracle needs the simulated IMU's true variance, which recorded data does not have",
-            ));
-        }
-        check::finite("initial state", initial.lla.as_slice())?;
-        check::finite("initial state", initial.vel.as_slice())?;
-        check::finite("initial bias", bias)?;
-        let mut ekf = Ekf::new(
-            self.cfg,
-            *initial,
-            Vector3::new(bias[0], bias[1], bias[2]),
-            Vector3::new(bias[3], bias[4], bias[5]),
-        )?;
-        if let Some(q) = strategy.sensitivity_q() {
-            ekf.track_sensitivity(q);
-        }
-        Ok(ekf)
+        start_filter(&self.initial, &self.initial_bias, self.cfg, strategy)
     }
+}
+
+/// The filter at the start of a pass over recorded data (or fed as it comes) from the
+/// initial state `initial` (its latitude named `lla0`) and bias estimates `bias`
+/// (`[b_a, b_g]`, named `bias0`), checked, with `strategy` checked for recorded data
+/// (no oracle) and the sensitivity it asks for tracked.
+pub fn start_filter(
+    initial: &NavState,
+    bias: &[f64; 6],
+    cfg: &FilterConfig,
+    strategy: &dyn NoiseStrategy,
+) -> Result<Ekf> {
+    earth::check_latitude("lla0", initial.lla[0])?;
+    if strategy.wants_true_variance() {
+        return Err(Error::invalid(
+            "strategy",
+            "oracle needs the simulated IMU's true variance, which recorded data does not have",
+        ));
+    }
+    check::finite("initial state", initial.lla.as_slice())?;
+    check::finite("initial state", initial.vel.as_slice())?;
+    check::finite("initial bias", bias)?;
+    let mut ekf = Ekf::new(
+        cfg,
+        *initial,
+        Vector3::new(bias[0], bias[1], bias[2]),
+        Vector3::new(bias[3], bias[4], bias[5]),
+    )?;
+    if let Some(q) = strategy.sensitivity_q() {
+        ekf.track_sensitivity(q);
+    }
+    Ok(ekf)
 }
 
 /// Set the last q schedule row stamped at or before `until` \[s\] (the epoch's start

@@ -19,7 +19,7 @@ mod stream;
 
 pub use data::RecordedData;
 pub use epochs::Epochs;
-pub use filter::{filter_recorded, filter_recorded_until, smooth_recorded_until};
+pub use filter::{filter_recorded, filter_recorded_until, smooth_recorded_until, start_filter};
 pub use output::{FilterOutput, StreamRecord};
 pub use stream::{velocity_variance, PerRow, Stream, Values};
 
