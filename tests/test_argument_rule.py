@@ -127,6 +127,22 @@ def _hcf(f: Form) -> Any:
 
 WINDOWS = np.random.default_rng(0).normal(0.0, 0.01, size=(3, 200))
 
+
+def _navigator(f: Form) -> Any:
+    sensors = [_core.Dvl([], np.zeros((0, 3))), _core.Depth([], [], sigma=0.1)]
+    nav0 = {k: f(v) for k, v in NAV0.items()}
+    nav = _core.Navigator(
+        sensors, t0=0.0, **nav0, config=_core.FilterConfig(),
+        strategy=_core.Strategy.external(PAPER_Q), bias0=f([0.0] * 6),
+    )  # fmt: skip
+    nav.reading(0, 0.05, f([1.0, 0.0, 0.0]), sigma=f([0.1] * 3))
+    nav.reading(1, 0.05, f(5.0), sigma=f([0.2]))
+    nav.imu(float(IMU_T[0]), f(IMU[0]))
+    nav.set_q(f(PAPER_Q))
+    nav.imu_block(f(IMU_T[1:]), f(IMU[1:]))
+    return nav.state()["lla"]
+
+
 #: Each entry: the callables it covers and a call with every array argument in a form.
 CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
     "trajectory": (
@@ -186,6 +202,16 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
     "ensemble": (
         ("_core.Ensemble", "_core.Ensemble.set_q", "pronet.Ensemble", "pronet.Ensemble.set_q"),
         lambda f: (_ensemble(_core.Ensemble, f, True), _ensemble(pronet.Ensemble, f, False)),
+    ),
+    "navigator": (
+        (
+            "_core.Navigator",
+            "_core.Navigator.imu",
+            "_core.Navigator.imu_block",
+            "_core.Navigator.reading",
+            "_core.Navigator.set_q",
+        ),
+        _navigator,
     ),
     "convnet": (
         ("_core.ConvNet", "_core.ConvNet.predict"),

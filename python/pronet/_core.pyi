@@ -23,7 +23,7 @@ __all__ = [
     "trajectory_from_segments", "normal_gravity", "earth_radii", "mechanize",
     "FilterConfig", "Strategy", "SensorConfig", "Dvl", "Depth", "Fix", "Heading",
     "run_filter", "monte_carlo", "check_result_size", "check_fixes_fire", "check_threads",
-    "max_threads", "Ensemble", "tuning_instants", "ConvNet", "HcfEnsemble",
+    "max_threads", "Ensemble", "tuning_instants", "Navigator", "ConvNet", "HcfEnsemble",
     "attitude_increment_costs"]  # fmt: skip
 
 __version__: str
@@ -511,6 +511,56 @@ def tuning_instants(
     which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
     there; :func:`pronet.learn.hybrid.q_schedule` evaluates its regressor there.
     ``dt`` and ``tuning_period`` finite and > 0, ``window`` >= 1."""
+
+@final
+class Navigator:
+    """The filter pass fed as the data arrives: :class:`pronet.online.Navigator` (its
+    documentation is there). ``streams``: :class:`Dvl`, :class:`Depth`, :class:`Fix` and
+    :class:`Heading` without rows, describing the sensors (noise, frame, lever arm,
+    gate), whose readings are applied at an epoch in this order. ``lag`` [s] (finite,
+    >= 0): how late a reading may be stamped before the newest IMU sample and still be
+    applied at its own epoch; ``checkpoint_every`` (>= 1): a copy of the filter every so
+    many epochs. ``tuning_period`` [s] with ``imu_dt`` [s] and ``window`` (samples): the
+    learned loop's instants, as :func:`tuning_instants` places them."""
+
+    def __new__(cls, streams: Sequence[Dvl | Depth | Fix | Heading], *, t0: float, lla0: Any,
+                vel0: Any, rpy0: Any, config: FilterConfig, strategy: Strategy,
+                bias0: Any | None = None, lag: float = 1.0, checkpoint_every: int = 32,
+                tuning_period: float | None = None, imu_dt: float | None = None,
+                window: int = 200) -> Navigator: ...  # fmt: skip
+    def imu(self, time: float, sample: Any) -> None:
+        """Feed one IMU sample ``[f (m/s²), ω (rad/s)]`` (body FRD) ending at ``time`` [s]."""
+    def imu_block(self, times: ArrayLike, samples: ArrayLike) -> int:
+        """Feed IMU samples ``(n, 6)`` ending at ``times`` ``(n,)`` [s], in order, stopping
+        after a tuning instant (:attr:`tuning_due`): the number fed."""
+    def reading(self, stream: int, time: float, value: Any, sigma: Any | None = None) -> str:
+        """Feed the reading ``value`` of ``streams[stream]`` stamped ``time`` [s], with its
+        own 1σ ``sigma`` (None: the stream's): ``"queued"``, ``"late"``, ``"refused"``
+        or ``"skipped"``."""
+    def set_q(self, q: Any) -> None:
+        """Set the IMU variances ``q`` (6) from the next IMU step on (an external strategy)."""
+    def state(self) -> dict[str, Any]:
+        """The estimate at the newest epoch: a dict of ``epoch``, ``time`` [s], ``lla``
+        [rad, rad, m], ``vel`` [m/s NED], ``rpy`` [rad], ``bias`` (6), ``sigma`` (15,
+        brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None)."""
+    def tally(self) -> list[dict[str, Any]]:
+        """Each stream's tally, a list of dicts in the streams' order: ``name``,
+        ``received``, ``queued``, ``accepted``, ``rejected`` (by the gate), ``late``
+        (applied after their epoch had run), ``refused`` (before the lag window),
+        ``skipped`` (before the start), ``nis_sum`` and ``dof`` (the applied readings')."""
+    @property
+    def epoch(self) -> int:
+        """The newest epoch: the number of IMU samples fed."""
+    @property
+    def tuning_due(self) -> bool:
+        """Whether the newest epoch is a tuning instant (set q before the next sample)."""
+    @property
+    def window(self) -> NDArray[np.float32] | None:
+        """The learned loop's window ``(6, window)`` float32, oldest sample first (None
+        without a tuning or before it is full)."""
+    @property
+    def failure(self) -> str | None:
+        """The error that stopped the navigator, or None."""
 
 @final
 class ConvNet:

@@ -260,11 +260,20 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
                 prior_q=strategy.prior_q,
                 tuning_period=strategy.tuning_period,
             )
-        core_strategy = _core.Strategy.external(strategy.prior_q)
+        core_strategy, _ = native_of(strategy)
         if len(schedule.time):
             q_time, q = schedule.time, schedule.q
     result = rec.filter(core_strategy, q_time, q)  # type: ignore[arg-type]
     return RecordedRun(result, schedule, time.perf_counter() - start, period)
+
+
+def native_of(strategy: StrategyLike) -> tuple[_core.Strategy, Learned | None]:
+    """The native strategy a filter pass runs for ``strategy``: itself, or for a learned
+    one the external strategy its regressor's q is set through (its prior until the
+    first), with the :class:`Learned` (None for a native one)."""
+    if isinstance(strategy, Learned):
+        return _core.Strategy.external(strategy.prior_q), strategy
+    return strategy, None
 
 
 def _tuning_period(strategy: StrategyLike) -> float | None:

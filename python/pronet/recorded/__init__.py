@@ -56,7 +56,10 @@ Navigating a recording without ground truth (``pronet navigate``):
 - :mod:`~pronet.recorded.initial`: the initial state from the data (or given), each part
   with the P0 its method earns;
 - :mod:`~pronet.recorded.initialinputs`: its inputs checked, the readings around t0;
-- :mod:`~pronet.recorded.levelling`: still intervals, levelling and gyrocompassing.
+- :mod:`~pronet.recorded.levelling`: still intervals, levelling and gyrocompassing;
+- :mod:`~pronet.recorded.online`: the filter fed as the data arrives
+  (:class:`~pronet.recorded.online.Navigator`: late readings within a lag window, the
+  learned loop inside), equal to the batch pass in time order.
 """
 
 __all__ = [
@@ -79,6 +82,7 @@ __all__ = [
     "missing",
     "navigate",
     "odometry",
+    "online",
     "passes",
     "plausible",
     "real",

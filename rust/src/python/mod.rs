@@ -15,6 +15,7 @@ mod filter;
 mod hcf;
 mod montecarlo;
 mod navigation;
+mod navigator;
 mod sensors;
 mod strategy;
 mod streams;
@@ -51,5 +52,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     convnet::register(m)?;
     clocks::register(m)?;
     hcf::register(m)?;
+    navigator::register(m)?;
     Ok(())
 }

@@ -1,0 +1,251 @@
+"""Online navigation: the filter fed as the data arrives, on a vehicle or from a log
+read message by message (docs/navigate.md, "Online use").
+
+:class:`Navigator` takes IMU samples one at a time or in blocks and each sensor's
+readings by time, and answers with the navigation state and its σ at any moment. Fed in
+time order, every epoch equals :func:`pronet.run_filter`'s forward pass over the same
+data bit for bit, for every strategy (the native core runs the same epoch loop). The
+rule, as the batch pass has it: a reading is applied at the first IMU epoch whose time
+plus half its step reaches the reading's time, readings at an epoch stream by stream in
+the order of ``streams``. A reading that arrives after its epoch has run, stamped no more
+than ``lag`` seconds before the newest IMU sample, is applied at its own epoch: the
+filter is run again from the last checkpoint before that epoch (a copy of the filter
+every ``checkpoint_every`` epochs), which costs the IMU steps since then (about 1 µs
+each); an older one is refused and counted (:meth:`Navigator.tally`), never dropped
+silently. Memory is the lag window's history, whatever the mission's length.
+
+The ProNet loop runs inside: with a :class:`pronet.strategies.Learned` strategy the
+regressor reads the last ``window`` raw IMU samples at every tuning instant (every
+``round(tuning_period / imu_dt)`` samples once the window is full, as
+:func:`pronet.learn.hybrid.q_schedule` places them), its q guarded as the batch loop
+guards it, and sets the IMU noise from the next sample on; ``adaptive`` and ``mehra``
+adapt inside the core as in a batch pass.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from pronet import _core
+from pronet._util.validate import check_type, float_array, scalar
+from pronet.config import filter_config
+from pronet.filter import Stream
+from pronet.learn.hybrid import Guardrails, _predictions, apply_guardrails, for_loop
+from pronet.montecarlo import DEFAULT_WINDOW
+from pronet.recorded.solution import InitialState
+from pronet.run import native_of
+from pronet.strategies import StrategyLike
+
+F64 = NDArray[np.float64]
+
+#: How late [s] a reading may be stamped before the newest IMU sample by default.
+DEFAULT_LAG = 1.0
+
+
+@dataclass(frozen=True)
+class NavigatorState:
+    """The navigation state at the newest epoch.
+
+    Attributes:
+        epoch: IMU samples fed (0: the initial state).
+        time: the epoch's time [s].
+        lla: ``(3,)`` latitude, longitude [rad], height [m, up] of the IMU.
+        vel: ``(3,)`` NED velocity [m/s].
+        rpy: ``(3,)`` roll, pitch, yaw [rad].
+        bias: ``(6,)`` ``[b_a (m/s²), b_g (rad/s)]``.
+        sigma: ``(15,)`` 1σ of the errors (position NED [m], velocity [m/s], attitude
+            [rad], biases), the covariance brought up to date.
+        calibration, calibration_sigma: ``(4,)`` the DVL calibration states and the 1σ
+            of ``[δk, δμ]``, or None without them.
+    """
+
+    epoch: int
+    time: float
+    lla: F64
+    vel: F64
+    rpy: F64
+    bias: F64
+    sigma: F64
+    calibration: F64 | None
+    calibration_sigma: F64 | None
+
+
+@dataclass(frozen=True)
+class StreamTally:
+    """What a navigator did with one stream's readings so far.
+
+    Attributes:
+        name: the stream's name in messages (``streams[i]``).
+        received: readings fed (an invalid one raises, uncounted).
+        queued: waiting for the IMU to reach them.
+        accepted, rejected: applied and accepted, or rejected by the innovation gate.
+        late: of those applied, the ones that arrived after their epoch had run.
+        refused: stamped before the lag window.
+        skipped: stamped before the first IMU sample's half step (outside the pass).
+        nis_sum, dof: the applied readings' NIS summed, and their components.
+    """
+
+    name: str
+    received: int
+    queued: int
+    accepted: int
+    rejected: int
+    late: int
+    refused: int
+    skipped: int
+    nis_sum: float
+    dof: int
+
+    @property
+    def mean_nis_per_dof(self) -> float:
+        """Mean NIS per degree of freedom of the applied readings (1 when consistent;
+        NaN before any)."""
+        return self.nis_sum / self.dof if self.dof else float("nan")
+
+
+class Navigator:
+    """The filter pass fed as the data arrives (see the module docstring for the rule).
+
+    Args:
+        streams: :class:`pronet.Dvl`, :class:`pronet.Depth`, :class:`pronet.Fix`,
+            :class:`pronet.Heading` without rows (e.g. ``Depth([], [], sigma=0.05,
+            lever_arm=...)``): each sensor's noise, frame, lever arm and gate; readings
+            are fed by the stream's index.
+        initial: where it starts (:func:`pronet.recorded.initial.initial_state` finds one
+            in a recording's first seconds, as ``pronet navigate`` does); its
+            ``p0_sigma`` is the filter's initial 1σ.
+        strategy: a native strategy (``Strategy.constant``, ``adaptive``, ``mehra``) or
+            a :class:`pronet.strategies.Learned` regressor.
+        config: the filter's tuning (default ``FilterConfig()``); ``p0_sigma`` comes from
+            ``initial``.
+        bias0: ``(6,)`` initial ``[b_a, b_g]`` estimate (default zeros).
+        lag: how late [s] a reading may be stamped before the newest IMU sample and still
+            be applied at its own epoch (finite, >= 0).
+        checkpoint_every: a copy of the filter every so many epochs (>= 1): a late
+            reading costs at most this many IMU steps more; each copy is a few kB.
+        imu_dt: the IMU's sample period [s], for a learned strategy's tuning instants
+            (required with one).
+        window: raw samples per window the regressor reads.
+        guardrails: bounds on the regressor's q (default :class:`Guardrails`).
+    """
+
+    def __init__(
+        self,
+        streams: Sequence[Stream],
+        *,
+        initial: InitialState,
+        strategy: StrategyLike,
+        config: _core.FilterConfig | None = None,
+        bias0: ArrayLike | None = None,
+        lag: float = DEFAULT_LAG,
+        checkpoint_every: int = 32,
+        imu_dt: float | None = None,
+        window: int = DEFAULT_WINDOW,
+        guardrails: Guardrails | None = None,
+    ) -> None:
+        check_type(initial, InitialState, "initial")
+        base = _core.FilterConfig() if config is None else config
+        check_type(base, _core.FilterConfig, "config")
+        p0 = [float(v) for v in float_array(initial.p0_sigma, "initial.p0_sigma", (15,))]
+        cfg = filter_config({"p0_sigma": p0}, "the initial state", base)
+        native_strategy, learned = native_of(strategy)
+        check_type(native_strategy, _core.Strategy, "strategy")
+        if learned is not None and imu_dt is None:
+            raise ValueError(
+                "imu_dt: a learned strategy's tuning instants need the IMU's sample period [s]"
+            )
+        self._native = _core.Navigator(
+            list(streams),
+            t0=scalar(initial.t0, "initial.t0"),
+            lla0=initial.lla,
+            vel0=initial.vel,
+            rpy0=initial.rpy,
+            config=cfg,
+            strategy=native_strategy,
+            bias0=bias0,
+            lag=lag,
+            checkpoint_every=checkpoint_every,
+            tuning_period=None if learned is None else learned.tuning_period,
+            imu_dt=None if imu_dt is None else scalar(imu_dt, "imu_dt"),
+            window=window,
+        )
+        self._regressor = None if learned is None else for_loop(learned.regressor)
+        self._guardrails = Guardrails() if guardrails is None else guardrails
+        check_type(self._guardrails, Guardrails, "guardrails")
+        prior = np.zeros(6) if learned is None else learned.prior_q
+        self._q_prev = np.asarray(prior, dtype=np.float64)
+        #: guardrail events of the learned loop so far: entries clipped into range and
+        #: non-finite predictions replaced by the last good q
+        self.clipped = 0
+        self.non_finite = 0
+        #: q set at each tuning instant so far: ``(epoch, q (6,))``
+        self.q_history: list[tuple[int, F64]] = []
+
+    def imu(self, time: float, sample: ArrayLike) -> None:
+        """Feed one IMU sample ``[f (m/s²), ω (rad/s)]`` (body FRD) ending at ``time``
+        [s], after the newest; a tuning instant sets q before the next."""
+        self._native.imu(time, sample)
+        if self._regressor is not None and self._native.tuning_due:
+            self._tune()
+
+    def imu_block(self, times: ArrayLike, samples: ArrayLike) -> None:
+        """Feed IMU samples ``(n, 6)`` ending at ``times`` ``(n,)`` [s], in order: the
+        batch speed, the learned loop run at its instants in between."""
+        t = float_array(times, "imu_time", (None,))
+        s = float_array(samples, "imu", (len(t), 6))
+        done = 0
+        while done < len(t):
+            done += self._native.imu_block(t[done:], s[done:])
+            if self._regressor is not None and self._native.tuning_due:
+                self._tune()
+
+    def reading(
+        self, stream: int, time: float, value: ArrayLike, sigma: ArrayLike | None = None
+    ) -> str:
+        """Feed the reading ``value`` of ``streams[stream]`` stamped ``time`` [s] (a
+        velocity ``(3,)`` [m/s], a depth [m], a fix ``[φ, λ (rad), h (m, NaN: none)]``, a
+        heading [rad]) with its own 1σ ``sigma`` (None: the stream's). Returns what
+        became of it: ``"queued"`` (for an epoch still to come), ``"late"`` (applied at
+        its own, already run), ``"refused"`` (before the lag window) or ``"skipped"``
+        (before the pass's start)."""
+        return self._native.reading(stream, time, value, sigma)
+
+    def state(self) -> NavigatorState:
+        """The estimate at the newest epoch (σ brought up to date on a copy: asking
+        changes nothing that follows)."""
+        return NavigatorState(**self._native.state())
+
+    def tally(self) -> list[StreamTally]:
+        """Each stream's tally so far, in the streams' order."""
+        return [StreamTally(**t) for t in self._native.tally()]
+
+    @property
+    def epoch(self) -> int:
+        """IMU samples fed."""
+        return self._native.epoch
+
+    @property
+    def failure(self) -> str | None:
+        """The error that stopped the navigator (every later call raises it), or None."""
+        return self._native.failure
+
+    def _tune(self) -> None:
+        """Run the regressor on the window and set its guarded q from the next sample."""
+        assert self._regressor is not None
+        window = self._native.window
+        assert window is not None
+        q = _predictions(self._regressor, window[None])
+        if q.shape != (1, 6):
+            raise ValueError(
+                f"regressor: predict returned shape {q.shape} for one window; expected (1, 6)"
+            )
+        guarded, non_finite, clipped = apply_guardrails(q, self._q_prev[None], self._guardrails)
+        self.non_finite += int(non_finite.sum())
+        self.clipped += int(clipped.sum())
+        self._q_prev = guarded[0]
+        self._native.set_q(self._q_prev)
+        self.q_history.append((self._native.epoch, self._q_prev))
