@@ -191,3 +191,25 @@ def write_mission_bag(
         lla0 = t.lla[0]
         bag.truth(str(topics.truth), t.time[k], t.lla[k], t.vel[k], t.rpy[k], lla0)
     return bag.write(path), topics
+
+
+def write_vehicle_file(tmp_path: Path, m: Mission, *, arms: bool = True) -> Path:
+    """A vehicle file as the mission's team would write it: the MEMS grade, the DVL's σ,
+    the lever arms (with ``arms``), the compass's σ and the sensor's depth afloat."""
+    la = m.lever_arms
+    lines = [
+        'grade = "mems"',
+        f"dvl_variance = {[m.sensors.dvl_sigma**2] * 3}",
+        f"dvl_lever_arm = {list(map(float, la.dvl))}",
+        f"heading_sigma = {np.degrees(m.sensors.heading_sigma)}",
+        # the survey floats with its IMU 0.3 m deep, level
+        f"surface_depth = {0.3 + la.depth[2]}",
+    ]
+    if arms:
+        lines += [
+            f"depth_lever_arm = {list(map(float, la.depth))}",
+            f"fix_lever_arm = {list(map(float, la.fix))}",
+        ]
+    path = tmp_path / "vehicle.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -37,6 +37,7 @@ from mission_files import (  # noqa: F401 - the files of a mission, with it
     fix_sigma,
     write_generic,
     write_mission_bag,
+    write_vehicle_file,
 )
 from numpy.typing import NDArray
 

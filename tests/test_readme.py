@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,6 +78,10 @@ def _navigate_md(ns: dict) -> None:
     # every stream told its noise: its NIS per degree of freedom near 1 (a 3-minute
     # recording's band is wide and may be left by chance; the flag says so, not this)
     assert all(0.7 < s.mean_nis / s.dof < 1.3 for s in ns["nav"].streams)
+    # the online navigator, fed the same recording, ends where the navigate pass does
+    state, forward = ns["online"].state(), ns["nav"].forward
+    assert state.time == forward.time[-1] and np.array_equal(state.lla, forward.lla[-1])
+    assert all(t.refused == 0 and t.accepted > 0 for t in ns["online"].tally())
 
 
 #: What each page's session must have produced, beyond running without an error.

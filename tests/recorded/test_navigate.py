@@ -15,7 +15,13 @@ import numpy as np
 import pandas as pd
 import pytest
 from mission_recording import LeverArms as MissionArms
-from mission_recording import Mission, simulate_mission, write_generic, write_mission_bag
+from mission_recording import (
+    Mission,
+    simulate_mission,
+    write_generic,
+    write_mission_bag,
+    write_vehicle_file,
+)
 
 import pronet
 from pronet.recorded.initialinputs import GivenState
@@ -30,28 +36,6 @@ from pronet.recorded.vehicle import load_vehicle
 
 MINUTES_FAST = 6.0
 MINUTES = 22.0
-
-
-def _vehicle_file(tmp_path: Path, m: Mission, *, arms: bool = True) -> Path:
-    """A vehicle file as the mission's team would write it: the MEMS grade, the DVL's σ,
-    the lever arms (with ``arms``), the compass's σ and the sensor's depth afloat."""
-    la = m.lever_arms
-    lines = [
-        'grade = "mems"',
-        f"dvl_variance = {[m.sensors.dvl_sigma**2] * 3}",
-        f"dvl_lever_arm = {list(map(float, la.dvl))}",
-        f"heading_sigma = {np.degrees(m.sensors.heading_sigma)}",
-        # the survey floats with its IMU 0.3 m deep, level
-        f"surface_depth = {0.3 + la.depth[2]}",
-    ]
-    if arms:
-        lines += [
-            f"depth_lever_arm = {list(map(float, la.depth))}",
-            f"fix_lever_arm = {list(map(float, la.fix))}",
-        ]
-    path = tmp_path / "vehicle.toml"
-    path.write_text("\n".join(lines) + "\n")
-    return path
 
 
 def _errors(solution: Solution, m: Mission) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +86,7 @@ def test_one_command_on_a_bag_without_truth_writes_the_files(tmp_path, short) ->
         code = main([
             "navigate", "--data", str(bag), "--format", "bag", "--depth-topic", str(topics.depth),
             "--fix-topic", str(topics.fix), "--heading-topic", topics.imu, "--filter",
-            str(_vehicle_file(tmp_path, short)), "--out", str(out), "--no-plots", "--quiet",
+            str(write_vehicle_file(tmp_path, short)), "--out", str(out), "--no-plots", "--quiet",
         ])  # fmt: skip
         assert code == 0
         written = {p.name for p in out.iterdir()}
@@ -118,7 +102,7 @@ def test_one_command_on_a_bag_without_truth_writes_the_files(tmp_path, short) ->
 
 def test_the_files_read_back_with_the_solutions_sigma(tmp_path, short) -> None:
     folder = write_generic(short, tmp_path / "mission")
-    nav = _navigate(folder, _vehicle_file(tmp_path, short))
+    nav = _navigate(folder, write_vehicle_file(tmp_path, short))
     from pronet.recorded.export import write_all
 
     write_all(nav, tmp_path / "out", figures=False)
@@ -148,11 +132,11 @@ def test_lever_arms_of_a_metre_are_needed_and_flagged_when_left_out(tmp_path) ->
     arms = MissionArms(depth=(0.8, 0.0, 0.6), fix=(0.8, 0.0, -0.6))
     m = simulate_mission(1, minutes=MINUTES, lever_arms=arms)
     folder = write_generic(m, tmp_path / "mission")
-    told = _navigate(folder, _vehicle_file(tmp_path, m))
+    told = _navigate(folder, write_vehicle_file(tmp_path, m))
     position, _ = _within_3_sigma(told.forward, m)
     assert position >= 0.95, position
     assert not any(r.flag for r in told.streams if r.name in ("depth", "fix"))
-    untold = _navigate(folder, _vehicle_file(tmp_path, m, arms=False))
+    untold = _navigate(folder, write_vehicle_file(tmp_path, m, arms=False))
     flags = {r.name: r.flag for r in untold.streams}
     for stream in ("depth", "fix"):
         assert flags[stream].startswith(f"{stream}: mean NIS "), flags
@@ -169,7 +153,7 @@ def test_a_recording_with_truth_scores_as_pronet_real(tmp_path, short, capsys) -
     from pronet.recorded.real import plan_section
 
     folder = write_generic(short, tmp_path / "mission", truth=True)
-    vehicle = load_vehicle(_vehicle_file(tmp_path, short, arms=False))
+    vehicle = load_vehicle(write_vehicle_file(tmp_path, short, arms=False))
     arms = LeverArms(dvl=vehicle.dvl_lever_arm)
     opts = NavigateOptions(init="truth", smooth=False, use_heading=False, surface_offset=0.0)
     nav = navigate_recording(folder, "generic", vehicle, arms, opts)
@@ -182,7 +166,7 @@ def test_a_recording_with_truth_scores_as_pronet_real(tmp_path, short, capsys) -
     # the same by the command: its JSON result holds the score
     from pronet.cli import main
 
-    vehicle_file = _vehicle_file(tmp_path, short, arms=False)
+    vehicle_file = write_vehicle_file(tmp_path, short, arms=False)
     code = main([
         "navigate", "--data", str(folder), "--filter", str(vehicle_file), "--init", "truth",
         "--surface-offset", "0", "--no-heading", "--no-smooth", "--no-plots", "--json",
@@ -200,7 +184,7 @@ def test_a_22_minute_survey_with_fixes_navigates_to_decimetres(tmp_path) -> None
     the truth-initialised pass, consistent (position within 3σ at ≥ 95 %)."""
     m = simulate_mission(0, minutes=MINUTES)
     folder = write_generic(m, tmp_path / "mission", truth=True)
-    vehicle = _vehicle_file(tmp_path, m)
+    vehicle = write_vehicle_file(tmp_path, m)
     nav = _navigate(folder, vehicle)
     assert nav.smoothed is not None
     forward, smoothed = _horizontal_rms(nav.forward, m), _horizontal_rms(nav.smoothed, m)
@@ -217,7 +201,7 @@ def test_a_compass_without_fixes_holds_the_heading_and_halves_the_drift(tmp_path
     horizontal error at most half the DVL-only one."""
     m = simulate_mission(0, minutes=MINUTES)
     folder = write_generic(m, tmp_path / "mission")
-    vehicle = _vehicle_file(tmp_path, m)
+    vehicle = write_vehicle_file(tmp_path, m)
     # the start needs a position and, DVL-only, a heading (a MEMS gyro cannot
     # gyrocompass): both runs are given them, as a surface fix and a compass would
     given = GivenState(

@@ -5,13 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from mission_recording import Mission, simulate_mission
+from mission_recording import Mission, simulate_mission, write_generic, write_vehicle_file
 
 import pronet
 from pronet import _core
 from pronet.learn.hybrid import q_schedule
-from pronet.recorded.online import Navigator
+from pronet.recorded.alignment import load_section
+from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate
+from pronet.recorded.online import Navigator, navigator_for, readings_of
 from pronet.recorded.solution import InitialState
+from pronet.recorded.vehicle import load_vehicle
 from pronet.strategies import StrategySpec, strategy
 
 Q = (1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8)
@@ -221,3 +224,38 @@ def test_bad_input_is_one_line_naming_it(mission) -> None:
     with pytest.raises(ValueError, match="^lag: "):
         Navigator([], initial=_initial(m), strategy=NATIVE["constant"], lag=-1.0)
     assert nav.failure is None and nav.epoch == 1
+
+
+@pytest.mark.parametrize("spec", ["constant", "mehra:20", "learned:detrend"])
+def test_navigator_for_a_recording_is_navigate_s_forward_pass(tmp_path, mission, spec) -> None:
+    m = mission
+    write_generic(m, tmp_path / "mission")
+    vehicle = load_vehicle(write_vehicle_file(tmp_path, m))
+    arms = lever_arms(vehicle)
+    options = NavigateOptions(
+        surface_depth=vehicle.surface_depth or 0.0, smooth=False, strategy=spec
+    )
+    section, _ = load_section(
+        tmp_path / "mission", "generic", imu_lever_arm=arms.imu, dvl_lever_arm=arms.dvl
+    )
+    batch = navigate(section, vehicle, arms, options)
+    nav, made = navigator_for(section, vehicle, arms, options)
+    assert made.initial.t0 == batch.initial.t0
+    take = section.imu_time > made.initial.t0
+    readings = readings_of(made)
+    assert {r.stream for r in readings} == {0, 1, 2, 3}
+    i = 0
+    for t, raw in zip(section.imu_time[take], section.imu[take], strict=True):
+        while i < len(readings) and readings[i].time <= t:
+            r = readings[i]
+            nav.reading(r.stream, r.time, r.value, r.sigma)
+            i += 1
+        nav.imu(t, raw)
+    for r in readings[i:]:
+        nav.reading(r.stream, r.time, r.value, r.sigma)
+    s = nav.state()
+    np.testing.assert_array_equal(s.lla, batch.forward.lla[-1])
+    np.testing.assert_array_equal(s.rpy, batch.forward.rpy[-1])
+    np.testing.assert_array_equal(s.sigma, batch.forward.sigma[-1])
+    applied = [t.accepted + t.rejected for t in nav.tally()]
+    assert applied == [r.applied for r in batch.streams]

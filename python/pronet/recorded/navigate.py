@@ -353,6 +353,36 @@ def _filter_keys(config: _core.FilterConfig) -> dict[str, Any]:
     return {k: getattr(config, k) for k in keys}
 
 
+@dataclass(frozen=True)
+class Setup:
+    """What :func:`navigate` runs the filter with, set up from a section (the pass's
+    steps 1 to 4): the tuning (with the P0 the initial state earns), the streams as
+    used, the initial state, the strategy and the depth, fix and heading streams at
+    their arms (:func:`setup`)."""
+
+    config: _core.FilterConfig
+    streams: Streams
+    initial: InitialState
+    strategy: StrategyLike
+    aiding: tuple[Stream, ...]
+
+
+def setup(
+    section: Section,
+    vehicle: VehicleTuning,
+    arms: LeverArms = LeverArms(),
+    options: NavigateOptions = NavigateOptions(),
+) -> Setup:
+    """The filter :func:`navigate` runs over ``section``, set up (steps 1 to 4 of the
+    module docstring): also where an online navigator starts from the first minutes of a
+    mission (:func:`pronet.recorded.online.navigator_for`)."""
+    config = _config(section, vehicle, arms)
+    streams = _streams(section, vehicle, options)
+    initial, config = _initial(section, config, streams, arms, options)
+    chosen = _strategy(options.strategy, section)
+    return Setup(config, streams, initial, chosen, _aiding(streams, arms))
+
+
 def navigate(
     section: Section,
     vehicle: VehicleTuning,
@@ -363,18 +393,15 @@ def navigate(
     """Navigate ``section`` with ``vehicle``'s tuning, its sensors at ``arms``, as
     ``options`` say (the steps are in the module docstring). ValueError, one line naming
     what is missing or wrong, before the filter runs."""
-    config = _config(section, vehicle, arms)
-    streams = _streams(section, vehicle, options)
-    initial, config = _initial(section, config, streams, arms, options)
-    chosen = _strategy(options.strategy, section)
+    made = setup(section, vehicle, arms, options)
+    config, streams, initial = made.config, made.streams, made.initial
     take = section.imu_time > initial.t0
     recorded = Recorded(
         imu=section.imu[take], imu_time=section.imu_time[take], dvl=streams.dvl,
         dvl_time=streams.dvl_time, t0=initial.t0, lla0=initial.lla, vel0=initial.vel,
-        rpy0=initial.rpy, config=config, smooth=options.smooth,
-        aiding=_aiding(streams, arms),
+        rpy0=initial.rpy, config=config, smooth=options.smooth, aiding=made.aiding,
     )  # fmt: skip
-    result = run(chosen, recorded).result
+    result = run(made.strategy, recorded).result
     reference = np.negative(arms.imu)
     forward = solution_of("forward", result, section.epoch, recorded.imu, reference)
     smoothed = None

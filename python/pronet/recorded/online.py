@@ -36,7 +36,10 @@ from pronet.config import filter_config
 from pronet.filter import Stream
 from pronet.learn.hybrid import Guardrails, _predictions, apply_guardrails, for_loop
 from pronet.montecarlo import DEFAULT_WINDOW
+from pronet.recorded.alignment import Section
+from pronet.recorded.navigate import LeverArms, NavigateOptions, Setup, setup
 from pronet.recorded.solution import InitialState
+from pronet.recorded.vehicle import VehicleTuning
 from pronet.run import native_of
 from pronet.strategies import StrategyLike
 
@@ -170,7 +173,7 @@ class Navigator:
             lag=lag,
             checkpoint_every=checkpoint_every,
             tuning_period=None if learned is None else learned.tuning_period,
-            imu_dt=None if imu_dt is None else scalar(imu_dt, "imu_dt"),
+            imu_dt=None if learned is None or imu_dt is None else scalar(imu_dt, "imu_dt"),
             window=window,
         )
         self._regressor = None if learned is None else for_loop(learned.regressor)
@@ -249,3 +252,96 @@ class Navigator:
         self._q_prev = guarded[0]
         self._native.set_q(self._q_prev)
         self.q_history.append((self._native.epoch, self._q_prev))
+
+
+@dataclass(frozen=True)
+class TimedReading:
+    """One reading to feed: its time [s], its stream's index, its value and 1σ (as
+    :meth:`Navigator.reading` takes them)."""
+
+    time: float
+    stream: int
+    value: F64
+    sigma: F64 | None
+
+
+def navigator_for(
+    section: Section,
+    vehicle: VehicleTuning,
+    arms: LeverArms = LeverArms(),  # noqa: B008 - frozen
+    options: NavigateOptions = NavigateOptions(),  # noqa: B008 - frozen
+    *,
+    lag: float = DEFAULT_LAG,
+    checkpoint_every: int = 32,
+) -> tuple[Navigator, Setup]:
+    """A navigator set up as :func:`pronet.recorded.navigate.navigate` sets up its
+    filter for ``section``, and that set-up (:func:`pronet.recorded.navigate.setup`).
+
+    ``section`` is the data so far: on a vehicle, the first minutes (the initial state
+    found in them as ``pronet navigate`` finds it, q from their IMU noise, the surface
+    pressure from their surface fixes); after a dive, the whole recording. The streams
+    are navigate's, in its order: the DVL (index 0, the tuning's R and lever arm), then
+    the depth, the fixes and the heading where used (:attr:`Setup.aiding`), each with
+    the σ of its first reading (a reading fed without its own σ takes it).
+    :func:`readings_of` gives the section's own readings in time order. Fed the
+    section's IMU samples after ``initial.t0`` and those readings in time order, its
+    epochs are navigate's forward solution's (before the move to the reference point).
+    """
+    made = setup(section, vehicle, arms, options)
+    templates: list[Stream] = [_core.Dvl([], np.zeros((0, 3)))]
+    templates += [_without_rows(s) for s in made.aiding]
+    after = section.imu_time[section.imu_time > made.initial.t0]
+    imu_dt = float(np.median(np.diff(after))) if len(after) > 1 else None
+    nav = Navigator(
+        templates,
+        initial=made.initial,
+        strategy=made.strategy,
+        config=made.config,
+        lag=lag,
+        checkpoint_every=checkpoint_every,
+        imu_dt=imu_dt,
+    )
+    return nav, made
+
+
+def _without_rows(stream: Stream) -> Stream:
+    """``stream``'s sensor (σ, lever arm) without its rows."""
+    if isinstance(stream, _core.Depth):
+        sigma = np.ravel(stream.sigma)[0]
+        return _core.Depth([], [], sigma=sigma, lever_arm=stream.lever_arm)
+    if isinstance(stream, _core.Fix):
+        sigma3 = np.asarray(stream.sigma).reshape(-1, 3)[0]
+        return _core.Fix([], np.zeros((0, 3)), sigma=sigma3, lever_arm=stream.lever_arm)
+    if isinstance(stream, _core.Heading):
+        return _core.Heading([], [], sigma=np.ravel(stream.sigma)[0])
+    raise ValueError(f"stream: expected a Depth, Fix or Heading, got {type(stream).__name__}")
+
+
+def _values(stream: Stream) -> F64:
+    """A depth, fix or heading stream's rows."""
+    if isinstance(stream, _core.Depth):
+        return stream.depth
+    if isinstance(stream, _core.Fix):
+        return stream.lla
+    if isinstance(stream, _core.Heading):
+        return stream.heading
+    raise ValueError(f"stream: expected a Depth, Fix or Heading, got {type(stream).__name__}")
+
+
+def readings_of(made: Setup) -> list[TimedReading]:
+    """The readings of a set-up's streams in time order, as :func:`navigator_for`'s
+    navigator numbers them (a tie in time: the lower stream first)."""
+    out = [
+        TimedReading(float(t), 0, v, None)
+        for t, v in zip(made.streams.dvl_time, made.streams.dvl, strict=True)
+    ]
+    for i, s in enumerate(made.aiding, start=1):
+        values = _values(s)
+        n = len(s.time)
+        sigma = np.broadcast_to(np.asarray(s.sigma, dtype=np.float64), (n, *np.shape(values)[1:]))
+        out += [
+            TimedReading(float(t), i, np.atleast_1d(v), np.atleast_1d(sg))
+            for t, v, sg in zip(s.time, values, sigma, strict=True)
+        ]
+    out.sort(key=lambda r: (r.time, r.stream))
+    return out
