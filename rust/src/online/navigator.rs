@@ -174,6 +174,9 @@ impl Navigator {
     ) -> Result<Self> {
         lag.validate()?;
         check::finite("t0", &[start.t0])?;
+        for sensor in &sensors {
+            sensor.check_config(cfg)?;
+        }
         let ekf = start_filter(&start.nav, &start.bias, cfg, strategy.as_ref())?;
         let pass = Pass::new(ekf);
         let t0 = start.t0;

@@ -56,6 +56,12 @@ impl Sensor {
         Ok(Self { template })
     }
 
+    /// Whether the sensor can feed a filter of configuration `cfg`
+    /// ([`Stream::check_config`]).
+    pub fn check_config(&self, cfg: &crate::ekf::FilterConfig) -> Result<()> {
+        self.template.check_config(cfg)
+    }
+
     /// The sensor's name in messages.
     pub fn name(&self) -> &str {
         &self.template.name

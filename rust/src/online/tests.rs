@@ -2,8 +2,9 @@
 //! order, with late readings and beyond its lag window.
 
 use super::{Fate, Lag, Navigator, Sensor, Start, Tuning};
+use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::tests::moving_state;
-use crate::ekf::FilterConfig;
+use crate::ekf::{Aiding, FilterConfig};
 use crate::error::Error;
 use crate::noise::StrategySpec;
 use crate::recorded::{filter_recorded, FilterOutput, PerRow, RecordedData, Stream, Values};
@@ -229,7 +230,15 @@ fn fed_in_time_order_every_epoch_is_the_batch_pass_s() {
         covariance_step: 0.0,
         ..FilterConfig::default()
     };
-    for cfg in [FilterConfig::default(), every_sample] {
+    let calibrated = FilterConfig {
+        dvl_calibration: Some(CalibrationConfig::default()),
+        ..FilterConfig::default()
+    };
+    let ned = FilterConfig {
+        aiding: Aiding::Nav,
+        ..FilterConfig::default()
+    };
+    for cfg in [FilterConfig::default(), every_sample, calibrated, ned] {
         for spec in strategies() {
             let out = batch(&m, &cfg, &spec, &[]);
             let mut nav = navigator(&cfg, &spec, Lag::default(), None);
@@ -238,7 +247,13 @@ fn fed_in_time_order_every_epoch_is_the_batch_pass_s() {
                 assert_eq!(e.nav, out.nav[k], "{spec:?} epoch {k}");
                 assert_eq!(e.bias, out.bias[k], "{spec:?} epoch {k}");
             });
-            assert_eq!(nav.estimate().sigma, *out.sigma.last().unwrap(), "{spec:?}");
+            let e = nav.estimate();
+            assert_eq!(e.sigma, *out.sigma.last().unwrap(), "{spec:?}");
+            if let Some((c, c_sigma)) = e.calibration {
+                assert_eq!(c, *out.calibration.last().unwrap());
+                assert_eq!(c_sigma, *out.calibration_sigma.last().unwrap());
+            }
+            assert_eq!(e.calibration.is_some(), cfg.dvl_calibration.is_some());
             let tally = nav.tally();
             for (s, record) in out.streams.iter().enumerate() {
                 let applied = record.epoch.iter().flatten().count();
@@ -376,6 +391,26 @@ fn bad_input_is_refused_in_one_line() {
         ..Stream::depth(&[], &[], 0.1)
     };
     assert_eq!(arg(Sensor::of(&per_row).unwrap_err()), "depth_sigma");
+    // A NED velocity stream beside the DVL calibration states, as a batch pass refuses.
+    let calibrated = FilterConfig {
+        dvl_calibration: Some(CalibrationConfig::default()),
+        ..FilterConfig::default()
+    };
+    let ned = FilterConfig {
+        aiding: Aiding::Nav,
+        ..FilterConfig::default()
+    };
+    let e = Navigator::new(
+        start(),
+        &calibrated,
+        spec.build(cfg.bias_psd()),
+        sensors(&ned),
+        Lag::default(),
+        None,
+    )
+    .err()
+    .unwrap();
+    assert_eq!(arg(e), "dvl");
     assert_eq!(
         arg(Lag {
             window: f64::NAN,
