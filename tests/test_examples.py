@@ -33,6 +33,7 @@ def test_every_example_is_tested() -> None:
     assert sorted(p.name for p in EXAMPLES.glob("*.py")) == [
         "custom_trajectory.py",
         "mems_survey.py",
+        "online_ros2.py",  # tests/recorded/test_online_example.py (a ROS 2 bag)
         "own_arrays.py",
         "own_estimator.py",
         "own_regressor.py",
