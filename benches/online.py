@@ -47,6 +47,8 @@ rows:
 ``--quick`` (2 minutes of data, 3 rounds, 0.1 h and 0.5 h; a few seconds) checks that
 the script works (``tests/test_bench_run.py``); it measures nothing. ``--json FILE``
 also writes the rows, every round's times on both clocks and the memory readings.
+``benches/run.py --only online`` runs this in a fresh process and prints its rows in
+run.py's table.
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 ``--json`` file hold the same rows, each timed row is its number over the same run's
 reference, each verdict agrees with its number and target, and ``--compare`` pairs the
 rows of two runs. benches/online.py's ``--quick`` prints its rows, its feeds end where
-``run_filter`` does. Nothing here judges the machine's speed."""
+``run_filter`` does, and run.py carries its headline rows. Nothing here judges the
+machine's speed."""
 
 from __future__ import annotations
 
@@ -252,3 +253,19 @@ def test_the_online_bench_feeds_end_on_run_filter_s_epoch_and_its_verdicts_agree
         assert m["imu_samples"] == m["epoch"] == samples
         assert m["applied"] == m["readings"] == samples // 100 * 8  # 5 Hz DVL + 3 at 1 Hz
         assert m["late"] == samples // 20 and m["peak_mib"] > 0
+
+
+def test_the_online_rows_in_run_py_s_table(online, monkeypatch):
+    _, record = online
+    filter_rows = load("filter_rows", monkeypatch)
+    ref = load("rows", monkeypatch).Reference(0.5)
+    rows = filter_rows.online_rows(record, ref, "c")
+    assert len(rows) == len(filter_rows.ONLINE_ROWS)
+    for row in rows:
+        assert row.what.startswith("online navigator: ")
+        if row.unit == "ns per step":
+            assert row.ratio == pytest.approx(row.value / ref.ns_per_step)
+        else:
+            assert row.ratio is None
+    blocks = [r for r in rows if "blocks of 1000" in r.what]
+    assert len(blocks) == 2 and all(r.unit == "x" and r.target == "≤ 1.1×" for r in blocks)
