@@ -20,6 +20,15 @@ Definitions:
   sample), target ≤ 1 GiB.
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
+- online navigator: ``benches/online.py`` in a fresh process (its definitions are
+  there), its headline rows: ``run_filter``'s step and one IMU sample per call from
+  Python (native and wrapper) in ns per step, each also over ``run_filter``'s in the
+  same rounds (target: at most 1 µs over it); blocks of 1000 over ``run_filter``; a
+  DVL reading 0.5 s late; every DVL reading 0.2–0.5 s late over in order; the peak
+  memory of a 10 h feed over a 1 h one (0.5 h over 0.1 h under ``--quick``). Timed on
+  the process's CPU time, which another job on the same cores moves less than the wall
+  (beside one, ``run_filter``'s wall time per sample ranged 0.39–0.77 µs over 25
+  rounds, its CPU time 0.39–0.41 µs).
 """
 
 from __future__ import annotations
@@ -30,7 +39,9 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rows import (
@@ -319,3 +330,58 @@ def bench_soak(args: argparse.Namespace, ref: Reference) -> list[Row]:
             ns_per_step=t_big / (big * PAPER_STEPS) * 1e9,
         ),
     ]
+
+
+#: ``benches/online.py``'s rows that run.py's table carries (the rest: run it alone).
+ONLINE_ROWS = (
+    "run_filter",
+    "imu_np",
+    "wrapper_imu",
+    "block_1000",
+    "wrapper_block_1000",
+    "late_reading",
+    "late_feed",
+    "memory_ratio",
+)
+
+
+def bench_online(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "online.json"
+        argv = ["--json", str(out)] + (["--quick"] if args.quick else [])
+        subprocess.run(
+            [sys.executable, str(ROOT / "benches" / "online.py"), *argv],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        record = json.loads(out.read_text())
+    return online_rows(record, ref, f"{SCRIPT} --only online")
+
+
+def online_rows(record: dict[str, Any], ref: Reference, command: str) -> list[Row]:
+    """``benches/online.py``'s ``--json`` record as run.py's rows: a time per IMU
+    sample in ns per step over the reference, its ratio to ``run_filter`` (measured in
+    the same rounds) in its text; a row with a target over ``run_filter`` (the blocks)
+    as that ratio; the others as they are."""
+    rows = []
+    for r in record["rows"]:
+        if r["key"] not in ONLINE_ROWS:
+            continue
+        what, target, met = f"online navigator: {r['what']}", r["target"], r["met"]
+        if r["unit"] != "µs per sample":
+            row = Row(what, r["measured"], target, met, command, r["value"], r["unit"])
+        elif target.endswith("× run_filter"):
+            ratio, ns = r["over_run_filter"], r["value"] * 1e3
+            measured = f"{times(ratio)} run_filter ({r['measured']})"
+            target = target.removesuffix(" run_filter")
+            row = Row(what, measured, target, met, command, ratio, "x", ns_per_step=ns)
+        else:
+            ns = r["value"] * 1e3
+            measured = r["measured"]
+            if r["key"] != "run_filter":
+                measured += f", {times(r['over_run_filter'])} run_filter"
+            row = per_step_row(what, ns, ref, command)
+            row.measured, row.target, row.met = measured, target, met
+        rows.append(row)
+    return rows

@@ -43,8 +43,8 @@ class Row:
         met: whether ``ratio`` (else ``value``) meets the target; None without one.
         command: the command that measures this row alone.
         value: the headline number in ``unit`` (for --json and --compare).
-        unit: "s", "ns per step", "x" (a ratio measured within the row), "MiB", or ""
-            without a number.
+        unit: "s", "ns per step", "x" (a ratio measured within the row), "MiB", "µs"
+            (the online navigator's late reading), or "" without a number.
         ratio: ``value`` over the reference (seconds over its seconds, ns per step over
             its ns per filter step); None for rows that are ratios already.
         ns_per_step: wall time [ns] per filter step, where the row counts its steps.

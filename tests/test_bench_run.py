@@ -1,7 +1,9 @@
 """benches/run.py works end to end on its cheap rows (``--quick``): the table and the
 ``--json`` file hold the same rows, each timed row is its number over the same run's
 reference, each verdict agrees with its number and target, and ``--compare`` pairs the
-rows of two runs. Nothing here judges the machine's speed."""
+rows of two runs. benches/online.py's ``--quick`` prints its rows, its feeds end where
+``run_filter`` does, and run.py carries its headline rows. Nothing here judges the
+machine's speed."""
 
 from __future__ import annotations
 
@@ -170,3 +172,100 @@ def test_the_formulation_row_divides_the_two_predict_steps_of_one_criterion_run(
         assert ratio.met == (invariant / classic <= filter_rows.FORMULATION_TARGET)
         assert ratio.target == f"≤ {filter_rows.FORMULATION_TARGET}×"
     assert filter_rows.formulation_ratio([rust("classic", 400.0)], "c") == []  # one side missing
+
+
+#: benches/online.py's rows, in order (``--json``'s keys).
+ONLINE_KEYS = [
+    "run_filter",
+    "run_filter_all",
+    "imu_np",
+    "wrapper_imu",
+    "imu_float",
+    "imu_list",
+    "floor_np",
+    "floor_float",
+    "floor_list",
+    "block_whole",
+    "block_whole_checkpoint_every_epoch",
+    "gil",
+    "block_1000",
+    "wrapper_block_1000",
+    "feed_in_order",
+    "late_reading",
+    "late_feed",
+    "memory_0.1h",
+    "memory_0.5h",
+    "memory_ratio",
+]
+
+
+@pytest.fixture(scope="module")
+def online(tmp_path_factory) -> tuple[str, dict]:
+    out = tmp_path_factory.mktemp("online") / "online.json"
+    done = subprocess.run(
+        [sys.executable, str(BENCHES / "online.py"), "--quick", "--json", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout, json.loads(out.read_text())
+
+
+def test_the_online_bench_prints_its_rows_and_its_json_holds_them(online):
+    stdout, record = online
+    rows = record["rows"]
+    assert [r["key"] for r in rows] == ONLINE_KEYS
+    printed = table(stdout)
+    assert [c[0] for c in printed] == [r["what"] for r in rows]
+    assert [c[1] for c in printed] == [r["measured"] for r in rows]
+    assert record["rounds"] == 3 and record["clock"] == "cpu"
+    for clock in ("cpu", "wall"):
+        times = record["times_s"][clock]
+        assert all(len(v) == 3 and min(v) > 0 for v in times.values())
+    for r in rows:
+        if r["unit"] == "µs per sample":
+            assert r["value"] > 0 and r["over_run_filter"] > 0, r
+    assert "# where one sample per call goes" in stdout
+
+
+def test_the_online_bench_feeds_end_on_run_filter_s_epoch_and_its_verdicts_agree(online):
+    stdout, record = online
+    checks = record["identical"]
+    assert all(v for k, v in checks.items() if not k.endswith("_fates")), checks
+    dvl = 120 * 5  # two minutes of a 5 Hz DVL
+    # every DVL reading late, the depth, fixes and heading (1 Hz) on time
+    assert checks["feed_late_05_fates"] == {"late": dvl, "queued": 3 * 120}
+    assert checks["feed_late_02_05_fates"]["late"] == dvl
+    assert "bit for bit: yes" in stdout
+    for r in record["rows"]:
+        if r["target"].endswith("µs over run_filter"):
+            assert isinstance(r["met"], bool), r
+        elif r["target"].endswith("× run_filter"):
+            assert r["met"] == (r["over_run_filter"] <= 1.1), r
+        elif r["key"] == "memory_ratio":
+            assert r["met"] == (r["value"] <= 1.05), r
+        else:
+            assert r["target"] == "—" and r["met"] is None, r
+    short, long = record["memory"]
+    for m, hours in ((short, 0.1), (long, 0.5)):
+        samples = round(hours * 3600 * 100)
+        assert m["imu_samples"] == m["epoch"] == samples
+        assert m["applied"] == m["readings"] == samples // 100 * 8  # 5 Hz DVL + 3 at 1 Hz
+        assert m["late"] == samples // 20 and m["peak_mib"] > 0
+
+
+def test_the_online_rows_in_run_py_s_table(online, monkeypatch):
+    _, record = online
+    filter_rows = load("filter_rows", monkeypatch)
+    ref = load("rows", monkeypatch).Reference(0.5)
+    rows = filter_rows.online_rows(record, ref, "c")
+    assert len(rows) == len(filter_rows.ONLINE_ROWS)
+    for row in rows:
+        assert row.what.startswith("online navigator: ")
+        if row.unit == "ns per step":
+            assert row.ratio == pytest.approx(row.value / ref.ns_per_step)
+        else:
+            assert row.ratio is None
+    blocks = [r for r in rows if "blocks of 1000" in r.what]
+    assert len(blocks) == 2 and all(r.unit == "x" and r.target == "≤ 1.1×" for r in blocks)
