@@ -8,7 +8,8 @@ would call: ``sensor_msgs/Imu`` → ``Navigator.imu``; the DVL's TwistWithCovari
 → reading 0 (body velocity); FluidPressure → 1 (depth); NavSatFix → 2 (latitude,
 longitude: the depth gives the height); with ``--heading-topic`` (the IMU's own: its
 AHRS yaw) a heading a second → 3. The conversions (REP-103's FLU and ENU to FRD and NED,
-pressure to depth, covariance to σ) are pronet.recorded.bags's; a reading without a
+pressure to depth, covariance to σ) are the bag reader's, one message at a time
+(pronet.recorded.messages.MessageConverter); a reading without a
 covariance takes the vehicle file's σ (pronet.recorded.vehicle: grade, σ, lever arms).
 
 The initial state is pronet.recorded.initial.initial_state's (not built by hand) on the
@@ -19,9 +20,9 @@ surface offset (pronet.recorded.surface: readings beside fixes while afloat), th
 step and q (the IMU's noise); those after t0 are then replayed.
 
 It prints the state once a second of message time (latitude, longitude, depth, yaw,
-horizontal 1σ √(σN² + σE²)) and, at the end, each stream's tally (``late``: applied at
-an epoch already run, as is any reading stamped within half an IMU step after the
-newest sample: not an error, a stretch run again). In an rclpy node the ``on_*``
+horizontal 1σ √(σN² + σE²)) and, at the end, each stream's tally (``late``: stamped
+before the newest IMU sample when it came, applied at its own epoch by running the
+stretch again). In an rclpy node the ``on_*``
 methods are the subscriptions' callbacks (``create_subscription(Imu, "/imu/data",
 node.on_imu, 10)``, …), ``nav.state()`` is published on a timer as
 ``nav_msgs/Odometry``, and the bag loop in :func:`main` stands for the executor.
@@ -39,17 +40,17 @@ import numpy as np
 
 import pronet
 from pronet.filter import Stream
-from pronet.recorded import bags  # its per-message conversions: pronet's bag reader's
 from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.attitude import yaw_degrees
-from pronet.recorded.bags import BagTopics, euler_from_dcm, require_rosbags
+from pronet.recorded.bags import BagTopics, require_rosbags
 from pronet.recorded.initial import initial_state
+from pronet.recorded.messages import MessageConverter
 from pronet.recorded.navigate import lever_arms
 from pronet.recorded.online import Navigator
 from pronet.recorded.surface import surface_offset
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.recorded.vehicle import load_vehicle
-from pronet.strategies import Learned, StrategySpec, strategy
+from pronet.strategies import StrategySpec, strategy
 
 STREAMS = ("dvl", "depth", "fix", "heading")  # the navigator's streams, by index
 TOPICS = {"imu": "/imu/data", "dvl": "/dvl/twist", "depth": "/bar30/pressure", "fix": "/usbl/fix"}
@@ -75,7 +76,7 @@ class Node:
         self.sigma = self.vehicle.aiding(AidingTuning())  # σ of readings without their own
         if topics.heading is not None and self.sigma.heading_sigma is None:
             raise ValueError("--heading-topic: give heading_sigma [deg] in the vehicle file")
-        self.t_w, self.d_b = bags._frames(topics)  # world → NED, body FRD → the bag's body
+        self.convert = MessageConverter(topics)  # one message at a time, as the reader
         self.kept: deque[Reading] = deque()
         self.next_try: float | None = None  # when to try to start next
         self.nav: Navigator | None = None
@@ -83,47 +84,42 @@ class Node:
         self.next_print = self.next_heading = -math.inf
         self.offset = 0.0  # the depth's surface offset [m]
 
-    def frd(self, vector: Any) -> Any:
-        """A vector message in the body frame FRD."""
-        return self.d_b @ bags._xyz(vector)
-
     def on_imu(self, msg: Any) -> None:
-        t, f, w = bags._stamp(msg), msg.linear_acceleration, msg.angular_velocity
-        self._event(Reading("imu", t, np.concatenate([self.frd(f), self.frd(w)]), None))
-        variance = np.array(msg.orientation_covariance)[[0, 4, 8]]
-        if self.nav is None and (variance > 0).all():  # an AHRS attitude, for the start
-            rpy = euler_from_dcm(self.t_w @ bags._dcm(msg.orientation) @ self.d_b)
-            self._event(Reading("orientation", t, rpy, np.sqrt(variance)))
+        t, sample = self.convert.imu(msg)
+        self._event(Reading("imu", t, sample, None))
+        attitude = self.convert.orientation(msg)
+        if self.nav is None and attitude is not None:  # an AHRS attitude, for the start
+            t, rpy, sigma = attitude
+            self._event(Reading("orientation", t, rpy, sigma))
         if self.topics.heading == self.topics.imu:
             self.on_heading(msg)
 
     def on_dvl(self, msg: Any) -> None:
-        twist = msg.twist.twist if hasattr(msg.twist, "twist") else msg.twist
-        r = bags._dvl_variance([msg])
-        sigma = None if r is None else np.sqrt(r)  # None: the vehicle's dvl_variance
-        self._event(Reading("dvl", bags._stamp(msg), self.frd(twist.linear), sigma))
+        t, velocity, sigma = self.convert.dvl(msg)
+        self._event(Reading("dvl", t, velocity, sigma))  # σ None: the vehicle's R
 
     def on_pressure(self, msg: Any) -> None:
-        rows, labels = bags._depth_rows([msg], self.topics)
-        sigma = rows[0, 2] if "sigma [m]" in labels else self.sigma.depth_sigma
-        self._event(Reading("depth", rows[0, 0], rows[0, 1], sigma))
+        t, depth, sigma = self.convert.depth(msg)
+        self._event(Reading("depth", t, depth, self.sigma.depth_sigma if sigma is None else sigma))
 
     def on_fix(self, msg: Any) -> None:
-        (row,), labels = bags._fix_rows([msg])
-        if not np.isnan(row[1]):  # NaN: STATUS_NO_FIX
-            sigma = row[4:7] if len(labels) > 4 else np.array(self.sigma.fix_sigma)
-            self._event(Reading("fix", row[0], np.array([row[1], row[2], np.nan]), sigma))
+        fix = self.convert.fix(msg)
+        if fix is not None:  # None: STATUS_NO_FIX
+            t, lla, sigma = fix
+            lla[2] = np.nan  # horizontal: the depth gives the height
+            self._event(Reading("fix", t, lla, self.sigma.fix_sigma if sigma is None else sigma))
 
     def on_heading(self, msg: Any) -> None:
-        if bags._stamp(msg) < self.next_heading:
+        if self.convert.stamp(msg) < self.next_heading:
             return  # a compass's error is slow: one reading a second
-        table = bags._heading_rows([msg], self.topics)
-        t, yaw = table.values[0, :2]
-        if table.reasons and table.reasons[0]:
+        heading = self.convert.heading(msg)
+        if heading is None:
             return  # no orientation
+        t, yaw, sigma = heading
         self.next_heading = t + 1.0
-        sigma = table.values[0, 2] if len(table.labels) > 2 else self.sigma.heading_sigma
-        self._event(Reading("heading", t, yaw, sigma))
+        self._event(
+            Reading("heading", t, yaw, self.sigma.heading_sigma if sigma is None else sigma)
+        )
 
     def _event(self, r: Reading) -> None:
         if self.nav is None:
@@ -186,9 +182,10 @@ class Node:
         ]
         if self.topics.heading is not None:
             streams.append(pronet.Heading(no, no, sigma=s.heading_sigma))
-        chosen = strategy(self.spec, white_noise_q(imu))
-        step = config.imu_dt if isinstance(chosen, Learned) else None  # its tuning instants
-        self.nav = Navigator(streams, initial=initial, strategy=chosen, config=config, imu_dt=step)
+        chosen = strategy(self.spec, white_noise_q(imu))  # q: the IMU's noise while kept
+        self.nav = Navigator(
+            streams, initial=initial, strategy=chosen, config=config, imu_dt=config.imu_dt
+        )
         methods = "; ".join(f"{k}: {v}" for k, v in initial.methods.items())
         print(f"start at {initial.t0:.3f} s: {methods}")
         print(f"surface: {surface.note}" if surface is not None else "surface: no depth")

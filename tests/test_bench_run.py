@@ -234,9 +234,12 @@ def test_the_online_bench_feeds_end_on_run_filter_s_epoch_and_its_verdicts_agree
     checks = record["identical"]
     assert all(v for k, v in checks.items() if not k.endswith("_fates")), checks
     dvl = 120 * 5  # two minutes of a 5 Hz DVL
-    # every DVL reading late, the depth, fixes and heading (1 Hz) on time
-    assert checks["feed_late_05_fates"] == {"late": dvl, "queued": 3 * 120}
-    assert checks["feed_late_02_05_fates"]["late"] == dvl
+    # every DVL reading late (those fed after the last sample but stamped within its
+    # half step: "current"), the depth, fixes and heading (1 Hz) on time
+    for name in ("feed_late_05_fates", "feed_late_02_05_fates"):
+        fates = dict(checks[name])
+        assert fates.pop("late") + fates.pop("current", 0) == dvl, checks[name]
+        assert fates == {"queued": 3 * 120}, checks[name]
     assert "bit for bit: yes" in stdout
     for r in record["rows"]:
         if r["target"].endswith("µs over run_filter"):
@@ -252,7 +255,8 @@ def test_the_online_bench_feeds_end_on_run_filter_s_epoch_and_its_verdicts_agree
         samples = round(hours * 3600 * 100)
         assert m["imu_samples"] == m["epoch"] == samples
         assert m["applied"] == m["readings"] == samples // 100 * 8  # 5 Hz DVL + 3 at 1 Hz
-        assert m["late"] == samples // 20 and m["peak_mib"] > 0
+        # every DVL reading late but those a chunk's end feeds within its last half step
+        assert 0.99 * (samples // 20) <= m["late"] <= samples // 20 and m["peak_mib"] > 0
 
 
 def test_the_online_rows_in_run_py_s_table(online, monkeypatch):

@@ -514,8 +514,8 @@ def tuning_instants(
 
 @final
 class Navigator:
-    """The filter pass fed as the data arrives: :class:`pronet.online.Navigator` (its
-    documentation is there). ``streams``: :class:`Dvl`, :class:`Depth`, :class:`Fix` and
+    """The filter pass fed as the data arrives: :class:`pronet.recorded.online.Navigator`
+    (its documentation is there). ``streams``: :class:`Dvl`, :class:`Depth`, :class:`Fix` and
     :class:`Heading` without rows, describing the sensors (noise, frame, lever arm,
     gate), whose readings are applied at an epoch in this order. ``lag`` [s] (finite,
     >= 0): how late a reading may be stamped before the newest IMU sample and still be
@@ -535,8 +535,8 @@ class Navigator:
         after a tuning instant (:attr:`tuning_due`): the number fed."""
     def reading(self, stream: int, time: float, value: Any, sigma: Any | None = None) -> str:
         """Feed the reading ``value`` of ``streams[stream]`` stamped ``time`` [s], with its
-        own 1σ ``sigma`` (None: the stream's): ``"queued"``, ``"late"``, ``"refused"``
-        or ``"skipped"``."""
+        own 1σ ``sigma`` (None: the stream's): ``"queued"``, ``"current"``, ``"late"``,
+        ``"refused"`` or ``"skipped"``."""
     def set_q(self, q: Any) -> None:
         """Set the IMU variances ``q`` (6) from the next IMU step on (an external strategy)."""
     def state(self) -> dict[str, Any]:
@@ -544,10 +544,11 @@ class Navigator:
         [rad, rad, m], ``vel`` [m/s NED], ``rpy`` [rad], ``bias`` (6), ``sigma`` (15,
         brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None)."""
     def tally(self) -> list[dict[str, Any]]:
-        """Each stream's tally, a list of dicts in the streams' order: ``name``,
-        ``received``, ``queued``, ``accepted``, ``rejected`` (by the gate), ``late``
-        (applied after their epoch had run), ``refused`` (before the lag window),
-        ``skipped`` (before the start), ``nis_sum`` and ``dof`` (the applied readings')."""
+        """Each stream's tally, a list of dicts in the streams' order: ``name``, ``kind``
+        (``"velocity"``, ``"depth"``, ``"fix"``, ``"heading"``), ``received``, ``queued``,
+        ``accepted``, ``rejected`` (by the gate), ``late`` (stamped before the newest IMU
+        sample when fed), ``refused`` (before the lag window), ``skipped`` (before the
+        start), ``nis_sum`` and ``dof`` (the applied readings')."""
     @property
     def epoch(self) -> int:
         """The newest epoch: the number of IMU samples fed."""

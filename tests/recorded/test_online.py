@@ -118,7 +118,7 @@ def test_fed_in_time_order_every_epoch_is_run_filter_s(mission, name) -> None:
     for tally, result in zip(nav.tally(), batch.streams, strict=True):
         applied = int((result.epoch >= 0).sum())
         assert tally.accepted + tally.rejected == applied
-        assert tally.refused == tally.queued == 0
+        assert tally.refused == tally.queued == tally.late == 0
         nis = result.nis[np.isfinite(result.nis)].sum()
         assert tally.nis_sum == pytest.approx(nis, rel=1e-12)
 

@@ -13,7 +13,13 @@ from types import ModuleType
 
 import numpy as np
 import pytest
-from mission_recording import STANDARD_ATMOSPHERE, Mission, simulate_mission, write_mission_bag
+from mission_recording import (
+    STANDARD_ATMOSPHERE,
+    Mission,
+    simulate_mission,
+    write_mission_bag,
+    write_vehicle_file,
+)
 
 import pronet
 from pronet.recorded.bags import STANDARD_GRAVITY
@@ -41,23 +47,6 @@ def _run(*argv: str) -> tuple[int, list[str]]:
     return code, out.getvalue().splitlines()
 
 
-def _vehicle_file(folder: Path, m: Mission) -> Path:
-    """The vehicle file as the survey's team writes it: the MEMS grade, the DVL's R, each
-    sensor's lever arm from the IMU, the compass's σ, the pressure sensor's depth afloat."""
-    la = m.lever_arms
-    path = folder / "vehicle.toml"
-    path.write_text(
-        'grade = "mems"\n'
-        f"dvl_variance = {[m.sensors.dvl_sigma**2] * 3}\n"
-        f"dvl_lever_arm = {list(map(float, la.dvl))}\n"
-        f"depth_lever_arm = {list(map(float, la.depth))}\n"
-        f"fix_lever_arm = {list(map(float, la.fix))}\n"
-        f"heading_sigma = {np.degrees(m.sensors.heading_sigma)}\n"
-        f"surface_depth = {0.3 + la.depth[2]}\n"  # the IMU floats 0.3 m deep, level
-    )
-    return path
-
-
 @pytest.fixture(scope="module")
 def survey(tmp_path_factory) -> tuple[Mission, Path, Path]:
     """The survey, its bag (no truth topic; the reader's standard atmosphere, not the
@@ -67,7 +56,7 @@ def survey(tmp_path_factory) -> tuple[Mission, Path, Path]:
     folder = tmp_path_factory.mktemp("online")
     bag, topics = write_mission_bag(m, folder / "mission")
     assert topics.truth is None and topics.fix == "/usbl/fix"  # the example's defaults
-    return m, bag, _vehicle_file(folder, m)
+    return m, bag, write_vehicle_file(folder, m)
 
 
 @pytest.fixture(scope="module")

@@ -59,7 +59,9 @@ Navigating a recording without ground truth (``pronet navigate``):
 - :mod:`~pronet.recorded.levelling`: still intervals, levelling and gyrocompassing;
 - :mod:`~pronet.recorded.online`: the filter fed as the data arrives
   (:class:`~pronet.recorded.online.Navigator`: late readings within a lag window, the
-  learned loop inside), equal to the batch pass in time order.
+  learned loop inside), equal to the batch pass in time order;
+- :mod:`~pronet.recorded.messages`: one ROS message at a time in pronet's frames and
+  units, as the bag reader converts a topic (a node's callbacks).
 """
 
 __all__ = [
@@ -78,6 +80,7 @@ __all__ = [
     "initial",
     "initialinputs",
     "levelling",
+    "messages",
     "metrics",
     "missing",
     "navigate",

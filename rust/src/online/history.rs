@@ -42,7 +42,7 @@ pub(super) struct Kept {
     pub time: f64,
     pub reading: Reading,
     pub outcome: Option<Outcome>,
-    /// Whether it arrived after its epoch had been run.
+    /// Whether it arrived late: stamped before the newest IMU sample then.
     pub late: bool,
 }
 

@@ -65,8 +65,11 @@ pub struct Start {
 pub enum Fate {
     /// Stamped after the newest epoch's reach: applied when the IMU gets there.
     Queued,
-    /// Stamped within the lag window, at an epoch already run: applied there, and the
-    /// pass run again since.
+    /// Stamped after the newest IMU sample but within its epoch's half step: applied
+    /// at that epoch (in time: the pass run again from the last checkpoint).
+    Current,
+    /// Stamped before the newest IMU sample, within the lag window: applied at its
+    /// own epoch, and the pass run again since.
     Late,
     /// Stamped before the lag window: refused (counted).
     Refused,
@@ -86,7 +89,8 @@ pub struct Tally {
     pub accepted: usize,
     /// Applied and rejected by their gate.
     pub rejected: usize,
-    /// Of the applied ones, those that arrived after their epoch had been run.
+    /// Of the applied ones, those that arrived late: stamped before the newest IMU
+    /// sample.
     pub late: usize,
     /// Stamped before the lag window.
     pub refused: usize,
@@ -424,6 +428,7 @@ impl Navigator {
             return Ok(Fate::Refused);
         };
         let at = self.history.position(epoch, sensor, time);
+        let late = time < self.t;
         self.history.kept.insert(
             at,
             Kept {
@@ -432,11 +437,11 @@ impl Navigator {
                 time,
                 reading,
                 outcome: None,
-                late: true,
+                late,
             },
         );
         self.rerun_from(epoch)?;
-        Ok(Fate::Late)
+        Ok(if late { Fate::Late } else { Fate::Current })
     }
 
     /// Run the pass again from the last checkpoint before `epoch` to the newest epoch.

@@ -67,6 +67,16 @@ impl Sensor {
         &self.template.name
     }
 
+    /// The kind of its readings: `"velocity"`, `"depth"`, `"fix"` or `"heading"`.
+    pub fn kind(&self) -> &'static str {
+        match self.template.values {
+            Values::Velocity { .. } => "velocity",
+            Values::Depth { .. } => "depth",
+            Values::Fix { .. } => "fix",
+            Values::Heading { .. } => "heading",
+        }
+    }
+
     /// Whether its readings are velocities.
     pub fn is_velocity(&self) -> bool {
         self.template.is_velocity()

@@ -265,8 +265,10 @@ fn fed_in_time_order_every_epoch_is_the_batch_pass_s() {
                 let nis: f64 = record.nis.iter().filter(|x| x.is_finite()).sum();
                 assert!((tally[s].nis_sum - nis).abs() <= 1e-9 * nis.abs(), "{s}");
             }
-            // Stamped after an epoch but within its half step: applied there, late.
-            assert!(fates.contains(&Fate::Late) && fates.contains(&Fate::Queued));
+            // Stamped after an epoch but within its half step: applied there at once.
+            assert!(fates.contains(&Fate::Current) && fates.contains(&Fate::Queued));
+            assert!(!fates.contains(&Fate::Late));
+            assert!(tally.iter().all(|t| t.late == 0));
         }
     }
 }

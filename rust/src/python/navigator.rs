@@ -15,8 +15,8 @@ use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyList};
 
-/// The filter pass fed as the data arrives: :class:`pronet.online.Navigator` (its
-/// documentation is there). ``streams``: :class:`Dvl`, :class:`Depth`, :class:`Fix` and
+/// The filter pass fed as the data arrives: :class:`pronet.recorded.online.Navigator`
+/// (its documentation is there). ``streams``: :class:`Dvl`, :class:`Depth`, :class:`Fix` and
 /// :class:`Heading` without rows, describing the sensors (noise, frame, lever arm,
 /// gate), whose readings are applied at an epoch in this order. ``lag`` [s] (finite,
 /// >= 0): how late a reading may be stamped before the newest IMU sample and still be
@@ -49,10 +49,10 @@ fn numbers(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
     Ok(vec![real_arg(obj, arg)?])
 }
 
-/// A time [s]: a float read at once (one IMU sample at a time), any other real number
-/// checked by [`real_arg`].
+/// A time [s]: a float (NumPy's float64 too, a subclass) read at once (one IMU sample
+/// at a time), any other real number checked by [`real_arg`].
 fn time_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
-    match obj.cast_exact::<PyFloat>() {
+    match obj.cast::<PyFloat>() {
         Ok(f) => Ok(f.value()),
         Err(_) => real_arg(obj, "time"),
     }
@@ -61,6 +61,7 @@ fn time_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
 fn fate_name(fate: Fate) -> &'static str {
     match fate {
         Fate::Queued => "queued",
+        Fate::Current => "current",
         Fate::Late => "late",
         Fate::Refused => "refused",
         Fate::Skipped => "skipped",
@@ -182,8 +183,8 @@ impl PyNavigator {
     }
 
     /// Feed the reading ``value`` of ``streams[stream]`` stamped ``time`` [s], with its
-    /// own 1σ ``sigma`` (None: the stream's): ``"queued"``, ``"late"``, ``"refused"``
-    /// or ``"skipped"``.
+    /// own 1σ ``sigma`` (None: the stream's): ``"queued"``, ``"current"``, ``"late"``,
+    /// ``"refused"`` or ``"skipped"``.
     #[pyo3(signature = (stream, time, value, sigma = None))]
     fn reading(
         &mut self,
@@ -260,15 +261,17 @@ impl PyNavigator {
         Ok(d)
     }
 
-    /// Each stream's tally, a list of dicts in the streams' order: ``name``,
-    /// ``received``, ``queued``, ``accepted``, ``rejected`` (by the gate), ``late``
-    /// (applied after their epoch had run), ``refused`` (before the lag window),
-    /// ``skipped`` (before the start), ``nis_sum`` and ``dof`` (the applied readings').
+    /// Each stream's tally, a list of dicts in the streams' order: ``name``, ``kind``
+    /// (``"velocity"``, ``"depth"``, ``"fix"``, ``"heading"``), ``received``, ``queued``,
+    /// ``accepted``, ``rejected`` (by the gate), ``late`` (stamped before the newest IMU
+    /// sample when fed), ``refused`` (before the lag window), ``skipped`` (before the
+    /// start), ``nis_sum`` and ``dof`` (the applied readings').
     fn tally<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
         for (t, s) in self.inner.tally().iter().zip(self.inner.sensors()) {
             let d = PyDict::new(py);
             d.set_item("name", s.name())?;
+            d.set_item("kind", s.kind())?;
             d.set_item("received", t.received)?;
             d.set_item("queued", t.queued)?;
             d.set_item("accepted", t.accepted)?;
