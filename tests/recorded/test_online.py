@@ -15,7 +15,7 @@ from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate
 from pronet.recorded.online import Navigator, navigator_for, readings_of
 from pronet.recorded.solution import InitialState
 from pronet.recorded.vehicle import load_vehicle
-from pronet.strategies import StrategySpec, strategy
+from pronet.strategies import Learned, StrategySpec, strategy
 
 Q = (1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8)
 P0 = (2.0, 2.0, 1.0, 0.1, 0.1, 0.1, 0.01, 0.01, 0.05, 0.02, 0.02, 0.02, 1e-3, 1e-3, 1e-3)
@@ -259,3 +259,23 @@ def test_navigator_for_a_recording_is_navigate_s_forward_pass(tmp_path, mission,
     np.testing.assert_array_equal(s.sigma, batch.forward.sigma[-1])
     applied = [t.accepted + t.rejected for t in nav.tally()]
     assert applied == [r.applied for r in batch.streams]
+
+
+class _WindowVariance:
+    """A user's own model, called back from the loop: q from each window's variance."""
+
+    def predict(self, windows: np.ndarray) -> np.ndarray:
+        return 1e-3 * np.var(np.asarray(windows, dtype=np.float64), axis=-1) + 1e-8
+
+
+def test_a_user_s_python_model_runs_live_as_in_the_batch_loop(mission) -> None:
+    m = mission
+    learned = Learned(_WindowVariance(), Q, tuning_period=0.5)
+    dt = float(np.median(np.diff(m.imu_time)))
+    schedule = q_schedule(learned.regressor, m.imu, m.imu_time, prior_q=Q, tuning_period=0.5)
+    batch = _batch(m, _core.Strategy.external(Q), schedule.time, schedule.q)
+    sensors = _streams(m, rows=False)
+    nav = Navigator(sensors, initial=_initial(m), strategy=learned, config=CONFIG, imu_dt=dt)
+    _feed(nav, m, _arrivals(m))
+    np.testing.assert_array_equal(nav.state().lla, batch.lla[-1])
+    np.testing.assert_array_equal(np.array([q for _, q in nav.q_history[:-1]]), schedule.q)
