@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "__version__", "MAX_THREADS", "THREADS_PER_CORE", "THREADS_ENV", "MAX_LEVER_ARM",
+    "MAX_COVARIANCE_STEP",
     "MAX_RUN_INDEX", "MAX_GRAVITY_HEIGHT", "MAX_LATITUDE_DEG", "LONGITUDE_RANGE_DEG",
     "WGS84_A", "WGS84_F", "Trajectory", "builtin_trajectory", "builtin_trajectory_names",
     "trajectory_from_segments", "normal_gravity", "earth_radii", "mechanize",
@@ -37,6 +38,9 @@ THREADS_PER_CORE: int
 THREADS_ENV: str
 #: Longest lever arm component [m] a sensor may have (``sensors::MAX_LEVER_ARM``, 1 km).
 MAX_LEVER_ARM: float
+#: Longest covariance step [s] (``ekf::MAX_COVARIANCE_STEP``, 1 s): its approximation of
+#: the error process is measured up to 0.5 s (``docs/covariance-step.md``).
+MAX_COVARIANCE_STEP: float
 #: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
 #: streams are numbered 4·i + k.
 MAX_RUN_INDEX: int
@@ -133,8 +137,9 @@ class FilterConfig:
     (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
     by default (free in accuracy, about half the cost: ``docs/covariance-step.md``);
     0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
-    number of IMU periods, and the covariance is brought up to date before every DVL
-    update and at the end of a pass. See ``docs/filter.md``."""
+    number of IMU periods (at most :data:`MAX_COVARIANCE_STEP`, 1 s), and the covariance
+    is brought up to date before every DVL update and at the end of a pass. See
+    ``docs/filter.md``."""
 
     def __new__(cls, *, p0_sigma: Any | None = None, accel_bias_psd: float = 1e-3,
                 gyro_bias_psd: float = 1e-3, dvl_variance: Any | None = None,

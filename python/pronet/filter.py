@@ -4,6 +4,7 @@ data is filtered."""
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -14,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import check_type, float_array, scalar
+from pronet.stats import PassHealth, pass_health, sources_of, warn_about
 
 #: An aiding sensor's stream, as :func:`run_filter` takes them.
 Stream: TypeAlias = _core.Dvl | _core.Depth | _core.Fix | _core.Heading
@@ -157,6 +159,8 @@ class FilterResult:
             ``depth_epoch``, ``fix_epoch`` and ``covariance_epoch`` count in); ``(0,)``
             otherwise (every epoch kept, or the last).
         streams: one :class:`StreamResult` per stream given, in their order.
+        health: what the pass says about itself (:mod:`pronet.stats`): each stream's
+            NIS against its band, the gate, and a diverged solution.
     """
 
     time: NDArray[np.float64]
@@ -185,6 +189,7 @@ class FilterResult:
     smoothed: SmoothedResult | None = None
     epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
     streams: tuple[StreamResult, ...] = ()
+    health: PassHealth = field(default_factory=PassHealth)
 
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
         """The result as a pandas table, SI units as the attributes.
@@ -303,6 +308,7 @@ def run_filter(
     output_step: float | None = None,
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
+    warn: bool = True,
 ) -> FilterResult: ...
 
 
@@ -327,6 +333,7 @@ def run_filter(  # deprecated: the arrays before streams
     output_step: float | None = None,
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
+    warn: bool = True,
     depth: ArrayLike | None = None,
     depth_time: ArrayLike | None = None,
     depth_sigma: float | None = None,
@@ -354,6 +361,7 @@ def run_filter(
     output_step: float | None = None,
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
+    warn: bool = True,
     **deprecated_keywords: Any,
 ) -> FilterResult:
     """Run the INS error-state EKF over IMU arrays and aiding sensors' streams.
@@ -411,6 +419,9 @@ def run_filter(
             proportion), and costs 2–5 forward passes (docs/filter.md, "The RTS
             smoother"). With ``output_step`` the forward solution is kept at the updates
             alone and integrated again between them.
+        warn: a :class:`pronet.stats.FilterHealthWarning` for each line of
+            :attr:`FilterResult.health` (a stream out of its NIS band, a gate that
+            rejected most of a stream, a diverged solution); False: the lines only there.
 
     Deprecated (for one release): the arrays before streams,
     ``run_filter(imu, imu_time, dvl, dvl_time, *, ..., depth=, depth_time=,
@@ -426,6 +437,7 @@ def run_filter(
     check_type(config, _core.FilterConfig, "config")
     check_type(strategy, _core.Strategy, "strategy")
     check_type(smooth, bool, "smooth")
+    check_type(warn, bool, "warn")
     given = _stream_list(streams)
     out = _core.run_filter(
         float_array(imu, "imu", (None, 6)),
@@ -454,7 +466,13 @@ def run_filter(
     smoothed = out.pop("smoothed")
     if smoothed is not None:
         smoothed = SmoothedResult(time=out["time"], **smoothed)
-    return FilterResult(**out, smoothed=smoothed, streams=per_stream)
+    result = FilterResult(**out, smoothed=smoothed, streams=per_stream)
+    sources = sources_of(given, [r.kind for r in per_stream])
+    health = pass_health(per_stream, sources, lla=result.lla, vel=result.vel,
+                         sigma=result.sigma, time=result.time)  # fmt: skip
+    if warn:
+        warn_about(health)
+    return dataclasses.replace(result, health=health)
 
 
 def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:

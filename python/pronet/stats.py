@@ -1,19 +1,38 @@
-"""Summary statistics over Monte Carlo runs: means with 95 % confidence intervals.
+"""Summary statistics over Monte Carlo runs (means with 95 % confidence intervals) and
+what a filter pass says about itself (its health).
 
 A mean's interval is Student's t interval unless that would leave the quantity's range
 (an RMS below zero, a share above one, as a t-interval over two runs can): then it is
 the percentile bootstrap of the mean (:data:`BOOTSTRAP` resamples, a fixed seed), which
-never leaves the range of the values themselves. ``MeanCI.method`` says which."""
+never leaves the range of the values themselves. ``MeanCI.method`` says which.
+
+A pass's health (:func:`pass_health`): per stream, how many readings it applied, gated
+out or skipped and whether their normalised innovations (NIS) agree with the σ the
+stream was given; per pass, whether the solution left physical bounds. One line per
+finding, naming the stream, the figure and its likely causes.
+
+A consistent filter's NIS of a reading is χ² with the reading's degrees of freedom
+(3 for a velocity, 1 for a depth or a heading, 2 or 3 for a fix without or with its
+height). The mean over a stream's ``n`` readings of ``d`` degrees of freedom each then
+lies, 95 % of the time, in the band of χ²(n·d)/n (:func:`chi2_mean_band`).
+A mean above the band says the readings disagree with the filter more than their σ
+allow (a σ too small, wrong units or frame, a lever arm left out, a bad clock); below
+it, that their σ are too large (a placeholder covariance such as 99999 taken as R). A
+gate that rejects more than a few readings is named too: a threshold given as a
+probability where a χ² value belongs rejects them all."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from statistics import NormalDist
+from typing import Protocol
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
+from pronet import _core
 from pronet._util.validate import count, real_array
 
 _Z975 = NormalDist().inv_cdf(0.975)
@@ -131,3 +150,303 @@ def _bootstrap_ci(x: np.ndarray, mean: float) -> MeanCI:
     low, high = np.percentile(means, [2.5, 97.5])
     low, high = max(float(low), float(x.min())), min(float(high), float(x.max()))
     return MeanCI(mean, min(low, mean), max(high, mean), int(x.size), "bootstrap")
+
+
+# A filter pass's health.
+
+F64 = NDArray[np.float64]
+
+#: The degrees of freedom of one reading of each kind (a fix's: 3, or 2 without height).
+DOF = {"velocity": 3, "depth": 1, "heading": 1, "fix": 3}
+
+#: What a mean NIS above its band most often means, per kind of stream.
+CAUSES_HIGH = {
+    "velocity": "the DVL's σ too small, its lever arm or mounting wrong, or its frame "
+    "(FRD read as FLU, a NED world read as ENU)",
+    "depth": "the depth's σ too small, its units, the surface pressure or water density, "
+    "or the depth sensor's lever arm",
+    "fix": "the fixes' σ too small, their datum or units (degrees for radians), the "
+    "antenna's lever arm, or a clock offset",
+    "heading": "the heading's σ too small, a magnetic heading without its declination, "
+    "or degrees taken for radians",
+}
+
+#: Beyond these the solution has left what any vehicle pronet navigates can do: a speed
+#: [m/s], a height [m, up] and a horizontal 1σ [m].
+MAX_SPEED = 100.0
+MAX_ABS_HEIGHT = 20_000.0
+MAX_POSITION_SIGMA = 1.0e6
+
+
+class StreamRows(Protocol):
+    """What a pass kept of one stream's rows (a :class:`pronet.StreamResult`)."""
+
+    @property
+    def kind(self) -> str: ...
+    @property
+    def epoch(self) -> NDArray[np.int64]: ...
+    @property
+    def nis(self) -> F64: ...
+    @property
+    def accepted(self) -> NDArray[np.bool_] | None: ...
+
+
+@dataclass(frozen=True)
+class StreamReport:
+    """What one pass made of one sensor stream.
+
+    Attributes:
+        name: the stream's name in messages (``"dvl"``, ``"streams[1]"``, …).
+        kind: the :class:`pronet.StreamResult` kind (``"velocity"``, ``"depth"``,
+            ``"fix"``, ``"heading"``).
+        rows: readings in the recording.
+        applied: readings applied as updates.
+        rejected: readings the innovation gate rejected.
+        skipped: readings not applied (missing values, outside the pass) by reason.
+        mean_nis: mean NIS of the readings the filter predicted, the rejected ones too
+            (NaN without any).
+        dof: the NIS's degrees of freedom per reading (mean over those readings).
+        band: the 95 % band of ``mean_nis`` for a filter consistent with the stream's σ
+            (χ² of ``dof × k`` degrees of freedom divided by ``k``, the ``k`` readings
+            the mean is over).
+        time: ``(r,)`` times [s] of the readings.
+        nis: ``(r,)`` each reading's NIS, a rejected reading's too (NaN outside the
+            pass).
+        flag: one line when the mean NIS is out of band or the gate rejected more than
+            1 % (what it suggests), else "".
+        accepted: ``(r,)`` whether each reading was applied (False where the gate
+            rejected it or it fell outside the pass); None: every reading inside the
+            pass was (a stream without a gate).
+    """
+
+    name: str
+    kind: str
+    rows: int
+    applied: int
+    rejected: int
+    skipped: Mapping[str, int]
+    mean_nis: float
+    dof: float
+    band: tuple[float, float]
+    time: F64
+    nis: F64
+    flag: str = ""
+    accepted: NDArray[np.bool_] | None = None
+
+    @property
+    def gated_share(self) -> float:
+        """The share of the readings inside the pass the gate rejected (NaN: none)."""
+        seen = self.applied + self.rejected
+        return self.rejected / seen if seen else math.nan
+
+    @property
+    def skipped_share(self) -> float:
+        """The share of the stream's readings never applied (missing, outside the pass)."""
+        return sum(self.skipped.values()) / self.rows if self.rows else math.nan
+
+
+@dataclass(frozen=True)
+class PassHealth:
+    """What a pass says about itself: each stream's report and whether it diverged.
+
+    Attributes:
+        streams: one :class:`StreamReport` per stream, in the pass's order.
+        divergence: one line where the solution left physical bounds, else "".
+    """
+
+    streams: tuple[StreamReport, ...] = ()
+    divergence: str = ""
+
+    @property
+    def flags(self) -> tuple[str, ...]:
+        """Every finding, one line each: the divergence first, then the streams'."""
+        lines = [self.divergence] + [s.flag for s in self.streams]
+        return tuple(line for line in lines if line)
+
+
+def _dof(rows: StreamRows, lla: F64 | None) -> F64:
+    """Each row's degrees of freedom (a fix's from its height: 2 where NaN)."""
+    d = np.full(len(rows.nis), float(DOF[rows.kind]))
+    if rows.kind == "fix" and lla is not None:
+        d[np.isnan(np.asarray(lla)[:, 2])] = 2.0
+    return d
+
+
+def stream_report(
+    name: str,
+    rows: StreamRows,
+    time: F64,
+    *,
+    lla: F64 | None = None,
+    skipped: Mapping[str, int] | None = None,
+) -> StreamReport:
+    """The report of one stream of a pass: ``rows`` what the pass kept of the stream
+    whose readings were at ``time`` [s] (``lla``: a fix stream's rows, for each row's
+    degrees of freedom), ``skipped`` the readings left out before the pass, by reason."""
+    nis = np.asarray(rows.nis, dtype=np.float64)
+    inside = np.asarray(rows.epoch) >= 0
+    applied = inside & np.isfinite(nis)
+    rejected = 0
+    if rows.accepted is not None:
+        rejected = int(np.sum(inside & ~rows.accepted))
+        applied &= rows.accepted
+    skipped = dict(skipped or {})
+    outside = int(np.sum(~inside))
+    if outside:
+        skipped["outside the pass"] = skipped.get("outside the pass", 0) + outside
+    n = int(applied.sum())
+    # The mean over every reading the filter predicted, the gate's rejected ones too:
+    # a gate cuts off the tail a consistent stream's mean needs.
+    seen = inside & np.isfinite(nis)
+    dof = _dof(rows, lla)[seen]
+    if not seen.any():
+        mean, mean_dof, band = math.nan, float(DOF[rows.kind]), (math.nan, math.nan)
+    else:
+        mean, total = float(nis[seen].mean()), int(round(dof.sum()))
+        mean_dof = total / int(seen.sum())
+        lo, hi = chi2_mean_band(1, total)
+        band = (lo * mean_dof, hi * mean_dof)
+    return StreamReport(
+        name=name,
+        kind=rows.kind,
+        rows=len(nis) + sum(v for k, v in skipped.items() if k != "outside the pass"),
+        applied=n,
+        rejected=rejected,
+        skipped=skipped,
+        mean_nis=mean,
+        dof=mean_dof,
+        band=band,
+        time=np.asarray(time, dtype=np.float64),
+        nis=np.where(inside, nis, np.nan),
+        flag=_flag(name, rows.kind, mean, mean_dof, band, rejected, n),
+        accepted=None if rows.accepted is None else inside & rows.accepted,
+    )
+
+
+def _flag(
+    name: str,
+    kind: str,
+    mean: float,
+    dof: float,
+    band: tuple[float, float],
+    rejected: int,
+    n: int,
+) -> str:
+    """One line when the stream's mean NIS is out of its band or the gate rejected more
+    than a few readings; empty otherwise."""
+    if n == 0 and rejected == 0:
+        return f"{name}: no reading applied"
+    lo, hi = band
+    seen = n + rejected  # the readings the mean is over
+    per_dof = f"{mean / dof:.3g} per degree of freedom"
+    if rejected > 0.5 * seen:
+        return (
+            f"{name}: the innovation gate rejected {rejected} of {seen} readings: a gate "
+            f"too tight (a χ² value belongs there, not a probability) or readings that "
+            f"disagree with the filter (mean NIS {mean:.3g}, {per_dof}); check "
+            f"{CAUSES_HIGH[kind]}"
+        )
+    if mean > hi:
+        return (
+            f"{name}: mean NIS {mean:.3g} ({per_dof}) above its 95 % band [{lo:.3g}, "
+            f"{hi:.3g}] over {seen} readings: the readings disagree with the filter more "
+            f"than their σ allow; check {CAUSES_HIGH[kind]}"
+        )
+    if mean < lo:
+        return (
+            f"{name}: mean NIS {mean:.3g} ({per_dof}) below its 95 % band [{lo:.3g}, "
+            f"{hi:.3g}] over {seen} readings: their σ are larger than the readings' "
+            "scatter (a placeholder covariance taken as R?)"
+        )
+    if rejected > 0.01 * seen:
+        return f"{name}: the innovation gate rejected {rejected} of {seen} readings"
+    return ""
+
+
+def divergence(lla: F64, vel: F64, sigma: F64, time: F64) -> str:
+    """One line where the solution ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` [m/s] with
+    ``sigma`` ``(n, 15)`` at ``time`` [s] left physical bounds (non-finite, a speed over
+    :data:`MAX_SPEED`, a height beyond ±:data:`MAX_ABS_HEIGHT`, a horizontal 1σ over
+    :data:`MAX_POSITION_SIGMA`), naming the first epoch; "" where it did not."""
+    speed = np.linalg.norm(vel, axis=1)
+    horizontal = np.hypot(sigma[:, 0], sigma[:, 1])
+    checks = (
+        (~np.isfinite(lla).all(axis=1) | ~np.isfinite(vel).all(axis=1), "is not finite"),
+        (speed > MAX_SPEED, f"moves faster than {MAX_SPEED:g} m/s"),
+        (np.abs(lla[:, 2]) > MAX_ABS_HEIGHT, f"is beyond ±{MAX_ABS_HEIGHT:g} m of height"),
+        (horizontal > MAX_POSITION_SIGMA, f"has a horizontal 1σ over {MAX_POSITION_SIGMA:g} m"),
+    )
+    found = [(int(np.argmax(bad)), what) for bad, what in checks if bad.any()]
+    if not found:
+        return ""
+    k, what = min(found)
+    return (
+        f"the pass diverged: its solution {what} from t = {time[k]:.6g} s (epoch {k}): "
+        "check the IMU's units and frame (FRD, m/s², rad/s), the initial state, the "
+        "streams' σ and the process noise"
+    )
+
+
+@dataclass(frozen=True)
+class StreamSource:
+    """A stream as :func:`pass_health` reads it: its name, its readings' times [s] and,
+    for a fix stream, its rows (their heights give each reading's degrees of freedom)."""
+
+    name: str
+    time: F64
+    lla: F64 | None = None
+    skipped: Mapping[str, int] = field(default_factory=dict)
+
+
+def pass_health(
+    streams: Sequence[StreamRows],
+    sources: Sequence[StreamSource],
+    *,
+    lla: F64,
+    vel: F64,
+    sigma: F64,
+    time: F64,
+) -> PassHealth:
+    """The health of a pass: one :func:`stream_report` per stream (``streams`` the
+    pass's rows, ``sources`` their names and times, in order) and its
+    :func:`divergence`."""
+    if len(streams) != len(sources):
+        raise ValueError(
+            f"sources: one per stream of the pass ({len(streams)}), got {len(sources)}"
+        )
+    reports = tuple(
+        stream_report(src.name, rows, src.time, lla=src.lla, skipped=src.skipped)
+        for rows, src in zip(streams, sources, strict=True)
+    )
+    return PassHealth(reports, divergence(lla, vel, sigma, time))
+
+
+class FilterHealthWarning(UserWarning):
+    """A pass's finding (:attr:`PassHealth.flags`): a stream out of its NIS band, a gate
+    that rejected most of its readings, or a diverged solution."""
+
+
+#: A stream's name in messages by the kind of its readings.
+KIND_NAMES = {"velocity": "dvl", "depth": "depth", "fix": "fix", "heading": "heading"}
+
+
+def sources_of(
+    streams: Sequence[_core.Dvl | _core.Depth | _core.Fix | _core.Heading], kinds: Sequence[str]
+) -> list[StreamSource]:
+    """The :class:`StreamSource` of each of a pass's streams (``pronet.Dvl``, ``Depth``,
+    ``Fix``, ``Heading`` with their rows; ``kinds`` their readings' kinds), named
+    ``streams[i] (dvl)`` and so on."""
+    out = []
+    for i, (s, kind) in enumerate(zip(streams, kinds, strict=True)):
+        name = f"streams[{i}] ({KIND_NAMES.get(kind, kind)})"
+        lla = getattr(s, "lla", None) if kind == "fix" else None
+        out.append(StreamSource(name, np.asarray(s.time), lla=lla))
+    return out
+
+
+def warn_about(health: PassHealth, where: str = "run_filter") -> None:
+    """One :class:`FilterHealthWarning` per line of ``health``'s findings."""
+    import warnings
+
+    for line in health.flags:
+        warnings.warn(f"{where}: {line}", FilterHealthWarning, stacklevel=3)

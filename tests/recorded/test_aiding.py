@@ -17,7 +17,7 @@ import pytest
 
 import pronet
 from pronet.cli import main
-from pronet.recorded.aiding import DEFAULT_FIX_SIGMA, AidingTuning
+from pronet.recorded.aiding import DEFAULT_FIX_SIGMA, AidingTuning, DepthReadings, filter_aiding
 from pronet.recorded.alignment import load_section
 from pronet.recorded.passes import aided_section, run_section
 from pronet.recorded.real import run_real
@@ -435,3 +435,11 @@ def test_depth_and_fixes_stamped_on_another_streams_clock(tmp_path, aided_80s) -
     assert 0.4 < late.min() and late.max() < 0.7
     with pytest.raises(ValueError, match="aiding_clock: expected one of imu, dvl, gt"):
         load_section(folder, "generic", **ARMS, aiding_clock="depth")
+
+
+def test_each_depth_row_keeps_its_own_sigma() -> None:
+    # Outliers marked with a huge σ must weigh as little as it says, not take the median's.
+    sigma = np.array([0.05, 0.05, 1e6, 0.05, 1e6])
+    depth = DepthReadings(time=np.arange(5.0), depth=np.full(5, 10.0), sigma=sigma)
+    (stream,) = filter_aiding(depth, None)
+    np.testing.assert_array_equal(stream.sigma, sigma)

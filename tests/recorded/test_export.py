@@ -25,7 +25,8 @@ from pronet._util.extras import MissingExtra
 from pronet.recorded import attitude, export, odometry, report
 from pronet.recorded.alignment import dcm_from_euler
 from pronet.recorded.bags import euler_from_dcm
-from pronet.recorded.solution import InitialState, Navigation, Solution, StreamReport
+from pronet.recorded.solution import InitialState, Navigation, Solution
+from pronet.stats import StreamReport
 
 #: The fake recording's first IMU stamp (Unix time, as a bag's) and origin.
 EPOCH = 1_700_000_123.25

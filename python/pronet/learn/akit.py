@@ -147,6 +147,7 @@ def akit_schedule(net: AkitNet, rec: Any, prior_q: Sequence[float]) -> QSchedule
             t0=rec.t0, lla0=rec.lla0, vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
             strategy=_core.Strategy.external(tuple(prior)),
             q_time=times[:j] if j else None, q=np.array(rows) if j else None, epochs="last",
+            warn=False,
         )  # fmt: skip
         with torch.no_grad():
             q = net(windows[j : j + 1].double(), torch.as_tensor(result.vel[-1:]))

@@ -43,8 +43,6 @@ Navigating a recording without ground truth (``pronet navigate``):
 - :mod:`~pronet.recorded.navigate`: one filter over every stream, forward and smoothed,
   from an initial state found in the data (:func:`~pronet.recorded.navigate.navigate`);
 - :mod:`~pronet.recorded.solution`: what it produces, as plain records;
-- :mod:`~pronet.recorded.health`: what a pass says about each stream (counts, the mean
-  NIS against its χ² band, one line naming the likely causes when out of it);
 - :mod:`~pronet.recorded.surface`: the depth's surface reference measured at the surface;
 - :mod:`~pronet.recorded.attitude`: its attitude as users read it (yaw in [0, 360),
   roll, pitch and yaw σ from the filter's attitude-error σ);
@@ -76,7 +74,6 @@ __all__ = [
     "export",
     "figures",
     "heading",
-    "health",
     "initial",
     "initialinputs",
     "levelling",

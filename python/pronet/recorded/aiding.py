@@ -56,9 +56,9 @@ stamp, as given; :func:`against_truth`): the median depth within
 height, are not), the median horizontal distance of the fixes within
 :data:`MAX_FIX_OFFSET` of it (degrees under a ``[rad]`` header are not).
 
-σ (:func:`filter_aiding`): the filter takes one depth σ per pass (the median of the
-``sigma`` column when the file has one) and a σ per fix (the file's, else one for
-all). Without a σ in the file, a vehicle file's ``depth_sigma`` / ``fix_sigma``
+σ (:func:`filter_aiding`): the filter takes each row's σ where the file gives one (a
+``sigma`` column: an outlier marked with a large σ weighs as little as it says), else
+one for all. Without a σ in the file, a vehicle file's ``depth_sigma`` / ``fix_sigma``
 (:mod:`pronet.recorded.vehicle`), else :data:`DEFAULT_DEPTH_SIGMA` and
 :data:`DEFAULT_FIX_SIGMA`.
 """
@@ -460,13 +460,11 @@ def filter_aiding(
     at the IMU's point, and heading readings (:class:`pronet.Heading`), their σ the
     file's, else the defaults (:func:`tuned` and :func:`tuned_heading` put a vehicle's
     in first; a heading has no default σ: without one it is refused); empty for none.
-    The depth stream takes one σ per pass: the median of the rows'; the heading one per
-    row."""
+    Each stream takes its rows' σ."""
     depth, fixes = tuned(depth, fixes, AidingTuning())
     out: list[_core.Depth | _core.Fix | _core.Heading] = []
     if depth is not None and depth.sigma is not None:
-        sigma = float(np.median(depth.sigma))
-        out.append(_core.Depth(depth.time, depth.depth, sigma=sigma))
+        out.append(_core.Depth(depth.time, depth.depth, sigma=depth.sigma))
     if fixes is not None:
         out.append(_core.Fix(fixes.time, fixes.lla, sigma=fixes.sigma))
     heading = tuned_heading(heading, AidingTuning())

@@ -18,7 +18,7 @@ The pass, in order:
 5. the pass (:func:`pronet.run.run`: native or learned strategies alike) and the
    smoother, their solutions moved to the vehicle's reference point
    (:func:`pronet.recorded.solution.solution_of`), each stream's report
-   (:mod:`pronet.recorded.health`) and, with a truth, the score
+   (:mod:`pronet.stats`, with the pass's divergence) and, with a truth, the score
    (:func:`pronet.recorded.metrics.section_metrics`).
 """
 
@@ -39,16 +39,16 @@ from pronet.filter import FilterResult, Stream
 from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes, tuned, tuned_heading
 from pronet.recorded.alignment import Format, Section, load_section
 from pronet.recorded.heading import HeadingReadings
-from pronet.recorded.health import stream_reports
 from pronet.recorded.initial import initial_state
 from pronet.recorded.initialinputs import GivenState
 from pronet.recorded.metrics import section_metrics
 from pronet.recorded.passes import start_index
-from pronet.recorded.solution import F64, InitialState, Navigation, StreamReport, solution_of
+from pronet.recorded.solution import F64, InitialState, Navigation, solution_of
 from pronet.recorded.surface import G0, SurfaceOffset, surface_offset
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.recorded.vehicle import VehicleTuning
 from pronet.run import Recorded, run
+from pronet.stats import PassHealth, StreamSource, pass_health
 from pronet.strategies import StrategyLike, StrategySpec, strategy
 
 Arm = tuple[float, float, float]
@@ -305,22 +305,22 @@ def _strategy(spec: str, section: Section) -> StrategyLike:
     return strategy(parsed, white_noise_q(section.imu))
 
 
-def _reports(section: Section, streams: Streams, result: FilterResult) -> tuple[StreamReport, ...]:
-    """Each stream's report, in the order the pass applied them."""
-    names, times, lla, skipped = [], [], {}, {}
+def _health(section: Section, streams: Streams, result: FilterResult) -> PassHealth:
+    """Each stream's report, in the order the pass applied them, and the divergence."""
+    sources = []
     if len(streams.dvl):
-        names.append("dvl")
-        times.append(streams.dvl_time)
-        skipped[0] = _skipped(section.dvl_skipped_reason)
-    if streams.fixes is not None:
-        lla[len(names) + (streams.depth is not None)] = streams.fixes.lla
+        skipped = _skipped(section.dvl_skipped_reason)
+        sources.append(StreamSource("dvl", streams.dvl_time, skipped=skipped))
     aiding = (("depth", streams.depth), ("fix", streams.fixes), ("heading", streams.heading))
     for name, readings in aiding:
         if readings is not None:
-            skipped[len(names)] = _skipped(readings.skipped_reason)
-            names.append(name)
-            times.append(readings.time)
-    return stream_reports(result, names, times, lla=lla, skipped=skipped)
+            lla = getattr(readings, "lla", None)
+            skipped = _skipped(readings.skipped_reason)
+            sources.append(StreamSource(name, readings.time, lla=lla, skipped=skipped))
+    return pass_health(
+        result.streams, sources, lla=result.lla, vel=result.vel, sigma=result.sigma,
+        time=result.time,
+    )  # fmt: skip
 
 
 def _smoothed(result: FilterResult) -> FilterResult:
@@ -407,8 +407,9 @@ def navigate(
     smoothed = None
     if result.smoothed is not None:
         smoothed = solution_of("smoothed", result.smoothed, section.epoch, recorded.imu, reference)
-    reports = _reports(section, streams, result)
-    notes = [r.flag for r in reports if r.flag]
+    health = _health(section, streams, result)
+    reports = health.streams
+    notes = list(health.flags)
     kinds = {"dvl": "dvl", "depth": "depth", "fix": "fix"}
     for name in arms.assumed:
         if any(r.name == kinds[name] for r in reports):

@@ -42,7 +42,8 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from pronet.recorded.odometry import OdometryOptions
-    from pronet.recorded.solution import Navigation, Solution, StreamReport
+    from pronet.recorded.solution import Navigation, Solution
+    from pronet.stats import StreamReport
 
 F64 = NDArray[np.float64]
 

@@ -1,8 +1,9 @@
 """What navigating a recording produces, as plain records: a navigation solution over
 time (:class:`Solution`), the initial state and how each part of it was found
 (:class:`InitialState`), what the filter made of each sensor stream
-(:class:`StreamReport`), and the whole result of :func:`pronet.recorded.navigate.navigate`
-(:class:`Navigation`), which the writers of :mod:`pronet.recorded.export` turn into files.
+(:class:`pronet.stats.StreamReport`), and the whole result of
+:func:`pronet.recorded.navigate.navigate` (:class:`Navigation`), which the writers of
+:mod:`pronet.recorded.export` turn into files.
 
 Frames and units as everywhere in pronet: positions ``[lat, lon (rad), h (m, up)]``,
 velocities NED [m/s], attitude roll, pitch, yaw (ZYX) [rad], σ in the classic error
@@ -19,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet.recorded.alignment import moved_point
+from pronet.stats import StreamReport
 
 F64 = NDArray[np.float64]
 
@@ -82,48 +84,6 @@ class InitialState:
     rpy: F64
     p0_sigma: F64
     methods: Mapping[str, str] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class StreamReport:
-    """What one pass made of one sensor stream.
-
-    Attributes:
-        name: the stream's name in messages (``"dvl"``, ``"depth"``, ``"fix"``,
-            ``"heading"``).
-        kind: the :class:`pronet.StreamResult` kind (``"velocity"``, ``"depth"``,
-            ``"fix"``, ``"heading"``).
-        rows: readings in the recording.
-        applied: readings applied as updates.
-        rejected: readings the innovation gate rejected.
-        skipped: readings not applied (missing values, outside the pass) by reason.
-        mean_nis: mean NIS of the applied readings (NaN without any).
-        dof: the NIS's degrees of freedom per reading (mean over the applied ones).
-        band: the 95 % band of ``mean_nis`` for a filter consistent with the stream's σ
-            (χ² of ``dof × k`` degrees of freedom divided by ``k``, the ``k`` readings
-            the mean is over).
-        time: ``(r,)`` times [s] of the readings (the IMU clock).
-        nis: ``(r,)`` each reading's NIS, a rejected reading's too (NaN outside the
-            pass).
-        flag: one line when the mean NIS is out of band (what it suggests), else "".
-        accepted: ``(r,)`` whether each reading was applied (False where the gate
-            rejected it or it fell outside the pass); None: every reading inside the
-            pass was (a stream without a gate).
-    """
-
-    name: str
-    kind: str
-    rows: int
-    applied: int
-    rejected: int
-    skipped: Mapping[str, int]
-    mean_nis: float
-    dof: float
-    band: tuple[float, float]
-    time: F64
-    nis: F64
-    flag: str = ""
-    accepted: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True)

@@ -77,6 +77,12 @@ impl Default for FilterConfig {
 /// NEES shares in band within a point) at about half the per-sample filter's cost.
 pub const DEFAULT_COVARIANCE_STEP: f64 = 0.1;
 
+/// The longest covariance step \[s\]: Φ and Q_d accumulated over a step approximate the
+/// error process over it, measured as accurate as every sample up to 0.5 s
+/// (`docs/covariance-step.md`); far beyond (a step of 1e9 s through an 80 s DVL outage
+/// cost 10× in position) the approximation, not the process, sets the covariance.
+pub const MAX_COVARIANCE_STEP: f64 = 1.0;
+
 /// Default initial 1σ: position 1 m, velocity 0.1 m/s, roll/pitch 1 mrad, yaw 5 mrad,
 /// accelerometer bias 1e-3 m/s², gyro bias 1e-4 rad/s.
 pub const DEFAULT_P0_SIGMA: [f64; 15] = [
@@ -97,11 +103,15 @@ impl FilterConfig {
         }
         check_lever_arm("lever_arm", self.lever_arm.as_slice())?;
         check::positive("imu_dt", self.imu_dt)?;
-        if !(self.covariance_step.is_finite() && self.covariance_step >= 0.0) {
+        if !(self.covariance_step.is_finite()
+            && (0.0..=MAX_COVARIANCE_STEP).contains(&self.covariance_step))
+        {
             return Err(Error::invalid(
                 "covariance_step",
                 format!(
-                    "must be a finite number of seconds >= 0 (0: every IMU sample), got {}",
+                    "must be a finite number of seconds from 0 (every IMU sample) to \
+                     {MAX_COVARIANCE_STEP} (MAX_COVARIANCE_STEP: its approximation of the \
+                     process is measured up to 0.5 s), got {}",
                     self.covariance_step
                 ),
             ));
@@ -186,7 +196,7 @@ mod tests {
             ..FilterConfig::default()
         };
         assert!(c.validate().is_err());
-        for bad in [-0.1, f64::NAN, f64::INFINITY] {
+        for bad in [-0.1, f64::NAN, f64::INFINITY, 1.01, 1e9] {
             let c = FilterConfig {
                 covariance_step: bad,
                 ..FilterConfig::default()
@@ -194,6 +204,11 @@ mod tests {
             let e = c.validate().unwrap_err().to_string();
             assert!(e.starts_with("covariance_step"), "{e}");
         }
+        let longest = FilterConfig {
+            covariance_step: MAX_COVARIANCE_STEP,
+            ..FilterConfig::default()
+        };
+        assert!(longest.validate().is_ok());
     }
 
     #[test]

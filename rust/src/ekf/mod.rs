@@ -28,7 +28,10 @@ mod step;
 pub(crate) mod transition;
 mod update;
 
-pub use config::{check_lever_arm, Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP, MAX_LEVER_ARM};
+pub use config::{
+    check_lever_arm, Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP, MAX_COVARIANCE_STEP,
+    MAX_LEVER_ARM,
+};
 pub use filter::{classic_sigma, correct, corrected_position_velocity, ClosedSigma, Ekf};
 pub use formulation::Formulation;
 pub use mounting::DvlMounting;

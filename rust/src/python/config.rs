@@ -26,8 +26,9 @@ use pyo3::prelude::*;
 /// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
 /// by default (free in accuracy, about half the cost: ``docs/covariance-step.md``);
 /// 0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
-/// number of IMU periods, and the covariance is brought up to date before every DVL
-/// update and at the end of a pass. See ``docs/filter.md``.
+/// number of IMU periods (at most :data:`MAX_COVARIANCE_STEP`, 1 s), and the covariance
+/// is brought up to date before every DVL update and at the end of a pass. See
+/// ``docs/filter.md``.
 #[pyclass(name = "FilterConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PyFilterConfig {

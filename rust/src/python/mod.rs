@@ -34,6 +34,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("THREADS_PER_CORE", crate::threads::THREADS_PER_CORE)?;
     m.add("THREADS_ENV", crate::threads::THREADS_ENV)?;
     m.add("MAX_LEVER_ARM", crate::ekf::MAX_LEVER_ARM)?;
+    m.add("MAX_COVARIANCE_STEP", crate::ekf::MAX_COVARIANCE_STEP)?;
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;
     m.add("MAX_GRAVITY_HEIGHT", crate::earth::MAX_GRAVITY_HEIGHT)?;
     m.add("MAX_LATITUDE_DEG", crate::earth::MAX_LATITUDE_DEG)?;

@@ -167,7 +167,7 @@ def windows(
             rec.imu, rec.imu_time, [_core.Dvl(rec.dvl_time, rec.dvl)], t0=rec.t0, lla0=rec.lla0,
             vel0=rec.vel0, rpy0=rec.rpy0, config=rec.config,
             strategy=_core.Strategy.external(prior_q), q_time=q_time, q=q,
-            covariance_time=epoch_time[starts],
+            covariance_time=epoch_time[starts], warn=False,
         )  # fmt: skip
         whole = sensor_batch(rec.imu, rec.imu_time, rec.dvl, rec.dvl_time, rec.t0, rec.config)
         in_force = torch.as_tensor(per_sample_q(q_time, q, rec.imu_time, rec.t0, prior_q))

@@ -1,4 +1,4 @@
-"""What a pass says about its streams (:mod:`pronet.recorded.health`): counts, the mean
+"""What a pass says about its streams (:mod:`pronet.stats`): counts, the mean
 NIS against its χ² band, and one line naming the likely causes when a stream disagrees
 with the filter (fixes 300 m off, a DVL told a σ ten times too small, a magnetic heading
 with its declination left out); none for streams told their true σ. (A heading in
@@ -6,12 +6,20 @@ degrees is refused when its stream is made.)"""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 import pronet
 from pronet.recorded.alignment import dcm_from_euler
-from pronet.recorded.health import stream_report, stream_reports
+from pronet.stats import (
+    FilterHealthWarning,
+    StreamReport,
+    StreamSource,
+    pass_health,
+    stream_report,
+)
 
 SECONDS = 120.0
 Q = np.array([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6])
@@ -51,12 +59,19 @@ def _pass(streams: list) -> pronet.FilterResult:
     )  # fmt: skip
 
 
-def _reports(**kw) -> dict[str, pronet.recorded.solution.StreamReport]:
+def _reports(**kw) -> dict[str, StreamReport]:
     streams, rows = _streams(np.random.default_rng(3), **kw)
     out = _pass(streams)
-    names = ["dvl", "fix", "heading"]
-    times = [s.time for s in streams]
-    return {r.name: r for r in stream_reports(out, names, times, lla={1: rows["fix"]})}
+    sources = [
+        StreamSource("dvl", streams[0].time),
+        StreamSource("fix", streams[1].time, lla=rows["fix"]),
+        StreamSource("heading", streams[2].time),
+    ]
+    health = pass_health(
+        out.streams, sources, lla=out.lla, vel=out.vel, sigma=out.sigma, time=out.time
+    )
+    assert health.divergence == ""
+    return {r.name: r for r in health.streams}
 
 
 def test_streams_told_their_sigma_are_in_band_and_counted() -> None:
@@ -97,8 +112,11 @@ def test_a_sigma_too_large_reads_below_the_band_and_outside_rows_are_skipped() -
     rep = stream_report("heading", out.streams[1], late.time, skipped={"nan": 3})
     assert rep.applied == 0 and rep.flag == "heading: no reading applied"
     assert rep.skipped == {"nan": 3, "outside the pass": 2} and rep.rows == 5
-    with pytest.raises(ValueError, match="^names, times: one per stream"):
-        stream_reports(out, ["dvl"], [streams[0].time])
+    with pytest.raises(ValueError, match="^sources: one per stream"):
+        pass_health(
+            out.streams, [StreamSource("dvl", streams[0].time)],
+            lla=out.lla, vel=out.vel, sigma=out.sigma, time=out.time,
+        )  # fmt: skip
 
 
 def test_rejected_readings_keep_their_nis_and_are_marked() -> None:
@@ -110,3 +128,70 @@ def test_rejected_readings_keep_their_nis_and_are_marked() -> None:
     assert np.isfinite(rep.nis).all()  # a rejected reading's NIS too
     assert (rep.nis[~rep.accepted] > 3.0).all() and (rep.nis[rep.accepted] <= 3.0).all()
     assert rep.applied == int(rep.accepted.sum()) and "gate rejected" in rep.flag
+
+
+def _warned(streams: list, **config) -> list[str]:
+    """The FilterHealthWarning lines of ``run_filter`` over ``streams``."""
+    traj = pronet.builtin_trajectory("paper")
+    n = int(SECONDS * 100)
+    imu = traj.imu[:n] + np.random.default_rng(1).normal(size=(n, 6)) * np.sqrt(Q)
+    cfg = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14, **config)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = pronet.run_filter(
+            imu, traj.time[1 : n + 1], streams, t0=0.0, lla0=traj.lla[0],
+            vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+            config=cfg,
+        )  # fmt: skip
+    lines = [str(w.message) for w in caught if issubclass(w.category, FilterHealthWarning)]
+    assert lines == [f"run_filter: {flag}" for flag in out.health.flags]
+    return lines
+
+
+def test_run_filter_says_nothing_of_streams_told_their_sigma() -> None:
+    streams, _ = _streams(np.random.default_rng(3))
+    assert _warned(streams) == []
+
+
+@pytest.mark.parametrize(
+    ("case", "words"),
+    [
+        ("fixes 300 m north", "streams[1] (fix): mean NIS"),
+        ("a placeholder covariance 99999 taken as R", "below its 95 % band"),
+        ("a gate of 0.01 (a probability)", "the innovation gate rejected 120 of 120"),
+        ("an ENU velocity read as NED", "a NED world read as ENU"),
+    ],
+)
+def test_run_filter_names_a_stream_the_filter_knows_is_wrong(case: str, words: str) -> None:
+    rng = np.random.default_rng(3)
+    streams, _ = _streams(rng, fix_offset=300.0 if "300 m" in case else 0.0)
+    dvl = streams[0]
+    if "99999" in case:
+        streams[0] = pronet.Dvl(dvl.time, dvl.velocity, sigma=np.sqrt(99999.0))
+    if "gate" in case:
+        streams[0] = pronet.Dvl(dvl.time, dvl.velocity, sigma=0.1, gate=0.01)
+    if "ENU" in case:
+        traj = pronet.builtin_trajectory("paper")
+        ned = traj.vel_ned[np.round(dvl.time * 100).astype(int)]
+        enu = ned[:, [1, 0, 2]] * [1.0, 1.0, -1.0] + rng.normal(size=ned.shape) * 0.1
+        streams[0] = pronet.Dvl(dvl.time, enu, sigma=0.1, frame="ned")
+    lines = _warned(streams)
+    assert any(words in line for line in lines), (case, lines)
+
+
+def test_a_diverged_pass_is_named_with_its_first_epoch() -> None:
+    # An IMU left in FLU: gravity up, the solution leaves the Earth within seconds.
+    traj = pronet.builtin_trajectory("paper")
+    n = 3000
+    imu = traj.imu[:n] * [1.0, -1.0, -1.0, 1.0, -1.0, -1.0]
+    with pytest.warns(FilterHealthWarning, match="the pass diverged: its solution"):
+        out = pronet.run_filter(
+            imu, traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
+            rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+        )  # fmt: skip
+    assert "from t = " in out.health.divergence
+    quiet = pronet.run_filter(
+        imu, traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
+        rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q), warn=False,
+    )  # fmt: skip
+    assert quiet.health.divergence == out.health.divergence
