@@ -6,6 +6,7 @@ degrees is refused when its stream is made.)"""
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import numpy as np
@@ -13,11 +14,15 @@ import pytest
 
 import pronet
 from pronet.recorded.alignment import dcm_from_euler
+from pronet.sim.scenarios import SCENARIOS
 from pronet.stats import (
     FilterHealthWarning,
     StreamReport,
     StreamSource,
+    chance_bound,
     pass_health,
+    runs_flag,
+    runs_outside_band,
     stream_report,
 )
 
@@ -195,3 +200,33 @@ def test_a_diverged_pass_is_named_with_its_first_epoch() -> None:
         rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q), warn=False,
     )  # fmt: skip
     assert quiet.health.divergence == out.health.divergence
+
+
+def test_a_filter_told_the_simulation_s_model_flags_no_more_runs_than_chance() -> None:
+    sc = SCENARIOS["matched"](0)
+    result = pronet.monte_carlo(
+        sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
+        config=sc.config, n_runs=100, seed=0,
+    )  # fmt: skip
+    outside = runs_outside_band(result.nis)
+    assert outside.sum() <= chance_bound(100) and runs_flag("constant", outside) == ""
+    # A run's band is its own: a mean at the band's edge is in, beyond it out.
+    lo, hi = pronet.stats.chi2_mean_band(3, 4)
+    nis = np.array([[hi * 0.999] * 4 + [np.nan], [hi * 1.001] * 4 + [np.nan], [np.nan] * 5])
+    assert runs_outside_band(nis).tolist() == [False, True, False]
+    assert chance_bound(100) == 11 and chance_bound(1) == 1
+
+
+def test_simulate_names_a_row_whose_runs_leave_their_band(tmp_path) -> None:
+    from pronet.experiments.simulation import simulate
+
+    told = tmp_path / "told.toml"  # the DVL's R told 100 times too small
+    told.write_text("dvl_variance = [1e-6, 1e-6, 1e-6]\n")
+    said: list[str] = []
+    folder = simulate("matched", ["constant"], tmp_path / "out", filter_config=told,
+                      n_runs=10, plots=False, say=said.append)  # fmt: skip
+    config = json.loads((folder / "config.json").read_text())
+    assert config["health"]["constant"]["runs_nis_outside_band"] == 10
+    (note,) = config["notes"]
+    assert note.startswith("constant: 10 of 10 runs' mean DVL NIS outside") and note in said
+    assert f"- {note}" in (folder / "table.md").read_text()

@@ -249,17 +249,21 @@ def write_result_folder(
     config: dict[str, object],
     extra: Callable[[Path], None] | None = None,
     paper_columns: bool = True,
+    notes: Sequence[str] = (),
 ) -> Path:
     """Write an experiment's tables (``tables``: scenario name → rows; :func:`write_tables`,
     each titled by :func:`table_title`) and ``config.json`` into
     ``folder``, plus whatever ``extra(tmp_folder)`` writes (plots, models), atomically:
     everything goes to a temporary sibling first, which is renamed into place only when
     complete. An existing folder is refused, never overwritten. With ``paper_columns``,
-    the tables of the ``paper*`` scenarios show the paper's numbers beside ours."""
+    the tables of the ``paper*`` scenarios show the paper's numbers beside ours;
+    ``notes`` (what the runs say about themselves) follow the tables."""
     text = "\n".join(
         rows_markdown(rows, table_title(name, rows), paper_columns and name.startswith("paper"))
         for name, rows in tables.items()
     )
+    if notes:
+        text += "\n## Notes\n\n" + "".join(f"- {line}\n" for line in notes)
     with atomic_folder(Path(folder)) as tmp:
         write_tables(tmp, rows_dataframe(tables), rows_dataframe(tables, per_run=True), text)
         (tmp / "config.json").write_bytes(json_bytes(config))

@@ -450,3 +450,44 @@ def warn_about(health: PassHealth, where: str = "run_filter") -> None:
 
     for line in health.flags:
         warnings.warn(f"{where}: {line}", FilterHealthWarning, stacklevel=3)
+
+
+def runs_outside_band(nis: F64, dof: int = 3) -> NDArray[np.bool_]:
+    """Whether each run's mean NIS (``nis`` ``(n_runs, m)``, NaN where a reading was not
+    applied) lies outside its 95 % band, χ²(dof·k)/k over its ``k`` readings (False for
+    a run without any)."""
+    nis = np.asarray(nis, dtype=np.float64)
+    out = np.zeros(len(nis), dtype=bool)
+    for r, row in enumerate(nis):
+        seen = row[np.isfinite(row)]
+        if len(seen):
+            lo, hi = chi2_mean_band(dof, len(seen))
+            out[r] = not lo <= float(seen.mean()) <= hi
+    return out
+
+
+def chance_bound(n: int, p: float = 0.05, level: float = 0.99) -> int:
+    """The most of ``n`` independent trials that land outside a band of probability
+    ``1 − p`` by chance, at ``level``: the smallest ``k`` with P(Binomial(n, p) ≤ k) ≥
+    ``level``."""
+    total, k = 0.0, 0
+    while k <= n:
+        total += math.comb(n, k) * p**k * (1 - p) ** (n - k)
+        if total >= level:
+            return k
+        k += 1
+    return n
+
+
+def runs_flag(label: str, outside: NDArray[np.bool_], what: str = "DVL") -> str:
+    """One line when more runs' mean NIS lie outside their band than chance allows
+    (:func:`chance_bound`), else ""."""
+    n, k = len(outside), int(np.sum(outside))
+    allowed = chance_bound(n)
+    if k <= allowed:
+        return ""
+    return (
+        f"{label}: {k} of {n} runs' mean {what} NIS outside their 95 % band (chance "
+        f"allows {allowed}): the filter is told a model other than the simulation's "
+        "(its R, Q or initial σ); check the filter configuration against the sensors'"
+    )

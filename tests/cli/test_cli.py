@@ -396,10 +396,18 @@ def test_simulate_library_reports_through_callbacks_and_never_prints(tmp_path, c
         on_done=lambda label: events.append(("done", label)),
     )
     assert folder == tmp_path / "out" and (folder / "table.md").is_file()
-    assert [e[0] for e in events] == ["say", "start", "done", "done"]
-    assert events[1:] == [("start", 2, "strategy", None), ("done", "constant"), ("done", "mehra:5")]
-    assert capsys.readouterr() == ("", "")
     settings = json.loads((folder / "config.json").read_text())
+    # then one "say" per note: a row whose runs leave their NIS band (the short scenario's
+    # filter is not told its sensors' model)
+    notes = [("say", line) for line in settings["notes"]]
+    assert [e[0] for e in events] == ["say", "start", "done", "done"] + ["say"] * len(notes)
+    assert events[1:4] == [
+        ("start", 2, "strategy", None),
+        ("done", "constant"),
+        ("done", "mehra:5"),
+    ]
+    assert events[4:] == notes
+    assert capsys.readouterr() == ("", "")
     assert settings["scenario"] == "short" and settings["strategies"] == ["constant", "mehra:5"]
 
 

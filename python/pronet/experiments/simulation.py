@@ -15,6 +15,7 @@ from pronet._util.validate import threads as threads_arg
 from pronet.results import table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.sim.scenarios import Scenario
+from pronet.stats import chance_bound, runs_flag, runs_outside_band
 from pronet.strategies import StrategySpec, strategy
 
 
@@ -140,6 +141,12 @@ def simulate(
         on_done=on_done,
         smooth=smooth,
     )
+    # What the runs say about themselves: rows whose DVL NIS leave their band too often.
+    outside = {row.label: runs_outside_band(row.result.nis) for row in rows}
+    notes = [line for label, o in outside.items() if (line := runs_flag(label, o))]
+    for line in notes:
+        if say is not None:
+            say(line)
     settings: dict[str, object] = {
         "scenario": scenario.name if isinstance(scenario, Scenario) else str(scenario),
         "filter": repr(sc.config),
@@ -152,6 +159,15 @@ def simulate(
         "seed": seed,
         "tuning_period_s": tuning_period,
         "smooth": smooth,
+        "health": {
+            label: {
+                "runs_nis_outside_band": int(o.sum()),
+                "runs": len(o),
+                "chance_allows": chance_bound(len(o)),
+            }
+            for label, o in outside.items()
+        },
+        "notes": notes,
     }
     return write_result_folder(
         out,
@@ -159,6 +175,7 @@ def simulate(
         settings,
         extra=(lambda folder: _figures(folder, sc, rows)) if plots else None,
         paper_columns=False,
+        notes=notes,
     )
 
 
