@@ -265,6 +265,8 @@ def python_array_callables() -> set[str]:
         obj = getattr(pronet, name)
         if not callable(obj) or getattr(obj, "__module__", "") == "pronet._core":
             continue
+        if inspect.isclass(obj) and issubclass(obj, Warning):
+            continue  # a warning category (PlausibilityWarning): no arguments of its own
         members = [(name, obj)]
         if inspect.isclass(obj):
             methods = vars(obj).items()

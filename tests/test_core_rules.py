@@ -40,7 +40,7 @@ def short_trajectory() -> pronet.Trajectory:
 
 @pytest.mark.parametrize("lla0", [POLAR, SOUTH])
 def test_latitude_rule_is_the_cores_for_every_entry_point(lla0) -> None:
-    zeros = np.zeros((2, 6))
+    zeros = np.tile([0.0, 0.0, -9.8, 0.0, 0.0, 0.0], (2, 1))  # at rest: a plausible IMU
     with pytest.raises(ValueError) as mech:
         pronet.mechanize(zeros, 0.01, lla0, (0, 0, 0), (0, 0, 0))
     with pytest.raises(ValueError) as filt:

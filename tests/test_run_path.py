@@ -108,7 +108,7 @@ def test_run_refuses_what_its_target_cannot_take() -> None:
     with pytest.raises(ValueError, match="^target: expected a Scenario or Recorded, got str$"):
         run(native, "paper")  # type: ignore[call-overload]
     rec = Recorded(
-        imu=np.zeros((3, 6)),
+        imu=np.tile([0.0, 0.0, -9.8, 0.0, 0.0, 0.0], (3, 1)),  # at rest: a plausible IMU
         imu_time=np.array([0.01, 0.02, 0.03]),
         dvl=np.zeros((0, 3)),
         dvl_time=np.zeros(0),

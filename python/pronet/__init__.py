@@ -25,6 +25,7 @@ from pronet._core import (
     earth_radii,
     normal_gravity,
 )
+from pronet._util.plausibility import PlausibilityWarning
 from pronet.filter import FilterResult, SmoothedResult, StreamResult, run_filter
 from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
 from pronet.navigation import NavSolution, lla_from_ned, local_ned, mechanize
@@ -40,6 +41,7 @@ __all__ = [
     "Heading",
     "MonteCarloResult",
     "NavSolution",
+    "PlausibilityWarning",
     "STATE_BLOCKS",
     "Segment",
     "SmoothedResult",

@@ -5,7 +5,6 @@ data is filtered."""
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, TypeAlias, overload
@@ -14,6 +13,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
+from pronet._util import plausibility
+from pronet._util.deprecated import deprecated_streams
 from pronet._util.validate import check_type, float_array, scalar
 from pronet.stats import PassHealth, pass_health, sources_of, warn_about
 
@@ -77,6 +78,7 @@ class SmoothedResult:
             smoothed DVL scale-factor error and mounting roll, pitch, yaw [rad] (as
             :attr:`FilterResult.calibration`); ``(0, 4)`` without.
         calibration_sigma: ``(n+1, 4)`` their smoothed 1σ; ``(0, 4)`` without.
+        epoch: the forward pass's :attr:`FilterResult.epoch`.
     """
 
     time: NDArray[np.float64]
@@ -87,14 +89,12 @@ class SmoothedResult:
     sigma: NDArray[np.float64]
     calibration: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 4)))
     calibration_sigma: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 4)))
+    epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
 
     def to_dataframe(self):  # -> pd.DataFrame
-        """One row per epoch, columns :data:`EPOCH_COLUMNS` (then the calibration
-        states' with them), SI units as the attributes."""
-        parts = [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
-        if len(self.calibration):
-            parts += [self.calibration, self.calibration_sigma]
-        return _epoch_table(parts)
+        """One row per epoch, indexed by the epoch, columns :data:`EPOCH_COLUMNS`
+        (then the calibration states' with them), SI units as the attributes."""
+        return _epoch_table(self)
 
 
 @dataclass(frozen=True)
@@ -156,8 +156,9 @@ class FilterResult:
             (:class:`SmoothedResult`), else None.
         epoch: with ``output_step``, ``(k,)`` the index of each row among all epochs
             (0 the initial state, j + 1 after IMU sample j: the index ``dvl_epoch``,
-            ``depth_epoch``, ``fix_epoch`` and ``covariance_epoch`` count in); ``(0,)``
-            otherwise (every epoch kept, or the last).
+            ``depth_epoch``, ``fix_epoch`` and ``covariance_epoch`` count in); with
+            ``epochs="last"``, ``(1,)`` the last epoch's, n; ``(0,)`` with every epoch
+            kept (row j is epoch j).
         streams: one :class:`StreamResult` per stream given, in their order.
         health: what the pass says about itself (:mod:`pronet.stats`): each stream's
             NIS against its band, the gate, and a diverged solution.
@@ -194,27 +195,29 @@ class FilterResult:
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
         """The result as a pandas table, SI units as the attributes.
 
-        ``rows="epochs"``: one row per epoch, columns :data:`EPOCH_COLUMNS` (``time``,
-        ``lat``, ``lon`` [rad], ``h`` [m], NED velocity, roll, pitch, yaw, the bias
-        estimates and the 1σ of the 15 error states), then with the DVL calibration
-        states :data:`CALIBRATION_COLUMNS` and their ``sigma_`` twins. ``rows="updates"``:
-        one row per row of the first velocity stream, columns :data:`UPDATE_COLUMNS` (the
+        ``rows="epochs"``: one row per epoch kept, indexed by its epoch (``"epoch"``, as
+        :attr:`epoch`: ``updates.join(epochs, on="dvl_epoch")`` finds each update's row,
+        with ``output_step`` too), columns :data:`EPOCH_COLUMNS` (``time``, ``lat``,
+        ``lon`` [rad], ``h`` [m], NED velocity, roll, pitch, yaw, the bias estimates and
+        the 1σ of the 15 error states), then with the DVL calibration states
+        :data:`CALIBRATION_COLUMNS` and their ``sigma_`` twins. ``rows="updates"``: one
+        row per row of the first velocity stream, columns :data:`UPDATE_COLUMNS` (the
         epoch and its time, or -1 and NaN for a row outside the run, the time NaN too
-        for a pass run with ``epochs="last"`` and, with ``output_step``, where the epoch
-        was not kept; the innovation [m/s], body x, y, z or, for a ``frame="ned"``
-        stream, N, E, D; the NIS; whether it was applied).
+        where the epoch was not kept, with ``output_step`` or ``epochs="last"``; the
+        innovation [m/s], body x, y, z or, for a ``frame="ned"`` stream, N, E, D; the
+        NIS; whether it was applied).
         """
         import pandas as pd
 
         if rows == "updates":
             inside = self.dvl_epoch >= 0
             t = np.full(len(self.dvl_epoch), np.nan)
-            if len(self.epoch):  # output_step: the kept epochs' times
+            if len(self.epoch):  # output_step or epochs="last": the kept epochs' times
                 row = np.searchsorted(self.epoch, self.dvl_epoch)
                 row = np.minimum(row, len(self.epoch) - 1)
                 kept = inside & (self.epoch[row] == self.dvl_epoch)
                 t[kept] = self.time[row[kept]]
-            elif len(self.time) > int(self.dvl_epoch.max(initial=-1)):  # not epochs="last"
+            else:
                 t[inside] = self.time[self.dvl_epoch[inside]]
             data = {"dvl_epoch": self.dvl_epoch, "time": t}
             data.update(zip(UPDATE_COLUMNS[2:5], self.innovation.T, strict=True))
@@ -222,21 +225,23 @@ class FilterResult:
             return pd.DataFrame(data, columns=list(UPDATE_COLUMNS))
         if rows != "epochs":
             raise ValueError(f'rows: expected "epochs" or "updates", got {rows!r}')
-        parts = [self.time[:, None], self.lla, self.vel, self.rpy, self.bias, self.sigma]
-        if len(self.calibration):
-            parts += [self.calibration, self.calibration_sigma]
-        return _epoch_table(parts)
+        return _epoch_table(self)
 
 
-def _epoch_table(parts: list[NDArray[np.float64]]):  # -> pd.DataFrame
-    """The epoch columns (:data:`EPOCH_COLUMNS`, then the calibration states' if
-    ``parts`` has them) as a data frame."""
+def _epoch_table(r: FilterResult | SmoothedResult):  # -> pd.DataFrame
+    """``r``'s epoch columns (:data:`EPOCH_COLUMNS`, then the calibration states' with
+    them) as a data frame indexed by the epoch (``"epoch"``: :attr:`FilterResult.epoch`,
+    or every epoch's)."""
     import pandas as pd
 
+    parts = [r.time[:, None], r.lla, r.vel, r.rpy, r.bias, r.sigma]
     columns = list(EPOCH_COLUMNS)
-    if len(parts) > 6:
+    if len(r.calibration):
+        parts += [r.calibration, r.calibration_sigma]
         columns += [*CALIBRATION_COLUMNS, *(f"sigma_{c}" for c in CALIBRATION_COLUMNS)]
-    return pd.DataFrame(np.hstack(parts), columns=columns)
+    every = pd.RangeIndex(len(r.time), name="epoch")
+    index = pd.Index(r.epoch, name="epoch") if len(r.epoch) else every
+    return pd.DataFrame(np.hstack(parts), columns=columns, index=index)
 
 
 #: The 15 error states, in order (:attr:`FilterResult.sigma`): NED position [m], NED
@@ -273,19 +278,6 @@ UPDATE_COLUMNS = (
     "innovation_z",
     "nis",
     "accepted",
-)
-
-
-#: The deprecated keywords of :func:`run_filter` (its arrays before streams).
-_DEPRECATED = (
-    "dvl",
-    "dvl_time",
-    "depth",
-    "depth_time",
-    "depth_sigma",
-    "fix",
-    "fix_time",
-    "fix_sigma",
 )
 
 
@@ -423,6 +415,13 @@ def run_filter(
             :attr:`FilterResult.health` (a stream out of its NIS band, a gate that
             rejected most of a stream, a diverged solution); False: the lines only there.
 
+    Refused before any computation, as a slip of unit or frame (a ``ValueError`` naming
+    the argument; :mod:`pronet._util.plausibility` has the bounds and why): ``t0`` more
+    than 5 median IMU steps before the first sample, a mean specific force off gravity
+    by 20 %, one over the first second more than 90° from where ``rpy0`` puts it (FLU),
+    a depth beyond −10 … 12 km. A stream none of whose rows falls within the run is
+    warned of (:class:`~pronet.PlausibilityWarning`).
+
     Deprecated (for one release): the arrays before streams,
     ``run_filter(imu, imu_time, dvl, dvl_time, *, ..., depth=, depth_time=,
     depth_sigma=, fix=, fix_time=, fix_sigma=)``, warns (``DeprecationWarning``) and runs
@@ -432,21 +431,24 @@ def run_filter(
     arrays together are a ``ValueError``.
     """
     if deprecated or deprecated_keywords:
-        streams = _deprecated_streams(streams, deprecated, deprecated_keywords)
+        streams = deprecated_streams(streams, deprecated, deprecated_keywords)
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
     check_type(strategy, _core.Strategy, "strategy")
     check_type(smooth, bool, "smooth")
     check_type(warn, bool, "warn")
     given = _stream_list(streams)
+    samples, stamps = float_array(imu, "imu", (None, 6)), float_array(imu_time, "imu_time", (None,))
+    start, attitude = scalar(t0, "t0"), float_array(rpy0, "rpy0", (3,))
+    plausibility.check_pass(samples, stamps, start, attitude, given)
     out = _core.run_filter(
-        float_array(imu, "imu", (None, 6)),
-        float_array(imu_time, "imu_time", (None,)),
+        samples,
+        stamps,
         given,
-        t0=scalar(t0, "t0"),
+        t0=start,
         lla0=float_array(lla0, "lla0", (3,)),
         vel0=float_array(vel0, "vel0", (3,)),
-        rpy0=float_array(rpy0, "rpy0", (3,)),
+        rpy0=attitude,
         config=config,
         strategy=strategy,
         bias0=None if bias0 is None else float_array(bias0, "bias0", (6,)),
@@ -462,10 +464,14 @@ def run_filter(
         smooth=smooth,
     )
     per_stream = tuple(StreamResult(**_with_adaptive_q(d)) for d in out.pop("streams"))
+    span = (start, float(stamps[-1]))
+    plausibility.warn_unapplied(given, [s.epoch for s in per_stream], span)
     _with_adaptive_q(out)
+    if epochs == "last":
+        out["epoch"] = np.array([len(samples)], dtype=np.int64)
     smoothed = out.pop("smoothed")
     if smoothed is not None:
-        smoothed = SmoothedResult(time=out["time"], **smoothed)
+        smoothed = SmoothedResult(time=out["time"], epoch=out["epoch"], **smoothed)
     result = FilterResult(**out, smoothed=smoothed, streams=per_stream)
     sources = sources_of(given, [r.kind for r in per_stream])
     health = pass_health(per_stream, sources, lla=result.lla, vel=result.vel,
@@ -498,98 +504,3 @@ def _stream_list(streams: object) -> list[Stream]:
                 f"streams[{i}]: expected a Dvl, Depth, Fix or Heading, got {type(s).__name__}"
             )
     return list(streams)
-
-
-def _deprecated_streams(
-    first: object, positional: tuple[object, ...], keywords: dict[str, Any]
-) -> list[Stream]:
-    """The streams of the deprecated form ``run_filter(imu, imu_time, dvl, dvl_time, *,
-    depth=, depth_time=, depth_sigma=, fix=, fix_time=, fix_sigma=)``, with its warning;
-    an error as Python's or the old form's own would be."""
-    unknown = [k for k in keywords if k not in _DEPRECATED]
-    if unknown:
-        raise TypeError(f"run_filter() got an unexpected keyword argument {unknown[0]!r}")
-    if len(positional) > 1:
-        raise TypeError(
-            f"run_filter() takes from 2 to 4 positional arguments but {3 + len(positional)} "
-            "were given"
-        )
-    old = dict(keywords)
-    if positional:
-        for name, value in (("dvl", first), ("dvl_time", positional[0])):
-            if name in old:
-                raise TypeError(f"run_filter() got multiple values for argument {name!r}")
-            old[name] = value
-    elif not (isinstance(first, tuple | list) and len(first) == 0):
-        raise ValueError(
-            "streams: give the sensors as streams or as the deprecated arrays "
-            f"({', '.join(sorted(old))}), not both"
-        )
-    for name in ("dvl", "dvl_time"):
-        if name not in old:
-            raise TypeError(f"run_filter() missing required argument: {name!r}")
-    warnings.warn(
-        "run_filter(imu, imu_time, dvl, dvl_time, depth=..., fix=...) is deprecated: pass "
-        "the sensors as streams, run_filter(imu, imu_time, [pronet.Dvl(dvl_time, dvl), "
-        "pronet.Depth(depth_time, depth, sigma=depth_sigma), pronet.Fix(fix_time, fix, "
-        "sigma=fix_sigma)], ...)",
-        DeprecationWarning,
-        stacklevel=3,
-    )
-    streams: list[Stream] = [
-        _old_names(
-            lambda: _core.Dvl(
-                float_array(old["dvl_time"], "dvl_time", (None,)),
-                float_array(old["dvl"], "dvl", (None, 3)),
-            ),
-            {"time": "dvl_time", "velocity": "dvl"},
-        )
-    ]
-    if _group(old, "depth"):
-        streams.append(
-            _old_names(
-                lambda: _core.Depth(
-                    float_array(old["depth_time"], "depth_time", (None,)),
-                    float_array(old["depth"], "depth", (None,)),
-                    sigma=scalar(old["depth_sigma"], "depth_sigma"),
-                ),
-                {"time": "depth_time", "sigma": "depth_sigma"},
-            )
-        )
-    if _group(old, "fix"):
-        streams.append(
-            _old_names(
-                lambda: _core.Fix(
-                    float_array(old["fix_time"], "fix_time", (None,)),
-                    float_array(old["fix"], "fix", (None, 3)),
-                    sigma=float_array(old["fix_sigma"], "fix_sigma", (None, 3)),
-                ),
-                {"time": "fix_time", "lla": "fix", "sigma": "fix_sigma"},
-            )
-        )
-    return streams
-
-
-def _group(old: dict[str, Any], name: str) -> bool:
-    """Whether the deprecated keywords ``old`` give the group ``name`` (``name``,
-    ``name_time``, ``name_sigma``: all three or none, else ``ValueError``)."""
-    names = (name, f"{name}_time", f"{name}_sigma")
-    given = [old.get(n) is not None for n in names]
-    if any(given) and not all(given):
-        raise ValueError(
-            f"{name}: {name}, {name}_time and {name}_sigma go together: give all three or none"
-        )
-    return all(given)
-
-
-def _old_names(make: Any, names: dict[str, str]) -> Stream:
-    """``make()``, its ``ValueError`` naming the deprecated form's argument (``names``:
-    the stream's argument to it)."""
-    try:
-        stream: Stream = make()
-    except ValueError as e:
-        arg, sep, reason = str(e).partition(": ")
-        if sep and arg in names:
-            raise ValueError(f"{names[arg]}: {reason}") from None
-        raise
-    return stream

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
+from pronet._util.plausibility import angles_beyond
 from pronet._util.validate import float_array, real_array, scalar
 
 
@@ -82,6 +83,8 @@ def _origin(origin: ArrayLike) -> NDArray[np.float64]:
     o = float_array(origin, "origin", (3,))
     if not (np.isfinite(o).all() and abs(o[0]) <= np.pi / 2):
         raise ValueError(f"origin: expected finite [lat, lon, h] with |lat| <= pi/2, got {o}")
+    if (beyond := angles_beyond(o, "origin")) is not None:
+        raise ValueError(beyond)
     return o
 
 
@@ -93,12 +96,17 @@ def local_ned(lla: ArrayLike, origin: ArrayLike) -> NDArray[np.float64]:
             e.g. :attr:`pronet.FilterResult.lla` or ``Trajectory.lla``.
         origin: ``(3,)`` the origin's latitude, longitude [rad] and height [m].
 
+    Latitudes beyond ±90° and longitudes beyond −180° … 360° (either convention) are
+    refused as angles in degrees, naming the argument (and the row).
+
     Returns:
         ``lla``'s shape: the vector from ``origin`` to each point in the NED frame at
         ``origin`` [m]. :func:`lla_from_ned` is the inverse.
     """
     o = _origin(origin)
     p = _rows(lla, "lla")
+    if (beyond := angles_beyond(p, "lla")) is not None:
+        raise ValueError(beyond)
     return (_ecef(p) - _ecef(o)) @ _ned_rotation(o).T
 
 
@@ -108,7 +116,8 @@ def lla_from_ned(ned: ArrayLike, origin: ArrayLike) -> NDArray[np.float64]:
 
     Args:
         ned: ``(3,)`` or ``(n, 3)`` NED vectors from ``origin`` [m], in its NED frame.
-        origin: ``(3,)`` the origin's latitude, longitude [rad] and height [m].
+        origin: ``(3,)`` the origin's latitude, longitude [rad] and height [m] (its
+            longitude within −180° … 360°, as :func:`local_ned`'s).
 
     Returns:
         ``ned``'s shape: latitude, longitude [rad] in (−π, π], height [m, up] (WGS-84).

@@ -87,8 +87,10 @@ class StrategySpec:
         """The spec in ``text``, or ``ValueError`` saying what is wrong with it."""
         if not isinstance(text, str):
             raise ValueError(f"strategy: expected text such as 'mehra:5', got {text!r}")
-        kind, _, arg = text.strip().partition(":")
+        kind, colon, arg = text.strip().partition(":")
         arg = arg.strip()
+        if colon and not arg and kind in ("constant", "adaptive", "oracle", "detvar"):
+            raise ValueError(f"strategy {text!r}: nothing after ':'; write {kind!r} without it")
         if kind == "constant":
             factor = _spec_number(arg, text) if arg else 1.0
             if not 0 < factor < math.inf:

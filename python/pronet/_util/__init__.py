@@ -7,10 +7,24 @@
   experiments share;
 - :mod:`~pronet._util.cores`: the cores this process may use;
 - :mod:`~pronet._util.extras`: optional dependencies and the one error when missing;
-- :mod:`~pronet._util.waiting`: waiting for worker threads without going deaf to signals.
+- :mod:`~pronet._util.waiting`: waiting for worker threads without going deaf to signals;
+- :mod:`~pronet._util.plausibility`: the physical bounds the API and the readers hold
+  data to (gravity, the first IMU step, depth, angles) and the warning of usable data
+  that is probably a mistake;
+- :mod:`~pronet._util.deprecated`: the deprecated form of :func:`pronet.run_filter`
+  (its arrays before streams) turned into the streams it stands for.
 
 Every subpackage may import from here; nothing here imports the rest of pronet but
 :mod:`pronet._core`.
 """
 
-__all__ = ["cores", "extras", "files", "outputs", "validate", "waiting"]
+__all__ = [
+    "cores",
+    "deprecated",
+    "extras",
+    "files",
+    "outputs",
+    "plausibility",
+    "validate",
+    "waiting",
+]

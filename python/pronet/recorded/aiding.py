@@ -73,15 +73,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet._util.plausibility import STANDARD_GRAVITY
 from pronet.recorded import heading as _heading
 from pronet.recorded.heading import HeadingReadings
-from pronet.recorded.plausible import (
-    ANGLE_UNITS,
-    STANDARD_GRAVITY,
-    Table,
-    angle_beyond,
-    parse_header,
-)
+from pronet.recorded.plausible import ANGLE_UNITS, Table, angle_beyond, parse_header
 
 F64 = NDArray[np.float64]
 

@@ -23,7 +23,8 @@ increasing time, rate):
 
 Lever arms beyond :data:`LONG_LEVER_ARM` are usable and only warned of
 (:func:`long_lever_arm`, a :class:`PlausibilityWarning`): typed in cm or mm, they run to
-errors of 100 m/s; a few vehicles are that long.
+errors of 100 m/s; a few vehicles are that long. So is an IMU whose stamps jitter beyond
+:data:`MAX_IMU_JITTER` of a step (:func:`imu_jitter`).
 """
 
 from __future__ import annotations
@@ -34,34 +35,31 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet._util.plausibility import HEIGHT_RANGE, PlausibilityWarning, specific_force
+
 F64 = NDArray[np.float64]
 
 #: The fastest a ground truth may move [m/s] (no underwater vehicle comes near it).
 MAX_SPEED = 100.0
-#: The heights a ground truth may have [m, up]: the deepest trench to high above sea.
-HEIGHT_RANGE = (-12_000.0, 10_000.0)
 #: The truth's attitude steps over the gyro's, by RMS, outside [1/x, x]: a unit slip.
 ANGLE_RATIO = 5.0
 #: Below this RMS gyro turn per truth row [rad] the attitude-unit check says nothing.
 MIN_TURN = 1e-3
 #: A lever arm longer than this [m] is warned of.
 LONG_LEVER_ARM = 10.0
-#: Plausible magnitudes. The mean specific force over a section within this range of
-#: standard gravity [m/s²] (vehicle accelerations are small beside it); the 99th
+#: Plausible magnitudes. The mean specific force over a section near gravity
+#: (:func:`pronet._util.plausibility.specific_force`, the API's rule too); the 99th
 #: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
 #: the DVL's median speed within this ratio of the ground truth's (when that is above
 #: 0.2 m/s).
-STANDARD_GRAVITY = 9.80665
-GRAVITY_RANGE = (0.8, 1.2)
 MAX_RECORDED_RATE = 10.0
 DVL_SPEED_RATIO = (0.5, 2.0)
 #: Without a ground truth, the DVL's median speed at most this [m/s] (no vehicle a DVL
 #: tracks the bottom from moves so fast; cm/s under an m/s header does).
 MAX_DVL_SPEED = 10.0
-
-
-class PlausibilityWarning(UserWarning):
-    """Usable data that is probably a mistake (a lever arm beyond 10 m)."""
+#: An IMU's stamped steps, by the 99th percentile of ``|step / median − 1|``, beyond this
+#: share of a step are warned of (:func:`imu_jitter`).
+MAX_IMU_JITTER = 0.15
 
 
 class Table(NamedTuple):
@@ -107,13 +105,8 @@ def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     mix-up otherwise runs to the end and only shows as a huge error): ``imu`` ``(n, 6)``
     SI samples, ``dvl`` ``(m, 3)`` the used DVL readings [m/s] (may be empty),
     ``gt_vel`` ``(k, 3)`` the truth's velocity [m/s] (empty: no ground truth)."""
-    specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
-    lo, hi = GRAVITY_RANGE
-    if not lo <= specific_force / STANDARD_GRAVITY <= hi:
-        return (
-            f"{source} imu: the mean specific force is {specific_force:.4g} m/s², not near "
-            f"gravity ({STANDARD_GRAVITY} m/s²); are the accelerations in g, or mis-scaled?"
-        )
+    if (not_gravity := specific_force(imu)) is not None:
+        return f"{source} imu: {not_gravity}"
     rate = float(np.percentile(np.linalg.norm(imu[:, 3:], axis=1), 99))
     if rate > MAX_RECORDED_RATE:
         return (
@@ -138,6 +131,29 @@ def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
             f"{truth:.4g} m/s; are the DVL velocities in m/s?"
         )
     return None
+
+
+def imu_jitter(where: str, step: F64) -> str | None:
+    """The IMU's ``step`` s between stamps spread beyond :data:`MAX_IMU_JITTER` of their
+    median (the 99th percentile of ``|step / median − 1|``). Each sample is integrated
+    over its stamped step, exact when the IMU sampled so (a 10 % spread of such steps
+    runs as well as a uniform IMU: ``tests/recorded/test_rates.py``; the 15 % bound
+    leaves half that again); an IMU samples on its own crystal, steady to 1e-4, so a
+    larger spread is a logger's stamping, which moves the solution (50.5 Hz stamped
+    within ±2 ms: 18 %, the Snapir IMU: 4e-12)."""
+    median = float(np.median(step)) if len(step) > 1 else 0.0
+    if not median > 0:
+        return None
+    spread = float(np.percentile(np.abs(step / median - 1.0), 99))
+    if spread <= MAX_IMU_JITTER:
+        return None
+    return (
+        f"{where}: the IMU steps jitter by {100 * spread:.0f} % of the median step "
+        f"{median:.4g} s (1 % of them more; at most {100 * MAX_IMU_JITTER:g} % expected); "
+        "each sample is integrated over its stamped step, so stamps from a logger's clock, "
+        "not the IMU's, move the solution: re-stamp the samples on the IMU's clock if it "
+        "has one (used as given)"
+    )
 
 
 def duplicate_columns(

@@ -45,17 +45,20 @@ of :attr:`Recording.dvl` and kept, with their reasons, in
 :mod:`pronet.recorded.missing`. A DVL without a single usable row is an error.
 
 Checks (each failure raises :class:`RecordingError`, a ``ValueError``, naming the file
-and, where there is one, the row): the file exists and is not empty, the columns are
-comma-separated and every required one is present with a known unit, every value is a
-finite number (the DVL's velocities aside: missing readings, above), time increases
-strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz,
-ground truth 0.05–1000 Hz), the IMU time has no gap longer than five median steps, and the
-magnitudes fit their units (the mean specific force near gravity, angular rates within
-10 rad/s, the DVL's speed within a factor 2 of the ground truth's, or without one at
-most :data:`pronet.recorded.plausible.MAX_DVL_SPEED`; see
-:func:`pronet.recorded.plausible.magnitudes`). A folder holding both a ``.csv`` and a ``.csv.gz``
-of one stream is ambiguous and refused. Row numbers count data rows from 1 (the header
-is row 0).
+and, where there is one, the row): the file exists and is not empty (a UTF-8 byte-order
+mark before the header is read as none), the columns are comma-separated and every
+required one is present with a known unit, every value is a finite number (the DVL's
+velocities aside: missing readings, above), time increases strictly, the sample rate is
+plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz, ground truth 0.05–1000 Hz;
+a ground truth of one row is refused), the IMU time has no gap longer than five median
+steps (a jitter beyond 15 % of a step is warned of:
+:func:`pronet.recorded.plausible.imu_jitter`), and the magnitudes fit their units (the
+mean specific force near gravity, angular rates within 10 rad/s, the DVL's speed within
+a factor 2 of the ground truth's, or without one at most
+:data:`pronet.recorded.plausible.MAX_DVL_SPEED`; see
+:func:`pronet.recorded.plausible.magnitudes`). A folder holding both a ``.csv`` and a
+``.csv.gz`` of one stream is ambiguous and refused. Row numbers count data rows from 1
+(the header is row 0).
 
 Timestamps are kept as recorded: clock offsets and lever arms are the business of
 :mod:`pronet.recorded.alignment`.
@@ -66,6 +69,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+import warnings
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -74,6 +78,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet._util.plausibility import MAX_IMU_GAP, PlausibilityWarning
 from pronet.recorded import aiding, heading, missing, plausible
 from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagError, BagTopics, bag_streams, is_bag
@@ -118,8 +123,6 @@ RATE_RANGE.update(aiding.RATE_RANGE)
 #: Every table's columns (the optional aiding tables' too), and their optional ones.
 _SPEC = {**COLUMNS, **aiding.COLUMNS}
 OPTIONAL.update(aiding.OPTIONAL)
-#: No IMU step longer than this many median steps (magnitudes: :mod:`pronet.recorded.plausible`).
-MAX_IMU_GAP = 5.0
 
 #: The Snapir publisher's column names, by our name.
 SNAPIR_NAMES = {
@@ -386,7 +389,9 @@ def _select_columns(
 
 def _read_csv(path: Path, kind: str, names: dict[str, str] | None) -> Table:
     try:
-        raw = gzip.open(path, "rt") if path.suffix == ".gz" else open(path, newline="")
+        code = "utf-8-sig"  # a byte-order mark before the header (Excel's) is no cell
+        gz = path.suffix == ".gz"
+        raw = gzip.open(path, "rt", encoding=code) if gz else open(path, newline="", encoding=code)
         with raw as fh:
             text = fh.read()
     except (OSError, EOFError, UnicodeDecodeError) as exc:
@@ -490,6 +495,8 @@ def _finish(
         r, j = np.argwhere(bad)[0]
         raise RecordingError(f"{where}, row {r + 1}: {labels[j]!r} is {values[r, j]}, not finite")
     t = values[:, 0]
+    if kind == "gt" and len(t) < 2:
+        raise RecordingError(f"{where}: one data row; a ground truth needs two or more")
     step = np.diff(t)
     if (step <= 0).any():
         r = int(np.argmax(step <= 0)) + 2
@@ -511,6 +518,8 @@ def _finish(
                 f"{where}, row {r}: a gap of {step[r - 2]:.4g} s after {t[r - 2]} s (the "
                 f"median step is {np.median(step):.4g} s); cut the section there"
             )
+        if kind == "imu" and (shaky := plausible.imu_jitter(where, step)) is not None:
+            warnings.warn(shaky, PlausibilityWarning, stacklevel=2)
     return values * np.array([factor for _, factor in picks])
 
 

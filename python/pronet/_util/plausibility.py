@@ -1,0 +1,178 @@
+"""Physical bounds that catch a unit or frame slip before it runs to a silently wrong
+answer (issue 37, point 5; issue 58, section 6), one rule each, shared by the API
+(:func:`pronet.run_filter`, :func:`pronet.local_ned`, :func:`pronet.lla_from_ned`) and
+the readers (:mod:`pronet.recorded.plausible`, :mod:`pronet.recorded.recordings`).
+
+Each check returns the problem as one line naming the argument, or None; the caller
+raises it, or warns of it as a :class:`PlausibilityWarning`. Values that are not finite
+are left to the checks that name them (the core's). The bounds come from physics, with
+a wide margin for legitimate data:
+
+- the mean specific force within :data:`GRAVITY_RANGE` of :data:`STANDARD_GRAVITY`
+  (:func:`specific_force`): over a record a vehicle's mean acceleration is nearly 0, so
+  the mean magnitude is gravity's within a few % (vibration and manoeuvres add little);
+  accelerations in g, ft/s², mg or cm/s² are off by 0.1, 3.3, 100 or 100;
+- its direction over the first :data:`GRAVITY_WINDOW` against the initial attitude
+  (:func:`gravity_sign`): refused when it points more than 90° from where ``rpy0``
+  puts it (the sign of gravity: an IMU in FLU, or upside down, points 180° away when
+  level); legitimate data are off by the initial attitude's error and the tilt of the
+  vehicle's acceleration (atan(a/g): 6° at 0.1 g), well below;
+- the first IMU step, from ``t0``, at most :data:`MAX_IMU_GAP` median steps
+  (:func:`first_step`: the readers' gap rule; the strapdown integrates the first sample
+  over it, and it is one step when ``t0`` starts the first sample's interval);
+- a depth within :data:`HEIGHT_RANGE`, negated (:func:`depth_beyond`: the deepest ocean
+  is 11 km; a depth in pascals is 10,000 times its metres);
+- a latitude within ±90° and a longitude within ``_core.LONGITUDE_RANGE_DEG`` (the core's
+  rule for fixes: both conventions, −180° … 360°), in radians (:func:`angles_beyond`:
+  degrees are 57 times as large).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from pronet import _core
+
+F64 = NDArray[np.float64]
+
+#: Standard gravity [m/s²].
+STANDARD_GRAVITY = 9.80665
+#: The mean specific force over a record, as a share of :data:`STANDARD_GRAVITY`.
+GRAVITY_RANGE = (0.8, 1.2)
+#: The heights a position may have [m, up]: the deepest trench to high above sea.
+HEIGHT_RANGE = (-12_000.0, 10_000.0)
+#: No IMU step (the first, from ``t0``, included) longer than this many median steps.
+MAX_IMU_GAP = 5.0
+#: The first seconds of IMU samples [s] whose mean specific force gives gravity's sign.
+GRAVITY_WINDOW = 1.0
+
+
+class PlausibilityWarning(UserWarning):
+    """Usable data that is probably a mistake (a lever arm beyond 10 m, an IMU whose
+    stamps jitter, a stream none of whose rows falls within the run)."""
+
+
+def specific_force(imu: F64) -> str | None:
+    """``imu`` ``(n, 6)``'s mean specific force outside :data:`GRAVITY_RANGE` of
+    gravity (the problem, without the argument's name)."""
+    f = imu[:, :3]
+    mean = float(np.sqrt(np.einsum("ij,ij->i", f, f)).mean())
+    lo, hi = GRAVITY_RANGE
+    if not math.isfinite(mean) or lo <= mean / STANDARD_GRAVITY <= hi:
+        return None
+    return (
+        f"the mean specific force is {mean:.4g} m/s², not near gravity ({STANDARD_GRAVITY} "
+        "m/s²); are the accelerations in g, or mis-scaled?"
+    )
+
+
+def gravity_sign(imu: F64, imu_time: F64, rpy0: F64) -> str | None:
+    """The mean specific force of ``imu``'s first :data:`GRAVITY_WINDOW` pointing more
+    than 90° from the reaction to gravity (up) in the body frame ``rpy0`` gives."""
+    first = imu[imu_time <= imu_time[0] + GRAVITY_WINDOW, :3].mean(axis=0)
+    roll, pitch = float(rpy0[0]), float(rpy0[1])
+    up = np.array([math.sin(pitch), -math.sin(roll), -math.cos(roll)])
+    up[1:] *= math.cos(pitch)
+    norm = float(np.linalg.norm(first))
+    if not (math.isfinite(norm) and norm > 0):
+        return None
+    cos = float(first @ up) / norm
+    if cos >= 0:
+        return None
+    angle = math.degrees(math.acos(max(cos, -1.0)))
+    return (
+        f"imu, rpy0: the specific force of the first {GRAVITY_WINDOW:g} s points {angle:.0f}° from "
+        "where rpy0 puts it (up, against gravity: the body frame is FRD, x forward, y right, "
+        "z down, so a level IMU at rest reads f_z = −9.8 m/s²); is the IMU in FLU (y and z "
+        "flipped), or upside down without the roll in rpy0 that says so?"
+    )
+
+
+def first_step(imu_time: F64, t0: float) -> str | None:
+    """The first IMU step, from ``t0`` to ``imu_time[0]``, longer than
+    :data:`MAX_IMU_GAP` median steps."""
+    if len(imu_time) < 2:
+        return None
+    step = float(np.median(np.diff(imu_time)))
+    gap = float(imu_time[0]) - t0
+    if not step > 0 or gap <= MAX_IMU_GAP * step:
+        return None
+    return (
+        f"t0: {t0:.10g} s is {gap:.4g} s before the first IMU sample (imu_time[0] = "
+        f"{imu_time[0]:.10g} s, {gap / step:.3g} median steps), over which the first sample "
+        "would be integrated (t0 starts its step); are t0 and imu_time on one clock, in seconds?"
+    )
+
+
+def depth_beyond(depth: F64, name: str) -> str | None:
+    """A depth [m, down] beyond :data:`HEIGHT_RANGE` (negated), naming ``name`` and the row."""
+    lo, hi = -HEIGHT_RANGE[1], -HEIGHT_RANGE[0]
+    bad = (depth < lo) | (depth > hi)
+    if not bad.any():
+        return None
+    r = int(np.argmax(bad))
+    return (
+        f"{name}: depth row {r} is {depth[r]:.6g} m, beyond {lo:g} … {hi:g} m (metres, "
+        "positive down: the deepest ocean is 11 km); in pascals or another unit?"
+    )
+
+
+def angles_beyond(lla: F64, name: str) -> str | None:
+    """A latitude of ``lla`` (``(3,)`` or ``(n, 3)`` [rad, rad, m]) beyond ±90° or a
+    longitude beyond ``_core.LONGITUDE_RANGE_DEG``, naming ``name`` and the row."""
+    rows = np.atleast_2d(lla)
+    lon_lo, lon_hi = _core.LONGITUDE_RANGE_DEG
+    for j, what, lo, hi in ((0, "latitude", -90.0, 90.0), (1, "longitude", lon_lo, lon_hi)):
+        bad = (rows[:, j] < math.radians(lo)) | (rows[:, j] > math.radians(hi))
+        if bad.any():
+            r = int(np.argmax(bad))
+            row = f"row {r}: " if lla.ndim == 2 else ""
+            return (
+                f"{name}: {row}{what} {rows[r, j]:.6g} is beyond {math.radians(lo):.6g} … "
+                f"{math.radians(hi):.6g} rad ({lo:g}° … {hi:g}°); in degrees? (radians expected)"
+            )
+    return None
+
+
+def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[Any]) -> None:
+    """The plausibility of a filter pass's inputs (:func:`pronet.run_filter`'s, checked
+    for shape): ``ValueError`` with the first problem, naming its argument."""
+    finite = all(np.isfinite(a).all() for a in (imu, imu_time, rpy0, t0))
+    if not (len(imu) and len(imu) == len(imu_time) and finite):
+        return  # the core names the argument
+    with np.errstate(all="ignore"):
+        problem = (
+            first_step(imu_time, t0)
+            or (f"imu: {bad}" if (bad := specific_force(imu)) else None)
+            or gravity_sign(imu, imu_time, rpy0)
+        )
+        for i, s in enumerate(streams):
+            if problem is None and isinstance(s, _core.Depth):
+                problem = depth_beyond(s.depth, f"streams[{i}]")
+    if problem is not None:
+        raise ValueError(problem)
+
+
+def warn_unapplied(
+    streams: Sequence[Any], epochs: Sequence[NDArray[np.int64]], span: tuple[float, float]
+) -> None:
+    """Warn (:class:`PlausibilityWarning`) of each stream with rows none of which fell
+    within the run (``epochs``: each stream's epoch per row, -1 outside; ``span``: the
+    run's first and last epoch times [s])."""
+    for i, (s, epoch) in enumerate(zip(streams, epochs, strict=True)):
+        if len(epoch) and (np.asarray(epoch) < 0).all():
+            t = s.time
+            warnings.warn(
+                f"streams[{i}] ({type(s).__name__}): none of its {len(t)} row{'s' * (len(t) > 1)} "
+                f"({t[0]:.10g} … {t[-1]:.10g} s) falls within the run ({span[0]:.10g} … "
+                f"{span[1]:.10g} s), which ran without it; are its times on the IMU's clock, "
+                "in seconds?",
+                PlausibilityWarning,
+                stacklevel=3,
+            )
