@@ -102,6 +102,7 @@ def parse_header(cell: str) -> tuple[str, str]:
     return name.strip().lower(), unit.rstrip("] ").strip()
 
 
+@np.errstate(over="ignore", invalid="ignore")  # a corrupt file's 1e300: inf, refused
 def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     """Magnitudes that fit their units, checked before anything is filtered (a unit
     mix-up otherwise runs to the end and only shows as a huge error): ``imu`` ``(n, 6)``
