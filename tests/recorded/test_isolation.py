@@ -20,6 +20,7 @@ from mission_recording import simulate_mission, write_generic
 from pronet.cli import main
 from pronet.recorded import alignment, passes, real
 from pronet.recorded.alignment import align, estimate_alignment
+from pronet.recorded.tables import failed_records
 
 #: The own-vehicle survey (a MEMS IMU) whose ``mehra xi=1`` row, under the FOG tuning
 #: pronet real defaults to, overflows: a natural failure of one built-in row.
@@ -120,6 +121,13 @@ def test_the_stamped_and_inertial_rows_fail_alone(pair, monkeypatch):
         f"inertial only, first {passes.INERTIAL_SECONDS:g} s",
     ]
     assert len(done.runs) >= 8
+    per_run, summary = failed_records(done)  # metrics.csv's rows: each setup's scenario
+    assert [(r["scenario"], r["strategy"][:8]) for r in per_run] == [
+        ("synthetic", "inertial"),
+        ("synthetic (stamps as given, no lever arms)", "constant"),
+    ]
+    assert all(r["failure"] == "numerical failure: S (t = 3 s)" for r in per_run)
+    assert [r["failed_runs"] for r in summary] == [1, 1]
 
 
 def test_a_section_whose_every_row_fails_is_a_failed_section(pair, monkeypatch):
