@@ -102,12 +102,16 @@ def parse_header(cell: str) -> tuple[str, str]:
     return name.strip().lower(), unit.rstrip("] ").strip()
 
 
-@np.errstate(over="ignore", invalid="ignore")  # a corrupt file's 1e300: inf, refused
 def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     """Magnitudes that fit their units, checked before anything is filtered (a unit
     mix-up otherwise runs to the end and only shows as a huge error): ``imu`` ``(n, 6)``
     SI samples, ``dvl`` ``(m, 3)`` the used DVL readings [m/s] (may be empty),
     ``gt_vel`` ``(k, 3)`` the truth's velocity [m/s] (empty: no ground truth)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # a corrupt file's 1e300: inf, refused
+        return _magnitudes(imu, dvl, gt_vel, source)
+
+
+def _magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     specific_force = float(np.linalg.norm(imu[:, :3], axis=1).mean())
     lo, hi = GRAVITY_RANGE
     if not lo <= specific_force / STANDARD_GRAVITY <= hi:
