@@ -14,7 +14,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -62,6 +62,37 @@ def atomic_write(path: Path, data: bytes | Iterable[bytes]) -> None:
     """Write ``data`` (bytes, or pieces of them written one after the other: a large
     file need not be held whole) to ``path`` via a temporary sibling and a rename, so
     ``path`` is either the old file or the complete new one, never a partial write."""
+    replace_together([(path, data)])
+
+
+def replace_together(files: Sequence[tuple[Path, bytes | Iterable[bytes]]]) -> None:
+    """Write files that belong together (a model's weights and card, a dataset and its
+    card, a navigated recording's files), each ``(path, data)`` as :func:`atomic_write`
+    takes it, so that they are replaced as one: all old or all new.
+
+    Each is written whole to a temporary sibling first (a full disk, a file-size limit
+    or Ctrl-C there leave every old file as it was); then they are renamed into place
+    in order, the last one the commit (a card, which names its data by hash). Until it
+    is in place, the old version of each earlier file is kept as :func:`previous`, and
+    any error or Ctrl-C between the renames puts the old files back. A process killed
+    between the renames leaves the earlier files new and the last one old: a reader
+    whose old card does not match the new data finds the old data by its hash in
+    :func:`previous` (:func:`previous_matching`); the next write removes it."""
+    written: list[tuple[Path, Path]] = []
+    if not files:
+        return
+    try:
+        for path, data in files:
+            written.append((Path(path), _temporary(Path(path), data)))
+        _rename_all(written)
+    finally:
+        for _, tmp in written:  # those renamed are gone already
+            tmp.unlink(missing_ok=True)
+
+
+def _temporary(path: Path, data: bytes | Iterable[bytes]) -> Path:
+    """``data`` written whole to a new temporary sibling of ``path``; the sibling. An
+    ``OSError`` is raised naming ``path``."""
     prefix = sibling(path, ".", hidden=True, room=_TEMP_CHARS).name
     fd, tmp = tempfile.mkstemp(prefix=prefix, dir=path.parent)
     try:
@@ -69,13 +100,79 @@ def atomic_write(path: Path, data: bytes | Iterable[bytes]) -> None:
             for piece in [data] if isinstance(data, bytes | bytearray | memoryview) else data:
                 fh.write(piece)
         os.chmod(tmp, 0o644)  # mkstemp makes it private; a saved file is an ordinary one
-        os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         raise _naming(exc, path) from exc
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return Path(tmp)
+
+
+def previous(path: Path) -> Path:
+    """Where :func:`replace_together` keeps ``path``'s old version while the files after
+    it are renamed into place: ``.<name>.previous`` beside it."""
+    return sibling(Path(path), ".previous", hidden=True)
+
+
+def previous_matching(path: Path, sha256: object) -> bytes | None:
+    """The bytes of ``path``'s :func:`previous` version if their SHA-256 is ``sha256``
+    (a write of ``path`` and its card killed between the renames: the old card's data),
+    else None."""
+    try:
+        data = previous(path).read_bytes()
+    except OSError:
+        return None
+    return data if hashlib.sha256(data).hexdigest() == sha256 else None
+
+
+def _rename_all(written: list[tuple[Path, Path]]) -> None:
+    """Rename each temporary of ``written`` ``(path, temporary)`` onto its path, in
+    order; the old version of each but the last kept as :func:`previous` until the
+    last is in place, and put back on any error (:func:`replace_together`)."""
+    kept: list[tuple[Path, Path | None]] = []  # each path, and its old version (None: none)
+    try:
+        for path, tmp in written[:-1]:
+            old = previous(path)
+            old.unlink(missing_ok=True)  # left by a write killed between its renames
+            kept.append((path, old if _keep(path, old) else None))
+            os.replace(tmp, path)
+        path, tmp = written[-1]
+        os.replace(tmp, path)
+    except OSError as exc:
+        _put_back(kept)
+        raise _naming(exc, path) from exc
+    except BaseException:
+        _put_back(kept)
+        raise
+    for _, kept_old in kept:
+        if kept_old is not None:
+            kept_old.unlink(missing_ok=True)
+
+
+def _keep(path: Path, old: Path) -> bool:
+    """Keep ``path``'s current file as ``old`` (a hard link, else a copy); False when
+    there is none."""
+    if not path.is_file():
+        return False
+    try:
+        os.link(path, old)
+    except OSError:  # a file system without hard links
+        try:
+            shutil.copyfile(path, old)
+        except BaseException:
+            old.unlink(missing_ok=True)
+            raise
+    return True
+
+
+def _put_back(kept: list[tuple[Path, Path | None]]) -> None:
+    """Undo :func:`_rename_all`'s renames: each path's old version back, or none."""
+    for path, old in reversed(kept):
+        if old is None:
+            path.unlink(missing_ok=True)
+        else:
+            os.replace(old, path)
 
 
 def _naming(exc: OSError, path: Path) -> OSError:

@@ -204,7 +204,15 @@ def run(args: argparse.Namespace) -> int:
     n, failed = len(config["sections"]), config["failed_sections"]
     for name, reason in failed.items():  # a warning, also with --quiet and --json
         print(f"pronet: section {name}: {reason} (left out; see table.md)", file=sys.stderr)
+    rows = [
+        (name, row, why) for name, by in config["rows_failed"].items() for row, why in by.items()
+    ]
+    for name, row, reason in rows:  # the section's other rows are written
+        print(
+            f"pronet: section {name}: row {row}: {reason} (left out; see table.md)", file=sys.stderr
+        )
     left_out = f" ({len(failed)} left out)" if failed else ""
+    left_out += f" ({len(rows)} rows failed)" if rows else ""
     show.result(
         f"{(out / 'table.md').read_text()}\n{n} sections{left_out}; results written to {out} "
         f"in {time.perf_counter() - start:.0f} s",

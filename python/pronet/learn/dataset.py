@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._util.files import atomic_write, json_bytes
+from pronet._util.files import json_bytes, previous_matching, replace_together
 from pronet._util.validate import I64_MAX, count, scalar
 
 #: Training trajectories, in the order of the ``trajectory`` index in the metadata.
@@ -241,7 +241,8 @@ def card_path(path: Path) -> Path:
 
 
 def save_dataset(ds: Dataset, path: str | os.PathLike[str], params: DatasetParams) -> Path:
-    """Write ``path`` (.npz) and its card ``path.json``, each atomically."""
+    """Write ``path`` (.npz) and its card ``path.json``, replacing an earlier pair as
+    one (both or neither: :func:`pronet._util.files.replace_together`, the card last)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = _npz_bytes(ds)
@@ -259,8 +260,7 @@ def save_dataset(ds: Dataset, path: str | os.PathLike[str], params: DatasetParam
         "n_test": ds.n_test,
         "sha256": hashlib.sha256(data).hexdigest(),
     }
-    atomic_write(path, data)
-    atomic_write(card_path(path), json_bytes(card))
+    replace_together([(path, data), (card_path(path), json_bytes(card))])
     return path
 
 
@@ -300,7 +300,13 @@ def load_dataset(path: str | os.PathLike[str]) -> Dataset:
     except OSError as exc:
         raise ValueError(f"path: cannot read {path}: {exc}") from None
     if hashlib.sha256(data).hexdigest() != card.get("sha256"):
-        raise ValueError(f"path: {path} does not match the hash in its card (changed or truncated)")
+        # a write of a new pair killed between its renames: the old card's old data
+        kept = previous_matching(path, card.get("sha256"))
+        if kept is None:
+            raise ValueError(
+                f"path: {path} does not match the hash in its card (changed or truncated)"
+            )
+        data = kept
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             arrays = {k: z[k] for k in _KINDS}

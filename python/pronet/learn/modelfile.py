@@ -7,7 +7,9 @@ Reading checks, before any tensor is used: the card parses and has this format a
 version, the weights hash matches the card (so a truncated or altered file is caught),
 the safetensors header parses, and the caller then checks names and shapes against the
 architecture. Pickle is never involved: a pickle payload fails the safetensors parse and
-is never executed.
+is never executed. A new pair replaces an old one as one (:func:`write`); where a write
+was killed between its two renames, the old card's weights are read from where the
+write kept them (``.NAME.safetensors.previous``, found by the card's hash).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet._util.files import atomic_write, json_bytes
+from pronet._util.files import json_bytes, previous_matching, replace_together
 
 FORMAT = "pronet-model"
 VERSION = 1
@@ -42,7 +44,9 @@ def paths(path: str | os.PathLike[str]) -> tuple[Path, Path]:
 
 
 def write(path: str | os.PathLike[str], tensors: dict[str, NDArray[Any]], card: dict) -> Path:
-    """Write the weights and their card (each atomically); returns the card's path."""
+    """Write the weights and their card, replacing an earlier pair as one (both or
+    neither, :func:`pronet._util.files.replace_together`: the card last); returns the
+    card's path."""
     from safetensors.numpy import save
 
     weights, card_file = paths(path)
@@ -55,8 +59,8 @@ def write(path: str | os.PathLike[str], tensors: dict[str, NDArray[Any]], card: 
         "weights_file": weights.name,
         "weights_sha256": hashlib.sha256(data).hexdigest(),
     }
-    atomic_write(weights, data)
-    atomic_write(card_file, json_bytes(full))  # an undefined score (R² of equal labels): null
+    # an undefined score (R² of equal labels): null
+    replace_together([(weights, data), (card_file, json_bytes(full))])
     return card_file
 
 
@@ -85,9 +89,13 @@ def read(path: str | os.PathLike[str]) -> tuple[dict[str, NDArray[Any]], dict]:
     except OSError as exc:
         raise ModelFileError(f"{weights}: cannot read the weights ({exc})") from None
     if hashlib.sha256(data).hexdigest() != card.get("weights_sha256"):
-        raise ModelFileError(
-            f"{weights}: does not match the hash in {card_file.name} (corrupted or truncated)"
-        )
+        # a write of a new pair killed between its renames: the old card's old weights
+        kept = previous_matching(weights, card.get("weights_sha256"))
+        if kept is None:
+            raise ModelFileError(
+                f"{weights}: does not match the hash in {card_file.name} (corrupted or truncated)"
+            )
+        data = kept
     try:
         tensors = load(data)
     except (SafetensorError, ValueError, OSError) as exc:

@@ -255,7 +255,7 @@ def topic_types(path: str | Path) -> dict[str, str]:
     it has a truth topic before choosing :class:`BagTopics`); :class:`BagError` naming
     the bag when it is none or cannot be read."""
     require_rosbags()
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
 
     path = Path(path)
     if not is_bag(path):
@@ -265,8 +265,24 @@ def topic_types(path: str | Path) -> dict[str, str]:
     try:
         with AnyReader([path]) as reader:
             return {c.topic: c.msgtype for c in reader.connections}
-    except AnyReaderError as exc:
-        raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - whatever a corrupt file makes the parser raise
+        raise unreadable(path, exc) from None
+
+
+#: The libraries whose own errors say what is wrong with a bag (their message is kept).
+_READERS = ("rosbags", "apsw", "sqlite3")
+
+
+def unreadable(path: Path, exc: Exception) -> BagError:
+    """The one line for a bag the reader failed on: a bag that is no bag, or corrupt or
+    truncated (64 overwritten bytes made rosbags raise OverflowError, MemoryError,
+    struct.error, UnicodeDecodeError, its readers' ReaderError or SQLite's
+    CorruptError), naming ``path``; a :class:`BagError` passes as it is."""
+    if isinstance(exc, BagError):
+        return exc
+    if type(exc).__module__.split(".")[0] in _READERS and str(exc):
+        return BagError(f"{path}: cannot be read as a ROS bag ({exc})")
+    return BagError(f"{path}: cannot be read as a ROS bag (corrupt or truncated)")
 
 
 def _stamp(msg: Any) -> float:
@@ -469,7 +485,7 @@ def bag_streams(
     it as the generic format. :class:`BagError` naming bag and topic,
     :class:`~pronet._util.extras.MissingExtra` without ``rosbags``."""
     require_rosbags()
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
     topics = topics or BagTopics()
@@ -502,8 +518,8 @@ def bag_streams(
                 )
                 if topic is not None and not (kind == "heading" and topic == topics.imu)
             }
-    except AnyReaderError as exc:
-        raise BagError(f"{path}: cannot be read as a ROS bag ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - whatever a corrupt file makes the parser raise
+        raise unreadable(path, exc) from None
     if topics.heading is not None and topics.heading == topics.imu:  # an AHRS's orientation
         aiding["heading"] = (topics.imu, imu_msgs)
     imu = [

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -52,7 +53,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet._util.files import atomic_write, check_writable, json_bytes
+from pronet._util.files import atomic_write, check_writable, json_bytes, replace_together
 from pronet.recorded import odometry, report
 from pronet.recorded.attitude import attitude_sigma, yaw_degrees
 
@@ -269,9 +270,17 @@ def write_track(
     """
     check_navigation(navigation)
     path = Path(path)
-    text = _feature_collection(navigation.name, track_features(navigation, max_points, max_line))
-    atomic_write(path, text.encode())
+    atomic_write(path, track_geojson(navigation, max_points, max_line))
     return path
+
+
+def track_geojson(
+    navigation: Navigation, max_points: int = MAX_POINTS, max_line: int = MAX_LINE
+) -> bytes:
+    """The bytes of ``track.geojson`` (:func:`write_track`)."""
+    return _feature_collection(
+        navigation.name, track_features(navigation, max_points, max_line)
+    ).encode()
 
 
 def config_bytes(navigation: Navigation) -> bytes:
@@ -311,8 +320,10 @@ def write_all(
     (:func:`pronet.recorded.odometry.write_odometry_bag`, ``odometry.bag`` or the ROS 2
     bag folder ``odometry``; ``bag_options``: its frames, topics and rate), with
     ``figures`` ``track.png``, ``depth_heading.png``, ``innovations.png``, and last
-    ``report.md`` (:mod:`pronet.recorded.report`), which lists them all. Each file is
-    written atomically; a file of the same name is replaced, an existing bag is refused.
+    ``report.md`` (:mod:`pronet.recorded.report`), which lists them all. The files
+    replace those of an earlier run as one (all old or all new, the report last:
+    :func:`pronet._util.files.replace_together`); an existing bag is refused, and the
+    new one is removed again when the other files fail.
     Everything is checked before the first file is written (``ValueError``, or
     :class:`~pronet._util.extras.MissingExtra` for a bag without ``rosbags``). Returns
     the paths written, in that order."""
@@ -326,20 +337,33 @@ def write_all(
         odometry.check_bag(out / odometry.bag_name(bag), navigation, bag, options)
     config_bytes(navigation)  # a config that is not plain data: before any file
     out.mkdir(parents=True, exist_ok=True)
-    paths = [
-        write_trajectory(navigation, out / TRAJECTORY),
-        write_track(navigation, out / TRACK),
-        write_config(navigation, out / CONFIG),
+    files: list[tuple[Path, bytes | Iterable[bytes]]] = [
+        (out / TRAJECTORY, trajectory_csv(navigation)),
+        (out / TRACK, track_geojson(navigation)),
+        (out / CONFIG, config_bytes(navigation)),
     ]
-    origin = None
-    if bag is not None:
-        bag_path = out / odometry.bag_name(bag)
-        paths.append(odometry.write_odometry_bag(bag_path, navigation, bag, options))
-        origin = odometry.bag_origin(navigation, options)
+    bag_path = None if bag is None else out / odometry.bag_name(bag)
     if figures:
-        paths.extend(report.write_figures(navigation, out))
-    report_path = out / report.REPORT
-    names = [p.name for p in paths] + [report_path.name]
+        files += [(out / name, png) for name, png in report.figure_bytes(navigation)]
+    names = [p.name for p, _ in files[:3]] + ([] if bag_path is None else [bag_path.name])
+    names += [p.name for p, _ in files[3:]] + [report.REPORT]
+    origin = None
+    if bag is not None and bag_path is not None:  # new (an existing one was refused)
+        odometry.write_odometry_bag(bag_path, navigation, bag, options)
+        origin = odometry.bag_origin(navigation, options)
     text = report.report_markdown(navigation, names, origin, options)
-    atomic_write(report_path, text.encode())
-    return [*paths, report_path]
+    try:  # the report, which lists them, last: the earlier files all old or all new
+        replace_together([*files, (out / report.REPORT, text.encode())])
+    except BaseException:
+        if bag_path is not None:
+            _remove(bag_path)
+        raise
+    return [out / name for name in names]
+
+
+def _remove(path: Path) -> None:
+    """Remove a bag this write made (a ROS 2 bag is a folder)."""
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.unlink(missing_ok=True)

@@ -248,6 +248,15 @@ class FigurePool:
             self._tasks.put((kind, curves, figure))
         self._figures[curves.name] = figures
 
+    def submit_section(
+        self, aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
+    ) -> None:
+        """:meth:`submit` the curves of one finished section (:func:`section_curves` at
+        its IMU step): the ``on_section`` hook of :func:`pronet.recorded.real.run_sections`."""
+        from pronet.recorded.tuning import imu_step
+
+        self.submit(section_curves(aligned, runs, constants, imu_step(aligned.imu_time)))
+
     def write(
         self,
         folder: Path,

@@ -11,7 +11,7 @@ import contextvars
 import dataclasses
 import threading
 from collections.abc import Callable, Mapping
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -179,24 +179,29 @@ def evaluate_section(
     setup: str = "aligned",
     on_done: Callable[[str], None] | None = None,
     smooth: bool = False,
-) -> tuple[list[SectionRun], SectionRun]:
+    failed: dict[str, str] | None = None,
+) -> tuple[list[SectionRun], SectionRun | None]:
     """Every strategy on ``section`` with ``config``, the first strategy with each of
     ``variants``' configs (by row label), and the pure-inertial run over the first
     :data:`INERTIAL_SECONDS` with the first strategy's noise. With ``smooth``, each
     strategy and variant row is followed by its smoothed one (:func:`smoothed_run`; with
-    the DVL calibration states all 19 are smoothed)."""
+    the DVL calibration states all 19 are smoothed).
+
+    ``failed``: None raises the first row's ``ValueError`` (a numerical failure of the
+    core, which gives its time). A dict isolates the rows instead: a row whose pass
+    raises is left out and its reason kept there by label, the others still run (the
+    inertial run then None if it failed); a smoothed pass that fails is run again
+    without the smoother, so that only its smoothed row fails."""
     first = next(iter(strategies.values()))
-    rows = [(label, chosen, config, smooth) for label, chosen in strategies.items()]
-    rows += [(label, first, cfg, smooth) for label, cfg in (variants or {}).items()]
+    rows = [(label, chosen, config) for label, chosen in strategies.items()]
+    rows += [(label, first, cfg) for label, cfg in (variants or {}).items()]
     runs = []
-    for label, chosen, cfg, smoothed in rows:
-        done = run_section(section, chosen, cfg, label=label, setup=setup, smooth=smoothed)
-        runs.append(done)
-        if smoothed:
-            runs.append(smoothed_run(section, done))
+    for label, chosen, cfg in rows:
+        runs += _row(section, (label, chosen, cfg), setup, smooth, failed)
         if on_done is not None:
             on_done(label)
-    inertial = run_section(
+    inertial = isolated_run(
+        failed,
         section,
         first,
         config,
@@ -207,6 +212,48 @@ def evaluate_section(
         aided=False,
     )
     return runs, inertial
+
+
+def isolated_run(
+    failed: dict[str, str] | None,
+    section: Section,
+    strategy: StrategyLike,
+    config: _core.FilterConfig,
+    **kwargs: Any,
+) -> SectionRun | None:
+    """:func:`run_section` (``kwargs`` its keywords); with ``failed`` a dict, None when it
+    raises ``ValueError``, the reason kept in ``failed`` under the row's ``label``."""
+    if failed is None:
+        return run_section(section, strategy, config, **kwargs)
+    try:
+        return run_section(section, strategy, config, **kwargs)
+    except ValueError as exc:
+        failed[kwargs.get("label", "")] = str(exc)
+        return None
+
+
+def _row(
+    section: Section,
+    row: tuple[str, StrategyLike, _core.FilterConfig],
+    setup: str,
+    smooth: bool,
+    failed: dict[str, str] | None,
+) -> list[SectionRun]:
+    """One row of :func:`evaluate_section` (and its smoothed one): the runs it kept."""
+    label, chosen, cfg = row
+    reason = None
+    if smooth:
+        try:
+            done = run_section(section, chosen, cfg, label=label, setup=setup, smooth=True)
+            return [done, smoothed_run(section, done)]
+        except ValueError as exc:
+            if failed is None:
+                raise
+            reason = str(exc)
+    alone = isolated_run(failed, section, chosen, cfg, label=label, setup=setup)
+    if failed is not None and reason is not None:  # after the row's own, if it failed too
+        failed[f"{label}, {SMOOTHED}"] = reason
+    return [] if alone is None else [alone]
 
 
 #: The suffix of a smoothed row's label.

@@ -105,6 +105,11 @@ def magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     mix-up otherwise runs to the end and only shows as a huge error): ``imu`` ``(n, 6)``
     SI samples, ``dvl`` ``(m, 3)`` the used DVL readings [m/s] (may be empty),
     ``gt_vel`` ``(k, 3)`` the truth's velocity [m/s] (empty: no ground truth)."""
+    with np.errstate(over="ignore", invalid="ignore"):  # a corrupt file's 1e300: inf, refused
+        return _magnitudes(imu, dvl, gt_vel, source)
+
+
+def _magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
     if (not_gravity := specific_force(imu)) is not None:
         return f"{source} imu: {not_gravity}"
     rate = float(np.percentile(np.linalg.norm(imu[:, 3:], axis=1), 99))

@@ -36,7 +36,7 @@ from pronet.recorded.alignment import (
 )
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
 from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
-from pronet.recorded.figures import FigurePool, section_curves
+from pronet.recorded.figures import FigurePool
 from pronet.recorded.heading import check_declination
 from pronet.recorded.passes import (
     STOP,
@@ -47,6 +47,7 @@ from pronet.recorded.passes import (
 )
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
 from pronet.recorded.tables import (
+    STAMPED,
     aiding_record,
     failed_records,
     real_config,
@@ -222,9 +223,13 @@ def run_sections(
     soon as a section's strategy rows are done, with the q of its constant rows (the
     figures start from it).
 
-    A section whose filter raises ValueError is left out and its reason kept in
-    :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
-    read); the others still run. Raises ValueError naming the section when none is left.
+    A row whose filter raises ValueError (a numerical failure: the core gives its time)
+    is left out and its reason kept in :attr:`RealRuns.rows_failed`; the section's
+    other rows still run (a smoothed row failing alone keeps its filter's row). A
+    section that raises ValueError otherwise, or none of whose strategy rows ran, is
+    left out and its reason kept in :attr:`RealRuns.failed` (after ``failed``: the
+    sections that could not even be read); the others still run. Raises ValueError
+    naming the section when none is left.
     """
     workers = threads if threads is not None else usable_cores()
     lock = threading.Lock()
@@ -267,8 +272,8 @@ def run_sections(
     return RealRuns(
         [pair for pair, _ in ran],
         [r for p in parts for r in p.runs],
-        [p.stamped for p in parts],
-        [p.inertial for p in parts],
+        [p.stamped for p in parts if p.stamped is not None],
+        [p.inertial for p in parts if p.inertial is not None],
         {a.name: p.q for (a, _), p in ran},
         {a.name: p.constants for (a, _), p in ran},
         reasons,
@@ -276,6 +281,7 @@ def run_sections(
         {a.name: p.truth_calibration for (a, _), p in ran},
         {a.name: p.plan.config.imu_dt for (a, _), p in ran},
         {a.name: p.plan.not_run for (a, _), p in ran if p.plan.not_run},
+        {a.name: p.rows_failed for (a, _), p in ran if p.rows_failed},
     )
 
 
@@ -294,9 +300,10 @@ class _SectionRuns:
     plan: SectionPlan
     constants: dict[str, tuple[float, ...]]
     runs: list[SectionRun]
-    stamped: SectionRun
-    inertial: SectionRun
+    stamped: SectionRun | None
+    inertial: SectionRun | None
     truth_calibration: TruthCalibration | str
+    rows_failed: dict[str, str]
 
     @property
     def q(self) -> tuple[float, ...]:
@@ -310,11 +317,14 @@ def _run_one_section(
     on_done: Callable[[str], None],
     smooth: bool = False,
 ) -> _SectionRuns:
+    """One section's rows, each failing alone (its reason kept by label); ValueError
+    when none of its strategy rows ran."""
     constants = {
         label: tuple(s.q)
         for label, s in plan.strategies.items()
         if isinstance(s, _core.Strategy) and s.kind == "constant"
     }
+    failed: dict[str, str] = {}
     section_runs, inertial_run = evaluate_section(
         aligned,
         plan.strategies,
@@ -322,27 +332,31 @@ def _run_one_section(
         variants=plan.variants,
         on_done=lambda label: on_done(f"{aligned.name}: {label}"),
         smooth=smooth,
+        failed=failed,
     )
+    if not section_runs:
+        label, reason = next(iter(failed.items()))
+        raise ValueError(f"every strategy row failed; the first, {label}: {reason}")
     first_label, first = next(iter(plan.strategies.items()))
-    stamped_run = run_section(
-        stamped,
-        first,
-        real_filter_config(
-            stamped.alignment.filter_lever_arm,
-            plan.dvl_variance,
-            formulation=plan.config.formulation,
-            imu_dt=plan.config.imu_dt,
-            base=plan.base,
-            covariance_step=plan.config.covariance_step,
-        ),
-        label=f"{first_label}, stamps as given, no lever arms",
-        setup="stamps as given, no lever arms",
+    label = f"{first_label}, {STAMPED}"
+    config = real_filter_config(
+        stamped.alignment.filter_lever_arm,
+        plan.dvl_variance,
+        formulation=plan.config.formulation,
+        imu_dt=plan.config.imu_dt,
+        base=plan.base,
+        covariance_step=plan.config.covariance_step,
     )
+    stamped_run: SectionRun | None = None
+    try:
+        stamped_run = run_section(stamped, first, config, label=label, setup=STAMPED)
+    except ValueError as exc:  # a row like the others: failed alone
+        failed[label] = str(exc)
     try:
         truth: TruthCalibration | str = truth_calibration(aligned)
     except ValueError as exc:  # a section too short or too slow: the reason, in config.json
         truth = str(exc)
-    return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run, truth)
+    return _SectionRuns(plan, constants, section_runs, stamped_run, inertial_run, truth, failed)
 
 
 def run_real(
@@ -487,7 +501,7 @@ def run_real(
             on_done,
             failed=unread,
             dvl_noise=dvl_noise,
-            on_section=None if figures is None else _drawn_by(figures),
+            on_section=None if figures is None else figures.submit_section,
             formulation=formulation,
             base=base,
             covariance_step=covariance_step,
@@ -573,18 +587,3 @@ def _read_sections(
             if on_done is not None:
                 on_done(path.name)
     return loaded, unread
-
-
-def _drawn_by(
-    figures: FigurePool,
-) -> Callable[[Section, list[SectionRun], dict[str, tuple[float, ...]]], None]:
-    """The ``on_section`` hook of :func:`run_sections` that hands each finished section's
-    curves to ``figures``."""
-
-    def submit(
-        aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
-    ) -> None:
-        imu_dt = imu_step(aligned.imu_time)
-        figures.submit(section_curves(aligned, runs, constants, imu_dt))
-
-    return submit

@@ -254,14 +254,18 @@ def innovations_figure(navigation: Navigation) -> Figure:
     return fig
 
 
+def figure_bytes(navigation: Navigation) -> list[tuple[str, bytes]]:
+    """Each of :data:`FIGURES` drawn: its name and PNG bytes."""
+    draws = (track_figure, depth_heading_figure, innovations_figure)
+    return [(name, png_bytes(draw(navigation))) for name, draw in zip(FIGURES, draws, strict=True)]
+
+
 def write_figures(navigation: Navigation, out_dir: str | Path) -> list[Path]:
     """Write :data:`FIGURES` into ``out_dir`` atomically; their paths."""
     paths = []
-    for name, draw in zip(
-        FIGURES, (track_figure, depth_heading_figure, innovations_figure), strict=True
-    ):
+    for name, png in figure_bytes(navigation):
         path = Path(out_dir) / name
-        atomic_write(path, png_bytes(draw(navigation)))
+        atomic_write(path, png)
         paths.append(path)
     return paths
 

@@ -78,6 +78,10 @@ class RealRuns:
         rows_not_run: per section that has any, the strategy rows left out because
             they could never act on it (a window longer than its DVL updates), with
             the reason.
+        rows_failed: per section that has any, the rows whose filter failed (a
+            numerical failure, with the time the core gives), by label, with the
+            reason; the section's other rows are complete without them, and ``stamped``
+            and ``inertial`` lack the section's where those failed.
     """
 
     sections: list[tuple[Section, Section]]
@@ -93,3 +97,4 @@ class RealRuns:
     truth_calibration: dict[str, TruthCalibration | str] = field(default_factory=dict)
     imu_dt: dict[str, float] = field(default_factory=dict)
     rows_not_run: dict[str, dict[str, str]] = field(default_factory=dict)
+    rows_failed: dict[str, dict[str, str]] = field(default_factory=dict)

@@ -45,6 +45,11 @@ METRIC_COLUMNS = (
 )
 
 
+#: The setup of the first strategy on a section as stamped (its label's suffix too).
+STAMPED = "stamps as given, no lever arms"
+#: The title of ``table.md``'s rows whose filter failed.
+ROWS_FAILED = "Rows failed (numerical failures; the section's other rows are complete)"
+
 #: A heading error RMS beyond this many of the filter's σ is flagged
 #: (:data:`pronet.results.OUT_OF_BAND`): a consistent filter's is about 1.
 HEADING_FLAG = 3.0
@@ -66,8 +71,8 @@ def summary_table(runs: list[SectionRun], title: str) -> str:
         cells = [
             _cell(key, fmt, float(np.mean([getattr(m, key) for m in mine])))
             for key, _, fmt in METRIC_COLUMNS
-        ]
-        lines.append([label, *cells])
+        ]  # a row left out or failed on some section: over those it ran on
+        lines.append([label + (f" ({len(mine)} of {n})" if len(mine) < n else ""), *cells])
     header = ["strategy", *(head for _, head, _ in METRIC_COLUMNS)]
     return markdown(header, lines, f"{title}: mean over {n} sections")
 
@@ -142,23 +147,36 @@ def summary_record(run: SectionRun) -> dict[str, object]:
 
 
 def failed_records(done: RealRuns) -> tuple[list[dict[str, object]], list[dict[str, object]]]:
-    """The ``metrics.csv`` and ``summary.csv`` rows of the sections that failed
-    (:attr:`pronet.recorded.runs.RealRuns.failed`): one per strategy of the aligned setup,
+    """The ``metrics.csv`` and ``summary.csv`` rows of what failed: per section that
+    failed (:attr:`pronet.recorded.runs.RealRuns.failed`) one per strategy of the aligned
+    setup, then one per failed row (:attr:`~pronet.recorded.runs.RealRuns.rows_failed`);
     every metric NaN, the reason in ``failure`` and ``failed_runs`` = 1."""
-    first = done.runs[0].section
-    template = [r for r in done.runs if r.section == first]
+    template: dict[str, SectionRun] = {}
+    for run in done.runs:  # every row label some section ran, in order
+        template.setdefault(run.label, run)
+    failures = [
+        (name, label, run.tuning_period, reason)
+        for name, reason in done.failed.items()
+        for label, run in template.items()
+    ]
+    for name, rows in done.rows_failed.items():
+        for label, reason in rows.items():
+            scenario = f"{name} ({STAMPED})" if label.endswith(f", {STAMPED}") else name
+            period = template[label].tuning_period if label in template else None
+            failures.append((scenario, label, period, reason))
     per_run: list[dict[str, object]] = []
     summary: list[dict[str, object]] = []
-    for name, reason in done.failed.items():
-        for run in template:
-            rec = {**run_record(run), "scenario": name, "failure": reason}
-            rec.update({k: math.nan for k in (*SUMMARIZED, "velocity_nees_3sigma")})
-            rec.update(rejected_updates=0, missed_updates=0, diverged_at=math.nan)
-            per_run.append(rec)
-            row = {**summary_record(run), "scenario": name, "failed_runs": 1}
-            row.update({k: math.nan for k in row if k.startswith(SUMMARIZED)})
-            row.update(diverged_runs=0, tunings=0, guardrail_clipped=0, guardrail_non_finite=0)
-            summary.append(row)
+    for scenario, label, period, reason in failures:
+        rec: dict[str, object] = {c: math.nan for c in RUN_COLUMNS}
+        rec.update(scenario=scenario, strategy=label, noise_level=1.0, run=0, failure=reason)
+        rec.update(tuning_period_s=math.nan if period is None else period)
+        rec.update(rejected_updates=0, missed_updates=0)
+        per_run.append(rec)
+        row: dict[str, object] = {c: math.nan for c in SUMMARY_COLUMNS}
+        row.update({k: rec[k] for k in ("scenario", "strategy", "noise_level", "tuning_period_s")})
+        row.update(runs=1, failed_runs=1, diverged_runs=0, tunings=0)
+        row.update(guardrail_clipped=0, guardrail_non_finite=0)
+        summary.append(row)
     return per_run, summary
 
 
@@ -189,12 +207,15 @@ def failed_table(failed: dict[str, str]) -> str:
     return markdown(["section", "reason"], lines, "Sections not run")
 
 
-def rows_not_run_table(rows: dict[str, dict[str, str]]) -> str:
-    """Markdown: the strategy rows left out of a section, with the reason."""
+def rows_not_run_table(
+    rows: dict[str, dict[str, str]], title: str = "Rows not run (they could never act)"
+) -> str:
+    """Markdown: the rows left out of a section (or, titled so, that failed), with the
+    reason."""
     lines: list[list[object]] = [
         [name, label, reason] for name, by in rows.items() for label, reason in by.items()
     ]
-    return markdown(["section", "row", "reason"], lines, "Rows not run (they could never act)")
+    return markdown(["section", "row", "reason"], lines, title)
 
 
 def dvl_skipped(section: Section) -> dict[str, float]:
@@ -362,6 +383,7 @@ def real_tables(done: RealRuns) -> str:
             ),
             summary_table(done.inertial, "Sanity: pure inertial, no DVL"),
             *([rows_not_run_table(done.rows_not_run)] if done.rows_not_run else []),
+            *([rows_not_run_table(done.rows_failed, ROWS_FAILED)] if done.rows_failed else []),
             *([failed_table(done.failed)] if done.failed else []),
         ]
     )
@@ -390,6 +412,7 @@ def real_config(
         "filter": repr(tuning if tuning is not None else real_filter_config((0.0, 0.0, 0.0))),
         "imu_dt_s": done.imu_dt,
         "rows_not_run": done.rows_not_run,
+        "rows_failed": done.rows_failed,
         "imu_lever_arm_m": imu_arm,
         "dvl_lever_arm_m": dvl_arm,
         "clocks": {

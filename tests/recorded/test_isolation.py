@@ -1,0 +1,228 @@
+"""One failure takes nothing else with it (issue 58, section 2): in ``pronet real`` a
+row whose filter fails is reported as failed (its section, its name, the reason with
+the time the core gives) and the section's other rows are kept and written (tables,
+metrics, ``config.json``, figures); a section whose every row fails is a failed
+section and the others still run; a corrupt ROS bag is one line naming it, and the
+good bag beside it is still run."""
+
+from __future__ import annotations
+
+import json
+import re
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mission_recording import simulate_mission, write_generic
+
+from pronet.cli import main
+from pronet.recorded import alignment, passes, real
+from pronet.recorded.alignment import align, estimate_alignment
+from pronet.recorded.tables import failed_records
+
+#: The own-vehicle survey (a MEMS IMU) whose ``mehra xi=1`` row, under the FOG tuning
+#: pronet real defaults to, overflows: a natural failure of one built-in row.
+FAILING_SEED = 2
+FAILING_ROW = "mehra xi=1"
+
+
+def _survey(data: Path, seed: int) -> list[str]:
+    """Write survey ``seed`` (3 minutes, with its truth) as ``data/survey<seed>``; the
+    lever-arm options that read it."""
+    m = simulate_mission(seed, minutes=3.0)
+    write_generic(m, data / f"survey{seed}", truth=True)
+    arm = ",".join(repr(float(v)) for v in m.lever_arms.dvl)
+    return ["--imu-lever-arm=0,0,0", f"--dvl-lever-arm={arm}"]
+
+
+def test_a_row_that_fails_in_the_filter_leaves_the_other_rows_and_sections(tmp_path, capsys):
+    """The own-vehicle survey's ``mehra xi=1`` row fails in the core (a non-finite
+    prediction): before, the section was dropped and, the only one left, nothing was
+    written (exit 2). Now that row is named as failed, with the core's reason and time,
+    on stderr, in ``table.md``, ``metrics.csv``/``.json`` and ``config.json``; every other
+    row of the section and the other section are written, figures too; exit 0."""
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, FAILING_SEED)
+    _survey(data, 0)  # the same vehicle: its arms
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    failing = f"survey{FAILING_SEED}"
+    line = re.escape(f"pronet: section {failing}: row {FAILING_ROW}: numerical failure: ")
+    assert re.search(line + r"the prediction produced a non-finite state.*\(t = [\d.]+ s\)", err)
+    assert "Traceback" not in err and err.count(f"row {FAILING_ROW}:") == 1
+    records = json.loads((out / "metrics.json").read_text())
+    rows = {(r["scenario"], r["strategy"]): r for r in records}
+    failed = rows[failing, FAILING_ROW]
+    assert failed["failed_runs"] == 1 and failed["srmse"] is None
+    kept = [r for (s, label), r in rows.items() if s == failing and label != FAILING_ROW]
+    assert len(kept) >= 8 and all(r["failed_runs"] == 0 and r["srmse"] > 0 for r in kept)
+    assert all(r["failed_runs"] == 0 for (s, _), r in rows.items() if s == "survey0")
+    metrics = (out / "metrics.csv").read_text().splitlines()
+    [csv_row] = [x for x in metrics if x.startswith(f"{failing},{FAILING_ROW},")]
+    assert "numerical failure" in csv_row
+    config = json.loads((out / "config.json").read_text())
+    assert config["sections"] == ["survey0", failing] and config["failed_sections"] == {}
+    assert list(config["rows_failed"]) == [failing]
+    assert "(t = " in config["rows_failed"][failing][FAILING_ROW]
+    table = (out / "table.md").read_text()
+    assert "### Rows failed" in table and f"| {failing} | {FAILING_ROW} | numerical" in table
+    assert {f"track_{s}.png" for s in ("survey0", failing)} <= {p.name for p in out.iterdir()}
+
+
+@pytest.fixture(scope="module")
+def pair(synthetic):
+    rec = synthetic.recording
+    return align(rec, estimate_alignment(rec)), align(rec, alignment.Alignment(how="none"))
+
+
+#: The core's message when the smoother's backward pass fails.
+SMOOTHER = (
+    "numerical failure: the smoother: the covariance before epoch 812 is not positive definite"
+)
+
+
+def _failing(monkeypatch, fails) -> None:
+    """Make :func:`pronet.recorded.passes.run_section` raise the core's error (a
+    ``ValueError``) for the passes ``fails(label, smooth)`` picks, and run the others."""
+    original = passes.run_section
+
+    def run_section(section, strategy, config, **kw):
+        if fails(kw.get("label", ""), kw.get("smooth", False)):
+            raise ValueError(SMOOTHER if kw.get("smooth") else "numerical failure: S (t = 3 s)")
+        return original(section, strategy, config, **kw)
+
+    monkeypatch.setattr(passes, "run_section", run_section)
+    monkeypatch.setattr(real, "run_section", run_section)
+
+
+def test_a_failing_smoother_fails_its_smoothed_row_only(pair, monkeypatch):
+    """The smoother failing on one row (monkeypatched: no recording makes it fail on
+    its own yet): the row's filter pass is kept, its smoothed row is reported failed
+    with the core's message, every other row is there."""
+    _failing(monkeypatch, lambda label, smooth: label == "detvar" and smooth)
+    done = real.run_sections([pair], {}, 1.0, threads=1, smooth=True)
+    labels = [r.label for r in done.runs]
+    assert "detvar" in labels and "detvar, smoothed" not in labels
+    assert "adaptive, smoothed" in labels and "constant (estimated q), smoothed" in labels
+    assert done.rows_failed == {"synthetic": {"detvar, smoothed": SMOOTHER}}
+    assert done.failed == {}
+
+
+def test_the_stamped_and_inertial_rows_fail_alone(pair, monkeypatch):
+    """The comparison against stamps as given and the inertial sanity run are rows too."""
+    _failing(monkeypatch, lambda label, _: "stamps as given" in label or "inertial" in label)
+    done = real.run_sections([pair], {}, 1.0, threads=1)
+    assert done.stamped == [] and done.inertial == []
+    assert sorted(done.rows_failed["synthetic"]) == [
+        "constant (estimated q), stamps as given, no lever arms",
+        f"inertial only, first {passes.INERTIAL_SECONDS:g} s",
+    ]
+    assert len(done.runs) >= 8
+    per_run, summary = failed_records(done)  # metrics.csv's rows: each setup's scenario
+    assert [(r["scenario"], r["strategy"][:8]) for r in per_run] == [
+        ("synthetic", "inertial"),
+        ("synthetic (stamps as given, no lever arms)", "constant"),
+    ]
+    assert all(r["failure"] == "numerical failure: S (t = 3 s)" for r in per_run)
+    assert [r["failed_runs"] for r in summary] == [1, 1]
+
+
+def test_a_section_whose_every_row_fails_is_a_failed_section(pair, monkeypatch):
+    """Every row of one section failing: the section is failed, named with its first
+    row's reason; the other section runs."""
+    aligned, stamped = pair
+    copy = (replace(aligned, name="copy"), replace(stamped, name="copy"))
+    original = passes.run_section
+
+    def run_section(section, strategy, config, **kw):
+        if section.name == "copy":
+            raise ValueError("numerical failure: S (t = 3 s)")
+        return original(section, strategy, config, **kw)
+
+    monkeypatch.setattr(passes, "run_section", run_section)
+    monkeypatch.setattr(real, "run_section", run_section)
+    done = real.run_sections([copy, pair], {}, 1.0, threads=2)
+    assert list(done.failed) == ["copy"]
+    first = r"every strategy row failed; the first, .+: numerical failure: S \(t = 3 s\)"
+    assert re.fullmatch(first, done.failed["copy"])
+    assert {r.section for r in done.runs} == {"synthetic"} and "copy" not in done.rows_failed
+
+
+# ------------------------------------------------------------------ corrupt ROS bags
+
+
+def _rosbags():
+    pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
+    pytest.importorskip("scipy", reason="the tests' bag writer turns DCMs into quaternions")
+    from ros_bag import write_bag
+    from synthetic_recording import synthetic_recording
+
+    return write_bag, synthetic_recording(seed=3, duration=40.0, name="mission").recording
+
+
+def _first_chunk_records(data: bytes) -> int:
+    """The offset of the records inside an mcap file's first chunk (the MCAP format:
+    an 8-byte magic, then records of an opcode byte, a u64 length and the content; a
+    chunk's content starts with three u64s, a u32 CRC and a u32-long compression name,
+    then its records' u64 length)."""
+    at = 8
+    while data[at] != 0x06:  # the first Chunk
+        at += 9 + int.from_bytes(data[at + 1 : at + 9], "little")
+    name = int.from_bytes(data[at + 9 + 28 : at + 9 + 32], "little")
+    return at + 9 + 32 + name + 8
+
+
+def test_a_corrupt_bag_is_one_line_and_the_good_bag_beside_it_runs(tmp_path, capsys):
+    """64 bytes of an mcap bag overwritten (its first message's length and what
+    follows): before, an OverflowError's traceback, and the good bag beside it never
+    ran. Now one line naming the file, and the other bag's rows are written."""
+    write_bag, rec = _rosbags()
+    data = tmp_path / "data"
+    for name in ("bad", "good"):
+        path, topics = write_bag(data / name, rec, "mcap")
+    [mcap] = (data / "bad").glob("*.mcap")
+    raw = bytearray(mcap.read_bytes())
+    start = _first_chunk_records(bytes(raw)) + 1
+    raw[start : start + 64] = b"\xff" * 64
+    mcap.write_bytes(bytes(raw))
+    origin = ",".join(f"{v:.17g}" for v in topics.origin or ())
+    argv = ["real", "--format", "bag", "--data", str(data), "--origin", origin, "--no-models"]
+    argv += ["--imu-lever-arm=-1.78,-0.04,-1.04", "--dvl-lever-arm=-1.85,-0.03,0.12"]
+    assert main([*argv, "--no-plots", "--quiet", "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "OverflowError" not in err
+    [line] = [x for x in err.splitlines() if "section bad" in x]
+    assert line.startswith(f"pronet: section bad: {data / 'bad'}: cannot be read as a ROS bag")
+    config = json.loads((tmp_path / "out" / "config.json").read_text())
+    assert config["sections"] == ["good"] and list(config["failed_sections"]) == ["bad"]
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3", "rosbag1"])
+def test_64_corrupt_bytes_anywhere_are_a_recording_error_naming_the_bag(tmp_path, storage):
+    """Random bytes at spread places of each storage: the bag reads (the checks judge
+    the numbers), or raises a RecordingError naming it; never the rosbags library's or
+    Python's own error (before: OverflowError, MemoryError, struct.error, the readers'
+    ReaderError, SQLite's CorruptError), nor NumPy's overflow warning beside the line
+    (a value near 1e300 read as it lies)."""
+    from pronet.recorded.recordings import RecordingError, read_recording
+
+    write_bag, rec = _rosbags()
+    rec = replace(rec, imu=rec.imu[: len(rec.imu) // 4], imu_time=rec.imu_time[: len(rec.imu) // 4])
+    name = "m.bag" if storage == "rosbag1" else "m"
+    path, topics = write_bag(tmp_path / name, rec, storage)
+    file = path if path.is_file() else next(p for p in path.iterdir() if p.suffix != ".yaml")
+    original = file.read_bytes()
+    rng = np.random.default_rng(0)
+    for start in np.linspace(0, len(original) - 64, 24).astype(int):
+        raw = bytearray(original)
+        raw[start : start + 64] = rng.integers(0, 256, 64, dtype=np.uint8).tobytes()
+        file.write_bytes(bytes(raw))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", RuntimeWarning)
+                read_recording(path, topics)
+        except RecordingError as exc:
+            assert str(exc).startswith(str(path)), (start, exc)
