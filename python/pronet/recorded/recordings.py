@@ -223,7 +223,8 @@ def read_recording(
     """Read a recording in the generic format (a folder of ``imu``/``dvl``/``gt`` CSV
     files, or one ``.npz``; the ground truth optional), validated; see the module
     docstring for the columns. A ROS bag is read with ``topics``
-    (:func:`pronet.recorded.bags.bag_streams`). ``declination``: the magnetic
+    (:func:`pronet.recorded.bags.bag_streams`); ``topics`` with anything but a bag is
+    refused (``RecordingError`` naming the path). ``declination``: the magnetic
     declination [deg, east positive] that turns a magnetic heading true (a magnetic one
     without it is refused; :mod:`pronet.recorded.heading`); ``read_heading`` False: the
     heading table or topic is not read (``--no-heading``)."""
@@ -233,6 +234,11 @@ def read_recording(
         if not read_heading:
             topics = replace(topics or BagTopics(), heading=None)
         return _read_bag(path, topics, declination)
+    if topics is not None:
+        raise RecordingError(
+            f"{path}: not a ROS bag (a .bag file, or a folder with metadata.yaml), so no "
+            "bag topics to read; a folder of CSVs or an .npz is --format generic"
+        )
     if path.is_dir():
         found = {
             kind: _find_optional(path, kind) if kind in _MAY_LACK else _find(path, kind)
