@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._util.validate import check_type, float_array, scalar
+from pronet._util.validate import check_type, flag, float_array, scalar
 
 #: An aiding sensor's stream, as :func:`run_filter` takes them.
 Stream: TypeAlias = _core.Dvl | _core.Depth | _core.Fix | _core.Heading
@@ -425,7 +425,7 @@ def run_filter(
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
     check_type(strategy, _core.Strategy, "strategy")
-    check_type(smooth, bool, "smooth")
+    smooth = flag(smooth, "smooth")
     given = _stream_list(streams)
     out = _core.run_filter(
         float_array(imu, "imu", (None, 6)),
