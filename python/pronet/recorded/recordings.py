@@ -49,8 +49,10 @@ and, where there is one, the row): the file exists and is not empty, the columns
 comma-separated and every required one is present with a known unit, every value is a
 finite number (the DVL's velocities aside: missing readings, above), time increases
 strictly, the sample rate is plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz,
-ground truth 0.05–1000 Hz), the IMU time has no gap longer than five median steps, and the
-magnitudes fit their units (the mean specific force near gravity, angular rates within
+ground truth 0.05–1000 Hz, each bound within
+:data:`pronet.recorded.plausible.NOMINAL_RATE_TOLERANCE`: a clock's drift), the IMU
+time has no gap longer than five median steps, and the magnitudes fit their units (the
+mean specific force near gravity, angular rates within
 10 rad/s, the DVL's speed within a factor 2 of the ground truth's, or without one at
 most :data:`pronet.recorded.plausible.MAX_DVL_SPEED`; see
 :func:`pronet.recorded.plausible.magnitudes`). A folder holding both a ``.csv`` and a ``.csv.gz``
@@ -505,9 +507,10 @@ def _finish(
     if len(t) > 1:
         rate = 1.0 / float(np.median(step))
         lo, hi = RATE_RANGE[kind]
-        if not lo <= rate <= hi:
-            raise RecordingError(
-                f"{where}: sample rate {rate:.4g} Hz is implausible for {kind} "
+        tolerance = plausible.NOMINAL_RATE_TOLERANCE  # a clock's drift at a bound
+        if not lo * (1 - tolerance) <= rate <= hi * (1 + tolerance):
+            raise RecordingError(  # six digits: never shown as the bound it is beyond
+                f"{where}: sample rate {rate:.6g} Hz is implausible for {kind} "
                 f"(expected {lo:g}–{hi:g} Hz); is the time column in seconds?"
             )
         gap = step > MAX_IMU_GAP * np.median(step)
