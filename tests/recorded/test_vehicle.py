@@ -110,6 +110,7 @@ def test_the_grades_and_the_keys_of_a_filter_file(tmp_path):
         ("accel_bias_psd = -1\n", r"accel_bias_psd"),
         ("lever_arm = [0, 0, 1]\n", r"lever_arm: the DVL from the IMU needs imu_lever_arm"),
         ("dvl_lever_arm = [1800, 0, 0]\n", r"dvl_lever_arm: must be within"),
+        ("fix_sigma = [1e-9, 1e-9, 1e-9]\n", r"fix_sigma: .* at least 0\.001 m"),
     ],
 )
 def test_a_bad_filter_file_is_one_line_naming_file_and_key(tmp_path, capsys, text, message):

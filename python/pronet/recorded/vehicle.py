@@ -59,7 +59,7 @@ import numpy as np
 from pronet import _core
 from pronet._util.validate import scalar
 from pronet.config import FILTER_KEYS, SCENARIO_KEYS, ConfigError, filter_config, read_toml
-from pronet.recorded.aiding import AidingTuning
+from pronet.recorded.aiding import MIN_FIX_SIGMA, AidingTuning
 from pronet.recorded.alignment import Format, lever_arm
 from pronet.recorded.heading import check_declination
 from pronet.recorded.plausible import long_lever_arm
@@ -285,7 +285,7 @@ def _aiding_sigma(
         shown = {k: table[k] for k in ("depth_sigma", "fix_sigma") if k in table}
         raise ConfigError(
             f"{where} depth_sigma, fix_sigma: a number of metres > 0 and a list of three "
-            f"(north, east, down), got {shown}"
+            f"(north, east, down), each at least {MIN_FIX_SIGMA:g} m, got {shown}"
         ) from None
     return (
         None if depth is None else tuning.depth_sigma,
