@@ -151,6 +151,32 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
             "[sensors] dvl_period: must be a whole multiple of the IMU period",
         ),
         ("[sensors]\nlever_arm = [1e9, 0, 0]\n", "[sensors] lever_arm: must be within ±1000 m"),
+        # issue 58: a boolean in a fix's list was read as 1; a sensor scheduled past the
+        # run's end is refused as a fix source is
+        (
+            "[[sensors.fixes]]\nsigma = [true, 2]\nperiod = 60.0\n",
+            "[sensors] fixes[0].sigma: expected real numbers, got True",
+        ),
+        ("[[sensors.fixes]]\nsigma = [2, 2]\ntimes = [false, 9]\n", "fixes[0].times: expected"),
+        (
+            "[sensors]\ndepth_sigma = 0.1\ndepth_period = 1000.0\n",
+            "[sensors] depth_period: schedules no depth reading inside the trajectory's 330 s "
+            "(period 1000 s): the sensor would take no reading",
+        ),
+        (
+            "[sensors]\nheading_sigma = 0.01\nheading_period = 331.0\n",
+            "[sensors] heading_period: schedules no heading reading inside the trajectory's",
+        ),
+        (
+            "[sensors]\ndvl_period = 400.0\n",
+            "[sensors] dvl_period: schedules no DVL reading inside the trajectory's 330 s "
+            "(period 400 s): the sensor would take no reading (dvl_period = 0: no DVL)",
+        ),
+        (
+            "[sensors]\ndepth_sigma = 0.1\ndepth_period = 10.0\n"
+            "[trajectory]\nsegments = [[5, 0, 0, 0]]\n",
+            "[sensors] depth_period: schedules no depth reading inside the trajectory's 5 s",
+        ),
         ("[filter]\nlever_arm = [0, 0, -1e9]\n", "[filter] lever_arm: must be within ±1000 m"),
         ("base = 'lake'\n", "base: 'lake' is not one of paper, varying-noise"),
         ("colour = 'red'\n", "colour: unknown key"),

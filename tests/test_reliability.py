@@ -3,10 +3,14 @@ NIS, and Monte Carlo shards identical to the whole."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 import pronet
+from pronet.run import run
+from pronet.sim.scenarios import SCENARIOS
 
 from conftest import PAPER_Q
 
@@ -164,3 +168,32 @@ def test_a_shard_round_trips_exactly_and_other_settings_are_refused(
     assert np.array_equal(result.srmse, hybrid.result.srmse)
     with pytest.raises(ValueError, match="^resume"):
         ShardStore(tmp_path / "s", {"n_runs": 3, "seed": 4})
+
+
+def test_smooth_takes_numpy_bools_and_refuses_ints_in_one_line() -> None:
+    """``smooth=np.True_`` was "expected a bool, got bool" in run_filter, ``smooth=1`` a
+    bare TypeError in monte_carlo: a NumPy bool is a bool, a number is refused naming
+    ``smooth`` (:func:`pronet._util.validate.flag`), in every call that takes it."""
+    traj = pronet.trajectory_from_segments(
+        np.array([[3.0, 0.0, 0.0, 0.0]]), lla0=(0.56, 0.59, -5.0), speed0=1.0
+    )
+    args, _, _ = _recording(0, 1000)
+    dvl = args["streams"][0]
+    short = {**args, "imu": args["imu"][:300], "imu_time": args["imu_time"][:300]}
+    short["streams"] = [pronet.Dvl(dvl.time[:3], dvl.velocity[:3])]
+    scenario = replace(SCENARIOS["paper"](0), trajectory=traj)
+    calls = {
+        "run_filter": lambda s: pronet.run_filter(**short, smooth=s),
+        "monte_carlo": lambda s: pronet.monte_carlo(
+            traj, pronet.Strategy.constant(PAPER_Q), n_runs=1, smooth=s
+        ),
+        "Ensemble": lambda s: pronet.Ensemble(traj, PAPER_Q, n_runs=1, window=10, smooth=s),
+        "run": lambda s: run(pronet.Strategy.constant(PAPER_Q), scenario, n_runs=1, smooth=s),
+    }
+    for name, call in calls.items():
+        call(np.True_)
+        call(np.False_)
+        for wrong in (1, 0, "yes", None, np.int64(1)):
+            with pytest.raises(ValueError, match=r"^smooth: expected True or False, got ") as e:
+                call(wrong)
+            assert "\n" not in str(e.value), name

@@ -228,7 +228,7 @@ def test_run_filter_smooths_on_request_and_refuses_what_it_cannot() -> None:
     )
     cases = [
         ({"epochs": "last"}, "^epochs: smooth=True keeps the epochs it corrects"),
-        ({"smooth": 1}, "^smooth: expected a bool"),
+        ({"smooth": 1}, "^smooth: expected True or False, got 1"),
     ]
     for extra, message in cases:
         with pytest.raises(ValueError, match=message):

@@ -45,7 +45,8 @@ mistakes too, so a misspelt key never silently falls back to a default.
     # times = [0.0, 600.0]     # [s] single fixes, each at the IMU epoch nearest it
     # max_depth = 0.5          # fixes only while the true depth <= this [m] (GNSS)
     # lever_arm = [0.0, 0.0, -1.0]   # the antenna's point [m, body FRD from the IMU]
-    # A source that would take no fix on the trajectory is refused.
+    # A source that would take no fix on the trajectory is refused, as is a DVL, depth
+    # or heading period longer than the trajectory.
 
     [filter]                   # optional; keys of pronet.FilterConfig, overriding the base's
     dvl_variance = [0.01, 0.01, 0.01]
@@ -270,6 +271,11 @@ def sensor_config(
         for key in ("imu_variance", "imu_variance_times", "dvl_outages"):  # arrays, natively
             if kwargs[key] is not None:
                 kwargs[key] = real_array(kwargs[key], key).astype(np.float64)
+        fixes = table.get("fixes")
+        for j, fix in enumerate(fixes if isinstance(fixes, list) else ()):  # true is no 1 m
+            for key in ("sigma", "times"):
+                if isinstance(fix, dict) and isinstance(fix.get(key), list):
+                    real_array(fix[key], f"fixes[{j}].{key}")
         if kwargs["dvl_outages"] is not None and kwargs["dvl_outages"].size == 0:
             kwargs["dvl_outages"] = kwargs["dvl_outages"].reshape(0, 2)
         return _core.SensorConfig(**kwargs)
@@ -372,6 +378,19 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         "[sensors]" if "fixes" in data.get("sensors", {}) else f"[trajectory], with {base_name}'s"
     )
     _native(f"{where}: {fixes_key}", lambda: _core.check_fixes_fire(traj, sensors))
+    for sensor, called, period in (
+        ("dvl", "DVL", sensors.dvl_period if sensors.dvl_period else None),
+        ("depth", "depth", sensors.depth_period if sensors.depth_sigma is not None else None),
+        ("heading", "heading", sensors.heading_period if sensors.heading_sigma else None),
+    ):  # as a fix source: a sensor that would take no reading is a mistake in the file
+        key = f"{sensor}_period"
+        if period is not None and round(period / traj.dt) > traj.n_samples:
+            raise ConfigError(
+                f"{where}: {'[sensors]' if key in data.get('sensors', {}) else fixes_key} "
+                f"{key}: schedules no {called} reading inside the trajectory's "
+                f"{traj.duration:g} s (period {period:g} s): the sensor would take no reading"
+                + (" (dvl_period = 0: no DVL)" if sensor == "dvl" else "")
+            )
     times = np.asarray(sensors.imu_variance_times, dtype=np.float64)
     schedule = np.asarray(sensors.imu_variance, dtype=np.float64)
     if "q_nominal" in data:

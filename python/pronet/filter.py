@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from pronet import _core
 from pronet._util import plausibility
 from pronet._util.deprecated import deprecated_streams
-from pronet._util.validate import check_type, float_array, scalar
+from pronet._util.validate import check_type, flag, float_array, scalar
 from pronet.stats import PassHealth, pass_health, sources_of, warn_about
 
 #: An aiding sensor's stream, as :func:`run_filter` takes them.
@@ -435,8 +435,8 @@ def run_filter(
     config = config if config is not None else _core.FilterConfig()
     check_type(config, _core.FilterConfig, "config")
     check_type(strategy, _core.Strategy, "strategy")
-    check_type(smooth, bool, "smooth")
-    check_type(warn, bool, "warn")
+    smooth = flag(smooth, "smooth")
+    warn = flag(warn, "warn")
     given = _stream_list(streams)
     samples, stamps = float_array(imu, "imu", (None, 6)), float_array(imu_time, "imu_time", (None,))
     start, attitude = scalar(t0, "t0"), float_array(rpy0, "rpy0", (3,))

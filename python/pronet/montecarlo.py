@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._util.validate import check_type, float_array
+from pronet._util.validate import check_type, flag, float_array
 from pronet.stats import NON_NEGATIVE, SHARE, MeanCI, chi2_mean_band, mean_ci
 
 #: Run indices stay below 2^62: run i's random streams are numbered 4·i + k
@@ -392,7 +392,7 @@ def monte_carlo(
         sample_initial_error=sample_initial_error,
         threads=threads,
         first_run=first_run,
-        smooth=smooth,
+        smooth=flag(smooth, "smooth"),
     )
     return result_of(out)
 
@@ -477,7 +477,7 @@ class Ensemble:
             sample_initial_error=sample_initial_error,
             threads=threads,
             first_run=first_run,
-            smooth=smooth,
+            smooth=flag(smooth, "smooth"),
         )
 
     def advance(self) -> NDArray[np.float32] | None:

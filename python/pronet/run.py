@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet._util.validate import flag
 from pronet.filter import FilterResult, Stream, run_filter
 from pronet.learn.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo
@@ -170,6 +171,7 @@ def run(
             scenario (see :func:`pronet.monte_carlo`); a recorded run takes none of
             them (``run_filter(smooth=True)`` smooths one pass).
     """
+    smooth = flag(smooth, "smooth")
     if isinstance(target, Recorded):
         given = (n_runs, seed, record_every, first_run, threads, smooth)
         if given != (100, 0, 0, 0, None, False):
@@ -314,7 +316,7 @@ def run_strategies(
     ``smooth``, each strategy's row is followed by its RTS-smoothed one (labelled
     ``"<label>, smoothed"``, paired against the first strategy's filter too); shards
     keep no smoothed result, so the two do not go together."""
-    if smooth and shards is not None:
+    if flag(smooth, "smooth") and shards is not None:
         raise ValueError("smooth: saved shards keep no smoothed result; run without them")
     for label, strategy in strategies.items():  # all of them before any computing
         check_acts(strategy, scenario, label)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 import subprocess
 import sys
 
@@ -14,7 +15,7 @@ import pytest
 import torch
 
 from pronet import _core
-from pronet.learn import frozen, hybrid, models
+from pronet.learn import frozen, hybrid, modelfile, models
 from pronet.learn.hcf import HCFEnsemble
 from pronet.learn.models import BaselineNet, DetrendNet
 from pronet.sim import scenarios
@@ -245,3 +246,21 @@ def test_the_frozen_defaults_are_the_torch_constructors() -> None:
     as_lists = {k: list(v) if isinstance(v, tuple) else v for k, v in defaults.items()}
     assert as_lists == frozen.NET_DEFAULTS
     assert set(frozen.NET_KINDS) == set(models.NETS)
+
+
+@pytest.mark.parametrize("name", ["baseline", "hcf", "learned:detrend"])
+def test_a_bad_thread_count_in_the_environment_is_named_not_blamed_on_the_model(name, monkeypatch):
+    """``RAYON_NUM_THREADS=100000`` was "baseline.json: bad architecture (...)": a
+    shipped model blamed for the environment. Now the variable and its bound, before
+    the model is read."""
+    from pronet.strategies import StrategySpec, strategy
+
+    monkeypatch.setenv("RAYON_NUM_THREADS", "100000")
+    with pytest.raises(ValueError) as caught:
+        if name.startswith("learned:"):
+            strategy(StrategySpec.parse(name), [1e-4] * 6)
+        else:
+            frozen.load_frozen(name)
+    message = str(caught.value)
+    assert not isinstance(caught.value, modelfile.ModelFileError), message
+    assert re.fullmatch(r"RAYON_NUM_THREADS: must be 1 to \d+ \(.*\), got 100000", message)

@@ -7,6 +7,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import socket
+import subprocess
+import sys
 import tracemalloc
 
 import numpy as np
@@ -296,3 +300,43 @@ def test_pronet_real_runs_a_model_file_as_a_row(tmp_path):
     assert f"learned:{model}" in text
     config = json.loads((out / "config.json").read_text())
     assert f"learned:{model}" in json.dumps(config)
+
+
+def test_an_interrupted_scoring_releases_its_claim_and_a_stale_one_is_recognised(short, tmp_path):
+    """A Ctrl-C during ``--cross-validate`` left its claim, and the rerun was refused as
+    "already scored" although nothing had been scored. Now a claim is released when the
+    scoring stops (nothing was shown), a claim whose process no longer runs (killed) is
+    recognised as stale, one whose process runs is refused as in progress, and only a
+    pair whose scores came out is refused as scored."""
+    ledger = Ledger(tmp_path / "ledger.jsonl")
+
+    def interrupted(train, grids):
+        raise KeyboardInterrupt
+
+    def unit(train, grids):
+        return SectionScale((1.0, 1.0))
+
+    with pytest.raises(KeyboardInterrupt):
+        cross_validate(short[:2], {"probe": (interrupted, scale_scorer)}, ledger=ledger)
+    ev = cross_validate(short[:2], {"probe": (unit, scale_scorer)}, ledger=ledger)
+    assert sorted(ev.rows["probe"]) == sorted(t.name for t in short[:2])
+    with pytest.raises(ValueError, match="'probe' was already scored on 'LOSO "):
+        cross_validate(short[:2], {"probe": (unit, scale_scorer)}, ledger=ledger)
+    # a claim left by a process killed while scoring: stale, taken over
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    host = socket.gethostname()
+    claim = {"model": "m", "test_set": "held-out x", "state": "claimed", "host": host}
+    other = Ledger(tmp_path / "other.jsonl")
+    other.path.write_text(json.dumps({**claim, "pid": gone.pid, "time": "then"}) + "\n")
+    with other.scoring([("m", "held-out x")]):
+        pass
+    assert f"stale claim of process {gone.pid}" in other.entries()[-2]["note"]
+    with pytest.raises(ValueError, match="already scored"):
+        other.claim("m", "held-out x")
+    # a claim whose process still runs: in progress, refused
+    other.path.write_text(json.dumps({**claim, "pid": os.getppid(), "time": "now"}) + "\n")
+    with pytest.raises(
+        ValueError, match=rf"'m' is being scored on 'held-out x' by process {os.getppid()}"
+    ):
+        other.claim("m", "held-out x")

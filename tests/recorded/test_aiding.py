@@ -135,6 +135,9 @@ _LON = r"beyond -3\.14159 … 6\.28319 rad \(-180° … 360°: a longitude in th
          r"depth\.csv, row 4: 'sigma \[m\]' is 0; a 1σ must be > 0 m"),
         (lambda f: _edit(f, "fix.csv", 2, "sigma_e", "-2"),
          r"fix\.csv, row 2: 'sigma_e \[m\]' is -2; a 1σ must be > 0 m"),
+        # issue 58: σ 1e-9 m ended in a numerical failure naming neither file nor σ
+        (lambda f: _edit(f, "fix.csv", 3, "sigma_n", "1e-9"),
+         r"fix\.csv, row 3: 'sigma_n \[m\]' is 1e-09; a fix's 1σ must be at least 0\.001 m"),
         (lambda f: _edit(f, "depth.csv", 7, "depth", "abc"),
          r"depth\.csv, row 7: 'depth \[m\]' is 'abc', not a number"),
         (lambda f: _edit(f, "fix.csv", 3, "time", "1.0"),

@@ -237,3 +237,20 @@ def test_depth_from_pressure_and_fixes_from_navsatfix(tmp_path, storage, sigma_i
     config = json.loads((tmp_path / "out" / "config.json").read_text())
     assert config["format"]["fix_topic"] == "/gnss/fix" and config["format"]["dvl_topic"] is None
     assert config["aiding"]["sections"]["mission"]["fixes"]["rows"] == len(rec.fixes.time) - 1
+
+
+def test_the_bag_format_refuses_what_is_no_bag(tmp_path, capsys):
+    """``--format bag`` on a folder of CSVs read it as the generic format, with the bag
+    options recorded as used: now one line naming the folder, before any work; the
+    reader refuses bag topics for anything but a bag."""
+    rec = synthetic_recording(seed=3, duration=30.0, name="csv").recording
+    folder = write_recording(tmp_path / "data" / "csv", rec)
+    out = tmp_path / "out"
+    argv = ["real", "--data", str(folder), "--format", "bag", "--origin", "32,34,0", *ARMS]
+    pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
+    assert main([*argv, "--no-models", "--no-plots", "--quiet", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{folder}: not a ROS bag" in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+    with pytest.raises(RecordingError, match=r"csv: not a ROS bag .*--format generic"):
+        read_recording(folder, BagTopics())

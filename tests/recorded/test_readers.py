@@ -22,6 +22,8 @@ from pronet.recorded.recordings import (
     write_recording,
 )
 
+from synthetic_recording import synthetic_recording
+
 
 def assert_same_recording(a: Recording, b: Recording) -> None:
     for field in ("imu_time", "imu", "dvl_time", "dvl", "gt_time", "gt_lla", "gt_vel", "gt_rpy"):
@@ -297,3 +299,30 @@ def test_the_fast_csv_path_reads_what_the_careful_reader_reads(tmp_path, synthet
     np.testing.assert_array_equal(
         read_recording(folder).imu, read_recording(csv_folder(tmp_path / "b", synthetic)).imu
     )
+
+
+@pytest.mark.parametrize("rate", [9.99975, 9.985, 10_010.5])
+def test_a_rate_at_a_bound_is_compared_as_the_nominal_rate_and_shown_to_its_digits(tmp_path, rate):
+    """An IMU at 9.99975 Hz (a 10 Hz IMU on a clock 25 ppm slow) was "10 Hz …
+    implausible (expected 10–10000 Hz)": now a rate within the nominal-rate tolerance of
+    a bound is that bound's (accepted), and one refused is printed with the digits that
+    show it outside."""
+    from pronet.recorded.tuning import NOMINAL_RATE_TOLERANCE
+
+    base = 10.0 if rate < 100 else 10_000.0
+    rec = synthetic_recording(seed=0, duration=30.0 if rate < 100 else 2.0, imu_rate=base)
+    k = base / rate
+    stretched = replace(
+        rec.recording,
+        imu_time=rec.recording.imu_time * k,
+        dvl_time=rec.recording.dvl_time * k,
+        gt_time=rec.recording.gt_time * k,
+    )
+    folder = write_recording(tmp_path / "sec", stretched)
+    if abs(rate - base) <= NOMINAL_RATE_TOLERANCE * base:
+        assert len(read_recording(folder).imu) == len(stretched.imu)
+        return
+    with pytest.raises(RecordingError) as caught:
+        read_recording(folder)
+    shown = str(caught.value).split("sample rate ")[1].split(" Hz")[0]
+    assert float(shown) == pytest.approx(rate, rel=1e-6) and float(shown) != base

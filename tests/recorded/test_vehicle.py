@@ -110,6 +110,7 @@ def test_the_grades_and_the_keys_of_a_filter_file(tmp_path):
         ("accel_bias_psd = -1\n", r"accel_bias_psd"),
         ("lever_arm = [0, 0, 1]\n", r"lever_arm: the DVL from the IMU needs imu_lever_arm"),
         ("dvl_lever_arm = [1800, 0, 0]\n", r"dvl_lever_arm: must be within"),
+        ("fix_sigma = [1e-9, 1e-9, 1e-9]\n", r"fix_sigma: .* at least 0\.001 m"),
     ],
 )
 def test_a_bad_filter_file_is_one_line_naming_file_and_key(tmp_path, capsys, text, message):
@@ -163,3 +164,28 @@ def test_without_dvl_readings_the_generic_format_needs_no_dvl_lever_arm(tmp_path
     assert len(a) and a.strategy.tolist() == b.strategy.tolist()
     assert np.array_equal(a.srmse.to_numpy(), b.srmse.to_numpy(), equal_nan=True)
     assert json.loads((tmp_path / "a" / "config.json").read_text())["dvl_lever_arm_m"] is None
+
+
+def test_both_levels_of_a_vehicle_file_obey_one_rule(tmp_path):
+    """A vehicle's keys may sit at the top level, in a ``[filter]`` table, or both: a
+    top-level ``dvl_variance`` beside ``[filter]`` was ignored and top-level lever arms
+    reported missing. A key at both levels, or an unknown one at either, is refused; a
+    scenario file's own keys beside ``[filter]`` are not read, as before."""
+    split = vehicle.load_vehicle(
+        _toml(
+            tmp_path / "split.toml",
+            'name = "auv"\ndvl_variance = [2e-4, 2e-4, 2e-4]\n' + _arms_toml()
+            + '[trajectory]\nbuiltin = "paper"\n[filter]\ngrade = "tactical"\n',
+        )
+    )  # fmt: skip
+    assert split.base.dvl_variance == [2e-4] * 3
+    assert split.imu_lever_arm == IMU_LEVER_ARM and split.dvl_lever_arm == DVL_LEVER_ARM
+    assert repr(split.base.p0_sigma) == repr(vehicle.load_vehicle("tactical").base.p0_sigma)
+    for text, message in (
+        ("dvl_variance = [1e-4, 1e-4, 1e-4]\n[filter]\ndvl_variance = [2e-4, 2e-4, 2e-4]\n",
+         r"both\.toml: dvl_variance: given at the top level and in \[filter\]; give it once"),
+        ("dvl_varaince = [1e-4, 1e-4, 1e-4]\n[filter]\ngrade = \"mems\"\n",
+         r"both\.toml: unknown key 'dvl_varaince'"),
+    ):  # fmt: skip
+        with pytest.raises(ConfigError, match=message):
+            vehicle.load_vehicle(_toml(tmp_path / "both.toml", text))

@@ -9,7 +9,17 @@ from typing import Any
 
 from pronet._util.files import check_new_files
 from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
-from pronet.cli.train_recorded import RECORDED_ONLY, add_recorded_args, run_recorded
+from pronet.cli.train_recorded import (
+    RECORDED_DIR_OPTIONS,
+    RECORDED_ONLY,
+    SECTION_OPTIONS,
+    add_recorded_args,
+    refuse_given,
+    run_recorded,
+)
+
+#: ``--max-epochs``'s default.
+MAX_EPOCHS = 20
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -47,8 +57,9 @@ def add_parser(sub: Subparsers) -> None:
         "--max-epochs",
         metavar="N",
         type=int,
-        default=20,
-        help="epoch limit for the nets (default 20)",
+        default=None,
+        help=f"epoch limit for the nets (default {MAX_EPOCHS}; not with --recorded/--simulated, "
+        "whose nets take --epochs)",
     )
 
 
@@ -59,6 +70,9 @@ def run(args: argparse.Namespace) -> int:
         return run_recorded(args)
     if args.model in RECORDED_ONLY:
         raise ValueError(f"--model {args.model}: needs --recorded DIR or --simulated N")
+    refuse_given(args, RECORDED_DIR_OPTIONS, "only with --recorded DIR")
+    refuse_given(args, SECTION_OPTIONS, "only with --recorded DIR or --simulated N")
+    args.max_epochs = MAX_EPOCHS if args.max_epochs is None else args.max_epochs
     args.out = args.out or "models"
     kinds = training.MODEL_KINDS if args.model in (None, "all") else (args.model,)
     hp = training.NetTraining(seed=args.seed, max_epochs=args.max_epochs)

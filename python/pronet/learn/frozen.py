@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
 from pronet._util.validate import count, scalar
+from pronet._util.validate import threads as check_threads
 from pronet.learn import modelfile
 from pronet.learn.windowstats import as_windows
 
@@ -239,9 +240,12 @@ def load_frozen(
 ) -> FrozenNet | FrozenHCF:
     """A shipped model by name or a model file by path (as :func:`pronet.learn.models.load`),
     frozen in the core without torch. Raises ``ModelFileError`` (a ``ValueError``)
-    naming the file if it is missing, corrupted, truncated or not what its card says."""
+    naming the file if it is missing, corrupted, truncated or not what its card says;
+    a bad ``threads`` (or ``RAYON_NUM_THREADS``) is a ``ValueError`` naming it, before
+    the model is read."""
     from pronet.learn.hcf import HCFEnsemble
 
+    threads = check_threads(threads, "threads")
     tensors, card, weights, card_file = read_model(name_or_path)
     kind = card.get("kind")
     if kind == "hcf":

@@ -50,10 +50,10 @@ fix row with a NaN or empty latitude, longitude or σ, is left out of the filter
 kept with the reason ``"nan"`` (:attr:`DepthReadings.skipped_time`). Rows stamped
 before the run's start or after its end are applied at no epoch (``depth_epoch``,
 ``fix_epoch`` −1) and ``pronet real`` counts them apart (``outside_run``). A σ of 0 or
-below is an error naming its row. Checks against the ground truth (at each row's
-stamp, as given; :func:`against_truth`): the median depth within
-:data:`MAX_DEPTH_OFFSET` of the truth's (a depth from absolute pressure, feet, or a
-height, are not), the median horizontal distance of the fixes within
+below is an error naming its row, as is a fix's below :data:`MIN_FIX_SIGMA`. Checks
+against the ground truth (at each row's stamp, as given; :func:`against_truth`): the
+median depth within :data:`MAX_DEPTH_OFFSET` of the truth's (a depth from absolute
+pressure, feet, or a height, are not), the median horizontal distance of the fixes within
 :data:`MAX_FIX_OFFSET` of it (degrees under a ``[rad]`` header are not).
 
 σ (:func:`filter_aiding`): the filter takes each row's σ where the file gives one (a
@@ -110,6 +110,10 @@ DEFAULT_DEPTH_SIGMA = 0.1
 #: The fixes' σ north, east, down [m] when neither the file nor the vehicle gives
 #: one: a standalone GNSS fix's 2 m horizontally, twice that vertically.
 DEFAULT_FIX_SIGMA = (2.0, 2.0, 4.0)
+#: The smallest 1σ [m] of a fix: no position fix is better than a millimetre (RTK
+#: GNSS's is about 1 cm), and far below it the update leaves the filter's position
+#: covariance numerically singular (σ 1e-9 m: a "numerical failure" of the pass).
+MIN_FIX_SIGMA = 1e-3
 
 
 _S = TypeVar("_S", bound="_Stream")
@@ -206,16 +210,21 @@ def _column(table: Table, names: list[str], name: str) -> F64 | None:
     return table.values[:, names.index(name)] if name in names else None
 
 
-def _check_sigma(table: Table, names: list[str], wanted: list[str]) -> None:
+def _check_sigma(table: Table, names: list[str], wanted: list[str], least: float = 0.0) -> None:
+    """Each σ column of ``wanted`` > 0 and at least ``least`` [m] (a fix's)."""
     for name in wanted:
         j = names.index(name)
         v = table.values[:, j]
-        bad = v <= 0  # NaN compares False: a missing value
+        bad = (v <= 0) | (v < least)  # NaN compares False: a missing value
         if bad.any():
             r = int(np.argmax(bad))
-            raise ValueError(
-                f"{table.where}, row {r + 1}: {table.labels[j]!r} is {v[r]:g}; a 1σ must be > 0 m"
+            rule = (
+                f"a fix's 1σ must be at least {least:g} m (no fix is that exact; the filter's "
+                "covariance would be singular)"
+                if v[r] > 0
+                else "a 1σ must be > 0 m"
             )
+            raise ValueError(f"{table.where}, row {r + 1}: {table.labels[j]!r} is {v[r]:g}; {rule}")
 
 
 def unknown_sigma(where: str, kind: str, names: list[str], header: list[str]) -> str | None:
@@ -274,7 +283,7 @@ def position_fixes(table: Table, names: list[str]) -> PositionFixes:
             f"{table.where}: has {', '.join(given)} but not {lacking}; give all three or none"
         )
     if given:
-        _check_sigma(table, names, sigma_names)
+        _check_sigma(table, names, sigma_names, MIN_FIX_SIGMA)
     t = table.values[:, 0]
     lat, lon = table.values[:, 1], table.values[:, 2]
     height = _column(table, names, "height")
@@ -406,10 +415,15 @@ class AidingTuning:
 
     def __post_init__(self) -> None:
         sigma = (self.depth_sigma, *self.fix_sigma)
-        if len(self.fix_sigma) != 3 or not all(np.isfinite(s) and s > 0 for s in sigma):
+        if (
+            len(self.fix_sigma) != 3
+            or not all(np.isfinite(s) and s > 0 for s in sigma)
+            or min(self.fix_sigma) < MIN_FIX_SIGMA
+        ):
             raise ValueError(
                 f"depth_sigma, fix_sigma: must be finite numbers of metres > 0 (fix_sigma "
-                f"three: north, east, down), got {self.depth_sigma}, {self.fix_sigma}"
+                f"three: north, east, down, each at least {MIN_FIX_SIGMA:g} m), got "
+                f"{self.depth_sigma}, {self.fix_sigma}"
             )
         h = self.heading_sigma
         if h is not None and not (np.isfinite(h) and 0 < h <= np.pi):

@@ -520,7 +520,7 @@ def load_section(
     if is_bag(path) and not (isinstance(fmt, BagTopics) or fmt == "bag"):
         raise RecordingError(f"{path}: a ROS bag; read it with --format bag (format {fmt})")
     if isinstance(fmt, BagTopics) or fmt == "bag":
-        topics = fmt if isinstance(fmt, BagTopics) else None
+        topics = fmt if isinstance(fmt, BagTopics) else BagTopics()
         rec = read_recording(path, topics, declination=declination, read_heading=read_heading)
     elif fmt not in FORMATS:
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {fmt!r}")

@@ -39,6 +39,12 @@ from pronet._util.plausibility import HEIGHT_RANGE, PlausibilityWarning, specifi
 
 F64 = NDArray[np.float64]
 
+#: A rate [Hz] within this share of a nominal one is taken at it (a logger's clock
+#: drift aside: the Snapir IMU's stamps step by 0.01000025 s, its rate 100 Hz): the
+#: IMU's nominal step (:func:`pronet.recorded.tuning.imu_step`), and a sample rate at
+#: the bounds of the plausible ones (a 10 Hz IMU 25 ppm slow is a 10 Hz IMU).
+NOMINAL_RATE_TOLERANCE = 1e-3
+
 #: The fastest a ground truth may move [m/s] (no underwater vehicle comes near it).
 MAX_SPEED = 100.0
 #: The truth's attitude steps over the gyro's, by RMS, outside [1/x, x]: a unit slip.

@@ -49,9 +49,10 @@ and, where there is one, the row): the file exists and is not empty (a UTF-8 byt
 mark before the header is read as none), the columns are comma-separated and every
 required one is present with a known unit, every value is a finite number (the DVL's
 velocities aside: missing readings, above), time increases strictly, the sample rate is
-plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz, ground truth 0.05–1000 Hz;
-a ground truth of one row is refused), the IMU time has no gap longer than five median
-steps (a jitter beyond 15 % of a step is warned of:
+plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz, ground truth 0.05–1000 Hz,
+each bound within :data:`pronet.recorded.plausible.NOMINAL_RATE_TOLERANCE`: a clock's
+drift; a ground truth of one row is refused), the IMU time has no gap longer than five
+median steps (a jitter beyond 15 % of a step is warned of:
 :func:`pronet.recorded.plausible.imu_jitter`), and the magnitudes fit their units (the
 mean specific force near gravity, angular rates within 10 rad/s, the DVL's speed within
 a factor 2 of the ground truth's, or without one at most
@@ -226,7 +227,8 @@ def read_recording(
     """Read a recording in the generic format (a folder of ``imu``/``dvl``/``gt`` CSV
     files, or one ``.npz``; the ground truth optional), validated; see the module
     docstring for the columns. A ROS bag is read with ``topics``
-    (:func:`pronet.recorded.bags.bag_streams`). ``declination``: the magnetic
+    (:func:`pronet.recorded.bags.bag_streams`); ``topics`` with anything but a bag is
+    refused (``RecordingError`` naming the path). ``declination``: the magnetic
     declination [deg, east positive] that turns a magnetic heading true (a magnetic one
     without it is refused; :mod:`pronet.recorded.heading`); ``read_heading`` False: the
     heading table or topic is not read (``--no-heading``)."""
@@ -236,6 +238,11 @@ def read_recording(
         if not read_heading:
             topics = replace(topics or BagTopics(), heading=None)
         return _read_bag(path, topics, declination)
+    if topics is not None:
+        raise RecordingError(
+            f"{path}: not a ROS bag (a .bag file, or a folder with metadata.yaml), so no "
+            "bag topics to read; a folder of CSVs or an .npz is --format generic"
+        )
     if path.is_dir():
         found = {
             kind: _find_optional(path, kind) if kind in _MAY_LACK else _find(path, kind)
@@ -506,9 +513,10 @@ def _finish(
     if len(t) > 1:
         rate = 1.0 / float(np.median(step))
         lo, hi = RATE_RANGE[kind]
-        if not lo <= rate <= hi:
-            raise RecordingError(
-                f"{where}: sample rate {rate:.4g} Hz is implausible for {kind} "
+        tolerance = plausible.NOMINAL_RATE_TOLERANCE  # a clock's drift at a bound
+        if not lo * (1 - tolerance) <= rate <= hi * (1 + tolerance):
+            raise RecordingError(  # six digits: never shown as the bound it is beyond
+                f"{where}: sample rate {rate:.6g} Hz is implausible for {kind} "
                 f"(expected {lo:g}–{hi:g} Hz); is the time column in seconds?"
             )
         gap = step > MAX_IMU_GAP * np.median(step)

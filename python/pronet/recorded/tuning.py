@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from pronet import _core
 from pronet._util.validate import float_array
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
+from pronet.recorded.plausible import NOMINAL_RATE_TOLERANCE
 from pronet.sim.paper import paper_strategies
 from pronet.strategies import StrategyLike, StrategySpec, strategy
 
@@ -108,15 +109,12 @@ def real_filter_config(
     )
 
 
-#: A median IMU step within this share of a whole rate in Hz is taken at that rate.
-NOMINAL_RATE_TOLERANCE = 1e-3
-
-
 def imu_step(imu_time: F64) -> float:
     """The IMU's nominal step [s] for the filter's white-noise term: the mean step of
-    ``imu_time``, at the whole rate in Hz it is within :data:`NOMINAL_RATE_TOLERANCE`
-    of (a logger's clock drift aside: the Snapir IMU's stamps step by 0.01000025 s, its
-    rate 100 Hz). The filter adds ``q · imu_dt · dt`` per step with each step's own
+    ``imu_time``, at the whole rate in Hz it is within
+    :data:`~pronet.recorded.plausible.NOMINAL_RATE_TOLERANCE` of (a logger's clock
+    drift aside: the Snapir IMU's stamps step by 0.01000025 s, its rate 100 Hz). The
+    filter adds ``q · imu_dt · dt`` per step with each step's own
     ``dt`` from the stamps: ``q · imu_dt`` is the noise PSD of ``q`` per sample of
     ``imu_dt``, and a jittered IMU is integrated exactly over each of its steps, not
     resampled."""

@@ -26,8 +26,10 @@ A file, every key optional::
     # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
                                         # imu_lever_arm beside it (not dvl_lever_arm)
 
-The same keys may sit in a ``[filter]`` table (a scenario file: its other tables are
-not read). ``imu_dt`` is refused: ``pronet real`` uses each section's own IMU step
+The same keys may sit in a ``[filter]`` table, or some at the top level and the others
+in it: one rule for both levels (a key at both is refused, an unknown key at either
+too; beside a ``[filter]`` table the top level may hold a scenario file's own keys and
+tables, which are not read). ``imu_dt`` is refused: ``pronet real`` uses each section's own IMU step
 (:func:`pronet.recorded.tuning.imu_step`). ``--filter mems`` (a grade's name, not a
 file) is the preset alone.
 
@@ -56,8 +58,8 @@ import numpy as np
 
 from pronet import _core
 from pronet._util.validate import scalar
-from pronet.config import FILTER_KEYS, ConfigError, filter_config, read_toml
-from pronet.recorded.aiding import AidingTuning
+from pronet.config import FILTER_KEYS, SCENARIO_KEYS, ConfigError, filter_config, read_toml
+from pronet.recorded.aiding import MIN_FIX_SIGMA, AidingTuning
 from pronet.recorded.alignment import Format, lever_arm
 from pronet.recorded.heading import check_declination
 from pronet.recorded.plausible import long_lever_arm
@@ -172,14 +174,7 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
     if text in GRADES and not Path(text).exists():
         return VehicleTuning(grade_config(text, "--filter"), None, None, text)
     path = Path(text)
-    table = read_toml(path)
-    where = f"{path}:"
-    if isinstance(table.get("filter"), dict):  # a scenario file: its [filter] table
-        table, where = table["filter"], f"{path}: [filter]"
-    unknown = sorted(set(table) - set(FILTER_KEYS) - set(VEHICLE_KEYS))
-    if unknown:
-        known = ", ".join((*FILTER_KEYS, *VEHICLE_KEYS))
-        raise ConfigError(f"{where} unknown key {unknown[0]!r}; known: {known}")
+    table, where = _vehicle_keys(read_toml(path), path)
     if "imu_dt" in table:
         raise ConfigError(
             f"{where} imu_dt: pronet real uses each section's own IMU step (imu_dt_s in "
@@ -212,6 +207,34 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
         base, imu, dvl, str(path), *_aiding_sigma(table, where), *_heading(table, where),
         depth_arm, fix_arm, _surface_depth(table, where),
     )  # fmt: skip
+
+
+def _vehicle_keys(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], str]:
+    """The vehicle's keys of the file ``doc`` and the prefix of its errors: one rule for
+    both levels. The keys may sit at the top level, in a ``[filter]`` table, or both
+    (a key at both levels is refused); beside a ``[filter]`` table the top level may
+    also hold a scenario file's own keys, which are not read. An unknown key at either
+    level is refused."""
+    known = (*FILTER_KEYS, *VEHICLE_KEYS)
+    nested = doc.get("filter")
+    top = dict(doc)
+    where = f"{path}:"
+    if isinstance(nested, dict):  # a scenario file, or a vehicle file with a table
+        del top["filter"]
+        top = {k: v for k, v in top.items() if k not in SCENARIO_KEYS or k in known}
+        twice = sorted(set(top) & set(nested))
+        if twice:
+            raise ConfigError(
+                f"{path}: {twice[0]}: given at the top level and in [filter]; give it once"
+            )
+        where = f"{path}: [filter]" if not top else where
+    for level, keys in (("", top), ("[filter] ", nested if isinstance(nested, dict) else {})):
+        unknown = sorted(set(keys) - set(known))
+        if unknown:
+            raise ConfigError(
+                f"{path}: {level}unknown key {unknown[0]!r}; known: {', '.join(known)}"
+            )
+    return {**top, **(nested if isinstance(nested, dict) else {})}, where
 
 
 def _surface_depth(table: dict[str, Any], where: str) -> float | None:
@@ -262,7 +285,7 @@ def _aiding_sigma(
         shown = {k: table[k] for k in ("depth_sigma", "fix_sigma") if k in table}
         raise ConfigError(
             f"{where} depth_sigma, fix_sigma: a number of metres > 0 and a list of three "
-            f"(north, east, down), got {shown}"
+            f"(north, east, down), each at least {MIN_FIX_SIGMA:g} m, got {shown}"
         ) from None
     return (
         None if depth is None else tuning.depth_sigma,

@@ -8,17 +8,23 @@ default constant q), the per-section best constant (a 2-D search of the group sc
 on the scored section itself: a ceiling known only after the fact, never a
 prediction) and, in simulation, the oracle (the true q schedule). Differences are
 paired over sections with a 95 % CI (:func:`pronet.experiments.qlearn.scoring.paired_rows`).
-Before anything is scored, the (model, test set) pair is written to the ledger; a
-pair already there is refused, so a held-out set is scored once per model setup.
+Before anything is scored, the (model, test set) pair is claimed in the ledger, and
+recorded scored once its scores came out; a pair scored is refused, so a held-out set
+is scored once per model setup (a claim whose scoring stopped early is released).
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import math
+import os
+import socket
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import AbstractContextManager as ContextManager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,9 +61,14 @@ def section_key(sections: Sequence[TrainingSection]) -> str:
 class Ledger:
     """A JSON-lines file of the (model setup, test set) pairs already scored.
 
-    :meth:`claim` appends a pair before it is scored and refuses (``ValueError``
-    naming the file and the earlier entry) a pair that is already there: a held-out
-    set scored once is never scored again by the same model setup, whatever came out.
+    :meth:`scoring` claims pairs before they are scored and records them scored when
+    their scores came out; a pair already scored is refused (``ValueError`` naming the
+    file and the earlier entry): a held-out set scored once is never scored again by the
+    same model setup, whatever came out. A scoring that stops before its scores come
+    out (Ctrl-C, an error) releases its claims: nothing was shown. A claim never
+    settled is in progress while its process runs (refused, naming it), and stale once
+    that process is gone (killed): the next claim takes it over. :meth:`claim` records
+    a pair as scored at once (entries without a ``state`` are read so).
     """
 
     def __init__(self, path: str | Path) -> None:
@@ -66,8 +77,11 @@ class Ledger:
     def entries(self) -> list[dict[str, Any]]:
         if not self.path.exists():
             return []
+        return self._parse(self.path.read_text())
+
+    def _parse(self, text: str) -> list[dict[str, Any]]:
         out = []
-        for i, line in enumerate(self.path.read_text().splitlines(), 1):
+        for i, line in enumerate(text.splitlines(), 1):
             if line.strip():
                 try:
                     out.append(json.loads(line))
@@ -77,23 +91,83 @@ class Ledger:
 
     def claim(self, model: str, test_set: str, note: str = "") -> None:
         """Record that ``model`` (a description of the model setup: kind, training
-        options, training sections) is about to be scored on ``test_set`` (its
-        :func:`section_key` with names)."""
-        for e in self.entries():
-            if e.get("model") == model and e.get("test_set") == test_set:
+        options, training sections) is scored on ``test_set`` (its
+        :func:`section_key` with names), refused if it was."""
+        self._append([(model, test_set)], {"note": note})
+
+    @contextmanager
+    def scoring(self, pairs: Sequence[tuple[str, str]], note: str = "") -> Iterator[None]:
+        """Claim every ``(model, test_set)`` of ``pairs`` (none if one is refused), run
+        the block that scores them, then record them scored; if the block raises,
+        release the claims and re-raise."""
+        notes = self._append(pairs, {"state": "claimed", "note": note})
+        try:
+            yield
+        except BaseException:
+            self._append(pairs, {"state": "released"}, check=False)
+            raise
+        self._append(pairs, {"state": "scored", "note": notes}, check=False)
+
+    def _append(
+        self, pairs: Sequence[tuple[str, str]], fields: dict[str, Any], check: bool = True
+    ) -> str:
+        """Check every pair (``check``), then write one entry for each, under a lock
+        on the file; returns what the check noted (a stale claim taken over)."""
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        noted: list[str] = []
+        with self.path.open("a+") as f:
+            fcntl.flock(f, fcntl.LOCK_EX)  # released when the file closes
+            f.seek(0)
+            entries = self._parse(f.read())
+            if check:
+                noted = [n for m, t in pairs if (n := self._check(entries, m, t))]
+            stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+            for model, test_set in pairs:
+                entry = {"model": model, "test_set": test_set, **fields, "time": stamp}
+                if fields.get("state") == "claimed":
+                    entry.update(pid=os.getpid(), host=socket.gethostname())
+                    entry["note"] = "; ".join(x for x in (fields.get("note"), *noted) if x)
+                f.write(json.dumps(entry) + "\n")
+        return "; ".join(noted)
+
+    def _check(self, entries: list[dict[str, Any]], model: str, test_set: str) -> str:
+        """``ValueError`` if the pair was scored or is being scored; what to note of
+        a stale claim taken over, else ''."""
+        pending: dict[str, Any] | None = None
+        for e in entries:
+            if e.get("model") != model or e.get("test_set") != test_set:
+                continue
+            state = e.get("state", "scored")
+            if state == "scored":
                 raise ValueError(
                     f"{self.path}: {model!r} was already scored on {test_set!r} "
                     f"({e.get('time')}); a held-out set is scored once"
                 )
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        entry = {
-            "model": model,
-            "test_set": test_set,
-            "note": note,
-            "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        }
-        with self.path.open("a") as f:
-            f.write(json.dumps(entry) + "\n")
+            pending = e if state == "claimed" else None
+        if pending is None:
+            return ""
+        pid, host = pending.get("pid"), pending.get("host")
+        here = host == socket.gethostname()
+        if not here or _running(pid):
+            raise ValueError(
+                f"{self.path}: {model!r} is being scored on {test_set!r} by process {pid} "
+                f"on {host} (claimed {pending.get('time')}); a held-out set is scored once"
+                + ("" if here else "; if that run is gone, remove its line")
+            )
+        return f"took over the stale claim of process {pid} ({pending.get('time')})"
+
+
+def _running(pid: object) -> bool:
+    """Whether process ``pid`` of this host runs."""
+    if not isinstance(pid, int) or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
 
 
 def fit_section_scale(grids: Sequence[ScaleGrid]) -> SectionScale:
@@ -156,31 +230,35 @@ def cross_validate(
 ) -> Evaluation:
     """Leave-one-section-out: for each section, every trainer fits on the others and
     its model scores the section. ``ledger`` claims ``(label + setup, sections)`` for
-    each trainer first."""
+    each trainer first (:meth:`Ledger.scoring`: released if this stops early)."""
     if len(sections) < 2:
         raise ValueError(f"sections: leave-one-out needs at least 2, got {len(sections)}")
     names = [ts.name for ts in sections]
     if len(set(names)) != len(names):
         raise ValueError(f"sections: names must differ, got {names}")
     key = f"LOSO {','.join(names)} {section_key(sections)}"
-    if ledger is not None:
-        for label in trainers:
-            ledger.claim(f"{label} {setup}".strip(), key)
-    grids = {ts.name: scale_grid(ts) for ts in sections}
-    if on_done is not None:
-        on_done("constant grids")
-    rows = _base_rows(sections, grids)
-    models: dict[str, dict[str, Any]] = {label: {} for label in trainers}
-    for k, ts in enumerate(sections):
-        train = [s for i, s in enumerate(sections) if i != k]
-        train_grids = [grids[s.name] for s in train]
-        for label, (fit, scorer) in trainers.items():
-            model = fit(train, train_grids)
-            models[label][ts.name] = model
-            rows.setdefault(label, {})[ts.name] = scorer(model, ts)
-            if on_done is not None:
-                on_done(f"{ts.name}: {label}")
+    pairs = [(f"{label} {setup}".strip(), key) for label in trainers]
+    with _claimed(ledger, pairs):
+        grids = {ts.name: scale_grid(ts) for ts in sections}
+        if on_done is not None:
+            on_done("constant grids")
+        rows = _base_rows(sections, grids)
+        models: dict[str, dict[str, Any]] = {label: {} for label in trainers}
+        for k, ts in enumerate(sections):
+            train = [s for i, s in enumerate(sections) if i != k]
+            train_grids = [grids[s.name] for s in train]
+            for label, (fit, scorer) in trainers.items():
+                model = fit(train, train_grids)
+                models[label][ts.name] = model
+                rows.setdefault(label, {})[ts.name] = scorer(model, ts)
+                if on_done is not None:
+                    on_done(f"{ts.name}: {label}")
     return Evaluation(rows, models)
+
+
+def _claimed(ledger: Ledger | None, pairs: list[tuple[str, str]]) -> ContextManager[None]:
+    """:meth:`Ledger.scoring` of ``pairs``, or nothing without a ledger."""
+    return nullcontext() if ledger is None else ledger.scoring(pairs)
 
 
 def held_out(
@@ -197,17 +275,17 @@ def held_out(
     if overlap:
         raise ValueError(f"test: sections also in train: {sorted(overlap)}")
     key = f"held-out {','.join(t.name for t in test)} {section_key(test)}"
-    if ledger is not None:
-        for label in trainers:
-            ledger.claim(f"{label} {setup} trained on {section_key(train)}".strip(), key)
-    train_grids = [scale_grid(ts) for ts in train]
-    grids = {ts.name: scale_grid(ts) for ts in test}
-    rows = _base_rows(test, grids)
-    models: dict[str, dict[str, Any]] = {}
-    for label, (fit, scorer) in trainers.items():
-        model = fit(train, train_grids)
-        models[label] = {ts.name: model for ts in test}
-        rows[label] = {ts.name: scorer(model, ts) for ts in test}
+    setup = f"{setup} trained on {section_key(train)}"
+    pairs = [(f"{label} {setup}".strip(), key) for label in trainers]
+    with _claimed(ledger, pairs):
+        train_grids = [scale_grid(ts) for ts in train]
+        grids = {ts.name: scale_grid(ts) for ts in test}
+        rows = _base_rows(test, grids)
+        models: dict[str, dict[str, Any]] = {}
+        for label, (fit, scorer) in trainers.items():
+            model = fit(train, train_grids)
+            models[label] = {ts.name: model for ts in test}
+            rows[label] = {ts.name: scorer(model, ts) for ts in test}
     return Evaluation(rows, models)
 
 
