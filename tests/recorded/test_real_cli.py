@@ -28,6 +28,7 @@ from synthetic_recording import (
     GT_CLOCK,
     IMU_LEVER_ARM,
     synthetic_recording,
+    with_aiding,
 )
 
 
@@ -294,3 +295,27 @@ def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path
     done = real.run_section(aligned, pronet.Strategy.constant([1e-4] * 6), pronet.FilterConfig())
     with pytest.raises(ValueError, match="was run without smooth=True"):
         smoothed_run(aligned, done)
+
+
+def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsys):
+    """Every fix 300 m north of the vehicle (inside the readers' 1 km check): each
+    section's fix stream is named once on stderr with its NIS and causes, the rows that
+    share it counted, and the same lines in table.md and config.json."""
+    rec = with_aiding(synthetic_recording(seed=4), seed=4, fix_every=10.0)
+    assert rec.fixes is not None
+    north = pronet.lla_from_ned(np.tile([300.0, 0.0, 0.0], (len(rec.fixes.time), 1)),
+                                rec.fixes.lla[0])  # fmt: skip
+    moved = rec.fixes.lla + (north - rec.fixes.lla[0]) * [1.0, 1.0, 0.0]
+    data = tmp_path / "data"
+    write_recording(data / "run1.npz", replace(rec, fixes=replace(rec.fixes, lla=moved)))
+    out = tmp_path / "out"
+    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
+    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
+    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    notes = json.loads((out / "config.json").read_text())["notes"]
+    fix = [n for n in notes if "(fix): mean NIS" in n]
+    assert len(fix) == 1 and fix[0].startswith("section run1: streams[") and "rows:" in fix[0]
+    assert "the antenna's lever arm" in fix[0] and f"pronet: {fix[0]}" in err
+    assert fix[0] in (out / "table.md").read_text()

@@ -211,6 +211,8 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"pronet: section {name}: row {row}: {reason} (left out; see table.md)", file=sys.stderr
         )
+    for note in config["notes"]:  # what the filters know: out-of-band streams, divergence
+        print(f"pronet: {note}", file=sys.stderr)
     left_out = f" ({len(failed)} left out)" if failed else ""
     left_out += f" ({len(rows)} rows failed)" if rows else ""
     show.result(

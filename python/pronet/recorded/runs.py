@@ -98,3 +98,28 @@ class RealRuns:
     imu_dt: dict[str, float] = field(default_factory=dict)
     rows_not_run: dict[str, dict[str, str]] = field(default_factory=dict)
     rows_failed: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    @property
+    def notes(self) -> list[str]:
+        """What the filters said about themselves (:attr:`pronet.FilterResult.health`),
+        one line per section and stream out of band, the first row's finding with the
+        rows that share it, and one per row whose solution diverged. Smoothed rows are
+        their filter's."""
+        found: dict[tuple[str, str], list[tuple[str, str]]] = {}
+        rows: dict[str, int] = {}
+        for run in self.runs:
+            if run.label.endswith(", smoothed"):
+                continue
+            rows[run.section] = rows.get(run.section, 0) + 1
+            health = run.result.health
+            if health.divergence:
+                found[(run.section, run.label)] = [(run.label, health.divergence)]
+            for s in health.streams:
+                if s.flag:
+                    found.setdefault((run.section, s.name), []).append((run.label, s.flag))
+        lines = []
+        for (section, _), flagged in found.items():
+            first, flag = flagged[0]
+            share = f"{len(flagged)} of {rows[section]} rows: " + ", ".join(r for r, _ in flagged)
+            lines.append(f"section {section}: {flag} (row {first}; {share})")
+        return lines

@@ -385,6 +385,11 @@ def real_tables(done: RealRuns) -> str:
             *([rows_not_run_table(done.rows_not_run)] if done.rows_not_run else []),
             *([rows_not_run_table(done.rows_failed, ROWS_FAILED)] if done.rows_failed else []),
             *([failed_table(done.failed)] if done.failed else []),
+            *(
+                ["## What the filters say\n\n" + "".join(f"- {n}\n" for n in done.notes)]
+                if done.notes
+                else []
+            ),  # fmt: skip
         ]
     )
 
@@ -413,6 +418,7 @@ def real_config(
         "imu_dt_s": done.imu_dt,
         "rows_not_run": done.rows_not_run,
         "rows_failed": done.rows_failed,
+        "notes": done.notes,
         "imu_lever_arm_m": imu_arm,
         "dvl_lever_arm_m": dvl_arm,
         "clocks": {
