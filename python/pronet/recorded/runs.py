@@ -120,6 +120,6 @@ class RealRuns:
         lines = []
         for (section, _), flagged in found.items():
             first, flag = flagged[0]
-            share = f"{len(flagged)} of {rows[section]} rows: " + ", ".join(r for r, _ in flagged)
+            share = f"{len(flagged)} of {rows[section]} rows: " + "; ".join(r for r, _ in flagged)
             lines.append(f"section {section}: {flag} (row {first}; {share})")
         return lines
