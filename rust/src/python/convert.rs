@@ -8,9 +8,10 @@ use crate::mechanization::NavState;
 use nalgebra::Vector3;
 use numpy::ndarray::{Array2, Dimension, Ix1, Ix2};
 use numpy::{
-    Element, IntoPyArray, PyArray2, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
+    Element, IntoPyArray, PyArray1, PyArray2, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
     PyUntypedArrayMethods,
 };
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString};
 use std::borrow::Cow;
@@ -359,12 +360,34 @@ pub fn nav_state(
     })
 }
 
-/// Rows of C values as a float64 array of shape (n, C).
+/// Rows of C values as a float64 array of shape (n, C); `MemoryError` where they do
+/// not fit (the room is taken before any row is written).
 pub fn matrix<const C: usize>(
     py: Python<'_>,
-    rows: impl Iterator<Item = [f64; C]>,
-) -> Bound<'_, PyArray2<f64>> {
-    rows_array(rows).into_pyarray(py)
+    rows: impl ExactSizeIterator<Item = [f64; C]>,
+) -> PyResult<Bound<'_, PyArray2<f64>>> {
+    let mut out = room::<[f64; C]>(rows.len())?;
+    out.extend(rows);
+    Ok(Array2::from(out).into_pyarray(py))
+}
+
+/// A copy of `values` as a float64 array; `MemoryError` where it does not fit.
+pub fn vector<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let mut out = room::<f64>(values.len())?;
+    out.extend_from_slice(values);
+    Ok(out.into_pyarray(py))
+}
+
+/// An empty vector with room for `n` values, or `MemoryError` (never an abort).
+fn room<T>(n: usize) -> PyResult<Vec<T>> {
+    let mut out = Vec::new();
+    out.try_reserve_exact(n).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "an array of {n} rows ({:.1} MiB) does not fit in memory",
+            (n * std::mem::size_of::<T>()) as f64 / f64::from(1u32 << 20)
+        ))
+    })?;
+    Ok(out)
 }
 
 /// Rows of C values as an owned (n, C) array, built without Python (so without the
@@ -379,11 +402,11 @@ pub fn nav_arrays<'py>(
     d: &Bound<'py, PyDict>,
     states: &[NavState],
 ) -> PyResult<()> {
-    d.set_item("lla", matrix(py, states.iter().map(|s| s.lla.into())))?;
-    d.set_item("vel", matrix(py, states.iter().map(|s| s.vel.into())))?;
+    d.set_item("lla", matrix(py, states.iter().map(|s| s.lla.into()))?)?;
+    d.set_item("vel", matrix(py, states.iter().map(|s| s.vel.into()))?)?;
     d.set_item(
         "rpy",
-        matrix(py, states.iter().map(|s| euler_from_dcm(&s.dcm).into())),
+        matrix(py, states.iter().map(|s| euler_from_dcm(&s.dcm).into()))?,
     )?;
     Ok(())
 }
