@@ -5,9 +5,9 @@ what it holds after building its inputs plus a few hundred MiB, then makes a cal
 would allocate far more in proportion to one argument. Before the fix each ended in
 SIGABRT ("memory allocation of … failed", the core's allocation failure); now the core
 estimates the call's peak memory before it allocates and refuses it with a
-``ValueError`` naming that argument, the estimate and what is available
-(docs/performance.md, "Memory"). Every child must exit by itself: a negative return
-code (a signal) fails the test.
+``ValueError`` naming that argument, the estimate and what is available, and a copy
+of an input that does not fit is a ``MemoryError`` (docs/performance.md, "Memory").
+Every child must exit by itself: a negative return code (a signal) fails the test.
 """
 
 from __future__ import annotations
@@ -193,6 +193,34 @@ def test_a_pure_inertial_pass_smoothed_over_hours_is_refused_naming_smooth() -> 
     )
     refused(out, "smooth")
     assert "longest stretch without a reading" in out
+
+
+# Before: SIGABRT, "memory allocation of 320000000 bytes failed" (the windows' copy).
+def test_a_native_regressor_on_more_windows_than_fit_is_a_memory_error() -> None:
+    out = limited(
+        'from pronet.learn import models\nm = models.load("baseline")\n'
+        "w = np.zeros((400_000, m.window), np.float32)",
+        "m.predict(w)",
+    )
+    assert out.startswith("MemoryError windows: ") and "do not fit in memory" in out, out
+
+
+# Before: SIGABRT, "memory allocation of 400000000 bytes failed" (the offsets' copy).
+def test_a_clock_search_over_more_offsets_than_fit_is_refused() -> None:
+    out = limited(
+        "edges = np.arange(1000.0)\ncum = np.zeros((1000, 3))\ngt_time = np.arange(100.0)\n"
+        "gt_step = np.zeros((99, 3))\noffsets = np.zeros(50_000_000)",
+        "pronet._core.attitude_increment_costs(edges, cum, gt_time, gt_step, offsets, 1.0)",
+    )
+    assert out.startswith("MemoryError offsets: "), out
+    # With room for the copy, the costs' working memory is refused by the estimate.
+    out = limited(
+        "edges = np.arange(1000.0)\ncum = np.zeros((1000, 3))\ngt_time = np.arange(100.0)\n"
+        "gt_step = np.zeros((99, 3))\noffsets = np.zeros(20_000_000)",
+        "pronet._core.attitude_increment_costs(edges, cum, gt_time, gt_step, offsets, 1.0)",
+        headroom=400 << 20,
+    )
+    refused(out, "offsets")
 
 
 def test_tuning_instants_beyond_memory_are_refused_naming_n_samples() -> None:
