@@ -195,6 +195,37 @@ def test_a_pure_inertial_pass_smoothed_over_hours_is_refused_naming_smooth() -> 
     assert "longest stretch without a reading" in out
 
 
+# Before: SIGABRT, "memory allocation of 1440000000 bytes failed" (each row's update).
+def test_a_stream_of_millions_of_rows_is_refused_naming_streams() -> None:
+    out = limited(
+        "imu, time, _ = stationary(1000)\nk = np.linspace(0.0, 10.0, 2_000_000)\n"
+        "dvl = pronet.Dvl(k, np.zeros((len(k), 3)))",
+        'run_filter(imu, time, [dvl], epochs="last")',
+        headroom=400 << 20,
+    )
+    refused(out, "streams")
+
+
+# Before: SIGABRT after 15 s, "memory allocation of 72000000 bytes failed".
+def test_a_monte_carlo_with_a_dvl_at_every_sample_is_refused_naming_n_runs() -> None:
+    out = limited(
+        "traj = pronet.trajectory_from_segments([[5 * 3600.0, 0, 0, 0]], lla0=(0.5, 0.6, 0),"
+        " speed0=1.0)\nsensors = pronet.SensorConfig(dvl_period=0.01)",
+        "pronet.monte_carlo(traj, pronet.Strategy.constant(PAPER_Q), sensors=sensors, n_runs=8,"
+        " threads=1)",
+    )
+    refused(out, "n_runs")
+
+
+# Before: SIGABRT, "memory allocation of 320000000 bytes failed" (the times' copy).
+def test_a_stream_whose_copy_does_not_fit_is_a_memory_error() -> None:
+    out = limited(
+        "k = np.arange(40_000_000.0)\nv = np.zeros((len(k), 3))",
+        "pronet.Dvl(k, v)",
+    )
+    assert out == "MemoryError time: 305.2 MiB do not fit in memory", out
+
+
 # Before: SIGABRT, "memory allocation of 320000000 bytes failed" (the windows' copy).
 def test_a_native_regressor_on_more_windows_than_fit_is_a_memory_error() -> None:
     out = limited(
