@@ -118,7 +118,8 @@ def mechanize(
 ) -> dict[str, NDArray[np.float64]]:
     """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
     IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
-    ValueError naming ``imu, dt, lla0, vel0``."""
+    ValueError naming ``imu, dt, lla0, vel0``, more states than this process can still
+    take one naming ``imu`` (docs/performance.md, "Memory")."""
 
 @final
 class FilterConfig:
@@ -429,7 +430,11 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     no row has one, as the top-level key). The top-level update keys are the first
     velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
     none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
-    ``calibration``, ``calibration_sigma`` per epoch, or None."""
+    ``calibration``, ``calibration_sigma`` per epoch, or None. Before it allocates, a
+    pass that would hold more than this process can still take is a ``ValueError``
+    naming the argument that bounds the most of it (``output_step``, ``streams``,
+    ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/performance.md,
+    "Memory")."""
 
 def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
                 strategy: Strategy, *, n_runs: int, seed: int = 0, record_every: int = 0,
@@ -441,7 +446,10 @@ def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterCon
     sets its q here. ``smooth``: also the RTS smoother's metrics of every run (key
     ``smoothed``: ``srmse``, ``smae``, ``final_horizontal_error``,
     ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
-    ``sigma``)."""
+    ``sigma``). Before it allocates, one that would hold more than this process can still
+    take (the records and their arrays, the runs under way and their smoothers) is a
+    ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth`` (docs/performance.md,
+    "Memory")."""
 
 def check_result_size(
     trajectory: Trajectory, sensors: SensorConfig, *, n_runs: int, record_every: int = 0
@@ -478,7 +486,8 @@ class Ensemble:
     run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
     ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
     (KeyboardInterrupt); the ensemble is then unusable (ValueError). ``smooth``: as
-    :func:`monte_carlo`'s.
+    :func:`monte_carlo`'s; so is the memory check before it allocates (every run is
+    under way at once).
     """
 
     def __new__(cls, trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
@@ -526,7 +535,9 @@ class Navigator:
     >= 0): how late a reading may be stamped before the newest IMU sample and still be
     applied at its own epoch; ``checkpoint_every`` (>= 1): a copy of the filter every so
     many epochs. ``tuning_period`` [s] with ``imu_dt`` [s] and ``window`` (samples): the
-    learned loop's instants, as :func:`tuning_instants` places them."""
+    learned loop's instants, as :func:`tuning_instants` places them. A feed whose lag
+    window's history is about to outgrow the memory this process can still take is a
+    ``ValueError`` naming ``lag`` (docs/performance.md, "Memory")."""
 
     def __new__(cls, streams: Sequence[Dvl | Depth | Fix | Heading], *, t0: float, lla0: Any,
                 vel0: Any, rpy0: Any, config: FilterConfig, strategy: Strategy,
@@ -642,4 +653,5 @@ def attitude_increment_costs(
     truth's Euler-angle steps ``gt_step (R - 1, 3)`` [rad] and the integrated gyro Euler
     rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at
     ``offset + scale·gt_time``, over the pairs of rows mapped inside the edges; inf
-    with fewer than 10 such pairs."""
+    with fewer than 10 such pairs. More offsets than this process can still take are a
+    ``ValueError`` naming ``offsets`` (docs/performance.md, "Memory")."""

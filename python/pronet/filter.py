@@ -422,6 +422,12 @@ def run_filter(
     a depth beyond −10 … 12 km. A stream none of whose rows falls within the run is
     warned of (:class:`~pronet.PlausibilityWarning`).
 
+    Memory: before it allocates, the pass estimates what it would hold at its peak;
+    where that is more than this process can still take, it raises ``ValueError``
+    naming the argument that bounds the most of it (``output_step``, ``streams``,
+    ``strategy``, ``covariance_time`` or ``smooth``), with the estimate and what to
+    change, instead of running out (docs/performance.md, "Memory").
+
     Deprecated (for one release): the arrays before streams,
     ``run_filter(imu, imu_time, dvl, dvl_time, *, ..., depth=, depth_time=,
     depth_sigma=, fix=, fix_time=, fix_sigma=)``, warns (``DeprecationWarning``) and runs

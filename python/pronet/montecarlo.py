@@ -373,6 +373,11 @@ def monte_carlo(
             the error dynamics per IMU step of it (about 2.5 kB, per thread). It costs
             about 2.2 plain runs at the default 0.1 s step, 3 at every IMU sample
             (docs/filter.md, "The RTS smoother").
+
+    Memory: before it allocates, a Monte Carlo that would hold more than this process
+    can still take (every run's records and their arrays, the runs under way and their
+    smoothers) raises ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth``
+    (docs/performance.md, "Memory").
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")

@@ -46,6 +46,9 @@ def mechanize(
         lla0: initial ``[lat rad, lon rad, h m]``.
         vel0: initial NED velocity [m/s].
         rpy0: initial roll, pitch, yaw [rad].
+
+    More states than this process can still take are a ``ValueError`` naming ``imu``
+    (docs/performance.md, "Memory").
     """
     out = _core.mechanize(
         float_array(imu, "imu", (None, 6)),

@@ -16,6 +16,8 @@
 //! a clock does not depend on the stamps' origin (Unix time).
 
 use crate::error::{Error, Result};
+use crate::memory::Estimate;
+use std::mem::size_of;
 
 /// Fewer valid pairs of truth rows than this: the clock does not overlap the IMU.
 pub const MIN_PAIRS: usize = 10;
@@ -83,6 +85,16 @@ pub fn attitude_increment_costs(
     }
     let (lo, hi) = (edges[0], edges[edges.len() - 1]);
     let n_off = offsets.len();
+    // Per offset: its sum, its pair count, the value at the previous truth row, its cost.
+    let each = size_of::<f64>() * 3 + size_of::<usize>() + size_of::<Option<[f64; 3]>>();
+    let mut memory = Estimate::default();
+    memory.add(
+        "offsets",
+        "clocks",
+        (n_off as f64, each as f64),
+        "fewer offsets per call (a search in rounds)",
+    );
+    memory.check("this clock search")?;
     let mut sq = vec![0.0; n_off];
     let mut pairs = vec![0usize; n_off];
     // value at the previous truth row (None: outside) and the segment found for it

@@ -6,7 +6,7 @@
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::FilterConfig;
 use crate::error::{check, Error, Result};
-use crate::montecarlo::{check_result_size, check_strategy, McOptions, McResult};
+use crate::montecarlo::{check_result_size, check_strategy, estimate_memory, McOptions, McResult};
 use crate::noise::StrategySpec;
 use crate::run::Run;
 use crate::scenario::{epoch_times, Scenario};
@@ -132,23 +132,24 @@ impl Ensemble {
         let dvl_every = scenario.dvl_every()?;
         // Each run keeps its last `window` raw samples, and hands them out as float32.
         check_result_size(&scenario, opts, dvl_every, window * 6 * (8 + 4))?;
-        let runs = (0..opts.n_runs)
-            .map(|i| {
-                let mut run = Run::new(
-                    &scenario,
-                    filter,
-                    &strategy,
-                    opts.seed,
-                    opts.first_run + i as u64,
-                    opts.record_every,
-                    Some(window),
-                )?;
-                if opts.smooth {
-                    run.keep_for_smoother(&scenario);
-                }
-                Ok(run)
-            })
-            .collect::<Result<Vec<_>>>()?;
+        let sizes = (dvl_every, window, opts.n_runs);
+        estimate_memory(&scenario, (filter, &strategy), opts, sizes).check("this ensemble")?;
+        let mut runs = Vec::with_capacity(opts.n_runs);
+        for i in 0..opts.n_runs {
+            let mut run = Run::new(
+                &scenario,
+                filter,
+                &strategy,
+                opts.seed,
+                opts.first_run + i as u64,
+                opts.record_every,
+                Some(window),
+            )?;
+            if opts.smooth {
+                run.keep_for_smoother(&scenario);
+            }
+            runs.push(run);
+        }
         Ok(Self {
             scenario,
             runs,

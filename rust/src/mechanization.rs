@@ -9,7 +9,9 @@ use crate::attitude::{exp_so3, log_so3, orthonormalize};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
 use crate::error::{check, Error, Result};
+use crate::memory::Estimate;
 use nalgebra::{Matrix3, Vector3};
+use std::mem::size_of;
 
 /// Navigation state: geodetic position `[lat, lon, h]` \[rad, rad, m\], NED velocity
 /// \[m/s\] and the body(FRD)-to-NED DCM.
@@ -165,6 +167,7 @@ pub fn mechanize_until(
     }
     check::positive("dt", dt)?;
     earth::check_latitude("lla0", initial.lla[0])?;
+    memory(imu.len()).check("this mechanization")?;
     let mut states = Vec::with_capacity(imu.len() + 1);
     states.push(*initial);
     for chunk in imu.chunks(STEPS_PER_CHECK) {
@@ -181,6 +184,31 @@ pub fn mechanize_until(
         ));
     }
     Ok(states)
+}
+
+/// What [`mechanize`] of `n` samples holds: the n + 1 states, their position, velocity
+/// and attitude as arrays, and one block of states integrated at a time (and 4 KiB).
+pub fn memory(n: usize) -> Estimate {
+    let states = n as f64 + 1.0;
+    let remedy = "mechanize fewer samples at once (blocks, each from the last state of the one \
+                  before)";
+    let mut e = Estimate {
+        fixed: ((STEPS_PER_CHECK + 1) * size_of::<NavState>() + 4096) as f64,
+        ..Estimate::default()
+    };
+    e.add(
+        "imu",
+        "states",
+        (states, size_of::<NavState>() as f64),
+        remedy,
+    );
+    e.add(
+        "imu",
+        "states' arrays",
+        (states, size_of::<[f64; 9]>() as f64),
+        remedy,
+    );
+    e
 }
 
 /// Mechanize `imu` (samples at a constant step `dt` \[s\]) from `initial`. Returns n + 1

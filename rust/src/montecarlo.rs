@@ -10,7 +10,9 @@
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::FilterConfig;
 use crate::error::{Error, Result};
+use crate::memory::Estimate;
 use crate::noise::StrategySpec;
+use crate::run::RunMemory;
 pub use crate::run::{History, Run, RunRecord, RunSummary};
 use crate::scenario::epoch_times;
 use crate::scenario::Scenario;
@@ -21,6 +23,10 @@ use std::sync::Arc;
 /// Python arrays made from them take as much again). About 190,000 runs of the `paper`
 /// scenario without histories.
 pub const MAX_RESULT_BYTES: u64 = 4 << 30;
+
+/// What a Monte Carlo holds whatever its size \[bytes\]: its thread pool, the call's
+/// state.
+pub const MC_BYTES: f64 = 1024.0 * 1024.0;
 
 /// One past the largest run index: run i's random streams are numbered 4·i + k.
 pub const MAX_RUN_INDEX: u64 = 1 << 62;
@@ -63,6 +69,52 @@ pub fn check_result_size(
         ));
     }
     Ok(())
+}
+
+/// What a Monte Carlo (or an ensemble) of `opts` on `scenario` filtered with `filter`
+/// and `strategy` would hold at its peak: every run's records and the arrays made from
+/// them (as much again), and the runs under way at once (`alive`: one per thread, or
+/// every run of an ensemble), each handing out `window` raw samples, with their
+/// smoothers' logs and backward passes ([`RunMemory`]).
+pub fn estimate_memory(
+    scenario: &Scenario,
+    (filter, strategy): (&FilterConfig, &StrategySpec),
+    opts: &McOptions,
+    (dvl_every, window, alive): (Option<usize>, usize, usize),
+) -> Estimate {
+    let discrete = strategy.build(filter.bias_psd()).sets_discrete_q();
+    let what = (dvl_every, opts.record_every, window);
+    let run = RunMemory::of(scenario, filter, what, (opts.smooth, discrete));
+    let (runs, alive) = (opts.n_runs as f64, alive.min(opts.n_runs) as f64);
+    let mut e = Estimate {
+        fixed: MC_BYTES,
+        ..Estimate::default()
+    };
+    e.add(
+        "n_runs",
+        "runs' records and their arrays",
+        (runs, 2.0 * run.epochs),
+        "split the runs into shards (first_run, or a sweep's shard_runs)",
+    );
+    e.add(
+        "record_every",
+        "runs' histories and their arrays",
+        (runs, 2.0 * run.histories),
+        "record less often (a larger record_every, or 0 for none), or fewer runs per call",
+    );
+    e.add(
+        "n_runs",
+        "runs under way at once",
+        (alive, run.running),
+        "run fewer at once (fewer runs, or threads)",
+    );
+    e.add(
+        "smooth",
+        "smoothers under way",
+        (alive, run.smoother),
+        "smooth shorter trajectories, on fewer threads at once, or smooth=False",
+    );
+    e
 }
 
 /// Monte Carlo size and recording options.
@@ -161,6 +213,9 @@ pub fn run_monte_carlo_until(
     check_strategy(filter, strategy, opts)?;
     let dvl_every = scenario.dvl_every()?;
     check_result_size(scenario, opts, dvl_every, 0)?;
+    let alive = rayon::current_num_threads();
+    let sizes = (dvl_every, 0, alive);
+    estimate_memory(scenario, (filter, strategy), opts, sizes).check("this Monte Carlo")?;
     let n_steps = scenario.truth.len();
     let runs = (0..opts.n_runs)
         .into_par_iter()

@@ -17,8 +17,7 @@ pub trait NoiseStrategy: Send + Sync + CloneStrategy {
     /// Noise for the next IMU step.
     fn process_noise(&self) -> ProcessNoise<'_>;
 
-    /// Called after every measurement update; `steps` is the number of IMU steps since
-    /// the previous update.
+    /// Called after every measurement update; `steps`: IMU steps since the previous one.
     fn after_update(&mut self, _update: &UpdateInfo, _steps: usize) {}
 
     /// Replace the IMU noise variances (only strategies that accept outside tuning).
@@ -44,9 +43,8 @@ pub trait NoiseStrategy: Send + Sync + CloneStrategy {
     /// [`NoiseStrategy::wants_true_variance`]).
     fn set_true_variance(&mut self, _q: &[f64; 6]) {}
 
-    /// The IMU variances `q` whose common scale λ the filter should carry the
-    /// sensitivity `∂P/∂λ` of (see `Ekf::track_sensitivity`); None for all but
-    /// [`AdaptiveQ`].
+    /// The IMU variances `q` whose common scale λ the filter should carry the sensitivity
+    /// `∂P/∂λ` of (see `Ekf::track_sensitivity`); None for all but [`AdaptiveQ`].
     fn sensitivity_q(&self) -> Option<[f64; 6]> {
         None
     }
@@ -58,6 +56,10 @@ pub trait NoiseStrategy: Send + Sync + CloneStrategy {
     /// (Mehra, once it has its innovations) rather than through Q^c.
     fn discrete_q(&self) -> Option<&Matrix15> {
         None
+    }
+    /// Whether it may set Q_d itself (a pass keeps it at every velocity update).
+    fn sets_discrete_q(&self) -> bool {
+        false
     }
 }
 
@@ -170,6 +172,9 @@ impl NoiseStrategy for MehraQ {
 
     fn discrete_q(&self) -> Option<&Matrix15> {
         self.per_step.as_ref()
+    }
+    fn sets_discrete_q(&self) -> bool {
+        true
     }
 }
 

@@ -14,10 +14,13 @@ use crate::scenario::Scenario;
 use crate::sensors::{normal, stream_rng, AidingSim, SensorSim, Stream};
 use crate::trajectory::Truth;
 use nalgebra::Vector3;
+use std::mem::size_of;
 
 mod aiding;
+mod memory;
 mod metrics;
 mod smoothing;
+pub use memory::{RunMemory, RUN_BYTES};
 use metrics::{calibration_error, state_error, Tally, Updates};
 pub use metrics::{CalibrationSummary, History, RunSummary};
 pub use smoothing::SmoothedRecord;
@@ -39,6 +42,22 @@ pub struct RunRecord {
     /// The RTS smoother's metrics of the run, when it was asked for
     /// ([`Run::keep_for_smoother`]) and the filter did not fail.
     pub smoothed: Option<SmoothedRecord>,
+}
+
+impl RunMemory {
+    /// What one run of `scenario` filtered with `cfg` holds (`discrete`: its strategy
+    /// sets the per-step Q itself), a DVL reading every `dvl_every` IMU steps, its
+    /// histories every `record_every` (0: none), handing out `window` raw samples (0:
+    /// none), smoothed or not.
+    pub fn of(
+        scenario: &Scenario,
+        cfg: &FilterConfig,
+        sizes: (Option<usize>, usize, usize),
+        flags: (bool, bool),
+    ) -> Self {
+        let types = (size_of::<Run>(), size_of::<RunRecord>());
+        Self::with_sizes(scenario, cfg, sizes, flags, types)
+    }
 }
 
 /// The last N raw IMU samples of a run, as the regressor reads them.
@@ -170,7 +189,8 @@ impl Run {
                 nees: Vec::with_capacity(n_epochs),
                 ..Updates::default()
             },
-            history: (record_every > 0).then(History::default),
+            history: (record_every > 0)
+                .then(|| History::with_capacity(scenario.truth.len() / record_every + 1)),
             window: window.map(ImuWindow::new),
             failure: None,
             smoother: None,

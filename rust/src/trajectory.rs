@@ -14,7 +14,9 @@ use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::earth;
 use crate::error::{check, Error, Result};
 use crate::mechanization::{advance_position, invert_step, NavState};
+use crate::memory::Estimate;
 use nalgebra::Vector3;
+use std::mem::size_of;
 
 /// One piece of a trajectory: for `duration` \[s\], forward acceleration `accel` \[m/s²\],
 /// yaw rate `yaw_rate` \[rad/s, positive turns right\] and pitch rate `pitch_rate`
@@ -71,6 +73,28 @@ pub struct Truth {
 }
 
 impl Truth {
+    /// What a truth of `n` samples holds: at every epoch its time, state, attitude
+    /// angles, ideal IMU sample and position-error scale (and 64 KiB for its name and
+    /// the segments' starts).
+    pub fn memory(n: usize) -> Estimate {
+        let epoch = size_of::<f64>()
+            + size_of::<NavState>()
+            + size_of::<Vector3<f64>>()
+            + size_of::<[f64; 6]>()
+            + size_of::<earth::NedScale>();
+        let mut e = Estimate {
+            fixed: 64.0 * 1024.0,
+            ..Estimate::default()
+        };
+        e.add(
+            "dt",
+            "samples",
+            (n as f64 + 1.0, epoch as f64),
+            "a larger dt, or a shorter trajectory",
+        );
+        e
+    }
+
     /// Number of IMU samples (epochs minus one).
     pub fn len(&self) -> usize {
         self.imu.len()
@@ -198,6 +222,7 @@ impl TrajectorySpec {
     pub fn generate_until(&self, cancel: &Cancel) -> Result<Truth> {
         self.validate()?;
         let n = (self.duration() / self.dt + 1e-9).floor() as usize;
+        Truth::memory(n).check("this trajectory")?;
         // Closed-form speed, pitch and yaw at the start of each segment.
         let mut starts = Vec::with_capacity(self.segments.len());
         let (mut t0, mut u, mut pitch, mut yaw) = (0.0, self.speed0, self.rpy0[1], self.rpy0[2]);

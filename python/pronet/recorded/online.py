@@ -131,9 +131,11 @@ class Navigator:
             ``initial``.
         bias0: ``(6,)`` initial ``[b_a, b_g]`` estimate (default zeros).
         lag: how late [s] a reading may be stamped before the newest IMU sample and still
-            be applied at its own epoch (finite, >= 0).
+            be applied at its own epoch (finite, >= 0). The history of the lag window is
+            kept in memory: a feed about to outgrow what this process can still take is
+            a ``ValueError`` naming ``lag`` (docs/performance.md, "Memory").
         checkpoint_every: a copy of the filter every so many epochs (>= 1): a late
-            reading costs at most this many IMU steps more; each copy is a few kB.
+            reading costs at most this many IMU steps more; each copy is ~8 kB.
         imu_dt: the IMU's sample period [s], for a learned strategy's tuning instants
             (required with one).
         window: raw samples per window the regressor reads.

@@ -2,10 +2,14 @@
 //! late: the IMU steps of the lag window, the readings applied in it, and copies of the
 //! filter (with its noise strategy) every few epochs.
 
+use crate::error::Result;
 use crate::measurement::Reading;
+use crate::memory::Estimate;
 use crate::noise::NoiseStrategy;
 use crate::pass::Pass;
+use crate::smoother::memory::BOX_OVERHEAD;
 use std::collections::VecDeque;
+use std::mem::{size_of, size_of_val};
 
 /// What one reading's update did: its NIS over `dof` components, and whether its gate
 /// accepted it.
@@ -133,6 +137,40 @@ impl History {
             .iter()
             .rposition(|c| c.epoch < epoch)
             .unwrap_or(0)
+    }
+
+    /// `Err` naming `lag` when the history's next growth would not fit in the memory
+    /// this process can still take: checked when the epoch under way may fill the
+    /// steps' or the checkpoints' buffer (the next push doubles it), for the doubled
+    /// buffers and the checkpoints (one every `every` epochs) of as many epochs again.
+    /// A few times per doubling: a lag window that fits costs nothing per step.
+    pub fn check_growth(&self, every: usize) -> Result<()> {
+        let filling = |len: usize, capacity: usize| len + 1 >= capacity;
+        let (steps, checkpoints) = (&self.steps, &self.checkpoints);
+        if !filling(steps.len(), steps.capacity())
+            && !filling(checkpoints.len(), checkpoints.capacity())
+        {
+            return Ok(());
+        }
+        let more = (steps.capacity().max(checkpoints.capacity() * every)).max(4) as f64;
+        let first = &self.checkpoints[0];
+        // Its slot (the buffer doubles too) and its boxed strategy.
+        let checkpoint = 2 * size_of::<Checkpoint>() + size_of_val(&*first.strategy) + BOX_OVERHEAD;
+        let remedy = "a shorter lag, or a checkpoint every more epochs (checkpoint_every)";
+        let mut e = Estimate::default();
+        e.add(
+            "lag",
+            "IMU steps of the lag window",
+            (2.0 * more, size_of::<Step>() as f64),
+            remedy,
+        );
+        e.add(
+            "lag",
+            "checkpoints of the lag window",
+            ((more / every as f64).ceil(), checkpoint as f64),
+            remedy,
+        );
+        e.check("the lag window's history")
     }
 
     /// Drop what no reading at or after `oldest` \[s\] needs: the checkpoints whose

@@ -326,6 +326,7 @@ impl Navigator {
         check::finite("imu", raw).map_err(|_| {
             Error::invalid("imu", format!("the sample at {t} s is not finite: {raw:?}"))
         })?;
+        self.history.check_growth(self.lag.every)?;
         let dt = t - self.t;
         let epoch = self.epoch + 1;
         if self.first.is_none() {

@@ -12,7 +12,8 @@ use pyo3::prelude::*;
 /// truth's Euler-angle steps ``gt_step (R - 1, 3)`` [rad] and the integrated gyro Euler
 /// rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at
 /// ``offset + scale·gt_time``, over the pairs of rows mapped inside the edges; inf
-/// with fewer than 10 such pairs.
+/// with fewer than 10 such pairs. More offsets than this process can still take are a
+/// ``ValueError`` naming ``offsets`` (docs/performance.md, "Memory").
 #[pyfunction]
 #[pyo3(signature = (edges, cum, gt_time, gt_step, offsets, scale))]
 fn attitude_increment_costs<'py>(

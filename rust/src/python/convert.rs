@@ -8,9 +8,10 @@ use crate::mechanization::NavState;
 use nalgebra::Vector3;
 use numpy::ndarray::{Array2, Dimension, Ix1, Ix2};
 use numpy::{
-    Element, IntoPyArray, PyArray2, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
+    Element, IntoPyArray, PyArray1, PyArray2, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2,
     PyUntypedArrayMethods,
 };
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString};
 use std::borrow::Cow;
@@ -65,9 +66,22 @@ pub fn real_array<'py, T: Element, D: Dimension>(
     arr.call_method1("astype", (dtype,)).ok()?.extract().ok()
 }
 
-/// Real numbers of shape (n, C) as rows.
+/// Real numbers of shape (n, C) as rows (a copy: `MemoryError` where it does not fit).
 pub fn rows<const C: usize>(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<[f64; C]>> {
-    Ok(as_rows::<C>(&readonly_rows::<C>(obj, arg)?).into_owned())
+    owned(as_rows::<C>(&readonly_rows::<C>(obj, arg)?), arg)
+}
+
+/// `values` (of the argument `arg`) owned: a borrowed slice copied into room taken
+/// first (`MemoryError` where it does not fit, never an abort).
+fn owned<T: Clone>(values: Cow<'_, [T]>, arg: &str) -> PyResult<Vec<T>> {
+    match values {
+        Cow::Owned(values) => Ok(values),
+        Cow::Borrowed(values) => {
+            let mut out = room::<T>(values.len(), arg)?;
+            out.extend_from_slice(values);
+            Ok(out)
+        }
+    }
 }
 
 /// The rows of an array checked by [`readonly_rows`]: borrowed when it is C-contiguous
@@ -114,9 +128,9 @@ pub fn readonly_rows<'py, const C: usize>(
     Ok(arr)
 }
 
-/// Real numbers of shape (n,).
+/// Real numbers of shape (n,) (a copy: `MemoryError` where it does not fit).
 pub fn column(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f64>> {
-    Ok(as_values(&readonly_column(obj, arg)?).into_owned())
+    owned(as_values(&readonly_column(obj, arg)?), arg)
 }
 
 /// The values of an array checked by [`readonly_column`]: borrowed when contiguous,
@@ -359,12 +373,33 @@ pub fn nav_state(
     })
 }
 
-/// Rows of C values as a float64 array of shape (n, C).
+/// Rows of C values as a float64 array of shape (n, C); `MemoryError` where they do
+/// not fit (the room is taken before any row is written).
 pub fn matrix<const C: usize>(
     py: Python<'_>,
-    rows: impl Iterator<Item = [f64; C]>,
-) -> Bound<'_, PyArray2<f64>> {
-    rows_array(rows).into_pyarray(py)
+    rows: impl ExactSizeIterator<Item = [f64; C]>,
+) -> PyResult<Bound<'_, PyArray2<f64>>> {
+    let mut out = room::<[f64; C]>(rows.len(), "an array")?;
+    out.extend(rows);
+    Ok(Array2::from(out).into_pyarray(py))
+}
+
+/// A copy of `values` as a float64 array; `MemoryError` where it does not fit.
+pub fn vector<'py>(py: Python<'py>, values: &[f64]) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let mut out = room::<f64>(values.len(), "an array")?;
+    out.extend_from_slice(values);
+    Ok(out.into_pyarray(py))
+}
+
+/// An empty vector with room for `n` values, or a `MemoryError` naming `what` (never
+/// an abort).
+fn room<T>(n: usize, what: &str) -> PyResult<Vec<T>> {
+    let mut out = Vec::new();
+    out.try_reserve_exact(n).map_err(|_| {
+        let mib = n as f64 * std::mem::size_of::<T>() as f64 / f64::from(1u32 << 20);
+        PyMemoryError::new_err(format!("{what}: {mib:.1} MiB do not fit in memory"))
+    })?;
+    Ok(out)
 }
 
 /// Rows of C values as an owned (n, C) array, built without Python (so without the
@@ -379,17 +414,18 @@ pub fn nav_arrays<'py>(
     d: &Bound<'py, PyDict>,
     states: &[NavState],
 ) -> PyResult<()> {
-    d.set_item("lla", matrix(py, states.iter().map(|s| s.lla.into())))?;
-    d.set_item("vel", matrix(py, states.iter().map(|s| s.vel.into())))?;
+    d.set_item("lla", matrix(py, states.iter().map(|s| s.lla.into()))?)?;
+    d.set_item("vel", matrix(py, states.iter().map(|s| s.vel.into()))?)?;
     d.set_item(
         "rpy",
-        matrix(py, states.iter().map(|s| euler_from_dcm(&s.dcm).into())),
+        matrix(py, states.iter().map(|s| euler_from_dcm(&s.dcm).into()))?,
     )?;
     Ok(())
 }
 
 /// Windows `(n, window)` of dtype `T` (named `dtype`; other real numbers are converted
-/// to it, [`real_array`]) as one row-major vector.
+/// to it, [`real_array`]) as one row-major vector (a copy: `MemoryError` where it does
+/// not fit).
 pub fn window_rows<T: Element + Copy>(
     obj: &Bound<'_, PyAny>,
     window: usize,
@@ -411,8 +447,10 @@ pub fn window_rows<T: Element + Copy>(
             format!("expected shape (n, {window}), got {:?}", view.shape()),
         ));
     }
-    Ok(match view.as_slice() {
-        Some(s) => s.to_vec(),
-        None => view.iter().copied().collect(),
-    })
+    let mut out = room::<T>(view.len(), "windows")?;
+    match view.as_slice() {
+        Some(s) => out.extend_from_slice(s),
+        None => out.extend(view.iter().copied()),
+    }
+    Ok(out)
 }

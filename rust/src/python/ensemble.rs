@@ -31,7 +31,8 @@ use std::sync::{Arc, Mutex};
 /// run's IMU variances. Until the first ``set_q`` every run uses ``prior_q``.
 /// ``advance`` and ``finish`` end within a fraction of a second on Ctrl-C or SIGTERM
 /// (KeyboardInterrupt); the ensemble is then unusable (ValueError). ``smooth``: as
-/// :func:`monte_carlo`'s.
+/// :func:`monte_carlo`'s; so is the memory check before it allocates (every run is
+/// under way at once).
 #[pyclass(name = "Ensemble", module = "pronet._core")]
 pub struct PyEnsemble {
     inner: Arc<Mutex<Option<Ensemble>>>,

@@ -46,7 +46,11 @@ fn q_schedule(
 /// no row has one, as the top-level key). The top-level update keys are the first
 /// velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
 /// none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
-/// ``calibration``, ``calibration_sigma`` per epoch, or None.
+/// ``calibration``, ``calibration_sigma`` per epoch, or None. Before it allocates, a
+/// pass that would hold more than this process can still take is a ``ValueError``
+/// naming the argument that bounds the most of it (``output_step``, ``streams``,
+/// ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/performance.md,
+/// "Memory").
 #[pyfunction]
 #[pyo3(signature = (imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false),
     text_signature = "(imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0=None, q_time=None, q=None, epochs='all', output_step=None, covariance_time=None, smooth=False)")]

@@ -199,7 +199,10 @@ fn series<'py, 'r, const N: usize>(
 /// sets its q here. ``smooth``: also the RTS smoother's metrics of every run (key
 /// ``smoothed``: ``srmse``, ``smae``, ``final_horizontal_error``,
 /// ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
-/// ``sigma``).
+/// ``sigma``). Before it allocates, one that would hold more than this process can still
+/// take (the records and their arrays, the runs under way and their smoothers) is a
+/// ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth`` (docs/performance.md,
+/// "Memory").
 #[pyfunction(name = "monte_carlo")]
 #[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0, smooth = false))]
 #[allow(clippy::too_many_arguments)]

@@ -22,7 +22,9 @@ use pyo3::types::{PyDict, PyFloat, PyList};
 /// >= 0): how late a reading may be stamped before the newest IMU sample and still be
 /// applied at its own epoch; ``checkpoint_every`` (>= 1): a copy of the filter every so
 /// many epochs. ``tuning_period`` [s] with ``imu_dt`` [s] and ``window`` (samples): the
-/// learned loop's instants, as :func:`tuning_instants` places them.
+/// learned loop's instants, as :func:`tuning_instants` places them. A feed whose lag
+/// window's history is about to outgrow the memory this process can still take is a
+/// ``ValueError`` naming ``lag`` (docs/performance.md, "Memory").
 #[pyclass(name = "Navigator", module = "pronet._core")]
 pub struct PyNavigator {
     inner: Navigator,

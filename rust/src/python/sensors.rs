@@ -143,7 +143,7 @@ impl PySensorConfig {
         self.inner.imu.variance.times().to_vec()
     }
     #[getter]
-    fn imu_variance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn imu_variance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, self.inner.imu.variance.values().iter().copied())
     }
     #[getter]
@@ -178,7 +178,7 @@ impl PySensorConfig {
     }
     /// ``(k, 2)`` DVL outages ``[start, end)`` [s].
     #[getter]
-    fn dvl_outages<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn dvl_outages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, self.inner.dvl.outages.iter().copied())
     }
     /// ``(mean_interval, mean_length)`` [s] of the random bottom-lock loss, or None.

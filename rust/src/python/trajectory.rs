@@ -1,10 +1,10 @@
 //! `Trajectory` and the functions that make one.
 
 use super::call::{interruptible, to_py_err};
-use super::convert::{arg_dt, arg_speed0, fixed, fixed_or, matrix, rows};
+use super::convert::{arg_dt, arg_speed0, fixed, fixed_or, matrix, rows, vector};
 use crate::trajectory::{self, Segment, TrajectorySpec, Truth};
 use nalgebra::Vector3;
-use numpy::{IntoPyArray, PyArray1, PyArray2};
+use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use std::sync::Arc;
 
@@ -38,32 +38,32 @@ impl PyTrajectory {
     }
     /// ``(n+1,)`` epoch times [s], starting at 0.
     #[getter]
-    fn time<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        self.truth.time.clone().into_pyarray(py)
+    fn time<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        vector(py, &self.truth.time)
     }
     /// ``(n+1, 3)`` latitude, longitude [rad], height [m].
     #[getter]
-    fn lla<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn lla<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, self.truth.states.iter().map(|s| s.lla.into()))
     }
     /// ``(n+1, 3)`` NED velocity [m/s].
     #[getter]
-    fn vel_ned<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn vel_ned<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, self.truth.states.iter().map(|s| s.vel.into()))
     }
     /// ``(n+1, 3)`` roll, pitch, yaw [rad].
     #[getter]
-    fn rpy<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn rpy<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, self.truth.rpy.iter().map(|r| (*r).into()))
     }
     /// ``(n, 6)`` ideal IMU; row k covers ``(time[k], time[k+1]]``.
     #[getter]
-    fn imu<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn imu<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, self.truth.imu.iter().copied())
     }
     /// ``(k, 4)`` rows ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]``.
     #[getter]
-    fn segments<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+    fn segments<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(
             py,
             self.spec

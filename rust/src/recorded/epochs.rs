@@ -34,6 +34,16 @@ impl Epochs {
             _ => Ok(()),
         }
     }
+
+    /// How many epochs a pass of `n` IMU samples spanning `span` \[s\] after `t0`
+    /// keeps, at most (with [`Epochs::Step`], one per period and the first and last).
+    pub(super) fn kept(self, n: usize, span: f64) -> usize {
+        match self {
+            Epochs::All => n + 1,
+            Epochs::Last => 1,
+            Epochs::Step(step) => ((span / step) as usize).saturating_add(2).min(n + 1),
+        }
+    }
 }
 
 /// Which epochs an [`Epochs::Step`] pass keeps: the one nearest each multiple of the

@@ -2,6 +2,7 @@
 
 use super::data::RecordedData;
 use super::epochs::Epochs;
+use super::memory::estimate;
 use super::output::FilterOutput;
 use super::recorder::Recorder;
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
@@ -189,6 +190,9 @@ impl<'a> Recording<'a> {
         epochs.validate()?;
         let data = self.data;
         let mut pass = Pass::new(self.start(strategy)?);
+        let smooth = log.is_some();
+        let memory = estimate(data, epochs, self.cfg, smooth, strategy.sets_discrete_q());
+        memory.peak().check("this pass")?;
         let mut recorder = Recorder::start(data, epochs, &pass.ekf);
         let n = data.imu.len();
         let first = data.first_time();

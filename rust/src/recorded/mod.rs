@@ -7,11 +7,14 @@
 //!   one epoch loop ([`crate::pass`]) over them;
 //! - `output`, `recorder`, `stale`, `epochs`: what the pass reports ([`FilterOutput`]),
 //!   the observer that writes it, its σ inside a covariance step, and which epochs it
-//!   keeps ([`Epochs`]).
+//!   keeps ([`Epochs`]);
+//! - `memory`: what a pass would hold at its peak ([`estimate_memory`]), checked before
+//!   it allocates.
 
 mod data;
 mod epochs;
 mod filter;
+mod memory;
 mod output;
 mod recorder;
 mod stale;
@@ -20,6 +23,7 @@ mod stream;
 pub use data::RecordedData;
 pub use epochs::Epochs;
 pub use filter::{filter_recorded, filter_recorded_until, smooth_recorded_until, start_filter};
+pub use memory::{estimate as estimate_memory, PassMemory};
 pub use output::{FilterOutput, StreamRecord};
 pub use stream::{velocity_variance, PerRow, Stream, Values};
 

@@ -31,14 +31,7 @@ impl<'d> Recorder<'d> {
     /// initial state `ekf` kept.
     pub(super) fn start(data: &'d RecordedData<'d>, epochs: Epochs, ekf: &Ekf) -> Self {
         let n = data.imu.len();
-        let kept = match epochs {
-            Epochs::All => n + 1,
-            Epochs::Last => 1,
-            Epochs::Step(step) => {
-                let span = data.imu_time[n - 1] - data.t0;
-                ((span / step) as usize).saturating_add(2).min(n + 1)
-            }
-        };
+        let kept = epochs.kept(n, data.imu_time[n - 1] - data.t0);
         let streams = data
             .streams
             .iter()
@@ -76,6 +69,10 @@ impl<'d> Recorder<'d> {
         if matches!(epochs, Epochs::Step(_)) {
             out.epoch.reserve_exact(kept);
         }
+        // Room for every covariance asked for at once (grown as they come, up to twice).
+        let asked = data.covariance_time.len();
+        out.covariance_epoch.reserve_exact(asked);
+        out.covariances.reserve_exact(asked);
         let first_dt = data.imu_time[0] - data.t0;
         let mut recorder = Self {
             out,

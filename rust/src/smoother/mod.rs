@@ -39,13 +39,16 @@
 //! - `backward`, `solve`: the one backward pass and the solves at an update;
 //! - `thinned`: the closes of a pass that kept some epochs only, re-integrated;
 //! - `forward`, `smoothed`, `sink`: what the backward pass reads, the smoothed
-//!   solution, and where it writes.
+//!   solution, and where it writes;
+//! - `memory`: what each of these holds, for the estimate a call checks before it
+//!   allocates.
 
 mod backward;
 pub(crate) mod closes;
 mod forward;
 mod kept;
 mod log;
+pub mod memory;
 mod node;
 mod sink;
 mod smoothed;
