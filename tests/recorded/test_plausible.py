@@ -134,10 +134,13 @@ def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recordi
     ]
     assert main(argv) == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [
+    assert err[0] == (
         "pronet: warning: dvl_lever_arm: -185,-3,12 m reaches 185 m from the ground-truth "
         "point, beyond 10 m; typed in cm or mm? (used as given)"
-    ]
+    )
+    # and the filters, run as told, say their DVL disagrees: its lever arm among the causes
+    (note,) = err[1:]
+    assert "streams[0] (dvl): mean NIS" in note and "lever arm" in note
 
 
 def test_the_synthetic_and_snapir_like_data_pass_every_check(tmp_path, recording):
