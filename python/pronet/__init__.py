@@ -29,6 +29,7 @@ from pronet._util.plausibility import PlausibilityWarning
 from pronet.filter import FilterResult, SmoothedResult, StreamResult, run_filter
 from pronet.montecarlo import STATE_BLOCKS, Ensemble, MonteCarloResult, monte_carlo
 from pronet.navigation import NavSolution, lla_from_ned, local_ned, mechanize
+from pronet.stats import FilterHealthWarning
 from pronet.trajectory import Segment, builtin_trajectory, trajectory_from_segments
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "Dvl",
     "Ensemble",
     "FilterConfig",
+    "FilterHealthWarning",
     "FilterResult",
     "Fix",
     "Heading",
