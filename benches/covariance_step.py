@@ -28,9 +28,10 @@ from pronet.recorded.alignment import dcm_from_euler
 from pronet.sim import paper, scenarios
 
 
-def recording(seconds: float) -> dict[str, Any]:
+def recording(seconds: float, dvl_rate: int = 1) -> dict[str, Any]:
     """``run_filter``'s arguments for ``seconds`` of a vehicle turning every minute
-    at 100 Hz, with the paper's IMU noise and a 1 Hz body-frame DVL (0.01 m/s)."""
+    at 100 Hz, with the paper's IMU noise and a ``dvl_rate`` Hz body-frame DVL (a
+    divisor of 100; 0.1 m/s noise)."""
     n_legs = max(1, int(seconds // 60))
     legs = [[60.0, 0.0, (-1) ** i * 0.02, 0.0] for i in range(n_legs)]
     traj = pronet.trajectory_from_segments(
@@ -38,7 +39,7 @@ def recording(seconds: float) -> dict[str, Any]:
     )
     rng = np.random.default_rng(0)
     imu = traj.imu + rng.normal(size=traj.imu.shape) * np.sqrt(paper.PAPER_Q)
-    k = np.arange(100, traj.n_samples + 1, 100)
+    k = np.arange(100, traj.n_samples + 1, 100 // dvl_rate)
     body = np.einsum("nji,nj->ni", dcm_from_euler(traj.rpy[k]), traj.vel_ned[k])
     return dict(
         imu=imu,

@@ -87,6 +87,32 @@ def test_builds_that_answer_differently_are_refused_with_where(script: ModuleTyp
     assert script.first_difference({"a": runs, "b": {}}) == "b: error not shaped or typed as a's"
 
 
+def test_a_tolerance_admits_rounding_and_nothing_more(script: ModuleType) -> None:
+    a = np.array([1.0, 2.0, np.nan, 4.0])
+    near = a * (1 + np.array([1e-13, -1e-13, 0.0, 0.0]))
+    assert script.first_difference({"a": a, "b": near}) is not None  # not bit for bit
+    assert script.first_difference({"a": a, "b": near}, rtol=1e-12) is None
+    far = a + np.array([0.0, 0.0, 0.0, 1e-11])  # beyond 1e-12 of the largest, 4
+    assert script.first_difference({"a": a, "b": far}, rtol=1e-12) == (
+        "b: 1 of 4 values differ from a's, the first at (3,): 4.00000000001 against 4.0"
+    )
+
+
+@pytest.mark.slow
+def test_the_filter_is_timed_per_imu_step(tmp_path: Path) -> None:
+    copy = tmp_path / "_core.abi3.so"
+    shutil.copyfile(_core.__file__, copy)
+    out = run(
+        f"installed={_core.__file__}",
+        f"copy={copy}",
+        *("--rounds", "2", "--calls", "1", "--filter", "--rtol", "1e-12", "--hours", "0.02"),
+    )
+    assert out.returncode == 0, out.stderr
+    title = "run_filter, 0.02 h at 100 Hz, 5 Hz DVL, default covariance step, last epoch"
+    table = rows(out.stdout)[title]
+    assert set(table) == {"installed", "copy"} and table["installed"][3] == "ns/step"
+
+
 def test_bad_arguments_and_unloadable_builds_are_named(tmp_path: Path) -> None:
     out = run("no-equals-sign")
     assert out.returncode == 2 and "expected NAME=PATH.so, got 'no-equals-sign'" in out.stderr

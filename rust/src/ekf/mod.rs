@@ -12,6 +12,7 @@
 //! - `filter`: [`Ekf`], its state and prediction;
 //! - `step`: the covariance step;
 //! - `update`: the [`Measurement`] a sensor gives and the update it runs;
+//! - `joseph`: the update's Joseph form on the support of H;
 //! - `dynamics`, `transition`, `formulation`, `process_noise`, `calibration`,
 //!   `config`: the error dynamics and Φ, the two velocity-error coordinates, the noise
 //!   of a step, the DVL calibration states, the tuning.
@@ -21,6 +22,7 @@ mod config;
 pub(crate) mod dynamics;
 mod filter;
 pub mod formulation;
+mod joseph;
 mod mounting;
 mod process_noise;
 mod state;

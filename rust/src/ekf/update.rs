@@ -10,6 +10,7 @@
 use super::calibration::{Calibration, Rows3x19, N_CALIBRATED, SCALE};
 use super::filter::Ekf;
 use super::formulation;
+use super::joseph::Support;
 use super::state::{Gain, Row15, Rows3, Vector15};
 use crate::error::{Error, Result};
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
@@ -311,14 +312,16 @@ fn kalman_update<const N: usize>(
     gate: Option<f64>,
     name: &str,
 ) -> Result<Outcome<N>> {
-    let pht = *p * h.transpose();
-    let s = h * pht + r;
+    let support = Support::of(h);
+    let pht = support.times_transpose(p, h);
+    let s = support.left_times(h, &pht) + r;
     let s_inv = s
         .cholesky()
         .ok_or_else(|| Error::Numerical("innovation covariance S is not positive definite".into()))?
         .inverse();
     let gain: SMatrix<f64, N, 3> = pht * s_inv;
-    let sensitivity = m.as_ref().map(|m| h * **m * h.transpose());
+    let mht = m.as_ref().map(|m| support.times_transpose(m, h));
+    let sensitivity = mht.as_ref().map(|mht| support.left_times(h, mht));
     let nis = innovation.dot(&(s_inv * innovation));
     // Checked before anything is applied: a NaN would slip past the gate's `>`.
     if !nis.is_finite() {
@@ -343,12 +346,9 @@ fn kalman_update<const N: usize>(
             dx: None,
         });
     }
-    let ikh = SMatrix::<f64, N, N>::identity() - gain * h;
-    *p = ikh * *p * ikh.transpose() + gain * r * gain.transpose();
-    *p = (*p + p.transpose()) * 0.5;
-    if let Some(m) = m {
-        *m = ikh * *m * ikh.transpose();
-        *m = (*m + m.transpose()) * 0.5;
+    support.joseph(p, &pht, &gain, h, Some(r));
+    if let (Some(m), Some(mht)) = (m, mht) {
+        support.joseph(m, &mht, &gain, h, None);
     }
     Ok(Outcome {
         info: report,
@@ -377,8 +377,9 @@ fn scalar_update<const N: usize>(
         }
         ScalarRow::Row(row) => {
             h.fixed_columns_mut::<15>(0).copy_from(row);
-            let pht: SVector<f64, N> = *p * h.transpose();
-            let s = (h * pht)[(0, 0)] + r;
+            let support = Support::of(&h);
+            let pht = support.times_transpose(p, &h);
+            let s = support.left_times(&h, &pht)[(0, 0)] + r;
             (pht, s)
         }
     };
@@ -389,12 +390,11 @@ fn scalar_update<const N: usize>(
         )));
     }
     let gain: SVector<f64, N> = pht / s;
-    let ikh = SMatrix::<f64, N, N>::identity() - gain * h;
-    *p = ikh * *p * ikh.transpose() + gain * r * gain.transpose();
-    *p = (*p + p.transpose()) * 0.5;
+    let support = Support::of(&h);
+    support.joseph(p, &pht, &gain, &h, Some(&SMatrix::<f64, 1, 1>::new(r)));
     if let Some(m) = m {
-        *m = ikh * *m * ikh.transpose();
-        *m = (*m + m.transpose()) * 0.5;
+        let mht = support.times_transpose(m, &h);
+        support.joseph(m, &mht, &gain, &h, None);
     }
     Ok((innovation * innovation / s, -(gain * innovation)))
 }
