@@ -58,10 +58,9 @@ pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
 /// estimate `vel` \[m/s, NED\]: the same operations, so that a σ computed later from a
 /// copy of an epoch's P and velocity is the one computed there, bit for bit.
 pub fn classic_sigma(formulation: Formulation, p: &Matrix15, vel: &Vector3<f64>) -> [f64; 15] {
-    let mut p = *p;
-    formulation::to_classic(formulation, &mut p, vel);
+    let variances = formulation::classic_variances(formulation, p, vel);
     std::array::from_fn(|i| {
-        let v = p[(i, i)];
+        let v = variances[i];
         if v < 0.0 {
             0.0
         } else {

@@ -83,6 +83,30 @@ pub fn to_classic(f: Formulation, p: &mut Matrix15, v: &Vector3<f64>) {
     }
 }
 
+/// The diagonal of [`to_classic`]'s covariance (the variances in the classic
+/// coordinates) without the rest of it: the velocity rows are the only ones the map
+/// changes, and their diagonal is computed with its operations, in its order (the same
+/// numbers, bit for bit: tested).
+pub fn classic_variances(f: Formulation, p: &Matrix15, v: &Vector3<f64>) -> [f64; 15] {
+    let mut d: [f64; 15] = std::array::from_fn(|i| p[(i, i)]);
+    if f == Formulation::Invariant {
+        let s = skew(v);
+        for (i, d) in d[VEL..VEL + 3].iter_mut().enumerate() {
+            // Row VEL + i after `vel_rows += s · att_rows`, at column c.
+            let row = |c: usize| {
+                p[(VEL + i, c)]
+                    + (s[(i, 0)] * p[(ATT, c)]
+                        + s[(i, 1)] * p[(ATT + 1, c)]
+                        + s[(i, 2)] * p[(ATT + 2, c)])
+            };
+            // Then `vel_cols += att_cols · sᵀ` at its own column.
+            *d = row(VEL + i)
+                + (row(ATT) * s[(i, 0)] + row(ATT + 1) * s[(i, 1)] + row(ATT + 2) * s[(i, 2)]);
+        }
+    }
+    d
+}
+
 /// A Kalman gain in `f`'s coordinates mapped into the classic ones at the velocity
 /// estimate `v` \[m/s, NED\]: `K ← T⁻¹ K`, whose velocity rows gain `[v̂×]` times its
 /// attitude rows (so that `−K ν` is the classic error estimate).
@@ -121,6 +145,22 @@ mod tests {
         from_classic(Formulation::Classic, &mut same, &v);
         to_classic(Formulation::Classic, &mut same, &v);
         assert_eq!(same, p);
+    }
+
+    #[test]
+    fn the_classic_variances_are_the_mapped_diagonal() {
+        let v = Vector3::new(1.5, -0.4, 0.2);
+        let a = Matrix15::from_fn(|i, j| ((i * 5 + j * 7) % 13) as f64 * 0.1 - 0.6);
+        let p = a * a.transpose() + Matrix15::identity();
+        for f in [Formulation::Classic, Formulation::Invariant] {
+            let mut mapped = p;
+            to_classic(f, &mut mapped, &v);
+            let want: [f64; 15] = std::array::from_fn(|i| mapped[(i, i)]);
+            let got = classic_variances(f, &p, &v);
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!(g.to_bits(), w.to_bits(), "{got:?} against {want:?}");
+            }
+        }
     }
 
     #[test]

@@ -63,12 +63,18 @@ pub struct FilterOutput {
 }
 
 impl FilterOutput {
-    /// Append the estimate at epoch time `t` \[s\].
+    /// Append the estimate at epoch time `t` \[s\]. Inside a covariance step its σ
+    /// is NaN here: the recorder's [`super::stale::StaleSigma`] writes it when the
+    /// step closes (the σ P gives there is the last close's, never reported).
     pub(super) fn record(&mut self, ekf: &Ekf, t: f64) {
         self.time.push(t);
         self.nav.push(ekf.nav);
         self.bias.push(ekf.bias());
-        self.sigma.push(ekf.sigma());
+        self.sigma.push(if ekf.is_up_to_date() {
+            ekf.sigma()
+        } else {
+            [f64::NAN; 15]
+        });
         if let Some(c) = &ekf.calibration {
             self.calibration.push(c.reported());
             self.calibration_sigma.push(c.sigma());
