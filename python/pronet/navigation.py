@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._util.plausibility import angles_beyond
+from pronet._util.plausibility import angles_beyond, check_imu_start
 from pronet._util.validate import float_array, real_array, scalar
 
 
@@ -48,15 +48,19 @@ def mechanize(
         rpy0: initial roll, pitch, yaw [rad].
 
     More states than this process can still take are a ``ValueError`` naming ``imu``
-    (docs/performance.md, "Memory").
+    (docs/performance.md, "Memory"). So are a unit or frame slip the samples show
+    (:func:`pronet._util.plausibility.check_imu_start`: a mean specific force that is
+    not gravity's, or that points away from where ``rpy0`` puts it, as in an IMU left
+    in FLU) and a ``lla0`` in degrees.
     """
-    out = _core.mechanize(
-        float_array(imu, "imu", (None, 6)),
-        scalar(dt, "dt"),
-        float_array(lla0, "lla0", (3,)),
-        float_array(vel0, "vel0", (3,)),
-        float_array(rpy0, "rpy0", (3,)),
-    )
+    samples = float_array(imu, "imu", (None, 6))
+    step = scalar(dt, "dt")
+    start, attitude = float_array(lla0, "lla0", (3,)), float_array(rpy0, "rpy0", (3,))
+    if step > 0 and np.isfinite(step):
+        check_imu_start(samples, np.arange(len(samples), dtype=np.float64) * step, attitude)
+    if (beyond := angles_beyond(start, "lla0")) is not None:
+        raise ValueError(beyond)
+    out = _core.mechanize(samples, step, start, float_array(vel0, "vel0", (3,)), attitude)
     return NavSolution(lla=out["lla"], vel=out["vel"], rpy=out["rpy"])
 
 

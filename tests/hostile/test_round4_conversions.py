@@ -23,6 +23,7 @@ import pandas as pd
 import pytest
 
 import pronet
+from pronet import _core
 from pronet.recorded.plausible import PlausibilityWarning
 from pronet.recorded.recordings import RecordingError, read_recording, write_recording
 from pronet.strategies import StrategySpec
@@ -101,6 +102,50 @@ def test_unix_imu_stamps_with_a_relative_t0_are_refused_naming_t0(paper) -> None
     dvl = pronet.Dvl(dvl.time + unix, dvl.velocity, frame="ned")
     with pytest.raises(ValueError, match=r"^t0: 0 s is 1\.7e\+09 s before the first IMU"):
         _run(paper, imu_time=traj.time[1 : N + 1] + unix, streams=[dvl])
+
+
+def test_mechanize_refuses_the_slips_run_filter_refuses(paper) -> None:
+    """The strapdown alone took an IMU in FLU, accelerations in g and a ``lla0`` in
+    degrees without a word; the same data, right, integrate."""
+    traj, _ = paper
+    args = (traj.dt, traj.lla[0], traj.vel_ned[0], traj.rpy[0])
+    in_g = traj.imu[:N].copy()
+    in_g[:, :3] /= 9.80665
+    with pytest.raises(ValueError, match=r"^imu, rpy0: .*FRD.*FLU"):
+        pronet.mechanize(traj.imu[:N] * FLU, *args)
+    with pytest.raises(ValueError, match=r"^imu: the mean specific force is 0\.99"):
+        pronet.mechanize(in_g, *args)
+    degrees = np.degrees(traj.lla[0]) * [1, 1, 0] + [0, 0, 1] * traj.lla[0]
+    with pytest.raises(ValueError, match=r"^lla0: latitude 32 is beyond"):
+        pronet.mechanize(traj.imu[:N], traj.dt, degrees, traj.vel_ned[0], traj.rpy[0])
+    out = pronet.mechanize(traj.imu[:N], *args)
+    assert np.abs(out.vel[-1] - traj.vel_ned[N]).max() < 0.05
+
+
+def test_core_flags_are_true_or_false_naming_the_argument(paper) -> None:
+    """``_core.monte_carlo(smooth=1)`` was a TypeError ("'int' object is not an
+    instance of 'bool'"): the core's own entry points name ``smooth`` as the API does."""
+    traj, dvl = paper
+    sim = pronet.builtin_trajectory("paper")
+    calls = {
+        "monte_carlo": lambda s: _core.monte_carlo(
+            sim, _core.SensorConfig(), _core.FilterConfig(), _core.Strategy.constant(PAPER_Q),
+            n_runs=1, smooth=s,
+        ),
+        "Ensemble": lambda s: _core.Ensemble(
+            sim, _core.SensorConfig(), _core.FilterConfig(), PAPER_Q, n_runs=1, smooth=s
+        ),
+        "run_filter": lambda s: _core.run_filter(
+            traj.imu[:N], traj.time[1 : N + 1], [dvl], t0=0.0, lla0=traj.lla[0],
+            vel0=traj.vel_ned[0], rpy0=traj.rpy[0], config=_core.FilterConfig(),
+            strategy=_core.Strategy.constant(PAPER_Q), smooth=s,
+        ),
+    }  # fmt: skip
+    for name, call in calls.items():
+        for wrong in (1, 0.0, "yes"):
+            with pytest.raises(ValueError, match=r"^smooth: expected True or False, got "):
+                call(wrong)
+        assert call(np.False_) is not None, name
 
 
 def test_local_ned_refuses_degrees_naming_the_argument(paper) -> None:

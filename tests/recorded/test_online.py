@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from mission_recording import Mission, simulate_mission, write_generic, write_vehicle_file
@@ -224,6 +226,46 @@ def test_bad_input_is_one_line_naming_it(mission) -> None:
     with pytest.raises(ValueError, match="^lag: "):
         Navigator([], initial=_initial(m), strategy=NATIVE["constant"], lag=-1.0)
     assert nav.failure is None and nav.epoch == 1
+
+
+def test_unit_and_frame_slips_are_refused_before_anything_is_fed(mission) -> None:
+    """Issue 58 §6 for the navigator: what run_filter's plausibility checks refuse."""
+    m = mission
+
+    def fresh(initial: InitialState | None = None, **kw) -> Navigator:
+        start = _initial(m) if initial is None else initial
+        return Navigator(
+            _streams(m, rows=False), initial=start, strategy=NATIVE["constant"], config=CONFIG, **kw
+        )
+
+    degrees = replace(_initial(m), lla=np.array([32.0, 34.0, -5.0]))
+    with pytest.raises(ValueError, match=r"^initial.lla: latitude 32 is beyond .* in degrees\?"):
+        fresh(degrees)
+    flu = m.imu[:200] * [1, -1, -1, 1, -1, -1]
+    for feed in (
+        lambda nav: nav.imu(m.imu_time[0], flu[0]),
+        lambda nav: nav.imu_block(m.imu_time[:200], flu),
+    ):
+        nav = fresh()
+        with pytest.raises(ValueError, match=r"^imu, rpy0: the specific force .* in FLU"):
+            feed(nav)
+        assert nav.epoch == 0
+    nav = fresh()
+    with pytest.raises(
+        ValueError, match=r"^imu: the mean specific force is 0.99\d* m/s², not near gravity"
+    ):
+        nav.imu_block(m.imu_time[:1000], m.imu[:1000] / 9.81)  # in g, over seconds
+    dt = float(np.median(np.diff(m.imu_time)))
+    nav = fresh(imu_dt=dt)
+    unix = m.imu_time + 1.7e9  # stamps in Unix time, t0 relative
+    with pytest.raises(ValueError, match=r"^imu_time: the first sample .* on one clock"):
+        nav.imu(unix[0], m.imu[0])
+    nav = fresh()
+    nav.imu_block(m.imu_time[:200], m.imu[:200])  # the same data, right: accepted
+    pascals = float(m.depth()[0]) * 1025 * 9.80665 + 101325.0
+    with pytest.raises(ValueError, match=r"^streams\[1\]: depth row 0 is .* in pascals"):
+        nav.reading(1, m.imu_time[199], pascals)
+    assert nav.reading(1, m.imu_time[199], float(m.depth()[0])) in ("current", "late")
 
 
 @pytest.mark.parametrize("spec", ["constant", "mehra:20", "learned:detrend"])

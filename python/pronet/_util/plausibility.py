@@ -22,6 +22,9 @@ a wide margin for legitimate data:
   over it, and it is one step when ``t0`` starts the first sample's interval);
 - a depth within :data:`HEIGHT_RANGE`, negated (:func:`depth_beyond`: the deepest ocean
   is 11 km; a depth in pascals is 10,000 times its metres);
+- the same two checks on the samples a mechanization (:func:`pronet.mechanize`) or an
+  online navigator (:class:`pronet.recorded.online.Navigator`, its first feed) starts
+  with (:func:`check_imu_start`: the magnitude over a second or more only);
 - a latitude within ±90° and a longitude within ``_core.LONGITUDE_RANGE_DEG`` (the core's
   rule for fixes: both conventions, −180° … 360°), in radians (:func:`angles_beyond`:
   degrees are 57 times as large).
@@ -155,6 +158,22 @@ def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[
         for i, s in enumerate(streams):
             if problem is None and isinstance(s, _core.Depth):
                 problem = depth_beyond(s.depth, f"streams[{i}]")
+    if problem is not None:
+        raise ValueError(problem)
+
+
+def check_imu_start(imu: F64, imu_time: F64, rpy0: F64) -> None:
+    """The IMU samples a mechanization or a navigator starts with (``imu`` ``(n, 6)``
+    stamped ``imu_time``, at the attitude ``rpy0``): ``ValueError`` when their mean
+    specific force is not gravity's (:func:`specific_force`, over a second or more) or
+    points away from where ``rpy0`` puts it (:func:`gravity_sign`)."""
+    if not (len(imu) and np.isfinite(imu).all() and np.isfinite(rpy0).all()):
+        return  # the core names the argument
+    with np.errstate(all="ignore"):
+        long_enough = imu_time[-1] - imu_time[0] >= GRAVITY_WINDOW
+        problem = (f"imu: {bad}" if long_enough and (bad := specific_force(imu)) else None) or (
+            gravity_sign(imu, imu_time, rpy0)
+        )
     if problem is not None:
         raise ValueError(problem)
 

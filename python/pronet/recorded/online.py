@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
+from pronet._util.plausibility import MAX_IMU_GAP, angles_beyond, check_imu_start, depth_beyond
 from pronet._util.validate import check_type, float_array, scalar
 from pronet.config import filter_config
 from pronet.filter import Stream
@@ -140,6 +141,13 @@ class Navigator:
             (required with one).
         window: raw samples per window the regressor reads.
         guardrails: bounds on the regressor's q (default :class:`Guardrails`).
+
+    As :func:`pronet.run_filter` does, the navigator refuses with a ``ValueError`` the
+    unit and frame slips the data show: an ``initial.lla`` in degrees; a first feed of
+    IMU samples whose specific force points away from where ``initial.rpy`` puts it
+    (an IMU in FLU), or, over a second or more, is not gravity's; a first sample more
+    than 5 IMU periods after ``initial.t0`` (with ``imu_dt``); a depth beyond the
+    deepest ocean (in pascals?). Nothing is fed before the check.
     """
 
     def __init__(
@@ -161,6 +169,8 @@ class Navigator:
         check_type(base, _core.FilterConfig, "config")
         p0 = [float(v) for v in float_array(initial.p0_sigma, "initial.p0_sigma", (15,))]
         cfg = filter_config({"p0_sigma": p0}, "the initial state", base)
+        if beyond := angles_beyond(float_array(initial.lla, "initial.lla", (3,)), "initial.lla"):
+            raise ValueError(beyond)
         native_strategy, learned = native_of(strategy)
         check_type(native_strategy, _core.Strategy, "strategy")
         if learned is not None and imu_dt is None:
@@ -182,6 +192,9 @@ class Navigator:
             imu_dt=None if learned is None or imu_dt is None else scalar(imu_dt, "imu_dt"),
             window=window,
         )
+        self._depth_streams = {i for i, st in enumerate(streams) if isinstance(st, _core.Depth)}
+        dt = None if imu_dt is None else scalar(imu_dt, "imu_dt")
+        self._start = (scalar(initial.t0, "initial.t0"), initial.rpy, dt)
         self._regressor = None if learned is None else for_loop(learned.regressor)
         self._guardrails = Guardrails() if guardrails is None else guardrails
         check_type(self._guardrails, Guardrails, "guardrails")
@@ -197,6 +210,10 @@ class Navigator:
     def imu(self, time: float, sample: ArrayLike) -> None:
         """Feed one IMU sample ``[f (m/s²), ω (rad/s)]`` (body FRD) ending at ``time``
         [s], after the newest; a tuning instant sets q before the next."""
+        if self._native.epoch == 0:
+            self._check_start(
+                np.array([time], dtype=np.float64), float_array(sample, "imu", (6,))[None]
+            )
         self._native.imu(time, sample)
         if self._regressor is not None and self._native.tuning_due:
             self._tune()
@@ -206,6 +223,8 @@ class Navigator:
         batch speed, the learned loop run at its instants in between."""
         t = float_array(times, "imu_time", (None,))
         s = float_array(samples, "imu", (len(t), 6))
+        if self._native.epoch == 0:
+            self._check_start(t, s)
         done = 0
         while done < len(t):
             done += self._native.imu_block(t[done:], s[done:])
@@ -222,7 +241,22 @@ class Navigator:
         within the newest epoch's half step, applied there), ``"late"`` (applied at
         its own, already run), ``"refused"`` (before the lag window) or ``"skipped"``
         (before the pass's start)."""
+        if stream in self._depth_streams:
+            depth = np.atleast_1d(np.asarray(value, dtype=np.float64))
+            if (beyond := depth_beyond(depth, f"streams[{stream}]")) is not None:
+                raise ValueError(beyond)
         return self._native.reading(stream, time, value, sigma)
+
+    def _check_start(self, times: F64, samples: F64) -> None:
+        """The first IMU samples fed against the initial state (see the class)."""
+        t0, rpy, imu_dt = self._start
+        if len(times) and imu_dt is not None and times[0] - t0 > MAX_IMU_GAP * imu_dt:
+            raise ValueError(
+                f"imu_time: the first sample ({times[0]:.10g} s) is {times[0] - t0:.4g} s after "
+                f"initial.t0 ({t0:.10g} s), {(times[0] - t0) / imu_dt:.3g} IMU periods, over "
+                "which it would be integrated; are they on one clock, in seconds?"
+            )
+        check_imu_start(samples, times, float_array(rpy, "initial.rpy", (3,)))
 
     def state(self) -> NavigatorState:
         """The estimate at the newest epoch (σ brought up to date on a copy: asking

@@ -324,6 +324,7 @@ arg_converters! {
     arg_seed: u64 = whole_arg("seed");
     arg_first_run: u64 = whole_arg("first_run");
     arg_sample_initial_error: bool = flag_arg("sample_initial_error");
+    arg_smooth: bool = flag_arg("smooth");
     arg_dvl_calibration: bool = flag_arg("dvl_calibration");
     arg_dvl_scale: f64 = real_arg("dvl_scale");
 }

@@ -5,7 +5,7 @@ use super::call::{detached, interruptible, invalid};
 use super::config::PyFilterConfig;
 use super::convert::{
     arg_dt, arg_first_run, arg_n_runs, arg_n_samples, arg_record_every, arg_sample_initial_error,
-    arg_seed, arg_threads, arg_tuning_period, arg_window, fixed, rows,
+    arg_seed, arg_smooth, arg_threads, arg_tuning_period, arg_window, fixed, rows,
 };
 use super::montecarlo::{result_dict, scenario};
 use super::sensors::PySensorConfig;
@@ -99,7 +99,7 @@ impl PyEnsemble {
         #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
         #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
         #[pyo3(from_py_with = arg_first_run)] first_run: u64,
-        smooth: bool,
+        #[pyo3(from_py_with = arg_smooth)] smooth: bool,
     ) -> PyResult<Self> {
         let prior_q = fixed::<6>(prior_q, "prior_q")?;
         let opts = McOptions {

@@ -3,8 +3,8 @@
 use super::call::{interruptible, invalid, to_py_err};
 use super::config::PyFilterConfig;
 use super::convert::{
-    arg_epochs, arg_t0, as_rows, as_values, column, fixed_or, nav_state, readonly_column,
-    readonly_rows, rows, rows_array,
+    arg_epochs, arg_smooth, arg_t0, as_rows, as_values, column, fixed_or, nav_state,
+    readonly_column, readonly_rows, rows, rows_array,
 };
 use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref, StreamRef};
@@ -72,7 +72,7 @@ fn run_filter<'py>(
     #[pyo3(from_py_with = arg_epochs)] epochs: String,
     output_step: Option<f64>,
     covariance_time: Option<&Bound<'py, PyAny>>,
-    smooth: bool,
+    #[pyo3(from_py_with = arg_smooth)] smooth: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let epochs = match (epochs.as_str(), output_step) {
         ("all", None) => Epochs::All,

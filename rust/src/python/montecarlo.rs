@@ -3,7 +3,8 @@
 use super::call::{interruptible, to_py_err};
 use super::config::PyFilterConfig;
 use super::convert::{
-    arg_first_run, arg_n_runs, arg_record_every, arg_sample_initial_error, arg_seed, arg_threads,
+    arg_first_run, arg_n_runs, arg_record_every, arg_sample_initial_error, arg_seed, arg_smooth,
+    arg_threads,
 };
 use super::sensors::PySensorConfig;
 use super::strategy::PyStrategy;
@@ -218,7 +219,7 @@ fn py_monte_carlo<'py>(
     #[pyo3(from_py_with = arg_sample_initial_error)] sample_initial_error: bool,
     #[pyo3(from_py_with = arg_threads)] threads: Option<usize>,
     #[pyo3(from_py_with = arg_first_run)] first_run: u64,
-    smooth: bool,
+    #[pyo3(from_py_with = arg_smooth)] smooth: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let opts = McOptions {
         n_runs,
