@@ -226,6 +226,15 @@ def test_a_stream_whose_copy_does_not_fit_is_a_memory_error() -> None:
     assert out == "MemoryError time: 305.2 MiB do not fit in memory", out
 
 
+# Before: "ValueError time: expected real numbers of shape (n,) ..., got list": NumPy's
+# MemoryError converting the list was taken for numbers that are not real.
+def test_a_list_whose_conversion_does_not_fit_is_a_memory_error() -> None:
+    out = limited(
+        "k = [float(i) for i in range(10_000_000)]", "pronet.Dvl(k, [[0, 0, 0]])", 40 << 20
+    )
+    assert out.startswith("MemoryError ") and "expected real numbers" not in out, out
+
+
 # Before: SIGABRT, "memory allocation of 320000000 bytes failed" (the windows' copy).
 def test_a_native_regressor_on_more_windows_than_fit_is_a_memory_error() -> None:
     out = limited(

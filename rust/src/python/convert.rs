@@ -39,31 +39,41 @@ pub fn describe(obj: &Bound<'_, PyAny>) -> String {
 /// anything NumPy reads as integers (and, for a float `dtype`, floats) of any width,
 /// nested lists and tuples included, converted by `numpy.asarray(obj).astype(dtype)`.
 /// None for anything else: booleans, complex numbers, strings, objects, ragged
-/// sequences, another number of axes.
+/// sequences, another number of axes. A conversion that runs out of memory is the
+/// `MemoryError` it raised (not "expected real numbers").
 pub fn real_array<'py, T: Element, D: Dimension>(
     obj: &Bound<'py, PyAny>,
     dtype: &str,
-) -> Option<PyReadonlyArray<'py, T, D>> {
+) -> PyResult<Option<PyReadonlyArray<'py, T, D>>> {
     if let Ok(arr) = obj.extract::<PyReadonlyArray<T, D>>() {
-        return Some(arr);
+        return Ok(Some(arr));
     }
     if obj.is_instance_of::<PyString>()
         || obj.is_instance_of::<PyBytes>()
         || obj.is_instance_of::<PyByteArray>()
     {
-        return None;
+        return Ok(None);
     }
     let kinds: &[&str] = if dtype.starts_with("float") {
         &["i", "u", "f"]
     } else {
         &["i", "u"]
     };
-    let numpy = obj.py().import("numpy").ok()?;
-    let arr = numpy.call_method1("asarray", (obj,)).ok()?;
+    let py = obj.py();
+    // Only a MemoryError is an error; any other failure means "not real numbers".
+    let memory = |e: PyErr| e.is_instance_of::<PyMemoryError>(py).then_some(e);
+    let numpy = py.import("numpy")?;
+    let arr = match numpy.call_method1("asarray", (obj,)) {
+        Ok(arr) => arr,
+        Err(e) => return memory(e).map_or(Ok(None), Err),
+    };
     if !numpy_kind_in(&arr, kinds) {
-        return None;
+        return Ok(None);
     }
-    arr.call_method1("astype", (dtype,)).ok()?.extract().ok()
+    match arr.call_method1("astype", (dtype,)) {
+        Ok(converted) => Ok(converted.extract().ok()),
+        Err(e) => memory(e).map_or(Ok(None), Err),
+    }
 }
 
 /// Real numbers of shape (n, C) as rows (a copy: `MemoryError` where it does not fit).
@@ -109,7 +119,7 @@ pub fn readonly_rows<'py, const C: usize>(
     obj: &Bound<'py, PyAny>,
     arg: &str,
 ) -> PyResult<PyReadonlyArray2<'py, f64>> {
-    let arr = real_array::<f64, Ix2>(obj, "float64").ok_or_else(|| {
+    let arr = real_array::<f64, Ix2>(obj, "float64")?.ok_or_else(|| {
         invalid(
             arg,
             format!(
@@ -148,7 +158,7 @@ pub fn readonly_column<'py>(
     obj: &Bound<'py, PyAny>,
     arg: &str,
 ) -> PyResult<PyReadonlyArray1<'py, f64>> {
-    real_array::<f64, Ix1>(obj, "float64").ok_or_else(|| {
+    real_array::<f64, Ix1>(obj, "float64")?.ok_or_else(|| {
         invalid(
             arg,
             format!(
@@ -432,7 +442,7 @@ pub fn window_rows<T: Element + Copy>(
     window: usize,
     dtype: &str,
 ) -> PyResult<Vec<T>> {
-    let w: PyReadonlyArray2<T> = real_array(obj, dtype).ok_or_else(|| {
+    let w: PyReadonlyArray2<T> = real_array(obj, dtype)?.ok_or_else(|| {
         invalid(
             "windows",
             format!(

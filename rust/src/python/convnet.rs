@@ -30,7 +30,7 @@ pub struct PyConvNet {
 }
 
 fn vector(obj: &Bound<'_, PyAny>, arg: &str) -> PyResult<Vec<f32>> {
-    let arr: PyReadonlyArray1<f32> = real_array(obj, "float32").ok_or_else(|| {
+    let arr: PyReadonlyArray1<f32> = real_array(obj, "float32")?.ok_or_else(|| {
         invalid(
             arg,
             format!(
@@ -58,7 +58,7 @@ fn block(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<ConvBlockWeights> {
         )
     })?;
     let (weight, bias, gamma, beta, stride, eps) = parts;
-    let w: PyReadonlyArray3<f32> = real_array(&weight, "float32").ok_or_else(|| {
+    let w: PyReadonlyArray3<f32> = real_array(&weight, "float32")?.ok_or_else(|| {
         invalid(
             &arg,
             format!(
@@ -88,7 +88,7 @@ fn dense(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<DenseWeights> {
     let (weight, bias): (Bound<PyAny>, Bound<PyAny>) = obj
         .extract()
         .map_err(|_| invalid(&arg, "expected (weight, bias) with float32 arrays"))?;
-    let w: PyReadonlyArray2<f32> = real_array(&weight, "float32").ok_or_else(|| {
+    let w: PyReadonlyArray2<f32> = real_array(&weight, "float32")?.ok_or_else(|| {
         invalid(
             &arg,
             format!(

@@ -27,7 +27,7 @@ fn array<T: numpy::Element + Copy>(
     arg: &str,
     dtype: &str,
 ) -> PyResult<Vec<T>> {
-    let arr: PyReadonlyArray1<T> = real_array(obj, dtype).ok_or_else(|| {
+    let arr: PyReadonlyArray1<T> = real_array(obj, dtype)?.ok_or_else(|| {
         invalid(
             arg,
             format!(

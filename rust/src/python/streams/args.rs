@@ -42,12 +42,12 @@ pub(super) fn number(obj: &Bound<'_, PyAny>, arg: &str) -> Option<f64> {
 
 /// A 1σ of 3 axes: a number (with `scalar`), `(3,)`, or `(n, 3)` one per row.
 pub(super) fn sigma3(obj: &Bound<'_, PyAny>, scalar: bool, unit: &str) -> PyResult<Rows<[f64; 3]>> {
-    if let Some(arr) = real_array::<f64, Ix1>(obj, "float64") {
+    if let Some(arr) = real_array::<f64, Ix1>(obj, "float64")? {
         let v = arr.as_array();
         if v.len() == 3 {
             return Ok(Rows::One([v[0], v[1], v[2]]));
         }
-    } else if real_array::<f64, Ix2>(obj, "float64").is_some() {
+    } else if real_array::<f64, Ix2>(obj, "float64")?.is_some() {
         return Ok(Rows::Each(rows::<3>(obj, "sigma")?));
     } else if let Some(s) = scalar.then(|| number(obj, "sigma")).flatten() {
         return Ok(Rows::One([s; 3]));
@@ -68,7 +68,7 @@ pub(super) fn sigma3(obj: &Bound<'_, PyAny>, scalar: bool, unit: &str) -> PyResu
 
 /// A 1σ \[`unit`\] of one axis: a number, or `(n,)` one per row.
 pub(super) fn sigma1(obj: &Bound<'_, PyAny>, unit: &str) -> PyResult<Rows<f64>> {
-    if real_array::<f64, Ix1>(obj, "float64").is_some() {
+    if real_array::<f64, Ix1>(obj, "float64")?.is_some() {
         return Ok(Rows::Each(column(obj, "sigma")?));
     }
     if let Some(s) = number(obj, "sigma") {
