@@ -254,3 +254,37 @@ def test_the_bag_format_refuses_what_is_no_bag(tmp_path, capsys):
     assert not out.exists()
     with pytest.raises(RecordingError, match=r"csv: not a ROS bag .*--format generic"):
         read_recording(folder, BagTopics())
+
+
+@pytest.mark.slow
+def test_frame_and_origin_slips_in_a_bag_are_named(tmp_path, capsys):
+    """Issue 58 §1 at the bag level: an ENU world read as NED is refused (the truth puts
+    the IMU's gravity upside down), a FLU body read as FRD is warned of (the truth turns
+    over with the IMU: the pass runs, rolled by 180°, its lever arms mirrored), and an
+    ``--origin`` in radians is flagged by the health monitor: the DVL's NIS above its
+    band, named in config.json, where the right origin's is not."""
+    _, path, topics, _ = _bag(tmp_path, duration=100.0)
+    o = topics.origin
+    argv = ["real", "--format", "bag", "--data", str(path), "--imu-topic", "/imu/data"]
+    argv += ["--dvl-topic", "/dvl/twist", "--truth-topic", "/odometry", *ARMS]
+    argv += ["--no-plots", "--quiet", "--no-models"]
+    right = ["--origin", f"{o[0]!r},{o[1]!r},{o[2]!r}"]
+
+    def run(name: str, *extra: str) -> tuple[int, str, list[str]]:
+        code = main([*argv, *extra, "--out", str(tmp_path / name)])
+        config = tmp_path / name / "config.json"
+        notes = json.loads(config.read_text())["notes"] if config.exists() else []
+        return code, capsys.readouterr().err, notes
+
+    code, err, _ = run("ned", *right, "--world-frame", "ned")
+    assert code == 2 and "imu, rpy0: the specific force" in err and "in FLU" in err
+    code, err, _ = run("frd", *right, "--body-frame", "frd")
+    assert code == 0 and "the roll is beyond ±90° at 100 % of the rows" in err
+    assert "a body frame read as the other (FLU as FRD)" in err
+    code, err, notes = run("right", *right)
+    assert code == 0 and "roll is beyond" not in err
+    assert not [n for n in notes if "(dvl): mean NIS" in n and "above its 95 % band" in n]
+    radians = ",".join(repr(float(v)) for v in (np.radians(o[0]), np.radians(o[1]), o[2]))
+    code, err, notes = run("radians", "--origin", radians)
+    above = [n for n in notes if "(dvl): mean NIS" in n and "above its 95 % band" in n]
+    assert code == 0 and len(above) == 1 and above[0] in err

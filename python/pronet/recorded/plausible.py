@@ -24,7 +24,8 @@ increasing time, rate):
 Lever arms beyond :data:`LONG_LEVER_ARM` are usable and only warned of
 (:func:`long_lever_arm`, a :class:`PlausibilityWarning`): typed in cm or mm, they run to
 errors of 100 m/s; a few vehicles are that long. So is an IMU whose stamps jitter beyond
-:data:`MAX_IMU_JITTER` of a step (:func:`imu_jitter`).
+:data:`MAX_IMU_JITTER` of a step (:func:`imu_jitter`), and a ground truth rolled beyond
+±90° most of the time (:func:`warn_upside_down`: a body frame read as the other).
 """
 
 from __future__ import annotations
@@ -217,6 +218,28 @@ def beyond_bounds(gt: Table) -> str | None:
             f"{lo:g} … {hi:g} m; in another unit?"
         )
     return None
+
+
+def warn_upside_down(gt: Table | None) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a ground truth whose roll is beyond ±90°
+    at most of its rows: a vehicle upside down all along, or a body frame read as the
+    other (FLU as FRD: the truth's attitude turns with the IMU's axes, so that the pass
+    runs, rolled by 180°, with every lever arm mirrored)."""
+    if gt is not None and (flipped := _upside_down(gt)) is not None:
+        warnings.warn(flipped, PlausibilityWarning, stacklevel=3)
+
+
+def _upside_down(gt: Table) -> str | None:
+    roll = gt.values[:, 7]
+    share = float(np.mean(np.abs(roll) > np.pi / 2))
+    if share <= 0.5:
+        return None
+    return (
+        f"{gt.where}: column {gt.labels[7]!r}: the roll is beyond ±90° at "
+        f"{100 * share:.0f} % of the rows (median {np.degrees(np.median(np.abs(roll))):.0f}°): "
+        "upside down? a body frame read as the other (FLU as FRD) turns the truth over "
+        "with the IMU, and the lever arms (given in FRD) point the wrong way"
+    )
 
 
 def stuck_channels(

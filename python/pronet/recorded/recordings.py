@@ -327,9 +327,8 @@ def _as_tables(rec: Recording) -> dict[str, tuple[list[str], F64]]:
     return out
 
 
-#: The tables of which a recording needs at least one (and may lack the others).
+#: The tables of which a recording needs one; those it may lack (and the truth, heading).
 _OPTIONAL_TABLES = ("dvl", "depth", "fix")
-#: Every table a recording may lack: those, the ground truth and the heading.
 _MAY_LACK = (*_OPTIONAL_TABLES, "gt", "heading")
 
 
@@ -549,6 +548,7 @@ def _recording(
             raise RecordingError(apart)
     if truth is not None and (beyond := plausible.beyond_bounds(truth)) is not None:
         raise RecordingError(beyond)
+    plausible.warn_upside_down(truth)
     try:
         speed = None if truth is None else (gt[:, 0], np.linalg.norm(gt[:, 4:7], axis=1))
         dvl, why = (
