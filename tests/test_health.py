@@ -165,6 +165,7 @@ def test_run_filter_says_nothing_of_streams_told_their_sigma() -> None:
         ("a placeholder covariance 99999 taken as R", "below its 95 % band"),
         ("a gate of 0.01 (a probability)", "the innovation gate rejected 120 of 120"),
         ("an ENU velocity read as NED", "a NED world read as ENU"),
+        ("a depth in kPa (absolute)", "streams[3] (depth): mean NIS"),
     ],
 )
 def test_run_filter_names_a_stream_the_filter_knows_is_wrong(case: str, words: str) -> None:
@@ -180,6 +181,9 @@ def test_run_filter_names_a_stream_the_filter_knows_is_wrong(case: str, words: s
         ned = traj.vel_ned[np.round(dvl.time * 100).astype(int)]
         enu = ned[:, [1, 0, 2]] * [1.0, 1.0, -1.0] + rng.normal(size=ned.shape) * 0.1
         streams[0] = pronet.Dvl(dvl.time, enu, sigma=0.1, frame="ned")
+    if "kPa" in case:  # inside the 11 km check: 101 kPa at the surface, +10 kPa a metre
+        depth = -pronet.builtin_trajectory("paper").lla[np.round(dvl.time * 100).astype(int), 2]
+        streams.append(pronet.Depth(dvl.time, (depth * 1025 * 9.80665 + 101325) / 1e3, sigma=0.1))
     lines = _warned(streams)
     assert any(words in line for line in lines), (case, lines)
 
