@@ -211,7 +211,24 @@ def bench_covariance_step(args: argparse.Namespace, ref: Reference) -> list[Row]
                 detail=f"{times(every / stepped)} faster than every IMU step, {every:.0f} ns",
             )
         )
+    last, everything = m["run_filter_last_step_ns"], m["run_filter_all_step_ns"]
+    kept = everything / last
+    rows.append(
+        Row(
+            f"{step}: `run_filter` keeping every epoch against the last only",
+            f"{times(kept)} ({last:.0f} → {everything:.0f} ns per step)",
+            f"≤ {OUTPUT_TARGET:g}×",
+            kept <= OUTPUT_TARGET,
+            command,
+            kept,
+            "x",
+        )
+    )
     return rows
+
+
+#: Keeping every epoch's estimate and σ against the last epoch only (issue 59).
+OUTPUT_TARGET = 1.5
 
 
 def smoother_json(*argv: str) -> dict:

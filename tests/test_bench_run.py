@@ -109,6 +109,16 @@ def test_each_verdict_agrees_with_its_number_and_target(quick):
     assert judged >= 5  # Mehra, threads, the covariance step, the two loops, the dataset
 
 
+def test_the_output_row_divides_the_every_epoch_pass_by_the_last_only_one(quick):
+    _, record, _ = quick
+    rows = {r["what"]: r for r in record["rows"]}
+    step = "0.1 s covariance step: `run_filter`, 0.1 h at 100 Hz, 1 Hz DVL"
+    last, every = rows[f"{step}, last epoch kept"], rows[f"{step}, every epoch kept"]
+    ratio = rows["0.1 s covariance step: `run_filter` keeping every epoch against the last only"]
+    assert ratio["value"] == pytest.approx(every["value"] / last["value"], rel=1e-9)
+    assert ratio["target"] == "≤ 1.5×"
+
+
 def test_pyins_row_is_skipped_cleanly_without_pyins(quick):
     _, record, _ = quick
     (row,) = [r for r in record["rows"] if r["what"].startswith("pyins")]
