@@ -192,6 +192,22 @@ class FilterResult:
     streams: tuple[StreamResult, ...] = ()
     health: PassHealth = field(default_factory=PassHealth)
 
+    def rows_of(self, epochs: ArrayLike) -> NDArray[np.intp]:
+        """The rows of the per-epoch arrays (``time``, ``lla``, ...) that hold the epochs
+        ``epochs`` (indices among all epochs, as :attr:`dvl_epoch` counts), in a pass
+        with every epoch kept or thinned (:attr:`epoch`); ``ValueError`` for an epoch
+        the result does not keep."""
+        e = np.asarray(epochs, dtype=np.int64)
+        if self.epoch.size == 0:  # every epoch kept: row j is epoch j
+            rows = e.astype(np.intp)
+            missing = (rows < 0) | (rows >= len(self.time))
+        else:
+            rows = np.minimum(np.searchsorted(self.epoch, e), len(self.epoch) - 1)
+            missing = self.epoch[rows] != e
+        if missing.any():
+            raise ValueError(f"epochs: epoch {int(e[missing][0])} is not kept in this result")
+        return rows
+
     def to_dataframe(self, rows: Literal["epochs", "updates"] = "epochs"):  # -> pd.DataFrame
         """The result as a pandas table, SI units as the attributes.
 

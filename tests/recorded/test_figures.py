@@ -13,6 +13,8 @@ import pytest
 from pronet.learn.hybrid import ConstantRegressor
 from pronet.recorded import alignment, figures, real
 from pronet.recorded.alignment import align, estimate_alignment
+from pronet.recorded.metrics import section_metrics
+from pronet.recorded.runs import kept_for_tables
 from pronet.recorded.tuning import real_filter_config
 
 from synthetic_recording import synthetic_recording
@@ -83,6 +85,34 @@ def test_the_curves_hold_what_the_figures_show(ran):
         assert filled.any() and np.all(filled[np.argmax(filled) :])
         assert np.all(acc[filled] >= 0) and np.all(gyro[filled] >= 0)
     assert adaptive
+
+
+def test_a_row_kept_for_the_tables_scores_and_draws_as_the_whole(ran):
+    """Issue 59 (memory): a row thinned to the epochs the tables read keeps a fraction
+    of them, gives the same metrics bit for bit, finds each update's epoch, and draws
+    the same velocity error and Mehra's q at the same instants."""
+    section, done, _ = ran
+    imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
+    thin = [kept_for_tables(r, section) for r in done.runs]
+    for whole, kept in zip(done.runs, thin, strict=True):
+        r, k = whole.result, kept.result
+        assert len(k.time) < len(r.time) / 4 and k.smoothed is None
+        assert section_metrics(section, k) == section_metrics(section, r)
+        applied = r.dvl_epoch[r.dvl_epoch >= 0]
+        np.testing.assert_array_equal(k.time[k.rows_of(applied)], r.time[applied])
+        assert kept_for_tables(kept, section) is kept  # already thinned
+    with pytest.raises(ValueError, match="^epochs: epoch 1 is not kept"):
+        thin[0].result.rows_of([1])
+    constants = done.constants[section.name]
+    a = figures.section_curves(section, done.runs, constants, imu_dt)
+    b = figures.section_curves(section, thin, constants, imu_dt)
+    for (_, t1, dv1), (_, t2, dv2) in zip(a.velocity_error, b.velocity_error, strict=True):
+        np.testing.assert_array_equal(t1, t2)
+        np.testing.assert_array_equal(dv1, dv2)
+    for (l1, t1, acc1, _), (l2, t2, acc2, _) in zip(a.q, b.q, strict=True):
+        assert l1 == l2
+        np.testing.assert_array_equal(t1, t2)
+        np.testing.assert_allclose(acc1, acc2, rtol=1e-9)
 
 
 def test_figures_drawn_in_a_worker_are_the_ones_drawn_here(ran, tmp_path):

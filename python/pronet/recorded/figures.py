@@ -117,9 +117,12 @@ def _q_used(
     if np.isfinite(r.adaptive_q).any():
         applied = r.dvl_epoch >= 0
         qd = r.adaptive_q[applied]
-        scale = 3 * imu_dt * float(np.median(np.diff(r.time)))
+        steps = np.diff(r.time)  # between consecutive epochs (of those kept, if thinned)
+        if r.epoch.size:
+            steps = steps[np.diff(r.epoch) == 1]
+        scale = 3 * imu_dt * float(np.median(steps))
         return (
-            r.time[r.dvl_epoch[applied]],
+            r.time[r.rows_of(r.dvl_epoch[applied])],
             np.trace(qd[:, 3:6, 3:6], axis1=1, axis2=2) / scale,
             np.trace(qd[:, 6:9, 6:9], axis1=1, axis2=2) / scale,
         )

@@ -20,7 +20,7 @@ from pronet._util.validate import flag, scalar
 from pronet.recorded.aiding import AidingTuning, filter_aiding, tuned, tuned_heading
 from pronet.recorded.alignment import Section, no_truth
 from pronet.recorded.metrics import section_metrics
-from pronet.recorded.runs import SectionRun
+from pronet.recorded.runs import SectionRun, kept_for_tables
 from pronet.run import Recorded, run
 from pronet.strategies import StrategyLike
 
@@ -180,6 +180,7 @@ def evaluate_section(
     on_done: Callable[[str], None] | None = None,
     smooth: bool = False,
     failed: dict[str, str] | None = None,
+    thin: bool = False,
 ) -> tuple[list[SectionRun], SectionRun | None]:
     """Every strategy on ``section`` with ``config``, the first strategy with each of
     ``variants``' configs (by row label), and the pure-inertial run over the first
@@ -191,13 +192,18 @@ def evaluate_section(
     core, which gives its time). A dict isolates the rows instead: a row whose pass
     raises is left out and its reason kept there by label, the others still run (the
     inertial run then None if it failed); a smoothed pass that fails is run again
-    without the smoother, so that only its smoothed row fails."""
+    without the smoother, so that only its smoothed row fails.
+
+    ``thin``: each row's result is kept at the epochs the tables and figures read only
+    (:func:`pronet.recorded.runs.kept_for_tables`: the same metrics, a fraction of the
+    memory), once its smoothed row, if any, has been made."""
     first = next(iter(strategies.values()))
     rows = [(label, chosen, config) for label, chosen in strategies.items()]
     rows += [(label, first, cfg) for label, cfg in (variants or {}).items()]
     runs = []
     for label, chosen, cfg in rows:
-        runs += _row(section, (label, chosen, cfg), setup, smooth, failed)
+        done = _row(section, (label, chosen, cfg), setup, smooth, failed)
+        runs += [kept_for_tables(r, section) for r in done] if thin else done
         if on_done is not None:
             on_done(label)
     inertial = isolated_run(

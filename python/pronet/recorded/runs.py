@@ -1,6 +1,7 @@
 """What a ``pronet real`` run produced, as plain records: one strategy on one section
-(:class:`SectionRun`), a section's DVL noise estimates (:class:`SectionDvlNoise`) and
-every run of :func:`pronet.recorded.real.run_real` (:class:`RealRuns`).
+(:class:`SectionRun`, and :func:`kept_for_tables`, it thinned to what the tables read),
+a section's DVL noise estimates (:class:`SectionDvlNoise`) and every run of
+:func:`pronet.recorded.real.run_real` (:class:`RealRuns`).
 
 They live apart from the code that makes them so that the tables
 (:mod:`pronet.recorded.tables`) and figures (:mod:`pronet.recorded.figures`) read them
@@ -9,7 +10,9 @@ without importing the run itself.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+
+import numpy as np
 
 from pronet.filter import FilterResult
 from pronet.learn.hybrid import QSchedule
@@ -35,6 +38,42 @@ class SectionRun:
     schedule: QSchedule | None
     seconds: float
     tuning_period: float | None = None
+
+
+def kept_for_tables(run: SectionRun, section: Section) -> SectionRun:
+    """``run`` with its result thinned to the epochs the tables and figures of ``pronet
+    real`` read, so that a section's rows do not each hold every epoch (300,000 epochs
+    of a 25-minute 200 Hz recording are ~110 MB a row): the two epochs around each of
+    ``section``'s truth rows and their neighbours (the metrics interpolate between them:
+    the same numbers), every epoch a stream's row was applied at, the first and the
+    last. Its :attr:`~pronet.filter.FilterResult.epoch` names the epochs kept; the
+    smoothed solution is dropped (its row is a run of its own). A result already
+    thinned is returned as it is."""
+    r = run.result
+    n = len(r.time)
+    if r.epoch.size or n < 3:
+        return run
+    t = section.truth_time[(section.truth_time > r.time[0]) & (section.truth_time <= r.time[-1])]
+    around = np.searchsorted(r.time, t)[:, None] + np.arange(-2, 2)
+    applied = [e for e in (r.dvl_epoch, r.depth_epoch, r.fix_epoch, r.covariance_epoch)]
+    applied += [s.epoch for s in r.streams]
+    keep = np.unique(np.concatenate([around.ravel(), *applied, [0, n - 1]]).astype(np.int64))
+    keep = keep[(keep >= 0) & (keep < n)]
+    calibrated = len(r.calibration) == n
+    thin = replace(
+        r,
+        time=r.time[keep],
+        lla=r.lla[keep],
+        vel=r.vel[keep],
+        rpy=r.rpy[keep],
+        bias=r.bias[keep],
+        sigma=r.sigma[keep],
+        calibration=r.calibration[keep] if calibrated else r.calibration,
+        calibration_sigma=r.calibration_sigma[keep] if calibrated else r.calibration_sigma,
+        epoch=keep,
+        smoothed=None,
+    )
+    return replace(run, result=thin)
 
 
 @dataclass(frozen=True)
