@@ -15,7 +15,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import closing, nullcontext
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -27,11 +27,8 @@ from pronet.filter import FilterResult
 from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import (
     AIDING_CLOCKS,
-    NO_TRUTH_FOR_REAL,
     Format,
     Section,
-    load_section,
-    section_name,
     select_sections,
 )
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
@@ -40,11 +37,11 @@ from pronet.recorded.figures import FigurePool
 from pronet.recorded.heading import check_declination
 from pronet.recorded.passes import (
     STOP,
-    aided_section,
     evaluate_section,
     run_section,
     section_recorded,
 )
+from pronet.recorded.reading import read_sections
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
 from pronet.recorded.tables import (
     STAMPED,
@@ -484,7 +481,7 @@ def run_real(
         regressors[f"learned:{model}"] = load_model_file(model)
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
-    loaded, unread = _read_sections(
+    loaded, unread = read_sections(
         paths, fmt, (imu_arm, read_arm), (aiding_clock, declination), aiding, on_done
     )
     if not loaded:  # nothing to run: the first reason, before any filter
@@ -535,55 +532,3 @@ def run_real(
                     on_start(len(done.sections), "section", "plots")
                 figures.write(tmp, [a.name for a, _ in done.sections], on_done)
     return folder
-
-
-def _read_sections(
-    paths: Sequence[Path],
-    fmt: Format,
-    arms: tuple[tuple[float, float, float], tuple[float, float, float] | None],
-    clock_declination: tuple[str, float | None],
-    aiding: AidingTuning,
-    on_done: Callable[[str], None] | None,
-) -> tuple[list[tuple[Section, Section]], dict[str, str]]:
-    """Every section under ``paths`` read and aligned on the usable cores, in order, with
-    the streams ``aiding`` leaves (``--no-dvl``/``--no-depth``/``--no-fixes``/
-    ``--no-heading``) and their σ: the sections read, and the reason (naming the file)
-    for each one that could not be (or has no ground truth to score against), by
-    section name. ``arms``: the IMU's and the DVL's lever arm [m, body FRD], the DVL's
-    None where its readings go unused; ``clock_declination``: the depth, fixes and
-    heading's clock and a magnetic heading's declination [deg]."""
-
-    def read(path: Path) -> tuple[Section, Section] | str:
-        try:
-            return load_section(
-                path,
-                fmt,
-                imu_lever_arm=arms[0],
-                dvl_lever_arm=arms[1],
-                aiding_clock=clock_declination[0],
-                declination=clock_declination[1],
-                read_heading=aiding.use_heading,
-            )
-        except (ValueError, OSError) as exc:  # the reason (it names the file)
-            return str(exc)
-
-    loaded: list[tuple[Section, Section]] = []
-    unread: dict[str, str] = {}
-    with (
-        ThreadPoolExecutor(max_workers=usable_cores()) as pool,
-        closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
-    ):  # closed however the loop ends: the reads not yet started are cancelled
-        for path, section in zip(paths, reading, strict=True):  # in order
-            try:
-                if isinstance(section, str):
-                    raise ValueError(section)
-                if not section[0].has_truth:
-                    raise ValueError(f"no ground truth: {NO_TRUTH_FOR_REAL}")
-                loaded.append(
-                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
-                )
-            except ValueError as exc:
-                unread[section_name(path)] = str(exc)
-            if on_done is not None:
-                on_done(path.name)
-    return loaded, unread
