@@ -36,8 +36,10 @@ from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool
 from pronet.recorded.heading import check_declination
 from pronet.recorded.passes import (
+    NOT_ISOLATED,
     STOP,
     evaluate_section,
+    failure_reason,
     run_section,
     section_recorded,
 )
@@ -220,13 +222,14 @@ def run_sections(
     soon as a section's strategy rows are done, with the q of its constant rows (the
     figures start from it).
 
-    A row whose filter raises ValueError (a numerical failure: the core gives its time)
-    is left out and its reason kept in :attr:`RealRuns.rows_failed`; the section's
-    other rows still run (a smoothed row failing alone keeps its filter's row). A
-    section that raises ValueError otherwise, or none of whose strategy rows ran, is
-    left out and its reason kept in :attr:`RealRuns.failed` (after ``failed``: the
-    sections that could not even be read); the others still run. Raises ValueError
-    naming the section when none is left.
+    A row whose pass raises (a numerical failure: the core gives its time; or any other
+    ``Exception``, e.g. a user's model's, named with its type) is left out and its reason
+    kept in :attr:`RealRuns.rows_failed`; the section's other rows still run (a smoothed
+    row failing alone keeps its filter's row). A section that raises otherwise, or none
+    of whose strategy rows ran, is left out and its reason kept in
+    :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
+    read); the others still run. Only :data:`~pronet.recorded.passes.NOT_ISOLATED`
+    ends the run. Raises ValueError naming the section when none is left.
     """
     workers = threads if threads is not None else usable_cores()
     lock = threading.Lock()
@@ -243,8 +246,10 @@ def run_sections(
                 pair[0], models, tuning_period, dvl_noise, formulation, base, covariance_step
             )
             ran = _run_one_section(pair[0], pair[1], plan, done, smooth)
-        except ValueError as exc:  # the reason, kept beside the section's name
-            return str(exc)
+        except NOT_ISOLATED:
+            raise
+        except Exception as exc:  # the reason, kept beside the section's name
+            return failure_reason(exc)
         if on_section is not None:
             on_section(pair[0], ran.runs, ran.constants)
         return ran
@@ -347,8 +352,10 @@ def _run_one_section(
     stamped_run: SectionRun | None = None
     try:
         stamped_run = run_section(stamped, first, config, label=label, setup=STAMPED)
-    except ValueError as exc:  # a row like the others: failed alone
-        failed[label] = str(exc)
+    except NOT_ISOLATED:
+        raise
+    except Exception as exc:  # a row like the others: failed alone
+        failed[label] = failure_reason(exc)
     try:
         truth: TruthCalibration | str = truth_calibration(aligned)
     except ValueError as exc:  # a section too short or too slow: the reason, in config.json
