@@ -348,3 +348,41 @@ def test_pronet_navigate_names_a_strategy_raising_any_exception_in_one_line(
         navigate_recording(folder, "generic", tuning, lever_arms(tuning), options)
     assert isinstance(caught.value.__cause__, RuntimeError)
     assert caught.value.__cause__.__traceback__ is not None
+
+
+# ------------------------------------------------------------- a figure that fails
+
+
+def test_a_figure_that_fails_is_one_line_and_everything_else_is_written(
+    tmp_path, monkeypatch, capsys
+):
+    """One section's track cannot be drawn (its curves broken: the worker raises):
+    before, the worker's traceback ended ``pronet real`` and the result folder, tables
+    and ``config.json`` included, was never written. Now one line names the section,
+    the figure and the worker's error; the tables, ``config.json`` (``figures_failed``)
+    and the other figures are written; exit 0 (partial results)."""
+    from pronet.recorded import figures
+
+    original = figures.section_curves
+
+    def section_curves(section, *args):
+        curves = original(section, *args)
+        return replace(curves, track=[]) if section.name == "survey0" else curves
+
+    monkeypatch.setattr(figures, "section_curves", section_curves)
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, 0)
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    assert main([*argv, "--quiet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    reason = "ValueError: not enough values to unpack (expected at least 1, got 0)"
+    line = f"pronet: section survey0: figure track_survey0.png: {reason} (not written)"
+    assert [x for x in err.splitlines() if "figure" in x] == [line]
+    config = json.loads((out / "config.json").read_text())
+    assert config["figures_failed"] == {"survey0": {"track_survey0.png": reason}}
+    assert config["sections"] == ["survey0"] and config["rows_failed"] == {}
+    written = {p.name for p in out.iterdir()}
+    assert {"table.md", "metrics.csv", "metrics.json", "config.json"} <= written
+    assert {"velocity_error_survey0.png", "q_survey0.png"} <= written
+    assert "track_survey0.png" not in written

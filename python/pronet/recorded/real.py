@@ -416,7 +416,9 @@ def run_real(
         plots: False: no plots (the tables and metrics only). The figures are drawn
             in worker processes (:class:`pronet.recorded.figures.FigurePool`) while the other
             sections are filtered; on the Snapir data they add about half to the run
-            time (9.4 s against 6.3 s on 2 cores).
+            time (9.4 s against 6.3 s on 2 cores). A figure that cannot be drawn is
+            left out, its error in ``config.json``'s ``figures_failed`` (by section
+            and file); the tables and the other figures are written.
         dvl_noise: the DVL noise R of the strategy rows, one of
             :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`: ``"datasheet"``
             (:data:`pronet.recorded.tuning.REAL_DVL_VARIANCE`) or ``"data"`` (each section's
@@ -533,9 +535,14 @@ def run_real(
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))
-            (tmp / "config.json").write_bytes(json_bytes(config))
+            not_drawn: dict[str, dict[str, Exception]] = {}
             if figures is not None:
                 if on_start is not None:
                     on_start(len(done.sections), "section", "plots")
-                figures.write(tmp, [a.name for a, _ in done.sections], on_done)
+                not_drawn = figures.write(tmp, [a.name for a, _ in done.sections], on_done)
+            config["figures_failed"] = {
+                name: {file: str(error) for file, error in by.items()}
+                for name, by in not_drawn.items()
+            }  # after the figures: a figure failing leaves the rest of the folder
+            (tmp / "config.json").write_bytes(json_bytes(config))
     return folder
