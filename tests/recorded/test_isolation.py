@@ -386,3 +386,54 @@ def test_a_figure_that_fails_is_one_line_and_everything_else_is_written(
     assert {"table.md", "metrics.csv", "metrics.json", "config.json"} <= written
     assert {"velocity_error_survey0.png", "q_survey0.png"} <= written
     assert "track_survey0.png" not in written
+
+
+# ------------------------------------------------------- the per-section callback
+
+
+def test_a_section_whose_on_section_raises_fails_alone(pair):
+    """``on_section`` (called as each section's rows are done) raising for one section:
+    before, outside the section's isolation, it ended the run; now that section fails
+    with the hook's error, its type and message, and the other is complete."""
+    aligned, stamped = pair
+    copy = (replace(aligned, name="copy"), replace(stamped, name="copy"))
+    seen = []
+
+    def on_section(section, runs, constants):
+        if section.name == "copy":
+            raise RuntimeError("the hook")
+        seen.append(section.name)
+
+    done = real.run_sections([copy, pair], {}, 1.0, threads=2, on_section=on_section)
+    assert done.failed == {"copy": "on_section: RuntimeError: the hook"}
+    assert seen == ["synthetic"] and {r.section for r in done.runs} == {"synthetic"}
+
+
+def test_pronet_real_s_figure_hook_raising_fails_that_section_s_figures_only(
+    tmp_path, monkeypatch, capsys
+):
+    """The figures' curves of one section cannot be made (``section_curves`` raising, in
+    ``pronet real``'s own ``on_section`` hook): before, the traceback ended the command
+    and nothing was written; now the section's three figures are named as not written,
+    with the error, and its rows, tables and ``config.json`` are written; exit 0."""
+    from pronet.recorded import figures
+
+    def section_curves(section, *args):
+        raise RuntimeError("no curves")
+
+    monkeypatch.setattr(figures, "section_curves", section_curves)
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, 0)
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    assert main([*argv, "--quiet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    reason = "its curves could not be made (RuntimeError: no curves)"
+    files = [f"{kind}_survey0.png" for kind in figures.FIGURES]
+    lines = [f"pronet: section survey0: figure {f}: {reason} (not written)" for f in files]
+    assert [x for x in err.splitlines() if "figure" in x] == lines
+    config = json.loads((out / "config.json").read_text())
+    assert config["figures_failed"] == {"survey0": dict.fromkeys(files, reason)}
+    assert config["sections"] == ["survey0"] and config["failed_sections"] == {}
+    assert not any(p.suffix == ".png" for p in out.iterdir())
+    assert len(json.loads((out / "metrics.json").read_text())) >= 10

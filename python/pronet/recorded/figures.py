@@ -269,10 +269,22 @@ class FigurePool:
         self, aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
     ) -> None:
         """:meth:`submit` the curves of one finished section (:func:`section_curves` at
-        its IMU step): the ``on_section`` hook of :func:`pronet.recorded.real.run_sections`."""
+        its IMU step): the ``on_section`` hook of :func:`pronet.recorded.real.run_sections`.
+        Curves that cannot be made fail the section's figures (:meth:`write` returns
+        them), not its rows: this never raises but ``MemoryError``."""
         from pronet.recorded.tuning import imu_step
 
-        self.submit(section_curves(aligned, runs, constants, imu_step(aligned.imu_time)))
+        try:
+            curves = section_curves(aligned, runs, constants, imu_step(aligned.imu_time))
+        except MemoryError:
+            raise
+        except Exception as exc:
+            why = f"its curves could not be made ({type(exc).__name__}: {exc})"
+            self._figures[aligned.name] = [Future[bytes]() for _ in FIGURES]
+            for figure in self._figures[aligned.name]:
+                figure.set_exception(RuntimeError(why))
+            return
+        self.submit(curves)
 
     def write(
         self,

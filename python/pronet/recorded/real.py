@@ -225,11 +225,12 @@ def run_sections(
     A row whose pass raises (a numerical failure: the core gives its time; or any other
     ``Exception``, e.g. a user's model's, named with its type) is left out and its reason
     kept in :attr:`RealRuns.rows_failed`; the section's other rows still run (a smoothed
-    row failing alone keeps its filter's row). A section that raises otherwise, or none
-    of whose strategy rows ran, is left out and its reason kept in
-    :attr:`RealRuns.failed` (after ``failed``: the sections that could not even be
-    read); the others still run. Only :data:`~pronet.recorded.passes.NOT_ISOLATED`
-    ends the run. Raises ValueError naming the section when none is left.
+    row failing alone keeps its filter's row). A section that raises otherwise, none of
+    whose strategy rows ran, or whose ``on_section`` raised (``"on_section: <type>:
+    <message>"``), is left out and its reason kept in :attr:`RealRuns.failed` (after
+    ``failed``: the sections that could not even be read); the others still run. Only
+    :data:`~pronet.recorded.passes.NOT_ISOLATED` ends the run. Raises ValueError naming
+    the section when none is left.
     """
     workers = threads if threads is not None else usable_cores()
     lock = threading.Lock()
@@ -251,7 +252,12 @@ def run_sections(
         except Exception as exc:  # the reason, kept beside the section's name
             return failure_reason(exc)
         if on_section is not None:
-            on_section(pair[0], ran.runs, ran.constants)
+            try:
+                on_section(pair[0], ran.runs, ran.constants)
+            except NOT_ISOLATED:
+                raise
+            except Exception as exc:  # the caller's hook: this section fails, not the run
+                return f"on_section: {failure_reason(exc)}"
         return ran
 
     stop = threading.Event()
