@@ -16,7 +16,7 @@ from collections.abc import Callable
 import pytest
 
 from pronet import _core
-from pronet.recorded import alignment, real
+from pronet.recorded import alignment, reading, real
 
 from synthetic_recording import synthetic_recording
 
@@ -302,7 +302,7 @@ def test_ctrl_c_while_sections_are_read_cancels_the_reads_not_started(
 
     paths = [Path(f"/nowhere/s{i}") for i in range(16)]
     monkeypatch.setattr(real, "select_sections", lambda data, names: paths)
-    monkeypatch.setattr(real, "load_section", slow_load)
+    monkeypatch.setattr(reading, "load_section", slow_load)
     began = time.monotonic()
     with pytest.raises(KeyboardInterrupt):
         real.run_real("/nowhere", tmp_path / "out", use_models=False, plots=False, on_done=on_done)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import signal
+import threading
 from dataclasses import replace
 
 import numpy as np
@@ -213,19 +214,66 @@ def test_png_bytes_drop_alpha_only_where_every_pixel_is_opaque():
     assert modes == ["RGB", "RGBA"]
 
 
-def test_a_worker_error_is_raised_with_its_traceback(ran, tmp_path):
+def _curves(ran):
     section, done, _ = ran
     imu_dt = real_filter_config((0.0, 0.0, 0.0)).imu_dt
-    curves = figures.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+    return figures.section_curves(section, done.runs, done.constants[section.name], imu_dt)
+
+
+def test_a_worker_error_fails_its_figure_alone_with_its_traceback_kept(ran, tmp_path):
+    """A figure the worker cannot draw: before, ``write`` raised (the caller's result
+    folder lost with it); now the figure is returned as failed, its reason the worker
+    exception's last line and its whole traceback kept on it, and the section's other
+    figures are written; the worker goes on with the next."""
+    curves = _curves(ran)
     broken = replace(curves, name="broken", track=[])  # no truth line to draw
     with figures.FigurePool(1) as pool:
         pool.submit(broken)
-        with pytest.raises(RuntimeError, match="ValueError"):
-            pool.write(tmp_path, ["broken"])
+        failed = pool.write(tmp_path, ["broken"])
         pool.submit(curves)  # the worker goes on with the next figure
-        pool.write(tmp_path, ["sec"])
+        assert pool.write(tmp_path, ["sec"]) == {}
+    [(file, error)] = failed["broken"].items()
+    assert list(failed) == ["broken"] and file == "track_broken.png"
+    assert str(error) == "ValueError: not enough values to unpack (expected at least 1, got 0)"
+    assert isinstance(error, figures.FigureError) and "Traceback" in error.traceback
     assert (tmp_path / "q_sec.png").read_bytes().startswith(PNG)
     assert not (tmp_path / "track_broken.png").exists()
+    assert (tmp_path / "q_broken.png").read_bytes().startswith(PNG)
+
+
+def test_a_worker_that_dies_fails_its_figures_without_raising(ran, tmp_path):
+    """A worker killed (the OOM killer, say) before it draws: before, ``write`` raised;
+    now each of the section's figures is returned as failed, named."""
+    pool = figures.FigurePool(1)
+    with pool:
+        pool._workers[0].kill()
+        pool._workers[0].wait()
+        pool.submit(_curves(ran))
+        failed = pool.write(tmp_path, ["sec"])
+    assert sorted(failed["sec"]) == ["q_sec.png", "track_sec.png", "velocity_error_sec.png"]
+    assert all(str(e).startswith("the figure worker stopped") for e in failed["sec"].values())
+
+
+def test_curves_that_cannot_be_sent_fail_their_figures_instead_of_hanging(ran, tmp_path):
+    """Curves a worker cannot be sent (pickling fails in the pool's feeder thread):
+    before, the feeder thread died and ``write`` waited forever; now those figures
+    fail with the reason and the next section's are drawn."""
+    curves = _curves(ran)
+    unsent = replace(curves, name="unsent", q=[("q", lambda: 0, None, None)])
+    done: list[dict] = []
+    with figures.FigurePool(1) as pool:
+        pool.submit(unsent)
+        pool.submit(curves)
+        writer = threading.Thread(
+            target=lambda: done.append(pool.write(tmp_path, ["unsent", "sec"])), daemon=True
+        )
+        writer.start()
+        writer.join(60)
+        assert not writer.is_alive(), "write hangs"
+    [failed] = done
+    assert list(failed) == ["unsent"] and len(failed["unsent"]) == 3
+    assert all("cannot be sent" in str(e) for e in failed["unsent"].values())
+    assert (tmp_path / "track_sec.png").read_bytes().startswith(PNG)
 
 
 def test_leaving_on_an_error_kills_the_workers_mid_queue(ran):

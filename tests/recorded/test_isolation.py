@@ -226,3 +226,214 @@ def test_64_corrupt_bytes_anywhere_are_a_recording_error_naming_the_bag(tmp_path
                 read_recording(path, topics)
         except RecordingError as exc:
             assert str(exc).startswith(str(path)), (start, exc)
+
+
+# ------------------------------------------------ a row raising any other exception
+
+
+#: What a user's own torch model raises on a window it was not built for.
+SHAPES = "mat1 and mat2 shapes cannot be multiplied (64x6 and 7x32)"
+
+
+class _Broken:
+    """A user's own model (a regressor) whose ``predict`` raises a ``RuntimeError``."""
+
+    def predict(self, windows):
+        raise RuntimeError(SHAPES)
+
+
+def test_a_row_raising_any_exception_fails_alone_with_its_type(pair):
+    """A ``RuntimeError`` from a user's model in one row (its own row and, with
+    ``smooth``, its smoothed row): before, it ended every section; now the row fails
+    alone, its reason the exception's type and message, and every other row is there."""
+    done = real.run_sections([pair], {"learned:mine": _Broken()}, 1.0, threads=1, smooth=True)
+    reason = f"RuntimeError: {SHAPES}"
+    assert done.rows_failed == {
+        "synthetic": {"learned:mine": reason, "learned:mine, smoothed": reason}
+    }
+    labels = {r.label for r in done.runs}
+    assert "constant (estimated q)" in labels and "constant (estimated q), smoothed" in labels
+    assert not any("learned:mine" in label for label in labels) and done.failed == {}
+
+
+def test_a_section_raising_any_exception_is_a_failed_section(pair, monkeypatch):
+    """A ``RuntimeError`` while one section is planned (a bug, say): before, the
+    traceback ended the run; now the section fails with the type and message and the
+    other runs. A ``MemoryError`` still ends the run (the CLI's one line "out of
+    memory"), as the stop of a Ctrl-C does."""
+    aligned, stamped = pair
+    copy = (replace(aligned, name="copy"), replace(stamped, name="copy"))
+    original = real.plan_section
+
+    def plan_section(section, *args, **kw):
+        if section.name == "copy":
+            raise RuntimeError("a bug")
+        return original(section, *args, **kw)
+
+    monkeypatch.setattr(real, "plan_section", plan_section)
+    done = real.run_sections([copy, pair], {}, 1.0, threads=2)
+    assert done.failed == {"copy": "RuntimeError: a bug"}
+    assert {r.section for r in done.runs} == {"synthetic"}
+
+    def out_of_memory(section, *args, **kw):
+        raise MemoryError
+
+    monkeypatch.setattr(real, "plan_section", out_of_memory)
+    with pytest.raises(MemoryError):
+        real.run_sections([pair], {}, 1.0, threads=1)
+
+
+def _mine(monkeypatch) -> None:
+    """Make a model file ``mine.pronet`` load as :class:`_Broken` (a user's model)."""
+    from pronet.learn import qmodels
+
+    original = qmodels.load_model_file
+    monkeypatch.setattr(
+        qmodels,
+        "load_model_file",
+        lambda path: _Broken() if str(path) == "mine.pronet" else original(path),
+    )
+
+
+def test_pronet_real_names_a_row_raising_any_exception_and_writes_the_others(
+    tmp_path, monkeypatch, capsys
+):
+    """``pronet real --model mine.pronet`` whose model raises a ``RuntimeError``: before,
+    a traceback and no result folder; now one line naming the section, the row, the
+    type and the message, the row in ``table.md`` and ``config.json``, every other
+    row written; exit 0 (partial results)."""
+    _mine(monkeypatch)
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, 0)
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    argv += ["--model", "mine.pronet", "--no-plots", "--quiet", "--out", str(out)]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    reason = f"RuntimeError: {SHAPES}"
+    line = f"pronet: section survey0: row learned:mine.pronet: {reason} (left out; see table.md)"
+    assert line in err.splitlines()
+    config = json.loads((out / "config.json").read_text())
+    assert config["rows_failed"] == {"survey0": {"learned:mine.pronet": reason}}
+    assert f"| survey0 | learned:mine.pronet | {reason} |" in (out / "table.md").read_text()
+    records = json.loads((out / "metrics.json").read_text())
+    assert sum(r["failed_runs"] == 0 and r["srmse"] > 0 for r in records) >= 8
+
+
+def test_pronet_navigate_names_a_strategy_raising_any_exception_in_one_line(
+    tmp_path, monkeypatch, capsys
+):
+    """``pronet navigate --strategy learned:mine.pronet`` whose model raises a
+    ``RuntimeError``: before, a traceback; now one line naming the strategy, the type
+    and the message, exit 2 (its one row failed: nothing to write); through the API
+    the ``ValueError`` keeps the model's own error, traceback included, as its cause."""
+    from mission_recording import write_vehicle_file
+
+    from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate_recording
+    from pronet.recorded.vehicle import load_vehicle
+
+    _mine(monkeypatch)
+    m = simulate_mission(0, minutes=3.0)
+    folder = write_generic(m, tmp_path / "mission", truth=True)
+    vehicle = write_vehicle_file(tmp_path, m)
+    argv = ["navigate", "--data", str(folder), "--filter", str(vehicle), "--init", "truth"]
+    argv += ["--strategy", "learned:mine.pronet", "--no-plots", "--quiet"]
+    assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err == f"pronet: strategy 'learned:mine.pronet': RuntimeError: {SHAPES}\n"
+    assert not (tmp_path / "out").exists()
+    tuning = load_vehicle(vehicle)
+    options = NavigateOptions(init="truth", strategy="learned:mine.pronet")
+    with pytest.raises(ValueError, match="RuntimeError") as caught:
+        navigate_recording(folder, "generic", tuning, lever_arms(tuning), options)
+    assert isinstance(caught.value.__cause__, RuntimeError)
+    assert caught.value.__cause__.__traceback__ is not None
+
+
+# ------------------------------------------------------------- a figure that fails
+
+
+def test_a_figure_that_fails_is_one_line_and_everything_else_is_written(
+    tmp_path, monkeypatch, capsys
+):
+    """One section's track cannot be drawn (its curves broken: the worker raises):
+    before, the worker's traceback ended ``pronet real`` and the result folder, tables
+    and ``config.json`` included, was never written. Now one line names the section,
+    the figure and the worker's error; the tables, ``config.json`` (``figures_failed``)
+    and the other figures are written; exit 0 (partial results)."""
+    from pronet.recorded import figures
+
+    original = figures.section_curves
+
+    def section_curves(section, *args):
+        curves = original(section, *args)
+        return replace(curves, track=[]) if section.name == "survey0" else curves
+
+    monkeypatch.setattr(figures, "section_curves", section_curves)
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, 0)
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    assert main([*argv, "--quiet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    reason = "ValueError: not enough values to unpack (expected at least 1, got 0)"
+    line = f"pronet: section survey0: figure track_survey0.png: {reason} (not written)"
+    assert [x for x in err.splitlines() if "figure" in x] == [line]
+    config = json.loads((out / "config.json").read_text())
+    assert config["figures_failed"] == {"survey0": {"track_survey0.png": reason}}
+    assert config["sections"] == ["survey0"] and config["rows_failed"] == {}
+    written = {p.name for p in out.iterdir()}
+    assert {"table.md", "metrics.csv", "metrics.json", "config.json"} <= written
+    assert {"velocity_error_survey0.png", "q_survey0.png"} <= written
+    assert "track_survey0.png" not in written
+
+
+# ------------------------------------------------------- the per-section callback
+
+
+def test_a_section_whose_on_section_raises_fails_alone(pair):
+    """``on_section`` (called as each section's rows are done) raising for one section:
+    before, outside the section's isolation, it ended the run; now that section fails
+    with the hook's error, its type and message, and the other is complete."""
+    aligned, stamped = pair
+    copy = (replace(aligned, name="copy"), replace(stamped, name="copy"))
+    seen = []
+
+    def on_section(section, runs, constants):
+        if section.name == "copy":
+            raise RuntimeError("the hook")
+        seen.append(section.name)
+
+    done = real.run_sections([copy, pair], {}, 1.0, threads=2, on_section=on_section)
+    assert done.failed == {"copy": "on_section: RuntimeError: the hook"}
+    assert seen == ["synthetic"] and {r.section for r in done.runs} == {"synthetic"}
+
+
+def test_pronet_real_s_figure_hook_raising_fails_that_section_s_figures_only(
+    tmp_path, monkeypatch, capsys
+):
+    """The figures' curves of one section cannot be made (``section_curves`` raising, in
+    ``pronet real``'s own ``on_section`` hook): before, the traceback ended the command
+    and nothing was written; now the section's three figures are named as not written,
+    with the error, and its rows, tables and ``config.json`` are written; exit 0."""
+    from pronet.recorded import figures
+
+    def section_curves(section, *args):
+        raise RuntimeError("no curves")
+
+    monkeypatch.setattr(figures, "section_curves", section_curves)
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, 0)
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    assert main([*argv, "--quiet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    reason = "its curves could not be made (RuntimeError: no curves)"
+    files = [f"{kind}_survey0.png" for kind in figures.FIGURES]
+    lines = [f"pronet: section survey0: figure {f}: {reason} (not written)" for f in files]
+    assert [x for x in err.splitlines() if "figure" in x] == lines
+    config = json.loads((out / "config.json").read_text())
+    assert config["figures_failed"] == {"survey0": dict.fromkeys(files, reason)}
+    assert config["sections"] == ["survey0"] and config["failed_sections"] == {}
+    assert not any(p.suffix == ".png" for p in out.iterdir())
+    assert len(json.loads((out / "metrics.json").read_text())) >= 10

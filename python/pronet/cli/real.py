@@ -211,10 +211,15 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"pronet: section {name}: row {row}: {reason} (left out; see table.md)", file=sys.stderr
         )
+    not_drawn = config["figures_failed"].items()
+    figures = [(name, file, why) for name, by in not_drawn for file, why in by.items()]
+    for name, file, reason in figures:  # the tables and the other figures are written
+        print(f"pronet: section {name}: figure {file}: {reason} (not written)", file=sys.stderr)
     for note in config["notes"]:  # what the filters know: out-of-band streams, divergence
         print(f"pronet: {note}", file=sys.stderr)
     left_out = f" ({len(failed)} left out)" if failed else ""
     left_out += f" ({len(rows)} rows failed)" if rows else ""
+    left_out += f" ({len(figures)} figures not written)" if figures else ""
     show.result(
         f"{(out / 'table.md').read_text()}\n{n} sections{left_out}; results written to {out} "
         f"in {time.perf_counter() - start:.0f} s",

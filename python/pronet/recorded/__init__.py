@@ -29,6 +29,8 @@ Reading and preparing:
 
 Running and reporting (``pronet real``):
 
+- :mod:`~pronet.recorded.reading`: every section read and aligned side by side, each
+  that cannot be its one-line reason beside the others;
 - :mod:`~pronet.recorded.passes`: one section's filter passes (where a run starts, its
   sensors, one strategy's pass and metrics, the rows of a section);
 - :mod:`~pronet.recorded.real`: every strategy on the sections, the result folder
@@ -85,6 +87,7 @@ __all__ = [
     "online",
     "passes",
     "plausible",
+    "reading",
     "real",
     "recordings",
     "report",

@@ -149,6 +149,17 @@ def figure_name(kind: str, section: str) -> str:
     return f"{kind}_{section}.png"
 
 
+class FigureError(RuntimeError):
+    """A figure a worker could not draw: the message is one line, the last of the
+    worker's traceback (its exception's type and message); :attr:`traceback` is the
+    whole of it."""
+
+    def __init__(self, traceback: str) -> None:
+        lines = [line.strip() for line in traceback.splitlines() if line.strip()]
+        super().__init__(lines[-1] if lines else "the figure worker failed")
+        self.traceback = traceback
+
+
 def default_workers() -> int:
     """:class:`FigurePool`'s default: half the cores this process may use, at least
     one."""
@@ -229,7 +240,13 @@ class FigurePool:
         while (task := self._tasks.get()) is not None:
             kind, curves, figure = task
             try:
-                _send(worker.stdin, pickle.dumps((kind, curves), pickle.HIGHEST_PROTOCOL))
+                request = pickle.dumps((kind, curves), pickle.HIGHEST_PROTOCOL)
+            except Exception as exc:  # nothing sent: the worker goes on with the next
+                why = f"{type(exc).__name__}: {exc}"
+                figure.set_exception(RuntimeError(f"its curves cannot be sent ({why})"))
+                continue
+            try:
+                _send(worker.stdin, request)
                 ok, body = _receive(worker.stdout)
             except (OSError, EOFError) as exc:
                 figure.set_exception(RuntimeError(f"the figure worker stopped ({exc})"))
@@ -237,7 +254,7 @@ class FigurePool:
             if ok:
                 figure.set_result(body)
             else:
-                figure.set_exception(RuntimeError(body.decode("utf-8", "replace")))
+                figure.set_exception(FigureError(body.decode("utf-8", "replace")))
         try:
             worker.stdin.close()
         except OSError:  # a killed worker's pipe
@@ -255,25 +272,48 @@ class FigurePool:
         self, aligned: Section, runs: list[SectionRun], constants: dict[str, tuple[float, ...]]
     ) -> None:
         """:meth:`submit` the curves of one finished section (:func:`section_curves` at
-        its IMU step): the ``on_section`` hook of :func:`pronet.recorded.real.run_sections`."""
+        its IMU step): the ``on_section`` hook of :func:`pronet.recorded.real.run_sections`.
+        Curves that cannot be made fail the section's figures (:meth:`write` returns
+        them), not its rows: this never raises but ``MemoryError``."""
         from pronet.recorded.tuning import imu_step
 
-        self.submit(section_curves(aligned, runs, constants, imu_step(aligned.imu_time)))
+        try:
+            curves = section_curves(aligned, runs, constants, imu_step(aligned.imu_time))
+        except MemoryError:
+            raise
+        except Exception as exc:
+            why = f"its curves could not be made ({type(exc).__name__}: {exc})"
+            self._figures[aligned.name] = [Future[bytes]() for _ in FIGURES]
+            for figure in self._figures[aligned.name]:
+                figure.set_exception(RuntimeError(why))
+            return
+        self.submit(curves)
 
     def write(
         self,
         folder: Path,
         names: list[str],
         on_done: Callable[[str], None] | None = None,
-    ) -> None:
+    ) -> dict[str, dict[str, Exception]]:
         """Wait for the figures of the sections ``names`` (each handed in) and write them
-        into ``folder``, in that order; ``on_done(name)`` after each section. A
-        worker's error is raised here (RuntimeError with its traceback)."""
+        into ``folder``, in that order; ``on_done(name)`` after each section. Returns
+        the figures that could not be drawn, by section and file, each with its error
+        (a one-line message: a worker's :class:`FigureError`, which keeps the worker's
+        traceback, or a RuntimeError saying the worker stopped); the others are
+        written all the same."""
+        failed: dict[str, dict[str, Exception]] = {}
         for name in names:
             for kind, png in zip(FIGURES, self._figures[name], strict=True):
-                atomic_write(folder / figure_name(kind, name), result_of(png))
+                file = figure_name(kind, name)
+                try:
+                    drawn = result_of(png)
+                except Exception as exc:  # this figure alone
+                    failed.setdefault(name, {})[file] = exc
+                    continue
+                atomic_write(folder / file, drawn)
             if on_done is not None:
                 on_done(name)
+        return failed
 
 
 def _send(pipe: IO[bytes], payload: bytes, ok: bool = True) -> None:

@@ -42,7 +42,7 @@ from pronet.recorded.heading import HeadingReadings
 from pronet.recorded.initial import initial_state
 from pronet.recorded.initialinputs import GivenState
 from pronet.recorded.metrics import section_metrics
-from pronet.recorded.passes import start_index
+from pronet.recorded.passes import NOT_ISOLATED, failure_reason, start_index
 from pronet.recorded.solution import F64, InitialState, Navigation, solution_of
 from pronet.recorded.surface import G0, SurfaceOffset, surface_offset
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
@@ -392,7 +392,9 @@ def navigate(
 ) -> Navigation:
     """Navigate ``section`` with ``vehicle``'s tuning, its sensors at ``arms``, as
     ``options`` say (the steps are in the module docstring). ValueError, one line naming
-    what is missing or wrong, before the filter runs."""
+    what is missing or wrong, before the filter runs; from the pass, the core's
+    numerical failure, or any other exception of the strategy's (a user's model) as a
+    ValueError naming the strategy, the type and the message, caused by it."""
     made = setup(section, vehicle, arms, options)
     config, streams, initial = made.config, made.streams, made.initial
     take = section.imu_time > initial.t0
@@ -401,7 +403,14 @@ def navigate(
         dvl_time=streams.dvl_time, t0=initial.t0, lla0=initial.lla, vel0=initial.vel,
         rpy0=initial.rpy, config=config, smooth=options.smooth, aiding=made.aiding,
     )  # fmt: skip
-    result = run(made.strategy, recorded).result
+    try:
+        result = run(made.strategy, recorded).result
+    except ValueError:  # a numerical failure names itself and its time
+        raise
+    except NOT_ISOLATED:
+        raise
+    except Exception as exc:  # e.g. a user's model raising: one line, the cause kept
+        raise ValueError(f"strategy {options.strategy!r}: {failure_reason(exc)}") from exc
     reference = np.negative(arms.imu)
     forward = solution_of("forward", result, section.epoch, recorded.imu, reference)
     smoothed = None

@@ -83,6 +83,25 @@ class Stopped(Exception):
     """A section thread told to stop (the caller is already raising its own error)."""
 
 
+#: What a row or section raising ends the whole run with instead of failing alone: the
+#: stop of a Ctrl-C (:class:`Stopped`) and a refused allocation (``MemoryError``, the
+#: CLI's one line "out of memory"). ``KeyboardInterrupt`` and ``SystemExit`` are no
+#: ``Exception`` and are never caught.
+NOT_ISOLATED: tuple[type[Exception], ...] = (Stopped, MemoryError)
+
+
+def failure_reason(exc: Exception) -> str:
+    """The one line a row or section that raised ``exc`` is reported with: a
+    ``ValueError``'s message (the core's numerical failures give their time), any other
+    exception's type and message (a user's model or estimator raising, or a bug: named,
+    never silent)."""
+    text = " ".join(str(exc).splitlines()).strip()
+    if isinstance(exc, ValueError):
+        return text
+    name = type(exc).__name__
+    return f"{name}: {text}" if text else name
+
+
 def run_section(
     section: Section,
     strategy: StrategyLike,
@@ -188,11 +207,12 @@ def evaluate_section(
     strategy and variant row is followed by its smoothed one (:func:`smoothed_run`; with
     the DVL calibration states all 19 are smoothed).
 
-    ``failed``: None raises the first row's ``ValueError`` (a numerical failure of the
-    core, which gives its time). A dict isolates the rows instead: a row whose pass
-    raises is left out and its reason kept there by label, the others still run (the
-    inertial run then None if it failed); a smoothed pass that fails is run again
-    without the smoother, so that only its smoothed row fails.
+    ``failed``: None raises the first row's error (a ``ValueError`` for a numerical
+    failure of the core, which gives its time). A dict isolates the rows instead: a row
+    whose pass raises (any ``Exception`` but :data:`NOT_ISOLATED`) is left out and its
+    :func:`failure_reason` kept there by label, the others still run (the inertial run
+    then None if it failed); a smoothed pass that fails is run again without the
+    smoother, so that only its smoothed row fails.
 
     ``thin``: each row's result is kept at the epochs the tables and figures read only
     (:func:`pronet.recorded.runs.kept_for_tables`: the same metrics, a fraction of the
@@ -228,13 +248,16 @@ def isolated_run(
     **kwargs: Any,
 ) -> SectionRun | None:
     """:func:`run_section` (``kwargs`` its keywords); with ``failed`` a dict, None when it
-    raises ``ValueError``, the reason kept in ``failed`` under the row's ``label``."""
+    raises (any ``Exception`` but :data:`NOT_ISOLATED`), its :func:`failure_reason`
+    kept in ``failed`` under the row's ``label``."""
     if failed is None:
         return run_section(section, strategy, config, **kwargs)
     try:
         return run_section(section, strategy, config, **kwargs)
-    except ValueError as exc:
-        failed[kwargs.get("label", "")] = str(exc)
+    except NOT_ISOLATED:
+        raise
+    except Exception as exc:  # a user's model or estimator too: its type and message
+        failed[kwargs.get("label", "")] = failure_reason(exc)
         return None
 
 
@@ -252,10 +275,12 @@ def _row(
         try:
             done = run_section(section, chosen, cfg, label=label, setup=setup, smooth=True)
             return [done, smoothed_run(section, done)]
-        except ValueError as exc:
+        except NOT_ISOLATED:
+            raise
+        except Exception as exc:
             if failed is None:
                 raise
-            reason = str(exc)
+            reason = failure_reason(exc)
     alone = isolated_run(failed, section, chosen, cfg, label=label, setup=setup)
     if failed is not None and reason is not None:  # after the row's own, if it failed too
         failed[f"{label}, {SMOOTHED}"] = reason

@@ -15,7 +15,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import closing, nullcontext
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -27,11 +27,8 @@ from pronet.filter import FilterResult
 from pronet.recorded.aiding import AidingTuning
 from pronet.recorded.alignment import (
     AIDING_CLOCKS,
-    NO_TRUTH_FOR_REAL,
     Format,
     Section,
-    load_section,
-    section_name,
     select_sections,
 )
 from pronet.recorded.dvlnoise import MatchedVariance, match_innovations, second_difference_variance
@@ -39,12 +36,14 @@ from pronet.recorded.dvltruth import TruthCalibration, truth_calibration
 from pronet.recorded.figures import FigurePool
 from pronet.recorded.heading import check_declination
 from pronet.recorded.passes import (
+    NOT_ISOLATED,
     STOP,
-    aided_section,
     evaluate_section,
+    failure_reason,
     run_section,
     section_recorded,
 )
+from pronet.recorded.reading import read_sections
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
 from pronet.recorded.tables import (
     STAMPED,
@@ -223,13 +222,15 @@ def run_sections(
     soon as a section's strategy rows are done, with the q of its constant rows (the
     figures start from it).
 
-    A row whose filter raises ValueError (a numerical failure: the core gives its time)
-    is left out and its reason kept in :attr:`RealRuns.rows_failed`; the section's
-    other rows still run (a smoothed row failing alone keeps its filter's row). A
-    section that raises ValueError otherwise, or none of whose strategy rows ran, is
-    left out and its reason kept in :attr:`RealRuns.failed` (after ``failed``: the
-    sections that could not even be read); the others still run. Raises ValueError
-    naming the section when none is left.
+    A row whose pass raises (a numerical failure: the core gives its time; or any other
+    ``Exception``, e.g. a user's model's, named with its type) is left out and its reason
+    kept in :attr:`RealRuns.rows_failed`; the section's other rows still run (a smoothed
+    row failing alone keeps its filter's row). A section that raises otherwise, none of
+    whose strategy rows ran, or whose ``on_section`` raised (``"on_section: <type>:
+    <message>"``), is left out and its reason kept in :attr:`RealRuns.failed` (after
+    ``failed``: the sections that could not even be read); the others still run. Only
+    :data:`~pronet.recorded.passes.NOT_ISOLATED` ends the run. Raises ValueError naming
+    the section when none is left.
     """
     workers = threads if threads is not None else usable_cores()
     lock = threading.Lock()
@@ -246,10 +247,17 @@ def run_sections(
                 pair[0], models, tuning_period, dvl_noise, formulation, base, covariance_step
             )
             ran = _run_one_section(pair[0], pair[1], plan, done, smooth)
-        except ValueError as exc:  # the reason, kept beside the section's name
-            return str(exc)
+        except NOT_ISOLATED:
+            raise
+        except Exception as exc:  # the reason, kept beside the section's name
+            return failure_reason(exc)
         if on_section is not None:
-            on_section(pair[0], ran.runs, ran.constants)
+            try:
+                on_section(pair[0], ran.runs, ran.constants)
+            except NOT_ISOLATED:
+                raise
+            except Exception as exc:  # the caller's hook: this section fails, not the run
+                return f"on_section: {failure_reason(exc)}"
         return ran
 
     stop = threading.Event()
@@ -350,8 +358,10 @@ def _run_one_section(
     stamped_run: SectionRun | None = None
     try:
         stamped_run = run_section(stamped, first, config, label=label, setup=STAMPED)
-    except ValueError as exc:  # a row like the others: failed alone
-        failed[label] = str(exc)
+    except NOT_ISOLATED:
+        raise
+    except Exception as exc:  # a row like the others: failed alone
+        failed[label] = failure_reason(exc)
     try:
         truth: TruthCalibration | str = truth_calibration(aligned)
     except ValueError as exc:  # a section too short or too slow: the reason, in config.json
@@ -412,7 +422,9 @@ def run_real(
         plots: False: no plots (the tables and metrics only). The figures are drawn
             in worker processes (:class:`pronet.recorded.figures.FigurePool`) while the other
             sections are filtered; on the Snapir data they add about half to the run
-            time (9.4 s against 6.3 s on 2 cores).
+            time (9.4 s against 6.3 s on 2 cores). A figure that cannot be drawn is
+            left out, its error in ``config.json``'s ``figures_failed`` (by section
+            and file); the tables and the other figures are written.
         dvl_noise: the DVL noise R of the strategy rows, one of
             :data:`pronet.recorded.dvlnoise.DVL_NOISE_SOURCES`: ``"datasheet"``
             (:data:`pronet.recorded.tuning.REAL_DVL_VARIANCE`) or ``"data"`` (each section's
@@ -484,7 +496,7 @@ def run_real(
         regressors[f"learned:{model}"] = load_model_file(model)
     if on_start is not None:
         on_start(len(paths), "section", "reading, aligning")
-    loaded, unread = _read_sections(
+    loaded, unread = read_sections(
         paths, fmt, (imu_arm, read_arm), (aiding_clock, declination), aiding, on_done
     )
     if not loaded:  # nothing to run: the first reason, before any filter
@@ -529,61 +541,14 @@ def run_real(
         with atomic_folder(folder) as tmp:
             runs = done.runs + done.stamped + done.inertial
             write_metrics(tmp, runs, real_tables(done), failed_records(done))
-            (tmp / "config.json").write_bytes(json_bytes(config))
+            not_drawn: dict[str, dict[str, Exception]] = {}
             if figures is not None:
                 if on_start is not None:
                     on_start(len(done.sections), "section", "plots")
-                figures.write(tmp, [a.name for a, _ in done.sections], on_done)
+                not_drawn = figures.write(tmp, [a.name for a, _ in done.sections], on_done)
+            config["figures_failed"] = {
+                name: {file: str(error) for file, error in by.items()}
+                for name, by in not_drawn.items()
+            }  # after the figures: a figure failing leaves the rest of the folder
+            (tmp / "config.json").write_bytes(json_bytes(config))
     return folder
-
-
-def _read_sections(
-    paths: Sequence[Path],
-    fmt: Format,
-    arms: tuple[tuple[float, float, float], tuple[float, float, float] | None],
-    clock_declination: tuple[str, float | None],
-    aiding: AidingTuning,
-    on_done: Callable[[str], None] | None,
-) -> tuple[list[tuple[Section, Section]], dict[str, str]]:
-    """Every section under ``paths`` read and aligned on the usable cores, in order, with
-    the streams ``aiding`` leaves (``--no-dvl``/``--no-depth``/``--no-fixes``/
-    ``--no-heading``) and their σ: the sections read, and the reason (naming the file)
-    for each one that could not be (or has no ground truth to score against), by
-    section name. ``arms``: the IMU's and the DVL's lever arm [m, body FRD], the DVL's
-    None where its readings go unused; ``clock_declination``: the depth, fixes and
-    heading's clock and a magnetic heading's declination [deg]."""
-
-    def read(path: Path) -> tuple[Section, Section] | str:
-        try:
-            return load_section(
-                path,
-                fmt,
-                imu_lever_arm=arms[0],
-                dvl_lever_arm=arms[1],
-                aiding_clock=clock_declination[0],
-                declination=clock_declination[1],
-                read_heading=aiding.use_heading,
-            )
-        except (ValueError, OSError) as exc:  # the reason (it names the file)
-            return str(exc)
-
-    loaded: list[tuple[Section, Section]] = []
-    unread: dict[str, str] = {}
-    with (
-        ThreadPoolExecutor(max_workers=usable_cores()) as pool,
-        closing(results_in_order([pool.submit(read, path) for path in paths])) as reading,
-    ):  # closed however the loop ends: the reads not yet started are cancelled
-        for path, section in zip(paths, reading, strict=True):  # in order
-            try:
-                if isinstance(section, str):
-                    raise ValueError(section)
-                if not section[0].has_truth:
-                    raise ValueError(f"no ground truth: {NO_TRUTH_FOR_REAL}")
-                loaded.append(
-                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
-                )
-            except ValueError as exc:
-                unread[section_name(path)] = str(exc)
-            if on_done is not None:
-                on_done(path.name)
-    return loaded, unread

@@ -117,10 +117,11 @@ class RealRuns:
         rows_not_run: per section that has any, the strategy rows left out because
             they could never act on it (a window longer than its DVL updates), with
             the reason.
-        rows_failed: per section that has any, the rows whose filter failed (a
-            numerical failure, with the time the core gives), by label, with the
-            reason; the section's other rows are complete without them, and ``stamped``
-            and ``inertial`` lack the section's where those failed.
+        rows_failed: per section that has any, the rows whose pass failed (a
+            numerical failure, with the time the core gives; any other exception, e.g.
+            a user's model's, with its type), by label, with the reason; the section's
+            other rows are complete without them, and ``stamped`` and ``inertial`` lack
+            the section's where those failed.
     """
 
     sections: list[tuple[Section, Section]]

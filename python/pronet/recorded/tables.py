@@ -48,7 +48,7 @@ METRIC_COLUMNS = (
 #: The setup of the first strategy on a section as stamped (its label's suffix too).
 STAMPED = "stamps as given, no lever arms"
 #: The title of ``table.md``'s rows whose filter failed.
-ROWS_FAILED = "Rows failed (numerical failures; the section's other rows are complete)"
+ROWS_FAILED = "Rows failed (the section's other rows are complete)"
 
 #: A heading error RMS beyond this many of the filter's σ is flagged
 #: (:data:`pronet.results.OUT_OF_BAND`): a consistent filter's is about 1.
