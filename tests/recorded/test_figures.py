@@ -102,6 +102,8 @@ def test_a_row_kept_for_the_tables_scores_and_draws_as_the_whole(ran):
         applied = r.dvl_epoch[r.dvl_epoch >= 0]
         np.testing.assert_array_equal(k.time[k.rows_of(applied)], r.time[applied])
         assert kept_for_tables(kept, section) is kept  # already thinned
+        assert k.gain.shape == r.gain.shape and k.gain.strides == (0, 0, 0)  # a NaN view
+        assert np.isnan(k.gain).all()
     with pytest.raises(ValueError, match="^epochs: epoch 1 is not kept"):
         thin[0].result.rows_of([1])
     constants = done.constants[section.name]

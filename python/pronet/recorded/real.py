@@ -208,6 +208,7 @@ def run_sections(
     base: _core.FilterConfig | None = None,
     covariance_step: float | None = None,
     smooth: bool = False,
+    thin: bool = False,
 ) -> RealRuns:
     """The rows of :func:`plan_section` on each aligned section (with its own estimated
     q and DVL noise from ``dvl_noise``), the first one on the section as stamped, and
@@ -216,7 +217,9 @@ def run_sections(
     ``smooth`` (:func:`pronet.recorded.passes.smoothed_run`);
     ``on_done("<section>: <strategy>")`` after each strategy. Sections run side by side
     on ``threads`` threads (default: one per core this process may use; each filter is
-    one native call without the GIL), and the results do not depend on it.
+    one native call without the GIL), and the results do not depend on it. ``thin``:
+    each row's result kept at the epochs the tables and figures read only
+    (:func:`pronet.recorded.runs.kept_for_tables`; the same metrics, bounded memory).
 
     ``on_section(aligned, runs, constants)`` is called (on the section's thread) as
     soon as a section's strategy rows are done, with the q of its constant rows (the
@@ -246,7 +249,7 @@ def run_sections(
             plan = plan_section(
                 pair[0], models, tuning_period, dvl_noise, formulation, base, covariance_step
             )
-            ran = _run_one_section(pair[0], pair[1], plan, done, smooth)
+            ran = _run_one_section(pair[0], pair[1], plan, done, smooth, thin)
         except NOT_ISOLATED:
             raise
         except Exception as exc:  # the reason, kept beside the section's name
@@ -324,6 +327,7 @@ def _run_one_section(
     plan: SectionPlan,
     on_done: Callable[[str], None],
     smooth: bool = False,
+    thin: bool = False,
 ) -> _SectionRuns:
     """One section's rows, each failing alone (its reason kept by label); ValueError
     when none of its strategy rows ran."""
@@ -341,6 +345,7 @@ def _run_one_section(
         on_done=lambda label: on_done(f"{aligned.name}: {label}"),
         smooth=smooth,
         failed=failed,
+        thin=thin,
     )
     if not section_runs:
         label, reason = next(iter(failed.items()))
@@ -518,6 +523,7 @@ def run_real(
             base=base,
             covariance_step=covariance_step,
             smooth=smooth,
+            thin=True,  # what the folder holds is read from the tables' epochs
         )
         # the strategy rows' filter as the first section ran it (its IMU step)
         first_dt = next(iter(done.imu_dt.values()))

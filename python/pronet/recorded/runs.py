@@ -44,9 +44,10 @@ def kept_for_tables(run: SectionRun, section: Section) -> SectionRun:
     """``run`` with its result thinned to the epochs the tables and figures of ``pronet
     real`` read, so that a section's rows do not each hold every epoch (300,000 epochs
     of a 25-minute 200 Hz recording are ~110 MB a row): the two epochs around each of
-    ``section``'s truth rows and their neighbours (the metrics interpolate between them:
-    the same numbers), every epoch a stream's row was applied at, the first and the
-    last. Its :attr:`~pronet.filter.FilterResult.epoch` names the epochs kept; the
+    ``section``'s truth rows (the metrics interpolate between them: the same numbers),
+    every epoch a stream's row was applied at, the first and the last. The DVL gains
+    (which no table reads) and a Q no row set (not a Mehra row) become read-only NaN
+    views. Its :attr:`~pronet.filter.FilterResult.epoch` names the epochs kept; the
     smoothed solution is dropped (its row is a run of its own). A result already
     thinned is returned as it is."""
     r = run.result
@@ -54,7 +55,7 @@ def kept_for_tables(run: SectionRun, section: Section) -> SectionRun:
     if r.epoch.size or n < 3:
         return run
     t = section.truth_time[(section.truth_time > r.time[0]) & (section.truth_time <= r.time[-1])]
-    around = np.searchsorted(r.time, t)[:, None] + np.arange(-2, 2)
+    around = np.searchsorted(r.time, t)[:, None] + np.arange(-1, 1)  # np.interp's two
     applied = [e for e in (r.dvl_epoch, r.depth_epoch, r.fix_epoch, r.covariance_epoch)]
     applied += [s.epoch for s in r.streams]
     keep = np.unique(np.concatenate([around.ravel(), *applied, [0, n - 1]]).astype(np.int64))
@@ -73,7 +74,16 @@ def kept_for_tables(run: SectionRun, section: Section) -> SectionRun:
         epoch=keep,
         smoothed=None,
     )
-    return replace(run, result=thin)
+    # Read-only NaN views in place of arrays no table reads: the gains, and a Q that no
+    # row set (not a Mehra row).
+    gain = np.broadcast_to(np.float64(np.nan), r.gain.shape)
+    q = r.adaptive_q
+    if q.size and np.isnan(q).all():
+        q = np.broadcast_to(np.float64(np.nan), q.shape)
+    streams = tuple(
+        replace(s, gain=gain, adaptive_q=q) if s.gain is r.gain else s for s in r.streams
+    )
+    return replace(run, result=replace(thin, gain=gain, adaptive_q=q, streams=streams))
 
 
 @dataclass(frozen=True)
