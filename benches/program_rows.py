@@ -8,6 +8,11 @@ Definitions:
 - real: ``pronet real`` on the Snapir sections (``$PRONET_SNAPIR_DIR``, else
   ``../shared/data/snapir``), every strategy; and reading plus clock estimation per
   section.
+- bag-read: ``bag_streams`` on a simulated 25-minute bag (200 Hz IMU, 5 Hz DVL, 1 Hz
+  truth, depth and heading, a fix every 30 s; ROS 2 mcap and sqlite3, ROS 1) against a
+  plain rosbags loop over the same topics (``AnyReader``, ``reader.messages`` and
+  ``reader.deserialize`` of each message), the two alternating in this process; the
+  ratio's median over the rounds, its range beside it.
 - study: ``pronet study`` at 100 runs (four scenarios × ten estimators).
 - sweep: 2 strategies x 4 noise levels on ``paper`` in shards of a quarter of the runs,
   on the local engine (all cores per shard) and on a private Ray (one CPU per shard).
@@ -32,6 +37,7 @@ from rows import PAPER_STEPS, SCRIPT, Reference, Row, best_of, from_seconds_targ
 from pronet.learn import dataset, models
 from pronet.learn.hybrid import HybridResult, run_hybrid
 from pronet.learn.models import Regressor
+from pronet.recorded.bags import BagTopics, bag_streams
 from pronet.sim import paper, scenarios
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -239,6 +245,82 @@ def bench_real(args: argparse.Namespace, ref: Reference) -> list[Row]:
             at_most=from_seconds_target(10.0),
         ),
     ]
+
+
+#: Topics of the bench's bag, as ``tests/ros_bag.py`` writes them.
+BAG_TOPICS = ("/imu/data", "/dvl/twist", "/odometry", "/depth/pressure", "/gnss/fix", "/ahrs")
+#: Target: pronet's bag read over the plain rosbags loop (issue 59, 4a).
+BAG_READ_TARGET = 1.5
+
+
+def _write_bench_bag(folder: Path, storage: str, minutes: float) -> tuple[Path, BagTopics]:
+    """A simulated survey of ``minutes`` as a bag of ``storage`` in ``folder``: the
+    path and the :class:`~pronet.recorded.bags.BagTopics` to read it."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from ros_bag import write_bag
+    from synthetic_recording import synthetic_recording, with_aiding
+
+    syn = synthetic_recording(seed=3, duration=60 * minutes, imu_rate=200.0, dvl_rate=5.0)
+    rec = with_aiding(syn, depth_every=1.0, fix_every=30.0)
+    name = "bench.bag" if storage == "rosbag1" else f"bench-{storage}"
+    cov = np.full((len(rec.dvl_time), 3), 1e-4)
+    variance = np.full(len(rec.gt_time), 1e-4)
+    path, topics = write_bag(
+        folder / name, rec, storage, dvl_covariance=cov, heading="imu", heading_variance=variance
+    )
+    return path, topics
+
+
+def _plain_rosbags(path: Path) -> int:
+    """A plain rosbags loop over the bench's topics: open, iterate, deserialize each."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    n = 0
+    with AnyReader([path], default_typestore=get_typestore(Stores.LATEST)) as reader:
+        wanted = [c for c in reader.connections if c.topic in BAG_TOPICS]
+        for connection, _, raw in reader.messages(connections=wanted):
+            reader.deserialize(raw, connection.msgtype)
+            n += 1
+    return n
+
+
+def bench_bag_read(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    command = f"{SCRIPT} --only bag-read"
+    try:
+        import rosbags.highlevel  # noqa: F401
+        import scipy  # noqa: F401  (the tests' bag writer)
+    except ImportError as exc:
+        return [Row("reading a ROS bag", f"skipped: {exc}", "—", None, command)]
+    minutes, rounds = (1.0, 2) if args.quick else (25.0, max(3, args.repeat))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for storage in ("mcap", "sqlite3", "rosbag1"):
+            path, topics = _write_bench_bag(Path(tmp), storage, minutes)
+            ours, plain = [], []
+            _plain_rosbags(path)  # warm both: imports, the file in the page cache
+            bag_streams(path, topics)
+            for _ in range(rounds):  # alternating, in this process
+                plain.append(best_of(1, partial(_plain_rosbags, path)))
+                ours.append(best_of(1, partial(bag_streams, path, topics)))
+            ratios = np.array(ours) / np.array(plain)
+            ratio = float(np.median(ratios))
+            kind = "ROS 1 .bag" if storage == "rosbag1" else f"ROS 2 {storage}"
+            rows.append(
+                Row(
+                    f"reading a {minutes:g}-minute 200 Hz bag ({kind}, 6 topics): pronet's "
+                    "reader over a plain rosbags loop",
+                    f"{ratio:.2f}× (range {ratios.min():.2f}–{ratios.max():.2f}× in {rounds} "
+                    f"alternating rounds; pronet {np.median(ours):.2f} s, rosbags "
+                    f"{np.median(plain):.2f} s)",
+                    f"≤ {BAG_READ_TARGET}×",
+                    ratio <= BAG_READ_TARGET,
+                    command,
+                    ratio,
+                    "x",
+                )
+            )
+    return rows
 
 
 def bench_reproduce(args: argparse.Namespace, ref: Reference) -> list[Row]:

@@ -45,6 +45,7 @@ from filter_rows import (
 )
 from peers import bench_numpy_reference, bench_pyins
 from program_rows import (
+    bench_bag_read,
     bench_dataset,
     bench_hybrid,
     bench_inference,
@@ -73,6 +74,7 @@ BENCHES: dict[str, Callable[[argparse.Namespace, Reference], list[Row]]] = {
     "soak": bench_soak,
     "sweep": bench_sweep,
     "real": bench_real,
+    "bag-read": bench_bag_read,
     "reproduce": bench_reproduce,
     "study": bench_study,
 }

@@ -28,6 +28,7 @@ CHEAP = [
     "dataset",
     "inference",
     "pyins",
+    "bag-read",
 ]
 
 

@@ -11,6 +11,9 @@ Reading and preparing:
   filter-ready :class:`~pronet.recorded.alignment.Section`;
 - :mod:`~pronet.recorded.bags`: ROS 1 and ROS 2 bags as recordings (the ``rosbags``
   extra): topics, frames (REP-103 FLU/ENU to FRD/NED), the DVL covariance as R;
+- :mod:`~pronet.recorded.bagfields`: a bag's topics read in one pass, a topic's
+  messages as columns of numbers (raw messages of a fixed layout decoded with NumPy,
+  to the deserializer's bits);
 - :mod:`~pronet.recorded.aiding`: depth readings and position fixes (the generic
   format's optional ``depth`` and ``fix`` tables), their missing values, checks and σ;
 - :mod:`~pronet.recorded.heading`: heading readings (the optional ``heading`` table, a
@@ -68,6 +71,7 @@ __all__ = [
     "aiding",
     "alignment",
     "attitude",
+    "bagfields",
     "bags",
     "csvtext",
     "dvlcalibration",

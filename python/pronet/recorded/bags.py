@@ -70,7 +70,10 @@ Every row is stamped with its message's ``header.stamp`` (``sec + nanosec·1e-9`
 not the time the bag recorded it. :func:`pronet.recorded.recordings.read_recording` reads
 a bag (through :func:`bag_streams`) as a :class:`~pronet.recorded.recordings.Recording`,
 checked exactly as the generic CSV format is (one line naming the bag and topic): a bag
-and the same numbers written as CSV files give the same result.
+and the same numbers written as CSV files give the same result. The topics are read in
+one pass, the IMU's messages decoded from their raw bytes where their layout allows, to
+the deserializer's bits (:mod:`pronet.recorded.bagfields`; ``benches/run.py --only
+bag-read`` times it against a plain rosbags loop over the same topics).
 
 Frames. ROS follows REP-103: body frames are FLU (x forward, y left, z up) and local
 world frames ENU (x east, y north, z up); pronet's are FRD and NED. With
@@ -111,6 +114,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet._util.extras import missing
+from pronet.recorded.bagfields import read_topics
 
 F64 = NDArray[np.float64]
 
@@ -295,21 +299,12 @@ def _xyz(v: Any) -> list[float]:
 
 def _dcm(q: Any) -> F64:
     """Body → world DCM of a unit quaternion message (x, y, z, w; normalised here)."""
-    x, y, z, w = (float(v) for v in (q.x, q.y, q.z, q.w))
-    n = np.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    return _dcms(np.array([[q.x, q.y, q.z, q.w]], dtype=np.float64))[0]
 
 
 def _dcms(xyzw: F64) -> F64:
     """Body → world DCMs ``(n, 3, 3)`` of quaternions ``(n, 4)`` (x, y, z, w;
-    normalised here): :func:`_dcm` for many at once, the same arithmetic."""
+    normalised here)."""
     x, y, z, w = xyzw.T
     n = np.sqrt(x * x + y * y + z * z + w * w)
     x, y, z, w = x / n, y / n, z / n, w / n
@@ -330,11 +325,11 @@ def euler_from_dcm(c: F64) -> F64:
     return np.stack([roll, pitch, yaw], axis=-1)
 
 
-def _messages(
-    reader: Any, path: Path, topic: str, kind: str, types: tuple[str, ...], least: int = 2
+def _connections(
+    reader: Any, path: Path, topic: str, kind: str, types: tuple[str, ...]
 ) -> list[Any]:
-    """The deserialised messages of ``topic``, checked: it exists (else the bag's topics
-    are listed), has one of ``types`` and at least ``least`` messages."""
+    """The connections of ``topic``, checked: it exists (else the bag's topics are
+    listed) and has one of ``types``."""
     found = [c for c in reader.connections if c.topic == topic]
     if not found:
         have = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections))
@@ -346,9 +341,22 @@ def _messages(
             f"{path}[{topic}]: the {kind} topic holds {', '.join(bad)}; expected "
             f"{' or '.join(types)}"
         )
+    return found
+
+
+def _enough(path: Path, topic: str, kind: str, count: int, least: int) -> None:
+    if count < least:
+        raise BagError(f"{path}[{topic}]: the {kind} topic has {count} message(s)")
+
+
+def _messages(
+    reader: Any, path: Path, topic: str, kind: str, types: tuple[str, ...], least: int = 2
+) -> list[Any]:
+    """The deserialised messages of ``topic``, checked: it exists (else the bag's topics
+    are listed), has one of ``types`` and at least ``least`` messages."""
+    found = _connections(reader, path, topic, kind, types)
     msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=found)]
-    if len(msgs) < least:
-        raise BagError(f"{path}[{topic}]: the {kind} topic has {len(msgs)} message(s)")
+    _enough(path, topic, kind, len(msgs), least)
     return msgs
 
 
@@ -402,10 +410,9 @@ def _frames(topics: BagTopics) -> tuple[F64, F64]:
     return t_w, d_b
 
 
-def _heading_rows(msgs: list[Any], topics: BagTopics) -> BagTable:
-    """``[time, heading (rad)]`` per message, the yaw of ``C_nb = T_w C_wb D_b`` (as
-    the truth's), with σ [rad] when every used message sets a yaw variance; NaN and a
-    reason where a message has no orientation (module docstring)."""
+def _heading_inputs(msgs: list[Any]) -> tuple[F64, F64, NDArray[np.bool_], F64]:
+    """Each heading message's stamp [s], orientation ``(x, y, z, w)``, whether it has
+    none and its yaw variance (0 where the type has none)."""
     if hasattr(msgs[0], "orientation_covariance"):  # sensor_msgs/Imu
         quats = [m.orientation for m in msgs]
         none = np.array([float(m.orientation_covariance[0]) == -1.0 for m in msgs])
@@ -418,14 +425,37 @@ def _heading_rows(msgs: list[Any], topics: BagTopics) -> BagTable:
         quats = [m.pose.pose.orientation if covariance else m.pose.orientation for m in msgs]
         none = np.zeros(len(msgs), bool)
         variance = np.array([float(m.pose.covariance[35]) if covariance else 0.0 for m in msgs])
-    t_w, d_b = _frames(topics)
     xyzw = np.array([[q.x, q.y, q.z, q.w] for q in quats], dtype=np.float64).reshape(-1, 4)
+    return np.array([_stamp(m) for m in msgs]), xyzw, none, variance
+
+
+#: The fields of a ``sensor_msgs/Imu`` read as a heading (last, after the IMU's).
+_ORIENTATION_FIELDS = (
+    *(f"orientation.{a}" for a in "xyzw"),
+    "orientation_covariance[0]",
+    "orientation_covariance[8]",
+)
+
+
+def _heading_rows(msgs: list[Any], topics: BagTopics) -> BagTable:
+    """``[time, heading (rad)]`` per message, the yaw of ``C_nb = T_w C_wb D_b`` (as
+    the truth's), with σ [rad] when every used message sets a yaw variance; NaN and a
+    reason where a message has no orientation (module docstring)."""
+    return _heading_table(*_heading_inputs(msgs), topics)
+
+
+def _heading_table(
+    time: F64, xyzw: F64, none: NDArray[np.bool_], variance: F64, topics: BagTopics
+) -> BagTable:
+    """:func:`_heading_rows` of the messages' stamps, orientations, whether they have
+    none and their yaw variances (:func:`_heading_inputs`)."""
+    t_w, d_b = _frames(topics)
     zero = ~(np.linalg.norm(xyzw, axis=1) > 0) & ~none
-    yaw = np.full(len(msgs), np.nan)
+    yaw = np.full(len(time), np.nan)
     ok = ~none & ~zero
     yaw[ok] = euler_from_dcm(t_w @ _dcms(xyzw[ok]) @ d_b)[:, 2]
     reasons = np.where(none, "no orientation", np.where(zero, "nan", ""))
-    rows = [np.array([_stamp(m) for m in msgs]), yaw]
+    rows = [time, yaw]
     name = "magnetic_heading" if topics.heading_magnetic else "heading"
     labels = ["time [s]", f"{name} [rad]"]
     used = variance[reasons == ""]
@@ -471,6 +501,39 @@ _GT_LABELS = ["time [s]", "lat [rad]", "lon [rad]", "height [m]"]
 _GT_LABELS += [*(f"vel_{a} [m/s]" for a in "ned"), "roll [rad]", "pitch [rad]", "yaw [rad]"]
 
 
+_IMU_FIELDS = tuple(f"{v}.{a}" for v in ("linear_acceleration", "angular_velocity") for a in "xyz")
+
+
+def _read(reader: Any, path: Path, topics: BagTopics) -> dict[str, Any]:
+    """The topics ``topics`` names, checked (:func:`_connections`, then their counts)
+    and read in one pass (:func:`pronet.recorded.bagfields.read_topics`), by kind: the
+    IMU's and a ``sensor_msgs/Imu`` heading topic's stamps and fields as columns (the
+    IMU's, then :data:`_ORIENTATION_FIELDS` where it is the heading), others' messages."""
+    wanted = [
+        (kind, str(topic), _connections(reader, path, str(topic), kind, types), least)
+        for kind, topic, types, least in (
+            ("IMU", topics.imu, IMU_TYPES, 2),
+            ("DVL", topics.dvl, DVL_TYPES, 2),
+            ("truth", topics.truth, TRUTH_TYPES, 2),
+            ("depth", topics.depth, DEPTH_TYPES, 1),
+            ("fix", topics.fix, FIX_TYPES, 1),
+            ("heading", topics.heading, HEADING_TYPES, 1),
+        )
+        if topic is not None and not (kind == "heading" and topic == topics.imu)
+    ]
+    own = _ORIENTATION_FIELDS if topics.heading == topics.imu else ()
+    fields = {"IMU": _IMU_FIELDS + own, "heading": _ORIENTATION_FIELDS}
+    requests = [
+        (topic, conns, fields.get(kind) if {c.msgtype for c in conns} == {IMU_TYPES[0]} else None)
+        for kind, topic, conns, _ in wanted
+    ]
+    data: dict[str, Any] = {}
+    for (kind, topic, _, least), got in zip(wanted, read_topics(reader, requests), strict=True):
+        _enough(path, topic, kind, len(got), least)
+        data[kind] = got
+    return data
+
+
 def bag_streams(
     path: str | Path, topics: BagTopics | None = None
 ) -> tuple[dict[str, BagTable], tuple[float, float, float] | None]:
@@ -500,53 +563,34 @@ def bag_streams(
     flip = _FLU if topics.body_frame == "flu" else np.ones(3)
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.LATEST)) as reader:
-            imu_msgs = _messages(reader, path, topics.imu, "IMU", IMU_TYPES)
-            dvl_msgs = (
-                [] if topics.dvl is None else _messages(reader, path, topics.dvl, "DVL", DVL_TYPES)
-            )
-            truth_msgs = (
-                []
-                if topics.truth is None
-                else _messages(reader, path, topics.truth, "truth", TRUTH_TYPES)
-            )
-            aiding = {
-                kind: (topic, _messages(reader, path, topic, kind, types, least=1))
-                for kind, topic, types in (
-                    ("depth", topics.depth, DEPTH_TYPES),
-                    ("fix", topics.fix, FIX_TYPES),
-                    ("heading", topics.heading, HEADING_TYPES),
-                )
-                if topic is not None and not (kind == "heading" and topic == topics.imu)
-            }
+            data = _read(reader, path, topics)
     except Exception as exc:  # noqa: BLE001 - whatever a corrupt file makes the parser raise
         raise unreadable(path, exc) from None
-    if topics.heading is not None and topics.heading == topics.imu:  # an AHRS's orientation
-        aiding["heading"] = (topics.imu, imu_msgs)
-    imu = [
-        [_stamp(m), *(np.array(_xyz(m.linear_acceleration)) * flip)]
-        + list(np.array(_xyz(m.angular_velocity)) * flip)
-        for m in imu_msgs
-    ]
+    imu, dvl_msgs = data["IMU"], data.get("DVL", [])
 
     def velocity(m: Any) -> Any:
         return m.twist.twist.linear if hasattr(m.twist, "twist") else m.twist.linear
 
-    def table(topic: str, rows: Any, labels: list[str]) -> BagTable:
+    def table(topic: str | None, rows: Any, labels: list[str]) -> BagTable:
         return BagTable(f"{path}[{topic}]", np.array(rows, dtype=np.float64), labels)
 
-    streams = {"imu": table(topics.imu, imu, _IMU_LABELS)}
+    rows = np.column_stack([imu[:, 0], imu[:, 1:4] * flip, imu[:, 4:7] * flip])
+    streams = {"imu": table(topics.imu, rows, _IMU_LABELS)}
     if topics.dvl is not None:
         dvl = [[_stamp(m), *(np.array(_xyz(velocity(m))) * flip)] for m in dvl_msgs]
         streams["dvl"] = table(topics.dvl, dvl, _DVL_LABELS)
     if topics.truth is not None:
-        streams["gt"] = table(topics.truth, _truth_rows(truth_msgs, topics, path), _GT_LABELS)
-    if "depth" in aiding:
-        topic, msgs = aiding["depth"]
-        streams["depth"] = table(topic, *_depth_rows(msgs, topics))
-    if "fix" in aiding:
-        topic, msgs = aiding["fix"]
-        streams["fix"] = table(topic, *_fix_rows(msgs))
-    if "heading" in aiding:
-        topic, msgs = aiding["heading"]
-        streams["heading"] = _heading_rows(msgs, topics)._replace(where=f"{path}[{topic}]")
+        streams["gt"] = table(topics.truth, _truth_rows(data["truth"], topics, path), _GT_LABELS)
+    if "depth" in data:
+        streams["depth"] = table(topics.depth, *_depth_rows(data["depth"], topics))
+    if "fix" in data:
+        streams["fix"] = table(topics.fix, *_fix_rows(data["fix"]))
+    if topics.heading is not None:  # the IMU's own: an AHRS's orientation
+        got = imu if topics.heading == topics.imu else data["heading"]
+        if isinstance(got, np.ndarray):  # Imu columns: the stamp, …, _ORIENTATION_FIELDS
+            inputs = (got[:, 0], got[:, -6:-2], got[:, -2] == -1.0, got[:, -1])
+        else:
+            inputs = _heading_inputs(got)
+        where = f"{path}[{topics.heading}]"
+        streams["heading"] = _heading_table(*inputs, topics)._replace(where=where)
     return streams, _dvl_variance(dvl_msgs)
