@@ -323,6 +323,71 @@ def bench_bag_read(args: argparse.Namespace, ref: Reference) -> list[Row]:
     return rows
 
 
+#: The peak resident memory [MiB] of ``pronet real``/``navigate`` on a long recording.
+MEMORY_TARGET_MIB = 1024.0
+
+
+def _peak_mib(argv: list[str], report: Path) -> float:
+    """Peak resident memory [MiB] of ``pronet ARGV`` in a fresh process: its own
+    ``VmHWM``, written to ``report`` as it ends (``ru_maxrss`` of a child counts the
+    memory of this process, which it was forked from)."""
+    code = (
+        "import sys; from pronet.cli import main; code = main(sys.argv[2:]); "
+        "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0]; "
+        "open(sys.argv[1], 'w').write(hwm.split()[1]); sys.exit(code)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(report), *argv], stdout=subprocess.DEVNULL
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"pronet {' '.join(argv)}: exit {done.returncode}")
+    return int(report.read_text()) / 1024
+
+
+def bench_real_memory(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    """Peak memory of ``pronet real --smooth`` (every row, plots) and ``pronet
+    navigate`` (smoothed) on a 25-minute recording at 200 Hz (IMU), 5 Hz (DVL), 10 Hz
+    (truth), written as generic CSVs."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from pronet.recorded.recordings import write_recording
+
+    from synthetic_recording import synthetic_recording
+
+    minutes = 1.0 if args.quick else 25.0
+    command = f"{SCRIPT} --only real-memory"
+    rec = synthetic_recording(
+        seed=1, duration=60 * minutes, name="long", imu_rate=200.0, dvl_rate=5.0, gt_rate=10.0
+    ).recording
+    arms = ["--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0", "--quiet", "--format", "generic"]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        data = write_recording(Path(tmp) / "data" / "long", rec)
+        runs = {
+            "`pronet real --smooth`, every row, plots": [
+                "real",
+                "--smooth",
+                "--data",
+                str(data.parent),
+            ],
+            "`pronet navigate` (smoothed)": ["navigate", "--init", "truth", "--data", str(data)],
+        }
+        for i, (what, argv) in enumerate(runs.items()):
+            out = Path(tmp) / f"out{i}"
+            peak = _peak_mib([*argv, *arms, "--out", str(out)], Path(tmp) / f"hwm{i}")
+            rows.append(
+                Row(
+                    f"{what} on a {minutes:g}-minute 200 Hz recording: peak memory",
+                    f"{peak:.0f} MiB",
+                    f"≤ {MEMORY_TARGET_MIB:.0f} MiB",
+                    peak <= MEMORY_TARGET_MIB,
+                    command,
+                    peak,
+                    "MiB",
+                )
+            )
+    return rows
+
+
 def bench_reproduce(args: argparse.Namespace, ref: Reference) -> list[Row]:
     with tempfile.TemporaryDirectory() as tmp:
         wall = _cli("reproduce", "--quiet", "--out", str(Path(tmp) / "out"))

@@ -50,6 +50,7 @@ from program_rows import (
     bench_hybrid,
     bench_inference,
     bench_real,
+    bench_real_memory,
     bench_reproduce,
     bench_study,
     bench_sweep,
@@ -75,6 +76,7 @@ BENCHES: dict[str, Callable[[argparse.Namespace, Reference], list[Row]]] = {
     "sweep": bench_sweep,
     "real": bench_real,
     "bag-read": bench_bag_read,
+    "real-memory": bench_real_memory,
     "reproduce": bench_reproduce,
     "study": bench_study,
 }

@@ -28,6 +28,7 @@ CHEAP = [
     "dataset",
     "inference",
     "pyins",
+    "real-memory",
     "bag-read",
 ]
 
