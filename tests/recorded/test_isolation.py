@@ -37,6 +37,17 @@ def _survey(data: Path, seed: int) -> list[str]:
     return ["--imu-lever-arm=0,0,0", f"--dvl-lever-arm={arm}"]
 
 
+def _real_on_a_survey(tmp_path, capsys) -> tuple[str, Path]:
+    """``pronet real`` on one survey section: its stderr (no traceback) and folder."""
+    data, out = tmp_path / "data", tmp_path / "out"
+    arms = _survey(data, 0)
+    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
+    assert main([*argv, "--quiet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return err, out
+
+
 def test_a_row_that_fails_in_the_filter_leaves_the_other_rows_and_sections(tmp_path, capsys):
     """The own-vehicle survey's ``mehra xi=1`` row fails in the core (a non-finite
     prediction): before, the section was dropped and, the only one left, nothing was
@@ -370,12 +381,7 @@ def test_a_figure_that_fails_is_one_line_and_everything_else_is_written(
         return replace(curves, track=[]) if section.name == "survey0" else curves
 
     monkeypatch.setattr(figures, "section_curves", section_curves)
-    data, out = tmp_path / "data", tmp_path / "out"
-    arms = _survey(data, 0)
-    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
-    assert main([*argv, "--quiet", "--out", str(out)]) == 0
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
+    err, out = _real_on_a_survey(tmp_path, capsys)
     reason = "ValueError: not enough values to unpack (expected at least 1, got 0)"
     line = f"pronet: section survey0: figure track_survey0.png: {reason} (not written)"
     assert [x for x in err.splitlines() if "figure" in x] == [line]
@@ -422,12 +428,7 @@ def test_pronet_real_s_figure_hook_raising_fails_that_section_s_figures_only(
         raise RuntimeError("no curves")
 
     monkeypatch.setattr(figures, "section_curves", section_curves)
-    data, out = tmp_path / "data", tmp_path / "out"
-    arms = _survey(data, 0)
-    argv = ["real", "--format", "generic", "--data", str(data), *arms, "--no-models"]
-    assert main([*argv, "--quiet", "--out", str(out)]) == 0
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
+    err, out = _real_on_a_survey(tmp_path, capsys)
     reason = "its curves could not be made (RuntimeError: no curves)"
     files = [f"{kind}_survey0.png" for kind in figures.FIGURES]
     lines = [f"pronet: section survey0: figure {f}: {reason} (not written)" for f in files]
