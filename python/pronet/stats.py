@@ -217,6 +217,10 @@ class StreamReport:
         accepted: ``(r,)`` whether each reading was applied (False where the gate
             rejected it or it fell outside the pass); None: every reading inside the
             pass was (a stream without a gate).
+        autocorrelation: a velocity stream's whiteness test (:func:`whiteness`): the
+            lag-one autocorrelation of its whitened innovations (NaN for the other
+            kinds, which keep no innovation, or with fewer than two readings).
+        autocorrelation_band: the half-width of its 95 % band for white innovations.
     """
 
     name: str
@@ -232,6 +236,8 @@ class StreamReport:
     nis: F64
     flag: str = ""
     accepted: NDArray[np.bool_] | None = None
+    autocorrelation: float = math.nan
+    autocorrelation_band: float = math.nan
 
     @property
     def gated_share(self) -> float:
@@ -306,6 +312,25 @@ def stream_report(
         mean_dof = total / int(seen.sum())
         lo, hi = chi2_mean_band(1, total)
         band = (lo * mean_dof, hi * mean_dof)
+    rho, half = math.nan, math.nan
+    innovation = getattr(rows, "innovation", None)
+    cov = getattr(rows, "innovation_cov", None)
+    if innovation is not None and cov is not None:
+        rho, half = whiteness(np.asarray(innovation), np.asarray(cov), applied)
+    flag = _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
+    if abs(rho) > WHITENESS_FLAG / 1.96 * half:  # beyond 4σ of white innovations
+        said = f"(lag-one autocorrelation {rho:.3g}, white within ±{half:.2g}): " + (
+            "a slowly varying error (a DVL's bottom-track bias, sound speed, alignment, or "
+            "an IMU error the filter does not model) that a white R takes as averaging "
+            "out, so that the σ are too small"
+            if rho > 0
+            else "each update over-corrects (the filter trusts the readings more than "
+            "their errors warrant: R too small against Q) or the readings' errors "
+            "alternate (stamps jittering against the IMU's)"
+        )
+        sign = "correlated" if rho > 0 else "anti-correlated"
+        said = f"its whitened innovations are {sign} from one reading to the next {said}"
+        flag = f"{flag}; {said}" if flag else f"{name}: {said}"
     return StreamReport(
         name=name,
         kind=rows.kind,
@@ -318,9 +343,38 @@ def stream_report(
         band=band,
         time=np.asarray(time, dtype=np.float64),
         nis=np.where(inside, nis, np.nan),
-        flag=_flag(name, rows.kind, mean, mean_dof, band, rejected, n),
+        flag=flag,
         accepted=None if rows.accepted is None else inside & rows.accepted,
+        autocorrelation=rho,
+        autocorrelation_band=half,
     )
+
+
+#: A stream is flagged when its whiteness statistic is beyond this many σ of white
+#: innovations (4: one pass in 16,000 by chance), reported against its 95 % band.
+WHITENESS_FLAG = 4.0
+
+
+def whiteness(innovation: F64, cov: F64, used: NDArray[np.bool_]) -> tuple[float, float]:
+    """The whiteness test of a vector stream's innovations (Bar-Shalom, Li and
+    Kirubarajan 2001, §5.4.2): each used innovation ``ν_k`` ``(r, n)`` whitened by its
+    covariance ``S_k = L_k L_kᵀ`` ``(r, n, n)`` (``e_k = L_k⁻¹ ν_k``, N(0, I) for a
+    consistent filter), then ``ρ = Σ e_k·e_{k+1} / √(Σ |e_k|² Σ |e_{k+1}|²)`` over the
+    pairs of consecutive used readings. For white innovations ``ρ`` is about
+    N(0, 1/(nK)) over ``K`` pairs: the 95 % band is ``±1.96/√(nK)``. Returns ``ρ`` and
+    that half-width (NaN, NaN with fewer than two pairs)."""
+    ok = used & np.isfinite(innovation).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
+    k = np.flatnonzero(ok)
+    if len(k) < 3:
+        return math.nan, math.nan
+    try:
+        chol = np.linalg.cholesky(cov[k])
+    except np.linalg.LinAlgError:
+        return math.nan, math.nan
+    e = np.linalg.solve(chol, innovation[k][..., None])[..., 0]
+    a, b = e[:-1], e[1:]
+    rho = float(np.sum(a * b) / math.sqrt(float(np.sum(a * a)) * float(np.sum(b * b))))
+    return rho, 1.96 / math.sqrt(e.shape[1] * len(a))
 
 
 def _flag(
