@@ -56,7 +56,7 @@ def kept_for_tables(run: SectionRun, section: Section) -> SectionRun:
         return run
     t = section.truth_time[(section.truth_time > r.time[0]) & (section.truth_time <= r.time[-1])]
     around = np.searchsorted(r.time, t)[:, None] + np.arange(-1, 1)  # np.interp's two
-    applied = [e for e in (r.dvl_epoch, r.depth_epoch, r.fix_epoch, r.covariance_epoch)]
+    applied = [r.dvl_epoch, r.depth_epoch, r.fix_epoch, r.covariance_epoch]
     applied += [s.epoch for s in r.streams]
     keep = np.unique(np.concatenate([around.ravel(), *applied, [0, n - 1]]).astype(np.int64))
     keep = keep[(keep >= 0) & (keep < n)]
