@@ -41,6 +41,8 @@ def bench(*args: str) -> subprocess.CompletedProcess[str]:
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory) -> tuple[str, dict, Path]:
+    """``run.py --quick`` on the cheap rows: about a minute on two cores, so each test
+    that reads it is marked slow (the online bench below stays in the fast tier)."""
     out = tmp_path_factory.mktemp("bench") / "quick.json"
     done = bench("--quick", "--only", *CHEAP, "--json", str(out))
     assert done.returncode == 0, done.stderr
@@ -54,6 +56,7 @@ def table(stdout: str) -> list[list[str]]:
     return [c for c in cells[1:] if c[0] != "---"]  # past the header and its rule
 
 
+@pytest.mark.slow
 def test_the_table_and_the_json_hold_the_same_rows(quick):
     stdout, record, _ = quick
     printed = table(stdout)
@@ -71,6 +74,7 @@ def test_the_table_and_the_json_hold_the_same_rows(quick):
     assert f"every IMU step: {before:.3f} s before the rows" in stdout
 
 
+@pytest.mark.slow
 def test_each_timed_row_is_its_number_over_the_same_runs_reference(quick):
     stdout, record, _ = quick
     reference = record["reference_s"][0]
@@ -95,6 +99,7 @@ def test_each_timed_row_is_its_number_over_the_same_runs_reference(quick):
     assert mc["ns_per_step"] == pytest.approx(mc["value"] / (10 * 33_000) * 1e9)
 
 
+@pytest.mark.slow
 def test_each_verdict_agrees_with_its_number_and_target(quick):
     _, record, _ = quick
     judged = 0
@@ -111,6 +116,7 @@ def test_each_verdict_agrees_with_its_number_and_target(quick):
     assert judged >= 5  # Mehra, threads, the covariance step, the two loops, the dataset
 
 
+@pytest.mark.slow
 def test_the_output_row_divides_the_every_epoch_pass_by_the_last_only_one(quick):
     _, record, _ = quick
     rows = {r["what"]: r for r in record["rows"]}
@@ -121,6 +127,7 @@ def test_the_output_row_divides_the_every_epoch_pass_by_the_last_only_one(quick)
     assert ratio["target"] == "≤ 1.5×"
 
 
+@pytest.mark.slow
 def test_pyins_row_is_skipped_cleanly_without_pyins(quick):
     _, record, _ = quick
     (row,) = [r for r in record["rows"] if r["what"].startswith("pyins")]
@@ -130,6 +137,7 @@ def test_pyins_row_is_skipped_cleanly_without_pyins(quick):
         assert row["measured"].startswith("skipped: pyins") and row["met"] is None
 
 
+@pytest.mark.slow
 def test_compare_pairs_the_rows_of_two_files(quick, tmp_path):
     _, record, path = quick
 

@@ -47,6 +47,7 @@ def script() -> ModuleType:
     return module
 
 
+@pytest.mark.slow
 def test_two_copies_of_the_installed_build_are_timed_side_by_side(tmp_path: Path) -> None:
     copy = tmp_path / "_core.abi3.so"
     shutil.copyfile(_core.__file__, copy)

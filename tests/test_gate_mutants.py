@@ -82,6 +82,15 @@ def build_mutant(name: str, tmp: Path) -> Path:
     return site
 
 
+def test_each_mutation_site_is_in_the_source_once() -> None:
+    """The fast half: each mutant's original text occurs exactly once in its file, and
+    the edit changes it, so a moved site shows without building anything."""
+    for name, (file, original, mutated) in MUTANTS.items():
+        text = (ROOT / file).read_text()
+        assert text.count(original) == 1, f"{file}: the mutation site moved; update {name!r}"
+        assert mutated != original, name
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(shutil.which("cargo") is None, reason="needs cargo to build the mutants")
 @pytest.mark.parametrize("name", list(MUTANTS))

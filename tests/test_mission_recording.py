@@ -352,7 +352,7 @@ def _storage_path(tmp_path: Path, storage: str) -> Path:
     return tmp_path / ("mission.bag" if storage == "rosbag1" else f"mission-{storage}")
 
 
-@pytest.mark.parametrize("storage", ["rosbag1", "mcap"])
+@pytest.mark.parametrize("storage", ["rosbag1", pytest.param("mcap", marks=pytest.mark.slow)])
 def test_the_bag_reads_back_as_the_missions_arrays(tmp_path, tiny, storage):
     """Through a test-only truth topic (the reader still needs one)."""
     pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
@@ -404,7 +404,7 @@ def test_the_bag_has_no_truth_topic_and_the_ahrs_orientation_in_each_imu_message
     np.testing.assert_allclose(np.diag(cov), np.square(tiny.sensors.ahrs_sigma))
 
 
-@pytest.mark.parametrize("storage", ["rosbag1", "mcap"])
+@pytest.mark.parametrize("storage", ["rosbag1", pytest.param("mcap", marks=pytest.mark.slow)])
 def test_the_bag_reads_without_its_truth(tmp_path, tiny, storage):
     pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
     path, topics = write_mission_bag(tiny, _storage_path(tmp_path, storage), storage)

@@ -81,7 +81,7 @@ def test_reference_strapdown_stays_at_rest() -> None:
     [("body", (0.5, -0.2, 1.0)), ("body", (0.0, 0.0, 0.0)), ("nav", (0, 0, 0))],
 )
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-@pytest.mark.parametrize("covariance_step", [0.0, 0.1])
+@pytest.mark.parametrize("covariance_step", [pytest.param(0.0, marks=pytest.mark.slow), 0.1])
 def test_rust_filter_matches_reference(aiding, lever_arm, formulation, covariance_step) -> None:
     """At every IMU sample and at a 0.1 s covariance step (ten samples)."""
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(lever_arm), aiding)

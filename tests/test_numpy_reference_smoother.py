@@ -48,7 +48,10 @@ def _closes(log: list) -> tuple[np.ndarray, np.ndarray]:
     ("aiding", "lever_arm"), [("body", (0.5, -0.2, 1.0)), ("nav", (0.0, 0.0, 0.0))]
 )
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-@pytest.mark.parametrize("covariance_step", [0.0, 0.1, 0.07])
+@pytest.mark.parametrize(
+    "covariance_step",
+    [0.0, pytest.param(0.1, marks=pytest.mark.slow), pytest.param(0.07, marks=pytest.mark.slow)],
+)
 def test_rust_smoother_matches_reference(aiding, lever_arm, formulation, covariance_step) -> None:
     """0.1 s: ten steps between DVL rows; 0.07 s: a short step closed by each row. σ at
     every epoch, those inside a step too (interpolated between the closes)."""
@@ -79,7 +82,10 @@ def test_rust_smoother_matches_reference(aiding, lever_arm, formulation, covaria
 
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-@pytest.mark.parametrize("covariance_step", [0.1, 0.07, 0.2])
+@pytest.mark.parametrize(
+    "covariance_step",
+    [0.1, pytest.param(0.07, marks=pytest.mark.slow), pytest.param(0.2, marks=pytest.mark.slow)],
+)
 def test_smoothed_sigma_inside_a_step_follows_the_every_sample_smoother(
     formulation, covariance_step
 ) -> None:
@@ -112,7 +118,7 @@ def _rms(gap: np.ndarray, axis: int | None = None) -> np.ndarray:
 
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
-@pytest.mark.parametrize("covariance_step", [0.0, 0.07])
+@pytest.mark.parametrize("covariance_step", [pytest.param(0.0, marks=pytest.mark.slow), 0.07])
 def test_rust_smoother_with_dvl_calibration_states_matches_reference(
     formulation, covariance_step
 ) -> None:

@@ -85,15 +85,16 @@ def _streams_with_arms(aiding: dict) -> list:
 
 @pytest.mark.parametrize("formulation", ["classic", "invariant"])
 @pytest.mark.parametrize("calibrated", [False, True])
-@pytest.mark.parametrize("covariance_step", [0.0, 0.1])
+@pytest.mark.parametrize("covariance_step", [pytest.param(0.0, marks=pytest.mark.slow), 0.1])
 def test_fixes_and_depth_match_the_reference(formulation, calibrated, covariance_step) -> None:
     _match_the_reference(formulation, calibrated, covariance_step, arms=False)
 
 
 @pytest.mark.parametrize(
     ("formulation", "calibrated", "covariance_step"),
-    [("classic", False, 0.0), ("invariant", True, 0.1), ("classic", True, 0.1),
-     ("invariant", False, 0.0)],
+    [("classic", False, 0.0), ("invariant", True, 0.1),
+     pytest.param("classic", True, 0.1, marks=pytest.mark.slow),
+     pytest.param("invariant", False, 0.0, marks=pytest.mark.slow)],
 )  # fmt: skip
 def test_lever_arms_and_headings_match_the_reference(
     formulation, calibrated, covariance_step

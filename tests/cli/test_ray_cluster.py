@@ -29,6 +29,8 @@ from pathlib import Path
 
 import pytest
 
+#: Why no test here is in the fast tier (tests/test_tiers.py).
+ALL_SLOW_REASON = "its one test starts a two-node Ray cluster and sweeps on it"
 RAY = Path(sys.executable).parent / "ray"
 
 #: Shards long enough (about a second each) to be killed while they run.

@@ -18,7 +18,12 @@ from pronet.montecarlo import STATE_BLOCKS
 
 @pytest.mark.parametrize(
     ("grade", "motion"),
-    [("mems", "straight"), ("mems", "turns"), ("tactical", "straight"), ("fog", "straight")],
+    [
+        ("mems", "straight"),
+        pytest.param("mems", "turns", marks=pytest.mark.slow),
+        pytest.param("tactical", "straight", marks=pytest.mark.slow),
+        pytest.param("fog", "straight", marks=pytest.mark.slow),
+    ],
 )
 def test_invariant_heading_is_consistent(grade: str, motion: str) -> None:
     drawn = run_cell(grade, motion, "invariant", draw=True)

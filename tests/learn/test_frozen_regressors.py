@@ -133,6 +133,7 @@ def test_frozen_nets_keep_the_nan_rules_and_name_bad_input() -> None:
         _core.ConvNet(window=200, prepare="centre", scaling="fixed", blocks=[bad], head=[])
 
 
+@pytest.mark.slow
 def test_the_hybrid_loop_runs_the_frozen_pass_with_the_torch_numbers() -> None:
     sc = scenarios.SCENARIOS["varying-matched"](0)
     traj = sc.trajectory

@@ -10,7 +10,8 @@ import pytest
 from pronet.learn import models, training
 from pronet.learn.dataset import DatasetParams, dataset_sha256
 
-#: Every test here scores the shipped nets on the regenerated default dataset (~20 s).
+#: Why no test here is in the fast tier (tests/test_tiers.py).
+ALL_SLOW_REASON = "every test scores the shipped nets on the regenerated default dataset (~20 s)"
 pytestmark = pytest.mark.slow
 
 

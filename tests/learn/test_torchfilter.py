@@ -103,8 +103,10 @@ def _simulated(formulation: str, step: float, seconds: float = 90.0) -> Recorded
     return section_recorded(section, cfg)
 
 
-@pytest.mark.parametrize("formulation", FORMULATIONS)
-@pytest.mark.parametrize("step", STEPS)
+@pytest.mark.parametrize(
+    "formulation", ["invariant", pytest.param("classic", marks=pytest.mark.slow)]
+)
+@pytest.mark.parametrize("step", [pytest.param(0.0, marks=pytest.mark.slow), 0.1])
 def test_equals_the_core_on_a_simulated_recording(formulation, step) -> None:
     rec = _simulated(formulation, step)
     q_time, q = _schedule(rec)
@@ -146,7 +148,9 @@ def test_equals_the_core_on_a_snapir_section(snapir_section, formulation, step) 
     assert_equal_to_core(out, core, slice(1, None), 0, travel=1000.0)
 
 
-@pytest.mark.parametrize("formulation", FORMULATIONS)
+@pytest.mark.parametrize(
+    "formulation", ["invariant", pytest.param("classic", marks=pytest.mark.slow)]
+)
 def test_chunks_of_a_second_equal_one_call(formulation) -> None:
     """``advance`` resumes exactly: 1 s chunks (and a ragged last one) give the one
     call's numbers bit for bit, σ interpolated across the chunks' seams included."""
@@ -201,6 +205,7 @@ def _short_window(formulation: str = "invariant"):
     return cut, q[0]
 
 
+@pytest.mark.slow
 def test_the_gradient_in_q_matches_finite_differences() -> None:
     """d(loss)/dq through three seconds (three DVL updates) of two windows, against
     central differences (``torch.autograd.gradcheck``), q = q0·exp(s) per channel and
@@ -224,6 +229,7 @@ def test_the_gradient_in_q_matches_finite_differences() -> None:
     assert torch.autograd.gradcheck(loss, (s,), eps=1e-5, atol=1e-8, rtol=1e-4)
 
 
+@pytest.mark.slow
 def test_the_gradient_in_the_start_state_matches_finite_differences() -> None:
     cut, q0 = _short_window("classic")
     batch, start = cut.batch.select(slice(0, 1)), cut.start.select(slice(0, 1))

@@ -189,7 +189,7 @@ def test_without_the_extra_it_is_named_in_one_line(tmp_path, monkeypatch, capsys
     assert len(err_lines) == 1 and "pip install 'pronet[rosbags]'" in err_lines[0]
 
 
-@pytest.mark.parametrize("storage", ["mcap", "rosbag1"])
+@pytest.mark.parametrize("storage", [pytest.param("mcap", marks=pytest.mark.slow), "rosbag1"])
 @pytest.mark.parametrize("sigma_in_file", [True, False])
 def test_depth_from_pressure_and_fixes_from_navsatfix(tmp_path, storage, sigma_in_file):
     """FluidPressure [Pa] read back as depth [m] through the documented conversion, and

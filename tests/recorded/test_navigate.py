@@ -74,30 +74,30 @@ def short() -> Mission:
     return simulate_mission(0, minutes=MINUTES_FAST)
 
 
-def test_one_command_on_a_bag_without_truth_writes_the_files(tmp_path, short) -> None:
+@pytest.mark.parametrize("storage", ["rosbag1", pytest.param("mcap", marks=pytest.mark.slow)])
+def test_one_command_on_a_bag_without_truth_writes_the_files(tmp_path, short, storage) -> None:
     pytest.importorskip("rosbags.highlevel", reason="the rosbags extra")
     from pronet.cli import main
 
-    for storage in ("rosbag1", "mcap"):
-        bag = tmp_path / ("mission.bag" if storage == "rosbag1" else "mission")
-        _, topics = write_mission_bag(short, bag, storage)
-        assert topics.truth is None
-        out = tmp_path / f"out-{storage}"
-        code = main([
-            "navigate", "--data", str(bag), "--format", "bag", "--depth-topic", str(topics.depth),
-            "--fix-topic", str(topics.fix), "--heading-topic", topics.imu, "--filter",
-            str(write_vehicle_file(tmp_path, short)), "--out", str(out), "--no-plots", "--quiet",
-        ])  # fmt: skip
-        assert code == 0
-        written = {p.name for p in out.iterdir()}
-        odometry = "odometry.bag" if storage == "rosbag1" else "odometry"
-        assert {"trajectory.csv", "track.geojson", "report.md", "config.json", odometry} <= written
-        config = json.loads((out / "config.json").read_text())
-        assert config["streams_used"] == {"dvl": True, "depth": True, "fix": True, "heading": True}
-        # the surface pressure measured beside the fixes at the surface: 101,900 Pa
-        assert config["surface_pressure"]["pa"] == pytest.approx(short.surface_pressure, abs=100)
-        report = (out / "report.md").read_text()
-        assert "levelled" in report and "heading stream" in report
+    bag = tmp_path / ("mission.bag" if storage == "rosbag1" else "mission")
+    _, topics = write_mission_bag(short, bag, storage)
+    assert topics.truth is None
+    out = tmp_path / f"out-{storage}"
+    code = main([
+        "navigate", "--data", str(bag), "--format", "bag", "--depth-topic", str(topics.depth),
+        "--fix-topic", str(topics.fix), "--heading-topic", topics.imu, "--filter",
+        str(write_vehicle_file(tmp_path, short)), "--out", str(out), "--no-plots", "--quiet",
+    ])  # fmt: skip
+    assert code == 0
+    written = {p.name for p in out.iterdir()}
+    odometry = "odometry.bag" if storage == "rosbag1" else "odometry"
+    assert {"trajectory.csv", "track.geojson", "report.md", "config.json", odometry} <= written
+    config = json.loads((out / "config.json").read_text())
+    assert config["streams_used"] == {"dvl": True, "depth": True, "fix": True, "heading": True}
+    # the surface pressure measured beside the fixes at the surface: 101,900 Pa
+    assert config["surface_pressure"]["pa"] == pytest.approx(short.surface_pressure, abs=100)
+    report = (out / "report.md").read_text()
+    assert "levelled" in report and "heading stream" in report
 
 
 def test_the_files_read_back_with_the_solutions_sigma(tmp_path, short) -> None:

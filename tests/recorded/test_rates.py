@@ -49,7 +49,9 @@ def _run(tmp_path, name, duration=100.0, **rates):
         ({"imu_rate": 50.0}, 0.02),
         ({"imu_rate": 200.0, "dvl_rate": 5.0, "gt_rate": 20.0}, 0.005),
         ({"imu_rate": 100.0, "jitter": 0.1}, 0.01),
-        ({"imu_rate": 400.0, "dvl_rate": 0.2, "gt_rate": 100.0}, 0.0025),
+        pytest.param(
+            {"imu_rate": 400.0, "dvl_rate": 0.2, "gt_rate": 100.0}, 0.0025, marks=pytest.mark.slow
+        ),
         ({"imu_rate": 1000.0, "dvl_rate": 20.0}, 0.001),
         ({"imu_rate": 50.0, "dvl_rate": 0.1, "duration": 300.0}, 0.02),
     ],
