@@ -199,6 +199,10 @@ CALLS: dict[str, tuple[tuple[str, ...], Callable[[Form], Any]]] = {
             _run_filter(pronet.run_filter, f).covariances,
         ),
     ),
+    "rows_of": (
+        ("pronet.FilterResult.rows_of",),
+        lambda f: _run_filter(pronet.run_filter, as_is).rows_of(f([0, 3, 7])),
+    ),
     "ensemble": (
         ("_core.Ensemble", "_core.Ensemble.set_q", "pronet.Ensemble", "pronet.Ensemble.set_q"),
         lambda f: (_ensemble(_core.Ensemble, f, True), _ensemble(pronet.Ensemble, f, False)),

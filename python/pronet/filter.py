@@ -197,7 +197,10 @@ class FilterResult:
         ``epochs`` (indices among all epochs, as :attr:`dvl_epoch` counts), in a pass
         with every epoch kept or thinned (:attr:`epoch`); ``ValueError`` for an epoch
         the result does not keep."""
-        e = np.asarray(epochs, dtype=np.int64)
+        values = float_array(epochs, "epochs", (None,))
+        if not np.all(np.isfinite(values) & (values == np.round(values))):
+            raise ValueError(f"epochs: expected whole numbers, got {values[:5]}")
+        e = values.astype(np.int64)
         if self.epoch.size == 0:  # every epoch kept: row j is epoch j
             rows = e.astype(np.intp)
             missing = (rows < 0) | (rows >= len(self.time))

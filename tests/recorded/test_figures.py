@@ -106,6 +106,8 @@ def test_a_row_kept_for_the_tables_scores_and_draws_as_the_whole(ran):
         assert np.isnan(k.gain).all()
     with pytest.raises(ValueError, match="^epochs: epoch 1 is not kept"):
         thin[0].result.rows_of([1])
+    with pytest.raises(ValueError, match="^epochs: expected whole numbers"):
+        done.runs[0].result.rows_of([1.5])
     constants = done.constants[section.name]
     a = figures.section_curves(section, done.runs, constants, imu_dt)
     b = figures.section_curves(section, thin, constants, imu_dt)
