@@ -50,6 +50,12 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     assert "stamps as given, no lever arms" in text and "inertial only, first 60 s" in text
     files = {p.name for p in out.iterdir()}
     assert {"table.md", "metrics.csv", "metrics.json", "config.json"} <= files
+    # the DVL innovations' whiteness, per section and row (issue 60): a number per cell
+    table = (out / "table.md").read_text()
+    white = table.split("DVL innovations' lag-1 autocorrelation\n")[-1].split("\n\n")[0]
+    rows = [line for line in white.splitlines() if line.startswith("| run")]
+    cells = [c.strip() for line in rows for c in line.split("|")[2:-1]]
+    assert len(cells) == 2 * 15 and all(re.fullmatch(r"[+-]0\.\d\d", c) for c in cells)
     for name in ("run1", "run2"):
         assert {f"track_{name}.png", f"velocity_error_{name}.png", f"q_{name}.png"} <= files
     metrics = json.loads((out / "metrics.json").read_text())

@@ -39,6 +39,11 @@ class SectionMetrics:
             is consistent; its truth's own error counts as error).
         missed_updates: DVL rows inside the run skipped as missing readings
             (:mod:`pronet.recorded.missing`); 0 for a run without the DVL.
+        dvl_autocorrelation: the whiteness test of the DVL's innovations
+            (:func:`pronet.stats.whiteness`: the lag-one autocorrelation of the whitened
+            innovations, about 0 ± :attr:`dvl_autocorrelation_band` when white); NaN
+            without DVL updates.
+        dvl_autocorrelation_band: the half-width of its 95 % band.
     """
 
     srmse: float
@@ -52,6 +57,8 @@ class SectionMetrics:
     n_scored: int
     missed_updates: int = 0
     velocity_3sigma: float = math.nan
+    dvl_autocorrelation: float = math.nan
+    dvl_autocorrelation_band: float = math.nan
 
 
 def _horizontal_offsets(lla: F64, ref: F64) -> tuple[F64, F64]:
@@ -103,6 +110,7 @@ def section_metrics(section: Section, result: FilterResult, use_dvl: bool = True
     step_n, step_e = _horizontal_offsets(truth[1:], truth[:-1])
     distance = float(np.sum(np.hypot(step_n, step_e)))
     nis = result.nis[np.isfinite(result.nis)]
+    dvl = next((r for r in result.health.streams if r.kind == "velocity"), None)
     return SectionMetrics(
         srmse=float(np.sqrt(np.mean(np.sum(dv**2, axis=1)))),
         smae=float(np.mean(np.sum(np.abs(dv), axis=1))),
@@ -115,6 +123,8 @@ def section_metrics(section: Section, result: FilterResult, use_dvl: bool = True
         n_scored=int(rows.size),
         missed_updates=missed_updates(section, result) if use_dvl else 0,
         velocity_3sigma=_within_3sigma(section, result, rows, dv),
+        dvl_autocorrelation=math.nan if dvl is None else dvl.autocorrelation,
+        dvl_autocorrelation_band=math.nan if dvl is None else dvl.autocorrelation_band,
     )
 
 

@@ -42,6 +42,7 @@ METRIC_COLUMNS = (
     ("mean_nis", "mean NIS", "{:.2f}"),
     ("heading_ratio", "heading error / σ (RMS)", "{:.2f}"),
     ("velocity_3sigma", "vel. error within 3σ (share)", "{:.3f}"),
+    ("dvl_autocorrelation", "DVL innovations' lag-1 autocorrelation", "{:+.2f}"),
 )
 
 
@@ -356,6 +357,7 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "srmse", "Per section"),
             per_section_table(done.runs, "final_horizontal", "Per section"),
             per_section_table(done.runs, "mean_nis", "Per section"),
+            per_section_table(done.runs, "dvl_autocorrelation", "Per section (white: 0 ± 2/√n)"),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
                 [aiding_table(done)]
