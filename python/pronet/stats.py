@@ -477,7 +477,8 @@ def pass_health(
 
 class FilterHealthWarning(UserWarning):
     """A pass's finding (:attr:`PassHealth.flags`): a stream out of its NIS band, a gate
-    that rejected most of its readings, or a diverged solution."""
+    that rejected most of its readings, innovations far from white, or a diverged
+    solution."""
 
 
 #: A stream's name in messages by the kind of its readings.

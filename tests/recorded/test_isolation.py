@@ -364,6 +364,36 @@ def test_pronet_navigate_names_a_strategy_raising_any_exception_in_one_line(
 # ------------------------------------------------------------- a figure that fails
 
 
+def test_pronet_navigate_writes_its_solution_when_a_figure_fails(tmp_path, monkeypatch, capsys):
+    """A figure of ``pronet navigate`` that cannot be drawn: before, the exception ended
+    the command before any file was written, the trajectory with it; now the figure is
+    one line on stderr, a note in report.md and config.json's ``figures_failed``, the rest
+    is written, exit 0."""
+    from mission_recording import write_vehicle_file
+
+    from pronet.recorded import report
+
+    def broken(navigation):
+        raise RuntimeError("no canvas")
+
+    monkeypatch.setattr(report, "track_figure", broken)
+    m = simulate_mission(0, minutes=3.0)
+    folder = write_generic(m, tmp_path / "mission", truth=True)
+    vehicle = write_vehicle_file(tmp_path, m)
+    out = tmp_path / "out"
+    argv = ["navigate", "--data", str(folder), "--filter", str(vehicle), "--init", "truth"]
+    assert main([*argv, "--quiet", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "pronet: figure track.png could not be drawn (not written; see report.md)" in err
+    names = {p.name for p in out.iterdir()}
+    assert {"trajectory.csv", "track.geojson", "config.json", "report.md"} <= names
+    assert "track.png" not in names and "innovations.png" in names
+    note = "figure track.png could not be drawn (RuntimeError: no canvas)"
+    assert json.loads((out / "config.json").read_text())["figures_failed"] == [note]
+    assert note in (out / "report.md").read_text()
+
+
 def test_a_figure_that_fails_is_one_line_and_everything_else_is_written(
     tmp_path, monkeypatch, capsys
 ):

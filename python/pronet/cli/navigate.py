@@ -195,6 +195,7 @@ def _given(args: argparse.Namespace):  # noqa: ANN202
 def run(args: argparse.Namespace) -> int:
     from pronet.recorded.export import write_all
     from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate_recording
+    from pronet.recorded.report import FIGURES
     from pronet.recorded.vehicle import load_vehicle
 
     topics = bag_topics(args)
@@ -235,6 +236,11 @@ def run(args: argparse.Namespace) -> int:
     paths = write_all(navigation, out, bag=bag, figures=not args.no_plots)
     for note in navigation.notes:  # what the filter knows, also with --quiet and --json
         print(f"pronet: {note}", file=sys.stderr)
+    for name in [] if args.no_plots else sorted(set(FIGURES) - {p.name for p in paths}):
+        print(
+            f"pronet: figure {name} could not be drawn (not written; see report.md)",
+            file=sys.stderr,
+        )
     lines = [f"{navigation.name}: {len(navigation.forward.time)} epochs"]
     lines += [
         f"  {s.name}: {s.applied} applied, mean NIS {s.mean_nis:.3g}" for s in navigation.streams

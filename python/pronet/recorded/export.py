@@ -43,6 +43,7 @@ position are left out of the GeoJSON (they stay in the CSV, as ``nan``).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import shutil
@@ -319,8 +320,10 @@ def write_all(
     ``"rosbag1"``, ``"sqlite3"`` or ``"mcap"``) the odometry bag
     (:func:`pronet.recorded.odometry.write_odometry_bag`, ``odometry.bag`` or the ROS 2
     bag folder ``odometry``; ``bag_options``: its frames, topics and rate), with
-    ``figures`` ``track.png``, ``depth_heading.png``, ``innovations.png``, and last
-    ``report.md`` (:mod:`pronet.recorded.report`), which lists them all. The files
+    ``figures`` ``track.png``, ``depth_heading.png``, ``innovations.png`` (a figure that
+    cannot be drawn is left out, named in the notes and in ``config.json``'s
+    ``figures_failed``), and last ``report.md``
+    (:mod:`pronet.recorded.report`), which lists them all. The files
     replace those of an earlier run as one (all old or all new, the report last:
     :func:`pronet._util.files.replace_together`); an existing bag is refused, and the
     new one is removed again when the other files fail.
@@ -336,6 +339,11 @@ def write_all(
     if bag is not None:
         odometry.check_bag(out / odometry.bag_name(bag), navigation, bag, options)
     config_bytes(navigation)  # a config that is not plain data: before any file
+    drawn, failed = report.drawn_figures(navigation) if figures else ([], [])
+    if failed:  # said in report.md's notes and config.json; the rest is written
+        config = {**navigation.config, "figures_failed": failed}
+        notes = (*navigation.notes, *failed)
+        navigation = dataclasses.replace(navigation, notes=notes, config=config)
     out.mkdir(parents=True, exist_ok=True)
     files: list[tuple[Path, bytes | Iterable[bytes]]] = [
         (out / TRAJECTORY, trajectory_csv(navigation)),
@@ -343,8 +351,7 @@ def write_all(
         (out / CONFIG, config_bytes(navigation)),
     ]
     bag_path = None if bag is None else out / odometry.bag_name(bag)
-    if figures:
-        files += [(out / name, png) for name, png in report.figure_bytes(navigation)]
+    files += [(out / name, png) for name, png in drawn]
     names = [p.name for p, _ in files[:3]] + ([] if bag_path is None else [bag_path.name])
     names += [p.name for p, _ in files[3:]] + [report.REPORT]
     origin = None

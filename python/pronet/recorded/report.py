@@ -260,6 +260,20 @@ def figure_bytes(navigation: Navigation) -> list[tuple[str, bytes]]:
     return [(name, png_bytes(draw(navigation))) for name, draw in zip(FIGURES, draws, strict=True)]
 
 
+def drawn_figures(navigation: Navigation) -> tuple[list[tuple[str, bytes]], list[str]]:
+    """Each of :data:`FIGURES` that could be drawn (its name and PNG bytes), and one
+    line for each that could not (its name, the exception's type and message): a figure
+    never takes the solution's files with it."""
+    draws = (track_figure, depth_heading_figure, innovations_figure)
+    drawn, failed = [], []
+    for name, draw in zip(FIGURES, draws, strict=True):
+        try:
+            drawn.append((name, png_bytes(draw(navigation))))
+        except Exception as exc:  # noqa: BLE001 - reported, the other files written
+            failed.append(f"figure {name} could not be drawn ({type(exc).__name__}: {exc})")
+    return drawn, failed
+
+
 def write_figures(navigation: Navigation, out_dir: str | Path) -> list[Path]:
     """Write :data:`FIGURES` into ``out_dir`` atomically; their paths."""
     paths = []
