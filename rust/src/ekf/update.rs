@@ -370,14 +370,14 @@ fn scalar_update<const N: usize>(
     name: &str,
 ) -> Result<(f64, SVector<f64, N>)> {
     let mut h = SMatrix::<f64, 1, N>::zeros();
+    match row {
+        ScalarRow::Unit(i) => h[(0, *i)] = 1.0,
+        ScalarRow::Row(row) => h.fixed_columns_mut::<15>(0).copy_from(row),
+    }
+    let support = Support::of(&h);
     let (pht, s) = match row {
-        ScalarRow::Unit(i) => {
-            h[(0, *i)] = 1.0;
-            (p.column(*i).into_owned(), p[(*i, *i)] + r)
-        }
-        ScalarRow::Row(row) => {
-            h.fixed_columns_mut::<15>(0).copy_from(row);
-            let support = Support::of(&h);
+        ScalarRow::Unit(i) => (p.column(*i).into_owned(), p[(*i, *i)] + r),
+        ScalarRow::Row(_) => {
             let pht = support.times_transpose(p, &h);
             let s = support.left_times(&h, &pht)[(0, 0)] + r;
             (pht, s)
@@ -390,7 +390,6 @@ fn scalar_update<const N: usize>(
         )));
     }
     let gain: SVector<f64, N> = pht / s;
-    let support = Support::of(&h);
     support.joseph(p, &pht, &gain, &h, Some(&SMatrix::<f64, 1, 1>::new(r)));
     if let Some(m) = m {
         let mht = support.times_transpose(m, &h);
