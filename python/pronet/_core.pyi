@@ -149,7 +149,7 @@ class FilterConfig:
                 dvl_calibration: bool = False, dvl_scale_sigma: float | None = None,
                 dvl_misalignment_sigma: Any | None = None, dvl_scale_psd: float | None = None,
                 dvl_misalignment_psd: float | None = None,
-                formulation: Literal["invariant", "classic"] = "invariant",
+                formulation: Literal["invariant", "classic", "se23"] = "invariant",
                 covariance_step: float = 0.1) -> FilterConfig: ...  # fmt: skip
     @property
     def p0_sigma(self) -> list[float]: ...
@@ -183,8 +183,9 @@ class FilterConfig:
     def dvl_misalignment_psd(self) -> float | None:
         """Random-walk PSD of each misalignment angle [rad²/s] (None without the states)."""
     @property
-    def formulation(self) -> Literal["invariant", "classic"]:
-        """The velocity-error coordinates the filter runs in: "invariant" or "classic"."""
+    def formulation(self) -> Literal["invariant", "classic", "se23"]:
+        """The error coordinates the filter runs in: "invariant", "classic" or "se23"
+        (the position error too, about the first position: ``docs/filter.md``)."""
     @property
     def covariance_step(self) -> float:
         """The covariance step [s] (0: the covariance propagated at every IMU sample)."""

@@ -52,7 +52,7 @@ mistakes too, so a misspelt key never silently falls back to a default.
     dvl_variance = [0.01, 0.01, 0.01]
     # p0_sigma (15), accel_bias_psd [(m/s²)²/s], gyro_bias_psd [(rad/s)²/s],
     # lever_arm (3) [m], aiding ("body" or "nav"), imu_dt [s], innovation_gate (NIS),
-    # formulation ("invariant" or "classic": the velocity-error coordinates),
+    # formulation ("invariant", "classic" or "se23": the error coordinates),
     # covariance_step [s] (default 0.1; 0: the covariance propagated at every IMU sample)
 
 ``q_nominal`` is what the constant rows are told and every adaptive row starts from.

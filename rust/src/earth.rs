@@ -321,6 +321,18 @@ impl NedScale {
             -(est[2] - truth[2]),
         )
     }
+
+    /// The geodetic position whose [`NedScale::error`] against `truth` is `d` \[m,
+    /// NED\] (its exact inverse but for rounding).
+    #[inline]
+    pub fn offset(&self, truth: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f64> {
+        let [north, east, cos] = self.0;
+        Vector3::new(
+            truth[0] + d[0] / north,
+            truth[1] + d[1] / (east * cos),
+            truth[2] - d[2],
+        )
+    }
 }
 
 /// Geodetic increment `[Δlat, Δlon, Δh]` for a small NED displacement `d` \[m\] at `lla`.

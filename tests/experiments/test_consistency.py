@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import pytest
 
-from pronet.experiments.consistency import run_cell
+from pronet import _core
+from pronet.experiments.consistency import lawnmower_segments, run_cell, run_lawnmower
 from pronet.montecarlo import STATE_BLOCKS
 
 
@@ -46,3 +47,35 @@ def test_classic_formulation_is_overconfident_in_heading_on_a_mems_straight_leg(
     assert c.heading_ratio > 3.0, c
     assert c.gyro_z_sigma_ratio < 0.5, c
     assert 2.9 < c.mean_nis < 3.1
+
+
+def test_the_lawnmower_turns_every_minute_for_an_hour() -> None:
+    rows = lawnmower_segments()
+    assert sum(r[0] for r in rows) >= 3600.0
+    legs = [r for r in rows if r[2] == 0.0]
+    turns = [r[2] for r in rows if r[2] != 0.0]
+    assert all(r[0] == 60.0 for r in legs)
+    assert turns[0] == -turns[1], "turns alternate sides"
+
+
+def test_se23_changes_the_position_coordinates_alone() -> None:
+    """On the same short lawnmower runs, SE₂(3) and the invariant formulation share
+    the velocity, attitude and bias coordinates (their NEES agree) and differ in the
+    position's, taken about the anchor."""
+    se23 = run_lawnmower("se23", hours=0.1, runs=3)
+    invariant = run_lawnmower("invariant", hours=0.1, runs=3)
+    for block in ("velocity", "attitude", "accel_bias", "gyro_bias"):
+        k = STATE_BLOCKS.index(block)
+        assert se23.mean_nees[k] == pytest.approx(invariant.mean_nees[k], rel=0.05), block
+    k = STATE_BLOCKS.index("position")
+    assert se23.mean_nees[k] != pytest.approx(invariant.mean_nees[k], rel=1e-3)
+    assert 0.0 <= se23.smoothed_inside[k] <= 1.0
+
+
+def test_the_differentiable_filter_names_what_it_does_not_run() -> None:
+    from pronet.learn.torchfilter import Setup
+
+    with pytest.raises(ValueError, match="config: .*'se23'"):
+        Setup.from_config(_core.FilterConfig(formulation="se23"))
+    with pytest.raises(ValueError, match="formulation"):
+        _core.FilterConfig(formulation="SE23")

@@ -78,10 +78,11 @@ def add_parser(sub: Subparsers) -> None:
     )
     parser.add_argument(
         "--formulation",
-        choices=("invariant", "classic"),
+        choices=("invariant", "classic", "se23"),
         default=None,
         help="the filter's error coordinates: invariant (the default, consistent in "
-        "heading) or classic (pronet's filter before 2026-12, to reproduce its results)",
+        "heading), classic (pronet's filter before 2026-12, to reproduce its results) or "
+        "se23 (the position error too, consistent under large heading errors)",
     )
     parser.add_argument(
         "--covariance-step",

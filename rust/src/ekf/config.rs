@@ -2,7 +2,7 @@
 //! and the innovation gate.
 
 use super::calibration::{check_aiding, CalibrationConfig};
-use super::formulation::Formulation;
+use super::formulation::{Coordinates, Formulation};
 use super::state::{Matrix15, Vector15};
 use crate::error::{check, Error, Result};
 use nalgebra::Vector3;
@@ -51,6 +51,10 @@ pub struct FilterConfig {
     /// first sample within half an IMU period of the step, before every DVL update and
     /// wherever the filter is brought up to date ([`super::Ekf::bring_up_to_date`]).
     pub covariance_step: f64,
+    /// The anchor of [`Formulation::Se23`]'s position error (geodetic `[lat rad, lon
+    /// rad, h m]`); None: the filter's initial position, set by [`super::Ekf::new`] in
+    /// its own copy (a pass reads it back from [`super::Ekf::config`]).
+    pub anchor: Option<Vector3<f64>>,
 }
 
 impl Default for FilterConfig {
@@ -67,6 +71,7 @@ impl Default for FilterConfig {
             dvl_calibration: None,
             formulation: Formulation::default(),
             covariance_step: DEFAULT_COVARIANCE_STEP,
+            anchor: None,
         }
     }
 }
@@ -95,6 +100,9 @@ impl FilterConfig {
         check::non_negative("accel_bias_psd", &[self.accel_bias_psd])?;
         check::non_negative("gyro_bias_psd", &[self.gyro_bias_psd])?;
         check::finite("dvl_variance", &self.dvl_variance)?;
+        if let Some(anchor) = &self.anchor {
+            check::finite("anchor", anchor.as_slice())?;
+        }
         if self.dvl_variance.iter().any(|v| *v <= 0.0) {
             return Err(Error::invalid(
                 "dvl_variance",
@@ -128,6 +136,25 @@ impl FilterConfig {
 
     /// Whether the covariance is propagated at every IMU sample: a covariance step
     /// shorter than 1.5 IMU periods rounds to one.
+    /// This configuration with its SE₂(3) anchor at `lla` unless it has one already
+    /// (the same configuration in the other formulations, which have none).
+    pub fn anchored(&self, lla: &Vector3<f64>) -> Self {
+        let mut cfg = self.clone();
+        if cfg.formulation.position_invariant() {
+            cfg.anchor.get_or_insert(*lla);
+        }
+        cfg
+    }
+
+    /// The formulation and its anchor (the origin where none is set: SE₂(3) needs one,
+    /// [`FilterConfig::anchored`]).
+    pub fn coordinates(&self) -> Coordinates {
+        Coordinates {
+            formulation: self.formulation,
+            anchor: self.anchor.unwrap_or_else(Vector3::zeros),
+        }
+    }
+
     pub fn covariance_every_sample(&self) -> bool {
         self.covariance_step < 1.5 * self.imu_dt
     }

@@ -2,7 +2,7 @@
 //! propagation `P ← Φ P Φᵀ` with `Φ = I + F Δt`, and the IMU white-noise term of Q_d,
 //! in either [`Formulation`]. Every formula is in `docs/filter.md`.
 
-use super::formulation::Formulation;
+use super::formulation::{Formulation, Point};
 use super::state::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};
 use super::transition::Transition;
 use crate::attitude::skew;
@@ -10,12 +10,14 @@ use crate::mechanization::{FrameRates, NavState};
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
-/// formulation has no `pos_att` and `vel_gbias` blocks and a skew `vel_att`; the
-/// invariant one has all three (`vel_att` full).
+/// formulation has no `pos_att`, `pos_gbias` and `vel_gbias` blocks and a skew
+/// `vel_att`; the invariant one has `pos_att` (skew), `vel_gbias` and a full `vel_att`;
+/// SE₂(3) has all four, `pos_att` full.
 #[derive(Clone, Debug)]
 pub(crate) struct ErrorDynamics {
     pos_pos: Matrix3<f64>,
     pos_att: Matrix3<f64>,
+    pos_gbias: Matrix3<f64>,
     vel_pos: Vector3<f64>,
     vel_vel: Matrix3<f64>,
     vel_att: Matrix3<f64>,
@@ -23,58 +25,75 @@ pub(crate) struct ErrorDynamics {
     vel_gbias: Matrix3<f64>,
     att_att: Matrix3<f64>,
     att_gbias: Matrix3<f64>,
-    invariant: bool,
+    formulation: Formulation,
 }
+
+/// [`Formulation`] as a const generic parameter (the loops are monomorphized per
+/// formulation).
+const CLASSIC: u8 = 0;
+const INVARIANT: u8 = 1;
+const SE23: u8 = 2;
 
 impl ErrorDynamics {
     pub(crate) fn new(
         nav: &NavState,
         rates: &FrameRates,
         f_body: &Vector3<f64>,
-        formulation: Formulation,
+        at: &Point,
     ) -> Self {
-        Self::with_force(nav, rates, &(nav.dcm * f_body), formulation)
+        Self::with_force(nav, rates, &(nav.dcm * f_body), at)
     }
 
     /// [`Self::new`] with the specific force given in NED, `Ĉ f̂` (a covariance step's
-    /// mean over its interval).
+    /// mean over its interval). `at` gives the formulation and, in SE₂(3), the position
+    /// estimate's displacement from the anchor.
     pub(crate) fn with_force(
         nav: &NavState,
         rates: &FrameRates,
         f_ned: &Vector3<f64>,
-        formulation: Formulation,
+        at: &Point,
     ) -> Self {
+        let formulation = at.formulation;
         let radius = (rates.latitude.r_n * rates.latitude.r_e).sqrt() + nav.lla[2];
         let schuler = rates.gravity[2] / radius;
         let c = nav.dcm;
-        let invariant = formulation == Formulation::Invariant;
         let v = skew(&nav.vel);
-        let (pos_att, vel_att, vel_gbias) = if invariant {
+        let vel_pos = Vector3::new(-schuler, -schuler, 2.0 * schuler);
+        let (mut pos_att, mut vel_att, vel_gbias) = if formulation.velocity_invariant() {
             (v, -skew(&rates.gravity) - v * skew(&rates.earth), -v * c)
         } else {
             (Matrix3::zeros(), skew(f_ned), Matrix3::zeros())
         };
+        let mut pos_gbias = Matrix3::zeros();
+        if formulation.position_invariant() {
+            // δp = δP + [p̂×]ψ in the classic rows, and −[p̂×]ψ̇ (docs/filter.md).
+            let d = skew(&at.disp);
+            pos_att = d * skew(&rates.nav_rate()) - skew(&rates.transport) * d;
+            pos_gbias = -d * c;
+            vel_att += Matrix3::from_diagonal(&vel_pos) * d;
+        }
         Self {
             pos_pos: -skew(&rates.transport),
             pos_att,
-            vel_pos: Vector3::new(-schuler, -schuler, 2.0 * schuler),
+            pos_gbias,
+            vel_pos,
             vel_vel: -skew(&(2.0 * rates.earth + rates.transport)),
             vel_att,
             vel_abias: -c,
             vel_gbias,
             att_att: -skew(&rates.nav_rate()),
             att_gbias: c,
-            invariant,
+            formulation,
         }
     }
 
     /// Rows 0..9 of `F x` for a 15-vector `x` (the bias rows of F are zero): about 60
     /// multiply-adds instead of 225.
     pub(crate) fn apply(&self, x: &[f64]) -> [f64; 9] {
-        if self.invariant {
-            self.apply_in::<true>(x)
-        } else {
-            self.apply_in::<false>(x)
+        match self.formulation {
+            Formulation::Classic => self.apply_in::<CLASSIC>(x),
+            Formulation::Invariant => self.apply_in::<INVARIANT>(x),
+            Formulation::Se23 => self.apply_in::<SE23>(x),
         }
     }
 
@@ -90,9 +109,12 @@ impl ErrorDynamics {
         let mut att = self.vel_att.tr_mul(&xv) + self.att_att.tr_mul(&xa);
         let abias = self.vel_abias.tr_mul(&xv);
         let mut gbias = self.att_gbias.tr_mul(&xa);
-        if self.invariant {
+        if self.formulation.velocity_invariant() {
             att += self.pos_att.tr_mul(&xp);
             gbias += self.vel_gbias.tr_mul(&xv);
+        }
+        if self.formulation.position_invariant() {
+            gbias += self.pos_gbias.tr_mul(&xp);
         }
         let mut out = [0.0; 15];
         for (at, b) in [
@@ -110,7 +132,7 @@ impl ErrorDynamics {
     /// [`Self::apply`] for one formulation. The skew-symmetric blocks skip their zero
     /// diagonal, which leaves every sum bit-identical (`0·x + y = y` for finite x).
     #[inline(always)]
-    fn apply_in<const INVARIANT: bool>(&self, x: &[f64]) -> [f64; 9] {
+    fn apply_in<const FORM: u8>(&self, x: &[f64]) -> [f64; 9] {
         #[inline(always)]
         fn mv(a: &Matrix3<f64>, x: &[f64]) -> [f64; 3] {
             let a = a.as_slice(); // column-major
@@ -133,7 +155,7 @@ impl ErrorDynamics {
         let (xba, xbg) = (&x[ACC_BIAS..ACC_BIAS + 3], &x[GYRO_BIAS..GYRO_BIAS + 3]);
         let pp = skew_mv(&self.pos_pos, xp);
         let vv = skew_mv(&self.vel_vel, xv);
-        let va = if INVARIANT {
+        let va = if FORM != CLASSIC {
             mv(&self.vel_att, xa)
         } else {
             skew_mv(&self.vel_att, xa)
@@ -146,10 +168,18 @@ impl ErrorDynamics {
             o[VEL + r] = self.vel_pos[r] * xp[r] + vv[r] + va[r] + vb[r];
             o[ATT + r] = aa[r] + ab[r];
         }
-        if INVARIANT {
+        if FORM == INVARIANT {
             let (pa, vg) = (skew_mv(&self.pos_att, xa), mv(&self.vel_gbias, xbg));
             for r in 0..3 {
                 o[POS + r] += pa[r];
+                o[VEL + r] += vg[r];
+            }
+        }
+        if FORM == SE23 {
+            let (pa, vg) = (mv(&self.pos_att, xa), mv(&self.vel_gbias, xbg));
+            let pg = mv(&self.pos_gbias, xbg);
+            for r in 0..3 {
+                o[POS + r] += pa[r] + pg[r];
                 o[VEL + r] += vg[r];
             }
         }
@@ -183,23 +213,23 @@ impl ErrorDynamics {
 
     #[inline(always)]
     fn propagate_covariance_portable(&self, p: &mut Matrix15, dt: f64) {
-        if self.invariant {
-            self.propagate_in::<true>(p, dt)
-        } else {
-            self.propagate_in::<false>(p, dt)
+        match self.formulation {
+            Formulation::Classic => self.propagate_in::<CLASSIC>(p, dt),
+            Formulation::Invariant => self.propagate_in::<INVARIANT>(p, dt),
+            Formulation::Se23 => self.propagate_in::<SE23>(p, dt),
         }
     }
 
     #[inline(always)]
-    fn propagate_in<const INVARIANT: bool>(&self, p: &mut Matrix15, dt: f64) {
-        let a = self.times::<INVARIANT>(p);
+    fn propagate_in<const FORM: u8>(&self, p: &mut Matrix15, dt: f64) {
+        let a = self.times::<FORM>(p);
         // M = Δt A + ½Δt² F Aᵀ on the navigation block, m[j][i] = M[i, j] (column j of
         // F Aᵀ is F times row j of A); the block gains M + Mᵀ, which is exactly
         // symmetric since addition commutes.
         let half_dt2 = 0.5 * (dt * dt);
         let mut m = [[0.0; NAV]; NAV];
         for (j, col) in m.iter_mut().enumerate() {
-            let b = self.apply_in::<INVARIANT>(&a[j]);
+            let b = self.apply_in::<FORM>(&a[j]);
             for (i, v) in col.iter_mut().enumerate() {
                 *v = dt * a[i][j] + half_dt2 * b[i];
             }
@@ -224,10 +254,10 @@ impl ErrorDynamics {
     }
 
     /// Rows 0..9 of `A = F P` for a symmetric P, each row a 15-array:
-    /// `A[i, :] = Σ_k F[i, k] P[:, k]`; `INVARIANT` adds the blocks only the invariant
-    /// formulation has (and takes its `vel_att` as full).
+    /// `A[i, :] = Σ_k F[i, k] P[:, k]`; `FORM` adds the blocks only the invariant
+    /// formulations have (and takes `vel_att`, and in SE₂(3) `pos_att`, as full).
     #[inline(always)]
-    fn times<const INVARIANT: bool>(&self, p: &Matrix15) -> [[f64; 15]; 9] {
+    fn times<const FORM: u8>(&self, p: &Matrix15) -> [[f64; 15]; 9] {
         #[inline(always)]
         fn col(p: &Matrix15, k: usize) -> &[f64; 15] {
             p.as_slice()[15 * k..15 * k + 15] // column-major
@@ -260,13 +290,17 @@ impl ErrorDynamics {
             let row = &mut a[POS + r];
             *row = *col(p, VEL + r);
             skew_block(row, &self.pos_pos, r, p, POS);
-            if INVARIANT {
+            if FORM == INVARIANT {
                 skew_block(row, &self.pos_att, r, p, ATT);
+            }
+            if FORM == SE23 {
+                block(row, &self.pos_att, r, p, ATT);
+                block(row, &self.pos_gbias, r, p, GYRO_BIAS);
             }
             let row = &mut a[VEL + r];
             *row = col(p, POS + r).map(|x| self.vel_pos[r] * x);
             skew_block(row, &self.vel_vel, r, p, VEL);
-            if INVARIANT {
+            if FORM != CLASSIC {
                 block(row, &self.vel_att, r, p, ATT);
                 block(row, &self.vel_gbias, r, p, GYRO_BIAS);
             } else {
@@ -293,6 +327,7 @@ impl ErrorDynamics {
         put(POS, POS, &self.pos_pos);
         put(POS, VEL, &Matrix3::identity());
         put(POS, ATT, &self.pos_att);
+        put(POS, GYRO_BIAS, &self.pos_gbias);
         put(VEL, POS, &Matrix3::from_diagonal(&self.vel_pos));
         put(VEL, VEL, &self.vel_vel);
         put(VEL, ATT, &self.vel_att);
@@ -329,16 +364,17 @@ impl ErrorDynamics {
 /// Add the IMU white noise of one step to the velocity and attitude blocks of `p`:
 /// `Q_a = C diag(q_a) Cᵀ·white` and `Q_g = C diag(q_g) Cᵀ·white` (`white = Δt_imu·Δt`),
 /// each added symmetrized so that `p` stays exactly symmetric. In the invariant
-/// formulation the gyro noise also drives `δV = δv − [v×]ψ`: the velocity block gains
-/// `[v×] Q_g [v×]ᵀ` and the velocity–attitude block `−[v×] Q_g`.
+/// formulations the gyro noise also drives `δV = δv − [v×]ψ`: the velocity block gains
+/// `[v×] Q_g [v×]ᵀ` and the velocity–attitude block `−[v×] Q_g`; in SE₂(3) it drives
+/// `δP = δp − [p̂×]ψ` too (`T Q Tᵀ` with the position shear: [`ImuNoise::new`]).
 pub(crate) fn add_imu_noise(
     p: &mut Matrix15,
     nav: &NavState,
-    formulation: Formulation,
+    at: &Point,
     q: &[f64; 6],
     white: f64,
 ) {
-    ImuNoise::new(nav, formulation, q, white).add_to(p);
+    ImuNoise::new(nav, at, q, white).add_to(p);
 }
 
 /// The blocks that [`add_imu_noise`] adds, built once so that a covariance step can add
@@ -348,45 +384,65 @@ pub(crate) struct ImuNoise {
     vel: Matrix3<f64>,
     /// Added to the attitude block (symmetrized).
     att: Matrix3<f64>,
-    /// `−[v×] Q_g`, added to the velocity–attitude block (invariant formulation only).
+    /// `−[v×] Q_g`, added to the velocity–attitude block (invariant formulations only).
     cross: Option<Matrix3<f64>>,
+    /// SE₂(3) only, with `D = [p̂×]`: `D Q_g Dᵀ` added to the position block
+    /// (symmetrized), `−D Q_g` to the position–attitude block and `D Q_g [v×]ᵀ` to the
+    /// position–velocity block.
+    position: Option<[Matrix3<f64>; 3]>,
 }
 
 impl ImuNoise {
-    pub(crate) fn new(nav: &NavState, formulation: Formulation, q: &[f64; 6], white: f64) -> Self {
+    pub(crate) fn new(nav: &NavState, at: &Point, q: &[f64; 6], white: f64) -> Self {
         let c = &nav.dcm;
         let qa = c * Matrix3::from_diagonal(&Vector3::new(q[0], q[1], q[2])) * c.transpose();
         let qg = c * Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * c.transpose();
         let (qa, qg) = (qa * white, qg * white);
-        if formulation == Formulation::Invariant {
+        if at.formulation.velocity_invariant() {
             let v = skew(&nav.vel);
             let vq = v * qg; // once: −[v×]Q_g is its negation, exactly
+            let position = at.formulation.position_invariant().then(|| {
+                let d = skew(&at.disp);
+                let dq = d * qg;
+                [dq * d.transpose(), -dq, dq * v.transpose()]
+            });
             Self {
                 vel: qa + vq * v.transpose(),
                 att: qg,
                 cross: Some(-vq),
+                position,
             }
         } else {
             Self {
                 vel: qa,
                 att: qg,
                 cross: None,
+                position: None,
             }
         }
     }
 
     pub(crate) fn add_to(&self, p: &mut Matrix15) {
-        let mut blk = |at: usize, m: &Matrix3<f64>| {
+        fn blk(p: &mut Matrix15, at: usize, m: &Matrix3<f64>) {
             let mut view = p.fixed_view_mut::<3, 3>(at, at);
             view += (m + m.transpose()) * 0.5;
-        };
-        blk(VEL, &self.vel);
-        blk(ATT, &self.att);
+        }
+        blk(p, VEL, &self.vel);
+        blk(p, ATT, &self.att);
         if let Some(cross) = &self.cross {
             let mut view = p.fixed_view_mut::<3, 3>(VEL, ATT);
             view += cross;
             let mut view = p.fixed_view_mut::<3, 3>(ATT, VEL);
             view += cross.transpose();
+        }
+        if let Some([pos, pos_att, pos_vel]) = &self.position {
+            blk(p, POS, pos);
+            for (at, m) in [(ATT, pos_att), (VEL, pos_vel)] {
+                let mut view = p.fixed_view_mut::<3, 3>(POS, at);
+                view += m;
+                let mut view = p.fixed_view_mut::<3, 3>(at, POS);
+                view += m.transpose();
+            }
         }
     }
 }
@@ -411,10 +467,15 @@ mod tests {
 
     #[test]
     fn interval_transition_is_second_order_and_propagates_blockwise() {
-        for formulation in [Formulation::Classic, Formulation::Invariant] {
+        for formulation in [
+            Formulation::Classic,
+            Formulation::Invariant,
+            Formulation::Se23,
+        ] {
             let nav = moving_state();
             let rates = FrameRates::at(&nav);
-            let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), formulation);
+            let at = point(formulation, &nav);
+            let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), &at);
             let f = dense_f(&d);
             let dt = 0.3;
             let want_phi = Matrix15::identity() + f * dt + f * f * (0.5 * dt * dt);
@@ -441,15 +502,68 @@ mod tests {
 
     #[test]
     fn block_sparse_propagation_equals_dense_phi_p_phi_t() {
-        for formulation in [Formulation::Classic, Formulation::Invariant] {
+        for formulation in [
+            Formulation::Classic,
+            Formulation::Invariant,
+            Formulation::Se23,
+        ] {
             sparse_equals_dense(formulation);
         }
+    }
+
+    /// The point of `formulation` at `nav`, SE₂(3)'s displacement a few km.
+    fn point(formulation: Formulation, nav: &NavState) -> Point {
+        Point {
+            formulation,
+            vel: nav.vel,
+            disp: Vector3::new(2500.0, -1800.0, 40.0),
+        }
+    }
+
+    /// SE₂(3)'s F is the invariant F in the coordinates `δP = δp − [p̂×]ψ`:
+    /// `T F Tⁱ⁻¹ + Ṫ T⁻¹` with `T = I − [p̂×]` at (position, attitude) and `ṗ̂ = v̂`; and
+    /// its IMU noise is `T Q Tᵀ`.
+    #[test]
+    fn se23_dynamics_are_the_invariant_ones_in_its_coordinates() {
+        let nav = moving_state();
+        let rates = FrameRates::at(&nav);
+        let se23 = point(Formulation::Se23, &nav);
+        let inv = Point::velocity(Formulation::Invariant, &nav.vel);
+        let f_b = Vector3::new(0.1, 0.2, -9.8);
+        let f_se23 = dense_f(&ErrorDynamics::new(&nav, &rates, &f_b, &se23));
+        let f_inv = dense_f(&ErrorDynamics::new(&nav, &rates, &f_b, &inv));
+        let shear = |m: Matrix3<f64>| {
+            let mut t = Matrix15::identity();
+            t.fixed_view_mut::<3, 3>(POS, ATT).copy_from(&m);
+            t
+        };
+        let (t, t_inv) = (shear(-skew(&se23.disp)), shear(skew(&se23.disp)));
+        let mut t_dot = Matrix15::zeros();
+        t_dot
+            .fixed_view_mut::<3, 3>(POS, ATT)
+            .copy_from(&(-skew(&nav.vel)));
+        let want = t * f_inv * t_inv + t_dot * t_inv;
+        assert!((f_se23 - want).abs().max() < 1e-12, "{f_se23} vs {want}");
+        let q = [1e-3, 2e-3, 3e-3, 1e-5, 2e-5, 3e-5];
+        let (mut got, mut classic) = (Matrix15::zeros(), Matrix15::zeros());
+        add_imu_noise(&mut got, &nav, &se23, &q, 0.01);
+        add_imu_noise(
+            &mut classic,
+            &nav,
+            &Point::velocity(Formulation::Classic, &nav.vel),
+            &q,
+            0.01,
+        );
+        let mut want = classic;
+        se23.from_classic(&mut want);
+        assert!((got - want).abs().max() < 1e-12 * want.abs().max());
     }
 
     fn sparse_equals_dense(formulation: Formulation) {
         let nav = moving_state();
         let rates = FrameRates::at(&nav);
-        let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), formulation);
+        let at = point(formulation, &nav);
+        let d = ErrorDynamics::new(&nav, &rates, &Vector3::new(0.1, 0.2, -9.8), &at);
         let f = dense_f(&d);
         // F x from the dense F equals the sparse product.
         let x: [f64; 15] = std::array::from_fn(|i| (i as f64 - 6.0) * 0.3);

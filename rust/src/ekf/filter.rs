@@ -5,7 +5,7 @@
 
 use super::calibration::Calibration;
 use super::dynamics::{add_imu_noise, ErrorDynamics};
-use super::formulation::{self, Formulation};
+use super::formulation::{Coordinates, Formulation, Point};
 use super::process_noise::ProcessNoise;
 use super::state::{Matrix15, Vector15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use super::step::{Covariance, CovarianceStep};
@@ -54,11 +54,11 @@ pub struct Ekf {
 /// any.
 pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
 
-/// [`Ekf::sigma`] of a covariance `p` in `formulation`'s coordinates at the velocity
-/// estimate `vel` \[m/s, NED\]: the same operations, so that a σ computed later from a
-/// copy of an epoch's P and velocity is the one computed there, bit for bit.
-pub fn classic_sigma(formulation: Formulation, p: &Matrix15, vel: &Vector3<f64>) -> [f64; 15] {
-    let variances = formulation::classic_variances(formulation, p, vel);
+/// [`Ekf::sigma`] of a covariance `p` in the coordinates of the point `at` (the
+/// formulation and where its map is taken): the same operations, so that a σ computed
+/// later from a copy of an epoch's P and point is the one computed there, bit for bit.
+pub fn classic_sigma(at: &Point, p: &Matrix15) -> [f64; 15] {
+    let variances = at.classic_variances(p);
     std::array::from_fn(|i| {
         let v = variances[i];
         if v < 0.0 {
@@ -77,19 +77,20 @@ impl Ekf {
         gyro_bias: Vector3<f64>,
     ) -> Result<Self> {
         cfg.validate()?;
+        let cfg = cfg.anchored(&nav.lla);
         let mut p = cfg.p0();
-        formulation::from_classic(cfg.formulation, &mut p, &nav.vel);
+        cfg.coordinates().at(&nav).from_classic(&mut p);
         Ok(Self {
             nav,
             accel_bias,
             gyro_bias,
             p,
             last_gyro: Vector3::zeros(),
-            cfg: cfg.clone(),
             sensitivity: None,
             calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
             sensitivity_calibration: None,
             step: None,
+            cfg,
         })
     }
 
@@ -137,8 +138,16 @@ impl Ekf {
         self.sensitivity.as_ref().map(|(m, _)| m)
     }
 
+    /// The configuration, with the SE₂(3) anchor resolved.
     pub fn config(&self) -> &FilterConfig {
         &self.cfg
+    }
+
+    /// Where the map between the filter's error coordinates and the classic ones is
+    /// taken now.
+    #[inline]
+    pub fn point(&self) -> Point {
+        self.cfg.coordinates().at(&self.nav)
     }
 
     /// The last bias-corrected gyro sample \[rad/s, body\].
@@ -165,7 +174,11 @@ impl Ekf {
             return self.p;
         }
         let mut p = self.covariance();
-        formulation::from_classic(formulation, &mut p, &self.nav.vel);
+        let coordinates = Coordinates {
+            formulation,
+            ..self.cfg.coordinates()
+        };
+        coordinates.at(&self.nav).from_classic(&mut p);
         p
     }
 
@@ -173,14 +186,14 @@ impl Ekf {
     /// into the classic ones at the current velocity estimate.
     pub fn to_classic(&self, m: &Matrix15) -> Matrix15 {
         let mut m = *m;
-        formulation::to_classic(self.cfg.formulation, &mut m, &self.nav.vel);
+        self.point().to_classic(&mut m);
         m
     }
 
     /// 1σ of each error state in the classic coordinates, `sqrt(diag P)`.
     /// A negative rounding residue gives 0; a NaN variance stays NaN (never "known").
     pub fn sigma(&self) -> [f64; 15] {
-        classic_sigma(self.cfg.formulation, &self.p, &self.nav.vel)
+        classic_sigma(&self.point(), &self.p)
     }
 
     /// [`Ekf::sigma`] and the DVL calibration states' σ, if any.
@@ -282,8 +295,7 @@ impl Ekf {
         dt: f64,
         noise: ProcessNoise<'_>,
     ) {
-        let formulation = self.cfg.formulation;
-        let dynamics = ErrorDynamics::new(&self.nav, rates, &imu.accel, formulation);
+        let dynamics = ErrorDynamics::new(&self.nav, rates, &imu.accel, &self.point());
         self.propagate_covariance_with(&dynamics, dt, noise);
     }
 
@@ -304,8 +316,7 @@ impl Ekf {
         let accel = raw.accel - self.accel_bias;
         if self.cfg.covariance_every_sample() {
             let rates = FrameRates::at(nav);
-            let formulation = self.cfg.formulation;
-            let dynamics = ErrorDynamics::new(nav, &rates, &accel, formulation);
+            let dynamics = ErrorDynamics::new(nav, &rates, &accel, &self.point());
             self.propagate_covariance_with(&dynamics, dt, noise);
             return (Some(dynamics), None);
         }
@@ -320,15 +331,15 @@ impl Ekf {
         dt: f64,
         noise: ProcessNoise<'_>,
     ) {
-        let formulation = self.cfg.formulation;
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
         if let Some(c) = self.calibration.as_mut() {
             c.propagate(dynamics, dt, true);
         }
+        let at = self.point();
         if let Some((m, q)) = self.sensitivity.as_mut() {
             dynamics.propagate_covariance(m, dt);
-            add_imu_noise(m, &self.nav, formulation, q, self.cfg.imu_dt * dt);
+            add_imu_noise(m, &self.nav, &at, q, self.cfg.imu_dt * dt);
             if let Some(c) = self.sensitivity_calibration.as_mut() {
                 c.propagate(dynamics, dt, false);
             }
@@ -342,14 +353,15 @@ impl Ekf {
                 bias_psd,
             } => {
                 let white = self.cfg.imu_dt * dt;
-                add_imu_noise(&mut self.p, &self.nav, self.cfg.formulation, q, white);
+                let at = self.point();
+                add_imu_noise(&mut self.p, &self.nav, &at, q, white);
                 for (i, psd) in bias_psd.iter().enumerate() {
                     self.p[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
                 }
             }
             ProcessNoise::Discrete(qd) => {
                 let mut qd = (qd + qd.transpose()) * 0.5;
-                formulation::from_classic(self.cfg.formulation, &mut qd, &self.nav.vel);
+                self.point().from_classic(&mut qd);
                 self.p += qd;
             }
         }
@@ -361,13 +373,13 @@ impl Ekf {
     /// to first order `v̂ − δV̂ − [v̂×]ψ̂`, but a rotation of the corrected velocity, so
     /// that a large attitude correction cannot scale the speed.
     pub(super) fn feedback(&mut self, dx: &Vector15) {
-        let formulation = self.cfg.formulation;
+        let coordinates = self.cfg.coordinates();
         correct(
             &mut self.nav,
             &mut self.accel_bias,
             &mut self.gyro_bias,
             dx,
-            formulation,
+            &coordinates,
         );
     }
 }
@@ -387,7 +399,7 @@ impl Ekf {
             (m, &*q, calibration)
         });
         step.close(Covariance {
-            formulation: self.cfg.formulation,
+            coordinates: self.cfg.coordinates(),
             p: &mut self.p,
             calibration: self.calibration.as_mut(),
             sensitivity,
@@ -450,38 +462,49 @@ impl Ekf {
     }
 }
 
-/// Remove an error estimate `δx̂` (estimate minus truth, in the coordinates of
-/// `formulation`) from a navigation solution and its bias estimates: the filter's
+/// Remove an error estimate `δx̂` (estimate minus truth, in the coordinates
+/// `coordinates`) from a navigation solution and its bias estimates: the filter's
 /// feedback, and the smoother's correction of the forward solution. The invariant
-/// velocity is corrected exactly, `v̂ ← Exp(ψ̂)(v̂ − δV̂)` (the filter's own feedback).
+/// velocity is corrected exactly, `v̂ ← Exp(ψ̂)(v̂ − δV̂)` (the filter's own feedback),
+/// and in SE₂(3) the position too, `p̂ ← Exp(ψ̂)(p̂ − δP̂)` about the anchor.
 pub fn correct(
     nav: &mut NavState,
     accel_bias: &mut Vector3<f64>,
     gyro_bias: &mut Vector3<f64>,
     dx: &Vector15,
-    formulation: Formulation,
+    coordinates: &Coordinates,
 ) {
     let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
     let rotation = exp_so3(&block(ATT));
-    (nav.lla, nav.vel) = corrected_position_velocity(nav, dx, formulation, || rotation);
+    (nav.lla, nav.vel) = corrected_position_velocity(nav, dx, coordinates, || rotation);
     nav.dcm = rotation * nav.dcm;
     *accel_bias -= block(ACC_BIAS);
     *gyro_bias -= block(GYRO_BIAS);
 }
 
 /// The position and velocity of [`correct`] alone, by the same operations (the same
-/// bits), `rotation` giving `Exp(ψ̂)` where the formulation reads it (the invariant).
+/// bits), `rotation` giving `Exp(ψ̂)` where the formulation reads it (the invariant
+/// ones).
 pub fn corrected_position_velocity(
     nav: &NavState,
     dx: &Vector15,
-    formulation: Formulation,
+    coordinates: &Coordinates,
     rotation: impl FnOnce() -> Matrix3<f64>,
 ) -> (Vector3<f64>, Vector3<f64>) {
     let block = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
-    let lla = nav.lla - earth::ned_delta_to_lla_delta(&nav.lla, &block(POS));
-    let vel = match formulation {
-        Formulation::Classic => nav.vel - block(VEL),
-        Formulation::Invariant => rotation() * (nav.vel - block(VEL)),
-    };
-    (lla, vel)
+    match coordinates.formulation {
+        Formulation::Classic => (
+            nav.lla - earth::ned_delta_to_lla_delta(&nav.lla, &block(POS)),
+            nav.vel - block(VEL),
+        ),
+        Formulation::Invariant => (
+            nav.lla - earth::ned_delta_to_lla_delta(&nav.lla, &block(POS)),
+            rotation() * (nav.vel - block(VEL)),
+        ),
+        Formulation::Se23 => {
+            let r = rotation();
+            let disp = r * (coordinates.displacement(&nav.lla) - block(POS));
+            (coordinates.position(&disp), r * (nav.vel - block(VEL)))
+        }
+    }
 }

@@ -35,7 +35,7 @@ pub use config::{
     MAX_LEVER_ARM,
 };
 pub use filter::{classic_sigma, correct, corrected_position_velocity, ClosedSigma, Ekf};
-pub use formulation::Formulation;
+pub use formulation::{Coordinates, Formulation, Point};
 pub use mounting::DvlMounting;
 pub use process_noise::ProcessNoise;
 pub use state::{Gain, Matrix15, Row15, Rows3, Vector15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};

@@ -15,7 +15,7 @@
 
 use super::calibration::Calibration;
 use super::dynamics::{ErrorDynamics, ImuNoise};
-use super::formulation::{self, Formulation};
+use super::formulation::Coordinates;
 use super::process_noise::ProcessNoise;
 use super::state::{Matrix15, ACC_BIAS};
 use super::transition::Transition;
@@ -23,11 +23,11 @@ use super::FilterConfig;
 use crate::mechanization::{FrameRates, NavState};
 use nalgebra::Vector3;
 
-/// What closing a covariance step propagates: the covariance `p` in `formulation`'s
-/// coordinates, the DVL calibration blocks, and the sensitivity `M`, the IMU
+/// What closing a covariance step propagates: the covariance `p` in the formulation's
+/// coordinates `coordinates`, the DVL calibration blocks, and the sensitivity `M`, the IMU
 /// variances it is taken for and its calibration blocks.
 pub(crate) struct Covariance<'a> {
-    pub(crate) formulation: Formulation,
+    pub(crate) coordinates: Coordinates,
     pub(crate) p: &'a mut Matrix15,
     pub(crate) calibration: Option<&'a mut Calibration>,
     pub(crate) sensitivity: Option<(&'a mut Matrix15, &'a [f64; 6], Option<&'a mut Calibration>)>,
@@ -109,18 +109,17 @@ impl CovarianceStep {
         if self.elapsed <= 0.0 {
             return None;
         }
-        let formulation = covariance.formulation;
         let start = &self.start;
+        let at = covariance.coordinates.at(start);
         let rates = FrameRates::at(start);
         let force = self.force / self.elapsed;
-        let phi =
-            ErrorDynamics::with_force(start, &rates, &force, formulation).transition(self.elapsed);
+        let phi = ErrorDynamics::with_force(start, &rates, &force, &at).transition(self.elapsed);
         let discrete = self.discrete.map(|qd| {
             let mut qd = (qd + qd.transpose()) * 0.25; // symmetrized, halved
-            formulation::from_classic(formulation, &mut qd, &start.vel);
+            at.from_classic(&mut qd);
             qd
         });
-        let imu_noise = ImuNoise::new(start, formulation, &self.imu_noise, 0.5);
+        let imu_noise = ImuNoise::new(start, &at, &self.imu_noise, 0.5);
         let noise = |p: &mut Matrix15| {
             imu_noise.add_to(p);
             for (i, v) in self.bias_noise.iter().enumerate() {
@@ -139,7 +138,7 @@ impl CovarianceStep {
         if let (Some((m, qm, calibration)), Some(white)) =
             (covariance.sensitivity, self.sensitivity_white)
         {
-            let noise = ImuNoise::new(start, formulation, qm, 0.5 * white);
+            let noise = ImuNoise::new(start, &at, qm, 0.5 * white);
             noise.add_to(m);
             phi.propagate(m);
             noise.add_to(m);

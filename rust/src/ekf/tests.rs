@@ -96,7 +96,11 @@ fn assert_column<const N: usize>(numeric: &Vector3<f64>, h: &SMatrix<f64, 3, N>,
 /// coordinates.
 #[test]
 fn measurement_jacobian_matches_finite_differences() {
-    for formulation in [Formulation::Classic, Formulation::Invariant] {
+    for formulation in [
+        Formulation::Classic,
+        Formulation::Invariant,
+        Formulation::Se23,
+    ] {
         for aiding in [Aiding::Body, Aiding::Nav] {
             measurement_jacobian_case(formulation, aiding);
         }
@@ -132,20 +136,23 @@ fn measurement_jacobian_case(formulation: Formulation, aiding: Aiding) {
     }
 }
 
-/// The error of `est` against `truth` in `formulation`'s coordinates (biases given).
-fn error_in(
-    formulation: Formulation,
-    est: &NavState,
-    truth: &NavState,
-    bias_error: &[f64; 6],
-) -> Vector15 {
+/// The error of `est` against `truth` in the coordinates `at` (biases given): in
+/// SE₂(3) the exact `δP = p̂ − Ĉ Cᵀ p` about the anchor.
+fn error_in(at: &Coordinates, est: &NavState, truth: &NavState, bias_error: &[f64; 6]) -> Vector15 {
+    let formulation = at.formulation;
     let psi = -crate::attitude::log_so3(&(est.dcm * truth.dcm.transpose()));
     let dv = est.vel - truth.vel;
     let dv = match formulation {
         Formulation::Classic => dv,
-        Formulation::Invariant => dv - est.vel.cross(&psi),
+        _ => dv - est.vel.cross(&psi),
     };
-    let dp = earth::position_error_ned(&est.lla, &truth.lla);
+    let dp = match formulation {
+        Formulation::Se23 => {
+            let rotation = est.dcm * truth.dcm.transpose();
+            at.displacement(&est.lla) - rotation * at.displacement(&truth.lla)
+        }
+        _ => earth::position_error_ned(&est.lla, &truth.lla),
+    };
     let mut x = Vector15::zeros();
     x.fixed_rows_mut::<3>(POS).copy_from(&dp);
     x.fixed_rows_mut::<3>(VEL).copy_from(&dv);
@@ -156,12 +163,17 @@ fn error_in(
     x
 }
 
-/// Each column of F, in both formulations, against the strapdown step itself: an
+/// Each column of F, in every formulation, against the strapdown step itself: an
 /// estimate one small error away from the truth, both stepped with the same raw IMU
 /// sample (the estimate correcting it by its biases), moves its error by `F δx Δt`.
+/// SE₂(3)'s anchor lies about 4 km away, so that its `[p̂×]` terms are large.
 #[test]
 fn error_dynamics_match_the_mechanization() {
-    for formulation in [Formulation::Classic, Formulation::Invariant] {
+    for formulation in [
+        Formulation::Classic,
+        Formulation::Invariant,
+        Formulation::Se23,
+    ] {
         let truth = NavState {
             vel: Vector3::new(1.5, -0.8, 0.2),
             ..moving_state()
@@ -175,8 +187,10 @@ fn error_dynamics_match_the_mechanization() {
         let rates = FrameRates::at(&truth);
         let cfg = FilterConfig {
             formulation,
+            anchor: Some(truth.lla + Vector3::new(-5e-4, 4e-4, 30.0)),
             ..FilterConfig::default()
         };
+        let at = cfg.coordinates();
         for j in 0..15 {
             let mut dx = Vector15::zeros();
             dx[j] = scale[j / 3];
@@ -184,7 +198,7 @@ fn error_dynamics_match_the_mechanization() {
             let mut ekf = Ekf::new(&cfg, truth, Vector3::zeros(), Vector3::zeros()).unwrap();
             ekf.feedback(&(-dx));
             let bias_error: [f64; 6] = std::array::from_fn(|i| dx[ACC_BIAS + i]);
-            let start = error_in(formulation, &ekf.nav, &truth, &bias_error);
+            let start = error_in(&at, &ekf.nav, &truth, &bias_error);
             // δx up to its second order (the feedback rotates by exp, the velocity
             // map is taken at the estimate before and after it).
             let close = 1e-3 * scale[j / 3] + 5.0 * scale[j / 3].powi(2);
@@ -193,11 +207,15 @@ fn error_dynamics_match_the_mechanization() {
                 accel: raw.accel - ekf.accel_bias,
                 gyro: raw.gyro - ekf.gyro_bias,
             };
-            let dynamics =
-                ErrorDynamics::new(&ekf.nav, &FrameRates::at(&ekf.nav), &imu.accel, formulation);
+            let dynamics = ErrorDynamics::new(
+                &ekf.nav,
+                &FrameRates::at(&ekf.nav),
+                &imu.accel,
+                &ekf.point(),
+            );
             let est1 = step_with_rates(&ekf.nav, &imu, dt, &FrameRates::at(&ekf.nav));
             let truth1 = step_with_rates(&truth, &raw, dt, &rates);
-            let end = error_in(formulation, &est1, &truth1, &bias_error);
+            let end = error_in(&at, &est1, &truth1, &bias_error);
             let rate = (end - start) / dt;
             let f = dynamics.apply(start.as_slice());
             for i in 0..9 {
@@ -242,7 +260,7 @@ fn one_update_is_the_same_in_either_formulation() {
     classic.p += a * a.transpose();
     let mut invariant = classic.clone();
     invariant.cfg.formulation = Formulation::Invariant;
-    formulation::from_classic(Formulation::Invariant, &mut invariant.p, &classic.nav.vel);
+    Point::velocity(Formulation::Invariant, &classic.nav.vel).from_classic(&mut invariant.p);
     let (prior_vel, prior_dcm) = (classic.nav.vel, classic.nav.dcm);
     let z = Vector3::new(1.2, 0.3, 0.05);
     let (c, i) = (
@@ -271,7 +289,7 @@ fn one_update_is_the_same_in_either_formulation() {
     assert!((classic.nav.dcm - invariant.nav.dcm).abs().max() < 1e-13);
     assert!((classic.nav.lla - invariant.nav.lla).abs().max() < 1e-13);
     let mut back = invariant.p;
-    formulation::to_classic(Formulation::Invariant, &mut back, &prior_vel);
+    Point::velocity(Formulation::Invariant, &prior_vel).to_classic(&mut back);
     assert!((back - classic.p).abs().max() < 1e-12 * classic.p.abs().max());
 }
 
@@ -454,4 +472,86 @@ fn covariance_stays_symmetric_positive_definite() {
     }
     let eig = ekf.p.symmetric_eigenvalues();
     assert!(eig.min() > 0.0, "min eigenvalue {}", eig.min());
+}
+
+/// A position reading at a lever arm from the same prior in the invariant formulation
+/// and in SE₂(3) (anchor ~2 km away): a fix's north component has the same innovation
+/// and variance; one depth reading gives the same NIS and the same posterior covariance
+/// mapped to the classic coordinates at the prior, and states that differ at second
+/// order. (A fix's east component is linearized after the north one's feedback, where
+/// the two differ at first order in `|Δp̂| σ_ψ`: each keeps P about its own point.)
+#[test]
+fn one_position_reading_is_the_same_in_se23() {
+    use crate::measurement::{Depth, Fix};
+    let cfg = |formulation| FilterConfig {
+        formulation,
+        anchor: Some(moving_state().lla + Vector3::new(3e-4, -2e-4, 5.0)),
+        ..FilterConfig::default()
+    };
+    let prior = moving_state();
+    let mut invariant = Ekf::new(
+        &cfg(Formulation::Invariant),
+        prior,
+        Vector3::zeros(),
+        Vector3::zeros(),
+    )
+    .unwrap();
+    let a = Matrix15::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 1e-3);
+    invariant.p += a * a.transpose();
+    invariant.p[(ATT + 2, ATT + 2)] += 0.01; // an uncertain heading
+    let mut se23 = invariant.clone();
+    se23.cfg = cfg(Formulation::Se23);
+    let (at_inv, at_se23) = (invariant.point(), se23.point());
+    assert!(at_se23.disp.norm() > 1000.0, "{}", at_se23.disp);
+    let mut classic = invariant.p;
+    at_inv.to_classic(&mut classic);
+    se23.p = classic;
+    at_se23.from_classic(&mut se23.p);
+    let fix = Fix {
+        lla: [prior.lla[0] + 2e-7, prior.lla[1] - 1e-7, f64::NAN],
+        sigma: [1.0, 1.0, 1.0],
+        lever_arm: Vector3::new(0.4, 0.0, -1.5),
+    };
+    let variance = |e: &Ekf| {
+        let Linearized::Scalar { innovation, row, r } = fix.linearize(0, e) else {
+            unreachable!("a fix is read component by component")
+        };
+        let mut h = Row15::zeros();
+        match row {
+            ScalarRow::Row(row) => h = row,
+            ScalarRow::Unit(k) => h[k] = 1.0,
+        }
+        (innovation, (h * e.p * h.transpose())[(0, 0)] + r)
+    };
+    let ((nu_i, s_i), (nu_s, s_s)) = (variance(&invariant), variance(&se23));
+    assert_eq!(nu_i, nu_s);
+    assert!((s_i - s_s).abs() < 1e-12 * s_i, "{s_i} vs {s_s}");
+    let depth = Depth {
+        z: -prior.lla[2] + 0.3,
+        sigma: 0.1,
+        lever_arm: Vector3::new(0.4, 0.2, -1.5),
+    };
+    let (i, s) = (
+        invariant.apply(&depth).unwrap(),
+        se23.apply(&depth).unwrap(),
+    );
+    assert!(
+        (i.nis - s.nis).abs() < 1e-9 * i.nis,
+        "{} vs {}",
+        i.nis,
+        s.nis
+    );
+    let (mut pi, mut ps) = (invariant.p, se23.p);
+    at_inv.to_classic(&mut pi);
+    at_se23.to_classic(&mut ps);
+    let gap = (pi - ps).abs().max() / pi.abs().max();
+    assert!(gap < 1e-9, "{gap}");
+    let psi = crate::attitude::log_so3(&(se23.nav.dcm * prior.dcm.transpose()));
+    assert!(psi.norm() > 1e-6, "the depth corrects the attitude: {psi}");
+    assert!((invariant.nav.dcm - se23.nav.dcm).abs().max() < 1e-12);
+    let moved = earth::position_error_ned(&se23.nav.lla, &invariant.nav.lla).norm();
+    assert!(
+        moved <= 2.0 * psi.norm().powi(2) * at_se23.disp.norm() + 1e-9,
+        "{moved}"
+    );
 }

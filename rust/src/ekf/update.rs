@@ -9,7 +9,6 @@
 
 use super::calibration::{Calibration, Rows3x19, N_CALIBRATED, SCALE};
 use super::filter::Ekf;
-use super::formulation;
 use super::joseph::Support;
 use super::state::{Gain, Row15, Rows3, Vector15};
 use crate::error::{Error, Result};
@@ -201,7 +200,7 @@ impl Ekf {
             }
         };
         let mut info = info;
-        formulation::gain_to_classic(self.cfg.formulation, &mut info.gain, &self.nav.vel);
+        self.point().gain_to_classic(&mut info.gain);
         if let Some((dx, cal)) = dx {
             info.correction = Some(dx);
             info.calibration_correction = cal;

@@ -2,8 +2,9 @@
 //!
 //! `ẑ = −ĥ + (Ĉ r)_D` \[m, positive down\] (a sensor 1 m below a level IMU reads 1 m
 //! deeper); `H = e_D` on the position error and row D of `[(Ĉ r)×]` on ψ
-//! (`Ĉ − C = −[ψ×] C`), the same in either formulation. `docs/filter.md`, "Lever arms
-//! and heading".
+//! (`Ĉ − C = −[ψ×] C`), the same in the classic and invariant formulations; SE₂(3)
+//! adds row D of `[p̂×]` on ψ (`δp = δP + [p̂×]ψ`). `docs/filter.md`, "Lever arms and
+//! heading".
 
 use crate::attitude::skew;
 use crate::ekf::{Ekf, Linearized, Measurement, Row15, ScalarRow, ATT, POS};
@@ -26,32 +27,46 @@ impl Measurement for Depth {
 
     fn linearize(&self, _: usize, ekf: &Ekf) -> Linearized {
         let z = self.z + ekf.nav.lla[2]; // z − ẑ with ẑ = −ĥ at the IMU
-        let r = self.sigma * self.sigma;
-        if self.lever_arm == Vector3::zeros() {
-            return Linearized::Scalar {
-                innovation: z,
-                row: ScalarRow::Unit(POS + 2),
-                r,
-            };
-        }
-        let (innovation, row) = offset_row(ekf, &self.lever_arm, 2, z);
-        Linearized::Scalar {
-            innovation,
-            row: ScalarRow::Row(row),
+        position_component(ekf, &self.lever_arm, 2, z, self.sigma * self.sigma)
+    }
+}
+
+/// The scalar update of a position component `axis` (0 north, 1 east, 2 down) read at
+/// `lever_arm` from the IMU, its innovation at the IMU `at_imu` and its variance `r`:
+/// the unit row on δp at the IMU in the classic and invariant formulations; otherwise
+/// [`offset_row`], and in SE₂(3) (`δp = δP + [p̂×]ψ`) row `axis` of `[p̂×]` added on ψ.
+pub(super) fn position_component(
+    ekf: &Ekf,
+    lever_arm: &Vector3<f64>,
+    axis: usize,
+    at_imu: f64,
+    r: f64,
+) -> Linearized {
+    let se23 = ekf.config().formulation.position_invariant();
+    if *lever_arm == Vector3::zeros() && !se23 {
+        return Linearized::Scalar {
+            innovation: at_imu,
+            row: ScalarRow::Unit(POS + axis),
             r,
-        }
+        };
+    }
+    let (innovation, mut row) = offset_row(ekf, lever_arm, axis, at_imu);
+    if se23 {
+        let d = skew(&ekf.point().disp);
+        let mut att = row.fixed_columns_mut::<3>(ATT);
+        att += d.row(axis);
+    }
+    Linearized::Scalar {
+        innovation,
+        row: ScalarRow::Row(row),
+        r,
     }
 }
 
 /// A position component `axis` (0 north, 1 east, 2 down) read at `lever_arm` from
 /// the IMU: the innovation at the IMU `at_imu` less the arm's component `(Ĉ r)_axis`,
 /// and the row `e_axis` on δp plus row `axis` of `[(Ĉ r)×]` on ψ.
-pub(super) fn offset_row(
-    ekf: &Ekf,
-    lever_arm: &Vector3<f64>,
-    axis: usize,
-    at_imu: f64,
-) -> (f64, Row15) {
+fn offset_row(ekf: &Ekf, lever_arm: &Vector3<f64>, axis: usize, at_imu: f64) -> (f64, Row15) {
     let arm = ekf.nav.dcm * lever_arm;
     let mut row = Row15::zeros();
     row[POS + axis] = 1.0;

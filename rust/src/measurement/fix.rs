@@ -4,14 +4,15 @@
 //! One scalar update per component, north, east and (with a height) down, each
 //! linearized at the estimate the previous one left: `ν_N = (φ − φ̂)(R_N + ĥ) − (Ĉr)_N`,
 //! `ν_E = (λ − λ̂)(R_E + ĥ) cos φ̂ − (Ĉr)_E` (the longitude difference wrapped into
-//! (−π, π]), `ν_D = (ĥ − h) − (Ĉr)_D`; `H = e_i` on δp plus row i of `[(Ĉ r)×]` on ψ.
+//! (−π, π]), `ν_D = (ĥ − h) − (Ĉr)_D`; `H = e_i` on δp plus row i of `[(Ĉ r)×]` on ψ
+//! (and of `[p̂×]` in SE₂(3)).
 //! No innovation gate applies. `docs/filter.md`, "Position and depth updates" and
 //! "Lever arms and heading".
 
-use super::depth::offset_row;
+use super::depth::position_component;
 use crate::attitude::wrap_angle;
 use crate::earth;
-use crate::ekf::{Ekf, Linearized, Measurement, ScalarRow, POS};
+use crate::ekf::{Ekf, Linearized, Measurement};
 use nalgebra::Vector3;
 
 /// One fix `lla = [φ (rad), λ (rad), h (m, up)]` (a NaN height: horizontal only) with
@@ -46,19 +47,7 @@ impl Measurement for Fix {
             _ => h - fix[2],
         };
         let r = self.sigma[axis] * self.sigma[axis];
-        if self.lever_arm == Vector3::zeros() {
-            return Linearized::Scalar {
-                innovation: at_imu,
-                row: ScalarRow::Unit(POS + axis),
-                r,
-            };
-        }
-        let (innovation, row) = offset_row(ekf, &self.lever_arm, axis, at_imu);
-        Linearized::Scalar {
-            innovation,
-            row: ScalarRow::Row(row),
-            r,
-        }
+        position_component(ekf, &self.lever_arm, axis, at_imu, r)
     }
 }
 

@@ -9,7 +9,7 @@
 //! (`δv = δV + [v̂×]ψ`). Every formula is in `docs/filter.md`.
 
 use crate::attitude::skew;
-use crate::ekf::{Aiding, Ekf, Formulation, Linearized, Measurement, Rows3, VectorRows};
+use crate::ekf::{Aiding, Ekf, Linearized, Measurement, Rows3, VectorRows};
 use crate::ekf::{ATT, GYRO_BIAS, VEL};
 use nalgebra::{Matrix3, Vector3};
 
@@ -31,7 +31,7 @@ impl Velocity {
     pub fn model(&self, ekf: &Ekf) -> (Vector3<f64>, Rows3) {
         let mut h = Rows3::zeros();
         let nav = &ekf.nav;
-        let invariant = ekf.config().formulation == Formulation::Invariant;
+        let invariant = ekf.config().formulation.velocity_invariant();
         let r = self.lever_arm;
         match self.frame {
             Aiding::Body => {

@@ -50,7 +50,7 @@ fn parse_formulation(text: &str) -> PyResult<Formulation> {
     Formulation::from_name(text).ok_or_else(|| {
         invalid(
             "formulation",
-            format!("must be \"invariant\" or \"classic\", got {text:?}"),
+            format!("must be \"invariant\", \"classic\" or \"se23\", got {text:?}"),
         )
     })
 }
@@ -119,6 +119,7 @@ impl PyFilterConfig {
             dvl_calibration: calibration,
             formulation: parse_formulation(&formulation)?,
             covariance_step,
+            anchor: None,
         };
         inner.validate().map_err(to_py_err)?;
         Ok(Self { inner })
@@ -150,7 +151,8 @@ impl PyFilterConfig {
             Aiding::Nav => "nav",
         }
     }
-    /// The velocity-error coordinates the filter runs in: "invariant" or "classic".
+    /// The error coordinates the filter runs in: "invariant", "classic" or "se23"
+    /// (the position error too, about the first position: ``docs/filter.md``).
     #[getter]
     fn formulation(&self) -> &'static str {
         self.inner.formulation.name()

@@ -53,6 +53,8 @@ pub fn filter_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
+    // SE₂(3)'s anchor fixed here, where the backward pass reads it too.
+    let cfg = &cfg.anchored(&initial.lla);
     let run = Recording {
         data,
         initial,
@@ -74,6 +76,8 @@ pub fn smooth_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
+    // SE₂(3)'s anchor fixed here, where the backward pass reads it too.
+    let cfg = &cfg.anchored(&initial.lla);
     let run = Recording {
         data,
         initial,

@@ -136,13 +136,13 @@ fn smoother_intervals_rebuild_the_forward_covariances_exactly() {
             let mut closes = Vec::new();
             for pair in nodes.windows(2) {
                 let (a, b) = (&pair[0], &pair[1]);
-                let (every, vel_b) = (|_| true, out.nav[b.epoch].vel);
+                let (every, vel_b) = (|_| true, out.nav[b.epoch]);
                 let c = &Cancel::default();
                 closes::samples::<15>(
                     &forward,
                     &cfg,
                     (a, b.epoch),
-                    (0, vel_b),
+                    (0, cfg.coordinates().at(&vel_b)),
                     &every,
                     &mut closes,
                     c,

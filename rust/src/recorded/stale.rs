@@ -2,8 +2,7 @@
 
 use super::output::FilterOutput;
 use crate::ekf::calibration::Calibration;
-use crate::ekf::{classic_sigma, variance_between, ClosedSigma, Ekf, Formulation, Matrix15};
-use nalgebra::Vector3;
+use crate::ekf::{classic_sigma, variance_between, ClosedSigma, Ekf, Matrix15, Point};
 
 /// The σ of the epochs inside a covariance step. P stands at the step's start there, so
 /// the σ an epoch records is the last close's; once the step closes (before the updates
@@ -38,20 +37,20 @@ enum Current {
     Recorded(ClosedSigma),
     Unrecorded {
         p: Matrix15,
-        vel: Vector3<f64>,
+        point: Point,
         calibration: Option<[f64; 4]>,
     },
 }
 
 impl Current {
-    fn sigma(&self, formulation: Formulation) -> ClosedSigma {
+    fn sigma(&self) -> ClosedSigma {
         match self {
             Current::Recorded(sigma) => *sigma,
             Current::Unrecorded {
                 p,
-                vel,
+                point,
                 calibration,
-            } => (classic_sigma(formulation, p, vel), *calibration),
+            } => (classic_sigma(point, p), *calibration),
         }
     }
 }
@@ -75,7 +74,7 @@ impl StaleSigma {
     ) {
         if let Some((sigma, calibration)) = self.closed.take() {
             if let Some((t_a, current)) = &self.last_current {
-                let (from, from_calibration) = current.sigma(ekf.config().formulation);
+                let (from, from_calibration) = current.sigma();
                 for &e in &self.pending {
                     let w = (out.time[e] - t_a) / (t - t_a);
                     let between =
@@ -98,12 +97,12 @@ impl StaleSigma {
                 None // no epoch is ever inside a step
             } else {
                 let calibration = ekf.calibration.as_ref().map(Calibration::sigma);
-                let (p, vel) = (ekf.p, ekf.nav.vel);
+                let (p, point) = (ekf.p, ekf.point());
                 Some((
                     t,
                     Current::Unrecorded {
                         p,
-                        vel,
+                        point,
                         calibration,
                     },
                 ))

@@ -243,7 +243,7 @@ fn reintegration_is_exact(
             assert_eq!(got.epoch, want.epoch);
             assert_eq!(got.phi, want.phi, "Φ at epoch {}", want.epoch);
             assert_eq!(got.p_prior, want.p_prior, "P at epoch {}", want.epoch);
-            let velocities = |c: &closes::Close<19, _>| (c.vel_prior, c.vel);
+            let velocities = |c: &closes::Close<19, _>| (c.point_prior, c.point);
             assert_eq!(
                 velocities(got),
                 velocities(want),

@@ -6,7 +6,8 @@ use super::aiding::AidingTally;
 use crate::attitude::log_so3;
 use crate::earth;
 use crate::ekf::DvlMounting;
-use crate::ekf::{Applied, Ekf, Formulation, Matrix15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
+use crate::ekf::{Applied, Coordinates, Ekf, Formulation, Matrix15};
+use crate::ekf::{ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::measurement::Reading;
 use crate::mechanization::NavState;
 use crate::noise::NoiseStrategy;
@@ -126,13 +127,34 @@ pub(super) fn nees3(e: &Vector3<f64>, p: &Matrix15, block: usize) -> f64 {
 /// `δV = v̂ − Ĉ Cᵀ v` (the invariant velocity error, exact), against the invariant
 /// covariance. The classic `δv` carries `[v̂×]ψ`, which is second-order wrong once
 /// heading errors reach degrees; `δV` is what the DVL reads in either formulation.
+///
+/// In SE₂(3) the position too is taken in the filter's own coordinates,
+/// `δP = p̂ − Ĉ Cᵀ p` about the anchor ([`se23_position_nees`]).
 fn block_nees(ekf: &Ekf, truth: &NavState, error: &[f64; 15]) -> [f64; 5] {
     let p = ekf.covariance();
     let mut nees = [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS]
         .map(|b| nees3(&Vector3::new(error[b], error[b + 1], error[b + 2]), &p, b));
     let dv = ekf.nav.vel - ekf.nav.dcm * (truth.dcm.transpose() * truth.vel);
     nees[1] = nees3(&dv, &ekf.covariance_in(Formulation::Invariant), VEL);
+    let coordinates = ekf.config().coordinates();
+    if coordinates.formulation.position_invariant() {
+        nees[0] = se23_position_nees(&coordinates, &ekf.nav, truth, &ekf.p);
+    }
     nees
+}
+
+/// The NEES of SE₂(3)'s position error `δP = p̂ − Ĉ Cᵀ p` (exact; `≈ δp − [p̂×]ψ`), the
+/// displacements from the anchor of `coordinates`, against the covariance `p` in its
+/// coordinates: linear in the state however large the heading error.
+pub(super) fn se23_position_nees(
+    coordinates: &Coordinates,
+    nav: &NavState,
+    truth: &NavState,
+    p: &Matrix15,
+) -> f64 {
+    let truth_disp = coordinates.displacement(&truth.lla);
+    let dp = coordinates.displacement(&nav.lla) - nav.dcm * (truth.dcm.transpose() * truth_disp);
+    nees3(&dp, p, POS)
 }
 
 /// The run's statistics of its updates, gathered as its pass goes.

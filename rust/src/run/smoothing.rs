@@ -2,11 +2,11 @@
 //! ([`SmootherLog`]), the backward pass at the end, and the smoothed solution's metrics
 //! against the truth ([`SmoothedRecord`]), as the run reports its own.
 
-use super::metrics::{nees3, solution_error};
+use super::metrics::{nees3, se23_position_nees, solution_error};
 use super::History;
 use crate::attitude::exp_so3;
 use crate::cancel::Cancel;
-use crate::ekf::{correct, corrected_position_velocity, formulation};
+use crate::ekf::{correct, corrected_position_velocity, Coordinates, Point};
 use crate::ekf::{Applied, Ekf, FilterConfig, Formulation, Matrix15, ProcessNoise, Transition};
 use crate::ekf::{Vector15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use crate::measurement::Reading;
@@ -268,13 +268,13 @@ impl Sink for Reduced<'_> {
                 Vector3::new(b[0], b[1], b[2]),
                 Vector3::new(b[3], b[4], b[5]),
             );
-            correct(&mut s, &mut ab, &mut gb, &dx, cfg.formulation);
+            correct(&mut s, &mut ab, &mut gb, &dx, &cfg.coordinates());
             let bias = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
             self.solutions.push((i, s, bias));
             (s.lla, s.vel)
         } else {
             let psi = || exp_so3(&Vector3::new(dx[ATT], dx[ATT + 1], dx[ATT + 2]));
-            corrected_position_velocity(nav, &dx, cfg.formulation, psi)
+            corrected_position_velocity(nav, &dx, &cfg.coordinates(), psi)
         };
         self.terms[i] = Some(self.terms_of(i, &lla, &vel));
     }
@@ -306,19 +306,20 @@ impl Sink for Reduced<'_> {
 }
 
 /// [`block_nees`] of a smoothed solution `nav` whose covariance `p` is in the
-/// coordinates of `formulation` about the velocity `about` (the forward solution's).
+/// filter's coordinates about the point `about` (the forward solution's).
 ///
 /// [`block_nees`]: super::block_nees
 fn smoothed_block_nees(
     nav: &NavState,
     p: &Matrix15,
-    formulation: Formulation,
-    about: &Vector3<f64>,
+    about: &Point,
+    coordinates: &Coordinates,
     truth: &NavState,
     error: &[f64; 15],
 ) -> [f64; 5] {
+    let formulation = coordinates.formulation;
     let mut classic = *p;
-    formulation::to_classic(formulation, &mut classic, about);
+    about.to_classic(&mut classic);
     let mut nees = [POS, VEL, ATT, ACC_BIAS, GYRO_BIAS].map(|b| {
         nees3(
             &Vector3::new(error[b], error[b + 1], error[b + 2]),
@@ -326,15 +327,19 @@ fn smoothed_block_nees(
             b,
         )
     });
-    let invariant = if formulation == Formulation::Invariant {
+    // The velocity block of SE₂(3)'s covariance is the invariant one's.
+    let invariant = if formulation.velocity_invariant() {
         *p
     } else {
         let mut q = classic;
-        formulation::from_classic(Formulation::Invariant, &mut q, &nav.vel);
+        Point::velocity(Formulation::Invariant, &nav.vel).from_classic(&mut q);
         q
     };
     let dv = nav.vel - nav.dcm * (truth.dcm.transpose() * truth.vel);
     nees[1] = nees3(&dv, &invariant, VEL);
+    if formulation.position_invariant() {
+        nees[0] = se23_position_nees(coordinates, nav, truth, p);
+    }
     nees
 }
 
@@ -343,7 +348,7 @@ fn smoothed_block_nees(
 /// forward solution's).
 fn smoothed_metrics(
     s: Reduced<'_>,
-    formulation: Formulation,
+    coordinates: Coordinates,
     record_every: usize,
 ) -> SmoothedRecord {
     let (log, truth) = (s.log, s.truth);
@@ -377,12 +382,12 @@ fn smoothed_metrics(
         .map(
             |&k| match k.and_then(|k| covariance.get(&k).map(|p| (k, p))) {
                 Some((k, p)) => {
-                    let about = &log.nav[k].vel;
+                    let about = coordinates.at(&log.nav[k]);
                     smoothed_block_nees(
                         &solution(k).0,
                         p,
-                        formulation,
-                        about,
+                        &about,
+                        &coordinates,
                         &truth.states[k],
                         &error(k),
                     )
@@ -502,7 +507,7 @@ impl SmootherLog {
                 history,
             };
         }
-        smoothed_metrics(reduced, cfg.formulation, record_every)
+        smoothed_metrics(reduced, cfg.coordinates(), record_every)
     }
 }
 

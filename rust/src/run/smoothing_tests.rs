@@ -171,7 +171,8 @@ fn assert_bryson_frazier_is_re_predicted(
             .p_prior
             .as_ref()
             .unwrap_or_else(|| panic!("no prior at {}", b.epoch));
-        let (mut rebuilt, every, vel_b) = (Vec::new(), |_| true, log.nav[b.epoch].vel);
+        let vel_b = cfg.coordinates().at(&log.nav[b.epoch]);
+        let (mut rebuilt, every) = (Vec::new(), |_| true);
         let at = (a, b.epoch);
         closes::samples::<15>(&forward, &cfg, at, (0, vel_b), &every, &mut rebuilt, cancel)
             .unwrap();

@@ -33,8 +33,9 @@ use super::transition::{symmetric, NavRows, Sample, Step};
 use crate::cancel::Cancel;
 use crate::ekf::calibration::N_CALIBRATED;
 use crate::ekf::FilterConfig;
+use crate::ekf::Point;
 use crate::error::{Error, Result};
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{SMatrix, SVector};
 use std::ops::Range;
 
 /// The backward pass over `nodes` (from [`super::Nodes`], first at epoch 0 and last at
@@ -105,7 +106,7 @@ pub fn smooth_into<S: Sink>(
         time: &|i| forward.time(i),
         lazy: matches!(covariances, Covariances::Where(_)),
     };
-    let vel0 = forward.nav[0].vel;
+    let vel0 = cfg.coordinates().at(&forward.nav[0]);
     let within = (forward, cfg, &wanted as &dyn Fn(usize) -> bool);
     match (calibrated, cfg.covariance_every_sample()) {
         (false, true) => every_sample::<15, S>(within, nodes, &mut rows, cancel),
@@ -134,10 +135,10 @@ fn every_sample<const N: usize, S: Sink>(
     rows: &mut Rows<'_, S>,
     cancel: &Cancel,
 ) -> Result<()> {
-    let vel0 = forward.nav[0].vel;
+    let vel0 = cfg.coordinates().at(&forward.nav[0]);
     let every = |_: usize| true;
     let closes = |_, a: &Node, b: &Node, c: &mut Vec<Close<N, Sample>>| {
-        let vel_b = forward.nav[b.epoch].vel;
+        let vel_b = cfg.coordinates().at(&forward.nav[b.epoch]);
         let inside = (a.epoch + 1..b.epoch).any(wanted);
         match (N, b.p_prior.as_deref(), inside) {
             (15, Some(prior), false) => {
@@ -161,7 +162,7 @@ fn step_closes<const N: usize>(
 ) -> Result<()> {
     match kept {
         Some(kept) => {
-            closes::kept(forward, kept, (a, b), closes);
+            closes::kept(forward, cfg, kept, (a, b), closes);
             Ok(())
         }
         None => closes::steps(forward, cfg, (a, b), closes, cancel),
@@ -242,7 +243,7 @@ impl<S: Sink> Rows<'_, S> {
 pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
     nodes: &[Node],
     mut closes_between: impl FnMut(usize, &Node, &Node, &mut Vec<Close<N, T>>) -> Result<()>,
-    (vel0, cfg, rows, cancel): (Vector3<f64>, &FilterConfig, &mut Rows<'_, S>, &Cancel),
+    (vel0, cfg, rows, cancel): (Point, &FilterConfig, &mut Rows<'_, S>, &Cancel),
 ) -> Result<()> {
     // After the last epoch nothing is left to learn: μ = 0, Λ = 0.
     let mut mu = SVector::<f64, N>::zeros();
@@ -294,7 +295,7 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
                 rows.wanted_in(close.epoch..end),
             );
             let at = match at_node || before || after {
-                true => AtClose::read(close, (p, lambda.get()), (at_node, before, after), cfg),
+                true => AtClose::read(close, (p, lambda.get()), (at_node, before, after)),
                 false => AtClose::default(),
             };
             rows.fill(cfg, (close.epoch, &ds, at.near.as_ref()), later.as_ref());
@@ -311,7 +312,7 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
     let p = nodes[0].p::<N>();
     let lambda = lambda.get();
     let (ds, ps) = (p * mu, symmetric(&(p + p * lambda * p)));
-    let near = change(&ps, &p, cfg, &vel0);
+    let near = change(&ps, &p, &vel0);
     rows.fill(cfg, (0, &ds, Some(&near)), later.as_ref());
     rows.sink.keep_node(0, &ps);
     Ok(())
@@ -410,12 +411,11 @@ impl<const N: usize> AtClose<N> {
         close: &Close<N, T>,
         (p, lambda): (&SMatrix<f64, N, N>, &SMatrix<f64, N, N>),
         (at_node, before, after): (bool, bool, bool),
-        cfg: &FilterConfig,
     ) -> Self {
         if T::EVERY_EPOCH && !at_node {
             // Nothing between two closes and no update here: the change after the close
             // alone, read directly (`Ps` not formed).
-            let near = after.then(|| change_of(p, lambda, cfg, &close.vel));
+            let near = after.then(|| change_of(p, lambda, &close.point));
             return Self {
                 ps: None,
                 near,
@@ -425,9 +425,9 @@ impl<const N: usize> AtClose<N> {
         let ps = (at_node || before || after).then(|| symmetric(&(p + p * lambda * p)));
         let (near, far) = match &ps {
             Some(ps) => {
-                let near = change(ps, p, cfg, &close.vel);
+                let near = change(ps, p, &close.point);
                 let far = match (at_node, close.p_prior.as_ref()) {
-                    (true, Some(prior)) => before.then(|| change(ps, prior, cfg, &close.vel_prior)),
+                    (true, Some(prior)) => before.then(|| change(ps, prior, &close.point_prior)),
                     _ => before.then_some(near),
                 };
                 (after.then_some(near), far)

@@ -11,8 +11,7 @@ use super::node::{full_p, lift, restart, restart_at, Node};
 use super::transition::{NavRows, Sample};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
 use crate::ekf::dynamics::{add_imu_noise, ErrorDynamics};
-use crate::ekf::formulation::from_classic;
-use crate::ekf::{Ekf, FilterConfig, Matrix15, ProcessNoise, Transition, ACC_BIAS};
+use crate::ekf::{Ekf, FilterConfig, Matrix15, Point, ProcessNoise, Transition, ACC_BIAS};
 use crate::error::{Error, Result};
 use crate::mechanization::{step_with_rates, FrameRates, ImuSample, NavState};
 use nalgebra::{SMatrix, Vector3};
@@ -20,33 +19,33 @@ use nalgebra::{SMatrix, Vector3};
 /// A close of the forward pass's covariance: its epoch, the transition `phi` from the
 /// close before it, the covariance it left over `N` states (before the epoch's
 /// updates; None where the backward pass reads it nowhere: a thinned pass's epochs at
-/// every sample that are neither kept nor a node's), and the forward velocity
-/// \[m/s, NED\] at its epoch before the updates there and after them: σ is read at the
-/// one the forward σ was (the covariance the close left before the updates, the one
-/// after them after).
+/// every sample that are neither kept nor a node's), and the point of the map to the
+/// classic coordinates (the forward velocity, and in SE₂(3) displacement) at its epoch
+/// before the updates there and after them: σ is read at the one the forward σ was
+/// (the covariance the close left before the updates, the one after them after).
 pub(crate) struct Close<const N: usize, T> {
     pub(crate) epoch: usize,
     pub(crate) phi: T,
     pub(crate) p_prior: Option<SMatrix<f64, N, N>>,
-    pub(crate) vel_prior: Vector3<f64>,
-    pub(crate) vel: Vector3<f64>,
+    pub(crate) point_prior: Point,
+    pub(crate) point: Point,
 }
 
 impl<const N: usize> Close<N, NavRows> {
     /// The close `ekf` just made at `epoch` with the transition `phi`, the forward
-    /// velocity there before the epoch's updates and after them `(vel_prior, vel)`.
+    /// point there before the epoch's updates and after them `(point_prior, point)`.
     pub(super) fn of(
         ekf: &Ekf,
         epoch: usize,
         phi: &Transition,
-        (vel_prior, vel): (Vector3<f64>, Vector3<f64>),
+        (point_prior, point): (Point, Point),
     ) -> Self {
         Self {
             epoch,
             phi: phi.nav_rows(),
             p_prior: Some(full_p::<N>(ekf)),
-            vel_prior,
-            vel,
+            point_prior,
+            point,
         }
     }
 }
@@ -56,14 +55,14 @@ impl<const N: usize> Close<N, NavRows> {
 /// integrated again: the same steps on the same numbers, so the covariance before
 /// `b`'s update is the forward pass's, bit for bit), the covariance at each close where
 /// `keep` holds for its epoch and at `b`. `forward`'s epochs count from `offset` (a
-/// re-integrated stretch starts at `a`), `vel_b` is the forward velocity at `b` after
-/// its updates.
+/// re-integrated stretch starts at `a`), `vel_b` is the forward solution's point at `b`
+/// after its updates.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn samples<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     (a, b): (&Node, usize),
-    (offset, vel_b): (usize, Vector3<f64>),
+    (offset, vel_b): (usize, Point),
     keep: &dyn Fn(usize) -> bool,
     closes: &mut Vec<Close<N, Sample>>,
     cancel: &Cancel,
@@ -87,7 +86,7 @@ pub(crate) fn samples<const N: usize>(
         let vel = if epoch == b {
             vel_b
         } else {
-            forward.nav[i + 1].vel
+            cfg.coordinates().at(&forward.nav[i + 1])
         };
         closes.push(Close {
             epoch,
@@ -97,8 +96,8 @@ pub(crate) fn samples<const N: usize>(
                 q: None,
             },
             p_prior: (epoch == b || keep(epoch)).then(|| full_p::<N>(&ekf)),
-            vel_prior: vel,
-            vel,
+            point_prior: vel,
+            point: vel,
         });
     }
     Ok(())
@@ -114,7 +113,7 @@ pub(crate) fn samples_mean<const N: usize>(
     forward: &Forward<'_>,
     cfg: &FilterConfig,
     (a, b, prior): (&Node, usize, &Matrix15),
-    vel_b: Vector3<f64>,
+    vel_b: Point,
     closes: &mut Vec<Close<N, Sample>>,
     cancel: &Cancel,
 ) -> Result<()> {
@@ -130,11 +129,12 @@ pub(crate) fn samples_mean<const N: usize>(
         }
         let (nav, dt) = (&forward.nav[i], forward.step(i));
         let accel = ImuSample::from_array(&forward.imu[i]).accel - accel_bias;
-        let dynamics = ErrorDynamics::new(nav, &FrameRates::at(nav), &accel, cfg.formulation);
+        let at = cfg.coordinates().at(nav);
+        let dynamics = ErrorDynamics::new(nav, &FrameRates::at(nav), &accel, &at);
         let epoch = i + 1;
         let (vel, p_prior) = match epoch == b {
             true => (vel_b, Some(lift::<N>(prior, None))),
-            false => (forward.nav[epoch].vel, None),
+            false => (cfg.coordinates().at(&forward.nav[epoch]), None),
         };
         if n == closes.len() {
             closes.push(Close {
@@ -145,13 +145,13 @@ pub(crate) fn samples_mean<const N: usize>(
                     q: Some(Matrix15::zeros()),
                 },
                 p_prior,
-                vel_prior: vel,
-                vel,
+                point_prior: vel,
+                point: vel,
             });
         } else {
             let c = &mut closes[n];
             (c.epoch, c.phi.dynamics, c.phi.dt) = (epoch, dynamics, dt);
-            (c.p_prior, c.vel_prior, c.vel) = (p_prior, vel, vel);
+            (c.p_prior, c.point_prior, c.point) = (p_prior, vel, vel);
             c.phi
                 .q
                 .get_or_insert_with(Matrix15::zeros)
@@ -179,14 +179,20 @@ fn discrete_noise(
             imu_variance,
             bias_psd,
         } => {
-            add_imu_noise(q, nav, cfg.formulation, imu_variance, cfg.imu_dt * dt);
+            add_imu_noise(
+                q,
+                nav,
+                &cfg.coordinates().at(nav),
+                imu_variance,
+                cfg.imu_dt * dt,
+            );
             for (i, psd) in bias_psd.iter().enumerate() {
                 q[(ACC_BIAS + i, ACC_BIAS + i)] += psd * dt;
             }
         }
         ProcessNoise::Discrete(qd) => {
             *q = (qd + qd.transpose()) * 0.5;
-            from_classic(cfg.formulation, q, &nav.vel);
+            cfg.coordinates().at(nav).from_classic(q);
         }
     }
 }
@@ -196,6 +202,7 @@ fn discrete_noise(
 /// the one the forward pass kept at the close).
 pub(super) fn kept<const N: usize>(
     forward: &Forward<'_>,
+    cfg: &FilterConfig,
     kept: &KeptCloses,
     (a, b): (&Node, &Node),
     closes: &mut Vec<Close<N, NavRows>>,
@@ -210,8 +217,8 @@ pub(super) fn kept<const N: usize>(
             epoch,
             phi: c.phi,
             p_prior: Some(lift(&c.p(), c.calibration.as_deref().map(|(x, v)| (x, v)))),
-            vel_prior: c.vel,
-            vel: forward.nav[epoch].vel,
+            point_prior: c.point,
+            point: cfg.coordinates().at(&forward.nav[epoch]),
         }
     }));
 }
@@ -219,7 +226,7 @@ pub(super) fn kept<const N: usize>(
 /// The closes in `(a, b]` of the covariance step, rebuilt by the filter's prediction
 /// along the forward solution from `a` (and the step `a` was inside, if any), the noise
 /// of `a` throughout; `b`'s step is closed at `b` where the forward pass closed it
-/// (the velocity there before `b`'s updates from [`velocity_before_updates`]; no
+/// (the velocity there before `b`'s updates from [`before_updates`]; no
 /// update between the nodes: before and after are the same elsewhere).
 pub(crate) fn steps<const N: usize>(
     forward: &Forward<'_>,
@@ -231,9 +238,9 @@ pub(crate) fn steps<const N: usize>(
     closes.clear();
     let mut ekf = restart(forward, cfg, a)?;
     let noise = a.noise.as_process_noise();
-    let at_b = velocity_before_updates(forward, b.epoch);
+    let at_b = cfg.coordinates().at(&before_updates(forward, b.epoch));
     let mut push = |ekf: &Ekf, epoch: usize, phi: Transition| {
-        let vel = forward.nav[epoch].vel;
+        let vel = cfg.coordinates().at(&forward.nav[epoch]);
         let vel_prior = if epoch == b.epoch { at_b } else { vel };
         closes.push(Close::of(ekf, epoch, &phi, (vel_prior, vel)));
     };
@@ -256,12 +263,12 @@ pub(crate) fn steps<const N: usize>(
     Ok(())
 }
 
-/// The forward velocity \[m/s, NED\] at `epoch` (≥ 1) before its updates: the strapdown
-/// step from the solution after the updates of the epoch before, with its bias
-/// estimates, as the forward pass took it (the same operations on the same numbers).
-fn velocity_before_updates(forward: &Forward<'_>, epoch: usize) -> Vector3<f64> {
+/// The forward solution at `epoch` (≥ 1) before its updates: the strapdown step from
+/// the solution after the updates of the epoch before, with its bias estimates, as the
+/// forward pass took it (the same operations on the same numbers).
+fn before_updates(forward: &Forward<'_>, epoch: usize) -> NavState {
     let (nav, b) = (&forward.nav[epoch - 1], &forward.bias[epoch - 1]);
-    integrate(nav, &forward.imu[epoch - 1], b, forward.step(epoch - 1)).vel
+    integrate(nav, &forward.imu[epoch - 1], b, forward.step(epoch - 1))
 }
 
 /// The strapdown step of a forward solution `nav` with the bias-corrected `raw` sample

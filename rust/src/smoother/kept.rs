@@ -3,8 +3,9 @@
 //! (`super::steps`).
 
 use crate::ekf::calibration::Cross;
+use crate::ekf::Point;
 use crate::ekf::{Ekf, Matrix15, Transition};
-use nalgebra::{Matrix4, SMatrix, Vector3};
+use nalgebra::{Matrix4, SMatrix};
 
 /// A close of the covariance step as the forward pass made it (see
 /// [`KeptCloses::note`]): the navigation rows of the step's Φ, the covariance it left
@@ -16,7 +17,7 @@ use nalgebra::{Matrix4, SMatrix, Vector3};
 pub struct KeptClose {
     pub(crate) phi: SMatrix<f64, 9, 15>,
     upper: [f64; UPPER],
-    pub(crate) vel: Vector3<f64>,
+    pub(crate) point: Point,
     pub(crate) calibration: Option<Box<(Cross, Matrix4<f64>)>>,
 }
 
@@ -80,7 +81,7 @@ impl KeptCloses {
         self.closes.push(KeptClose {
             phi: phi.nav_rows(),
             upper,
-            vel: ekf.nav.vel,
+            point: ekf.point(),
             calibration: ekf.calibration.as_ref().map(|c| Box::new((c.cross, c.cov))),
         });
     }

@@ -13,8 +13,8 @@
 
 use super::forward::Forward;
 use crate::attitude::skew;
-use crate::ekf::{variance_between, FilterConfig, Formulation, ATT, VEL};
-use nalgebra::{SMatrix, SVector, Vector3};
+use crate::ekf::{variance_between, FilterConfig, Point, ATT, POS, VEL};
+use nalgebra::{Matrix3, SMatrix, SVector};
 
 /// Where a backward pass puts what it finds at each epoch: the smoothed error of the
 /// forward solution there, σ where it is wanted, the smoothed covariance at the nodes
@@ -51,25 +51,25 @@ pub trait Sink {
     }
 }
 
-/// The variance of each state `j` (classic coordinates at the velocity `vel`) of the
+/// The variance of each state `j` (classic coordinates at the point `at`) of the
 /// covariance `ps` in the filter's coordinates: `(U P Uᵀ)_jj`, with `U = I + S` at
-/// (velocity, attitude) in the invariant formulation (`S = [v̂×]`):
-/// `P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr`.
+/// (velocity, attitude) in the invariant formulations (`S = [v̂×]`) and at (position,
+/// attitude) in SE₂(3) (`[p̂×]`): `P_jj + 2 (S P_aj)_r + (S P_aa Sᵀ)_rr`.
 pub(crate) fn classic_variances<'a, const N: usize>(
     ps: &'a SMatrix<f64, N, N>,
-    cfg: &FilterConfig,
-    vel: &Vector3<f64>,
+    at: &Point,
 ) -> impl Fn(usize) -> f64 + 'a {
-    let invariant = cfg.formulation == Formulation::Invariant;
-    let s = skew(vel);
+    let shears = shears(at);
     move |j| {
         let mut v = ps[(j, j)];
-        if invariant && (VEL..VEL + 3).contains(&j) {
-            let r = j - VEL;
-            for k in 0..3 {
-                v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
-                for l in 0..3 {
-                    v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
+        for (rows, s) in shears.iter().flatten() {
+            if (*rows..*rows + 3).contains(&j) {
+                let r = j - rows;
+                for k in 0..3 {
+                    v += 2.0 * s[(r, k)] * ps[(j, ATT + k)];
+                    for l in 0..3 {
+                        v += s[(r, k)] * s[(r, l)] * ps[(ATT + k, ATT + l)];
+                    }
                 }
             }
         }
@@ -77,33 +77,38 @@ pub(crate) fn classic_variances<'a, const N: usize>(
     }
 }
 
-/// The change of each state's variance (classic coordinates at the velocity `vel`)
-/// from the forward covariance `p` to the smoothed one `ps` (both in the filter's
+/// The blocks `(rows, S)` of the map to the classic coordinates at `at`: `[v̂×]` at the
+/// velocity rows in the invariant formulations, `[p̂×]` at the position rows in SE₂(3).
+fn shears(at: &Point) -> [Option<(usize, Matrix3<f64>)>; 2] {
+    let f = at.formulation;
+    [
+        f.velocity_invariant().then(|| (VEL, skew(&at.vel))),
+        f.position_invariant().then(|| (POS, skew(&at.disp))),
+    ]
+}
+
+/// The change of each state's variance (classic coordinates at the point `at`) from
+/// the forward covariance `p` to the smoothed one `ps` (both in the filter's
 /// coordinates): [`classic_variances`] of the two, subtracted. Zero, bit for bit, where
 /// they are the same bits.
 pub(crate) fn change<const N: usize>(
     ps: &SMatrix<f64, N, N>,
     p: &SMatrix<f64, N, N>,
-    cfg: &FilterConfig,
-    vel: &Vector3<f64>,
+    at: &Point,
 ) -> SVector<f64, N> {
-    let (smoothed, filtered) = (
-        classic_variances(ps, cfg, vel),
-        classic_variances(p, cfg, vel),
-    );
+    let (smoothed, filtered) = (classic_variances(ps, at), classic_variances(p, at));
     SVector::<f64, N>::from_fn(|j, _| smoothed(j) - filtered(j))
 }
 
 /// The change of each state's variance (as [`change`]) of `Ps = P + P Λ P` from `P`:
-/// `diag(U P Λ P Uᵀ)` with `U` the map to the classic coordinates at the velocity
-/// `vel`, read directly (no `Ps` formed).
+/// `diag(U P Λ P Uᵀ)` with `U` the map to the classic coordinates at `at`, read
+/// directly (no `Ps` formed).
 pub(crate) fn change_of<const N: usize>(
     p: &SMatrix<f64, N, N>,
     lambda: &SMatrix<f64, N, N>,
-    cfg: &FilterConfig,
-    vel: &Vector3<f64>,
+    at: &Point,
 ) -> SVector<f64, N> {
-    let up = classic_rows(cfg, vel, p);
+    let up = classic_rows(at, p);
     let upl = up * lambda;
     SVector::<f64, N>::from_fn(|j, _| upl.row(j).dot(&up.row(j)))
 }
@@ -115,18 +120,14 @@ pub(crate) fn changed_sigma(sigma: f64, change: f64) -> f64 {
 }
 
 /// `U P`, the rows of a covariance in the filter's coordinates mapped to the classic
-/// ones at the velocity `vel` (`U = I + [v̂×]` at (velocity, attitude) in the invariant
-/// formulation, `I` in the classic one).
-fn classic_rows<const N: usize>(
-    cfg: &FilterConfig,
-    vel: &Vector3<f64>,
-    p: &SMatrix<f64, N, N>,
-) -> SMatrix<f64, N, N> {
+/// ones at `at` (`U = I + [v̂×]` at (velocity, attitude) in the invariant formulations,
+/// and `+ [p̂×]` at (position, attitude) in SE₂(3); `I` in the classic one).
+fn classic_rows<const N: usize>(at: &Point, p: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     let mut up = *p;
-    if cfg.formulation == Formulation::Invariant {
-        let att = up.fixed_rows::<3>(ATT).into_owned();
-        let mut rows = up.fixed_rows_mut::<3>(VEL);
-        rows += skew(vel) * att;
+    let att = up.fixed_rows::<3>(ATT).into_owned();
+    for (rows, s) in shears(at).into_iter().flatten() {
+        let mut block = up.fixed_rows_mut::<3>(rows);
+        block += s * att;
     }
     up
 }

@@ -65,7 +65,7 @@ impl Sink for Smoothed {
             Vector3::new(b[3], b[4], b[5]),
         );
         let nav: Vector15 = ds.fixed_rows::<15>(0).into_owned();
-        correct(&mut self.nav[i], &mut ab, &mut gb, &nav, cfg.formulation);
+        correct(&mut self.nav[i], &mut ab, &mut gb, &nav, &cfg.coordinates());
         self.bias[i] = [ab[0], ab[1], ab[2], gb[0], gb[1], gb[2]];
         if N == N_CALIBRATED {
             let c = self.calibration[i];

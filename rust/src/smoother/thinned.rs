@@ -205,7 +205,7 @@ fn every_sample<const N: usize>(
     let keep = |e: usize| src.kept(e).is_some();
     let closes = |j: usize, a: &Node, b: &Node, c: &mut Vec<Close<N, Sample>>| {
         let (forward, _) = stretch.rebuild(src, j, a, b.epoch, cancel)?;
-        let vel_b = src.states.nav[j + 1].vel;
+        let vel_b = cfg.coordinates().at(&src.states.nav[j + 1]);
         closes::samples(
             &forward,
             cfg,
@@ -216,7 +216,7 @@ fn every_sample<const N: usize>(
             cancel,
         )
     };
-    let vel0 = src.states.nav[0].vel;
+    let vel0 = cfg.coordinates().at(&src.states.nav[0]);
     pass::<N, Sample, Smoothed>(nodes, closes, (vel0, cfg, rows, cancel))
 }
 
@@ -232,7 +232,7 @@ fn steps<const N: usize>(
     let closes = |j: usize, a: &Node, b: &Node, c: &mut Vec<Close<N, NavRows>>| {
         rebuild_closes(src, cfg, j, (a, b), c, cancel)
     };
-    let vel0 = src.states.nav[0].vel;
+    let vel0 = cfg.coordinates().at(&src.states.nav[0]);
     pass::<N, NavRows, Smoothed>(nodes, closes, (vel0, cfg, rows, cancel))
 }
 
@@ -257,7 +257,7 @@ pub(crate) fn rebuild_closes<const N: usize>(
     let noise = a.noise.as_process_noise();
     // The forward velocity at b after its updates (before them: `nav` after the last
     // sample, integrated as the forward pass integrated it).
-    let at_b = src.states.nav[j + 1].vel;
+    let at_b = cfg.coordinates().at(&src.states.nav[j + 1]);
     for i in a.epoch..b.epoch {
         if (i - a.epoch) % STEPS_PER_CHECK == STEPS_PER_CHECK - 1 {
             cancel.check()?;
@@ -268,14 +268,20 @@ pub(crate) fn rebuild_closes<const N: usize>(
         nav = integrate(&nav, &src.imu[i], bias, dt);
         if due {
             if let Some(phi) = ekf.bring_up_to_date() {
-                let vel = if i + 1 < b.epoch { nav.vel } else { at_b };
-                closes.push(Close::of(&ekf, i + 1, &phi, (nav.vel, vel)));
+                let here = cfg.coordinates().at(&nav);
+                let before = if i + 1 < b.epoch { here } else { at_b };
+                closes.push(Close::of(&ekf, i + 1, &phi, (before, here)));
             }
         }
     }
     if b.step.is_none() {
         if let Some(phi) = ekf.bring_up_to_date() {
-            closes.push(Close::of(&ekf, b.epoch, &phi, (nav.vel, at_b)));
+            closes.push(Close::of(
+                &ekf,
+                b.epoch,
+                &phi,
+                (cfg.coordinates().at(&nav), at_b),
+            ));
         }
     }
     Ok(())

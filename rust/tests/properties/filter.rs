@@ -19,13 +19,13 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
         // scale σ, misalignment σ (3) and scale walk (where the states are on), 30 the
         // covariance step.
         rarely((0..31usize, wild()), 2),
-        // The formulation: both are held to every property.
-        any::<bool>(),
+        // The formulation: all three are held to every property.
+        0..3u8,
         // The covariance step: every sample, or intervals of 0.1 s.
         prop_oneof![2 => Just(0.0), 1 => Just(0.1)],
     )
         .prop_map(
-            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, invariant, step)| {
+            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, formulation, step)| {
                 let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
                 let mut c = FilterConfig {
                     p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
@@ -42,12 +42,13 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
                         scale_psd: 10f64.powf(e[4]),
                         misalignment_psd: 0.0,
                     }),
-                    formulation: if invariant {
-                        Formulation::Invariant
-                    } else {
-                        Formulation::Classic
+                    formulation: match formulation {
+                        0 => Formulation::Classic,
+                        1 => Formulation::Invariant,
+                        _ => Formulation::Se23,
                     },
                     covariance_step: step,
+                    anchor: None,
                 };
                 for (field, v) in bad {
                     match (field, c.dvl_calibration.as_mut()) {

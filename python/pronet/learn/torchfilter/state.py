@@ -44,6 +44,11 @@ class Setup:
     def from_config(cls, config: _core.FilterConfig) -> Setup:
         """The setup of ``config``; the DVL calibration states are not implemented here
         (a ``ValueError`` naming ``config``)."""
+        if config.formulation not in ("invariant", "classic"):
+            raise ValueError(
+                f"config: the differentiable filter runs the invariant and classic "
+                f"formulations, not {config.formulation!r}"
+            )
         if config.dvl_calibration:
             raise ValueError(
                 "config: the differentiable filter has no DVL calibration states "
