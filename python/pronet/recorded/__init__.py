@@ -41,6 +41,7 @@ Running and reporting (``pronet real``):
 - :mod:`~pronet.recorded.runs`: what a run produced, as plain records;
 - :mod:`~pronet.recorded.metrics`: errors against the ground truth;
 - :mod:`~pronet.recorded.tables`: the tables, ``metrics.csv`` and ``config.json``;
+- :mod:`~pronet.recorded.aidingtables`: their depth, fix and heading tables and records;
 - :mod:`~pronet.recorded.figures`: the section figures, drawn in worker processes.
 
 Navigating a recording without ground truth (``pronet navigate``):
@@ -69,6 +70,7 @@ Navigating a recording without ground truth (``pronet navigate``):
 
 __all__ = [
     "aiding",
+    "aidingtables",
     "alignment",
     "attitude",
     "bagfields",
