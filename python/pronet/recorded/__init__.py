@@ -28,6 +28,8 @@ Reading and preparing:
   presets, a scenario's ``[filter]`` keys, lever arms);
 - :mod:`~pronet.recorded.dvlnoise`: the DVL's noise variance R from the data;
 - :mod:`~pronet.recorded.dvltruth`: the DVL scale and mounting the ground truth implies;
+- :mod:`~pronet.recorded.trutherror`: the ground truth's own velocity error, from the
+  DVL–truth residual (the Snapir truth's stated once);
 - :mod:`~pronet.recorded.dvlcalibration`: the DVL calibration states in simulation.
 
 Running and reporting (``pronet real``):
@@ -101,6 +103,7 @@ __all__ = [
     "solution",
     "surface",
     "tables",
+    "trutherror",
     "tuning",
     "vehicle",
 ]

@@ -40,6 +40,7 @@ METRIC_COLUMNS = (
     ("mean_nis", "mean NIS", "{:.2f}"),
     ("heading_ratio", "heading error / σ (RMS)", "{:.2f}"),
     ("velocity_3sigma", "vel. error within 3σ (share)", "{:.3f}"),
+    ("velocity_3sigma_truth", "vel. error within 3σ, truth's error included (share)", "{:.3f}"),
     ("dvl_autocorrelation", "DVL innovations' lag-1 autocorrelation", "{:+.2f}"),
 )
 
@@ -345,8 +346,9 @@ def calibration_table(
 
 
 def real_tables(done: RealRuns) -> str:
-    """The Markdown of ``table.md``: the summary, per-section SRMSE, final error and
-    mean NIS, the DVL noise per section, the alignment comparison, the inertial sanity
+    """The Markdown of ``table.md``: the summary, per-section SRMSE, final error, mean
+    NIS, whiteness and share within 3σ (with the truth's error too where the sections
+    state it), the DVL noise per section, the alignment comparison, the inertial sanity
     check and the sections that failed."""
     first_label = done.runs[0].label
     return "\n".join(
@@ -356,6 +358,12 @@ def real_tables(done: RealRuns) -> str:
             per_section_table(done.runs, "final_horizontal", "Per section"),
             per_section_table(done.runs, "mean_nis", "Per section"),
             per_section_table(done.runs, "dvl_autocorrelation", "Per section (white: 0 ± 2/√n)"),
+            per_section_table(done.runs, "velocity_3sigma", "Per section"),
+            *(
+                [per_section_table(done.runs, "velocity_3sigma_truth", "Per section")]
+                if any(a.truth_velocity_sigma is not None for a, _ in done.sections)
+                else []
+            ),
             *([dvl_noise_table(done)] if done.dvl_noise else []),
             *(
                 [aiding_table(done)]
@@ -406,7 +414,9 @@ def real_config(
 ) -> dict[str, object]:
     """``config.json`` of a ``pronet real`` folder: what ran, on what (``tuning``: the
     strategy rows' filter, lever arms aside; default :func:`real_filter_config`'s),
-    and the per-section estimates (clocks, q, DVL noise and calibration)."""
+    and the per-section estimates (clocks, q, DVL noise and calibration) and the truth's
+    stated velocity error per NED axis [m/s] (``truth_velocity_sigma_ned``, None where
+    not stated: :mod:`pronet.recorded.trutherror`)."""
     imu_arm, dvl_arm = arms
     return {
         "data": str(Path(data).resolve()),
@@ -431,6 +441,7 @@ def real_config(
             for a, _ in done.sections
         },
         "q_estimated": done.q_estimated,
+        "truth_velocity_sigma_ned": {a.name: a.truth_velocity_sigma for a, _ in done.sections},
         "dvl_skipped": {a.name: dvl_skipped(a) for a, _ in done.sections},
         "dvl_noise": dvl_noise,
         "dvl_variance_bag": {a.name: a.dvl_variance for a, _ in done.sections if a.dvl_variance},
