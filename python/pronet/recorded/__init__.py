@@ -28,6 +28,8 @@ Reading and preparing:
   presets, a scenario's ``[filter]`` keys, lever arms);
 - :mod:`~pronet.recorded.dvlnoise`: the DVL's noise variance R from the data;
 - :mod:`~pronet.recorded.dvltruth`: the DVL scale and mounting the ground truth implies;
+- :mod:`~pronet.recorded.trutherror`: the ground truth's own velocity error, from the
+  DVL–truth residual (the Snapir truth's stated once);
 - :mod:`~pronet.recorded.dvlcalibration`: the DVL calibration states in simulation.
 
 Running and reporting (``pronet real``):
@@ -41,6 +43,7 @@ Running and reporting (``pronet real``):
 - :mod:`~pronet.recorded.runs`: what a run produced, as plain records;
 - :mod:`~pronet.recorded.metrics`: errors against the ground truth;
 - :mod:`~pronet.recorded.tables`: the tables, ``metrics.csv`` and ``config.json``;
+- :mod:`~pronet.recorded.aidingtables`: their depth, fix and heading tables and records;
 - :mod:`~pronet.recorded.figures`: the section figures, drawn in worker processes.
 
 Navigating a recording without ground truth (``pronet navigate``):
@@ -69,6 +72,7 @@ Navigating a recording without ground truth (``pronet navigate``):
 
 __all__ = [
     "aiding",
+    "aidingtables",
     "alignment",
     "attitude",
     "bagfields",
@@ -99,6 +103,7 @@ __all__ = [
     "solution",
     "surface",
     "tables",
+    "trutherror",
     "tuning",
     "vehicle",
 ]

@@ -173,6 +173,8 @@ class Section:
             (:mod:`pronet.recorded.aiding`), or None.
         heading: the heading readings (true north) on the IMU clock
             (:mod:`pronet.recorded.heading`), or None.
+        truth_velocity_sigma: the truth's own velocity error 1σ per NED axis [m/s]
+            (:mod:`pronet.recorded.trutherror`), or None: not stated.
     """
 
     name: str
@@ -192,6 +194,7 @@ class Section:
     depth: DepthReadings | None = None
     fixes: PositionFixes | None = None
     heading: HeadingReadings | None = None
+    truth_velocity_sigma: tuple[float, float, float] | None = None
 
     @property
     def has_truth(self) -> bool:

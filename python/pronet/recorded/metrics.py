@@ -10,9 +10,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
+from pronet._util.validate import float_array
 from pronet.filter import FilterResult
 from pronet.recorded.alignment import Section, no_truth
 
@@ -37,6 +38,10 @@ class SectionMetrics:
         velocity_3sigma: the share of the scored rows at which the velocity error lies
             within 3 of the filter's 1σ in each NED axis (at least 0.99 when the filter
             is consistent; its truth's own error counts as error).
+        velocity_3sigma_truth: the same share with the truth's own velocity error
+            counted: within 3 √(σ² + σ_truth²) per NED axis, ``σ_truth`` the section's
+            :attr:`~pronet.recorded.alignment.Section.truth_velocity_sigma`
+            (:mod:`pronet.recorded.trutherror`); NaN where the section states none.
         missed_updates: DVL rows inside the run skipped as missing readings
             (:mod:`pronet.recorded.missing`); 0 for a run without the DVL.
         dvl_autocorrelation: the whiteness test of the DVL's innovations
@@ -57,6 +62,7 @@ class SectionMetrics:
     n_scored: int
     missed_updates: int = 0
     velocity_3sigma: float = math.nan
+    velocity_3sigma_truth: float = math.nan
     dvl_autocorrelation: float = math.nan
     dvl_autocorrelation_band: float = math.nan
 
@@ -110,6 +116,8 @@ def section_metrics(section: Section, result: FilterResult, use_dvl: bool = True
     step_n, step_e = _horizontal_offsets(truth[1:], truth[:-1])
     distance = float(np.sum(np.hypot(step_n, step_e)))
     nis = result.nis[np.isfinite(result.nis)]
+    sigma = _velocity_sigma(section, result, rows)
+    truth = section.truth_velocity_sigma
     dvl = next((r for r in result.health.streams if r.kind == "velocity"), None)
     return SectionMetrics(
         srmse=float(np.sqrt(np.mean(np.sum(dv**2, axis=1)))),
@@ -122,20 +130,32 @@ def section_metrics(section: Section, result: FilterResult, use_dvl: bool = True
         heading_ratio=_heading_ratio(section, result, rows),
         n_scored=int(rows.size),
         missed_updates=missed_updates(section, result) if use_dvl else 0,
-        velocity_3sigma=_within_3sigma(section, result, rows, dv),
+        velocity_3sigma=within_3sigma(dv, sigma),
+        velocity_3sigma_truth=(math.nan if truth is None else within_3sigma(dv, sigma, truth)),
         dvl_autocorrelation=math.nan if dvl is None else dvl.autocorrelation,
         dvl_autocorrelation_band=math.nan if dvl is None else dvl.autocorrelation_band,
     )
 
 
-def _within_3sigma(
-    section: Section, result: FilterResult, rows: NDArray[np.intp], dv: F64
-) -> float:
-    """The share of the truth ``rows`` whose velocity error ``dv`` lies within 3σ of the
-    filter in each NED axis (its σ interpolated at the row)."""
+def _velocity_sigma(section: Section, result: FilterResult, rows: NDArray[np.intp]) -> F64:
+    """The filter's velocity 1σ per NED axis [m/s] at the truth ``rows``, interpolated."""
     t = section.truth_time[rows]
-    sigma = np.stack([np.interp(t, result.time, result.sigma[:, 3 + j]) for j in range(3)], 1)
-    return float(np.mean(np.all(np.abs(dv) <= 3 * sigma, axis=1)))
+    return np.stack([np.interp(t, result.time, result.sigma[:, 3 + j]) for j in range(3)], 1)
+
+
+def within_3sigma(
+    error: ArrayLike, sigma: ArrayLike, truth_sigma: ArrayLike = (0.0, 0.0, 0.0)
+) -> float:
+    """The share of rows whose velocity error ``error`` ``(rows, 3)`` [m/s, NED] lies
+    within 3 √(σ² + σ_truth²) in every axis: ``sigma`` ``(rows, 3)`` the filter's 1σ
+    [m/s], ``truth_sigma`` ``(3,)`` the truth's own error 1σ [m/s] (independent of the
+    filter's; zero: the filter's σ alone). Raises ValueError on mismatched shapes."""
+    e = float_array(error, "error", (None, 3))
+    s = float_array(sigma, "sigma", (len(e), 3))
+    t = float_array(truth_sigma, "truth_sigma", (3,))
+    if not (np.isfinite(t).all() and (t >= 0).all()):
+        raise ValueError(f"truth_sigma: must be finite and >= 0, got {t.tolist()}")
+    return float(np.mean(np.all(np.abs(e) <= 3 * np.sqrt(s**2 + t**2), axis=1)))
 
 
 def missed_updates(section: Section, result: FilterResult) -> int:

@@ -1,7 +1,8 @@
 """Every section of ``pronet real`` read, checked and aligned side by side on the usable
 cores, before any filter runs (:func:`read_sections`): a section that cannot be (a
 corrupt bag, implausible data, no ground truth) is its one-line reason, naming the
-file, beside the others, which are read all the same.
+file, beside the others, which are read all the same. A Snapir section carries its
+truth's stated velocity error (:mod:`pronet.recorded.trutherror`).
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing
+from dataclasses import replace
 from pathlib import Path
 
 from pronet._util.cores import usable_cores
@@ -22,6 +24,7 @@ from pronet.recorded.alignment import (
     section_name,
 )
 from pronet.recorded.passes import aided_section
+from pronet.recorded.trutherror import SNAPIR_TRUTH_VELOCITY_SIGMA
 
 
 def read_sections(
@@ -67,10 +70,22 @@ def read_sections(
                 if not section[0].has_truth:
                     raise ValueError(f"no ground truth: {NO_TRUTH_FOR_REAL}")
                 loaded.append(
-                    (aided_section(section[0], aiding), aided_section(section[1], aiding))
+                    (
+                        aided_section(stated_truth_error(section[0], fmt), aiding),
+                        aided_section(stated_truth_error(section[1], fmt), aiding),
+                    )
                 )
             except ValueError as exc:
                 unread[section_name(path)] = str(exc)
             if on_done is not None:
                 on_done(path.name)
     return loaded, unread
+
+
+def stated_truth_error(section: Section, fmt: Format) -> Section:
+    """``section`` with the truth's velocity error its format states: the Snapir
+    truth's (:data:`pronet.recorded.trutherror.SNAPIR_TRUTH_VELOCITY_SIGMA`) for the
+    ``snapir`` format, none for the others (their truth's error is not known here)."""
+    if fmt != "snapir" or not section.has_truth:
+        return section
+    return replace(section, truth_velocity_sigma=SNAPIR_TRUTH_VELOCITY_SIGMA)

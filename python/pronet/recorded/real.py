@@ -25,6 +25,7 @@ from pronet._util.cores import usable_cores
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
 from pronet.recorded.aiding import AidingTuning
+from pronet.recorded.aidingtables import aiding_record
 from pronet.recorded.alignment import (
     AIDING_CLOCKS,
     Format,
@@ -47,7 +48,6 @@ from pronet.recorded.reading import read_sections
 from pronet.recorded.runs import RealRuns, SectionDvlNoise, SectionRun
 from pronet.recorded.tables import (
     STAMPED,
-    aiding_record,
     failed_records,
     real_config,
     real_tables,
