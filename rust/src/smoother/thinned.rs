@@ -269,8 +269,8 @@ pub(crate) fn rebuild_closes<const N: usize>(
         if due {
             if let Some(phi) = ekf.bring_up_to_date() {
                 let here = cfg.coordinates().at(&nav);
-                let before = if i + 1 < b.epoch { here } else { at_b };
-                closes.push(Close::of(&ekf, i + 1, &phi, (before, here)));
+                let after = if i + 1 < b.epoch { here } else { at_b };
+                closes.push(Close::of(&ekf, i + 1, &phi, (here, after)));
             }
         }
     }
