@@ -31,10 +31,10 @@ generous to the filter, and one taken without it is strict: the honest share lie
 between the two, and both are reported (:class:`pronet.recorded.metrics.SectionMetrics`).
 The white part is not added: the filter models the DVL's white noise itself.
 
-Two caveats. The post-processing may itself rest on this DVL (a DVL's bottom track is
-one of the aiding sensors the Delph INS post-processing takes: Exail (iXblue), *Delph
-INS Subsea user guide*, "Managing the aiding sensors"); the truth's error then shares the
-DVL's correlated error, which the residual cannot see, and the slow part is no bound.
+Two caveats. The post-processing may itself rest on this DVL (an INS post-processing
+suite can take a DVL's bottom track as an aiding sensor; whether this one did is not
+stated with the data); the truth's error then shares the DVL's correlated error, which
+the residual cannot see, and the slow part is no bound.
 And no published velocity accuracy of a post-processed Delph INS solution was found to
 cross-check against: the numbers here come from the data alone.
 
