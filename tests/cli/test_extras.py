@@ -21,12 +21,18 @@ ROOT = Path(__file__).resolve().parents[2]
 #: whether either was imported after all.
 WITHOUT = """
 import sys
-for name in ("torch", "sklearn"):
-    sys.modules[name] = None  # what an import finds when the package is not installed
+from importlib.abc import MetaPathFinder
+
+class Absent(MetaPathFinder):  # what an import finds when the packages are not installed
+    def find_spec(self, name, path=None, target=None):
+        if name.partition(".")[0] in ("torch", "sklearn"):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+sys.meta_path.insert(0, Absent())
 from pronet.cli import main
 code = main(sys.argv[1:])
-print("imported:", [m for m in ("torch", "sklearn") if sys.modules.get(m) is not None],
-      file=sys.stderr)
+print("imported:", [m for m in ("torch", "sklearn") if m in sys.modules], file=sys.stderr)
 sys.exit(code)
 """
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
 import pytest
@@ -56,8 +57,9 @@ def test_t_quantile(df) -> None:
     if t is None:
         return
     assert isinstance(df, int | np.integer) and not isinstance(df, bool) and df >= 1
-    assert stats._Z975 - 1e-15 <= t <= 12.7063 and math.isfinite(t)
-    assert stats.t_quantile_975(df + 1) <= t
+    assert NormalDist().inv_cdf(0.975) - 1e-15 <= t <= 12.7063 and math.isfinite(t)
+    # decreasing in df (to scipy's last few ulps, where it is not exactly monotone)
+    assert stats.t_quantile_975(df + 1) <= t * (1 + 1e-14)
 
 
 @fuzz(80)
