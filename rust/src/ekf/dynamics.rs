@@ -7,6 +7,7 @@ use super::state::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};
 use super::transition::Transition;
 use crate::attitude::skew;
 use crate::mechanization::{FrameRates, NavState};
+use multiversion::multiversion;
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
 /// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
@@ -197,18 +198,7 @@ impl ErrorDynamics {
     /// has it. Both copies do the same additions in the same order (no FMA), so the
     /// result does not depend on the CPU.
     pub(crate) fn propagate_covariance(&self, p: &mut Matrix15, dt: f64) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.propagate_covariance_avx2(p, dt) };
-        }
-        self.propagate_covariance_portable(p, dt)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn propagate_covariance_avx2(&self, p: &mut Matrix15, dt: f64) {
-        self.propagate_covariance_portable(p, dt)
+        propagate_covariance(self, p, dt)
     }
 
     #[inline(always)]
@@ -341,24 +331,26 @@ impl ErrorDynamics {
     /// The transition over a covariance step of `dt` seconds with F held constant:
     /// `Φ = I + F Δt + ½ (F Δt)²`, second order in Δt.
     pub(crate) fn transition(&self, dt: f64) -> Transition {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.transition_avx2(dt) };
-        }
-        self.transition_portable(dt)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn transition_avx2(&self, dt: f64) -> Transition {
-        self.transition_portable(dt)
+        transition(self, dt)
     }
 
     #[inline(always)]
     fn transition_portable(&self, dt: f64) -> Transition {
         Transition::second_order(&(self.nav_rows() * dt))
     }
+}
+
+// The AVX2 copies of the two kernels above, chosen at run time by `multiversion`
+// where the CPU has AVX2 (free functions: it does not take `self`).
+
+#[multiversion(targets("x86_64+avx2"))]
+fn propagate_covariance(d: &ErrorDynamics, p: &mut Matrix15, dt: f64) {
+    d.propagate_covariance_portable(p, dt)
+}
+
+#[multiversion(targets("x86_64+avx2"))]
+fn transition(d: &ErrorDynamics, dt: f64) -> Transition {
+    d.transition_portable(dt)
 }
 
 /// Add the IMU white noise of one step to the velocity and attitude blocks of `p`:

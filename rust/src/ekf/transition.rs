@@ -4,6 +4,7 @@
 //! vectors, so that every column operation vectorizes whole.
 
 use super::state::{Matrix15, NAV};
+use multiversion::multiversion;
 use nalgebra::SMatrix;
 
 /// The navigation rows (0..9) padded to 12, so that a column is three 4-lane vectors.
@@ -56,18 +57,7 @@ impl Transition {
     /// AVX2 copy is chosen at run time where the CPU has it (no FMA: the same bits
     /// either way).
     pub(crate) fn propagate(&self, p: &mut Matrix15) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.propagate_avx2(p) };
-        }
-        self.propagate_portable(p)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn propagate_avx2(&self, p: &mut Matrix15) {
-        self.propagate_portable(p)
+        propagate(self, p)
     }
 
     #[inline(always)]
@@ -130,4 +120,11 @@ impl Transition {
         }
         phi
     }
+}
+
+/// [`Transition::propagate`]'s kernel, with an AVX2 copy chosen at run time where the
+/// CPU has it (`multiversion`, which does not take `self`).
+#[multiversion(targets("x86_64+avx2"))]
+fn propagate(phi: &Transition, p: &mut Matrix15) {
+    phi.propagate_portable(p)
 }

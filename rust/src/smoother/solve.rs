@@ -2,28 +2,17 @@
 //! the update, by its Cholesky factor.
 
 use super::transition::symmetric;
+use multiversion::multiversion;
 use nalgebra::{SMatrix, SVector};
 
 /// `μ = (P⁻)⁻¹ δs⁻` and `Λ = (P⁻)⁻¹ (Ps − P⁻) (P⁻)⁻¹` at an update, by Cholesky
 /// solves (None: `P⁻` not positive definite): `Mᵀ = ((P⁻)⁻¹ D)ᵀ` from `D = Ps − P⁻`,
 /// then `Λᵀ = ((P⁻)⁻¹ Mᵀ)ᵀ` from `M`, each by [`solve_rows`].
+///
+/// An AVX2 copy is chosen at run time where the CPU has it (`multiversion`; the same
+/// operations, no fused multiply-add).
+#[multiversion(targets("x86_64+avx2"))]
 pub(super) fn at_update<const N: usize>(
-    p_prior: &SMatrix<f64, N, N>,
-    ps: &SMatrix<f64, N, N>,
-    ds_prior: &SVector<f64, N>,
-) -> Option<(SVector<f64, N>, SMatrix<f64, N, N>)> {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { at_update_avx2(p_prior, ps, ds_prior) };
-    }
-    at_update_portable(p_prior, ps, ds_prior)
-}
-
-/// [`at_update`] in AVX2 registers (the same operations: no fused multiply-add).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn at_update_avx2<const N: usize>(
     p_prior: &SMatrix<f64, N, N>,
     ps: &SMatrix<f64, N, N>,
     ds_prior: &SVector<f64, N>,

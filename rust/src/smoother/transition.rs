@@ -7,6 +7,7 @@
 
 use crate::ekf::dynamics::ErrorDynamics;
 use crate::ekf::Matrix15;
+use multiversion::multiversion;
 use nalgebra::{SMatrix, SVector};
 
 /// How the backward pass goes back through a transition `Φ` over `N` states.
@@ -171,20 +172,10 @@ fn times_phi<const N: usize>(rows: &NavRows, b: &SMatrix<f64, N, N>) -> SMatrix<
 
 /// `B ← B Φ` ([`times_phi`] in place: a product carried at every IMU sample moves no
 /// matrix).
+/// An AVX2 copy is chosen at run time where the CPU has it (`multiversion`; the same
+/// products and sums, no fused multiply-add).
+#[multiversion(targets("x86_64+avx2"))]
 fn times_phi_in_place<const N: usize>(rows: &NavRows, b: &mut SMatrix<f64, N, N>) {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { times_phi_avx2(rows, b) };
-    }
-    times_phi_portable(rows, b)
-}
-
-/// [`times_phi_in_place`] in AVX2 registers (the same products and sums: no fused
-/// multiply-add).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn times_phi_avx2<const N: usize>(rows: &NavRows, b: &mut SMatrix<f64, N, N>) {
     times_phi_portable(rows, b)
 }
 
