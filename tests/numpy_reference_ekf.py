@@ -284,10 +284,10 @@ def run_reference_filter(
     and ``P = Phi (P + Q/2) Phiᵀ + Q/2``; closed early before a DVL update and at the
     last sample. Between closes ``sigma`` repeats the last closed covariance.
 
-    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx, v_prior)``
-    (the transition of the covariance step that closed at the epoch, None where none
-    did, the covariance before and after its updates, the sum of the error estimates
-    fed back there, the velocity before them [m/s, NED]) for the smoother in
+    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx, v_prior,
+    lla_prior)`` (the transition of the covariance step that closed at the epoch, None
+    where none did, the covariance before and after its updates, the sum of the error
+    estimates fed back there, the velocity [m/s, NED] and position before them) for the smoother in
     ``numpy_reference_smoother.py``; epoch 0 has no transition (None). Without a
     covariance step every epoch has its step's Φ.
 
@@ -474,7 +474,7 @@ def run_reference_filter(
 
     record(t0)
     if log is not None:
-        log.append((None, p.copy(), p.copy(), np.zeros(n_x), v.copy()))
+        log.append((None, p.copy(), p.copy(), np.zeros(n_x), v.copy(), lla.copy()))
     t_prev = t0
     first = t0 - (imu_time[0] - t0) / 2  # readings stamped before it are skipped
     j = 0
@@ -516,7 +516,7 @@ def run_reference_filter(
             p, phi = close(p, interval)
             interval = None
             closed = sigmas()
-        p_prior, dx_sum, v_prior = p.copy(), np.zeros(n_x), v.copy()
+        p_prior, dx_sum, v_prior, lla_prior = p.copy(), np.zeros(n_x), v.copy(), lla.copy()
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:
             h = np.zeros((3, 15))
             if aiding == "body":
@@ -553,6 +553,6 @@ def run_reference_filter(
         record(t)
         interpolate_stale(closed)
         if log is not None:
-            log.append((phi, p_prior, p.copy(), dx_sum, v_prior))
+            log.append((phi, p_prior, p.copy(), dx_sum, v_prior, lla_prior))
         t_prev = t
     return {k: np.array(val) for k, val in out.items()}
