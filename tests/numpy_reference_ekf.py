@@ -262,6 +262,7 @@ def run_reference_filter(
     heading=(),
     heading_time=(),
     heading_sigma=None,
+    anchor=None,
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
     innovation, nis (one row per DVL measurement applied, in order).
@@ -274,6 +275,8 @@ def run_reference_filter(
     ``formulation``: ``"classic"`` (velocity error ``dv``) or ``"invariant"`` (``dV = dv
     - [v x] psi``): P lives in its coordinates, ``x_inv = T x_classic`` with ``T`` the
     identity but ``-[v x]`` at (velocity, attitude); ``sigma`` is always classic.
+    ``"se23"``: ``dV`` and ``dP = dp - [p x] psi``, ``p`` the displacement from
+    ``anchor`` (default ``lla0``; ``numpy_reference_se23.py``).
 
     ``covariance_step`` [s]: P propagated once per interval of that many seconds
     (rounded to whole IMU samples; under 1.5 samples: every sample), with F and Γ at
@@ -281,10 +284,10 @@ def run_reference_filter(
     and ``P = Phi (P + Q/2) Phiᵀ + Q/2``; closed early before a DVL update and at the
     last sample. Between closes ``sigma`` repeats the last closed covariance.
 
-    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx, v_prior)``
-    (the transition of the covariance step that closed at the epoch, None where none
-    did, the covariance before and after its updates, the sum of the error estimates
-    fed back there, the velocity before them [m/s, NED]) for the smoother in
+    ``log``: a list that receives, per epoch, ``(phi, p_prior, p_post, dx, v_prior,
+    lla_prior)`` (the transition of the covariance step that closed at the epoch, None
+    where none did, the covariance before and after its updates, the sum of the error
+    estimates fed back there, the velocity [m/s, NED] and position before them) for the smoother in
     ``numpy_reference_smoother.py``; epoch 0 has no transition (None). Without a
     covariance step every epoch has its step's Φ.
 
@@ -298,7 +301,19 @@ def run_reference_filter(
     (``heading_h_row``). Rows before the run are skipped. The output has ``depth_nis``,
     ``fix_nis`` and ``heading_nis`` (one per row applied). ``lever_arm`` with
     ``aiding="nav"``: ``h = v̂ + Ĉ (ω̂ × r)`` (``nav_velocity_h``)."""
-    invariant = formulation == "invariant"
+    from numpy_reference_se23 import corrected_lla, displacement, position_h_psi, t_matrix, to_se23
+
+    invariant, se23 = formulation in ("invariant", "se23"), formulation == "se23"
+    anchor = np.array(lla0 if anchor is None else anchor, dtype=float)
+
+    def disp_at(lla):
+        """``p̂`` in SE₂(3), else None (no position shear)."""
+        return displacement(lla, anchor) if se23 else None
+
+    def dynamics(lla, v, c, f_ned):
+        fm, gam = error_dynamics(lla, v, c, f_ned, invariant)
+        return to_se23(fm, gam, lla, v, c, disp_at(lla)) if se23 else (fm, gam)
+
     every_sample = covariance_step < 1.5 * imu_dt
     interval = None
 
@@ -306,7 +321,7 @@ def run_reference_filter(
         """P over the covariance step ``interval``, and the step's Φ."""
         big_t = interval["dt"]
         start_lla, start_v, start_c = interval["nav"]
-        fm, gam = error_dynamics(start_lla, start_v, start_c, interval["force"] / big_t, invariant)
+        fm, gam = dynamics(start_lla, start_v, start_c, interval["force"] / big_t)
         phi = np.eye(n_x)
         phi[:15, :15] += fm * big_t + (fm * big_t) @ (fm * big_t) / 2
         qd = np.zeros((n_x, n_x))
@@ -314,11 +329,6 @@ def run_reference_filter(
         qd[15:, 15:] = np.diag(cal_noise * big_t)
         p = phi @ (p + qd / 2) @ phi.T + qd / 2
         return (p + p.T) / 2, phi
-
-    def t_matrix(vel, sign=-1.0):
-        t = np.eye(n_x)
-        t[3:6, 6:9] = sign * skew(vel)
-        return t
 
     lla = np.array(lla0, dtype=float)
     v = np.array(vel0, dtype=float)
@@ -334,7 +344,8 @@ def run_reference_filter(
         cal_noise = np.array([scale_psd, mis_psd, mis_psd, mis_psd])
     p = np.diag(p0)
     if invariant:
-        p = t_matrix(np.asarray(vel0, dtype=float)) @ p @ t_matrix(np.asarray(vel0, dtype=float)).T
+        t0_ = t_matrix(np.asarray(vel0, dtype=float), disp_at(lla), n_x)
+        p = t0_ @ p @ t0_.T
     k_scale = 0.0  # DVL scale-factor error estimate
     m_dvl = np.eye(3)  # body -> DVL rotation estimate
     r_arm = np.asarray(lever_arm, dtype=float)
@@ -348,9 +359,9 @@ def run_reference_filter(
         """The filter's feedback of the error estimate ``dx``."""
         nonlocal lla, v, c, ba, bg, k_scale, m_dvl
         rn, re = radii(lla[0])
-        lla = lla - np.array(
+        lla = corrected_lla(lla, dx, anchor) if se23 else lla - np.array(
             [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
-        )
+        )  # fmt: skip
         # invariant: v = C Ĉᵀ (v̂ − δV), with C = Exp(ψ) Ĉ (exact; first order δV + [v̂×]ψ)
         v = exp_so3(dx[6:9]) @ (v - dx[3:6]) if invariant else v - dx[3:6]
         c = exp_so3(dx[6:9]) @ c
@@ -388,6 +399,8 @@ def run_reference_filter(
             if depth_time[jd] >= first:
                 nu = depth[jd] - depth_prediction(lla, c, depth_arm)
                 h_row = depth_h_row(c, depth_arm, n_x)
+                if se23:
+                    h_row[6:9] += position_h_psi(disp_at(lla), 2)
                 dx, nis = scalar(h_row, nu, per_row(depth_sigma, jd) ** 2)
                 total += dx
                 out["depth_nis"].append(nis)
@@ -399,6 +412,8 @@ def run_reference_filter(
                     # re-linearized at the estimate the last component corrected
                     nu = fix_innovation(z, lla, c, fix_arm, axis)
                     h_row = position_h_row(axis, c, fix_arm, n_x)
+                    if se23:
+                        h_row[6:9] += position_h_psi(disp_at(lla), axis)
                     dx, one = scalar(h_row, nu, sig[axis] ** 2)
                     total += dx
                     nis += one
@@ -418,7 +433,8 @@ def run_reference_filter(
 
     def sigmas():
         """The 15 states' σ (classic coordinates) and the calibration's, from P now."""
-        classic = t_matrix(v, +1.0) @ p @ t_matrix(v, +1.0).T if invariant else p
+        t_inv = t_matrix(v, disp_at(lla), n_x, +1.0)
+        classic = t_inv @ p @ t_inv.T if invariant else p
         return np.sqrt(np.diag(classic))[:15], np.sqrt(np.diag(p))[15:]
 
     def record(t):
@@ -458,7 +474,7 @@ def run_reference_filter(
 
     record(t0)
     if log is not None:
-        log.append((None, p.copy(), p.copy(), np.zeros(n_x), v.copy()))
+        log.append((None, p.copy(), p.copy(), np.zeros(n_x), v.copy(), lla.copy()))
     t_prev = t0
     first = t0 - (imu_time[0] - t0) / 2  # readings stamped before it are skipped
     j = 0
@@ -470,7 +486,7 @@ def run_reference_filter(
         w_hat = imu[k, 3:] - bg
         phi = None
         if every_sample:
-            fm, gam = error_dynamics(lla, v, c, c @ f_hat, invariant)
+            fm, gam = dynamics(lla, v, c, c @ f_hat)
             qc = np.diag(np.concatenate([q * imu_dt, [accel_bias_psd] * 3, [gyro_bias_psd] * 3]))
             phi = np.eye(n_x)
             phi[:15, :15] += fm * dt
@@ -500,7 +516,7 @@ def run_reference_filter(
             p, phi = close(p, interval)
             interval = None
             closed = sigmas()
-        p_prior, dx_sum, v_prior = p.copy(), np.zeros(n_x), v.copy()
+        p_prior, dx_sum, v_prior, lla_prior = p.copy(), np.zeros(n_x), v.copy(), lla.copy()
         while j < len(dvl) and dvl_time[j] <= t + dt / 2:
             h = np.zeros((3, 15))
             if aiding == "body":
@@ -537,6 +553,6 @@ def run_reference_filter(
         record(t)
         interpolate_stale(closed)
         if log is not None:
-            log.append((phi, p_prior, p.copy(), dx_sum, v_prior))
+            log.append((phi, p_prior, p.copy(), dx_sum, v_prior, lla_prior))
         t_prev = t
     return {k: np.array(val) for k, val in out.items()}

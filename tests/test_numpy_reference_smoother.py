@@ -1,5 +1,6 @@
 """The Rust RTS smoother agrees with the independent NumPy one (per-step recursion,
-dense matrices), in both formulations and both aidings, to 1e-8."""
+dense matrices), in the three formulations and both aidings, to 1e-8; in SE₂(3) far
+from its anchor too."""
 
 from __future__ import annotations
 
@@ -10,7 +11,15 @@ import pronet
 
 from numpy_reference_ekf import dcm_from_euler, run_reference_filter
 from numpy_reference_smoother import rts_smooth
-from test_numpy_reference_ekf import P0, Q, _inputs
+from test_numpy_reference_ekf import (
+    FAR_DISTANCE,
+    FAR_DVL_ARM,
+    P0,
+    Q,
+    _far_aiding,
+    _far_track,
+    _inputs,
+)
 
 
 def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_step=0.0):
@@ -47,7 +56,7 @@ def _closes(log: list) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize(
     ("aiding", "lever_arm"), [("body", (0.5, -0.2, 1.0)), ("nav", (0.0, 0.0, 0.0))]
 )
-@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+@pytest.mark.parametrize("formulation", ["classic", "invariant", "se23"])
 @pytest.mark.parametrize(
     "covariance_step",
     [0.0, pytest.param(0.1, marks=pytest.mark.slow), pytest.param(0.07, marks=pytest.mark.slow)],
@@ -117,7 +126,7 @@ def _rms(gap: np.ndarray, axis: int | None = None) -> np.ndarray:
     return np.sqrt((gap**2).mean(axis=axis))
 
 
-@pytest.mark.parametrize("formulation", ["classic", "invariant"])
+@pytest.mark.parametrize("formulation", ["classic", "invariant", "se23"])
 @pytest.mark.parametrize("covariance_step", [pytest.param(0.0, marks=pytest.mark.slow), 0.07])
 def test_rust_smoother_with_dvl_calibration_states_matches_reference(
     formulation, covariance_step
@@ -164,3 +173,63 @@ def test_rust_smoother_with_dvl_calibration_states_matches_reference(
     np.testing.assert_allclose(s.calibration_sigma, ref["calibration_sigma"], rtol=rtol, atol=0)
     assert (s.calibration_sigma <= rust.calibration_sigma * (1 + 1e-12)).all()
     np.testing.assert_allclose(s.calibration_sigma[-1], rust.calibration_sigma[-1], rtol=1e-14)
+
+
+def _far_smoothed(formulation: str, covariance_step: float):
+    """The core's smoothed and forward runs, and the reference's smoothed one, on the
+    run of ``test_numpy_reference_ekf.py`` that goes 4.8 km from SE₂(3)'s anchor (a
+    DVL, depths and fixes at their lever arms)."""
+    traj = _far_track()
+    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(
+        60.0, np.array(FAR_DVL_ARM), "body", traj=traj
+    )
+    a = _far_aiding(traj, 60.0)
+    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3,
+                  covariance_step=covariance_step, lever_arm=FAR_DVL_ARM)  # fmt: skip
+    streams = [
+        pronet.Dvl(dvl_time, dvl),
+        pronet.Depth(a["depth_time"], a["depth"], sigma=0.1, lever_arm=a["depth_lever_arm"]),
+        pronet.Fix(a["fix_time"], a["fix"], sigma=a["fix_sigma"], lever_arm=a["fix_lever_arm"]),
+    ]
+    rust = pronet.run_filter(
+        imu, imu_time, streams, t0=0.0, lla0=lla0, vel0=vel0, rpy0=rpy0, smooth=True,
+        config=pronet.FilterConfig(p0_sigma=P0, formulation=formulation, **tuning),
+        strategy=pronet.Strategy.constant(Q),
+    )  # fmt: skip
+    log: list = []
+    forward = run_reference_filter(
+        imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, q=Q, p0_sigma=P0, imu_dt=0.01,
+        formulation=formulation, log=log, **tuning, **a,
+    )  # fmt: skip
+    assert rust.smoothed is not None
+    return rust, rts_smooth(forward, log, formulation)
+
+
+def _assert_smoothed_equal(s, ref: dict) -> None:
+    """The far run's tolerances (``_assert_far_equal``): 1e-8 relative, floors of 1e-8
+    of each quantity's scale."""
+    rtol = 1e-8
+    np.testing.assert_allclose(s.vel, ref["vel"], rtol=rtol, atol=1e-8 * 80.0)
+    np.testing.assert_allclose(s.rpy, ref["rpy"], rtol=rtol, atol=1e-8 * 0.3)
+    np.testing.assert_allclose(s.bias, ref["bias"], rtol=rtol, atol=1e-8 * 1e-3)
+    np.testing.assert_allclose(s.sigma, ref["sigma"], rtol=rtol, atol=0.0)
+    horizontal = 1e-8 * FAR_DISTANCE / 6.4e6
+    np.testing.assert_allclose(s.lla[:, :2], ref["lla"][:, :2], rtol=0, atol=horizontal)
+    np.testing.assert_allclose(s.lla[:, 2], ref["lla"][:, 2], rtol=rtol, atol=1e-8)
+
+
+@pytest.mark.slow  # 4.5 s and 8 s here
+@pytest.mark.parametrize("covariance_step", [0.1, 0.0])
+def test_rust_smoother_matches_reference_far_from_the_anchor(covariance_step) -> None:
+    """SE₂(3) 4.8 km from its anchor: the smoothed solution and σ equal the reference's
+    to 1e-8, the σ mapped at the position too; the smoother moved the position by far
+    more than the tolerance, and the invariant formulation's smoothed σ on the same
+    data differs beyond it (the comparison sees the [p̂×] terms)."""
+    rust, ref = _far_smoothed("se23", covariance_step)
+    s = rust.smoothed
+    _assert_smoothed_equal(s, ref)
+    assert np.abs(s.lla[:, :2] - rust.lla[:, :2]).max() * 6.4e6 > 0.1  # metres
+    assert (s.sigma <= rust.sigma * (1 + 1e-12)).all()
+    invariant, _ = _far_smoothed("invariant", covariance_step)
+    with pytest.raises(AssertionError, match="Not equal to tolerance"):
+        _assert_smoothed_equal(invariant.smoothed, ref)
