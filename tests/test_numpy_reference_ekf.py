@@ -1,4 +1,4 @@
-"""The Rust filter agrees with the independent NumPy implementation of docs/filter.md;
+"""The Rust filter agrees with the independent NumPy implementation of docs/reference/filter.md;
 the reference's own measurement models (lever arms, heading) against their derivatives."""
 
 from __future__ import annotations
@@ -265,7 +265,7 @@ def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
 
 
 # The reference alone (no call into the core): the lever arms and the heading measurement
-# (docs/filter.md, "Lever arms and heading").
+# (docs/reference/aiding.md, "Lever arms and heading").
 
 LLA = np.array([math.radians(32.5), math.radians(34.8), -12.0])
 VEL = np.array([1.3, -0.4, 0.2])
@@ -280,7 +280,7 @@ SCALES = np.repeat([1e-2, 1e-5, 1e-5, 1e-5, 1e-5], 3)
 def _estimate(dx: np.ndarray, invariant: bool):
     """``(lla, v, C, ω)`` of the estimate whose error from the truth above is ``dx``
     (15; δV in place of δv when ``invariant``): ``Ĉ = Exp(−ψ) C``, ``v̂ = v + δv`` or
-    ``v̂ = Ĉ Cᵀ v + δV`` (docs/filter.md's exact ``δV``), ``ω̂ = ω − δb_g``."""
+    ``v̂ = Ĉ Cᵀ v + δV`` (docs/reference/filter.md's exact ``δV``), ``ω̂ = ω − δb_g``."""
     rn, re = radii(LLA[0])
     lla = LLA + np.array(
         [dx[0] / (rn + LLA[2]), dx[1] / ((re + LLA[2]) * math.cos(LLA[0])), -dx[2]]
