@@ -12,7 +12,7 @@ squared velocity error against the ground truth (interpolated to the epochs) to 
 Prints one JSON object: the walls [s] (loading, the core's runs and cutting, forward,
 backward; best of ``--repeat``; and the pass's CPU time, which a shared machine does
 not inflate), the windows and IMU samples, and the peak resident
-memory [GiB]. Nothing here is a test: the numbers are for docs/learning.md.
+memory [GiB]. Nothing here is a test: the numbers are for docs/results/learning-q.md.
 """
 
 from __future__ import annotations

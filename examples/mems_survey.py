@@ -4,7 +4,7 @@ Run:  python examples/mems_survey.py [--runs N]
 
 The survey: three 120 s legs at 1.5 m/s joined by 180° turns (12 s at 15°/s), 20 m
 deep. The IMU is a MEMS grade (gyro angle random walk ≈ 1.5 °/√h, turn-on bias
-≈ 41 °/h; the grade of docs/accuracy.md's heading-consistency suite), the DVL reads
+≈ 41 °/h; the grade of docs/results/consistency.md's heading-consistency suite), the DVL reads
 body velocity at 5 Hz with 0.02 m/s noise. The filter is told this model exactly: its
 P0 holds the turn-on biases, its bias walks the simulated ones, its R the DVL's noise.
 Each run starts from a draw of P0, so the NEES of every state block says whether the

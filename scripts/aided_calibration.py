@@ -1,5 +1,6 @@
 """The DVL calibration states with position fixes and depth, printed as the Markdown table
-docs/filter.md quotes (:mod:`pronet.experiments.aided_calibration`; about 30 s at 100 runs).
+docs/results/calibration.md quotes (:mod:`pronet.experiments.aided_calibration`; about
+30 s at 100 runs).
 
     python scripts/aided_calibration.py [--runs 100] [--seed 0]
 """

@@ -488,8 +488,8 @@ class Page:
             "",
             "Every public name of the `pronet` package with its signature and docstring. "
             "Conventions (frames, units, the meaning of q) are in "
-            "[concepts.md](concepts.md); every formula of the filter is in "
-            "[filter.md](filter.md).",
+            "[concepts](reference/concepts.md); every formula of the filter is in "
+            "[the filter](reference/filter.md).",
             "",
             "## Contents",
             "",

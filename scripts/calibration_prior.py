@@ -3,7 +3,7 @@
 :func:`pronet.recorded.dvlcalibration.calibration_check` and, where the Snapir data is, the
 constant row on the recorded sections without the states and with them, with the
 datasheet's R and with R matched to the innovations of the filter with those states.
-docs/filter.md and docs/realdata.md quote it for a prior of 0.3 % and 0.3°.
+docs/results/calibration.md and docs/results/snapir.md quote it for a prior of 0.3 % and 0.3°.
 
     python scripts/calibration_prior.py [--scale 0.003] [--angle-deg 0.3] [--runs 100]
                                         [--data ../shared/data/snapir]

@@ -1,8 +1,8 @@
-"""The consistency suite of ``docs/accuracy.md``, "Heading consistency": every IMU grade
+"""The consistency suite of ``docs/results/consistency.md``, "Heading consistency": every IMU grade
 × motion × DVL rate of :mod:`pronet.experiments.consistency`, both formulations side by
 side, 20 runs of 1200 s each (about four minutes on two cores).
 
-    python scripts/consistency.py            # rewrite the tables in docs/accuracy.md
+    python scripts/consistency.py            # rewrite the tables in docs/results/consistency.md
     python scripts/consistency.py --print    # print them instead
 """
 
@@ -19,7 +19,7 @@ from pronet.montecarlo import STATE_BLOCKS
 from pronet.results import between_markers, markdown
 from pronet.stats import chi2_mean_band
 
-PAGE = Path(__file__).resolve().parents[1] / "docs" / "accuracy.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "results" / "consistency.md"
 RUNS = 20
 #: Above this final heading 1σ [deg] the attitude error is no longer small: the
 #: linearized filter's NEES is not expected inside its band there (reported, not hidden).

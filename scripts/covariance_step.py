@@ -5,7 +5,8 @@ at covariance steps of one IMU step (0: the filter as it always was), 0.05, 0.1,
 and 0.5 s, with the same seeds and data at every step (so each difference is the
 step's alone). About five minutes on two cores.
 
-    python scripts/covariance_step.py              # rewrite the tables in docs/covariance-step.md
+    python scripts/covariance_step.py              # rewrite the tables in the page
+                                                   # docs/results/covariance-step.md
     python scripts/covariance_step.py --print      # print them instead
     python scripts/covariance_step.py --runs 20 --print   # a quicker look
 
@@ -37,7 +38,7 @@ from pronet.stats import mean_ci
 from pronet.strategies import StrategySpec, strategy
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGE = ROOT / "docs" / "covariance-step.md"
+PAGE = ROOT / "docs" / "results" / "covariance-step.md"
 #: Covariance steps [s]; 0 is every IMU sample (0.01 s in every built-in scenario).
 STEPS = (0.0, 0.05, 0.1, 0.2, 0.5)
 RUNS = 100

@@ -1,12 +1,13 @@
-"""Copy the walk-through examples into ``docs/python.md``.
+"""Copy the walk-through examples into the docs pages that walk through them.
 
-    python scripts/example_docs.py          # rewrite the page's example blocks
+    python scripts/example_docs.py          # rewrite the pages' example blocks
     python scripts/example_docs.py --check  # exit 1 if a block differs from its script
 
-The scripts in ``examples/`` are the one source: each of :data:`WALKED` stands in
-``docs/python.md`` whole, as a Python block between the markers
-``<!-- example-NAME:begin -->`` and ``<!-- example-NAME:end -->`` (NAME the script's
-stem). ``tests/test_examples.py`` runs the scripts and checks that the page is current.
+The scripts in ``examples/`` are the one source: each of :data:`WALKED` stands in its
+page (``docs/tutorials/first-monte-carlo.md``, ``docs/how-to/own-estimator.md``) whole,
+as a Python block between the markers ``<!-- example-NAME:begin -->`` and
+``<!-- example-NAME:end -->`` (NAME the script's stem). ``tests/test_examples.py`` runs
+the scripts and checks that the pages are current.
 """
 
 from __future__ import annotations
@@ -15,36 +16,47 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGE = ROOT / "docs" / "python.md"
 EXAMPLES = ROOT / "examples"
-#: The scripts the page walks through, in its order.
-WALKED = ("mems_survey.py", "own_estimator.py", "own_arrays.py")
+#: The scripts the pages walk through, in their order, each with its page.
+WALKED = {
+    "mems_survey.py": ROOT / "docs" / "tutorials" / "first-monte-carlo.md",
+    "own_estimator.py": ROOT / "docs" / "how-to" / "own-estimator.md",
+    "own_arrays.py": ROOT / "docs" / "how-to" / "own-estimator.md",
+}
+#: The pages, each once.
+PAGES = tuple(dict.fromkeys(WALKED.values()))
 
 
-def render(page: str) -> str:
-    """``page`` with each walked script's block replaced by the script as it is."""
+def render(page: str, path: Path) -> str:
+    """``page`` (the text of ``path``) with each of its walked scripts' blocks replaced by
+    the script as it is."""
     from pronet.results import between_markers
 
-    for name in WALKED:
+    for name, where in WALKED.items():
+        if where != path:
+            continue
         code = (EXAMPLES / name).read_text(encoding="utf-8")
         block = f"```python\n{code}```\n"
-        page = between_markers(page, f"example-{Path(name).stem}", block, str(PAGE))
+        page = between_markers(page, f"example-{Path(name).stem}", block, str(path))
     return page
 
 
 def main(argv: list[str]) -> int:
-    page = PAGE.read_text(encoding="utf-8")
-    current = render(page)
-    if argv == ["--check"]:
-        if current != page:
-            print(f"{PAGE} differs from examples/; run python scripts/example_docs.py")
-            return 1
-        return 0
-    if argv:
+    if argv not in ([], ["--check"]):
         print("usage: python scripts/example_docs.py [--check]", file=sys.stderr)
         return 2
-    PAGE.write_text(current, encoding="utf-8")
-    return 0
+    stale = 0
+    for path in PAGES:
+        page = path.read_text(encoding="utf-8")
+        current = render(page, path)
+        if current == page:
+            continue
+        if argv == ["--check"]:
+            print(f"{path} differs from examples/; run python scripts/example_docs.py")
+            stale = 1
+        else:
+            path.write_text(current, encoding="utf-8")
+    return stale
 
 
 if __name__ == "__main__":

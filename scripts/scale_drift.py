@@ -1,6 +1,6 @@
 """Why the DVL scale state drifts below its truth when the vehicle holds its speed.
 
-Two experiments, printed as Markdown (docs/filter.md quotes them):
+Two experiments, printed as Markdown (docs/results/calibration.md quotes them):
 
 1. The 19-state filter (``FilterConfig(dvl_calibration=True)``) on a 400 s straight run
    at a constant 1 m/s with an ideal DVL (scale error 0, aligned), the recorded

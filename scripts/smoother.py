@@ -1,5 +1,5 @@
-"""The RTS smoother against the filter on every built-in scenario, as docs/filter.md
-shows it ("The RTS smoother", Measured).
+"""The RTS smoother against the filter on every built-in scenario, as
+docs/results/smoother.md shows it.
 
     python scripts/smoother.py [--runs 100] [--oracle] [--seed 0]
                                [--part scenarios|psd|outage|steps|nonlinear|seeds]
@@ -21,15 +21,15 @@ initial error drawn from P0. ``steps``: ``matched`` with a
 a step at 0.1 s): per error block, the run-averaged σ-normalized squared error
 ``Σ (e/σ)²`` over the block's three states (the NEES with σ alone, 3 when consistent),
 its mean over the epochs and the share of epochs inside its 95 % band, filter /
-smoother (docs/filter.md, "With a covariance step"). ``nonlinear``: ``varying-matched``'s
+smoother (docs/results/smoother.md, "With a covariance step"). ``nonlinear``: ``varying-matched``'s
 schedule with every IMU variance scaled by 1, 0.1, 0.01 and 0.001, the filter told the
 true variance (the oracle): the tilt error, the down accelerometer bias's error against
 ``g E[θ²]/2`` (the vertical specific force a tilt error θ leaves to second order, which
 the linear error model lacks) and its σ-normalized squared error, filter / smoother
-(docs/filter.md, "Told the true IMU noise"). ``seeds``: ``matched`` (the filter told the
+(docs/results/smoother.md, "Told the true IMU noise"). ``seeds``: ``matched`` (the filter told the
 simulated model) at seeds 0–9: per block the share of DVL epochs in band and the NEES
-averaged over the runs and the epochs, filter / smoother (docs/filter.md, "One draw of
-100 runs").
+averaged over the runs and the epochs, filter / smoother (docs/results/smoother.md, "One
+draw of 100 runs").
 """
 
 from __future__ import annotations

@@ -1,11 +1,13 @@
-"""Regenerate ``docs/study.md``'s tables and figure from a study's result folder.
+"""Regenerate ``docs/results/study.md``'s tables and figure from a study's result folder.
 
     pronet study --out results/study            # 100 runs, about a minute
     python scripts/study_docs.py results/study  # copies study.csv and study.png into
-                                                # docs/study/ and rewrites the tables
+                                                # docs/results/study/ and rewrites
+                                                # the tables
 
-The tables between the ``study`` markers of ``docs/study.md`` are rendered from
-``docs/study/study.csv`` by :func:`pronet.experiments.study.study_markdown`, never typed;
+The tables between the ``study`` markers of ``docs/results/study.md`` are rendered
+from ``docs/results/study/study.csv`` by
+:func:`pronet.experiments.study.study_markdown`, never typed;
 ``tests/test_docs.py`` checks that they match.
 """
 
@@ -16,8 +18,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGE = ROOT / "docs" / "study.md"
-DATA = ROOT / "docs" / "study"
+PAGE = ROOT / "docs" / "results" / "study.md"
+DATA = ROOT / "docs" / "results" / "study"
 
 
 def render(page: str, tables: str) -> str:
@@ -28,7 +30,7 @@ def render(page: str, tables: str) -> str:
 
 
 def tables() -> str:
-    """The tables of ``docs/study/study.csv``."""
+    """The tables of ``docs/results/study/study.csv``."""
     import pandas as pd
 
     from pronet.experiments.study import study_markdown

@@ -4,7 +4,8 @@ A developer tool beside the tests, not part of the package: ``tests/test_accurac
 runs it, and so can you::
 
     python tests/accuracy_gate.py            # check; exit 1 on any departure
-    python tests/accuracy_gate.py --bless    # rewrite the JSON and docs/accuracy.md's tables
+    python tests/accuracy_gate.py --bless    # rewrite the JSON and the tables of
+                                             # docs/results/accuracy.md
 
 Each row (scenario × strategy) records velocity SRMSE and SMAE, final and maximum
 horizontal position error, mean NIS, mean velocity NEES, the fraction of velocity
@@ -22,7 +23,7 @@ from their consistent values (3 and 0.9973). With fixed seeds on one machine the
 repeat to floating-point noise (the Rust core is deterministic across thread counts;
 the nets run in float32), so the tolerances are small.
 
-Re-blessing (``--bless``) rewrites the file and the tables in ``docs/accuracy.md``; it
+Re-blessing (``--bless``) rewrites the file and the tables in ``docs/results/accuracy.md``; it
 is legitimate only when a change is *meant* to move the numbers (a fixed bug, a better
 discretization, a new scenario), and the commit says why.
 """
@@ -46,7 +47,7 @@ from pronet.results import between_markers
 ROOT = Path(__file__).resolve().parents[1]
 #: The pinned figures, and the page whose tables are generated from them.
 FILE = ROOT / "tests" / "accuracy_baselines.json"
-PAGE = ROOT / "docs" / "accuracy.md"
+PAGE = ROOT / "docs" / "results" / "accuracy.md"
 #: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
 SNAPIR = Path(os.environ.get("PRONET_SNAPIR_DIR", ROOT.parent / "shared" / "data" / "snapir"))
 
@@ -366,7 +367,7 @@ def _is_nan(value: float) -> bool:
 
 
 def markdown(rows: Mapping[str, Mapping[str, Row]]) -> str:
-    """The accuracy tables of ``docs/accuracy.md``, generated from the baselines."""
+    """The accuracy tables of ``docs/results/accuracy.md``, generated from the baselines."""
     out = []
     for scenario, table in rows.items():
         out.append(f"#### {scenario}\n")
@@ -400,7 +401,8 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python tests/accuracy_gate.py",
         description="Check fresh runs against the pinned accuracy baselines (exit 1 on any "
-        "departure), or rewrite the baselines and the tables of docs/accuracy.md (--bless).",
+        "departure), or rewrite the baselines and the tables of docs/results/accuracy.md "
+        "(--bless).",
     )
     p.add_argument("--bless", action="store_true", help="rewrite the file and the page's tables")
     p.add_argument("--file", metavar="JSON", type=Path, default=FILE, help="baselines JSON")

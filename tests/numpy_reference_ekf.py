@@ -1,4 +1,4 @@
-"""An independent, pure-NumPy implementation of the filter in ``docs/filter.md``.
+"""An independent, pure-NumPy implementation of the filter in ``docs/reference/filter.md``.
 
 It shares no code with the Rust core: dense 15x15 matrices (19x19 with the DVL
 calibration states), ``Phi = I + F dt`` built as a full matrix, ``P = Phi P Phi^T + Qd``,
@@ -89,7 +89,7 @@ def rates(lla: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def strapdown_step(lla, v, c, f, w, dt):
-    """One step of docs/filter.md "Strapdown step"."""
+    """One step of docs/reference/filter.md "Strapdown step"."""
     w_ie, w_en, g = rates(lla, v)
     w_in = w_ie + w_en
     c_mid = exp_so3(-w_in * dt / 2) @ c @ exp_so3(w * dt / 2)
@@ -107,7 +107,7 @@ def strapdown_step(lla, v, c, f, w, dt):
 
 def error_dynamics(lla, v, c, f_ned, invariant):
     """F (15×15) and Γ (15×12, noise ``[accel, gyro, accel bias, gyro bias]``) at the
-    state ``lla, v, c`` with the NED specific force ``f_ned`` (docs/filter.md)."""
+    state ``lla, v, c`` with the NED specific force ``f_ned`` (docs/reference/filter.md)."""
     w_ie, w_en, g = rates(lla, v)
     rn, re = radii(lla[0])
     big_r = math.sqrt(rn * re) + lla[2]
@@ -123,7 +123,7 @@ def error_dynamics(lla, v, c, f_ned, invariant):
     gam = np.zeros((15, 12))
     gam[3:6, 0:3] = c
     gam[6:9, 3:6] = -c
-    if invariant:  # docs/filter.md, "The invariant formulation"
+    if invariant:  # docs/reference/filter.md, "The invariant formulation"
         fm[0:3, 6:9] = skew(v)
         fm[3:6, 6:9] = -skew(g) - skew(v) @ skew(w_ie)
         fm[3:6, 12:15] = -skew(v) @ c
@@ -133,7 +133,7 @@ def error_dynamics(lla, v, c, f_ned, invariant):
     return fm, gam
 
 
-# Measurement models of docs/filter.md, "Lever arms and heading": each predicted
+# Measurement models of docs/reference/aiding.md, "Lever arms and heading": each predicted
 # measurement h(x) and its H row(s) over the error state (n_x columns, zero past the
 # 15). ``c`` is the body-to-NED DCM, ``r`` a lever arm [m, body FRD] from the IMU.
 
@@ -452,7 +452,7 @@ def run_reference_filter(
     def interpolate_stale(closed):
         """Inside a covariance step P stands at its start: once it closes (σ ``closed``
         before the epoch's updates), the variances of the epochs since the last
-        up-to-date one are interpolated linearly in time (docs/filter.md)."""
+        up-to-date one are interpolated linearly in time (docs/reference/filter.md)."""
         nonlocal last_current
         now = len(out["time"]) - 1
         if closed is not None:
@@ -495,7 +495,7 @@ def run_reference_filter(
             qd[15:, 15:] = np.diag(cal_noise * dt)
             p = phi @ p @ phi.T + qd
             p = (p + p.T) / 2
-        else:  # docs/filter.md, "Covariance step"
+        else:  # docs/reference/filter.md, "Covariance step"
             if interval is None:
                 interval = {"nav": (lla, v, c), "dt": 0.0, "force": np.zeros(3), "q": 0.0}
             interval["dt"] += dt

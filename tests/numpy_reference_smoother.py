@@ -3,7 +3,7 @@
 The plain fixed-interval recursion at every IMU step, dense matrices throughout, with
 the closed-loop filter's resets: after each epoch's updates the forward error estimate
 is zero, and the error of the solution before them is the one after plus the estimate
-fed back (``docs/filter.md``, "The RTS smoother"). It shares no code with the Rust core
+fed back (``docs/reference/smoother.md``, "The RTS smoother"). It shares no code with the Rust core
 (whose backward pass chains the steps between updates instead) and is slow on purpose.
 """
 

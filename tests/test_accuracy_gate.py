@@ -1,5 +1,5 @@
 """The accuracy gate (``tests/accuracy_gate.py``): fresh runs against the pinned
-baselines, in both directions, and the tables of ``docs/accuracy.md`` generated from the
+baselines, in both directions, and the tables of ``docs/results/accuracy.md`` generated from the
 same file."""
 
 from __future__ import annotations
@@ -162,7 +162,7 @@ def test_the_gate_runs_as_a_script():
         text=True,
         check=True,
     )
-    assert "--bless" in out.stdout and "docs/accuracy.md" in out.stdout
+    assert "--bless" in out.stdout and "docs/results/accuracy.md" in out.stdout
     assert not (ROOT / "python" / "pronet" / "baselines.py").exists()
 
 

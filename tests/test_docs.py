@@ -1,6 +1,6 @@
 """The documentation: docs/api.md matches the docstrings, every relative link in the
 Markdown pages points to a file that exists (and to a heading that exists, when it
-names one), every page is reachable from the README, and docs/development.md's layer
+names one), every page is reachable from the README, and docs/how-to/development.md's layer
 tables name every file of the Rust crate and every module of the Python package."""
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ PAGES = sorted(ROOT.glob("*.md")) + sorted((ROOT / "docs").rglob("*.md"))
 LINK = re.compile(r"\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
 FENCE = re.compile(r"^(```|~~~).*?^\1", flags=re.S | re.M)
 INLINE_CODE = re.compile(r"(`+)(?:(?!\1).)+?\1", flags=re.S)
-DEVELOPMENT = ROOT / "docs" / "development.md"
+DEVELOPMENT = ROOT / "docs" / "how-to" / "development.md"
 RUST_SRC = ROOT / "rust" / "src"
 PACKAGE = ROOT / "python" / "pronet"
 CODE_SPAN = re.compile(r"`([^`\n]+)`")
@@ -170,11 +170,12 @@ def test_anchors() -> None:
 
 def test_the_pages_have_relative_links_to_check() -> None:
     # The link check must see real links, or it passes vacuously.
-    assert "docs/filter.md" in relative_links((ROOT / "README.md").read_text(encoding="utf-8"))
-    concepts = relative_links((ROOT / "docs" / "concepts.md").read_text(encoding="utf-8"))
-    assert {"filter.md", "api.md", "../README.md"} <= set(concepts)
+    readme = relative_links((ROOT / "README.md").read_text(encoding="utf-8"))
+    assert "docs/reference/filter.md" in readme
+    concepts = relative_links((ROOT / "docs" / "reference" / "concepts.md").read_text("utf-8"))
+    assert {"filter.md", "../api.md", "../../README.md"} <= set(concepts)
     anchored = link_targets((ROOT / "README.md").read_text(encoding="utf-8"))
-    assert ("docs/concepts.md", "frames-and-units") in anchored
+    assert ("docs/reference/concepts.md", "frames-and-units") in anchored
     assert {p.name for p in PAGES} >= {"README.md", "index.md", "accuracy.md", "cli.md"}
 
 
@@ -204,7 +205,7 @@ def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
     spec.loader.exec_module(study_docs)
     page = study_docs.PAGE.read_text()
     assert study_docs.render(page, study_docs.tables()) == page, (
-        "docs/study.md's tables differ from docs/study/study.csv; "
+        "docs/results/study.md's tables differ from docs/results/study/study.csv; "
         "run python scripts/study_docs.py RESULT_FOLDER"
     )
     with pytest.raises(ValueError, match="no study-tables markers"):
@@ -264,7 +265,7 @@ def test_binding_doc_comments_are_written_from_the_stub(capsys) -> None:
 
 def layer_rows(text: str) -> list[set[str]]:
     """The code spans of each row of the layer tables (a table whose first column is
-    ``layer``) in the section "## Layout" of ``text``, a version of docs/development.md;
+    ``layer``) in the section "## Layout" of ``text``, a version of docs/how-to/development.md;
     other tables (``| before | now |``) and the prose around them are not read."""
     section = re.search(r"^## Layout[ \t]*$(.*?)(?=^## |\Z)", text, flags=re.M | re.S)
     rows: list[set[str]] = []
@@ -303,7 +304,7 @@ def python_modules() -> list[str]:
 
 def unnamed_in_layout(text: str) -> list[str]:
     """The Rust files and Python modules that the layer tables of ``text`` (a version of
-    docs/development.md) do not name. A name counts in code marks, inside one row:
+    docs/how-to/development.md) do not name. A name counts in code marks, inside one row:
 
     - a Rust file by its path from rust/src (``smoother/backward.rs``, ``run.rs``), or
       by its folder with a slash and its file name in the same row (``smoother/`` and
@@ -334,10 +335,10 @@ def unnamed_in_layout(text: str) -> list[str]:
 
 
 def test_the_layout_names_every_module() -> None:
-    """A new file or module goes into its layer's row of docs/development.md, "Layout"
+    """A new file or module goes into its layer's row of docs/how-to/development.md, "Layout"
     (the Rust layers: tests/test_rust_layout.py; the Python ones: tests/test_layout.py)."""
     missing = unnamed_in_layout(DEVELOPMENT.read_text(encoding="utf-8"))
-    assert missing == [], f"docs/development.md, Layout: no layer table names {missing}"
+    assert missing == [], f"docs/how-to/development.md, Layout: no layer table names {missing}"
 
 
 def test_the_layout_check_sees_what_is_missing() -> None:

@@ -1,4 +1,4 @@
-"""The package's layout (docs/development.md, "The house"): a few modules at the top,
+"""The package's layout (docs/how-to/development.md, "The house"): a few modules at the top,
 subpackages by concept, no import circle, no file over 600 lines, and each subpackage's
 ``__init__`` naming what it holds.
 

@@ -6,7 +6,7 @@ would allocate far more in proportion to one argument. Before the fix each ended
 SIGABRT ("memory allocation of … failed", the core's allocation failure); now the core
 estimates the call's peak memory before it allocates and refuses it with a
 ``ValueError`` naming that argument, the estimate and what is available, and a copy
-of an input that does not fit is a ``MemoryError`` (docs/performance.md, "Memory").
+of an input that does not fit is a ``MemoryError`` (docs/results/performance.md, "Memory").
 Every child must exit by itself: a negative return code (a signal) fails the test.
 """
 

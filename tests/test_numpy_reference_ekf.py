@@ -1,4 +1,4 @@
-"""The Rust filter agrees with the independent NumPy implementation of docs/filter.md;
+"""The Rust filter agrees with the independent NumPy implementation of docs/reference/filter.md;
 the reference's own measurement models (lever arms, heading) against their derivatives."""
 
 from __future__ import annotations
@@ -210,7 +210,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(
     assert plain.calibration.shape == plain.calibration_sigma.shape == (0, 4)
 
 
-# SE₂(3) (docs/filter.md, "The SE₂(3) formulation"): its position error is taken about
+# SE₂(3) (docs/reference/filter.md, "The SE₂(3) formulation"): its position error is taken about
 # the run's first position, so its [p̂×] terms need a run that goes far from there. An
 # 80 m/s vehicle (unphysical with a DVL; the algebra does not care) travels 4.8 km in
 # 60 s, with turns and a dive.
@@ -402,7 +402,7 @@ def test_mehra_q_is_k_c_kt_from_the_recorded_innovations(xi) -> None:
 
 
 # The reference alone (no call into the core): the lever arms and the heading measurement
-# (docs/filter.md, "Lever arms and heading").
+# (docs/reference/aiding.md, "Lever arms and heading").
 
 LLA = np.array([math.radians(32.5), math.radians(34.8), -12.0])
 VEL = np.array([1.3, -0.4, 0.2])
@@ -422,7 +422,7 @@ def _estimate(dx: np.ndarray, formulation: str):
     """``(lla, v, C, ω)`` of the estimate whose error from the truth above is ``dx``
     (15; δV in place of δv but in the classic formulation, δP in place of δp in
     SE₂(3)): ``Ĉ = Exp(−ψ) C``, ``v̂ = v + δv`` or ``v̂ = Ĉ Cᵀ v + δV``
-    (docs/filter.md's exact ``δV``), ``p̂ = Ĉ Cᵀ p + δP`` about ``ANCHOR`` (its exact
+    (docs/reference/filter.md's exact ``δV``), ``p̂ = Ĉ Cᵀ p + δP`` about ``ANCHOR`` (its exact
     ``δP``), ``ω̂ = ω − δb_g``."""
     rn, re = radii(LLA[0])
     lla = LLA + np.array(
@@ -510,7 +510,7 @@ def _anchor_metres(big_h: np.ndarray, lla: np.ndarray) -> np.ndarray:
     north and east rows are H's with the position error's part (δP and ``[p̂×]`` on ψ)
     scaled by the estimate's metres per anchor metre, ``1 − tan φ Δφ`` east (3e-4 off
     here, 1 % 100 km north of an anchor at 32°): a term of order |p̂|/R the filter
-    leaves out, as it does in ``ṗ̂ = v̂`` (docs/filter.md)."""
+    leaves out, as it does in ``ṗ̂ = v̂`` (docs/reference/filter.md)."""
     rn, re = radii(lla[0])
     rn0, re0 = radii(ANCHOR[0])
     scale = [
@@ -580,7 +580,7 @@ def test_se23_position_rows_of_f_are_the_derivative_of_the_strapdown() -> None:
     strapdown step of an estimate off the truth in each state (δP 1 m, δV 1e-3 m/s, ψ
     1e-4 rad, biases; the step's Φ is F's to third order), error taken exactly
     (``_se23_error``): each block within 0.5 % of its size in F Δt, what ``ṗ̂ = v̂``
-    leaves out at |p̂|/R (docs/filter.md) with the differences' rounding (0.2 % at
+    leaves out at |p̂|/R (docs/reference/filter.md) with the differences' rounding (0.2 % at
     most here). The position–attitude block is 1.9e-3 in F Δt, 180 times that
     tolerance; with its sign flipped the gap is twice the block. (The velocity rows'
     Schuler terms rest on the rotation of the navigation frame, which this error leaves

@@ -100,7 +100,7 @@ def test_lever_arms_and_headings_match_the_reference(
     formulation, calibrated, covariance_step
 ) -> None:
     """A depth sensor and a fix's antenna at their lever arms, and a heading stream
-    (docs/filter.md, "Lever arms and heading"): the core is the reference to 1e-8, the
+    (docs/reference/aiding.md, "Lever arms and heading"): the core is the reference to 1e-8, the
     smoother too."""
     _match_the_reference(formulation, calibrated, covariance_step, arms=True)
 

@@ -1,4 +1,4 @@
-"""The Rust crate's layout (docs/development.md, "Layout"; the design's "In Rust the same
+"""The Rust crate's layout (docs/how-to/development.md, "Layout"; the design's "In Rust the same
 rule"): no import circle between the files of ``rust/src``, each top-level module placed
 in one layer and importing only its own layer and the layers below, no file over 600 lines.
 
@@ -27,7 +27,7 @@ SRC = Path(__file__).resolve().parents[1] / "rust" / "src"
 #: The crate's top-level modules (each ``mod`` of ``lib.rs``), lowest layer first. A file
 #: belongs to its top-level module's layer (``smoother/steps.rs``: ``smoother``) and
 #: imports only files of its own layer or of the layers before it; ``lib.rs`` is exempt.
-#: The order (docs/development.md, "The Rust crate, room by room"): utilities, the Earth
+#: The order (docs/how-to/development.md, "The Rust crate, room by room"): utilities, the Earth
 #: and attitude → ``mechanization`` → ``trajectory`` → the filter ``ekf`` → the
 #: measurements and the noise strategies → the simulated ``sensors`` (readings as the
 #: filter reads them) → the one epoch loop ``pass`` → the ``smoother`` → the drivers

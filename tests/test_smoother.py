@@ -78,7 +78,7 @@ def _assert_consistent(s: pronet.MonteCarloResult, velocity_share: float) -> Non
     block's, in band at most DVL epochs; every block's, averaged over the runs and then
     over the epochs, inside the 99 % band of an average over the runs. (A slow block's
     share of epochs in band is nearly all or nothing, a consistent smoother's included:
-    docs/filter.md, "One draw of 100 runs".)"""
+    docs/results/smoother.md, "One draw of 100 runs".)"""
     from scipy.stats import chi2
 
     assert s.nees_in_band("velocity") >= velocity_share, s.nees_in_band("velocity")
@@ -146,7 +146,7 @@ def test_told_the_true_noise_the_smoother_is_consistent(name) -> None:
     true variance at every step (the oracle) is consistent, and so is the smoother
     (``_assert_consistent``; told the nominal q instead, the velocity NEES is in band at
     a third of the epochs); never worse than the filter beyond noise, and the velocity
-    error well below it (docs/filter.md, "Told the true IMU noise")."""
+    error well below it (docs/results/smoother.md, "Told the true IMU noise")."""
     from pronet.sim.scenarios import SCENARIOS
 
     sc, runs = SCENARIOS[name](0), 50
@@ -191,7 +191,7 @@ def test_the_smoother_cuts_the_drift_of_each_dvl_outage() -> None:
     smoothed horizontal error at each outage's middle is below the filter's, and the
     part of it gathered since the outage began is cut to 0.44–0.49 of the filter's
     (asserted: below 0.6). The error from before the outage, unobservable from
-    velocity alone, stays (docs/filter.md, "The RTS smoother")."""
+    velocity alone, stays (docs/reference/smoother.md, "The RTS smoother")."""
     from pronet.sim.scenarios import SCENARIOS
 
     sc = SCENARIOS["outage"](0)

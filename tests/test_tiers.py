@@ -1,4 +1,4 @@
-"""The fast tier, ``pytest -m "not slow"`` (docs/development.md, "Tests"), covers every
+"""The fast tier, ``pytest -m "not slow"`` (docs/how-to/development.md, "Tests"), covers every
 test file: each ``tests/**/test_*.py`` holds at least one test that is not marked slow,
 or says why not in a module constant ``ALL_SLOW_REASON = "…"`` (and then holds no fast
 test, so the statement cannot go stale).

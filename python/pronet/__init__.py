@@ -8,7 +8,7 @@ Conventions: navigation frame NED, body frame FRD (x forward, y right, z down);
 positions are geodetic ``[lat, lon, h]`` in rad, rad, m (height positive up);
 attitude is roll, pitch, yaw (ZYX) in rad; IMU samples are
 ``[f_x, f_y, f_z, w_x, w_y, w_z]`` in m/s² and rad/s, body frame. See
-``docs/filter.md`` for every formula.
+``docs/reference/filter.md`` for every formula.
 """
 
 from pronet._core import (

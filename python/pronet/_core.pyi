@@ -39,7 +39,7 @@ THREADS_ENV: str
 #: Longest lever arm component [m] a sensor may have (``sensors::MAX_LEVER_ARM``, 1 km).
 MAX_LEVER_ARM: float
 #: Longest covariance step [s] (``ekf::MAX_COVARIANCE_STEP``, 1 s): its approximation of
-#: the error process is measured up to 0.5 s (``docs/covariance-step.md``).
+#: the error process is measured up to 0.5 s (``docs/results/covariance-step.md``).
 MAX_COVARIANCE_STEP: float
 #: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
 #: streams are numbered 4·i + k.
@@ -119,7 +119,7 @@ def mechanize(
     """Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
     IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
     ValueError naming ``imu, dt, lla0, vel0``, more states than this process can still
-    take one naming ``imu`` (docs/performance.md, "Memory")."""
+    take one naming ``imu`` (docs/results/performance.md, "Memory")."""
 
 @final
 class FilterConfig:
@@ -136,11 +136,11 @@ class FilterConfig:
     prior and every output are in the classic coordinates either way; and the
     covariance step [s]: the interval over which the covariance is propagated at once
     (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
-    by default (free in accuracy, about half the cost: ``docs/covariance-step.md``);
+    by default (free in accuracy, about half the cost: ``docs/results/covariance-step.md``);
     0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
     number of IMU periods (at most :data:`MAX_COVARIANCE_STEP`, 1 s), and the covariance
     is brought up to date before every DVL update and at the end of a pass. See
-    ``docs/filter.md``."""
+    ``docs/reference/filter.md``."""
 
     def __new__(cls, *, p0_sigma: Any | None = None, accel_bias_psd: float = 1e-3,
                 gyro_bias_psd: float = 1e-3, dvl_variance: Any | None = None,
@@ -185,7 +185,7 @@ class FilterConfig:
     @property
     def formulation(self) -> Literal["invariant", "classic", "se23"]:
         """The error coordinates the filter runs in: "invariant", "classic" or "se23"
-        (the position error too, about the first position: ``docs/filter.md``)."""
+        (the position error too, about the first position: ``docs/reference/filter.md``)."""
     @property
     def covariance_step(self) -> float:
         """The covariance step [s] (0: the covariance propagated at every IMU sample)."""
@@ -207,7 +207,7 @@ class Strategy:
     def adaptive(window: int, prior_q: Any) -> Strategy:
         """q = λ·prior_q with the scale λ estimated by matching the DVL innovations'
         NIS over an exponentially forgetting window of ``window`` updates (>= 1);
-        structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/filter.md``."""
+        structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/reference/filter.md``."""
     @staticmethod
     def oracle() -> Strategy:
         """The simulated IMU's true variance at every IMU step: the ceiling. Simulation
@@ -434,7 +434,7 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     ``calibration``, ``calibration_sigma`` per epoch, or None. Before it allocates, a
     pass that would hold more than this process can still take is a ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,
-    ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/performance.md,
+    ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,
     "Memory")."""
 
 def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterConfig,
@@ -449,7 +449,7 @@ def monte_carlo(trajectory: Trajectory, sensors: SensorConfig, config: FilterCon
     ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
     ``sigma``). Before it allocates, one that would hold more than this process can still
     take (the records and their arrays, the runs under way and their smoothers) is a
-    ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth`` (docs/performance.md,
+    ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth`` (docs/results/performance.md,
     "Memory")."""
 
 def check_result_size(
@@ -538,7 +538,7 @@ class Navigator:
     many epochs. ``tuning_period`` [s] with ``imu_dt`` [s] and ``window`` (samples): the
     learned loop's instants, as :func:`tuning_instants` places them. A feed whose lag
     window's history is about to outgrow the memory this process can still take is a
-    ``ValueError`` naming ``lag`` (docs/performance.md, "Memory")."""
+    ``ValueError`` naming ``lag`` (docs/results/performance.md, "Memory")."""
 
     def __new__(cls, streams: Sequence[Dvl | Depth | Fix | Heading], *, t0: float, lla0: Any,
                 vel0: Any, rpy0: Any, config: FilterConfig, strategy: Strategy,
@@ -655,4 +655,4 @@ def attitude_increment_costs(
     rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at
     ``offset + scale·gt_time``, over the pairs of rows mapped inside the edges; inf
     with fewer than 10 such pairs. More offsets than this process can still take are a
-    ``ValueError`` naming ``offsets`` (docs/performance.md, "Memory")."""
+    ``ValueError`` naming ``offsets`` (docs/results/performance.md, "Memory")."""

@@ -387,7 +387,7 @@ def run_filter(
             (GNSS, USBL, LBL position fixes), each with its times, noise and lever arm,
             and :class:`~pronet.Heading` (a compass's or an AHRS's yaw).
             Each row is applied at the IMU epoch nearest its time; at an epoch the rows
-            due are applied stream by stream, in this order (docs/filter.md,
+            due are applied stream by stream, in this order (docs/reference/aiding.md,
             "Position and depth updates"). None (the default, ``()``) is a pure
             inertial pass. ``Dvl(dvl_time, dvl)`` with nothing else is the DVL the
             ``config`` describes (its R, aiding frame, lever arm and gate).
@@ -414,7 +414,7 @@ def run_filter(
             the one every epoch would give, forward and smoothed. Memory then grows with
             the kept epochs (and, smoothed, the updates), not the IMU samples: a 10 h,
             100 Hz pass smoothed with ``output_step=1.0`` fits in 1 GiB
-            (docs/performance.md). None (default): every epoch.
+            (docs/results/performance.md). None (default): every epoch.
         covariance_time: ``(j,)`` times [s], strictly increasing, at which to keep the
             full 15 × 15 covariance (:attr:`FilterResult.covariances`), each at the
             epoch nearest it. Memory is 1,800 bytes per time asked for, whatever the
@@ -427,7 +427,7 @@ def run_filter(
             covariance per DVL epoch and, while it smooths an interval between two, a
             covariance and the error dynamics per IMU step of that interval (about
             2.5 kB: a long stretch without an update, an outage, costs memory in
-            proportion), and costs 2–5 forward passes (docs/filter.md, "The RTS
+            proportion), and costs 2–5 forward passes (docs/reference/smoother.md, "The RTS
             smoother"). With ``output_step`` the forward solution is kept at the updates
             alone and integrated again between them.
         warn: a :class:`pronet.stats.FilterHealthWarning` for each line of
@@ -445,7 +445,7 @@ def run_filter(
     where that is more than this process can still take, it raises ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,
     ``strategy``, ``covariance_time`` or ``smooth``), with the estimate and what to
-    change, instead of running out (docs/performance.md, "Memory").
+    change, instead of running out (docs/results/performance.md, "Memory").
 
     Deprecated (for one release): the arrays before streams,
     ``run_filter(imu, imu_time, dvl, dvl_time, *, ..., depth=, depth_time=,

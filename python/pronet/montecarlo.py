@@ -31,8 +31,8 @@ from pronet.stats import NON_NEGATIVE, SHARE, MeanCI, chi2_mean_band, mean_ci
 MAX_RUN_INDEX = _core.MAX_RUN_INDEX
 
 #: Names of the five 3-blocks of the error state, in order: NED position [m], NED
-#: velocity [m/s], attitude (the small rotation ψ [rad] of docs/filter.md), accelerometer bias
-#: [m/s²] and gyro bias [rad/s] (:meth:`MonteCarloResult.block_nees`,
+#: velocity [m/s], attitude (the small rotation ψ [rad] of docs/reference/filter.md),
+#: accelerometer bias [m/s²] and gyro bias [rad/s] (:meth:`MonteCarloResult.block_nees`,
 #: :meth:`MonteCarloResult.mean_nees`, :meth:`MonteCarloResult.nees_in_band`).
 STATE_BLOCKS = ("position", "velocity", "attitude", "accel_bias", "gyro_bias")
 
@@ -141,7 +141,7 @@ class MonteCarloResult:
 
     def block_nees(self, block: str) -> NDArray[np.float64]:
         """``(n_runs, m)`` the NEES of one block of :data:`STATE_BLOCKS` at each DVL
-        epoch (3 dof; in the coordinates of ``docs/filter.md``, "Metrics")."""
+        epoch (3 dof; in the coordinates of ``docs/reference/filter.md``, "Metrics")."""
         if block not in STATE_BLOCKS:
             raise ValueError(f"block: expected one of {list(STATE_BLOCKS)}, got {block!r}")
         if self.nees.ndim != 3:
@@ -199,7 +199,7 @@ class MonteCarloResult:
         are few independent samples, so one draw of the runs gives a share near 0 or
         1 even for a consistent filter; the NEES averaged over the epochs
         (``np.nanmean(block_nees(block))``, 3 when consistent) is steadier
-        (``docs/filter.md``, "One draw of 100 runs")."""
+        (``docs/results/smoother.md``, "One draw of 100 runs")."""
         v = self.block_nees(block)[[f is None for f in self.failure]]
         if v.size == 0:
             return float("nan")
@@ -372,12 +372,12 @@ def monte_carlo(
             and, while it smooths an interval between two DVL updates, a covariance and
             the error dynamics per IMU step of it (about 2.5 kB, per thread). It costs
             about 2.2 plain runs at the default 0.1 s step, 3 at every IMU sample
-            (docs/filter.md, "The RTS smoother").
+            (docs/reference/smoother.md, "The RTS smoother").
 
     Memory: before it allocates, a Monte Carlo that would hold more than this process
     can still take (every run's records and their arrays, the runs under way and their
     smoothers) raises ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth``
-    (docs/performance.md, "Memory").
+    (docs/results/performance.md, "Memory").
     """
     check_type(trajectory, _core.Trajectory, "trajectory")
     check_type(strategy, _core.Strategy, "strategy")

@@ -48,7 +48,7 @@ def mechanize(
         rpy0: initial roll, pitch, yaw [rad].
 
     More states than this process can still take are a ``ValueError`` naming ``imu``
-    (docs/performance.md, "Memory"). So are a unit or frame slip the samples show
+    (docs/results/performance.md, "Memory"). So are a unit or frame slip the samples show
     (:func:`pronet._util.plausibility.check_imu_start`: a mean specific force that is
     not gravity's, or that points away from where ``rpy0`` puts it, as in an IMU left
     in FLU) and a ``lla0`` in degrees.

@@ -1,7 +1,7 @@
 """Process-noise strategies named in text, and the learned wrapper.
 
 A strategy decides the filter's IMU process noise q (six per-sample variances
-[(m/s²)², (rad/s)²], see ``docs/concepts.md``). Native strategies (constant, Mehra,
+[(m/s²)², (rad/s)²], see ``docs/reference/concepts.md``). Native strategies (constant, Mehra,
 adaptive, oracle) run entirely in the Rust core as a :class:`pronet._core.Strategy`; a
 :class:`Learned` one runs a regressor in Python every tuning period (the hybrid loop;
 ``detvar`` is the detrended-variance estimator in that loop). :func:`strategy` turns a

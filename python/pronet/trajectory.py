@@ -58,7 +58,7 @@ def builtin_trajectory(name: str, dt: float = 0.01) -> _core.Trajectory:
     trajectory: straight legs, left and right turns, a dive; v0 = [1, 0, 0] m/s,
     p0 = 32°, 34°, −5 m) and the four 400 s training trajectories ``train-straight``,
     ``train-turns``, ``train-zigzag``, ``train-helix``. More samples than this process can
-    still take are a ``ValueError`` naming ``dt`` (docs/performance.md, "Memory").
+    still take are a ``ValueError`` naming ``dt`` (docs/results/performance.md, "Memory").
     """
     check_type(name, str, "name")
     dt = scalar(dt, "dt")
@@ -88,7 +88,7 @@ def trajectory_from_segments(
         speed0: initial forward speed [m/s].
         rpy0: initial roll, pitch, yaw [rad]; roll is held.
         dt: sample period [s]; more samples than this process can still take are a
-            ``ValueError`` naming it (docs/performance.md, "Memory").
+            ``ValueError`` naming it (docs/results/performance.md, "Memory").
         name: label carried by the trajectory.
     """
     if isinstance(segments, Sequence) and any(isinstance(s, Segment) for s in segments):

@@ -10,7 +10,7 @@
 //! `recorded`, `scenario`, `run`; `montecarlo`, `ensemble`; `python`
 //! (`tests/test_rust_layout.py` checks it).
 //!
-//! Conventions (see `docs/filter.md`): navigation frame NED, body frame FRD, positions
+//! Conventions (see `docs/reference/filter.md`): navigation frame NED, body frame FRD, positions
 //! geodetic `[lat, lon, h]` in rad, rad, m (height positive up), attitude as the
 //! body-to-NED DCM, IMU samples `[f_x, f_y, f_z, ω_x, ω_y, ω_z]` in m/s² and rad/s.
 //! This crate is plain Rust; the Python bindings live behind the `python` feature.

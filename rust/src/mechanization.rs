@@ -1,7 +1,7 @@
 //! NED strapdown mechanization: one step per IMU sample, its exact inverse (used to
 //! synthesize the ideal IMU of a trajectory), and integration of an IMU array.
 //!
-//! The step is specified in `docs/filter.md` ("Strapdown step"): attitude by rotation
+//! The step is specified in `docs/reference/filter.md` ("Strapdown step"): attitude by rotation
 //! vectors, velocity with the mid-step attitude and Coriolis/gravity at the start of the
 //! step, position trapezoidal in velocity.
 

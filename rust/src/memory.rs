@@ -8,7 +8,7 @@
 //! asked for: `covariance_time`; ...), from the sizes of the values it keeps. Below
 //! [`CHECKED_FROM`] nothing is read; above it the sum is compared with [`available`],
 //! and a call that would not fit is refused naming its largest part's argument, with
-//! the estimate, what is available and what to change (`docs/performance.md`,
+//! the estimate, what is available and what to change (`docs/results/performance.md`,
 //! "Memory").
 
 use crate::error::{Error, Result};

@@ -12,7 +12,7 @@ raylet ports on every interface whatever ``--node-ip-address`` says, and there e
 interface is the loopback. Elsewhere they run in the machine's namespace. Ray ≥ 2.59
 turns token authentication on for such clusters: the nodes and the sweep share a token
 of this test's own (``RAY_AUTH_MODE=token``, ``RAY_AUTH_TOKEN``), as every client of a
-real cluster must (docs/cli.md#pronet-sweep)."""
+real cluster must (docs/how-to/sweeps.md)."""
 
 from __future__ import annotations
 

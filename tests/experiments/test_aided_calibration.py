@@ -2,7 +2,7 @@
 (:mod:`pronet.experiments.aided_calibration`): the mechanism on a few runs, and, marked
 slow, the issue's acceptance at 100 runs on every training trajectory. What holds is
 asserted; where it does not (the horizontal error on the helix, a tie) it is measured and
-reported in docs/filter.md ("With position fixes and depth")."""
+reported in docs/results/calibration.md ("With position fixes and depth")."""
 
 from __future__ import annotations
 
@@ -96,7 +96,7 @@ def test_the_19_states_navigate_better_where_the_dvl_errors_show(rows) -> None:
     trajectories the 19-state filter's horizontal error RMS is below the 15-state
     filter's, the whole 95 % CI of the paired difference below 0 (measured: -0.76,
     -0.40, -1.22 m). On the helix, whose circles average the DVL's errors out, the two
-    tie (+0.01 [-0.01, +0.03] m): not asserted, reported in docs/filter.md."""
+    tie (+0.01 [-0.01, +0.03] m): not asserted, reported in docs/results/calibration.md."""
     for name in ("train-straight", "train-turns", "train-zigzag"):
         r = rows[name]
         assert r.rms_19 < r.rms_15 and r.difference[2] < 0.0, (name, r)

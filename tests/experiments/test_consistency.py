@@ -1,5 +1,5 @@
 """Issue 41's acceptance: honest heading for every IMU grade (the cheap cells of
-:mod:`pronet.experiments.consistency`; the whole grid is in ``docs/accuracy.md``).
+:mod:`pronet.experiments.consistency`; the whole grid is in ``docs/results/consistency.md``).
 
 20 runs of 1200 s with a 5 Hz DVL at 2 cm/s, the filter told the exact model. With the
 biases drawn from their prior, a consistent filter's heading error RMS at the end is

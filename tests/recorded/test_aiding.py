@@ -257,7 +257,7 @@ def _run(data: Path, out: Path, **kw) -> dict[str, dict[str, float]]:
 @pytest.fixture(scope="module")
 def miscalibrated(tmp_path_factory):
     """400 s with a DVL reading 1 % long and turned 0.57° in yaw (a calibration error
-    within what real installations show, docs/realdata.md), depth every 0.5 s and
+    within what real installations show, docs/results/snapir.md), depth every 0.5 s and
     fixes every 30 s (σ 2 m): the folder, with and without its DVL."""
     base = tmp_path_factory.mktemp("miscalibrated")
     rec = synthetic_recording(seed=1, duration=400.0, dvl_mounting=(0.01, (0.0, 0.0, 0.01)))

@@ -131,7 +131,7 @@ def test_the_cli_names_a_missing_topic_and_exits_2_before_any_work(tmp_path, cap
 @pytest.mark.slow
 @pytest.mark.parametrize("storage", ["mcap", "rosbag1"])
 def test_a_bag_runs_through_pronet_real_as_its_csvs_do_to_1e_12(tmp_path, capsys, storage):
-    """The worked example of docs/realdata.md: a bag, its topics and origin, the lever
+    """The worked example of docs/how-to/ros-bags.md: a bag, its topics and origin, the lever
     arms; the same numbers written as CSVs (``write_recording`` of the bag as read) give
     the same metrics to 1e-12, and the bag's covariance is the R used."""
     rec = synthetic_recording(seed=3, duration=100.0, name="mission").recording
@@ -169,8 +169,8 @@ def test_a_bag_runs_through_pronet_real_as_its_csvs_do_to_1e_12(tmp_path, capsys
     assert "| mission | 0.0158 / 0.0158 / 0.0158 (the bag's) |" in table
     assert "(the bag's)" not in (tmp_path / "csv-out" / "table.md").read_text()
     assert np.isfinite(bag.srmse).all() and bag.srmse.iloc[0] < 0.1
-    # the command of docs/realdata.md's worked example is this one
-    docs = (Path(__file__).parents[2] / "docs" / "realdata.md").read_text()
+    # the command of docs/how-to/ros-bags.md's worked example is this one
+    docs = (Path(__file__).parents[2] / "docs" / "how-to" / "ros-bags.md").read_text()
     assert "pronet real --format bag --data mission.bag --imu-topic /imu/data --dvl-topic " in docs
     assert "/dvl/twist \\\n    --truth-topic /odometry --origin 32.8,34.95,0" in docs
 

@@ -1,7 +1,7 @@
 """The DVL calibration states in simulation (:mod:`pronet.recorded.dvlcalibration`): a DVL with
 a 0.5 % scale error and a 0.5° yaw misalignment on the training trajectories. What is
 asserted is what the states are for and what holds; the full table, with the numbers
-that miss the issue's targets, is in docs/filter.md."""
+that miss the issue's targets, is in docs/results/calibration.md."""
 
 from __future__ import annotations
 
@@ -101,7 +101,7 @@ def test_with_the_dvl_drawn_from_the_prior_the_calibration_nees_is_consistent() 
     """The NEES test proper: each of 100 runs gets its own DVL scale and mounting drawn
     from the filter's prior. Where the vehicle turns, the mean calibration NEES is
     inside its 95 % band at ≥ 90 % of the epochs and ≥ 95 % of the runs end within 3σ
-    (the straight trajectory's 67 % is in docs/filter.md)."""
+    (the straight trajectory's 67 % is in docs/results/calibration.md)."""
     for name in ("train-zigzag", "train-turns"):
         got = dvlcalibration.drawn_consistency(name, n_runs=100)
         assert got.nees_in_band >= 0.90, got
@@ -123,7 +123,7 @@ def _scale_drift():
 
 
 def test_on_a_steady_leg_the_scale_drifts_low_and_the_exact_posterior_agrees() -> None:
-    """docs/filter.md#the-scale-drifts-low-on-steady-legs: on the one-axis model (truth
+    """docs/results/calibration.md#the-scale-drifts-low-on-steady-legs: on the one-axis model (truth
     k = 0) the EKF's final scale and the exact posterior mean under the same
     error-state model drift alike, and both drift below 0 when the INS velocity
     wanders; with the 19-state filter on a steady straight run with an ideal DVL the

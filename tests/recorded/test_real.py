@@ -208,7 +208,7 @@ def test_snapir_r_from_the_data_makes_every_section_consistent():
 
 @pytest.mark.skipif(not SNAPIR.is_dir(), reason="the Snapir data is not on this machine")
 def test_snapir_ground_truth_sees_a_dvl_within_tenths_of_a_percent_and_degree():
-    """Sections 1–11, no filter: the DVL against the post-processed truth (docs/real.md)
+    """Sections 1–11, no filter: the DVL against the post-processed truth (docs/results/snapir.md)
     is within 0.6 % in scale and 0.5° in pitch and yaw on every section, each to within
     0.25 % and 0.2° (1σ), with residuals under 0.1 m/s. The filter's calibration states,
     which land far from these, are judged against them there."""

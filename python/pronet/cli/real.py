@@ -149,7 +149,7 @@ def add_parser(sub: Subparsers) -> None:
         action="append",
         default=[],
         help="also run this model file as a row 'learned:PATH' (repeatable), e.g. a Q model "
-        "trained with 'pronet train --recorded' (docs/learning.md)",
+        "trained with 'pronet train --recorded' (docs/how-to/learning-q.md)",
     )
     add_no_plots(parser)
     add_result_folder(parser, "real")

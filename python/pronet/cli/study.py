@@ -24,7 +24,7 @@ def add_parser(sub: Subparsers) -> None:
         "statistics, adaptive, learned)",
         description="Run every study strategy (pronet.experiments.study.STUDY_ROWS) on the study "
         "scenarios with common random numbers and write table, metrics, figure and "
-        "config (docs/study.md).",
+        "config (docs/results/study.md).",
     )
     parser.add_argument(
         "--scenarios",

@@ -36,7 +36,7 @@ def add_parser(sub: Subparsers) -> None:
         help="which regressor to train (default all three); with --recorded or "
         "--simulated a Q model learned through the filter: a (one scale per channel "
         "group, the default), cnn (a windowed CNN) or akit (A-KIT-like: the IMU and the "
-        "filter's velocity); docs/learning.md",
+        "filter's velocity); docs/how-to/learning-q.md",
     )
     parser.add_argument(
         "--out",

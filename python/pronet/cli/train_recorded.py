@@ -1,5 +1,5 @@
 """``pronet train --recorded DIR`` / ``--simulated N``: Q models learned through the
-filter on sections with ground truth (docs/learning.md, "Learning from recorded
+filter on sections with ground truth (docs/how-to/learning-q.md, "Learning from recorded
 missions"): train one and write it, or score models honestly (leave-one-section-out,
 or a held-out split) with a ledger of what was scored."""
 

@@ -2,12 +2,12 @@
 one result folder each (:mod:`pronet.results`).
 
 - :mod:`~pronet.experiments.aided_calibration`: the DVL calibration states with
-  position fixes and depth (``scripts/aided_calibration.py``, ``docs/filter.md``);
+  position fixes and depth (``scripts/aided_calibration.py``, ``docs/results/calibration.md``);
 - :mod:`~pronet.experiments.qlearn`: Q models learned from missions with ground truth,
   trained through the differentiable filter and cross-validated
-  (``pronet train --recorded``, ``docs/learning.md``);
+  (``pronet train --recorded``, ``docs/how-to/learning-q.md``);
 - :mod:`~pronet.experiments.consistency`: is the filter's σ honest, block by block,
-  for every IMU grade (``scripts/consistency.py``, ``docs/accuracy.md``);
+  for every IMU grade (``scripts/consistency.py``, ``docs/results/consistency.md``);
 - :mod:`~pronet.experiments.reproduce`: the paper's experiment end to end
   (``pronet reproduce``);
 - :mod:`~pronet.experiments.simulation`: chosen strategies on one scenario

@@ -12,7 +12,7 @@ of runs whose final scale error, yaw misalignment error and all four calibration
 lie within 3σ of the filter's own σ, and each filter's horizontal error RMS over the
 run (at every second) with the paired difference.
 
-``python scripts/aided_calibration.py`` prints the table docs/filter.md quotes;
+``python scripts/aided_calibration.py`` prints the table docs/results/calibration.md quotes;
 ``tests/experiments/test_aided_calibration.py`` checks the mechanism on a few runs and,
 marked slow, the acceptance at 100 runs.
 """

@@ -6,7 +6,7 @@ noise model. Per error block (position, velocity, attitude, accelerometer and gy
 bias) it reports the share of DVL epochs whose run-averaged NEES lies inside its 95 %
 band, and the heading error RMS at the end against the filter's mean 1σ there. Each
 block's NEES is taken in the coordinates where its error is linear (the velocity as
-the body-frame velocity error rotated to NED; see ``docs/filter.md``, "Metrics").
+the body-frame velocity error rotated to NED; see ``docs/reference/filter.md``, "Metrics").
 
 Initial errors: ``draw=True`` draws every initial error, the biases' too, from P0 (the
 filter starts at its prior mean, so its errors are P0-distributed); ``draw=False``
@@ -14,7 +14,7 @@ starts the filter at the truth with zero biases, where a consistent filter is
 conservative (its error stays below its σ).
 
 ``python scripts/consistency.py`` runs the whole grid and writes the tables of
-``docs/accuracy.md``; the cheap cells are tests
+``docs/results/consistency.md``; the cheap cells are tests
 (``tests/experiments/test_consistency.py``).
 """
 

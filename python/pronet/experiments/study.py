@@ -9,7 +9,7 @@ diverged runs), cost (wall time), the paired 95 % CI of the SRMSE difference fro
 constant told the truth, and the share of the oracle's gain with a bootstrap CI.
 
 ``pronet study`` is a thin face over :func:`run_study` and :func:`write_study`;
-``docs/study.md`` is generated from a study's ``study.csv`` (:func:`study_markdown`).
+``docs/results/study.md`` is generated from a study's ``study.csv`` (:func:`study_markdown`).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Model (c) of docs/learning.md: an A-KIT-like Q model that sees the raw IMU window
+"""Model (c) of docs/how-to/learning-q.md: an A-KIT-like Q model that sees the raw IMU window
 and the filter's own velocity estimate (after Cohen & Klein 2025, whose set
 transformer reads IMU readings and the EKF's velocity; here a small MLP, named so).
 

@@ -1,6 +1,6 @@
 """Q models learned from recorded missions, as model files ``learned:PATH`` runs.
 
-- :class:`SectionScale` (kind ``"section-scale"``, model (a) of docs/learning.md):
+- :class:`SectionScale` (kind ``"section-scale"``, model (a) of docs/how-to/learning-q.md):
   one scale per channel group, ``q = [s_a·q̂_f, s_g·q̂_ω]`` on the section's own
   constant-row q ``q̂`` (:func:`pronet.recorded.tuning.white_noise_q` on recorded
   data): a constant over the section, so ``learned:PATH`` runs it as the native

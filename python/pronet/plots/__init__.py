@@ -5,7 +5,7 @@ written as PNG atomically; matplotlib loads only when one is drawn.
   and of ``pronet evaluate`` (re-exported here: ``pronet.plots.trajectory(...)``);
 - :mod:`~pronet.plots.sections`: the figures of a recorded section (``pronet real``).
 
-``docs/figures.md`` shows each figure and how to read it.
+``docs/reference/figures.md`` shows each figure and how to read it.
 """
 
 from pronet.plots.figures import (

@@ -27,7 +27,7 @@ Before, the reader read each topic in its own pass and kept every deserialized m
 (a tree of Python objects per message, walked again and again by the garbage
 collector), then built Python lists from them: a 25-minute 200 Hz bag took 2.0–3.6× a
 plain ``rosbags`` loop over its topics, now 0.24–0.64× (``benches/run.py --only
-bag-read``; docs/performance.md).
+bag-read``; docs/results/performance.md).
 """
 
 from __future__ import annotations

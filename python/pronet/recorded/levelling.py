@@ -1,6 +1,6 @@
 """Still intervals, levelling and gyrocompassing: the attitude an IMU finds by itself
 while the vehicle is at rest, each angle with the 1σ its method earns (the formulas and
-sources are in :mod:`pronet.recorded.initial` and docs/filter.md, "Initial state").
+sources are in :mod:`pronet.recorded.initial` and docs/reference/aiding.md, "Initial state").
 
 Frames as everywhere in pronet: body FRD, navigation NED, ``C = Rz(yaw) Ry(pitch)
 Rx(roll)`` body to NED; IMU rows ``[f (m/s²), ω (rad/s)]``. At rest ``f = −Cᵀ g^n``

@@ -1,5 +1,5 @@
 """Online navigation: the filter fed as the data arrives, on a vehicle or from a log
-read message by message (docs/navigate.md, "Online use").
+read message by message (docs/how-to/online.md, "Online use").
 
 :class:`Navigator` takes IMU samples one at a time or in blocks and each sensor's
 readings by time, and answers with the navigation state and its σ at any moment. Fed in
@@ -134,7 +134,7 @@ class Navigator:
         lag: how late [s] a reading may be stamped before the newest IMU sample and still
             be applied at its own epoch (finite, >= 0). The history of the lag window is
             kept in memory: a feed about to outgrow what this process can still take is
-            a ``ValueError`` naming ``lag`` (docs/performance.md, "Memory").
+            a ``ValueError`` naming ``lag`` (docs/results/performance.md, "Memory").
         checkpoint_every: a copy of the filter every so many epochs (>= 1): a late
             reading costs at most this many IMU steps more; each copy is ~8 kB.
         imu_dt: the IMU's sample period [s], for a learned strategy's tuning instants

@@ -423,7 +423,7 @@ def run_real(
         use_models: False: only the model-based rows.
         models: model files (paths) run as rows ``learned:PATH`` beside the others,
             e.g. a Q model trained on recorded missions (``pronet train --recorded``,
-            docs/learning.md); each read and checked before any section is.
+            docs/how-to/learning-q.md); each read and checked before any section is.
         plots: False: no plots (the tables and metrics only). The figures are drawn
             in worker processes (:class:`pronet.recorded.figures.FigurePool`) while the other
             sections are filtered; on the Snapir data they add about half to the run
@@ -442,7 +442,7 @@ def run_real(
             ``vehicle``'s, else ``FilterConfig``'s 0.1 s; 0: every IMU sample).
         smooth: also the RTS smoother over every strategy row: each is followed by its
             smoothed row (``"<label>, smoothed"``), its metrics taken at the same
-            ground-truth rows (docs/filter.md, "The RTS smoother").
+            ground-truth rows (docs/reference/smoother.md, "The RTS smoother").
         use_depth, use_fixes: False ignores the sections' depth readings or position
             fixes (:mod:`pronet.recorded.aiding`; ``--no-depth``, ``--no-fixes``), e.g.
             to compare the DVL alone with the aided filter. Used, they aid every row

@@ -91,7 +91,7 @@ def paper_filter_config() -> _core.FilterConfig:
     """The paper's filter: ε = 0.001 for both bias random walks, DVL R = 0.01 I, and
     the covariance propagated at every IMU sample as in the paper's filter (a
     reproduction keeps its discretization; pronet's default step is 0.1 s, which moves
-    these scenarios' SRMSE inside their CIs: ``docs/covariance-step.md``)."""
+    these scenarios' SRMSE inside their CIs: ``docs/results/covariance-step.md``)."""
     return _core.FilterConfig(
         accel_bias_psd=1e-3, gyro_bias_psd=1e-3, dvl_variance=(0.01,) * 3, covariance_step=0.0
     )

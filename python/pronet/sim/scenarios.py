@@ -205,7 +205,7 @@ def varying_matched_scenario(seed: int = 0) -> Scenario:
 #: - quiet survey: tactical-grade datasheets, velocity random walk 0.02–0.04 m/s/√h and
 #:   angle random walk 0.03–0.1 °/√h, i.e. at 100 Hz (σ² = RW²·f): 1e-5–5e-5 (m/s²)²
 #:   and 1e-8–1e-7 (rad/s)²;
-#: - thrusters: the Snapir AUV's sections (``docs/realdata.md``; per-sample σ 0.01–0.04
+#: - thrusters: the Snapir AUV's sections (``docs/results/snapir.md``; per-sample σ 0.01–0.04
 #:   m/s² and 2e-4–1e-3 rad/s, mostly vibration): 1e-4–1e-3, 1e-7–1e-6;
 #: - sea state: the vibration of a hull in waves, up to about 3× Snapir's worst
 #:   accelerometer and 10× its worst gyro: 1e-3–3e-3, 1e-6–1e-5.

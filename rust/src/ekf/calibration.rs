@@ -8,7 +8,7 @@
 //! states 16..19 are `δμ`. Both are constants (optionally random walks), so their rows
 //! of F are zero: propagation carries the cross-covariance `P_xc ← Φ P_xc` and leaves
 //! `P_cc` unchanged (plus the walks' PSDs), and the 15×15 block goes through the
-//! 15-state kernel untouched. Every formula is in `docs/filter.md`.
+//! 15-state kernel untouched. Every formula is in `docs/reference/filter.md`.
 
 use super::dynamics::ErrorDynamics;
 use super::mounting::DvlMounting;

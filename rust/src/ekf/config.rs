@@ -43,7 +43,7 @@ pub struct FilterConfig {
     /// [`super::formulation`]); `p0_sigma` is always given in the classic ones.
     pub formulation: Formulation,
     /// The interval \[s\] over which the covariance is propagated in one step (Φ and Q_d
-    /// accumulated over it, see `docs/filter.md`, "Covariance step"); the navigation
+    /// accumulated over it, see `docs/reference/filter.md`, "Covariance step"); the navigation
     /// solution is still integrated at every IMU sample. [`DEFAULT_COVARIANCE_STEP`]
     /// (0.1 s) by default; 0, or anything shorter than 1.5 IMU periods: at every IMU
     /// sample. Longer steps are rounded to the
@@ -77,14 +77,14 @@ impl Default for FilterConfig {
 }
 
 /// The default covariance step \[s\]: pyins's default, and the step that issue 43's
-/// accuracy measurement found free (`docs/covariance-step.md`: on every built-in
+/// accuracy measurement found free (`docs/results/covariance-step.md`: on every built-in
 /// scenario and the Snapir sections SRMSE inside the per-sample filter's 95 % CI, the
 /// NEES shares in band within a point) at about half the per-sample filter's cost.
 pub const DEFAULT_COVARIANCE_STEP: f64 = 0.1;
 
 /// The longest covariance step \[s\]: Φ and Q_d accumulated over a step approximate the
 /// error process over it, measured as accurate as every sample up to 0.5 s
-/// (`docs/covariance-step.md`); far beyond (a step of 1e9 s through an 80 s DVL outage
+/// (`docs/results/covariance-step.md`); far beyond (a step of 1e9 s through an 80 s DVL outage
 /// cost 10× in position) the approximation, not the process, sets the covariance.
 pub const MAX_COVARIANCE_STEP: f64 = 1.0;
 

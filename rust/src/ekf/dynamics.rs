@@ -1,6 +1,6 @@
 //! The error dynamics of the 15-state filter: the nonzero blocks of F, the block-sparse
 //! propagation `P ← Φ P Φᵀ` with `Φ = I + F Δt`, and the IMU white-noise term of Q_d,
-//! in either [`Formulation`]. Every formula is in `docs/filter.md`.
+//! in either [`Formulation`]. Every formula is in `docs/reference/filter.md`.
 
 use super::formulation::{Formulation, Point};
 use super::state::{Matrix15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};
@@ -10,7 +10,7 @@ use crate::mechanization::{FrameRates, NavState};
 use multiversion::multiversion;
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
-/// The nonzero blocks of the error dynamics F (see `docs/filter.md`). The classic
+/// The nonzero blocks of the error dynamics F (see `docs/reference/filter.md`). The classic
 /// formulation has no `pos_att`, `pos_gbias` and `vel_gbias` blocks and a skew
 /// `vel_att`; the invariant one has `pos_att` (skew), `vel_gbias` and a full `vel_att`;
 /// SE₂(3) has all four, `pos_att` full.
@@ -67,7 +67,8 @@ impl ErrorDynamics {
         };
         let mut pos_gbias = Matrix3::zeros();
         if formulation.position_invariant() {
-            // δp = δP + [p̂×]ψ in the classic rows, and −[p̂×]ψ̇ (docs/filter.md).
+            // δp = δP + [p̂×]ψ in the classic rows, and −[p̂×]ψ̇
+            // (docs/reference/filter.md).
             let d = skew(&at.disp);
             pos_att = d * skew(&rates.nav_rate()) - skew(&rates.transport) * d;
             pos_gbias = -d * c;

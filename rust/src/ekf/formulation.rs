@@ -25,7 +25,7 @@
 //! `T = I` except the blocks (velocity rows, attitude columns) `−[v̂×]` and, in SE₂(3),
 //! (position rows, attitude columns) `−[p̂×]`, taken at a [`Point`]. Users read the
 //! classic coordinates: the prior is given in them and [`Point::to_classic`] maps every
-//! covariance the filter reports. Every formula is in `docs/filter.md`.
+//! covariance the filter reports. Every formula is in `docs/reference/filter.md`.
 
 use super::state::{Gain, Matrix15, ATT, POS, VEL};
 use crate::attitude::skew;

@@ -7,7 +7,7 @@
 //! `H P` cost `R·|J|·N` for the support `J` instead of `R·N²`, and the Joseph form is
 //! written `B = P − K (H P)`, `P ← B + (K R − B Hᵀ) Kᵀ`: two rank-`R` products of
 //! `R·N²` each instead of two `N³` ones. The result is the dense form's to rounding
-//! (tested against it to 1e-12 relative); `docs/filter.md`, "The update".
+//! (tested against it to 1e-12 relative); `docs/reference/filter.md`, "The update".
 
 use nalgebra::SMatrix;
 

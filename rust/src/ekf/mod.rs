@@ -6,7 +6,7 @@
 //! the configured [`Formulation`] (`δv`, or `δV = δv − [v̂×]ψ`). Propagation
 //! `Φ = I + FΔt`, `Q_d = Γ Q^c Γᵀ Δt` at every IMU sample, or over a covariance step
 //! ([`FilterConfig::covariance_step`], `step`); updates in Joseph form with feedback
-//! and reset ([`Ekf::apply`]). Every formula is in `docs/filter.md`.
+//! and reset ([`Ekf::apply`]). Every formula is in `docs/reference/filter.md`.
 //!
 //! - `state`: the error state's layout and matrix types;
 //! - `filter`: [`Ekf`], its state and prediction;

@@ -10,7 +10,7 @@
 //! strategy gave it, so that a q set from outside or Mehra's Q̂ changing between two
 //! samples counts from the sample it takes effect at). Closing the interval applies
 //! `Φ = I + F ΔT + ½(F ΔT)²` and `P ← Φ (P + ½Q) Φᵀ + ½Q`, with `Q` the accumulated
-//! noise mapped through Γ at the interval's start (`docs/filter.md`, "Covariance
+//! noise mapped through Γ at the interval's start (`docs/reference/filter.md`, "Covariance
 //! step"). The sensitivity `M` and the DVL calibration blocks go through the same Φ.
 
 use super::calibration::Calibration;

@@ -1,5 +1,5 @@
 //! The transition matrix of a covariance step, `Φ = I + F ΔT + ½ (F ΔT)²` with the bias
-//! rows of the identity, and `P ← Φ P Φᵀ` with it (`docs/filter.md`, "Covariance
+//! rows of the identity, and `P ← Φ P Φᵀ` with it (`docs/reference/filter.md`, "Covariance
 //! step"). Φ's navigation rows are kept as 15 columns padded to 12 rows, three 4-lane
 //! vectors, so that every column operation vectorizes whole.
 

@@ -5,7 +5,7 @@
 //! estimate back and resets it, and reports the NIS. A 3-vector reading (a velocity) is
 //! one joint update; a reading of scalar components (a depth, a fix, a heading) is one
 //! scalar update per component, each linearized at the estimate the previous one left:
-//! with a diagonal R, the joint update and its sum of NIS (`docs/filter.md`).
+//! with a diagonal R, the joint update and its sum of NIS (`docs/reference/filter.md`).
 
 use super::calibration::{Calibration, Rows3x19, N_CALIBRATED, SCALE};
 use super::filter::Ekf;

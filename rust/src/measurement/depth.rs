@@ -3,8 +3,8 @@
 //! `ẑ = −ĥ + (Ĉ r)_D` \[m, positive down\] (a sensor 1 m below a level IMU reads 1 m
 //! deeper); `H = e_D` on the position error and row D of `[(Ĉ r)×]` on ψ
 //! (`Ĉ − C = −[ψ×] C`), the same in the classic and invariant formulations; SE₂(3)
-//! adds row D of `[p̂×]` on ψ (`δp = δP + [p̂×]ψ`). `docs/filter.md`, "Lever arms and
-//! heading".
+//! adds row D of `[p̂×]` on ψ (`δp = δP + [p̂×]ψ`). `docs/reference/aiding.md`, "Lever arms
+//! and heading".
 
 use crate::attitude::skew;
 use crate::ekf::{Ekf, Linearized, Measurement, Row15, ScalarRow, ATT, POS};

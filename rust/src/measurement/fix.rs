@@ -6,7 +6,7 @@
 //! `ν_E = (λ − λ̂)(R_E + ĥ) cos φ̂ − (Ĉr)_E` (the longitude difference wrapped into
 //! (−π, π]), `ν_D = (ĥ − h) − (Ĉr)_D`; `H = e_i` on δp plus row i of `[(Ĉ r)×]` on ψ
 //! (and of `[p̂×]` in SE₂(3)).
-//! No innovation gate applies. `docs/filter.md`, "Position and depth updates" and
+//! No innovation gate applies. `docs/reference/aiding.md`, "Position and depth updates" and
 //! "Lever arms and heading".
 
 use super::depth::position_component;

@@ -6,7 +6,7 @@
 //! elsewhere, the same in either formulation (ψ means the same in both). From
 //! `Ĉ − C = −[ψ×] C`: `ŷ − y = −ψ_z + Ĉ₂₀ (Ĉ₀₀ ψ_x + Ĉ₁₀ ψ_y) / d`, so a level vehicle's
 //! heading reads −ψ_z alone. Undefined at a pitch of ±90° (`d = 0`: the update reports
-//! a non-finite innovation variance). One scalar update, no gate. `docs/filter.md`,
+//! a non-finite innovation variance). One scalar update, no gate. `docs/reference/aiding.md`,
 //! "Lever arms and heading".
 
 use crate::attitude::wrap_angle;

@@ -6,7 +6,7 @@
 //! calibration states `ẑ = (1 + k̂) M̂ h` and their columns
 //! ([`crate::ekf::calibration`]). NED: `h = v̂ + Ĉ (ω̂ × r)`,
 //! `H = [0, I, [(Ĉ (ω̂×r))×], 0, Ĉ [r×]]`, plus `[v̂×]` on ψ in the invariant formulation
-//! (`δv = δV + [v̂×]ψ`). Every formula is in `docs/filter.md`.
+//! (`δv = δV + [v̂×]ψ`). Every formula is in `docs/reference/filter.md`.
 
 use crate::attitude::skew;
 use crate::ekf::{Aiding, Ekf, Linearized, Measurement, Rows3, VectorRows};

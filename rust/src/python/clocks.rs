@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 /// rates ``cum (K, 3)`` [rad] at the IMU ``edges (K,)`` [s], interpolated linearly at
 /// ``offset + scale·gt_time``, over the pairs of rows mapped inside the edges; inf
 /// with fewer than 10 such pairs. More offsets than this process can still take are a
-/// ``ValueError`` naming ``offsets`` (docs/performance.md, "Memory").
+/// ``ValueError`` naming ``offsets`` (docs/results/performance.md, "Memory").
 #[pyfunction]
 #[pyo3(signature = (edges, cum, gt_time, gt_step, offsets, scale))]
 fn attitude_increment_costs<'py>(

@@ -24,11 +24,11 @@ use pyo3::prelude::*;
 /// prior and every output are in the classic coordinates either way; and the
 /// covariance step [s]: the interval over which the covariance is propagated at once
 /// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
-/// by default (free in accuracy, about half the cost: ``docs/covariance-step.md``);
+/// by default (free in accuracy, about half the cost: ``docs/results/covariance-step.md``);
 /// 0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
 /// number of IMU periods (at most :data:`MAX_COVARIANCE_STEP`, 1 s), and the covariance
 /// is brought up to date before every DVL update and at the end of a pass. See
-/// ``docs/filter.md``.
+/// ``docs/reference/filter.md``.
 #[pyclass(name = "FilterConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
 pub struct PyFilterConfig {
@@ -152,7 +152,7 @@ impl PyFilterConfig {
         }
     }
     /// The error coordinates the filter runs in: "invariant", "classic" or "se23"
-    /// (the position error too, about the first position: ``docs/filter.md``).
+    /// (the position error too, about the first position: ``docs/reference/filter.md``).
     #[getter]
     fn formulation(&self) -> &'static str {
         self.inner.formulation.name()

@@ -49,7 +49,7 @@ fn q_schedule(
 /// ``calibration``, ``calibration_sigma`` per epoch, or None. Before it allocates, a
 /// pass that would hold more than this process can still take is a ``ValueError``
 /// naming the argument that bounds the most of it (``output_step``, ``streams``,
-/// ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/performance.md,
+/// ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,
 /// "Memory").
 #[pyfunction]
 #[pyo3(signature = (imu, imu_time, streams, *, t0, lla0, vel0, rpy0, config, strategy, bias0 = None, q_time = None, q = None, epochs = "all".to_string(), output_step = None, covariance_time = None, smooth = false),

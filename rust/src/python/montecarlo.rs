@@ -202,7 +202,7 @@ fn series<'py, 'r, const N: usize>(
 /// ``max_horizontal_error``, ``nees`` and, with ``record_every``, ``error`` and
 /// ``sigma``). Before it allocates, one that would hold more than this process can still
 /// take (the records and their arrays, the runs under way and their smoothers) is a
-/// ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth`` (docs/performance.md,
+/// ``ValueError`` naming ``n_runs``, ``record_every`` or ``smooth`` (docs/results/performance.md,
 /// "Memory").
 #[pyfunction(name = "monte_carlo")]
 #[pyo3(signature = (trajectory, sensors, config, strategy, *, n_runs, seed = 0, record_every = 0, sample_initial_error = true, threads = None, first_run = 0, smooth = false))]

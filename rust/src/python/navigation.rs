@@ -26,7 +26,7 @@ fn earth_radii(#[pyo3(from_py_with = arg_lat)] lat: f64) -> PyResult<(f64, f64)>
 /// Strapdown integration; keys ``lla``, ``vel``, ``rpy``, each ``(n+1, 3)``. Finite
 /// IMU rows, ``dt`` > 0, ``|lla0[0]|`` <= 89°; an overflow to non-finite states is a
 /// ValueError naming ``imu, dt, lla0, vel0``, more states than this process can still
-/// take one naming ``imu`` (docs/performance.md, "Memory").
+/// take one naming ``imu`` (docs/results/performance.md, "Memory").
 #[pyfunction]
 #[pyo3(signature = (imu, dt, lla0, vel0, rpy0))]
 fn mechanize<'py>(

@@ -24,7 +24,7 @@ use pyo3::types::{PyDict, PyFloat, PyList};
 /// many epochs. ``tuning_period`` [s] with ``imu_dt`` [s] and ``window`` (samples): the
 /// learned loop's instants, as :func:`tuning_instants` places them. A feed whose lag
 /// window's history is about to outgrow the memory this process can still take is a
-/// ``ValueError`` naming ``lag`` (docs/performance.md, "Memory").
+/// ``ValueError`` naming ``lag`` (docs/results/performance.md, "Memory").
 #[pyclass(name = "Navigator", module = "pronet._core")]
 pub struct PyNavigator {
     inner: Navigator,

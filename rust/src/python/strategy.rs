@@ -43,7 +43,7 @@ impl PyStrategy {
     }
     /// q = λ·prior_q with the scale λ estimated by matching the DVL innovations'
     /// NIS over an exponentially forgetting window of ``window`` updates (>= 1);
-    /// structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/filter.md``.
+    /// structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/reference/filter.md``.
     #[staticmethod]
     #[pyo3(signature = (window, prior_q))]
     fn adaptive(

@@ -288,7 +288,7 @@ mod tests {
         );
         assert!(every.bytes() > forward.bytes());
         assert_eq!(every.largest().unwrap().0, "output_step");
-        // ~600-800 bytes per IMU sample every epoch smoothed (docs/performance.md).
+        // ~600-800 bytes per IMU sample every epoch smoothed (docs/results/performance.md).
         let per_sample = every.bytes() / 360_000.0;
         assert!((600.0..900.0).contains(&per_sample), "{per_sample}");
     }

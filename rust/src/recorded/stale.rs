@@ -9,7 +9,7 @@ use crate::ekf::{classic_sigma, variance_between, ClosedSigma, Ekf, Matrix15, Po
 /// of its last epoch), the variances of the epochs inside it are interpolated linearly
 /// in time between the σ at the last epoch where P was up to date (after its updates)
 /// and the σ at the close: the growth of P over a step of 0.1 s is smooth, and a stale
-/// σ would read up to the whole step's growth too small (`docs/filter.md`, "Covariance
+/// σ would read up to the whole step's growth too small (`docs/reference/filter.md`, "Covariance
 /// step"). Without a covariance step every epoch is up to date. A pass that records
 /// some epochs only (`Epochs::Step`) interpolates those; the last up-to-date epoch
 /// need not be one of them. σ is computed only where a recorded epoch inside a step

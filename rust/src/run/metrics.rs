@@ -122,7 +122,7 @@ pub(super) fn nees3(e: &Vector3<f64>, p: &Matrix15, block: usize) -> f64 {
 }
 
 /// NEES of each 3-block, each in the coordinates where its error is linear in the
-/// state (see `docs/filter.md`, "Metrics"): position, attitude and biases in the
+/// state (see `docs/reference/filter.md`, "Metrics"): position, attitude and biases in the
 /// classic ones, velocity as the body-frame velocity error rotated to NED,
 /// `δV = v̂ − Ĉ Cᵀ v` (the invariant velocity error, exact), against the invariant
 /// covariance. The classic `δv` carries `[v̂×]ψ`, which is second-order wrong once

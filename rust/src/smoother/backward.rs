@@ -20,7 +20,7 @@
 //! the smoothed error there is interpolated linearly in time between `δs_c` (after
 //! `c`'s updates) and `δs⁻_d = δs_d + δx̂_d` (before `d`'s), and the change to its
 //! variances linearly in time between those at `c` and at `d`, as the forward σ is
-//! interpolated. `docs/filter.md` ("The RTS smoother") writes it out with its sources.
+//! interpolated. `docs/reference/smoother.md` ("The RTS smoother") writes it out with its sources.
 
 use super::closes::{self, Close};
 use super::forward::{Covariances, Forward};
@@ -489,7 +489,7 @@ impl<const N: usize> Later<N> {
     /// smoothed covariance given all the data is the same before and after an epoch's
     /// updates (they move the forward estimate by a known amount, not what the
     /// smoother knows); the forward pass interpolates its own variances between the
-    /// same two ends (`docs/filter.md`, "With a covariance step").
+    /// same two ends (`docs/reference/smoother.md`, "With a covariance step").
     fn write_between(
         &self,
         out: &mut impl Sink,

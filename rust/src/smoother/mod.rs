@@ -28,7 +28,7 @@
 //! runs it, whatever the closes are and wherever it writes. With the DVL calibration
 //! states the recursion runs on all 19 (`N` below): their rows of F are zero and the
 //! navigation rows do not read them, so every product with `Φ` goes through the
-//! navigation rows of the first 15. `docs/filter.md` ("The RTS smoother") writes it out
+//! navigation rows of the first 15. `docs/reference/smoother.md` ("The RTS smoother") writes it out
 //! with its sources.
 //!
 //! - `node`: the [`Node`]s and how the prediction restarts from one;

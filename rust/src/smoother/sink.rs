@@ -7,7 +7,7 @@
 //! are the same bits, the change is zero, and the smoothed σ is the forward σ exactly;
 //! since `Ps ≤ P` the change is never positive, whatever map to the classic coordinates
 //! reads them. Inside a covariance step the change is interpolated linearly in time
-//! between the two closes around the epoch (`docs/filter.md`, "With a covariance
+//! between the two closes around the epoch (`docs/reference/smoother.md`, "With a covariance
 //! step"), so the smoothed σ stays below the forward one however the forward pass read
 //! its own σ there.
 

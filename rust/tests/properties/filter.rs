@@ -71,7 +71,7 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
         )
 }
 
-/// The documented validity of a filter configuration (see `docs/filter.md` and
+/// The documented validity of a filter configuration (see `docs/reference/filter.md` and
 /// `FilterConfig::validate`), computed independently.
 pub(super) fn config_is_valid(c: &FilterConfig) -> bool {
     let nonneg = |v: f64| v.is_finite() && v >= 0.0;

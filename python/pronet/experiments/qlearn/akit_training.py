@@ -2,7 +2,7 @@
 differentiable filter: the torch filter runs each window chunk by chunk between the
 windows' tuning instants and the net recomputes q at each from the IMU window and the
 filter's velocity there, so the gradient reaches the net through q and through the
-velocity it fed back (docs/learning.md, "Learning from recorded missions")."""
+velocity it fed back (docs/how-to/learning-q.md, "Learning from recorded missions")."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Training a windowed CNN Q model on recorded missions through the differentiable
-filter (model (b) of docs/learning.md, "Learning from recorded missions").
+filter (model (b) of docs/how-to/learning-q.md, "Learning from recorded missions").
 
 The model is a scale-free :class:`pronet.learn.models.DetrendNet` per channel
 (``scaling="spread"``: ``ln q = ln s² + z(window)``; untrained, q is the window's own

@@ -2,7 +2,7 @@
 cross-validation (:func:`cross_validate`), a held-out split (:func:`held_out`) and
 the ledger that keeps a held-out set from being scored twice (:class:`Ledger`).
 
-The protocol (docs/learning.md, "The protocol"): each section is scored by a model
+The protocol (docs/how-to/learning-q.md, "The protocol"): each section is scored by a model
 trained without it; the rows beside it are the constant row (``pronet real``'s
 default constant q), the per-section best constant (a 2-D search of the group scales
 on the scored section itself: a ceiling known only after the fact, never a

@@ -1,8 +1,8 @@
 """The differentiable filter: pronet's INS/DVL error-state EKF in torch (float64),
 batched over B independent sequences, the same algorithm as the core's recorded pass
-(``rust/src/ekf/``; docs/filter.md), differentiable in the per-sample IMU variances q and
+(``rust/src/ekf/``; docs/reference/filter.md), differentiable in the per-sample IMU variances q and
 in the start state. It is how a model of q is trained through the filter on recorded
-missions (docs/learning.md, "The differentiable filter"), checked against the core to
+missions (docs/reference/learning.md, "The differentiable filter"), checked against the core to
 1e-9 (``tests/learn/test_torchfilter.py``).
 
 The API (shapes: B sequences, T samples, n epochs of a call, K DVL rows per epoch):

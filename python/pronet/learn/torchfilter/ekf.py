@@ -2,7 +2,7 @@
 F, the IMU noise mapped through Γ, the per-sample and covariance-step transitions, the
 DVL update (body velocity with the lever arm, or NED velocity) in Joseph form and the
 feedback of the error estimate, in the classic or the invariant formulation
-(``rust/src/ekf/``, docs/filter.md).
+(``rust/src/ekf/``, docs/reference/filter.md).
 
 Error state (15): ``[δp (NED m), δv (m/s), ψ (rad), δb_a (m/s²), δb_g (rad/s)]``,
 estimate minus truth. In the invariant formulation the velocity error is ``δV = δv −
@@ -30,7 +30,7 @@ def error_dynamics(
 ) -> Tensor:
     """``(B, 15, 15)`` F at the navigation state ``vel`` ``(B, 3)``, ``dcm``, height
     ``h`` ``(B,)`` [m] with the frame rates ``r`` there and the NED specific force
-    ``f_ned`` ``(B, 3)`` [m/s²] (docs/filter.md; the core's ``ErrorDynamics``)."""
+    ``f_ned`` ``(B, 3)`` [m/s²] (docs/reference/filter.md; the core's ``ErrorDynamics``)."""
     batch = vel.shape[0]
     fm = vel.new_zeros(batch, 15, 15)
     eye = torch.eye(3, dtype=vel.dtype, device=vel.device)

@@ -1,7 +1,7 @@
 """The strapdown step of ``rust/src/mechanization.rs`` (``step_with_rates``) in torch,
 batched over B sequences: attitude by two half-turns split at mid-step, velocity with the
 specific force resolved at mid-step plus gravity and Coriolis, position by the
-trapezoid of the velocities (docs/filter.md, "Strapdown step")."""
+trapezoid of the velocities (docs/reference/filter.md, "Strapdown step")."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """What :func:`~pronet.learn.torchfilter.advance` returns per epoch, and the σ the core
 reports there (inside a covariance step, interpolated in variance up to the step's
-close, ``docs/filter.md``, "Covariance step")."""
+close, ``docs/reference/filter.md``, "Covariance step")."""
 
 from __future__ import annotations
 
