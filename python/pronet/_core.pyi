@@ -27,6 +27,7 @@ __all__ = [
     "max_threads", "Ensemble", "tuning_instants", "Navigator", "ConvNet", "HcfEnsemble",
     "attitude_increment_costs"]  # fmt: skip
 
+#: The package version (the crate's, from ``Cargo.toml``).
 __version__: str
 #: Most worker threads a pool may have on any machine (``threads::MAX_THREADS``).
 MAX_THREADS: int
@@ -52,8 +53,9 @@ MAX_LATITUDE_DEG: float
 #: and the 0–360° conventions (``earth::LONGITUDE_RANGE_DEG``; the fix update wraps the
 #: longitude difference into (−π, π]).
 LONGITUDE_RANGE_DEG: tuple[float, float]
-#: WGS-84 semi-major axis [m] and flattening (``earth::A``, ``earth::F``).
+#: WGS-84 semi-major axis [m] (``earth::A``).
 WGS84_A: float
+#: WGS-84 flattening (``earth::F``).
 WGS84_F: float
 
 @final

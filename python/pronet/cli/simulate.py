@@ -26,7 +26,7 @@ def add_parser(sub: Subparsers) -> None:
         help="Monte Carlo of chosen strategies on one scenario (built-in or TOML file)",
         description="Run strategies on the same simulated noise realizations and write "
         "a result folder (table, metrics, plots). Scenario and filter files: see "
-        "pronet.config (docs/api.md).",
+        "pronet.config (the API reference: mkdocs serve, Reference → API).",
     )
     parser.add_argument(
         "--scenario",
