@@ -90,17 +90,15 @@ def target(name: str) -> str:
 
 
 def module_page(module: str) -> str:
-    """The Markdown of a module's page: its name and the mkdocstrings directive."""
+    """The Markdown of a module's page: the mkdocstrings directive, whose root heading
+    (the module's name, at level 1 in ``mkdocs.yml``) is the page's title."""
     if module == "pronet":
         # The namespace re-exports names documented on their own modules' pages (the
         # index links each); this page holds the package's docstring and the names
         # documented nowhere else.
         members = "".join(f"\n        - {name}" for name in documented_here())
-        return (
-            f"# `{module}`\n\n::: {module}\n    options:\n      filters: []\n"
-            f"      members:{members}\n"
-        )
-    return f"# `{module}`\n\n::: {module}\n"
+        return f"::: {module}\n    options:\n      filters: []\n      members:{members}\n"
+    return f"::: {module}\n"
 
 
 def index_page(modules: list[str]) -> str:

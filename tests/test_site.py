@@ -75,7 +75,7 @@ def test_there_is_a_page_per_public_module() -> None:
     for module in modules:
         page = api_pages().page_path(module)
         assert page.startswith("reference/api/pronet"), page
-        assert f"\n::: {module}\n" in pages[page], f"{page} does not document {module}"
+        assert pages[page].startswith(f"::: {module}\n"), f"{page} does not document {module}"
     assert api_pages().page_path("pronet.recorded.aiding") == (
         "reference/api/pronet/recorded/aiding.md"
     )
@@ -156,3 +156,23 @@ def test_links_out_of_the_docs_become_repository_paths(tmp_path: Path) -> None:
     folder = next(p for p in DOCS.iterdir() if p.is_dir() and not (p / "index.md").exists())
     out, _ = hooks.rewrite(f"[data]({folder.name}/)", page, DOCS, ROOT)
     assert out == f"data (`docs/{folder.name}/`)"
+
+
+def test_sphinx_roles_become_cross_references() -> None:
+    """A role naming an object the reference documents links to it (by its canonical
+    path, found from the docstring's own scope outward); any other is plain code."""
+    roles = _script("griffe_roles")
+    tree = griffe_tree()
+    run = tree["run.run"]
+    text = (
+        ":func:`pronet.monte_carlo` :class:`Recorded` :data:`~pronet.STATE_BLOCKS` "
+        ":mod:`pronet._util.outputs` :func:`numpy.linalg.solve` :meth:`FilterResult.\n"
+        "    to_dataframe` :func:`run()`"
+    )
+    assert roles.rewrite(text, run, tree) == (
+        "[`pronet.monte_carlo`][pronet.montecarlo.monte_carlo] "
+        "[`Recorded`][pronet.run.Recorded] [`STATE_BLOCKS`][pronet.montecarlo.STATE_BLOCKS] "
+        "`pronet._util.outputs` `numpy.linalg.solve` "
+        "[`FilterResult.to_dataframe`][pronet.filter.FilterResult.to_dataframe] "
+        "[`run()`][pronet.run.run]"
+    )
