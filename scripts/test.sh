@@ -34,11 +34,16 @@ MYPY_CACHE="${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
 "$VENV/bin/python" -m mypy --cache-dir "$MYPY_CACHE" scripts
 # Strict: a broken link or anchor, a link out of docs/ to a missing file, a reference
 # mkdocstrings cannot resolve or a docstring griffe cannot parse fails the build. Into a
-# temporary folder: the site is never kept.
+# temporary folder: the site is never kept. Not --quiet, which hides the warnings from
+# --strict too (the build then passes whatever they say): the log is shown on failure.
 echo "== the documentation site (mkdocs build --strict)"
 SITE="$(mktemp -d)"
-DISABLE_MKDOCS_2_WARNING=true NO_MKDOCS_2_WARNING=1 \
-  "$VENV/bin/mkdocs" build --strict --quiet --site-dir "$SITE"
+if ! DISABLE_MKDOCS_2_WARNING=true NO_MKDOCS_2_WARNING=1 \
+  "$VENV/bin/mkdocs" build --strict --site-dir "$SITE/html" >"$SITE/log" 2>&1; then
+  grep -E "WARNING|ERROR|Error|Aborted" "$SITE/log" || cat "$SITE/log"
+  rm -rf "$SITE"
+  exit 1
+fi
 rm -rf "$SITE"
 echo "== the wheel: manylinux2014, installed without extras into a fresh venv"
 bash "$ROOT/scripts/check_wheel.sh"
