@@ -119,23 +119,25 @@ def index_page(modules: list[str]) -> str:
     ]
     for name, source in sorted(exported().items(), key=lambda item: item[0].lower()):
         lines.append(f"| [`pronet.{name}`][{target(name)}] | `{source}` |")
-    lines += ["", "## Modules", ""]
-    for module in modules:
-        depth = max(module.count(".") - 1, 0)
-        link = page_path(module).removeprefix(PREFIX + "/")
-        lines.append(f"{'    ' * depth}- [`{module}`]({link})")
+    lines += ["", "## Modules", "", *module_list(modules)]
     return "\n".join(lines) + "\n"
 
 
 def summary(modules: list[str]) -> str:
     """The literate-nav order of the section: the index, then the modules, each
     subpackage's modules nested under it."""
-    lines = ["- [Overview](index.md)"]
+    return "\n".join(["- [Overview](index.md)", *module_list(modules)]) + "\n"
+
+
+def module_list(modules: list[str]) -> list[str]:
+    """A Markdown list linking each module's page from the reference's folder, a
+    subpackage's modules nested under it."""
+    lines = []
     for module in modules:
         depth = max(module.count(".") - 1, 0)
         link = page_path(module).removeprefix(PREFIX + "/")
         lines.append(f"{'    ' * depth}- [`{module}`]({link})")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def pages() -> dict[str, str]:

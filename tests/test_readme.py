@@ -13,9 +13,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-#: Pages whose blocks are not sessions (none since the API reference is generated at
-#: build time and lives in the site only).
-GENERATED: set[Path] = set()
 PYTHON_BLOCK = re.compile(r"```python\n(.*?)```", flags=re.S)
 #: A script of examples/ shown whole in a page (scripts/example_docs.py).
 EXAMPLE = re.compile(r"<!-- (example-[\w-]+):begin -->.*?<!-- \1:end -->", flags=re.S)
@@ -38,7 +35,7 @@ def run_blocks(page: Path) -> dict[str, object]:
 
 def pages_with_python() -> list[Path]:
     pages = sorted((ROOT / "docs").glob("*.md"))
-    return [p for p in pages if p not in GENERATED and python_blocks(p)]
+    return [p for p in pages if python_blocks(p)]
 
 
 @pytest.mark.slow
