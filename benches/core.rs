@@ -55,7 +55,7 @@ fn benches(c: &mut Criterion) {
         imu_variance: &q,
         bias_psd: &bias_psd,
     };
-    // One predict step in each formulation, side by side (issue 41: the invariant one
+    // One predict step in each formulation, side by side (the invariant one
     // may cost at most 1.2× the classic one; benches/run.py reports the ratio).
     for formulation in [Formulation::Classic, Formulation::Invariant] {
         let start = ekf_in(formulation);
@@ -72,7 +72,7 @@ fn benches(c: &mut Criterion) {
         });
     }
 
-    // Ten samples at a 0.1 s covariance step (issue 43): nine accumulate, the tenth
+    // Ten samples at a 0.1 s covariance step: nine accumulate, the tenth
     // closes the interval (Φ P Φᵀ once); against ten samples of the predict above.
     let stepped = Ekf::new(
         &FilterConfig {

@@ -1,4 +1,4 @@
-"""The covariance step's speed (issue 43), measured side by side in one process: the
+"""The covariance step's speed, measured side by side in one process: the
 constant-Q Monte Carlo of ``paper`` and ``run_filter`` on a long 100 Hz recording with
 a 1 Hz DVL, each at one IMU step (``covariance_step=0``) and at a covariance step,
 alternating the two settings ``repeat`` times and keeping the best of each.

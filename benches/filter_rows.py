@@ -5,12 +5,12 @@ Definitions:
 - Monte Carlo rows: the evaluation scenario (``paper``, 330 s at 100 Hz, P propagated
   every IMU step), ``--runs`` runs, the paper's filter and sensors, no histories, best
   of ``--repeat`` in a fresh process; ns per filter step counts IMU steps over all runs.
-- covariance step (issue 43): ``benches/covariance_step.py`` in a fresh process, the
+- covariance step: ``benches/covariance_step.py`` in a fresh process, the
   per-sample filter and a 0.1 s covariance step alternating, best of ``--repeat`` each:
   the constant-Q Monte Carlo of ``paper`` (2 threads) as a ratio, and ``run_filter`` in
   ns per IMU step on an hour of 100 Hz IMU with a 1 Hz DVL (6 minutes under
   ``--quick``), keeping the last epoch (the filter alone) and every epoch.
-- smoother (issue 42): ``benches/smoother.py`` in fresh processes. Cost: the forward
+- smoother: ``benches/smoother.py`` in fresh processes. Cost: the forward
   and the smoothed pass alternating, best of ``--repeat`` each, every IMU step and a
   0.1 s covariance step: ``run_filter`` on an hour of 100 Hz IMU with a 1 Hz DVL (6
   minutes under ``--quick``) and the constant-Q Monte Carlo of ``paper`` (one thread),
@@ -91,7 +91,7 @@ def bench_rust(args: argparse.Namespace, ref: Reference) -> list[Row]:
     return rows + formulation_ratio(rows, command)
 
 
-#: The most one invariant-formulation predict step may cost over a classic one (issue 41).
+#: The most one invariant-formulation predict step may cost over a classic one.
 FORMULATION_TARGET = 1.2
 
 
@@ -227,7 +227,7 @@ def bench_covariance_step(args: argparse.Namespace, ref: Reference) -> list[Row]
     return rows
 
 
-#: Keeping every epoch's estimate and σ against the last epoch only (issue 59).
+#: Keeping every epoch's estimate and σ against the last epoch only.
 OUTPUT_TARGET = 1.5
 
 

@@ -249,7 +249,7 @@ def bench_real(args: argparse.Namespace, ref: Reference) -> list[Row]:
 
 #: Topics of the bench's bag, as ``tests/ros_bag.py`` writes them.
 BAG_TOPICS = ("/imu/data", "/dvl/twist", "/odometry", "/depth/pressure", "/gnss/fix", "/ahrs")
-#: Target: pronet's bag read over the plain rosbags loop (issue 59, 4a).
+#: Target: pronet's bag read over the plain rosbags loop.
 BAG_READ_TARGET = 1.5
 
 

@@ -28,7 +28,7 @@ PAPER_STEPS = 33_000
 #: Filter steps of the reference: its runs × :data:`PAPER_STEPS`.
 REFERENCE_STEPS = REFERENCE_RUNS * PAPER_STEPS
 #: The reference's wall time [s] on the machine the former targets in seconds were
-#: set on (issue 19): a target of T seconds reads as T / 1.03 × the reference.
+#: set on: a target of T seconds reads as T / 1.03 × the reference.
 TARGET_MACHINE_REFERENCE = 1.03
 
 

@@ -1,4 +1,4 @@
-"""The RTS smoother's cost and memory (issue 42), each measured in one process.
+"""The RTS smoother's cost and memory, each measured in one process.
 
     python benches/smoother.py cost RUNS REPEAT SECONDS [STEP ...]
     python benches/smoother.py memory HOURS STEP [OUTPUT_STEP]

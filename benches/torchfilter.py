@@ -1,4 +1,4 @@
-"""The differentiable filter's cost for training (issue 39): forward and backward of a
+"""The differentiable filter's cost for training: forward and backward of a
 Kalman-informed loss over every window of the Snapir sections, batched.
 
     python benches/torchfilter.py [--data DIR] [--sections 10] [--seconds 20]

@@ -15,7 +15,7 @@ fi
 if ! "$VENV/bin/python" -c "import maturin, ziglang, auditwheel, uv" 2>/dev/null; then
   "$VENV/bin/python" -m pip install -q "maturin>=1.9.4,<2" "ziglang>=0.13" "auditwheel>=6" uv
 fi
-# Build the native core (release) and install pronet with its test extras; pip skips
-# what is already there.
+# Build the native core (release) and install pronet with its test and docs extras; pip
+# skips what is already there.
 cd "$ROOT"
-VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH" "$VENV/bin/maturin" develop --release --extras test --quiet
+VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH" "$VENV/bin/maturin" develop --release --extras test,docs --quiet

@@ -1,4 +1,4 @@
-"""The accuracy cost of the covariance step (issue 43): every built-in scenario's
+"""The accuracy cost of the covariance step: every built-in scenario's
 constant-Q Monte Carlo (and the ``paper`` scenario's with Mehra's ξ = 5 and the
 adaptive strategy), and every strategy of ``pronet real`` on the Snapir sections,
 at covariance steps of one IMU step (0: the filter as it always was), 0.05, 0.1, 0.2

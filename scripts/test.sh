@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Install what is missing and run every check and test: Rust (fmt, clippy, unit tests, doc),
-# Python (ruff check and format, stubtest, mypy), the wheel (scripts/check_wheel.sh:
-# manylinux2014, the light install) and pytest. Exits non-zero on the first failure.
+# Python (ruff check and format, stubtest, mypy), the documentation site (mkdocs, strict),
+# the wheel (scripts/check_wheel.sh: manylinux2014, the light install) and pytest. Exits
+# non-zero on the first failure.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${PRONET_VENV:-$HOME/.cache/pronet-venv}"
@@ -31,6 +32,19 @@ echo "== mypy (the package's, the benchmarks' and the scripts' types)"
 MYPY_CACHE="${PRONET_MYPY_CACHE:-$HOME/.cache/pronet-mypy}"
 "$VENV/bin/python" -m mypy --cache-dir "$MYPY_CACHE"
 "$VENV/bin/python" -m mypy --cache-dir "$MYPY_CACHE" scripts
+# Strict: a broken link or anchor, a link out of docs/ to a missing file, a reference
+# mkdocstrings cannot resolve or a docstring griffe cannot parse fails the build. Into a
+# temporary folder: the site is never kept. Not --quiet, which hides the warnings from
+# --strict too (the build then passes whatever they say): the log is shown on failure.
+echo "== the documentation site (mkdocs build --strict)"
+SITE="$(mktemp -d)"
+if ! DISABLE_MKDOCS_2_WARNING=true NO_MKDOCS_2_WARNING=1 \
+  "$VENV/bin/mkdocs" build --strict --site-dir "$SITE/html" >"$SITE/log" 2>&1; then
+  grep -E "WARNING|ERROR|Error|Aborted" "$SITE/log" || cat "$SITE/log"
+  rm -rf "$SITE"
+  exit 1
+fi
+rm -rf "$SITE"
 echo "== the wheel: manylinux2014, installed without extras into a fresh venv"
 bash "$ROOT/scripts/check_wheel.sh"
 echo "== pytest (a worker per core, up to 4; each test file in one worker)"

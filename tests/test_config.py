@@ -151,7 +151,7 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
             "[sensors] dvl_period: must be a whole multiple of the IMU period",
         ),
         ("[sensors]\nlever_arm = [1e9, 0, 0]\n", "[sensors] lever_arm: must be within ±1000 m"),
-        # issue 58: a boolean in a fix's list was read as 1; a sensor scheduled past the
+        # a boolean in a fix's list must not be read as 1; a sensor scheduled past the
         # run's end is refused as a fix source is
         (
             "[[sensors.fixes]]\nsigma = [true, 2]\nperiod = 60.0\n",

@@ -1,23 +1,20 @@
-"""The documentation: docs/api.md matches the docstrings, every relative link in the
-Markdown pages points to a file that exists (and to a heading that exists, when it
-names one), every page is reachable from the README, and docs/how-to/development.md's layer
-tables name every file of the Rust crate and every module of the Python package."""
+"""The documentation: every relative link in the Markdown pages points to a file that
+exists (and to a heading that exists, when it names one), every page is reachable from
+the README, the native core's docstrings are its stub's, and docs/how-to/development.md's
+layer tables name every file of the Rust crate and every module of the Python package.
+The site and its generated API reference: tests/test_site.py."""
 
 from __future__ import annotations
 
 import functools
 import importlib.util
 import re
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-import pronet
-
 ROOT = Path(__file__).resolve().parents[1]
-API = ROOT / "docs" / "api.md"
 #: Every Markdown page of the project: the top-level ones and everything under docs/.
 PAGES = sorted(ROOT.glob("*.md")) + sorted((ROOT / "docs").rglob("*.md"))
 #: ``[text](target)`` or ``[text](target "title")``; images (``![alt](…)``) included.
@@ -28,25 +25,6 @@ DEVELOPMENT = ROOT / "docs" / "how-to" / "development.md"
 RUST_SRC = ROOT / "rust" / "src"
 PACKAGE = ROOT / "python" / "pronet"
 CODE_SPAN = re.compile(r"`([^`\n]+)`")
-
-
-@functools.cache
-def _api_docs() -> ModuleType:
-    """``scripts/api_docs.py``, imported (it is a script, not part of the package)."""
-    spec = importlib.util.spec_from_file_location("api_docs", ROOT / "scripts" / "api_docs.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
-
-
-def _headings(text: str) -> set[str]:
-    body = FENCE.sub("", text)
-    return {
-        m.group(1).strip().strip("`")
-        for m in re.finditer(r"^#{1,6}\s+(.+?)\s*#*\s*$", body, flags=re.M)
-    }
 
 
 def relative_links(text: str) -> list[str]:
@@ -98,27 +76,8 @@ def anchors(text: str) -> set[str]:
 
 @functools.cache
 def page_anchors(page: Path) -> set[str]:
-    """:func:`anchors` of a page, read once (docs/api.md links into itself by the
-    hundred)."""
+    """:func:`anchors` of a page, read once."""
     return anchors(page.read_text(encoding="utf-8"))
-
-
-def test_api_reference_is_up_to_date() -> None:
-    expected = _api_docs().generate()
-    assert API.exists(), "docs/api.md is missing; run python scripts/api_docs.py"
-    assert API.read_text(encoding="utf-8") == expected, (
-        "docs/api.md is out of date; run python scripts/api_docs.py"
-    )
-
-
-def test_api_reference_has_no_memory_addresses() -> None:
-    assert not re.search(r" at 0x[0-9a-fA-F]+", API.read_text(encoding="utf-8"))
-
-
-@pytest.mark.parametrize("name", pronet.__all__)
-def test_every_exported_name_has_a_heading(name: str) -> None:
-    headings = _headings(API.read_text(encoding="utf-8"))
-    assert f"pronet.{name}" in headings, f"docs/api.md has no heading for pronet.{name}"
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
@@ -173,7 +132,7 @@ def test_the_pages_have_relative_links_to_check() -> None:
     readme = relative_links((ROOT / "README.md").read_text(encoding="utf-8"))
     assert "docs/reference/filter.md" in readme
     concepts = relative_links((ROOT / "docs" / "reference" / "concepts.md").read_text("utf-8"))
-    assert {"filter.md", "../api.md", "../../README.md"} <= set(concepts)
+    assert {"filter.md", "../../README.md"} <= set(concepts)
     anchored = link_targets((ROOT / "README.md").read_text(encoding="utf-8"))
     assert ("docs/reference/concepts.md", "frames-and-units") in anchored
     assert {p.name for p in PAGES} >= {"README.md", "index.md", "accuracy.md", "cli.md"}
@@ -188,16 +147,6 @@ def test_link_parser() -> None:
     assert relative_links(text) == ["docs/x.md", "../z.md", "fig.png"]
 
 
-def test_check_mode_reports_a_stale_page(tmp_path: Path, capsys, monkeypatch) -> None:
-    api_docs = _api_docs()
-    stale = tmp_path / "api.md"
-    stale.write_text("# stale\n", encoding="utf-8")
-    monkeypatch.setattr(api_docs, "OUTPUT", stale)
-    assert api_docs.main(["--check"]) == 1
-    assert "docs/api.md is out of date; run python scripts/api_docs.py" in capsys.readouterr().err
-    assert stale.read_text(encoding="utf-8") == "# stale\n"  # --check never writes
-
-
 def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
     spec = importlib.util.spec_from_file_location("study_docs", ROOT / "scripts" / "study_docs.py")
     assert spec is not None and spec.loader is not None
@@ -210,13 +159,6 @@ def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
     )
     with pytest.raises(ValueError, match="no study-tables markers"):
         study_docs.render("# no markers\n", "x")
-
-
-def test_api_reference_lists_the_state_blocks() -> None:
-    import pronet
-
-    assert "STATE_BLOCKS" in pronet.__all__
-    assert f"STATE_BLOCKS = {pronet.STATE_BLOCKS!r}" in API.read_text(encoding="utf-8")
 
 
 def _script(name: str) -> ModuleType:

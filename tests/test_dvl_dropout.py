@@ -1,5 +1,5 @@
-"""The simulated DVL's random bottom-lock loss (``SensorConfig(dvl_dropout=...)``,
-issue 37 point 1): missed updates counted, NaN at their epochs, the same for any thread
+"""The simulated DVL's random bottom-lock loss (``SensorConfig(dvl_dropout=...)``):
+missed updates counted, NaN at their epochs, the same for any thread
 count, and nothing changed when unset."""
 
 from __future__ import annotations

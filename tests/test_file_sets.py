@@ -1,4 +1,4 @@
-"""Files that belong together are replaced together (issue 58, section 4): a model's
+"""Files that belong together are replaced together: a model's
 weights and card, a dataset and its card, a navigated recording's files. A write that
 fails (a file-size limit, an error or Ctrl-C between the renames) leaves the old set;
 a process killed between the renames leaves a set the readers still read as the old

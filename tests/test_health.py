@@ -237,7 +237,7 @@ def test_simulate_names_a_row_whose_runs_leave_their_band(tmp_path) -> None:
 
 
 def test_white_innovations_pass_the_whiteness_test_at_its_nominal_rate() -> None:
-    """Issue 60: the lag-one autocorrelation of the whitened DVL innovations
+    """The lag-one autocorrelation of the whitened DVL innovations
     (:func:`pronet.stats.whiteness`) of a filter told its DVL's white noise lies outside
     its 95 % band in no more of 100 passes than chance allows, and flags none; a 5 Hz
     DVL with a correlated error beside its white noise (a first-order Gauss–Markov bias

@@ -1,4 +1,4 @@
-"""No public call aborts under a memory limit (issue 58, section 3).
+"""No public call aborts under a memory limit.
 
 Each case runs in a fresh interpreter whose address space is limited (``RLIMIT_AS``) to
 what it holds after building its inputs plus a few hundred MiB, then makes a call that

@@ -13,8 +13,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-#: docs/api.md is generated from the docstrings; its blocks are signatures, not sessions.
-GENERATED = {ROOT / "docs" / "api.md"}
 PYTHON_BLOCK = re.compile(r"```python\n(.*?)```", flags=re.S)
 #: A script of examples/ shown whole in a page (scripts/example_docs.py).
 EXAMPLE = re.compile(r"<!-- (example-[\w-]+):begin -->.*?<!-- \1:end -->", flags=re.S)
@@ -38,7 +36,7 @@ def run_blocks(page: Path, namespace: dict[str, object] | None = None) -> dict[s
 
 def pages_with_python() -> list[Path]:
     pages = sorted((ROOT / "docs").rglob("*.md"))
-    return [p for p in pages if p not in GENERATED and python_blocks(p)]
+    return [p for p in pages if python_blocks(p)]
 
 
 @pytest.mark.slow

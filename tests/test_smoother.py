@@ -283,7 +283,7 @@ def dive():
 def test_the_smoothed_sigma_is_never_above_the_forward_one(
     dive, formulation, covariance_step, measured, output_step
 ) -> None:
-    """At every kept epoch and state, those inside a covariance step too (docs/api.md,
+    """At every kept epoch and state, those inside a covariance step too (the API reference,
     ``SmoothedResult.sigma``); with no measurement at all the smoothed σ is the forward
     σ, bit for bit."""
     syn, dvl, dvl_time, aided = dive

@@ -27,6 +27,7 @@ __all__ = [
     "max_threads", "Ensemble", "tuning_instants", "Navigator", "ConvNet", "HcfEnsemble",
     "attitude_increment_costs"]  # fmt: skip
 
+#: The package version (the crate's, from ``Cargo.toml``).
 __version__: str
 #: Most worker threads a pool may have on any machine (``threads::MAX_THREADS``).
 MAX_THREADS: int
@@ -52,8 +53,9 @@ MAX_LATITUDE_DEG: float
 #: and the 0–360° conventions (``earth::LONGITUDE_RANGE_DEG``; the fix update wraps the
 #: longitude difference into (−π, π]).
 LONGITUDE_RANGE_DEG: tuple[float, float]
-#: WGS-84 semi-major axis [m] and flattening (``earth::A``, ``earth::F``).
+#: WGS-84 semi-major axis [m] (``earth::A``).
 WGS84_A: float
+#: WGS-84 flattening (``earth::F``).
 WGS84_F: float
 
 @final
@@ -132,7 +134,7 @@ class FilterConfig:
     with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
     [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
     velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
-    consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
+    consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
     prior and every output are in the classic coordinates either way; and the
     covariance step [s]: the interval over which the covariance is propagated at once
     (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s

@@ -392,13 +392,16 @@ def run_filter(
             inertial pass. ``Dvl(dvl_time, dvl)`` with nothing else is the DVL the
             ``config`` describes (its R, aiding frame, lever arm and gate).
         t0: time of the initial state [s].
-        lla0, vel0, rpy0: initial position [rad, rad, m], NED velocity [m/s], attitude [rad].
+        lla0: initial position [rad, rad, m].
+        vel0: initial NED velocity [m/s].
+        rpy0: initial attitude, roll, pitch, yaw [rad].
         config: filter tuning (defaults: ``FilterConfig()``).
         strategy: process-noise strategy, e.g. ``Strategy.constant(q)``; the adaptive
             ones (Mehra, adaptive) read every velocity stream's innovations.
         bias0: initial ``[b_a (m/s²), b_g (rad/s)]`` estimate (default zeros).
-        q_time, q: a schedule of per-sample IMU variances for an external strategy,
-            ``(k,)`` times [s] strictly increasing and ``(k, 6)`` variances
+        q_time: the times of a schedule of per-sample IMU variances for an external
+            strategy, ``(k,)`` [s] strictly increasing.
+        q: that schedule's ``(k, 6)`` variances
             [(m/s²)², (rad/s)²]; row j is in force from the IMU epoch nearest
             ``q_time[j]`` on (``Strategy.external(prior_q)`` holds before the first).
             This is the ProNet loop on recorded data: the windows a regressor reads are

@@ -435,8 +435,15 @@ class Ensemble:
         trajectory: truth and ideal IMU (e.g. ``builtin_trajectory("paper")``).
         prior_q: 6 per-sample IMU variances [(m/s²)², (rad/s)²] in force until the first
             ``set_q``.
-        sensors, config, n_runs, seed, record_every, sample_initial_error, threads,
-            first_run, smooth: as for :func:`pronet.monte_carlo` (same defaults).
+        sensors: as for :func:`pronet.monte_carlo` (same default).
+        config: as for :func:`pronet.monte_carlo` (same default).
+        n_runs: as for :func:`pronet.monte_carlo` (same default).
+        seed: as for :func:`pronet.monte_carlo` (same default).
+        record_every: as for :func:`pronet.monte_carlo` (same default).
+        sample_initial_error: as for :func:`pronet.monte_carlo` (same default).
+        threads: as for :func:`pronet.monte_carlo` (same default).
+        first_run: as for :func:`pronet.monte_carlo` (same default).
+        smooth: as for :func:`pronet.monte_carlo` (same default).
         window: IMU samples per window handed out, 1 to the trajectory's length.
         tuning_period: time between tuning instants [s], > 0.
 

@@ -167,9 +167,14 @@ def run(
             :class:`~pronet.strategies.Learned` regressor.
         target: a :class:`~pronet.sim.scenarios.Scenario` (Monte Carlo) or
             :class:`Recorded` sensors (one filter pass).
-        n_runs, seed, record_every, first_run, threads, smooth: the Monte Carlo on a
-            scenario (see :func:`pronet.monte_carlo`); a recorded run takes none of
-            them (``run_filter(smooth=True)`` smooths one pass).
+        n_runs: the Monte Carlo's runs on a scenario (see :func:`pronet.monte_carlo`);
+            this and the next five are for a scenario only, a recorded run takes
+            none of them (``run_filter(smooth=True)`` smooths one pass).
+        seed: the Monte Carlo's seed.
+        record_every: keep histories every this many IMU steps.
+        first_run: the first run's index (a shard of runs).
+        threads: worker threads.
+        smooth: also the RTS smoother over every run.
     """
     smooth = flag(smooth, "smooth")
     if isinstance(target, Recorded):

@@ -1,4 +1,4 @@
-"""``pronet train``'s options (issue 58, section 5): each one is applied or refused in
+"""``pronet train``'s options: each one is applied or refused in
 one line naming it, before any work; ``--recorded --format generic`` runs with the lever
 arms it takes; ``--out FOLDER/`` writes into the folder."""
 

@@ -1,4 +1,4 @@
-"""Issue 41's acceptance: honest heading for every IMU grade (the cheap cells of
+"""Honest heading for every IMU grade (the cheap cells of
 :mod:`pronet.experiments.consistency`; the whole grid is in ``docs/results/consistency.md``).
 
 20 runs of 1200 s with a 5 Hz DVL at 2 cm/s, the filter told the exact model. With the

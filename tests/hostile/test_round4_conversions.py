@@ -1,4 +1,4 @@
-"""Issue 58, sections 6 and 8: conversion mistakes at the API and in the readers that
+"""Conversion mistakes at the API and in the readers that
 ran to a silently wrong answer, and the cases left from the third round.
 
 At the API (``run_filter``, ``local_ned``) the readers' plausibility rules hold

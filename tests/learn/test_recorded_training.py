@@ -1,4 +1,4 @@
-"""Learning Q from sections with ground truth (issue 39): the training sections, the
+"""Learning Q from sections with ground truth: the training sections, the
 core's scores, the per-section best constant, model (a)'s fit and model file, the
 leave-one-out protocol and its ledger, and model (b)'s Kalman-informed loss through
 the torch filter (equal to the same loss taken from the core's pass) and training."""

@@ -1,8 +1,8 @@
-"""Depth readings and position fixes in recorded data (issue 42, points 3 and 4 of the
-brief): the generic format's optional ``depth`` and ``fix`` tables read back as
-written, their missing values skipped, their mistakes refused in one line naming file,
-row and column; ``pronet real`` filters with them (every row, forward and smoothed),
-ignores them on request and runs without a DVL."""
+"""Depth readings and position fixes in recorded data: the generic format's optional
+``depth`` and ``fix`` tables read back as written, their missing values skipped, their
+mistakes refused in one line naming file, row and column; ``pronet real`` filters with
+them (every row, forward and smoothed), ignores them on request and runs without a
+DVL."""
 
 from __future__ import annotations
 
@@ -135,7 +135,7 @@ _LON = r"beyond -3\.14159 … 6\.28319 rad \(-180° … 360°: a longitude in th
          r"depth\.csv, row 4: 'sigma \[m\]' is 0; a 1σ must be > 0 m"),
         (lambda f: _edit(f, "fix.csv", 2, "sigma_e", "-2"),
          r"fix\.csv, row 2: 'sigma_e \[m\]' is -2; a 1σ must be > 0 m"),
-        # issue 58: σ 1e-9 m ended in a numerical failure naming neither file nor σ
+        # σ 1e-9 m once ended in a numerical failure naming neither file nor σ
         (lambda f: _edit(f, "fix.csv", 3, "sigma_n", "1e-9"),
          r"fix\.csv, row 3: 'sigma_n \[m\]' is 1e-09; a fix's 1σ must be at least 0\.001 m"),
         (lambda f: _edit(f, "depth.csv", 7, "depth", "abc"),

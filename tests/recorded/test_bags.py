@@ -1,4 +1,4 @@
-"""ROS bags (issue 37, point 6): ROS 1 and ROS 2 (sqlite3, mcap) bags written with the
+"""ROS bags: ROS 1 and ROS 2 (sqlite3, mcap) bags written with the
 rosbags library's own writers read as the recording they were written from, run through
 ``pronet real`` as the same numbers written as CSV files do (to 1e-12), and bad input
 named in one line before any work; without the extra, the extra is named."""
@@ -258,7 +258,7 @@ def test_the_bag_format_refuses_what_is_no_bag(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_frame_and_origin_slips_in_a_bag_are_named(tmp_path, capsys):
-    """Issue 58 §1 at the bag level: an ENU world read as NED is refused (the truth puts
+    """Frame slips at the bag level: an ENU world read as NED is refused (the truth puts
     the IMU's gravity upside down), a FLU body read as FRD is warned of (the truth turns
     over with the IMU: the pass runs, rolled by 180°, its lever arms mirrored), and an
     ``--origin`` in radians is flagged by the health monitor: the DVL's NIS above its

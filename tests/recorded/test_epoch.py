@@ -1,4 +1,4 @@
-"""Clocks on any epoch (issue 37, point 2): the clock estimates and every result are
+"""Clocks on any epoch: the clock estimates and every result are
 invariant to a constant added to every stamp (Unix time, +1.7e9 s)."""
 
 from __future__ import annotations

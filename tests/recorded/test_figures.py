@@ -89,7 +89,7 @@ def test_the_curves_hold_what_the_figures_show(ran):
 
 
 def test_a_row_kept_for_the_tables_scores_and_draws_as_the_whole(ran):
-    """Issue 59 (memory): a row thinned to the epochs the tables read keeps a fraction
+    """Memory: a row thinned to the epochs the tables read keeps a fraction
     of them, gives the same metrics bit for bit, finds each update's epoch, and draws
     the same velocity error and Mehra's q at the same instants."""
     section, done, _ = ran

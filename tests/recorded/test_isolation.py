@@ -1,4 +1,4 @@
-"""One failure takes nothing else with it (issue 58, section 2): in ``pronet real`` a
+"""One failure takes nothing else with it: in ``pronet real`` a
 row whose filter fails is reported as failed (its section, its name, the reason with
 the time the core gives) and the section's other rows are kept and written (tables,
 metrics, ``config.json``, figures); a section whose every row fails is a failed

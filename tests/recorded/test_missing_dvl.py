@@ -1,4 +1,4 @@
-"""Missing DVL readings (issue 37, point 1): NaN, empty, sentinel, all-zero and
+"""Missing DVL readings: NaN, empty, sentinel, all-zero and
 ``valid = 0`` rows are skipped as updates, counted per section and reported, never
 fatal."""
 

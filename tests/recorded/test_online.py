@@ -229,7 +229,7 @@ def test_bad_input_is_one_line_naming_it(mission) -> None:
 
 
 def test_unit_and_frame_slips_are_refused_before_anything_is_fed(mission) -> None:
-    """Issue 58 §6 for the navigator: what run_filter's plausibility checks refuse."""
+    """The physical bounds for the navigator: what run_filter's plausibility checks refuse."""
     m = mission
 
     def fresh(initial: InitialState | None = None, **kw) -> Navigator:

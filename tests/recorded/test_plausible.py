@@ -1,4 +1,4 @@
-"""Implausible data that used to run (issue 37, point 5): each case is one line on
+"""Implausible data that used to run: each case is one line on
 stderr naming the file and column, exit 2 (a warning where the data is usable)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Any rates (issue 37, point 3): IMUs at 50 and 200 Hz and one with a 10 % jitter, a DVL
+"""Any rates: IMUs at 50 and 200 Hz and one with a 10 % jitter, a DVL
 and a ground truth at other rates than 1 Hz; the IMU's real step recorded in
 ``config.json`` and used by the filter's white-noise term."""
 

@@ -50,7 +50,7 @@ def test_pronet_real_writes_tables_and_plots(tmp_path, capsys):
     assert "stamps as given, no lever arms" in text and "inertial only, first 60 s" in text
     files = {p.name for p in out.iterdir()}
     assert {"table.md", "metrics.csv", "metrics.json", "config.json"} <= files
-    # the DVL innovations' whiteness, per section and row (issue 60): a number per cell
+    # the DVL innovations' whiteness, per section and row: a number per cell
     table = (out / "table.md").read_text()
     white = table.split("DVL innovations' lag-1 autocorrelation\n")[-1].split("\n\n")[0]
     rows = [line for line in white.splitlines() if line.startswith("| run")]

@@ -1,4 +1,4 @@
-"""Your own vehicle (issue 37, point 4): ``pronet real --filter FILE.toml`` with a
+"""Your own vehicle: ``pronet real --filter FILE.toml`` with a
 scenario's ``[filter]`` keys, the grade presets and the lever arms; the generic format
 requires the lever arms; ``--data`` takes one ``.npz``."""
 

@@ -1,5 +1,5 @@
 """Physical bounds that catch a unit or frame slip before it runs to a silently wrong
-answer (issue 37, point 5; issue 58, section 6), one rule each, shared by the API
+answer, one rule each, shared by the API
 (:func:`pronet.run_filter`, :func:`pronet.local_ned`, :func:`pronet.lla_from_ned`) and
 the readers (:mod:`pronet.recorded.plausible`, :mod:`pronet.recorded.recordings`).
 

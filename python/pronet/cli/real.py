@@ -81,7 +81,7 @@ def add_parser(sub: Subparsers) -> None:
         choices=("invariant", "classic", "se23"),
         default=None,
         help="the filter's error coordinates: invariant (the default, consistent in "
-        "heading), classic (pronet's filter before 2026-12, to reproduce its results) or "
+        "heading), classic (the first filter's coordinates, to reproduce its results) or "
         "se23 (the position error too, consistent under large heading errors)",
     )
     parser.add_argument(

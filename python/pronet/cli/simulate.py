@@ -26,7 +26,7 @@ def add_parser(sub: Subparsers) -> None:
         help="Monte Carlo of chosen strategies on one scenario (built-in or TOML file)",
         description="Run strategies on the same simulated noise realizations and write "
         "a result folder (table, metrics, plots). Scenario and filter files: see "
-        "pronet.config (docs/api.md).",
+        "pronet.config (the API reference: mkdocs serve, Reference → API).",
     )
     parser.add_argument(
         "--scenario",
@@ -46,7 +46,7 @@ def add_parser(sub: Subparsers) -> None:
         choices=("invariant", "classic", "se23"),
         default=None,
         help="the filter's error coordinates: invariant (the default, consistent in "
-        "heading), classic (pronet's filter before 2026-12, to reproduce its results) or "
+        "heading), classic (the first filter's coordinates, to reproduce its results) or "
         "se23 (the position error too, consistent under large heading errors); "
         "overrides the scenario's and --filter's",
     )

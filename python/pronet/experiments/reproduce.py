@@ -85,8 +85,10 @@ def reproduce(
             shipped weights; those runs are not saved for resuming.
         resume: continue the interrupted run of ``out`` from ``<out>.partial``.
         train_progress: show the training's own progress bars.
-        say, on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`); one
+        say: a progress callback for one line of text (see :mod:`pronet._util.outputs`).
+        on_start: the callback told a stage's start: one
             stage, a step per (scenario, strategy) labelled ``"<scenario>: <strategy>"``.
+        on_done: the callback told each step done.
 
     Raises:
         ValueError: a bad argument, before any computation.

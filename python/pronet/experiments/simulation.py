@@ -113,8 +113,10 @@ def simulate(
             by its smoothed one (``"<spec>, smoothed"``; see :func:`pronet.monte_carlo`).
         plots: False: the tables, metrics and config only (the plots take most of the
             time of a short run).
-        say, on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`); one
+        say: a progress callback for one line of text (see :mod:`pronet._util.outputs`).
+        on_start: the callback told a stage's start: one
             stage, a step per strategy labelled with its spec.
+        on_done: the callback told each step done.
 
     Raises:
         ValueError: a bad argument, file or spec, before any computation.

@@ -118,15 +118,19 @@ def run_hybrid(
         regressor: anything with ``predict(windows (n_runs, 6, window)) -> (n_runs, 6)``.
         trajectory: truth and ideal IMU.
         prior_q: 6 per-sample IMU variances used until the first prediction.
-        sensors, config: as for :func:`pronet.monte_carlo` (defaults: the paper's).
-        n_runs, seed: runs and Monte Carlo seed; run i sees the same noise as run i of
-            any other strategy with this seed (common random numbers).
+        sensors: as for :func:`pronet.monte_carlo` (default: the paper's).
+        config: as for :func:`pronet.monte_carlo` (default: the paper's).
+        n_runs: the Monte Carlo's runs.
+        seed: the Monte Carlo's seed; run i sees the same noise as run i of any other
+            strategy with this seed (common random numbers).
         window: IMU samples per window.
         tuning_period: seconds between predictions.
         guardrails: clip range for predictions (default :class:`Guardrails`).
         record_every: keep error, 1σ and q histories every this many IMU steps.
-        sample_initial_error, threads, first_run: as for :func:`pronet.monte_carlo`
-            (a shard of runs ``first_run .. first_run + n_runs`` sees their noise).
+        sample_initial_error: as for :func:`pronet.monte_carlo`.
+        threads: as for :func:`pronet.monte_carlo`.
+        first_run: as for :func:`pronet.monte_carlo` (a shard of runs
+            ``first_run .. first_run + n_runs`` sees their noise).
         smooth: also the RTS smoother over every run, as for :func:`pronet.monte_carlo`
             (the result's ``smoothed``).
     """
@@ -290,7 +294,9 @@ def q_schedule(
         imu: ``(n, 6)`` the samples the filter will run on, ``[f (m/s²), ω (rad/s)]``.
         imu_time: ``(n,)`` their times [s].
         prior_q: 6 variances standing in for a non-finite first prediction.
-        window, tuning_period, guardrails: as for :func:`run_hybrid`.
+        window: as for :func:`run_hybrid`.
+        tuning_period: as for :func:`run_hybrid`.
+        guardrails: as for :func:`run_hybrid`.
     """
     if not callable(getattr(regressor, "predict", None)):
         raise ValueError(

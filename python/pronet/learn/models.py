@@ -103,7 +103,9 @@ class BaselineNet(nn.Module):
 
     Args:
         window: samples per window N.
-        channels, kernels, strides: the three convolution blocks.
+        channels: the three convolution blocks' output channels.
+        kernels: their kernel sizes.
+        strides: their strides.
         hidden: widths of the three hidden Linear layers (the fourth gives z).
         input_scale: windows are divided by this [m/s² or rad/s] before the first layer.
         q_scale: ``q = q_scale·exp(z)`` [(unit)² per sample].

@@ -17,6 +17,7 @@ from pronet._util.files import atomic_write
 from pronet._util.validate import real_array
 
 if TYPE_CHECKING:  # matplotlib loads only when a figure is drawn
+    import pandas as pd
     from matplotlib.figure import Figure
 
 
@@ -294,7 +295,9 @@ def metrics_with_ci(tables, path: str | os.PathLike[str]) -> Path:
     return save_png(fig, path)
 
 
-def sweep_metric(summary, x: str, path: str | os.PathLike[str], metric: str = "srmse") -> Path:
+def sweep_metric(
+    summary: pd.DataFrame, x: str, path: str | os.PathLike[str], metric: str = "srmse"
+) -> Path:
     """A sweep's ``metric`` (mean and 95 % CI over runs) against one grid axis, one
     panel per scenario, one line per other grid setting (drawn slightly apart
     sideways, so that lines with equal values stay visible).

@@ -1,6 +1,6 @@
 """Depth readings and position fixes in recorded data: the generic format's optional
 ``depth`` and ``fix`` streams, their missing values, their checks against the ground
-truth, and the σ the filter gives them (issue 42, point 3); with the heading readings of
+truth, and the σ the filter gives them; with the heading readings of
 :mod:`pronet.recorded.heading`, the streams that aid a recorded pass after the DVL.
 
 Two optional tables beside ``imu``, ``dvl`` and ``gt`` (a folder's ``depth.csv`` and

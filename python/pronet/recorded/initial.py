@@ -342,8 +342,10 @@ def initial_state(
         orientation: an AHRS's ``(time (o,), rpy (o, 3) [rad], σ (o, 3) or (3,) [rad])``.
         dvl: ``(time (m,), body velocity (m, 3) [m/s] at the DVL, σ (3,) or (m, 3))``;
             NaN rows (no bottom lock) are left out, as in every stream.
-        fix_lever_arm, depth_lever_arm, dvl_lever_arm: ``(3,)`` the sensors from the
-            IMU [m, body FRD] (zero when None).
+        fix_lever_arm: ``(3,)`` the fix receiver from the IMU [m, body FRD] (zero
+            when None).
+        depth_lever_arm: ``(3,)`` the depth sensor from the IMU, the same way.
+        dvl_lever_arm: ``(3,)`` the DVL from the IMU, the same way.
         given: parts given, with their σ.
         still: the still interval ``(t_start, t_end)`` [s], ``"auto"`` (detected, the
             first one) or ``"none"`` (the vehicle never rests).

@@ -1,5 +1,5 @@
 """Plausibility of a recording, one line each naming the file and column: checks that
-catch data which would otherwise run to a silently wrong answer (issue 37, point 5).
+catch data which would otherwise run to a silently wrong answer.
 
 Each check returns the problem as one line (``"<file>: column '<name>': ..."``), or
 None; :mod:`pronet.recorded.recordings` raises it as a ``RecordingError`` (exit 2 from

@@ -410,13 +410,15 @@ def run_real(
 
     Args:
         out: the result folder to create (default ``results/real-<time>``).
-        fmt: one of :data:`pronet.recorded.alignment.FORMATS`; sections: only these section names.
-        imu_lever_arm, dvl_lever_arm: sensor positions from the ground-truth point
-            [m, body FRD]; default: ``vehicle``'s, else with ``fmt="snapir"`` the
-            Snapir AUV's; the generic format has no default (ValueError: a recording
-            of another vehicle with Snapir's arms would run silently wrong; give
-            ``(0, 0, 0)`` for a truth at the sensors). The DVL's is needed only where
-            its readings are used: not for a recording without them, nor with
+        fmt: one of :data:`pronet.recorded.alignment.FORMATS`.
+        sections: only these section names.
+        imu_lever_arm: the IMU's position from the ground-truth point [m, body FRD];
+            default: ``vehicle``'s, else with ``fmt="snapir"`` the Snapir AUV's; the
+            generic format has no default (ValueError: a recording of another vehicle
+            with Snapir's arms would run silently wrong; give ``(0, 0, 0)`` for a
+            truth at the sensors).
+        dvl_lever_arm: the DVL's position, the same way. It is needed only where the
+            DVL readings are used: not for a recording without them, nor with
             ``use_dvl=False`` (a section with DVL readings and no DVL arm is left out,
             with the reason).
         tuning_period: seconds between regressor calls in the learned rows (> 0).
@@ -436,18 +438,19 @@ def run_real(
             innovation-matched R, :func:`estimate_dvl_noise`). Either way the table has
             the variant rows and reports each section's R.
         formulation: the filter's error coordinates, ``"invariant"`` (the default) or
-            ``"classic"`` (pronet's filter before 2026-12), for every row (default:
-            ``vehicle``'s, else ``FilterConfig``'s).
+            ``"classic"`` (the attitude-error coordinates of the first filter), for
+            every row (default: ``vehicle``'s, else ``FilterConfig``'s).
         covariance_step: the filters' covariance step [s] for every row (default:
             ``vehicle``'s, else ``FilterConfig``'s 0.1 s; 0: every IMU sample).
         smooth: also the RTS smoother over every strategy row: each is followed by its
             smoothed row (``"<label>, smoothed"``), its metrics taken at the same
             ground-truth rows (docs/reference/smoother.md, "The RTS smoother").
-        use_depth, use_fixes: False ignores the sections' depth readings or position
-            fixes (:mod:`pronet.recorded.aiding`; ``--no-depth``, ``--no-fixes``), e.g.
-            to compare the DVL alone with the aided filter. Used, they aid every row
-            (the inertial sanity run aside), their σ the file's, else ``vehicle``'s
-            ``depth_sigma``/``fix_sigma``, else the defaults of that module.
+        use_depth: False ignores the sections' depth readings
+            (:mod:`pronet.recorded.aiding`; ``--no-depth``), e.g. to compare the DVL
+            alone with the aided filter. Used, they aid every row (the inertial sanity
+            run aside), their σ the file's, else ``vehicle``'s ``depth_sigma``, else
+            the default of that module.
+        use_fixes: the same for the position fixes (``--no-fixes``; ``fix_sigma``).
         use_dvl: False ignores the sections' DVL (``--no-dvl``): a GNSS/INS or
             depth-and-fix run of a recording that has one.
         use_heading: False ignores the sections' heading readings (``--no-heading``;
@@ -463,9 +466,11 @@ def run_real(
             :func:`pronet.recorded.vehicle.load_vehicle`): P0, bias walks, DVL R,
             aiding, gate, formulation and lever arms; default the FOG tuning of
             :func:`real_filter_config`.
-        on_start, on_done: progress callbacks (see :mod:`pronet._util.outputs`): stages
-            ``reading, aligning`` (a step per section), the runs (a step per section
-            and strategy) and ``plots`` (a step per section).
+        on_start: the progress callback told a stage's start (see
+            :mod:`pronet._util.outputs`): stages ``reading, aligning`` (a step per
+            section), the runs (a step per section and strategy) and ``plots`` (a step
+            per section).
+        on_done: the callback told each step done.
     """
     from pronet._util.files import atomic_folder, json_bytes
     from pronet._util.outputs import new_result_folder

@@ -76,8 +76,8 @@ impl Default for FilterConfig {
     }
 }
 
-/// The default covariance step \[s\]: pyins's default, and the step that issue 43's
-/// accuracy measurement found free (`docs/results/covariance-step.md`: on every built-in
+/// The default covariance step \[s\]: pyins's default, and the step that the covariance
+/// step's accuracy measurement found free (`docs/results/covariance-step.md`: on every built-in
 /// scenario and the Snapir sections SRMSE inside the per-sample filter's 95 % CI, the
 /// NEES shares in band within a point) at about half the per-sample filter's cost.
 pub const DEFAULT_COVARIANCE_STEP: f64 = 0.1;

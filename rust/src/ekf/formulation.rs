@@ -36,7 +36,7 @@ use nalgebra::{Matrix3, Vector3};
 /// Which error coordinates the filter's state and covariance are written in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Formulation {
-    /// `δv = v̂ − v`: pronet's filter until 2026-12, kept to reproduce its results.
+    /// `δv = v̂ − v`: the first filter's coordinates, kept to reproduce its results.
     Classic,
     /// `δV = δv − [v̂×]ψ`: consistent in heading whether or not heading is observable
     /// (the default).

@@ -20,7 +20,7 @@ use pyo3::prelude::*;
 /// with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
 /// [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
 /// velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
-/// consistent in heading) or "classic" (``δv``, pronet's filter before 2026-12); the
+/// consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
 /// prior and every output are in the classic coordinates either way; and the
 /// covariance step [s]: the interval over which the covariance is propagated at once
 /// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s

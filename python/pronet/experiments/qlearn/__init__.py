@@ -1,4 +1,4 @@
-"""Learning Q from missions with ground truth (issue 39; docs/how-to/learning-q.md, "Learning from
+"""Learning Q from missions with ground truth (docs/how-to/learning-q.md, "Learning from
 recorded missions"): the sections, the core's scores, training through the
 differentiable filter and the honest evaluation.
 
