@@ -188,7 +188,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(
         dvl_variance=(0.01,) * 3, p0_sigma=P0, imu_dt=0.01, lever_arm=arm,
         calibration=calibration, formulation=formulation, covariance_step=covariance_step,
     )  # fmt: skip
-    assert len(ref["nis"]) == 60 and rust.calibration.shape == (len(imu) + 1, 4)
+    assert len(ref["nis"]) == 60 and rust.calibration.shape == (len(imu) + 1, 7)
     rtol = 1e-8
     np.testing.assert_allclose(rust.vel, ref["vel"], rtol=rtol, atol=1e-8 * 1.0)
     np.testing.assert_allclose(rust.rpy, ref["rpy"], rtol=rtol, atol=1e-8 * 1e-2)
@@ -198,8 +198,11 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(
     np.testing.assert_allclose(rust.innovation, ref["innovation"], rtol=rtol, atol=1e-8 * 0.1)
     np.testing.assert_allclose(rust.nis, ref["nis"], rtol=rtol)
     # Scale ~0.005 and angles ~0.01 rad: 1e-8 relative of those scales.
-    np.testing.assert_allclose(rust.calibration, ref["calibration"], rtol=rtol, atol=1e-10)
-    np.testing.assert_allclose(rust.calibration_sigma, ref["calibration_sigma"], rtol=rtol)
+    cal, cal_sigma = rust.calibration[:, :4], rust.calibration_sigma[:, :4]
+    np.testing.assert_allclose(cal, ref["calibration"], rtol=rtol, atol=1e-10)
+    np.testing.assert_allclose(cal_sigma, ref["calibration_sigma"], rtol=rtol)
+    # without dvl_bias_sigma the correlated error's columns stay exactly 0
+    assert not rust.calibration[:, 4:].any() and not rust.calibration_sigma[:, 4:].any()
     # The updates moved the states (how well they learn: test_dvlcalibration.py).
     assert np.abs(rust.calibration[-1] - rust.calibration[0]).max() > 1e-4
     # Without the states the arrays are empty.
@@ -207,7 +210,7 @@ def test_rust_filter_with_dvl_calibration_states_matches_reference(
         imu, imu_time, streams, t0=0.0, **start, config=pronet.FilterConfig(p0_sigma=P0),
         strategy=pronet.Strategy.constant(Q),
     )  # fmt: skip
-    assert plain.calibration.shape == plain.calibration_sigma.shape == (0, 4)
+    assert plain.calibration.shape == plain.calibration_sigma.shape == (0, 7)
 
 
 # SE₂(3) (docs/reference/filter.md, "The SE₂(3) formulation"): its position error is taken about
@@ -362,9 +365,9 @@ def test_a_pass_keeping_the_last_epoch_is_the_same_pass(calibration) -> None:
     np.testing.assert_array_equal(via_run.nis, full.nis)
     assert len(full.time) == len(imu) + 1 and len(last.time) == 1
     for name in ("time", "lla", "vel", "rpy", "bias", "sigma", "calibration", "calibration_sigma"):
-        kept = getattr(full, name)[-1:]  # (0, 4) stays (0, 4) without the states
+        kept = getattr(full, name)[-1:]  # (0, 7) stays (0, 7) without the states
         np.testing.assert_array_equal(getattr(last, name), kept)
-    assert last.calibration.shape == ((1, 4) if calibration else (0, 4))
+    assert last.calibration.shape == ((1, 7) if calibration else (0, 7))
     updates = ("dvl_epoch", "innovation", "innovation_cov", "nis", "gain", "accepted")
     for name in ("covariance", "adaptive_q", *updates):
         np.testing.assert_array_equal(getattr(last, name), getattr(full, name))

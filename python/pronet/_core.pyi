@@ -132,7 +132,11 @@ class FilterConfig:
     the opt-in DVL calibration states (``dvl_calibration=True``, body aiding only): the
     DVL's scale-factor error and mounting misalignment appended to the 15 error states,
     with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
-    [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
+    [1/s, rad²/s] (default 0: constants), the opt-in correlated DVL velocity error
+    (``dvl_bias_sigma``: its stationary 1σ per DVL axis [m/s], body aiding only; a
+    first-order Gauss–Markov process per axis with correlation time
+    ``dvl_bias_time_constant`` [s], default 60), three more states beside the
+    calibration's (the smoother does not take it yet), and the formulation: the coordinates of the
     velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
     consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
     prior and every output are in the classic coordinates either way; and the
@@ -150,7 +154,8 @@ class FilterConfig:
                 imu_dt: float = 0.01, innovation_gate: float | None = None,
                 dvl_calibration: bool = False, dvl_scale_sigma: float | None = None,
                 dvl_misalignment_sigma: Any | None = None, dvl_scale_psd: float | None = None,
-                dvl_misalignment_psd: float | None = None,
+                dvl_misalignment_psd: float | None = None, dvl_bias_sigma: Any | None = None,
+                dvl_bias_time_constant: float | None = None,
                 formulation: Literal["invariant", "classic", "se23"] = "invariant",
                 covariance_step: float = 0.1) -> FilterConfig: ...  # fmt: skip
     @property
@@ -171,7 +176,14 @@ class FilterConfig:
     def innovation_gate(self) -> float | None: ...
     @property
     def dvl_calibration(self) -> bool:
-        """Whether the DVL scale-factor and misalignment states are estimated (19 states)."""
+        """Whether the DVL scale-factor and misalignment states are estimated."""
+    @property
+    def dvl_bias_sigma(self) -> list[float] | None:
+        """Stationary 1σ of the DVL's correlated velocity error per DVL axis [m/s] (None
+        without it)."""
+    @property
+    def dvl_bias_time_constant(self) -> float | None:
+        """Its correlation time [s] (None without it)."""
     @property
     def dvl_scale_sigma(self) -> float | None:
         """Initial 1σ of the DVL scale-factor error (None without the calibration states)."""

@@ -115,6 +115,8 @@ FILTER_KEYS = (
     "innovation_gate",
     "formulation",
     "covariance_step",
+    "dvl_bias_sigma",
+    "dvl_bias_time_constant",
 )
 #: The DVL calibration states' arguments of a ``FilterConfig``: not keys of a file, but
 #: kept from the base configuration a file's keys are laid over.

@@ -74,10 +74,9 @@ class SmoothedResult:
             forward σ with each variance changed by the smoothing (with a covariance
             step, at an epoch inside a step that change is interpolated linearly in
             time between the steps' closes on either side).
-        calibration: ``(n+1, 4)`` with ``FilterConfig(dvl_calibration=True)``, the
-            smoothed DVL scale-factor error and mounting roll, pitch, yaw [rad] (as
-            :attr:`FilterResult.calibration`); ``(0, 4)`` without.
-        calibration_sigma: ``(n+1, 4)`` their smoothed 1σ; ``(0, 4)`` without.
+        calibration: ``(n+1, 7)`` with the DVL error states, the smoothed
+            :attr:`FilterResult.calibration`; ``(0, 7)`` without.
+        calibration_sigma: ``(n+1, 7)`` their smoothed 1σ; ``(0, 7)`` without.
         epoch: the forward pass's :attr:`FilterResult.epoch`.
     """
 
@@ -87,8 +86,8 @@ class SmoothedResult:
     rpy: NDArray[np.float64]
     bias: NDArray[np.float64]
     sigma: NDArray[np.float64]
-    calibration: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 4)))
-    calibration_sigma: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 4)))
+    calibration: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 7)))
+    calibration_sigma: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 7)))
     epoch: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, np.int64))
 
     def to_dataframe(self):  # -> pd.DataFrame
@@ -119,11 +118,15 @@ class FilterResult:
         sigma: ``(n+1, 15)`` filter 1σ of ``[δp (NED m), δv (m/s), ψ (rad), δb_a, δb_g]``
             (with a covariance step, at an epoch inside a step its variance is
             interpolated linearly in time up to the step's close).
-        calibration: ``(n+1, 4)`` with ``FilterConfig(dvl_calibration=True)``, the DVL's
-            estimated scale-factor error k (it reads ``1 + k`` times the velocity) and
-            its mounting roll, pitch, yaw in the body frame [rad]; ``(0, 4)`` without.
-        calibration_sigma: ``(n+1, 4)`` the filter's 1σ of the same (the angles' as
-            small rotations about the body axes); ``(0, 4)`` without.
+        calibration: ``(n+1, 7)`` with the DVL error states
+            (``FilterConfig(dvl_calibration=True)`` or ``dvl_bias_sigma``,
+            :data:`CALIBRATION_COLUMNS`): the DVL's estimated scale-factor error k (it
+            reads ``1 + k`` times the velocity), its mounting roll, pitch, yaw in the
+            body frame [rad] (k 0 and the angles nominal where only the correlated error
+            is estimated), and its correlated velocity error in its own axes [m/s] (0
+            without it); ``(0, 7)`` without the states.
+        calibration_sigma: ``(n+1, 7)`` the filter's 1σ of the same (the angles' as
+            small rotations about the body axes); ``(0, 7)`` without.
         covariance: ``(15, 15)`` covariance at the last epoch.
         covariance_epoch: ``(j,)`` the epoch index each time of ``covariance_time`` was
             kept at (the epoch nearest it), -1 where it fell outside the run; ``(0,)``
@@ -286,8 +289,15 @@ EPOCH_COLUMNS = (
     *(f"bias_g{a}" for a in "xyz"),
     *(f"sigma_{s}" for s in ERROR_STATES),
 )
-#: The DVL calibration states' columns (with ``FilterConfig(dvl_calibration=True)``).
-CALIBRATION_COLUMNS = ("dvl_scale", "dvl_roll", "dvl_pitch", "dvl_yaw")
+#: The DVL error states' columns (with ``FilterConfig(dvl_calibration=True)`` or
+#: ``dvl_bias_sigma``): scale, mounting angles [rad], correlated velocity error [m/s].
+CALIBRATION_COLUMNS = (
+    "dvl_scale",
+    "dvl_roll",
+    "dvl_pitch",
+    "dvl_yaw",
+    *(f"dvl_bias_{a}" for a in "xyz"),
+)
 #: Columns of :meth:`FilterResult.to_dataframe` with ``rows="updates"``.
 UPDATE_COLUMNS = (
     "dvl_epoch",

@@ -64,8 +64,9 @@ class NavigatorState:
         bias: ``(6,)`` ``[b_a (m/s²), b_g (rad/s)]``.
         sigma: ``(15,)`` 1σ of the errors (position NED [m], velocity [m/s], attitude
             [rad], biases), the covariance brought up to date.
-        calibration, calibration_sigma: ``(4,)`` the DVL calibration states and the 1σ
-            of ``[δk, δμ]``, or None without them.
+        calibration, calibration_sigma: ``(7,)`` the DVL error states
+            (:data:`pronet.filter.CALIBRATION_COLUMNS`) and the 1σ of
+            ``[δk, δμ, δb]``, or None without them.
     """
 
     epoch: int

@@ -280,11 +280,11 @@ _CALIBRATION_NAMES = ("scale [%]", "roll [°]", "pitch [°]", "yaw [°]")
 
 def final_calibration(run: SectionRun) -> tuple[np.ndarray, np.ndarray] | None:
     """The run's final DVL calibration ``[k, roll, pitch, yaw]`` and its 1σ (scale;
-    rad), or None for a run without the states."""
+    rad), or None for a run without the calibration states."""
     r = run.result
-    if r.calibration.shape[0] == 0:
+    if r.calibration.shape[0] == 0 or not np.any(r.calibration_sigma[:, :4] > 0):
         return None
-    return r.calibration[-1], r.calibration_sigma[-1]
+    return r.calibration[-1, :4], r.calibration_sigma[-1, :4]
 
 
 def calibration_agreement(values: np.ndarray, sigmas: np.ndarray) -> tuple[float, float, int]:

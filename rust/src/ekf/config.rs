@@ -129,7 +129,7 @@ impl FilterConfig {
         }
         if let Some(c) = &self.dvl_calibration {
             c.validate()?;
-            check_aiding(self.aiding == Aiding::Body)?;
+            check_aiding(c, self.aiding == Aiding::Body)?;
         }
         Ok(())
     }

@@ -52,7 +52,7 @@ pub struct Ekf {
 
 /// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
 /// any.
-pub type ClosedSigma = ([f64; 15], Option<[f64; 4]>);
+pub type ClosedSigma = ([f64; 15], Option<super::calibration::DvlErrors>);
 
 /// [`Ekf::sigma`] of a covariance `p` in the coordinates of the point `at` (the
 /// formulation and where its map is taken): the same operations, so that a σ computed
@@ -102,7 +102,7 @@ impl Ekf {
         nav: NavState,
         bias: &[f64; 6],
         p: Matrix15,
-        calibration: Option<(&super::calibration::Cross, &nalgebra::Matrix4<f64>)>,
+        calibration: Option<(&super::calibration::Cross, &super::calibration::DvlCov)>,
         step: Option<CovarianceStep>,
     ) -> Result<Self> {
         let b = bias;

@@ -301,17 +301,15 @@ fn calibrated() -> FilterConfig {
     }
 }
 
-/// With the calibration states, the 19 columns of H agree with finite differences
-/// of the predicted reading, away from the ideal mounting.
+/// With the DVL error states (the correlated error too), the 22 columns of H agree
+/// with finite differences of the predicted reading, away from the ideal mounting.
 #[test]
 fn calibrated_measurement_jacobian_matches_finite_differences() {
-    let mut ekf = Ekf::new(
-        &calibrated(),
-        moving_state(),
-        Vector3::zeros(),
-        Vector3::zeros(),
-    )
-    .unwrap();
+    let mut cfg = calibrated();
+    if let Some(c) = cfg.dvl_calibration.as_mut() {
+        c.bias_sigma = [0.01, 0.02, 0.005];
+    }
+    let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
     ekf.last_gyro = Vector3::new(0.01, -0.02, 0.05);
     ekf.calibration.as_mut().unwrap().estimate =
         DvlMounting::from_angles(0.004, [0.01, -0.02, 0.03]);
@@ -327,7 +325,7 @@ fn calibrated_measurement_jacobian_matches_finite_differences() {
         dx[j] = eps;
         e.feedback(&dx.fixed_rows::<15>(0).into_owned());
         let c = e.calibration.as_mut().unwrap();
-        c.feedback(&[dx[SCALE], dx[SCALE + 1], dx[SCALE + 2], dx[SCALE + 3]]);
+        c.feedback(&std::array::from_fn(|k| dx[SCALE + k]));
         if (GYRO_BIAS..GYRO_BIAS + 3).contains(&j) {
             e.last_gyro[j - GYRO_BIAS] += eps;
         }
@@ -378,7 +376,10 @@ fn calibration_states_with_a_zero_prior_leave_the_filter_unchanged() {
 
 #[test]
 fn calibrated_covariance_stays_symmetric_positive_definite() {
-    let cfg = calibrated();
+    let mut cfg = calibrated();
+    if let Some(c) = cfg.dvl_calibration.as_mut() {
+        c.bias_sigma = [0.01, 0.02, 0.005]; // every DVL error state uncertain
+    }
     let mut ekf = Ekf::new(&cfg, moving_state(), Vector3::zeros(), Vector3::zeros()).unwrap();
     let mut strat = StrategySpec::Constant {
         q: [1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6],

@@ -7,7 +7,7 @@
 //! scalar update per component, each linearized at the estimate the previous one left:
 //! with a diagonal R, the joint update and its sum of NIS (`docs/reference/filter.md`).
 
-use super::calibration::{Calibration, Rows3x19, N_CALIBRATED, SCALE};
+use super::calibration::{Calibration, DvlErrors, Rows3x19, N_CALIBRATED, N_DVL, SCALE};
 use super::filter::Ekf;
 use super::joseph::Support;
 use super::state::{Gain, Row15, Rows3, Vector15};
@@ -90,7 +90,7 @@ pub struct UpdateInfo {
     pub correction: Option<Vector15>,
     /// With the DVL calibration states, their estimate `[δk̂, δμ̂]` fed back (None
     /// without them or when the gate rejected the measurement).
-    pub calibration_correction: Option<[f64; 4]>,
+    pub calibration_correction: Option<DvlErrors>,
 }
 
 /// What one reading's update did.
@@ -105,7 +105,7 @@ pub struct Applied {
     /// The sums of the error estimates fed back (the first 15 states, in the filter's
     /// coordinates, and the DVL calibration states' `[δk̂, δμ̂]`, zero without them);
     /// None when the gate rejected it.
-    pub correction: Option<(Vector15, [f64; 4])>,
+    pub correction: Option<(Vector15, DvlErrors)>,
     /// The joint update's report, for a 3-vector reading.
     pub report: Option<UpdateInfo>,
 }
@@ -226,7 +226,7 @@ impl Ekf {
         innovation: f64,
         row: &ScalarRow,
         r: f64,
-    ) -> Result<(f64, Vector15, Option<[f64; 4]>)> {
+    ) -> Result<(f64, Vector15, Option<DvlErrors>)> {
         let (nis, dx, cal) = match self.calibration.as_mut() {
             None => {
                 let m = self.sensitivity.as_mut().map(|(m, _)| m);
@@ -269,17 +269,17 @@ impl Ekf {
 
 /// Add an error estimate fed back (`dx`, and the calibration states' `cal`) to a sum
 /// started at zero.
-fn add_correction(sum: &mut Option<(Vector15, [f64; 4])>, dx: &Vector15, cal: &[f64; 4]) {
-    let (nav, calibration) = sum.get_or_insert((Vector15::zeros(), [0.0; 4]));
+fn add_correction(sum: &mut Option<(Vector15, DvlErrors)>, dx: &Vector15, cal: &DvlErrors) {
+    let (nav, calibration) = sum.get_or_insert((Vector15::zeros(), [0.0; N_DVL]));
     *nav += dx;
     for (s, v) in calibration.iter_mut().zip(cal) {
         *s += v;
     }
 }
 
-/// `[δk̂, δμ̂]` of a 19-state error estimate.
-fn calibration_part(d: &SVector<f64, N_CALIBRATED>) -> [f64; 4] {
-    [d[SCALE], d[SCALE + 1], d[SCALE + 2], d[SCALE + 3]]
+/// `[δk̂, δμ̂, δb̂]` of a full error estimate.
+fn calibration_part(d: &SVector<f64, N_CALIBRATED>) -> DvlErrors {
+    std::array::from_fn(|k| d[SCALE + k])
 }
 
 /// Rows over the 15 states padded with zeros over the calibration states.

@@ -3,6 +3,7 @@
 use super::history::{Checkpoint, History, Kept, Outcome, Step};
 use super::sensor::Sensor;
 use super::tuning::{Tuning, Window};
+use crate::ekf::calibration::DvlErrors;
 use crate::ekf::{Applied, Ekf, FilterConfig};
 use crate::error::{check, Error, Result};
 use crate::measurement::Reading;
@@ -128,7 +129,7 @@ pub struct Estimate {
     pub sigma: [f64; 15],
     /// With the DVL calibration states: `[k̂, roll, pitch, yaw]` and the 1σ of
     /// `[δk, δμ]`.
-    pub calibration: Option<([f64; 4], [f64; 4])>,
+    pub calibration: Option<(DvlErrors, DvlErrors)>,
 }
 
 /// The filter pass fed as the data arrives: IMU samples one at a time (or in blocks),

@@ -1,5 +1,6 @@
 //! The epoch loop: one IMU sample and the readings due at its end.
 
+use crate::ekf::calibration::{DvlErrors, N_DVL};
 use crate::ekf::{Applied, Ekf, Matrix15, ProcessNoise, Transition, Vector15};
 use crate::error::Error;
 use crate::measurement::Reading;
@@ -20,7 +21,7 @@ pub struct Epoch<'a> {
 
 /// The error estimates fed back at an epoch: the 15 states' (in the filter's
 /// coordinates) and the DVL calibration states' `[δk̂, δμ̂]` (zero without them).
-pub type Fed = (Vector15, [f64; 4]);
+pub type Fed = (Vector15, DvlErrors);
 
 /// What an epoch's updates left, for an [`Observer`]: the sum fed back and, where an
 /// observer asked for it ([`Observer::wants_prior`]), the covariance before them (the
@@ -257,7 +258,7 @@ impl Pass {
                 Reading::Velocity(_) => &mut velocity,
                 _ => &mut other,
             };
-            let (nav, cal) = sum.get_or_insert((Vector15::zeros(), [0.0; 4]));
+            let (nav, cal) = sum.get_or_insert((Vector15::zeros(), [0.0; N_DVL]));
             if let Some((dx, dc)) = &applied.correction {
                 *nav += dx;
                 for (c, d) in cal.iter_mut().zip(dc) {

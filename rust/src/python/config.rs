@@ -2,9 +2,9 @@
 
 use super::call::{invalid, to_py_err};
 use super::convert::{
-    arg_accel_bias_psd, arg_aiding, arg_covariance_step, arg_dvl_calibration,
-    arg_dvl_misalignment_psd, arg_dvl_scale_psd, arg_dvl_scale_sigma, arg_formulation,
-    arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate, fixed, fixed_or,
+    arg_accel_bias_psd, arg_aiding, arg_covariance_step, arg_dvl_bias_time_constant,
+    arg_dvl_calibration, arg_dvl_misalignment_psd, arg_dvl_scale_psd, arg_dvl_scale_sigma,
+    arg_formulation, arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate, fixed, fixed_or,
 };
 use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::{Aiding, FilterConfig, Formulation, DEFAULT_COVARIANCE_STEP};
@@ -18,7 +18,11 @@ use pyo3::prelude::*;
 /// the opt-in DVL calibration states (``dvl_calibration=True``, body aiding only): the
 /// DVL's scale-factor error and mounting misalignment appended to the 15 error states,
 /// with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
-/// [1/s, rad²/s] (default 0: constants), and the formulation: the coordinates of the
+/// [1/s, rad²/s] (default 0: constants), the opt-in correlated DVL velocity error
+/// (``dvl_bias_sigma``: its stationary 1σ per DVL axis [m/s], body aiding only; a
+/// first-order Gauss–Markov process per axis with correlation time
+/// ``dvl_bias_time_constant`` [s], default 60), three more states beside the
+/// calibration's (the smoother does not take it yet), and the formulation: the coordinates of the
 /// velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
 /// consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
 /// prior and every output are in the classic coordinates either way; and the
@@ -55,12 +59,20 @@ fn parse_formulation(text: &str) -> PyResult<Formulation> {
     })
 }
 
+impl PyFilterConfig {
+    /// The DVL error states' configuration where the scale and misalignment are
+    /// estimated (None where they are not, or only the correlated error is).
+    fn calibration(&self) -> Option<CalibrationConfig> {
+        self.inner.dvl_calibration.filter(|c| c.calibrates())
+    }
+}
+
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, formulation = Formulation::default().name().to_string(), covariance_step = DEFAULT_COVARIANCE_STEP))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, dvl_bias_sigma = None, dvl_bias_time_constant = None, formulation = Formulation::default().name().to_string(), covariance_step = DEFAULT_COVARIANCE_STEP))]
     #[pyo3(
-        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, formulation='invariant', covariance_step=0.1)"
+        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, dvl_bias_sigma=None, dvl_bias_time_constant=None, formulation='invariant', covariance_step=0.1)"
     )]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
@@ -77,6 +89,8 @@ impl PyFilterConfig {
         dvl_misalignment_sigma: Option<&Bound<'_, PyAny>>,
         #[pyo3(from_py_with = arg_dvl_scale_psd)] dvl_scale_psd: Option<f64>,
         #[pyo3(from_py_with = arg_dvl_misalignment_psd)] dvl_misalignment_psd: Option<f64>,
+        dvl_bias_sigma: Option<&Bound<'_, PyAny>>,
+        #[pyo3(from_py_with = arg_dvl_bias_time_constant)] dvl_bias_time_constant: Option<f64>,
         #[pyo3(from_py_with = arg_formulation)] formulation: String,
         #[pyo3(from_py_with = arg_covariance_step)] covariance_step: f64,
     ) -> PyResult<Self> {
@@ -84,13 +98,28 @@ impl PyFilterConfig {
         let misalignment_sigma = dvl_misalignment_sigma
             .map(|v| fixed::<3>(v, "dvl_misalignment_sigma"))
             .transpose()?;
+        let bias_sigma = dvl_bias_sigma
+            .map(|v| fixed::<3>(v, "dvl_bias_sigma"))
+            .transpose()?;
+        if bias_sigma.is_none() && dvl_bias_time_constant.is_some() {
+            return Err(invalid(
+                "dvl_bias_time_constant",
+                "describes the DVL's correlated velocity error: give it with dvl_bias_sigma",
+            ));
+        }
+        let d = CalibrationConfig::default();
+        let bias = CalibrationConfig {
+            bias_sigma: bias_sigma.unwrap_or(d.bias_sigma),
+            bias_time_constant: dvl_bias_time_constant.unwrap_or(d.bias_time_constant),
+            ..d
+        };
         let calibration = if dvl_calibration {
-            let d = CalibrationConfig::default();
             Some(CalibrationConfig {
                 scale_sigma: dvl_scale_sigma.unwrap_or(d.scale_sigma),
                 misalignment_sigma: misalignment_sigma.unwrap_or(d.misalignment_sigma),
                 scale_psd: dvl_scale_psd.unwrap_or(d.scale_psd),
                 misalignment_psd: dvl_misalignment_psd.unwrap_or(d.misalignment_psd),
+                ..bias
             })
         } else {
             let given = [
@@ -105,7 +134,13 @@ impl PyFilterConfig {
                     "describes the DVL calibration states: give it with dvl_calibration=True",
                 ));
             }
-            None
+            // The correlated error alone: the DVL error states with the scale and
+            // misalignment held at their nominal values (σ 0, no walk).
+            bias_sigma.map(|_| CalibrationConfig {
+                scale_sigma: 0.0,
+                misalignment_sigma: [0.0; 3],
+                ..bias
+            })
         };
         let inner = FilterConfig {
             p0_sigma: fixed_or(p0_sigma, "p0_sigma", defaults.p0_sigma)?,
@@ -170,41 +205,58 @@ impl PyFilterConfig {
     fn innovation_gate(&self) -> Option<f64> {
         self.inner.innovation_gate
     }
-    /// Whether the DVL scale-factor and misalignment states are estimated (19 states).
+    /// Whether the DVL scale-factor and misalignment states are estimated.
     #[getter]
     fn dvl_calibration(&self) -> bool {
-        self.inner.dvl_calibration.is_some()
+        self.inner.dvl_calibration.is_some_and(|c| c.calibrates())
+    }
+    /// Stationary 1σ of the DVL's correlated velocity error per DVL axis [m/s] (None
+    /// without it).
+    #[getter]
+    fn dvl_bias_sigma(&self) -> Option<Vec<f64>> {
+        let c = self.inner.dvl_calibration.filter(|c| c.correlated())?;
+        Some(c.bias_sigma.to_vec())
+    }
+    /// Its correlation time [s] (None without it).
+    #[getter]
+    fn dvl_bias_time_constant(&self) -> Option<f64> {
+        let c = self.inner.dvl_calibration.filter(|c| c.correlated())?;
+        Some(c.bias_time_constant)
     }
     /// Initial 1σ of the DVL scale-factor error (None without the calibration states).
     #[getter]
     fn dvl_scale_sigma(&self) -> Option<f64> {
-        self.inner.dvl_calibration.map(|c| c.scale_sigma)
+        self.calibration().map(|c| c.scale_sigma)
     }
     /// Initial 1σ of the DVL misalignment about body x, y, z [rad] (None without them).
     #[getter]
     fn dvl_misalignment_sigma(&self) -> Option<Vec<f64>> {
-        self.inner
-            .dvl_calibration
-            .map(|c| c.misalignment_sigma.to_vec())
+        self.calibration().map(|c| c.misalignment_sigma.to_vec())
     }
     /// Random-walk PSD of the DVL scale factor [1/s] (None without the states).
     #[getter]
     fn dvl_scale_psd(&self) -> Option<f64> {
-        self.inner.dvl_calibration.map(|c| c.scale_psd)
+        self.calibration().map(|c| c.scale_psd)
     }
     /// Random-walk PSD of each misalignment angle [rad²/s] (None without the states).
     #[getter]
     fn dvl_misalignment_psd(&self) -> Option<f64> {
-        self.inner.dvl_calibration.map(|c| c.misalignment_psd)
+        self.calibration().map(|c| c.misalignment_psd)
     }
     fn __repr__(&self) -> String {
-        let calibration = match &self.inner.dvl_calibration {
+        let mut calibration = match self.calibration() {
             None => String::new(),
             Some(c) => format!(
                 ", dvl_calibration=True, dvl_scale_sigma={}, dvl_misalignment_sigma={:?}, dvl_scale_psd={}, dvl_misalignment_psd={}",
                 c.scale_sigma, c.misalignment_sigma, c.scale_psd, c.misalignment_psd
             ),
         };
+        if let Some(c) = self.inner.dvl_calibration.filter(|c| c.correlated()) {
+            calibration += &format!(
+                ", dvl_bias_sigma={:?}, dvl_bias_time_constant={}",
+                c.bias_sigma, c.bias_time_constant
+            );
+        }
         format!(
             "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}, formulation={:?}, covariance_step={}{calibration})",
             self.inner.accel_bias_psd,

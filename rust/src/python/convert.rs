@@ -351,6 +351,7 @@ arg_converters! {
     arg_dvl_scale_sigma: Option<f64> = optional_real("dvl_scale_sigma");
     arg_dvl_scale_psd: Option<f64> = optional_real("dvl_scale_psd");
     arg_dvl_misalignment_psd: Option<f64> = optional_real("dvl_misalignment_psd");
+    arg_dvl_bias_time_constant: Option<f64> = optional_real("dvl_bias_time_constant");
     arg_depth_period: Option<f64> = optional_real("depth_period");
     arg_heading_period: Option<f64> = optional_real("heading_period");
 }

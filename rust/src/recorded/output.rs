@@ -1,6 +1,7 @@
 //! What a recorded pass reports ([`FilterOutput`]): the kept epochs, each stream's rows,
 //! and the covariances asked for.
 
+use crate::ekf::calibration::DvlErrors;
 use crate::ekf::{Ekf, Matrix15, UpdateInfo};
 use crate::mechanization::NavState;
 use crate::pass::NisMonitor;
@@ -46,9 +47,9 @@ pub struct FilterOutput {
     pub streams: Vec<StreamRecord>,
     /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
     /// error and the DVL's mounting angles \[rad\] (empty without the states).
-    pub calibration: Vec<[f64; 4]>,
+    pub calibration: Vec<DvlErrors>,
     /// 1σ of `[δk, δμ]` per epoch (empty without the calibration states).
-    pub calibration_sigma: Vec<[f64; 4]>,
+    pub calibration_sigma: Vec<DvlErrors>,
     /// Covariance at the last epoch.
     pub final_covariance: Matrix15,
     /// For each of [`super::RecordedData::covariance_time`]: the epoch index it was kept at

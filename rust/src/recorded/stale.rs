@@ -2,6 +2,7 @@
 
 use super::output::FilterOutput;
 use crate::ekf::calibration::Calibration;
+use crate::ekf::calibration::DvlErrors;
 use crate::ekf::{classic_sigma, variance_between, ClosedSigma, Ekf, Matrix15, Point};
 
 /// The σ of the epochs inside a covariance step. P stands at the step's start there, so
@@ -38,7 +39,7 @@ enum Current {
     Unrecorded {
         p: Matrix15,
         point: Point,
-        calibration: Option<[f64; 4]>,
+        calibration: Option<DvlErrors>,
     },
 }
 

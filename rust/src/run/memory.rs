@@ -108,7 +108,7 @@ fn smoother_bytes(
         log += (n / per_step + dvl + 2.0) * kept_close_bytes(calibrated) as f64;
     }
     if calibrated {
-        log += grown(epochs) * size_of::<[f64; 4]>() as f64;
+        log += grown(epochs) * size_of::<crate::ekf::calibration::DvlErrors>() as f64;
     }
     let whole = size_of::<(usize, [f64; 6], [f64; 6])>() as f64;
     log += grown(records + dvl) * whole + grown(dvl) * size_of::<Option<usize>>() as f64;

@@ -12,7 +12,7 @@ use crate::measurement::Reading;
 use crate::mechanization::NavState;
 use crate::noise::NoiseStrategy;
 use crate::pass::{Epoch, NisMonitor, Observer};
-use nalgebra::{Vector3, Vector4};
+use nalgebra::{Matrix4, Vector3, Vector4};
 
 /// Per-run scalar metrics. Velocity errors are taken at every IMU epoch.
 #[derive(Clone, Debug, PartialEq)]
@@ -109,8 +109,10 @@ pub(super) fn calibration_error(
     let c = ekf.calibration.as_ref()?;
     let e = c.estimate.error_from(truth);
     let v = Vector4::from(e);
-    let nees = c.cov.cholesky().map_or(f64::NAN, |ch| v.dot(&ch.solve(&v)));
-    Some((e, c.sigma(), nees))
+    let cov: Matrix4<f64> = c.cov.fixed_view::<4, 4>(0, 0).into_owned();
+    let nees = cov.cholesky().map_or(f64::NAN, |ch| v.dot(&ch.solve(&v)));
+    let s = c.sigma();
+    Some((e, [s[0], s[1], s[2], s[3]], nees))
 }
 
 /// `eᵀ P⁻¹ e` of one 3-block (NaN where the block is singular).

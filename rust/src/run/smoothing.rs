@@ -6,6 +6,7 @@ use super::metrics::{nees3, se23_position_nees, solution_error};
 use super::History;
 use crate::attitude::exp_so3;
 use crate::cancel::Cancel;
+use crate::ekf::calibration::DvlErrors;
 use crate::ekf::{correct, corrected_position_velocity, Coordinates, Point};
 use crate::ekf::{Applied, Ekf, FilterConfig, Formulation, Matrix15, ProcessNoise, Transition};
 use crate::ekf::{Vector15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
@@ -53,7 +54,7 @@ pub(super) struct SmootherLog {
     /// read only at the epochs of `whole`).
     pub(super) bias: Vec<[f64; 6]>,
     /// With the DVL calibration states, their estimate at every epoch (empty without).
-    pub(super) calibration: Vec<[f64; 4]>,
+    pub(super) calibration: Vec<DvlErrors>,
     /// At each epoch where the whole smoothed solution is read, in order (the recorded
     /// epochs and those of the DVL updates; the others read the velocity and position
     /// alone): the epoch, the filter's bias estimates and the IMU's true bias (the one

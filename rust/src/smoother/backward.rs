@@ -38,6 +38,20 @@ use crate::error::{Error, Result};
 use nalgebra::{SMatrix, SVector};
 use std::ops::Range;
 
+/// `Err` unless the backward pass takes `cfg`: its transitions are the identity on the
+/// DVL error states, so it does not take their correlated velocity error, whose `Φ`
+/// is `exp(−Δt/τ)` (not yet: the forward pass takes it).
+pub fn check_config(cfg: &FilterConfig) -> Result<()> {
+    if cfg.dvl_calibration.is_some_and(|c| c.correlated()) {
+        return Err(Error::invalid(
+            "smooth",
+            "the RTS smoother does not take the DVL's correlated velocity error \
+             (dvl_bias_sigma) yet: run the forward pass alone, or smooth without it",
+        ));
+    }
+    Ok(())
+}
+
 /// The backward pass over `nodes` (from [`super::Nodes`], first at epoch 0 and last at
 /// the last epoch), computing the covariance where `covariances` says; stops with
 /// [`Error::Cancelled`] soon after `cancel` is set. With the DVL calibration states
@@ -73,6 +87,7 @@ pub fn smooth_into<S: Sink>(
     out: &mut S,
     cancel: &Cancel,
 ) -> Result<()> {
+    check_config(cfg)?;
     let n = forward.nav.len();
     if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
         return Err(Error::Numerical(

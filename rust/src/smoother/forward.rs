@@ -1,6 +1,7 @@
 //! What the backward pass reads of the forward pass ([`Forward`]), and which epochs'
 //! smoothed covariance it computes ([`Covariances`]).
 
+use crate::ekf::calibration::DvlErrors;
 use crate::mechanization::NavState;
 
 /// What the backward pass reads of the forward one: its solution at every epoch and the
@@ -13,13 +14,13 @@ pub struct Forward<'a> {
     pub bias: &'a [[f64; 6]],
     /// With the DVL calibration states, their estimate `[k̂, roll, pitch, yaw]` at every
     /// epoch (empty without).
-    pub calibration: &'a [[f64; 4]],
+    pub calibration: &'a [DvlErrors],
     /// The forward σ of the 15 states at every epoch, and of the calibration states'
     /// (empty without them), that [`super::Smoothed`] changes into the smoothed σ (NaN at an
     /// epoch without it: empty where σ is not wanted, or a [`super::Sink`] reads the forward
     /// σ elsewhere).
     pub sigma: &'a [[f64; 15]],
-    pub calibration_sigma: &'a [[f64; 4]],
+    pub calibration_sigma: &'a [DvlErrors],
     /// The step every sample was propagated over, when the forward pass used one
     /// (a simulation's `truth.dt`), so that the rebuilt steps are its steps bit for bit;
     /// None: each sample's stamped step.

@@ -3,9 +3,10 @@
 //! (`super::steps`).
 
 use crate::ekf::calibration::Cross;
+use crate::ekf::calibration::DvlCov;
 use crate::ekf::Point;
 use crate::ekf::{Ekf, Matrix15, Transition};
-use nalgebra::{Matrix4, SMatrix};
+use nalgebra::SMatrix;
 
 /// A close of the covariance step as the forward pass made it (see
 /// [`KeptCloses::note`]): the navigation rows of the step's Φ, the covariance it left
@@ -18,7 +19,7 @@ pub struct KeptClose {
     pub(crate) phi: SMatrix<f64, 9, 15>,
     upper: [f64; UPPER],
     pub(crate) point: Point,
-    pub(crate) calibration: Option<Box<(Cross, Matrix4<f64>)>>,
+    pub(crate) calibration: Option<Box<(Cross, DvlCov)>>,
 }
 
 /// The entries of a 15 × 15 matrix's upper triangle, the diagonal included.

@@ -8,9 +8,10 @@ use super::node::{Node, NodeCalibration};
 use super::transition::{NavRows, Sample};
 use super::KeptClose;
 use crate::ekf::calibration::{Cross, N_CALIBRATED};
+use crate::ekf::calibration::{DvlCov, DvlErrors};
 use crate::ekf::Matrix15;
 use crate::mechanization::NavState;
-use nalgebra::{Matrix4, SVector};
+use nalgebra::SVector;
 use std::mem::size_of;
 
 /// What the allocator adds to a boxed value \[bytes\] (glibc's header and alignment).
@@ -63,7 +64,9 @@ pub fn close_bytes(calibrated: bool, every_sample: bool, thinned: bool) -> usize
 /// The bytes of one epoch of a smoothed solution ([`super::Smoothed`]): the solution,
 /// the bias estimates, σ, and the calibration states' where the filter has them.
 pub fn smoothed_epoch_bytes(calibrated: bool) -> usize {
-    size_of::<NavState>() + size_of::<[f64; 21]>() + usize::from(calibrated) * size_of::<[f64; 8]>()
+    size_of::<NavState>()
+        + size_of::<[f64; 21]>()
+        + usize::from(calibrated) * size_of::<[DvlErrors; 2]>()
 }
 
 /// The bytes of the smoothed covariance kept at a node (`(epoch, P)`).
@@ -82,5 +85,5 @@ pub const fn node_state_bytes() -> usize {
 pub fn kept_close_bytes(calibrated: bool) -> usize {
     size_of::<KeptClose>()
         + size_of::<usize>()
-        + usize::from(calibrated) * boxed::<(Cross, Matrix4<f64>)>()
+        + usize::from(calibrated) * boxed::<(Cross, DvlCov)>()
 }

@@ -4,10 +4,11 @@
 
 use super::forward::Forward;
 use crate::ekf::calibration::{Cross, N_CALIBRATED, SCALE};
+use crate::ekf::calibration::{DvlCov, DvlErrors, N_DVL};
 use crate::ekf::{CovarianceStep, Ekf, FilterConfig, Matrix15, ProcessNoise, Vector15};
 use crate::error::Result;
 use crate::mechanization::NavState;
-use nalgebra::{Matrix4, SMatrix, SVector};
+use nalgebra::{SMatrix, SVector};
 
 /// The process noise of an interval, owned (see [`ProcessNoise`]).
 #[derive(Clone, Debug, PartialEq)]
@@ -96,9 +97,9 @@ pub struct Node {
 #[derive(Clone, Debug)]
 pub struct NodeCalibration {
     pub cross: Cross,
-    pub cov: Matrix4<f64>,
-    /// The sum of `[δk̂, δμ̂]` fed back at the epoch.
-    pub correction: [f64; 4],
+    pub cov: DvlCov,
+    /// The sum of `[δk̂, δμ̂, δb̂]` fed back at the epoch.
+    pub correction: DvlErrors,
 }
 
 impl Node {
@@ -125,15 +126,16 @@ impl Node {
 /// (the blocks dropped when `N` is 15).
 pub(super) fn lift<const N: usize>(
     p: &Matrix15,
-    cal: Option<(&Cross, &Matrix4<f64>)>,
+    cal: Option<(&Cross, &DvlCov)>,
 ) -> SMatrix<f64, N, N> {
     let mut full = SMatrix::<f64, N, N>::zeros();
     full.fixed_view_mut::<15, 15>(0, 0).copy_from(p);
     if let (true, Some((cross, cov))) = (N == N_CALIBRATED, cal) {
-        full.fixed_view_mut::<15, 4>(0, SCALE).copy_from(cross);
-        full.fixed_view_mut::<4, 15>(SCALE, 0)
+        full.fixed_view_mut::<15, N_DVL>(0, SCALE).copy_from(cross);
+        full.fixed_view_mut::<N_DVL, 15>(SCALE, 0)
             .copy_from(&cross.transpose());
-        full.fixed_view_mut::<4, 4>(SCALE, SCALE).copy_from(cov);
+        full.fixed_view_mut::<N_DVL, N_DVL>(SCALE, SCALE)
+            .copy_from(cov);
     }
     full
 }
@@ -144,7 +146,7 @@ pub(super) fn full_p<const N: usize>(ekf: &Ekf) -> SMatrix<f64, N, N> {
 }
 
 /// The filter's calibration blocks for a node.
-fn node_calibration(ekf: &Ekf, correction: [f64; 4]) -> Option<Box<NodeCalibration>> {
+fn node_calibration(ekf: &Ekf, correction: DvlErrors) -> Option<Box<NodeCalibration>> {
     ekf.calibration.as_ref().map(|c| {
         Box::new(NodeCalibration {
             cross: c.cross,
@@ -186,7 +188,7 @@ impl Nodes {
                 correction: Vector15::zeros(),
                 noise: Noise::of(noise),
                 step: open_step(ekf),
-                calibration: node_calibration(ekf, [0.0; 4]),
+                calibration: node_calibration(ekf, [0.0; N_DVL]),
                 p_prior: priors.then(|| Box::new(ekf.p)),
             }),
         }
@@ -200,7 +202,7 @@ impl Nodes {
         &mut self,
         epoch: usize,
         ekf: &Ekf,
-        (correction, calibration): (Vector15, [f64; 4]),
+        (correction, calibration): (Vector15, DvlErrors),
         noise: ProcessNoise<'_>,
         prior: Option<Box<Matrix15>>,
     ) {
@@ -227,7 +229,10 @@ impl Nodes {
         let ekf = closed.as_ref().unwrap_or(ekf);
         if let Some(last) = self.0.last_mut().filter(|n| n.epoch == epoch) {
             if closed.is_some() {
-                let correction = last.calibration.as_ref().map_or([0.0; 4], |c| c.correction);
+                let correction = last
+                    .calibration
+                    .as_ref()
+                    .map_or([0.0; N_DVL], |c| c.correction);
                 (last.p_post, last.step) = (ekf.p, None);
                 last.calibration = node_calibration(ekf, correction);
             }
@@ -240,7 +245,7 @@ impl Nodes {
             correction: Vector15::zeros(),
             noise: noise.unwrap_or(Noise::Discrete(Box::new(Matrix15::zeros()))),
             step: None,
-            calibration: node_calibration(ekf, [0.0; 4]),
+            calibration: node_calibration(ekf, [0.0; N_DVL]),
             p_prior: priors.then(|| Box::new(ekf.p)),
         });
     }

@@ -3,7 +3,7 @@
 
 use super::forward::Forward;
 use super::sink::{changed_sigma, Sink};
-use crate::ekf::calibration::{correct_mounting, N_CALIBRATED, SCALE};
+use crate::ekf::calibration::{correct_dvl, DvlErrors, N_CALIBRATED, N_DVL, SCALE};
 use crate::ekf::DvlMounting;
 use crate::ekf::{correct, FilterConfig, Matrix15, Vector15};
 use crate::mechanization::NavState;
@@ -19,8 +19,8 @@ pub struct Smoothed {
     pub sigma: Vec<[f64; 15]>,
     /// With the DVL calibration states: `[k̂, roll, pitch, yaw]` per epoch, as
     /// [`crate::recorded::FilterOutput::calibration`], and the 1σ of `[δk, δμ]` (empty without).
-    pub calibration: Vec<[f64; 4]>,
-    pub calibration_sigma: Vec<[f64; 4]>,
+    pub calibration: Vec<DvlErrors>,
+    pub calibration_sigma: Vec<DvlErrors>,
     /// The smoothed covariance at each node's epoch (in the order of the nodes), in
     /// the filter's own error coordinates about the forward solution's velocity (the
     /// 15 navigation and bias states).
@@ -39,7 +39,7 @@ impl Smoothed {
             bias: forward.bias.to_vec(),
             sigma: vec![[f64::NAN; 15]; n],
             calibration: forward.calibration.to_vec(),
-            calibration_sigma: vec![[f64::NAN; 4]; if calibrated { n } else { 0 }],
+            calibration_sigma: vec![[f64::NAN; N_DVL]; if calibrated { n } else { 0 }],
             node_covariance: Vec::with_capacity(nodes),
             keeps_nodes: true,
         }
@@ -70,10 +70,11 @@ impl Sink for Smoothed {
         if N == N_CALIBRATED {
             let c = self.calibration[i];
             let mut mounting = DvlMounting::from_angles(c[0], [c[1], c[2], c[3]]);
+            let mut bias = Vector3::new(c[4], c[5], c[6]);
             let dc = std::array::from_fn(|k| ds[SCALE + k]);
-            correct_mounting(&mut mounting, &dc);
+            correct_dvl(&mut mounting, &mut bias, &dc);
             let a = mounting.angles();
-            self.calibration[i] = [mounting.scale, a[0], a[1], a[2]];
+            self.calibration[i] = [mounting.scale, a[0], a[1], a[2], bias[0], bias[1], bias[2]];
         }
     }
 
@@ -88,7 +89,7 @@ impl Sink for Smoothed {
         self.sigma[i] = std::array::from_fn(|j| changed_sigma(sigma[j], change[j]));
         if let (true, Some(out)) = (N == N_CALIBRATED, self.calibration_sigma.get_mut(i)) {
             let sigma = forward.calibration_sigma.get(i).copied();
-            let sigma = sigma.unwrap_or([f64::NAN; 4]);
+            let sigma = sigma.unwrap_or([f64::NAN; N_DVL]);
             *out = std::array::from_fn(|k| changed_sigma(sigma[k], change[SCALE + k]));
         }
     }

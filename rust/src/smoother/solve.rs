@@ -6,7 +6,8 @@ use multiversion::multiversion;
 use nalgebra::{SMatrix, SVector};
 
 /// `μ = (P⁻)⁻¹ δs⁻` and `Λ = (P⁻)⁻¹ (Ps − P⁻) (P⁻)⁻¹` at an update, by Cholesky
-/// solves (None: `P⁻` not positive definite): `Mᵀ = ((P⁻)⁻¹ D)ᵀ` from `D = Ps − P⁻`,
+/// solves over the states that are not held fixed (None: `P⁻` not positive definite
+/// on them): `Mᵀ = ((P⁻)⁻¹ D)ᵀ` from `D = Ps − P⁻`,
 /// then `Λᵀ = ((P⁻)⁻¹ Mᵀ)ᵀ` from `M`, each by [`solve_rows`].
 ///
 /// An AVX2 copy is chosen at run time where the CPU has it (`multiversion`; the same
@@ -26,11 +27,25 @@ fn at_update_portable<const N: usize>(
     ps: &SMatrix<f64, N, N>,
     ds_prior: &SVector<f64, N>,
 ) -> Option<(SVector<f64, N>, SMatrix<f64, N, N>)> {
-    let chol = p_prior.cholesky()?;
+    // A state held fixed (a DVL error state whose σ is 0: its row and column of P⁻
+    // are zero) takes no part: it is solved as if its variance were 1, which leaves
+    // the others' solution as it is (P⁻ is block diagonal), and its μ and Λ are 0.
+    let held: [bool; N] = std::array::from_fn(|i| p_prior.column(i).iter().all(|v| *v == 0.0));
+    let mut p = *p_prior;
+    for i in (0..N).filter(|&i| held[i]) {
+        p[(i, i)] = 1.0;
+    }
+    let chol = p.cholesky()?;
     let l = chol.l_dirty();
     let mt = solve_rows(l, &(ps - p_prior));
-    let lambda_t = solve_rows(l, &mt.transpose());
-    Some((chol.solve(ds_prior), symmetric(&lambda_t)))
+    let mut lambda = symmetric(&solve_rows(l, &mt.transpose()));
+    let mut mu = chol.solve(ds_prior);
+    for i in (0..N).filter(|&i| held[i]) {
+        mu[i] = 0.0;
+        lambda.row_mut(i).fill(0.0);
+        lambda.column_mut(i).fill(0.0);
+    }
+    Some((mu, lambda))
 }
 
 /// `(P⁻¹ B)ᵀ` for `P = L Lᵀ` (`l`'s lower triangle), given `Bᵀ`: the forward and back

@@ -23,6 +23,7 @@ use super::node::{restart_at, Node, Nodes};
 use super::smoothed::Smoothed;
 use super::transition::{NavRows, Sample};
 use crate::cancel::{Cancel, STEPS_PER_CHECK};
+use crate::ekf::calibration::DvlErrors;
 use crate::ekf::calibration::N_CALIBRATED;
 use crate::ekf::{Ekf, FilterConfig};
 use crate::error::{Error, Result};
@@ -62,11 +63,11 @@ pub struct Thinned<'a> {
     pub bias: &'a [[f64; 6]],
     /// With the DVL calibration states, their estimate at each kept epoch (empty
     /// without).
-    pub calibration: &'a [[f64; 4]],
+    pub calibration: &'a [DvlErrors],
     /// The forward σ at each kept epoch, and the calibration states' (empty without),
     /// as [`Forward::sigma`].
     pub sigma: &'a [[f64; 15]],
-    pub calibration_sigma: &'a [[f64; 4]],
+    pub calibration_sigma: &'a [DvlErrors],
 }
 
 impl Thinned<'_> {
@@ -160,6 +161,7 @@ pub fn smooth(
     nodes: &[Node],
     cancel: &Cancel,
 ) -> Result<Smoothed> {
+    super::check_config(cfg)?;
     let last = src.imu.len();
     let spans = nodes.first().map(|n| n.epoch) == Some(0)
         && nodes.last().map(|n| n.epoch) == Some(last)

@@ -12,7 +12,8 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
         prop::collection::vec(-2.0..2.0f64, 3),
         any::<bool>(),
         prop_oneof![4 => Just(0.05), 1 => -3.0..0.0f64],
-        // The DVL calibration states: off, or with 1σ and a scale walk of 10^e.
+        // The DVL error states: off, or with 1σ and a scale walk of 10^e (and, with
+        // a walk below 1e-3, the correlated error at 1σ 10^(e - 1)).
         prop_oneof![3 => Just(None), 1 => prop::collection::vec(-5.0..-1.0f64, 5).prop_map(Some)],
         // Corruptions: 0..15 p0_sigma, 15 accel psd, 16 gyro psd, 17..20 dvl variance,
         // 20..23 lever arm, 23 imu_dt, 24 innovation gate, 25..30 the calibration's
@@ -41,6 +42,13 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
                         misalignment_sigma: [10f64.powf(e[1]), 10f64.powf(e[2]), 10f64.powf(e[3])],
                         scale_psd: 10f64.powf(e[4]),
                         misalignment_psd: 0.0,
+                        // the DVL's correlated error too, in half the cases
+                        bias_sigma: [if e[4] < -3.0 {
+                            10f64.powf(e[0] - 1.0)
+                        } else {
+                            0.0
+                        }; 3],
+                        bias_time_constant: 30.0,
                     }),
                     formulation: match formulation {
                         0 => Formulation::Classic,
