@@ -1,10 +1,11 @@
 """The DVL's correlated velocity error (``FilterConfig(dvl_bias_sigma=...)``): a
 first-order Gauss–Markov error per DVL axis, three states beside the calibration's.
 
-Told the true model, the filter is consistent where the DVL's error is correlated: its
-velocity and the correlated error's estimate lie within 3σ of the truth. Told only a
-white R of the same total variance, the classic failure: the velocity's σ is too small
-for the error it makes (the DVL's slow error is taken as averaging out)."""
+Told the true model, the filter and the RTS smoother are consistent where the DVL's
+error is correlated: their velocity and the correlated error's estimate lie within 1σ
+and 3σ of the truth as often as a Gaussian does. Told only a white R of the same total
+variance, the classic failure: the velocity's σ is too small for the error it makes
+(the DVL's slow error taken as averaging out)."""
 
 from __future__ import annotations
 
@@ -31,9 +32,10 @@ def _gauss_markov(rng: np.random.Generator, time: np.ndarray) -> np.ndarray:
     return b
 
 
-def _run(seed: int, cfg: pronet.FilterConfig):
+def _run(seed: int, cfg: pronet.FilterConfig, smooth: bool = False, **kw: object):
     """One pass on the paper's trajectory with a 5 Hz DVL whose error is correlated and
-    a position fix every 30 s: the result and the truth's velocity and DVL error."""
+    a position fix every 30 s (1 m σ): the result and the truth's velocity and DVL
+    error."""
     truth = pronet.builtin_trajectory("paper")
     n = len(truth.time) - 1
     rng = np.random.default_rng(seed)
@@ -44,11 +46,12 @@ def _run(seed: int, cfg: pronet.FilterConfig):
     b = _gauss_markov(rng, truth.time[k])
     dvl = body + b + rng.normal(size=body.shape) * WHITE
     f = np.arange(3000, n + 1, 3000)
-    fixes = pronet.Fix(truth.time[f], truth.lla[f], sigma=[1.0, 1.0, 1.0])
+    fix_lla = np.array([pronet.lla_from_ned(rng.normal(size=3), p) for p in truth.lla[f]])
+    fixes = pronet.Fix(truth.time[f], fix_lla, sigma=[1.0, 1.0, 1.0])
     res = pronet.run_filter(
         imu, truth.time[1 : n + 1], [pronet.Dvl(truth.time[k], dvl), fixes], t0=0.0,
         lla0=truth.lla[0], vel0=truth.vel_ned[0], rpy0=truth.rpy[0], config=cfg,
-        strategy=pronet.Strategy.constant(Q), warn=False,
+        strategy=pronet.Strategy.constant(Q), smooth=smooth, warn=False, **kw,
     )  # fmt: skip
     return res, truth.vel_ned[: n + 1], k, b
 
@@ -117,11 +120,46 @@ def test_the_configuration_says_what_it_models() -> None:
             pronet.FilterConfig(**kw)
 
 
-def test_the_smoother_refuses_the_correlated_error_before_any_work() -> None:
-    truth = pronet.builtin_trajectory("paper")
-    with pytest.raises(ValueError, match="^smooth: the RTS smoother does not take"):
-        pronet.run_filter(
-            truth.imu[:200], truth.time[1:201], [], t0=0.0, lla0=truth.lla[0],
-            vel0=truth.vel_ned[0], rpy0=truth.rpy[0], config=_config(True),
-            strategy=pronet.Strategy.constant(Q), smooth=True,
-        )  # fmt: skip
+def test_the_smoother_takes_the_correlated_error_and_stays_consistent() -> None:
+    # 1σ and 3σ shares of (run, DVL epoch, axis): forward and smoothed velocity and b̂.
+    shares: dict[str, list[np.ndarray]] = {}
+    rms = []
+    for seed in range(6):
+        res, v, k, b = _run(100 + seed, _config(True), smooth=True)
+        s = res.smoothed
+        assert s is not None
+        assert np.all(s.calibration_sigma[:, 4:7] <= res.calibration_sigma[:, 4:7] * (1 + 1e-12))
+        for name, err, sigma in [
+            ("vel", res.vel[k] - v[k], res.sigma[k, 3:6]),
+            ("vel smoothed", s.vel[k] - v[k], s.sigma[k, 3:6]),
+            ("b", res.calibration[k, 4:7] - b, res.calibration_sigma[k, 4:7]),
+            ("b smoothed", s.calibration[k, 4:7] - b, s.calibration_sigma[k, 4:7]),
+        ]:
+            shares.setdefault(name, []).append(np.abs(err) / sigma)
+        rms.append([np.sqrt(np.mean(e**2)) for e in (res.calibration[k, 4:7] - b,
+                                                     s.calibration[k, 4:7] - b)])  # fmt: skip
+    for name, ratios in shares.items():
+        r = np.concatenate(ratios)
+        # a Gaussian: 68 % within 1σ, 99.7 % within 3σ (the runs' epochs are correlated:
+        # a band, not a test at the binomial's width)
+        assert 0.6 <= np.mean(r <= 1) <= 0.8 and np.mean(r <= 3) >= 0.98, (name, np.mean(r <= 1))
+    forward, smoothed = np.mean(rms, axis=0)
+    assert smoothed < 0.6 * forward, (forward, smoothed)  # the data after each epoch helps
+
+
+def test_a_thinned_smoothed_pass_is_the_every_epoch_one_and_a_monte_carlo_smooths_it() -> None:
+    every, *_ = _run(3, _config(True), smooth=True)
+    thin, *_ = _run(3, _config(True), smooth=True, output_step=1.0)
+    assert every.smoothed is not None and thin.smoothed is not None
+    for name in ("vel", "sigma", "calibration", "calibration_sigma"):
+        kept = getattr(every.smoothed, name)[thin.epoch]
+        np.testing.assert_array_equal(getattr(thin.smoothed, name), kept, err_msg=name)
+    # a Monte Carlo's backward pass carries Λ as a product where σ is read at few epochs
+    sc = pronet.builtin_trajectory("paper")
+    mc = pronet.monte_carlo(
+        sc, pronet.Strategy.constant(Q), sensors=pronet.SensorConfig(imu_variance=Q),
+        config=_config(True), n_runs=3, seed=1, record_every=1000, smooth=True,
+    )  # fmt: skip
+    assert mc.smoothed is not None
+    assert np.all(mc.smoothed.sigma <= mc.sigma * (1 + 1e-12))
+    assert np.all(np.isfinite(mc.smoothed.error))

@@ -177,9 +177,6 @@ pub(crate) fn check_strategy(
     filter.validate()?;
     strategy.validate()?;
     opts.validate()?;
-    if opts.smooth {
-        crate::smoother::check_config(filter)?;
-    }
     Ok(())
 }
 

@@ -8,7 +8,7 @@
 //! (`ḃ = −b/τ + w`, stationary 1σ `σ_b` per axis: a bottom-track bias, sound speed) and
 //! `n` white. The estimate `M̂` carries the error `δμ` \[rad, body axes\] as
 //! `M̂ = M (I + [δμ×])`, the scale the error `δk = k̂ − k`, the correlated error
-//! `δb = b̂ − b`: state 15 is `δk`, states 16..19 are `δμ`, states 19..22 are `δb`.
+//! `δb = b̂ − b`: state 15 is `δk`, states 16–18 are `δμ`, states 19–21 are `δb`.
 //! `δk` and `δμ` are constants (optionally random walks), so their rows of F are zero;
 //! `δb`'s are `−1/τ`. Propagation carries the cross-covariance `P_xc ← Φ P_xc Φ_ccᵀ`
 //! and `P_cc ← Φ_cc P_cc Φ_ccᵀ + Q_c` with `Φ_cc = diag(1, 1, 1, 1, e, e, e)`,
@@ -179,9 +179,11 @@ impl Calibration {
     }
 
     /// [`Self::propagate`] over a covariance step of `dt` seconds with transition `Φ`:
-    /// `[Φ P_xc Φ_ccᵀ, Φ_cc P_cc Φ_ccᵀ + Q_c]` (Φ_cc is diagonal and the noise has no
-    /// cross terms; the correlated error's is the exact discrete one, so the
-    /// half-and-half noise of a covariance step changes nothing here).
+    /// `[Φ P_xc Φ_ccᵀ, Φ_cc P_cc Φ_ccᵀ + Q_c]`, the noise added whole after the
+    /// transition (not half before and half after it as the 15 states' is): the walks'
+    /// has no cross terms and Φ_cc is the identity on them, so it would not matter
+    /// there, and the correlated error's is the exact discrete noise of the interval,
+    /// `σ_b² (1 − e²)`, which halves would not be.
     pub(super) fn propagate_interval(&mut self, phi: &Transition, dt: f64, with_noise: bool) {
         phi.apply(&mut self.cross);
         self.decay(dt, with_noise);

@@ -337,7 +337,7 @@ impl ErrorDynamics {
 
     #[inline(always)]
     fn transition_portable(&self, dt: f64) -> Transition {
-        Transition::second_order(&(self.nav_rows() * dt))
+        Transition::second_order(&(self.nav_rows() * dt)).spanning(dt)
     }
 }
 

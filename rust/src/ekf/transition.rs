@@ -24,6 +24,8 @@ fn axpy(acc: &mut [f64; PAD], x: &[f64; PAD], c: f64) {
 #[derive(Clone, Debug)]
 pub struct Transition {
     cols: [[f64; PAD]; 15],
+    /// The time it spans \[s\] (the DVL error states' decay over it).
+    pub(crate) dt: f64,
 }
 
 impl Transition {
@@ -46,7 +48,13 @@ impl Transition {
                 col[j] += 1.0;
             }
         }
-        Self { cols }
+        Self { cols, dt: 0.0 }
+    }
+
+    /// The same transition, spanning `dt` seconds.
+    #[inline(always)]
+    pub(crate) fn spanning(self, dt: f64) -> Self {
+        Self { dt, ..self }
     }
 
     /// `P ← Φ P Φᵀ` with the bias rows of Φ those of the identity: `Z = W P` for the

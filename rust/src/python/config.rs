@@ -22,7 +22,7 @@ use pyo3::prelude::*;
 /// (``dvl_bias_sigma``: its stationary 1σ per DVL axis [m/s], body aiding only; a
 /// first-order Gauss–Markov process per axis with correlation time
 /// ``dvl_bias_time_constant`` [s], default 60), three more states beside the
-/// calibration's (the smoother does not take it yet), and the formulation: the coordinates of the
+/// calibration's, and the formulation: the coordinates of the
 /// velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
 /// consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
 /// prior and every output are in the classic coordinates either way; and the

@@ -76,7 +76,6 @@ pub fn smooth_recorded_until(
     epochs: Epochs,
     cancel: &Cancel,
 ) -> Result<FilterOutput> {
-    crate::smoother::check_config(cfg)?;
     // SE₂(3)'s anchor fixed here, where the backward pass reads it too.
     let cfg = &cfg.anchored(&initial.lla);
     let run = Recording {

@@ -29,7 +29,7 @@ use super::node::Node;
 use super::sink::{change, change_of, Sink};
 use super::smoothed::Smoothed;
 use super::solve::at_update;
-use super::transition::{symmetric, NavRows, Sample, Step};
+use super::transition::{symmetric, Decay, NavRows, Sample, Step};
 use crate::cancel::Cancel;
 use crate::ekf::calibration::N_CALIBRATED;
 use crate::ekf::FilterConfig;
@@ -37,20 +37,6 @@ use crate::ekf::Point;
 use crate::error::{Error, Result};
 use nalgebra::{SMatrix, SVector};
 use std::ops::Range;
-
-/// `Err` unless the backward pass takes `cfg`: its transitions are the identity on the
-/// DVL error states, so it does not take their correlated velocity error, whose `Φ`
-/// is `exp(−Δt/τ)` (not yet: the forward pass takes it).
-pub fn check_config(cfg: &FilterConfig) -> Result<()> {
-    if cfg.dvl_calibration.is_some_and(|c| c.correlated()) {
-        return Err(Error::invalid(
-            "smooth",
-            "the RTS smoother does not take the DVL's correlated velocity error \
-             (dvl_bias_sigma) yet: run the forward pass alone, or smooth without it",
-        ));
-    }
-    Ok(())
-}
 
 /// The backward pass over `nodes` (from [`super::Nodes`], first at epoch 0 and last at
 /// the last epoch), computing the covariance where `covariances` says; stops with
@@ -87,7 +73,6 @@ pub fn smooth_into<S: Sink>(
     out: &mut S,
     cancel: &Cancel,
 ) -> Result<()> {
-    check_config(cfg)?;
     let n = forward.nav.len();
     if nodes.first().map(|n| n.epoch) != Some(0) || nodes.last().map(|n| n.epoch) != Some(n - 1) {
         return Err(Error::Numerical(
@@ -261,6 +246,7 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
     (vel0, cfg, rows, cancel): (Point, &FilterConfig, &mut Rows<'_, S>, &Cancel),
 ) -> Result<()> {
     // After the last epoch nothing is left to learn: μ = 0, Λ = 0.
+    let decay = Decay::of::<N>(cfg);
     let mut mu = SVector::<f64, N>::zeros();
     let mut lambda = Lambda::new(rows.lazy && T::EVERY_EPOCH);
     // The next close (the interpolation's far end).
@@ -292,7 +278,8 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
                 read |= !rows.of(close.epoch..close.epoch + 1).is_empty();
                 mus.push(mu);
                 mu = close.phi.transposed(&mu);
-                lambda.through(&close.phi);
+                decay.mean(close.dt, &mut mu);
+                lambda.through(&close.phi, close.dt, &decay);
                 later = Some(Later {
                     epoch: close.epoch,
                     ds_prior: SVector::zeros(),
@@ -317,10 +304,11 @@ pub(super) fn pass<const N: usize, T: Step<N>, S: Sink>(
             if let (true, Some(ps)) = (at_node, at.ps.as_ref()) {
                 rows.sink.keep_node(b.epoch, ps);
             }
-            later = Some(at.back_through(close, (b, at_node), &ds, (&mut mu, &mut lambda))?);
+            let carried = (&mut mu, &mut lambda, &decay);
+            later = Some(at.back_through(close, (b, at_node), &ds, carried)?);
         }
         if read {
-            mean_forward(&closes, &mut mus, a.p::<N>() * mu, rows, cfg)?;
+            mean_forward(&closes, &mut mus, a.p::<N>() * mu, rows, (cfg, &decay))?;
         }
     }
     // The first epoch: the prior, a close of its own.
@@ -354,11 +342,18 @@ impl<const N: usize> Lambda<N> {
         }
     }
 
-    /// Carry Λ back through `phi`.
-    fn through<T: Step<N>>(&mut self, phi: &T) {
+    /// Carry Λ back through `phi` (spanning `dt` seconds, over which `decay` acts).
+    fn through<T: Step<N>>(&mut self, phi: &T, dt: f64, decay: &Decay) {
         match self.lazy {
-            true => phi.accumulate(self.product.get_or_insert_with(SMatrix::identity)),
-            false => phi.congruence(&mut self.lambda),
+            true => {
+                let k = self.product.get_or_insert_with(SMatrix::identity);
+                phi.accumulate(k);
+                decay.accumulate(dt, k);
+            }
+            false => {
+                phi.congruence(&mut self.lambda);
+                decay.congruence(dt, &mut self.lambda);
+            }
         }
     }
 
@@ -385,7 +380,7 @@ fn mean_forward<const N: usize, T: Step<N>, S: Sink>(
     mus: &mut Vec<SVector<f64, N>>,
     mut ds: SVector<f64, N>,
     rows: &mut Rows<'_, S>,
-    cfg: &FilterConfig,
+    (cfg, decay): (&FilterConfig, &Decay),
 ) -> Result<()> {
     for close in closes.iter().take_while(|c| c.p_prior.is_none()) {
         let mu = mus
@@ -395,6 +390,7 @@ fn mean_forward<const N: usize, T: Step<N>, S: Sink>(
             .phi
             .next_mean(&ds, &mu)
             .ok_or_else(|| Error::Numerical("the smoother: a step without its noise".into()))?;
+        decay.next_mean(close.dt, &mu, &mut ds);
         for row in rows.of(close.epoch..close.epoch + 1) {
             rows.sink.apply(row, &ds, cfg);
         }
@@ -461,7 +457,7 @@ impl<const N: usize> AtClose<N> {
         close: &Close<N, T>,
         (b, at_node): (&Node, bool),
         ds: &SVector<f64, N>,
-        (mu, lambda): (&mut SVector<f64, N>, &mut Lambda<N>),
+        (mu, lambda, decay): (&mut SVector<f64, N>, &mut Lambda<N>, &Decay),
     ) -> Result<Later<N>> {
         let mut ds_prior = *ds;
         if let (true, Some(ps), Some(prior)) = (at_node, self.ps.as_ref(), close.p_prior.as_ref()) {
@@ -476,7 +472,8 @@ impl<const N: usize> AtClose<N> {
             lambda.set(l);
         }
         *mu = close.phi.transposed(mu);
-        lambda.through(&close.phi);
+        decay.mean(close.dt, mu);
+        lambda.through(&close.phi, close.dt, decay);
         Ok(Later {
             epoch: close.epoch,
             ds_prior,

@@ -26,6 +26,8 @@ use nalgebra::{SMatrix, Vector3};
 pub(crate) struct Close<const N: usize, T> {
     pub(crate) epoch: usize,
     pub(crate) phi: T,
+    /// The time `phi` spans \[s\].
+    pub(crate) dt: f64,
     pub(crate) p_prior: Option<SMatrix<f64, N, N>>,
     pub(crate) point_prior: Point,
     pub(crate) point: Point,
@@ -43,6 +45,7 @@ impl<const N: usize> Close<N, NavRows> {
         Self {
             epoch,
             phi: phi.nav_rows(),
+            dt: phi.dt,
             p_prior: Some(full_p::<N>(ekf)),
             point_prior,
             point,
@@ -95,6 +98,7 @@ pub(crate) fn samples<const N: usize>(
                 dt,
                 q: None,
             },
+            dt,
             p_prior: (epoch == b || keep(epoch)).then(|| full_p::<N>(&ekf)),
             point_prior: vel,
             point: vel,
@@ -144,13 +148,14 @@ pub(crate) fn samples_mean<const N: usize>(
                     dt,
                     q: Some(Matrix15::zeros()),
                 },
+                dt,
                 p_prior,
                 point_prior: vel,
                 point: vel,
             });
         } else {
             let c = &mut closes[n];
-            (c.epoch, c.phi.dynamics, c.phi.dt) = (epoch, dynamics, dt);
+            (c.epoch, c.phi.dynamics, c.phi.dt, c.dt) = (epoch, dynamics, dt, dt);
             (c.p_prior, c.point_prior, c.point) = (p_prior, vel, vel);
             c.phi
                 .q
@@ -216,6 +221,7 @@ pub(super) fn kept<const N: usize>(
         Close {
             epoch,
             phi: c.phi,
+            dt: c.dt,
             p_prior: Some(lift(&c.p(), c.calibration.as_deref().map(|(x, v)| (x, v)))),
             point_prior: c.point,
             point: cfg.coordinates().at(&forward.nav[epoch]),

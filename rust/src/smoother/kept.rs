@@ -17,6 +17,8 @@ use nalgebra::SMatrix;
 #[derive(Clone, Debug)]
 pub struct KeptClose {
     pub(crate) phi: SMatrix<f64, 9, 15>,
+    /// The time `phi` spans \[s\].
+    pub(crate) dt: f64,
     upper: [f64; UPPER],
     pub(crate) point: Point,
     pub(crate) calibration: Option<Box<(Cross, DvlCov)>>,
@@ -81,6 +83,7 @@ impl KeptCloses {
         self.epochs.push(epoch);
         self.closes.push(KeptClose {
             phi: phi.nav_rows(),
+            dt: phi.dt,
             upper,
             point: ekf.point(),
             calibration: ekf.calibration.as_ref().map(|c| Box::new((c.cross, c.cov))),

@@ -56,7 +56,7 @@ mod solve;
 pub mod thinned;
 mod transition;
 
-pub use backward::{check_config, smooth, smooth_into};
+pub use backward::{smooth, smooth_into};
 pub use forward::{Covariances, Forward};
 pub use kept::{KeptClose, KeptCloses};
 pub use log::ForwardLog;

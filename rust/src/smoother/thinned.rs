@@ -161,7 +161,6 @@ pub fn smooth(
     nodes: &[Node],
     cancel: &Cancel,
 ) -> Result<Smoothed> {
-    super::check_config(cfg)?;
     let last = src.imu.len();
     let spans = nodes.first().map(|n| n.epoch) == Some(0)
         && nodes.last().map(|n| n.epoch) == Some(last)

@@ -5,8 +5,9 @@
 //! calibration states (`N` = 19) their rows of F are zero and the navigation rows do
 //! not read them: every product goes through the first 15.
 
+use crate::ekf::calibration::{CalibrationConfig, BIAS, N_CALIBRATED};
 use crate::ekf::dynamics::ErrorDynamics;
-use crate::ekf::Matrix15;
+use crate::ekf::{FilterConfig, Matrix15};
 use multiversion::multiversion;
 use nalgebra::{SMatrix, SVector};
 
@@ -216,4 +217,70 @@ fn congruence<const N: usize>(rows: &NavRows, lambda: &SMatrix<f64, N, N>) -> SM
 /// `(M + Mᵀ) / 2`.
 pub(super) fn symmetric<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     (m + m.transpose()) * 0.5
+}
+
+/// The DVL's correlated velocity error's part of a transition over `Δt`: its three
+/// states decay by `e = exp(−Δt/τ)` (`Φ = Φ̃ D`, `D = diag(1, …, e, e, e)`, with `Φ̃`
+/// the identity on the DVL error states as the [`Step`]s take it) and gain the noise
+/// `σ_b² (1 − e²)` (`ekf::calibration`). Nothing without the correlated error, or
+/// over 15 states.
+#[derive(Clone, Copy)]
+pub(super) struct Decay {
+    model: Option<CalibrationConfig>,
+}
+
+impl Decay {
+    pub(super) fn of<const N: usize>(cfg: &FilterConfig) -> Self {
+        let model = (cfg.dvl_calibration).filter(|c| N == N_CALIBRATED && c.correlated());
+        Self { model }
+    }
+
+    /// `e` over `dt` seconds, None without the correlated error.
+    pub(super) fn factor(&self, dt: f64) -> Option<f64> {
+        self.model.map(|c| c.decay(dt))
+    }
+
+    /// `μ ← D μ`: after `Φ̃ᵀ μ`, the rest of `Φᵀ μ`.
+    pub(super) fn mean<const N: usize>(&self, dt: f64, mu: &mut SVector<f64, N>) {
+        if let Some(e) = self.factor(dt) {
+            for i in BIAS..BIAS + 3 {
+                mu[i] *= e;
+            }
+        }
+    }
+
+    /// `Λ ← D Λ D`: after `Φ̃ᵀ Λ Φ̃`, the rest of `Φᵀ Λ Φ`.
+    pub(super) fn congruence<const N: usize>(&self, dt: f64, lambda: &mut SMatrix<f64, N, N>) {
+        if let Some(e) = self.factor(dt) {
+            for i in BIAS..BIAS + 3 {
+                lambda.row_mut(i).scale_mut(e);
+                lambda.column_mut(i).scale_mut(e);
+            }
+        }
+    }
+
+    /// `K ← K D`: after `K Φ̃`, the rest of `K Φ`.
+    pub(super) fn accumulate<const N: usize>(&self, dt: f64, k: &mut SMatrix<f64, N, N>) {
+        if let Some(e) = self.factor(dt) {
+            for i in BIAS..BIAS + 3 {
+                k.column_mut(i).scale_mut(e);
+            }
+        }
+    }
+
+    /// The correlated error's part of the Bryson–Frazier mean `Φ δs + Q μ`, which a
+    /// [`Step::next_mean`] leaves at `δs`: `e δs + σ_b² (1 − e²) μ`.
+    pub(super) fn next_mean<const N: usize>(
+        &self,
+        dt: f64,
+        mu: &SVector<f64, N>,
+        next: &mut SVector<f64, N>,
+    ) {
+        if let (Some(c), Some(e)) = (self.model, self.factor(dt)) {
+            for (k, i) in (BIAS..BIAS + 3).enumerate() {
+                let q = c.bias_sigma[k].powi(2) * (1.0 - e * e);
+                next[i] = e * next[i] + q * mu[i];
+            }
+        }
+    }
 }
