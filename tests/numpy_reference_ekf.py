@@ -354,6 +354,8 @@ def run_reference_filter(
     dvl_errors = None
     if calibration is not None or dvl_bias is not None:
         dvl_errors = DvlErrors(calibration, dvl_bias)
+        if aiding != "body":
+            raise ValueError("the DVL error states lie in its own axes: aiding='body' only")
     n_x = 15 if dvl_errors is None else 15 + dvl_errors.n
     p0 = np.asarray(p0_sigma, dtype=float) ** 2
     if dvl_errors is not None:

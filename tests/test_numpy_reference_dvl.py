@@ -154,3 +154,20 @@ def test_a_slightly_wrong_model_is_caught(covariance_step, monkeypatch) -> None:
     monkeypatch.setattr(numpy_reference_dvl.DvlErrors, "transition", first_order)
     euler = _differences(rust, _reference(inputs, True, "invariant", covariance_step))
     assert euler["calibration_sigma"] > 1e2 * RTOL, euler
+
+
+def test_both_refuse_the_dvl_error_states_with_navigation_frame_aiding() -> None:
+    """The correlated error lies in the DVL's axes: a DVL velocity in NED carries none
+    the model describes, and neither filter runs it."""
+    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(2.0, np.zeros(3), "nav")
+    start = dict(lla0=lla0, vel0=vel0, rpy0=rpy0)
+    with pytest.raises(ValueError, match="^dvl_bias_sigma: .* body-frame aiding"):
+        cfg = pronet.FilterConfig(aiding="nav", dvl_bias_sigma=SIGMA_B)
+        pronet.run_filter(imu, imu_time, [pronet.Dvl(dvl_time, dvl)], t0=0.0, **start,
+                          config=cfg, warn=False)  # fmt: skip
+    with pytest.raises(ValueError, match="aiding='body' only"):
+        run_reference_filter(
+            imu, imu_time, dvl, dvl_time, 0.0, lla0, vel0, rpy0, q=Q, accel_bias_psd=1e-6,
+            gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3, p0_sigma=P0, imu_dt=0.01,
+            aiding="nav", dvl_bias=(SIGMA_B, TAU),
+        )  # fmt: skip
