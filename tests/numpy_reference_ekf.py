@@ -1,8 +1,9 @@
 """An independent, pure-NumPy implementation of the filter in ``docs/reference/filter.md``.
 
 It shares no code with the Rust core: dense 15x15 matrices (19x19 with the DVL
-calibration states), ``Phi = I + F dt`` built as a full matrix, ``P = Phi P Phi^T + Qd``,
-the Joseph update with full matrices. It is slow and plain on purpose; the test suite
+calibration states, 22x22 with the DVL's correlated error: ``numpy_reference_dvl.py``),
+``Phi = I + F dt`` built as a full matrix, ``P = Phi P Phi^T + Qd``, the Joseph update
+with full matrices. It is slow and plain on purpose; the test suite
 runs both filters on the same arrays.
 Frames: NED navigation, FRD body; positions [lat rad, lon rad, h m].
 """
@@ -248,6 +249,7 @@ def run_reference_filter(
     lever_arm=(0.0, 0.0, 0.0),
     aiding="body",
     calibration=None,
+    dvl_bias=None,
     formulation="classic",
     covariance_step=0.0,
     log=None,
@@ -271,6 +273,9 @@ def run_reference_filter(
     misalignment_psd)`` for the DVL scale-factor and misalignment states 15..19; the
     output then also has ``calibration`` (k, roll, pitch, yaw of the DVL in the body)
     and ``calibration_sigma`` per epoch, ``sigma`` keeping the first 15.
+    ``dvl_bias``: None, or ``(sigma (3,), tau)`` for the DVL's correlated velocity
+    error (states 19..21; the calibration states then exist, with σ 0 without
+    ``calibration``); ``calibration`` then has ``b̂`` in columns 4..6.
 
     ``formulation``: ``"classic"`` (velocity error ``dv``) or ``"invariant"`` (``dV = dv
     - [v x] psi``): P lives in its coordinates, ``x_inv = T x_classic`` with ``T`` the
@@ -301,6 +306,7 @@ def run_reference_filter(
     (``heading_h_row``). Rows before the run are skipped. The output has ``depth_nis``,
     ``fix_nis`` and ``heading_nis`` (one per row applied). ``lever_arm`` with
     ``aiding="nav"``: ``h = v̂ + Ĉ (ω̂ × r)`` (``nav_velocity_h``)."""
+    from numpy_reference_dvl import DvlErrors
     from numpy_reference_se23 import corrected_lla, displacement, position_h_psi, t_matrix, to_se23
 
     invariant, se23 = formulation in ("invariant", "se23"), formulation == "se23"
@@ -317,6 +323,16 @@ def run_reference_filter(
     every_sample = covariance_step < 1.5 * imu_dt
     interval = None
 
+    def dvl_transition(phi, dt):
+        """``Φ_cc`` (docs: 1 on δk, δμ; ``exp(−Δt/τ)`` on δb) into ``phi``, and the DVL
+        error states' noise over ``dt``, added whole after ``Φ P Φᵀ`` (exact for δb)."""
+        noise = np.zeros((n_x, n_x))
+        if dvl_errors is not None:
+            phi_c, noise_c = dvl_errors.transition(dt)
+            phi[15:, 15:] = np.diag(phi_c)
+            noise[15:, 15:] = np.diag(noise_c)
+        return noise
+
     def close(p, interval):
         """P over the covariance step ``interval``, and the step's Φ."""
         big_t = interval["dt"]
@@ -326,8 +342,8 @@ def run_reference_filter(
         phi[:15, :15] += fm * big_t + (fm * big_t) @ (fm * big_t) / 2
         qd = np.zeros((n_x, n_x))
         qd[:15, :15] = gam @ np.diag(interval["q"]) @ gam.T
-        qd[15:, 15:] = np.diag(cal_noise * big_t)
-        p = phi @ (p + qd / 2) @ phi.T + qd / 2
+        noise = dvl_transition(phi, big_t)
+        p = phi @ (p + qd / 2) @ phi.T + qd / 2 + noise
         return (p + p.T) / 2, phi
 
     lla = np.array(lla0, dtype=float)
@@ -335,19 +351,19 @@ def run_reference_filter(
     c = dcm_from_euler(*rpy0)
     ba = np.zeros(3)
     bg = np.zeros(3)
-    n_x = 15 if calibration is None else 19
+    dvl_errors = None
+    if calibration is not None or dvl_bias is not None:
+        dvl_errors = DvlErrors(calibration, dvl_bias)
+        if aiding != "body":
+            raise ValueError("the DVL error states lie in its own axes: aiding='body' only")
+    n_x = 15 if dvl_errors is None else 15 + dvl_errors.n
     p0 = np.asarray(p0_sigma, dtype=float) ** 2
-    cal_noise = np.zeros(0)
-    if calibration is not None:
-        scale_sigma, mis_sigma, scale_psd, mis_psd = calibration
-        p0 = np.concatenate([p0, [scale_sigma**2], np.asarray(mis_sigma, dtype=float) ** 2])
-        cal_noise = np.array([scale_psd, mis_psd, mis_psd, mis_psd])
+    if dvl_errors is not None:
+        p0 = np.concatenate([p0, dvl_errors.p0()])
     p = np.diag(p0)
     if invariant:
         t0_ = t_matrix(np.asarray(vel0, dtype=float), disp_at(lla), n_x)
         p = t0_ @ p @ t0_.T
-    k_scale = 0.0  # DVL scale-factor error estimate
-    m_dvl = np.eye(3)  # body -> DVL rotation estimate
     r_arm = np.asarray(lever_arm, dtype=float)
     rmat = np.diag(dvl_variance)
     q = np.asarray(q, dtype=float)
@@ -357,7 +373,7 @@ def run_reference_filter(
 
     def feed(dx):
         """The filter's feedback of the error estimate ``dx``."""
-        nonlocal lla, v, c, ba, bg, k_scale, m_dvl
+        nonlocal lla, v, c, ba, bg
         rn, re = radii(lla[0])
         lla = corrected_lla(lla, dx, anchor) if se23 else lla - np.array(
             [dx[0] / (rn + lla[2]), dx[1] / ((re + lla[2]) * math.cos(lla[0])), -dx[2]]
@@ -367,9 +383,8 @@ def run_reference_filter(
         c = exp_so3(dx[6:9]) @ c
         ba = ba - dx[9:12]
         bg = bg - dx[12:15]
-        if calibration is not None:
-            k_scale = k_scale - dx[15]
-            m_dvl = m_dvl @ exp_so3(-dx[16:19])
+        if dvl_errors is not None:
+            dvl_errors.feed(dx[15:])
 
     def scalar(h_row, nu, r):
         """A scalar update with the H row ``h_row`` (n_x), innovation ``nu`` and
@@ -445,8 +460,8 @@ def run_reference_filter(
         out["bias"].append(np.concatenate([ba, bg]))
         sigma, cal_sigma = sigmas()
         out["sigma"].append(sigma)
-        if calibration is not None:
-            out["calibration"].append(np.concatenate([[k_scale], euler_from_dcm(m_dvl.T)]))
+        if dvl_errors is not None:
+            out["calibration"].append(dvl_errors.reported())
             out["calibration_sigma"].append(cal_sigma)
 
     def interpolate_stale(closed):
@@ -492,8 +507,8 @@ def run_reference_filter(
             phi[:15, :15] += fm * dt
             qd = np.zeros((n_x, n_x))
             qd[:15, :15] = gam @ qc @ gam.T * dt
-            qd[15:, 15:] = np.diag(cal_noise * dt)
-            p = phi @ p @ phi.T + qd
+            noise = dvl_transition(phi, dt)
+            p = phi @ p @ phi.T + qd + noise
             p = (p + p.T) / 2
         else:  # docs/reference/filter.md, "Covariance step"
             if interval is None:
@@ -527,16 +542,8 @@ def run_reference_filter(
             else:  # the terms of the lever arm only when it is not zero
                 pred = nav_velocity_prediction(v, c, w_hat, r_arm)
                 h = nav_velocity_h(v, c, w_hat, r_arm, invariant)
-            if calibration is not None:  # z = (1 + k) M v_b
-                v_b = pred
-                pred = (1 + k_scale) * m_dvl @ v_b
-                h = np.hstack(
-                    [
-                        (1 + k_scale) * m_dvl @ h,
-                        (m_dvl @ v_b)[:, None],
-                        -(1 + k_scale) * m_dvl @ skew(v_b),
-                    ]
-                )
+            if dvl_errors is not None:  # z = (1 + k) M v_b + b
+                pred, h = dvl_errors.measurement(pred, h)
             nu = dvl[j] - pred
             s = h @ p @ h.T + rmat
             gain = p @ h.T @ np.linalg.inv(s)
