@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from pronet.cli import main
-from pronet.config import ConfigError
+from pronet.config import FILTER_KEYS, ConfigError
 from pronet.recorded import vehicle
 from pronet.recorded.recordings import write_recording
 from pronet.recorded.tuning import REAL_P0_SIGMA, real_filter_config
@@ -104,6 +104,23 @@ def test_the_grades_and_the_keys_of_a_filter_file(tmp_path):
         _toml(tmp_path / "o.toml", "imu_lever_arm = [1, 0, 0]\nlever_arm = [0, 0, 0.5]\n")
     )
     assert own.dvl_lever_arm == (1.0, 0.0, 0.5)
+
+
+def test_every_key_of_a_filter_file_reaches_the_sections_filter(tmp_path):
+    # a key the file sets must not be dropped on its way to each section's tuning
+    text = "dvl_bias_sigma = [0.02, 0.03, 0.01]\ndvl_bias_time_constant = 45.0\n"
+    text += 'innovation_gate = 30.0\naiding = "body"\n'
+    base = vehicle.load_vehicle(_toml(tmp_path / "b.toml", text)).base
+    arm = (0.1, -0.2, 0.3)
+    section = real_filter_config(arm, base=base, calibration=True, covariance_step=0.0)
+    for key in FILTER_KEYS:
+        expected = getattr(base, key)
+        if key == "lever_arm":
+            expected = list(arm)
+        elif key == "covariance_step":
+            expected = 0.0
+        assert getattr(section, key) == expected, key
+    assert section.dvl_calibration and section.dvl_bias_time_constant == 45.0
 
 
 @pytest.mark.parametrize(

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._util.validate import float_array
+from pronet.config import FILTER_KEYS
 from pronet.recorded.dvlnoise import DVL_NOISE_SOURCES
 from pronet.recorded.plausible import NOMINAL_RATE_TOLERANCE
 from pronet.sim.paper import paper_strategies
@@ -72,41 +73,33 @@ def real_filter_config(
     0.01 s) and ``covariance_step`` [s] (default ``FilterConfig``'s, 0.1 s; 0: every
     IMU sample); see :data:`REAL_P0_SIGMA` and the PSD constants for sources.
 
-    ``base`` (a vehicle's own tuning, ``pronet real --filter``): its P0, bias PSDs,
-    DVL noise (unless ``dvl_variance`` is given), aiding, innovation gate, formulation
-    and covariance step (unless ``formulation`` or ``covariance_step`` is given)
-    instead of the FOG defaults above."""
-    if base is not None:
-        own: dict[str, Any] = {
-            "p0_sigma": base.p0_sigma,
-            "accel_bias_psd": base.accel_bias_psd,
-            "gyro_bias_psd": base.gyro_bias_psd,
-            "dvl_variance": base.dvl_variance if dvl_variance is None else dvl_variance,
-            "lever_arm": lever_arm,
-            "aiding": base.aiding,
-            "imu_dt": base.imu_dt if imu_dt is None else imu_dt,
-            "innovation_gate": base.innovation_gate,
-            "dvl_calibration": calibration,
-            "formulation": base.formulation if formulation is None else formulation,
-            "covariance_step": (
-                base.covariance_step if covariance_step is None else covariance_step
-            ),
+    ``base`` (a vehicle's own tuning, ``pronet real --filter``): every key of a filter
+    file (:data:`pronet.config.FILTER_KEYS`: its P0, bias PSDs, DVL noise unless
+    ``dvl_variance`` is given, aiding, innovation gate, the DVL's correlated error,
+    formulation and covariance step unless ``formulation`` or ``covariance_step`` is
+    given) instead of the FOG defaults above."""
+    given = {
+        key: value
+        for key, value in (
+            ("dvl_variance", dvl_variance),
+            ("imu_dt", imu_dt),
+            ("formulation", formulation),
+            ("covariance_step", covariance_step),
+        )
+        if value is not None
+    }
+    own: dict[str, Any] = (
+        {key: getattr(base, key) for key in FILTER_KEYS}
+        if base is not None
+        else {
+            "p0_sigma": REAL_P0_SIGMA,
+            "accel_bias_psd": REAL_ACCEL_BIAS_PSD,
+            "gyro_bias_psd": REAL_GYRO_BIAS_PSD,
+            "dvl_variance": (REAL_DVL_VARIANCE,) * 3,
         }
-        return _core.FilterConfig(**own)
-    chosen: dict[str, object] = {} if formulation is None else {"formulation": formulation}
-    if imu_dt is not None:
-        chosen["imu_dt"] = imu_dt
-    if covariance_step is not None:
-        chosen["covariance_step"] = covariance_step
-    return _core.FilterConfig(
-        **chosen,  # type: ignore[arg-type]
-        p0_sigma=REAL_P0_SIGMA,
-        accel_bias_psd=REAL_ACCEL_BIAS_PSD,
-        gyro_bias_psd=REAL_GYRO_BIAS_PSD,
-        dvl_variance=(REAL_DVL_VARIANCE,) * 3 if dvl_variance is None else dvl_variance,
-        lever_arm=lever_arm,
-        dvl_calibration=calibration,
     )
+    own.update(given, lever_arm=lever_arm, dvl_calibration=calibration)
+    return _core.FilterConfig(**own)
 
 
 def imu_step(imu_time: F64) -> float:
