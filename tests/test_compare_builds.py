@@ -4,7 +4,6 @@ arguments and unloadable builds are named."""
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 import subprocess
 import sys
@@ -15,6 +14,8 @@ import numpy as np
 import pytest
 
 from pronet import _core
+
+from module_file import load
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benches" / "compare_builds.py"
 
@@ -40,11 +41,7 @@ def rows(stdout: str) -> dict[str, dict[str, list[str]]]:
 
 @pytest.fixture(scope="module")
 def script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("compare_builds", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load(SCRIPT, "compare_builds")
 
 
 @pytest.mark.slow

@@ -7,12 +7,13 @@ The site and its generated API reference: tests/test_site.py."""
 from __future__ import annotations
 
 import functools
-import importlib.util
 import re
 from pathlib import Path
 from types import ModuleType
 
 import pytest
+
+from module_file import load
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Every Markdown page of the project: the top-level ones and everything under docs/.
@@ -148,10 +149,7 @@ def test_link_parser() -> None:
 
 
 def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
-    spec = importlib.util.spec_from_file_location("study_docs", ROOT / "scripts" / "study_docs.py")
-    assert spec is not None and spec.loader is not None
-    study_docs = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(study_docs)
+    study_docs = _script("study_docs")
     page = study_docs.PAGE.read_text()
     assert study_docs.render(page, study_docs.tables()) == page, (
         "docs/results/study.md's tables differ from docs/results/study/study.csv; "
@@ -162,11 +160,7 @@ def test_the_study_page_tables_are_generated_from_the_study_output() -> None:
 
 
 def _script(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load(ROOT / "scripts" / f"{name}.py")
 
 
 def _runtime_doc(name: str) -> str:

@@ -3,7 +3,6 @@ the docs pages show the ones they walk through as they are."""
 
 from __future__ import annotations
 
-import importlib.util
 import re
 import subprocess
 import sys
@@ -12,6 +11,8 @@ from pathlib import Path
 import pytest
 
 import pronet
+
+from module_file import load
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
@@ -42,13 +43,7 @@ def test_every_example_is_tested() -> None:
 
 
 def _example_docs():
-    spec = importlib.util.spec_from_file_location(
-        "example_docs", ROOT / "scripts" / "example_docs.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load(ROOT / "scripts" / "example_docs.py")
 
 
 def test_python_md_shows_the_walked_examples_as_they_are(capsys) -> None:

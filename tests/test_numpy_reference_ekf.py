@@ -254,18 +254,22 @@ def _far_aiding(traj: pronet.Trajectory, seconds: float) -> dict:
     )  # fmt: skip
 
 
+def far_inputs(covariance_step: float) -> tuple[tuple, dict, dict]:
+    """The far run's inputs ``(imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0)``, its
+    depth and fix streams (the reference's keywords) and the filter's tuning."""
+    traj = _far_track()
+    inputs = _inputs(60.0, np.array(FAR_DVL_ARM), "body", traj=traj)
+    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3,
+                  covariance_step=covariance_step, lever_arm=FAR_DVL_ARM)  # fmt: skip
+    return inputs, _far_aiding(traj, 60.0), tuning
+
+
 @functools.lru_cache(maxsize=8)
 def _far_run(formulation: str, covariance_step: float, reference: bool, pos_att_sign=1.0):
     """The core's (``reference`` False) or the reference's run far from the anchor: a
     body-frame DVL at a lever arm, depths and fixes at theirs. ``pos_att_sign`` −1 flips
     the reference's SE₂(3) position–attitude block of F (a broken reference)."""
-    traj = _far_track()
-    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(
-        60.0, np.array(FAR_DVL_ARM), "body", traj=traj
-    )
-    aiding = _far_aiding(traj, 60.0)
-    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3,
-                  covariance_step=covariance_step, lever_arm=FAR_DVL_ARM)  # fmt: skip
+    (imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0), aiding, tuning = far_inputs(covariance_step)
     if not reference:
         cfg = pronet.FilterConfig(p0_sigma=P0, formulation=formulation, **tuning)
         streams = [

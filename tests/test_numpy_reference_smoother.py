@@ -11,15 +11,7 @@ import pronet
 
 from numpy_reference_ekf import dcm_from_euler, run_reference_filter
 from numpy_reference_smoother import rts_smooth
-from test_numpy_reference_ekf import (
-    FAR_DISTANCE,
-    FAR_DVL_ARM,
-    P0,
-    Q,
-    _far_aiding,
-    _far_track,
-    _inputs,
-)
+from test_numpy_reference_ekf import FAR_DISTANCE, P0, Q, _inputs, far_inputs
 
 
 def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_step=0.0):
@@ -181,13 +173,7 @@ def _far_smoothed(formulation: str, covariance_step: float):
     """The core's smoothed and forward runs, and the reference's smoothed one, on the
     run of ``test_numpy_reference_ekf.py`` that goes 4.8 km from SE₂(3)'s anchor (a
     DVL, depths and fixes at their lever arms)."""
-    traj = _far_track()
-    imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(
-        60.0, np.array(FAR_DVL_ARM), "body", traj=traj
-    )
-    a = _far_aiding(traj, 60.0)
-    tuning = dict(accel_bias_psd=1e-6, gyro_bias_psd=1e-8, dvl_variance=(0.01,) * 3,
-                  covariance_step=covariance_step, lever_arm=FAR_DVL_ARM)  # fmt: skip
+    (imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0), a, tuning = far_inputs(covariance_step)
     streams = [
         pronet.Dvl(dvl_time, dvl),
         pronet.Depth(a["depth_time"], a["depth"], sigma=0.1, lever_arm=a["depth_lever_arm"]),

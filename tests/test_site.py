@@ -9,7 +9,6 @@ reports the broken ones. ``scripts/test.sh`` builds the site itself
 from __future__ import annotations
 
 import functools
-import importlib.util
 import inspect
 import re
 from pathlib import Path
@@ -21,17 +20,15 @@ import pytest
 import pronet
 from pronet import _core
 
+from module_file import load
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "python" / "pronet"
 DOCS = ROOT / "docs"
 
 
 def _script(name: str) -> ModuleType:
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load(ROOT / "scripts" / f"{name}.py")
 
 
 @functools.cache

@@ -6,6 +6,7 @@ that miss the issue's targets, is in docs/results/calibration.md."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,8 @@ import pronet
 from pronet import _core
 from pronet.montecarlo import monte_carlo
 from pronet.recorded import dvlcalibration
+
+from module_file import load
 
 RUNS = 50
 
@@ -111,15 +114,7 @@ def test_with_the_dvl_drawn_from_the_prior_the_calibration_nees_is_consistent() 
 
 def _scale_drift():
     """``scripts/scale_drift.py``, imported (a script, not part of the package)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[2] / "scripts" / "scale_drift.py"
-    spec = importlib.util.spec_from_file_location("scale_drift", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load(Path(__file__).resolve().parents[2] / "scripts" / "scale_drift.py")
 
 
 def test_on_a_steady_leg_the_scale_drifts_low_and_the_exact_posterior_agrees() -> None:

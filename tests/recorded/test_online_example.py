@@ -6,7 +6,6 @@ readings; without fixes it says why it cannot start."""
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import io
 from pathlib import Path
 from types import ModuleType
@@ -24,19 +23,15 @@ from mission_recording import (
 import pronet
 from pronet.recorded.bags import STANDARD_GRAVITY
 
+from module_file import load
+
 ROOT = Path(__file__).resolve().parents[2]
 #: Seconds of messages the example keeps to start from (its default).
 INIT = 10.0
 
 
 def _example() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "online_ros2", ROOT / "examples" / "online_ros2.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load(ROOT / "examples" / "online_ros2.py")
 
 
 def _run(*argv: str) -> tuple[int, list[str]]:
