@@ -127,8 +127,8 @@ pub struct Estimate {
     pub bias: [f64; 6],
     /// 1σ of the 15 errors (classic coordinates).
     pub sigma: [f64; 15],
-    /// With the DVL calibration states: `[k̂, roll, pitch, yaw]` and the 1σ of
-    /// `[δk, δμ]`.
+    /// With the DVL error states: `[k̂, roll, pitch, yaw, b̂]` and the 1σ of
+    /// `[δk, δμ, δb]`.
     pub calibration: Option<(DvlErrors, DvlErrors)>,
 }
 

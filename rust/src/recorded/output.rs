@@ -45,10 +45,11 @@ pub struct FilterOutput {
     pub sigma: Vec<[f64; 15]>,
     /// Each stream's rows, in the order of [`super::RecordedData::streams`].
     pub streams: Vec<StreamRecord>,
-    /// `[k̂, roll, pitch, yaw]` of the DVL calibration states per epoch: the scale
-    /// error and the DVL's mounting angles \[rad\] (empty without the states).
+    /// `[k̂, roll, pitch, yaw, b̂]` of the DVL error states per epoch: the scale error,
+    /// the DVL's mounting angles \[rad\] and its correlated velocity error \[m/s, DVL
+    /// axes\] (empty without the states).
     pub calibration: Vec<DvlErrors>,
-    /// 1σ of `[δk, δμ]` per epoch (empty without the calibration states).
+    /// 1σ of `[δk, δμ, δb]` per epoch (empty without the DVL error states).
     pub calibration_sigma: Vec<DvlErrors>,
     /// Covariance at the last epoch.
     pub final_covariance: Matrix15,

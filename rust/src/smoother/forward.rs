@@ -12,7 +12,7 @@ pub struct Forward<'a> {
     pub t0: f64,
     pub nav: &'a [NavState],
     pub bias: &'a [[f64; 6]],
-    /// With the DVL calibration states, their estimate `[k̂, roll, pitch, yaw]` at every
+    /// With the DVL error states, their estimate `[k̂, roll, pitch, yaw, b̂]` at every
     /// epoch (empty without).
     pub calibration: &'a [DvlErrors],
     /// The forward σ of the 15 states at every epoch, and of the calibration states'

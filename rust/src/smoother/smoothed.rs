@@ -17,8 +17,9 @@ pub struct Smoothed {
     pub bias: Vec<[f64; 6]>,
     /// 1σ of the 15 error states in the classic coordinates, per epoch.
     pub sigma: Vec<[f64; 15]>,
-    /// With the DVL calibration states: `[k̂, roll, pitch, yaw]` per epoch, as
-    /// [`crate::recorded::FilterOutput::calibration`], and the 1σ of `[δk, δμ]` (empty without).
+    /// With the DVL error states: `[k̂, roll, pitch, yaw, b̂]` per epoch, as
+    /// [`crate::recorded::FilterOutput::calibration`], and the 1σ of `[δk, δμ, δb]`
+    /// (empty without).
     pub calibration: Vec<DvlErrors>,
     pub calibration_sigma: Vec<DvlErrors>,
     /// The smoothed covariance at each node's epoch (in the order of the nodes), in
