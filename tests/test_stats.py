@@ -70,3 +70,34 @@ def test_bools_are_not_counts() -> None:
     assert stats.t_quantile_975(1) > 12
     with pytest.raises(ValueError, match="df"):
         stats.t_quantile_975(True)  # cached under 1 if the cache were untyped
+
+
+def test_the_divergence_check_s_fast_path_agrees_with_its_epoch_masks() -> None:
+    # Each bound broken alone, at a random epoch, and NaN σ (not computed) beside them.
+    rng = np.random.default_rng(11)
+    n = 500
+    breaks = [
+        ("lla", (0,), np.nan), ("vel", (2,), np.inf), ("vel", (0,), 150.0),
+        ("lla", (2,), -3e4), ("sigma", (1,), 2e6), ("sigma", (0,), np.nan),
+    ]  # fmt: skip
+    for trial in range(60):
+        arrays = {
+            "lla": rng.normal(size=(n, 3)),
+            "vel": rng.normal(size=(n, 3)),
+            "sigma": np.abs(rng.normal(size=(n, 15))),
+        }
+        for name, (col,), value in [breaks[i] for i in rng.choice(6, size=trial % 3)]:
+            arrays[name][rng.integers(n), col] = value
+        lla, vel, sigma = arrays["lla"], arrays["vel"], arrays["sigma"]
+        masks = (
+            ~np.isfinite(lla).all(axis=1) | ~np.isfinite(vel).all(axis=1),
+            np.linalg.norm(vel, axis=1) > stats.MAX_SPEED,
+            np.abs(lla[:, 2]) > stats.MAX_ABS_HEIGHT,
+            np.hypot(sigma[:, 0], sigma[:, 1]) > stats.MAX_POSITION_SIGMA,
+        )
+        broken = any(m.any() for m in masks)
+        message = stats.divergence(lla, vel, sigma, np.arange(n) * 0.1)
+        assert (message != "") == broken, (trial, message)
+        if broken:
+            first = min(int(np.argmax(m)) for m in masks if m.any())
+            assert f"(epoch {first})" in message

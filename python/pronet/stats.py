@@ -411,6 +411,8 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64) -> str:
     ``sigma`` ``(n, 15)`` at ``time`` [s] left physical bounds (non-finite, a speed over
     :data:`MAX_SPEED`, a height beyond ±:data:`MAX_ABS_HEIGHT`, a horizontal 1σ over
     :data:`MAX_POSITION_SIGMA`), naming the first epoch; "" where it did not."""
+    if _within_bounds(lla, vel, sigma):
+        return ""  # the usual case, in one pass of reductions (an epoch's mask is dearer)
     speed = np.linalg.norm(vel, axis=1)
     horizontal = np.hypot(sigma[:, 0], sigma[:, 1])
     checks = (
@@ -427,6 +429,24 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64) -> str:
         f"the pass diverged: its solution {what} from t = {time[k]:.6g} s (epoch {k}): "
         "check the IMU's units and frame (FRD, m/s², rad/s), the initial state, the "
         "streams' σ and the process noise"
+    )
+
+
+def _within_bounds(lla: F64, vel: F64, sigma: F64) -> bool:
+    """Whether no epoch breaks a bound of :func:`divergence` (a NaN σ breaks none, as
+    there), by whole-array reductions."""
+    if len(lla) == 0:
+        return True
+    if not (np.isfinite(lla).all() and np.isfinite(vel).all()):
+        return False
+    with np.errstate(over="ignore", invalid="ignore"):
+        speed2 = np.einsum("ij,ij->i", vel, vel)
+        horizontal2 = sigma[:, 0] ** 2 + sigma[:, 1] ** 2
+    # fmax skips NaN (a σ not computed), as the comparisons in divergence do
+    return bool(
+        speed2.max() <= MAX_SPEED**2
+        and np.abs(lla[:, 2]).max() <= MAX_ABS_HEIGHT
+        and not np.fmax.reduce(horizontal2) > MAX_POSITION_SIGMA**2
     )
 
 
