@@ -163,3 +163,5 @@ def test_a_thinned_smoothed_pass_is_the_every_epoch_one_and_a_monte_carlo_smooth
     assert mc.smoothed is not None
     assert np.all(mc.smoothed.sigma <= mc.sigma * (1 + 1e-12))
     assert np.all(np.isfinite(mc.smoothed.error))
+    # the scale and mounting held: no calibration error or NEES reported for them
+    assert mc.calibration_error is None and mc.calibration_nees is None

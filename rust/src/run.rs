@@ -306,7 +306,8 @@ impl Run {
                     gate: cfg.innovation_gate,
                 }));
             } else {
-                let calibrated = self.pass.ekf.calibration.is_some();
+                let calibrated =
+                    (self.pass.ekf.calibration.as_ref()).is_some_and(|c| c.calibrates());
                 self.updates.missed(calibrated);
                 if let Some(log) = self.smoother.as_mut() {
                     log.update_epochs.push(None);

@@ -59,6 +59,9 @@ pub struct CalibrationConfig {
     pub scale_psd: f64,
     /// Random-walk PSD of each misalignment angle \[rad²/s\] (0: constants).
     pub misalignment_psd: f64,
+    /// Whether the scale and misalignment are part of the model (false: held at their
+    /// nominal values, σ 0, the correlated error alone estimated).
+    pub calibrated: bool,
     /// Stationary 1σ of the DVL's correlated velocity error per DVL axis \[m/s\]
     /// (0: none; the prior is the same σ).
     pub bias_sigma: [f64; 3],
@@ -75,6 +78,7 @@ impl Default for CalibrationConfig {
             misalignment_sigma: [1f64.to_radians(); 3],
             scale_psd: 0.0,
             misalignment_psd: 0.0,
+            calibrated: true,
             bias_sigma: [0.0; 3],
             bias_time_constant: DEFAULT_BIAS_TIME_CONSTANT,
         }
@@ -95,12 +99,9 @@ impl CalibrationConfig {
         Ok(())
     }
 
-    /// Whether the scale and misalignment are estimated (a σ or a walk above 0).
+    /// Whether the scale and misalignment are estimated ([`Self::calibrated`]).
     pub fn calibrates(&self) -> bool {
-        self.scale_sigma > 0.0
-            || self.misalignment_sigma.iter().any(|s| *s > 0.0)
-            || self.scale_psd > 0.0
-            || self.misalignment_psd > 0.0
+        self.calibrated
     }
 
     /// Whether the correlated velocity error is modelled (a σ above 0).
@@ -271,6 +272,12 @@ impl Calibration {
         correct_dvl(&mut self.estimate, &mut self.bias, dc);
     }
 
+    /// Whether the scale and misalignment are estimated
+    /// ([`CalibrationConfig::calibrates`]).
+    pub fn calibrates(&self) -> bool {
+        self.cfg.calibrates()
+    }
+
     /// 1σ of `[δk, δμ, δb]` (a negative rounding residue gives 0).
     pub fn sigma(&self) -> DvlErrors {
         std::array::from_fn(|i| self.cov[(i, i)].max(0.0).sqrt())
@@ -409,6 +416,7 @@ mod tests {
         let bias = CalibrationConfig {
             scale_sigma: 0.0,
             misalignment_sigma: [0.0; 3],
+            calibrated: false,
             bias_sigma: [0.1; 3],
             ..cal
         };

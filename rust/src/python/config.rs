@@ -139,6 +139,7 @@ impl PyFilterConfig {
             bias_sigma.map(|_| CalibrationConfig {
                 scale_sigma: 0.0,
                 misalignment_sigma: [0.0; 3],
+                calibrated: false,
                 ..bias
             })
         };

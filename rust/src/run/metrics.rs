@@ -101,12 +101,13 @@ pub(super) fn solution_error(
 }
 
 /// `[δk, δμ]` of the filter's DVL calibration against the simulated DVL's, with its
-/// NEES `eᵀ P_cc⁻¹ e` (NaN where P_cc is singular); None without the states.
+/// NEES `eᵀ P_cc⁻¹ e` (NaN where P_cc is singular); None without the states, or where
+/// only the DVL's correlated error is estimated (the scale and mounting held).
 pub(super) fn calibration_error(
     ekf: &Ekf,
     truth: &DvlMounting,
 ) -> Option<([f64; 4], [f64; 4], f64)> {
-    let c = ekf.calibration.as_ref()?;
+    let c = ekf.calibration.as_ref().filter(|c| c.calibrates())?;
     let e = c.estimate.error_from(truth);
     let v = Vector4::from(e);
     let cov: Matrix4<f64> = c.cov.fixed_view::<4, 4>(0, 0).into_owned();

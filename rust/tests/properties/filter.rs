@@ -42,6 +42,7 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
                         misalignment_sigma: [10f64.powf(e[1]), 10f64.powf(e[2]), 10f64.powf(e[3])],
                         scale_psd: 10f64.powf(e[4]),
                         misalignment_psd: 0.0,
+                        calibrated: true,
                         // the DVL's correlated error too, in half the cases
                         bias_sigma: [if e[4] < -3.0 {
                             10f64.powf(e[0] - 1.0)
