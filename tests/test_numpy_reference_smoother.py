@@ -11,7 +11,8 @@ import pronet
 
 from numpy_reference_ekf import dcm_from_euler, run_reference_filter
 from numpy_reference_smoother import rts_smooth
-from test_numpy_reference_ekf import FAR_DISTANCE, P0, Q, _inputs, far_inputs
+from test_numpy_reference_ekf import P0, Q, _inputs
+from test_numpy_reference_far import FAR_DISTANCE, far_inputs
 
 
 def _both(aiding: str, lever_arm, formulation: str, strategy=None, covariance_step=0.0):
@@ -171,7 +172,7 @@ def test_rust_smoother_with_dvl_calibration_states_matches_reference(
 
 def _far_smoothed(formulation: str, covariance_step: float):
     """The core's smoothed and forward runs, and the reference's smoothed one, on the
-    run of ``test_numpy_reference_ekf.py`` that goes 4.8 km from SE₂(3)'s anchor (a
+    run of ``test_numpy_reference_far.py`` that goes 4.8 km from SE₂(3)'s anchor (a
     DVL, depths and fixes at their lever arms)."""
     (imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0), a, tuning = far_inputs(covariance_step)
     streams = [
