@@ -307,7 +307,14 @@ def run_reference_filter(
     ``fix_nis`` and ``heading_nis`` (one per row applied). ``lever_arm`` with
     ``aiding="nav"``: ``h = v̂ + Ĉ (ω̂ × r)`` (``nav_velocity_h``)."""
     from numpy_reference_dvl import DvlErrors
-    from numpy_reference_se23 import corrected_lla, displacement, position_h_psi, t_matrix, to_se23
+    from numpy_reference_se23 import (
+        anchor_metres,
+        corrected_lla,
+        displacement,
+        position_h_psi,
+        t_matrix,
+        to_se23,
+    )
 
     invariant, se23 = formulation in ("invariant", "se23"), formulation == "se23"
     anchor = np.array(lla0 if anchor is None else anchor, dtype=float)
@@ -427,9 +434,11 @@ def run_reference_filter(
                     # re-linearized at the estimate the last component corrected
                     nu = fix_innovation(z, lla, c, fix_arm, axis)
                     h_row = position_h_row(axis, c, fix_arm, n_x)
-                    if se23:
+                    k = anchor_metres(lla, anchor, axis) if se23 else 1.0
+                    if se23:  # the reading in the anchor's metres, those of δP
+                        nu, h_row[6:9] = k * nu, k * h_row[6:9]
                         h_row[6:9] += position_h_psi(disp_at(lla), axis)
-                    dx, one = scalar(h_row, nu, sig[axis] ** 2)
+                    dx, one = scalar(h_row, nu, (k * sig[axis]) ** 2)
                     total += dx
                     nis += one
                 out["fix_nis"].append(nis)

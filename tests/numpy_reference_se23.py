@@ -29,6 +29,17 @@ def displacement(lla: np.ndarray, anchor: np.ndarray) -> np.ndarray:
     )
 
 
+def anchor_metres(lla: np.ndarray, anchor: np.ndarray, axis: int) -> float:
+    """Metres at ``anchor`` per metre at ``lla`` along NED ``axis`` (1 down): the scale
+    a fix read at the estimate takes to be in δP's metres."""
+    if axis == 2:
+        return 1.0
+    here, there = radii(lla[0]), radii(anchor[0])
+    if axis == 0:
+        return (there[0] + anchor[2]) / (here[0] + lla[2])
+    return (there[1] + anchor[2]) * math.cos(anchor[0]) / ((here[1] + lla[2]) * math.cos(lla[0]))
+
+
 def position(disp: np.ndarray, anchor: np.ndarray) -> np.ndarray:
     """The geodetic ``[lat, lon, h]`` whose ``displacement`` from ``anchor`` is ``disp``."""
     rn, re = radii(anchor[0])

@@ -28,7 +28,7 @@ from numpy_reference_ekf import (
     radii,
     strapdown_step,
 )
-from numpy_reference_se23 import displacement, position, position_h_psi, to_se23
+from numpy_reference_se23 import anchor_metres, displacement, position, position_h_psi, to_se23
 
 LLA = np.array([math.radians(32.5), math.radians(34.8), -12.0])
 VEL = np.array([1.3, -0.4, 0.2])
@@ -64,9 +64,13 @@ def _estimate(dx: np.ndarray, formulation: str):
 def _model(name: str, formulation: str):
     """``(h, H)`` of a measurement at an estimate ``(lla, v, C, ω)``: ``h(x̂) − h(x) ≈
     H δx``. The fix is read through the filter's innovation, ``−ν``, against the fix
-    of the true antenna. In SE₂(3) the position rows gain ``[p̂×]`` on ψ."""
+    of the true antenna (in SE₂(3) in the anchor's metres, its position error's). In
+    SE₂(3) the position rows gain ``[p̂×]`` on ψ."""
     z_fix = fix_prediction(LLA, C_TRUE, ARM)
     invariant = formulation != "classic"
+
+    def metres(s, i: int) -> float:  # in SE₂(3) the reading is in δP's metres
+        return anchor_metres(s[0], ANCHOR, i) if formulation == "se23" else 1.0
 
     def position_rows(s, rows, axes):
         if formulation == "se23":
@@ -80,9 +84,23 @@ def _model(name: str, formulation: str):
             lambda s: position_rows(s, depth_h_row(s[2], ARM)[None], [2]),
         ),
         "fix": (
-            lambda s: -np.array([fix_innovation(z_fix, s[0], s[2], ARM, i) for i in range(3)]),
+            lambda s: (
+                -np.array(
+                    [metres(s, i) * fix_innovation(z_fix, s[0], s[2], ARM, i) for i in range(3)]
+                )
+            ),
             lambda s: position_rows(
-                s, np.array([position_h_row(i, s[2], ARM) for i in range(3)]), [0, 1, 2]
+                s,
+                np.array(
+                    [
+                        np.r_[
+                            position_h_row(i, s[2], ARM)[:6],
+                            metres(s, i) * position_h_row(i, s[2], ARM)[6:],
+                        ]
+                        for i in range(3)
+                    ]
+                ),
+                [0, 1, 2],
             ),  # fmt: skip
         ),
         "heading": (
@@ -107,10 +125,9 @@ def test_measurement_h_is_the_derivative_of_the_prediction(name, formulation) ->
     included). The fix's position columns carry terms of order |r|/R (2e-7 here: the
     metres of an arm at the estimate's latitude and height against the truth's), which
     the filter leaves out; everything else agrees to rounding (in SE₂(3), 3.9 km from
-    the anchor, to the differences' third-order terms, ψ² |p̂| ~ 5e-8, and for a fix
-    but for the metres of the anchor, ``_anchor_metres``, to the rounding of the
-    latitude moved by ψ |p̂|, 3e-5, and the metres of its arm at the latitude so moved,
-    |r| |p̂| (1 + tan φ)/R ~ 1.5e-3)."""
+    the anchor, to the differences' third-order terms, ψ² |p̂| ~ 5e-8; its fix is read
+    in the anchor's metres, those of δP, and its arm's metres at the latitude moved by
+    ψ |p̂| differ by |r| |p̂| (1 + tan φ)/R ~ 1.5e-3 m)."""
     h, big_h = _model(name, formulation)
     truth = _estimate(np.zeros(15), formulation)
     steps = np.repeat([1.0, 1e-4, 1e-5, 1e-4, 1e-6], 3)
@@ -124,37 +141,14 @@ def test_measurement_h_is_the_derivative_of_the_prediction(name, formulation) ->
     if formulation == "se23":
         atol += 1e-7
         if name == "fix":
-            want = _anchor_metres(want, truth[0])
             arm_metres = np.linalg.norm(ARM) * np.linalg.norm(displacement(LLA, ANCHOR)) / 6.36e6
-            atol += 1e-4 + 2 * arm_metres
+            atol += 2 * arm_metres
     np.testing.assert_allclose(jac, want, rtol=0, atol=atol)
-
-
-def _anchor_metres(big_h: np.ndarray, lla: np.ndarray) -> np.ndarray:
-    """The derivative of a fix's innovation in SE₂(3) from its H: δP is in metres at
-    the anchor (``displacement``), the innovation in metres at the estimate, so its
-    north and east rows are H's with the position error's part (δP and ``[p̂×]`` on ψ)
-    scaled by the estimate's metres per anchor metre, ``1 − tan φ Δφ`` east (3e-4 off
-    here, 1 % 100 km north of an anchor at 32°): a term of order |p̂|/R the filter
-    leaves out, as it does in ``ṗ̂ = v̂`` (docs/reference/filter.md)."""
-    rn, re = radii(lla[0])
-    rn0, re0 = radii(ANCHOR[0])
-    scale = [
-        (rn + lla[2]) / (rn0 + ANCHOR[2]),
-        (re + lla[2]) * math.cos(lla[0]) / ((re0 + ANCHOR[2]) * math.cos(ANCHOR[0])),
-    ]
-    assert 2e-4 < 1 - scale[1] < 4e-4  # the truth 3 km north of the anchor at 32.5°
-    want = big_h.copy()
-    disp = displacement(lla, ANCHOR)
-    for i, s in enumerate(scale):
-        want[i, 0:3] *= s
-        want[i, 6:9] += (s - 1) * position_h_psi(disp, i)
-    return want
 
 
 @pytest.mark.parametrize(
     ("formulation", "name"),
-    [(f, n) for f in ("classic", "invariant", "se23") for n in MODELS if (f, n) != ("se23", "fix")],
+    [(f, n) for f in ("classic", "invariant", "se23") for n in MODELS],
 )
 def test_measurement_h_predicts_the_change_to_second_order(name, formulation) -> None:
     """``h(x̂) − h(x)`` against ``H δx`` for one estimate off the truth in every state at
@@ -163,8 +157,8 @@ def test_measurement_h_predicts_the_change_to_second_order(name, formulation) ->
     remainder is second order: under 10 ε relative at perturbations ε (ψ, δv, δb; δp
     1e-2 m) and 100 times less when they shrink tenfold (but for the fix, whose
     remainder is the rounding of the latitude, 1e-9 m). In SE₂(3) δP shrinks with the
-    rest, since it multiplies ψ (``[δP×]ψ``); its fix is first order off by the metres
-    of the anchor (``_anchor_metres``), and left out."""
+    rest, since it multiplies ψ (``[δP×]ψ``); its fix is read in the anchor's metres,
+    those of δP (before, in the estimate's, it was first order off by their ratio)."""
     h, big_h = _model(name, formulation)
     truth = _estimate(np.zeros(15), formulation)
     u = np.random.default_rng(3).normal(size=15)

@@ -27,20 +27,23 @@ impl Measurement for Depth {
 
     fn linearize(&self, _: usize, ekf: &Ekf) -> Linearized {
         let z = self.z + ekf.nav.lla[2]; // z − ẑ with ẑ = −ĥ at the IMU
-        position_component(ekf, &self.lever_arm, 2, z, self.sigma * self.sigma)
+        position_component(ekf, &self.lever_arm, 2, z, self.sigma * self.sigma, 1.0)
     }
 }
 
 /// The scalar update of a position component `axis` (0 north, 1 east, 2 down) read at
-/// `lever_arm` from the IMU, its innovation at the IMU `at_imu` and its variance `r`:
-/// the unit row on δp at the IMU in the classic and invariant formulations; otherwise
-/// [`offset_row`], and in SE₂(3) (`δp = δP + [p̂×]ψ`) row `axis` of `[p̂×]` added on ψ.
+/// `lever_arm` from the IMU, its innovation at the IMU `at_imu` and its variance `r`
+/// (metres at the estimate), taken in metres `scale` times those (SE₂(3)'s anchor's;
+/// 1 otherwise): the unit row on δp at the IMU in the classic and invariant
+/// formulations; otherwise [`offset_row`], and in SE₂(3) (`δp = δP + [p̂×]ψ`, both in
+/// the anchor's metres) row `axis` of `[p̂×]` added on ψ.
 pub(super) fn position_component(
     ekf: &Ekf,
     lever_arm: &Vector3<f64>,
     axis: usize,
     at_imu: f64,
     r: f64,
+    scale: f64,
 ) -> Linearized {
     let se23 = ekf.config().formulation.position_invariant();
     if *lever_arm == Vector3::zeros() && !se23 {
@@ -52,9 +55,16 @@ pub(super) fn position_component(
     }
     let (innovation, mut row) = offset_row(ekf, lever_arm, axis, at_imu);
     if se23 {
+        // the reading in the anchor's metres: all but δP's unit scaled, then [p̂×]
         let d = skew(&ekf.point().disp);
         let mut att = row.fixed_columns_mut::<3>(ATT);
+        att *= scale;
         att += d.row(axis);
+        return Linearized::Scalar {
+            innovation: scale * innovation,
+            row: ScalarRow::Row(row),
+            r: scale * scale * r,
+        };
     }
     Linearized::Scalar {
         innovation,

@@ -5,7 +5,10 @@
 //! linearized at the estimate the previous one left: `ν_N = (φ − φ̂)(R_N + ĥ) − (Ĉr)_N`,
 //! `ν_E = (λ − λ̂)(R_E + ĥ) cos φ̂ − (Ĉr)_E` (the longitude difference wrapped into
 //! (−π, π]), `ν_D = (ĥ − h) − (Ĉr)_D`; `H = e_i` on δp plus row i of `[(Ĉ r)×]` on ψ
-//! (and of `[p̂×]` in SE₂(3)).
+//! (and of `[p̂×]` in SE₂(3)). In SE₂(3) the reading is taken in the anchor's metres,
+//! those its position error `δP` is in: innovation, arm and σ scaled by the anchor's
+//! metres per metre at the estimate, so that H is exact however far the estimate is
+//! from the anchor.
 //! No innovation gate applies. `docs/reference/aiding.md`, "Position and depth updates" and
 //! "Lever arms and heading".
 
@@ -47,8 +50,34 @@ impl Measurement for Fix {
             _ => h - fix[2],
         };
         let r = self.sigma[axis] * self.sigma[axis];
-        position_component(ekf, &self.lever_arm, axis, at_imu, r)
+        position_component(
+            ekf,
+            &self.lever_arm,
+            axis,
+            at_imu,
+            r,
+            anchor_metres(ekf, axis),
+        )
     }
+}
+
+/// Anchor metres per metre at the estimate along `axis` in SE₂(3) (its position error
+/// `δP` is in the anchor's metres: the radii, height and latitude of the anchor), 1 in
+/// the other formulations and down: `(R_N₀ + h₀)/(R_N + ĥ)` north,
+/// `(R_E₀ + h₀) cos φ₀ / ((R_E + ĥ) cos φ̂)` east.
+fn anchor_metres(ekf: &Ekf, axis: usize) -> f64 {
+    let coordinates = ekf.config().coordinates();
+    if !coordinates.formulation.position_invariant() || axis == 2 {
+        return 1.0;
+    }
+    let metres = |lla: &Vector3<f64>| {
+        let (r_n, r_e) = earth::radii(lla[0]);
+        match axis {
+            0 => r_n + lla[2],
+            _ => (r_e + lla[2]) * lla[0].cos(),
+        }
+    };
+    metres(&coordinates.anchor) / metres(&ekf.nav.lla)
 }
 
 /// `lon − lon_hat` \[rad\] wrapped into (−π, π]: longitude is periodic (a fix across the
