@@ -69,7 +69,7 @@ def test_chance_bound_is_the_smallest_k_at_the_level(n: int) -> None:
 def test_bools_are_not_counts() -> None:
     assert stats.t_quantile_975(1) > 12
     with pytest.raises(ValueError, match="df"):
-        stats.t_quantile_975(True)  # cached under 1 if the cache were untyped
+        stats.t_quantile_975(True)
 
 
 def test_the_divergence_check_s_fast_path_agrees_with_its_epoch_masks() -> None:

@@ -23,15 +23,14 @@ probability where a χ² value belongs rejects them all."""
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-import scipy.stats
 from numpy.typing import ArrayLike, NDArray
+from scipy import special
 
 from pronet import _core
 from pronet._util.validate import count, real_array
@@ -46,26 +45,25 @@ NON_NEGATIVE = (0.0, math.inf)
 SHARE = (0.0, 1.0)
 
 
-# cached: a table asks for the same few, at ~0.1 ms each; typed, so True is not 1
-@functools.lru_cache(maxsize=4096, typed=True)
 def t_quantile_975(df: int) -> float:
-    """97.5 % quantile of Student's t with ``df`` degrees of freedom (``scipy.stats.t``;
-    e.g. 12.706 for df = 1, 2.262 for df = 9, 1.984 for df = 99)."""
+    """97.5 % quantile of Student's t with ``df`` degrees of freedom (``scipy.special``'s
+    inverse of its CDF, as ``scipy.stats.t.ppf``; e.g. 12.706 for df = 1, 2.262 for
+    df = 9, 1.984 for df = 99)."""
     if count(df, "df") < 1:
         raise ValueError(f"df: must be >= 1, got {df}")
     # beyond 2**53 the quantile equals the normal one to float64 resolution
-    return float(scipy.stats.t.ppf(0.975, min(df, 2**53)))
+    return float(special.stdtrit(min(df, 2**53), 0.975))
 
 
-@functools.lru_cache(maxsize=4096, typed=True)
 def chi2_mean_band(dof: int, runs: int) -> tuple[float, float]:
     """The 95 % band of the mean over ``runs`` independent χ² values of ``dof`` degrees
     of freedom (a consistent filter's mean NEES or NIS at one epoch): the 2.5 % and
-    97.5 % quantiles of χ²(runs·dof)/runs (``scipy.stats.chi2``)."""
+    97.5 % quantiles of χ²(runs·dof)/runs (``scipy.special``'s inverse of the χ²
+    survival function)."""
     if count(dof, "dof") < 1 or count(runs, "runs") < 1:
         raise ValueError(f"dof and runs: must be >= 1, got {dof} and {runs}")
-    low, high = scipy.stats.chi2.ppf([0.025, 0.975], dof * runs) / runs
-    return float(low), float(high)
+    nu = dof * runs
+    return float(special.chdtri(nu, 0.975)) / runs, float(special.chdtri(nu, 0.025)) / runs
 
 
 #: How a table prints a statistic that is undefined (a mean NIS without an update, an
@@ -126,6 +124,10 @@ def _bootstrap_ci(x: np.ndarray, mean: float) -> MeanCI:
     """The percentile-bootstrap 95 % CI of the mean of ``x`` (at least two values;
     ``scipy.stats.bootstrap``, :data:`BOOTSTRAP` resamples, a fixed seed): its bounds
     lie within ``[min(x), max(x)]``, so within any range the values respect."""
+    # here, not with the package: scipy.stats takes 0.35 s and 46 MiB to import, and
+    # only a table's interval at a quantity's edge reads it
+    import scipy.stats
+
     # scaled as mean_ci does, so that values near the float64 limit do not overflow
     e = int(np.frexp(np.abs(x).max())[1])
     res = scipy.stats.bootstrap(
@@ -533,8 +535,10 @@ def runs_outside_band(nis: F64, dof: int = 3) -> NDArray[np.bool_]:
 def chance_bound(n: int, p: float = 0.05, level: float = 0.99) -> int:
     """The most of ``n`` independent trials that land outside a band of probability
     ``1 − p`` by chance, at ``level``: the smallest ``k`` with P(Binomial(n, p) ≤ k) ≥
-    ``level`` (``scipy.stats.binom``)."""
-    return int(scipy.stats.binom.ppf(level, n, p))
+    ``level`` (``scipy.special``'s binomial CDF)."""
+    cdf = special.bdtr(np.arange(n + 1), n, p)
+    reached = np.flatnonzero(cdf >= level)
+    return int(reached[0]) if len(reached) else n
 
 
 def runs_flag(label: str, outside: NDArray[np.bool_], what: str = "DVL") -> str:
