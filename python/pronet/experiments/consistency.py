@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
 from pronet import _core
-from pronet.montecarlo import STATE_BLOCKS, monte_carlo
+from pronet.montecarlo import STATE_BLOCKS, MonteCarloResult, monte_carlo
 
 #: The filter's velocity-error coordinates (:class:`pronet.FilterConfig`).
 Formulation = Literal["invariant", "classic", "se23"]
@@ -117,6 +117,36 @@ def filter_config(grade: str, formulation: Formulation) -> _core.FilterConfig:
     )
 
 
+def _monte_carlo(
+    what: tuple[str, Formulation, list, str],
+    how: tuple[int, int, int, bool, bool],
+    **aiding: Any,
+) -> MonteCarloResult:
+    """The constant-Q Monte Carlo of ``what`` = (``grade``'s IMU, the filter's
+    formulation, trajectory segments and their name) from the cells' start (32° N,
+    34° E, 20 m deep, 1.5 m/s), its white noise and bias walks simulated and the filter
+    told them (:func:`filter_config`), a DVL of σ :data:`DVL_SIGMA` and ``aiding``'s
+    other sensor keys; ``how`` = (runs, seed, record_every, sample_initial_error,
+    smooth)."""
+    grade, formulation, segments, name = what
+    runs, seed, record_every, draw, smooth = how
+    g = GRADES[grade]
+    q = [g["q_a"]] * 3 + [g["q_g"]] * 3
+    trajectory = _core.trajectory_from_segments(
+        np.array(segments), lla0=[32.0 * _DEG, 34.0 * _DEG, -20.0], speed0=1.5, dt=0.01,
+        name=name,
+    )  # fmt: skip
+    sensors = _core.SensorConfig(
+        imu_variance=q, imu_bias_psd=[g["w_a"]] * 3 + [g["w_g"]] * 3,
+        dvl_variance=[DVL_SIGMA**2] * 3, **aiding,
+    )  # fmt: skip
+    return monte_carlo(
+        trajectory, _core.Strategy.constant(q), sensors=sensors,
+        config=filter_config(grade, formulation), n_runs=runs, seed=seed,
+        record_every=record_every, sample_initial_error=draw, smooth=smooth,
+    )  # fmt: skip
+
+
 def run_cell(
     grade: str,
     motion: str,
@@ -129,30 +159,11 @@ def run_cell(
 ) -> Cell:
     """Run one cell (see the module's docstring)."""
     g = GRADES[grade]
-    q = [g["q_a"]] * 3 + [g["q_g"]] * 3
-    trajectory = _core.trajectory_from_segments(
-        np.array(MOTIONS[motion]),
-        lla0=[32.0 * _DEG, 34.0 * _DEG, -20.0],
-        speed0=1.5,
-        dt=0.01,
-        name=motion,
-    )
-    sensors = _core.SensorConfig(
-        imu_variance=q,
-        imu_bias_psd=[g["w_a"]] * 3 + [g["w_g"]] * 3,
-        dvl_variance=[DVL_SIGMA**2] * 3,
-        dvl_period=1.0 / dvl_hz,
-    )
     every = int(round(100 / dvl_hz))
-    out = monte_carlo(
-        trajectory,
-        _core.Strategy.constant(q),
-        sensors=sensors,
-        config=filter_config(grade, formulation),
-        n_runs=runs,
-        seed=seed,
-        record_every=every * 50,
-        sample_initial_error=draw,
+    out = _monte_carlo(
+        (grade, formulation, MOTIONS[motion], motion),
+        (runs, seed, every * 50, draw, False),
+        dvl_period=1.0 / dvl_hz,
     )
     error, sigma = out.error, out.sigma
     assert error is not None and sigma is not None  # record_every > 0
@@ -229,34 +240,13 @@ def run_lawnmower(
     told the exact model (:func:`filter_config`), every initial error drawn from P0,
     smoothed too. The position block's NEES is taken in the filter's own coordinates
     (in SE₂(3), ``δP = p̂ − Ĉ Cᵀ p`` about the first position)."""
-    g = GRADES[grade]
-    q = [g["q_a"]] * 3 + [g["q_g"]] * 3
-    trajectory = _core.trajectory_from_segments(
-        np.array(lawnmower_segments(hours)),
-        lla0=[32.0 * _DEG, 34.0 * _DEG, -20.0],
-        speed0=1.5,
-        dt=0.01,
-        name="lawnmower",
-    )
-    sensors = _core.SensorConfig(
-        imu_variance=q,
-        imu_bias_psd=[g["w_a"]] * 3 + [g["w_g"]] * 3,
-        dvl_variance=[DVL_SIGMA**2] * 3,
+    out = _monte_carlo(
+        (grade, formulation, lawnmower_segments(hours), "lawnmower"),
+        (runs, seed, 100 * 60, True, True),
         dvl_period=0.2,
         dvl_dropout=LAWNMOWER_DROPOUT,
         depth_sigma=LAWNMOWER_DEPTH[0],
         depth_period=LAWNMOWER_DEPTH[1],
-    )
-    out = monte_carlo(
-        trajectory,
-        _core.Strategy.constant(q),
-        sensors=sensors,
-        config=filter_config(grade, formulation),
-        n_runs=runs,
-        seed=seed,
-        record_every=100 * 60,
-        sample_initial_error=True,
-        smooth=True,
     )
     smoothed = out.smoothed
     assert smoothed is not None and out.error is not None  # smooth=True, recorded
