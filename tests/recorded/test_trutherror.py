@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,19 +23,13 @@ from pronet.recorded.trutherror import (
     truth_velocity_error,
 )
 
+from .test_real import SNAPIR
 from synthetic_recording import (
     DVL_CLOCK,
     DVL_LEVER_ARM,
     GT_CLOCK,
     IMU_LEVER_ARM,
     synthetic_recording,
-)
-
-#: The Snapir data: ``$PRONET_SNAPIR_DIR``, else ``../shared/data/snapir`` beside the project.
-SNAPIR = Path(
-    os.environ.get(
-        "PRONET_SNAPIR_DIR", Path(__file__).resolve().parents[3] / "shared" / "data" / "snapir"
-    )
 )
 
 
