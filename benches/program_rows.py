@@ -4,7 +4,9 @@ inference, the dataset, the sweep, ``pronet real``, ``reproduce`` and ``study``.
 Definitions:
 - hybrid: ``run_hybrid`` with the shipped detrend net (its forward pass frozen in the
   core), and with the detrended variance (``detvar``), tuning every 1 s, split into
-  time stepping the filters and time in ``predict``.
+  time stepping the filters and time in ``predict``; and ``pronet simulate`` of
+  ``learned:detrend`` over ``constant`` (the acceptance's ratio: process CPU time, every
+  thread, the two alternating; ``--quick`` leaves out the torch float32 loop).
 - real: ``pronet real`` on the Snapir sections (``$PRONET_SNAPIR_DIR``, else
   ``../shared/data/snapir``), every strategy; and reading plus clock estimation per
   section.
@@ -34,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from rows import PAPER_STEPS, SCRIPT, Reference, Row, best_of, from_seconds_target, timed_row
 
+from pronet.experiments.simulation import simulate
 from pronet.learn import dataset, models
 from pronet.learn.hybrid import HybridResult, run_hybrid
 from pronet.learn.models import Regressor
@@ -78,9 +81,12 @@ def bench_hybrid(args: argparse.Namespace, ref: Reference) -> list[Row]:
     choices: list[tuple[str, Regressor, float | None]] = [
         ("ProNet detrend net", net, 3.0),
         ("detrended variance (`detvar`)", models.DetrendedVariance(), 1.5),
-        ("the same detrend net through torch (float32, not frozen)", TorchPass(), None),
     ]
-    rows = []
+    if not args.quick:  # the slowest by far; --quick checks the script, not torch
+        choices.append(
+            ("the same detrend net through torch (float32, not frozen)", TorchPass(), None)
+        )
+    rows = [_learned_over_constant(n, args.repeat)]
     for label, regressor, target in choices:
         wall, out = _best_hybrid(regressor, n, args.repeat)
         rows.append(
@@ -96,6 +102,40 @@ def bench_hybrid(args: argparse.Namespace, ref: Reference) -> list[Row]:
             )
         )
     return rows
+
+
+#: ``learned:detrend`` over ``constant`` in CPU time, as ``pronet simulate`` runs them.
+LEARNED_OVER_CONSTANT_TARGET = 1.5
+
+
+def _simulate_cpu(spec: str, runs: int, folder: Path) -> float:
+    """Process CPU time [s] (every thread) of ``pronet simulate --strategies SPEC`` on
+    ``paper`` at its defaults, without plots, into ``folder``."""
+    t0 = time.process_time()
+    simulate("paper", [spec], folder, n_runs=runs, plots=False)
+    return time.process_time() - t0
+
+
+def _learned_over_constant(runs: int, repeat: int) -> Row:
+    """The learned loop's cost over the constant-Q Monte Carlo it replaces: the two
+    commands alternate, each ``repeat`` times (at least twice), the least CPU of each."""
+    cpu: dict[str, float] = {"constant": np.inf, "learned:detrend": np.inf}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(max(2, repeat)):
+            for spec in cpu:
+                seconds = _simulate_cpu(spec, runs, Path(tmp) / f"{spec}-{i}".replace(":", "-"))
+                cpu[spec] = min(cpu[spec], seconds)
+    ratio = cpu["learned:detrend"] / cpu["constant"]
+    target = LEARNED_OVER_CONSTANT_TARGET
+    return Row(
+        f"`pronet simulate --strategies learned:detrend` over `constant`, CPU, {runs} runs",
+        f"{ratio:.2f}× ({cpu['constant']:.2f} → {cpu['learned:detrend']:.2f} s of CPU)",
+        f"≤ {target}×",
+        ratio <= target,
+        f"{SCRIPT} --only hybrid --runs {runs}",
+        ratio,
+        "x",
+    )
 
 
 def bench_inference(args: argparse.Namespace, ref: Reference) -> list[Row]:
