@@ -49,10 +49,20 @@ seed = 5
 """
 
 
+#: Every port this module has handed out: the kernel may give a closed port again, and
+#: Ray refuses to start when two of its components are given the same one.
+_GIVEN: set[int] = set()
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A free port on the loopback, none handed out before in this process."""
+    while True:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = int(s.getsockname()[1])
+        if port not in _GIVEN:
+            _GIVEN.add(port)
+            return port
 
 
 #: The environment of the nodes and of the sweep: token authentication, this test's token.
