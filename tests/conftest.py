@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -30,3 +31,36 @@ def default_dataset():
     from pronet.learn.dataset import DatasetParams, build_dataset
 
     return build_dataset(DatasetParams())
+
+
+#: The test files that take longest (``pytest --durations``, two workers), longest first.
+#: They are collected before the rest, so that with one file per worker (CI's
+#: ``--dist loadfile``) they start at once and the short files fill in around them,
+#: instead of one worker running them alone at the end (they sort last by name).
+LONGEST_FIRST = (
+    "test_accuracy_gate.py",
+    "test_gate_mutants.py",
+    "learn/test_torchfilter.py",
+    "test_bench_run.py",
+    "recorded/test_navigate.py",
+    "test_numpy_reference_smoother.py",
+    "cli/test_cli.py",
+    "experiments/test_study.py",
+    "test_compare_builds.py",
+    "learn/test_recorded_training.py",
+)
+TESTS = Path(__file__).resolve().parent
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Put the files of :data:`LONGEST_FIRST` first, in its order; the rest keep theirs."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+
+    def key(item: pytest.Item) -> int:
+        try:
+            name = item.path.resolve().relative_to(TESTS).as_posix()
+        except ValueError:  # collected from outside tests/
+            return len(rank)
+        return rank.get(name, len(rank))
+
+    items.sort(key=key)  # stable: the order within a file, and of the rest, is kept

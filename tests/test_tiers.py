@@ -213,3 +213,13 @@ def test_the_reading_agrees_with_pytest_s_collection() -> None:
         if fast_tests(path.read_text())
     }
     assert collected == read
+
+
+def test_the_files_collected_first_exist() -> None:
+    """conftest's ``LONGEST_FIRST`` names test files that exist: a renamed file would
+    otherwise fall back to the end of the collection without a word."""
+    from conftest import LONGEST_FIRST
+
+    missing = [name for name in LONGEST_FIRST if not (TESTS / name).is_file()]
+    assert not missing, f"conftest.LONGEST_FIRST names files that are gone: {missing}"
+    assert len(set(LONGEST_FIRST)) == len(LONGEST_FIRST)
