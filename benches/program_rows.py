@@ -148,6 +148,10 @@ def bench_inference(args: argparse.Namespace, ref: Reference) -> list[Row]:
         if isinstance(model, models.BaselineNet):
             frozen = model.frozen()
             candidates.append((f"{name}, frozen in the core", partial(frozen.predict, windows)))
+            frozen32 = model.frozen(precision="float32")  # what the loops run
+            candidates.append(
+                (f"{name}, frozen in the core, float32", partial(frozen32.predict, windows))
+            )
             candidates.append(
                 (f"{name}, torch float32", partial(model.predict, windows, native=False))
             )

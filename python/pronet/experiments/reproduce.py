@@ -158,6 +158,7 @@ def _shard_store(partial: Path, settings: dict[str, int | float], say: Say | Non
     """The store of finished Monte Carlos, keyed by everything that shapes their numbers:
     shards of another version, other weights or other settings must not be mixed in."""
     from pronet.learn.frozen import shipped_sha256
+    from pronet.learn.hybrid import LOOP_PRECISION
 
     store = ShardStore(
         partial,
@@ -169,6 +170,7 @@ def _shard_store(partial: Path, settings: dict[str, int | float], say: Say | Non
             "pronet": pronet.__version__,
             "native_core": _core.__version__,
             "weights": shipped_sha256(),
+            "loop_precision": LOOP_PRECISION,
         },
     )
     if len(store) and say is not None:

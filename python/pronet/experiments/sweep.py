@@ -334,9 +334,11 @@ class SweepResult:
 
 
 def settings(grid: SweepGrid) -> dict[str, Any]:
-    """What a sweep's numbers depend on: the grid, the versions and the weights of
-    every model it uses (a resumed sweep must match all of it)."""
+    """What a sweep's numbers depend on: the grid, the versions, the weights of every
+    model it uses and the precision the loop runs a CNN in (a resumed sweep must match
+    all of it)."""
     from pronet.learn import frozen, modelfile
+    from pronet.learn.hybrid import LOOP_PRECISION
 
     weights = {}
     for spec in grid.strategies:
@@ -353,6 +355,7 @@ def settings(grid: SweepGrid) -> dict[str, Any]:
         "pronet": pronet.__version__,
         "native_core": _core.__version__,
         "weights": weights,
+        "loop_precision": LOOP_PRECISION,
     }
 
 

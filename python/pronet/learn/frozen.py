@@ -2,20 +2,33 @@
 
 A model file (safetensors weights and a JSON card, :mod:`pronet.learn.modelfile`) holds
 everything the prediction needs. :func:`load_frozen` builds it directly in the core:
-:class:`FrozenNet` for the CNNs (``_core.ConvNet``, float64, equal to the torch
-model's forward pass to ~1e-12 relative) and :class:`pronet.learn.hcf.FrozenHCF` for the HCF
-ensemble. Loops (the hybrid loop, recorded data, the study) use these; torch is needed
-only to train a net or to run one through torch (:func:`pronet.learn.models.load`).
+:class:`FrozenNet` for the CNNs (``_core.ConvNet``) and :class:`pronet.learn.hcf.FrozenHCF`
+for the HCF ensemble. Loops (the hybrid loop, recorded data, the study) use these; torch
+is needed only to train a net or to run one through torch
+(:func:`pronet.learn.models.load`).
+
+A CNN computes in one of two precisions (:data:`Precision`), both deterministic (the
+same bits whatever the batch, thread count or CPU):
+
+- ``"float64"``, the default of :class:`FrozenNet`, :func:`load_frozen`, :func:`conv_net`
+  and ``BaselineNet.predict``: the torch model's function evaluated in float64, equal to
+  its forward pass in float64 to ~1e-12 relative;
+- ``"float32"``: the convolution blocks (convolution, LayerNorm, LeakyReLU, pooling) in
+  float32, ~1.7× as fast, within :data:`FLOAT32_RTOL` of float64 (the window's
+  mean or line, its RMS and the scaling are still taken in float64, then the Linear
+  layers; an accelerometer window's ~9.8 m/s² mean would cancel catastrophically in
+  float32). The loops run the shipped CNNs so
+  (:data:`pronet.learn.hybrid.LOOP_PRECISION`): 1e-5 of q is far below what a
+  regressor's error or the filter can tell apart.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Callable
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -41,6 +54,12 @@ SHIPPED = GRADE_MODELS + PAPER_MODELS
 #: Largest |sample| the nets read [m/s² or rad/s]: beyond it the torch model's float32
 #: LayerNorm overflows, so such windows get NaN (in the core too, for equal answers).
 MAX_SAMPLE = 1e15
+#: The element types a CNN's blocks compute in, in the core (see the module docs).
+Precision = Literal["float64", "float32"]
+PRECISIONS: tuple[Precision, ...] = ("float64", "float32")
+#: How far the float32 predictions may be from the float64 ones (relative): the tests
+#: hold both shipped nets to it over nine decades of q and on raw accelerometer windows.
+FLOAT32_RTOL = 1e-5
 #: The CNN architectures the core implements: the card's ``kind`` → how it prepares a
 #: window.
 NET_KINDS = {"baseline": "centre", "detrend": "detrend"}
@@ -58,20 +77,38 @@ NET_DEFAULTS: dict[str, Any] = {
 }
 
 
+def check_precision(value: object, name: str = "precision") -> Precision:
+    """``value`` if it is one of :data:`PRECISIONS`, else ``ValueError`` naming ``name``."""
+    for p in PRECISIONS:
+        if isinstance(value, str) and value == p:
+            return p
+    raise ValueError(f"{name}: expected 'float64' or 'float32', got {value!r}")
+
+
+class NetBuild(Protocol):
+    """Builds the same net on ``threads`` worker threads in ``precision``."""
+
+    def __call__(
+        self, threads: int | None = None, *, precision: Precision = "float64"
+    ) -> _core.ConvNet: ...
+
+
 class FrozenNet:
     """A CNN regressor's forward pass in pronet's core: ``predict(windows (..., N)) ->
-    q (...)`` [(unit)² per sample], as the net's; ``card``: its model card."""
+    q (...)`` [(unit)² per sample], as the net's; ``card``: its model card;
+    ``precision``: the core's (:data:`Precision`, float64 unless built otherwise)."""
 
     def __init__(
         self,
         core: _core.ConvNet,
         card: dict[str, Any] | None = None,
-        build: Callable[[int | None], _core.ConvNet] | None = None,
+        build: NetBuild | None = None,
     ) -> None:
         self.core = core
         self.window = core.window
+        self.precision: Precision = check_precision(core.precision)
         self.card: dict[str, Any] = card or {}
-        self._build = build  # the same net on other threads
+        self._build = build  # the same net on other threads or in another precision
 
     def predict(self, windows: ArrayLike) -> NDArray[np.float64]:
         w = as_windows(windows, dtype=np.float32)
@@ -82,11 +119,17 @@ class FrozenNet:
         flat = np.ascontiguousarray(w.reshape(-1, self.window))
         return mark_overflow(self.core.predict(flat), flat).reshape(w.shape[:-1])
 
-    def frozen(self, threads: int | None = None) -> FrozenNet:
-        """This net on ``threads`` worker threads (None: as it is)."""
-        if threads is None or self._build is None:
+    def frozen(self, threads: int | None = None, precision: Precision | None = None) -> FrozenNet:
+        """This net on ``threads`` worker threads, in ``precision`` (None: as it is)."""
+        precision = self.precision if precision is None else check_precision(precision)
+        if (threads is None or self._build is None) and precision == self.precision:
             return self
-        return FrozenNet(self._build(threads), self.card, self._build)
+        if self._build is None:
+            raise ValueError(
+                f"precision: this net was built from a core alone, in {self.precision}; "
+                "build it with conv_net(..., precision=...)"
+            )
+        return FrozenNet(self._build(threads, precision=precision), self.card, self._build)
 
 
 def mark_overflow(q: NDArray[np.float64], flat: NDArray[np.float32]) -> NDArray[np.float64]:
@@ -129,9 +172,13 @@ def conv_net(
     tensors: dict[str, NDArray[Any]],
     threads: int | None = None,
     norm_eps: float = 1e-5,
+    *,
+    precision: Precision = "float64",
 ) -> _core.ConvNet:
     """The core's forward pass of a ``kind`` net (:data:`NET_KINDS`) with architecture
-    ``arch`` and weights ``tensors`` (state-dict names, as :func:`net_shapes`)."""
+    ``arch`` and weights ``tensors`` (state-dict names, as :func:`net_shapes`), on
+    ``threads`` worker threads, computing in ``precision`` (:data:`Precision`)."""
+    precision = check_precision(precision)
 
     def f32(name: str) -> NDArray[np.float32]:
         return np.ascontiguousarray(tensors[name], dtype=np.float32)
@@ -163,6 +210,7 @@ def conv_net(
         negative_slope=0.01,
         ramp=detrend_ramp(window) if kind == "detrend" else None,
         threads=threads,
+        precision=precision,
     )
 
 
@@ -236,16 +284,20 @@ def read_model(
 
 
 def load_frozen(
-    name_or_path: str | os.PathLike[str], threads: int | None = None
+    name_or_path: str | os.PathLike[str],
+    threads: int | None = None,
+    precision: Precision = "float64",
 ) -> FrozenNet | FrozenHCF:
     """A shipped model by name or a model file by path (as :func:`pronet.learn.models.load`),
-    frozen in the core without torch. Raises ``ModelFileError`` (a ``ValueError``)
-    naming the file if it is missing, corrupted, truncated or not what its card says;
-    a bad ``threads`` (or ``RAYON_NUM_THREADS``) is a ``ValueError`` naming it, before
-    the model is read."""
+    frozen in the core without torch; a CNN computes in ``precision`` (:data:`Precision`;
+    the HCF ensemble ignores it). Raises ``ModelFileError`` (a ``ValueError``) naming the
+    file if it is missing, corrupted, truncated or not what its card says; a bad
+    ``threads`` (or ``RAYON_NUM_THREADS``) or ``precision`` is a ``ValueError`` naming
+    it, before the model is read."""
     from pronet.learn.hcf import HCFEnsemble
 
     threads = check_threads(threads, "threads")
+    precision = check_precision(precision)
     tensors, card, weights, card_file = read_model(name_or_path)
     kind = card.get("kind")
     if kind == "hcf":
@@ -254,7 +306,7 @@ def load_frozen(
         raise modelfile.ModelFileError(f"{card_file}: unknown model kind {kind!r}")
     arch = checked_architecture(card, tensors, weights, card_file)
     try:
-        core = conv_net(kind, arch, tensors, threads)
+        core = conv_net(kind, arch, tensors, threads, precision=precision)
         build = partial(conv_net, kind, arch, tensors)
     except (TypeError, KeyError) as exc:
         raise modelfile.ModelFileError(f"{card_file}: bad architecture ({exc})") from None

@@ -327,6 +327,7 @@ arg_converters! {
     arg_aiding: String = text_arg("aiding");
     arg_formulation: String = text_arg("formulation");
     arg_epochs: String = text_arg("epochs");
+    arg_precision: String = text_arg("precision");
     arg_window: usize = whole_arg("window");
     arg_n_runs: usize = whole_arg("n_runs");
     arg_n_samples: usize = whole_arg("n_samples");

@@ -1,10 +1,10 @@
 //! The torch weights of a ProNet CNN ([`ConvBlockWeights`], [`DenseWeights`]), and how
 //! they are checked and laid out for its forward pass ([`super::ConvNet`]): each
-//! block's kernel as a `(kernel·c_in) × c_pad` matrix for the tiled convolution, each
-//! Linear layer input-major in float64.
+//! block's kernel as a `(kernel·c_in) × c_pad` matrix for the tiled convolution, in
+//! float64 or float32, each Linear layer input-major in float64.
 
 use super::super::aligned::Aligned;
-use super::super::conv1d::LANES;
+use super::super::element::Real;
 use crate::error::{Error, Result};
 
 /// One Conv1d → LayerNorm → LeakyReLU block, in torch's layouts.
@@ -35,16 +35,16 @@ pub struct DenseWeights {
     pub n_out: usize,
 }
 
-/// A block laid out for the tiled convolution.
+/// A block laid out for the tiled convolution in `T`.
 #[derive(Clone, Debug)]
-pub(super) struct Block {
+pub(super) struct Block<T: Real> {
     /// `(kernel·c_in) × c_pad`: row `k·c_in + i`, column o is torch's `weight[o, i, k]`;
     /// columns beyond `c_out` are zero.
-    pub(super) w: Aligned,
-    pub(super) bias: Aligned,
-    pub(super) gamma: Aligned,
-    pub(super) beta: Aligned,
-    pub(super) eps: f64,
+    pub(super) w: Aligned<T>,
+    pub(super) bias: Aligned<T>,
+    pub(super) gamma: Aligned<T>,
+    pub(super) beta: Aligned<T>,
+    pub(super) eps: T,
     pub(super) c_in: usize,
     pub(super) c_out: usize,
     pub(super) c_pad: usize,
@@ -93,11 +93,12 @@ pub(super) fn sized(arg: &str, what: &str, got: usize, want: usize) -> Result<()
     }
 }
 
-impl Block {
+impl<T: Real> Block<T> {
     /// Block `b` checked against its input (`c_in` channels, `l_in` steps) and laid out
-    /// for the tiled convolution; errors name `arg`.
+    /// for the tiled convolution (the float32 weights exactly, in either type); errors
+    /// name `arg`.
     pub(super) fn lay_out(
-        b: ConvBlockWeights,
+        b: &ConvBlockWeights,
         c_in: usize,
         l_in: usize,
         arg: &str,
@@ -128,26 +129,27 @@ impl Block {
                 format!("kernel {} is longer than its padded input", b.kernel),
             ));
         }
-        let c_pad = b.c_out.div_ceil(LANES) * LANES;
+        let c_pad = b.c_out.div_ceil(T::LANES) * T::LANES;
+        let real = |v: f32| T::from_f64(f64::from(v));
         let mut w = Aligned::zeros(b.kernel * b.c_in * c_pad);
         for o in 0..b.c_out {
             for ci in 0..b.c_in {
                 for k in 0..b.kernel {
                     w[(k * b.c_in + ci) * c_pad + o] =
-                        f64::from(b.weight[(o * b.c_in + ci) * b.kernel + k]);
+                        real(b.weight[(o * b.c_in + ci) * b.kernel + k]);
                 }
             }
         }
         let mut bias = Aligned::zeros(c_pad);
         for (dst, &v) in bias.iter_mut().zip(&b.bias) {
-            *dst = f64::from(v);
+            *dst = real(v);
         }
         Ok(Self {
             w,
             bias,
-            gamma: b.norm_weight.iter().map(|&v| f64::from(v)).collect(),
-            beta: b.norm_bias.iter().map(|&v| f64::from(v)).collect(),
-            eps: f64::from(b.norm_eps),
+            gamma: b.norm_weight.iter().map(|&v| real(v)).collect(),
+            beta: b.norm_bias.iter().map(|&v| real(v)).collect(),
+            eps: real(b.norm_eps),
             c_in: b.c_in,
             c_out: b.c_out,
             c_pad,

@@ -233,6 +233,12 @@ fn a_non_finite_sample_gives_nan_and_bad_shapes_are_named() {
     w[250] = f32::INFINITY;
     let q = built.predict(&w).unwrap();
     assert!(q[0].is_nan() && q[1].is_nan());
+    let q = built
+        .clone()
+        .with_precision(Precision::F32)
+        .predict(&w)
+        .unwrap();
+    assert!(q[0].is_nan() && q[1].is_nan());
     let err = built.predict(&w[..399]).unwrap_err().to_string();
     assert!(err.starts_with("windows: 399 samples"), "{err}");
     let mut bad = blocks.clone();
@@ -272,6 +278,20 @@ fn a_non_finite_sample_gives_nan_and_bad_shapes_are_named() {
 
 #[test]
 fn the_fused_avx512_avx_and_portable_builds_agree_bit_for_bit() {
+    builds_agree(Precision::F64);
+    builds_agree(Precision::F32);
+}
+
+/// The fused AVX-512 blocks against the separate passes (whose convolution's every
+/// path `conv1d`'s tests compare with the portable one), bit for bit, in `precision`.
+fn builds_agree(precision: Precision) {
+    match precision {
+        Precision::F64 => builds_agree_in(|net| &net.blocks),
+        Precision::F32 => builds_agree_in(|net| &net.blocks32),
+    }
+}
+
+fn builds_agree_in<T: Real>(blocks: impl Fn(&ConvNet) -> &[Block<T>]) {
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let fixed = Scaling::Fixed {
         input_scale: 0.1,
@@ -281,9 +301,12 @@ fn the_fused_avx512_avx_and_portable_builds_agree_bit_for_bit() {
     // 3), 40 and 12 (too many vectors, not whole vectors: the separate passes)
     #[cfg(target_arch = "x86_64")]
     {
-        use super::conv1d::avx512_norm::takes;
-        assert!(takes(8, 8) && takes(16, 16) && takes(24, 24) && takes(32, 32));
-        assert!(!takes(40, 40) && !takes(12, 12) && !takes(12, 16));
+        use super::avx512_norm::takes;
+        assert!(takes::<f64>(8, 8) && takes::<f64>(16, 16) && takes::<f64>(32, 32));
+        assert!(!takes::<f64>(40, 40) && !takes::<f64>(12, 12) && !takes::<f64>(12, 16));
+        // float32: 16 lanes a vector, so 8 and 24 take the separate passes
+        assert!(takes::<f32>(16, 16) && takes::<f32>(32, 32) && takes::<f32>(64, 64));
+        assert!(!takes::<f32>(8, 8) && !takes::<f32>(24, 24) && !takes::<f32>(80, 80));
     }
     // windows of 200 samples (blocks of 200, 100 and 50 steps), 217 (217, 109, 55) and
     // 45 (45, 23, 12): the fused blocks' tiles of 14 or 6 steps, then every tile of
@@ -299,7 +322,8 @@ fn the_fused_avx512_avx_and_portable_builds_agree_bit_for_bit() {
         .flat_map(|case| [200, 217, 45].map(|n| (case, n)))
     {
         let (built, _, _) = net_with(channels, n, prepare, scaling, seed);
-        let mut s = built.scratch();
+        let blocks = blocks(&built);
+        let mut s = built.scratch(blocks);
         // random windows over ten decades, a constant one, one with a NaN sample
         let mut windows: Vec<Vec<f32>> = (0..200)
             .map(|k| random(&mut rng, n, 10f32.powi(k % 11 - 7)))
@@ -309,12 +333,90 @@ fn the_fused_avx512_avx_and_portable_builds_agree_bit_for_bit() {
         windows.last_mut().unwrap()[n / 3] = f32::NAN;
         for w in &windows {
             // with AVX-512: the fused blocks; without: the AVX or portable pass again
-            let fast = built.forward(w, &mut s);
+            let fast = built.forward(blocks, w, &mut s);
             assert_eq!(
                 fast.to_bits(),
-                built.forward_body(w, &mut s, false).to_bits()
+                built.forward_body(blocks, w, &mut s, false).to_bits()
             );
         }
-        assert!(built.forward(&windows[201], &mut s).is_nan());
+        assert!(built.forward(blocks, &windows[201], &mut s).is_nan());
+    }
+}
+
+/// The largest |q₃₂ / q₆₄ - 1| over `windows` (`(n, 200)`) for `built`.
+fn float32_error(built: &ConvNet, windows: &[f32]) -> f64 {
+    let q64 = built.predict(windows).unwrap();
+    let f32_net = built.clone().with_precision(Precision::F32);
+    assert_eq!(f32_net.precision(), Precision::F32);
+    let q32 = f32_net.predict(windows).unwrap();
+    q64.iter()
+        .zip(&q32)
+        .map(|(a, b)| (b / a - 1.0).abs())
+        .fold(0.0, f64::max)
+}
+
+/// `count` windows of white noise of per-sample variance q over 1e-10…1e-1 (nine
+/// decades, as the shipped nets are trained on), around 0 or around an accelerometer's
+/// 9.8 m/s² with a slow drift.
+fn decades(rng: &mut ChaCha8Rng, count: usize, raw: bool) -> Vec<f32> {
+    let mut windows = Vec::with_capacity(count * 200);
+    for i in 0..count {
+        let sigma = 10f64.powf(-5.0 + 4.5 * i as f64 / (count - 1) as f64);
+        let (mean, drift) = if raw { (9.8, 1e-4) } else { (0.0, 0.0) };
+        windows.extend((0..200).map(|k| {
+            let u: f64 = rng.random::<f64>() - 0.5;
+            (mean + drift * k as f64 + u * sigma * 12f64.sqrt()) as f32
+        }));
+    }
+    windows
+}
+
+#[test]
+fn the_float32_blocks_stay_within_1e_5_of_float64_over_nine_decades() {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let fixed = Scaling::Fixed {
+        input_scale: 0.1,
+        q_scale: 0.01,
+    };
+    let mut worst = 0.0f64;
+    for (seed, prepare, scaling) in [
+        (1, Prepare::Centre, Scaling::Spread),
+        (2, Prepare::Detrend, Scaling::Spread),
+        (3, Prepare::Centre, fixed),
+    ] {
+        let (built, _, _) = net(prepare, scaling, seed);
+        for raw in [false, true] {
+            let windows = decades(&mut rng, 60, raw);
+            let err = float32_error(&built, &windows);
+            assert!(err < 1e-5, "{prepare:?} {scaling:?} raw {raw}: {err:e}");
+            worst = worst.max(err);
+        }
+    }
+    // not equal: the blocks do round in float32
+    assert!(worst > 1e-9, "{worst:e}");
+}
+
+#[test]
+fn the_float32_bits_do_not_depend_on_the_batch_or_the_threads() {
+    let (built, _, _) = net(Prepare::Detrend, Scaling::Spread, 22);
+    let built = built.with_precision(Precision::F32);
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let windows = decades(&mut rng, 37, true);
+    let bits = |q: Vec<f64>| q.into_iter().map(f64::to_bits).collect::<Vec<_>>();
+    let whole = bits(built.predict(&windows).unwrap());
+    let one_by_one: Vec<f64> = windows
+        .chunks_exact(200)
+        .map(|w| built.predict(w).unwrap()[0])
+        .collect();
+    assert_eq!(bits(one_by_one), whole);
+    let tail = bits(built.predict(&windows[200 * 30..]).unwrap());
+    assert_eq!(tail, whole[30..]);
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let q = pool.install(|| built.predict(&windows).unwrap());
+        assert_eq!(bits(q), whole, "{threads} threads");
     }
 }

@@ -9,6 +9,7 @@
 mod aligned;
 mod conv1d;
 pub mod convnet;
+mod element;
 pub mod hcf;
 
 use crate::cancel::Cancel;
