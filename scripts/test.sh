@@ -47,5 +47,8 @@ fi
 rm -rf "$SITE"
 echo "== the wheel: manylinux2014, installed without extras into a fresh venv"
 bash "$ROOT/scripts/check_wheel.sh"
+# Files are handed out in the collection's order (tests/conftest.py puts the longest
+# first), not xdist's default of the files with most tests first, which left the
+# longest (a few tests each) to one worker at the end.
 echo "== pytest (a worker per core, up to 4; each test file in one worker)"
-"$VENV/bin/python" -m pytest -q -n auto --maxprocesses 4 --dist loadfile tests
+"$VENV/bin/python" -m pytest -q -n auto --maxprocesses 4 --dist loadfile --no-loadscope-reorder tests

@@ -35,8 +35,9 @@ def default_dataset():
 
 #: The test files that take longest (``pytest --durations``, two workers), longest first.
 #: They are collected before the rest, so that with one file per worker (CI's
-#: ``--dist loadfile``) they start at once and the short files fill in around them,
-#: instead of one worker running them alone at the end (they sort last by name).
+#: ``--dist loadfile --no-loadscope-reorder``: files in the collection's order) they
+#: start at once and the short files fill in around them, instead of one worker running
+#: them alone at the end (xdist's default order, most tests first, puts them last).
 LONGEST_FIRST = (
     "test_accuracy_gate.py",
     "test_gate_mutants.py",
