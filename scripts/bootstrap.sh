@@ -15,7 +15,13 @@ fi
 if ! "$VENV/bin/python" -c "import maturin, ziglang, auditwheel, uv" 2>/dev/null; then
   "$VENV/bin/python" -m pip install -q "maturin>=1.9.4,<2" "ziglang>=0.13" "auditwheel>=6" uv
 fi
-# Build the native core (release) and install pronet with its test and docs extras; pip
-# skips what is already there.
+# Build the native core (release) and install pronet editable (the Python sources from
+# the checkout, the native module built beside them) with its test and docs extras; pip
+# skips what is already there. Built as the wheel is, linked by zig for manylinux2014
+# (MATURIN_PEP517_ARGS, read by maturin's build backend): the tests run the module a
+# wheel ships, and scripts/check_wheel.sh then finds its build done (the same cargo
+# invocation in target/x86_64-unknown-linux-gnu) instead of compiling the crate again.
 cd "$ROOT"
-VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH" "$VENV/bin/maturin" develop --release --extras test,docs --quiet
+VIRTUAL_ENV="$VENV" PATH="$VENV/bin:$PATH" MATURIN_PEP517_ARGS="--zig --compatibility manylinux2014" \
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-build-isolation \
+  -e ".[test,docs]"

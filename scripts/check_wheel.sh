@@ -14,7 +14,8 @@
 #   bash scripts/check_wheel.sh --wheel FILE.whl # check a wheel built before
 #   KEEP=1 bash scripts/check_wheel.sh           # keep the temporary folder to look into
 #
-# `.ci/run` runs the light check (about 2 minutes, most of it the build). maturin, ziglang,
+# `.ci/run` runs the light check (about 2 minutes, most of it the build, which
+# scripts/bootstrap.sh has already done the same way in `.ci/run`). maturin, ziglang,
 # auditwheel and uv come from pronet's venv (PRONET_VENV, default ~/.cache/pronet-venv) when
 # they are there, otherwise they are installed into a temporary venv. Nothing is
 # installed into pronet's venv and nothing in the checkout is changed (the wheel goes to

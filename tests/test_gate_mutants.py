@@ -13,11 +13,13 @@ relative), which is why the at-rest row exists.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -59,7 +61,11 @@ def build_mutant(name: str, tmp: Path) -> Path:
     src.mkdir()
     shutil.copytree(ROOT / "rust", src / "rust")
     shutil.copytree(ROOT / "benches", src / "benches")  # the manifest names its benchmark
-    shutil.copy(ROOT / "Cargo.lock", src)
+    shutil.copytree(
+        ROOT / "python", src / "python", ignore=shutil.ignore_patterns("_core*.so", "__pycache__")
+    )
+    for kept in ("Cargo.lock", "pyproject.toml", "README.md"):
+        shutil.copy(ROOT / kept, src)
     manifest = (ROOT / "Cargo.toml").read_text()
     lib = 'name = "pronet"\npath'
     assert manifest.count(lib) == 1, "Cargo.toml: the [lib] name moved"
@@ -68,21 +74,23 @@ def build_mutant(name: str, tmp: Path) -> Path:
     assert text.count(original) == 1, f"{file}: the mutation site moved; update MUTANTS[{name!r}]"
     (src / file).write_text(text.replace(original, mutated))
 
-    target = ROOT / "target"  # shared, so the dependencies are built once
-    env = {**os.environ, "PYO3_PYTHON": sys.executable}
-    cmd = ["cargo", "build", "--quiet", "--release", "--lib", "--features", "python"]
-    # The mutant's own code at opt-level 1: the same arithmetic (Rust does not reorder
-    # floating point at any level), built in 21 s of CPU instead of 29 s, and the gate's
-    # few rows run as fast; the dependencies are the release build's, shared.
+    # Built as scripts/bootstrap.sh builds the installed module (maturin, zig for
+    # manylinux2014) into the project's target folder: the dependencies are that build's,
+    # not compiled again. The mutant's own code at opt-level 1: the same arithmetic (Rust
+    # does not reorder floating point at any level), built in 21 s of CPU instead of 29 s,
+    # and the gate's few rows run as fast. maturin finds zig as `python -m ziglang` of the
+    # first python on PATH: this one's.
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    cmd = [sys.executable, "-m", "maturin", "build", "--quiet", "--release", "--zig"]
+    cmd += ["--compatibility", "manylinux2014", "--interpreter", sys.executable]
     cmd += ["--config", "profile.release.package.pronet.opt-level=1"]
-    cmd += ["--manifest-path", str(src / "Cargo.toml"), "--target-dir", str(target)]
+    cmd += ["--manifest-path", str(src / "Cargo.toml"), "--target-dir", str(ROOT / "target")]
+    cmd += ["--out", str(tmp / "dist")]
     subprocess.run(cmd, check=True, env=env)
-
+    (wheel,) = (tmp / "dist").glob("*.whl")
     site = tmp / "site"
-    shutil.copytree(
-        ROOT / "python" / "pronet", site / "pronet", ignore=shutil.ignore_patterns("_core*.so")
-    )
-    shutil.copy(target / "release" / "libpronet_mutant.so", site / "pronet" / "_core.abi3.so")
+    with zipfile.ZipFile(wheel) as z:
+        z.extractall(site)
     return site
 
 
@@ -96,7 +104,10 @@ def test_each_mutation_site_is_in_the_source_once() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(shutil.which("cargo") is None, reason="needs cargo to build the mutants")
+@pytest.mark.skipif(
+    shutil.which("cargo") is None or importlib.util.find_spec("maturin") is None,
+    reason="needs cargo and maturin to build the mutants",
+)
 @pytest.mark.parametrize("name", list(MUTANTS))
 def test_the_gate_fails_on_a_mutant(name, tmp_path):
     site = build_mutant(name, tmp_path)
