@@ -415,7 +415,7 @@ def test_simulate_library_reports_through_callbacks_and_never_prints(tmp_path, c
     ("kwargs", "message"),
     [
         ({"n_runs": 0}, "--runs must be at least 1"),
-        ({"tuning_period": float("nan")}, "--tuning-period must be > 0"),
+        ({"tuning_period": float("nan")}, "--tuning-period: must be a finite number"),
         ({"threads": 0}, "--threads: expected 1 to "),
         ({"resume": True, "retrain": True}, "--resume needs the --out"),
         ({"exists": True}, "exists; choose another --out"),

@@ -100,12 +100,33 @@ def test_pronet_study_smooth_adds_a_smoothed_row_beside_each(tmp_path) -> None:
         (["--strategies", "kalman"], "--strategies: unknown"),
         (["--runs", "0"], "--runs: must be at least 1"),
         (["--strategies", "oracle,oracle"], "listed twice"),
+        (["--tuning-period", "0"], "--tuning-period: must be a finite number of seconds > 0"),
+        (["--tuning-period", "inf"], "--tuning-period: must be a finite number of seconds > 0"),
     ],
 )
 def test_pronet_study_refuses_bad_arguments(tmp_path, capsys, args, message) -> None:
     assert cli.main(["study", *args, "--out", str(tmp_path / "s"), "--quiet"]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def test_the_tuning_period_reaches_the_estimators_and_the_config(tmp_path) -> None:
+    """``--tuning-period``: detvar estimates q at those instants (its result moves, the
+    constant's does not), and config.json records it."""
+    out = tmp_path / "study"
+    args = ["study", "--runs", "3", "--scenarios", "regimes", "--strategies", "detvar"]
+    assert cli.main([*args, "--tuning-period", "4", "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "config.json").read_text())["tuning_period_s"] == 4.0
+    labels = ["constant (true q)", "detvar"]
+    every = {
+        period: {r.label: r.result.srmse for r in run_study(3, 0, scenarios=["regimes"],
+                                                          labels=labels, tuning_period=period)}
+        for period in (1.0, 4.0)
+    }  # fmt: skip
+    assert np.array_equal(every[1.0]["constant (true q)"], every[4.0]["constant (true q)"])
+    assert not np.array_equal(every[1.0]["detvar"], every[4.0]["detvar"])
+    table = pd.read_csv(out / "study.csv").set_index("strategy")
+    assert table.loc["detvar", "srmse"] == pytest.approx(every[4.0]["detvar"].mean(), rel=1e-12)
 
 
 def test_every_study_row_is_a_spec() -> None:

@@ -3,6 +3,7 @@ float64 arrays, and anything unusable raises ``ValueError`` naming the argument.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -88,6 +89,14 @@ def count(value: object, name: str, maximum: int | None = None) -> int:
     if maximum is not None and value > maximum:
         raise ValueError(f"{name}: must be at most {maximum}")
     return int(value)
+
+
+def seconds(value: float, name: str) -> float:
+    """``value`` as a duration [s]: a finite number > 0, else ``ValueError`` naming the
+    argument."""
+    if not 0 < value < math.inf:
+        raise ValueError(f"{name}: must be a finite number of seconds > 0, got {value}")
+    return float(value)
 
 
 def threads(value: object, name: str, per_core: bool = True) -> int | None:

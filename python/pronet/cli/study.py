@@ -12,6 +12,7 @@ from pronet.cli._common import (
     add_monte_carlo_args,
     add_output_flags,
     add_result_folder,
+    add_tuning_period,
     experiment_result,
 )
 from pronet.sim.scenarios import STUDY_SCENARIOS
@@ -39,6 +40,7 @@ def add_parser(sub: Subparsers) -> None:
         help="comma-separated row labels of pronet.experiments.study.STUDY_ROWS (default: all)",
     )
     add_monte_carlo_args(parser)
+    add_tuning_period(parser)
     parser.add_argument(
         "--smooth",
         action="store_true",
@@ -68,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
             on_start=bars.start,
             on_done=bars.done,
             smooth=args.smooth,
+            tuning_period=args.tuning_period,
         )
     experiment_result(show, folder, start)
     return 0

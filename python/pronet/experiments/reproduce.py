@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 import pronet
 from pronet import _core
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder, partial_folder
+from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.learn.dataset import Dataset, DatasetParams, build_dataset
 from pronet.results import table_title, write_result_folder
@@ -47,8 +48,7 @@ def _check_arguments(
     argument of :func:`reproduce` is checked (``ValueError`` naming the option)."""
     if n_runs < 1:
         raise ValueError("--runs must be at least 1")
-    if not tuning_period > 0:
-        raise ValueError("--tuning-period must be > 0 s")
+    seconds_arg(tuning_period, "--tuning-period")
     threads_arg(threads, "--threads")
     if resume and (not out or retrain):
         raise ValueError(

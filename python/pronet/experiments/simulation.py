@@ -6,11 +6,11 @@ realizations, written as one result folder (table, metrics, configuration and pl
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
+from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.results import table_title, write_result_folder
 from pronet.run import Row, run_strategies
@@ -61,9 +61,8 @@ def _check_numbers(
     """``ValueError`` naming the option unless the numbers of :func:`simulate` are valid."""
     if n_runs < 1:
         raise ValueError(f"--runs: must be at least 1, got {n_runs}")
-    for name, value in (("tuning-period", tuning_period), ("record-every", record_every)):
-        if not 0 < value < math.inf:
-            raise ValueError(f"--{name}: must be a finite number of seconds > 0, got {value}")
+    seconds_arg(tuning_period, "--tuning-period")
+    seconds_arg(record_every, "--record-every")
     threads_arg(threads, "--threads")
 
 

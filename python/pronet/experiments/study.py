@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from pronet._util.files import atomic_folder, json_bytes
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
+from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.learn.hybrid import HybridResult
 from pronet.montecarlo import IN_BAND_FLAG, MonteCarloResult
@@ -108,13 +109,18 @@ class StudyRow:
 
 
 def _chosen_rows(
-    n_runs: int, scenarios: Sequence[str], labels: Sequence[str] | None, threads: int | None
+    n_runs: int,
+    scenarios: Sequence[str],
+    labels: Sequence[str] | None,
+    threads: int | None,
+    tuning_period: float,
 ) -> list[str]:
     """The study's rows, the reference first, after checking every argument (ValueError
     naming the option)."""
     if n_runs < 1:
         raise ValueError(f"--runs: must be at least 1, got {n_runs}")
     threads_arg(threads, "--threads")
+    seconds_arg(tuning_period, "--tuning-period")
     unknown = [s for s in scenarios if s not in SCENARIOS]
     if unknown or not scenarios:
         raise ValueError(f"--scenarios: unknown {unknown}; known {list(SCENARIOS)}")
@@ -147,7 +153,7 @@ def run_study(
     the same runs smoothed; its paired differences are still taken from the forward
     reference); a smoothed Monte Carlo costs about 2.1–2.3 plain ones. Everything is checked
     before anything runs; ``on_done("<scenario>: <label>")`` after each."""
-    chosen = _chosen_rows(n_runs, scenarios, labels, threads)
+    chosen = _chosen_rows(n_runs, scenarios, labels, threads, tuning_period)
     regressors = _regressors(chosen)
     if on_start is not None:
         on_start(len(scenarios) * len(chosen), "run", None)
@@ -403,11 +409,14 @@ def study(
     on_start: OnStart | None = None,
     on_done: OnDone | None = None,
     smooth: bool = False,
+    tuning_period: float = 1.0,
 ) -> Path:
-    """Run the study (:func:`run_study`; ``smooth``: with the smoothed rows) and write
-    its folder (:func:`write_study`, default ``results/study-<time>``; an existing one
-    is refused); returns the folder."""
-    n_rows = len(_chosen_rows(n_runs, scenarios, labels, threads))  # checked before anything
+    """Run the study (:func:`run_study`; ``smooth``: with the smoothed rows; the learned
+    rows and detvar estimate q every ``tuning_period`` seconds) and write its folder
+    (:func:`write_study`, default ``results/study-<time>``; an existing one is refused);
+    returns the folder."""
+    # checked before anything
+    n_rows = len(_chosen_rows(n_runs, scenarios, labels, threads, tuning_period))
     folder = new_result_folder(out, "study")
     if say is not None:
         say(
@@ -423,11 +432,13 @@ def study(
         on_start=on_start,
         on_done=on_done,
         smooth=smooth,
+        tuning_period=tuning_period,
     )
     config: dict[str, object] = {
         "n_runs": n_runs,
         "seed": seed,
         "smooth": smooth,
+        "tuning_period_s": tuning_period,
         "scenarios": {
             name: {
                 "filter": repr(sc.config),
