@@ -46,8 +46,9 @@ pub struct CovarianceStep {
     imu_noise: [f64; 6],
     /// `Σ ε_k Δt_k` per bias.
     bias_noise: [f64; 6],
-    /// `Σ Q_d,k` of `Discrete` samples (classic coordinates), if any.
-    discrete: Option<Matrix15>,
+    /// `Σ Q_d,k` of `Discrete` samples (classic coordinates), if any; boxed, so that
+    /// the step moves as a few hundred bytes, not 2 kB, where no strategy sets Q_d.
+    discrete: Option<Box<Matrix15>>,
     /// `Σ Δt_imu Δt_k` for the sensitivity's noise, when it is tracked.
     sensitivity_white: Option<f64>,
 }
@@ -89,7 +90,9 @@ impl CovarianceStep {
                 }
             }
             ProcessNoise::Discrete(qd) => {
-                *self.discrete.get_or_insert_with(Matrix15::zeros) += qd;
+                **self
+                    .discrete
+                    .get_or_insert_with(|| Box::new(Matrix15::zeros())) += qd;
             }
         }
         if let Some(w) = self.sensitivity_white.as_mut() {
@@ -115,7 +118,7 @@ impl CovarianceStep {
         let force = self.force / self.elapsed;
         let phi = ErrorDynamics::with_force(start, &rates, &force, &at).transition(self.elapsed);
         let discrete = self.discrete.map(|qd| {
-            let mut qd = (qd + qd.transpose()) * 0.25; // symmetrized, halved
+            let mut qd = (*qd + qd.transpose()) * 0.25; // symmetrized, halved
             at.from_classic(&mut qd);
             qd
         });

@@ -9,11 +9,13 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref, StreamRef};
 use crate::attitude::euler_from_dcm;
+use crate::ekf::UpdateInfo;
 use crate::mechanization::NavState;
 use crate::recorded::{
     filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, StreamRecord,
 };
 use crate::smoother::Smoothed;
+use nalgebra::SMatrix;
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
@@ -257,16 +259,12 @@ impl StreamArrays {
                     .iter()
                     .map(|u| u.as_ref().map_or(nan3, |u| u.innovation.into())),
             ),
-            innovation_cov: Array3::from_shape_fn((m, 3, 3), |(k, i, j)| {
-                updates[k].as_ref().map_or(f64::NAN, |u| u.s[(i, j)])
-            }),
+            innovation_cov: stacked(&updates, |u| &u.s),
             accepted: updates
                 .iter()
                 .map(|u| u.as_ref().is_some_and(|u| u.accepted))
                 .collect(),
-            gain: Array3::from_shape_fn((m, 15, 3), |(k, i, j)| {
-                updates[k].as_ref().map_or(f64::NAN, |u| u.gain[(i, j)])
-            }),
+            gain: stacked(&updates, |u| &u.gain),
             // None where no row has one: NumPy gives the all-NaN array as a view.
             adaptive_q: adaptive_q.iter().any(Option::is_some).then(|| {
                 Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
@@ -453,6 +451,25 @@ impl OutputArrays {
 }
 
 /// Epoch indices, -1 for None (a row outside the run).
+/// Each update's `R × C` matrix, row-major, NaN where a row has none: `(m, R, C)`,
+/// built row by row (not element by element) and handed over without a copy.
+fn stacked<const R: usize, const C: usize>(
+    updates: &[Option<UpdateInfo>],
+    matrix: impl Fn(&UpdateInfo) -> &SMatrix<f64, R, C>,
+) -> Array3<f64> {
+    let rows: Vec<[[f64; C]; R]> = updates
+        .iter()
+        .map(|u| match u {
+            Some(u) => {
+                let m = matrix(u);
+                std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
+            }
+            None => [[f64::NAN; C]; R],
+        })
+        .collect();
+    Array3::from(rows)
+}
+
 fn epochs_array(epochs: &[Option<usize>]) -> Array1<i64> {
     epochs.iter().map(|e| e.map_or(-1, |k| k as i64)).collect()
 }

@@ -41,9 +41,23 @@ impl RecordedData<'_> {
                 ),
             ));
         }
-        for (i, row) in self.imu.iter().enumerate() {
-            check::finite("imu", row)
-                .map_err(|_| Error::invalid("imu", format!("row {i} is not finite: {row:?}")))?;
+        // One pass the compiler vectorizes; the row is looked for only when one fails.
+        if !self
+            .imu
+            .as_flattened()
+            .iter()
+            .fold(true, |ok, x| ok & x.is_finite())
+        {
+            let i = self
+                .imu
+                .iter()
+                .position(|row| check::finite("imu", row).is_err());
+            let i = i.unwrap_or_default();
+            let row = self.imu[i];
+            return Err(Error::invalid(
+                "imu",
+                format!("row {i} is not finite: {row:?}"),
+            ));
         }
         check::finite("t0", &[self.t0])?;
         check::increasing("imu_time", self.imu_time)?;

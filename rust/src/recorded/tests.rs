@@ -55,6 +55,25 @@ fn recorded_data_is_validated() {
     assert!(err.to_string().starts_with("imu_time"), "{err}");
 }
 
+#[test]
+fn a_non_finite_imu_value_is_named_by_its_row() {
+    let time = [0.01, 0.02, 0.03, 0.04];
+    for (row, col, bad) in [
+        (0, 0, f64::NAN),
+        (2, 5, f64::INFINITY),
+        (3, 2, f64::NEG_INFINITY),
+    ] {
+        let mut imu = [[0.0, 0.0, -9.8, 0.0, 0.0, 0.0]; 4];
+        imu[row][col] = bad;
+        let err = imu_only(&imu, &time).validate().unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.starts_with(&format!("imu: row {row} is not finite: ")),
+            "{text}"
+        );
+    }
+}
+
 /// IMU rows alone from `t0` = 0: no DVL, no q schedule.
 fn imu_only<'a>(imu: &'a [[f64; 6]], imu_time: &'a [f64]) -> RecordedData<'a> {
     RecordedData {
