@@ -63,8 +63,8 @@ def first_difference(answers: Mapping[str, Any], rtol: float = 0.0) -> str | Non
     """Where a build's answer differs from the first build's (``None`` when each is the
     same, bit for bit, or with ``rtol`` > 0 within ``rtol`` of the largest magnitude of
     the first build's array). An answer is an array or a mapping of names to arrays. Two
-    empty arrays are the same whatever their shapes (an older build's empty calibration
-    array has fewer columns: no value differs)."""
+    empty arrays of the same rows, dimensions and type are the same whatever their
+    columns (an older build's empty calibration array has fewer: no value differs)."""
 
     def arrays(answer: Any) -> dict[str, np.ndarray]:
         if isinstance(answer, Mapping):
@@ -79,7 +79,13 @@ def first_difference(answers: Mapping[str, Any], rtol: float = 0.0) -> str | Non
         for key in sorted(set(reference) | set(got)):
             where = f"{name}: {key + ' ' if key else ''}"
             want, have = reference.get(key), got.get(key)
-            if want is not None and have is not None and want.size == have.size == 0:
+            if (
+                want is not None
+                and have is not None
+                and want.size == have.size == 0
+                and (want.ndim, want.dtype) == (have.ndim, have.dtype)
+                and want.shape[:1] == have.shape[:1]
+            ):
                 continue
             if want is None or have is None or (want.shape, want.dtype) != (have.shape, have.dtype):
                 return f"{where}not shaped or typed as {first}'s"
@@ -232,6 +238,8 @@ def main() -> None:
     )
     parser.add_argument("--hours", type=float, default=1.0, help="--filter's recording (1 h)")
     args = parser.parse_args()
+    if args.no_net and not (args.filter or args.monte_carlo):
+        parser.error("--no-net leaves nothing to time without --filter or --monte-carlo")
     paths: dict[str, str] = {}
     for item in args.builds:
         name, sep, path = item.partition("=")

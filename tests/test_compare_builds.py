@@ -85,9 +85,10 @@ def test_builds_that_answer_differently_are_refused_with_where(script: ModuleTyp
     assert script.first_difference({"a": runs, "b": {}}) == "b: error not shaped or typed as a's"
     # Nothing to compare in two empty arrays (an older build's with fewer columns).
     assert script.first_difference({"a": np.empty((0, 4)), "b": np.empty((0, 7))}) is None
-    assert script.first_difference({"a": np.empty((0, 4)), "b": np.zeros((1, 4))}) == (
-        "b: not shaped or typed as a's"
-    )
+    for other in (np.zeros((1, 4)), np.empty((0, 4), dtype=np.int64), np.empty((0, 4, 1))):
+        assert script.first_difference({"a": np.empty((0, 4)), "b": other}) == (
+            "b: not shaped or typed as a's"
+        )
 
 
 def test_a_tolerance_admits_rounding_and_nothing_more(script: ModuleType) -> None:
@@ -125,6 +126,8 @@ def test_bad_arguments_and_unloadable_builds_are_named(tmp_path: Path) -> None:
     assert out.returncode == 2 and "the name 'a' is given twice" in out.stderr
     out = run(f"a={_core.__file__}", "--calls", "0")
     assert out.returncode == 2 and "--calls: must be >= 1, got 0" in out.stderr
+    out = run(f"a={_core.__file__}", "--no-net")
+    assert out.returncode == 2 and "--no-net leaves nothing to time" in out.stderr
     bad = tmp_path / "_core.abi3.so"
     bad.write_bytes(b"not a shared object")
     out = run(f"bad={bad}")

@@ -105,8 +105,10 @@ def test_each_mutation_site_is_in_the_source_once() -> None:
 
 @pytest.mark.slow
 @pytest.mark.skipif(
-    shutil.which("cargo") is None or importlib.util.find_spec("maturin") is None,
-    reason="needs cargo and maturin to build the mutants",
+    shutil.which("cargo") is None
+    or importlib.util.find_spec("maturin") is None
+    or importlib.util.find_spec("ziglang") is None,
+    reason="needs cargo, maturin and ziglang (scripts/bootstrap.sh) to build the mutants",
 )
 @pytest.mark.parametrize("name", list(MUTANTS))
 def test_the_gate_fails_on_a_mutant(name, tmp_path):

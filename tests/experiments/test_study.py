@@ -111,22 +111,26 @@ def test_pronet_study_refuses_bad_arguments(tmp_path, capsys, args, message) -> 
 
 
 def test_the_tuning_period_reaches_the_estimators_and_the_config(tmp_path) -> None:
-    """``--tuning-period``: detvar estimates q at those instants (its result moves, the
-    constant's does not), and config.json records it."""
+    """``--tuning-period``: detvar estimates q at those instants (its result moves from
+    the default's, the constant's does not), and config.json records it."""
     out = tmp_path / "study"
     args = ["study", "--runs", "3", "--scenarios", "regimes", "--strategies", "detvar"]
     assert cli.main([*args, "--tuning-period", "4", "--out", str(out), "--quiet"]) == 0
     assert json.loads((out / "config.json").read_text())["tuning_period_s"] == 4.0
+    at_4 = pd.read_csv(out / "study.csv").set_index("strategy")["srmse"]
     labels = ["constant (true q)", "detvar"]
-    every = {
-        period: {r.label: r.result.srmse for r in run_study(3, 0, scenarios=["regimes"],
-                                                          labels=labels, tuning_period=period)}
-        for period in (1.0, 4.0)
-    }  # fmt: skip
-    assert np.array_equal(every[1.0]["constant (true q)"], every[4.0]["constant (true q)"])
-    assert not np.array_equal(every[1.0]["detvar"], every[4.0]["detvar"])
-    table = pd.read_csv(out / "study.csv").set_index("strategy")
-    assert table.loc["detvar", "srmse"] == pytest.approx(every[4.0]["detvar"].mean(), rel=1e-12)
+    at_1 = {r.label: r.result.srmse.mean() for r in run_study(3, 0, scenarios=["regimes"],
+                                                             labels=labels)}  # fmt: skip
+    assert at_4["constant (true q)"] == pytest.approx(at_1["constant (true q)"], rel=1e-12)
+    assert at_4["detvar"] != pytest.approx(at_1["detvar"], rel=1e-6)
+
+
+def test_a_tuning_period_longer_than_a_scenario_is_refused_before_any_run() -> None:
+    done: list[str] = []
+    with pytest.raises(ValueError, match=r"^matched: detvar: tuning_period: 400 s leaves no"):
+        run_study(2, 0, scenarios=["matched"], labels=["detvar"], tuning_period=400.0,
+                  on_done=done.append)  # fmt: skip
+    assert done == []  # not even the reference row ran
 
 
 def test_every_study_row_is_a_spec() -> None:

@@ -145,7 +145,8 @@ def add_tuning_period(parser: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         type=float,
         default=1.0,
-        help="seconds between regressor calls in the learned rows (default 1 s)",
+        help="seconds between the learned rows' regressor calls, and detvar's estimates "
+        "(default 1 s)",
     )
 
 

@@ -38,7 +38,7 @@ from pronet.results import (
     summary_row,
     write_tables,
 )
-from pronet.run import run
+from pronet.run import check_acts, run
 from pronet.sim.scenarios import SCENARIOS, STUDY_SCENARIOS, Scenario
 from pronet.stats import BOOTSTRAP, mean_ci
 from pronet.strategies import StrategyLike, StrategySpec, strategy
@@ -155,11 +155,16 @@ def run_study(
     before anything runs; ``on_done("<scenario>: <label>")`` after each."""
     chosen = _chosen_rows(n_runs, scenarios, labels, threads, tuning_period)
     regressors = _regressors(chosen)
+    planned = {name: SCENARIOS[name](seed) for name in scenarios}
+    for name, sc in planned.items():  # a row that could never act, named before any run
+        for label, chosen_strategy in study_strategies(
+            sc.q_nominal, regressors, tuning_period, chosen
+        ).items():
+            check_acts(chosen_strategy, sc, f"{name}: {label}")
     if on_start is not None:
         on_start(len(scenarios) * len(chosen), "run", None)
     rows = []
-    for name in scenarios:
-        sc = SCENARIOS[name](seed)
+    for name, sc in planned.items():
         every = max(1, round(1.0 / sc.trajectory.dt)) if len(sc.dvl_outages) else 0
         for label, chosen_strategy in study_strategies(
             sc.q_nominal, regressors, tuning_period, chosen

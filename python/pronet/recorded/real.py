@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 from pronet import _core
 from pronet._util.cores import usable_cores
+from pronet._util.validate import seconds as seconds_arg
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
 from pronet.recorded.aiding import AidingTuning
@@ -478,8 +479,7 @@ def run_real(
     from pronet.learn.qmodels import load_model_file
 
     folder = new_result_folder(out, "real")
-    if not tuning_period > 0:
-        raise ValueError("--tuning-period must be > 0 s")
+    seconds_arg(tuning_period, "--tuning-period")
     check_dvl_noise(dvl_noise)
     if aiding_clock not in AIDING_CLOCKS:
         choices = ", ".join(AIDING_CLOCKS)

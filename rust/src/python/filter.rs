@@ -9,7 +9,6 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref, StreamRef};
 use crate::attitude::euler_from_dcm;
-use crate::ekf::UpdateInfo;
 use crate::mechanization::NavState;
 use crate::recorded::{
     filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, StreamRecord,
@@ -251,7 +250,6 @@ impl StreamArrays {
                 velocity: None,
             };
         }
-        let m = updates.len();
         let nan3 = [f64::NAN; 3];
         let velocity = VelocityArrays {
             innovation: rows_array(
@@ -266,11 +264,10 @@ impl StreamArrays {
                 .collect(),
             gain: stacked(&updates, |u| &u.gain),
             // None where no row has one: NumPy gives the all-NaN array as a view.
-            adaptive_q: adaptive_q.iter().any(Option::is_some).then(|| {
-                Array3::from_shape_fn((m, 15, 15), |(k, i, j)| {
-                    adaptive_q[k].as_ref().map_or(f64::NAN, |q| q[(i, j)])
-                })
-            }),
+            adaptive_q: adaptive_q
+                .iter()
+                .any(Option::is_some)
+                .then(|| stacked(&adaptive_q, |q| &**q)),
         };
         Self {
             epoch: epochs_array(&epoch),
@@ -450,18 +447,17 @@ impl OutputArrays {
     }
 }
 
-/// Epoch indices, -1 for None (a row outside the run).
-/// Each update's `R × C` matrix, row-major, NaN where a row has none: `(m, R, C)`,
+/// Each row's `R × C` matrix, row-major, NaN where a row has none: `(m, R, C)`,
 /// built row by row (not element by element) and handed over without a copy.
-fn stacked<const R: usize, const C: usize>(
-    updates: &[Option<UpdateInfo>],
-    matrix: impl Fn(&UpdateInfo) -> &SMatrix<f64, R, C>,
+fn stacked<T, const R: usize, const C: usize>(
+    rows: &[Option<T>],
+    matrix: impl Fn(&T) -> &SMatrix<f64, R, C>,
 ) -> Array3<f64> {
-    let rows: Vec<[[f64; C]; R]> = updates
+    let rows: Vec<[[f64; C]; R]> = rows
         .iter()
-        .map(|u| match u {
-            Some(u) => {
-                let m = matrix(u);
+        .map(|row| match row {
+            Some(row) => {
+                let m = matrix(row);
                 std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
             }
             None => [[f64::NAN; C]; R],
@@ -470,6 +466,7 @@ fn stacked<const R: usize, const C: usize>(
     Array3::from(rows)
 }
 
+/// Epoch indices, -1 for None (a row outside the run).
 fn epochs_array(epochs: &[Option<usize>]) -> Array1<i64> {
     epochs.iter().map(|e| e.map_or(-1, |k| k as i64)).collect()
 }
