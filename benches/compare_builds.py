@@ -2,7 +2,7 @@
 
 Run:  ~/.cache/pronet-venv/bin/python benches/compare_builds.py NAME=PATH.so NAME=PATH.so
       [--threads N] [--rounds R] [--calls C] [--no-net] [--monte-carlo]
-      [--filter [--rtol X] [--hours H]]
+      [--filter [--rtol X] [--hours H] [--epochs last|all|both]]
 
 Each PATH is a ``_core.abi3.so`` (e.g. ``python/pronet/_core.abi3.so`` copied aside
 before and after a change). All of them are loaded into this one process, each under
@@ -25,7 +25,8 @@ Timed: the shipped detrend net's forward pass on 600 windows (what the learned l
 calls at each tuning instant), and with ``--monte-carlo`` the constant-Q Monte Carlo
 of 100 runs on the paper's scenario (one call per round), and with ``--filter``
 ``run_filter`` at the default covariance step over an hour at 100 Hz with a 5 Hz DVL
-(the last epoch kept: the filter alone; one call per round, printed per IMU step).
+(the last epoch kept: the filter alone; ``--epochs all`` every epoch, ``both`` each
+build both ways; one call per round, printed per IMU step).
 """
 
 from __future__ import annotations
@@ -150,9 +151,10 @@ def filter_data(seconds: float) -> dict[str, Any]:
     return data
 
 
-def filter_call(core: ModuleType, seconds: float) -> Callable[[], Any]:
+def filter_call(core: ModuleType, seconds: float, epochs: str = "last") -> Callable[[], Any]:
     """``run_filter`` of ``core`` at its default covariance step over ``seconds`` at
-    100 Hz with a 5 Hz body-frame DVL (:func:`filter_data`), the last epoch kept."""
+    100 Hz with a 5 Hz body-frame DVL (:func:`filter_data`), keeping ``epochs`` (the
+    last: the filter alone; or all)."""
     data = filter_data(seconds)
     (dvl,) = data.pop("streams")
     streams = [core.Dvl(dvl.time, dvl.velocity)]
@@ -162,7 +164,7 @@ def filter_call(core: ModuleType, seconds: float) -> Callable[[], Any]:
     # and no two builds could be compared.
     config = core.FilterConfig(accel_bias_psd=1e-8, gyro_bias_psd=1e-12, dvl_variance=(0.01,) * 3)
     return lambda: core.run_filter(
-        **{**data, "streams": streams, "strategy": strategy}, config=config, epochs="last"
+        **{**data, "streams": streams, "strategy": strategy}, config=config, epochs=epochs
     )
 
 
@@ -210,11 +212,17 @@ def timed(
     rtol: float = 0.0,
     unit: tuple[float, str] | None = None,
 ) -> None:
-    """Check that every build answers alike, then time them interleaved and report
-    (in ``unit``: seconds per unit and its name; ms for repeated calls, else s)."""
-    difference = first_difference({name: f() for name, f in calls.items()}, rtol)
-    if difference is not None:
-        raise SystemExit(f"{title}: {difference}; the builds do not compute the same")
+    """Check that every build answers alike (the calls whose names end alike, after
+    the build's name and a space, compared with each other), then time them
+    interleaved and report (in ``unit``: seconds per unit and its name; ms for repeated
+    calls, else s)."""
+    groups: dict[str, dict[str, Any]] = {}
+    for name, f in calls.items():
+        groups.setdefault(name.partition(" ")[2], {})[name] = f()
+    for answers in groups.values():
+        difference = first_difference(answers, rtol)
+        if difference is not None:
+            raise SystemExit(f"{title}: {difference}; the builds do not compute the same")
     if unit is None:
         unit = (1e-3, "ms") if per_round > 1 else (1.0, "s")
     report(title, interleave(calls, rounds, per_round), *unit)
@@ -237,6 +245,12 @@ def main() -> None:
         "--rtol", type=float, default=0.0, help="--filter's answers agree to this (0: bit for bit)"
     )
     parser.add_argument("--hours", type=float, default=1.0, help="--filter's recording (1 h)")
+    parser.add_argument(
+        "--epochs",
+        choices=("last", "all", "both"),
+        default="last",
+        help="--filter keeps the last epoch (the filter alone, the default), all, or times both",
+    )
     args = parser.parse_args()
     if args.no_net and not (args.filter or args.monte_carlo):
         parser.error("--no-net leaves nothing to time without --filter or --monte-carlo")
@@ -258,10 +272,16 @@ def main() -> None:
         timed(title, runs, max(args.rounds // 2, 3), 1)
     if args.filter:
         seconds = args.hours * 3600.0
-        filters = {name: filter_call(core, seconds) for name, core in cores.items()}
+        kept = ("last", "all") if args.epochs == "both" else (args.epochs,)
+        filters = {
+            f"{name} {epochs}" if len(kept) > 1 else name: filter_call(core, seconds, epochs)
+            for epochs in kept
+            for name, core in cores.items()
+        }
         steps = len(filter_data(seconds)["imu"])
         title = (
-            f"run_filter, {args.hours:g} h at 100 Hz, 5 Hz DVL, default covariance step, last epoch"
+            f"run_filter, {args.hours:g} h at 100 Hz, 5 Hz DVL, default covariance step, "
+            f"epochs kept: {args.epochs}"
         )
         timed(title, filters, max(args.rounds // 2, 3), 1, args.rtol, (1e-9 * steps, "ns/step"))
 

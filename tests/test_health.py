@@ -16,6 +16,7 @@ import pronet
 from pronet.recorded.alignment import dcm_from_euler
 from pronet.sim.scenarios import SCENARIOS
 from pronet.stats import (
+    Extent,
     FilterHealthWarning,
     StreamReport,
     StreamSource,
@@ -204,6 +205,34 @@ def test_a_diverged_pass_is_named_with_its_first_epoch() -> None:
         rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q), warn=False,
     )  # fmt: skip
     assert quiet.health.divergence == out.health.divergence
+
+
+def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
+    # Every epoch at each sample and inside a covariance step (σ written when the step
+    # closes), thinned, the last alone, and a pass that left its bounds (5 m/s² off).
+    traj = pronet.builtin_trajectory("paper")
+    n = 3000
+    streams, _ = _streams(np.random.default_rng(5))
+    drifted = traj.imu[:n] + [5.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    cases = [
+        (traj.imu[:n], streams, 0.0, {}),
+        (traj.imu[:n], streams, 0.1, {}),
+        (traj.imu[:n], streams, 0.1, {"output_step": 0.37}),
+        (traj.imu[:n], streams, 0.1, {"epochs": "last"}),
+        (drifted, [], 0.0, {}),
+    ]
+    for imu, given, step, options in cases:
+        out = pronet._core.run_filter(
+            imu, traj.time[1 : n + 1], given, t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
+            rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+            config=pronet.FilterConfig(covariance_step=step), **options,
+        )  # fmt: skip
+        gathered = Extent(*out["extent"])
+        read = Extent.of(out["lla"], out["vel"], out["sigma"])
+        assert gathered.finite == read.finite, (step, options)
+        for name in ("speed2", "abs_height", "horizontal2"):
+            assert getattr(gathered, name) == pytest.approx(getattr(read, name), rel=1e-14)
+        assert gathered.within_bounds() == (imu is not drifted), (step, options)
 
 
 def test_a_filter_told_the_simulation_s_model_flags_no_more_runs_than_chance() -> None:

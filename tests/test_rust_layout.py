@@ -34,7 +34,7 @@ SRC = Path(__file__).resolve().parents[1] / "rust" / "src"
 #: (``recorded``, ``scenario``, ``run``) → ``montecarlo``/``ensemble`` → ``python``. A
 #: new module goes in here; a module that moves, moves here too.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("error", "cancel", "threads", "memory"),
+    ("error", "cancel", "threads", "memory", "pages"),
     ("attitude", "earth", "clocks", "regressors"),
     ("mechanization",),
     ("trajectory",),

@@ -445,8 +445,10 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     no row has one, as the top-level key). The top-level update keys are the first
     velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
     none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
-    ``calibration``, ``calibration_sigma`` per epoch, or None. Before it allocates, a
-    pass that would hold more than this process can still take is a ``ValueError``
+    ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
+    solution's ``(finite, speed², |height|, σ_N² + σ_E²)`` extremes
+    (:class:`pronet.stats.Extent`), gathered as its epochs were written. Before it
+    allocates, a pass that would hold more than this process can still take is a ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,
     ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,
     "Memory")."""

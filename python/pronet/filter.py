@@ -16,7 +16,7 @@ from pronet import _core
 from pronet._util import plausibility
 from pronet._util.deprecated import deprecated_streams
 from pronet._util.validate import check_type, flag, float_array, scalar
-from pronet.stats import PassHealth, pass_health, sources_of, warn_about
+from pronet.stats import Extent, PassHealth, pass_health, sources_of, warn_about
 
 #: An aiding sensor's stream, as :func:`run_filter` takes them.
 Stream: TypeAlias = _core.Dvl | _core.Depth | _core.Fix | _core.Heading
@@ -419,7 +419,7 @@ def run_filter(
             :func:`pronet.learn.hybrid.q_schedule`).
         epochs: ``"all"`` keeps the estimate at every epoch; ``"last"`` only at the
             last one, for a pass whose updates alone are read (matching R to the
-            innovations): it skips storing the estimate (~370 bytes) at every IMU
+            innovations): it skips storing the estimate (~250 bytes) at every IMU
             sample. ``dvl_epoch`` still counts every epoch.
         output_step: an output period [s] (finite, > 0; with ``epochs="all"``): keep
             the initial state, the epoch nearest each multiple of it after ``t0`` and
@@ -507,13 +507,13 @@ def run_filter(
     _with_adaptive_q(out)
     if epochs == "last":
         out["epoch"] = np.array([len(samples)], dtype=np.int64)
-    smoothed = out.pop("smoothed")
+    smoothed, extent = out.pop("smoothed"), Extent(*out.pop("extent"))
     if smoothed is not None:
         smoothed = SmoothedResult(time=out["time"], epoch=out["epoch"], **smoothed)
     result = FilterResult(**out, smoothed=smoothed, streams=per_stream)
     sources = sources_of(given, [r.kind for r in per_stream])
     health = pass_health(per_stream, sources, lla=result.lla, vel=result.vel,
-                         sigma=result.sigma, time=result.time)  # fmt: skip
+                         sigma=result.sigma, time=result.time, extent=extent)  # fmt: skip
     if warn:
         warn_about(health)
     return dataclasses.replace(result, health=health)

@@ -408,13 +408,15 @@ def _flag(
     return ""
 
 
-def divergence(lla: F64, vel: F64, sigma: F64, time: F64) -> str:
+def divergence(lla: F64, vel: F64, sigma: F64, time: F64, extent: Extent | None = None) -> str:
     """One line where the solution ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` [m/s] with
     ``sigma`` ``(n, 15)`` at ``time`` [s] left physical bounds (non-finite, a speed over
     :data:`MAX_SPEED`, a height beyond ±:data:`MAX_ABS_HEIGHT`, a horizontal 1σ over
-    :data:`MAX_POSITION_SIGMA`), naming the first epoch; "" where it did not."""
-    if _within_bounds(lla, vel, sigma):
-        return ""  # the usual case, in one pass of reductions (an epoch's mask is dearer)
+    :data:`MAX_POSITION_SIGMA`), naming the first epoch; "" where it did not.
+    ``extent``: the arrays' extremes where known (the core gathers them as it writes
+    the epochs), so that a solution within its bounds is not read again."""
+    if (extent or Extent.of(lla, vel, sigma)).within_bounds():
+        return ""  # the usual case: no epoch's mask is needed
     speed = np.linalg.norm(vel, axis=1)
     horizontal = np.hypot(sigma[:, 0], sigma[:, 1])
     checks = (
@@ -434,22 +436,46 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64) -> str:
     )
 
 
-def _within_bounds(lla: F64, vel: F64, sigma: F64) -> bool:
-    """Whether no epoch breaks a bound of :func:`divergence` (a NaN σ breaks none, as
-    there), by whole-array reductions."""
-    if len(lla) == 0:
-        return True
-    if not (np.isfinite(lla).all() and np.isfinite(vel).all()):
-        return False
-    with np.errstate(over="ignore", invalid="ignore"):
-        speed2 = np.einsum("ij,ij->i", vel, vel)
-        horizontal2 = sigma[:, 0] ** 2 + sigma[:, 1] ** 2
-    # fmax skips NaN (a σ not computed), as the comparisons in divergence do
-    return bool(
-        speed2.max() <= MAX_SPEED**2
-        and np.abs(lla[:, 2]).max() <= MAX_ABS_HEIGHT
-        and not np.fmax.reduce(horizontal2) > MAX_POSITION_SIGMA**2
-    )
+@dataclass(frozen=True)
+class Extent:
+    """A solution's extremes, all :func:`divergence` needs to tell that no epoch left
+    its bounds: whether every position and velocity is finite, and the largest speed²
+    [m²/s²] (of the finite velocities), |height| [m] (of the finite positions) and
+    horizontal variance σ_N² + σ_E² [m²] (a NaN σ, not computed, skipped; NaN where
+    every one is)."""
+
+    finite: bool
+    speed2: float
+    abs_height: float
+    horizontal2: float
+
+    @classmethod
+    def of(cls, lla: F64, vel: F64, sigma: F64) -> Extent:
+        """The extremes of ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` and ``sigma``
+        ``(n, 15)``, by whole-array reductions."""
+        if len(lla) == 0:
+            return cls(True, 0.0, 0.0, float("nan"))
+        finite = bool(np.isfinite(lla).all() and np.isfinite(vel).all())
+        with np.errstate(over="ignore", invalid="ignore"):
+            speed2 = np.einsum("ij,ij->i", vel, vel)
+            horizontal2 = sigma[:, 0] ** 2 + sigma[:, 1] ** 2
+        # fmax skips NaN, as f64::max does in the core
+        return cls(
+            finite,
+            float(np.fmax.reduce(speed2)),
+            float(np.fmax.reduce(np.abs(lla[:, 2]))),
+            float(np.fmax.reduce(horizontal2)),
+        )
+
+    def within_bounds(self) -> bool:
+        """Whether no epoch breaks a bound of :func:`divergence` (a NaN σ breaks
+        none, as there)."""
+        return (
+            self.finite
+            and self.speed2 <= MAX_SPEED**2
+            and self.abs_height <= MAX_ABS_HEIGHT
+            and not self.horizontal2 > MAX_POSITION_SIGMA**2
+        )
 
 
 @dataclass(frozen=True)
@@ -471,10 +497,11 @@ def pass_health(
     vel: F64,
     sigma: F64,
     time: F64,
+    extent: Extent | None = None,
 ) -> PassHealth:
     """The health of a pass: one :func:`stream_report` per stream (``streams`` the
     pass's rows, ``sources`` their names and times, in order) and its
-    :func:`divergence`."""
+    :func:`divergence` (``extent``: the solution's extremes, where known)."""
     if len(streams) != len(sources):
         raise ValueError(
             f"sources: one per stream of the pass ({len(streams)}), got {len(sources)}"
@@ -483,7 +510,7 @@ def pass_health(
         stream_report(src.name, rows, src.time, lla=src.lla, skipped=src.skipped)
         for rows, src in zip(streams, sources, strict=True)
     )
-    return PassHealth(reports, divergence(lla, vel, sigma, time))
+    return PassHealth(reports, divergence(lla, vel, sigma, time, extent))
 
 
 class FilterHealthWarning(UserWarning):

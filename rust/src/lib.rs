@@ -5,7 +5,7 @@
 //! engine, and the forward passes of the learned noise regressors.
 //!
 //! The modules in layers, each importing only those before it: `error`, `cancel`,
-//! `threads`, `memory`; `attitude`, `earth`, `clocks`, `regressors`; `mechanization`;
+//! `threads`, `memory`, `pages`; `attitude`, `earth`, `clocks`, `regressors`; `mechanization`;
 //! `trajectory`; `ekf`; `measurement`, `noise`; `sensors`; `pass`; `smoother`;
 //! `recorded`, `scenario`, `run`; `montecarlo`, `ensemble`; `python`
 //! (`tests/test_rust_layout.py` checks it).
@@ -28,6 +28,7 @@ pub mod memory;
 pub mod montecarlo;
 pub mod noise;
 pub mod online;
+pub mod pages;
 pub mod pass;
 pub mod recorded;
 pub mod regressors;

@@ -5,6 +5,7 @@
 use super::call::invalid;
 use crate::attitude::{dcm_from_euler, euler_from_dcm};
 use crate::mechanization::NavState;
+use crate::pages::vec_with_capacity;
 use nalgebra::Vector3;
 use numpy::ndarray::{Array2, Dimension, Ix1, Ix2};
 use numpy::{
@@ -417,8 +418,10 @@ fn room<T>(n: usize, what: &str) -> PyResult<Vec<T>> {
 
 /// Rows of C values as an owned (n, C) array, built without Python (so without the
 /// GIL where the caller has released it); handing it to Python does not copy it.
-pub fn rows_array<const C: usize>(rows: impl Iterator<Item = [f64; C]>) -> Array2<f64> {
-    Array2::from(rows.collect::<Vec<[f64; C]>>())
+pub fn rows_array<const C: usize>(rows: impl ExactSizeIterator<Item = [f64; C]>) -> Array2<f64> {
+    let mut v = vec_with_capacity(rows.len());
+    v.extend(rows);
+    Array2::from(v)
 }
 
 /// `lla`, `vel` and `rpy` arrays of the states into `d`.

@@ -9,9 +9,9 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref, StreamRef};
 use crate::attitude::euler_from_dcm;
-use crate::mechanization::NavState;
 use crate::recorded::{
-    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, StreamRecord,
+    filter_recorded_until, smooth_recorded_until, Epochs, Extent, FilterOutput, RecordedData,
+    StreamRecord,
 };
 use crate::smoother::Smoothed;
 use nalgebra::SMatrix;
@@ -47,8 +47,10 @@ fn q_schedule(
 /// no row has one, as the top-level key). The top-level update keys are the first
 /// velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
 /// none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
-/// ``calibration``, ``calibration_sigma`` per epoch, or None. Before it allocates, a
-/// pass that would hold more than this process can still take is a ``ValueError``
+/// ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
+/// solution's ``(finite, speed², |height|, σ_N² + σ_E²)`` extremes
+/// (:class:`pronet.stats.Extent`), gathered as its epochs were written. Before it
+/// allocates, a pass that would hold more than this process can still take is a ``ValueError``
 /// naming the argument that bounds the most of it (``output_step``, ``streams``,
 /// ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,
 /// "Memory").
@@ -210,6 +212,8 @@ struct OutputArrays {
     covariance_epoch: Array1<i64>,
     covariances: Array3<f64>,
     diverged_at: Option<f64>,
+    /// The forward solution's extremes, for the divergence check.
+    extent: Extent,
     /// Each stream's rows, in the order given, with its kind.
     streams: Vec<(Kind, StreamArrays)>,
     /// The smoothed solution's (`pronet.SmoothedResult`).
@@ -344,26 +348,32 @@ struct EpochArrays {
 }
 
 impl EpochArrays {
-    /// The bias and σ arrays take over their vectors without a copy.
-    fn new(nav: &[NavState], bias: Vec<[f64; 6]>, sigma: Vec<[f64; 15]>) -> Self {
+    /// A forward solution's arrays, each taking over its vector without a copy.
+    fn new(out: &mut FilterOutput) -> Self {
         Self {
-            lla: rows_array(nav.iter().map(|n| n.lla.into())),
-            vel: rows_array(nav.iter().map(|n| n.vel.into())),
-            rpy: rows_array(nav.iter().map(|n| euler_from_dcm(&n.dcm).into())),
-            bias: Array2::from(bias),
-            sigma: Array2::from(sigma),
+            lla: Array2::from(std::mem::take(&mut out.lla)),
+            vel: Array2::from(std::mem::take(&mut out.vel)),
+            rpy: Array2::from(std::mem::take(&mut out.rpy)),
+            bias: Array2::from(std::mem::take(&mut out.bias)),
+            sigma: Array2::from(std::mem::take(&mut out.sigma)),
             calibration: None,
         }
     }
 
+    /// A smoothed solution's arrays: position, velocity and attitude made from its
+    /// states, the rest taking over its vectors.
     fn smoothed(s: Smoothed) -> Self {
-        let calibration = (
-            Array2::from(s.calibration),
-            Array2::from(s.calibration_sigma),
-        );
+        let nav = &s.nav;
         Self {
-            calibration: Some(calibration),
-            ..Self::new(&s.nav, s.bias, s.sigma)
+            lla: rows_array(nav.iter().map(|n| n.lla.into())),
+            vel: rows_array(nav.iter().map(|n| n.vel.into())),
+            rpy: rows_array(nav.iter().map(|n| euler_from_dcm(&n.dcm).into())),
+            bias: Array2::from(s.bias),
+            sigma: Array2::from(s.sigma),
+            calibration: Some((
+                Array2::from(s.calibration),
+                Array2::from(s.calibration_sigma),
+            )),
         }
     }
 
@@ -389,7 +399,7 @@ impl OutputArrays {
         let smoothed = out.smoothed.take().map(EpochArrays::smoothed);
         let p = out.final_covariance;
         Self {
-            epochs: EpochArrays::new(&out.nav, out.bias, out.sigma),
+            epochs: EpochArrays::new(&mut out),
             time: Array1::from(out.time),
             epoch: out.epoch.iter().map(|&e| e as i64).collect(),
             calibration: Array2::from(out.calibration),
@@ -400,6 +410,7 @@ impl OutputArrays {
                 out.covariances[k].map_or(f64::NAN, |p| p[(i, j)])
             }),
             diverged_at: out.nis_monitor.diverged_at,
+            extent: out.extent,
             streams: streams
                 .into_iter()
                 .zip(kinds)
@@ -421,6 +432,9 @@ impl OutputArrays {
         d.set_item("covariance_epoch", self.covariance_epoch.into_pyarray(py))?;
         d.set_item("covariances", self.covariances.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
+        let e = self.extent;
+        let extent = (e.finite, e.speed2, e.abs_height, e.horizontal2);
+        d.set_item("extent", extent)?;
         let mut first = Kind::ALL.map(|_| true);
         let per_stream = PyList::empty(py);
         for (kind, arrays) in self.streams {

@@ -197,7 +197,7 @@ impl<'a> Recording<'a> {
         let smooth = log.is_some();
         let memory = estimate(data, epochs, self.cfg, smooth, strategy.sets_discrete_q());
         memory.peak().check("this pass")?;
-        let mut recorder = Recorder::start(data, epochs, &pass.ekf);
+        let mut recorder = Recorder::start(data, epochs, smooth, &pass.ekf);
         let n = data.imu.len();
         let first = data.first_time();
         let mut next_row = vec![0; data.streams.len()];

@@ -24,7 +24,9 @@ pub use data::RecordedData;
 pub use epochs::Epochs;
 pub use filter::{filter_recorded, filter_recorded_until, smooth_recorded_until, start_filter};
 pub use memory::{estimate as estimate_memory, PassMemory};
-pub use output::{FilterOutput, StreamRecord};
+#[cfg(test)]
+pub(crate) use output::solution_of;
+pub use output::{Extent, FilterOutput, StreamRecord};
 pub use stream::{velocity_variance, PerRow, Stream, Values};
 
 #[cfg(test)]

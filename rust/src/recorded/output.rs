@@ -1,6 +1,7 @@
 //! What a recorded pass reports ([`FilterOutput`]): the kept epochs, each stream's rows,
 //! and the covariances asked for.
 
+use crate::attitude::euler_from_dcm;
 use crate::ekf::calibration::DvlErrors;
 use crate::ekf::{Ekf, Matrix15, UpdateInfo};
 use crate::mechanization::NavState;
@@ -34,6 +35,16 @@ pub struct FilterOutput {
     /// With [`super::Epochs::Step`]: the index of each kept epoch among all (0 for `t0`, k for
     /// IMU sample k − 1); empty otherwise (every epoch, or the last).
     pub epoch: Vec<usize>,
+    /// Position `[lat, lon, h]` \[rad, rad, m\] per epoch.
+    pub lla: Vec<[f64; 3]>,
+    /// NED velocity \[m/s\] per epoch.
+    pub vel: Vec<[f64; 3]>,
+    /// Roll, pitch, yaw \[rad\] of the attitude per epoch ([`euler_from_dcm`]).
+    pub rpy: Vec<[f64; 3]>,
+    /// The whole navigation state per epoch, kept only where the smoother reads it
+    /// (a smoothed pass; empty otherwise: the rows above are the solution, written
+    /// once, where these would take 120 bytes more per epoch and a second pass to
+    /// convert).
     pub nav: Vec<NavState>,
     /// `[b_a, b_g]` estimates per epoch.
     pub bias: Vec<[f64; 6]>,
@@ -59,6 +70,8 @@ pub struct FilterOutput {
     pub covariances: Vec<Option<Matrix15>>,
     /// Divergence watch over every velocity update's NIS.
     pub nis_monitor: NisMonitor,
+    /// The kept epochs' extremes, gathered as they are written.
+    pub extent: Extent,
     /// The RTS-smoothed solution at the kept epochs, from
     /// [`super::smooth_recorded_until`].
     pub smoothed: Option<Smoothed>,
@@ -68,18 +81,98 @@ impl FilterOutput {
     /// Append the estimate at epoch time `t` \[s\]. Inside a covariance step its σ
     /// is NaN here: the recorder's [`super::stale::StaleSigma`] writes it when the
     /// step closes (the σ P gives there is the last close's, never reported).
-    pub(super) fn record(&mut self, ekf: &Ekf, t: f64) {
+    /// With `states`, the whole navigation state is kept too ([`Self::nav`]).
+    pub(super) fn record(&mut self, ekf: &Ekf, t: f64, states: bool) {
+        let (lla, vel) = (ekf.nav.lla.into(), ekf.nav.vel.into());
+        self.extent.add_solution(&lla, &vel);
         self.time.push(t);
-        self.nav.push(ekf.nav);
+        self.lla.push(lla);
+        self.vel.push(vel);
+        self.rpy.push(euler_from_dcm(&ekf.nav.dcm).into());
+        if states {
+            self.nav.push(ekf.nav);
+        }
         self.bias.push(ekf.bias());
-        self.sigma.push(if ekf.is_up_to_date() {
+        let sigma = if ekf.is_up_to_date() {
             ekf.sigma()
         } else {
             [f64::NAN; 15]
-        });
+        };
+        self.extent.add_sigma(&sigma);
+        self.sigma.push(sigma);
         if let Some(c) = &ekf.calibration {
             self.calibration.push(c.reported());
             self.calibration_sigma.push(c.sigma());
         }
+    }
+}
+
+#[cfg(test)]
+impl FilterOutput {
+    /// The solution kept at row `k`: position, velocity and Euler angles.
+    pub(crate) fn solution(&self, k: usize) -> [[f64; 3]; 3] {
+        [self.lla[k], self.vel[k], self.rpy[k]]
+    }
+
+    /// The solution at the last row.
+    pub(crate) fn last_solution(&self) -> [[f64; 3]; 3] {
+        self.solution(self.time.len() - 1)
+    }
+}
+
+/// The rows [`FilterOutput`] keeps of the state `nav`: position, velocity and Euler
+/// angles.
+#[cfg(test)]
+pub(crate) fn solution_of(nav: &NavState) -> [[f64; 3]; 3] {
+    [
+        nav.lla.into(),
+        nav.vel.into(),
+        euler_from_dcm(&nav.dcm).into(),
+    ]
+}
+
+/// A solution's extremes, gathered as its epochs are written, from which the
+/// divergence check (`pronet.stats.divergence`) tells at once whether any epoch left
+/// its bounds, without reading the arrays again.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Extent {
+    /// Whether every position and velocity is finite.
+    pub finite: bool,
+    /// The largest speed² \[m²/s²\] (of the finite velocities).
+    pub speed2: f64,
+    /// The largest |height| \[m\] (of the finite positions).
+    pub abs_height: f64,
+    /// The largest horizontal variance σ_N² + σ_E² \[m²\], NaN σ (not computed)
+    /// skipped; NaN where every σ is.
+    pub horizontal2: f64,
+}
+
+impl Default for Extent {
+    fn default() -> Self {
+        Self {
+            finite: true,
+            speed2: 0.0,
+            abs_height: 0.0,
+            horizontal2: f64::NAN,
+        }
+    }
+}
+
+impl Extent {
+    /// Take in one epoch's position `[lat, lon, h]` \[rad, rad, m\] and NED velocity
+    /// \[m/s\].
+    pub fn add_solution(&mut self, lla: &[f64; 3], vel: &[f64; 3]) {
+        self.finite &= lla.iter().chain(vel).all(|x| x.is_finite());
+        let speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2];
+        // f64::max skips a NaN operand: a non-finite epoch is told by `finite`.
+        self.speed2 = self.speed2.max(speed2);
+        self.abs_height = self.abs_height.max(lla[2].abs());
+    }
+
+    /// Take in one epoch's 1σ of the 15 errors (position first, north and east).
+    pub fn add_sigma(&mut self, sigma: &[f64; 15]) {
+        self.horizontal2 = self
+            .horizontal2
+            .max(sigma[0] * sigma[0] + sigma[1] * sigma[1]);
     }
 }

@@ -9,6 +9,7 @@ use super::stale::StaleSigma;
 use crate::ekf::{Applied, Ekf, Matrix15, ProcessNoise, Transition};
 use crate::measurement::Reading;
 use crate::noise::NoiseStrategy;
+use crate::pages::vec_with_capacity;
 use crate::pass::{Epoch, Observer, Updated};
 
 /// The observer that writes a recorded pass's [`FilterOutput`].
@@ -17,6 +18,8 @@ pub(super) struct Recorder<'d> {
     data: &'d RecordedData<'d>,
     /// Whether the epochs are kept at all (not [`Epochs::Last`]), and which.
     some: bool,
+    /// Whether their whole navigation states are kept too, for the smoother.
+    states: bool,
     thinning: Option<Thinning>,
     stale: StaleSigma,
     next_covariance: usize,
@@ -27,9 +30,15 @@ pub(super) struct Recorder<'d> {
 }
 
 impl<'d> Recorder<'d> {
-    /// An empty output with room for the epochs `epochs` keeps of `data`, and the
-    /// initial state `ekf` kept.
-    pub(super) fn start(data: &'d RecordedData<'d>, epochs: Epochs, ekf: &Ekf) -> Self {
+    /// An empty output with room for the epochs `epochs` keeps of `data` (their
+    /// whole navigation `states` too, for the smoother), and the initial state `ekf`
+    /// kept.
+    pub(super) fn start(
+        data: &'d RecordedData<'d>,
+        epochs: Epochs,
+        states: bool,
+        ekf: &Ekf,
+    ) -> Self {
         let n = data.imu.len();
         let kept = epochs.kept(n, data.imu_time[n - 1] - data.t0);
         let streams = data
@@ -55,19 +64,22 @@ impl<'d> Recorder<'d> {
             .collect();
         let calibrated = ekf.calibration.is_some();
         let mut out = FilterOutput {
-            time: Vec::with_capacity(kept),
-            nav: Vec::with_capacity(kept),
-            bias: Vec::with_capacity(kept),
-            sigma: Vec::with_capacity(kept),
+            time: vec_with_capacity(kept),
+            lla: vec_with_capacity(kept),
+            vel: vec_with_capacity(kept),
+            rpy: vec_with_capacity(kept),
+            nav: vec_with_capacity(if states { kept } else { 0 }),
+            bias: vec_with_capacity(kept),
+            sigma: vec_with_capacity(kept),
             streams,
             ..FilterOutput::default()
         };
         if calibrated {
-            out.calibration.reserve_exact(kept);
-            out.calibration_sigma.reserve_exact(kept);
+            out.calibration = vec_with_capacity(kept);
+            out.calibration_sigma = vec_with_capacity(kept);
         }
         if matches!(epochs, Epochs::Step(_)) {
-            out.epoch.reserve_exact(kept);
+            out.epoch = vec_with_capacity(kept);
         }
         // Room for every covariance asked for at once (grown as they come, up to twice).
         let asked = data.covariance_time.len();
@@ -78,6 +90,7 @@ impl<'d> Recorder<'d> {
             out,
             data,
             some: epochs != Epochs::Last,
+            states,
             thinning: Thinning::of(epochs, data.t0, first_dt),
             stale: StaleSigma::default(),
             next_covariance: 0,
@@ -85,7 +98,7 @@ impl<'d> Recorder<'d> {
             next_dt: first_dt,
         };
         if recorder.some {
-            recorder.out.record(ekf, data.t0);
+            recorder.out.record(ekf, data.t0, states);
             if recorder.thinning.is_some() {
                 recorder.out.epoch.push(0);
             }
@@ -102,7 +115,7 @@ impl<'d> Recorder<'d> {
     /// the last epoch's half step outside the run.
     pub(super) fn finish(mut self, ekf: &Ekf, t_last: f64) -> FilterOutput {
         if !self.some {
-            self.out.record(ekf, t_last);
+            self.out.record(ekf, t_last, self.states);
         }
         self.out.final_covariance = ekf.covariance();
         let asked = self.data.covariance_time.len();
@@ -175,7 +188,7 @@ impl Observer for Recorder<'_> {
                 Some(thin) => thin.keeps(at.t, self.next_dt) || at.last,
             };
             if recorded {
-                self.out.record(ekf, at.t);
+                self.out.record(ekf, at.t, self.states);
                 if self.thinning.is_some() {
                     self.out.epoch.push(at.index);
                 }
