@@ -26,7 +26,7 @@ calls at each tuning instant), and with ``--monte-carlo`` the constant-Q Monte C
 of 100 runs on the paper's scenario (one call per round), and with ``--filter``
 ``run_filter`` at the default covariance step over an hour at 100 Hz with a 5 Hz DVL
 (the last epoch kept: the filter alone; ``--epochs all`` every epoch, ``both`` each
-build both ways; one call per round, printed per IMU step).
+build both ways, as NAME/last and NAME/all; one call per round, printed per IMU step).
 """
 
 from __future__ import annotations
@@ -211,18 +211,17 @@ def timed(
     per_round: int,
     rtol: float = 0.0,
     unit: tuple[float, str] | None = None,
+    alike: list[list[str]] | None = None,
 ) -> None:
-    """Check that every build answers alike (the calls whose names end alike, after
-    the build's name and a space, compared with each other), then time them
-    interleaved and report (in ``unit``: seconds per unit and its name; ms for repeated
-    calls, else s)."""
-    groups: dict[str, dict[str, Any]] = {}
-    for name, f in calls.items():
-        groups.setdefault(name.partition(" ")[2], {})[name] = f()
-    for answers in groups.values():
-        difference = first_difference(answers, rtol)
+    """Check that every build answers alike (within each list of names of ``alike``:
+    by default all of them), then time them interleaved and report (in ``unit``:
+    seconds per unit and its name; ms for repeated calls, else s)."""
+    answers = {name: f() for name, f in calls.items()}
+    for names in alike or [list(calls)]:
+        difference = first_difference({name: answers[name] for name in names}, rtol)
         if difference is not None:
             raise SystemExit(f"{title}: {difference}; the builds do not compute the same")
+    del answers
     if unit is None:
         unit = (1e-3, "ms") if per_round > 1 else (1.0, "s")
     report(title, interleave(calls, rounds, per_round), *unit)
@@ -273,17 +272,21 @@ def main() -> None:
     if args.filter:
         seconds = args.hours * 3600.0
         kept = ("last", "all") if args.epochs == "both" else (args.epochs,)
+        named = {
+            e: {f"{name}/{e}" if len(kept) > 1 else name: core for name, core in cores.items()}
+            for e in kept
+        }
         filters = {
-            f"{name} {epochs}" if len(kept) > 1 else name: filter_call(core, seconds, epochs)
-            for epochs in kept
-            for name, core in cores.items()
+            name: filter_call(core, seconds, e) for e in kept for name, core in named[e].items()
         }
         steps = len(filter_data(seconds)["imu"])
         title = (
             f"run_filter, {args.hours:g} h at 100 Hz, 5 Hz DVL, default covariance step, "
             f"epochs kept: {args.epochs}"
         )
-        timed(title, filters, max(args.rounds // 2, 3), 1, args.rtol, (1e-9 * steps, "ns/step"))
+        per_step = (1e-9 * steps, "ns/step")
+        alike = [list(names) for names in named.values()]
+        timed(title, filters, max(args.rounds // 2, 3), 1, args.rtol, per_step, alike)
 
 
 if __name__ == "__main__":

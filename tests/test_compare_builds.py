@@ -113,10 +113,20 @@ def test_the_filter_is_timed_per_imu_step(tmp_path: Path) -> None:
         "--no-net",
     )
     assert out.returncode == 0, out.stderr
-    title = "run_filter, 0.02 h at 100 Hz, 5 Hz DVL, default covariance step, last epoch"
-    assert list(rows(out.stdout)) == [title]  # --no-net: the filter alone
-    table = rows(out.stdout)[title]
+    title = "run_filter, 0.02 h at 100 Hz, 5 Hz DVL, default covariance step, epochs kept:"
+    assert list(rows(out.stdout)) == [f"{title} last"]  # --no-net: the filter alone
+    table = rows(out.stdout)[f"{title} last"]
     assert set(table) == {"installed", "copy"} and table["installed"][3] == "ns/step"
+    # Both ways: each build keeping the last epoch and every epoch, compared alike.
+    out = run(
+        f"installed={_core.__file__}",
+        f"copy={copy}",
+        *("--rounds", "2", "--filter", "--hours", "0.02", "--epochs", "both", "--no-net"),
+    )
+    assert out.returncode == 0, out.stderr
+    table = rows(out.stdout)[f"{title} both"]
+    names = {f"{build}/{kept}" for build in ("installed", "copy") for kept in ("last", "all")}
+    assert set(table) == names
 
 
 def test_bad_arguments_and_unloadable_builds_are_named(tmp_path: Path) -> None:

@@ -9,6 +9,7 @@ use super::convert::{
 use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref, StreamRef};
 use crate::attitude::euler_from_dcm;
+use crate::mechanization::NavState;
 use crate::recorded::{
     filter_recorded_until, smooth_recorded_until, Epochs, Extent, FilterOutput, RecordedData,
     StreamRecord,
@@ -348,32 +349,48 @@ struct EpochArrays {
 }
 
 impl EpochArrays {
-    /// A forward solution's arrays, each taking over its vector without a copy.
+    /// A forward solution's arrays: position, velocity and attitude made from its
+    /// states where it kept them for the smoother, else taking over its rows; its
+    /// bias and σ taking over their vectors.
     fn new(out: &mut FilterOutput) -> Self {
-        Self {
-            lla: Array2::from(std::mem::take(&mut out.lla)),
-            vel: Array2::from(std::mem::take(&mut out.vel)),
-            rpy: Array2::from(std::mem::take(&mut out.rpy)),
-            bias: Array2::from(std::mem::take(&mut out.bias)),
-            sigma: Array2::from(std::mem::take(&mut out.sigma)),
-            calibration: None,
+        use std::mem::take;
+        let (bias, sigma) = (take(&mut out.bias), take(&mut out.sigma));
+        if out.nav.is_empty() {
+            Self {
+                lla: Array2::from(take(&mut out.lla)),
+                vel: Array2::from(take(&mut out.vel)),
+                rpy: Array2::from(take(&mut out.rpy)),
+                bias: Array2::from(bias),
+                sigma: Array2::from(sigma),
+                calibration: None,
+            }
+        } else {
+            Self::of_states(&out.nav, bias, sigma)
         }
     }
 
-    /// A smoothed solution's arrays: position, velocity and attitude made from its
-    /// states, the rest taking over its vectors.
-    fn smoothed(s: Smoothed) -> Self {
-        let nav = &s.nav;
+    /// Position, velocity and attitude made from the states `nav`; the bias and σ
+    /// arrays taking over their vectors.
+    fn of_states(nav: &[NavState], bias: Vec<[f64; 6]>, sigma: Vec<[f64; 15]>) -> Self {
         Self {
             lla: rows_array(nav.iter().map(|n| n.lla.into())),
             vel: rows_array(nav.iter().map(|n| n.vel.into())),
             rpy: rows_array(nav.iter().map(|n| euler_from_dcm(&n.dcm).into())),
-            bias: Array2::from(s.bias),
-            sigma: Array2::from(s.sigma),
-            calibration: Some((
-                Array2::from(s.calibration),
-                Array2::from(s.calibration_sigma),
-            )),
+            bias: Array2::from(bias),
+            sigma: Array2::from(sigma),
+            calibration: None,
+        }
+    }
+
+    /// A smoothed solution's arrays.
+    fn smoothed(s: Smoothed) -> Self {
+        let calibration = (
+            Array2::from(s.calibration),
+            Array2::from(s.calibration_sigma),
+        );
+        Self {
+            calibration: Some(calibration),
+            ..Self::of_states(&s.nav, s.bias, s.sigma)
         }
     }
 

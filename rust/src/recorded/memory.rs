@@ -17,10 +17,10 @@ use crate::smoother::memory::{
 use crate::smoother::Node;
 use std::mem::size_of;
 
-/// The bytes per epoch of the arrays made from a smoothed solution: position,
-/// velocity and attitude (its bias and σ arrays, and all of the forward solution's,
-/// take over the vectors).
-const SMOOTHED_ARRAYS: usize = 9 * 8;
+/// The bytes per epoch of the arrays made from a solution kept as whole states (a
+/// smoothed pass's, forward and smoothed): position, velocity and attitude (the bias
+/// and σ arrays, and the rows of a pass that kept rows, take over the vectors).
+const STATE_ARRAYS: usize = 9 * 8;
 /// The bytes per row of the arrays made from a velocity stream's updates: innovation,
 /// its covariance, the gain (3 + 9 + 45 values) and whether the gate accepted it.
 const VELOCITY_ARRAYS: usize = 57 * 8 + 1;
@@ -89,14 +89,20 @@ pub fn estimate(
         .sum();
     let (rows, velocity) = (rows as f64, velocity as f64);
     let covariances = data.covariance_time.len() as f64;
-    // The forward output at each kept epoch: time, position, velocity and attitude,
-    // bias estimates and σ (the calibration states' too), with an output step its
-    // index, and smoothed the whole state and the smoothed solution's.
-    let mut epoch = size_of::<f64>() + size_of::<[f64; 9]>() + size_of::<[f64; 21]>();
+    // The forward output at each kept epoch: time, the solution (position, velocity
+    // and attitude rows; smoothed, the whole state), bias estimates and σ (the
+    // calibration states' too), with an output step its index, and smoothed the
+    // smoothed solution's.
+    let solution = if smooth {
+        size_of::<NavState>()
+    } else {
+        size_of::<[f64; 9]>()
+    };
+    let mut epoch = size_of::<f64>() + solution + size_of::<[f64; 21]>();
     epoch += usize::from(calibrated) * size_of::<[DvlErrors; 2]>()
         + usize::from(thinned) * size_of::<usize>();
     if smooth {
-        epoch += size_of::<NavState>() + smoothed_epoch_bytes(calibrated);
+        epoch += smoothed_epoch_bytes(calibrated);
     }
     let row = size_of::<Option<usize>>() + size_of::<f64>();
     let update = size_of::<Option<UpdateInfo>>() + size_of::<Option<Box<Matrix15>>>();
@@ -134,7 +140,7 @@ pub fn estimate(
     output.fixed = PASS_BYTES;
     let thinned_index = usize::from(thinned) * size_of::<i64>();
     let arrays = group((
-        SMOOTHED_ARRAYS * usize::from(smooth) + thinned_index,
+        STATE_ARRAYS * 2 * usize::from(smooth) + thinned_index,
         ROW_ARRAYS,
         VELOCITY_ARRAYS,
         q,

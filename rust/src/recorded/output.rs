@@ -35,16 +35,15 @@ pub struct FilterOutput {
     /// With [`super::Epochs::Step`]: the index of each kept epoch among all (0 for `t0`, k for
     /// IMU sample k − 1); empty otherwise (every epoch, or the last).
     pub epoch: Vec<usize>,
-    /// Position `[lat, lon, h]` \[rad, rad, m\] per epoch.
+    /// The solution per epoch, in one of two forms: as position `[lat, lon, h]`
+    /// \[rad, rad, m\], NED velocity \[m/s\] and roll, pitch, yaw \[rad\]
+    /// ([`euler_from_dcm`]) rows, written once, as they are handed over; or, where the
+    /// smoother reads them (a smoothed pass), as whole navigation states in [`Self::nav`]
+    /// (120 bytes an epoch, made into rows when handed over), these rows empty.
     pub lla: Vec<[f64; 3]>,
-    /// NED velocity \[m/s\] per epoch.
     pub vel: Vec<[f64; 3]>,
-    /// Roll, pitch, yaw \[rad\] of the attitude per epoch ([`euler_from_dcm`]).
     pub rpy: Vec<[f64; 3]>,
-    /// The whole navigation state per epoch, kept only where the smoother reads it
-    /// (a smoothed pass; empty otherwise: the rows above are the solution, written
-    /// once, where these would take 120 bytes more per epoch and a second pass to
-    /// convert).
+    /// The whole navigation state per epoch, in a smoothed pass (empty otherwise).
     pub nav: Vec<NavState>,
     /// `[b_a, b_g]` estimates per epoch.
     pub bias: Vec<[f64; 6]>,
@@ -81,16 +80,18 @@ impl FilterOutput {
     /// Append the estimate at epoch time `t` \[s\]. Inside a covariance step its σ
     /// is NaN here: the recorder's [`super::stale::StaleSigma`] writes it when the
     /// step closes (the σ P gives there is the last close's, never reported).
-    /// With `states`, the whole navigation state is kept too ([`Self::nav`]).
+    /// With `states`, the solution is kept as the whole navigation state
+    /// ([`Self::nav`]), else as rows.
     pub(super) fn record(&mut self, ekf: &Ekf, t: f64, states: bool) {
         let (lla, vel) = (ekf.nav.lla.into(), ekf.nav.vel.into());
         self.extent.add_solution(&lla, &vel);
         self.time.push(t);
-        self.lla.push(lla);
-        self.vel.push(vel);
-        self.rpy.push(euler_from_dcm(&ekf.nav.dcm).into());
         if states {
             self.nav.push(ekf.nav);
+        } else {
+            self.lla.push(lla);
+            self.vel.push(vel);
+            self.rpy.push(euler_from_dcm(&ekf.nav.dcm).into());
         }
         self.bias.push(ekf.bias());
         let sigma = if ekf.is_up_to_date() {
@@ -111,7 +112,10 @@ impl FilterOutput {
 impl FilterOutput {
     /// The solution kept at row `k`: position, velocity and Euler angles.
     pub(crate) fn solution(&self, k: usize) -> [[f64; 3]; 3] {
-        [self.lla[k], self.vel[k], self.rpy[k]]
+        match self.nav.get(k) {
+            Some(nav) => solution_of(nav),
+            None => [self.lla[k], self.vel[k], self.rpy[k]],
+        }
     }
 
     /// The solution at the last row.

@@ -18,7 +18,7 @@ pub(super) struct Recorder<'d> {
     data: &'d RecordedData<'d>,
     /// Whether the epochs are kept at all (not [`Epochs::Last`]), and which.
     some: bool,
-    /// Whether their whole navigation states are kept too, for the smoother.
+    /// Whether the solution is kept as whole navigation states, for the smoother.
     states: bool,
     thinning: Option<Thinning>,
     stale: StaleSigma,
@@ -30,8 +30,8 @@ pub(super) struct Recorder<'d> {
 }
 
 impl<'d> Recorder<'d> {
-    /// An empty output with room for the epochs `epochs` keeps of `data` (their
-    /// whole navigation `states` too, for the smoother), and the initial state `ekf`
+    /// An empty output with room for the epochs `epochs` keeps of `data` (as whole
+    /// navigation `states`, for the smoother, or as rows), and the initial state `ekf`
     /// kept.
     pub(super) fn start(
         data: &'d RecordedData<'d>,
@@ -63,12 +63,13 @@ impl<'d> Recorder<'d> {
             })
             .collect();
         let calibrated = ekf.calibration.is_some();
+        let rows = if states { 0 } else { kept };
         let mut out = FilterOutput {
             time: vec_with_capacity(kept),
-            lla: vec_with_capacity(kept),
-            vel: vec_with_capacity(kept),
-            rpy: vec_with_capacity(kept),
-            nav: vec_with_capacity(if states { kept } else { 0 }),
+            lla: vec_with_capacity(rows),
+            vel: vec_with_capacity(rows),
+            rpy: vec_with_capacity(rows),
+            nav: vec_with_capacity(kept - rows),
             bias: vec_with_capacity(kept),
             sigma: vec_with_capacity(kept),
             streams,

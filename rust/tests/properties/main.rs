@@ -110,6 +110,20 @@ fn nav_finite(s: &NavState) -> bool {
     all_finite(s.lla.iter()) && all_finite(s.vel.iter()) && all_finite(s.dcm.iter())
 }
 
+/// The epochs a pass kept the solution at: as whole states (smoothed) or as rows.
+fn solution_epochs(out: &FilterOutput) -> usize {
+    out.nav.len().max(out.lla.len())
+}
+
+/// Whether the solution kept at epoch `k` is finite: its whole state, or its position,
+/// velocity and Euler angle rows.
+fn solution_finite(out: &FilterOutput, k: usize) -> bool {
+    match out.nav.get(k) {
+        Some(nav) => nav_finite(nav),
+        None => [out.lla[k], out.vel[k], out.rpy[k]].iter().all(all_finite),
+    }
+}
+
 mod filter;
 mod montecarlo;
 mod pinned;

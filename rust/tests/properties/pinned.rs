@@ -12,7 +12,7 @@ use super::*;
 
 /// Every number of a filter pass is finite.
 fn output_is_finite(out: &FilterOutput) -> bool {
-    out.nav.iter().all(nav_finite)
+    (0..solution_epochs(out)).all(|k| solution_finite(out, k))
         && out.sigma.iter().all(all_finite)
         && out.bias.iter().all(all_finite)
         && all_finite(out.final_covariance.iter())
@@ -54,11 +54,8 @@ const TRUE_Q: StrategySpec = StrategySpec::Constant {
 
 fn assert_err_or_finite(result: pronet::Result<FilterOutput>) {
     if let Ok(out) = result {
-        let k = out
-            .nav
-            .iter()
-            .zip(&out.sigma)
-            .position(|(n, s)| !nav_finite(n) || !all_finite(s));
+        let k = (0..solution_epochs(&out))
+            .position(|k| !solution_finite(&out, k) || !all_finite(&out.sigma[k]));
         assert!(
             output_is_finite(&out),
             "Ok with non-finite output: first bad epoch {k:?}; final P diagonal {:?}",
