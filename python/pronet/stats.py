@@ -440,9 +440,9 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64, extent: Extent | None 
 class Extent:
     """A solution's extremes, all :func:`divergence` needs to tell that no epoch left
     its bounds: whether every position and velocity is finite, and the largest speed²
-    [m²/s²] (of the finite velocities), |height| [m] (of the finite positions) and
-    horizontal variance σ_N² + σ_E² [m²] (a NaN σ, not computed, skipped; NaN where
-    every one is)."""
+    [m²/s²], |height| [m] and horizontal variance σ_N² + σ_E² [m²], each skipping NaN
+    (a NaN σ is one not computed; where every σ is, NaN). Where ``finite`` is false
+    the largest values mean nothing: the bounds are broken already."""
 
     finite: bool
     speed2: float

@@ -142,9 +142,9 @@ pub(crate) fn solution_of(nav: &NavState) -> [[f64; 3]; 3] {
 pub struct Extent {
     /// Whether every position and velocity is finite.
     pub finite: bool,
-    /// The largest speed² \[m²/s²\] (of the finite velocities).
+    /// The largest speed² \[m²/s²\] (NaN skipped).
     pub speed2: f64,
-    /// The largest |height| \[m\] (of the finite positions).
+    /// The largest |height| \[m\] (NaN skipped).
     pub abs_height: f64,
     /// The largest horizontal variance σ_N² + σ_E² \[m²\], NaN σ (not computed)
     /// skipped; NaN where every σ is.

@@ -148,8 +148,10 @@ fn thinned_passes_equal_the_every_epoch_pass_at_the_kept_epochs() {
             };
             let all = run(Epochs::All);
             let full = all.smoothed.as_ref().unwrap();
+            same_solution_kept_as_states_or_rows(&data, &cfg, spec, Epochs::All, &all);
             for step in [0.25, 0.013] {
                 let thin = run(Epochs::Step(step));
+                same_solution_kept_as_states_or_rows(&data, &cfg, spec, Epochs::Step(step), &thin);
                 let s = thin.smoothed.as_ref().unwrap();
                 let what = format!("{spec:?} {cfg:?} step {step}");
                 assert!(thin.epoch.len() < 601 && thin.epoch.len() > 20, "{what}");
@@ -177,6 +179,37 @@ fn thinned_passes_equal_the_every_epoch_pass_at_the_kept_epochs() {
             assert_ne!(full.nav[300], all.nav[300]);
             reintegration_is_exact(&data, &cfg, spec, &all);
         }
+    }
+}
+
+/// A pass without the smoother keeps its solution as rows, a smoothed one (`smoothed`)
+/// as whole states, one form only, at every kept epoch; both forms give the same rows,
+/// bit for bit.
+fn same_solution_kept_as_states_or_rows(
+    data: &RecordedData<'_>,
+    cfg: &FilterConfig,
+    spec: &StrategySpec,
+    epochs: Epochs,
+    smoothed: &FilterOutput,
+) {
+    let mut strategy = spec.build(cfg.bias_psd());
+    let (x, c) = (moving_state(), Cancel::default());
+    let plain =
+        filter_recorded_until(data, x, [0.0; 6], cfg, strategy.as_mut(), epochs, &c).unwrap();
+    let rows = plain.time.len();
+    assert_eq!(plain.time, smoothed.time);
+    assert!(plain.nav.is_empty() && smoothed.lla.is_empty() && smoothed.vel.is_empty());
+    assert_eq!((smoothed.nav.len(), smoothed.rpy.len()), (rows, 0));
+    assert_eq!(
+        [plain.lla.len(), plain.vel.len(), plain.rpy.len()],
+        [rows; 3]
+    );
+    for k in 0..rows {
+        assert_eq!(
+            plain.solution(k),
+            smoothed.solution(k),
+            "{epochs:?} epoch {k}"
+        );
     }
 }
 

@@ -116,7 +116,9 @@ fn solution_epochs(out: &FilterOutput) -> usize {
 }
 
 /// Whether the solution kept at epoch `k` is finite: its whole state, or its position,
-/// velocity and Euler angle rows.
+/// velocity and Euler angle rows (what a pass without the smoother keeps and hands
+/// over: angles can be finite of an attitude that is not, atan2(∞, ∞) = π/4, but a
+/// state that is not finite after a step is an error of the pass itself).
 fn solution_finite(out: &FilterOutput, k: usize) -> bool {
     match out.nav.get(k) {
         Some(nav) => nav_finite(nav),
