@@ -24,7 +24,6 @@ from pronet.run import Recorded
 from synthetic_recording import DVL_LEVER_ARM, IMU_LEVER_ARM, synthetic_recording
 
 FORMULATIONS = ["invariant", "classic"]
-STEPS = [0.0, 0.1]  # every sample, and the default covariance step
 
 
 @pytest.fixture(autouse=True)
@@ -133,10 +132,13 @@ def snapir_section():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("formulation", FORMULATIONS)
-@pytest.mark.parametrize("step", STEPS)
+@pytest.mark.parametrize(("step", "formulation"), [(0.1, "invariant"), (0.0, "classic")])
 def test_equals_the_core_on_a_snapir_section(snapir_section, formulation, step) -> None:
-    """A whole 400 s section of the real AUV data, as ``pronet real`` filters it."""
+    """A whole 400 s section of the real AUV data, as ``pronet real`` filters it: the
+    default (the invariant formulation at the 0.1 s step) and its opposite corner (the
+    classic one at every sample). Each formulation meets each step on the simulated
+    recording above; the real data adds its own noise, gaps and lever arms, which no
+    pair of the four sees differently, at 30 s a pair."""
     section = snapir_section
     arm = section.alignment.filter_lever_arm
     dt = imu_step(section.imu_time)
