@@ -13,6 +13,7 @@ relative), which is why the at-rest row exists.
 
 from __future__ import annotations
 
+import fcntl
 import importlib.util
 import os
 import re
@@ -20,6 +21,7 @@ import shutil
 import subprocess
 import sys
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -106,11 +108,19 @@ def build_mutant(name: str, src: Path, tmp: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def source(tmp_path_factory) -> Path:
-    """The one source folder the mutants are built in, one after another."""
-    src = tmp_path_factory.mktemp("mutant") / "src"
-    mutant_source(src)
-    return src
+def source() -> Iterator[Path]:
+    """The one source folder the mutants are built in, one after another. It is always
+    the same folder, under the project's target folder: a session's builds start from
+    the last session's incremental state instead of leaving 134 MB more of it behind.
+    Locked, so that another session's mutants wait for these."""
+    root = ROOT / "target" / "mutant"
+    root.mkdir(parents=True, exist_ok=True)
+    with open(root / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        src = root / "src"
+        shutil.rmtree(src, ignore_errors=True)
+        mutant_source(src)
+        yield src
 
 
 def test_each_mutation_site_is_in_the_source_once() -> None:
