@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import pronet
+from pronet.montecarlo import chance_bound, runs_flag, runs_outside_band
 from pronet.recorded.alignment import dcm_from_euler
 from pronet.sim.scenarios import SCENARIOS
 from pronet.stats import (
@@ -20,10 +21,8 @@ from pronet.stats import (
     FilterHealthWarning,
     StreamReport,
     StreamSource,
-    chance_bound,
+    heading_linearity,
     pass_health,
-    runs_flag,
-    runs_outside_band,
     stream_report,
 )
 
@@ -207,6 +206,37 @@ def test_a_diverged_pass_is_named_with_its_first_epoch() -> None:
     assert quiet.health.divergence == out.health.divergence
 
 
+def test_a_heading_sigma_past_its_linear_range_is_named_and_a_compass_keeps_it_in() -> None:
+    """A vertical gyro bias known to 0.005 rad/s (1,000 °/h) and the DVL alone: the
+    heading's σ passes 5° within 20 s, and the pass says from when; with the 2 Hz
+    heading it stays under 1°, and nothing is said."""
+    streams, _ = _streams(np.random.default_rng(3))
+    traj = pronet.builtin_trajectory("paper")
+    n = int(SECONDS * 100)
+    p0 = list(pronet.FilterConfig().p0_sigma)
+    p0[14] = 0.005
+    config = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14, p0_sigma=p0)
+
+    def run(given: list, warn: bool) -> pronet.FilterResult:
+        return pronet.run_filter(
+            traj.imu[:n], traj.time[1 : n + 1], given, t0=0.0, lla0=traj.lla[0],
+            vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+            config=config, warn=warn,
+        )  # fmt: skip
+
+    with pytest.warns(FilterHealthWarning, match="the heading's 1σ reached"):
+        alone = run(streams[:1], warn=True)
+    k = int(np.argmax(alone.sigma[:, 8] > np.radians(5.0)))
+    assert 0 < alone.time[k] < 20.0
+    assert f"from t = {alone.time[k]:.6g} s, epoch {k})" in alone.health.heading
+    assert alone.health.heading in alone.health.flags
+    # the arrays read again say what the core's extremes said
+    assert heading_linearity(alone.sigma, alone.time) == alone.health.heading
+    aided = run([streams[0], streams[2]], warn=False)
+    assert np.nanmax(aided.sigma[:, 8]) < np.radians(1.0)
+    assert aided.health.heading == "" == heading_linearity(aided.sigma, aided.time)
+
+
 def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
     # Every epoch at each sample and inside a covariance step (σ written when the step
     # closes), thinned, the last alone, and a pass that left its bounds (5 m/s² off).
@@ -230,7 +260,7 @@ def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
         gathered = Extent(*out["extent"])
         read = Extent.of(out["lla"], out["vel"], out["sigma"])
         assert gathered.finite == read.finite, (step, options)
-        for name in ("speed2", "abs_height", "horizontal2"):
+        for name in ("speed2", "abs_height", "horizontal2", "heading2"):
             assert getattr(gathered, name) == pytest.approx(getattr(read, name), rel=1e-14)
         assert gathered.within_bounds() == (imu is not drifted), (step, options)
 

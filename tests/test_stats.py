@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from pronet import stats
+from pronet.montecarlo import chance_bound
 
 
 @pytest.mark.parametrize(
@@ -62,7 +63,7 @@ def test_chance_bound_is_the_smallest_k_at_the_level(n: int) -> None:
     def cdf(k: int) -> float:
         return sum(math.comb(n, i) * 0.05**i * 0.95 ** (n - i) for i in range(k + 1))
 
-    k = stats.chance_bound(n)
+    k = chance_bound(n)
     assert cdf(k) >= 0.99 and (k == 0 or cdf(k - 1) < 0.99)
 
 

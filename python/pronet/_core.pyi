@@ -446,7 +446,7 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
     none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
     ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
-    solution's ``(finite, speed², |height|, σ_N² + σ_E²)`` extremes
+    solution's ``(finite, speed², |height|, σ_N² + σ_E², σ_ψD²)`` extremes
     (:class:`pronet.stats.Extent`), gathered as its epochs were written. Before it
     allocates, a pass that would hold more than this process can still take is a ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,

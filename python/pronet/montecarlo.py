@@ -11,6 +11,9 @@ numbers): differences between strategies are paired.
 the arguments of :func:`monte_carlo` (an initial q in place of the strategy, and the
 window and tuning period of the loop), and its :meth:`~Ensemble.finish` returns the same
 :class:`MonteCarloResult`. The runs live in the native core (:class:`pronet._core.Ensemble`).
+
+How many runs may leave their NIS band by chance before a strategy is named
+(:func:`runs_outside_band`, :func:`chance_bound`, :func:`runs_flag`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import special
 
 from pronet import _core
 from pronet._util.validate import check_type, flag, float_array
@@ -530,3 +534,40 @@ class Ensemble:
     def done(self) -> bool:
         """Whether every run reached the end (or the ensemble finished)."""
         return self._native.done
+
+
+def runs_outside_band(nis: ArrayLike, dof: int = 3) -> NDArray[np.bool_]:
+    """Whether each run's mean NIS (``nis`` ``(n_runs, m)``, NaN where a reading was not
+    applied) lies outside its 95 % band, χ²(dof·k)/k over its ``k`` readings (False for
+    a run without any)."""
+    nis = np.asarray(nis, dtype=np.float64)
+    out = np.zeros(len(nis), dtype=bool)
+    for r, row in enumerate(nis):
+        seen = row[np.isfinite(row)]
+        if len(seen):
+            lo, hi = chi2_mean_band(dof, len(seen))
+            out[r] = not lo <= float(seen.mean()) <= hi
+    return out
+
+
+def chance_bound(n: int, p: float = 0.05, level: float = 0.99) -> int:
+    """The most of ``n`` independent trials that land outside a band of probability
+    ``1 − p`` by chance, at ``level``: the smallest ``k`` with P(Binomial(n, p) ≤ k) ≥
+    ``level`` (``scipy.special``'s binomial CDF)."""
+    cdf = special.bdtr(np.arange(n + 1), n, p)
+    reached = np.flatnonzero(cdf >= level)
+    return int(reached[0]) if len(reached) else n
+
+
+def runs_flag(label: str, outside: NDArray[np.bool_], what: str = "DVL") -> str:
+    """One line when more runs' mean NIS lie outside their band than chance allows
+    (:func:`chance_bound`), else ""."""
+    n, k = len(outside), int(np.sum(outside))
+    allowed = chance_bound(n)
+    if k <= allowed:
+        return ""
+    return (
+        f"{label}: {k} of {n} runs' mean {what} NIS outside their 95 % band (chance "
+        f"allows {allowed}): the filter is told a model other than the simulation's "
+        "(its R, Q or initial σ); check the filter configuration against the sensors'"
+    )

@@ -8,7 +8,8 @@ never leaves the range of the values themselves. ``MeanCI.method`` says which.
 
 A pass's health (:func:`pass_health`): per stream, how many readings it applied, gated
 out or skipped and whether their normalised innovations (NIS) agree with the σ the
-stream was given; per pass, whether the solution left physical bounds. One line per
+stream was given; per pass, whether the solution left physical bounds and whether its
+heading σ left the range where the position's linearization holds. One line per
 finding, naming the stream, the figure and its likely causes.
 
 A consistent filter's NIS of a reading is χ² with the reading's degrees of freedom
@@ -167,6 +168,11 @@ CAUSES_HIGH = {
 MAX_SPEED = 100.0
 MAX_ABS_HEIGHT = 20_000.0
 MAX_POSITION_SIGMA = 1.0e6
+#: Past this heading 1σ [deg] a heading error is no longer small: the filter's position
+#: error, linear in it, leaves out terms that on a track with a net drift grow with the
+#: distance covered (docs/results/consistency.md, "A long MEMS mission without fixes"),
+#: and the position σ can understate the error many times over.
+MAX_LINEAR_HEADING_SIGMA_DEG = 5.0
 
 
 class StreamRows(Protocol):
@@ -249,15 +255,19 @@ class PassHealth:
     Attributes:
         streams: one :class:`StreamReport` per stream, in the pass's order.
         divergence: one line where the solution left physical bounds, else "".
+        heading: one line where the heading 1σ grew past
+            :data:`MAX_LINEAR_HEADING_SIGMA_DEG`, else "" (:func:`heading_linearity`).
     """
 
     streams: tuple[StreamReport, ...] = ()
     divergence: str = ""
+    heading: str = ""
 
     @property
     def flags(self) -> tuple[str, ...]:
-        """Every finding, one line each: the divergence first, then the streams'."""
-        lines = [self.divergence] + [s.flag for s in self.streams]
+        """Every finding, one line each: the divergence first, then the heading's, then
+        the streams'."""
+        lines = [self.divergence, self.heading] + [s.flag for s in self.streams]
         return tuple(line for line in lines if line)
 
 
@@ -436,35 +446,63 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64, extent: Extent | None 
     )
 
 
+def heading_linearity(sigma: F64, time: F64, extent: Extent | None = None) -> str:
+    """One line where the heading 1σ (``sigma`` ``(n, 15)``, column 8, the attitude
+    error's down component [rad], at ``time`` [s]) exceeds
+    :data:`MAX_LINEAR_HEADING_SIGMA_DEG`, naming the first epoch; "" where it does not
+    (NaN σ, not computed, never does). ``extent``: the arrays' extremes where known."""
+    limit = math.radians(MAX_LINEAR_HEADING_SIGMA_DEG)
+    if extent is not None:
+        largest = extent.heading2
+    else:
+        with np.errstate(over="ignore", invalid="ignore"):
+            largest = float(np.fmax.reduce(sigma[:, 8] ** 2)) if len(sigma) else math.nan
+    if not largest > limit**2:
+        return ""
+    k = int(np.argmax(sigma[:, 8] > limit))
+    return (
+        f"the heading's 1σ reached {math.degrees(math.sqrt(largest)):.3g}° (over "
+        f"{MAX_LINEAR_HEADING_SIGMA_DEG:g}° from t = {time[k]:.6g} s, epoch {k}): a heading "
+        "error this large is not small, and the position σ, linear in it, can understate "
+        "the position error on a track with a net drift; aid the heading (a compass, "
+        "fixes) to keep it small"
+    )
+
+
 @dataclass(frozen=True)
 class Extent:
-    """A solution's extremes, all :func:`divergence` needs to tell that no epoch left
-    its bounds: whether every position and velocity is finite, and the largest speed²
-    [m²/s²], |height| [m] and horizontal variance σ_N² + σ_E² [m²], each skipping NaN
-    (a NaN σ is one not computed; where every σ is, NaN). Where ``finite`` is false
-    the largest values mean nothing: the bounds are broken already."""
+    """A solution's extremes, all :func:`divergence` and :func:`heading_linearity` need
+    to tell that no epoch left its bounds: whether every position and velocity is
+    finite, and the largest speed² [m²/s²], |height| [m], horizontal variance
+    σ_N² + σ_E² [m²] and heading variance σ_ψD² [rad²], each skipping NaN (a NaN σ is
+    one not computed; where every σ is, NaN). Where ``finite`` is false the largest
+    values mean nothing: the bounds are broken already."""
 
     finite: bool
     speed2: float
     abs_height: float
     horizontal2: float
+    heading2: float
 
     @classmethod
     def of(cls, lla: F64, vel: F64, sigma: F64) -> Extent:
         """The extremes of ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` and ``sigma``
         ``(n, 15)``, by whole-array reductions."""
-        if len(lla) == 0:
-            return cls(True, 0.0, 0.0, float("nan"))
-        finite = bool(np.isfinite(lla).all() and np.isfinite(vel).all())
         with np.errstate(over="ignore", invalid="ignore"):
             speed2 = np.einsum("ij,ij->i", vel, vel)
             horizontal2 = sigma[:, 0] ** 2 + sigma[:, 1] ** 2
-        # fmax skips NaN, as f64::max does in the core
+            heading2 = sigma[:, 8] ** 2
+
+        def largest(x: F64, empty: float) -> float:  # fmax skips NaN, as f64::max does
+            return float(np.fmax.reduce(x)) if len(x) else empty
+
+        nan = float("nan")
         return cls(
-            finite,
-            float(np.fmax.reduce(speed2)),
-            float(np.fmax.reduce(np.abs(lla[:, 2]))),
-            float(np.fmax.reduce(horizontal2)),
+            bool(np.isfinite(lla).all() and np.isfinite(vel).all()),
+            largest(speed2, 0.0),
+            largest(np.abs(lla[:, 2]), 0.0),
+            largest(horizontal2, nan),
+            largest(heading2, nan),
         )
 
     def within_bounds(self) -> bool:
@@ -500,8 +538,9 @@ def pass_health(
     extent: Extent | None = None,
 ) -> PassHealth:
     """The health of a pass: one :func:`stream_report` per stream (``streams`` the
-    pass's rows, ``sources`` their names and times, in order) and its
-    :func:`divergence` (``extent``: the solution's extremes, where known)."""
+    pass's rows, ``sources`` their names and times, in order), its :func:`divergence`
+    and its :func:`heading_linearity` (``extent``: the solution's extremes, where
+    known)."""
     if len(streams) != len(sources):
         raise ValueError(
             f"sources: one per stream of the pass ({len(streams)}), got {len(sources)}"
@@ -510,7 +549,11 @@ def pass_health(
         stream_report(src.name, rows, src.time, lla=src.lla, skipped=src.skipped)
         for rows, src in zip(streams, sources, strict=True)
     )
-    return PassHealth(reports, divergence(lla, vel, sigma, time, extent))
+    return PassHealth(
+        reports,
+        divergence(lla, vel, sigma, time, extent),
+        heading_linearity(sigma, time, extent),
+    )
 
 
 class FilterHealthWarning(UserWarning):
@@ -543,40 +586,3 @@ def warn_about(health: PassHealth, where: str = "run_filter") -> None:
 
     for line in health.flags:
         warnings.warn(f"{where}: {line}", FilterHealthWarning, stacklevel=3)
-
-
-def runs_outside_band(nis: F64, dof: int = 3) -> NDArray[np.bool_]:
-    """Whether each run's mean NIS (``nis`` ``(n_runs, m)``, NaN where a reading was not
-    applied) lies outside its 95 % band, χ²(dof·k)/k over its ``k`` readings (False for
-    a run without any)."""
-    nis = np.asarray(nis, dtype=np.float64)
-    out = np.zeros(len(nis), dtype=bool)
-    for r, row in enumerate(nis):
-        seen = row[np.isfinite(row)]
-        if len(seen):
-            lo, hi = chi2_mean_band(dof, len(seen))
-            out[r] = not lo <= float(seen.mean()) <= hi
-    return out
-
-
-def chance_bound(n: int, p: float = 0.05, level: float = 0.99) -> int:
-    """The most of ``n`` independent trials that land outside a band of probability
-    ``1 − p`` by chance, at ``level``: the smallest ``k`` with P(Binomial(n, p) ≤ k) ≥
-    ``level`` (``scipy.special``'s binomial CDF)."""
-    cdf = special.bdtr(np.arange(n + 1), n, p)
-    reached = np.flatnonzero(cdf >= level)
-    return int(reached[0]) if len(reached) else n
-
-
-def runs_flag(label: str, outside: NDArray[np.bool_], what: str = "DVL") -> str:
-    """One line when more runs' mean NIS lie outside their band than chance allows
-    (:func:`chance_bound`), else ""."""
-    n, k = len(outside), int(np.sum(outside))
-    allowed = chance_bound(n)
-    if k <= allowed:
-        return ""
-    return (
-        f"{label}: {k} of {n} runs' mean {what} NIS outside their 95 % band (chance "
-        f"allows {allowed}): the filter is told a model other than the simulation's "
-        "(its R, Q or initial σ); check the filter configuration against the sensors'"
-    )

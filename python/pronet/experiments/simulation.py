@@ -12,10 +12,10 @@ from pathlib import Path
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
+from pronet.montecarlo import chance_bound, runs_flag, runs_outside_band
 from pronet.results import table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.sim.scenarios import Scenario
-from pronet.stats import chance_bound, runs_flag, runs_outside_band
 from pronet.strategies import StrategySpec, strategy
 
 

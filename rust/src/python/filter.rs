@@ -49,7 +49,7 @@ fn q_schedule(
 /// velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
 /// none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
 /// ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
-/// solution's ``(finite, speed², |height|, σ_N² + σ_E²)`` extremes
+/// solution's ``(finite, speed², |height|, σ_N² + σ_E², σ_ψD²)`` extremes
 /// (:class:`pronet.stats.Extent`), gathered as its epochs were written. Before it
 /// allocates, a pass that would hold more than this process can still take is a ``ValueError``
 /// naming the argument that bounds the most of it (``output_step``, ``streams``,
@@ -450,7 +450,7 @@ impl OutputArrays {
         d.set_item("covariances", self.covariances.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
         let e = self.extent;
-        let extent = (e.finite, e.speed2, e.abs_height, e.horizontal2);
+        let extent = (e.finite, e.speed2, e.abs_height, e.horizontal2, e.heading2);
         d.set_item("extent", extent)?;
         let mut first = Kind::ALL.map(|_| true);
         let per_stream = PyList::empty(py);

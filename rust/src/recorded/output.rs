@@ -149,6 +149,9 @@ pub struct Extent {
     /// The largest horizontal variance σ_N² + σ_E² \[m²\], NaN σ (not computed)
     /// skipped; NaN where every σ is.
     pub horizontal2: f64,
+    /// The largest heading variance σ_ψD² \[rad²\] (the attitude error's down
+    /// component), NaN skipped as above.
+    pub heading2: f64,
 }
 
 impl Default for Extent {
@@ -158,6 +161,7 @@ impl Default for Extent {
             speed2: 0.0,
             abs_height: 0.0,
             horizontal2: f64::NAN,
+            heading2: f64::NAN,
         }
     }
 }
@@ -173,10 +177,12 @@ impl Extent {
         self.abs_height = self.abs_height.max(lla[2].abs());
     }
 
-    /// Take in one epoch's 1σ of the 15 errors (position first, north and east).
+    /// Take in one epoch's 1σ of the 15 errors (position first, north and east; the
+    /// attitude's down component ninth).
     pub fn add_sigma(&mut self, sigma: &[f64; 15]) {
         self.horizontal2 = self
             .horizontal2
             .max(sigma[0] * sigma[0] + sigma[1] * sigma[1]);
+        self.heading2 = self.heading2.max(sigma[8] * sigma[8]);
     }
 }
