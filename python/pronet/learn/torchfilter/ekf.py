@@ -14,15 +14,15 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from pronet.learn.torchfilter.attitude import exp_so3, skew
+from pronet.learn.torchfilter.attitude import constant, exp_so3, matmul, skew
 from pronet.learn.torchfilter.earth import Rates, ned_to_lla_delta
 
 POS, VEL, ATT, ACC_BIAS, GYRO_BIAS = 0, 3, 6, 9, 12
 
 
 def eye15(like: Tensor) -> Tensor:
-    """The 15 × 15 identity in ``like``'s dtype and device."""
-    return torch.eye(15, dtype=like.dtype, device=like.device)
+    """The 15 × 15 identity in ``like``'s dtype and device (shared: not to be modified)."""
+    return constant("eye15", like.dtype, like.device)
 
 
 def error_dynamics(
@@ -33,7 +33,7 @@ def error_dynamics(
     ``f_ned`` ``(B, 3)`` [m/s²] (docs/reference/filter.md; the core's ``ErrorDynamics``)."""
     batch = vel.shape[0]
     fm = vel.new_zeros(batch, 15, 15)
-    eye = torch.eye(3, dtype=vel.dtype, device=vel.device)
+    eye = constant("eye3", vel.dtype, vel.device)
     schuler = r.gravity / ((r.r_n * r.r_e).sqrt() + h)
     fm[:, 0:3, 0:3] = -skew(r.transport)
     fm[:, 0:3, 3:6] = eye
@@ -45,8 +45,8 @@ def error_dynamics(
     if invariant:
         v = skew(vel)
         fm[:, 0:3, 6:9] = v
-        fm[:, 3:6, 6:9] = -skew(r.gravity_ned) - v @ skew(r.earth)
-        fm[:, 3:6, 12:15] = -v @ dcm
+        fm[:, 3:6, 6:9] = -skew(r.gravity_ned) - matmul(v, skew(r.earth))
+        fm[:, 3:6, 12:15] = matmul(-v, dcm)
     else:
         fm[:, 3:6, 6:9] = skew(f_ned)
     return fm
@@ -60,19 +60,19 @@ def imu_noise(vel: Tensor, dcm: Tensor, white: Tensor, walk: Tensor, invariant: 
     formulation also ``[v̂×] C`` of the gyro noise into δV)."""
     batch = vel.shape[0]
     ct = dcm.transpose(-1, -2)
-    qa = dcm @ (white[:, 0:3, None] * ct)  # C diag(q_a) Cᵀ
-    qg = dcm @ (white[:, 3:6, None] * ct)
+    qa = matmul(dcm, white[:, 0:3, None] * ct)  # C diag(q_a) Cᵀ
+    qg = matmul(dcm, white[:, 3:6, None] * ct)
     q = vel.new_zeros(batch, 15, 15)
     if invariant:
         v = skew(vel)
-        vg = v @ qg
-        q[:, 3:6, 3:6] = qa + vg @ v.transpose(-1, -2)
+        vg = matmul(v, qg)
+        q[:, 3:6, 3:6] = qa + matmul(vg, v.transpose(-1, -2))
         q[:, 3:6, 6:9] = -vg
         q[:, 6:9, 3:6] = -vg.transpose(-1, -2)
     else:
         q[:, 3:6, 3:6] = qa
     q[:, 6:9, 6:9] = qg
-    idx = torch.arange(9, 15, device=vel.device)
+    idx = constant("bias_diagonal", torch.int64, vel.device)
     q[:, idx, idx] = walk
     return q
 
@@ -85,16 +85,16 @@ def symmetric(p: Tensor) -> Tensor:
 def propagate_sample(p: Tensor, fm: Tensor, q: Tensor, dt: Tensor) -> Tensor:
     """Per-sample propagation ``P ← Φ P Φᵀ + Q_d`` with ``Φ = I + F Δt``."""
     phi = eye15(p) + fm * dt[:, None, None]
-    return symmetric(phi @ p @ phi.transpose(-1, -2) + q)
+    return symmetric(matmul(matmul(phi, p), phi.transpose(-1, -2)) + q)
 
 
 def propagate_interval(p: Tensor, fm: Tensor, q: Tensor, elapsed: Tensor) -> Tensor:
     """A covariance step's close: ``Φ = I + F ΔT + ½(F ΔT)²``, ``P ← Φ (P + ½Q) Φᵀ +
     ½Q`` (``q`` the accumulated noise)."""
     ft = fm * elapsed[:, None, None]
-    phi = eye15(p) + ft + ft @ ft * 0.5
+    phi = eye15(p) + ft + matmul(ft, ft) * 0.5
     half = q * 0.5
-    return symmetric(phi @ (p + half) @ phi.transpose(-1, -2) + half)
+    return symmetric(matmul(matmul(phi, p + half), phi.transpose(-1, -2)) + half)
 
 
 def coordinates(vel: Tensor, sign: float) -> Tensor:
@@ -108,13 +108,13 @@ def coordinates(vel: Tensor, sign: float) -> Tensor:
 def to_invariant(p_classic: Tensor, vel: Tensor) -> Tensor:
     """A classic covariance in the invariant coordinates at ``vel``: ``T P Tᵀ``."""
     t = coordinates(vel, -1.0)
-    return symmetric(t @ p_classic @ t.transpose(-1, -2))
+    return symmetric(matmul(matmul(t, p_classic), t.transpose(-1, -2)))
 
 
 def to_classic(p: Tensor, vel: Tensor) -> Tensor:
     """An invariant covariance in the classic coordinates at ``vel``."""
     t = coordinates(vel, 1.0)
-    return symmetric(t @ p @ t.transpose(-1, -2))
+    return symmetric(matmul(matmul(t, p), t.transpose(-1, -2)))
 
 
 def measurement(
@@ -129,11 +129,11 @@ def measurement(
         ct = dcm.transpose(-1, -2)
         h[:, :, 3:6] = ct
         if not invariant:
-            h[:, :, 6:9] = -ct @ skew(vel)
+            h[:, :, 6:9] = matmul(-ct, skew(vel))
         h[:, :, 12:15] = skew(arm)
-        pred = (ct @ vel.unsqueeze(-1)).squeeze(-1) + torch.linalg.cross(gyro, arm)
+        pred = matmul(ct, vel.unsqueeze(-1)).squeeze(-1) + torch.linalg.cross(gyro, arm)
         return pred, h
-    h[:, :, 3:6] = torch.eye(3, dtype=vel.dtype, device=vel.device)
+    h[:, :, 3:6] = constant("eye3", vel.dtype, vel.device)
     if invariant:
         h[:, :, 6:9] = skew(vel)
     return vel, h
@@ -143,14 +143,15 @@ def kalman_update(p: Tensor, h: Tensor, nu: Tensor, r: Tensor) -> tuple[Tensor, 
     """The Joseph-form update of ``p`` by innovations ``nu`` ``(B, 3)`` with Jacobian
     ``h`` and noise ``r`` ``(B, 3)`` (variances): the new P (symmetrized), the error
     estimate ``δx̂ = −K ν`` ``(B, 15)`` and the NIS ``νᵀ S⁻¹ ν`` ``(B,)``."""
-    pht = p @ h.transpose(-1, -2)
-    s = h @ pht + torch.diag_embed(r)
+    pht = matmul(p, h.transpose(-1, -2))
+    s = matmul(h, pht) + torch.diag_embed(r)
     s_inv = torch.cholesky_inverse(torch.linalg.cholesky(s))
-    gain = pht @ s_inv
-    nis = (nu.unsqueeze(-2) @ s_inv @ nu.unsqueeze(-1))[:, 0, 0]
-    ikh = eye15(p) - gain @ h
-    new_p = ikh @ p @ ikh.transpose(-1, -2) + gain @ (r.unsqueeze(-1) * gain.transpose(-1, -2))
-    return symmetric(new_p), -(gain @ nu.unsqueeze(-1)).squeeze(-1), nis
+    gain = matmul(pht, s_inv)
+    nis = matmul(matmul(nu.unsqueeze(-2), s_inv), nu.unsqueeze(-1))[:, 0, 0]
+    ikh = eye15(p) - matmul(gain, h)
+    joseph = matmul(matmul(ikh, p), ikh.transpose(-1, -2))
+    new_p = joseph + matmul(gain, r.unsqueeze(-1) * gain.transpose(-1, -2))
+    return symmetric(new_p), -matmul(gain, nu.unsqueeze(-1)).squeeze(-1), nis
 
 
 def feedback(
@@ -162,5 +163,5 @@ def feedback(
     rotation = exp_so3(dx[:, ATT : ATT + 3])
     new_lla = lla - ned_to_lla_delta(lla, dx[:, POS : POS + 3])
     moved = vel - dx[:, VEL : VEL + 3]
-    new_vel = (rotation @ moved.unsqueeze(-1)).squeeze(-1) if invariant else moved
-    return new_lla, new_vel, rotation @ dcm, bias - dx[:, ACC_BIAS:]
+    new_vel = matmul(rotation, moved.unsqueeze(-1)).squeeze(-1) if invariant else moved
+    return new_lla, new_vel, matmul(rotation, dcm), bias - dx[:, ACC_BIAS:]

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from torch import Tensor
 
 from pronet.learn.torchfilter import ekf
+from pronet.learn.torchfilter.attitude import matmul
 from pronet.learn.torchfilter.earth import rates
 from pronet.learn.torchfilter.mechanization import body_half_turns, strapdown_step
 from pronet.learn.torchfilter.outputs import Outputs, classic_variance
@@ -309,7 +310,7 @@ class _Rows:
 
 def _rotate(dcm: Tensor, v: Tensor) -> Tensor:
     """``C v`` for ``(B, 3, 3)`` and ``(B, 3)``."""
-    return (dcm @ v.unsqueeze(-1)).squeeze(-1)
+    return matmul(dcm, v.unsqueeze(-1)).squeeze(-1)
 
 
 def _pick(mask: Tensor, new: Tensor, old: Tensor) -> Tensor:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from pronet.learn.torchfilter.attitude import exp_so3, exp_tiny, orthonormalize
+from pronet.learn.torchfilter.attitude import exp_so3, exp_tiny, matmul, orthonormalize
 from pronet.learn.torchfilter.earth import Rates, radii
 
 
@@ -28,11 +28,11 @@ def strapdown_step(
     the step's start. Returns the new ``(lla, vel, dcm)``."""
     dt1 = dt.unsqueeze(-1)
     nav_half = exp_tiny(r.nav_rate * (-0.5 * dt1))
-    c_mid = nav_half @ dcm @ body_half
-    new_dcm = orthonormalize(nav_half @ c_mid @ body_half)
+    c_mid = matmul(matmul(nav_half, dcm), body_half)
+    new_dcm = orthonormalize(matmul(matmul(nav_half, c_mid), body_half))
     coriolis = torch.linalg.cross(2.0 * r.earth + r.transport, vel)
     kinematic = r.gravity_ned - coriolis
-    new_vel = vel + (c_mid @ accel.unsqueeze(-1)).squeeze(-1) * dt1 + kinematic * dt1
+    new_vel = vel + matmul(c_mid, accel.unsqueeze(-1)).squeeze(-1) * dt1 + kinematic * dt1
     # advance_position: the trapezoid, radii at the start and at the mid latitude
     h = lla[..., 2]
     h1 = h - 0.5 * (vel[..., 2] + new_vel[..., 2]) * dt
