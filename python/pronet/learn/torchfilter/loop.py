@@ -114,6 +114,20 @@ class _Loop:
         self.innovations: list[Tensor] = []
         self.nis: list[Tensor] = []
         self.accepted: list[Tensor] = []
+        # per sample of the call, taken apart once (not indexed at every step)
+        chunk = slice(k0, k1)
+        self.dt = batch.dt[:, chunk].unbind(1)
+        self.dt_col = batch.dt[:, chunk, None].unbind(1)
+        self.time = batch.time[:, chunk].unbind(1)
+        self.walk_dt = (batch.bias_psd[:, None] * batch.dt[:, chunk, None]).unbind(1)
+        self.present = batch.dvl_mask[:, chunk].numpy()
+        # what an epoch without a DVL row records (shared: stacked at the end)
+        size = state.vel.shape[0]
+        self.no_row = (
+            state.vel.new_zeros(state.vel.shape),
+            state.vel.new_zeros(size),
+            torch.zeros(size, dtype=torch.bool),
+        )
 
     def _blocks(self) -> None:
         """P's diagonal and the blocks the classic variances need, now."""
@@ -139,27 +153,29 @@ class _Loop:
 
     def sample(self, k: int, qdt: Tensor, sched: Schedule, i: int) -> None:
         """Sample k: P (or the step under way), the strapdown step, a close if due."""
-        s, b = self.s, self.batch
+        s = self.s
         f, w, body_half = self._corrected(k)
-        dt = b.dt[:, k]
+        dt = self.dt[i]
         r = rates(s.lla, s.vel)
         if self.every:
             fm = ekf.error_dynamics(s.vel, s.dcm, r, s.lla[:, 2], _rotate(s.dcm, f), self.inv)
-            noise = ekf.imu_noise(s.vel, s.dcm, qdt, b.bias_psd * dt[:, None], self.inv)
-            s = replace(s, p=ekf.propagate_sample(s.p, fm, noise, dt))
+            noise = ekf.imu_noise(s.vel, s.dcm, qdt, self.walk_dt[i], self.inv)
+            p, force, white = ekf.propagate_sample(s.p, fm, noise, dt), s.force, s.white
         else:
-            opens = torch.as_tensor(sched.opens[:, i])
-            if bool(opens.any()):
+            if sched.opens[:, i].any():
+                opens = torch.as_tensor(sched.opens[:, i])
                 s = replace(
                     s,
                     step_lla=_pick(opens, s.lla, s.step_lla),
                     step_vel=_pick(opens, s.vel, s.step_vel),
                     step_dcm=_pick(opens, s.dcm, s.step_dcm),
                 )
-            force = s.force + _rotate(s.dcm, f) * dt[:, None]
-            s = replace(s, force=force, white=s.white + qdt)
+            p, force = s.p, s.force + _rotate(s.dcm, f) * self.dt_col[i]
+            white = s.white + qdt
         lla, vel, dcm = strapdown_step(s.lla, s.vel, s.dcm, f, body_half, dt, r)
-        self.s = replace(s, lla=lla, vel=vel, dcm=dcm, gyro=w, time=b.time[:, k])
+        self.s = replace(
+            s, p=p, force=force, white=white, lla=lla, vel=vel, dcm=dcm, gyro=w, time=self.time[i]
+        )
         if self.every:
             self._blocks()
             return
@@ -192,11 +208,11 @@ class _Loop:
         computed on the sequences that have one."""
         b = self.batch
         for j in range(b.dvl_mask.shape[2]):
-            mask = b.dvl_mask[:, k, j]
-            present = mask.numpy()
+            present = self.present[:, k - self.k0, j]
             if not present.any():
                 self._no_row()
                 continue
+            mask = b.dvl_mask[:, k, j]
             rows, s = _Rows(present), self.s
             vel, dcm, lla, bias = (rows.take(x) for x in (s.vel, s.dcm, s.lla, s.bias))
             arm = rows.take(b.lever_arm)
@@ -225,10 +241,10 @@ class _Loop:
             self.accepted.append(rows.put(torch.zeros_like(mask), ok))
 
     def _no_row(self) -> None:
-        s = self.s
-        self.innovations.append(s.vel.new_zeros(s.vel.shape))
-        self.nis.append(s.vel.new_zeros(s.vel.shape[0]))
-        self.accepted.append(torch.zeros(s.vel.shape[0], dtype=torch.bool))
+        innovation, nis, accepted = self.no_row
+        self.innovations.append(innovation)
+        self.nis.append(nis)
+        self.accepted.append(accepted)
 
     def record(self) -> None:
         """Keep the epoch's estimate (references: nothing is copied here)."""
