@@ -10,7 +10,6 @@ from __future__ import annotations
 from functools import cache
 
 import torch
-import torch.nn.functional as nnf
 from torch import Tensor
 
 # [v×] row by row from [x, y, z, 0, −x, −y, −z, −0]: 0, −z, y, z, 0, −x, −y, x, 0
@@ -20,11 +19,9 @@ _SKEW_ORDER = (3, 6, 1, 2, 3, 4, 5, 0, 3)
 @cache
 def constant(name: str, dtype: torch.dtype, device: torch.device) -> Tensor:
     """A constant the filter uses at every step, made once per dtype and device (never
-    to be modified in place): ``"eye3"``, ``"eye15"``, ``"eye3x1.5"`` (``1.5 I``),
-    ``"bias_diagonal"`` (the indices 9..14) or ``"skew_order"`` (for :func:`skew`)."""
+    to be modified in place): ``"eye3"``, ``"eye15"``, ``"eye3x1.5"`` (``1.5 I``) or
+    ``"skew_order"`` (for :func:`skew`)."""
     with torch.inference_mode(False):  # usable with autograd whatever the caller's mode
-        if name == "bias_diagonal":
-            return torch.arange(9, 15, device=device)
         if name == "skew_order":
             return torch.tensor(_SKEW_ORDER, device=device)
         eye = torch.eye(15 if name == "eye15" else 3, dtype=dtype, device=device)
@@ -45,7 +42,7 @@ def _matrices(flat: Tensor) -> Tensor:
 
 def skew(v: Tensor) -> Tensor:
     """``(..., 3, 3)`` cross-product matrix ``[v×]`` of ``(..., 3)`` vectors."""
-    padded = nnf.pad(v, (0, 1))  # [x, y, z, 0]: v has one consumer, as before
+    padded = torch.constant_pad_nd(v, (0, 1))  # [x, y, z, 0]: v has one consumer, as before
     signed = torch.cat([padded, -padded], dim=-1)
     return _matrices(signed.index_select(-1, constant("skew_order", torch.int64, v.device)))
 

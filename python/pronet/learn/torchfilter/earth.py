@@ -21,12 +21,22 @@ GAMMA_EQUATOR = 9.7803253359  #: normal gravity at the equator [m/s²]
 GAMMA_POLE = 9.8321849378  #: normal gravity at the poles [m/s²]
 
 
+def _root(sin_lat: Tensor) -> tuple[Tensor, Tensor]:
+    """``d = 1 − e² sin²φ`` and its square root."""
+    d = 1.0 - E2 * sin_lat * sin_lat
+    return d, d.sqrt()
+
+
 def radii(sin_lat: Tensor) -> tuple[Tensor, Tensor]:
     """Meridian and prime-vertical radii of curvature ``(R_N, R_E)`` [m] from the sine
     of the latitude."""
-    d = 1.0 - E2 * sin_lat * sin_lat
-    sqrt_d = d.sqrt()
+    d, sqrt_d = _root(sin_lat)
     return A * (1.0 - E2) / (d * sqrt_d), A / sqrt_d
+
+
+def prime_vertical_radius(sin_lat: Tensor) -> Tensor:
+    """``R_E`` of :func:`radii` alone (the same operations)."""
+    return A / _root(sin_lat)[1]
 
 
 def gravity(sin_lat: Tensor, h: Tensor) -> Tensor:

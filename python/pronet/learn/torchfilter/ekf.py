@@ -25,6 +25,12 @@ def eye15(like: Tensor) -> Tensor:
     return constant("eye15", like.dtype, like.device)
 
 
+def _pad(x: Tensor, widths: tuple[int, ...]) -> Tensor:
+    """``x`` padded with zeros, ``widths`` as ``torch.nn.functional.pad`` takes them
+    (the same operation without its Python wrapper)."""
+    return torch.constant_pad_nd(x, widths)
+
+
 def error_dynamics(
     vel: Tensor, dcm: Tensor, r: Rates, h: Tensor, f_ned: Tensor, invariant: bool
 ) -> Tensor:
@@ -32,24 +38,26 @@ def error_dynamics(
     ``h`` ``(B,)`` [m] with the frame rates ``r`` there and the NED specific force
     ``f_ned`` ``(B, 3)`` [m/s²] (docs/reference/filter.md; the core's ``ErrorDynamics``)."""
     batch = vel.shape[0]
-    fm = vel.new_zeros(batch, 15, 15)
-    eye = constant("eye3", vel.dtype, vel.device)
+    zero = vel.new_zeros(batch, 3, 3)
+    eye = constant("eye3", vel.dtype, vel.device).expand(batch, 3, 3)
     schuler = r.gravity / ((r.r_n * r.r_e).sqrt() + h)
-    fm[:, 0:3, 0:3] = -skew(r.transport)
-    fm[:, 0:3, 3:6] = eye
-    fm[:, 3:6, 0:3] = torch.diag_embed(torch.stack([-schuler, -schuler, 2.0 * schuler], -1))
-    fm[:, 3:6, 3:6] = -skew(2.0 * r.earth + r.transport)
-    fm[:, 3:6, 9:12] = -dcm
-    fm[:, 6:9, 6:9] = -skew(r.nav_rate)
-    fm[:, 6:9, 12:15] = dcm
+    transport = -skew(r.transport)
+    gravity = torch.diag_embed(torch.stack([-schuler, -schuler, 2.0 * schuler], -1))
+    coriolis = -skew(2.0 * r.earth + r.transport)
+    accel_bias = -dcm
+    # joined in the order the blocks are made (dcm and [v̂×] read in the same order:
+    # their gradients summed in the same order)
+    attitude = torch.cat([zero, zero, -skew(r.nav_rate), zero, dcm], -1)
     if invariant:
         v = skew(vel)
-        fm[:, 0:3, 6:9] = v
-        fm[:, 3:6, 6:9] = -skew(r.gravity_ned) - matmul(v, skew(r.earth))
-        fm[:, 3:6, 12:15] = matmul(-v, dcm)
+        position = torch.cat([transport, eye, v, zero, zero], -1)
+        velocity_attitude = -skew(r.gravity_ned) - matmul(v, skew(r.earth))
+        velocity_gyro = matmul(-v, dcm)
     else:
-        fm[:, 3:6, 6:9] = skew(f_ned)
-    return fm
+        position = torch.cat([transport, eye, zero, zero, zero], -1)
+        velocity_attitude, velocity_gyro = skew(f_ned), zero
+    velocity = torch.cat([gravity, coriolis, velocity_attitude, accel_bias, velocity_gyro], -1)
+    return _pad(torch.cat([position, velocity, attitude], -2), (0, 0, 0, 6))
 
 
 def imu_noise(vel: Tensor, dcm: Tensor, white: Tensor, walk: Tensor, invariant: bool) -> Tensor:
@@ -58,23 +66,21 @@ def imu_noise(vel: Tensor, dcm: Tensor, white: Tensor, walk: Tensor, invariant: 
     summed, [(m/s)², rad²]) and bias walks ``walk`` ``(B, 6)`` (``ε Δt`` summed), Γ at
     ``vel``, ``dcm`` (accelerometer noise into δv, gyro noise into −ψ; the invariant
     formulation also ``[v̂×] C`` of the gyro noise into δV)."""
-    batch = vel.shape[0]
     ct = dcm.transpose(-1, -2)
     qa = matmul(dcm, white[:, 0:3, None] * ct)  # C diag(q_a) Cᵀ
     qg = matmul(dcm, white[:, 3:6, None] * ct)
-    q = vel.new_zeros(batch, 15, 15)
     if invariant:
         v = skew(vel)
         vg = matmul(v, qg)
-        q[:, 3:6, 3:6] = qa + matmul(vg, v.transpose(-1, -2))
-        q[:, 3:6, 6:9] = -vg
-        q[:, 6:9, 3:6] = -vg.transpose(-1, -2)
+        velocity = [qa + matmul(vg, v.transpose(-1, -2)), -vg]
+        attitude = [-vg.transpose(-1, -2), qg]
     else:
-        q[:, 3:6, 3:6] = qa
-    q[:, 6:9, 6:9] = qg
-    idx = constant("bias_diagonal", torch.int64, vel.device)
-    q[:, idx, idx] = walk
-    return q
+        zero = vel.new_zeros(vel.shape[0], 3, 3)
+        velocity, attitude = [qa, zero], [zero, qg]
+    # (velocity, attitude) × (velocity, attitude) at [3:9, 3:9], the walks on 9..14
+    middle = torch.cat([torch.cat(velocity, -1), torch.cat(attitude, -1)], -2)
+    walks = torch.diag_embed(walk)
+    return torch.cat([_pad(middle, (3, 6, 3, 0)), _pad(walks, (9, 0))], -2)
 
 
 def symmetric(p: Tensor) -> Tensor:

@@ -9,7 +9,7 @@ import torch
 from torch import Tensor
 
 from pronet.learn.torchfilter.attitude import exp_so3, exp_tiny, matmul, orthonormalize
-from pronet.learn.torchfilter.earth import Rates, radii
+from pronet.learn.torchfilter.earth import Rates, prime_vertical_radius
 
 
 def strapdown_step(
@@ -39,7 +39,7 @@ def strapdown_step(
     h_mid = 0.5 * (h + h1)
     lat1 = lla[..., 0] + 0.5 * (vel[..., 0] + new_vel[..., 0]) * dt / (r.r_n + h_mid)
     mid = 0.5 * (lla[..., 0] + lat1)
-    _, r_e_mid = radii(torch.sin(mid))
+    r_e_mid = prime_vertical_radius(torch.sin(mid))
     lon1 = lla[..., 1] + 0.5 * (vel[..., 1] + new_vel[..., 1]) * dt / (
         (r_e_mid + h_mid) * torch.cos(mid)
     )
