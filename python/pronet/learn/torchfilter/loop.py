@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 import torch
@@ -89,7 +90,7 @@ def advance(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[St
     # unbound once: indexing a tensor that needs a gradient at every step would make
     # the backward pass build a zero tensor of the whole chunk per step (quadratic)
     qdt = ((q[:, None, :] if q.dim() == 2 else q) * white_dt).unbind(1)
-    loop = _Loop(state, batch, every, k0, k1)
+    loop = _Loop(state, batch, every, k0, k1, sched)
     for i in range(n):
         loop.sample(k0 + i, qdt[i], sched, i)
         loop.updates(k0 + i)
@@ -100,7 +101,9 @@ def advance(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[St
 class _Loop:
     """The running filter of one :func:`advance` call and its per-epoch records."""
 
-    def __init__(self, state: State, batch: Batch, every: bool, k0: int, k1: int) -> None:
+    def __init__(
+        self, state: State, batch: Batch, every: bool, k0: int, k1: int, sched: Schedule
+    ) -> None:
         self.s, self.start, self.batch, self.every, self.k0 = state, state, batch, every, k0
         self.inv = batch.setup.invariant
         self.rows: dict[str, list[Tensor]] = {}
@@ -121,6 +124,11 @@ class _Loop:
         self.time = batch.time[:, chunk].unbind(1)
         self.walk_dt = (batch.bias_psd[:, None] * batch.dt[:, chunk, None]).unbind(1)
         self.present = batch.dvl_mask[:, chunk].numpy()
+        # whether any sequence has a DVL row, a step opening, a step closing (Python
+        # booleans: numpy's any() on a few elements costs microseconds per call)
+        self.any_row = cast(list[list[bool]], self.present.any(0).tolist())
+        self.any_opens = cast(list[bool], sched.opens.any(0).tolist())
+        self.any_due = cast(list[bool], sched.due.any(0).tolist())
         # what an epoch without a DVL row records (shared: stacked at the end)
         size = state.vel.shape[0]
         self.no_row = (
@@ -162,7 +170,7 @@ class _Loop:
             noise = ekf.imu_noise(s.vel, s.dcm, qdt, self.walk_dt[i], self.inv)
             p, force, white = ekf.propagate_sample(s.p, fm, noise, dt), s.force, s.white
         else:
-            if sched.opens[:, i].any():
+            if self.any_opens[i]:
                 opens = torch.as_tensor(sched.opens[:, i])
                 s = replace(
                     s,
@@ -179,8 +187,8 @@ class _Loop:
         if self.every:
             self._blocks()
             return
-        due = sched.due[:, i]
-        if due.any():
+        if self.any_due[i]:
+            due = sched.due[:, i]
             rows = _Rows(due)
             self._close(rows, rows.take(as_tensor(sched.span[:, i])), as_tensor(sched.walk[due, i]))
 
@@ -208,10 +216,10 @@ class _Loop:
         computed on the sequences that have one."""
         b = self.batch
         for j in range(b.dvl_mask.shape[2]):
-            present = self.present[:, k - self.k0, j]
-            if not present.any():
+            if not self.any_row[k - self.k0][j]:
                 self._no_row()
                 continue
+            present = self.present[:, k - self.k0, j]
             mask = b.dvl_mask[:, k, j]
             rows, s = _Rows(present), self.s
             vel, dcm, lla, bias = (rows.take(x) for x in (s.vel, s.dcm, s.lla, s.bias))

@@ -33,16 +33,16 @@ def strapdown_step(
     coriolis = torch.linalg.cross(2.0 * r.earth + r.transport, vel)
     kinematic = r.gravity_ned - coriolis
     new_vel = vel + matmul(c_mid, accel.unsqueeze(-1)).squeeze(-1) * dt1 + kinematic * dt1
-    # advance_position: the trapezoid, radii at the start and at the mid latitude
+    # advance_position: the trapezoid (the three NED components at once, each as
+    # before), radii at the start and at the mid latitude
+    travel = 0.5 * (vel + new_vel) * dt1
     h = lla[..., 2]
-    h1 = h - 0.5 * (vel[..., 2] + new_vel[..., 2]) * dt
+    h1 = h - travel[..., 2]
     h_mid = 0.5 * (h + h1)
-    lat1 = lla[..., 0] + 0.5 * (vel[..., 0] + new_vel[..., 0]) * dt / (r.r_n + h_mid)
+    lat1 = lla[..., 0] + travel[..., 0] / (r.r_n + h_mid)
     mid = 0.5 * (lla[..., 0] + lat1)
     r_e_mid = prime_vertical_radius(torch.sin(mid))
-    lon1 = lla[..., 1] + 0.5 * (vel[..., 1] + new_vel[..., 1]) * dt / (
-        (r_e_mid + h_mid) * torch.cos(mid)
-    )
+    lon1 = lla[..., 1] + travel[..., 1] / ((r_e_mid + h_mid) * torch.cos(mid))
     return torch.stack([lat1, lon1, h1], dim=-1), new_vel, new_dcm
 
 
