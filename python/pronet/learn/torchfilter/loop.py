@@ -9,8 +9,8 @@ DVL rows of the epoch, each an update with feedback."""
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass, replace
-from typing import cast
+from dataclasses import dataclass, fields, replace
+from typing import TypeVar, cast
 
 import numpy as np
 import torch
@@ -75,7 +75,9 @@ def advance(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[St
     the per-sample IMU variances ``q`` [(m/s²)², (rad/s)²] in force: ``(B, 6)`` for the
     whole call or ``(B, k1 − k0, 6)`` per sample. Returns the state after epoch ``k1``
     and the :class:`Outputs` of the call's epochs. Differentiable in q and in the
-    state's tensors; calls over consecutive ranges equal one call over their union."""
+    state's tensors (when none needs a gradient, or grad mode is off, it runs under
+    ``torch.inference_mode``: the same numbers; the results are ordinary tensors either
+    way); calls over consecutive ranges equal one call over their union."""
     if not 0 <= k0 < k1 <= batch.length:
         raise ValueError(f"k0, k1: need 0 <= k0 < k1 <= {batch.length}, got {k0}, {k1}")
     q = as_tensor(q)
@@ -84,6 +86,32 @@ def advance(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[St
         raise ValueError(
             f"q: expected ({batch.size}, 6) or ({batch.size}, {n}, 6), got {tuple(q.shape)}"
         )
+    if torch.is_grad_enabled() and any(x.requires_grad for x in _tensors(q, state, batch)):
+        return _run(state, batch, k0, k1, q)
+    # nothing to differentiate: the same operations without autograd's bookkeeping (a
+    # fifth of the time), the results made ordinary tensors again
+    with torch.inference_mode():
+        state, out = _run(state, batch, k0, k1, q)
+    return _ordinary(state), _ordinary(out)
+
+
+def _tensors(q: Tensor, state: State, batch: Batch) -> list[Tensor]:
+    """q and the tensors of ``state`` and ``batch``."""
+    parts = [getattr(x, f.name) for x in (state, batch) for f in fields(x)]
+    return [q, *(x for x in parts if isinstance(x, Tensor))]
+
+
+_D = TypeVar("_D", State, Outputs)
+
+
+def _ordinary(x: _D) -> _D:
+    """``x`` with its tensors copied out of inference mode (usable with autograd)."""
+    return replace(x, **{f.name: getattr(x, f.name).clone() for f in fields(x)})
+
+
+def _run(state: State, batch: Batch, k0: int, k1: int, q: Tensor) -> tuple[State, Outputs]:
+    """:func:`advance` once its arguments are checked."""
+    n = k1 - k0
     every = batch.every_sample()
     sched = step_schedule(state, batch, k0, k1, every)
     white_dt = (batch.imu_dt[:, None] * batch.dt[:, k0:k1])[..., None]  # Δt_imu Δt
