@@ -1,6 +1,8 @@
 """Rotations in torch, batched over leading dimensions: the skew matrix, the SO(3)
 exponential, Euler angles and the re-orthonormalization of the core's
-``rust/src/attitude.rs`` (same formulas, same branches).
+``rust/src/attitude.rs`` (same formulas, same branches); and what the filter's other
+modules share for speed: the constants it uses at every step (:func:`constant`) and
+the product of ``(B, ·, ·)`` matrices (:func:`matmul`).
 
 Frames: a DCM ``C_b^n`` takes FRD body vectors to NED; Euler angles are ZYX
 ``[roll, pitch, yaw]`` [rad]."""
