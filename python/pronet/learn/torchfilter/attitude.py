@@ -31,10 +31,12 @@ def constant(name: str, dtype: torch.dtype, device: torch.device) -> Tensor:
 
 
 def matmul(a: Tensor, b: Tensor) -> Tensor:
-    """``a @ b``; for two ``(B, ·, ·)`` operands ``torch.bmm``, the same product (and the
-    same numbers) without ``matmul``'s broadcasting, a third of its cost on the filter's
-    small matrices."""
-    return torch.bmm(a, b) if a.dim() == 3 == b.dim() else a @ b
+    """``a @ b``; for two ``(B, ·, ·)`` operands of the same B ``torch.bmm``, the same
+    product (and the same numbers) without ``matmul``'s broadcasting, a third of its cost
+    on the filter's small matrices."""
+    if a.dim() == 3 == b.dim() and a.shape[0] == b.shape[0]:
+        return torch.bmm(a, b)
+    return a @ b
 
 
 def _matrices(flat: Tensor) -> Tensor:
