@@ -218,3 +218,8 @@ def test_a_compass_without_fixes_holds_the_heading_and_halves_the_drift(tmp_path
     final = [np.hypot(*_errors(n.forward, m)[0][-1, :2]) for n in (compass, dvl_only)]
     assert heading >= 0.95, heading
     assert final[0] <= 0.5 * final[1], final
+    # the pass says when the DVL-only heading σ leaves the range the position's σ holds in
+    said = [
+        [n for n in nav.notes if "the heading's 1σ reached" in n] for nav in (compass, dvl_only)
+    ]
+    assert said[0] == [] and len(said[1]) == 1, said
