@@ -20,7 +20,13 @@ Printed: the position NEES of the Monte Carlo errors against each (2 if consiste
 and against the linear covariance about the Monte Carlo's own mean error (what a correct
 mean alone would give).
 
-    python scripts/heading_nonlinearity.py [--runs 4000] [--seed 0]
+``--filter``: the same question put to pronet's filter, the invariant row of the long
+MEMS mission (:func:`pronet.experiments.consistency.run_lawnmower`'s Monte Carlo, 20
+runs, its errors kept every second): each horizontal axis's mean squared error over σ²
+against the position NEES, and the runs' mean east error against the along-drift mean
+``∫ (cos ψ − 1) v dt`` the model predicts from each run's own heading error.
+
+    python scripts/heading_nonlinearity.py [--runs 4000] [--seed 0] [--filter]
 """
 
 from __future__ import annotations
@@ -125,11 +131,56 @@ def run(runs: int, seed: int) -> list[tuple[float, ...]]:
     return rows
 
 
+def filter_check(seed: int) -> None:
+    """``--filter``: pronet's invariant filter on the long MEMS mission, 20 runs."""
+    from pronet import _core
+    from pronet.experiments import consistency as c
+
+    segments = c.lawnmower_segments(HOURS)
+    out = c._monte_carlo(
+        ("mems", "invariant", segments, "lawnmower"), (20, seed, 100, True, False),
+        dvl_period=0.2, dvl_dropout=c.LAWNMOWER_DROPOUT, depth_sigma=c.LAWNMOWER_DEPTH[0],
+        depth_period=c.LAWNMOWER_DEPTH[1],
+    )  # fmt: skip
+    assert out.error is not None and out.sigma is not None  # kept every second
+    truth = _core.trajectory_from_segments(
+        np.array(segments), lla0=[np.radians(32.0), np.radians(34.0), -20.0], speed0=1.5,
+        dt=0.01, name="lawnmower",
+    )  # fmt: skip
+    t = out.record_time
+    v = np.stack([np.interp(t, truth.time, truth.vel_ned[:, i]) for i in (0, 1)], axis=-1)
+    psi = out.error[:, :, 8]
+    predicted = np.cumsum((np.cos(psi) - 1.0)[..., None] * v * np.diff(t, prepend=0.0)[:, None], 1)
+    nees = out.block_nees("position")
+    print(
+        "| t [s] | heading RMS [°] | error² / σ² N, E, D | NEES "
+        "| mean east error [m] | predicted [m] |"
+    )
+    print("|---|---|---|---|---|---|")
+    for at in (1200.0, 2400.0, 3600.0):
+        k, j = (
+            int(np.searchsorted(t, at)),
+            min(int(np.searchsorted(out.dvl_time, at)), nees.shape[1] - 1),
+        )
+        z = ((out.error[:, k, :3] / out.sigma[:, k, :3]) ** 2).mean(axis=0)
+        east = out.error[:, k, 1]
+        print(
+            f"| {t[k]:.0f} | {np.degrees(np.sqrt((psi[:, k] ** 2).mean())):.1f} | "
+            f"{z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f} | {np.nanmean(nees[:, j]):.1f} | "
+            f"{east.mean():.1f} ± {east.std(ddof=1) / np.sqrt(len(east)):.1f} | "
+            f"{predicted[:, k, 1].mean():.1f} |"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=4000, help="Monte Carlo runs (default 4000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--filter", action="store_true", help="pronet's filter instead")
     args = parser.parse_args()
+    if args.filter:
+        filter_check(args.seed)
+        return
     print(
         "| t [s] | σ_ψ [°] | mean error N, E [m] | NEES: linear | sigma points, redrawn "
         "| sigma points, kept | linear about the true mean |"
