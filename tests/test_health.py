@@ -7,6 +7,7 @@ degrees is refused when its stream is made.)"""
 from __future__ import annotations
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -206,40 +207,80 @@ def test_a_diverged_pass_is_named_with_its_first_epoch() -> None:
     assert quiet.health.divergence == out.health.divergence
 
 
-def test_a_heading_sigma_past_its_linear_range_is_named_and_a_compass_keeps_it_in() -> None:
-    """A vertical gyro bias known to 0.005 rad/s (1,000 °/h) and the DVL alone: the
-    heading's σ passes 5° within 20 s, and the pass says from when; with the 2 Hz
-    heading it stays under 1°, and nothing is said."""
-    streams, _ = _streams(np.random.default_rng(3))
+def _heading_pass(given: list, *, warn: bool = False, **options: object) -> pronet.FilterResult:
+    """The paper trajectory's first ``SECONDS`` with a vertical gyro bias known to
+    0.005 rad/s (1,000 °/h) only: with the DVL alone its heading σ passes 5° within
+    20 s. ``options``: ``covariance_step``, and ``run_filter``'s epochs."""
     traj = pronet.builtin_trajectory("paper")
     n = int(SECONDS * 100)
     p0 = list(pronet.FilterConfig().p0_sigma)
     p0[14] = 0.005
-    config = pronet.FilterConfig(accel_bias_psd=1e-10, gyro_bias_psd=1e-14, p0_sigma=p0)
+    step = options.pop("covariance_step", 0.1)
+    config = pronet.FilterConfig(
+        accel_bias_psd=1e-10, gyro_bias_psd=1e-14, p0_sigma=p0, covariance_step=step
+    )
+    return pronet.run_filter(
+        traj.imu[:n], traj.time[1 : n + 1], given, t0=0.0, lla0=traj.lla[0],
+        vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+        config=config, warn=warn, **options,
+    )  # fmt: skip
 
-    def run(given: list, warn: bool) -> pronet.FilterResult:
-        return pronet.run_filter(
-            traj.imu[:n], traj.time[1 : n + 1], given, t0=0.0, lla0=traj.lla[0],
-            vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
-            config=config, warn=warn,
-        )  # fmt: skip
 
+def _read(out: pronet.FilterResult) -> Extent:
+    """The extremes of a pass's kept epochs, read from its arrays."""
+    return Extent.of(out.lla, out.vel, out.sigma, out.time)
+
+
+def _heading_over(health: pronet.FilterResult) -> float:
+    """The time [s] a pass's heading finding names."""
+    found = re.search(r"from t = (\S+) s\)", health.health.heading)
+    assert found is not None, health.health.heading
+    return float(found.group(1))
+
+
+def test_a_heading_sigma_past_its_linear_range_is_named_and_a_compass_keeps_it_in() -> None:
+    """The DVL alone: the heading's σ passes 5° within 20 s, and the pass says from
+    when; with the 2 Hz heading it stays under 1°, and nothing is said."""
+    streams, _ = _streams(np.random.default_rng(3))
     with pytest.warns(FilterHealthWarning, match="the heading's 1σ reached"):
-        alone = run(streams[:1], warn=True)
-    k = int(np.argmax(alone.sigma[:, 8] > np.radians(5.0)))
-    assert 0 < alone.time[k] < 20.0
-    assert f"from t = {alone.time[k]:.6g} s, epoch {k})" in alone.health.heading
+        alone = _heading_pass(streams[:1], warn=True)
     assert alone.health.heading in alone.health.flags
-    # the arrays read again say what the core's extremes said
-    assert heading_linearity(alone.sigma, alone.time) == alone.health.heading
-    aided = run([streams[0], streams[2]], warn=False)
+    # The core watched P where it stood (each close of the 0.1 s step, after each
+    # epoch's updates): the first kept epoch past 5° lies within that close's step.
+    k = int(np.argmax(alone.sigma[:, 8] > np.radians(5.0)))
+    assert 0 < alone.time[k] <= _heading_over(alone) < alone.time[k] + 0.1 < 20.0
+    # P propagated at every sample and every epoch kept: the arrays read again say
+    # what the core watched, to the letter.
+    every = _heading_pass(streams[:1], covariance_step=0.0)
+    assert every.health.heading == heading_linearity(_read(every)) != ""
+    aided = _heading_pass([streams[0], streams[2]])
     assert np.nanmax(aided.sigma[:, 8]) < np.radians(1.0)
-    assert aided.health.heading == "" == heading_linearity(aided.sigma, aided.time)
+    assert aided.health.heading == "" == heading_linearity(_read(aided))
+
+
+def test_a_heading_sigma_that_passed_5_degrees_and_came_back_is_named_from_the_last_epoch() -> None:
+    """The DVL alone for 40 s, then the compass too: the σ passes 5° and falls back
+    under 1°. A pass that keeps only its last epoch, or one epoch in 30 s, still says
+    when it passed (the core watches every epoch); its arrays alone cannot."""
+    streams, _ = _streams(np.random.default_rng(3))
+    compass = streams[2]
+    late = compass.time > 40.0
+    given = [streams[0], pronet.Heading(compass.time[late], compass.heading[late], sigma=0.01)]
+    every = _heading_pass(given)
+    over = _heading_over(every)
+    assert 0 < over < 20.0 and every.sigma[-1, 8] < np.radians(1.0)
+    for options in ({"epochs": "last"}, {"output_step": 30.0}):
+        kept = _heading_pass(given, **options)
+        assert kept.health.heading == every.health.heading, options
+    last = _heading_pass(given, epochs="last")
+    assert heading_linearity(_read(last)) == ""
 
 
 def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
     # Every epoch at each sample and inside a covariance step (σ written when the step
     # closes), thinned, the last alone, and a pass that left its bounds (5 m/s² off).
+    # The heading is watched at every epoch, kept or not, where P stood: never below
+    # the kept σ, equal where every epoch is kept and P is current at each.
     traj = pronet.builtin_trajectory("paper")
     n = 3000
     streams, _ = _streams(np.random.default_rng(5))
@@ -258,10 +299,17 @@ def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
             config=pronet.FilterConfig(covariance_step=step), **options,
         )  # fmt: skip
         gathered = Extent(*out["extent"])
-        read = Extent.of(out["lla"], out["vel"], out["sigma"])
+        read = Extent.of(out["lla"], out["vel"], out["sigma"], out["time"])
         assert gathered.finite == read.finite, (step, options)
-        for name in ("speed2", "abs_height", "horizontal2", "heading2"):
+        for name in ("speed2", "abs_height", "horizontal2"):
             assert getattr(gathered, name) == pytest.approx(getattr(read, name), rel=1e-14)
+        if step == 0.0 and not options:
+            assert gathered.heading2 == pytest.approx(read.heading2, rel=1e-14)
+            np.testing.assert_equal(gathered.heading_over, read.heading_over)
+        else:
+            assert gathered.heading2 >= read.heading2 * (1 - 1e-14), (step, options)
+            # a kept σ past 5° is interpolated towards a close past it, at most a step on
+            assert not gathered.heading_over >= read.heading_over + step, (step, options)
         assert gathered.within_bounds() == (imu is not drifted), (step, options)
 
 

@@ -18,14 +18,14 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "__version__", "MAX_THREADS", "THREADS_PER_CORE", "THREADS_ENV", "MAX_LEVER_ARM",
-    "MAX_COVARIANCE_STEP",
-    "MAX_RUN_INDEX", "MAX_GRAVITY_HEIGHT", "MAX_LATITUDE_DEG", "LONGITUDE_RANGE_DEG",
-    "WGS84_A", "WGS84_F", "Trajectory", "builtin_trajectory", "builtin_trajectory_names",
+    "MAX_COVARIANCE_STEP", "MAX_LINEAR_HEADING_SIGMA_DEG", "MAX_RUN_INDEX",
+    "MAX_GRAVITY_HEIGHT", "MAX_LATITUDE_DEG", "LONGITUDE_RANGE_DEG", "WGS84_A",
+    "WGS84_F", "Trajectory", "builtin_trajectory", "builtin_trajectory_names",
     "trajectory_from_segments", "normal_gravity", "earth_radii", "mechanize",
     "FilterConfig", "Strategy", "SensorConfig", "Dvl", "Depth", "Fix", "Heading",
-    "run_filter", "monte_carlo", "check_result_size", "check_fixes_fire", "check_threads",
-    "max_threads", "Ensemble", "tuning_instants", "Navigator", "ConvNet", "HcfEnsemble",
-    "attitude_increment_costs"]  # fmt: skip
+    "run_filter", "monte_carlo", "check_result_size", "check_fixes_fire",
+    "check_threads", "max_threads", "Ensemble", "tuning_instants", "Navigator",
+    "ConvNet", "HcfEnsemble", "attitude_increment_costs"]  # fmt: skip
 
 #: The package version (the crate's, from ``Cargo.toml``).
 __version__: str
@@ -42,6 +42,9 @@ MAX_LEVER_ARM: float
 #: Longest covariance step [s] (``ekf::MAX_COVARIANCE_STEP``, 1 s): its approximation of
 #: the error process is measured up to 0.5 s (``docs/results/covariance-step.md``).
 MAX_COVARIANCE_STEP: float
+#: The heading 1σ [°] past which a pass says its heading error is no longer small
+#: (``recorded::MAX_LINEAR_HEADING_SIGMA_DEG``, 5°; :func:`pronet.stats.heading_linearity`).
+MAX_LINEAR_HEADING_SIGMA_DEG: float
 #: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
 #: streams are numbered 4·i + k.
 MAX_RUN_INDEX: int
@@ -446,8 +449,10 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
     none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
     ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
-    solution's ``(finite, speed², |height|, σ_N² + σ_E², σ_ψD²)`` extremes
-    (:class:`pronet.stats.Extent`), gathered as its epochs were written. Before it
+    solution's ``(finite, speed², |height|, σ_N² + σ_E², σ_ψD², t)`` extremes
+    (:class:`pronet.stats.Extent`), gathered as its epochs were written, the heading
+    variance's at every epoch where P stood, kept or not, and ``t`` [s] the first where
+    its σ passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where none did). Before it
     allocates, a pass that would hold more than this process can still take is a ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,
     ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,

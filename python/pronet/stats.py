@@ -171,8 +171,9 @@ MAX_POSITION_SIGMA = 1.0e6
 #: Past this heading 1σ [deg] a heading error is no longer small: the filter's position
 #: error, linear in it, leaves out terms that on a track with a net drift grow with the
 #: distance covered (docs/results/consistency.md, "A long MEMS mission without fixes"),
-#: and the position σ can understate the error many times over.
-MAX_LINEAR_HEADING_SIGMA_DEG = 5.0
+#: and the position σ can understate the error many times over. The core's
+#: (``recorded::MAX_LINEAR_HEADING_SIGMA_DEG``), which watches for it at every epoch.
+MAX_LINEAR_HEADING_SIGMA_DEG: float = _core.MAX_LINEAR_HEADING_SIGMA_DEG
 
 
 class StreamRows(Protocol):
@@ -425,7 +426,7 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64, extent: Extent | None 
     :data:`MAX_POSITION_SIGMA`), naming the first epoch; "" where it did not.
     ``extent``: the arrays' extremes where known (the core gathers them as it writes
     the epochs), so that a solution within its bounds is not read again."""
-    if (extent or Extent.of(lla, vel, sigma)).within_bounds():
+    if (extent or Extent.of(lla, vel, sigma, time)).within_bounds():
         return ""  # the usual case: no epoch's mask is needed
     speed = np.linalg.norm(vel, axis=1)
     horizontal = np.hypot(sigma[:, 0], sigma[:, 1])
@@ -446,26 +447,20 @@ def divergence(lla: F64, vel: F64, sigma: F64, time: F64, extent: Extent | None 
     )
 
 
-def heading_linearity(sigma: F64, time: F64, extent: Extent | None = None) -> str:
-    """One line where the heading 1σ (``sigma`` ``(n, 15)``, column 8, the attitude
-    error's down component [rad], at ``time`` [s]) exceeds
-    :data:`MAX_LINEAR_HEADING_SIGMA_DEG`, naming the first epoch; "" where it does not
-    (NaN σ, not computed, never does). ``extent``: the arrays' extremes where known."""
-    limit = math.radians(MAX_LINEAR_HEADING_SIGMA_DEG)
-    if extent is not None:
-        largest = extent.heading2
-    else:
-        with np.errstate(over="ignore", invalid="ignore"):
-            largest = float(np.fmax.reduce(sigma[:, 8] ** 2)) if len(sigma) else math.nan
-    if not largest > limit**2:
+def heading_linearity(extent: Extent) -> str:
+    """One line where the heading 1σ passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG`, naming
+    when it first did; "" where it did not (NaN σ, not computed, never does).
+    ``extent``: the core's, watched at every epoch of the pass, kept or not; or
+    :meth:`Extent.of` the kept epochs, which a thinned output tells late, and one kept
+    at its last epoch only not at all where the σ fell back since."""
+    if not extent.heading2 > math.radians(MAX_LINEAR_HEADING_SIGMA_DEG) ** 2:
         return ""
-    k = int(np.argmax(sigma[:, 8] > limit))
     return (
-        f"the heading's 1σ reached {math.degrees(math.sqrt(largest)):.3g}° (over "
-        f"{MAX_LINEAR_HEADING_SIGMA_DEG:g}° from t = {time[k]:.6g} s, epoch {k}): a heading "
-        "error this large is not small, and the position σ, linear in it, can understate "
-        "the position error on a track with a net drift; aid the heading (a compass, "
-        "fixes) to keep it small"
+        f"the heading's 1σ reached {math.degrees(math.sqrt(extent.heading2)):.3g}° (over "
+        f"{MAX_LINEAR_HEADING_SIGMA_DEG:g}° from t = {extent.heading_over:.6g} s): a "
+        "heading error this large is not small, and the position σ, linear in it, can "
+        "understate the position error on a track with a net drift; aid the heading (a "
+        "compass, fixes) to keep it small"
     )
 
 
@@ -475,34 +470,41 @@ class Extent:
     to tell that no epoch left its bounds: whether every position and velocity is
     finite, and the largest speed² [m²/s²], |height| [m], horizontal variance
     σ_N² + σ_E² [m²] and heading variance σ_ψD² [rad²], each skipping NaN (a NaN σ is
-    one not computed; where every σ is, NaN). Where ``finite`` is false the largest
-    values mean nothing: the bounds are broken already."""
+    one not computed; where every σ is, NaN), and the time [s] the heading's 1σ first
+    passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where it did not). Where
+    ``finite`` is false the largest values mean nothing: the bounds are broken already.
+    The core's (``pronet._core.run_filter``'s ``extent``) watches the heading at every
+    epoch, kept or not, where P stood (after the updates, and at each close of a
+    covariance step before them): never below the kept σ, equal to it where every
+    epoch is kept and P propagated at every sample."""
 
     finite: bool
     speed2: float
     abs_height: float
     horizontal2: float
     heading2: float
+    heading_over: float
 
     @classmethod
-    def of(cls, lla: F64, vel: F64, sigma: F64) -> Extent:
+    def of(cls, lla: F64, vel: F64, sigma: F64, time: F64) -> Extent:
         """The extremes of ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` and ``sigma``
-        ``(n, 15)``, by whole-array reductions."""
+        ``(n, 15)`` at ``time`` ``(n,)`` [s], by whole-array reductions."""
         with np.errstate(over="ignore", invalid="ignore"):
             speed2 = np.einsum("ij,ij->i", vel, vel)
             horizontal2 = sigma[:, 0] ** 2 + sigma[:, 1] ** 2
             heading2 = sigma[:, 8] ** 2
+            over = np.flatnonzero(sigma[:, 8] > math.radians(MAX_LINEAR_HEADING_SIGMA_DEG))
 
         def largest(x: F64, empty: float) -> float:  # fmax skips NaN, as f64::max does
             return float(np.fmax.reduce(x)) if len(x) else empty
 
-        nan = float("nan")
         return cls(
             bool(np.isfinite(lla).all() and np.isfinite(vel).all()),
             largest(speed2, 0.0),
             largest(np.abs(lla[:, 2]), 0.0),
-            largest(horizontal2, nan),
-            largest(heading2, nan),
+            largest(horizontal2, math.nan),
+            largest(heading2, math.nan),
+            float(time[over[0]]) if len(over) else math.nan,
         )
 
     def within_bounds(self) -> bool:
@@ -541,18 +543,26 @@ def pass_health(
     pass's rows, ``sources`` their names and times, in order), its :func:`divergence`
     and its :func:`heading_linearity` (``extent``: the solution's extremes, where
     known)."""
+    extent = extent or Extent.of(lla, vel, sigma, time)
+    return PassHealth(
+        stream_reports(streams, sources),
+        divergence(lla, vel, sigma, time, extent),
+        heading_linearity(extent),
+    )
+
+
+def stream_reports(
+    streams: Sequence[StreamRows], sources: Sequence[StreamSource]
+) -> tuple[StreamReport, ...]:
+    """One :func:`stream_report` per stream of a pass (``streams`` its rows,
+    ``sources`` their names and times, in order)."""
     if len(streams) != len(sources):
         raise ValueError(
             f"sources: one per stream of the pass ({len(streams)}), got {len(sources)}"
         )
-    reports = tuple(
+    return tuple(
         stream_report(src.name, rows, src.time, lla=src.lla, skipped=src.skipped)
         for rows, src in zip(streams, sources, strict=True)
-    )
-    return PassHealth(
-        reports,
-        divergence(lla, vel, sigma, time, extent),
-        heading_linearity(sigma, time, extent),
     )
 
 

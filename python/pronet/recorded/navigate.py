@@ -48,7 +48,7 @@ from pronet.recorded.surface import G0, SurfaceOffset, surface_offset
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.recorded.vehicle import VehicleTuning
 from pronet.run import Recorded, run
-from pronet.stats import PassHealth, StreamSource, pass_health
+from pronet.stats import PassHealth, StreamSource, stream_reports
 from pronet.strategies import StrategyLike, StrategySpec, strategy
 
 Arm = tuple[float, float, float]
@@ -306,7 +306,9 @@ def _strategy(spec: str, section: Section) -> StrategyLike:
 
 
 def _health(section: Section, streams: Streams, result: FilterResult) -> PassHealth:
-    """Each stream's report, in the order the pass applied them, and the divergence."""
+    """The pass's health (its divergence and heading, as the core watched them), with
+    each stream's report named as the section names it, in the order the pass applied
+    them, and the rows left out before it."""
     sources = []
     if len(streams.dvl):
         skipped = _skipped(section.dvl_skipped_reason)
@@ -317,10 +319,7 @@ def _health(section: Section, streams: Streams, result: FilterResult) -> PassHea
             lla = getattr(readings, "lla", None)
             skipped = _skipped(readings.skipped_reason)
             sources.append(StreamSource(name, readings.time, lla=lla, skipped=skipped))
-    return pass_health(
-        result.streams, sources, lla=result.lla, vel=result.vel, sigma=result.sigma,
-        time=result.time,
-    )  # fmt: skip
+    return dataclasses.replace(result.health, streams=stream_reports(result.streams, sources))
 
 
 def _smoothed(result: FilterResult) -> FilterResult:

@@ -434,6 +434,14 @@ impl Ekf {
         self.step.as_ref()
     }
 
+    /// The heading variance σ_ψD² \[rad²\] in P (the attitude error's down component):
+    /// the same in every formulation's coordinates, whose maps to the classic ones
+    /// leave the attitude rows alone. P's, so at an epoch inside a covariance step the
+    /// step's start's.
+    pub fn heading_variance(&self) -> f64 {
+        self.p[(ATT + 2, ATT + 2)]
+    }
+
     /// Whether P stands at the current epoch (no covariance step under way).
     pub fn is_up_to_date(&self) -> bool {
         self.step.is_none()

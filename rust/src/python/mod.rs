@@ -35,6 +35,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("THREADS_ENV", crate::threads::THREADS_ENV)?;
     m.add("MAX_LEVER_ARM", crate::ekf::MAX_LEVER_ARM)?;
     m.add("MAX_COVARIANCE_STEP", crate::ekf::MAX_COVARIANCE_STEP)?;
+    m.add(
+        "MAX_LINEAR_HEADING_SIGMA_DEG",
+        crate::recorded::MAX_LINEAR_HEADING_SIGMA_DEG,
+    )?;
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;
     m.add("MAX_GRAVITY_HEIGHT", crate::earth::MAX_GRAVITY_HEIGHT)?;
     m.add("MAX_LATITUDE_DEG", crate::earth::MAX_LATITUDE_DEG)?;

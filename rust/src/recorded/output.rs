@@ -135,9 +135,15 @@ pub(crate) fn solution_of(nav: &NavState) -> [[f64; 3]; 3] {
     ]
 }
 
+/// The heading 1σ \[°\] past which a pass says its heading error is no longer small:
+/// the position σ, linear in it, can then understate the position error on a track
+/// with a net drift (`docs/results/consistency.md`, "A long MEMS mission").
+pub const MAX_LINEAR_HEADING_SIGMA_DEG: f64 = 5.0;
+
 /// A solution's extremes, gathered as its epochs are written, from which the
 /// divergence check (`pronet.stats.divergence`) tells at once whether any epoch left
-/// its bounds, without reading the arrays again.
+/// its bounds, without reading the arrays again; and the heading's, watched at every
+/// epoch of the pass, kept or not (`pronet.stats.heading_linearity`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Extent {
     /// Whether every position and velocity is finite.
@@ -150,8 +156,14 @@ pub struct Extent {
     /// skipped; NaN where every σ is.
     pub horizontal2: f64,
     /// The largest heading variance σ_ψD² \[rad²\] (the attitude error's down
-    /// component), NaN skipped as above.
+    /// component) wherever P stood at its epoch: at every epoch of the pass, kept or
+    /// not, after its updates where P is up to date, and at each close of a covariance
+    /// step before them. The σ a kept epoch inside a step reports lies between these
+    /// (interpolated), so none is larger. NaN before any.
     pub heading2: f64,
+    /// The time \[s\] of the first of those epochs whose heading σ is over
+    /// [`MAX_LINEAR_HEADING_SIGMA_DEG`]; NaN where none is.
+    pub heading_over: f64,
 }
 
 impl Default for Extent {
@@ -162,6 +174,7 @@ impl Default for Extent {
             abs_height: 0.0,
             horizontal2: f64::NAN,
             heading2: f64::NAN,
+            heading_over: f64::NAN,
         }
     }
 }
@@ -177,12 +190,19 @@ impl Extent {
         self.abs_height = self.abs_height.max(lla[2].abs());
     }
 
-    /// Take in one epoch's 1σ of the 15 errors (position first, north and east; the
-    /// attitude's down component ninth).
+    /// Take in one kept epoch's 1σ of the 15 errors (position first, north and east).
     pub fn add_sigma(&mut self, sigma: &[f64; 15]) {
         self.horizontal2 = self
             .horizontal2
             .max(sigma[0] * sigma[0] + sigma[1] * sigma[1]);
-        self.heading2 = self.heading2.max(sigma[8] * sigma[8]);
+    }
+
+    /// Take in the heading variance σ_ψD² \[rad²\] P holds at time `t` \[s\].
+    pub fn watch_heading(&mut self, variance: f64, t: f64) {
+        self.heading2 = self.heading2.max(variance);
+        let limit = MAX_LINEAR_HEADING_SIGMA_DEG.to_radians();
+        if self.heading_over.is_nan() && variance > limit * limit {
+            self.heading_over = t;
+        }
     }
 }

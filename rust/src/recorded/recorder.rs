@@ -109,6 +109,10 @@ impl<'d> Recorder<'d> {
         }
         recorder.keep_covariances(ekf, 0, data.t0);
         recorder
+            .out
+            .extent
+            .watch_heading(ekf.heading_variance(), data.t0);
+        recorder
     }
 
     /// At the end of the pass: the last epoch's estimate where no epoch was kept
@@ -150,8 +154,12 @@ impl<'d> Recorder<'d> {
 }
 
 impl Observer for Recorder<'_> {
-    fn on_close(&mut self, _epoch: usize, ekf: &Ekf, _phi: &Transition) {
+    fn on_close(&mut self, epoch: usize, ekf: &Ekf, _phi: &Transition) {
         self.stale.on_close(ekf);
+        let t = epoch
+            .checked_sub(1)
+            .map_or(self.data.t0, |k| self.data.imu_time[k]);
+        self.out.extent.watch_heading(ekf.heading_variance(), t);
     }
 
     fn on_reading(
@@ -183,6 +191,9 @@ impl Observer for Recorder<'_> {
         _noise: ProcessNoise<'_>,
     ) {
         self.keep_covariances(ekf, at.index, at.t);
+        if ekf.is_up_to_date() {
+            self.out.extent.watch_heading(ekf.heading_variance(), at.t);
+        }
         if self.some {
             let recorded = match self.thinning.as_mut() {
                 None => true,

@@ -315,3 +315,52 @@ fn a_start_beyond_89_degrees_is_refused_naming_lla0() {
         "lla0: latitude must be within ±89° (given in radians; NED is singular at the poles)"
     );
 }
+
+/// The heading is watched at every epoch where P stands, kept or not: a pass that
+/// keeps only its last epoch tells the same largest heading σ and the same first time
+/// past 5° as one that keeps every epoch, never less than any kept σ, and, with P
+/// propagated at every sample, the kept σ's.
+#[test]
+fn the_heading_is_watched_at_every_epoch_kept_or_not() {
+    let n = 2000;
+    let imu = vec![[0.02, -0.01, -9.79, 1e-4, 0.0, 2e-4]; n];
+    let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
+    let data = imu_only(&imu, &imu_time);
+    let limit = super::MAX_LINEAR_HEADING_SIGMA_DEG.to_radians();
+    for step in [0.0, 0.1] {
+        let mut cfg = FilterConfig {
+            covariance_step: step,
+            ..FilterConfig::default()
+        };
+        cfg.p0_sigma[14] = 0.005; // 1,000 °/h of vertical gyro bias: 5° within 20 s
+        let pass = |epochs| {
+            let spec = StrategySpec::Constant { q: [1e-6; 6] };
+            let mut strategy = spec.build(cfg.bias_psd());
+            let state = moving_state();
+            filter_recorded_until(
+                &data,
+                state,
+                [0.0; 6],
+                &cfg,
+                strategy.as_mut(),
+                epochs,
+                &Cancel::default(),
+            )
+            .unwrap()
+        };
+        let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
+        assert_eq!(all.extent.heading2, last.extent.heading2);
+        assert_eq!(all.extent.heading_over, last.extent.heading_over);
+        let kept2 = all.sigma.iter().map(|s| s[8] * s[8]).fold(0.0, f64::max);
+        let first = all.sigma.iter().position(|s| s[8] > limit).unwrap();
+        let over = all.extent.heading_over;
+        assert!(all.time[first] > 0.0 && over < 20.0, "{step}: {over}");
+        if step == 0.0 {
+            assert!((all.extent.heading2 - kept2).abs() <= 1e-14 * kept2); // σ squared back
+            assert_eq!(over, all.time[first]);
+        } else {
+            assert!(all.extent.heading2 >= kept2 * (1.0 - 1e-14));
+            assert!(all.time[first] <= over && over < all.time[first] + step);
+        }
+    }
+}
