@@ -22,6 +22,7 @@ from pronet.stats import (
     FilterHealthWarning,
     StreamReport,
     StreamSource,
+    divergence,
     heading_linearity,
     pass_health,
     stream_report,
@@ -190,21 +191,28 @@ def test_run_filter_names_a_stream_the_filter_knows_is_wrong(case: str, words: s
 
 
 def test_a_diverged_pass_is_named_with_its_first_epoch() -> None:
-    # An accelerometer 5 m/s² off forward, no aiding: 100 m/s within 20 s.
+    # An accelerometer 5 m/s² off forward, no aiding: 100 m/s within 20 s. A pass that
+    # keeps its last epoch only, or one epoch in 7 s, names the same epoch.
     traj = pronet.builtin_trajectory("paper")
     n = 3000
     imu = traj.imu[:n] + [5.0, 0.0, 0.0, 0.0, 0.0, 0.0]
-    with pytest.warns(FilterHealthWarning, match="the pass diverged: its solution"):
-        out = pronet.run_filter(
+
+    def run(warn: bool, **options: object) -> pronet.FilterResult:
+        return pronet.run_filter(
             imu, traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
-            rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+            rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q), warn=warn, **options,
         )  # fmt: skip
-    assert "from t = " in out.health.divergence
-    quiet = pronet.run_filter(
-        imu, traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0], vel0=traj.vel_ned[0],
-        rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q), warn=False,
-    )  # fmt: skip
-    assert quiet.health.divergence == out.health.divergence
+
+    with pytest.warns(FilterHealthWarning, match="the pass diverged: its solution"):
+        out = run(warn=True)
+    fast = np.linalg.norm(out.vel, axis=1) > 100.0
+    k = int(np.argmax(fast))
+    assert fast.any() and 0 < out.time[k] < 20.0
+    assert f"moves faster than 100 m/s from t = {out.time[k]:.6g} s:" in out.health.divergence
+    assert divergence(_read(out)) == out.health.divergence
+    for options in ({"epochs": "last"}, {"output_step": 7.0}):
+        kept = run(warn=False, **options)
+        assert kept.health.divergence == out.health.divergence, options
 
 
 def _heading_pass(given: list, *, warn: bool = False, **options: object) -> pronet.FilterResult:
@@ -279,8 +287,9 @@ def test_a_heading_sigma_that_passed_5_degrees_and_came_back_is_named_from_the_l
 def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
     # Every epoch at each sample and inside a covariance step (σ written when the step
     # closes), thinned, the last alone, and a pass that left its bounds (5 m/s² off).
-    # The heading is watched at every epoch, kept or not, where P stood: never below
-    # the kept σ, equal where every epoch is kept and P is current at each.
+    # The core watches every epoch, kept or not: where every epoch is kept, the bound
+    # broken and when are the arrays'; the heading, watched where P stood, is never
+    # below the kept σ, and equal where every epoch is kept and P current at each.
     traj = pronet.builtin_trajectory("paper")
     n = 3000
     streams, _ = _streams(np.random.default_rng(5))
@@ -300,9 +309,10 @@ def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
         )  # fmt: skip
         gathered = Extent(*out["extent"])
         read = Extent.of(out["lla"], out["vel"], out["sigma"], out["time"])
-        assert gathered.finite == read.finite, (step, options)
-        for name in ("speed2", "abs_height", "horizontal2"):
-            assert getattr(gathered, name) == pytest.approx(getattr(read, name), rel=1e-14)
+        if not options:  # every epoch kept
+            assert gathered.out_of_bounds == read.out_of_bounds, step
+            np.testing.assert_equal(gathered.out_of_bounds_at, read.out_of_bounds_at)
+        assert gathered.out_of_bounds == ("speed" if imu is drifted else ""), (step, options)
         if step == 0.0 and not options:
             assert gathered.heading2 == pytest.approx(read.heading2, rel=1e-14)
             np.testing.assert_equal(gathered.heading_over, read.heading_over)
@@ -310,7 +320,6 @@ def test_the_extent_the_core_gathers_is_the_one_its_arrays_give() -> None:
             assert gathered.heading2 >= read.heading2 * (1 - 1e-14), (step, options)
             # a kept σ past 5° is interpolated towards a close past it, at most a step on
             assert not gathered.heading_over >= read.heading_over + step, (step, options)
-        assert gathered.within_bounds() == (imu is not drifted), (step, options)
 
 
 def test_a_filter_told_the_simulation_s_model_flags_no_more_runs_than_chance() -> None:

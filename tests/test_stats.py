@@ -73,7 +73,7 @@ def test_bools_are_not_counts() -> None:
         stats.t_quantile_975(True)
 
 
-def test_the_divergence_check_s_fast_path_agrees_with_its_epoch_masks() -> None:
+def test_the_divergence_read_from_the_arrays_names_the_first_epoch_and_bound() -> None:
     # Each bound broken alone, at a random epoch, and NaN σ (not computed) beside them.
     rng = np.random.default_rng(11)
     n = 500
@@ -97,8 +97,10 @@ def test_the_divergence_check_s_fast_path_agrees_with_its_epoch_masks() -> None:
             np.hypot(sigma[:, 0], sigma[:, 1]) > stats.MAX_POSITION_SIGMA,
         )
         broken = any(m.any() for m in masks)
-        message = stats.divergence(lla, vel, sigma, np.arange(n) * 0.1)
+        time = np.arange(n) * 0.1
+        message = stats.divergence(stats.Extent.of(lla, vel, sigma, time))
         assert (message != "") == broken, (trial, message)
         if broken:
-            first = min(int(np.argmax(m)) for m in masks if m.any())
-            assert f"(epoch {first})" in message
+            first, bound = min((int(np.argmax(m)), i) for i, m in enumerate(masks) if m.any())
+            what = list(stats.BOUNDS.values())[bound]
+            assert f"its solution {what} from t = {time[first]:.6g} s:" in message

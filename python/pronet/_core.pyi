@@ -18,7 +18,8 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "__version__", "MAX_THREADS", "THREADS_PER_CORE", "THREADS_ENV", "MAX_LEVER_ARM",
-    "MAX_COVARIANCE_STEP", "MAX_LINEAR_HEADING_SIGMA_DEG", "MAX_RUN_INDEX",
+    "MAX_COVARIANCE_STEP", "MAX_LINEAR_HEADING_SIGMA_DEG", "MAX_SPEED",
+    "MAX_ABS_HEIGHT", "MAX_POSITION_SIGMA", "MAX_RUN_INDEX",
     "MAX_GRAVITY_HEIGHT", "MAX_LATITUDE_DEG", "LONGITUDE_RANGE_DEG", "WGS84_A",
     "WGS84_F", "Trajectory", "builtin_trajectory", "builtin_trajectory_names",
     "trajectory_from_segments", "normal_gravity", "earth_radii", "mechanize",
@@ -45,6 +46,14 @@ MAX_COVARIANCE_STEP: float
 #: The heading 1σ [°] past which a pass says its heading error is no longer small
 #: (``recorded::MAX_LINEAR_HEADING_SIGMA_DEG``, 5°; :func:`pronet.stats.heading_linearity`).
 MAX_LINEAR_HEADING_SIGMA_DEG: float
+#: A speed [m/s] beyond what any vehicle pronet navigates can do: a pass whose solution
+#: moves faster says it diverged (``recorded::MAX_SPEED``).
+MAX_SPEED: float
+#: A height [m] beyond which a pass says it diverged (``recorded::MAX_ABS_HEIGHT``, ±).
+MAX_ABS_HEIGHT: float
+#: A horizontal position 1σ [m] beyond which a pass says it diverged
+#: (``recorded::MAX_POSITION_SIGMA``).
+MAX_POSITION_SIGMA: float
 #: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
 #: streams are numbered 4·i + k.
 MAX_RUN_INDEX: int
@@ -449,10 +458,11 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
     none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
     ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
-    solution's ``(finite, speed², |height|, σ_N² + σ_E², σ_ψD², t)`` extremes
-    (:class:`pronet.stats.Extent`), gathered as its epochs were written, the heading
-    variance's at every epoch where P stood, kept or not, and ``t`` [s] the first where
-    its σ passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where none did). Before it
+    pass's ``(bound, t_bound, σ_ψD², t_heading)`` (:class:`pronet.stats.Extent`), watched
+    at every epoch, kept or not: the bound (``"non-finite"``, ``"speed"``, ``"height"``,
+    ``"position-sigma"``; "" where none) the solution first broke and when [s], the largest
+    heading variance [rad²] and when its σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG`
+    (NaN where none did). Before it
     allocates, a pass that would hold more than this process can still take is a ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,
     ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,

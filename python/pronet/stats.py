@@ -164,10 +164,19 @@ CAUSES_HIGH = {
 }
 
 #: Beyond these the solution has left what any vehicle pronet navigates can do: a speed
-#: [m/s], a height [m, up] and a horizontal 1σ [m].
-MAX_SPEED = 100.0
-MAX_ABS_HEIGHT = 20_000.0
-MAX_POSITION_SIGMA = 1.0e6
+#: [m/s], a height [m, up] and a horizontal 1σ [m]. The core's (``recorded::MAX_SPEED``
+#: and so on), which watches them at every epoch.
+MAX_SPEED: float = _core.MAX_SPEED
+MAX_ABS_HEIGHT: float = _core.MAX_ABS_HEIGHT
+MAX_POSITION_SIGMA: float = _core.MAX_POSITION_SIGMA
+#: What the solution does past each bound, by the bound's name in :class:`Extent`, in
+#: the order they are checked at an epoch.
+BOUNDS = {
+    "non-finite": "is not finite",
+    "speed": f"moves faster than {MAX_SPEED:g} m/s",
+    "height": f"is beyond ±{MAX_ABS_HEIGHT:g} m of height",
+    "position-sigma": f"has a horizontal 1σ over {MAX_POSITION_SIGMA:g} m",
+}
 #: Past this heading 1σ [deg] a heading error is no longer small: the filter's position
 #: error, linear in it, leaves out terms that on a track with a net drift grow with the
 #: distance covered (docs/results/consistency.md, "A long MEMS mission without fixes"),
@@ -419,31 +428,16 @@ def _flag(
     return ""
 
 
-def divergence(lla: F64, vel: F64, sigma: F64, time: F64, extent: Extent | None = None) -> str:
-    """One line where the solution ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` [m/s] with
-    ``sigma`` ``(n, 15)`` at ``time`` [s] left physical bounds (non-finite, a speed over
-    :data:`MAX_SPEED`, a height beyond ±:data:`MAX_ABS_HEIGHT`, a horizontal 1σ over
-    :data:`MAX_POSITION_SIGMA`), naming the first epoch; "" where it did not.
-    ``extent``: the arrays' extremes where known (the core gathers them as it writes
-    the epochs), so that a solution within its bounds is not read again."""
-    if (extent or Extent.of(lla, vel, sigma, time)).within_bounds():
-        return ""  # the usual case: no epoch's mask is needed
-    speed = np.linalg.norm(vel, axis=1)
-    horizontal = np.hypot(sigma[:, 0], sigma[:, 1])
-    checks = (
-        (~np.isfinite(lla).all(axis=1) | ~np.isfinite(vel).all(axis=1), "is not finite"),
-        (speed > MAX_SPEED, f"moves faster than {MAX_SPEED:g} m/s"),
-        (np.abs(lla[:, 2]) > MAX_ABS_HEIGHT, f"is beyond ±{MAX_ABS_HEIGHT:g} m of height"),
-        (horizontal > MAX_POSITION_SIGMA, f"has a horizontal 1σ over {MAX_POSITION_SIGMA:g} m"),
-    )
-    found = [(int(np.argmax(bad)), what) for bad, what in checks if bad.any()]
-    if not found:
+def divergence(extent: Extent) -> str:
+    """One line where the solution left a physical bound (:data:`BOUNDS`), naming when
+    it first did; "" where it did not. ``extent``: the core's, watched at every epoch
+    of the pass, kept or not; or :meth:`Extent.of` the kept epochs."""
+    if not extent.out_of_bounds:
         return ""
-    k, what = min(found)
     return (
-        f"the pass diverged: its solution {what} from t = {time[k]:.6g} s (epoch {k}): "
-        "check the IMU's units and frame (FRD, m/s², rad/s), the initial state, the "
-        "streams' σ and the process noise"
+        f"the pass diverged: its solution {BOUNDS[extent.out_of_bounds]} from t = "
+        f"{extent.out_of_bounds_at:.6g} s: check the IMU's units and frame (FRD, m/s², "
+        "rad/s), the initial state, the streams' σ and the process noise"
     )
 
 
@@ -466,55 +460,43 @@ def heading_linearity(extent: Extent) -> str:
 
 @dataclass(frozen=True)
 class Extent:
-    """A solution's extremes, all :func:`divergence` and :func:`heading_linearity` need
-    to tell that no epoch left its bounds: whether every position and velocity is
-    finite, and the largest speed² [m²/s²], |height| [m], horizontal variance
-    σ_N² + σ_E² [m²] and heading variance σ_ψD² [rad²], each skipping NaN (a NaN σ is
-    one not computed; where every σ is, NaN), and the time [s] the heading's 1σ first
-    passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where it did not). Where
-    ``finite`` is false the largest values mean nothing: the bounds are broken already.
-    The core's (``pronet._core.run_filter``'s ``extent``) watches the heading at every
-    epoch, kept or not, where P stood (after the updates, and at each close of a
-    covariance step before them): never below the kept σ, equal to it where every
-    epoch is kept and P propagated at every sample."""
+    """What a pass's :func:`divergence` and :func:`heading_linearity` are told from:
+    the first epoch whose solution left a bound of :data:`BOUNDS` (the bound's name, ""
+    where none did, and the epoch's time [s], NaN), the largest heading variance
+    σ_ψD² [rad²] (NaN σ, not computed, skipped; NaN where every σ is) and the time [s]
+    its 1σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where it did not).
 
-    finite: bool
-    speed2: float
-    abs_height: float
-    horizontal2: float
+    The core's (``pronet._core.run_filter``'s ``extent``) is watched at every epoch of
+    the pass, kept or not: the solution after the epoch's updates, the covariance
+    wherever P stood (after the updates where it is up to date, and at each close of a
+    covariance step before them; a kept σ inside a step is interpolated between these,
+    so it is never larger). :meth:`of` reads the kept epochs."""
+
+    out_of_bounds: str
+    out_of_bounds_at: float
     heading2: float
     heading_over: float
 
     @classmethod
     def of(cls, lla: F64, vel: F64, sigma: F64, time: F64) -> Extent:
-        """The extremes of ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` and ``sigma``
+        """The extent of the epochs ``lla`` ``(n, 3)``, ``vel`` ``(n, 3)`` and ``sigma``
         ``(n, 15)`` at ``time`` ``(n,)`` [s], by whole-array reductions."""
         with np.errstate(over="ignore", invalid="ignore"):
-            speed2 = np.einsum("ij,ij->i", vel, vel)
-            horizontal2 = sigma[:, 0] ** 2 + sigma[:, 1] ** 2
+            masks = (
+                ~np.isfinite(lla).all(axis=1) | ~np.isfinite(vel).all(axis=1),
+                np.einsum("ij,ij->i", vel, vel) > MAX_SPEED**2,
+                np.abs(lla[:, 2]) > MAX_ABS_HEIGHT,
+                sigma[:, 0] ** 2 + sigma[:, 1] ** 2 > MAX_POSITION_SIGMA**2,
+            )
             heading2 = sigma[:, 8] ** 2
-            over = np.flatnonzero(sigma[:, 8] > math.radians(MAX_LINEAR_HEADING_SIGMA_DEG))
-
-        def largest(x: F64, empty: float) -> float:  # fmax skips NaN, as f64::max does
-            return float(np.fmax.reduce(x)) if len(x) else empty
-
+            over = np.flatnonzero(heading2 > math.radians(MAX_LINEAR_HEADING_SIGMA_DEG) ** 2)
+        # the first epoch, and at it the first bound in order
+        broken = min(((int(np.argmax(m)), i) for i, m in enumerate(masks) if m.any()), default=None)
         return cls(
-            bool(np.isfinite(lla).all() and np.isfinite(vel).all()),
-            largest(speed2, 0.0),
-            largest(np.abs(lla[:, 2]), 0.0),
-            largest(horizontal2, math.nan),
-            largest(heading2, math.nan),
+            "" if broken is None else list(BOUNDS)[broken[1]],
+            math.nan if broken is None else float(time[broken[0]]),
+            float(np.fmax.reduce(heading2)) if len(heading2) else math.nan,
             float(time[over[0]]) if len(over) else math.nan,
-        )
-
-    def within_bounds(self) -> bool:
-        """Whether no epoch breaks a bound of :func:`divergence` (a NaN σ breaks
-        none, as there)."""
-        return (
-            self.finite
-            and self.speed2 <= MAX_SPEED**2
-            and self.abs_height <= MAX_ABS_HEIGHT
-            and not self.horizontal2 > MAX_POSITION_SIGMA**2
         )
 
 
@@ -541,12 +523,13 @@ def pass_health(
 ) -> PassHealth:
     """The health of a pass: one :func:`stream_report` per stream (``streams`` the
     pass's rows, ``sources`` their names and times, in order), its :func:`divergence`
-    and its :func:`heading_linearity` (``extent``: the solution's extremes, where
-    known)."""
+    and its :func:`heading_linearity`, told by ``extent`` (the core's, watched at every
+    epoch), else by :meth:`Extent.of` the kept epochs ``lla``, ``vel``, ``sigma``,
+    ``time``."""
     extent = extent or Extent.of(lla, vel, sigma, time)
     return PassHealth(
         stream_reports(streams, sources),
-        divergence(lla, vel, sigma, time, extent),
+        divergence(extent),
         heading_linearity(extent),
     )
 

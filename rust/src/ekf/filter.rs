@@ -442,6 +442,17 @@ impl Ekf {
         self.p[(ATT + 2, ATT + 2)]
     }
 
+    /// The horizontal position variance σ_N² + σ_E² \[m²\] in P, in the classic
+    /// coordinates (SE₂(3)'s position error is mapped; the others' is the classic one).
+    pub fn horizontal_variance(&self) -> f64 {
+        if self.cfg.formulation.position_invariant() {
+            let d = self.point().classic_variances(&self.p);
+            d[POS] + d[POS + 1]
+        } else {
+            self.p[(POS, POS)] + self.p[(POS + 1, POS + 1)]
+        }
+    }
+
     /// Whether P stands at the current epoch (no covariance step under way).
     pub fn is_up_to_date(&self) -> bool {
         self.step.is_none()

@@ -49,10 +49,11 @@ fn q_schedule(
 /// velocity, depth and fix stream's (the same arrays; no rows without one; a heading has
 /// none). ``smoothed``: a dict of ``lla``, ``vel``, ``rpy``, ``bias``, ``sigma``,
 /// ``calibration``, ``calibration_sigma`` per epoch, or None. ``extent``: the forward
-/// solution's ``(finite, speed², |height|, σ_N² + σ_E², σ_ψD², t)`` extremes
-/// (:class:`pronet.stats.Extent`), gathered as its epochs were written, the heading
-/// variance's at every epoch where P stood, kept or not, and ``t`` [s] the first where
-/// its σ passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where none did). Before it
+/// pass's ``(bound, t_bound, σ_ψD², t_heading)`` (:class:`pronet.stats.Extent`), watched
+/// at every epoch, kept or not: the bound (``"non-finite"``, ``"speed"``, ``"height"``,
+/// ``"position-sigma"``; "" where none) the solution first broke and when [s], the largest
+/// heading variance [rad²] and when its σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG`
+/// (NaN where none did). Before it
 /// allocates, a pass that would hold more than this process can still take is a ``ValueError``
 /// naming the argument that bounds the most of it (``output_step``, ``streams``,
 /// ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,
@@ -452,14 +453,8 @@ impl OutputArrays {
         d.set_item("covariances", self.covariances.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
         let e = self.extent;
-        let extent = (
-            e.finite,
-            e.speed2,
-            e.abs_height,
-            e.horizontal2,
-            e.heading2,
-            e.heading_over,
-        );
+        let (bound, at) = e.diverged.map_or(("", f64::NAN), |(t, b)| (b.name(), t));
+        let extent = (bound, at, e.heading2, e.heading_over);
         d.set_item("extent", extent)?;
         let mut first = Kind::ALL.map(|_| true);
         let per_stream = PyList::empty(py);

@@ -108,10 +108,7 @@ impl<'d> Recorder<'d> {
                 .after_epoch(ekf, &mut recorder.out, data.t0, true);
         }
         recorder.keep_covariances(ekf, 0, data.t0);
-        recorder
-            .out
-            .extent
-            .watch_heading(ekf.heading_variance(), data.t0);
+        recorder.watch(ekf, data.t0);
         recorder
     }
 
@@ -127,6 +124,16 @@ impl<'d> Recorder<'d> {
         self.out.covariance_epoch.resize(asked, None);
         self.out.covariances.resize(asked, None);
         self.out
+    }
+
+    /// Watch the solution after the epoch at time `t` \[s\], and its covariance where P
+    /// is up to date ([`crate::recorded::Extent`]).
+    fn watch(&mut self, ekf: &Ekf, t: f64) {
+        let extent = &mut self.out.extent;
+        extent.watch_solution(&ekf.nav.lla.into(), &ekf.nav.vel.into(), t);
+        if ekf.is_up_to_date() {
+            extent.watch_covariance(ekf.horizontal_variance(), ekf.heading_variance(), t);
+        }
     }
 
     /// Keep the covariance (classic coordinates) for every asked-for time whose
@@ -159,7 +166,8 @@ impl Observer for Recorder<'_> {
         let t = epoch
             .checked_sub(1)
             .map_or(self.data.t0, |k| self.data.imu_time[k]);
-        self.out.extent.watch_heading(ekf.heading_variance(), t);
+        let extent = &mut self.out.extent;
+        extent.watch_covariance(ekf.horizontal_variance(), ekf.heading_variance(), t);
     }
 
     fn on_reading(
@@ -191,9 +199,7 @@ impl Observer for Recorder<'_> {
         _noise: ProcessNoise<'_>,
     ) {
         self.keep_covariances(ekf, at.index, at.t);
-        if ekf.is_up_to_date() {
-            self.out.extent.watch_heading(ekf.heading_variance(), at.t);
-        }
+        self.watch(ekf, at.t);
         if self.some {
             let recorded = match self.thinning.as_mut() {
                 None => true,

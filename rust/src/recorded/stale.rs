@@ -81,7 +81,6 @@ impl StaleSigma {
                     let between =
                         |from: f64, to: f64| variance_between(from * from, to * to, w).sqrt();
                     out.sigma[e] = std::array::from_fn(|i| between(from[i], sigma[i]));
-                    out.extent.add_sigma(&out.sigma[e]);
                     if let (Some(c), Some(from)) = (calibration, from_calibration) {
                         out.calibration_sigma[e] = std::array::from_fn(|i| between(from[i], c[i]));
                     }

@@ -364,3 +364,41 @@ fn the_heading_is_watched_at_every_epoch_kept_or_not() {
         }
     }
 }
+
+/// A solution that leaves a bound (an accelerometer 5 m/s² off forward: 100 m/s after
+/// 20 s) is watched at every epoch: the pass that keeps its last epoch only names the
+/// same first epoch and bound as the one that keeps every epoch, the first whose speed
+/// is over the bound.
+#[test]
+fn the_first_epoch_out_of_bounds_is_watched_kept_or_not() {
+    let n = 3000;
+    let imu = vec![[5.0, 0.0, -9.79, 0.0, 0.0, 0.0]; n];
+    let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
+    let data = imu_only(&imu, &imu_time);
+    let cfg = FilterConfig::default();
+    let pass = |epochs| {
+        let mut strategy = StrategySpec::Constant { q: [1e-6; 6] }.build(cfg.bias_psd());
+        let state = moving_state();
+        let cancel = Cancel::default();
+        filter_recorded_until(
+            &data,
+            state,
+            [0.0; 6],
+            &cfg,
+            strategy.as_mut(),
+            epochs,
+            &cancel,
+        )
+        .unwrap()
+    };
+    let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
+    let speed = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let first = all.vel.iter().position(|v| speed(v) > super::MAX_SPEED);
+    let first = first.expect("the speed passes 100 m/s");
+    assert!(all.time[first] > 10.0 && all.time[first] < 25.0);
+    assert_eq!(
+        all.extent.diverged,
+        Some((all.time[first], super::Bound::Speed))
+    );
+    assert_eq!(last.extent.diverged, all.extent.diverged);
+}
