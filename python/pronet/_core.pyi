@@ -462,7 +462,7 @@ def run_filter(imu: ArrayLike, imu_time: ArrayLike,
     at every epoch, kept or not: the bound (``"non-finite"``, ``"speed"``, ``"height"``,
     ``"position-sigma"``; "" where none) the solution first broke and when [s], the largest
     heading variance [rad²] and when its σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG`
-    (NaN where none did). Before it
+    (the close of the covariance step it passed in; NaN where none did). Before it
     allocates, a pass that would hold more than this process can still take is a ``ValueError``
     naming the argument that bounds the most of it (``output_step``, ``streams``,
     ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,

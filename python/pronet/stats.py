@@ -464,7 +464,8 @@ class Extent:
     the first epoch whose solution left a bound of :data:`BOUNDS` (the bound's name, ""
     where none did, and the epoch's time [s], NaN), the largest heading variance
     σ_ψD² [rad²] (NaN σ, not computed, skipped; NaN where every σ is) and the time [s]
-    its 1σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where it did not).
+    its 1σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG` (NaN where it did not; with
+    a covariance step, the core names the close of the step it passed in).
 
     The core's (``pronet._core.run_filter``'s ``extent``) is watched at every epoch of
     the pass, kept or not: the solution after the epoch's updates, the covariance

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet import _core
 from pronet._util.plausibility import HEIGHT_RANGE, PlausibilityWarning, specific_force
 
 F64 = NDArray[np.float64]
@@ -46,8 +47,9 @@ F64 = NDArray[np.float64]
 #: the bounds of the plausible ones (a 10 Hz IMU 25 ppm slow is a 10 Hz IMU).
 NOMINAL_RATE_TOLERANCE = 1e-3
 
-#: The fastest a ground truth may move [m/s] (no underwater vehicle comes near it).
-MAX_SPEED = 100.0
+#: The fastest a ground truth may move [m/s] (no underwater vehicle comes near it): the
+#: core's bound on any solution (``recorded::MAX_SPEED``), past which a pass diverged.
+MAX_SPEED: float = _core.MAX_SPEED
 #: The truth's attitude steps over the gyro's, by RMS, outside [1/x, x]: a unit slip.
 ANGLE_RATIO = 5.0
 #: Below this RMS gyro turn per truth row [rad] the attitude-unit check says nothing.

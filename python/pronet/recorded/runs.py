@@ -152,9 +152,9 @@ class RealRuns:
     @property
     def notes(self) -> list[str]:
         """What the filters said about themselves (:attr:`pronet.FilterResult.health`),
-        one line per section and stream out of band, the first row's finding with the
-        rows that share it, and one per row whose solution diverged. Smoothed rows are
-        their filter's."""
+        one line per section and stream out of band, and per section whose heading σ
+        passed 5°, the first row's finding with the rows that share it, and one per row
+        whose solution diverged. Smoothed rows are their filter's."""
         found: dict[tuple[str, str], list[tuple[str, str]]] = {}
         rows: dict[str, int] = {}
         for run in self.runs:
@@ -164,6 +164,8 @@ class RealRuns:
             health = run.result.health
             if health.divergence:
                 found[(run.section, run.label)] = [(run.label, health.divergence)]
+            if health.heading:
+                found.setdefault((run.section, "heading σ"), []).append((run.label, health.heading))
             for s in health.streams:
                 if s.flag:
                     found.setdefault((run.section, s.name), []).append((run.label, s.flag))

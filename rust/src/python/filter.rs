@@ -53,7 +53,7 @@ fn q_schedule(
 /// at every epoch, kept or not: the bound (``"non-finite"``, ``"speed"``, ``"height"``,
 /// ``"position-sigma"``; "" where none) the solution first broke and when [s], the largest
 /// heading variance [rad²] and when its σ first passed :data:`MAX_LINEAR_HEADING_SIGMA_DEG`
-/// (NaN where none did). Before it
+/// (the close of the covariance step it passed in; NaN where none did). Before it
 /// allocates, a pass that would hold more than this process can still take is a ``ValueError``
 /// naming the argument that bounds the most of it (``output_step``, ``streams``,
 /// ``strategy``, ``covariance_time`` or ``smooth``) with the estimate (docs/results/performance.md,
@@ -216,7 +216,7 @@ struct OutputArrays {
     covariance_epoch: Array1<i64>,
     covariances: Array3<f64>,
     diverged_at: Option<f64>,
-    /// The forward solution's extremes, for the divergence check.
+    /// What the forward pass watched at every epoch, for its health.
     extent: Extent,
     /// Each stream's rows, in the order given, with its kind.
     streams: Vec<(Kind, StreamArrays)>,

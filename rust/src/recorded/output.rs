@@ -170,8 +170,9 @@ pub struct Extent {
     /// The largest heading variance σ_ψD² \[rad²\] (the attitude error's down
     /// component); NaN before any.
     pub heading2: f64,
-    /// The time \[s\] of the first epoch whose heading σ is over
-    /// [`MAX_LINEAR_HEADING_SIGMA_DEG`]; NaN where none is.
+    /// The time \[s\] of the first of those epochs whose heading σ is over
+    /// [`MAX_LINEAR_HEADING_SIGMA_DEG`] (with a covariance step, the close of the step
+    /// it passed in, or an epoch with readings inside it); NaN where none is.
     pub heading_over: f64,
 }
 

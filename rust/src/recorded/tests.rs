@@ -361,6 +361,11 @@ fn the_heading_is_watched_at_every_epoch_kept_or_not() {
         } else {
             assert!(all.extent.heading2 >= kept2 * (1.0 - 1e-14));
             assert!(all.time[first] <= over && over < all.time[first] + step);
+            // named at the close (every tenth epoch, no readings) whose σ passed, the
+            // close before it under
+            let close = all.time.iter().position(|&t| t == over).unwrap();
+            assert_eq!(close % 10, 0);
+            assert!(all.sigma[close][8] > limit && all.sigma[close - 10][8] <= limit);
         }
     }
 }
