@@ -591,6 +591,9 @@ class Navigator:
         """The estimate at the newest epoch: a dict of ``epoch``, ``time`` [s], ``lla``
         [rad, rad, m], ``vel`` [m/s NED], ``rpy`` [rad], ``bias`` (6), ``sigma`` (15,
         brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None)."""
+    def extent(self) -> tuple[str, float, float, float]:
+        """What the pass watched for its health over every epoch so far (as
+        ``run_filter``'s ``extent``, :class:`pronet.stats.Extent`)."""
     def tally(self) -> list[dict[str, Any]]:
         """Each stream's tally, a list of dicts in the streams' order: ``name``, ``kind``
         (``"velocity"``, ``"depth"``, ``"fix"``, ``"heading"``), ``received``, ``queued``,

@@ -315,14 +315,8 @@ def stream_report(
     # The mean over every reading the filter predicted, the gate's rejected ones too:
     # a gate cuts off the tail a consistent stream's mean needs.
     seen = inside & np.isfinite(nis)
-    dof = _dof(rows, lla)[seen]
-    if not seen.any():
-        mean, mean_dof, band = math.nan, float(DOF[rows.kind]), (math.nan, math.nan)
-    else:
-        mean, total = float(nis[seen].mean()), int(round(dof.sum()))
-        mean_dof = total / int(seen.sum())
-        lo, hi = chi2_mean_band(1, total)
-        band = (lo * mean_dof, hi * mean_dof)
+    total = int(round(_dof(rows, lla)[seen].sum()))
+    mean, mean_dof, band = _mean_nis(rows.kind, float(nis[seen].sum()), total, int(seen.sum()))
     rho, half = math.nan, math.nan
     innovation = getattr(rows, "innovation", None)
     cov = getattr(rows, "innovation_cov", None)
@@ -359,6 +353,27 @@ def stream_report(
         autocorrelation=rho,
         autocorrelation_band=half,
     )
+
+
+def _mean_nis(
+    kind: str, nis_sum: float, dof: int, seen: int
+) -> tuple[float, float, tuple[float, float]]:
+    """The mean NIS of ``seen`` readings of ``kind`` (their NIS summed, ``dof``
+    components in all), its degrees of freedom per reading and its 95 % band."""
+    if not seen:
+        return math.nan, float(DOF[kind]), (math.nan, math.nan)
+    lo, hi = chi2_mean_band(1, dof)
+    per_reading = dof / seen
+    return nis_sum / seen, per_reading, (lo * per_reading, hi * per_reading)
+
+
+def tally_flag(name: str, kind: str, nis_sum: float, dof: int, accepted: int, rejected: int) -> str:
+    """:func:`stream_report`'s line for a stream known by its counts only (an online
+    navigator's tally): its readings' mean NIS against its band (``nis_sum`` over the
+    ``accepted`` and ``rejected`` ones, ``dof`` components in all) and its gate's
+    rejections; "" where it has nothing to say."""
+    mean, mean_dof, band = _mean_nis(kind, nis_sum, dof, accepted + rejected)
+    return _flag(name, kind, mean, mean_dof, band, rejected, accepted)
 
 
 #: A stream is flagged when its whiteness statistic is beyond this many σ of white

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -321,3 +322,41 @@ def test_a_user_s_python_model_runs_live_as_in_the_batch_loop(mission) -> None:
     _feed(nav, m, _arrivals(m))
     np.testing.assert_array_equal(nav.state().lla, batch.lla[-1])
     np.testing.assert_array_equal(np.array([q for _, q in nav.q_history[:-1]]), schedule.q)
+
+
+def test_findings_say_what_the_batch_pass_s_health_says(mission) -> None:
+    """A DVL told a σ ten times too small and no compass, the vertical gyro bias known
+    to 0.005 rad/s only: the navigator says, as the batch pass's health does, that the
+    heading σ passed 5° (from the same time) and that the DVL's mean NIS is above its
+    band (the same mean); with the survey's own tuning, what the batch pass says of
+    each stream (its σ told larger than the readings' scatter)."""
+    m = mission
+    p0 = list(P0)
+    p0[14] = 0.005
+    config = _core.FilterConfig(p0_sigma=p0, dvl_variance=[0.002**2] * 3, lever_arm=[0.3, 0.0, 0.4])
+    dvl = _streams(m)[:1]
+    t = m.truth
+    batch = pronet.run_filter(
+        m.imu, m.imu_time, dvl, t0=m.t0, lla0=t.lla[0], vel0=t.vel[0], rpy0=t.rpy[0],
+        config=config, strategy=NATIVE["constant"], warn=False,
+    )  # fmt: skip
+    initial = replace(_initial(m), p0_sigma=np.array(p0))
+    nav = Navigator(_streams(m, rows=False)[:1], initial=initial, strategy=NATIVE["constant"],
+                    config=config)  # fmt: skip
+    _feed(nav, m, [a for a in _arrivals(m) if a[1] == 0])
+    heading, dvl_line = nav.findings()
+    since = re.search(r"\(over 5° from t = \S+ s\)", batch.health.heading)
+    assert since is not None and since.group(0) in heading
+    report = batch.health.streams[0]
+    assert report.flag.startswith(f"streams[0] (dvl): mean NIS {report.mean_nis:.3g} (")
+    assert f": mean NIS {report.mean_nis:.3g} (" in dvl_line and dvl_line.startswith("streams[0]")
+    quiet = Navigator(_streams(m, rows=False), initial=_initial(m), strategy=NATIVE["constant"],
+                      config=CONFIG)  # fmt: skip
+    _feed(quiet, m, _arrivals(m))
+    told = _batch(m, NATIVE["constant"]).health
+    said = quiet.findings()
+    assert len(said) == len(told.flags) > 0
+    for line, report in zip(said, [r for r in told.streams if r.flag], strict=True):
+        assert f": mean NIS {report.mean_nis:.3g} (" in line and report.name.startswith(
+            line.split(":")[0]
+        )

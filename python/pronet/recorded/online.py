@@ -43,6 +43,7 @@ from pronet.recorded.navigate import LeverArms, NavigateOptions, Setup, setup
 from pronet.recorded.solution import InitialState
 from pronet.recorded.vehicle import VehicleTuning
 from pronet.run import native_of
+from pronet.stats import Extent, divergence, heading_linearity, tally_flag
 from pronet.strategies import StrategyLike
 
 F64 = NDArray[np.float64]
@@ -267,6 +268,18 @@ class Navigator:
     def tally(self) -> list[StreamTally]:
         """Each stream's tally so far, in the streams' order."""
         return [StreamTally(**t) for t in self._native.tally()]
+
+    def findings(self) -> list[str]:
+        """What the pass says about itself so far, one line each, as
+        :attr:`pronet.FilterResult.health`'s ``flags`` say it of a batch pass: whether
+        its solution left a physical bound (watched at every epoch), whether its heading
+        σ passed 5°, then each stream whose mean NIS is out of its band or whose gate
+        rejected more than a few readings ("" lines left out)."""
+        extent = Extent(*self._native.extent())
+        lines = [divergence(extent), heading_linearity(extent)]
+        for t in self.tally():
+            lines.append(tally_flag(t.name, t.kind, t.nis_sum, t.dof, t.accepted, t.rejected))
+        return [line for line in lines if line]
 
     @property
     def epoch(self) -> int:

@@ -6,7 +6,7 @@ use crate::error::Result;
 use crate::measurement::Reading;
 use crate::memory::Estimate;
 use crate::noise::NoiseStrategy;
-use crate::pass::Pass;
+use crate::pass::{Pass, Watch};
 use crate::smoother::memory::BOX_OVERHEAD;
 use std::collections::VecDeque;
 use std::mem::{size_of, size_of_val};
@@ -59,13 +59,15 @@ impl Kept {
     }
 }
 
-/// The filter and its noise strategy at the end of epoch `epoch`, and the latest
-/// reading time `reach` \[s\] any epoch up to it takes.
+/// The filter, its noise strategy and its watch at the end of epoch `epoch`, and the
+/// latest reading time `reach` \[s\] any epoch up to it takes.
 pub(super) struct Checkpoint {
     pub epoch: usize,
     pub reach: f64,
     pub pass: Pass,
     pub strategy: Box<dyn NoiseStrategy>,
+    /// What the pass had watched by then.
+    pub watch: Watch,
 }
 
 impl Clone for Checkpoint {
@@ -75,6 +77,7 @@ impl Clone for Checkpoint {
             reach: self.reach,
             pass: self.pass.clone(),
             strategy: self.strategy.clone_box(),
+            watch: self.watch,
         }
     }
 }

@@ -9,7 +9,7 @@ use crate::error::{check, Error, Result};
 use crate::measurement::Reading;
 use crate::mechanization::{ImuSample, NavState};
 use crate::noise::NoiseStrategy;
-use crate::pass::{Epoch, Failure, Observer, Pass};
+use crate::pass::{Epoch, Extent, Failure, Observer, Pass, Watch};
 use crate::recorded::start_filter;
 use std::collections::VecDeque;
 
@@ -163,6 +163,8 @@ pub struct Navigator {
     failed: Option<Error>,
     readings: Vec<Reading>,
     outcomes: Vec<Option<Outcome>>,
+    /// What the pass watched for its health, every epoch so far.
+    watch: Watch,
 }
 
 impl Navigator {
@@ -183,6 +185,7 @@ impl Navigator {
             sensor.check_config(cfg)?;
         }
         let ekf = start_filter(&start.nav, &start.bias, cfg, strategy.as_ref())?;
+        let watch = Watch::start(&ekf, start.t0);
         let pass = Pass::new(ekf);
         let t0 = start.t0;
         let start = Checkpoint {
@@ -190,6 +193,7 @@ impl Navigator {
             reach: f64::NEG_INFINITY,
             pass: pass.clone(),
             strategy: strategy.clone_box(),
+            watch,
         };
         let n = sensors.len();
         Ok(Self {
@@ -210,6 +214,7 @@ impl Navigator {
             failed: None,
             readings: Vec::new(),
             outcomes: Vec::new(),
+            watch,
         })
     }
 
@@ -249,6 +254,12 @@ impl Navigator {
             sigma: up_to_date.sigma(),
             calibration: (up_to_date.calibration.as_ref()).map(|c| (c.reported(), c.sigma())),
         }
+    }
+
+    /// What the pass watched for its health over every epoch so far: the first epoch
+    /// whose solution left a physical bound, and the heading σ.
+    pub fn extent(&self) -> Extent {
+        self.watch.extent
     }
 
     /// Each sensor's tally so far.
@@ -453,6 +464,7 @@ impl Navigator {
         let start = self.history.checkpoints[c].clone();
         self.pass = start.pass;
         self.strategy = start.strategy;
+        self.watch = start.watch;
         let mut from = self
             .history
             .position(start.epoch, usize::MAX, f64::INFINITY);
@@ -476,6 +488,7 @@ impl Navigator {
                     reach,
                     pass: self.pass.clone(),
                     strategy: self.strategy.clone_box(),
+                    watch: self.watch,
                 });
             }
         }
@@ -503,7 +516,7 @@ impl Navigator {
             t: step.t,
             last: false,
         };
-        let mut observer = Outcomes(&mut self.outcomes);
+        let mut observer = (Outcomes(&mut self.outcomes), &mut self.watch);
         if let Err(f) = self
             .pass
             .epoch(self.strategy.as_mut(), &at, &self.readings, &mut observer)
@@ -524,6 +537,7 @@ impl Navigator {
             reach: self.reach,
             pass: self.pass.clone(),
             strategy: self.strategy.clone_box(),
+            watch: self.watch,
         });
     }
 

@@ -7,6 +7,7 @@ use crate::ekf::tests::moving_state;
 use crate::ekf::{Aiding, FilterConfig};
 use crate::error::Error;
 use crate::noise::StrategySpec;
+use crate::pass::{Bound, Extent};
 use crate::recorded::solution_of;
 use crate::recorded::{filter_recorded, FilterOutput, PerRow, RecordedData, Stream, Values};
 
@@ -224,6 +225,11 @@ fn strategies() -> Vec<StrategySpec> {
     ]
 }
 
+/// An extent as its bits (NaN equal to NaN).
+fn watched(e: Extent) -> (Option<(f64, Bound)>, u64, u64) {
+    (e.diverged, e.heading2.to_bits(), e.heading_over.to_bits())
+}
+
 #[test]
 fn fed_in_time_order_every_epoch_is_the_batch_pass_s() {
     let m = mission();
@@ -266,6 +272,9 @@ fn fed_in_time_order_every_epoch_is_the_batch_pass_s() {
                 let nis: f64 = record.nis.iter().filter(|x| x.is_finite()).sum();
                 assert!((tally[s].nis_sum - nis).abs() <= 1e-9 * nis.abs(), "{s}");
             }
+            // What it watched for its health: the batch pass's.
+            assert_eq!(watched(nav.extent()), watched(out.extent), "{spec:?}");
+            assert!(nav.extent().heading2 > 0.0);
             // Stamped after an epoch but within its half step: applied there at once.
             assert!(fates.contains(&Fate::Current) && fates.contains(&Fate::Queued));
             assert!(!fates.contains(&Fate::Late));
@@ -290,6 +299,9 @@ fn late_readings_within_the_window_give_the_in_order_result() {
         assert_eq!(solution_of(&e.nav), out.last_solution(), "{spec:?}");
         assert_eq!(e.bias, *out.bias.last().unwrap());
         assert_eq!(e.sigma, *out.sigma.last().unwrap());
+        // The epochs run again watched from their checkpoint: what the first runs
+        // without the late readings saw (a larger heading σ) is not kept.
+        assert_eq!(watched(nav.extent()), watched(out.extent), "{spec:?}");
     }
 }
 

@@ -10,9 +10,9 @@ use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref, StreamRef};
 use crate::attitude::euler_from_dcm;
 use crate::mechanization::NavState;
+use crate::pass::Extent;
 use crate::recorded::{
-    filter_recorded_until, smooth_recorded_until, Epochs, Extent, FilterOutput, RecordedData,
-    StreamRecord,
+    filter_recorded_until, smooth_recorded_until, Epochs, FilterOutput, RecordedData, StreamRecord,
 };
 use crate::smoother::Smoothed;
 use nalgebra::SMatrix;
@@ -452,10 +452,7 @@ impl OutputArrays {
         d.set_item("covariance_epoch", self.covariance_epoch.into_pyarray(py))?;
         d.set_item("covariances", self.covariances.into_pyarray(py))?;
         d.set_item("diverged_at", self.diverged_at)?;
-        let e = self.extent;
-        let (bound, at) = e.diverged.map_or(("", f64::NAN), |(t, b)| (b.name(), t));
-        let extent = (bound, at, e.heading2, e.heading_over);
-        d.set_item("extent", extent)?;
+        d.set_item("extent", extent_tuple(&self.extent))?;
         let mut first = Kind::ALL.map(|_| true);
         let per_stream = PyList::empty(py);
         for (kind, arrays) in self.streams {
@@ -508,4 +505,12 @@ fn epochs_array(epochs: &[Option<usize>]) -> Array1<i64> {
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run_filter, m)?)
+}
+
+/// A pass's [`Extent`] as Python takes it (`pronet.stats.Extent`): the bound the
+/// solution first broke ("" where none) and when \[s\], the largest heading variance
+/// \[rad²\] and when its σ passed 5° (NaN where it did not).
+pub(super) fn extent_tuple(e: &Extent) -> (&'static str, f64, f64, f64) {
+    let (bound, at) = e.diverged.map_or(("", f64::NAN), |(t, b)| (b.name(), t));
+    (bound, at, e.heading2, e.heading_over)
 }

@@ -37,11 +37,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_COVARIANCE_STEP", crate::ekf::MAX_COVARIANCE_STEP)?;
     m.add(
         "MAX_LINEAR_HEADING_SIGMA_DEG",
-        crate::recorded::MAX_LINEAR_HEADING_SIGMA_DEG,
+        crate::pass::MAX_LINEAR_HEADING_SIGMA_DEG,
     )?;
-    m.add("MAX_SPEED", crate::recorded::MAX_SPEED)?;
-    m.add("MAX_ABS_HEIGHT", crate::recorded::MAX_ABS_HEIGHT)?;
-    m.add("MAX_POSITION_SIGMA", crate::recorded::MAX_POSITION_SIGMA)?;
+    m.add("MAX_SPEED", crate::pass::MAX_SPEED)?;
+    m.add("MAX_ABS_HEIGHT", crate::pass::MAX_ABS_HEIGHT)?;
+    m.add("MAX_POSITION_SIGMA", crate::pass::MAX_POSITION_SIGMA)?;
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;
     m.add("MAX_GRAVITY_HEIGHT", crate::earth::MAX_GRAVITY_HEIGHT)?;
     m.add("MAX_LATITUDE_DEG", crate::earth::MAX_LATITUDE_DEG)?;

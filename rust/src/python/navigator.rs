@@ -6,6 +6,7 @@ use super::convert::{
     arg_t0, as_rows, as_values, column, fixed, fixed_or, nav_state, readonly_column, readonly_rows,
     real_arg, whole_arg,
 };
+use super::filter::extent_tuple;
 use super::strategy::PyStrategy;
 use super::streams::{stream_items, stream_ref};
 use crate::attitude::euler_from_dcm;
@@ -261,6 +262,12 @@ impl PyNavigator {
             cal_sigma.map(|c| c.to_vec().into_pyarray(py)),
         )?;
         Ok(d)
+    }
+
+    /// What the pass watched for its health over every epoch so far (as
+    /// ``run_filter``'s ``extent``, :class:`pronet.stats.Extent`).
+    fn extent(&self) -> (&'static str, f64, f64, f64) {
+        extent_tuple(&self.inner.extent())
     }
 
     /// Each stream's tally, a list of dicts in the streams' order: ``name``, ``kind``

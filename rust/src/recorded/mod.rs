@@ -26,10 +26,7 @@ pub use filter::{filter_recorded, filter_recorded_until, smooth_recorded_until, 
 pub use memory::{estimate as estimate_memory, PassMemory};
 #[cfg(test)]
 pub(crate) use output::solution_of;
-pub use output::{
-    Bound, Extent, FilterOutput, StreamRecord, MAX_ABS_HEIGHT, MAX_LINEAR_HEADING_SIGMA_DEG,
-    MAX_POSITION_SIGMA, MAX_SPEED,
-};
+pub use output::{FilterOutput, StreamRecord};
 pub use stream::{velocity_variance, PerRow, Stream, Values};
 
 #[cfg(test)]

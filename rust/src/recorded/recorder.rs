@@ -10,7 +10,7 @@ use crate::ekf::{Applied, Ekf, Matrix15, ProcessNoise, Transition};
 use crate::measurement::Reading;
 use crate::noise::NoiseStrategy;
 use crate::pages::vec_with_capacity;
-use crate::pass::{Epoch, Observer, Updated};
+use crate::pass::{Epoch, Observer, Updated, Watch};
 
 /// The observer that writes a recorded pass's [`FilterOutput`].
 pub(super) struct Recorder<'d> {
@@ -22,6 +22,7 @@ pub(super) struct Recorder<'d> {
     states: bool,
     thinning: Option<Thinning>,
     stale: StaleSigma,
+    watch: Watch,
     next_covariance: usize,
     /// The stream and row of each reading of the epoch under way.
     pub(super) sources: Vec<(usize, usize)>,
@@ -94,6 +95,7 @@ impl<'d> Recorder<'d> {
             states,
             thinning: Thinning::of(epochs, data.t0, first_dt),
             stale: StaleSigma::default(),
+            watch: Watch::start(ekf, data.t0),
             next_covariance: 0,
             sources: Vec::new(),
             next_dt: first_dt,
@@ -108,7 +110,6 @@ impl<'d> Recorder<'d> {
                 .after_epoch(ekf, &mut recorder.out, data.t0, true);
         }
         recorder.keep_covariances(ekf, 0, data.t0);
-        recorder.watch(ekf, data.t0);
         recorder
     }
 
@@ -120,20 +121,11 @@ impl<'d> Recorder<'d> {
             self.out.record(ekf, t_last, self.states);
         }
         self.out.final_covariance = ekf.covariance();
+        self.out.extent = self.watch.extent;
         let asked = self.data.covariance_time.len();
         self.out.covariance_epoch.resize(asked, None);
         self.out.covariances.resize(asked, None);
         self.out
-    }
-
-    /// Watch the solution after the epoch at time `t` \[s\], and its covariance where P
-    /// is up to date ([`crate::recorded::Extent`]).
-    fn watch(&mut self, ekf: &Ekf, t: f64) {
-        let extent = &mut self.out.extent;
-        extent.watch_solution(&ekf.nav.lla.into(), &ekf.nav.vel.into(), t);
-        if ekf.is_up_to_date() {
-            extent.watch_covariance(ekf.horizontal_variance(), ekf.heading_variance(), t);
-        }
     }
 
     /// Keep the covariance (classic coordinates) for every asked-for time whose
@@ -161,13 +153,9 @@ impl<'d> Recorder<'d> {
 }
 
 impl Observer for Recorder<'_> {
-    fn on_close(&mut self, epoch: usize, ekf: &Ekf, _phi: &Transition) {
+    fn on_close(&mut self, epoch: usize, ekf: &Ekf, phi: &Transition) {
         self.stale.on_close(ekf);
-        let t = epoch
-            .checked_sub(1)
-            .map_or(self.data.t0, |k| self.data.imu_time[k]);
-        let extent = &mut self.out.extent;
-        extent.watch_covariance(ekf.horizontal_variance(), ekf.heading_variance(), t);
+        self.watch.on_close(epoch, ekf, phi);
     }
 
     fn on_reading(
@@ -195,11 +183,11 @@ impl Observer for Recorder<'_> {
         &mut self,
         at: &Epoch<'_>,
         ekf: &Ekf,
-        _updated: Option<&mut Updated>,
-        _noise: ProcessNoise<'_>,
+        updated: Option<&mut Updated>,
+        noise: ProcessNoise<'_>,
     ) {
         self.keep_covariances(ekf, at.index, at.t);
-        self.watch(ekf, at.t);
+        self.watch.after_epoch(at, ekf, updated, noise);
         if self.some {
             let recorded = match self.thinning.as_mut() {
                 None => true,

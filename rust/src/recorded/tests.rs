@@ -326,7 +326,7 @@ fn the_heading_is_watched_at_every_epoch_kept_or_not() {
     let imu = vec![[0.02, -0.01, -9.79, 1e-4, 0.0, 2e-4]; n];
     let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
     let data = imu_only(&imu, &imu_time);
-    let limit = super::MAX_LINEAR_HEADING_SIGMA_DEG.to_radians();
+    let limit = crate::pass::MAX_LINEAR_HEADING_SIGMA_DEG.to_radians();
     for step in [0.0, 0.1] {
         let mut cfg = FilterConfig {
             covariance_step: step,
@@ -398,12 +398,15 @@ fn the_first_epoch_out_of_bounds_is_watched_kept_or_not() {
     };
     let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
     let speed = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let first = all.vel.iter().position(|v| speed(v) > super::MAX_SPEED);
+    let first = all
+        .vel
+        .iter()
+        .position(|v| speed(v) > crate::pass::MAX_SPEED);
     let first = first.expect("the speed passes 100 m/s");
     assert!(all.time[first] > 10.0 && all.time[first] < 25.0);
     assert_eq!(
         all.extent.diverged,
-        Some((all.time[first], super::Bound::Speed))
+        Some((all.time[first], crate::pass::Bound::Speed))
     );
     assert_eq!(last.extent.diverged, all.extent.diverged);
 }
