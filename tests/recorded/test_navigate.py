@@ -223,3 +223,23 @@ def test_a_compass_without_fixes_holds_the_heading_and_halves_the_drift(tmp_path
         [n for n in nav.notes if "the heading's 1σ reached" in n] for nav in (compass, dvl_only)
     ]
     assert said[0] == [] and len(said[1]) == 1, said
+
+
+def test_a_recording_without_a_dvl_or_a_run_without_it_navigates(tmp_path, short) -> None:
+    """A recording without ``dvl.csv``, and one with it run with ``use_dvl=False``
+    (``--no-dvl``; the vehicle file has the DVL's lever arm): each navigates on the
+    fixes, depth and compass, the same pass, and its report names no DVL stream."""
+    full = write_generic(short, tmp_path / "mission")
+    vehicle = write_vehicle_file(tmp_path, short)
+    without = tmp_path / "without-dvl"
+    without.mkdir()
+    for f in full.iterdir():
+        if f.name != "dvl.csv":
+            (without / f.name).write_bytes(f.read_bytes())
+    left_out = _navigate(full, vehicle, use_dvl=False)
+    absent = _navigate(without, vehicle)
+    for nav in (left_out, absent):
+        assert [r.name for r in nav.streams] == ["depth", "fix", "heading"]
+        assert not any(n.startswith("dvl") for n in nav.notes)
+        assert _horizontal_rms(nav.forward, short) < 5.0
+    np.testing.assert_array_equal(left_out.forward.lla, absent.forward.lla)

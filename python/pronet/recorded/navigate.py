@@ -309,17 +309,19 @@ def _health(section: Section, streams: Streams, result: FilterResult) -> PassHea
     """The pass's health (its divergence and heading, as the core watched them), with
     each stream's report named as the section names it, in the order the pass applied
     them, and the rows left out before it."""
-    sources = []
+    sources, rows = [], list(result.streams)
     if len(streams.dvl):
         skipped = _skipped(section.dvl_skipped_reason)
         sources.append(StreamSource("dvl", streams.dvl_time, skipped=skipped))
+    else:  # the pass's DVL stream without rows (Recorded.streams: always first)
+        rows = rows[1:]
     aiding = (("depth", streams.depth), ("fix", streams.fixes), ("heading", streams.heading))
     for name, readings in aiding:
         if readings is not None:
             lla = getattr(readings, "lla", None)
             skipped = _skipped(readings.skipped_reason)
             sources.append(StreamSource(name, readings.time, lla=lla, skipped=skipped))
-    return dataclasses.replace(result.health, streams=stream_reports(result.streams, sources))
+    return dataclasses.replace(result.health, streams=stream_reports(rows, sources))
 
 
 def _smoothed(result: FilterResult) -> FilterResult:
@@ -540,7 +542,7 @@ def navigate_recording(
         Path(path),
         fmt,
         imu_lever_arm=arms.imu,
-        dvl_lever_arm=arms.dvl if options.use_dvl else None,
+        dvl_lever_arm=arms.dvl,  # its rows are read, then left out without use_dvl
         declination=vehicle.declination,
         read_heading=options.use_heading,
     )
