@@ -44,15 +44,13 @@ MAX_LEVER_ARM: float
 #: the error process is measured up to 0.5 s (``docs/results/covariance-step.md``).
 MAX_COVARIANCE_STEP: float
 #: The heading 1σ [°] past which a pass says its heading error is no longer small
-#: (``recorded::MAX_LINEAR_HEADING_SIGMA_DEG``, 5°; :func:`pronet.stats.heading_linearity`).
+#: (``pass::MAX_LINEAR_HEADING_SIGMA_DEG``, 5°; :func:`pronet.stats.heading_linearity`).
 MAX_LINEAR_HEADING_SIGMA_DEG: float
-#: A speed [m/s] beyond what any vehicle pronet navigates can do: a pass whose solution
-#: moves faster says it diverged (``recorded::MAX_SPEED``).
+#: A speed [m/s] past which a pass says it diverged (``pass::MAX_SPEED``).
 MAX_SPEED: float
-#: A height [m] beyond which a pass says it diverged (``recorded::MAX_ABS_HEIGHT``, ±).
+#: A height [m] beyond which (±) a pass says it diverged (``pass::MAX_ABS_HEIGHT``).
 MAX_ABS_HEIGHT: float
-#: A horizontal position 1σ [m] beyond which a pass says it diverged
-#: (``recorded::MAX_POSITION_SIGMA``).
+#: A horizontal 1σ [m] past which a pass says it diverged (``pass::MAX_POSITION_SIGMA``).
 MAX_POSITION_SIGMA: float
 #: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
 #: streams are numbered 4·i + k.
@@ -580,7 +578,8 @@ class Navigator:
         """Feed one IMU sample ``[f (m/s²), ω (rad/s)]`` (body FRD) ending at ``time`` [s]."""
     def imu_block(self, times: ArrayLike, samples: ArrayLike) -> int:
         """Feed IMU samples ``(n, 6)`` ending at ``times`` ``(n,)`` [s], in order, stopping
-        after a tuning instant (:attr:`tuning_due`): the number fed."""
+        after a tuning instant (:attr:`tuning_due`): the number fed. Every sample and time
+        is checked first: a block with a bad one feeds none."""
     def reading(self, stream: int, time: float, value: Any, sigma: Any | None = None) -> str:
         """Feed the reading ``value`` of ``streams[stream]`` stamped ``time`` [s], with its
         own 1σ ``sigma`` (None: the stream's): ``"queued"``, ``"current"``, ``"late"``,

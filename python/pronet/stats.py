@@ -164,7 +164,7 @@ CAUSES_HIGH = {
 }
 
 #: Beyond these the solution has left what any vehicle pronet navigates can do: a speed
-#: [m/s], a height [m, up] and a horizontal 1σ [m]. The core's (``recorded::MAX_SPEED``
+#: [m/s], a height [m, up] and a horizontal 1σ [m]. The core's (``pass::MAX_SPEED``
 #: and so on), which watches them at every epoch.
 MAX_SPEED: float = _core.MAX_SPEED
 MAX_ABS_HEIGHT: float = _core.MAX_ABS_HEIGHT
@@ -181,7 +181,7 @@ BOUNDS = {
 #: error, linear in it, leaves out terms that on a track with a net drift grow with the
 #: distance covered (docs/results/consistency.md, "A long MEMS mission without fixes"),
 #: and the position σ can understate the error many times over. The core's
-#: (``recorded::MAX_LINEAR_HEADING_SIGMA_DEG``), which watches for it at every epoch.
+#: (``pass::MAX_LINEAR_HEADING_SIGMA_DEG``), which watches for it at every epoch.
 MAX_LINEAR_HEADING_SIGMA_DEG: float = _core.MAX_LINEAR_HEADING_SIGMA_DEG
 
 

@@ -224,6 +224,36 @@ pub fn integrate(initial: &NavState, imu: &[[f64; 6]], dt: f64) -> Vec<NavState>
     out
 }
 
+/// Beyond these a sample is no reading of any IMU (a high-g accelerometer reads up to a
+/// few hundred g, a gyro up to tens of rad/s), per axis: a specific force \[m/s²\] and
+/// an angular rate \[rad/s\]. A recorded pass and the online navigator refuse a sample
+/// beyond them, or not finite, before it is integrated: past them the solution would
+/// overflow later, or stay finite and wrong.
+pub const MAX_SPECIFIC_FORCE: f64 = 1.0e4;
+pub const MAX_ANGULAR_RATE: f64 = 1.0e3;
+
+/// Whether the IMU row `[f (m/s²), ω (rad/s)]` is finite and within
+/// [`MAX_SPECIFIC_FORCE`] and [`MAX_ANGULAR_RATE`] (NaN is not).
+pub fn imu_row_in_range(row: &[f64; 6]) -> bool {
+    row[..3].iter().all(|f| f.abs() <= MAX_SPECIFIC_FORCE)
+        && row[3..].iter().all(|w| w.abs() <= MAX_ANGULAR_RATE)
+}
+
+/// Why the IMU row is refused, as the end of a sentence naming it ("is not finite",
+/// "is beyond any IMU's range …"); None where it is not.
+pub fn imu_row_problem(row: &[f64; 6]) -> Option<String> {
+    if !row.iter().all(|x| x.is_finite()) {
+        Some("is not finite".into())
+    } else if !imu_row_in_range(row) {
+        Some(format!(
+            "is beyond any IMU's range (|f| ≤ {MAX_SPECIFIC_FORCE:e} m/s², |ω| ≤ \
+             {MAX_ANGULAR_RATE:e} rad/s per axis; another unit?)"
+        ))
+    } else {
+        None
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -218,6 +218,12 @@ def test_bad_input_is_one_line_naming_it(mission) -> None:
         nav.imu(m.imu_time[0], m.imu[1])
     with pytest.raises(ValueError, match="^imu: "):
         nav.imu(m.imu_time[1], [1.0, 2.0])
+    with pytest.raises(ValueError, match="^imu: the sample at .* beyond any IMU's range"):
+        nav.imu(m.imu_time[1], [1e300, 0.0, -9.8, 0.0, 0.0, 0.0])
+    block = m.imu[1:11].copy()
+    block[5, 4] = np.nan  # a bad row feeds none of its block
+    with pytest.raises(ValueError, match="^imu: row 5 .* is not finite: .*; none fed$"):
+        nav.imu_block(m.imu_time[1:11], block)
     with pytest.raises(ValueError, match="^streams\\[0\\]: 1 reading"):
         nav.reading(0, m.imu_time[1], 1.0)
     with pytest.raises(ValueError, match="^stream: must be the index"):

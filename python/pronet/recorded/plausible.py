@@ -48,7 +48,7 @@ F64 = NDArray[np.float64]
 NOMINAL_RATE_TOLERANCE = 1e-3
 
 #: The fastest a ground truth may move [m/s] (no underwater vehicle comes near it): the
-#: core's bound on any solution (``recorded::MAX_SPEED``), past which a pass diverged.
+#: core's bound on any solution (``pass::MAX_SPEED``), past which a pass diverged.
 MAX_SPEED: float = _core.MAX_SPEED
 #: The truth's attitude steps over the gyro's, by RMS, outside [1/x, x]: a unit slip.
 ANGLE_RATIO = 5.0

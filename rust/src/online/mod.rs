@@ -7,17 +7,20 @@
 //!   window's IMU steps and readings, checkpoints of the filter);
 //! - `sensor`: [`Sensor`], a stream's settings, turning one reading fed into the
 //!   [`crate::measurement::Reading`] a stream's row would be;
+//! - `tally`: [`Tally`], what it did with each sensor's readings;
 //! - `tuning`: the learned loop's instants and window of raw samples.
 
 mod history;
 mod navigator;
 mod sensor;
+mod tally;
 mod tuning;
 
 #[cfg(test)]
 mod tests;
 
 pub use history::Outcome;
-pub use navigator::{Estimate, Fate, Lag, Navigator, Start, Tally};
+pub use navigator::{Estimate, Fate, Lag, Navigator, Start};
 pub use sensor::Sensor;
+pub use tally::Tally;
 pub use tuning::{Tuning, Window};

@@ -2,12 +2,13 @@
 
 use super::history::{Checkpoint, History, Kept, Outcome, Step};
 use super::sensor::Sensor;
+use super::tally::Tally;
 use super::tuning::{Tuning, Window};
 use crate::ekf::calibration::DvlErrors;
 use crate::ekf::{Applied, Ekf, FilterConfig};
 use crate::error::{check, Error, Result};
 use crate::measurement::Reading;
-use crate::mechanization::{ImuSample, NavState};
+use crate::mechanization::{imu_row_problem, ImuSample, NavState};
 use crate::noise::NoiseStrategy;
 use crate::pass::{Epoch, Extent, Failure, Observer, Pass, Watch};
 use crate::recorded::start_filter;
@@ -77,43 +78,6 @@ pub enum Fate {
     /// Stamped before the first IMU sample's half step: outside the pass, as a
     /// stream's row there is (counted).
     Skipped,
-}
-
-/// Each sensor's tally.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Tally {
-    /// Readings fed (checked: an invalid one is an error, not counted).
-    pub received: usize,
-    /// Waiting for their epoch.
-    pub queued: usize,
-    /// Applied and accepted by their gate.
-    pub accepted: usize,
-    /// Applied and rejected by their gate.
-    pub rejected: usize,
-    /// Of the applied ones, those that arrived late: stamped before the newest IMU
-    /// sample.
-    pub late: usize,
-    /// Stamped before the lag window.
-    pub refused: usize,
-    /// Stamped before the pass's start.
-    pub skipped: usize,
-    /// The sum of the applied readings' NIS, and of their components.
-    pub nis_sum: f64,
-    pub dof: usize,
-}
-
-impl Tally {
-    fn add(&mut self, kept: &Kept) {
-        let Some(o) = kept.outcome else { return };
-        if o.accepted {
-            self.accepted += 1;
-        } else {
-            self.rejected += 1;
-        }
-        self.late += usize::from(kept.late);
-        self.nis_sum += o.nis;
-        self.dof += o.dof;
-    }
 }
 
 /// The navigation state at the newest epoch, its covariance brought up to date.
@@ -322,6 +286,41 @@ impl Navigator {
         self.tuning.as_ref().and_then(|(_, w)| w.samples())
     }
 
+    /// Feed the IMU samples `raw` ending at `times` \[s\] in order, stopping after a
+    /// tuning instant ([`Navigator::tuning_due`]): the number fed. Every sample and time
+    /// is checked first, so that a block with a bad one feeds none.
+    pub fn feed_imu_block(&mut self, times: &[f64], raw: &[[f64; 6]]) -> Result<usize> {
+        self.alive()?;
+        let mut last = self.t;
+        for (k, (&t, row)) in times.iter().zip(raw).enumerate() {
+            if !(t.is_finite() && t > last) {
+                let before = if k == 0 {
+                    "the newest epoch's time"
+                } else {
+                    "the row before's"
+                };
+                return Err(Error::invalid(
+                    "imu_time",
+                    format!(
+                        "row {k} ({t} s) must be finite and after {before} {last} [s]; none fed"
+                    ),
+                ));
+            }
+            if let Some(problem) = imu_row_problem(row) {
+                let what = format!("row {k} (at {t} s) {problem}: {row:?}; none fed");
+                return Err(Error::invalid("imu", what));
+            }
+            last = t;
+        }
+        for (k, (&t, row)) in times.iter().zip(raw).enumerate() {
+            self.feed_imu(t, row)?;
+            if self.tuning_due() {
+                return Ok(k + 1);
+            }
+        }
+        Ok(times.len())
+    }
+
     /// Feed the IMU sample `raw` (`[f (m/s²), ω (rad/s)]`, body FRD) ending at `t` \[s\]
     /// (after the newest): the epoch it ends, with the readings due there.
     pub fn feed_imu(&mut self, t: f64, raw: &[f64; 6]) -> Result<()> {
@@ -335,9 +334,12 @@ impl Navigator {
                 ),
             ));
         }
-        check::finite("imu", raw).map_err(|_| {
-            Error::invalid("imu", format!("the sample at {t} s is not finite: {raw:?}"))
-        })?;
+        if let Some(problem) = imu_row_problem(raw) {
+            return Err(Error::invalid(
+                "imu",
+                format!("the sample at {t} s {problem}: {raw:?}"),
+            ));
+        }
         self.history.check_growth(self.lag.every)?;
         let dt = t - self.t;
         let epoch = self.epoch + 1;

@@ -378,6 +378,19 @@ fn bad_input_is_refused_in_one_line() {
     let e = nav.feed_imu(0.01, &[0.0; 6]).unwrap_err();
     assert_eq!(arg(e), "imu_time");
     assert_eq!(arg(nav.feed_imu(0.02, &[f64::NAN; 6]).unwrap_err()), "imu");
+    let huge = [1e300, 0.0, -9.8, 0.0, 0.0, 0.0];
+    assert_eq!(arg(nav.feed_imu(0.02, &huge).unwrap_err()), "imu");
+    // A block with a bad row (or time) feeds none of it; the block mended feeds all.
+    let times = [0.02, 0.03, 0.04];
+    let mut rows = [[0.0, 0.0, -9.8, 0.0, 0.0, 0.0]; 3];
+    rows[2][4] = f64::NAN;
+    assert_eq!(arg(nav.feed_imu_block(&times, &rows).unwrap_err()), "imu");
+    let e = nav.feed_imu_block(&[0.02, 0.02, 0.04], &rows).unwrap_err();
+    assert_eq!(arg(e), "imu_time");
+    assert_eq!(nav.epoch(), 1);
+    rows[2][4] = 0.0;
+    assert_eq!(nav.feed_imu_block(&times, &rows).unwrap(), 3);
+    assert_eq!(nav.epoch(), 4);
     assert_eq!(
         arg(nav.feed_reading(0, 0.1, &[1.0], None).unwrap_err()),
         "dvl"

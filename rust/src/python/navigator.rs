@@ -157,7 +157,8 @@ impl PyNavigator {
     }
 
     /// Feed IMU samples ``(n, 6)`` ending at ``times`` ``(n,)`` [s], in order, stopping
-    /// after a tuning instant (:attr:`tuning_due`): the number fed.
+    /// after a tuning instant (:attr:`tuning_due`): the number fed. Every sample and time
+    /// is checked first: a block with a bad one feeds none.
     fn imu_block(
         &mut self,
         py: Python<'_>,
@@ -174,15 +175,7 @@ impl PyNavigator {
             ));
         }
         let nav = &mut self.inner;
-        detached(py, move || {
-            for (k, (time, raw)) in t.iter().zip(s.iter()).enumerate() {
-                nav.feed_imu(*time, raw)?;
-                if nav.tuning_due() {
-                    return Ok(k + 1);
-                }
-            }
-            Ok(t.len())
-        })
+        detached(py, move || nav.feed_imu_block(&t, &s))
     }
 
     /// Feed the reading ``value`` of ``streams[stream]`` stamped ``time`` [s], with its

@@ -2,6 +2,7 @@
 
 use super::stream::Stream;
 use crate::error::{check, Error, Result};
+use crate::mechanization::{imu_row_in_range, imu_row_problem};
 
 /// Inputs of one filter pass over recorded (or user-simulated) sensor arrays.
 #[derive(Clone, Debug, Default)]
@@ -44,20 +45,13 @@ impl RecordedData<'_> {
         // One pass the compiler vectorizes; the row is looked for only when one fails.
         if !self
             .imu
-            .as_flattened()
             .iter()
-            .fold(true, |ok, x| ok & x.is_finite())
+            .fold(true, |ok, row| ok & imu_row_in_range(row))
         {
-            let i = self
-                .imu
-                .iter()
-                .position(|row| check::finite("imu", row).is_err());
-            let i = i.unwrap_or_default();
-            let row = self.imu[i];
-            return Err(Error::invalid(
-                "imu",
-                format!("row {i} is not finite: {row:?}"),
-            ));
+            let bad = self.imu.iter().enumerate().find_map(|(i, row)| {
+                imu_row_problem(row).map(|problem| format!("row {i} {problem}: {row:?}"))
+            });
+            return Err(Error::invalid("imu", bad.unwrap_or_default()));
         }
         check::finite("t0", &[self.t0])?;
         check::increasing("imu_time", self.imu_time)?;

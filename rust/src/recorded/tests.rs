@@ -53,6 +53,35 @@ fn recorded_data_is_validated() {
     .validate()
     .unwrap_err();
     assert!(err.to_string().starts_with("imu_time"), "{err}");
+    // A row not finite, or beyond any IMU's range (1e4 m/s², 1e3 rad/s), is refused
+    // by its index before anything is integrated.
+    for (col, value, said) in [
+        (1, f64::NAN, "row 2 is not finite"),
+        (0, 1e300, "row 2 is beyond any IMU's range"),
+        (5, -2e3, "row 2 is beyond any IMU's range"),
+    ] {
+        let mut bad = [[0.0, 0.0, -9.8, 0.0, 0.0, 0.0]; 3];
+        bad[2][col] = value;
+        let err = RecordedData {
+            imu: &bad,
+            imu_time: &[0.01, 0.02, 0.03],
+            ..RecordedData::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(
+            err.to_string().starts_with(&format!("imu: {said}")),
+            "{err}"
+        );
+    }
+    let mut edge = [[0.0; 6]; 3];
+    edge[0] = [1e4, -1e4, 0.0, 1e3, -1e3, 0.0]; // at the bounds: a reading
+    let at_bounds = RecordedData {
+        imu: &edge,
+        imu_time: &[0.01, 0.02, 0.03],
+        ..RecordedData::default()
+    };
+    assert!(at_bounds.validate().is_ok());
 }
 
 #[test]
