@@ -419,3 +419,31 @@ def test_pronet_real_notes_a_heading_sigma_past_5_degrees_once_per_section() -> 
     real = RealRuns(sections=[], runs=runs, stamped=[], inertial=[], q_estimated={},
                     constants={})  # fmt: skip
     assert real.notes == [f"section a: {said} (row constant; 2 of 3 rows: constant; detvar)"]
+
+
+def test_a_lever_arm_beyond_10_m_is_warned_of_by_name() -> None:
+    """Arms typed in cm, a depth sensor's and the DVL's (the config's): each warned of,
+    naming it, and the pass runs as told; with ``warn=False`` (a caller that checks its
+    arms its own way, as ``pronet navigate`` and ``pronet real`` do) nothing is said."""
+    from pronet import PlausibilityWarning
+
+    traj = pronet.builtin_trajectory("paper")
+    n = 500
+    depth = pronet.Depth(traj.time[100:n:100], -traj.lla[100:n:100, 2], sigma=0.1,
+                         lever_arm=(0.0, 0.0, 150.0))  # fmt: skip
+
+    def run(warn: bool) -> pronet.FilterResult:
+        return pronet.run_filter(
+            traj.imu[:n], traj.time[1 : n + 1], [depth], t0=0.0, lla0=traj.lla[0],
+            vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+            config=pronet.FilterConfig(lever_arm=[-185.0, -3.0, 12.0]), warn=warn,
+        )  # fmt: skip
+
+    with pytest.warns(PlausibilityWarning) as said:
+        run(warn=True)
+    lines = [str(w.message) for w in said if w.category is PlausibilityWarning]
+    assert any(line.startswith("config.lever_arm: -185,-3,12 m reaches 185 m") for line in lines)
+    assert any(line.startswith("streams[0].lever_arm: 0,0,150 m reaches 150 m") for line in lines)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        run(warn=False)

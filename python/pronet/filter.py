@@ -451,8 +451,9 @@ def run_filter(
     the argument; :mod:`pronet._util.plausibility` has the bounds and why): ``t0`` more
     than 5 median IMU steps before the first sample, a mean specific force off gravity
     by 20 %, one over the first second more than 90° from where ``rpy0`` puts it (FLU),
-    a depth beyond −10 … 12 km. A stream none of whose rows falls within the run is
-    warned of (:class:`~pronet.PlausibilityWarning`).
+    a depth beyond −10 … 12 km. A stream none of whose rows falls within the run, and
+    (with ``warn``) a lever arm beyond 10 m (in cm?), are warned of
+    (:class:`~pronet.PlausibilityWarning`).
 
     Memory: before it allocates, the pass estimates what it would hold at its peak;
     where that is more than this process can still take, it raises ``ValueError``
@@ -479,6 +480,8 @@ def run_filter(
     samples, stamps = float_array(imu, "imu", (None, 6)), float_array(imu_time, "imu_time", (None,))
     start, attitude = scalar(t0, "t0"), float_array(rpy0, "rpy0", (3,))
     plausibility.check_pass(samples, stamps, start, attitude, given)
+    if warn:  # a caller that says the pass's findings its own way has checked its arms
+        plausibility.long_lever_arms(config.lever_arm, given)
     out = _core.run_filter(
         samples,
         stamps,

@@ -158,7 +158,7 @@ CAUSES_HIGH = {
     "depth": "the depth's σ too small, its units, the surface pressure or water density, "
     "or the depth sensor's lever arm",
     "fix": "the fixes' σ too small, their datum or units (degrees for radians), the "
-    "antenna's lever arm, or a clock offset",
+    "antenna's lever arm, a clock offset, or the initial position (lla0)",
     "heading": "the heading's σ too small, a magnetic heading without its declination, "
     "or degrees taken for radians",
 }

@@ -562,6 +562,17 @@ def test_write_all_without_smoothing_streams_or_readings(tmp_path):
     assert "No aiding stream was used." in paths[-1].read_text()
 
 
+def test_a_run_into_an_earlier_run_s_folder_leaves_none_of_its_figures(tmp_path, nav):
+    """A run without figures into the folder of one with them: its files replace the
+    earlier ones, and the earlier figures, which its report does not list, are gone."""
+    out = tmp_path / "out"
+    first = export.write_all(nav, out)
+    assert {p.name for p in first} >= set(report.FIGURES)
+    second = export.write_all(nav, out, figures=False)
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in second)
+    assert not set(report.FIGURES) & {p.name for p in second}
+
+
 def test_write_all_writes_nothing_on_bad_input(tmp_path, nav):
     with pytest.raises(ValueError, match="^storage: expected one of"):
         export.write_all(nav, tmp_path / "a", bag="ros3")

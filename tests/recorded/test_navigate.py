@@ -243,3 +243,22 @@ def test_a_recording_without_a_dvl_or_a_run_without_it_navigates(tmp_path, short
         assert not any(n.startswith("dvl") for n in nav.notes)
         assert _horizontal_rms(nav.forward, short) < 5.0
     np.testing.assert_array_equal(left_out.forward.lla, absent.forward.lla)
+
+
+def test_given_parts_of_the_initial_state_are_refused_with_init_truth() -> None:
+    """``--init truth --init-position …`` took the truth and dropped the position
+    without a word: refused, naming both, before any file is read."""
+    given = GivenState(lla=(0.5, 0.6, float("nan")), depth=2.0)
+    with pytest.raises(ValueError, match="^init: 'truth' takes .* are for init='data'$"):
+        NavigateOptions(init="truth", given=given)
+    assert NavigateOptions(init="data", given=given).given is given
+
+
+def test_navigate_warns_of_a_lever_arm_beyond_10_m(tmp_path, short) -> None:
+    """The arms of ``pronet navigate`` typed in cm: each warned of by name."""
+    from pronet import PlausibilityWarning
+
+    vehicle = load_vehicle(write_vehicle_file(tmp_path, short, arms=False))
+    with pytest.warns(PlausibilityWarning) as said:
+        lever_arms(vehicle, imu=(120.0, 0.0, 0.0), fix=(-178.0, -4.0, -104.0))
+    assert [str(w.message).split(":")[0] for w in said] == ["imu_lever_arm", "fix_lever_arm"]

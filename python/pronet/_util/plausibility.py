@@ -143,6 +143,25 @@ def angles_beyond(lla: F64, name: str) -> str | None:
     return None
 
 
+#: A lever arm longer than this [m] is warned of: typed in cm or mm, an arm runs to
+#: metres, usable and wrong.
+LONG_LEVER_ARM = 10.0
+
+
+def long_lever_arm(arm: Sequence[float], name: str, reference: str = "the IMU") -> None:
+    """Warn (:class:`PlausibilityWarning`) of a lever arm ``arm`` [m] (from
+    ``reference``) beyond :data:`LONG_LEVER_ARM`."""
+    longest = max(abs(v) for v in arm)
+    if longest > LONG_LEVER_ARM:
+        shown = ",".join(f"{v:g}" for v in arm)
+        warnings.warn(
+            f"{name}: {shown} m reaches {longest:g} m from {reference}, beyond "
+            f"{LONG_LEVER_ARM:g} m; typed in cm or mm? (used as given)",
+            PlausibilityWarning,
+            stacklevel=3,
+        )
+
+
 def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[Any]) -> None:
     """The plausibility of a filter pass's inputs (:func:`pronet.run_filter`'s, checked
     for shape): ``ValueError`` with the first problem, naming its argument."""
@@ -160,6 +179,16 @@ def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[
                 problem = depth_beyond(s.depth, f"streams[{i}]")
     if problem is not None:
         raise ValueError(problem)
+
+
+def long_lever_arms(dvl: Sequence[float], streams: Sequence[Any]) -> None:
+    """Warn of each lever arm of a pass beyond :data:`LONG_LEVER_ARM`: the config's DVL
+    arm ``dvl`` and each stream's own."""
+    long_lever_arm(dvl, "config.lever_arm")
+    for i, s in enumerate(streams):
+        # a DVL's None: the config's; a heading has none
+        if (arm := getattr(s, "lever_arm", None)) is not None:
+            long_lever_arm(arm, f"streams[{i}].lever_arm")
 
 
 def check_imu_start(imu: F64, imu_time: F64, rpy0: F64) -> None:

@@ -325,7 +325,8 @@ def write_all(
     ``figures_failed``), and last ``report.md``
     (:mod:`pronet.recorded.report`), which lists them all. The files
     replace those of an earlier run as one (all old or all new, the report last:
-    :func:`pronet._util.files.replace_together`); an existing bag is refused, and the
+    :func:`pronet._util.files.replace_together`), and an earlier run's figures this
+    one does not draw are removed after; an existing bag is refused, and the
     new one is removed again when the other files fail.
     Everything is checked before the first file is written (``ValueError``, or
     :class:`~pronet._util.extras.MissingExtra` for a bag without ``rosbags``). Returns
@@ -365,6 +366,8 @@ def write_all(
         if bag_path is not None:
             _remove(bag_path)
         raise
+    for name in set(report.FIGURES) - set(names):  # an earlier run's, not this one's
+        (out / name).unlink(missing_ok=True)
     return [out / name for name in names]
 
 

@@ -34,6 +34,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pronet import _core
+from pronet._util.plausibility import long_lever_arm
 from pronet.config import filter_config
 from pronet.filter import FilterResult, Stream
 from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes, tuned, tuned_heading
@@ -116,6 +117,13 @@ class NavigateOptions:
     still: tuple[float, float] | Literal["auto", "none"] = "auto"
     strategy: str = "constant"
     heading_interval: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.init == "truth" and self.given is not None:
+            raise ValueError(
+                "init: 'truth' takes the ground truth's first row, whole; the given parts "
+                "of the initial state (--init-position, --init-heading) are for init='data'"
+            )
 
 
 def _surface(
@@ -510,13 +518,17 @@ def lever_arms(
 ) -> LeverArms:
     """The sensors' lever arms from the reference point: each given, else the vehicle
     file's; the IMU's else 0 (the trajectory is the IMU's), the others' else at the IMU
-    (named in :attr:`LeverArms.assumed`, which the report states)."""
+    (named in :attr:`LeverArms.assumed`, which the report states). An arm beyond
+    10 m is warned of (in cm?)."""
     imu_arm = imu or vehicle.imu_lever_arm or ZERO
     chosen = {
         "dvl": dvl or vehicle.dvl_lever_arm,
         "depth": depth or vehicle.depth_lever_arm,
         "fix": fix or vehicle.fix_lever_arm,
     }
+    for name, arm in (("imu", imu_arm), *chosen.items()):
+        if arm is not None:
+            long_lever_arm(arm, f"{name}_lever_arm", "the reference point")
     assumed = tuple(name for name, arm in chosen.items() if arm is None)
     return LeverArms(
         imu=imu_arm,

@@ -21,11 +21,12 @@ increasing time, rate):
   gyro (rad under a ``[deg]`` header turns 57 times less); its latitude and longitude
   moving so much more or less than its velocity (:func:`position_units`).
 
-Lever arms beyond :data:`LONG_LEVER_ARM` are usable and only warned of
-(:func:`long_lever_arm`, a :class:`PlausibilityWarning`): typed in cm or mm, they run to
-errors of 100 m/s; a few vehicles are that long. So is an IMU whose stamps jitter beyond
-:data:`MAX_IMU_JITTER` of a step (:func:`imu_jitter`), and a ground truth rolled beyond
-±90° most of the time (:func:`warn_upside_down`: a body frame read as the other).
+Lever arms beyond 10 m are usable and only warned of
+(:func:`pronet._util.plausibility.long_lever_arm`, a :class:`PlausibilityWarning`): typed
+in cm or mm, they run to errors of 100 m/s; a few vehicles are that long. So is an IMU
+whose stamps jitter beyond :data:`MAX_IMU_JITTER` of a step (:func:`imu_jitter`), and a
+ground truth rolled beyond ±90° most of the time (:func:`warn_upside_down`: a body frame
+read as the other).
 """
 
 from __future__ import annotations
@@ -37,7 +38,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._util.plausibility import HEIGHT_RANGE, PlausibilityWarning, specific_force
+from pronet._util.plausibility import (
+    HEIGHT_RANGE,
+    PlausibilityWarning,
+    specific_force,
+)
 
 F64 = NDArray[np.float64]
 
@@ -54,8 +59,6 @@ MAX_SPEED: float = _core.MAX_SPEED
 ANGLE_RATIO = 5.0
 #: Below this RMS gyro turn per truth row [rad] the attitude-unit check says nothing.
 MIN_TURN = 1e-3
-#: A lever arm longer than this [m] is warned of.
-LONG_LEVER_ARM = 10.0
 #: Plausible magnitudes. The mean specific force over a section near gravity
 #: (:func:`pronet._util.plausibility.specific_force`, the API's rule too); the 99th
 #: percentile of the angular rate at most this [rad/s] (as a trajectory's turn rate);
@@ -325,16 +328,3 @@ def position_units(gt: Table) -> str | None:
         f"{gt.where}: columns {gt.labels[1]!r}, {gt.labels[2]!r} move {ratio:.3g} times as "
         f"far as the velocity between rows; are they in {guess}?"
     )
-
-
-def long_lever_arm(arm: tuple[float, float, float], name: str) -> None:
-    """Warn (:class:`PlausibilityWarning`) of a lever arm beyond :data:`LONG_LEVER_ARM`."""
-    longest = max(abs(v) for v in arm)
-    if longest > LONG_LEVER_ARM:
-        shown = ",".join(f"{v:g}" for v in arm)
-        warnings.warn(
-            f"{name}: {shown} m reaches {longest:g} m from the ground-truth point, beyond "
-            f"{LONG_LEVER_ARM:g} m; typed in cm or mm? (used as given)",
-            PlausibilityWarning,
-            stacklevel=3,
-        )

@@ -57,12 +57,12 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
+from pronet._util.plausibility import long_lever_arm
 from pronet._util.validate import scalar
 from pronet.config import FILTER_KEYS, SCENARIO_KEYS, ConfigError, filter_config, read_toml
 from pronet.recorded.aiding import MIN_FIX_SIGMA, AidingTuning
 from pronet.recorded.alignment import Format, lever_arm
 from pronet.recorded.heading import check_declination
-from pronet.recorded.plausible import long_lever_arm
 from pronet.recorded.tuning import REAL_ACCEL_BIAS_PSD, REAL_GYRO_BIAS_PSD, REAL_P0_SIGMA
 
 _G = 9.80665
@@ -315,7 +315,7 @@ def lever_arms(
     for value, name in ((imu, "imu_lever_arm"), (dvl, "dvl_lever_arm")):
         if value is not None:  # a given arm's own error first, then its length
             lever_arm(value, name)
-            long_lever_arm(value, name)
+            long_lever_arm(value, name, "the ground-truth point")
     if imu is None:
         raise ValueError(
             f"--format {fmt}: needs the IMU's lever arm (--imu-lever-arm, or imu_lever_arm "
