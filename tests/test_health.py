@@ -447,3 +447,31 @@ def test_a_lever_arm_beyond_10_m_is_warned_of_by_name() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error", PlausibilityWarning)
         run(warn=False)
+
+
+def test_imu_stamps_that_jitter_or_leave_a_gap_are_warned_of() -> None:
+    """Stamps jittering by ±20 % of a step (35 % at the 99th percentile of the steps: a
+    logger's clock) and a 2 s gap: each warned of by ``run_filter``, naming
+    ``imu_time``, and the pass runs as given; the paper's steady 100 Hz stamps say
+    nothing."""
+    from pronet import PlausibilityWarning
+
+    traj = pronet.builtin_trajectory("paper")
+    n = 1000
+    steady = traj.time[1 : n + 1]
+    shaky = steady + np.random.default_rng(0).uniform(-0.002, 0.002, n)
+    gap = steady + np.where(np.arange(n) >= 500, 2.0, 0.0)
+
+    def said(stamps: np.ndarray) -> list[str]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pronet.run_filter(traj.imu[:n], stamps, t0=0.0, lla0=traj.lla[0],
+                              vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+                              strategy=pronet.Strategy.constant(Q))  # fmt: skip
+        return [str(w.message) for w in caught if w.category is PlausibilityWarning]
+
+    assert said(steady) == []
+    (jitter,) = said(shaky)
+    assert jitter.startswith("imu_time: the IMU steps jitter by 35 % of the median step")
+    (hole,) = said(gap)
+    assert hole.startswith("imu_time: a gap of 2.01 s after row 499 (the median step is 0.01 s)")

@@ -589,7 +589,8 @@ class Navigator:
     def state(self) -> dict[str, Any]:
         """The estimate at the newest epoch: a dict of ``epoch``, ``time`` [s], ``lla``
         [rad, rad, m], ``vel`` [m/s NED], ``rpy`` [rad], ``bias`` (6), ``sigma`` (15,
-        brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None)."""
+        brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None). A
+        stopped navigator raises its failure."""
     def extent(self) -> tuple[str, float, float, float]:
         """What the pass watched for its health over every epoch so far (as
         ``run_filter``'s ``extent``, :class:`pronet.stats.Extent`)."""

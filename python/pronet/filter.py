@@ -452,7 +452,8 @@ def run_filter(
     than 5 median IMU steps before the first sample, a mean specific force off gravity
     by 20 %, one over the first second more than 90° from where ``rpy0`` puts it (FLU),
     a depth beyond −10 … 12 km. A stream none of whose rows falls within the run, and
-    (with ``warn``) a lever arm beyond 10 m (in cm?), are warned of
+    (with ``warn``) a lever arm beyond 10 m (in cm?), IMU stamps that jitter beyond 15 %
+    of a step or leave a gap of over 5 steps, are warned of
     (:class:`~pronet.PlausibilityWarning`).
 
     Memory: before it allocates, the pass estimates what it would hold at its peak;
@@ -480,8 +481,9 @@ def run_filter(
     samples, stamps = float_array(imu, "imu", (None, 6)), float_array(imu_time, "imu_time", (None,))
     start, attitude = scalar(t0, "t0"), float_array(rpy0, "rpy0", (3,))
     plausibility.check_pass(samples, stamps, start, attitude, given)
-    if warn:  # a caller that says the pass's findings its own way has checked its arms
+    if warn:  # a caller that says the pass's findings its own way has checked these
         plausibility.long_lever_arms(config.lever_arm, given)
+        plausibility.warn_of_stamps(stamps)
     out = _core.run_filter(
         samples,
         stamps,

@@ -366,3 +366,19 @@ def test_findings_say_what_the_batch_pass_s_health_says(mission) -> None:
         assert f": mean NIS {report.mean_nis:.3g} (" in line and report.name.startswith(
             line.split(":")[0]
         )
+
+
+def test_a_stopped_navigator_answers_its_state_with_its_failure(mission) -> None:
+    """A process noise that overflows the covariance stops the navigator; its state is
+    then its failure (it answered the stopped filter's non-finite numbers), as every
+    feed is."""
+    m = mission
+    huge = _core.Strategy.constant([1e307] * 6)
+    nav = Navigator(_streams(m, rows=False), initial=_initial(m), strategy=huge, config=CONFIG)
+    with pytest.raises(ValueError, match="^numerical failure: .*the navigator stopped"):
+        for t, raw in zip(m.imu_time, m.imu, strict=True):
+            nav.imu(t, raw)
+    assert nav.failure is not None
+    for call in (nav.state, lambda: nav.imu(m.imu_time[-1] + 1.0, m.imu[0])):
+        with pytest.raises(ValueError, match="^numerical failure: "):
+            call()

@@ -162,6 +162,58 @@ def long_lever_arm(arm: Sequence[float], name: str, reference: str = "the IMU") 
         )
 
 
+#: An IMU's stamped steps, by the 99th percentile of ``|step / median − 1|``, beyond this
+#: share of a step are warned of (:func:`imu_jitter`).
+MAX_IMU_JITTER = 0.15
+
+
+def imu_jitter(where: str, step: F64) -> str | None:
+    """The IMU's ``step`` s between stamps spread beyond :data:`MAX_IMU_JITTER` of their
+    median (the 99th percentile of ``|step / median − 1|``). Each sample is integrated
+    over its stamped step, exact when the IMU sampled so (a 10 % spread of such steps
+    runs as well as a uniform IMU: ``tests/recorded/test_rates.py``; the 15 % bound
+    leaves half that again); an IMU samples on its own crystal, steady to 1e-4, so a
+    larger spread is a logger's stamping, which moves the solution (50.5 Hz stamped
+    within ±2 ms: 18 %, the Snapir IMU: 4e-12)."""
+    median = float(np.median(step)) if len(step) > 1 else 0.0
+    if not median > 0:
+        return None
+    spread = float(np.percentile(np.abs(step / median - 1.0), 99))
+    if spread <= MAX_IMU_JITTER:
+        return None
+    return (
+        f"{where}: the IMU steps jitter by {100 * spread:.0f} % of the median step "
+        f"{median:.4g} s (1 % of them more; at most {100 * MAX_IMU_JITTER:g} % expected); "
+        "each sample is integrated over its stamped step, so stamps from a logger's clock, "
+        "not the IMU's, move the solution: re-stamp the samples on the IMU's clock if it "
+        "has one (used as given)"
+    )
+
+
+def imu_gap(where: str, step: F64) -> str | None:
+    """The first of the IMU's ``step`` s between stamps longer than :data:`MAX_IMU_GAP`
+    median steps: the sample after it is integrated over the whole gap."""
+    gap = step > MAX_IMU_GAP * np.median(step) if len(step) > 1 else np.zeros(0, bool)
+    if not gap.any():
+        return None
+    r = int(np.argmax(gap))
+    return (
+        f"{where}: a gap of {step[r]:.4g} s after row {r} (the median step is "
+        f"{np.median(step):.4g} s): the sample after it is integrated over the whole gap, "
+        "as if the vehicle had turned and accelerated evenly across it; cut the run there "
+        "(used as given)"
+    )
+
+
+def warn_of_stamps(imu_time: F64) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a pass's IMU stamps that jitter
+    (:func:`imu_jitter`) or leave a gap (:func:`imu_gap`)."""
+    step = np.diff(imu_time)
+    for problem in (imu_jitter("imu_time", step), imu_gap("imu_time", step)):
+        if problem is not None:
+            warnings.warn(problem, PlausibilityWarning, stacklevel=3)
+
+
 def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[Any]) -> None:
     """The plausibility of a filter pass's inputs (:func:`pronet.run_filter`'s, checked
     for shape): ``ValueError`` with the first problem, naming its argument."""

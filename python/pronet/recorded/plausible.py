@@ -24,7 +24,7 @@ increasing time, rate):
 Lever arms beyond 10 m are usable and only warned of
 (:func:`pronet._util.plausibility.long_lever_arm`, a :class:`PlausibilityWarning`): typed
 in cm or mm, they run to errors of 100 m/s; a few vehicles are that long. So is an IMU
-whose stamps jitter beyond :data:`MAX_IMU_JITTER` of a step (:func:`imu_jitter`), and a
+whose stamps jitter beyond 15 % of a step (:func:`pronet._util.plausibility.imu_jitter`), and a
 ground truth rolled beyond ±90° most of the time (:func:`warn_upside_down`: a body frame
 read as the other).
 """
@@ -69,9 +69,6 @@ DVL_SPEED_RATIO = (0.5, 2.0)
 #: Without a ground truth, the DVL's median speed at most this [m/s] (no vehicle a DVL
 #: tracks the bottom from moves so fast; cm/s under an m/s header does).
 MAX_DVL_SPEED = 10.0
-#: An IMU's stamped steps, by the 99th percentile of ``|step / median − 1|``, beyond this
-#: share of a step are warned of (:func:`imu_jitter`).
-MAX_IMU_JITTER = 0.15
 
 
 class Table(NamedTuple):
@@ -148,29 +145,6 @@ def _magnitudes(imu: F64, dvl: F64, gt_vel: F64, source: str) -> str | None:
             f"{truth:.4g} m/s; are the DVL velocities in m/s?"
         )
     return None
-
-
-def imu_jitter(where: str, step: F64) -> str | None:
-    """The IMU's ``step`` s between stamps spread beyond :data:`MAX_IMU_JITTER` of their
-    median (the 99th percentile of ``|step / median − 1|``). Each sample is integrated
-    over its stamped step, exact when the IMU sampled so (a 10 % spread of such steps
-    runs as well as a uniform IMU: ``tests/recorded/test_rates.py``; the 15 % bound
-    leaves half that again); an IMU samples on its own crystal, steady to 1e-4, so a
-    larger spread is a logger's stamping, which moves the solution (50.5 Hz stamped
-    within ±2 ms: 18 %, the Snapir IMU: 4e-12)."""
-    median = float(np.median(step)) if len(step) > 1 else 0.0
-    if not median > 0:
-        return None
-    spread = float(np.percentile(np.abs(step / median - 1.0), 99))
-    if spread <= MAX_IMU_JITTER:
-        return None
-    return (
-        f"{where}: the IMU steps jitter by {100 * spread:.0f} % of the median step "
-        f"{median:.4g} s (1 % of them more; at most {100 * MAX_IMU_JITTER:g} % expected); "
-        "each sample is integrated over its stamped step, so stamps from a logger's clock, "
-        "not the IMU's, move the solution: re-stamp the samples on the IMU's clock if it "
-        "has one (used as given)"
-    )
 
 
 def duplicate_columns(

@@ -53,7 +53,7 @@ plausible for the sensor (IMU 10 Hz–10 kHz, DVL 0.05–100 Hz, ground truth 0.
 each bound within :data:`pronet.recorded.plausible.NOMINAL_RATE_TOLERANCE`: a clock's
 drift; a ground truth of one row is refused), the IMU time has no gap longer than five
 median steps (a jitter beyond 15 % of a step is warned of:
-:func:`pronet.recorded.plausible.imu_jitter`), and the magnitudes fit their units (the
+:func:`pronet._util.plausibility.imu_jitter`), and the magnitudes fit their units (the
 mean specific force near gravity, angular rates within 10 rad/s, the DVL's speed within
 a factor 2 of the ground truth's, or without one at most
 :data:`pronet.recorded.plausible.MAX_DVL_SPEED`; see
@@ -79,7 +79,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from pronet._util.plausibility import MAX_IMU_GAP, PlausibilityWarning
+from pronet._util.plausibility import MAX_IMU_GAP, PlausibilityWarning, imu_jitter
 from pronet.recorded import aiding, heading, missing, plausible
 from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagError, BagTopics, bag_streams, is_bag
@@ -525,7 +525,7 @@ def _finish(
                 f"{where}, row {r}: a gap of {step[r - 2]:.4g} s after {t[r - 2]} s (the "
                 f"median step is {np.median(step):.4g} s); cut the section there"
             )
-        if kind == "imu" and (shaky := plausible.imu_jitter(where, step)) is not None:
+        if kind == "imu" and (shaky := imu_jitter(where, step)) is not None:
             warnings.warn(shaky, PlausibilityWarning, stacklevel=2)
     return values * np.array([factor for _, factor in picks])
 

@@ -249,7 +249,9 @@ impl Navigator {
         self.failed.as_ref()
     }
 
-    fn alive(&self) -> Result<()> {
+    /// Ok while the pass runs; the failure that stopped it after (every call that
+    /// feeds it, or asks for its state, answers so).
+    pub fn alive(&self) -> Result<()> {
         match &self.failed {
             None => Ok(()),
             Some(e) => Err(e.clone()),

@@ -236,8 +236,10 @@ impl PyNavigator {
 
     /// The estimate at the newest epoch: a dict of ``epoch``, ``time`` [s], ``lla``
     /// [rad, rad, m], ``vel`` [m/s NED], ``rpy`` [rad], ``bias`` (6), ``sigma`` (15,
-    /// brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None).
+    /// brought up to date), ``calibration`` and ``calibration_sigma`` (4, or None). A
+    /// stopped navigator raises its failure.
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        self.inner.alive().map_err(to_py_err)?;
         let e = self.inner.estimate();
         let d = PyDict::new(py);
         d.set_item("epoch", e.epoch)?;
