@@ -227,6 +227,20 @@ def test_a_one_row_truth_file_is_named(folder, tmp_path) -> None:
         read_recording(copy)
 
 
+def test_a_dvl_the_clock_search_cannot_overlap_names_the_file_and_streams(folder, tmp_path) -> None:
+    """A DVL with 3 rows (fewer than the 10 its clock search compares): the search finds
+    no offset; it said "recording: the streams do not overlap in time"."""
+    from pronet.recorded.alignment import estimate_alignment
+
+    copy = _copy(folder, tmp_path)
+    dvl = copy / "dvl.csv"
+    dvl.write_text("\n".join(dvl.read_text().splitlines()[:4]) + "\n")
+    with pytest.raises(
+        ValueError, match=r"^.*section: the DVL and the ground truth do not overlap"
+    ):
+        estimate_alignment(read_recording(copy))
+
+
 def test_a_stream_after_the_imu_record_is_warned_of(paper) -> None:
     """The pass ran pure-inertial and said nothing; a stream partly inside is not warned of."""
     traj, dvl = paper

@@ -262,3 +262,8 @@ def test_navigate_warns_of_a_lever_arm_beyond_10_m(tmp_path, short) -> None:
     with pytest.warns(PlausibilityWarning) as said:
         lever_arms(vehicle, imu=(120.0, 0.0, 0.0), fix=(-178.0, -4.0, -104.0))
     assert [str(w.message).split(":")[0] for w in said] == ["imu_lever_arm", "fix_lever_arm"]
+
+
+def test_a_surface_depth_out_of_range_is_refused_as_the_vehicle_file_refuses_it() -> None:
+    with pytest.raises(ValueError, match=r"^surface_depth: .* from 0 to 10, got -1.0$"):
+        NavigateOptions(surface_depth=-1.0)

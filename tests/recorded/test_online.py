@@ -382,3 +382,14 @@ def test_a_stopped_navigator_answers_its_state_with_its_failure(mission) -> None
     for call in (nav.state, lambda: nav.imu(m.imu_time[-1] + 1.0, m.imu[0])):
         with pytest.raises(ValueError, match="^numerical failure: "):
             call()
+
+
+def test_a_window_the_regressor_cannot_read_is_refused_when_made(mission) -> None:
+    """``window=1`` for the detrended variance (which needs 3 samples) was accepted and
+    failed at the first tuning instant, mid-run: refused when the navigator is made."""
+    detvar = strategy(StrategySpec.parse("detvar"), Q)
+    with pytest.raises(ValueError, match="^window: the strategy's regressor cannot read a"):
+        Navigator(_streams(mission, rows=False), initial=_initial(mission), strategy=detvar,
+                  imu_dt=0.005, window=1)  # fmt: skip
+    Navigator(_streams(mission, rows=False), initial=_initial(mission), strategy=detvar,
+              imu_dt=0.005)  # fmt: skip

@@ -238,9 +238,10 @@ def _interp(t: F64, tp: F64, fp: F64) -> F64:
     return np.stack([np.interp(t, tp, fp[:, j]) for j in range(fp.shape[1])], axis=1)
 
 
-def _fit(cost: Callable[[F64, float], F64], scale: float | None = None) -> Clock:
+def _fit(cost: Callable[[F64, float], F64], what: str, scale: float | None = None) -> Clock:
     """Minimise ``cost(offsets, scale)`` (one value per offset): a coarse grid, then a
-    fine one around the best; ``scale`` given: only the offset is searched."""
+    fine one around the best; ``scale`` given: only the offset is searched. ``what``:
+    the streams compared, for the error where no offset lets them overlap."""
 
     def search(scales: F64, offsets_for: Callable[[float], F64]) -> tuple[float, float, float]:
         best = (np.inf, 0.0, 1.0)
@@ -257,7 +258,10 @@ def _fit(cost: Callable[[F64, float], F64], scale: float | None = None) -> Clock
     fine = s0 + np.linspace(-5e-4, 5e-4, 51) if scale is None else coarse
     c, o, s = search(fine, lambda _: o0 + np.linspace(-0.02, 0.02, 41))
     if not np.isfinite(c):
-        raise ValueError("recording: the streams do not overlap in time; cannot align clocks")
+        raise ValueError(
+            f"{what} do not overlap in time at any clock offset within ±2 s; cannot align "
+            "the clocks"
+        )
     return Clock(offset=o, scale=s)
 
 
@@ -312,7 +316,7 @@ def estimate_gt_clock(rec: Recording) -> Clock:
         # in the core: the same interpolation as numpy.interp, one walk over the edges
         return _core.attitude_increment_costs(edges, cum, rec.gt_time, gt_step, offsets, scale)
 
-    return _fit(cost)
+    return _fit(cost, f"{rec.source}: the ground truth and the IMU")
 
 
 def estimate_dvl_clock(
@@ -344,7 +348,7 @@ def estimate_dvl_clock(
         n = inside.sum(axis=1)
         return np.where(n >= 10, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
 
-    return _fit(cost, scale=gt_clock.scale)
+    return _fit(cost, f"{rec.source}: the DVL and the ground truth", scale=gt_clock.scale)
 
 
 def estimate_alignment(

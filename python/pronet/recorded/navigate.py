@@ -47,7 +47,7 @@ from pronet.recorded.passes import NOT_ISOLATED, failure_reason, start_index
 from pronet.recorded.solution import F64, InitialState, Navigation, solution_of
 from pronet.recorded.surface import G0, SurfaceOffset, surface_offset
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
-from pronet.recorded.vehicle import VehicleTuning
+from pronet.recorded.vehicle import VehicleTuning, surface_depth_problem
 from pronet.run import Recorded, run
 from pronet.stats import PassHealth, StreamSource, stream_reports
 from pronet.strategies import StrategyLike, StrategySpec, strategy
@@ -119,6 +119,8 @@ class NavigateOptions:
     heading_interval: float = 1.0
 
     def __post_init__(self) -> None:
+        if problem := surface_depth_problem(self.surface_depth):
+            raise ValueError(f"surface_depth: {problem}")
         if self.init == "truth" and self.given is not None:
             raise ValueError(
                 "init: 'truth' takes the ground truth's first row, whole; the given parts "

@@ -40,6 +40,7 @@ from pronet.learn.hybrid import Guardrails, _predictions, apply_guardrails, for_
 from pronet.montecarlo import DEFAULT_WINDOW
 from pronet.recorded.alignment import Section
 from pronet.recorded.navigate import LeverArms, NavigateOptions, Setup, setup
+from pronet.recorded.passes import failure_reason
 from pronet.recorded.solution import InitialState
 from pronet.recorded.vehicle import VehicleTuning
 from pronet.run import native_of
@@ -198,6 +199,14 @@ class Navigator:
         dt = None if imu_dt is None else scalar(imu_dt, "imu_dt")
         self._start = (scalar(initial.t0, "initial.t0"), initial.rpy, dt)
         self._regressor = None if learned is None else for_loop(learned.regressor)
+        if self._regressor is not None:  # a window it cannot read: said now, not mid-run
+            try:
+                _predictions(self._regressor, np.zeros((1, 6, window), dtype=np.float32))
+            except Exception as exc:  # noqa: BLE001 - any model's own refusal, named
+                raise ValueError(
+                    f"window: the strategy's regressor cannot read a window of {window} "
+                    f"samples: {failure_reason(exc)}"
+                ) from exc
         self._guardrails = Guardrails() if guardrails is None else guardrails
         check_type(self._guardrails, Guardrails, "guardrails")
         prior = np.zeros(6) if learned is None else learned.prior_q

@@ -237,16 +237,29 @@ def _vehicle_keys(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], str]
     return {**top, **(nested if isinstance(nested, dict) else {})}, where
 
 
+#: The depths [m] a pressure sensor may have while its vehicle floats.
+SURFACE_DEPTH_RANGE = (0.0, 10.0)
+
+
+def surface_depth_problem(value: object) -> str | None:
+    """Why ``value`` is no ``surface_depth`` (a number of metres within
+    :data:`SURFACE_DEPTH_RANGE`), as the end of a line naming it; None where it is one."""
+    lo, hi = SURFACE_DEPTH_RANGE
+    if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
+        return (
+            "the pressure sensor's depth while the vehicle floats, a number of metres from "
+            f"{lo:g} to {hi:g}, got {value!r}"
+        )
+    return None
+
+
 def _surface_depth(table: dict[str, Any], where: str) -> float | None:
     """The file's ``surface_depth`` [m, 0 to 10] (None where absent), checked."""
     value = table.get("surface_depth")
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 10:
-        raise ConfigError(
-            f"{where} surface_depth: the pressure sensor's depth while the vehicle floats, "
-            f"a number of metres from 0 to 10, got {value!r}"
-        )
+    if problem := surface_depth_problem(value):
+        raise ConfigError(f"{where} surface_depth: {problem}")
     return float(value)
 
 

@@ -304,10 +304,11 @@ fn check_heading(stream: &Stream<'_>, rows: &[f64], sigma: PerRow<'_, f64>) -> R
     let name = &stream.name;
     let turn = 2.0 * std::f64::consts::PI;
     if let Some(i) = rows.iter().position(|y| y.is_nan() || y.abs() > turn) {
+        let hint = if rows[i].is_nan() { "" } else { " (degrees?)" };
         return Err(Error::invalid(
             name,
             format!(
-                "row {i} must be a heading in radians within ±2π, got {} (degrees?)",
+                "row {i} must be a heading in radians within ±2π, got {}{hint}",
                 rows[i]
             ),
         ));
@@ -323,7 +324,14 @@ fn check_heading(stream: &Stream<'_>, rows: &[f64], sigma: PerRow<'_, f64>) -> R
     if let Some(which) = which {
         return Err(Error::invalid(
             format!("{name}_sigma"),
-            format!("{which}must be a 1σ > 0 and at most π [rad], got {value} (degrees?)"),
+            format!(
+                "{which}must be a 1σ > 0 and at most π [rad], got {value}{}",
+                if value > std::f64::consts::PI {
+                    " (degrees?)"
+                } else {
+                    ""
+                }
+            ),
         ));
     }
     if stream.lever_arm != Vector3::zeros() {
