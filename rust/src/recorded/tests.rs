@@ -113,6 +113,28 @@ fn imu_only<'a>(imu: &'a [[f64; 6]], imu_time: &'a [f64]) -> RecordedData<'a> {
     }
 }
 
+/// One pass over `data` from [`moving_state`] with zero biases, the filter `cfg` and a
+/// constant `q`, keeping `epochs`.
+fn pass_with(
+    data: &RecordedData<'_>,
+    cfg: &FilterConfig,
+    q: [f64; 6],
+    epochs: Epochs,
+) -> super::FilterOutput {
+    let mut strategy = StrategySpec::Constant { q }.build(cfg.bias_psd());
+    let (state, cancel) = (moving_state(), Cancel::default());
+    filter_recorded_until(
+        data,
+        state,
+        [0.0; 6],
+        cfg,
+        strategy.as_mut(),
+        epochs,
+        &cancel,
+    )
+    .unwrap()
+}
+
 #[test]
 fn a_set_cancel_flag_stops_a_pass() {
     let imu = vec![[0.01, 0.0, -9.79, 0.0, 1e-4, 0.0]; 10];
@@ -161,20 +183,7 @@ fn keeping_the_last_epoch_changes_no_update_and_no_final_estimate() {
             dvl_calibration: calibration,
             ..per_sample()
         };
-        let pass = |epochs| {
-            let spec = StrategySpec::Constant { q: [1e-4; 6] };
-            let mut strategy = spec.build(cfg.bias_psd());
-            filter_recorded_until(
-                &data,
-                moving_state(),
-                [0.0; 6],
-                &cfg,
-                strategy.as_mut(),
-                epochs,
-                &Cancel::default(),
-            )
-            .unwrap()
-        };
+        let pass = |epochs| pass_with(&data, &cfg, [1e-4; 6], epochs);
         let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
         assert_eq!(all.time.len(), n + 1);
         assert_eq!(last.time, [all.time[n]]);
@@ -362,21 +371,7 @@ fn the_heading_is_watched_at_every_epoch_kept_or_not() {
             ..FilterConfig::default()
         };
         cfg.p0_sigma[14] = 0.005; // 1,000 °/h of vertical gyro bias: 5° within 20 s
-        let pass = |epochs| {
-            let spec = StrategySpec::Constant { q: [1e-6; 6] };
-            let mut strategy = spec.build(cfg.bias_psd());
-            let state = moving_state();
-            filter_recorded_until(
-                &data,
-                state,
-                [0.0; 6],
-                &cfg,
-                strategy.as_mut(),
-                epochs,
-                &Cancel::default(),
-            )
-            .unwrap()
-        };
+        let pass = |epochs| pass_with(&data, &cfg, [1e-6; 6], epochs);
         let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
         assert_eq!(all.extent.heading2, last.extent.heading2);
         assert_eq!(all.extent.heading_over, last.extent.heading_over);
@@ -410,21 +405,7 @@ fn the_first_epoch_out_of_bounds_is_watched_kept_or_not() {
     let imu_time: Vec<f64> = (1..=n).map(|k| k as f64 * 0.01).collect();
     let data = imu_only(&imu, &imu_time);
     let cfg = FilterConfig::default();
-    let pass = |epochs| {
-        let mut strategy = StrategySpec::Constant { q: [1e-6; 6] }.build(cfg.bias_psd());
-        let state = moving_state();
-        let cancel = Cancel::default();
-        filter_recorded_until(
-            &data,
-            state,
-            [0.0; 6],
-            &cfg,
-            strategy.as_mut(),
-            epochs,
-            &cancel,
-        )
-        .unwrap()
-    };
+    let pass = |epochs| pass_with(&data, &cfg, [1e-6; 6], epochs);
     let (all, last) = (pass(Epochs::All), pass(Epochs::Last));
     let speed = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     let first = all
