@@ -475,3 +475,15 @@ def test_imu_stamps_that_jitter_or_leave_a_gap_are_warned_of() -> None:
     assert jitter.startswith("imu_time: the IMU steps jitter by 35 % of the median step")
     (hole,) = said(gap)
     assert hole.startswith("imu_time: a gap of 2.01 s after row 499 (the median step is 0.01 s)")
+
+
+def test_an_initial_attitude_in_degrees_is_refused_by_name() -> None:
+    """``rpy0=(0, 0, 90)``, degrees for radians: it ran, saying only that the DVL
+    disagreed; refused, naming the angle, before anything is computed."""
+    traj = pronet.builtin_trajectory("paper")
+    n = 200
+    for rpy0, what in (((0.0, 0.0, 90.0), "yaw 90"), ((10.0, 0.0, 0.0), "roll 10")):
+        with pytest.raises(ValueError, match=f"^rpy0: {what} is beyond .* in degrees"):
+            pronet.run_filter(traj.imu[:n], traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0],
+                              vel0=traj.vel_ned[0], rpy0=rpy0,
+                              strategy=pronet.Strategy.constant(Q))  # fmt: skip

@@ -451,7 +451,8 @@ def run_filter(
     the argument; :mod:`pronet._util.plausibility` has the bounds and why): ``t0`` more
     than 5 median IMU steps before the first sample, a mean specific force off gravity
     by 20 %, one over the first second more than 90° from where ``rpy0`` puts it (FLU),
-    a depth beyond −10 … 12 km. A stream none of whose rows falls within the run, and
+    a depth beyond −10 … 12 km, an ``rpy0`` roll or pitch beyond ±π or yaw beyond ±2π
+    (in degrees?). A stream none of whose rows falls within the run, and
     (with ``warn``) a lever arm beyond 10 m (in cm?), IMU stamps that jitter beyond 15 %
     of a step or leave a gap of over 5 steps, are warned of
     (:class:`~pronet.PlausibilityWarning`).

@@ -248,6 +248,9 @@ def test_unit_and_frame_slips_are_refused_before_anything_is_fed(mission) -> Non
     degrees = replace(_initial(m), lla=np.array([32.0, 34.0, -5.0]))
     with pytest.raises(ValueError, match=r"^initial.lla: latitude 32 is beyond .* in degrees\?"):
         fresh(degrees)
+    turned = replace(_initial(m), rpy=np.array([0.0, 0.0, 90.0]))
+    with pytest.raises(ValueError, match=r"^initial.rpy: yaw 90 is beyond .* in degrees\?"):
+        fresh(turned)
     flu = m.imu[:200] * [1, -1, -1, 1, -1, -1]
     for feed in (
         lambda nav: nav.imu(m.imu_time[0], flu[0]),

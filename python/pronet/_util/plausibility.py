@@ -143,6 +143,18 @@ def angles_beyond(lla: F64, name: str) -> str | None:
     return None
 
 
+def attitude_beyond(rpy: F64, name: str) -> str | None:
+    """A roll or pitch of ``rpy`` ``(3,)`` [rad] beyond ±π, or a yaw beyond ±2π (the
+    0–360° convention taken), naming ``name``: degrees given for radians."""
+    for j, what, bound in ((0, "roll", math.pi), (1, "pitch", math.pi), (2, "yaw", 2 * math.pi)):
+        if abs(rpy[j]) > bound:
+            return (
+                f"{name}: {what} {rpy[j]:.6g} is beyond ±{bound:.6g} rad; in degrees? "
+                "(radians expected)"
+            )
+    return None
+
+
 #: A lever arm longer than this [m] is warned of: typed in cm or mm, an arm runs to
 #: metres, usable and wrong.
 LONG_LEVER_ARM = 10.0
@@ -222,7 +234,8 @@ def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[
         return  # the core names the argument
     with np.errstate(all="ignore"):
         problem = (
-            first_step(imu_time, t0)
+            attitude_beyond(rpy0, "rpy0")
+            or first_step(imu_time, t0)
             or (f"imu: {bad}" if (bad := specific_force(imu)) else None)
             or gravity_sign(imu, imu_time, rpy0)
         )

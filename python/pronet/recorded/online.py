@@ -32,7 +32,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
-from pronet._util.plausibility import MAX_IMU_GAP, angles_beyond, check_imu_start, depth_beyond
+from pronet._util.plausibility import (
+    MAX_IMU_GAP,
+    angles_beyond,
+    attitude_beyond,
+    check_imu_start,
+    depth_beyond,
+)
 from pronet._util.validate import check_type, float_array, scalar
 from pronet.config import filter_config
 from pronet.filter import Stream
@@ -173,6 +179,8 @@ class Navigator:
         p0 = [float(v) for v in float_array(initial.p0_sigma, "initial.p0_sigma", (15,))]
         cfg = filter_config({"p0_sigma": p0}, "the initial state", base)
         if beyond := angles_beyond(float_array(initial.lla, "initial.lla", (3,)), "initial.lla"):
+            raise ValueError(beyond)
+        if beyond := attitude_beyond(float_array(initial.rpy, "initial.rpy", (3,)), "initial.rpy"):
             raise ValueError(beyond)
         native_strategy, learned = native_of(strategy)
         check_type(native_strategy, _core.Strategy, "strategy")
