@@ -221,6 +221,8 @@ def warn_of_stamps(imu_time: F64) -> None:
     """Warn (:class:`PlausibilityWarning`) of a pass's IMU stamps that jitter
     (:func:`imu_jitter`) or leave a gap (:func:`imu_gap`)."""
     step = np.diff(imu_time)
+    if len(step) and 0 < step.min() and step.max() <= step.min() * (1 + MAX_IMU_JITTER):
+        return  # every step within the bounds of any median: the usual case, one pass
     for problem in (imu_jitter("imu_time", step), imu_gap("imu_time", step)):
         if problem is not None:
             warnings.warn(problem, PlausibilityWarning, stacklevel=3)
