@@ -477,6 +477,64 @@ def test_imu_stamps_that_jitter_or_leave_a_gap_are_warned_of() -> None:
     assert hole.startswith("imu_time: a gap of 2.01 s after row 499 (the median step is 0.01 s)")
 
 
+def test_an_imu_dt_other_than_the_stamps_step_is_warned_of() -> None:
+    """The paper's 100 Hz samples stamped 5 ms apart (a 200 Hz IMU) under the default
+    ``imu_dt`` of 0.01 s: the filter's process noise is twice what ``q`` per sample
+    gives, warned of naming ``config.imu_dt`` and the step, steady stamps or jittering;
+    ``imu_dt`` set to the step (or within 15 % of it) says nothing."""
+    from pronet import PlausibilityWarning
+
+    traj = pronet.builtin_trajectory("paper")
+    n = 1000
+    fast = 0.5 * traj.time[1 : n + 1]
+    shaky = fast + np.random.default_rng(0).uniform(-0.001, 0.001, n)
+
+    def said(stamps: np.ndarray, imu_dt: float) -> list[str]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pronet.run_filter(traj.imu[:n], stamps, t0=0.0, lla0=traj.lla[0],
+                              vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+                              config=pronet.FilterConfig(imu_dt=imu_dt),
+                              strategy=pronet.Strategy.constant(Q))  # fmt: skip
+        return [str(w.message) for w in caught if w.category is PlausibilityWarning]
+
+    (steady,) = said(fast, 0.01)
+    assert steady.startswith("config.imu_dt: 0.01 s, but the IMU stamps step 0.005 s")
+    assert "its process noise is 2× what samples 0.005 s apart" in steady
+    period = [line for line in said(shaky, 0.01) if line.startswith("config.imu_dt")]
+    assert len(period) == 1 and "process noise is 2.01× what samples 0.004979 s" in period[0]
+    assert said(fast, 0.005) == said(fast, 0.0057) == []
+    assert said(traj.time[1 : n + 1], 0.0115) == []
+
+
+def test_an_adaptive_window_the_pass_never_fills_is_warned_of() -> None:
+    """Mehra's and the adaptive strategy's windows of 1,000 updates over a pass of 120
+    DVL updates: each ran on its prior q throughout, warned of naming ``strategy`` and
+    the count; a window of 60 (filled) and the constant strategy say nothing."""
+    from pronet import PlausibilityWarning
+
+    streams, _ = _streams(np.random.default_rng(0))
+    traj = pronet.builtin_trajectory("paper")
+    n = int(SECONDS * 100)
+
+    def said(strategy: pronet.Strategy) -> list[str]:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pronet.run_filter(traj.imu[:n], traj.time[1 : n + 1], streams[:1], t0=0.0,
+                              lla0=traj.lla[0], vel0=traj.vel_ned[0], rpy0=traj.rpy[0],
+                              strategy=strategy)  # fmt: skip
+        return [str(w.message) for w in caught if w.category is PlausibilityWarning]
+
+    for kind in ("mehra", "adaptive"):
+        (line,) = said(getattr(pronet.Strategy, kind)(1000, Q))
+        assert line.startswith(
+            f"strategy: {kind}'s window of 1000 velocity updates was never filled "
+            "(120 accepted in the pass): it ran on its prior q throughout"
+        )
+        assert said(getattr(pronet.Strategy, kind)(60, Q)) == []
+    assert said(pronet.Strategy.constant(Q)) == []
+
+
 def test_an_initial_attitude_in_degrees_is_refused_by_name() -> None:
     """``rpy0=(0, 0, 90)``, degrees for radians: it ran, saying only that the DVL
     disagreed; refused, naming the angle, before anything is computed."""

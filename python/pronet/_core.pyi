@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "__version__", "MAX_THREADS", "THREADS_PER_CORE", "THREADS_ENV", "MAX_LEVER_ARM",
     "MAX_COVARIANCE_STEP", "MAX_LINEAR_HEADING_SIGMA_DEG", "MAX_SPEED",
-    "MAX_ABS_HEIGHT", "MAX_POSITION_SIGMA", "MAX_RUN_INDEX",
+    "MAX_ABS_HEIGHT", "MAX_POSITION_SIGMA", "MAX_RUN_INDEX", "MAX_IMU_GAP",
     "MAX_GRAVITY_HEIGHT", "MAX_LATITUDE_DEG", "LONGITUDE_RANGE_DEG", "WGS84_A",
     "WGS84_F", "Trajectory", "builtin_trajectory", "builtin_trajectory_names",
     "trajectory_from_segments", "normal_gravity", "earth_radii", "mechanize",
@@ -52,8 +52,9 @@ MAX_SPEED: float
 MAX_ABS_HEIGHT: float
 #: A horizontal 1σ [m] past which a pass says it diverged (``pass::MAX_POSITION_SIGMA``).
 MAX_POSITION_SIGMA: float
-#: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``): run i's random
-#: streams are numbered 4·i + k.
+#: An IMU step longer than this many usual ones is a gap (``online::MAX_IMU_GAP``, 5).
+MAX_IMU_GAP: float
+#: One past the largest run index, 2^62 (``montecarlo::MAX_RUN_INDEX``; streams 4·i + k).
 MAX_RUN_INDEX: int
 #: Heights [m] within which :func:`normal_gravity` answers (``earth::MAX_GRAVITY_HEIGHT``).
 MAX_GRAVITY_HEIGHT: float
@@ -189,8 +190,7 @@ class FilterConfig:
         """Whether the DVL scale-factor and misalignment states are estimated."""
     @property
     def dvl_bias_sigma(self) -> list[float] | None:
-        """Stationary 1σ of the DVL's correlated velocity error per DVL axis [m/s] (None
-        without it)."""
+        """Stationary 1σ per DVL axis of its correlated velocity error [m/s], or None."""
     @property
     def dvl_bias_time_constant(self) -> float | None:
         """Its correlation time [s] (None without it)."""
@@ -208,8 +208,7 @@ class FilterConfig:
         """Random-walk PSD of each misalignment angle [rad²/s] (None without the states)."""
     @property
     def formulation(self) -> Literal["invariant", "classic", "se23"]:
-        """The error coordinates the filter runs in: "invariant", "classic" or "se23"
-        (the position error too, about the first position: ``docs/reference/filter.md``)."""
+        """The error coordinates: "invariant", "classic" or "se23" (``reference/filter.md``)."""
     @property
     def covariance_step(self) -> float:
         """The covariance step [s] (0: the covariance propagated at every IMU sample)."""
@@ -234,12 +233,10 @@ class Strategy:
         structure and full rank kept, λ in [1e-3, 1e3]. See ``docs/reference/filter.md``."""
     @staticmethod
     def oracle() -> Strategy:
-        """The simulated IMU's true variance at every IMU step: the ceiling. Simulation
-        only; recorded data has no truth to give it."""
+        """The simulated IMU's true variance at every IMU step (the ceiling; simulation only)."""
     @staticmethod
     def external(prior_q: Any) -> Strategy:
-        """q set from outside (the hybrid loop, through an :class:`Ensemble`);
-        ``prior_q`` until the first setting."""
+        """q set from outside (the hybrid loop, an :class:`Ensemble`); ``prior_q`` until then."""
     @property
     def kind(self) -> Literal["constant", "mehra", "adaptive", "oracle", "external"]: ...
     @property
@@ -594,6 +591,9 @@ class Navigator:
     def extent(self) -> tuple[str, float, float, float]:
         """What the pass watched for its health over every epoch so far (as
         ``run_filter``'s ``extent``, :class:`pronet.stats.Extent`)."""
+    def imu_gaps(self) -> tuple[int, float, float, float, float]:
+        """The IMU's gaps so far: their number, the first's end [s] and length [s], the
+        longest's length [s] (NaN: none), and the usual step [s] (:data:`MAX_IMU_GAP`)."""
     def tally(self) -> list[dict[str, Any]]:
         """Each stream's tally, a list of dicts in the streams' order: ``name``, ``kind``
         (``"velocity"``, ``"depth"``, ``"fix"``, ``"heading"``), ``received``, ``queued``,

@@ -454,7 +454,9 @@ def run_filter(
     a depth beyond −10 … 12 km, an ``rpy0`` roll or pitch beyond ±π or yaw beyond ±2π
     (in degrees?). A stream none of whose rows falls within the run, and
     (with ``warn``) a lever arm beyond 10 m (in cm?), IMU stamps that jitter beyond 15 %
-    of a step or leave a gap of over 5 steps, are warned of
+    of a step, leave a gap of over 5 steps or step otherwise than ``config.imu_dt`` by
+    over 15 % (its process noise would be off by their ratio), and a Mehra or adaptive
+    strategy whose window the pass's accepted velocity updates never filled, are warned of
     (:class:`~pronet.PlausibilityWarning`).
 
     Memory: before it allocates, the pass estimates what it would hold at its peak;
@@ -484,7 +486,7 @@ def run_filter(
     plausibility.check_pass(samples, stamps, start, attitude, given)
     if warn:  # a caller that says the pass's findings its own way has checked these
         plausibility.long_lever_arms(config.lever_arm, given)
-        plausibility.warn_of_stamps(stamps)
+        plausibility.warn_of_stamps(stamps, config.imu_dt)
     out = _core.run_filter(
         samples,
         stamps,
@@ -510,6 +512,9 @@ def run_filter(
     per_stream = tuple(StreamResult(**_with_adaptive_q(d)) for d in out.pop("streams"))
     span = (start, float(stamps[-1]))
     plausibility.warn_unapplied(given, [s.epoch for s in per_stream], span)
+    if warn:
+        accepted = sum(int(s.accepted.sum()) for s in per_stream if s.accepted is not None)
+        plausibility.warn_unfilled_window(strategy.kind, strategy.window, accepted)
     _with_adaptive_q(out)
     if epochs == "last":
         out["epoch"] = np.array([len(samples)], dtype=np.int64)

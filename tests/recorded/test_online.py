@@ -12,6 +12,7 @@ from mission_recording import Mission, simulate_mission, write_generic, write_ve
 
 import pronet
 from pronet import _core
+from pronet._util.plausibility import PlausibilityWarning
 from pronet.learn.hybrid import q_schedule
 from pronet.recorded.alignment import load_section
 from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate
@@ -22,7 +23,9 @@ from pronet.strategies import Learned, StrategySpec, strategy
 
 Q = (1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8)
 P0 = (2.0, 2.0, 1.0, 0.1, 0.1, 0.1, 0.01, 0.01, 0.05, 0.02, 0.02, 0.02, 1e-3, 1e-3, 1e-3)
-CONFIG = _core.FilterConfig(p0_sigma=P0, dvl_variance=[0.02**2] * 3, lever_arm=[0.3, 0.0, 0.4])
+CONFIG = _core.FilterConfig(
+    p0_sigma=P0, dvl_variance=[0.02**2] * 3, lever_arm=[0.3, 0.0, 0.4], imu_dt=0.005
+)
 
 
 @pytest.fixture(scope="module")
@@ -342,7 +345,9 @@ def test_findings_say_what_the_batch_pass_s_health_says(mission) -> None:
     m = mission
     p0 = list(P0)
     p0[14] = 0.005
-    config = _core.FilterConfig(p0_sigma=p0, dvl_variance=[0.002**2] * 3, lever_arm=[0.3, 0.0, 0.4])
+    config = _core.FilterConfig(
+        p0_sigma=p0, dvl_variance=[0.002**2] * 3, lever_arm=[0.3, 0.0, 0.4], imu_dt=0.005
+    )
     dvl = _streams(m)[:1]
     t = m.truth
     batch = pronet.run_filter(
@@ -396,3 +401,42 @@ def test_a_window_the_regressor_cannot_read_is_refused_when_made(mission) -> Non
                   imu_dt=0.005, window=1)  # fmt: skip
     Navigator(_streams(mission, rows=False), initial=_initial(mission), strategy=detvar,
               imu_dt=0.005)  # fmt: skip
+
+
+@pytest.mark.filterwarnings("ignore::pronet.stats.FilterHealthWarning")
+def test_an_imu_gap_is_a_finding_as_run_filter_warns_of_it(mission) -> None:
+    """Three seconds of IMU samples lost mid-run (and, apart, a clock that jumps by
+    1e6 s): the navigator says so first among its findings, naming the gap's length
+    and the sample after it, as ``run_filter`` warns of the same stamps; fed without
+    the hole, it says nothing of gaps. Told the default ``imu_dt`` (0.01 s) for this
+    200 Hz IMU, it says that instead, as ``run_filter`` warns."""
+    m = mission
+    keep = np.ones(len(m.imu), bool)
+    keep[6000:6300] = False
+    time, imu = m.imu_time[keep], m.imu[keep]
+    nav = Navigator(_streams(m, rows=False)[:2], initial=_initial(m), strategy=NATIVE["constant"],
+                    config=CONFIG)  # fmt: skip
+    nav.imu_block(time, imu)
+    gaps, end, length, longest, usual = nav._native.imu_gaps()
+    assert (gaps, end, length, longest) == (1, m.imu_time[6300], length, length)
+    assert length == pytest.approx(m.imu_time[6300] - m.imu_time[5999], rel=1e-12)
+    assert usual == pytest.approx(np.diff(m.imu_time).mean(), rel=1e-9)
+    first = nav.findings()[0]
+    assert first.startswith(f"imu: a gap of {length:.4g} s before the sample at {end:.10g} s")
+    t = m.truth
+    with pytest.warns(PlausibilityWarning, match=rf"a gap of {length:.4g} s after row 5999"):
+        pronet.run_filter(imu, time, _streams(m)[:2], t0=m.t0, lla0=t.lla[0], vel0=t.vel[0],
+                          rpy0=t.rpy[0], config=CONFIG, strategy=NATIVE["constant"])  # fmt: skip
+    steady = Navigator([], initial=_initial(m), strategy=NATIVE["constant"], config=CONFIG)
+    steady.imu_block(m.imu_time[:3000], m.imu[:3000])
+    assert not any(line.startswith("imu:") for line in steady.findings())
+    steady.imu(m.imu_time[2999] + 1e6, m.imu[3000])
+    steady.imu(m.imu_time[2999] + 1e6 + 0.01, m.imu[3001])
+    said = steady.findings()
+    assert said[0].startswith("imu: a gap of 1e+06 s before the sample at")
+    assert said[1].startswith("the pass diverged"), said
+    told = Navigator([], initial=_initial(m), strategy=NATIVE["constant"],
+                     config=_core.FilterConfig(p0_sigma=P0))  # fmt: skip
+    told.imu_block(m.imu_time[:3000], m.imu[:3000])
+    period, *_ = told.findings()
+    assert period.startswith("config.imu_dt: 0.01 s, but the IMU stamps step 0.005 s: ")

@@ -50,8 +50,9 @@ STANDARD_GRAVITY = 9.80665
 GRAVITY_RANGE = (0.8, 1.2)
 #: The heights a position may have [m, up]: the deepest trench to high above sea.
 HEIGHT_RANGE = (-12_000.0, 10_000.0)
-#: No IMU step (the first, from ``t0``, included) longer than this many median steps.
-MAX_IMU_GAP = 5.0
+#: No IMU step (the first, from ``t0``, included) longer than this many median steps
+#: (the core's rule, which the online navigator applies against its steps so far).
+MAX_IMU_GAP: float = _core.MAX_IMU_GAP
 #: The first seconds of IMU samples [s] whose mean specific force gives gravity's sign.
 GRAVITY_WINDOW = 1.0
 
@@ -217,13 +218,66 @@ def imu_gap(where: str, step: F64) -> str | None:
     )
 
 
-def warn_of_stamps(imu_time: F64) -> None:
+def gaps_fed(gaps: int, end: float, length: float, longest: float, usual: float) -> str:
+    """An online navigator's IMU gaps so far (``_core.Navigator.imu_gaps``: their number,
+    the first's end and length [s], the longest's length [s], the usual step [s]) as one
+    line, or "" with none."""
+    if gaps == 0:
+        return ""
+    more = "" if gaps == 1 else f"; {gaps} gaps in all, the longest {longest:.4g} s"
+    return (
+        f"imu: a gap of {length:.4g} s before the sample at {end:.10g} s (the usual step "
+        f"is {usual:.4g} s{more}): the sample after a gap is integrated over the whole "
+        "of it, as if the vehicle had turned and accelerated evenly across it"
+    )
+
+
+def imu_period(imu_dt: float, step: float) -> str | None:
+    """The filter's nominal IMU period ``imu_dt`` [s] against the IMU's typical stamped
+    ``step`` [s], beyond :data:`MAX_IMU_JITTER` of it: the filter adds ``q · imu_dt · dt``
+    per step (``q`` each sample's variance at ``imu_dt``), so with samples ``step`` apart
+    its process noise is ``imu_dt / step`` times what ``q`` per sample gives (a 200 Hz
+    IMU under the default 0.01 s: twice)."""
+    if not (step > 0 and abs(imu_dt / step - 1.0) > MAX_IMU_JITTER):
+        return None
+    return (
+        f"config.imu_dt: {imu_dt:.4g} s, but the IMU stamps step {step:.4g} s: the filter "
+        "takes q as each sample's variance over imu_dt, so its process noise is "
+        f"{imu_dt / step:.3g}× what samples {step:.4g} s apart with that variance give; "
+        f"set FilterConfig(imu_dt={step:.4g}) (used as given)"
+    )
+
+
+def warn_unfilled_window(kind: str, window: int | None, accepted: int) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a Mehra or adaptive strategy whose
+    ``window`` of accepted velocity updates the pass never filled (``accepted`` of
+    them): it ran on its prior q throughout, a constant-Q run under another name."""
+    if kind not in ("mehra", "adaptive") or window is None or accepted >= window:
+        return
+    problem = (
+        f"strategy: {kind}'s window of {window} velocity updates was never filled "
+        f"({accepted} accepted in the pass): it ran on its prior q throughout, as a constant "
+        "strategy would; a window shorter than the pass's updates adapts"
+    )
+    warnings.warn(problem, PlausibilityWarning, stacklevel=3)
+
+
+def warn_of_stamps(imu_time: F64, imu_dt: float) -> None:
     """Warn (:class:`PlausibilityWarning`) of a pass's IMU stamps that jitter
-    (:func:`imu_jitter`) or leave a gap (:func:`imu_gap`)."""
+    (:func:`imu_jitter`), leave a gap (:func:`imu_gap`) or step otherwise than the
+    filter's ``imu_dt`` [s] (:func:`imu_period`)."""
     step = np.diff(imu_time)
     if len(step) and 0 < step.min() and step.max() <= step.min() * (1 + MAX_IMU_JITTER):
-        return  # every step within the bounds of any median: the usual case, one pass
-    for problem in (imu_jitter("imu_time", step), imu_gap("imu_time", step)):
+        # every step within the bounds of any median: the usual case, one pass
+        problems = [imu_period(imu_dt, float(imu_time[-1] - imu_time[0]) / len(step))]
+    else:
+        median = float(np.median(step)) if len(step) > 1 else 0.0
+        problems = [
+            imu_jitter("imu_time", step),
+            imu_gap("imu_time", step),
+            imu_period(imu_dt, median),
+        ]
+    for problem in problems:
         if problem is not None:
             warnings.warn(problem, PlausibilityWarning, stacklevel=3)
 

@@ -38,6 +38,8 @@ from pronet._util.plausibility import (
     attitude_beyond,
     check_imu_start,
     depth_beyond,
+    gaps_fed,
+    imu_period,
 )
 from pronet._util.validate import check_type, float_array, scalar
 from pronet.config import filter_config
@@ -204,6 +206,7 @@ class Navigator:
             window=window,
         )
         self._depth_streams = {i for i, st in enumerate(streams) if isinstance(st, _core.Depth)}
+        self._config_dt = cfg.imu_dt
         dt = None if imu_dt is None else scalar(imu_dt, "imu_dt")
         self._start = (scalar(initial.t0, "initial.t0"), initial.rpy, dt)
         self._regressor = None if learned is None else for_loop(learned.regressor)
@@ -289,11 +292,16 @@ class Navigator:
     def findings(self) -> list[str]:
         """What the pass says about itself so far, one line each, as
         :attr:`pronet.FilterResult.health`'s ``flags`` say it of a batch pass: whether
-        its solution left a physical bound (watched at every epoch), whether its heading
-        σ passed 5°, then each stream whose mean NIS is out of its band or whose gate
+        its IMU stamps left a gap (a step beyond 5 usual ones) or step otherwise than
+        ``config.imu_dt`` (by over 15 %: the process noise is off by their ratio,
+        :func:`pronet._util.plausibility.imu_period`), whether its solution
+        left a physical bound (watched at every epoch), whether its heading σ passed 5°,
+        then each stream whose mean NIS is out of its band or whose gate
         rejected more than a few readings ("" lines left out)."""
         extent = Extent(*self._native.extent())
-        lines = [divergence(extent), heading_linearity(extent)]
+        gaps = self._native.imu_gaps()
+        period = imu_period(self._config_dt, gaps[-1]) or ""
+        lines = [gaps_fed(*gaps), period, divergence(extent), heading_linearity(extent)]
         for t in self.tally():
             lines.append(tally_flag(t.name, t.kind, t.nis_sum, t.dof, t.accepted, t.rejected))
         return [line for line in lines if line]

@@ -7,12 +7,14 @@
 //!   window's IMU steps and readings, checkpoints of the filter);
 //! - `sensor`: [`Sensor`], a stream's settings, turning one reading fed into the
 //!   [`crate::measurement::Reading`] a stream's row would be;
+//! - `stamps`: [`Stamps`], the IMU's steps fed and the gaps among them;
 //! - `tally`: [`Tally`], what it did with each sensor's readings;
 //! - `tuning`: the learned loop's instants and window of raw samples.
 
 mod history;
 mod navigator;
 mod sensor;
+mod stamps;
 mod tally;
 mod tuning;
 
@@ -22,5 +24,6 @@ mod tests;
 pub use history::Outcome;
 pub use navigator::{Estimate, Fate, Lag, Navigator, Start};
 pub use sensor::Sensor;
+pub use stamps::{Stamps, MAX_IMU_GAP};
 pub use tally::Tally;
 pub use tuning::{Tuning, Window};

@@ -2,6 +2,7 @@
 
 use super::history::{Checkpoint, History, Kept, Outcome, Step};
 use super::sensor::Sensor;
+use super::stamps::Stamps;
 use super::tally::Tally;
 use super::tuning::{Tuning, Window};
 use crate::ekf::calibration::DvlErrors;
@@ -129,6 +130,8 @@ pub struct Navigator {
     outcomes: Vec<Option<Outcome>>,
     /// What the pass watched for its health, every epoch so far.
     watch: Watch,
+    /// The IMU's steps so far and the gaps among them.
+    stamps: Stamps,
 }
 
 impl Navigator {
@@ -179,6 +182,7 @@ impl Navigator {
             readings: Vec::new(),
             outcomes: Vec::new(),
             watch,
+            stamps: Stamps::default(),
         })
     }
 
@@ -224,6 +228,11 @@ impl Navigator {
     /// whose solution left a physical bound, and the heading σ.
     pub fn extent(&self) -> Extent {
         self.watch.extent
+    }
+
+    /// The IMU's steps so far and the gaps among them.
+    pub fn stamps(&self) -> Stamps {
+        self.stamps
     }
 
     /// Each sensor's tally so far.
@@ -345,7 +354,9 @@ impl Navigator {
         self.history.check_growth(self.lag.every)?;
         let dt = t - self.t;
         let epoch = self.epoch + 1;
-        if self.first.is_none() {
+        if self.first.is_some() {
+            self.stamps.push(t, dt);
+        } else {
             let first = self.t - 0.5 * dt;
             self.first = Some(first);
             for (tally, pending) in self.settled.iter_mut().zip(&mut self.pending) {

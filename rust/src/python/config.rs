@@ -187,8 +187,7 @@ impl PyFilterConfig {
             Aiding::Nav => "nav",
         }
     }
-    /// The error coordinates the filter runs in: "invariant", "classic" or "se23"
-    /// (the position error too, about the first position: ``docs/reference/filter.md``).
+    /// The error coordinates: "invariant", "classic" or "se23" (``reference/filter.md``).
     #[getter]
     fn formulation(&self) -> &'static str {
         self.inner.formulation.name()
@@ -211,8 +210,7 @@ impl PyFilterConfig {
     fn dvl_calibration(&self) -> bool {
         self.inner.dvl_calibration.is_some_and(|c| c.calibrates())
     }
-    /// Stationary 1σ of the DVL's correlated velocity error per DVL axis [m/s] (None
-    /// without it).
+    /// Stationary 1σ per DVL axis of its correlated velocity error [m/s], or None.
     #[getter]
     fn dvl_bias_sigma(&self) -> Option<Vec<f64>> {
         let c = self.inner.dvl_calibration.filter(|c| c.correlated())?;

@@ -42,6 +42,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_SPEED", crate::pass::MAX_SPEED)?;
     m.add("MAX_ABS_HEIGHT", crate::pass::MAX_ABS_HEIGHT)?;
     m.add("MAX_POSITION_SIGMA", crate::pass::MAX_POSITION_SIGMA)?;
+    m.add("MAX_IMU_GAP", crate::online::MAX_IMU_GAP)?;
     m.add("MAX_RUN_INDEX", crate::montecarlo::MAX_RUN_INDEX)?;
     m.add("MAX_GRAVITY_HEIGHT", crate::earth::MAX_GRAVITY_HEIGHT)?;
     m.add("MAX_LATITUDE_DEG", crate::earth::MAX_LATITUDE_DEG)?;

@@ -265,6 +265,15 @@ impl PyNavigator {
         extent_tuple(&self.inner.extent())
     }
 
+    /// The IMU's gaps so far: their number, the first's end [s] and length [s], the
+    /// longest's length [s] (NaN: none), and the usual step [s] (:data:`MAX_IMU_GAP`).
+    fn imu_gaps(&self) -> (usize, f64, f64, f64, f64) {
+        let s = self.inner.stamps();
+        let (first_t, first_dt) = s.first.unwrap_or((f64::NAN, f64::NAN));
+        let longest = s.longest.map_or(f64::NAN, |(_, dt)| dt);
+        (s.gaps, first_t, first_dt, longest, s.usual)
+    }
+
     /// Each stream's tally, a list of dicts in the streams' order: ``name``, ``kind``
     /// (``"velocity"``, ``"depth"``, ``"fix"``, ``"heading"``), ``received``, ``queued``,
     /// ``accepted``, ``rejected`` (by the gate), ``late`` (stamped before the newest IMU

@@ -55,16 +55,14 @@ impl PyStrategy {
             prior_q: fixed(prior_q, "prior_q")?,
         })
     }
-    /// The simulated IMU's true variance at every IMU step: the ceiling. Simulation
-    /// only; recorded data has no truth to give it.
+    /// The simulated IMU's true variance at every IMU step (the ceiling; simulation only).
     #[staticmethod]
     fn oracle() -> Self {
         Self {
             inner: StrategySpec::Oracle,
         }
     }
-    /// q set from outside (the hybrid loop, through an :class:`Ensemble`);
-    /// ``prior_q`` until the first setting.
+    /// q set from outside (the hybrid loop, an :class:`Ensemble`); ``prior_q`` until then.
     #[staticmethod]
     fn external(prior_q: &Bound<'_, PyAny>) -> PyResult<Self> {
         Self::checked(StrategySpec::External {
