@@ -174,6 +174,10 @@ _LON = r"beyond -3\.14159 … 6\.28319 rad \(-180° … 360°: a longitude in th
          r"fix\.csv: columns 'lat', 'lon' lie a median \d+ m from the ground truth"),
         (lambda f: _scale(f, "fix.csv", "time", 1.0, 1.7e9),  # Unix stamps on one stream
          r"fix\.csv: column 'time \[s\]' runs .* the fix and IMU stamps do not overlap"),
+        (lambda f: [_scale(f, n, "time", 1.0, 1.7e9 + 86400.0 * (n == "depth.csv"))
+                    for n in ("imu.csv", "dvl.csv", "gt.csv", "depth.csv", "fix.csv")],
+         r"depth\.csv: column 'time \[s\]' runs 17000864\d\d.* the depth and IMU stamps do "
+         r"not overlap"),  # Unix stamps, the depth's a day off: the scale acts about the start
         (lambda f: (f / "fix.csv").write_text(
             (f / "fix.csv").read_text().replace("sigma_d [m]", "sigma_down [m]")),
          r"fix\.csv: column 'sigma_down \[m\]' is not a σ column of the fix table"),

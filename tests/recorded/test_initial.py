@@ -282,6 +282,58 @@ def test_moving_start_from_an_ahrs_a_dvl_and_the_nearest_fix():
     assert np.hypot(dp[0], dp[1]) < 0.05
 
 
+def test_steady_cruise_the_dvl_contradicts_is_not_taken_as_rest():
+    """A recording that starts mid-leg, straight at 1.5 m/s: the IMU alone is as steady
+    as at rest (it was levelled over as "still", the velocity set to zero with σ 0.02
+    m/s), but the DVL reads 1.5 m/s over the interval. With an AHRS the state starts
+    from it and the DVL (the velocity within its σ); without one, refused in one line
+    naming the interval and the DVL's speed. A DVL at rest leaves the interval still."""
+    tr = pronet.trajectory_from_segments(
+        [[60.0, 0.0, 0.0, 0.0]], lla0=LLA, speed0=1.5, rpy0=[0.0, 0.05, 0.3], dt=0.01
+    )
+    rng = np.random.default_rng(8)
+    time = tr.time[1:]
+    imu = tr.imu + rng.normal(0.0, 1.0, tr.imu.shape) * np.repeat(MEMS_NOISE, 3)
+    assert still_intervals(time, imu, float(MEMS_P0[12]), StillSettings())  # steady
+    k = np.arange(25, 6001, 25)
+    body = np.einsum("kji,kj->ki", [rotation(r) for r in tr.rpy[k]], tr.vel_ned[k])
+    dvl = (tr.time[k], body + rng.normal(0.0, 0.01, (len(k), 3)), [0.01, 0.01, 0.01])
+    j = np.arange(0, 6001, 10)
+    ahrs_sigma = np.radians([0.5, 0.5, 2.0])
+    ahrs = (tr.time[j], tr.rpy[j] + rng.normal(0.0, ahrs_sigma, (len(j), 3)), ahrs_sigma)
+    given = GivenState(lla=LLA)
+    state = initial_state(time, imu, MEMS_P0, dvl=dvl, orientation=ahrs, given=given)
+    assert state.methods["velocity"].startswith("first DVL reading rotated to NED")
+    i0 = int(np.argmin(np.abs(tr.time - state.t0)))
+    assert np.all(np.abs(state.vel - tr.vel_ned[i0]) <= 3 * state.p0_sigma[3:6])
+    with pytest.raises(ValueError) as refused:
+        initial_state(time, imu, MEMS_P0, dvl=dvl, given=GivenState(lla=LLA, heading=0.3))
+    assert str(refused.value).startswith("initial roll and pitch: the IMU is steady over ")
+    assert "but the DVL reads a median 1.5 m/s there: steady motion, not rest" in str(refused.value)
+    rest_time, rest_imu = still_imu([0.0, 0.05, 0.3], MEMS_P0, MEMS_NOISE, rng)
+    r = np.arange(25, len(rest_time), 25)
+    rest_dvl = (rest_time[r], rng.normal(0.0, 0.01, (len(r), 3)), [0.01, 0.01, 0.01])
+    still = initial_state(
+        rest_time, rest_imu, MEMS_P0, dvl=rest_dvl, given=GivenState(lla=LLA, heading=0.3)
+    )
+    assert still.methods["velocity"] == "zero (still)"
+
+
+def test_an_imu_in_flu_levelled_upside_down_is_refused():
+    """An IMU in FLU (y and z negated) read as FRD levels to a roll near 180°: it ran,
+    roll −180° in the trajectory; refused, naming the frame. Rolled 80° it levels."""
+    rng = np.random.default_rng(9)
+    time, imu = still_imu([0.02, -0.03, 0.5], MEMS_P0, MEMS_NOISE, rng)
+    flu = imu * np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+    given = GivenState(lla=LLA, heading=0.5)
+    upside = r"the vehicle is upside down \(roll -?17\d\.\d°\): the IMU's z axis points up"
+    with pytest.raises(ValueError, match=r"^initial roll and pitch: levelled over .*, " + upside):
+        initial_state(time, flu, MEMS_P0, given=given)
+    time, imu = still_imu([math.radians(80.0), 0.0, 0.5], MEMS_P0, MEMS_NOISE, rng)
+    state = initial_state(time, imu, MEMS_P0, given=given)
+    assert abs(state.rpy[0] - math.radians(80.0)) < 0.05
+
+
 def test_the_whole_state_from_data_is_honest_over_seeds():
     """Levelling, gyrocompassing, fixes and a depth, each off the IMU: every part of the
     state within 3σ of the truth at >= 95 % of the seeds, and its σ not inflated."""

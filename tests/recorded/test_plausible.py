@@ -143,6 +143,28 @@ def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recordi
     assert "streams[0] (dvl): mean NIS" in note and "lever arm" in note
 
 
+def test_vehicle_keys_pronet_real_does_not_apply_are_warned_of(tmp_path, capsys, recording):
+    """A navigate vehicle file's depth and fix lever arms and surface depth: ``pronet
+    real`` read them and ran as if they were not there, saying nothing; now one warning
+    names them, and the run goes on. A file without them says nothing of it."""
+    vehicle = tmp_path / "v.toml"
+    vehicle.write_text("imu_lever_arm = [0, 0, 0]\ndvl_lever_arm = [0, 0, 0]\n"
+                       "fix_lever_arm = [3, 0, -1]\nsurface_depth = 0.1\n")  # fmt: skip
+    argv = [*_written(tmp_path, recording), "--filter", str(vehicle), "--no-models",
+            "--no-plots", "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0] == (
+        f"pronet: warning: {vehicle}: fix_lever_arm, surface_depth are applied by pronet "
+        "navigate only; pronet real takes the depth and the fixes at the IMU's point and the "
+        "depth's surface as read (ignored here)"
+    )
+    vehicle.write_text("imu_lever_arm = [0, 0, 0]\ndvl_lever_arm = [0, 0, 0]\n")
+    argv[argv.index("--out") + 1] = str(tmp_path / "o2")
+    assert main(argv) == 0
+    assert "navigate only" not in capsys.readouterr().err
+
+
 def test_the_synthetic_and_snapir_like_data_pass_every_check(tmp_path, recording):
     from pronet.recorded.recordings import read_recording
 

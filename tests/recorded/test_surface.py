@@ -46,3 +46,22 @@ def test_without_surface_fixes_the_reference_stays_and_is_stated() -> None:
     assert surface_offset(t, depth, ft, given=-0.02).offset == -0.02
     with pytest.raises(ValueError, match="^surface offset: must be a finite"):
         surface_offset(t, depth, ft, given=float("nan"))
+
+
+def test_depth_above_the_sea_is_refused_and_one_atmosphere_deep_is_said() -> None:
+    """A pressure in kPa converted as pascals reads −10.06 m whatever the depth (the
+    vehicle above the sea): refused in one line. An absolute pressure whose atmosphere
+    was never taken off reads 10.1 m deep at the surface: beside USBL fixes (no surface
+    reading) it ran with a note that understated it; the note now names the atmosphere.
+    A dive that
+    never comes shallower than 3 m says nothing of it."""
+    t, depth, ft, height = _dive(0.0, np.random.default_rng(2))
+    with pytest.raises(ValueError, match=r"^depth: the readings lie a median -\d+\.?\d* m, "
+                       "above the sea surface: a pressure in kPa or bar"):  # fmt: skip
+        surface_offset(t, (101.325 + depth * 1025 * 9.80665e-3 - 101_325) / (1025 * 9.80665), ft)
+    deep = height < -2.0
+    s = surface_offset(t, depth + 10.08, ft[deep])
+    assert s.offset == 0.0 and "keeps the reader's" in s.note
+    assert "its shallowest readings are 10.0" in s.note and "about one atmosphere" in s.note
+    assert "atmosphere" not in surface_offset(t, depth + 3.0, ft[deep]).note
+    assert "atmosphere" not in surface_offset(t, depth, ft[deep]).note

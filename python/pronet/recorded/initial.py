@@ -9,7 +9,9 @@ attitude ψ about N, E, D [rad]). The parts, in the order they are found (each o
 ``given`` wins over the data for the parts it gives, with its σ or the defaults below):
 
 - **roll and pitch** (``attitude``): levelled over a still interval (given, or detected
-  as in :mod:`pronet.recorded.levelling`): at rest ``f = −Cᵀ g^n``, so the mean
+  as in :mod:`pronet.recorded.levelling`, unless the DVL reads a median speed there
+  beyond 0.2 m/s and its noise: the IMU cannot tell steady motion from rest; a roll
+  beyond ±90° is refused: an IMU in FLU): at rest ``f = −Cᵀ g^n``, so the mean
   specific force gives ``roll = atan2(−f̄_y, −f̄_z)``, ``pitch = atan2(f̄_x, √(f̄_y² +
   f̄_z²))``; a bias ``σ_ba`` (the accelerometer bias 1σ of ``base_p0``) and the mean's
   noise ``σ_f̄`` (:func:`~pronet.recorded.levelling.mean_noise`) tilt it by
@@ -118,6 +120,13 @@ def _attitude(p: Inputs) -> tuple[F64, F64, str]:
     if p.interval is not None:
         a, b = p.interval
         roll, pitch, tilt, _ = level(p.still_samples(), float(p.p0[9:12].max()))
+        if abs(roll) > 0.5 * math.pi:
+            raise ValueError(
+                f"initial roll and pitch: levelled over {a:.2f}–{b:.2f} s, the vehicle is upside "
+                f"down (roll {math.degrees(roll):.1f}°): the IMU's z axis points up (an IMU in "
+                "FLU, or one mounted upside down); pronet takes body FRD (x forward, y "
+                "starboard, z down): rotate the samples"
+            )
         sigma = np.array([tilt / math.cos(pitch), tilt])
         found.append(
             (

@@ -311,6 +311,25 @@ def _needed(streams: dict[str, Readings], given: Given) -> float | None:
     return max(found) if found else None
 
 
+#: A DVL's median speed [m/s] over an interval the IMU finds steady above which, and
+#: above 3 of its median 1σ (per axis, times √3), the vehicle is taken as moving.
+STILL_DVL_SPEED = 0.2
+
+
+def _moving(streams: dict[str, Readings], a: float, b: float) -> float | None:
+    """The DVL's median speed [m/s] over ``[a, b]`` where it says the vehicle moves
+    there (beyond :data:`STILL_DVL_SPEED` and 3√3 of its median 1σ), else None."""
+    dvl = streams.get("dvl")
+    if dvl is None:
+        return None
+    inside = (dvl.time >= a) & (dvl.time <= b)
+    if not inside.any():
+        return None
+    speed = float(np.median(np.linalg.norm(dvl.values[inside], axis=1)))
+    noise = 3.0 * math.sqrt(3.0) * float(np.median(dvl.sigma[inside]))
+    return speed if speed > max(STILL_DVL_SPEED, noise) else None
+
+
 def _samples(time: F64, a: float, b: float) -> int:
     """How many IMU samples lie in [a, b]."""
     return int(np.count_nonzero((time >= a) & (time <= b)))
@@ -333,8 +352,18 @@ def _when(
         if still == "none":
             intervals, why = [], "no still interval asked for"
         else:
-            intervals = still_intervals(time, imu, gyro_bias_sigma, settings.still)
+            found = still_intervals(time, imu, gyro_bias_sigma, settings.still)
             why = f"no still interval of {settings.still.min_duration:g} s or more in the IMU"
+            moving = [(a, b, _moving(streams, a, b)) for a, b in found]
+            intervals = [(a, b) for a, b, speed in moving if speed is None]
+            for a, b, speed in moving:
+                if speed is not None and not intervals:
+                    why = (
+                        f"the IMU is steady over {a:.2f}–{b:.2f} s, but the DVL reads a median "
+                        f"{speed:.3g} m/s there: steady motion, not rest (an IMU cannot tell "
+                        "them apart)"
+                    )
+                    break
     else:
         if not isinstance(still, tuple | list) or len(still) != 2:
             raise ValueError(f"still: expected 'auto', 'none' or (t_start, t_end), got {still!r}")

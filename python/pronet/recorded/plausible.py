@@ -164,10 +164,11 @@ def duplicate_columns(
 
 def disjoint_streams(imu: Table, other: Table, kind: str) -> str | None:
     """``other``'s stamps beside none of the IMU's: no overlap even with the clock
-    search's reach (an offset of 2 s and a scale of 1 %)."""
+    search's reach (an offset of 2 s and a scale of 1 %, which acts about the section's
+    start: 1 % of the streams' span, whatever the epoch of their stamps)."""
     a, b = float(imu.values[0, 0]), float(imu.values[-1, 0])
     t = other.values[:, 0]
-    slack = 2.0 + 0.01 * max(abs(a), abs(b))
+    slack = 2.0 + 0.01 * max(b - a, float(t[-1] - t[0]))
     if t[-1] < a - slack or t[0] > b + slack:
         return (
             f"{other.where}: column {other.labels[0]!r} runs {t[0]:.10g} … {t[-1]:.10g} s, "

@@ -13,6 +13,7 @@ section's passes are :mod:`pronet.recorded.passes`'.
 from __future__ import annotations
 
 import threading
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import nullcontext
@@ -22,6 +23,7 @@ from typing import TYPE_CHECKING
 
 from pronet import _core
 from pronet._util.cores import usable_cores
+from pronet._util.plausibility import PlausibilityWarning
 from pronet._util.validate import seconds as seconds_arg
 from pronet._util.waiting import results_in_order
 from pronet.filter import FilterResult
@@ -497,6 +499,8 @@ def run_real(
     )
     if vehicle is not None:
         aiding = vehicle.aiding(aiding)
+        if (ignored := vehicle.navigate_only()) is not None:
+            warnings.warn(ignored, PlausibilityWarning, stacklevel=2)
         declination = vehicle.declination if declination is None else declination
     check_declination(declination, "--declination")
     paths = select_sections(data, sections)

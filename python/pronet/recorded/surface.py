@@ -10,7 +10,9 @@ reader's reference stays, and the report says so. A fix does not tell the surfac
 its height (a GNSS height is ellipsoidal, tens of metres off the sea; a USBL fix has
 none): a reading beside a fix is taken at the surface when it reads within
 :data:`SURFACE_DEPTH` of ``surface_depth``, as no wrong surface pressure moves it
-further.
+further. Depths a median :data:`MAX_ABOVE_SURFACE` above the surface are refused; a
+reference left as it is whose shallowest readings lie about one atmosphere deep (an
+absolute pressure) says so in its note.
 """
 
 from __future__ import annotations
@@ -30,6 +32,14 @@ SURFACE_WINDOW = 1.0
 MIN_SURFACE_READINGS = 5
 #: Standard gravity [m/s²] of the pressure-to-depth conversion (bags').
 G0 = 9.80665
+#: Depths [m] above the surface (negative) beyond this in the median are refused: a
+#: pressure in kPa or bar converted as pascals, or the atmosphere taken off twice.
+MAX_ABOVE_SURFACE = 2.0
+#: The standard atmosphere in metres of sea water (101,325 Pa over 1025 kg/m³ and
+#: :data:`G0`), and how far from it a shallowest reading looks like an absolute
+#: pressure whose atmosphere was never taken off [m].
+ATMOSPHERE_DEPTH = 101_325.0 / (1025.0 * G0)
+ATMOSPHERE_BAND = 0.6
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,11 @@ def surface_offset(
         return SurfaceOffset(float(given), 0, None, f"depth offset {given:+.3f} m, given")
     t = np.asarray(depth_time, dtype=np.float64)
     d = np.asarray(depth, dtype=np.float64)
+    if d.size and (median := float(np.median(d))) < -MAX_ABOVE_SURFACE:
+        raise ValueError(
+            f"depth: the readings lie a median {median:.3g} m, above the sea surface: a "
+            "pressure in kPa or bar converted as pascals, or the atmosphere taken off twice?"
+        )
     ft = np.sort(np.asarray(fix_time, dtype=np.float64))
     near = np.zeros(len(t), dtype=bool)
     if ft.size and t.size:
@@ -82,13 +97,18 @@ def surface_offset(
     use = near & (np.abs(d - surface_depth) <= SURFACE_DEPTH)
     n = int(use.sum())
     if n < MIN_SURFACE_READINGS:
-        return SurfaceOffset(
-            0.0,
-            n,
-            None,
+        note = (
             "no reading at the surface beside a fix: the depth keeps the reader's surface "
-            "reference (a wrong one is up to ±0.3 m of depth)",
+            "reference (a wrong one is up to ±0.3 m of depth)"
         )
+        shallowest = float(np.percentile(d, 1)) if d.size else np.nan
+        if abs(shallowest - ATMOSPHERE_DEPTH) <= ATMOSPHERE_BAND:
+            note += (
+                f"; but its shallowest readings are {shallowest:.2f} m deep, about one "
+                f"atmosphere ({ATMOSPHERE_DEPTH:.2f} m of sea water): an absolute pressure "
+                "whose atmosphere was never taken off? (--surface-offset takes it off)"
+            )
+        return SurfaceOffset(0.0, n, None, note)
     offset = float(np.median(d[use])) - surface_depth
     span = (float(t[use][0]), float(t[use][-1]))
     return SurfaceOffset(

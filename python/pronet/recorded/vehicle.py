@@ -23,6 +23,8 @@ A file, every key optional::
     fix_lever_arm = [0.0, 0.0, -1.0]    # the fix's antenna or transponder, likewise
     surface_depth = 0.1                 # the pressure sensor's depth [m] while the
                                         # vehicle floats (pronet.recorded.surface)
+                                        # (these three: pronet navigate's; pronet real
+                                        # warns that it does not apply them)
     # lever_arm = [...]                 # FilterConfig's: the DVL from the IMU, with
                                         # imu_lever_arm beside it (not dvl_lever_arm)
 
@@ -136,6 +138,23 @@ class VehicleTuning:
     depth_lever_arm: tuple[float, float, float] | None = None
     fix_lever_arm: tuple[float, float, float] | None = None
     surface_depth: float | None = None
+
+    def navigate_only(self) -> str | None:
+        """One line naming the keys this vehicle sets that ``pronet navigate`` applies
+        and ``pronet real`` does not (it takes the depth and the fixes at the IMU's point,
+        and the depth's surface as read), or None."""
+        keys = [
+            k
+            for k in ("depth_lever_arm", "fix_lever_arm", "surface_depth")
+            if getattr(self, k) is not None
+        ]
+        if not keys:
+            return None
+        return (
+            f"{self.source}: {', '.join(keys)} {'is' if len(keys) == 1 else 'are'} applied by "
+            "pronet navigate only; pronet real takes the depth and the fixes at the IMU's "
+            "point and the depth's surface as read (ignored here)"
+        )
 
     def aiding(self, given: AidingTuning) -> AidingTuning:
         """``given`` with this vehicle's σ where it has them."""
