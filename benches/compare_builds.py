@@ -139,30 +139,35 @@ def monte_carlo_call(core: ModuleType, threads: int) -> Callable[[], Any]:
     )
 
 
-def filter_data(seconds: float) -> dict[str, Any]:
+def filter_data(seconds: float) -> tuple[dict[str, Any], Any]:
     """``benches/covariance_step.py``'s recording of ``seconds`` at 100 Hz with a 5 Hz
-    DVL (that script is loaded from beside this one)."""
+    DVL and the filter told its model (that script is loaded from beside this one)."""
     path = Path(__file__).with_name("covariance_step.py")
     spec = importlib.util.spec_from_file_location("covariance_step", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     data: dict[str, Any] = module.recording(seconds, dvl_rate=5)
-    return data
+    return data, module.RECORDING_CONFIG
 
 
 def filter_call(core: ModuleType, seconds: float, epochs: str = "last") -> Callable[[], Any]:
     """``run_filter`` of ``core`` at its default covariance step over ``seconds`` at
     100 Hz with a 5 Hz body-frame DVL (:func:`filter_data`), keeping ``epochs`` (the
     last: the filter alone; or all)."""
-    data = filter_data(seconds)
+    data, told = filter_data(seconds)
     (dvl,) = data.pop("streams")
     streams = [core.Dvl(dvl.time, dvl.velocity)]
     strategy = core.Strategy.constant(tuple(paper.PAPER_Q))
     # Bias walks small, as the recording has none: with the default (the paper's) walks
     # the heading is lost within minutes (σ of radians), where rounding grows chaotically
-    # and no two builds could be compared.
-    config = core.FilterConfig(accel_bias_psd=1e-8, gyro_bias_psd=1e-12, dvl_variance=(0.01,) * 3)
+    # and no two builds could be compared. Each build's own FilterConfig, with the values
+    # of the script's.
+    config = core.FilterConfig(
+        accel_bias_psd=told.accel_bias_psd,
+        gyro_bias_psd=told.gyro_bias_psd,
+        dvl_variance=tuple(told.dvl_variance),
+    )
     return lambda: core.run_filter(
         **{**data, "streams": streams, "strategy": strategy}, config=config, epochs=epochs
     )
@@ -279,7 +284,7 @@ def main() -> None:
         filters = {
             name: filter_call(core, seconds, e) for e in kept for name, core in named[e].items()
         }
-        steps = len(filter_data(seconds)["imu"])
+        steps = len(filter_data(seconds)[0]["imu"])
         title = (
             f"run_filter, {args.hours:g} h at 100 Hz, 5 Hz DVL, default covariance step, "
             f"epochs kept: {args.epochs}"

@@ -5,7 +5,8 @@
 
 ``cost``: for each covariance step (default 0 and 0.1 s), the forward and the smoothed
 passes alternating ``repeat`` times, best of each: ``run_filter`` on ``SECONDS`` of a
-100 Hz recording with a 1 Hz DVL (``benches/covariance_step.py``'s), every epoch kept
+100 Hz recording with a 1 Hz DVL and the filter told its model
+(``benches/covariance_step.py``'s ``recording`` and ``RECORDING_CONFIG``), every epoch kept
 (``forward``, ``smoothed``) and one per second (``forward_thinned``, ``thinned``), and
 the constant-Q Monte Carlo of ``paper`` (``RUNS`` runs, one thread; its CPU time too,
 measured the same way, which other work on a shared machine moves less than the wall);
@@ -35,7 +36,7 @@ from typing import Any
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
-from covariance_step import alternating, recording
+from covariance_step import RECORDING_CONFIG, alternating, recording
 
 import pronet
 from pronet.config import filter_config
@@ -60,7 +61,7 @@ def cost(runs: int, repeat: int, seconds: float, steps: list[float]) -> dict[str
     sc = scenarios.SCENARIOS["paper"](0)
     out: dict[str, Any] = {"imu_steps": len(data["imu"])}
     for step in steps:
-        cfg = filter_config({"covariance_step": step}, "covariance_step:", sc.config)
+        cfg = filter_config({"covariance_step": step}, "covariance_step:", RECORDING_CONFIG)
         passes = {
             "forward": partial(pronet.run_filter, **data, config=cfg),
             "smoothed": partial(pronet.run_filter, **data, config=cfg, smooth=True),
@@ -72,7 +73,9 @@ def cost(runs: int, repeat: int, seconds: float, steps: list[float]) -> dict[str
             ),
         }
 
-        def mc(smooth: bool, cfg: pronet.FilterConfig = cfg) -> object:
+        paper_cfg = filter_config({"covariance_step": step}, "covariance_step:", sc.config)
+
+        def mc(smooth: bool, cfg: pronet.FilterConfig = paper_cfg) -> object:
             return pronet.monte_carlo(
                 sc.trajectory, pronet.Strategy.constant(sc.q_nominal), sensors=sc.sensors,
                 config=cfg, n_runs=runs, seed=0, threads=1, smooth=smooth,

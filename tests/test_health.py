@@ -94,6 +94,31 @@ def test_streams_told_their_sigma_are_in_band_and_counted() -> None:
         assert np.isfinite(rep.nis).all() and len(rep.time) == rep.rows
 
 
+def test_one_outlier_that_holds_most_of_a_stream_s_nis_is_named() -> None:
+    """One USBL fix 550 m north of the rest (a multipath echo): the fix stream's mean NIS
+    is above its band, and the line blamed the σ, datum or units of every fix; it now
+    names the one reading, its time and share, and the mean without it (outside the
+    band too: the ungated outlier pulled the filter, and the fixes after it disagree).
+    Fixes all 300 m off (a datum) leave no reading holding over half: no such clause."""
+    streams, rows = _streams(np.random.default_rng(3))
+    fix = streams[1]
+    lla = np.array(rows["fix"])
+    lla[10] = pronet.lla_from_ned(np.array([550.0, 0.0, 0.0]), lla[10])
+    streams[1] = pronet.Fix(fix.time, lla, sigma=[1.0, 1.0, 1.0])
+    out = _pass(streams)
+    sources = [StreamSource("fix", fix.time, lla=lla)]
+    (report,) = pass_health(out.streams[1:2], sources, lla=out.lla, vel=out.vel,
+                            sigma=out.sigma, time=out.time).streams  # fmt: skip
+    assert report.mean_nis > report.band[1]
+    clause = re.search(
+        rf"; one reading, at {fix.time[10]:.10g} s, holds (\d+)% of it \(NIS \S+; without it "
+        r"the mean is \S+, (within|outside) the band\): an outlier, which the stream's gate",
+        report.flag,
+    )  # fmt: skip
+    assert clause is not None and int(clause.group(1)) > 50, report.flag
+    assert "one reading" not in _reports(fix_offset=300.0)["fix"].flag
+
+
 @pytest.mark.parametrize(
     ("kw", "stream", "words"),
     [

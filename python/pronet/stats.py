@@ -35,6 +35,7 @@ from scipy import special
 
 from pronet import _core
 from pronet._util.validate import count, real_array
+from pronet._util.whiteness import whiteness as whiteness
 
 #: Resamples of a percentile-bootstrap interval.
 BOOTSTRAP = 2000
@@ -323,6 +324,8 @@ def stream_report(
     if innovation is not None and cov is not None:
         rho, half = whiteness(np.asarray(innovation), np.asarray(cov), applied)
     flag = _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
+    if flag and mean > band[1]:
+        flag += _outlier(np.where(seen, nis, 0.0), np.asarray(time, dtype=np.float64), band)
     if abs(rho) > WHITENESS_FLAG / 1.96 * half:  # beyond 4σ of white innovations
         said = f"(lag-one autocorrelation {rho:.3g}, white within ±{half:.2g}): " + (
             "a slowly varying error (a DVL's bottom-track bias, sound speed, alignment, or "
@@ -355,6 +358,22 @@ def stream_report(
     )
 
 
+def _outlier(nis: F64, time: F64, band: tuple[float, float]) -> str:
+    """The clause naming one reading that holds over half a stream's NIS sum (``nis``,
+    0 where not seen; five readings or more), with the mean without it, else "". Not
+    the first: it meets the initial position's error, which the line names already."""
+    r, seen = int(np.argmax(nis)), int(np.count_nonzero(nis))
+    if seen < 5 or r == int(np.argmax(nis > 0)) or not nis[r] > 0.5 * nis.sum():
+        return ""
+    rest = (nis.sum() - nis[r]) / (seen - 1)
+    within = "within" if band[0] <= rest <= band[1] else "outside"
+    return (
+        f"; one reading, at {time[r]:.10g} s, holds {nis[r] / nis.sum():.0%} of it (NIS "
+        f"{nis[r]:.3g}; without it the mean is {rest:.3g}, {within} the band): an outlier, "
+        "which the stream's gate (a χ² bound on the NIS) rejects"
+    )
+
+
 def _mean_nis(
     kind: str, nis_sum: float, dof: int, seen: int
 ) -> tuple[float, float, tuple[float, float]]:
@@ -379,28 +398,6 @@ def tally_flag(name: str, kind: str, nis_sum: float, dof: int, accepted: int, re
 #: A stream is flagged when its whiteness statistic is beyond this many σ of white
 #: innovations (4: one pass in 16,000 by chance), reported against its 95 % band.
 WHITENESS_FLAG = 4.0
-
-
-def whiteness(innovation: F64, cov: F64, used: NDArray[np.bool_]) -> tuple[float, float]:
-    """The whiteness test of a vector stream's innovations (Bar-Shalom, Li and
-    Kirubarajan 2001, §5.4.2): each used innovation ``ν_k`` ``(r, n)`` whitened by its
-    covariance ``S_k = L_k L_kᵀ`` ``(r, n, n)`` (``e_k = L_k⁻¹ ν_k``, N(0, I) for a
-    consistent filter), then ``ρ = Σ e_k·e_{k+1} / √(Σ |e_k|² Σ |e_{k+1}|²)`` over the
-    pairs of consecutive used readings. For white innovations ``ρ`` is about
-    N(0, 1/(nK)) over ``K`` pairs: the 95 % band is ``±1.96/√(nK)``. Returns ``ρ`` and
-    that half-width (NaN, NaN with fewer than two pairs)."""
-    ok = used & np.isfinite(innovation).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
-    k = np.flatnonzero(ok)
-    if len(k) < 3:
-        return math.nan, math.nan
-    try:
-        chol = np.linalg.cholesky(cov[k])
-    except np.linalg.LinAlgError:
-        return math.nan, math.nan
-    e = np.linalg.solve(chol, innovation[k][..., None])[..., 0]
-    a, b = e[:-1], e[1:]
-    rho = float(np.sum(a * b) / math.sqrt(float(np.sum(a * a)) * float(np.sum(b * b))))
-    return rho, 1.96 / math.sqrt(e.shape[1] * len(a))
 
 
 def _flag(

@@ -187,6 +187,9 @@ _LON = r"beyond -3\.14159 … 6\.28319 rad \(-180° … 360°: a longitude in th
         (lambda f: (f / "depth.csv").write_text(
             (f / "depth.csv").read_text().replace("depth [m]", "depth [ft]")),
          r"depth\.csv: column 'depth \[ft\]' has unit \[ft\]; expected one of m"),
+        (lambda f: _scale(f, "depth.csv", "depth", 1025 * 9.80665),  # in pascals
+         r"depth\.csv, row \d+: 'depth \[m\]' is \d+\.?\d* m, beyond -10000 … 12000 m "
+         r"\(metres, positive down: the deepest ocean is 11 km\); in pascals or another"),
         (lambda f: (f / "depth.csv").write_text("time [s],depth [m]\n1.0,,\n"),
          r"depth\.csv, row 1: has 3 fields, the header 2"),
     ],

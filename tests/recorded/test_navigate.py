@@ -267,3 +267,19 @@ def test_navigate_warns_of_a_lever_arm_beyond_10_m(tmp_path, short) -> None:
 def test_a_surface_depth_out_of_range_is_refused_as_the_vehicle_file_refuses_it() -> None:
     with pytest.raises(ValueError, match=r"^surface_depth: .* from 0 to 10, got -1.0$"):
         NavigateOptions(surface_depth=-1.0)
+
+
+def test_no_still_interval_and_no_ahrs_names_what_the_command_takes(tmp_path, short) -> None:
+    """``still="none"`` and no AHRS: the initial roll and pitch cannot be found; the line
+    said to give "the initial roll, pitch and yaw", which no option of the command
+    takes: it now names the still interval and the truth's start."""
+    folder = write_generic(short, tmp_path / "rec")
+    vehicle = write_vehicle_file(tmp_path, short)
+    with pytest.raises(ValueError) as refused:
+        _navigate(folder, vehicle, still="none")
+    said = str(refused.value)
+    assert said.startswith("initial roll and pitch: no still interval asked for")
+    assert said.endswith(
+        "(still=, --still START,END; or init='truth', --init truth, where the recording has "
+        "a ground truth)"
+    )

@@ -12,7 +12,9 @@
   data to (gravity, the first IMU step, depth, angles) and the warning of usable data
   that is probably a mistake;
 - :mod:`~pronet._util.deprecated`: the deprecated form of :func:`pronet.run_filter`
-  (its arrays before streams) turned into the streams it stands for.
+  (its arrays before streams) turned into the streams it stands for;
+- :mod:`~pronet._util.whiteness`: the whiteness test of a stream's innovations
+  (:func:`pronet.stats.whiteness`, which re-exports it).
 
 Every subpackage may import from here; nothing here imports the rest of pronet but
 :mod:`pronet._core`.
@@ -27,4 +29,5 @@ __all__ = [
     "plausibility",
     "validate",
     "waiting",
+    "whiteness",
 ]

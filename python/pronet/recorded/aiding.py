@@ -73,7 +73,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
-from pronet._util.plausibility import STANDARD_GRAVITY
+from pronet._util.plausibility import HEIGHT_RANGE, STANDARD_GRAVITY
 from pronet.recorded import heading as _heading
 from pronet.recorded.heading import HeadingReadings
 from pronet.recorded.plausible import ANGLE_UNITS, Table, angle_beyond, parse_header
@@ -259,6 +259,14 @@ def depth_readings(table: Table, names: list[str]) -> DepthReadings:
     if missing.all():
         raise ValueError(
             f"{table.where}: no usable depth in its {len(t)} rows (every one NaN or empty)"
+        )
+    lo, hi = -HEIGHT_RANGE[1], -HEIGHT_RANGE[0]
+    if (bad := np.flatnonzero((depth < lo) | (depth > hi))).size:
+        r = int(bad[0])
+        raise ValueError(
+            f"{table.where}, row {r + 1}: {table.labels[1]!r} is {depth[r]:.6g} m, beyond "
+            f"{lo:g} … {hi:g} m (metres, positive down: the deepest ocean is 11 km); in "
+            "pascals or another unit?"
         )
     keep = ~missing
     return DepthReadings(

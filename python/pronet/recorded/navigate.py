@@ -182,20 +182,29 @@ def _data_initial(
     if len(streams.dvl_time):
         r = np.sqrt(np.asarray(config.dvl_variance, dtype=np.float64))
         dvl = (streams.dvl_time, streams.dvl, r)
-    return initial_state(
-        section.imu_time,
-        section.imu,
-        config.p0_sigma,
-        fixes=None if streams.fixes is None else _as_input(streams.fixes, "lla"),
-        depth=None if streams.depth is None else _as_input(streams.depth, "depth"),
-        heading=None if streams.heading is None else _as_input(streams.heading, "heading"),
-        dvl=dvl,
-        fix_lever_arm=arms.from_imu(arms.fix),
-        depth_lever_arm=arms.from_imu(arms.depth),
-        dvl_lever_arm=config.lever_arm,
-        given=given,
-        still=still,
-    )
+    try:
+        return initial_state(
+            section.imu_time,
+            section.imu,
+            config.p0_sigma,
+            fixes=None if streams.fixes is None else _as_input(streams.fixes, "lla"),
+            depth=None if streams.depth is None else _as_input(streams.depth, "depth"),
+            heading=None if streams.heading is None else _as_input(streams.heading, "heading"),
+            dvl=dvl,
+            fix_lever_arm=arms.from_imu(arms.fix),
+            depth_lever_arm=arms.from_imu(arms.depth),
+            dvl_lever_arm=config.lever_arm,
+            given=given,
+            still=still,
+        )
+    except ValueError as exc:  # the API's words, and the command's
+        said = str(exc)
+        if said.startswith("initial roll and pitch") and said.endswith("roll, pitch and yaw"):
+            raise ValueError(
+                f"{said} (still=, --still START,END; or init='truth', --init truth, where the "
+                "recording has a ground truth)"
+            ) from None
+        raise
 
 
 def _as_input(readings: Any, values: str) -> tuple[F64, F64, F64]:
