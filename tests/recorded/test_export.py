@@ -258,6 +258,26 @@ def test_a_csv_failing_half_way_leaves_the_old_file(tmp_path, nav, monkeypatch):
     assert b"".join(pieces) == export.write_trajectory(nav, path).read_bytes()
 
 
+def test_an_interrupted_write_leaves_no_folder_of_its_own(tmp_path, nav, monkeypatch):
+    """Ctrl-C while the files are written into a new folder: the command said "no
+    result folder was written" and left the folder, empty; now it is gone, and an
+    existing folder (an earlier run's) keeps its files."""
+
+    def interrupted(files):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(export, "replace_together", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        export.write_all(nav, tmp_path / "new" / "out", figures=False)
+    assert not (tmp_path / "new" / "out").exists()
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "trajectory.csv").write_text("old")
+    with pytest.raises(KeyboardInterrupt):
+        export.write_all(nav, old, figures=False)
+    assert [p.name for p in old.iterdir()] == ["trajectory.csv"]
+
+
 def test_a_solution_of_one_epoch_or_going_back_in_time_is_refused(tmp_path, nav):
     f = nav.forward
     one = replace(

@@ -458,6 +458,11 @@ def test_a_given_attitude_says_when_no_still_interval_was_found():
     [
         (dict(imu=np.zeros((3000, 5))), r"^imu: expected shape \(3000, 6\), got \(3000, 5\)$"),
         (dict(base_p0=MEMS_P0[:3]), r"^base_p0: expected shape \(15,\), got \(3,\)$"),
+        (
+            dict(base_p0=np.where(np.arange(15) == 4, 0.0, MEMS_P0)),
+            r"^base_p0 \(a vehicle file's p0_sigma\): expected 15 positive finite 1σ, got 0 for "
+            r"dv_e \(index 4\)",
+        ),  # fmt: skip
         (dict(fixes=([1.0], [[0.5, 0.6, 0.0]], [1.0, 2.0])), "^fixes sigma: expected one value"),
         (dict(depth=([1.0, 0.5], [3.0, 3.0], 0.1)), "^depth time: expected finite, non-decreasing"),
         (dict(heading=([1.0], [1.0], -0.1)), "^heading sigma: expected positive finite values"),

@@ -43,6 +43,7 @@ position are left out of the GeoJSON (they stay in the CSV, as ``nan``).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -345,26 +346,30 @@ def write_all(
         config = {**navigation.config, "figures_failed": failed}
         notes = (*navigation.notes, *failed)
         navigation = dataclasses.replace(navigation, notes=notes, config=config)
-    out.mkdir(parents=True, exist_ok=True)
-    files: list[tuple[Path, bytes | Iterable[bytes]]] = [
-        (out / TRAJECTORY, trajectory_csv(navigation)),
-        (out / TRACK, track_geojson(navigation)),
-        (out / CONFIG, config_bytes(navigation)),
-    ]
     bag_path = None if bag is None else out / odometry.bag_name(bag)
-    files += [(out / name, png) for name, png in drawn]
-    names = [p.name for p, _ in files[:3]] + ([] if bag_path is None else [bag_path.name])
-    names += [p.name for p, _ in files[3:]] + [report.REPORT]
-    origin = None
-    if bag is not None and bag_path is not None:  # new (an existing one was refused)
-        odometry.write_odometry_bag(bag_path, navigation, bag, options)
-        origin = odometry.bag_origin(navigation, options)
-    text = report.report_markdown(navigation, names, origin, options)
+    made = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
     try:  # the report, which lists them, last: the earlier files all old or all new
+        files: list[tuple[Path, bytes | Iterable[bytes]]] = [
+            (out / TRAJECTORY, trajectory_csv(navigation)),
+            (out / TRACK, track_geojson(navigation)),
+            (out / CONFIG, config_bytes(navigation)),
+        ]
+        files += [(out / name, png) for name, png in drawn]
+        names = [p.name for p, _ in files[:3]] + ([] if bag_path is None else [bag_path.name])
+        names += [p.name for p, _ in files[3:]] + [report.REPORT]
+        origin = None
+        if bag is not None and bag_path is not None:  # new (an existing one was refused)
+            odometry.write_odometry_bag(bag_path, navigation, bag, options)
+            origin = odometry.bag_origin(navigation, options)
+        text = report.report_markdown(navigation, names, origin, options)
         replace_together([*files, (out / report.REPORT, text.encode())])
-    except BaseException:
+    except BaseException:  # an interrupt too: no partial bag, no empty folder of ours
         if bag_path is not None:
             _remove(bag_path)
+        if made:
+            with contextlib.suppress(OSError):  # not empty: another run's files
+                out.rmdir()
         raise
     for name in set(report.FIGURES) - set(names):  # an earlier run's, not this one's
         (out / name).unlink(missing_ok=True)

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet._util.validate import float_array, real_array, scalar
+from pronet.filter import ERROR_STATES
 from pronet.recorded.levelling import StillSettings, still_intervals
 
 F64 = NDArray[np.float64]
@@ -415,8 +416,13 @@ def prepare(
     if not np.all(np.isfinite(samples)):
         raise ValueError(f"imu: non-finite at row {int(np.argwhere(~np.isfinite(samples))[0, 0])}")
     p0 = float_array(base_p0, "base_p0", (15,))
-    if not np.all(np.isfinite(p0) & (p0 > 0)):
-        raise ValueError("base_p0: expected 15 positive finite 1σ")
+    if not np.all(ok := np.isfinite(p0) & (p0 > 0)):
+        k = int(np.argmin(ok))
+        raise ValueError(
+            f"base_p0 (a vehicle file's p0_sigma): expected 15 positive finite 1σ, got "
+            f"{p0[k]:g} for {ERROR_STATES[k]} (index {k}): the initial state is never known "
+            "exactly"
+        )
     read = {}
     for name, (stream, width, required) in streams.items():
         r = _stream(stream, name, width, required)
