@@ -325,7 +325,7 @@ def stream_report(
         rho, half = whiteness(np.asarray(innovation), np.asarray(cov), applied)
     flag = _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
     if flag and mean > band[1]:
-        flag += _outlier(np.where(seen, nis, 0.0), np.asarray(time, dtype=np.float64), band)
+        flag += _outlier(np.where(seen, nis, 0.0), np.asarray(time), band, rows)
     if abs(rho) > WHITENESS_FLAG / 1.96 * half:  # beyond 4σ of white innovations
         said = f"(lag-one autocorrelation {rho:.3g}, white within ±{half:.2g}): " + (
             "a slowly varying error (a DVL's bottom-track bias, sound speed, alignment, or "
@@ -358,19 +358,24 @@ def stream_report(
     )
 
 
-def _outlier(nis: F64, time: F64, band: tuple[float, float]) -> str:
-    """The clause naming one reading that holds over half a stream's NIS sum (``nis``,
-    0 where not seen; five readings or more), with the mean without it, else "". Not
-    the first: it meets the initial position's error, which the line names already."""
+def _outlier(nis: F64, time: F64, band: tuple[float, float], rows: StreamRows) -> str:
+    """The clause naming one reading (not the first, which meets the initial error) that
+    holds over half of ``nis`` (0 where not seen; five or more seen), else ""."""
     r, seen = int(np.argmax(nis)), int(np.count_nonzero(nis))
     if seen < 5 or r == int(np.argmax(nis > 0)) or not nis[r] > 0.5 * nis.sum():
         return ""
     rest = (nis.sum() - nis[r]) / (seen - 1)
     within = "within" if band[0] <= rest <= band[1] else "outside"
+    when = f"at {float(time[r]):.10g} s" if r < len(time) else f"row {r}"
+    if rows.accepted is not None and not rows.accepted[r]:
+        left = "which the stream's gate rejected"
+    elif rows.accepted is not None:
+        left = "which a gate (the stream's `gate`, a χ² bound on the NIS) would reject"
+    else:
+        left = f"and {rows.kind} readings have no gate: leave it out of the stream"
     return (
-        f"; one reading, at {time[r]:.10g} s, holds {nis[r] / nis.sum():.0%} of it (NIS "
-        f"{nis[r]:.3g}; without it the mean is {rest:.3g}, {within} the band): an outlier, "
-        "which the stream's gate (a χ² bound on the NIS) rejects"
+        f"; one reading, {when}, holds {nis[r] / nis.sum():.0%} of it (NIS {nis[r]:.3g}; "
+        f"without it the mean is {rest:.3g}, {within} the band): an outlier, {left}"
     )
 
 

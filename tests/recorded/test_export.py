@@ -269,7 +269,7 @@ def test_an_interrupted_write_leaves_no_folder_of_its_own(tmp_path, nav, monkeyp
     monkeypatch.setattr(export, "replace_together", interrupted)
     with pytest.raises(KeyboardInterrupt):
         export.write_all(nav, tmp_path / "new" / "out", figures=False)
-    assert not (tmp_path / "new" / "out").exists()
+    assert not (tmp_path / "new").exists()  # nor the parent it made
     old = tmp_path / "old"
     old.mkdir()
     (old / "trajectory.csv").write_text("old")

@@ -284,10 +284,10 @@ def test_moving_start_from_an_ahrs_a_dvl_and_the_nearest_fix():
 
 def test_steady_cruise_the_dvl_contradicts_is_not_taken_as_rest():
     """A recording that starts mid-leg, straight at 1.5 m/s: the IMU alone is as steady
-    as at rest (it was levelled over as "still", the velocity set to zero with σ 0.02
-    m/s), but the DVL reads 1.5 m/s over the interval. With an AHRS the state starts
-    from it and the DVL (the velocity within its σ); without one, refused in one line
-    naming the interval and the DVL's speed. A DVL at rest leaves the interval still."""
+    as at rest (it was taken as "still": the velocity zero with σ 0.02 m/s). The DVL
+    reads 1.5 m/s over the interval: it is levelled over as "steady" (roll and pitch
+    within their σ), and the velocity is the DVL's (within its σ), with an AHRS or
+    without. A DVL at rest leaves the interval still."""
     tr = pronet.trajectory_from_segments(
         [[60.0, 0.0, 0.0, 0.0]], lla0=LLA, speed0=1.5, rpy0=[0.0, 0.05, 0.3], dt=0.01
     )
@@ -301,22 +301,23 @@ def test_steady_cruise_the_dvl_contradicts_is_not_taken_as_rest():
     j = np.arange(0, 6001, 10)
     ahrs_sigma = np.radians([0.5, 0.5, 2.0])
     ahrs = (tr.time[j], tr.rpy[j] + rng.normal(0.0, ahrs_sigma, (len(j), 3)), ahrs_sigma)
-    given = GivenState(lla=LLA)
-    state = initial_state(time, imu, MEMS_P0, dvl=dvl, orientation=ahrs, given=given)
-    assert state.methods["velocity"].startswith("first DVL reading rotated to NED")
-    i0 = int(np.argmin(np.abs(tr.time - state.t0)))
-    assert np.all(np.abs(state.vel - tr.vel_ned[i0]) <= 3 * state.p0_sigma[3:6])
-    with pytest.raises(ValueError) as refused:
-        initial_state(time, imu, MEMS_P0, dvl=dvl, given=GivenState(lla=LLA, heading=0.3))
-    assert str(refused.value).startswith("initial roll and pitch: the IMU is steady over ")
-    assert "but the DVL reads a median 1.5 m/s there: steady motion, not rest" in str(refused.value)
+    given = GivenState(lla=LLA, heading=0.3)
+    for orientation in (ahrs, None):
+        state = initial_state(time, imu, MEMS_P0, dvl=dvl, orientation=orientation, given=given)
+        assert state.methods["velocity"] == "DVL reading nearest t0 rotated to NED (0.00 s from t0)"
+        i0 = int(np.argmin(np.abs(tr.time - state.t0)))
+        assert np.all(np.abs(state.vel - tr.vel_ned[i0]) <= 3 * state.p0_sigma[3:6])
+        psi = attitude_error(state.rpy, tr.rpy[i0])
+        assert np.all(np.abs(psi[:2]) <= 3 * state.p0_sigma[6:8])
+    assert state.methods["attitude"].startswith(
+        "levelled over 60.0 s steady (the DVL reads 1.5 m/s) (0.01–"
+    )
     rest_time, rest_imu = still_imu([0.0, 0.05, 0.3], MEMS_P0, MEMS_NOISE, rng)
     r = np.arange(25, len(rest_time), 25)
     rest_dvl = (rest_time[r], rng.normal(0.0, 0.01, (len(r), 3)), [0.01, 0.01, 0.01])
-    still = initial_state(
-        rest_time, rest_imu, MEMS_P0, dvl=rest_dvl, given=GivenState(lla=LLA, heading=0.3)
-    )
+    still = initial_state(rest_time, rest_imu, MEMS_P0, dvl=rest_dvl, given=given)
     assert still.methods["velocity"] == "zero (still)"
+    assert still.methods["attitude"].startswith("levelled over 60.0 s still")
 
 
 def test_an_imu_in_flu_levelled_upside_down_is_refused():

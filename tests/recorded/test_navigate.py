@@ -280,6 +280,6 @@ def test_no_still_interval_and_no_ahrs_names_what_the_command_takes(tmp_path, sh
     said = str(refused.value)
     assert said.startswith("initial roll and pitch: no still interval asked for")
     assert said.endswith(
-        "(still=, --still START,END; or init='truth', --init truth, where the recording has "
-        "a ground truth)"
+        "give a still interval (still=, --still START,END), an AHRS orientation, or start "
+        "from the ground truth where the recording has one (init='truth', --init truth)"
     )

@@ -57,7 +57,8 @@ def test_depth_above_the_sea_is_refused_and_one_atmosphere_deep_is_said() -> Non
     never comes shallower than 3 m says nothing of it."""
     t, depth, ft, height = _dive(0.0, np.random.default_rng(2))
     with pytest.raises(ValueError, match=r"^depth: the readings lie a median -\d+\.?\d* m, "
-                       "above the sea surface: a pressure in kPa or bar"):  # fmt: skip
+                       r"above the sea surface: a height \(positive up\) for a depth, a "
+                       "pressure in kPa or bar"):  # fmt: skip
         surface_offset(t, (101.325 + depth * 1025 * 9.80665e-3 - 101_325) / (1025 * 9.80665), ft)
     deep = height < -2.0
     s = surface_offset(t, depth + 10.08, ft[deep])

@@ -43,7 +43,6 @@ position are left out of the GeoJSON (they stay in the CSV, as ``nan``).
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import math
@@ -347,7 +346,7 @@ def write_all(
         notes = (*navigation.notes, *failed)
         navigation = dataclasses.replace(navigation, notes=notes, config=config)
     bag_path = None if bag is None else out / odometry.bag_name(bag)
-    made = not out.exists()
+    made = [p for p in (out, *out.parents) if not p.exists()]  # leaf first
     out.mkdir(parents=True, exist_ok=True)
     try:  # the report, which lists them, last: the earlier files all old or all new
         files: list[tuple[Path, bytes | Iterable[bytes]]] = [
@@ -367,9 +366,11 @@ def write_all(
     except BaseException:  # an interrupt too: no partial bag, no empty folder of ours
         if bag_path is not None:
             _remove(bag_path)
-        if made:
-            with contextlib.suppress(OSError):  # not empty: another run's files
-                out.rmdir()
+        for folder in made:  # those this write made, leaf first, while empty
+            try:
+                folder.rmdir()
+            except OSError:
+                break
         raise
     for name in set(report.FIGURES) - set(names):  # an earlier run's, not this one's
         (out / name).unlink(missing_ok=True)

@@ -9,13 +9,16 @@ attitude ψ about N, E, D [rad]). The parts, in the order they are found (each o
 ``given`` wins over the data for the parts it gives, with its σ or the defaults below):
 
 - **roll and pitch** (``attitude``): levelled over a still interval (given, or detected
-  as in :mod:`pronet.recorded.levelling`, unless the DVL reads a median speed there
-  beyond 0.2 m/s and its noise: the IMU cannot tell steady motion from rest; a roll
-  beyond ±90° is refused: an IMU in FLU): at rest ``f = −Cᵀ g^n``, so the mean
-  specific force gives ``roll = atan2(−f̄_y, −f̄_z)``, ``pitch = atan2(f̄_x, √(f̄_y² +
-  f̄_z²))``; a bias ``σ_ba`` (the accelerometer bias 1σ of ``base_p0``) and the mean's
-  noise ``σ_f̄`` (:func:`~pronet.recorded.levelling.mean_noise`) tilt it by
-  ``σ_t = √(σ_ba² + σ_f̄²)/g`` (``σ_pitch = σ_t``, ``σ_roll = σ_t / cos θ``, θ the
+  as in :mod:`pronet.recorded.levelling`; a roll beyond ±90° is refused: an IMU in FLU).
+  The IMU cannot tell steady motion from rest: where the DVL reads a median speed over
+  the interval beyond 0.2 m/s and its noise, it is levelled over as "steady" (an
+  unaccelerated vehicle's specific force is gravity's too), but the velocity and the
+  position are found as when moving, the DVL's and the fix nearest t0. At rest ``f = −Cᵀ
+  g^n``, so the mean specific force gives ``roll = atan2(−f̄_y, −f̄_z)``, ``pitch =
+  atan2(f̄_x, √(f̄_y² + f̄_z²))``; a bias ``σ_ba`` (the accelerometer bias 1σ of
+  ``base_p0``) and the mean's noise ``σ_f̄``
+  (:func:`~pronet.recorded.levelling.mean_noise`) tilt it by ``σ_t = √(σ_ba² +
+  σ_f̄²)/g`` (``σ_pitch = σ_t``, ``σ_roll = σ_t / cos θ``, θ the
   pitch). Or an
   AHRS orientation stream's readings around t0 (wrapped mean, σ the stream's); of the
   two, the one of smaller σ.
@@ -71,6 +74,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet import _core
+from pronet._util.plausibility import STANDARD_GRAVITY as G0
 from pronet.navigation import lla_from_ned, local_ned
 from pronet.recorded.initialinputs import (
     GIVEN_SIGMA,
@@ -111,6 +115,11 @@ def _read_angle(p: Inputs, name: str, col: int) -> tuple[float, float, int] | No
     return wrapped_mean(r.values[idx, col]), math.hypot(sigma, p.rate() * lag), len(idx)
 
 
+def _resting(p: Inputs) -> str:
+    """How the vehicle spent the still interval: still, or steady by the DVL's speed."""
+    return "still" if p.moving is None else f"steady (the DVL reads {p.moving:.3g} m/s)"
+
+
 def _attitude(p: Inputs) -> tuple[F64, F64, str]:
     """Roll and pitch ``(2,)`` [rad], their 1σ ``(2,)`` and the method."""
     if p.given.rpy is not None:
@@ -120,7 +129,9 @@ def _attitude(p: Inputs) -> tuple[F64, F64, str]:
     if p.interval is not None:
         a, b = p.interval
         roll, pitch, tilt, _ = level(p.still_samples(), float(p.p0[9:12].max()))
-        if abs(roll) > 0.5 * math.pi:
+        # Upside down: f̄_z well above 0 (−g at rest, level), not noise about 0 at a pitch
+        # near ±90°.
+        if abs(roll) > 0.5 * math.pi and float(np.mean(p.still_samples()[:, 2])) > 0.5 * G0:
             raise ValueError(
                 f"initial roll and pitch: levelled over {a:.2f}–{b:.2f} s, the vehicle is upside "
                 f"down (roll {math.degrees(roll):.1f}°): the IMU's z axis points up (an IMU in "
@@ -132,7 +143,7 @@ def _attitude(p: Inputs) -> tuple[F64, F64, str]:
             (
                 np.array([roll, pitch]),
                 sigma,
-                f"levelled over {b - a:.1f} s still ({a:.2f}–{b:.2f} s)",
+                f"levelled over {b - a:.1f} s {_resting(p)} ({a:.2f}–{b:.2f} s)",
             )
         )
     angles = [_read_angle(p, "orientation", col) for col in (0, 1)]
@@ -177,7 +188,11 @@ def _gyrocompassed(
             f"this gyro (bias σ {bias:.1e} rad/s) cannot gyrocompass at {where} (σ {sigma:.2g}"
             f" rad > {limit:g} rad; it needs a bias ≪ Ω cos φ = {horizontal:.1e} rad/s)"
         )
-    return yaw, sigma, f"gyrocompassed over {b - a:.1f} s still (σ {math.degrees(sigma):.2f}°)"
+    return (
+        yaw,
+        sigma,
+        (f"gyrocompassed over {b - a:.1f} s {_resting(p)} (σ {math.degrees(sigma):.2f}°)"),
+    )
 
 
 def _heading(p: Inputs, rp: F64, rp_sigma: F64, latitude: float | None) -> tuple[float, float, str]:
@@ -214,7 +229,7 @@ def _velocity(p: Inputs, c: F64, psi: F64, latitude: float | None) -> tuple[F64,
     """The NED velocity [m/s], its 1σ ``(3,)`` and the method."""
     if p.given.vel is not None:
         return p.given.vel, p.given.vel_sigma, "given"
-    if p.interval is not None:
+    if p.at_rest:
         return np.zeros(3), np.full(3, p.settings.still_velocity_sigma), "zero (still)"
     idx = p.pick("dvl")
     if not len(idx):

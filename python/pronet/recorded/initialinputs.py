@@ -136,6 +136,15 @@ class Inputs:
     k0: int
     interval: tuple[float, float] | None
     no_still: str
+    #: The DVL's median speed [m/s] over ``interval`` where it says the vehicle moves
+    #: there (steady motion, which the IMU cannot tell from rest: levelled over, but
+    #: neither at rest nor in one place), else None.
+    moving: float | None = None
+
+    @property
+    def at_rest(self) -> bool:
+        """Whether t0 ends an interval of rest (not of steady motion)."""
+        return self.interval is not None and self.moving is None
 
     @property
     def t0(self) -> float:
@@ -149,7 +158,7 @@ class Inputs:
             return np.empty(0, dtype=np.intp)
         t = self.streams[name].time
         gap = np.abs(t - self.t0)
-        if self.interval is not None:
+        if self.interval is not None and self.at_rest:
             inside = np.flatnonzero((t >= self.interval[0]) & (t <= self.interval[1]))
             if len(inside):
                 return np.sort(inside[np.argsort(gap[inside], kind="stable")[:many]])
@@ -163,7 +172,7 @@ class Inputs:
             return np.empty(0, dtype=np.intp)
         t = self.streams[name].time
         keep = np.abs(t - self.t0) <= self.settings.reading_window
-        if self.interval is not None:
+        if self.interval is not None and self.at_rest:
             keep &= (t >= self.interval[0]) & (t <= self.t0)
         return np.flatnonzero(keep)
 
@@ -183,11 +192,11 @@ class Inputs:
     def lag(self, times: F64) -> F64:
         """``t0 − times`` [s], the time a reading is moved over by the velocity: zero
         while still (the vehicle does not move)."""
-        return np.zeros(len(times)) if self.interval is not None else self.t0 - times
+        return np.zeros(len(times)) if self.at_rest else self.t0 - times
 
     def rate(self) -> float:
         """``|ω|`` at t0 [rad/s] (zero while still)."""
-        return 0.0 if self.interval is not None else float(np.linalg.norm(self.imu[self.k0, 3:]))
+        return 0.0 if self.at_rest else float(np.linalg.norm(self.imu[self.k0, 3:]))
 
 
 def _arm(value: ArrayLike | None, name: str) -> F64:
@@ -313,8 +322,10 @@ def _needed(streams: dict[str, Readings], given: Given) -> float | None:
 
 
 #: A DVL's median speed [m/s] over an interval the IMU finds steady above which, and
-#: above 3 of its median 1σ (per axis, times √3), the vehicle is taken as moving.
+#: above 3 of its median 1σ (per axis, times √3), the vehicle is taken as moving; over
+#: at least :data:`MIN_MOVING_READINGS` readings (one spike says nothing).
 STILL_DVL_SPEED = 0.2
+MIN_MOVING_READINGS = 3
 
 
 def _moving(streams: dict[str, Readings], a: float, b: float) -> float | None:
@@ -324,7 +335,7 @@ def _moving(streams: dict[str, Readings], a: float, b: float) -> float | None:
     if dvl is None:
         return None
     inside = (dvl.time >= a) & (dvl.time <= b)
-    if not inside.any():
+    if inside.sum() < MIN_MOVING_READINGS:
         return None
     speed = float(np.median(np.linalg.norm(dvl.values[inside], axis=1)))
     noise = 3.0 * math.sqrt(3.0) * float(np.median(dvl.sigma[inside]))
@@ -353,18 +364,8 @@ def _when(
         if still == "none":
             intervals, why = [], "no still interval asked for"
         else:
-            found = still_intervals(time, imu, gyro_bias_sigma, settings.still)
+            intervals = still_intervals(time, imu, gyro_bias_sigma, settings.still)
             why = f"no still interval of {settings.still.min_duration:g} s or more in the IMU"
-            moving = [(a, b, _moving(streams, a, b)) for a, b in found]
-            intervals = [(a, b) for a, b, speed in moving if speed is None]
-            for a, b, speed in moving:
-                if speed is not None and not intervals:
-                    why = (
-                        f"the IMU is steady over {a:.2f}–{b:.2f} s, but the DVL reads a median "
-                        f"{speed:.3g} m/s there: steady motion, not rest (an IMU cannot tell "
-                        "them apart)"
-                    )
-                    break
     else:
         if not isinstance(still, tuple | list) or len(still) != 2:
             raise ValueError(f"still: expected 'auto', 'none' or (t_start, t_end), got {still!r}")
@@ -420,8 +421,8 @@ def prepare(
         k = int(np.argmin(ok))
         raise ValueError(
             f"base_p0 (a vehicle file's p0_sigma): expected 15 positive finite 1σ, got "
-            f"{p0[k]:g} for {ERROR_STATES[k]} (index {k}): the initial state is never known "
-            "exactly"
+            f"{p0[k]:g} for {ERROR_STATES[k]} (index {k})"
+            + (": the initial state is never known exactly" if p0[k] == 0 else "")
         )
     read = {}
     for name, (stream, width, required) in streams.items():
@@ -431,4 +432,5 @@ def prepare(
     checked_arms = {name: _arm(value, f"{name}_lever_arm") for name, value in arms.items()}
     g = _given(given)
     k0, interval, why = _when(time, samples, still, t0, read, g, settings, float(p0[12:].max()))
-    return Inputs(time, samples, p0, read, checked_arms, g, settings, k0, interval, why)
+    moving = None if interval is None else _moving(read, *interval)
+    return Inputs(time, samples, p0, read, checked_arms, g, settings, k0, interval, why, moving)

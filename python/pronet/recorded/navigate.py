@@ -199,10 +199,12 @@ def _data_initial(
         )
     except ValueError as exc:  # the API's words, and the command's
         said = str(exc)
-        if said.startswith("initial roll and pitch") and said.endswith("roll, pitch and yaw"):
+        tail = "give a still interval, an AHRS orientation or the initial roll, pitch and yaw"
+        if said.startswith("initial roll and pitch") and said.endswith(tail):
             raise ValueError(
-                f"{said} (still=, --still START,END; or init='truth', --init truth, where the "
-                "recording has a ground truth)"
+                said[: -len(tail)] + "give a still interval (still=, --still START,END), an "
+                "AHRS orientation, or start from the ground truth where the recording has "
+                "one (init='truth', --init truth)"
             ) from None
         raise
 

@@ -86,7 +86,8 @@ def surface_offset(
     if d.size and (median := float(np.median(d))) < -MAX_ABOVE_SURFACE:
         raise ValueError(
             f"depth: the readings lie a median {median:.3g} m, above the sea surface: a "
-            "pressure in kPa or bar converted as pascals, or the atmosphere taken off twice?"
+            "height (positive up) for a depth, a pressure in kPa or bar converted as pascals, "
+            "or the atmosphere taken off twice?"
         )
     ft = np.sort(np.asarray(fix_time, dtype=np.float64))
     near = np.zeros(len(t), dtype=bool)
@@ -104,9 +105,10 @@ def surface_offset(
         shallowest = float(np.percentile(d, 1)) if d.size else np.nan
         if abs(shallowest - ATMOSPHERE_DEPTH) <= ATMOSPHERE_BAND:
             note += (
-                f"; but its shallowest readings are {shallowest:.2f} m deep, about one "
-                f"atmosphere ({ATMOSPHERE_DEPTH:.2f} m of sea water): an absolute pressure "
-                "whose atmosphere was never taken off? (--surface-offset takes it off)"
+                f"; its shallowest readings are {shallowest:.2f} m deep, about one "
+                f"atmosphere ({ATMOSPHERE_DEPTH:.2f} m of sea water): if the vehicle came to "
+                "the surface, an absolute pressure whose atmosphere was never taken off "
+                "(--surface-offset takes it off)"
             )
         return SurfaceOffset(0.0, n, None, note)
     offset = float(np.median(d[use])) - surface_depth
