@@ -20,7 +20,7 @@ const USUAL_BAND: f64 = 0.5;
 /// not one of them), and the gaps among them.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Stamps {
-    /// The usual step \[s\]: the mean of the steps so far within [`USUAL_BAND`] of it,
+    /// The usual step \[s\]: the mean of the steps so far within half a step of it,
     /// the shorter of the first two setting it (0 before the third sample).
     pub usual: f64,
     /// The steps counted into [`Self::usual`].
