@@ -180,15 +180,17 @@ def long_lever_arm(arm: Sequence[float], name: str, reference: str = "the IMU") 
 MAX_IMU_JITTER = 0.15
 
 
-def imu_jitter(where: str, step: F64) -> str | None:
+def imu_jitter(where: str, step: F64, median: float | None = None) -> str | None:
     """The IMU's ``step`` s between stamps spread beyond :data:`MAX_IMU_JITTER` of their
-    median (the 99th percentile of ``|step / median − 1|``). Each sample is integrated
+    median (``median``: theirs, where the caller has it; the 99th percentile of
+    ``|step / median − 1|``). Each sample is integrated
     over its stamped step, exact when the IMU sampled so (a 10 % spread of such steps
     runs as well as a uniform IMU: ``tests/recorded/test_rates.py``; the 15 % bound
     leaves half that again); an IMU samples on its own crystal, steady to 1e-4, so a
     larger spread is a logger's stamping, which moves the solution (50.5 Hz stamped
     within ±2 ms: 18 %, the Snapir IMU: 4e-12)."""
-    median = float(np.median(step)) if len(step) > 1 else 0.0
+    if median is None:
+        median = float(np.median(step)) if len(step) > 1 else 0.0
     if not median > 0:
         return None
     spread = float(np.percentile(np.abs(step / median - 1.0), 99))
@@ -203,16 +205,20 @@ def imu_jitter(where: str, step: F64) -> str | None:
     )
 
 
-def imu_gap(where: str, step: F64) -> str | None:
+def imu_gap(where: str, step: F64, median: float | None = None) -> str | None:
     """The first of the IMU's ``step`` s between stamps longer than :data:`MAX_IMU_GAP`
-    median steps: the sample after it is integrated over the whole gap."""
-    gap = step > MAX_IMU_GAP * np.median(step) if len(step) > 1 else np.zeros(0, bool)
+    median steps (``median``: theirs, where the caller has it): the sample after it is
+    integrated over the whole gap."""
+    if len(step) < 2:
+        return None
+    median = float(np.median(step)) if median is None else median
+    gap = step > MAX_IMU_GAP * median
     if not gap.any():
         return None
     r = int(np.argmax(gap))
     return (
         f"{where}: a gap of {step[r]:.4g} s after row {r} (the median step is "
-        f"{np.median(step):.4g} s): the sample after it is integrated over the whole gap, "
+        f"{median:.4g} s): the sample after it is integrated over the whole gap, "
         "as if the vehicle had turned and accelerated evenly across it; cut the run there "
         "(used as given)"
     )
@@ -271,10 +277,10 @@ def warn_of_stamps(imu_time: F64, imu_dt: float) -> None:
         # every step within the bounds of any median: the usual case, one pass
         problems = [imu_period(imu_dt, float(imu_time[-1] - imu_time[0]) / len(step))]
     else:
-        median = float(np.median(step)) if len(step) > 1 else 0.0
+        median = float(np.median(step)) if len(step) > 1 else 0.0  # once, for all three
         problems = [
-            imu_jitter("imu_time", step),
-            imu_gap("imu_time", step),
+            imu_jitter("imu_time", step, median),
+            imu_gap("imu_time", step, median),
             imu_period(imu_dt, median),
         ]
     for problem in problems:
