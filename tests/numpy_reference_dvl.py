@@ -68,6 +68,11 @@ class DvlErrors:
             pred = pred + self.b
         return pred, np.hstack(blocks)
 
+    def noise_as_read(self, sigma: np.ndarray) -> np.ndarray:
+        """A noise covariance on ``v_b`` as the reading's: ``(1 + k̂)² M̂ Σ M̂ᵀ``."""
+        g = 1.0 + self.k
+        return g * g * self.m @ sigma @ self.m.T
+
     def feed(self, dc: np.ndarray) -> None:
         """``k̂ ← k̂ − δk̂``, ``M̂ ← M̂ Exp(−δμ̂)``, ``b̂ ← b̂ − δb̂``."""
         self.k = self.k - dc[0]

@@ -551,13 +551,17 @@ def run_reference_filter(
             else:  # the terms of the lever arm only when it is not zero
                 pred = nav_velocity_prediction(v, c, w_hat, r_arm)
                 h = nav_velocity_h(v, c, w_hat, r_arm, invariant)
+            # The gyro's white noise n on ω̂ × r: the prediction's error [r×] n.
+            arm = skew(r_arm) if aiding == "body" else c @ skew(r_arm)
+            r_j = rmat + arm @ np.diag(q[3:] * imu_dt / dt) @ arm.T
             if dvl_errors is not None:  # z = (1 + k) M v_b + b
                 pred, h = dvl_errors.measurement(pred, h)
+                r_j = rmat + dvl_errors.noise_as_read(r_j - rmat)
             nu = dvl[j] - pred
-            s = h @ p @ h.T + rmat
+            s = h @ p @ h.T + r_j
             gain = p @ h.T @ np.linalg.inv(s)
             ikh = np.eye(n_x) - gain @ h
-            p = ikh @ p @ ikh.T + gain @ rmat @ gain.T
+            p = ikh @ p @ ikh.T + gain @ r_j @ gain.T
             p = (p + p.T) / 2
             dx = -gain @ nu
             feed(dx)

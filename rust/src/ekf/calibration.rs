@@ -24,7 +24,7 @@ use super::state::Matrix15;
 use super::transition::Transition;
 use crate::attitude::{exp_so3, skew};
 use crate::error::{check, Error, Result};
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// The DVL error states: `[δk, δμ, δb]`.
 pub const N_DVL: usize = 7;
@@ -264,6 +264,14 @@ impl Calibration {
             h.fixed_view_mut::<3, 3>(0, BIAS).fill_with_identity();
         }
         (self.estimate.reading(v_b) + self.bias, h)
+    }
+
+    /// A covariance of the body-frame velocity at the DVL \[(m/s)², body\] as the
+    /// reading's \[DVL axes\]: `(1 + k̂)² M̂ Σ M̂ᵀ`, how [`Calibration::measurement`]
+    /// carries a noise on `v_b`.
+    pub fn body_noise_as_read(&self, sigma: &Matrix3<f64>) -> Matrix3<f64> {
+        let (m, gain) = (self.estimate.body_to_dvl, 1.0 + self.estimate.scale);
+        m * sigma * m.transpose() * (gain * gain)
     }
 
     /// Apply `[δk̂, δμ̂, δb̂]` (estimate minus truth): `k̂ ← k̂ − δk̂`,

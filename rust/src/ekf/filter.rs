@@ -37,6 +37,10 @@ pub struct Ekf {
     pub nav: NavState,
     /// Last bias-corrected gyro sample \[rad/s\] (for the lever-arm terms).
     pub(super) last_gyro: Vector3<f64>,
+    /// The variance of that sample's white noise per body axis \[(rad/s)²\] under the
+    /// step's process noise, and the step \[s\] (see [`Ekf::gyro_noise`]).
+    pub(super) last_gyro_variance: Vector3<f64>,
+    pub(super) last_dt: f64,
     pub(super) cfg: FilterConfig,
     /// `M = ∂P/∂λ` and the IMU variances `q` it is taken for (see
     /// [`Ekf::track_sensitivity`]).
@@ -86,6 +90,8 @@ impl Ekf {
             gyro_bias,
             p,
             last_gyro: Vector3::zeros(),
+            last_gyro_variance: Vector3::zeros(),
+            last_dt: 0.0,
             sensitivity: None,
             calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
             sensitivity_calibration: None,
@@ -153,6 +159,21 @@ impl Ekf {
     /// The last bias-corrected gyro sample \[rad/s, body\].
     pub fn last_gyro(&self) -> &Vector3<f64> {
         &self.last_gyro
+    }
+
+    /// The covariance of the white noise on [`Ekf::last_gyro`] \[(rad/s)², body\]
+    /// (diagonal): the gyro's per-sample variance under the last step's process noise,
+    /// `q_g·Δt_imu/Δt` (`Q^c = q·Δt_imu` over a step of `Δt`); zero under a discrete Q
+    /// (Mehra's), which names no channel. With it, the `d_λ` of the same for the IMU
+    /// variances whose scale the sensitivity is carried for
+    /// ([`Ekf::track_sensitivity`]), where it is: what a lever arm's `ω̂ × r` adds to a
+    /// reading's noise, and its derivative.
+    pub fn gyro_noise(&self) -> (Matrix3<f64>, Option<Matrix3<f64>>) {
+        let tracked = self.sensitivity.as_ref().map(|(_, q)| {
+            let white = self.cfg.imu_dt / self.last_dt;
+            Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * white
+        });
+        (Matrix3::from_diagonal(&self.last_gyro_variance), tracked)
     }
 
     /// The bias estimates `[b_a, b_g]`.
@@ -269,6 +290,8 @@ impl Ekf {
         }
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
+        self.last_gyro_variance = noise.gyro_sample_variance(self.cfg.imu_dt, dt);
+        self.last_dt = dt;
         // P changes at every sample, or where a covariance step closes.
         let mut covariance_changed = every_sample;
         let mut closed = None;

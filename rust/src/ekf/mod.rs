@@ -41,7 +41,9 @@ pub use process_noise::ProcessNoise;
 pub use state::{Gain, Matrix15, Row15, Rows3, Vector15, ACC_BIAS, ATT, GYRO_BIAS, NAV, POS, VEL};
 pub use step::{variance_between, CovarianceStep};
 pub use transition::Transition;
-pub use update::{Applied, Linearized, Measurement, ScalarRow, UpdateInfo, VectorRows};
+pub use update::{
+    Applied, Linearized, Measurement, ScalarRow, UpdateInfo, VectorNoise, VectorRows,
+};
 
 #[cfg(test)]
 pub(crate) mod tests;

@@ -58,7 +58,7 @@ pub enum Linearized {
     Vector {
         innovation: Vector3<f64>,
         rows: VectorRows,
-        r: Matrix3<f64>,
+        r: VectorNoise,
         gate: Option<f64>,
     },
     /// A scalar update (never gated) with variance `r`.
@@ -67,6 +67,15 @@ pub enum Linearized {
         row: ScalarRow,
         r: f64,
     },
+}
+
+/// The noise of a 3-vector reading: its covariance R and, where the filter carries the
+/// sensitivity `M = ∂P/∂λ` ([`Ekf::track_sensitivity`]) and R depends on the IMU
+/// variances (a lever arm's `ω̂ × r` reads the gyro's noise), `∂R/∂λ`.
+#[derive(Clone, Copy, Debug)]
+pub struct VectorNoise {
+    pub r: Matrix3<f64>,
+    pub per_scale: Option<Matrix3<f64>>,
 }
 
 /// Result of the joint update of a 3-vector reading (a velocity): what the noise
@@ -157,7 +166,7 @@ impl Ekf {
         name: &str,
         innovation: &Vector3<f64>,
         rows: &VectorRows,
-        r: &Matrix3<f64>,
+        r: &VectorNoise,
         gate: Option<f64>,
     ) -> Result<UpdateInfo> {
         let (info, dx) = match (rows, self.calibration.as_mut()) {
@@ -299,7 +308,9 @@ struct Outcome<const N: usize> {
 /// The EKF update of an `N`-state covariance `p` (and of the sensitivity `m`, if
 /// tracked) by a 3-vector measurement with Jacobian `h`, innovation `ν` and noise `r`:
 /// `S = H P Hᵀ + R`, `K = P Hᵀ S⁻¹`, NIS `νᵀ S⁻¹ ν`; unless the gate rejects it,
-/// `P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ` symmetrized and `M ← (I − K H) M (I − K H)ᵀ`.
+/// `P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ` symmetrized and
+/// `M ← (I − K H) M (I − K H)ᵀ + K (∂R/∂λ) Kᵀ` (the report's sensitivity
+/// `∂S/∂λ = H M Hᵀ + ∂R/∂λ`).
 /// For the 15 states and the 19 with the DVL calibration (N ≥ 15: the report's gain
 /// is the first 15 rows).
 fn kalman_update<const N: usize>(
@@ -307,20 +318,23 @@ fn kalman_update<const N: usize>(
     m: Option<&mut SMatrix<f64, N, N>>,
     h: &SMatrix<f64, 3, N>,
     innovation: &Vector3<f64>,
-    r: &Matrix3<f64>,
+    noise: &VectorNoise,
     gate: Option<f64>,
     name: &str,
 ) -> Result<Outcome<N>> {
     let support = Support::of(h);
     let pht = support.times_transpose(p, h);
-    let s = support.left_times(h, &pht) + r;
+    let s = support.left_times(h, &pht) + noise.r;
     let s_inv = s
         .cholesky()
         .ok_or_else(|| Error::Numerical("innovation covariance S is not positive definite".into()))?
         .inverse();
     let gain: SMatrix<f64, N, 3> = pht * s_inv;
     let mht = m.as_ref().map(|m| support.times_transpose(m, h));
-    let sensitivity = mht.as_ref().map(|mht| support.left_times(h, mht));
+    let sensitivity = mht.as_ref().map(|mht| {
+        let hmh = support.left_times(h, mht);
+        noise.per_scale.map_or(hmh, |dr| hmh + dr)
+    });
     let nis = innovation.dot(&(s_inv * innovation));
     // Checked before anything is applied: a NaN would slip past the gate's `>`.
     if !nis.is_finite() {
@@ -345,9 +359,9 @@ fn kalman_update<const N: usize>(
             dx: None,
         });
     }
-    support.joseph(p, &pht, &gain, h, Some(r));
+    support.joseph(p, &pht, &gain, h, Some(&noise.r));
     if let (Some(m), Some(mht)) = (m, mht) {
-        support.joseph(m, &mht, &gain, h, None);
+        support.joseph(m, &mht, &gain, h, noise.per_scale.as_ref());
     }
     Ok(Outcome {
         info: report,
