@@ -513,8 +513,9 @@ def run_filter(
     span = (start, float(stamps[-1]))
     plausibility.warn_unapplied(given, [s.epoch for s in per_stream], span)
     if warn:
-        accepted = sum(int(s.accepted.sum()) for s in per_stream if s.accepted is not None)
-        plausibility.warn_unfilled_window(strategy.kind, strategy.window, accepted)
+        plausibility.warn_unfilled_window(
+            strategy.kind, strategy.window, accepted_updates(per_stream)
+        )
     _with_adaptive_q(out)
     if epochs == "last":
         out["epoch"] = np.array([len(samples)], dtype=np.int64)
@@ -528,6 +529,13 @@ def run_filter(
     if warn:
         warn_about(health)
     return dataclasses.replace(result, health=health)
+
+
+def accepted_updates(streams: Sequence[StreamResult]) -> int:
+    """The velocity updates a pass applied (its velocity streams' ``accepted`` rows),
+    what fills a Mehra or adaptive strategy's window
+    (:func:`pronet._util.plausibility.unfilled_window`)."""
+    return sum(int(s.accepted.sum()) for s in streams if s.accepted is not None)
 
 
 def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:

@@ -283,3 +283,29 @@ def test_no_still_interval_and_no_ahrs_names_what_the_command_takes(tmp_path, sh
         "give a still interval (still=, --still START,END), an AHRS orientation, or start "
         "from the ground truth where the recording has one (init='truth', --init truth)"
     )
+
+
+def test_a_window_the_pass_never_fills_is_said_on_the_command_line(tmp_path, short, capsys):
+    """``--strategy mehra:2500`` on the 6-minute survey: 2,663 DVL readings (refused
+    above that, as a window that could never fill), but 240 fall before the start levelled
+    from the data, so the pass accepts 2,423 and Mehra never adapts: the pass ran with
+    ``warn=False`` and said nothing of it. Now one line on stderr, in the notes of
+    report.md and of the JSON result, in the warning's words."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "mission")
+    out = tmp_path / "out"
+    code = main([
+        "navigate", "--data", str(folder), "--filter", str(write_vehicle_file(tmp_path, short)),
+        "--strategy", "mehra:2500", "--no-smooth", "--no-plots", "--json", "--out", str(out),
+    ])  # fmt: skip
+    assert code == 0
+    said = capsys.readouterr()
+    line = (
+        "strategy mehra:2500: mehra's window of 2500 velocity updates was never filled "
+        "(2423 accepted in the pass): it ran on its prior q throughout, as a constant "
+        "strategy would; a window shorter than the pass's updates adapts"
+    )
+    assert f"pronet: {line}\n" in said.err
+    assert line in json.loads(said.out)["notes"]
+    assert line in (out / "report.md").read_text()

@@ -325,3 +325,35 @@ def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsy
     assert len(fix) == 1 and fix[0].startswith("section run1: streams[") and " rows: " in fix[0]
     assert "the antenna's lever arm" in fix[0] and f"pronet: {fix[0]}" in err
     assert fix[0] in (out / "table.md").read_text()
+
+
+def test_pronet_real_says_which_row_never_filled_its_window(tmp_path, capsys):
+    """A 60 s section with 61 DVL readings, two of them after the IMU's last sample: the
+    adaptive row's window of 60 could fill (it runs), but the pass accepts 59, so the row
+    is the constant one under another name; its pass runs with ``warn=False`` and
+    nothing said so. Now one line on stderr, in table.md and in config.json's notes."""
+    rec = synthetic_recording(seed=1, duration=60.0).recording
+    late = rec.dvl_time[-1] + np.array([5.0, 6.0])
+    rec = replace(
+        rec,
+        dvl_time=np.append(rec.dvl_time, late),
+        dvl=np.vstack([rec.dvl, rec.dvl[-2:]]),
+    )
+    data = tmp_path / "data"
+    write_recording(data / "run1.npz", rec)
+    out = tmp_path / "out"
+    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
+    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
+    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    config = json.loads((out / "config.json").read_text())
+    assert "adaptive" not in config["rows_not_run"].get("run1", {})
+    (line,) = [n for n in config["notes"] if "never filled" in n]
+    assert line == (
+        "section run1: adaptive's window of 60 velocity updates was never filled (59 "
+        "accepted in the pass): it ran on its prior q throughout, as a constant strategy "
+        "would; a window shorter than the pass's updates adapts (row adaptive; 1 of 9 rows: "
+        "adaptive)"
+    )
+    assert f"pronet: {line}\n" in err and line in (out / "table.md").read_text()

@@ -254,18 +254,26 @@ def imu_period(imu_dt: float, step: float) -> str | None:
     )
 
 
-def warn_unfilled_window(kind: str, window: int | None, accepted: int) -> None:
-    """Warn (:class:`PlausibilityWarning`) of a Mehra or adaptive strategy whose
-    ``window`` of accepted velocity updates the pass never filled (``accepted`` of
-    them): it ran on its prior q throughout, a constant-Q run under another name."""
+def unfilled_window(kind: str, window: int | None, accepted: int) -> str | None:
+    """A Mehra or adaptive strategy (``kind``) whose ``window`` of accepted velocity
+    updates the pass never filled (``accepted`` of them): it ran on its prior q
+    throughout, a constant-Q run under another name. The problem as one line, without
+    the strategy's name (the API's warning says ``strategy``, a command its option or
+    row), or None."""
     if kind not in ("mehra", "adaptive") or window is None or accepted >= window:
-        return
-    problem = (
-        f"strategy: {kind}'s window of {window} velocity updates was never filled "
+        return None
+    return (
+        f"{kind}'s window of {window} velocity updates was never filled "
         f"({accepted} accepted in the pass): it ran on its prior q throughout, as a constant "
         "strategy would; a window shorter than the pass's updates adapts"
     )
-    warnings.warn(problem, PlausibilityWarning, stacklevel=3)
+
+
+def warn_unfilled_window(kind: str, window: int | None, accepted: int) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a Mehra or adaptive strategy whose window
+    the pass never filled (:func:`unfilled_window`), naming the argument ``strategy``."""
+    if (problem := unfilled_window(kind, window, accepted)) is not None:
+        warnings.warn(f"strategy: {problem}", PlausibilityWarning, stacklevel=3)
 
 
 def warn_of_stamps(imu_time: F64, imu_dt: float) -> None:

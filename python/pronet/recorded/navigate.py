@@ -426,13 +426,14 @@ def navigate(
         rpy0=initial.rpy, config=config, smooth=options.smooth, aiding=made.aiding,
     )  # fmt: skip
     try:
-        result = run(made.strategy, recorded).result
+        done = run(made.strategy, recorded)
     except ValueError:  # a numerical failure names itself and its time
         raise
     except NOT_ISOLATED:
         raise
     except Exception as exc:  # e.g. a user's model raising: one line, the cause kept
         raise ValueError(f"strategy {options.strategy!r}: {failure_reason(exc)}") from exc
+    result = done.result
     reference = np.negative(arms.imu)
     forward = solution_of("forward", result, section.epoch, recorded.imu, reference)
     smoothed = None
@@ -441,6 +442,8 @@ def navigate(
     health = _health(section, streams, result)
     reports = health.streams
     notes = list(health.flags)
+    if done.unfilled:  # a constant-Q pass under the strategy's name
+        notes.append(f"strategy {options.strategy}: {done.unfilled}")
     kinds = {"dvl": "dvl", "depth": "depth", "fix": "fix"}
     for name in arms.assumed:
         if any(r.name == kinds[name] for r in reports):
