@@ -90,11 +90,16 @@ class Recorded:
         """:func:`pronet.run_filter` over this stretch: its sensors, initial state,
         tuning, kept epochs and smoothing, with ``strategy`` (a native one; q from
         ``q_time`` [s] on, ``q (k, 6)``, for an external one) and the depth and fixes
-        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it)."""
+        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it),
+        each stream named in the pass's messages and health by its sensor (``"dvl"``,
+        ``"depth"``, ``"fix"``, ``"heading"``: the names ``pronet real`` and ``pronet
+        navigate`` give them; ``streams[i]`` where a kind repeats)."""
+        streams = self.streams(aided=aided)
+        names = [type(s).__name__.lower() for s in streams]
         return run_filter(
             self.imu,
             self.imu_time,
-            self.streams(aided=aided),
+            streams,
             t0=self.t0,
             lla0=self.lla0,
             vel0=self.vel0,
@@ -106,6 +111,7 @@ class Recorded:
             q_time=q_time,
             q=q,
             warn=False,  # its callers report the pass's health their own way
+            names=names if len(set(names)) == len(names) else None,
         )
 
 

@@ -309,3 +309,29 @@ def test_a_window_the_pass_never_fills_is_said_on_the_command_line(tmp_path, sho
     assert f"pronet: {line}\n" in said.err
     assert line in json.loads(said.out)["notes"]
     assert line in (out / "report.md").read_text()
+
+
+def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, short, capsys):
+    """What ``pronet navigate`` says of a stream names the sensor or the file the user
+    gave, not ``run_filter``'s ``streams[i]``: a DVL whose one reading falls before the
+    start levelled from the data ("streams[0] (Dvl): none of its 1 row …"), and a
+    ``--surface-offset`` typed in pascals ("streams[1]: depth row 0 is −101325 m …",
+    which blamed the depth: now the option, and the file its depth came from)."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "mission")
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    dvl = folder / "dvl.csv"
+    dvl.write_text("".join(dvl.read_text().splitlines(keepends=True)[:2]))
+    argv = ["navigate", "--data", str(folder), "--filter", vehicle, "--no-smooth", "--no-plots"]
+    assert main([*argv, "--quiet", "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "pronet: warning: dvl: none of its 1 row (" in err and "streams[" not in err
+    out = tmp_path / "refused"
+    assert main([*argv, "--surface-offset", "101325", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"pronet: --surface-offset: 101325 m taken off {folder / 'depth.csv'}: depth row 0 is "
+        "-101325 m, beyond -10000 … 12000 m (metres, positive down: the deepest ocean is "
+        "11 km); in pascals or another unit?\n"
+    )
+    assert not out.exists()

@@ -321,8 +321,10 @@ def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsy
     assert main([*argv, "--out", str(out)]) == 0
     err = capsys.readouterr().err
     notes = json.loads((out / "config.json").read_text())["notes"]
-    fix = [n for n in notes if "(fix): mean NIS" in n]
-    assert len(fix) == 1 and fix[0].startswith("section run1: streams[") and " rows: " in fix[0]
+    fix = [n for n in notes if "fix: mean NIS" in n]  # the sensor, as navigate names it
+    assert (
+        len(fix) == 1 and fix[0].startswith("section run1: fix: mean NIS") and " rows: " in fix[0]
+    )
     assert "the antenna's lever arm" in fix[0] and f"pronet: {fix[0]}" in err
     assert fix[0] in (out / "table.md").read_text()
 

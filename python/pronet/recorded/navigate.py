@@ -34,7 +34,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pronet import _core
-from pronet._util.plausibility import long_lever_arm
+from pronet._util.plausibility import depth_beyond, long_lever_arm
 from pronet.config import filter_config
 from pronet.filter import FilterResult, Stream
 from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes, tuned, tuned_heading
@@ -135,7 +135,9 @@ def _surface(
     surface_depth: float,
 ) -> tuple[DepthReadings | None, SurfaceOffset | None, float | None]:
     """``depth`` with its surface offset taken off, the offset (None: no depth) and the
-    surface pressure [Pa] it implies where the readings kept their pressure (a bag's)."""
+    surface pressure [Pa] it implies where the readings kept their pressure (a bag's);
+    ValueError naming ``surface_offset`` and the depth's file or topic where a given
+    offset takes a depth beyond the ocean (in pascals?), as the readers name a row."""
     if depth is None:
         return None, None, None
     fix_time = np.empty(0) if fixes is None else fixes.time
@@ -147,6 +149,9 @@ def _surface(
         pa = s.pressure(reference, depth.water_density)
     if s.offset != 0.0:
         depth = dataclasses.replace(depth, depth=depth.depth - s.offset)
+        where = f"surface_offset: {s.offset:g} m taken off {depth.source or 'the depth'}"
+        if (beyond := depth_beyond(depth.depth, where)) is not None:
+            raise ValueError(beyond)
     return depth, s, pa
 
 
