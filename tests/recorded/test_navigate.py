@@ -335,3 +335,45 @@ def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, shor
         "11 km); in pascals or another unit?\n"
     )
     assert not out.exists()
+
+
+def test_config_json_records_the_clocks_applied(tmp_path, short) -> None:
+    """``config.json`` did not say which clocks navigate put the streams on: a recording
+    with a ground truth has its truth's and its DVL's clocks estimated (stamps 0.45 s and
+    1 s off, a scale 0.25 % short: the synthetic recording's), one without keeps its
+    stamps (the DVL's assumed, no truth). Now recorded as ``pronet real`` records them,
+    with how each was found."""
+    from pronet.cli import main
+    from pronet.recorded.recordings import write_recording
+
+    from synthetic_recording import (
+        DVL_CLOCK,
+        DVL_LEVER_ARM,
+        GT_CLOCK,
+        IMU_LEVER_ARM,
+        synthetic_recording,
+    )
+
+    data = write_recording(
+        tmp_path / "run1.npz", synthetic_recording(seed=1, duration=70.0).recording
+    )
+    arms = [
+        f"--{s}-lever-arm=" + ",".join(map(str, a))
+        for s, a in (("imu", IMU_LEVER_ARM), ("dvl", DVL_LEVER_ARM))
+    ]
+    argv = ["navigate", "--init", "truth", *arms, "--no-plots", "--quiet", "--no-smooth"]
+    assert main([*argv, "--data", str(data), "--out", str(tmp_path / "truth")]) == 0
+    clocks = json.loads((tmp_path / "truth" / "config.json").read_text())["clocks"]
+    assert clocks["how"] == {"gt": "estimated", "dvl": "estimated"}
+    assert clocks["gt"] == pytest.approx([GT_CLOCK.offset, GT_CLOCK.scale], abs=0.01)
+    assert clocks["dvl"] == pytest.approx([DVL_CLOCK.offset, DVL_CLOCK.scale], abs=0.1)
+    assert clocks["aiding"] == [0.0, 1.0] and clocks["epoch_s"] == pytest.approx(0.01)
+    folder = write_generic(short, tmp_path / "mission")
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    argv = ["navigate", "--filter", vehicle, "--no-plots", "--quiet", "--no-smooth"]
+    assert main([*argv, "--data", str(folder), "--out", str(tmp_path / "none")]) == 0
+    clocks = json.loads((tmp_path / "none" / "config.json").read_text())["clocks"]
+    assert clocks == {
+        "epoch_s": short.imu_time[0], "gt": [0.0, 1.0], "dvl": [0.0, 1.0],
+        "aiding": [0.0, 1.0], "how": {"gt": "none", "dvl": "assumed"},
+    }  # fmt: skip

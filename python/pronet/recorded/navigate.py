@@ -46,6 +46,7 @@ from pronet.recorded.metrics import section_metrics
 from pronet.recorded.passes import NOT_ISOLATED, failure_reason, start_index
 from pronet.recorded.solution import F64, InitialState, Navigation, solution_of
 from pronet.recorded.surface import G0, SurfaceOffset, surface_offset
+from pronet.recorded.tables import clocks_record
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.recorded.vehicle import VehicleTuning, surface_depth_problem
 from pronet.run import Recorded, run
@@ -494,8 +495,10 @@ def _config_json(
     streams: Streams,
     initial: InitialState,
 ) -> dict[str, Any]:
-    """What a ``config.json`` says: the recording, the tuning, the arms, the streams
-    used, the surface reference, the initial state's methods, the strategy, versions."""
+    """What a ``config.json`` says: the recording, the clocks applied to its streams
+    (estimated against a ground truth, else as given or assumed), the tuning, the arms,
+    the streams used, the surface reference, the initial state's methods, the strategy,
+    versions."""
     surface = streams.surface
     used = {
         "dvl": bool(len(streams.dvl)),
@@ -505,6 +508,7 @@ def _config_json(
     }
     return {
         "recording": {"name": section.name, "epoch": section.epoch},
+        "clocks": clocks_record(section),
         "vehicle": vehicle.source,
         "filter": _filter_keys(config),
         "lever_arms": dataclasses.asdict(arms),
