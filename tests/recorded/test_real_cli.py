@@ -303,6 +303,18 @@ def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path
         smoothed_run(aligned, done)
 
 
+def _real_quietly(tmp_path, rec):
+    """``pronet real`` (no models, no plots, quiet) on ``rec`` written as section run1,
+    the synthetic recording's lever arms; its result folder."""
+    data, out = tmp_path / "data", tmp_path / "out"
+    write_recording(data / "run1.npz", rec)
+    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
+    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
+    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
+    assert main([*argv, "--out", str(out)]) == 0
+    return out
+
+
 def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsys):
     """Every fix 300 m north of the vehicle (inside the readers' 1 km check): each
     section's fix stream is named once on stderr with its NIS and causes, the rows that
@@ -312,13 +324,7 @@ def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsy
     north = pronet.lla_from_ned(np.tile([300.0, 0.0, 0.0], (len(rec.fixes.time), 1)),
                                 rec.fixes.lla[0])  # fmt: skip
     moved = rec.fixes.lla + (north - rec.fixes.lla[0]) * [1.0, 1.0, 0.0]
-    data = tmp_path / "data"
-    write_recording(data / "run1.npz", replace(rec, fixes=replace(rec.fixes, lla=moved)))
-    out = tmp_path / "out"
-    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
-    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
-    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
-    assert main([*argv, "--out", str(out)]) == 0
+    out = _real_quietly(tmp_path, replace(rec, fixes=replace(rec.fixes, lla=moved)))
     err = capsys.readouterr().err
     notes = json.loads((out / "config.json").read_text())["notes"]
     fix = [n for n in notes if "fix: mean NIS" in n]  # the sensor, as navigate names it
@@ -341,13 +347,7 @@ def test_pronet_real_says_which_row_never_filled_its_window(tmp_path, capsys):
         dvl_time=np.append(rec.dvl_time, late),
         dvl=np.vstack([rec.dvl, rec.dvl[-2:]]),
     )
-    data = tmp_path / "data"
-    write_recording(data / "run1.npz", rec)
-    out = tmp_path / "out"
-    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
-    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
-    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
-    assert main([*argv, "--out", str(out)]) == 0
+    out = _real_quietly(tmp_path, rec)
     err = capsys.readouterr().err
     config = json.loads((out / "config.json").read_text())
     assert "adaptive" not in config["rows_not_run"].get("run1", {})
