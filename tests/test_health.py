@@ -436,7 +436,7 @@ def test_pronet_real_notes_a_heading_sigma_past_5_degrees_once_per_section() -> 
 
     def run(section: str, label: str, heading: str) -> SimpleNamespace:
         result = SimpleNamespace(health=PassHealth(heading=heading))
-        return SimpleNamespace(section=section, label=label, result=result)
+        return SimpleNamespace(section=section, label=label, result=result, unfilled=None)
 
     runs: list[Any] = [
         run("a", "constant", said), run("a", "constant, smoothed", said),
