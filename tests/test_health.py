@@ -6,6 +6,7 @@ degrees is refused when its stream is made.)"""
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import warnings
@@ -435,7 +436,7 @@ def test_pronet_real_notes_a_heading_sigma_past_5_degrees_once_per_section() -> 
 
     def run(section: str, label: str, heading: str) -> SimpleNamespace:
         result = SimpleNamespace(health=PassHealth(heading=heading))
-        return SimpleNamespace(section=section, label=label, result=result)
+        return SimpleNamespace(section=section, label=label, result=result, unfilled=None)
 
     runs: list[Any] = [
         run("a", "constant", said), run("a", "constant, smoothed", said),
@@ -571,3 +572,31 @@ def test_an_initial_attitude_in_degrees_is_refused_by_name() -> None:
             pronet.run_filter(traj.imu[:n], traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0],
                               vel0=traj.vel_ned[0], rpy0=rpy0,
                               strategy=pronet.Strategy.constant(Q))  # fmt: skip
+
+
+def test_names_name_the_streams_in_the_checks_warnings_and_health() -> None:
+    """``names``: a caller's own names for its streams (a command's "dvl", a file)
+    replace ``streams[i]`` in the depth check, the warning of a stream outside the run
+    and the health's lines; the default keeps ``streams[i]``; a wrong count is refused."""
+    from pronet import PlausibilityWarning
+
+    streams, _ = _streams(np.random.default_rng(0))
+    traj = pronet.builtin_trajectory("paper")
+    n = int(SECONDS * 100)
+    run = functools.partial(
+        pronet.run_filter, traj.imu[:n], traj.time[1 : n + 1], t0=0.0, lla0=traj.lla[0],
+        vel0=traj.vel_ned[0], rpy0=traj.rpy[0], strategy=pronet.Strategy.constant(Q),
+        warn=False,
+    )  # fmt: skip
+    late = pronet.Heading(np.array([SECONDS + 10.0]), np.array([0.1]), sigma=0.1)
+    with pytest.warns(PlausibilityWarning, match=r"^heading\.csv: none of its 1 row \("):
+        out = run([streams[0], late], names=["port dvl", "heading.csv"])
+    assert [r.name for r in out.health.streams] == ["port dvl", "heading.csv"]
+    with pytest.warns(PlausibilityWarning, match=r"^streams\[1\] \(Heading\): none of its"):
+        out = run([streams[0], late])
+    assert [r.name for r in out.health.streams] == ["streams[0] (dvl)", "streams[1] (heading)"]
+    pascals = pronet.Depth(np.arange(1.0, 30.0), np.full(29, 150_000.0), sigma=0.1)
+    with pytest.raises(ValueError, match=r"^depth\.csv: depth row 0 is 150000 m, beyond"):
+        run([streams[0], pascals], names=["dvl", "depth.csv"])
+    with pytest.raises(ValueError, match=r"^names: expected 2 non-empty strings, one per"):
+        run([streams[0], late], names=["dvl"])

@@ -330,6 +330,7 @@ def run_filter(
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
     warn: bool = True,
+    names: Sequence[str] | None = None,
 ) -> FilterResult: ...
 
 
@@ -355,6 +356,7 @@ def run_filter(  # deprecated: the arrays before streams
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
     warn: bool = True,
+    names: Sequence[str] | None = None,
     depth: ArrayLike | None = None,
     depth_time: ArrayLike | None = None,
     depth_sigma: float | None = None,
@@ -383,6 +385,7 @@ def run_filter(
     covariance_time: ArrayLike | None = None,
     smooth: bool = False,
     warn: bool = True,
+    names: Sequence[str] | None = None,
     **deprecated_keywords: Any,
 ) -> FilterResult:
     """Run the INS error-state EKF over IMU arrays and aiding sensors' streams.
@@ -446,6 +449,10 @@ def run_filter(
         warn: a :class:`pronet.stats.FilterHealthWarning` for each line of
             :attr:`FilterResult.health` (a stream out of its NIS band, a gate that
             rejected most of a stream, a diverged solution); False: the lines only there.
+        names: each stream's name in this pass's messages and :attr:`FilterResult.health`,
+            one per stream: the sensor, topic or file its user knows it by (``pronet real``
+            and ``pronet navigate`` give ``"dvl"``, ``"depth"``, …). None (the default):
+            ``streams[i]``.
 
     Refused before any computation, as a slip of unit or frame (a ``ValueError`` naming
     the argument; :mod:`pronet._util.plausibility` has the bounds and why): ``t0`` more
@@ -481,11 +488,12 @@ def run_filter(
     smooth = flag(smooth, "smooth")
     warn = flag(warn, "warn")
     given = _stream_list(streams)
+    named = _names(names, len(given))
     samples, stamps = float_array(imu, "imu", (None, 6)), float_array(imu_time, "imu_time", (None,))
     start, attitude = scalar(t0, "t0"), float_array(rpy0, "rpy0", (3,))
-    plausibility.check_pass(samples, stamps, start, attitude, given)
+    plausibility.check_pass(samples, stamps, start, attitude, given, named)
     if warn:  # a caller that says the pass's findings its own way has checked these
-        plausibility.long_lever_arms(config.lever_arm, given)
+        plausibility.long_lever_arms(config.lever_arm, given, named)
         plausibility.warn_of_stamps(stamps, config.imu_dt)
     out = _core.run_filter(
         samples,
@@ -511,10 +519,11 @@ def run_filter(
     )
     per_stream = tuple(StreamResult(**_with_adaptive_q(d)) for d in out.pop("streams"))
     span = (start, float(stamps[-1]))
-    plausibility.warn_unapplied(given, [s.epoch for s in per_stream], span)
+    plausibility.warn_unapplied(given, [s.epoch for s in per_stream], span, named)
     if warn:
-        accepted = sum(int(s.accepted.sum()) for s in per_stream if s.accepted is not None)
-        plausibility.warn_unfilled_window(strategy.kind, strategy.window, accepted)
+        plausibility.warn_unfilled_window(
+            strategy.kind, strategy.window, accepted_updates(per_stream)
+        )
     _with_adaptive_q(out)
     if epochs == "last":
         out["epoch"] = np.array([len(samples)], dtype=np.int64)
@@ -523,11 +532,20 @@ def run_filter(
         smoothed = SmoothedResult(time=out["time"], epoch=out["epoch"], **smoothed)
     result = FilterResult(**out, smoothed=smoothed, streams=per_stream)
     sources = sources_of(given, [r.kind for r in per_stream])
+    if named is not None:
+        sources = [dataclasses.replace(s, name=n) for s, n in zip(sources, named, strict=True)]
     health = pass_health(per_stream, sources, lla=result.lla, vel=result.vel,
                          sigma=result.sigma, time=result.time, extent=extent)  # fmt: skip
     if warn:
         warn_about(health)
     return dataclasses.replace(result, health=health)
+
+
+def accepted_updates(streams: Sequence[StreamResult]) -> int:
+    """The velocity updates a pass applied (its velocity streams' ``accepted`` rows),
+    what fills a Mehra or adaptive strategy's window
+    (:func:`pronet._util.plausibility.unfilled_window`)."""
+    return sum(int(s.accepted.sum()) for s in streams if s.accepted is not None)
 
 
 def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:
@@ -536,6 +554,22 @@ def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:
     if "adaptive_q" in out and out["adaptive_q"] is None:
         out["adaptive_q"] = np.broadcast_to(np.nan, (len(out["nis"]), 15, 15))
     return out
+
+
+def _names(names: object, count: int) -> list[str] | None:
+    """``names`` as a list of ``count`` strings (None stays None), or ``ValueError``
+    naming the argument."""
+    if names is None:
+        return None
+    if not isinstance(names, Sequence) or isinstance(names, str | bytes):
+        raise ValueError(
+            f"names: expected a sequence of strings, one per stream, got {type(names).__name__}"
+        )
+    if len(names) != count or not all(isinstance(n, str) and n for n in names):
+        raise ValueError(
+            f"names: expected {count} non-empty strings, one per stream, got {list(names)!r}"
+        )
+    return list(names)
 
 
 def _stream_list(streams: object) -> list[Stream]:

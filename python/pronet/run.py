@@ -27,8 +27,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pronet import _core
+from pronet._util.plausibility import unfilled_window
 from pronet._util.validate import flag
-from pronet.filter import FilterResult, Stream, run_filter
+from pronet.filter import FilterResult, Stream, accepted_updates, run_filter
 from pronet.learn.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.shards import ShardStore
@@ -89,11 +90,16 @@ class Recorded:
         """:func:`pronet.run_filter` over this stretch: its sensors, initial state,
         tuning, kept epochs and smoothing, with ``strategy`` (a native one; q from
         ``q_time`` [s] on, ``q (k, 6)``, for an external one) and the depth and fixes
-        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it)."""
+        of ``aiding`` (``aided=False``: the DVL alone, as the torch filter sees it),
+        each stream named in the pass's messages and health by its sensor (``"dvl"``,
+        ``"depth"``, ``"fix"``, ``"heading"``: the names ``pronet real`` and ``pronet
+        navigate`` give them; ``streams[i]`` where a kind repeats)."""
+        streams = self.streams(aided=aided)
+        names = [type(s).__name__.lower() for s in streams]
         return run_filter(
             self.imu,
             self.imu_time,
-            self.streams(aided=aided),
+            streams,
             t0=self.t0,
             lla0=self.lla0,
             vel0=self.vel0,
@@ -105,6 +111,7 @@ class Recorded:
             q_time=q_time,
             q=q,
             warn=False,  # its callers report the pass's health their own way
+            names=names if len(set(names)) == len(names) else None,
         )
 
 
@@ -122,13 +129,17 @@ class SimulatedRun:
 @dataclass(frozen=True)
 class RecordedRun:
     """A strategy's filter pass over recorded sensors: the filter output, the learned
-    q schedule and tuning period [s] (None for native strategies) and the wall time
-    [s], inference included."""
+    q schedule and tuning period [s] (None for native strategies), the wall time
+    [s], inference included, and, for a Mehra or adaptive strategy whose window the
+    pass never filled, the line that says so
+    (:func:`pronet._util.plausibility.unfilled_window`: the pass runs with
+    ``warn=False``, its callers report it their own way)."""
 
     result: FilterResult
     schedule: QSchedule | None
     seconds: float
     tuning_period: float | None = None
+    unfilled: str | None = None
 
 
 @overload
@@ -254,7 +265,7 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
     schedule, period = None, None
     q_time: F64 | None = None
     q: F64 | None = None
-    core_strategy = strategy
+    core_strategy, _ = native_of(strategy)
     if isinstance(strategy, Learned):
         period = strategy.tuning_period
         own = getattr(strategy.regressor, "recorded_schedule", None)
@@ -268,11 +279,12 @@ def _recorded(strategy: StrategyLike, rec: Recorded) -> RecordedRun:
                 prior_q=strategy.prior_q,
                 tuning_period=strategy.tuning_period,
             )
-        core_strategy, _ = native_of(strategy)
         if len(schedule.time):
             q_time, q = schedule.time, schedule.q
-    result = rec.filter(core_strategy, q_time, q)  # type: ignore[arg-type]
-    return RecordedRun(result, schedule, time.perf_counter() - start, period)
+    result = rec.filter(core_strategy, q_time, q)
+    kind, window = core_strategy.kind, core_strategy.window
+    unfilled = unfilled_window(kind, window, accepted_updates(result.streams))
+    return RecordedRun(result, schedule, time.perf_counter() - start, period, unfilled)
 
 
 def native_of(strategy: StrategyLike) -> tuple[_core.Strategy, Learned | None]:

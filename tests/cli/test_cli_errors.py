@@ -65,6 +65,34 @@ def test_out_below_a_file_is_refused_before_any_work(tmp_path, scenario, no_work
     assert line.startswith("pronet: --out: ") and "is a file, not a folder" in line
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["navigate", "--data", "rec"],
+        ["real", "--data", "rec"],
+        ["reproduce"],
+        ["simulate"],
+        ["study"],
+        ["sweep"],
+        ["dataset"],
+        ["train"],
+    ],
+)
+def test_an_empty_out_is_refused_not_taken_for_the_default(command, monkeypatch, capsys):
+    """``--out ''`` (an unset shell variable): ``navigate`` and the experiment commands
+    wrote to ``results/<command>-<time>``, ``train`` to ``models/``, without a word;
+    refused in one line naming the option, before the command runs at all."""
+    for module in cli.COMMANDS:  # no command's handler may start
+        monkeypatch.setattr(module, "run", lambda args: pytest.fail("the command ran"))
+    with pytest.raises(SystemExit) as refused:
+        cli.main([*command, "--out", ""])
+    assert refused.value.code == 2
+    assert one_line(capsys) == (
+        f"pronet: --out: expected a path, got ''; leave the option out for its default "
+        f"(see pronet {command[0]} --help)"
+    )
+
+
 def test_an_existing_out_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):
     (tmp_path / "res").mkdir()
     assert cli.main(simulate(scenario, tmp_path / "res")) == 2

@@ -283,8 +283,8 @@ def test_frame_and_origin_slips_in_a_bag_are_named(tmp_path, capsys):
     assert "a body frame read as the other (FLU as FRD)" in err
     code, err, notes = run("right", *right)
     assert code == 0 and "roll is beyond" not in err
-    assert not [n for n in notes if "(dvl): mean NIS" in n and "above its 95 % band" in n]
+    assert not [n for n in notes if ": dvl: mean NIS" in n and "above its 95 % band" in n]
     radians = ",".join(repr(float(v)) for v in (np.radians(o[0]), np.radians(o[1]), o[2]))
     code, err, notes = run("radians", "--origin", radians)
-    above = [n for n in notes if "(dvl): mean NIS" in n and "above its 95 % band" in n]
+    above = [n for n in notes if ": dvl: mean NIS" in n and "above its 95 % band" in n]
     assert code == 0 and len(above) == 1 and above[0] in err

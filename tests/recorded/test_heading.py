@@ -150,6 +150,10 @@ def _yaw_rows(rec, factor=1.0, offset=0.0, sigma="0.02") -> str:
         (lambda r: "time [s],heading [rad],sigma [rad]\n" + _yaw_rows(r, 1.0, math.pi / 2),
          r"heading\.csv: the heading lies a median \d+\.?\d*° from the ground truth's yaw \(at "
          r"most 30°\); magnetic without its declination, a yaw from east"),
+        # a median rounded to the bound: the figure once ("median 30° (at most 30°)")
+        (lambda r: "time [s],heading [rad],sigma [rad]\n" + _yaw_rows(r, 1.0, 0.524),
+         r"heading\.csv: the heading lies a median just over 30° \(the most accepted\) from "
+         r"the ground truth's yaw; magnetic without its declination, a yaw from east"),
     ],
 )  # fmt: skip
 def test_a_bad_heading_table_is_one_line_naming_file_and_column(tmp_path, rec, text, message):

@@ -283,3 +283,97 @@ def test_no_still_interval_and_no_ahrs_names_what_the_command_takes(tmp_path, sh
         "give a still interval (still=, --still START,END), an AHRS orientation, or start "
         "from the ground truth where the recording has one (init='truth', --init truth)"
     )
+
+
+def test_a_window_the_pass_never_fills_is_said_on_the_command_line(tmp_path, short, capsys):
+    """``--strategy mehra:2500`` on the 6-minute survey: 2,663 DVL readings (refused
+    above that, as a window that could never fill), but 240 fall before the start levelled
+    from the data, so the pass accepts 2,423 and Mehra never adapts: the pass ran with
+    ``warn=False`` and said nothing of it. Now one line on stderr, in the notes of
+    report.md and of the JSON result, in the warning's words."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "mission")
+    out = tmp_path / "out"
+    code = main([
+        "navigate", "--data", str(folder), "--filter", str(write_vehicle_file(tmp_path, short)),
+        "--strategy", "mehra:2500", "--no-smooth", "--no-plots", "--json", "--out", str(out),
+    ])  # fmt: skip
+    assert code == 0
+    said = capsys.readouterr()
+    line = (
+        "strategy mehra:2500: mehra's window of 2500 velocity updates was never filled "
+        "(2423 accepted in the pass): it ran on its prior q throughout, as a constant "
+        "strategy would; a window shorter than the pass's updates adapts"
+    )
+    assert f"pronet: {line}\n" in said.err
+    assert line in json.loads(said.out)["notes"]
+    assert line in (out / "report.md").read_text()
+
+
+def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, short, capsys):
+    """What ``pronet navigate`` says of a stream names the sensor or the file the user
+    gave, not ``run_filter``'s ``streams[i]``: a DVL whose one reading falls before the
+    start levelled from the data ("streams[0] (Dvl): none of its 1 row …"), and a
+    ``--surface-offset`` typed in pascals ("streams[1]: depth row 0 is −101325 m …",
+    which blamed the depth: now the option, and the file its depth came from)."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "mission")
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    dvl = folder / "dvl.csv"
+    dvl.write_text("".join(dvl.read_text().splitlines(keepends=True)[:2]))
+    argv = ["navigate", "--data", str(folder), "--filter", vehicle, "--no-smooth", "--no-plots"]
+    assert main([*argv, "--quiet", "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "pronet: warning: dvl: none of its 1 row (" in err and "streams[" not in err
+    out = tmp_path / "refused"
+    assert main([*argv, "--surface-offset", "101325", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == (
+        f"pronet: --surface-offset: 101325 m taken off {folder / 'depth.csv'}: depth row 0 is "
+        "-101325 m, beyond -10000 … 12000 m (metres, positive down: the deepest ocean is "
+        "11 km); in pascals or another unit?\n"
+    )
+    assert not out.exists()
+
+
+def test_config_json_records_the_clocks_applied(tmp_path, short) -> None:
+    """``config.json`` did not say which clocks navigate put the streams on: a recording
+    with a ground truth has its truth's and its DVL's clocks estimated (stamps 0.45 s and
+    1 s off, a scale 0.25 % short: the synthetic recording's), one without keeps its
+    stamps (the DVL's assumed, no truth). Now recorded as ``pronet real`` records them,
+    with how each was found."""
+    from pronet.cli import main
+    from pronet.recorded.recordings import write_recording
+
+    from synthetic_recording import (
+        DVL_CLOCK,
+        DVL_LEVER_ARM,
+        GT_CLOCK,
+        IMU_LEVER_ARM,
+        synthetic_recording,
+    )
+
+    data = write_recording(
+        tmp_path / "run1.npz", synthetic_recording(seed=1, duration=70.0).recording
+    )
+    arms = [
+        f"--{s}-lever-arm=" + ",".join(map(str, a))
+        for s, a in (("imu", IMU_LEVER_ARM), ("dvl", DVL_LEVER_ARM))
+    ]
+    argv = ["navigate", "--init", "truth", *arms, "--no-plots", "--quiet", "--no-smooth"]
+    assert main([*argv, "--data", str(data), "--out", str(tmp_path / "truth")]) == 0
+    clocks = json.loads((tmp_path / "truth" / "config.json").read_text())["clocks"]
+    assert clocks["how"] == {"gt": "estimated", "dvl": "estimated"}
+    assert clocks["gt"] == pytest.approx([GT_CLOCK.offset, GT_CLOCK.scale], abs=0.01)
+    assert clocks["dvl"] == pytest.approx([DVL_CLOCK.offset, DVL_CLOCK.scale], abs=0.1)
+    assert clocks["aiding"] == [0.0, 1.0] and clocks["epoch_s"] == pytest.approx(0.01)
+    folder = write_generic(short, tmp_path / "mission")
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    argv = ["navigate", "--filter", vehicle, "--no-plots", "--quiet", "--no-smooth"]
+    assert main([*argv, "--data", str(folder), "--out", str(tmp_path / "none")]) == 0
+    clocks = json.loads((tmp_path / "none" / "config.json").read_text())["clocks"]
+    assert clocks == {
+        "epoch_s": short.imu_time[0], "gt": [0.0, 1.0], "dvl": [0.0, 1.0],
+        "aiding": [0.0, 1.0], "how": {"gt": "none", "dvl": "assumed"},
+    }  # fmt: skip

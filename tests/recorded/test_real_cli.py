@@ -303,6 +303,18 @@ def test_pronet_real_smooth_adds_a_smoothed_row_after_each_strategy_row(tmp_path
         smoothed_run(aligned, done)
 
 
+def _real_quietly(tmp_path, rec):
+    """``pronet real`` (no models, no plots, quiet) on ``rec`` written as section run1,
+    the synthetic recording's lever arms; its result folder."""
+    data, out = tmp_path / "data", tmp_path / "out"
+    write_recording(data / "run1.npz", rec)
+    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
+    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
+    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
+    assert main([*argv, "--out", str(out)]) == 0
+    return out
+
+
 def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsys):
     """Every fix 300 m north of the vehicle (inside the readers' 1 km check): each
     section's fix stream is named once on stderr with its NIS and causes, the rows that
@@ -312,16 +324,38 @@ def test_pronet_real_says_which_stream_the_filters_know_is_wrong(tmp_path, capsy
     north = pronet.lla_from_ned(np.tile([300.0, 0.0, 0.0], (len(rec.fixes.time), 1)),
                                 rec.fixes.lla[0])  # fmt: skip
     moved = rec.fixes.lla + (north - rec.fixes.lla[0]) * [1.0, 1.0, 0.0]
-    data = tmp_path / "data"
-    write_recording(data / "run1.npz", replace(rec, fixes=replace(rec.fixes, lla=moved)))
-    out = tmp_path / "out"
-    arm = "--imu-lever-arm=" + ",".join(map(str, IMU_LEVER_ARM))
-    argv = ["real", "--data", str(data), "--format", "generic", "--quiet", "--no-plots"]
-    argv += ["--no-models", arm, "--dvl-lever-arm=" + ",".join(map(str, DVL_LEVER_ARM))]
-    assert main([*argv, "--out", str(out)]) == 0
+    out = _real_quietly(tmp_path, replace(rec, fixes=replace(rec.fixes, lla=moved)))
     err = capsys.readouterr().err
     notes = json.loads((out / "config.json").read_text())["notes"]
-    fix = [n for n in notes if "(fix): mean NIS" in n]
-    assert len(fix) == 1 and fix[0].startswith("section run1: streams[") and " rows: " in fix[0]
+    fix = [n for n in notes if "fix: mean NIS" in n]  # the sensor, as navigate names it
+    assert (
+        len(fix) == 1 and fix[0].startswith("section run1: fix: mean NIS") and " rows: " in fix[0]
+    )
     assert "the antenna's lever arm" in fix[0] and f"pronet: {fix[0]}" in err
     assert fix[0] in (out / "table.md").read_text()
+
+
+def test_pronet_real_says_which_row_never_filled_its_window(tmp_path, capsys):
+    """A 60 s section with 61 DVL readings, two of them after the IMU's last sample: the
+    adaptive row's window of 60 could fill (it runs), but the pass accepts 59, so the row
+    is the constant one under another name; its pass runs with ``warn=False`` and
+    nothing said so. Now one line on stderr, in table.md and in config.json's notes."""
+    rec = synthetic_recording(seed=1, duration=60.0).recording
+    late = rec.dvl_time[-1] + np.array([5.0, 6.0])
+    rec = replace(
+        rec,
+        dvl_time=np.append(rec.dvl_time, late),
+        dvl=np.vstack([rec.dvl, rec.dvl[-2:]]),
+    )
+    out = _real_quietly(tmp_path, rec)
+    err = capsys.readouterr().err
+    config = json.loads((out / "config.json").read_text())
+    assert "adaptive" not in config["rows_not_run"].get("run1", {})
+    (line,) = [n for n in config["notes"] if "never filled" in n]
+    assert line == (
+        "section run1: adaptive's window of 60 velocity updates was never filled (59 "
+        "accepted in the pass): it ran on its prior q throughout, as a constant strategy "
+        "would; a window shorter than the pass's updates adapts (row adaptive; 1 of 9 rows: "
+        "adaptive)"
+    )
+    assert f"pronet: {line}\n" in err and line in (out / "table.md").read_text()

@@ -254,18 +254,26 @@ def imu_period(imu_dt: float, step: float) -> str | None:
     )
 
 
-def warn_unfilled_window(kind: str, window: int | None, accepted: int) -> None:
-    """Warn (:class:`PlausibilityWarning`) of a Mehra or adaptive strategy whose
-    ``window`` of accepted velocity updates the pass never filled (``accepted`` of
-    them): it ran on its prior q throughout, a constant-Q run under another name."""
+def unfilled_window(kind: str, window: int | None, accepted: int) -> str | None:
+    """A Mehra or adaptive strategy (``kind``) whose ``window`` of accepted velocity
+    updates the pass never filled (``accepted`` of them): it ran on its prior q
+    throughout, a constant-Q run under another name. The problem as one line, without
+    the strategy's name (the API's warning says ``strategy``, a command its option or
+    row), or None."""
     if kind not in ("mehra", "adaptive") or window is None or accepted >= window:
-        return
-    problem = (
-        f"strategy: {kind}'s window of {window} velocity updates was never filled "
+        return None
+    return (
+        f"{kind}'s window of {window} velocity updates was never filled "
         f"({accepted} accepted in the pass): it ran on its prior q throughout, as a constant "
         "strategy would; a window shorter than the pass's updates adapts"
     )
-    warnings.warn(problem, PlausibilityWarning, stacklevel=3)
+
+
+def warn_unfilled_window(kind: str, window: int | None, accepted: int) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a Mehra or adaptive strategy whose window
+    the pass never filled (:func:`unfilled_window`), naming the argument ``strategy``."""
+    if (problem := unfilled_window(kind, window, accepted)) is not None:
+        warnings.warn(f"strategy: {problem}", PlausibilityWarning, stacklevel=3)
 
 
 def warn_of_stamps(imu_time: F64, imu_dt: float) -> None:
@@ -288,9 +296,17 @@ def warn_of_stamps(imu_time: F64, imu_dt: float) -> None:
             warnings.warn(problem, PlausibilityWarning, stacklevel=3)
 
 
-def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[Any]) -> None:
+def check_pass(
+    imu: F64,
+    imu_time: F64,
+    t0: float,
+    rpy0: F64,
+    streams: Sequence[Any],
+    names: Sequence[str] | None = None,
+) -> None:
     """The plausibility of a filter pass's inputs (:func:`pronet.run_filter`'s, checked
-    for shape): ``ValueError`` with the first problem, naming its argument."""
+    for shape): ``ValueError`` with the first problem, naming its argument (a stream by
+    its ``names`` entry, else ``streams[i]``)."""
     finite = all(np.isfinite(a).all() for a in (imu, imu_time, rpy0, t0))
     if not (len(imu) and len(imu) == len(imu_time) and finite):
         return  # the core names the argument
@@ -303,19 +319,21 @@ def check_pass(imu: F64, imu_time: F64, t0: float, rpy0: F64, streams: Sequence[
         )
         for i, s in enumerate(streams):
             if problem is None and isinstance(s, _core.Depth):
-                problem = depth_beyond(s.depth, f"streams[{i}]")
+                problem = depth_beyond(s.depth, names[i] if names else f"streams[{i}]")
     if problem is not None:
         raise ValueError(problem)
 
 
-def long_lever_arms(dvl: Sequence[float], streams: Sequence[Any]) -> None:
+def long_lever_arms(
+    dvl: Sequence[float], streams: Sequence[Any], names: Sequence[str] | None = None
+) -> None:
     """Warn of each lever arm of a pass beyond :data:`LONG_LEVER_ARM`: the config's DVL
-    arm ``dvl`` and each stream's own."""
+    arm ``dvl`` and each stream's own (named by ``names``, else ``streams[i]``)."""
     long_lever_arm(dvl, "config.lever_arm")
     for i, s in enumerate(streams):
         # a DVL's None: the config's; a heading has none
         if (arm := getattr(s, "lever_arm", None)) is not None:
-            long_lever_arm(arm, f"streams[{i}].lever_arm")
+            long_lever_arm(arm, f"{names[i] if names else f'streams[{i}]'}.lever_arm")
 
 
 def check_imu_start(imu: F64, imu_time: F64, rpy0: F64) -> None:
@@ -335,16 +353,21 @@ def check_imu_start(imu: F64, imu_time: F64, rpy0: F64) -> None:
 
 
 def warn_unapplied(
-    streams: Sequence[Any], epochs: Sequence[NDArray[np.int64]], span: tuple[float, float]
+    streams: Sequence[Any],
+    epochs: Sequence[NDArray[np.int64]],
+    span: tuple[float, float],
+    names: Sequence[str] | None = None,
 ) -> None:
     """Warn (:class:`PlausibilityWarning`) of each stream with rows none of which fell
     within the run (``epochs``: each stream's epoch per row, -1 outside; ``span``: the
-    run's first and last epoch times [s])."""
+    run's first and last epoch times [s]; ``names``: each stream's, else
+    ``streams[i] (Kind)``)."""
     for i, (s, epoch) in enumerate(zip(streams, epochs, strict=True)):
         if len(epoch) and (np.asarray(epoch) < 0).all():
             t = s.time
+            name = names[i] if names else f"streams[{i}] ({type(s).__name__})"
             warnings.warn(
-                f"streams[{i}] ({type(s).__name__}): none of its {len(t)} row{'s' * (len(t) > 1)} "
+                f"{name}: none of its {len(t)} row{'s' * (len(t) > 1)} "
                 f"({t[0]:.10g} … {t[-1]:.10g} s) falls within the run ({span[0]:.10g} … "
                 f"{span[1]:.10g} s), which ran without it; are its times on the IMU's clock, "
                 "in seconds?",

@@ -127,6 +127,7 @@ _OPTIONS = {
     "threads": "--threads",
     "imu_lever_arm": "--imu-lever-arm",
     "dvl_lever_arm": "--dvl-lever-arm",
+    "surface_offset": "--surface-offset",
 }
 
 

@@ -97,11 +97,22 @@ def experiment_result(show: Output, folder: Path, start: float) -> None:
     )
 
 
+def out_path(text: str) -> str:
+    """An ``--out`` path as given, or the error argparse reports for an empty one (it
+    fell back to the default folder without a word)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            f"expected a path, got {text!r}; leave the option out for its default"
+        )
+    return text
+
+
 def add_result_folder(parser: argparse.ArgumentParser, command: str) -> None:
     """--out: the result folder of an experiment command (default results/COMMAND-<time>)."""
     parser.add_argument(
         "--out",
         metavar="PATH",
+        type=out_path,
         default=None,
         help=f"result folder (default results/{command}-<time>)",
     )

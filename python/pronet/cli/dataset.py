@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from pronet._util.files import check_new_files
-from pronet.cli._common import Output, Subparsers, add_output_flags
+from pronet.cli._common import Output, Subparsers, add_output_flags, out_path
 
 
 def add_parser(sub: Subparsers) -> None:
@@ -19,7 +19,11 @@ def add_parser(sub: Subparsers) -> None:
         "dataset", help="generate the 72,000-window noise-regression training set (.npz + card)"
     )
     parser.add_argument(
-        "--out", metavar="PATH", default="data/dataset.npz", help="output .npz path"
+        "--out",
+        metavar="PATH",
+        type=out_path,
+        default="data/dataset.npz",
+        help="output .npz path",
     )
     parser.add_argument(
         "--seed", metavar="N", type=int, default=0, help="noise and split seed (default 0)"

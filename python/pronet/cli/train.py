@@ -8,7 +8,14 @@ from pathlib import Path
 from typing import Any
 
 from pronet._util.files import check_new_files
-from pronet.cli._common import Output, Subparsers, add_dataset_args, add_output_flags, dataset_for
+from pronet.cli._common import (
+    Output,
+    Subparsers,
+    add_dataset_args,
+    add_output_flags,
+    dataset_for,
+    out_path,
+)
 from pronet.cli.train_recorded import (
     RECORDED_DIR_OPTIONS,
     RECORDED_ONLY,
@@ -41,6 +48,7 @@ def add_parser(sub: Subparsers) -> None:
     parser.add_argument(
         "--out",
         metavar="PATH",
+        type=out_path,
         default=None,
         help="output folder (default models/); with --recorded/--simulated the model "
         "file to write (NAME -> NAME.safetensors + NAME.json, default models/recorded-MODEL), "

@@ -204,10 +204,15 @@ def against_truth(heading: HeadingReadings | None, gt: Table) -> str | None:
     t_gt, yaw = gt.values[:, 0], np.unwrap(gt.values[:, 9])
     difference = wrap(heading.heading - np.interp(heading.time, t_gt, yaw))
     offset = float(np.degrees(np.median(np.abs(difference))))
-    if offset > np.degrees(MAX_HEADING_OFFSET):
+    most = float(np.degrees(MAX_HEADING_OFFSET))
+    if offset > most:
+        median, bound = f"{offset:.3g}°", f"{most:g}°"
+        # a median rounded to the bound said "30° (at most 30°)": the figure once
+        lies = f"just over {bound} (the most accepted)" if median == bound else median
+        limit = "" if median == bound else f" (at most {bound})"
         return (
-            f"{heading.source}: the heading lies a median {offset:.3g}° from the ground "
-            f"truth's yaw (at most {np.degrees(MAX_HEADING_OFFSET):g}°); magnetic without its "
-            "declination, a yaw from east (ENU: 90° − heading), or in another unit?"
+            f"{heading.source}: the heading lies a median {lies} from the ground truth's "
+            f"yaw{limit}; magnetic without its declination, a yaw from east (ENU: 90° − "
+            "heading), or in another unit?"
         )
     return None

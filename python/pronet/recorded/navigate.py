@@ -34,7 +34,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pronet import _core
-from pronet._util.plausibility import long_lever_arm
+from pronet._util.plausibility import depth_beyond, long_lever_arm
 from pronet.config import filter_config
 from pronet.filter import FilterResult, Stream
 from pronet.recorded.aiding import AidingTuning, DepthReadings, PositionFixes, tuned, tuned_heading
@@ -46,6 +46,7 @@ from pronet.recorded.metrics import section_metrics
 from pronet.recorded.passes import NOT_ISOLATED, failure_reason, start_index
 from pronet.recorded.solution import F64, InitialState, Navigation, solution_of
 from pronet.recorded.surface import G0, SurfaceOffset, surface_offset
+from pronet.recorded.tables import clocks_record
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.recorded.vehicle import VehicleTuning, surface_depth_problem
 from pronet.run import Recorded, run
@@ -135,7 +136,9 @@ def _surface(
     surface_depth: float,
 ) -> tuple[DepthReadings | None, SurfaceOffset | None, float | None]:
     """``depth`` with its surface offset taken off, the offset (None: no depth) and the
-    surface pressure [Pa] it implies where the readings kept their pressure (a bag's)."""
+    surface pressure [Pa] it implies where the readings kept their pressure (a bag's);
+    ValueError naming ``surface_offset`` and the depth's file or topic where a given
+    offset takes a depth beyond the ocean (in pascals?), as the readers name a row."""
     if depth is None:
         return None, None, None
     fix_time = np.empty(0) if fixes is None else fixes.time
@@ -147,6 +150,9 @@ def _surface(
         pa = s.pressure(reference, depth.water_density)
     if s.offset != 0.0:
         depth = dataclasses.replace(depth, depth=depth.depth - s.offset)
+        where = f"surface_offset: {s.offset:g} m taken off {depth.source or 'the depth'}"
+        if (beyond := depth_beyond(depth.depth, where)) is not None:
+            raise ValueError(beyond)
     return depth, s, pa
 
 
@@ -426,13 +432,14 @@ def navigate(
         rpy0=initial.rpy, config=config, smooth=options.smooth, aiding=made.aiding,
     )  # fmt: skip
     try:
-        result = run(made.strategy, recorded).result
+        done = run(made.strategy, recorded)
     except ValueError:  # a numerical failure names itself and its time
         raise
     except NOT_ISOLATED:
         raise
     except Exception as exc:  # e.g. a user's model raising: one line, the cause kept
         raise ValueError(f"strategy {options.strategy!r}: {failure_reason(exc)}") from exc
+    result = done.result
     reference = np.negative(arms.imu)
     forward = solution_of("forward", result, section.epoch, recorded.imu, reference)
     smoothed = None
@@ -441,6 +448,8 @@ def navigate(
     health = _health(section, streams, result)
     reports = health.streams
     notes = list(health.flags)
+    if done.unfilled:  # a constant-Q pass under the strategy's name
+        notes.append(f"strategy {options.strategy}: {done.unfilled}")
     kinds = {"dvl": "dvl", "depth": "depth", "fix": "fix"}
     for name in arms.assumed:
         if any(r.name == kinds[name] for r in reports):
@@ -486,8 +495,10 @@ def _config_json(
     streams: Streams,
     initial: InitialState,
 ) -> dict[str, Any]:
-    """What a ``config.json`` says: the recording, the tuning, the arms, the streams
-    used, the surface reference, the initial state's methods, the strategy, versions."""
+    """What a ``config.json`` says: the recording, the clocks applied to its streams
+    (estimated against a ground truth, else as given or assumed), the tuning, the arms,
+    the streams used, the surface reference, the initial state's methods, the strategy,
+    versions."""
     surface = streams.surface
     used = {
         "dvl": bool(len(streams.dvl)),
@@ -497,6 +508,7 @@ def _config_json(
     }
     return {
         "recording": {"name": section.name, "epoch": section.epoch},
+        "clocks": clocks_record(section),
         "vehicle": vehicle.source,
         "filter": _filter_keys(config),
         "lever_arms": dataclasses.asdict(arms),

@@ -132,6 +132,7 @@ def run_section(
         done.schedule,
         done.seconds,
         done.tuning_period,
+        done.unfilled,
     )
 
 

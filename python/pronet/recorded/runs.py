@@ -28,7 +28,9 @@ class SectionRun:
 
     ``setup`` names how the section was prepared (``"aligned"``: clocks estimated and
     lever arms applied; or the comparison without them); ``schedule`` is the learned
-    rows' q; ``seconds`` the wall time of the run (inference included)."""
+    rows' q; ``seconds`` the wall time of the run (inference included); ``unfilled``
+    the line of a Mehra or adaptive window the pass never filled
+    (:attr:`pronet.run.RecordedRun.unfilled`), else None."""
 
     setup: str
     section: str
@@ -38,6 +40,7 @@ class SectionRun:
     schedule: QSchedule | None
     seconds: float
     tuning_period: float | None = None
+    unfilled: str | None = None
 
 
 def kept_for_tables(run: SectionRun, section: Section) -> SectionRun:
@@ -154,7 +157,8 @@ class RealRuns:
         """What the filters said about themselves (:attr:`pronet.FilterResult.health`),
         one line per section and stream out of band, and per section whose heading σ
         passed 5°, the first row's finding with the rows that share it, and one per row
-        whose solution diverged. Smoothed rows are their filter's."""
+        whose solution diverged or whose Mehra or adaptive window was never filled (a
+        constant-Q row under another name). Smoothed rows are their filter's."""
         found: dict[tuple[str, str], list[tuple[str, str]]] = {}
         rows: dict[str, int] = {}
         for run in self.runs:
@@ -164,6 +168,8 @@ class RealRuns:
             health = run.result.health
             if health.divergence:
                 found[(run.section, run.label)] = [(run.label, health.divergence)]
+            if run.unfilled:
+                found[(run.section, f"{run.label}: window")] = [(run.label, run.unfilled)]
             if health.heading:
                 found.setdefault((run.section, "heading σ"), []).append((run.label, health.heading))
             for s in health.streams:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -402,6 +402,23 @@ def real_tables(done: RealRuns) -> str:
     )
 
 
+def clocks_record(section: Section) -> dict[str, Any]:
+    """``section``'s clocks as a ``config.json`` records them (``pronet real``'s per
+    section, ``pronet navigate``'s): the epoch its times count from [s], each stream's
+    ``[offset (s), scale]`` (:class:`~pronet.recorded.alignment.Clock`: ``t_imu =
+    offset + scale · t_stamp``, both from the epoch: the truth's, the DVL's, the depth's,
+    fixes' and heading's) and how the truth's and the DVL's were found (``how``:
+    :data:`~pronet.recorded.alignment.CLOCK_HOW`)."""
+    a = section.alignment
+    return {
+        "epoch_s": section.epoch,
+        "gt": [a.gt_clock.offset, a.gt_clock.scale],
+        "dvl": [a.dvl_clock.offset, a.dvl_clock.scale],
+        "aiding": [a.aiding_clock.offset, a.aiding_clock.scale],
+        "how": {"gt": a.gt_clock_how, "dvl": a.dvl_clock_how},
+    }
+
+
 def real_config(
     data: str | Path,
     fmt: Format,
@@ -431,15 +448,7 @@ def real_config(
         "notes": done.notes,
         "imu_lever_arm_m": imu_arm,
         "dvl_lever_arm_m": dvl_arm,
-        "clocks": {
-            a.name: {
-                "epoch_s": a.epoch,
-                "gt": [a.alignment.gt_clock.offset, a.alignment.gt_clock.scale],
-                "dvl": [a.alignment.dvl_clock.offset, a.alignment.dvl_clock.scale],
-                "aiding": [a.alignment.aiding_clock.offset, a.alignment.aiding_clock.scale],
-            }
-            for a, _ in done.sections
-        },
+        "clocks": {a.name: clocks_record(a) for a, _ in done.sections},
         "q_estimated": done.q_estimated,
         "truth_velocity_sigma_ned": {a.name: a.truth_velocity_sigma for a, _ in done.sections},
         "dvl_skipped": {a.name: dvl_skipped(a) for a, _ in done.sections},
