@@ -242,7 +242,9 @@ def test_the_gradient_in_the_start_state_matches_finite_differences() -> None:
         return (out.vel**2).sum() + out.sigma[..., 3:6].sum()
 
     dv = torch.zeros(1, 3, dtype=torch.float64, requires_grad=True)
-    assert torch.autograd.gradcheck(loss, (dv,), eps=1e-6, atol=1e-7, rtol=1e-5)
+    # eps 1e-5: at 1e-6 the down-velocity component's central difference is rounding
+    # (6.21375e-2 against 6.21382e-2 at 1e-4 and 1e-5, where the gradient agrees to 4e-7)
+    assert torch.autograd.gradcheck(loss, (dv,), eps=1e-5, atol=1e-7, rtol=1e-5)
 
 
 def test_bad_input_names_the_argument() -> None:

@@ -23,8 +23,10 @@ from pronet.recorded.alignment import align, estimate_alignment
 from pronet.recorded.tables import failed_records
 
 #: The own-vehicle survey (a MEMS IMU) whose ``mehra xi=1`` row, under the FOG tuning
-#: pronet real defaults to, overflows: a natural failure of one built-in row.
-FAILING_SEED = 2
+#: pronet real defaults to, overflows: a natural failure of one built-in row (seed 2's
+#: did until the DVL's noise took the gyro's on its lever arm; of seeds 0–15, the
+#: row now fails on 5, 9, 11 and 14, alone on 5, 11 and 14).
+FAILING_SEED = 5
 FAILING_ROW = "mehra xi=1"
 
 

@@ -145,18 +145,29 @@ def measurement(
     return vel, h
 
 
+def dvl_noise(variance: Tensor, arm: Tensor, gyro_variance: Tensor, aiding: str) -> Tensor:
+    """The DVL update's noise ``(B, 3, 3)``: ``diag(variance)`` and, in body aiding,
+    what the gyro's white noise (``gyro_variance`` ``(B, 3)`` per axis [(rad/s)²])
+    puts on the lever arm's ``ω̂ × r``, ``[r×] Σ_ω [r×]ᵀ`` (the core's)."""
+    r = torch.diag_embed(variance)
+    if aiding != "body":
+        return r
+    a = skew(arm)
+    return r + matmul(a * gyro_variance[:, None, :], a.transpose(-1, -2))
+
+
 def kalman_update(p: Tensor, h: Tensor, nu: Tensor, r: Tensor) -> tuple[Tensor, Tensor, Tensor]:
     """The Joseph-form update of ``p`` by innovations ``nu`` ``(B, 3)`` with Jacobian
-    ``h`` and noise ``r`` ``(B, 3)`` (variances): the new P (symmetrized), the error
-    estimate ``δx̂ = −K ν`` ``(B, 15)`` and the NIS ``νᵀ S⁻¹ ν`` ``(B,)``."""
+    ``h`` and noise ``r`` ``(B, 3, 3)``: the new P (symmetrized), the error estimate
+    ``δx̂ = −K ν`` ``(B, 15)`` and the NIS ``νᵀ S⁻¹ ν`` ``(B,)``."""
     pht = matmul(p, h.transpose(-1, -2))
-    s = matmul(h, pht) + torch.diag_embed(r)
+    s = matmul(h, pht) + r
     s_inv = torch.cholesky_inverse(torch.linalg.cholesky(s))
     gain = matmul(pht, s_inv)
     nis = matmul(matmul(nu.unsqueeze(-2), s_inv), nu.unsqueeze(-1))[:, 0, 0]
     ikh = eye15(p) - matmul(gain, h)
     joseph = matmul(matmul(ikh, p), ikh.transpose(-1, -2))
-    new_p = joseph + matmul(gain, r.unsqueeze(-1) * gain.transpose(-1, -2))
+    new_p = joseph + matmul(matmul(gain, r), gain.transpose(-1, -2))
     return symmetric(new_p), -matmul(gain, nu.unsqueeze(-1)).squeeze(-1), nis
 
 
