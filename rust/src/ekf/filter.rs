@@ -169,7 +169,9 @@ impl Ekf {
     /// ([`Ekf::track_sensitivity`]), where it is: what a lever arm's `ω̂ × r` adds to a
     /// reading's noise, and its derivative.
     pub fn gyro_noise(&self) -> (Matrix3<f64>, Option<Matrix3<f64>>) {
-        let tracked = self.sensitivity.as_ref().map(|(_, q)| {
+        // Before any step the sample is none and its noise zero (no division by 0).
+        let stepped = self.last_dt > 0.0;
+        let tracked = self.sensitivity.as_ref().filter(|_| stepped).map(|(_, q)| {
             let white = self.cfg.imu_dt / self.last_dt;
             Matrix3::from_diagonal(&Vector3::new(q[3], q[4], q[5])) * white
         });
