@@ -62,9 +62,7 @@ impl Velocity {
             }
         }
     }
-}
 
-impl Velocity {
     /// The noise the gyro's white noise `n` puts on the lever arm's `ω̂ × r`: the
     /// prediction's error `−n × r = [r×] n` has the covariance `[r×] Σ_ω [r×]ᵀ` in the
     /// body frame (`Ĉ [r×] Σ_ω [r×]ᵀ Ĉᵀ` in NED), `Σ_ω` of [`Ekf::gyro_noise`]; and

@@ -142,9 +142,10 @@ class _Loop:
         events = batch.dvl_mask[:, k0:k1].any(-1).any(0).tolist()
         self.segment_ends = [k0 + i for i, e in enumerate(events) if e] + [k1 - 1]
         self.segment: tuple[int, list[Tensor], list[Tensor], list[Tensor]] = (-1, [], [], [])
-        # the last sample's gyro white-noise variance per axis, q_g Δt_imu/Δt (the lever
-        # arm's ω̂ × r reads it: the DVL update's noise)
-        self.gyro_variance = state.vel.new_zeros(state.vel.shape)
+        # the last sample's q Δt_imu Δt and Δt: its gyro white-noise variance per axis,
+        # q_g Δt_imu/Δt, which the lever arm's ω̂ × r reads (taken at an update only)
+        size = state.vel.shape[0]
+        self.last_white = (state.vel.new_zeros(size, 6), state.vel.new_ones(size))
         self.innovations: list[Tensor] = []
         self.nis: list[Tensor] = []
         self.accepted: list[Tensor] = []
@@ -161,7 +162,6 @@ class _Loop:
         self.any_opens = cast(list[bool], sched.opens.any(0).tolist())
         self.any_due = cast(list[bool], sched.due.any(0).tolist())
         # what an epoch without a DVL row records (shared: stacked at the end)
-        size = state.vel.shape[0]
         self.no_row = (
             state.vel.new_zeros(state.vel.shape),
             state.vel.new_zeros(size),
@@ -195,7 +195,7 @@ class _Loop:
         s = self.s
         f, w, body_half = self._corrected(k)
         dt = self.dt[i]
-        self.gyro_variance = qdt[:, 3:] / (dt * dt)[:, None]
+        self.last_white = (qdt, dt)
         r = rates(s.lla, s.vel)
         if self.every:
             fm = ekf.error_dynamics(s.vel, s.dcm, r, s.lla[:, 2], _rotate(s.dcm, f), self.inv)
@@ -259,9 +259,9 @@ class _Loop:
             pred, h = ekf.measurement(vel, dcm, rows.take(s.gyro), arm, b.setup.aiding, self.inv)
             nu = rows.take(b.dvl[:, k, j]) - pred
             p_old = rows.take(s.p)
-            r = ekf.dvl_noise(
-                rows.take(b.dvl_variance), arm, rows.take(self.gyro_variance), b.setup.aiding
-            )
+            qdt, dt = self.last_white
+            gyro_variance = rows.take(qdt[:, 3:] / (dt * dt)[:, None])
+            r = ekf.dvl_noise(rows.take(b.dvl_variance), arm, gyro_variance, b.setup.aiding)
             p, dx, nis = ekf.kalman_update(p_old, h, nu, r)
             gate = b.setup.innovation_gate
             ok = torch.ones_like(nis, dtype=torch.bool) if gate is None else nis.detach() <= gate
