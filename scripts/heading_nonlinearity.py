@@ -23,8 +23,10 @@ mean alone would give).
 ``--filter``: the same question put to pronet's filter, the invariant row of the long
 MEMS mission (:func:`pronet.experiments.consistency.run_lawnmower`'s Monte Carlo, 20
 runs, its errors kept every second): each horizontal axis's mean squared error over σ²
-against the position NEES, and the runs' mean east error against the along-drift mean
-``∫ (cos ψ − 1) v dt`` the model predicts from each run's own heading error.
+against the position NEES, the runs' mean east error against the along-drift mean
+``∫ (cos ψ − 1) v dt`` the model predicts from each run's own heading error, and the
+heading RMS of the same 20 runs started at the truth (no initial error drawn, the same
+P0): how much of the heading error the process noise makes on its own.
 
     python scripts/heading_nonlinearity.py [--runs 4000] [--seed 0] [--filter]
 """
@@ -137,26 +139,33 @@ def filter_check(seed: int) -> None:
     from pronet.experiments import consistency as c
 
     segments = c.lawnmower_segments(HOURS)
-    out = c._monte_carlo(
-        ("mems", "invariant", segments, "lawnmower"), (20, seed, 100, True, False),
-        dvl_period=0.2, dvl_dropout=c.LAWNMOWER_DROPOUT, depth_sigma=c.LAWNMOWER_DEPTH[0],
-        depth_period=c.LAWNMOWER_DEPTH[1],
-    )  # fmt: skip
+    out, at_truth = (
+        c._monte_carlo(
+            ("mems", "invariant", segments, "lawnmower"),
+            (20, seed, 100, draw, False),
+            dvl_period=0.2,
+            dvl_dropout=c.LAWNMOWER_DROPOUT,
+            depth_sigma=c.LAWNMOWER_DEPTH[0],
+            depth_period=c.LAWNMOWER_DEPTH[1],
+        )
+        for draw in (True, False)
+    )
     assert out.error is not None and out.sigma is not None  # kept every second
+    assert at_truth.error is not None
     truth = _core.trajectory_from_segments(
         np.array(segments), lla0=[np.radians(32.0), np.radians(34.0), -20.0], speed0=1.5,
         dt=0.01, name="lawnmower",
     )  # fmt: skip
     t = out.record_time
     v = np.stack([np.interp(t, truth.time, truth.vel_ned[:, i]) for i in (0, 1)], axis=-1)
-    psi = out.error[:, :, 8]
+    psi, psi_at_truth = out.error[:, :, 8], at_truth.error[:, :, 8]
     predicted = np.cumsum((np.cos(psi) - 1.0)[..., None] * v * np.diff(t, prepend=0.0)[:, None], 1)
     nees = out.block_nees("position")
     print(
-        "| t [s] | heading RMS [°] | error² / σ² N, E, D | NEES "
+        "| t [s] | heading RMS [°] | started at the truth [°] | error² / σ² N, E, D | NEES "
         "| mean east error [m] | predicted [m] |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for at in (1200.0, 2400.0, 3600.0):
         k, j = (
             int(np.searchsorted(t, at)),
@@ -166,6 +175,7 @@ def filter_check(seed: int) -> None:
         east = out.error[:, k, 1]
         print(
             f"| {t[k]:.0f} | {np.degrees(np.sqrt((psi[:, k] ** 2).mean())):.1f} | "
+            f"{np.degrees(np.sqrt((psi_at_truth[:, k] ** 2).mean())):.1f} | "
             f"{z[0]:.2f}, {z[1]:.2f}, {z[2]:.2f} | {np.nanmean(nees[:, j]):.1f} | "
             f"{east.mean():.1f} ± {east.std(ddof=1) / np.sqrt(len(east)):.1f} | "
             f"{predicted[:, k, 1].mean():.1f} |"
