@@ -14,6 +14,7 @@ import importlib
 from pathlib import Path
 
 import pytest
+from import_graph import import_circles
 
 PACKAGE = Path(__file__).resolve().parents[1] / "python" / "pronet"
 #: The subpackages, each one concept, in the order their imports may run: a package
@@ -106,34 +107,14 @@ def test_at_most_twelve_modules_at_the_top() -> None:
 
 def test_no_import_circle() -> None:
     """Tarjan's strongly connected components over every import: each is one module."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    circles = []
-
-    def visit(node: str) -> None:
-        index[node] = low[node] = len(index)
-        stack.append(node)
-        for nxt in GRAPH[node]:
-            if nxt not in index:
-                visit(nxt)
-                low[node] = min(low[node], low[nxt])
-            elif nxt in stack:
-                low[node] = min(low[node], index[nxt])
-        if low[node] == index[node]:
-            component = []
-            while True:
-                member = stack.pop()
-                component.append(member)
-                if member == node:
-                    break
-            if len(component) > 1:
-                circles.append(sorted(component))
-
-    for node in GRAPH:
-        if node not in index:
-            visit(node)
+    circles = import_circles(GRAPH)
     assert circles == []
+
+
+def test_the_circle_walk_finds_every_circle_and_only_circles() -> None:
+    graph = {"a": ["b"], "b": ["c"], "c": ["a"], "d": ["a", "e"], "e": ["d"], "f": []}
+    assert sorted(import_circles(graph)) == [["a", "b", "c"], ["d", "e"]]
+    assert import_circles({"a": ["b"], "b": []}) == []
 
 
 def test_packages_import_only_the_layers_below() -> None:

@@ -23,6 +23,8 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from import_graph import import_circles
+
 SRC = Path(__file__).resolve().parents[1] / "rust" / "src"
 #: The crate's top-level modules (each ``mod`` of ``lib.rs``), lowest layer first. A file
 #: belongs to its top-level module's layer (``smoother/steps.rs``: ``smoother``) and
@@ -314,33 +316,7 @@ def _layer(file: str) -> str:
 
 def test_no_import_circle() -> None:
     """Tarjan's strongly connected components over every import: each is one file."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    circles = []
-
-    def visit(node: str) -> None:
-        index[node] = low[node] = len(index)
-        stack.append(node)
-        for nxt in GRAPH[node]:
-            if nxt not in index:
-                visit(nxt)
-                low[node] = min(low[node], low[nxt])
-            elif nxt in stack:
-                low[node] = min(low[node], index[nxt])
-        if low[node] == index[node]:
-            component = []
-            while True:
-                member = stack.pop()
-                component.append(member)
-                if member == node:
-                    break
-            if len(component) > 1:
-                circles.append(sorted(component))
-
-    for node in GRAPH:
-        if node not in index:
-            visit(node)
+    circles = import_circles(GRAPH)
     ties = "\n".join(_circle(c) for c in sorted(circles))
     assert circles == [], f"import circles (cut an edge of each):\n{ties}"
 
