@@ -5,6 +5,7 @@ windows started from the core's state; its gradient in q against finite differen
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ import pronet
 from pronet.filter import FilterResult
 from pronet.learn import torchfilter as tf
 from pronet.learn.torchfilter.windows import per_sample_q, windows
-from pronet.recorded.alignment import align, estimate_alignment
+from pronet.recorded.alignment import align, dcm_from_euler, estimate_alignment
 from pronet.recorded.passes import section_recorded
 from pronet.recorded.tuning import imu_step, real_filter_config, white_noise_q
 from pronet.run import Recorded
@@ -116,6 +117,27 @@ def test_equals_the_core_on_a_simulated_recording(formulation, step) -> None:
     # the schedule moved the answer: a constant q gives another σ
     flat = _core(rec, q_time[:1], q[:1], q[0])
     assert np.abs(flat.sigma[-1] - core.sigma[-1]).max() > 1e-3 * core.sigma[-1].min()
+
+
+def test_equals_the_core_in_ned_aiding_with_a_lever_arm() -> None:
+    """NED velocity readings from a sensor away from the IMU (``h = v̂ + Ĉ (ω̂ × r)``,
+    its H's attitude and gyro-bias columns, the arm's gyro noise rotated to NED): the
+    simulated recording's DVL rotated to NED by the core's own body-aided attitude."""
+    body = _simulated("invariant", 0.1, seconds=40.0)
+    arm = body.config.lever_arm
+    assert np.abs(arm).max() > 0.1
+    q_time, q = _schedule(body)
+    prior = q[0] * 3.0
+    aided = _core(body, q_time, q, prior)
+    rows = np.searchsorted(aided.time, body.dvl_time)
+    ned = np.einsum("kij,kj->ki", dcm_from_euler(aided.rpy[rows]), body.dvl)
+    keys = ("p0_sigma", "accel_bias_psd", "gyro_bias_psd", "dvl_variance", "lever_arm")
+    keys += ("imu_dt", "covariance_step", "formulation")
+    config = pronet.FilterConfig(aiding="nav", **{k: getattr(body.config, k) for k in keys})
+    rec = replace(body, dvl=ned, config=config)
+    core = _core(rec, q_time, q, prior)
+    assert np.mean(core.nis[core.accepted]) < 20.0  # readings the filter agrees with
+    assert_equal_to_core(_torch(rec, q_time, q, prior), core, slice(1, None), 0, travel=100.0)
 
 
 @pytest.fixture(scope="module")

@@ -128,7 +128,8 @@ def measurement(
 ) -> tuple[Tensor, Tensor]:
     """The predicted DVL reading ``(B, 3)`` and its Jacobian H ``(B, 3, 15)``: body
     aiding ``Ĉᵀ v̂ + ω̂ × r`` (``gyro`` the last bias-corrected rate, ``arm`` the lever
-    arm [m, body]), NED aiding ``v̂``."""
+    arm [m, body]), NED aiding ``v̂ + Ĉ (ω̂ × r)`` (the core's
+    ``measurement::velocity``)."""
     batch = vel.shape[0]
     h = vel.new_zeros(batch, 3, 15)
     if aiding == "body":
@@ -142,17 +143,25 @@ def measurement(
     h[:, :, 3:6] = constant("eye3", vel.dtype, vel.device)
     if invariant:
         h[:, :, 6:9] = skew(vel)
-    return vel, h
+    if not bool((arm != 0).any()):
+        return vel, h
+    at_arm = matmul(dcm, torch.linalg.cross(gyro, arm).unsqueeze(-1)).squeeze(-1)
+    h[:, :, 6:9] += skew(at_arm)
+    h[:, :, 12:15] = matmul(dcm, skew(arm))
+    return vel + at_arm, h
 
 
-def dvl_noise(variance: Tensor, arm: Tensor, gyro_variance: Tensor, aiding: str) -> Tensor:
-    """The DVL update's noise ``(B, 3, 3)``: ``diag(variance)`` and, in body aiding,
-    what the gyro's white noise (``gyro_variance`` ``(B, 3)`` per axis [(rad/s)²])
-    puts on the lever arm's ``ω̂ × r``, ``[r×] Σ_ω [r×]ᵀ`` (the core's)."""
+def dvl_noise(
+    variance: Tensor, arm: Tensor, gyro_variance: Tensor, dcm: Tensor, aiding: str
+) -> Tensor:
+    """The DVL update's noise ``(B, 3, 3)``: ``diag(variance)`` and what the gyro's
+    white noise (``gyro_variance`` ``(B, 3)`` per axis [(rad/s)²]) puts on the lever
+    arm's ``ω̂ × r``: ``[r×] Σ_ω [r×]ᵀ`` in body aiding, ``Ĉ [r×] Σ_ω [r×]ᵀ Ĉᵀ`` in
+    NED aiding (``dcm`` Ĉ, body to NED; the core's)."""
     r = torch.diag_embed(variance)
-    if aiding != "body":
+    if aiding != "body" and not bool((arm != 0).any()):
         return r
-    a = skew(arm)
+    a = skew(arm) if aiding == "body" else matmul(dcm, skew(arm))
     return r + matmul(a * gyro_variance[:, None, :], a.transpose(-1, -2))
 
 

@@ -261,7 +261,7 @@ class _Loop:
             p_old = rows.take(s.p)
             qdt, dt = self.last_white
             gyro_variance = rows.take(qdt[:, 3:] / (dt * dt)[:, None])
-            r = ekf.dvl_noise(rows.take(b.dvl_variance), arm, gyro_variance, b.setup.aiding)
+            r = ekf.dvl_noise(rows.take(b.dvl_variance), arm, gyro_variance, dcm, b.setup.aiding)
             p, dx, nis = ekf.kalman_update(p_old, h, nu, r)
             gate = b.setup.innovation_gate
             ok = torch.ones_like(nis, dtype=torch.bool) if gate is None else nis.detach() <= gate
