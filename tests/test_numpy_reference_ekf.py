@@ -48,7 +48,7 @@ def _inputs(seconds: float, lever_arm, aiding: str, seed: int = 4, traj=None):
         if aiding == "body":
             z = c.T @ traj.vel_ned[i] + np.cross(ideal[i - 1, 3:], lever_arm)
         else:
-            z = traj.vel_ned[i].copy()
+            z = traj.vel_ned[i] + c @ np.cross(ideal[i - 1, 3:], lever_arm)
         dvl.append(z + rng.normal(size=3) * 0.1)
     # Start 2 m north, 0.05 m/s and a few mrad off the truth.
     lla0 = traj.lla[0] + np.array([2.0 / 6.36e6, 0.0, 0.5])
@@ -73,14 +73,33 @@ def test_reference_strapdown_stays_at_rest() -> None:
 
 @pytest.mark.parametrize(
     ("aiding", "lever_arm"),
-    [("body", (0.5, -0.2, 1.0)), ("body", (0.0, 0.0, 0.0)), ("nav", (0, 0, 0))],
+    [
+        ("body", (0.5, -0.2, 1.0)),
+        ("body", (0.0, 0.0, 0.0)),
+        ("nav", (0, 0, 0)),
+        ("nav", (0.5, -0.2, 1.0)),
+    ],
 )
 @pytest.mark.parametrize("formulation", ["classic", "invariant", "se23"])
 @pytest.mark.parametrize("covariance_step", [pytest.param(0.0, marks=pytest.mark.slow), 0.1])
 def test_rust_filter_matches_reference(aiding, lever_arm, formulation, covariance_step) -> None:
     """At every IMU sample and at a 0.1 s covariance step (ten samples)."""
+    _matches_reference(aiding, lever_arm, formulation, covariance_step, imu_dt=0.01)
+
+
+@pytest.mark.parametrize("aiding", ["body", "nav"])
+def test_rust_filter_matches_reference_where_the_nominal_imu_step_is_not_the_datas(
+    aiding,
+) -> None:
+    """A 100 Hz IMU whose q is given per sample of a nominal 0.02 s step: the process
+    noise's PSD is q·0.02 and the lever arm's gyro noise, per 0.01 s sample, 2q."""
+    _matches_reference(aiding, (0.5, -0.2, 1.0), "invariant", 0.1, imu_dt=0.02)
+
+
+def _matches_reference(aiding, lever_arm, formulation, covariance_step, imu_dt) -> None:
     imu, imu_time, dvl, dvl_time, lla0, vel0, rpy0 = _inputs(60.0, np.array(lever_arm), aiding)
     cfg = pronet.FilterConfig(
+        imu_dt=imu_dt,
         p0_sigma=P0,
         accel_bias_psd=1e-6,
         gyro_bias_psd=1e-8,
@@ -115,7 +134,7 @@ def test_rust_filter_matches_reference(aiding, lever_arm, formulation, covarianc
         gyro_bias_psd=1e-8,
         dvl_variance=(0.01,) * 3,
         p0_sigma=P0,
-        imu_dt=0.01,
+        imu_dt=imu_dt,
         lever_arm=lever_arm,
         aiding=aiding,
         formulation=formulation,
