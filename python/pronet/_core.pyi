@@ -340,7 +340,7 @@ class Dvl:
     nearest it); ``velocity`` ``(m, 3)`` [m/s] in ``frame``: ``"body"``, a DVL's
     velocity in the body frame FRD at its lever arm r (``h = Ĉᵀv̂ + ω̂ × r``), or
     ``"ned"``, the NED velocity of the point at r (``h = v̂ + Ĉ(ω̂ × r)``). ``sigma``: 1σ
-    [m/s] per axis, a number, ``(3,)`` or ``(m, 3)`` one per row; R is ``diag(σ²)``.
+    [m/s] per axis, a number, ``(3,)`` or ``(m, 3)`` one per row; R: ``diag(σ²)`` + r's gyro noise.
     ``lever_arm`` ``(3,)`` [m, body FRD] from the IMU, within ±:data:`MAX_LEVER_ARM`.
     ``gate``: a χ² threshold (3 dof, > 0): a row whose NIS exceeds it is rejected. Each
     None is the pass's :class:`FilterConfig`'s (``dvl_variance``, ``aiding``,

@@ -213,9 +213,10 @@ pub const ADAPTIVE_SCALE_MAX: f64 = 1e3;
 ///
 /// With `S_k = H P⁻ Hᵀ + R` the filter's innovation covariance at update k and
 /// `M_k = ∂P⁻/∂λ` the sensitivity the filter carries beside P (`Ekf::track_sensitivity`),
-/// `S(λ) ≈ S_k + (λ − λ_k) H M_k Hᵀ`. Matching the expected NIS of a filter with the
+/// `S(λ) ≈ S_k + (λ − λ_k) S'_k`, `S'_k = H M_k Hᵀ + ∂R/∂λ` (the update's report; `∂R/∂λ`
+/// the DVL lever arm's gyro-noise term). Matching the expected NIS of a filter with the
 /// true λ, `E[ν_kᵀ S_k⁻¹ ν_k] ≈ tr(S_k⁻¹ S(λ))`, gives one linear equation per update,
-/// `a_k := NIS_k − 3 + λ_k b_k = λ b_k + e_k` with `b_k = tr(S_k⁻¹ H M_k Hᵀ)` and `e_k`
+/// `a_k := NIS_k − 3 + λ_k b_k = λ b_k + e_k` with `b_k = tr(S_k⁻¹ S'_k)` and `e_k`
 /// of variance 6 (the NIS is χ² with 3 dof). Its least-squares solution over an
 /// exponentially forgetting window (factor `1 − 1/window`) is `λ̂ = Σ b_k a_k / Σ b_k²`
 /// with standard error `σ = √(6 / Σ b_k²)`.

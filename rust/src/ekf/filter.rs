@@ -129,10 +129,11 @@ impl Ekf {
     /// Carry `M = ∂P/∂λ` beside P from now on: the derivative of the covariance with
     /// respect to a common scale λ on the IMU variances (the IMU part of Q^c being
     /// `λ·q·Δt_imu`). M starts at 0, is propagated as P is with the IMU noise of `q`
-    /// alone, and goes through each applied update as `(I − K H) M (I − K H)ᵀ`, which is
+    /// alone, and goes through each applied update as `(I − K H) M (I − K H)ᵀ +
+    /// K (∂R/∂λ) Kᵀ` (`∂R/∂λ` the DVL lever arm's gyro-noise term, else zero), which is
     /// exact to first order because ∂P⁺/∂K vanishes at the Kalman gain. Each velocity
-    /// update then reports `H M Hᵀ` ([`super::UpdateInfo::sensitivity`]); the adaptive
-    /// strategy reads it.
+    /// update then reports `∂S/∂λ = H M Hᵀ + ∂R/∂λ`
+    /// ([`super::UpdateInfo::sensitivity`]); the adaptive strategy reads it.
     pub fn track_sensitivity(&mut self, q: [f64; 6]) {
         self.bring_up_to_date();
         self.sensitivity = Some((Matrix15::zeros(), q));

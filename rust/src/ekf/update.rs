@@ -92,7 +92,8 @@ pub struct UpdateInfo {
     pub gain: Gain,
     /// False when the innovation gate rejected the measurement: the state is unchanged.
     pub accepted: bool,
-    /// `H M Hᵀ` with `M = ∂P⁻/∂λ` (see [`Ekf::track_sensitivity`]); None when untracked.
+    /// `∂S/∂λ = H M Hᵀ + ∂R/∂λ` with `M = ∂P⁻/∂λ` (see [`Ekf::track_sensitivity`];
+    /// `∂R/∂λ` the DVL lever arm's gyro-noise term, else zero); None when untracked.
     pub sensitivity: Option<Matrix3<f64>>,
     /// The error estimate `δx̂ = −K ν` fed back, in the filter's own coordinates (the
     /// first 15 states); None when the gate rejected the measurement.
