@@ -316,7 +316,9 @@ def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, shor
     gave, not ``run_filter``'s ``streams[i]``: a DVL whose one reading falls before the
     start levelled from the data ("streams[0] (Dvl): none of its 1 row …"), and a
     ``--surface-offset`` typed in pascals ("streams[1]: depth row 0 is −101325 m …",
-    which blamed the depth: now the option, and the file its depth came from)."""
+    which blamed the depth: now the option, and the file its depth came from, with the
+    file's row: it said "depth row 0", counting the kept readings, for the file's third
+    row after two empty ones)."""
     from pronet.cli import main
 
     folder = write_generic(short, tmp_path / "mission")
@@ -327,10 +329,16 @@ def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, shor
     assert main([*argv, "--quiet", "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert "pronet: warning: dvl: none of its 1 row (" in err and "streams[" not in err
+    depth = folder / "depth.csv"
+    lines = depth.read_text().splitlines(keepends=True)
+    for i in (1, 2):  # the first two data rows without a depth: skipped, still rows
+        time, _, *rest = lines[i].split(",")
+        lines[i] = ",".join([time, "", *rest])
+    depth.write_text("".join(lines))
     out = tmp_path / "refused"
     assert main([*argv, "--surface-offset", "101325", "--out", str(out)]) == 2
     assert capsys.readouterr().err == (
-        f"pronet: --surface-offset: 101325 m taken off {folder / 'depth.csv'}: depth row 0 is "
+        f"pronet: --surface-offset: 101325 m taken off {folder / 'depth.csv'}: depth row 3 is "
         "-101325 m, beyond -10000 … 12000 m (metres, positive down: the deepest ocean is "
         "11 km); in pascals or another unit?\n"
     )
