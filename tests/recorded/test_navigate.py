@@ -385,3 +385,31 @@ def test_config_json_records_the_clocks_applied(tmp_path, short) -> None:
         "epoch_s": short.imu_time[0], "gt": [0.0, 1.0], "dvl": [0.0, 1.0],
         "aiding": [0.0, 1.0], "how": {"gt": "none", "dvl": "assumed"},
     }  # fmt: skip
+
+
+def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, capsys):
+    """A lever arm typed in cm was warned of as Python prints a warning (the module's
+    path, ``PlausibilityWarning`` and the source line ``arms = lever_arms(``: the
+    options were read before the command took over its warnings); a NaN
+    ``--surface-offset`` was named ``surface offset``, not the option; and
+    ``--init-heading-sigma`` without ``--init-heading`` was dropped without a word (the
+    heading stream's σ used). Now each is one line naming the option, and a refusal
+    leaves no folder."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "mission")
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    out = tmp_path / "out"
+    argv = ["navigate", "--data", str(folder), "--filter", vehicle, "--out", str(out)]
+    assert main([*argv, "--dvl-lever-arm=-60,10,30", "--surface-offset", "nan"]) == 2
+    assert capsys.readouterr().err == (
+        "pronet: warning: dvl_lever_arm: -60,10,30 m reaches 60 m from the reference "
+        "point, beyond 10 m; typed in cm or mm? (used as given)\n"
+        "pronet: --surface-offset: must be a finite number of metres, got nan\n"
+    )
+    assert main([*argv, "--init-heading-sigma", "2"]) == 2
+    assert capsys.readouterr().err == (
+        "pronet: --init-heading-sigma: the 1σ of --init-heading, which is not given (the "
+        "heading found in the data has the σ its method earns)\n"
+    )
+    assert not out.exists()
