@@ -94,9 +94,7 @@ def test_an_empty_out_is_refused_not_taken_for_the_default(command, monkeypatch,
 
 
 @pytest.mark.parametrize("out", ["", "  "])
-def test_an_empty_out_from_python_is_refused_not_taken_for_the_default(
-    out, tmp_path, monkeypatch
-):
+def test_an_empty_out_from_python_is_refused_not_taken_for_the_default(out, tmp_path, monkeypatch):
     """``new_result_folder("")`` (every experiment's ``out=``, e.g. ``run_real(data,
     "")``) made ``results/<command>-<time>`` and a blank one a folder named by its
     spaces: refused as the command line's empty ``--out`` is, nothing made."""
