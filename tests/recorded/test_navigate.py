@@ -393,8 +393,9 @@ def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, 
     options were read before the command took over its warnings); a NaN
     ``--surface-offset`` was named ``surface offset``, not the option; and
     ``--init-heading-sigma`` without ``--init-heading`` was dropped without a word (the
-    heading stream's σ used). Now each is one line naming the option, and a refusal
-    leaves no folder."""
+    heading stream's σ used); an ``--out`` below a file was found after the whole pass
+    and named ``out_dir``. Now each is one line naming the option, before the work, and
+    a refusal leaves no folder."""
     from pronet.cli import main
 
     folder = write_generic(short, tmp_path / "mission")
@@ -406,6 +407,12 @@ def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, 
         "pronet: warning: dvl_lever_arm: -60,10,30 m reaches 60 m from the reference "
         "point, beyond 10 m; typed in cm or mm? (used as given)\n"
         "pronet: --surface-offset: must be a finite number of metres, got nan\n"
+    )
+    (tmp_path / "file").write_text("x")  # an --out below a file: said before the work
+    below = ["navigate", "--data", str(folder), "--filter", vehicle, "--out", f"{tmp_path}/file/o"]
+    assert main(below) == 2
+    assert capsys.readouterr().err == (
+        f"pronet: --out: {tmp_path}/file/o: {tmp_path}/file is a file, not a folder\n"
     )
     assert main([*argv, "--init-heading-sigma", "2"]) == 2
     assert capsys.readouterr().err == (

@@ -207,7 +207,7 @@ def _navigate(
 ) -> tuple[Navigation, Path, list[Path]]:
     """Navigate the recording as the options say and write the files: the navigation,
     the folder and the paths written."""
-    from pronet.recorded.export import write_all
+    from pronet.recorded.export import check_out_dir, write_all
     from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate_recording
     from pronet.recorded.vehicle import load_vehicle
 
@@ -227,6 +227,7 @@ def _navigate(
         else (vehicle.surface_depth or 0.0),
     )  # fmt: skip
     out = Path(args.out or f"results/navigate-{time.strftime('%Y%m%d-%H%M%S')}")
+    check_out_dir(out, "--out")  # before the work, not after it
     navigation = navigate_recording(
         args.data, args.format if topics is None else topics, vehicle, arms, options
     )
