@@ -184,8 +184,9 @@ class Node:
             streams.append(pronet.Heading(no, no, sigma=s.heading_sigma))
         chosen = strategy(self.spec, white_noise_q(imu))  # q: the IMU's noise while kept
         self.nav = Navigator(
-            streams, initial=initial, strategy=chosen, config=config, imu_dt=config.imu_dt
-        )
+            streams, initial=initial, strategy=chosen, config=config, imu_dt=config.imu_dt,
+            names=STREAMS[: len(streams)],  # its errors and findings name the sensor
+        )  # fmt: skip
         methods = "; ".join(f"{k}: {v}" for k, v in initial.methods.items())
         print(f"start at {initial.t0:.3f} s: {methods}")
         print(f"surface: {surface.note}" if surface is not None else "surface: no depth")
@@ -207,9 +208,9 @@ class Node:
     def print_tally(self) -> None:
         assert self.nav is not None
         print(f"{'stream':8}" + "".join(f"{c:>9}" for c in TALLY) + "  NIS/dof")
-        for name, t in zip(STREAMS, self.nav.tally(), strict=False):
+        for t in self.nav.tally():
             counts = "".join(f"{getattr(t, c):9d}" for c in TALLY)
-            print(f"{name:8}{counts}{t.mean_nis_per_dof:9.2f}")
+            print(f"{t.name:8}{counts}{t.mean_nis_per_dof:9.2f}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -556,6 +556,14 @@ def _with_adaptive_q(out: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def sensor_names(streams: Sequence[Stream]) -> list[str] | None:
+    """Each stream named by its sensor's kind (``"dvl"``, ``"depth"``, ``"fix"``,
+    ``"heading"``: the names ``pronet real`` and ``pronet navigate`` give), or None
+    (``streams[i]``) where a kind repeats."""
+    names = [type(s).__name__.lower() for s in streams]
+    return names if len(set(names)) == len(names) else None
+
+
 def _names(names: object, count: int) -> list[str] | None:
     """``names`` as a list of ``count`` strings (None stays None), or ``ValueError``
     naming the argument."""

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from pronet import _core
 from pronet._util.plausibility import unfilled_window
 from pronet._util.validate import flag
-from pronet.filter import FilterResult, Stream, accepted_updates, run_filter
+from pronet.filter import FilterResult, Stream, accepted_updates, run_filter, sensor_names
 from pronet.learn.hybrid import DEFAULT_WINDOW, HybridResult, QSchedule, q_schedule, run_hybrid
 from pronet.montecarlo import MonteCarloResult, monte_carlo
 from pronet.shards import ShardStore
@@ -95,7 +95,6 @@ class Recorded:
         ``"depth"``, ``"fix"``, ``"heading"``: the names ``pronet real`` and ``pronet
         navigate`` give them; ``streams[i]`` where a kind repeats)."""
         streams = self.streams(aided=aided)
-        names = [type(s).__name__.lower() for s in streams]
         return run_filter(
             self.imu,
             self.imu_time,
@@ -111,7 +110,7 @@ class Recorded:
             q_time=q_time,
             q=q,
             warn=False,  # its callers report the pass's health their own way
-            names=names if len(set(names)) == len(names) else None,
+            names=sensor_names(streams),
         )
 
 

@@ -93,6 +93,19 @@ def test_an_empty_out_is_refused_not_taken_for_the_default(command, monkeypatch,
     )
 
 
+@pytest.mark.parametrize("out", ["", "  "])
+def test_an_empty_out_from_python_is_refused_not_taken_for_the_default(out, tmp_path, monkeypatch):
+    """``new_result_folder("")`` (every experiment's ``out=``, e.g. ``run_real(data,
+    "")``) made ``results/<command>-<time>`` and a blank one a folder named by its
+    spaces: refused as the command line's empty ``--out`` is, nothing made."""
+    from pronet._util.outputs import new_result_folder
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"^--out: expected a path, got '\s*'; None"):
+        new_result_folder(out, "real")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_an_existing_out_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):
     (tmp_path / "res").mkdir()
     assert cli.main(simulate(scenario, tmp_path / "res")) == 2

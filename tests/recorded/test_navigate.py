@@ -316,7 +316,9 @@ def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, shor
     gave, not ``run_filter``'s ``streams[i]``: a DVL whose one reading falls before the
     start levelled from the data ("streams[0] (Dvl): none of its 1 row …"), and a
     ``--surface-offset`` typed in pascals ("streams[1]: depth row 0 is −101325 m …",
-    which blamed the depth: now the option, and the file its depth came from)."""
+    which blamed the depth: now the option, and the file its depth came from, with the
+    file's row: it said "depth row 0", counting the kept readings, for the file's third
+    row after two empty ones)."""
     from pronet.cli import main
 
     folder = write_generic(short, tmp_path / "mission")
@@ -327,10 +329,16 @@ def test_the_command_names_streams_by_sensor_and_file_not_the_api(tmp_path, shor
     assert main([*argv, "--quiet", "--out", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert "pronet: warning: dvl: none of its 1 row (" in err and "streams[" not in err
+    depth = folder / "depth.csv"
+    lines = depth.read_text().splitlines(keepends=True)
+    for i in (1, 2):  # the first two data rows without a depth: skipped, still rows
+        time, _, *rest = lines[i].split(",")
+        lines[i] = ",".join([time, "", *rest])
+    depth.write_text("".join(lines))
     out = tmp_path / "refused"
     assert main([*argv, "--surface-offset", "101325", "--out", str(out)]) == 2
     assert capsys.readouterr().err == (
-        f"pronet: --surface-offset: 101325 m taken off {folder / 'depth.csv'}: depth row 0 is "
+        f"pronet: --surface-offset: 101325 m taken off {folder / 'depth.csv'}: depth row 3 is "
         "-101325 m, beyond -10000 … 12000 m (metres, positive down: the deepest ocean is "
         "11 km); in pascals or another unit?\n"
     )
@@ -377,3 +385,38 @@ def test_config_json_records_the_clocks_applied(tmp_path, short) -> None:
         "epoch_s": short.imu_time[0], "gt": [0.0, 1.0], "dvl": [0.0, 1.0],
         "aiding": [0.0, 1.0], "how": {"gt": "none", "dvl": "assumed"},
     }  # fmt: skip
+
+
+def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, capsys):
+    """A lever arm typed in cm was warned of as Python prints a warning (the module's
+    path, ``PlausibilityWarning`` and the source line ``arms = lever_arms(``: the
+    options were read before the command took over its warnings); a NaN
+    ``--surface-offset`` was named ``surface offset``, not the option; and
+    ``--init-heading-sigma`` without ``--init-heading`` was dropped without a word (the
+    heading stream's σ used); an ``--out`` below a file was found after the whole pass
+    and named ``out_dir``. Now each is one line naming the option, before the work, and
+    a refusal leaves no folder."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "mission")
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    out = tmp_path / "out"
+    argv = ["navigate", "--data", str(folder), "--filter", vehicle, "--out", str(out)]
+    assert main([*argv, "--dvl-lever-arm=-60,10,30", "--surface-offset", "nan"]) == 2
+    assert capsys.readouterr().err == (
+        "pronet: warning: dvl_lever_arm: -60,10,30 m reaches 60 m from the reference "
+        "point, beyond 10 m; typed in cm or mm? (used as given)\n"
+        "pronet: --surface-offset: must be a finite number of metres, got nan\n"
+    )
+    (tmp_path / "file").write_text("x")  # an --out below a file: said before the work
+    below = ["navigate", "--data", str(folder), "--filter", vehicle, "--out", f"{tmp_path}/file/o"]
+    assert main(below) == 2
+    assert capsys.readouterr().err == (
+        f"pronet: --out: {tmp_path}/file/o: {tmp_path}/file is a file, not a folder\n"
+    )
+    assert main([*argv, "--init-heading-sigma", "2"]) == 2
+    assert capsys.readouterr().err == (
+        "pronet: --init-heading-sigma: the 1σ of --init-heading, which is not given (the "
+        "heading found in the data has the σ its method earns)\n"
+    )
+    assert not out.exists()

@@ -227,7 +227,7 @@ def test_bad_input_is_one_line_naming_it(mission) -> None:
     block[5, 4] = np.nan  # a bad row feeds none of its block
     with pytest.raises(ValueError, match="^imu: row 5 .* is not finite: .*; none fed$"):
         nav.imu_block(m.imu_time[1:11], block)
-    with pytest.raises(ValueError, match="^streams\\[0\\]: 1 reading"):
+    with pytest.raises(ValueError, match="^streams\\[0\\]: the reading at .* s: 1 reading"):
         nav.reading(0, m.imu_time[1], 1.0)
     with pytest.raises(ValueError, match="^stream: must be the index"):
         nav.reading(7, m.imu_time[1], 1.0)
@@ -276,7 +276,9 @@ def test_unit_and_frame_slips_are_refused_before_anything_is_fed(mission) -> Non
     nav = fresh()
     nav.imu_block(m.imu_time[:200], m.imu[:200])  # the same data, right: accepted
     pascals = float(m.depth()[0]) * 1025 * 9.80665 + 101325.0
-    with pytest.raises(ValueError, match=r"^streams\[1\]: depth row 0 is .* in pascals"):
+    with pytest.raises(
+        ValueError, match=r"^streams\[1\]: the reading at .* s: depth row 0 .* pascals"
+    ):
         nav.reading(1, m.imu_time[199], pascals)
     assert nav.reading(1, m.imu_time[199], float(m.depth()[0])) in ("current", "late")
 
@@ -314,6 +316,40 @@ def test_navigator_for_a_recording_is_navigate_s_forward_pass(tmp_path, mission,
     np.testing.assert_array_equal(s.sigma, batch.forward.sigma[-1])
     applied = [t.accepted + t.rejected for t in nav.tally()]
     assert applied == [r.applied for r in batch.streams]
+    assert [t.name for t in nav.tally()] == [r.name for r in batch.streams]  # dvl, depth, …
+
+
+def test_a_refused_reading_is_named_by_its_stream_and_time(mission) -> None:
+    """A reading the navigator refuses named ``streams[i]`` (``streams[1]: must be
+    finite, element 0 is NaN``; ``streams[2]_sigma: …``), neither the sensor the user
+    knows nor which reading: now the stream's name (``names``, as ``run_filter``'s)
+    and the reading's time, in the error, the tally and the findings."""
+    m = mission
+    names = ["dvl", "depth", "usbl", "compass"]
+    nav = Navigator(
+        _streams(m, rows=False), initial=_initial(m), strategy=NATIVE["constant"],
+        config=CONFIG, names=names,
+    )  # fmt: skip
+    nav.imu_block(m.imu_time[:200], m.imu[:200])
+    t = float(m.imu_time[150])
+    for stream, value, sigma, said in (
+        (1, np.nan, None, f"depth: the reading at {t:.10g} s: must be finite, element 0 is NaN"),
+        (2, m.fix_lla[0], [1.0, 1.0], f"usbl: the reading at {t:.10g} s: sigma: a reading's σ"),
+        (3, 400.0, None, f"compass: the reading at {t:.10g} s: row 0 must be a heading in rad"),
+        (0, [np.nan, 0.0, 0.0], None, f"dvl: the reading at {t:.10g} s: row 0 is not finite"),
+    ):
+        with pytest.raises(ValueError) as refused:
+            nav.reading(stream, t, value, sigma)
+        assert str(refused.value).startswith(said), refused.value
+    with pytest.raises(ValueError, match=r"^depth: the reading at nan s: time: must be finite"):
+        nav.reading(1, float("nan"), 1.0)
+    with pytest.raises(ValueError, match=r"^stream: must be the index of one of the 4"):
+        nav.reading(4, t, 1.0)
+    assert [s.name for s in nav.tally()] == names
+    assert all(not line.startswith("streams[") for line in nav.findings())
+    with pytest.raises(ValueError, match=r"^names: expected 4 non-empty strings"):
+        Navigator(_streams(m, rows=False), initial=_initial(m),
+                  strategy=NATIVE["constant"], names=["dvl"])  # fmt: skip
 
 
 class _WindowVariance:

@@ -44,7 +44,7 @@ def test_without_surface_fixes_the_reference_stays_and_is_stated() -> None:
     assert s.offset == 0.0 and s.span is None and "keeps the reader's" in s.note
     assert surface_offset(t, depth, np.empty(0)).offset == 0.0
     assert surface_offset(t, depth, ft, given=-0.02).offset == -0.02
-    with pytest.raises(ValueError, match="^surface offset: must be a finite"):
+    with pytest.raises(ValueError, match="^surface_offset: must be a finite"):
         surface_offset(t, depth, ft, given=float("nan"))
 
 

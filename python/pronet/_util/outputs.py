@@ -22,13 +22,20 @@ OnDone = Callable[[str], None]
 
 
 def new_result_folder(out: str | Path | None, command: str) -> Path:
-    """``out``, or ``results/<command>-<YYYYmmdd-HHMMSS>`` (local time) when it is None or
-    empty, checked and reserved for this run before it computes anything
+    """``out``, or ``results/<command>-<YYYYmmdd-HHMMSS>`` (local time) when it is None,
+    checked and reserved for this run before it computes anything
     (:func:`pronet._util.files.check_out_folder`, :func:`pronet._util.files.reserve_folder`):
-    ``ValueError`` if that folder exists (it is never overwritten), cannot be created
-    there, or another run is writing it."""
+    ``ValueError`` if ``out`` is an empty or blank string (an unset variable: refused as
+    the command line's empty ``--out`` is, not taken for the default), or if that folder
+    exists (it is never overwritten), cannot be created there, or another run is
+    writing it."""
+    if isinstance(out, str) and not out.strip():
+        raise ValueError(
+            f"--out: expected a path, got {out!r}; None (the option left out) for the "
+            f"default results/{command}-<time>"
+        )
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    folder = Path(out) if out else Path("results") / f"{command}-{stamp}"
+    folder = Path(out) if out is not None else Path("results") / f"{command}-{stamp}"
     check_out_folder(folder)
     reserve_folder(folder)
     return folder

@@ -114,15 +114,18 @@ def first_step(imu_time: F64, t0: float) -> str | None:
     )
 
 
-def depth_beyond(depth: F64, name: str) -> str | None:
-    """A depth [m, down] beyond :data:`HEIGHT_RANGE` (negated), naming ``name`` and the row."""
+def depth_beyond(depth: F64, name: str, rows: NDArray[np.int64] | None = None) -> str | None:
+    """A depth [m, down] beyond :data:`HEIGHT_RANGE` (negated), naming ``name`` and the
+    row: its number in ``rows`` (each depth's row as its file numbers it, 1 for the first
+    data row), else its index in ``depth``."""
     lo, hi = -HEIGHT_RANGE[1], -HEIGHT_RANGE[0]
     bad = (depth < lo) | (depth > hi)
     if not bad.any():
         return None
     r = int(np.argmax(bad))
+    row = r if rows is None else int(rows[r])
     return (
-        f"{name}: depth row {r} is {depth[r]:.6g} m, beyond {lo:g} … {hi:g} m (metres, "
+        f"{name}: depth row {row} is {depth[r]:.6g} m, beyond {lo:g} … {hi:g} m (metres, "
         "positive down: the deepest ocean is 11 km); in pascals or another unit?"
     )
 

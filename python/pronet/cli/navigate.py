@@ -12,6 +12,7 @@ import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pronet.cli._common import (
     Output,
@@ -24,8 +25,11 @@ from pronet.cli._common import (
     vector3,
 )
 from pronet.recorded.alignment import FORMATS
-from pronet.recorded.bags import require_rosbags
+from pronet.recorded.bags import BagTopics, require_rosbags
 from pronet.recorded.plausible import PlausibilityWarning
+
+if TYPE_CHECKING:
+    from pronet.recorded.solution import Navigation
 
 #: The storages of ``--bag`` (``none``: no odometry bag).
 BAG_STORAGES = ("rosbag1", "sqlite3", "mcap", "none")
@@ -178,9 +182,15 @@ def add_parser(sub: Subparsers) -> None:
 
 
 def _given(args: argparse.Namespace):  # noqa: ANN202
-    """The given parts of the initial state (None for none)."""
+    """The given parts of the initial state (None for none); ValueError for a heading's
+    σ without the heading (it was dropped without a word)."""
     from pronet.recorded.initialinputs import GivenState
 
+    if args.init_heading_sigma is not None and args.init_heading is None:
+        raise ValueError(
+            "--init-heading-sigma: the 1σ of --init-heading, which is not given (the heading "
+            "found in the data has the σ its method earns)"
+        )
     if args.init_position is None and args.init_heading is None:
         return None
     lla = depth = None
@@ -192,23 +202,15 @@ def _given(args: argparse.Namespace):  # noqa: ANN202
     return GivenState(lla=lla, depth=depth, heading=heading, heading_sigma=sigma)
 
 
-def run(args: argparse.Namespace) -> int:
-    from pronet.recorded.export import write_all
+def _navigate(
+    args: argparse.Namespace, topics: BagTopics | None, bag: str | None
+) -> tuple[Navigation, Path, list[Path]]:
+    """Navigate the recording as the options say and write the files: the navigation,
+    the folder and the paths written."""
+    from pronet.recorded.export import check_out_dir, write_all
     from pronet.recorded.navigate import NavigateOptions, lever_arms, navigate_recording
-    from pronet.recorded.report import FIGURES
     from pronet.recorded.vehicle import load_vehicle
 
-    topics = bag_topics(args)
-    if topics is not None:
-        require_rosbags()
-        if args.truth_topic is None:  # a truth is read only where named
-            topics = replace(topics, truth=None, origin=None)
-    bag = args.bag
-    if bag is None and topics is not None:  # a bag in: the solution as a bag out
-        bag = "rosbag1" if Path(args.data).suffix == ".bag" else "mcap"
-    bag = None if bag == "none" else bag
-    if bag is not None:
-        require_rosbags()
     vehicle = load_vehicle(args.filter)
     if args.declination is not None:
         vehicle = replace(vehicle, declination=args.declination)
@@ -225,15 +227,34 @@ def run(args: argparse.Namespace) -> int:
         else (vehicle.surface_depth or 0.0),
     )  # fmt: skip
     out = Path(args.out or f"results/navigate-{time.strftime('%Y%m%d-%H%M%S')}")
+    check_out_dir(out, "--out")  # before the work, not after it
+    navigation = navigate_recording(
+        args.data, args.format if topics is None else topics, vehicle, arms, options
+    )
+    paths = write_all(navigation, out, bag=bag, figures=not args.no_plots)
+    return navigation, out, paths
+
+
+def run(args: argparse.Namespace) -> int:
+    from pronet.recorded.report import FIGURES
+
+    topics = bag_topics(args)
+    if topics is not None:
+        require_rosbags()
+        if args.truth_topic is None:  # a truth is read only where named
+            topics = replace(topics, truth=None, origin=None)
+    bag = args.bag
+    if bag is None and topics is not None:  # a bag in: the solution as a bag out
+        bag = "rosbag1" if Path(args.data).suffix == ".bag" else "mcap"
+    bag = None if bag == "none" else bag
+    if bag is not None:
+        require_rosbags()
     show = Output(args)
     start = time.perf_counter()
-    with warnings.catch_warnings():
+    with warnings.catch_warnings():  # every warning one line, from the options on
         warnings.simplefilter("always", PlausibilityWarning)
         warnings.showwarning = lambda m, *_, **__: print(f"pronet: warning: {m}", file=sys.stderr)
-        navigation = navigate_recording(
-            args.data, args.format if topics is None else topics, vehicle, arms, options
-        )
-    paths = write_all(navigation, out, bag=bag, figures=not args.no_plots)
+        navigation, out, paths = _navigate(args, topics, bag)
     for note in navigation.notes:  # what the filter knows, also with --quiet and --json
         print(f"pronet: {note}", file=sys.stderr)
     for name in [] if args.no_plots else sorted(set(FIGURES) - {p.name for p in paths}):

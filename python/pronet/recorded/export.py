@@ -307,6 +307,14 @@ def write_config(navigation: Navigation, path: str | Path) -> Path:
     return path
 
 
+def check_out_dir(out: Path, option: str = "out_dir") -> None:
+    """``ValueError`` naming ``option`` unless :func:`write_all` can write into ``out``:
+    a folder or none yet, below a writable one (a command checks it before its work)."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{option}: {out} is a file, not a folder")
+    check_writable(out, option)
+
+
 def write_all(
     navigation: Navigation,
     out_dir: str | Path,
@@ -333,9 +341,7 @@ def write_all(
     the paths written, in that order."""
     check_navigation(navigation)
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"out_dir: {out} is a file, not a folder")
-    check_writable(out, "out_dir")
+    check_out_dir(out)
     options = bag_options or odometry.OdometryOptions()
     if bag is not None:
         odometry.check_bag(out / odometry.bag_name(bag), navigation, bag, options)

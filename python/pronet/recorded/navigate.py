@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from pronet import _core
 from pronet._util.plausibility import depth_beyond, long_lever_arm
@@ -151,9 +152,16 @@ def _surface(
     if s.offset != 0.0:
         depth = dataclasses.replace(depth, depth=depth.depth - s.offset)
         where = f"surface_offset: {s.offset:g} m taken off {depth.source or 'the depth'}"
-        if (beyond := depth_beyond(depth.depth, where)) is not None:
+        if (beyond := depth_beyond(depth.depth, where, _file_rows(depth))) is not None:
             raise ValueError(beyond)
     return depth, s, pa
+
+
+def _file_rows(depth: DepthReadings) -> NDArray[np.int64]:
+    """Each kept reading's row in its file (1: the first data row), counting the rows
+    skipped as missing values before it (a file's stamps increase: the readers check)."""
+    before = np.searchsorted(np.sort(depth.skipped_time), depth.time)
+    return np.arange(1, len(depth.time) + 1) + before
 
 
 def _truth_initial(section: Section, p0: Sequence[float]) -> InitialState:

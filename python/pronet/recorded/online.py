@@ -43,7 +43,7 @@ from pronet._util.plausibility import (
 )
 from pronet._util.validate import check_type, float_array, scalar
 from pronet.config import filter_config
-from pronet.filter import Stream
+from pronet.filter import Stream, _names, sensor_names
 from pronet.learn.hybrid import Guardrails, _predictions, apply_guardrails, for_loop
 from pronet.montecarlo import DEFAULT_WINDOW
 from pronet.recorded.alignment import Section
@@ -95,7 +95,8 @@ class StreamTally:
     """What a navigator did with one stream's readings so far.
 
     Attributes:
-        name: the stream's name in messages (``streams[i]``).
+        name: the stream's name in messages (the navigator's ``names``, else
+            ``streams[i]``).
         kind: ``"velocity"``, ``"depth"``, ``"fix"`` or ``"heading"``.
         received: readings fed (an invalid one raises, uncounted).
         queued: waiting for the IMU to reach them.
@@ -152,13 +153,18 @@ class Navigator:
             (required with one).
         window: raw samples per window the regressor reads.
         guardrails: bounds on the regressor's q (default :class:`Guardrails`).
+        names: each stream's name in the navigator's errors, :meth:`tally` and
+            :meth:`findings`, one per stream: the sensor or topic its user knows it by
+            (:func:`navigator_for` gives ``"dvl"``, ``"depth"``, …). None:
+            ``streams[i]``.
 
     As :func:`pronet.run_filter` does, the navigator refuses with a ``ValueError`` the
     unit and frame slips the data show: an ``initial.lla`` in degrees; a first feed of
     IMU samples whose specific force points away from where ``initial.rpy`` puts it
     (an IMU in FLU), or, over a second or more, is not gravity's; a first sample more
     than 5 IMU periods after ``initial.t0`` (with ``imu_dt``); a depth beyond the
-    deepest ocean (in pascals?). Nothing is fed before the check.
+    deepest ocean (in pascals?). Nothing is fed before the check. A reading refused
+    is named by its stream and its time (``depth: the reading at 12.5 s: …``).
     """
 
     def __init__(
@@ -174,8 +180,11 @@ class Navigator:
         imu_dt: float | None = None,
         window: int = DEFAULT_WINDOW,
         guardrails: Guardrails | None = None,
+        names: Sequence[str] | None = None,
     ) -> None:
         check_type(initial, InitialState, "initial")
+        named = _names(names, len(streams))
+        self._names = named or [f"streams[{i}]" for i in range(len(streams))]
         base = _core.FilterConfig() if config is None else config
         check_type(base, _core.FilterConfig, "config")
         p0 = [float(v) for v in float_array(initial.p0_sigma, "initial.p0_sigma", (15,))]
@@ -262,12 +271,32 @@ class Navigator:
         became of it: ``"queued"`` (for an epoch still to come), ``"current"`` (stamped
         within the newest epoch's half step, applied there), ``"late"`` (applied at
         its own, already run), ``"refused"`` (before the lag window) or ``"skipped"``
-        (before the pass's start)."""
-        if stream in self._depth_streams:
-            depth = np.atleast_1d(np.asarray(value, dtype=np.float64))
-            if (beyond := depth_beyond(depth, f"streams[{stream}]")) is not None:
-                raise ValueError(beyond)
-        return self._native.reading(stream, time, value, sigma)
+        (before the pass's start). A reading refused is a ``ValueError`` naming its
+        stream and time."""
+        try:
+            if stream in self._depth_streams:
+                depth = np.atleast_1d(np.asarray(value, dtype=np.float64))
+                if (beyond := depth_beyond(depth, f"streams[{stream}]")) is not None:
+                    raise ValueError(beyond)
+            return self._native.reading(stream, time, value, sigma)
+        except ValueError as exc:
+            raise ValueError(self._reading_error(str(exc), stream, time)) from None
+
+    def _reading_error(self, message: str, stream: object, time: object) -> str:
+        """``message`` of a refused reading, naming its stream and time instead of
+        ``streams[i]`` (as is where ``stream`` is no stream's index)."""
+        if not (isinstance(stream, int) and 0 <= stream < len(self._names)):
+            return message
+        token = f"streams[{stream}]"
+        if message.startswith(f"{token}: "):
+            message = message[len(token) + 2 :]
+        elif message.startswith(f"{token}_"):  # the core's streams[i]_time, streams[i]_sigma
+            message = message[len(token) + 1 :]
+        try:
+            when = f"{float(time):.10g} s"  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            when = repr(time)
+        return f"{self._names[stream]}: the reading at {when}: {message}"
 
     def _check_start(self, times: F64, samples: F64) -> None:
         """The first IMU samples fed against the initial state (see the class)."""
@@ -287,7 +316,8 @@ class Navigator:
 
     def tally(self) -> list[StreamTally]:
         """Each stream's tally so far, in the streams' order."""
-        return [StreamTally(**t) for t in self._native.tally()]
+        tallies = self._native.tally()
+        return [StreamTally(**{**t, "name": n}) for t, n in zip(tallies, self._names, strict=True)]
 
     def findings(self) -> list[str]:
         """What the pass says about itself so far, one line each, as
@@ -362,7 +392,9 @@ def navigator_for(
     pressure from their surface fixes); after a dive, the whole recording. The streams
     are navigate's, in its order: the DVL (index 0, the tuning's R and lever arm), then
     the depth, the fixes and the heading where used (:attr:`Setup.aiding`), each with
-    the σ of its first reading (a reading fed without its own σ takes it).
+    the σ of its first reading (a reading fed without its own σ takes it), each named
+    by its sensor (``"dvl"``, ``"depth"``, ``"fix"``, ``"heading"``) in the navigator's
+    errors, tally and findings.
     :func:`readings_of` gives the section's own readings in time order. Fed the
     section's IMU samples after ``initial.t0`` and those readings in time order, its
     epochs are navigate's forward solution's (before the move to the reference point).
@@ -380,6 +412,7 @@ def navigator_for(
         lag=lag,
         checkpoint_every=checkpoint_every,
         imu_dt=imu_dt,
+        names=sensor_names(templates),
     )
     return nav, made
 

@@ -79,7 +79,7 @@ def surface_offset(
     (a known offset) wins."""
     if given is not None:
         if not np.isfinite(given):
-            raise ValueError(f"surface offset: must be a finite number of metres, got {given}")
+            raise ValueError(f"surface_offset: must be a finite number of metres, got {given}")
         return SurfaceOffset(float(given), 0, None, f"depth offset {given:+.3f} m, given")
     t = np.asarray(depth_time, dtype=np.float64)
     d = np.asarray(depth, dtype=np.float64)
