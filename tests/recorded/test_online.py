@@ -145,7 +145,7 @@ def test_the_learned_loop_live_is_the_batch_schedule(mission) -> None:
     np.testing.assert_array_equal(s.sigma, batch.sigma[-1])
     # One more instant after the last sample than the batch schedule (which ends there).
     assert len(nav.q_history) == len(schedule.time) + 1
-    np.testing.assert_array_equal(np.array([q for _, q in nav.q_history[:-1]]), schedule.q)
+    np.testing.assert_array_equal(np.array([q for _, q in list(nav.q_history)[:-1]]), schedule.q)
 
 
 def test_readings_up_to_half_a_second_late_give_the_in_order_result(mission) -> None:
@@ -204,6 +204,35 @@ def test_blocks_are_one_sample_at_a_time(mission) -> None:
     np.testing.assert_array_equal(a.lla, b.lla)
     np.testing.assert_array_equal(a.sigma, b.sigma)
     assert navs[0].q_history and len(navs[0].q_history) == len(navs[1].q_history)
+
+
+def test_the_q_history_keeps_the_latest_instants_only(mission) -> None:
+    """A learned loop's q history is bounded (a vehicle's navigator runs for days): the
+    latest ``q_history`` instants, those of an unbounded run's end."""
+    m = mission
+    learned = strategy(StrategySpec.parse("learned:detrend"), Q, tuning_period=1.0)
+    dt = float(np.median(np.diff(m.imu_time)))
+    navs = [
+        Navigator(
+            _streams(m, rows=False),
+            initial=_initial(m),
+            strategy=learned,
+            config=CONFIG,
+            imu_dt=dt,
+            q_history=kept,
+        )  # fmt: skip
+        for kept in (4, 10**6)
+    ]
+    for nav in navs:
+        nav.imu_block(m.imu_time, m.imu)
+    whole = list(navs[1].q_history)
+    assert len(whole) > 4 and len(navs[0].q_history) == 4
+    assert [e for e, _ in navs[0].q_history] == [e for e, _ in whole[-4:]]
+    for (_, a), (_, b) in zip(navs[0].q_history, whole[-4:], strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="q_history: must be at least 1"):
+        Navigator(_streams(m, rows=False), initial=_initial(m), strategy=learned, config=CONFIG,
+                  imu_dt=dt, q_history=0)  # fmt: skip
 
 
 def test_bad_input_is_one_line_naming_it(mission) -> None:
@@ -369,7 +398,7 @@ def test_a_user_s_python_model_runs_live_as_in_the_batch_loop(mission) -> None:
     nav = Navigator(sensors, initial=_initial(m), strategy=learned, config=CONFIG, imu_dt=dt)
     _feed(nav, m, _arrivals(m))
     np.testing.assert_array_equal(nav.state().lla, batch.lla[-1])
-    np.testing.assert_array_equal(np.array([q for _, q in nav.q_history[:-1]]), schedule.q)
+    np.testing.assert_array_equal(np.array([q for _, q in list(nav.q_history)[:-1]]), schedule.q)
 
 
 def test_findings_say_what_the_batch_pass_s_health_says(mission) -> None:

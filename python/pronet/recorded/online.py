@@ -25,6 +25,7 @@ adapt inside the core as in a batch pass.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -41,7 +42,7 @@ from pronet._util.plausibility import (
     gaps_fed,
     imu_period,
 )
-from pronet._util.validate import check_type, float_array, scalar
+from pronet._util.validate import check_type, count, float_array, scalar
 from pronet.config import filter_config
 from pronet.filter import Stream, _names, sensor_names
 from pronet.learn.hybrid import Guardrails, _predictions, apply_guardrails, for_loop
@@ -59,6 +60,8 @@ F64 = NDArray[np.float64]
 
 #: How late [s] a reading may be stamped before the newest IMU sample by default.
 DEFAULT_LAG = 1.0
+#: Tuning instants :attr:`Navigator.q_history` keeps by default (an hour at 1 s).
+Q_HISTORY = 3600
 
 
 @dataclass(frozen=True)
@@ -157,6 +160,9 @@ class Navigator:
             :meth:`findings`, one per stream: the sensor or topic its user knows it by
             (:func:`navigator_for` gives ``"dvl"``, ``"depth"``, …). None:
             ``streams[i]``.
+        q_history: how many of a learned strategy's latest tuning instants
+            :attr:`q_history` keeps (>= 1; default :data:`Q_HISTORY`, an hour at the
+            1 s period): the navigator's memory stays bounded however long it runs.
 
     As :func:`pronet.run_filter` does, the navigator refuses with a ``ValueError`` the
     unit and frame slips the data show: an ``initial.lla`` in degrees; a first feed of
@@ -181,8 +187,12 @@ class Navigator:
         window: int = DEFAULT_WINDOW,
         guardrails: Guardrails | None = None,
         names: Sequence[str] | None = None,
+        q_history: int = Q_HISTORY,
     ) -> None:
         check_type(initial, InitialState, "initial")
+        kept = count(q_history, "q_history", 10**9)
+        if kept < 1:
+            raise ValueError(f"q_history: must be at least 1, got {kept}")
         named = _names(names, len(streams))
         self._names = named or [f"streams[{i}]" for i in range(len(streams))]
         base = _core.FilterConfig() if config is None else config
@@ -235,8 +245,8 @@ class Navigator:
         #: non-finite predictions replaced by the last good q
         self.clipped = 0
         self.non_finite = 0
-        #: q set at each tuning instant so far: ``(epoch, q (6,))``
-        self.q_history: list[tuple[int, F64]] = []
+        #: q set at each of the latest ``q_history`` tuning instants: ``(epoch, q (6,))``
+        self.q_history: deque[tuple[int, F64]] = deque(maxlen=kept)
 
     def imu(self, time: float, sample: ArrayLike) -> None:
         """Feed one IMU sample ``[f (m/s²), ω (rad/s)]`` (body FRD) ending at ``time``
