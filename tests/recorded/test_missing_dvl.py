@@ -59,6 +59,32 @@ def test_missing_rows_are_skipped_and_counted_by_reason(tmp_path):
     assert gap == pytest.approx(21 * step, rel=1e-9)
 
 
+def test_a_dvl_in_cm_per_s_is_refused_not_taken_for_markers(tmp_path):
+    """Readings in cm/s of a vehicle's own mission (no ground truth to compare the
+    speed with): most rows beyond the marker's 32.768, each its own value (a marker
+    repeats one), refused naming the file; the same rows as markers are skipped."""
+    rec = synthetic_recording(seed=3, duration=60.0, name="cm").recording
+    write_recording(tmp_path / "m", rec)
+    (tmp_path / "m" / "gt.csv").unlink()
+    dvl = pd.read_csv(tmp_path / "m" / "dvl.csv")
+    vel = ["vel_x [m/s]", "vel_y [m/s]", "vel_z [m/s]"]
+    dvl.loc[:, vel] *= 100.0
+    dvl.loc[:14, vel] *= 0.1  # the vehicle slow at first: under 32.768 in cm/s
+    dvl.loc[:14, "vel_x [m/s]"] += 3.0  # (and still moving in m/s below)
+    beyond = dvl[vel].abs().max(axis=1) >= missing.DVL_SENTINEL
+    assert 0.5 < beyond.mean() < 1.0  # not every row: the all-rows check says nothing
+    dvl.to_csv(tmp_path / "m" / "dvl.csv", index=False, float_format="%.17g")
+    with pytest.raises(RecordingError, match=r"dvl.*different values.*in m/s\?"):
+        read_recording(tmp_path / "m")
+    # the same count of rows, each RDI's marker: skipped, not refused
+    m_per_s = pd.read_csv(tmp_path / "m" / "dvl.csv")
+    m_per_s.loc[:, vel] /= 100.0
+    m_per_s.loc[beyond, "vel_x [m/s]"] = -32.768
+    m_per_s.to_csv(tmp_path / "m" / "dvl.csv", index=False, float_format="%.17g")
+    got = read_recording(tmp_path / "m")
+    assert missing.counts(got.dvl_skipped_reason)["sentinel"] == beyond.sum()
+
+
 def test_the_same_rows_in_an_npz_are_skipped_alike(tmp_path):
     _with_dropouts(tmp_path / "s")
     csv = read_recording(tmp_path / "s")

@@ -9,7 +9,9 @@ row is a *skipped* reading, counted by reason (:data:`REASONS`):
   infinite). Recognised markers: Teledyne RDI's bad velocity, −32768 mm/s, written as
   −32.768 m/s by its PD0/PD6 decoders (Nortek's DVLs use the same −32.768), the raw
   −32768 when left in mm/s, and placeholders such as ±99.99 or 9999; no vehicle moves
-  at 32 m/s;
+  at 32 m/s. A marker repeats its value: ten or more such rows taking over three
+  different values there are readings in another unit (cm/s, mm/s), refused
+  (:func:`varied_markers`);
 - ``zero``: all three components exactly 0 while the ground truth (stamps as given,
   interpolated) moves faster than :data:`MOVING_SPEED`: several loggers write zeros for
   a ping without lock; a vehicle at rest may read exact zeros and keeps them. Without a
@@ -33,6 +35,10 @@ F64 = NDArray[np.float64]
 
 #: Magnitude [m/s] at or beyond which a DVL velocity component is a no-lock marker.
 DVL_SENTINEL = 32.768
+#: Rows beyond :data:`DVL_SENTINEL` from which their values are looked at, and the most
+#: different values they may take and still be markers (:func:`varied_markers`).
+MARKER_ROWS = 10
+MARKER_VALUES = 3
 #: Ground-truth speed [m/s] above which an all-zero DVL row is a missing reading.
 MOVING_SPEED = 0.2
 #: Why a DVL row is skipped, in the order a row is classified (the first that applies).
@@ -61,6 +67,25 @@ def classify(
     ):
         why[rows] = reason
     return why
+
+
+def varied_markers(vel: F64, sentinel: NDArray[np.bool_]) -> str | None:
+    """What is wrong when the rows ``sentinel`` of the DVL velocities ``vel (m, 3)``
+    [m/s] are not no-lock markers (None when they may be): at least
+    :data:`MARKER_ROWS` of them, over :data:`MARKER_VALUES` different values beyond
+    :data:`DVL_SENTINEL`. A DVL's marker repeats one value (RDI's −32.768); readings in
+    cm/s or mm/s read as m/s vary row by row."""
+    beyond = vel[sentinel]
+    beyond = beyond[np.isfinite(beyond) & (np.abs(beyond) >= DVL_SENTINEL)]
+    values = np.unique(beyond)
+    if sentinel.sum() < MARKER_ROWS or len(values) <= MARKER_VALUES:
+        return None
+    share = 100.0 * sentinel.sum() / len(vel)
+    return (
+        f"{int(sentinel.sum())} rows ({share:.0f} %) read beyond the no-lock marker "
+        f"±{DVL_SENTINEL} m/s, with {len(values)} different values there (a marker "
+        f"repeats one: {values[0]:.6g} … {values[-1]:.6g})"
+    )
 
 
 def counts(reasons: tuple[str, ...] | NDArray[np.str_]) -> dict[str, int]:
@@ -120,6 +145,8 @@ def usable_rows(
             f"{source} dvl: its median speed {speed_dvl:.4g} m/s{against}, every row at or "
             f"beyond the no-lock marker ±{DVL_SENTINEL} m/s; are the DVL velocities in m/s?"
         )
+    if varied := varied_markers(dvl[:, 1:4], why == "sentinel"):
+        raise ValueError(f"{source} dvl: {varied}; are the DVL velocities in m/s?")
     if (why != "").all():
         seen = ", ".join(f"{n} {r}" for r, n in counts(tuple(why)).items() if n)
         raise ValueError(
