@@ -420,3 +420,43 @@ def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, 
         "heading found in the data has the σ its method earns)\n"
     )
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "said"),
+    [
+        (["--init-heading", "400"], "--init-heading: 400° is beyond -360 … 360° (a heading "
+         "from true north); in another unit?"),
+        (["--init-heading", "nan"], "--init-heading: expected a finite number of degrees, got nan"),
+        (["--init-heading", "30", "--init-heading-sigma", "-1"],
+         "--init-heading-sigma: expected a 1σ in degrees > 0, got -1"),
+        (["--init-position", "95,34,2"], "--init-position: latitude 95° is beyond ±89°, got "
+         "'95,34,2'"),
+        (["--init-position", "32,34,nan"], "--init-position: expected finite LAT,LON,DEPTH, got "
+         "'32,34,nan'"),
+        (["--init-position", "32,400,2"], "--init-position: longitude 400° is beyond -180 … "
+         "360°, got '32,400,2'"),
+        (["--init-position", "32,34,101325"], "--init-position: depth 101325 m is beyond -10000 "
+         "… 12000 m (metres, positive down: the deepest ocean is 11 km), got '32,34,101325'; in "
+         "pascals?"),
+        (["--init-position", "32,34"], "--init-position: expected LAT,LON,DEPTH in deg, deg, m, "
+         "got '32,34'"),
+    ],
+)  # fmt: skip
+def test_the_initial_state_options_are_refused_as_typed(tmp_path, capsys, option, said):
+    """``--init-heading 400`` ran (a heading file refuses beyond ±360°); a negative
+    ``--init-heading-sigma`` said ``given heading_sigma: … got -0.01745`` (radians, for
+    the degrees typed), a bad ``--init-position`` ``given lla`` or ``given depth`` (in
+    radians: ``[nan, 0.593…, nan]``) after the recording was read, a longitude of 400° or
+    a depth in pascals ran, and ``32,34`` said ``expected three comma-separated
+    numbers`` (``x,y,z in metres`` for a word). Now one line naming the option and the
+    value as typed, before anything is read."""
+    from pronet.cli import main
+
+    out = tmp_path / "out"
+    argv = ["navigate", "--data", str(tmp_path / "none"), "--out", str(out), *option]
+    with pytest.raises(SystemExit) as refused:
+        main(argv)
+    assert refused.value.code == 2
+    assert capsys.readouterr().err == f"pronet: {said} (see pronet navigate --help)\n"
+    assert not out.exists()
