@@ -255,13 +255,19 @@ def test_given_parts_of_the_initial_state_are_refused_with_init_truth() -> None:
 
 
 def test_navigate_warns_of_a_lever_arm_beyond_10_m(tmp_path, short) -> None:
-    """The arms of ``pronet navigate`` typed in cm: each warned of by name."""
+    """The arms of ``pronet navigate`` typed in cm: each warned of by name, a given one
+    as ``given_as`` names it (the command's option), the vehicle file's by its key."""
     from pronet import PlausibilityWarning
 
     vehicle = load_vehicle(write_vehicle_file(tmp_path, short, arms=False))
     with pytest.warns(PlausibilityWarning) as said:
         lever_arms(vehicle, imu=(120.0, 0.0, 0.0), fix=(-178.0, -4.0, -104.0))
     assert [str(w.message).split(":")[0] for w in said] == ["imu_lever_arm", "fix_lever_arm"]
+    vehicle = dataclasses.replace(vehicle, dvl_lever_arm=(0.5, 0.0, 30.0))
+    with pytest.warns(PlausibilityWarning) as said:
+        lever_arms(vehicle, fix=(-178.0, -4.0, -104.0), given_as="--{}-lever-arm")
+    assert [str(w.message).split(":")[0] for w in said] == ["dvl_lever_arm", "--fix-lever-arm"]
+    assert str(said[0].message).startswith("dvl_lever_arm: 0.5,0,30 m (30 m long): its z of 30")
 
 
 def test_a_surface_depth_out_of_range_is_refused_as_the_vehicle_file_refuses_it() -> None:
@@ -390,7 +396,9 @@ def test_config_json_records_the_clocks_applied(tmp_path, short) -> None:
 def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, capsys):
     """A lever arm typed in cm was warned of as Python prints a warning (the module's
     path, ``PlausibilityWarning`` and the source line ``arms = lever_arms(``: the
-    options were read before the command took over its warnings); a NaN
+    options were read before the command took over its warnings), then as
+    ``dvl_lever_arm: -60,10,30 m reaches 60 m`` (the arm is 67.8 m long; the option
+    is ``--dvl-lever-arm``): now the option, the length and the component; a NaN
     ``--surface-offset`` was named ``surface offset``, not the option; and
     ``--init-heading-sigma`` without ``--init-heading`` was dropped without a word (the
     heading stream's σ used); an ``--out`` below a file was found after the whole pass
@@ -404,8 +412,8 @@ def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, 
     argv = ["navigate", "--data", str(folder), "--filter", vehicle, "--out", str(out)]
     assert main([*argv, "--dvl-lever-arm=-60,10,30", "--surface-offset", "nan"]) == 2
     assert capsys.readouterr().err == (
-        "pronet: warning: dvl_lever_arm: -60,10,30 m reaches 60 m from the reference "
-        "point, beyond 10 m; typed in cm or mm? (used as given)\n"
+        "pronet: warning: --dvl-lever-arm: -60,10,30 m (67.8 m long): its x of -60 m from "
+        "the reference point is beyond ±10 m; typed in cm or mm? (used as given)\n"
         "pronet: --surface-offset: must be a finite number of metres, got nan\n"
     )
     (tmp_path / "file").write_text("x")  # an --out below a file: said before the work

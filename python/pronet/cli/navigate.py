@@ -281,7 +281,7 @@ def _navigate(
         vehicle = replace(vehicle, declination=args.declination)
     arms = lever_arms(
         vehicle, imu=args.imu_lever_arm, dvl=args.dvl_lever_arm,
-        depth=args.depth_lever_arm, fix=args.fix_lever_arm,
+        depth=args.depth_lever_arm, fix=args.fix_lever_arm, given_as="--{}-lever-arm",
     )  # fmt: skip
     options = NavigateOptions(
         use_dvl=not args.no_dvl, use_depth=not args.no_depth, use_fixes=not args.no_fixes,
