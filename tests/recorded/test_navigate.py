@@ -468,3 +468,34 @@ def test_the_initial_state_options_are_refused_as_typed(tmp_path, capsys, option
     assert refused.value.code == 2
     assert capsys.readouterr().err == f"pronet: {said} (see pronet navigate --help)\n"
     assert not out.exists()
+
+
+def test_a_short_imu_or_a_folder_of_recordings_names_the_file(tmp_path, short, capsys):
+    """An IMU file of one row said ``imu_time: needs at least two samples, got 1`` and
+    one of two ``t0: the streams' first readings (0.75 s) come after the IMU's end``;
+    ``--data`` given a folder of recordings (``pronet real``'s Snapir folder) said ``no
+    imu.csv``. Now the IMU file with its rows, and the recordings the folder holds."""
+    from pronet.cli import main
+
+    data = tmp_path / "data"
+    folder = write_generic(short, data / "trajectory01")
+    imu = (folder / "imu.csv").read_text().splitlines(keepends=True)
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    out = tmp_path / "out"
+    argv = ["navigate", "--filter", vehicle, "--out", str(out), "--no-plots", "--data"]
+    for rows, said in (
+        (1, "1 data row: an IMU needs at least 2 (a step to integrate)"),
+        (2, "its 2 data rows end at 1700000000.010 s, 0.0312 s before any other stream's "
+            f"first reading ({data / 'trajectory02' / 'depth.csv'}): too short to navigate"),
+    ):  # fmt: skip
+        cut = write_generic(short, data / f"trajectory0{rows}")
+        (cut / "imu.csv").write_text("".join(imu[: rows + 1]))
+        assert main([*argv, str(cut)]) == 2
+        assert capsys.readouterr().err == f"pronet: {cut / 'imu.csv'}: {said}\n"
+    (data / "notes").mkdir()  # no recording: not named
+    assert main([*argv, str(data)]) == 2
+    assert capsys.readouterr().err == (
+        f"pronet: --data: {data} is a folder of 2 recordings (trajectory01, trajectory02); "
+        f"pronet navigate takes one (--data {data / 'trajectory01'}), pronet real all of them\n"
+    )
+    assert not out.exists()

@@ -246,6 +246,26 @@ def add_parser(sub: Subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def _one_recording(data: str) -> None:
+    """ValueError where ``--data`` is a folder of recordings (``pronet real``'s data:
+    sections in sub-folders, ``.npz`` files, bags), not one: naming a few and the one
+    to give (the reader said ``no imu.csv``)."""
+    from pronet.recorded.alignment import find_sections, section_name
+
+    path = Path(data)
+    try:
+        found = find_sections(path) if path.is_dir() else [path]
+    except ValueError:  # no recording in it: the reader names what is missing
+        return
+    if found != [path]:
+        names = ", ".join(section_name(p) for p in found[:3]) + (", …" if len(found) > 3 else "")
+        raise ValueError(
+            f"--data: {path} is a folder of {len(found)} recording"
+            f"{'' if len(found) == 1 else 's'} ({names}); pronet navigate takes one "
+            f"(--data {found[0]}), pronet real all of them"
+        )
+
+
 def _given(args: argparse.Namespace):  # noqa: ANN202
     """The given parts of the initial state (None for none); ValueError for a heading's
     σ without the heading (it was dropped without a word)."""
@@ -293,6 +313,7 @@ def _navigate(
     )  # fmt: skip
     out = Path(args.out or f"results/navigate-{time.strftime('%Y%m%d-%H%M%S')}")
     check_out_dir(out, "--out")  # before the work, not after it
+    _one_recording(args.data)
     navigation = navigate_recording(
         args.data, args.format if topics is None else topics, vehicle, arms, options
     )

@@ -419,7 +419,10 @@ def _when(
     need = _needed(streams, given)
     k0 = 0 if need is None else int(np.searchsorted(time, need))
     if k0 >= len(time):
-        raise ValueError(f"t0: the streams' first readings ({need:.2f} s) come after the IMU's end")
+        raise ValueError(
+            f"t0: the streams' first readings ({need:.2f} s) come after the IMU's end (its "
+            f"{len(time)} samples end at {time[-1]:.2f} s)"
+        )
     return k0, None, why
 
 
