@@ -472,10 +472,25 @@ def test_a_given_attitude_says_when_no_still_interval_was_found():
         (dict(still=(5.0, 3.0)), "^still: expected t_start < t_end within the IMU's"),
         (dict(still="sometimes"), "^still: expected 'auto', 'none' or"),
         (dict(t0=99.0), r"^t0: 99.0 s is outside the IMU's 0.000–29.990 s$"),
+        (
+            dict(
+                imu_time=np.arange(1, 21) * 0.01,
+                imu=np.zeros((20, 6)),
+                still="none",
+                given=GivenState(heading=1.0),
+                fixes=([5.0], [[0.5, 0.6, 0.0]], 1.0),
+            ),
+            r"^t0: the streams' first readings \(5.00 s\) come after the IMU's end \(its 20 "
+            r"samples end at 0.20 s\)$",
+        ),  # fmt: skip
         (dict(given=GivenState(rpy=[0, 0, 0], heading=1.0)), "^given: rpy and heading"),
         (dict(given=GivenState(lla=[0.5, 0.6, 1.0], depth=2.0)), "^given: a depth and a height"),
         (dict(given=GivenState(vel=[0, 0, 0], vel_sigma=[0.1, 0.0, 0.1])), "^given vel_sigma"),
         (dict(settings=None, still=(0.0, 0.05)), "at least 10 samples"),
+        # accepted before: a heading in degrees, a longitude in degrees, a depth in Pa
+        (dict(given=GivenState(heading=400.0)), r"^given heading: 400 rad is beyond ±6.28319"),
+        (dict(given=GivenState(lla=[0.5, 7.0, np.nan])), "^given lla: longitude 7 is beyond"),
+        (dict(given=GivenState(depth=101325.0)), "^given depth: 101325 m is beyond -10000"),
     ],
 )
 def test_unusable_inputs_are_refused_naming_them(kwargs, message):

@@ -255,13 +255,19 @@ def test_given_parts_of_the_initial_state_are_refused_with_init_truth() -> None:
 
 
 def test_navigate_warns_of_a_lever_arm_beyond_10_m(tmp_path, short) -> None:
-    """The arms of ``pronet navigate`` typed in cm: each warned of by name."""
+    """The arms of ``pronet navigate`` typed in cm: each warned of by name, a given one
+    as ``given_as`` names it (the command's option), the vehicle file's by its key."""
     from pronet import PlausibilityWarning
 
     vehicle = load_vehicle(write_vehicle_file(tmp_path, short, arms=False))
     with pytest.warns(PlausibilityWarning) as said:
         lever_arms(vehicle, imu=(120.0, 0.0, 0.0), fix=(-178.0, -4.0, -104.0))
     assert [str(w.message).split(":")[0] for w in said] == ["imu_lever_arm", "fix_lever_arm"]
+    vehicle = dataclasses.replace(vehicle, dvl_lever_arm=(0.5, 0.0, 30.0))
+    with pytest.warns(PlausibilityWarning) as said:
+        lever_arms(vehicle, fix=(-178.0, -4.0, -104.0), given_as="--{}-lever-arm")
+    assert [str(w.message).split(":")[0] for w in said] == ["dvl_lever_arm", "--fix-lever-arm"]
+    assert str(said[0].message).startswith("dvl_lever_arm: 0.5,0,30 m (30 m long): its z of 30")
 
 
 def test_a_surface_depth_out_of_range_is_refused_as_the_vehicle_file_refuses_it() -> None:
@@ -390,7 +396,9 @@ def test_config_json_records_the_clocks_applied(tmp_path, short) -> None:
 def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, capsys):
     """A lever arm typed in cm was warned of as Python prints a warning (the module's
     path, ``PlausibilityWarning`` and the source line ``arms = lever_arms(``: the
-    options were read before the command took over its warnings); a NaN
+    options were read before the command took over its warnings), then as
+    ``dvl_lever_arm: -60,10,30 m reaches 60 m`` (the arm is 67.8 m long; the option
+    is ``--dvl-lever-arm``): now the option, the length and the component; a NaN
     ``--surface-offset`` was named ``surface offset``, not the option; and
     ``--init-heading-sigma`` without ``--init-heading`` was dropped without a word (the
     heading stream's σ used); an ``--out`` below a file was found after the whole pass
@@ -404,8 +412,8 @@ def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, 
     argv = ["navigate", "--data", str(folder), "--filter", vehicle, "--out", str(out)]
     assert main([*argv, "--dvl-lever-arm=-60,10,30", "--surface-offset", "nan"]) == 2
     assert capsys.readouterr().err == (
-        "pronet: warning: dvl_lever_arm: -60,10,30 m reaches 60 m from the reference "
-        "point, beyond 10 m; typed in cm or mm? (used as given)\n"
+        "pronet: warning: --dvl-lever-arm: -60,10,30 m (67.8 m long): its x of -60 m from "
+        "the reference point is beyond ±10 m; typed in cm or mm? (used as given)\n"
         "pronet: --surface-offset: must be a finite number of metres, got nan\n"
     )
     (tmp_path / "file").write_text("x")  # an --out below a file: said before the work
@@ -418,5 +426,76 @@ def test_every_word_of_the_command_is_one_line_before_the_work(tmp_path, short, 
     assert capsys.readouterr().err == (
         "pronet: --init-heading-sigma: the 1σ of --init-heading, which is not given (the "
         "heading found in the data has the σ its method earns)\n"
+    )
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "said"),
+    [
+        (["--init-heading", "400"], "--init-heading: 400° is beyond -360 … 360° (a heading "
+         "from true north); in another unit?"),
+        (["--init-heading", "nan"], "--init-heading: expected a finite number of degrees, got nan"),
+        (["--init-heading", "30", "--init-heading-sigma", "-1"],
+         "--init-heading-sigma: expected a 1σ in degrees > 0, got -1"),
+        (["--init-position", "95,34,2"], "--init-position: latitude 95° is beyond ±89°, got "
+         "'95,34,2'"),
+        (["--init-position", "32,34,nan"], "--init-position: expected finite LAT,LON,DEPTH, got "
+         "'32,34,nan'"),
+        (["--init-position", "32,400,2"], "--init-position: longitude 400° is beyond -180 … "
+         "360°, got '32,400,2'"),
+        (["--init-position", "32,34,101325"], "--init-position: depth 101325 m is beyond -10000 "
+         "… 12000 m (metres, positive down: the deepest ocean is 11 km), got '32,34,101325'; in "
+         "pascals?"),
+        (["--init-position", "32,34"], "--init-position: expected LAT,LON,DEPTH in deg, deg, m, "
+         "got '32,34'"),
+    ],
+)  # fmt: skip
+def test_the_initial_state_options_are_refused_as_typed(tmp_path, capsys, option, said):
+    """``--init-heading 400`` ran (a heading file refuses beyond ±360°); a negative
+    ``--init-heading-sigma`` said ``given heading_sigma: … got -0.01745`` (radians, for
+    the degrees typed), a bad ``--init-position`` ``given lla`` or ``given depth`` (in
+    radians: ``[nan, 0.593…, nan]``) after the recording was read, a longitude of 400° or
+    a depth in pascals ran, and ``32,34`` said ``expected three comma-separated
+    numbers`` (``x,y,z in metres`` for a word). Now one line naming the option and the
+    value as typed, before anything is read."""
+    from pronet.cli import main
+
+    out = tmp_path / "out"
+    argv = ["navigate", "--data", str(tmp_path / "none"), "--out", str(out), *option]
+    with pytest.raises(SystemExit) as refused:
+        main(argv)
+    assert refused.value.code == 2
+    assert capsys.readouterr().err == f"pronet: {said} (see pronet navigate --help)\n"
+    assert not out.exists()
+
+
+def test_a_short_imu_or_a_folder_of_recordings_names_the_file(tmp_path, short, capsys):
+    """An IMU file of one row said ``imu_time: needs at least two samples, got 1`` and
+    one of two ``t0: the streams' first readings (0.75 s) come after the IMU's end``;
+    ``--data`` given a folder of recordings (``pronet real``'s Snapir folder) said ``no
+    imu.csv``. Now the IMU file with its rows, and the recordings the folder holds."""
+    from pronet.cli import main
+
+    data = tmp_path / "data"
+    folder = write_generic(short, data / "trajectory01")
+    imu = (folder / "imu.csv").read_text().splitlines(keepends=True)
+    vehicle = str(write_vehicle_file(tmp_path, short))
+    out = tmp_path / "out"
+    argv = ["navigate", "--filter", vehicle, "--out", str(out), "--no-plots", "--data"]
+    for rows, said in (
+        (1, "1 data row: an IMU needs at least 2 (a step to integrate)"),
+        (2, "its 2 data rows end at 1700000000.010 s, 0.0312 s before any other stream's "
+            f"first reading ({data / 'trajectory02' / 'depth.csv'}): too short to navigate"),
+    ):  # fmt: skip
+        cut = write_generic(short, data / f"trajectory0{rows}")
+        (cut / "imu.csv").write_text("".join(imu[: rows + 1]))
+        assert main([*argv, str(cut)]) == 2
+        assert capsys.readouterr().err == f"pronet: {cut / 'imu.csv'}: {said}\n"
+    (data / "notes").mkdir()  # no recording: not named
+    assert main([*argv, str(data)]) == 2
+    assert capsys.readouterr().err == (
+        f"pronet: --data: {data} is a folder of 2 recordings (trajectory01, trajectory02); "
+        f"pronet navigate takes one (--data {data / 'trajectory01'}), pronet real all of them\n"
     )
     assert not out.exists()

@@ -381,6 +381,28 @@ def test_a_refused_reading_is_named_by_its_stream_and_time(mission) -> None:
                   strategy=NATIVE["constant"], names=["dvl"])  # fmt: skip
 
 
+def test_a_stream_index_of_the_wrong_type_is_one_line_naming_it(mission) -> None:
+    """``reading(stream=[1])`` raised a bare ``TypeError: unhashable type: 'list'`` from
+    the depth streams' set, and ``stream=True`` (equal to 1) was named as the depth
+    stream; a NumPy index (``np.int64(1)``) was taken, but its refused reading said
+    ``streams[1]: …``, not the stream's name and time. Now the one line other bad
+    indices get, and a NumPy index named as an int is."""
+    m = mission
+    nav = Navigator(
+        _streams(m, rows=False), initial=_initial(m), strategy=NATIVE["constant"],
+        config=CONFIG, names=["dvl", "depth", "usbl", "compass"],
+    )  # fmt: skip
+    nav.imu_block(m.imu_time[:200], m.imu[:200])
+    t = float(m.imu_time[150])
+    for stream, kind in (([1], "list"), ({1: 2}, "dict"), (True, "bool"), (1.0, "float")):
+        with pytest.raises(ValueError) as refused:
+            nav.reading(stream, t, 1.0)  # type: ignore[arg-type]
+        assert str(refused.value) == f"stream: expected a whole number, got {kind}"
+    with pytest.raises(ValueError, match=rf"^depth: the reading at {t:.10g} s: must be finite"):
+        nav.reading(np.int64(1), t, np.nan)  # type: ignore[arg-type]
+    assert nav.reading(np.int64(1), t, 1.0) == "late"  # type: ignore[arg-type]
+
+
 class _WindowVariance:
     """A user's own model, called back from the loop: q from each window's variance."""
 

@@ -135,8 +135,8 @@ def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recordi
     assert main(argv) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert err[0] == (
-        "pronet: warning: dvl_lever_arm: -185,-3,12 m reaches 185 m from the ground-truth "
-        "point, beyond 10 m; typed in cm or mm? (used as given)"
+        "pronet: warning: dvl_lever_arm: -185,-3,12 m (185 m long): its x of -185 m from the "
+        "ground-truth point is beyond ±10 m; typed in cm or mm? (used as given)"
     )
     # and the filters, run as told, say their DVL disagrees: its lever arm among the causes
     (note,) = err[1:]

@@ -159,20 +159,23 @@ def attitude_beyond(rpy: F64, name: str) -> str | None:
     return None
 
 
-#: A lever arm longer than this [m] is warned of: typed in cm or mm, an arm runs to
-#: metres, usable and wrong.
+#: A lever arm with a component beyond this [m] is warned of: typed in cm or mm, an
+#: arm runs to metres, usable and wrong.
 LONG_LEVER_ARM = 10.0
 
 
 def long_lever_arm(arm: Sequence[float], name: str, reference: str = "the IMU") -> None:
     """Warn (:class:`PlausibilityWarning`) of a lever arm ``arm`` [m] (from
-    ``reference``) beyond :data:`LONG_LEVER_ARM`."""
-    longest = max(abs(v) for v in arm)
-    if longest > LONG_LEVER_ARM:
+    ``reference``) with a component beyond :data:`LONG_LEVER_ARM`, naming the first
+    such component and the arm's length."""
+    far = [(axis, v) for axis, v in zip("xyz", arm, strict=False) if abs(v) > LONG_LEVER_ARM]
+    if far:
         shown = ",".join(f"{v:g}" for v in arm)
+        length = math.sqrt(sum(v * v for v in arm))
         warnings.warn(
-            f"{name}: {shown} m reaches {longest:g} m from {reference}, beyond "
-            f"{LONG_LEVER_ARM:g} m; typed in cm or mm? (used as given)",
+            f"{name}: {shown} m ({length:.3g} m long): its {far[0][0]} of {far[0][1]:g} m "
+            f"from {reference} is beyond ±{LONG_LEVER_ARM:g} m; typed in cm or mm? (used as "
+            "given)",
             PlausibilityWarning,
             stacklevel=3,
         )

@@ -48,6 +48,71 @@ def _still(text: str) -> tuple[float, float] | str:  # "auto" or "none" as given
     return a, b
 
 
+def _position(text: str) -> tuple[float, float, float]:
+    """``LAT,LON,DEPTH`` [deg, deg, m down] as the initial state takes them (finite, the
+    latitude within ±89°, the longitude within the core's range, a depth in the ocean),
+    or the error argparse reports."""
+    from pronet._core import LONGITUDE_RANGE_DEG
+    from pronet.recorded.initialinputs import DEPTH_RANGE, MAX_GIVEN_LATITUDE
+
+    try:
+        lat, lon, depth = vector3(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"expected LAT,LON,DEPTH in deg, deg, m, got {text!r}"
+        ) from None
+    west, east = LONGITUDE_RANGE_DEG
+    if not all(math.isfinite(v) for v in (lat, lon, depth)):
+        raise argparse.ArgumentTypeError(f"expected finite LAT,LON,DEPTH, got {text!r}")
+    if abs(lat) > MAX_GIVEN_LATITUDE:
+        raise argparse.ArgumentTypeError(
+            f"latitude {lat:g}° is beyond ±{MAX_GIVEN_LATITUDE:g}°, got {text!r}"
+        )
+    if not west <= lon <= east:
+        raise argparse.ArgumentTypeError(
+            f"longitude {lon:g}° is beyond {west:g} … {east:g}°, got {text!r}"
+        )
+    if not DEPTH_RANGE[0] <= depth <= DEPTH_RANGE[1]:
+        raise argparse.ArgumentTypeError(
+            f"depth {depth:g} m is beyond {DEPTH_RANGE[0]:g} … {DEPTH_RANGE[1]:g} m (metres, "
+            f"positive down: the deepest ocean is 11 km), got {text!r}; in pascals?"
+        )
+    return lat, lon, depth
+
+
+def _heading(text: str) -> float:
+    """A heading [deg] within ±360° (a heading file's bound), or the error argparse
+    reports."""
+    from pronet.recorded.initialinputs import MAX_GIVEN_HEADING
+
+    value = _degrees(text)
+    if abs(value) > MAX_GIVEN_HEADING:
+        raise argparse.ArgumentTypeError(
+            f"{value:g}° is beyond -{MAX_GIVEN_HEADING:g} … {MAX_GIVEN_HEADING:g}° (a heading "
+            "from true north); in another unit?"
+        )
+    return value
+
+
+def _sigma(text: str) -> float:
+    """A heading's 1σ [deg]: finite and > 0, or the error argparse reports."""
+    value = _degrees(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a 1σ in degrees > 0, got {text}")
+    return value
+
+
+def _degrees(text: str) -> float:
+    """A finite number of degrees, or the error argparse reports."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected degrees, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number of degrees, got {text}")
+    return value
+
+
 def _add_init(parser: argparse.ArgumentParser) -> None:
     """The initial-state options (:mod:`pronet.recorded.initial`)."""
     init = parser.add_argument_group("initial state (pronet.recorded.initial)")
@@ -62,21 +127,21 @@ def _add_init(parser: argparse.ArgumentParser) -> None:
     init.add_argument(
         "--init-position",
         metavar="LAT,LON,DEPTH",
-        type=vector3,
+        type=_position,
         default=None,
         help="the IMU's starting latitude, longitude [deg] and depth [m, down]",
     )
     init.add_argument(
         "--init-heading",
         metavar="DEG",
-        type=float,
+        type=_heading,
         default=None,
         help="the starting heading [deg, from true north]",
     )
     init.add_argument(
         "--init-heading-sigma",
         metavar="DEG",
-        type=float,
+        type=_sigma,
         default=None,
         help="its 1σ [deg] (default the given state's, 5°)",
     )
@@ -181,6 +246,26 @@ def add_parser(sub: Subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def _one_recording(data: str) -> None:
+    """ValueError where ``--data`` is a folder of recordings (``pronet real``'s data:
+    sections in sub-folders, ``.npz`` files, bags), not one: naming a few and the one
+    to give (the reader said ``no imu.csv``)."""
+    from pronet.recorded.alignment import find_sections, section_name
+
+    path = Path(data)
+    try:
+        found = find_sections(path) if path.is_dir() else [path]
+    except ValueError:  # no recording in it: the reader names what is missing
+        return
+    if found != [path]:
+        names = ", ".join(section_name(p) for p in found[:3]) + (", …" if len(found) > 3 else "")
+        raise ValueError(
+            f"--data: {path} is a folder of {len(found)} recording"
+            f"{'' if len(found) == 1 else 's'} ({names}); pronet navigate takes one "
+            f"(--data {found[0]}), pronet real all of them"
+        )
+
+
 def _given(args: argparse.Namespace):  # noqa: ANN202
     """The given parts of the initial state (None for none); ValueError for a heading's
     σ without the heading (it was dropped without a word)."""
@@ -216,7 +301,7 @@ def _navigate(
         vehicle = replace(vehicle, declination=args.declination)
     arms = lever_arms(
         vehicle, imu=args.imu_lever_arm, dvl=args.dvl_lever_arm,
-        depth=args.depth_lever_arm, fix=args.fix_lever_arm,
+        depth=args.depth_lever_arm, fix=args.fix_lever_arm, given_as="--{}-lever-arm",
     )  # fmt: skip
     options = NavigateOptions(
         use_dvl=not args.no_dvl, use_depth=not args.no_depth, use_fixes=not args.no_fixes,
@@ -228,6 +313,7 @@ def _navigate(
     )  # fmt: skip
     out = Path(args.out or f"results/navigate-{time.strftime('%Y%m%d-%H%M%S')}")
     check_out_dir(out, "--out")  # before the work, not after it
+    _one_recording(args.data)
     navigation = navigate_recording(
         args.data, args.format if topics is None else topics, vehicle, arms, options
     )

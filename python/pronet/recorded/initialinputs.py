@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from pronet._util.plausibility import HEIGHT_RANGE, angles_beyond
 from pronet._util.validate import float_array, real_array, scalar
 from pronet.filter import ERROR_STATES
 from pronet.recorded.levelling import StillSettings, still_intervals
@@ -21,6 +22,16 @@ F64 = NDArray[np.float64]
 MIN_STILL_SAMPLES = 10
 #: A stream: ``(time (k,), values (k,) or (k, c), sigma)``, σ per reading or one for all.
 Stream = tuple[ArrayLike, ArrayLike, ArrayLike]
+
+#: The largest latitude [deg] a given position may have (the navigation frame's
+#: heading is undefined at a pole).
+MAX_GIVEN_LATITUDE = 89.0
+#: The largest heading [deg] a given heading may have, either way: a heading file's
+#: bound (0–360° and ±180° conventions alike; beyond it, another unit).
+MAX_GIVEN_HEADING = 360.0
+#: The depths [m, down] a given depth may have: :data:`~pronet._util.plausibility.
+#: HEIGHT_RANGE` negated (the deepest ocean is 11 km).
+DEPTH_RANGE = (-HEIGHT_RANGE[1], -HEIGHT_RANGE[0])
 
 #: The 1σ of a given part where it comes without one: position N, E, D [m], depth [m],
 #: roll and pitch [rad] (2°), heading [rad] (5°), velocity [m/s].
@@ -265,8 +276,12 @@ def _given(g: GivenState | None) -> Given:
     """``g`` checked, its missing σ from :data:`GIVEN_SIGMA`."""
     g = GivenState() if g is None else g
     lla = _given_vector(g.lla, "lla", finite=2)
-    if lla is not None and abs(lla[0]) > math.radians(89.0):
-        raise ValueError(f"given lla: latitude {math.degrees(lla[0]):.2f}° beyond ±89°")
+    if lla is not None and (beyond := angles_beyond(lla, "given lla")) is not None:
+        raise ValueError(beyond)
+    if lla is not None and abs(lla[0]) > math.radians(MAX_GIVEN_LATITUDE):
+        raise ValueError(
+            f"given lla: latitude {math.degrees(lla[0]):.2f}° beyond ±{MAX_GIVEN_LATITUDE:g}°"
+        )
     if g.depth is not None and lla is not None and np.isfinite(lla[2]):
         raise ValueError("given: a depth and a height in lla: give one of them")
     if g.rpy is not None and g.heading is not None:
@@ -276,6 +291,16 @@ def _given(g: GivenState | None) -> Given:
     for name, value in (("depth", depth), ("heading", head)):
         if value is not None and not math.isfinite(value):
             raise ValueError(f"given {name}: expected a finite value, got {value}")
+    if depth is not None and not DEPTH_RANGE[0] <= depth <= DEPTH_RANGE[1]:
+        raise ValueError(
+            f"given depth: {depth:g} m is beyond {DEPTH_RANGE[0]:g} … {DEPTH_RANGE[1]:g} m "
+            "(metres, positive down: the deepest ocean is 11 km); in pascals or another unit?"
+        )
+    if head is not None and abs(head) > math.radians(MAX_GIVEN_HEADING):
+        raise ValueError(
+            f"given heading: {head:.6g} rad is beyond ±{math.radians(MAX_GIVEN_HEADING):.6g} "
+            f"rad (±{MAX_GIVEN_HEADING:g}°); in degrees? (radians expected)"
+        )
     sigmas = {
         name: _given_sigma(getattr(g, f"{name}_sigma"), f"{name}_sigma", GIVEN_SIGMA[name])
         for name in GIVEN_SIGMA
@@ -394,7 +419,10 @@ def _when(
     need = _needed(streams, given)
     k0 = 0 if need is None else int(np.searchsorted(time, need))
     if k0 >= len(time):
-        raise ValueError(f"t0: the streams' first readings ({need:.2f} s) come after the IMU's end")
+        raise ValueError(
+            f"t0: the streams' first readings ({need:.2f} s) come after the IMU's end (its "
+            f"{len(time)} samples end at {time[-1]:.2f} s)"
+        )
     return k0, None, why
 
 

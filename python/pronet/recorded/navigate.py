@@ -548,20 +548,20 @@ def lever_arms(
     dvl: Arm | None = None,
     depth: Arm | None = None,
     fix: Arm | None = None,
+    given_as: str = "{}_lever_arm",
 ) -> LeverArms:
     """The sensors' lever arms from the reference point: each given, else the vehicle
     file's; the IMU's else 0 (the trajectory is the IMU's), the others' else at the IMU
     (named in :attr:`LeverArms.assumed`, which the report states). An arm beyond
-    10 m is warned of (in cm?)."""
+    10 m is warned of (in cm?), a given one named by ``given_as`` with the sensor
+    (the command's ``--{}-lever-arm``), the vehicle file's by its key."""
     imu_arm = imu or vehicle.imu_lever_arm or ZERO
-    chosen = {
-        "dvl": dvl or vehicle.dvl_lever_arm,
-        "depth": depth or vehicle.depth_lever_arm,
-        "fix": fix or vehicle.fix_lever_arm,
-    }
+    given = {"imu": imu, "dvl": dvl, "depth": depth, "fix": fix}
+    chosen = {k: given[k] or getattr(vehicle, f"{k}_lever_arm") for k in ("dvl", "depth", "fix")}
     for name, arm in (("imu", imu_arm), *chosen.items()):
         if arm is not None:
-            long_lever_arm(arm, f"{name}_lever_arm", "the reference point")
+            named = (given_as if given[name] else "{}_lever_arm").format(name)
+            long_lever_arm(arm, named, "the reference point")
     assumed = tuple(name for name, arm in chosen.items() if arm is None)
     return LeverArms(
         imu=imu_arm,

@@ -284,7 +284,7 @@ class Navigator:
         (before the pass's start). A reading refused is a ``ValueError`` naming its
         stream and time."""
         try:
-            if stream in self._depth_streams:
+            if _index(stream) in self._depth_streams:
                 depth = np.atleast_1d(np.asarray(value, dtype=np.float64))
                 if (beyond := depth_beyond(depth, f"streams[{stream}]")) is not None:
                     raise ValueError(beyond)
@@ -295,9 +295,10 @@ class Navigator:
     def _reading_error(self, message: str, stream: object, time: object) -> str:
         """``message`` of a refused reading, naming its stream and time instead of
         ``streams[i]`` (as is where ``stream`` is no stream's index)."""
-        if not (isinstance(stream, int) and 0 <= stream < len(self._names)):
+        k = _index(stream)
+        if k is None or not 0 <= k < len(self._names):
             return message
-        token = f"streams[{stream}]"
+        token = f"streams[{k}]"
         if message.startswith(f"{token}: "):
             message = message[len(token) + 2 :]
         elif message.startswith(f"{token}_"):  # the core's streams[i]_time, streams[i]_sigma
@@ -306,7 +307,7 @@ class Navigator:
             when = f"{float(time):.10g} s"  # type: ignore[arg-type]
         except (TypeError, ValueError):
             when = repr(time)
-        return f"{self._names[stream]}: the reading at {when}: {message}"
+        return f"{self._names[k]}: the reading at {when}: {message}"
 
     def _check_start(self, times: F64, samples: F64) -> None:
         """The first IMU samples fed against the initial state (see the class)."""
@@ -425,6 +426,14 @@ def navigator_for(
         names=sensor_names(templates),
     )
     return nav, made
+
+
+def _index(stream: object) -> int | None:
+    """``stream`` as a stream's index where it is a whole number (NumPy's too), else None
+    (a bool, a list: the core names it, ``stream: expected a whole number, got list``)."""
+    if isinstance(stream, int | np.integer) and not isinstance(stream, bool):
+        return int(stream)
+    return None
 
 
 def _without_rows(stream: Stream) -> Stream:

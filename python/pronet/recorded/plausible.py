@@ -6,6 +6,8 @@ None; :mod:`pronet.recorded.recordings` raises it as a ``RecordingError`` (exit 
 the command line). Checked, in this order, after the per-file checks (finite numbers,
 increasing time, rate):
 
+- an IMU too short to navigate (:func:`short_imu`): fewer than two rows, or ending
+  before every other stream's first reading;
 - magnitudes that fit their units (:func:`magnitudes`): the mean specific force near
   gravity, angular rates within :data:`MAX_RECORDED_RATE`, the DVL's speed near the
   ground truth's (without one, within :data:`MAX_DVL_SPEED`);
@@ -159,6 +161,30 @@ def duplicate_columns(
                 f"{where}: column {name!r} appears {len(at)} times (columns {shown}); "
                 "keep the one that holds the data"
             )
+    return None
+
+
+#: The fewest IMU rows a recording may have: a step to integrate over.
+MIN_IMU_ROWS = 2
+
+
+def short_imu(tables: dict[str, Table]) -> str | None:
+    """The IMU table of ``tables`` with fewer than :data:`MIN_IMU_ROWS` rows, or whose
+    rows all end before the first reading of every other table (nothing aids or scores
+    it): named by its file and its row count."""
+    imu = tables["imu"]
+    n = len(imu.values)
+    rows = f"{n} data row" + ("" if n == 1 else "s")
+    if n < MIN_IMU_ROWS:
+        return f"{imu.where}: {rows}: an IMU needs at least {MIN_IMU_ROWS} (a step to integrate)"
+    others = [t for kind, t in tables.items() if kind != "imu" and len(t.values)]
+    first = min(others, key=lambda t: t.values[0, 0], default=None)
+    end = float(imu.values[-1, 0])
+    if first is not None and end < first.values[0, 0]:
+        return (
+            f"{imu.where}: its {rows} end at {end:.3f} s, {first.values[0, 0] - end:.3g} s "
+            f"before any other stream's first reading ({first.where}): too short to navigate"
+        )
     return None
 
 

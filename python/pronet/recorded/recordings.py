@@ -364,8 +364,7 @@ def _select_columns(
     if (sigma := aiding.unknown_sigma(where, kind, ours_all, header)) is not None:
         raise RecordingError(sigma)
     found: dict[str, tuple[int, str]] = {}
-    for i, (name, unit) in enumerate(parsed):
-        ours = names.get(name, name) if names is not None else name
+    for i, (ours, (_, unit)) in enumerate(zip(ours_all, parsed, strict=True)):
         found.setdefault(ours, (i, unit))
     picks = []
     for name, units in _SPEC[kind].items():
@@ -565,6 +564,7 @@ def _recording(
         raise RecordingError(str(exc)) from None
     skipped = why != ""
     for problem in (
+        plausible.short_imu(tables),
         plausible.magnitudes(imu[:, 1:7], dvl[:, 1:4], gt[:, 4:7], source),
         plausible.stuck_channels(tables["imu"], range(1, 7)),
         plausible.stuck_channels(tables["dvl"], range(1, 4), ~skipped) if len(dvl) else None,
