@@ -76,6 +76,7 @@ from numpy.typing import ArrayLike, NDArray
 from pronet import _core
 from pronet._util.plausibility import STANDARD_GRAVITY as G0
 from pronet.navigation import lla_from_ned, local_ned
+from pronet.recorded.alignment import dcm_from_euler
 from pronet.recorded.initialinputs import (
     GIVEN_SIGMA,
     GivenState,
@@ -84,7 +85,7 @@ from pronet.recorded.initialinputs import (
     Stream,
     prepare,
 )
-from pronet.recorded.levelling import EARTH_RATE, dcm, gyrocompass, level, psi_sigma, wrapped_mean
+from pronet.recorded.levelling import EARTH_RATE, gyrocompass, level, psi_sigma, wrapped_mean
 from pronet.recorded.solution import InitialState
 
 F64 = NDArray[np.float64]
@@ -408,7 +409,7 @@ def initial_state(
     yaw, yaw_sigma, heading_method = _heading(p, rp, rp_sigma, latitude)
     rpy = np.array([rp[0], rp[1], math.remainder(yaw, 2 * math.pi)])
     psi = psi_sigma(rpy, np.array([rp_sigma[0], rp_sigma[1], yaw_sigma]))
-    c = dcm(rpy)
+    c = dcm_from_euler(rpy)
     vel, vel_sigma, velocity = _velocity(p, c, psi, latitude)
     found = _fixes(p, c, vel, vel_sigma, psi)
     if p.given.lla is not None:

@@ -35,6 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from pronet.recorded.alignment import dcm_from_euler
+
 F64 = NDArray[np.float64]
 
 #: The Earth's rotation rate Ω [rad/s] (WGS-84).
@@ -68,20 +70,6 @@ class StillSettings:
                 raise ValueError(
                     f"StillSettings.{name}: expected a number above {least:g}, got {value!r}"
                 )
-
-
-def dcm(rpy: F64) -> F64:
-    """Body-to-NED DCM ``(3, 3)`` of roll, pitch, yaw [rad] (ZYX)."""
-    cr, sr = math.cos(rpy[0]), math.sin(rpy[0])
-    cp, sp = math.cos(rpy[1]), math.sin(rpy[1])
-    cy, sy = math.cos(rpy[2]), math.sin(rpy[2])
-    return np.array(
-        [
-            [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
-            [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
-            [-sp, sr * cp, cr * cp],
-        ]
-    )
 
 
 def wrapped_mean(angles: F64) -> float:
@@ -204,7 +192,7 @@ def gyrocompass(
     (σ_t tan φ)²``. It is useful only while ``σ_bg ≪ Ω cos φ`` (a navigation-grade gyro).
     """
     w = imu[:, 3:].mean(axis=0)
-    level_frame = dcm(np.array([roll, pitch, 0.0]))
+    level_frame = dcm_from_euler(np.array([roll, pitch, 0.0]))
     w_level = level_frame @ w
     heading = math.atan2(-w_level[1], w_level[0])
     noise = float(mean_noise(imu[:, 3:]).max())
