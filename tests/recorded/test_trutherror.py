@@ -58,6 +58,33 @@ def test_white_noise_and_a_constant_bias_are_told_apart() -> None:
     assert slow.white == pytest.approx([0.002] * 3, rel=0.05)
 
 
+def test_alternating_noise_is_not_taken_for_white() -> None:
+    """The Snapir DVL's errors alternate from one reading to the next: noise of 1σ
+    0.03 m/s from ``e_k = −0.6 e_{k−1} + w_k`` with a bias of (0.01, 0.005, 0) m/s. The
+    fast part is its 1σ with its lag-one autocorrelation, the slow part the bias; the
+    white-noise formulas (``std(Δr)/√2``, the mean's noise ``σ²/N``) overstate the
+    first by √1.6 and take a quarter of the bias away."""
+    rng = np.random.default_rng(3)
+    phi, sigma, rows = -0.6, 0.03, 20000
+    w = rng.standard_normal((rows, 3)) * sigma * math.sqrt(1 - phi**2)
+    e = np.zeros((rows, 3))
+    e[0] = w[0] / math.sqrt(1 - phi**2)
+    for k in range(1, rows):
+        e[k] = phi * e[k - 1] + w[k]
+    bias = np.array([0.01, 0.005, 0.0])
+    parts = residual_parts(e + bias)
+    assert parts.white == pytest.approx([sigma] * 3, rel=0.03)
+    assert parts.lag_one == pytest.approx([phi] * 3, abs=0.03)
+    assert parts.slow[:2] == pytest.approx(bias[:2], abs=1e-3)
+    assert parts.slow[2] < 1.5e-3
+    white = np.std(np.diff(e + bias, axis=0), axis=0) / math.sqrt(2)
+    assert white == pytest.approx([sigma * math.sqrt(1.6)] * 3, rel=0.03)
+    kernel = np.ones(30) / 30
+    moving = np.convolve(e[:, 0] + bias[0], kernel, mode="valid")
+    as_white = math.sqrt(max(np.mean(moving**2) - white[0] ** 2 / 30, 0.0))
+    assert as_white < 0.85 * bias[0]  # the white-noise share takes a quarter of the bias
+
+
 def test_pooled_parts_weigh_sections_by_their_rows() -> None:
     a = residual_parts(np.full((100, 3), 0.01))
     b = residual_parts(np.full((300, 3), 0.03))

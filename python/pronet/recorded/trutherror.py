@@ -12,24 +12,31 @@ truth's own error (with the opposite sign).
 
 Its two parts, per NED axis (:func:`residual_parts`):
 
-- *white*: ``std(Δr)/√2``, the sample-to-sample part. White noise of variance σ² has
-  first differences of variance 2σ², while a slowly varying error hardly changes over
-  one 1 s step. The truth is a post-processed (forward and backward) INS solution of a
-  navigation-grade FOG INS; such a solution's error is smooth over seconds, so this part
-  is the DVL's, not the truth's.
-- *slow*: the RMS about zero of the residual's centred moving mean over
-  :data:`SLOW_WINDOW` seconds, less the white part's share of it (``σ_w²/N`` for ``N``
-  rows): what varies slower than the window, the section's mean included. It is the
-  truth's error and the DVL's correlated error together; they cannot be separated from
-  these data alone. Were they independent, the slow part would be an upper bound on the
-  truth's error.
+- *fast* (``white``): the 1σ of the residual less its centred moving mean over
+  :data:`SLOW_WINDOW` seconds, the part that changes from one row to the next. The
+  truth is a post-processed (forward and backward) INS solution of a navigation-grade
+  FOG INS; such a solution's error is smooth over seconds, so this part is the DVL's,
+  not the truth's. It need not be white: on the Snapir sections it alternates from one
+  reading to the next (``lag_one``, its lag-one autocorrelation, −0.2 to −0.7, with
+  decaying terms of alternating sign after it, as a first-order autoregression with a
+  negative coefficient gives), so ``std(Δr)/√2``, right for white noise, would
+  overstate it by ``√(1 − ρ₁)``.
+- *slow*: the RMS about zero of the residual's moving mean over :data:`SLOW_WINDOW`
+  seconds, less the fast part's share of it: what varies slower than the window, the
+  section's mean included. The fast part's share of an ``N``-row mean is that of a
+  first-order autoregression with ``φ = ρ₁`` (whose ``ρ_k = φ^k`` the Snapir
+  sections' fast parts follow to the second or third lag), ``(γ₀/N) [(1 + φ)/(1 − φ)
+  − 2φ (1 − φᴺ) / (N (1 − φ)²)]``: ``γ₀/N`` for white noise, about a quarter of it for
+  the Snapir DVL's alternating errors (``φ ≈ −0.6``). It is the truth's error and the DVL's
+  correlated error together; they cannot be separated from these data alone. Were they
+  independent, the slow part would be an upper bound on the truth's error.
 
 Which number is the truth's error: the slow part, pooled over sections (the mean of
 each section's square weighted by its rows, then the root). It is the largest velocity
 error the data allow the truth to have, so a share "within 3σ" taken with it is
 generous to the filter, and one taken without it is strict: the honest share lies
 between the two, and both are reported (:class:`pronet.recorded.metrics.SectionMetrics`).
-The white part is not added: the filter models the DVL's white noise itself.
+The fast part is not added: the filter models the DVL's own noise itself.
 
 Two caveats. The post-processing may itself rest on this DVL (an INS post-processing
 suite can take a DVL's bottom track as an aiding sensor; whether this one did is not
@@ -65,11 +72,14 @@ F64 = NDArray[np.float64]
 #: The part is nearly the same over 10, 30 and 60 s on the Snapir sections (it is
 #: bias-like); 30 s is long against the DVL's 1 s rows and short against a section.
 SLOW_WINDOW = 30.0
+#: The fast part's lag-one autocorrelation is taken within ±this (a first-order
+#: autoregression with |φ| → 1 is no longer noise about a slow part).
+MAX_LAG_ONE = 0.95
 
 #: The Snapir truth's velocity error 1σ per NED axis [m/s]: the residual's slow part
 #: pooled over sections 1–11 (:func:`truth_velocity_error`, :data:`SLOW_WINDOW` 30 s),
 #: rounded up to 0.1 mm/s. Used by ``pronet real --format snapir``.
-SNAPIR_TRUTH_VELOCITY_SIGMA = (0.0100, 0.0174, 0.0014)
+SNAPIR_TRUTH_VELOCITY_SIGMA = (0.0111, 0.0183, 0.0019)
 
 
 @dataclass(frozen=True)
@@ -77,17 +87,19 @@ class ResidualParts:
     """The DVL–truth residual's parts per NED axis (see the module docstring).
 
     Attributes:
-        white: ``(3,)`` the sample-to-sample part 1σ [m/s], the DVL's white noise.
+        white: ``(3,)`` the fast part's 1σ [m/s], the DVL's own noise (row to row).
         slow: ``(3,)`` the part slower than :data:`SLOW_WINDOW`, as an RMS about zero
             [m/s]: the truth's error and the DVL's correlated error together.
         mean: ``(3,)`` the residual's mean [m/s].
         rows: residual rows used.
+        lag_one: ``(3,)`` the fast part's lag-one autocorrelation (0 for white noise).
     """
 
     white: F64
     slow: F64
     mean: F64
     rows: int
+    lag_one: F64
 
 
 def dvl_truth_residual(section: Section) -> tuple[F64, F64]:
@@ -116,20 +128,44 @@ def residual_parts(
     if not step > 0:
         raise ValueError(f"row_step: must be > 0 s, got {row_step}")
     n = max(2, round(scalar(window, "window") / step))
-    if len(r) < n + 1:
-        raise ValueError(f"residual: {len(r)} rows, fewer than the window's {n} + 1")
-    white = np.std(np.diff(r, axis=0), axis=0) / np.sqrt(2.0)
-    kernel = np.ones(n) / n
-    moving = np.stack([np.convolve(r[:, j], kernel, mode="valid") for j in range(3)], axis=1)
-    slow2 = np.mean(moving**2, axis=0) - white**2 / n
+    if len(r) < (n | 1) + 1:  # the fast part's centred mean takes n + 1 rows where n is even
+        raise ValueError(f"residual: {len(r)} rows, fewer than the window's {n | 1} + 1")
+    moving = _moving_mean(r, n)
+    var, lag_one = _fast_part(r, n)
+    phi = np.clip(lag_one, -MAX_LAG_ONE, MAX_LAG_ONE)
+    share = var / n * ((1 + phi) / (1 - phi) - 2 * phi * (1 - phi**n) / (n * (1 - phi) ** 2))
+    slow2 = np.mean(moving**2, axis=0) - share
     return ResidualParts(
-        white=white, slow=np.sqrt(np.maximum(slow2, 0.0)), mean=r.mean(axis=0), rows=len(r)
+        white=np.sqrt(var),
+        slow=np.sqrt(np.maximum(slow2, 0.0)),
+        mean=r.mean(axis=0),
+        rows=len(r),
+        lag_one=lag_one,
     )
+
+
+def _moving_mean(r: F64, n: int) -> F64:
+    """The ``n``-row moving means of ``r (rows, 3)``, where every row is inside."""
+    kernel = np.ones(n) / n
+    return np.stack([np.convolve(r[:, j], kernel, mode="valid") for j in range(3)], axis=1)
+
+
+def _fast_part(r: F64, n: int) -> tuple[F64, F64]:
+    """The variance ``(3,)`` and lag-one autocorrelation ``(3,)`` of the fast part of
+    ``r``: each row less the moving mean centred on it (over ``n`` rows, ``n + 1`` if
+    even), the variance scaled by ``m/(m − 1)`` for the ``1/m`` of a white noise's the
+    mean of ``m`` rows takes with it."""
+    m = n | 1
+    fast = r[m // 2 : m // 2 + len(r) - m + 1] - _moving_mean(r, m)
+    fast = fast - fast.mean(axis=0)
+    var = np.mean(fast**2, axis=0)
+    lag = np.mean(fast[1:] * fast[:-1], axis=0)
+    return var * m / (m - 1), np.divide(lag, var, out=np.zeros(3), where=var > 0)
 
 
 def pooled(parts: Sequence[ResidualParts]) -> ResidualParts:
     """Sections' parts pooled: each 1σ as the root of the row-weighted mean square, the
-    mean row-weighted. Raises ValueError for no parts."""
+    mean and the lag-one autocorrelation row-weighted. Raises ValueError for no parts."""
     if not parts:
         raise ValueError("parts: no section to pool")
     w = np.array([p.rows for p in parts], dtype=np.float64)
@@ -139,7 +175,8 @@ def pooled(parts: Sequence[ResidualParts]) -> ResidualParts:
         return np.sqrt(np.einsum("s,sj->j", w, np.array([getattr(p, name) ** 2 for p in parts])))
 
     mean = np.einsum("s,sj->j", w, np.array([p.mean for p in parts]))
-    return ResidualParts(rms("white"), rms("slow"), mean, int(sum(p.rows for p in parts)))
+    lag_one = np.einsum("s,sj->j", w, np.array([p.lag_one for p in parts]))
+    return ResidualParts(rms("white"), rms("slow"), mean, int(sum(p.rows for p in parts)), lag_one)
 
 
 def section_parts(section: Section, window: float = SLOW_WINDOW) -> ResidualParts:
