@@ -194,7 +194,10 @@ def dataset_for(args: argparse.Namespace) -> tuple[Dataset, DatasetParams]:
     from pronet.learn import dataset
 
     if args.dataset:
-        return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
+        try:
+            return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
+        except ValueError as exc:  # the library names its argument, path
+            raise ValueError(f"--dataset: {str(exc).removeprefix('path: ')}") from None
     if args.data_seed is not None and args.data_seed < 0:
         raise ValueError(f"--data-seed: must be >= 0, got {args.data_seed}")
     params = dataset.DatasetParams(seed=0 if args.data_seed is None else args.data_seed)
