@@ -135,12 +135,20 @@ def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recordi
     assert main(argv) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert err[0] == (
-        "pronet: warning: dvl_lever_arm: -185,-3,12 m (185 m long): its x of -185 m from the "
-        "ground-truth point is beyond ±10 m; typed in cm or mm? (used as given)"
-    )
+        "pronet: warning: --dvl-lever-arm: -185,-3,12 m (185 m long): its x of -185 m from "
+        "the ground-truth point is beyond ±10 m; typed in cm or mm? (used as given)"
+    )  # it named dvl_lever_arm, run_real's argument
     # and the filters, run as told, say their DVL disagrees: its lever arm among the causes
     (note,) = err[1:]
     assert note.startswith("pronet: section s: dvl: mean NIS") and "lever arm" in note
+    # A vehicle file's arm is named by the file and its key, not by the option.
+    vehicle = tmp_path / "v.toml"
+    vehicle.write_text("imu_lever_arm = [0, 0, 0]\ndvl_lever_arm = [-185, -3, 12]\n")
+    argv = [a for a in argv if "lever-arm" not in a] + ["--filter", str(vehicle)]
+    argv[argv.index("--out") + 1] = str(tmp_path / "o2")
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith(f"pronet: warning: {vehicle}: dvl_lever_arm: -185,-3,12 m (185 m")
 
 
 def test_vehicle_keys_pronet_real_does_not_apply_are_warned_of(tmp_path, capsys, recording):

@@ -88,6 +88,33 @@ class Bars:
         self.close()
 
 
+#: Library arguments whose errors and warnings reach the command line, and the options
+#: that set them.
+OPTIONS = {
+    "n_runs": "--runs",
+    "n_levels": "--levels",
+    "seed": "--seed",
+    "threads": "--threads",
+    "imu_lever_arm": "--imu-lever-arm",
+    "dvl_lever_arm": "--dvl-lever-arm",
+    "surface_offset": "--surface-offset",
+}
+
+
+def as_option(line: str) -> str:
+    """``line`` (``"<argument>: <reason>"``) with a library argument of :data:`OPTIONS`
+    named as the command line spells it."""
+    field, sep, reason = line.partition(": ")
+    option = OPTIONS.get(field)
+    return f"{option}: {reason}" if sep and option else line
+
+
+def print_warning(message: Warning | str, *_: object, **__: object) -> None:
+    """A warning as one line on stderr (also with ``--quiet``), a library argument named
+    as its option (:func:`as_option`): for ``warnings.showwarning``."""
+    print(f"pronet: warning: {as_option(str(message))}", file=sys.stderr)
+
+
 def experiment_result(show: Output, folder: Path, start: float) -> None:
     """Print a written experiment folder's tables (or, with --json, its metrics)."""
     show.result(
