@@ -204,3 +204,32 @@ def test_a_biased_mems_gyro_on_a_straight_leg_is_not_taken_for_wrong_angle_units
     gt[:, 9] = np.degrees(np.interp(t_gt, t_imu, yaw))
     found = attitude_units(Table(imu, "imu.csv", []), Table(gt, "gt.csv", [""] * 7 + labels))
     assert found is not None and "deg under a [rad] header" in found, found
+
+
+@pytest.mark.parametrize(
+    ("stream", "keep", "expected"),
+    [
+        (
+            "gt",
+            6,
+            "/s: the ground truth has 6 rows over 5.01 s; its clock is estimated "
+            "from 11 or more inside the IMU record",
+        ),  # fmt: skip
+        (
+            "dvl",
+            6,
+            "/s: the DVL has 6 rows over 5.01 s; its clock is estimated from "
+            "10 or more inside the IMU record",
+        ),  # fmt: skip
+    ],
+)
+def test_a_stream_too_short_to_estimate_its_clock_says_so(
+    tmp_path, capsys, recording, stream, keep, expected
+):
+    """A 6 s truth or DVL was "the ground truth and the IMU do not overlap in time at any
+    clock offset within ±2 s": they overlap, over too few rows."""
+    argv = [*_written(tmp_path, recording), "--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0"]
+    _edit(tmp_path / "s", stream, lambda table: table.iloc[:keep])
+    assert main([*argv, "--no-models", "--no-plots", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert expected in err[0] and "overlap" not in err[0], err

@@ -238,6 +238,23 @@ def _interp(t: F64, tp: F64, fp: F64) -> F64:
     return np.stack([np.interp(t, tp, fp[:, j]) for j in range(fp.shape[1])], axis=1)
 
 
+#: The fewest ground-truth steps (pairs of rows), or DVL rows, inside the IMU record a
+#: clock is estimated from: fewer cost infinity at every offset (the core's
+#: ``clocks::MIN_PAIRS`` for the truth's attitude steps; the DVL's cost here).
+CLOCK_MIN_ROWS = 10
+
+
+def _enough_rows(n: int, need: int, what: str, source: str, span: float) -> None:
+    """ValueError when ``n`` rows of ``what`` (``span`` s) are fewer than the ``need``
+    its clock is estimated from: a section too short, not streams that do not overlap."""
+    if n < need:
+        raise ValueError(
+            f"{source}: {what} has {n} row{'s' * (n != 1)} over {span:.3g} s; its clock is "
+            f"estimated from {need} or more inside the IMU record (a longer section, or a "
+            "faster stream)"
+        )
+
+
 def _fit(cost: Callable[[F64, float], F64], what: str, scale: float | None = None) -> Clock:
     """Minimise ``cost(offsets, scale)`` (one value per offset): a coarse grid, then a
     fine one around the best; ``scale`` given: only the offset is searched. ``what``:
@@ -259,8 +276,8 @@ def _fit(cost: Callable[[F64, float], F64], what: str, scale: float | None = Non
     c, o, s = search(fine, lambda _: o0 + np.linspace(-0.02, 0.02, 41))
     if not np.isfinite(c):
         raise ValueError(
-            f"{what} do not overlap in time at any clock offset within ±2 s; cannot align "
-            "the clocks"
+            f"{what} do not overlap in time by {CLOCK_MIN_ROWS} rows at any clock offset "
+            "within ±2 s; cannot align the clocks"
         )
     return Clock(offset=o, scale=s)
 
@@ -296,6 +313,8 @@ def estimate_gt_clock(rec: Recording) -> Clock:
     attitude increments against the gyro's; ValueError without a ground truth."""
     _truth_needed(rec, "its clock")
     rec, _ = since_epoch(rec)
+    span = float(rec.gt_time[-1] - rec.gt_time[0])
+    _enough_rows(len(rec.gt_time), CLOCK_MIN_ROWS + 1, "the ground truth", rec.source, span)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     t_imu = rec.imu_time
     roll = np.interp(t_imu, rec.gt_time, euler[:, 0])
@@ -329,6 +348,8 @@ def estimate_dvl_clock(
     from the epoch (see the module docstring). ValueError without a ground truth."""
     _truth_needed(rec, "the DVL's clock")
     rec, _ = since_epoch(rec)
+    span = float(rec.dvl_time[-1] - rec.dvl_time[0]) if len(rec.dvl_time) else 0.0
+    _enough_rows(len(rec.dvl_time), CLOCK_MIN_ROWS, "the DVL", rec.source, span)
     r = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
     euler = np.unwrap(rec.gt_rpy, axis=0)
@@ -346,7 +367,7 @@ def estimate_dvl_clock(
         v_body = np.einsum("okji,okj->oki", c, v_ned)
         sq = np.where(inside, np.sum((rec.dvl - v_body) ** 2, axis=-1), 0.0)
         n = inside.sum(axis=1)
-        return np.where(n >= 10, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
+        return np.where(n >= CLOCK_MIN_ROWS, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
 
     return _fit(cost, f"{rec.source}: the DVL and the ground truth", scale=gt_clock.scale)
 
