@@ -11,15 +11,13 @@ loggers stamp streams differently: in the Snapir data the ground-truth and DVL s
 step by 400/399 s while the rows are 1.000 s apart on the IMU clock, and the ground
 truth is shifted by about ±0.45 s. Both clocks can be given or estimated per section:
 
-- ground truth (:func:`estimate_gt_clock`): the Euler-angle increments between
-  consecutive ground-truth rows are matched against the same increments integrated from
-  the gyro (Euler rates from the body rates and the ground truth's roll and pitch). A
-  coarse grid over scale ∈ [0.99, 1.01] and offset ∈ [−2, 2] s, then a fine one around
-  the best, minimises the mean squared mismatch.
+- ground truth (:func:`estimate_gt_clock`): the Euler-angle increments between consecutive
+  ground-truth rows matched against the same increments integrated from the gyro (Euler rates
+  from the body rates and the truth's roll and pitch); a coarse grid over scale ∈ [0.99, 1.01]
+  and offset ∈ [−2, 2] s, then a fine one around the best, minimises the mean squared mismatch.
 - DVL (:func:`estimate_dvl_clock`): its body velocity is matched against the aligned
-  ground truth's velocity rotated into the body and moved to the DVL
-  (``Cᵀ v + ω × r``), over the same kind of grid of offsets, with the ground truth's
-  scale.
+  ground truth's velocity rotated into the body and moved to the DVL (``Cᵀ v + ω × r``),
+  over the same kind of grid of offsets, with the ground truth's scale.
 
 Without a ground truth (:attr:`Section.has_truth`) neither clock can be estimated: the
 DVL's is then the identity unless given (:func:`estimate_alignment`'s ``dvl_clock``),
@@ -48,6 +46,7 @@ from pronet._util.validate import check_type, float_array, real_array, scalar
 from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagTopics, is_bag
 from pronet.recorded.heading import HeadingReadings
+from pronet.recorded.plausible import CLOCK_MIN_ROWS, too_few_clock_rows
 from pronet.recorded.recordings import Recording
 
 F64 = NDArray[np.float64]
@@ -75,9 +74,8 @@ class Clock:
         return self.offset + self.scale * real_array(stamps, "stamps").astype(np.float64)
 
     def since(self, epoch: float) -> Clock:
-        """The same mapping for stamps and times counted from ``epoch`` [s] instead of
-        from 0 (``offset − epoch·(1 − scale)``): a clock known on absolute stamps, given
-        to :func:`align` for a recording whose first IMU stamp is ``epoch``."""
+        """The mapping for times counted from ``epoch`` [s], not 0 (``offset − epoch·(1 −
+        scale)``): a clock of absolute stamps, for :func:`align` of a recording from there."""
         return Clock(offset=self.offset - float(epoch) * (1.0 - self.scale), scale=self.scale)
 
 
@@ -238,23 +236,6 @@ def _interp(t: F64, tp: F64, fp: F64) -> F64:
     return np.stack([np.interp(t, tp, fp[:, j]) for j in range(fp.shape[1])], axis=1)
 
 
-#: The fewest ground-truth steps (pairs of rows), or DVL rows, inside the IMU record a
-#: clock is estimated from: fewer cost infinity at every offset (the core's
-#: ``clocks::MIN_PAIRS`` for the truth's attitude steps; the DVL's cost here).
-CLOCK_MIN_ROWS = 10
-
-
-def _enough_rows(n: int, need: int, what: str, source: str, span: float) -> None:
-    """ValueError when ``n`` rows of ``what`` (``span`` s) are fewer than the ``need``
-    its clock is estimated from: a section too short, not streams that do not overlap."""
-    if n < need:
-        raise ValueError(
-            f"{source}: {what} has {n} row{'s' * (n != 1)} over {span:.3g} s; its clock is "
-            f"estimated from {need} or more inside the IMU record (a longer section, or a "
-            "faster stream)"
-        )
-
-
 def _fit(cost: Callable[[F64, float], F64], what: str, scale: float | None = None) -> Clock:
     """Minimise ``cost(offsets, scale)`` (one value per offset): a coarse grid, then a
     fine one around the best; ``scale`` given: only the offset is searched. ``what``:
@@ -313,8 +294,7 @@ def estimate_gt_clock(rec: Recording) -> Clock:
     attitude increments against the gyro's; ValueError without a ground truth."""
     _truth_needed(rec, "its clock")
     rec, _ = since_epoch(rec)
-    span = float(rec.gt_time[-1] - rec.gt_time[0])
-    _enough_rows(len(rec.gt_time), CLOCK_MIN_ROWS + 1, "the ground truth", rec.source, span)
+    too_few_clock_rows(rec.gt_time, CLOCK_MIN_ROWS + 1, "the ground truth", rec.source)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     t_imu = rec.imu_time
     roll = np.interp(t_imu, rec.gt_time, euler[:, 0])
@@ -348,8 +328,7 @@ def estimate_dvl_clock(
     from the epoch (see the module docstring). ValueError without a ground truth."""
     _truth_needed(rec, "the DVL's clock")
     rec, _ = since_epoch(rec)
-    span = float(rec.dvl_time[-1] - rec.dvl_time[0]) if len(rec.dvl_time) else 0.0
-    _enough_rows(len(rec.dvl_time), CLOCK_MIN_ROWS, "the DVL", rec.source, span)
+    too_few_clock_rows(rec.dvl_time, CLOCK_MIN_ROWS, "the DVL", rec.source)
     r = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
     euler = np.unwrap(rec.gt_rpy, axis=0)
