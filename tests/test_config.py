@@ -178,6 +178,11 @@ def test_a_filter_file_holds_the_filter_keys_at_the_top(tmp_path) -> None:
             "[sensors] depth_period: schedules no depth reading inside the trajectory's 5 s",
         ),
         ("[filter]\nlever_arm = [0, 0, -1e9]\n", "[filter] lever_arm: must be within ±1000 m"),
+        # in the file's units (these ran: a roll of 200° as -160°, a 1e9 m height to a
+        # velocity error of 88 km/s)
+        ("[trajectory]\nsegments = [[60, 0, 0, 0]]\nlon_deg = 500\n", "lon_deg: must be within"),
+        ("[trajectory]\nsegments = [[60, 0, 0, 0]]\nheight_m = 1e9\n", "height_m: must be "),
+        ("[trajectory]\nsegments = [[60, 0, 0, 0]]\nroll_deg = 200\n", "roll_deg: must be "),
         ("base = 'lake'\n", "base: 'lake' is not one of paper, varying-noise"),
         ("colour = 'red'\n", "colour: unknown key"),
         ("q_nominal = [1, 2]\n", "q_nominal: expected 6"),
@@ -423,3 +428,24 @@ def test_sensor_kwargs_rebuild_every_argument_of_the_sensors() -> None:
         )
     over = config.sensor_config({"dvl_period": 2.0}, "test:", sensors)  # a file's keys
     assert over.dvl_scale == 0.005 and over.dvl_misalignment == sensors.dvl_misalignment
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"rpy0": (10.0, 0.0, 0.0)}, "rpy0: roll 10 is beyond ±3.14159 rad; in degrees?"),
+        ({"rpy0": (0.0, 0.0, 270.0)}, "rpy0: yaw 270 is beyond ±6.28319 rad; in degrees?"),
+        ({"lla0": (0.5, 500.0, 0.0)}, "lla0: longitude 500 is beyond -3.14159 … 6.28319 rad"),
+        ({"lla0": (0.5, 0.2, 1e9)}, "lla0: height 1e+09 m is beyond -12000 … 10000 m"),
+        ({"lla0": (0.5, 0.2, -1e6)}, "lla0: height -1e+06 m is beyond -12000 … 10000 m"),
+    ],
+)
+def test_trajectory_from_segments_refuses_degrees_and_heights_beyond_the_earth(
+    kwargs, message
+) -> None:
+    """Each built a trajectory: a roll of 10 rad flies at 213° (upside down), a start
+    1e9 m up ran a Monte Carlo to a velocity error of 88 km/s."""
+    start = {"lla0": (0.5, 0.2, 0.0), "speed0": 1.0, **kwargs}
+    with pytest.raises(ValueError) as err:
+        pronet.trajectory_from_segments([[60.0, 0.0, 0.0, 0.0]], **start)
+    assert str(err.value).startswith(message)

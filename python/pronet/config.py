@@ -92,6 +92,7 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
+from pronet._util.plausibility import HEIGHT_RANGE
 from pronet._util.validate import real_array
 from pronet.sim.paper import PAPER_Q
 from pronet.sim.scenarios import SCENARIOS, Scenario, time_average_q
@@ -318,6 +319,16 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
             f"{where} lat_deg: must be within ±{_core.MAX_LATITUDE_DEG:g}° (NED is singular "
             f"at the poles), got {v['lat_deg']:g}°"
         )
+    lon_lo, lon_hi = _core.LONGITUDE_RANGE_DEG
+    for key, lo, hi in (  # in the file's units, before trajectory_from_segments' radians
+        ("lon_deg", lon_lo, lon_hi),
+        ("height_m", *HEIGHT_RANGE),
+        ("roll_deg", -180.0, 180.0),
+        ("pitch_deg", -180.0, 180.0),
+        ("heading_deg", -360.0, 360.0),
+    ):
+        if not lo <= v[key] <= hi:
+            raise ConfigError(f"{where} {key}: must be within {lo:g} … {hi:g}, got {v[key]:g}")
     return _native(
         where,
         lambda: trajectory_from_segments(

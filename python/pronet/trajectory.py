@@ -13,9 +13,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from pronet import _core
+from pronet._util.plausibility import angles_beyond, attitude_beyond, height_beyond
 from pronet._util.validate import check_type, float_array, scalar
 
 
@@ -84,9 +86,12 @@ def trajectory_from_segments(
     Args:
         segments: :class:`Segment` objects, or an array ``(k, 4)`` of
             ``[duration s, accel m/s², yaw_rate rad/s, pitch_rate rad/s]`` rows.
-        lla0: initial ``[lat rad, lon rad, h m]`` (height positive up).
+        lla0: initial ``[lat rad, lon rad, h m]`` (height positive up); a longitude
+            beyond −180° … 360° or a height beyond ``HEIGHT_RANGE`` of
+            :mod:`pronet._util.plausibility` (−12 … 10 km) is a ``ValueError``.
         speed0: initial forward speed [m/s].
-        rpy0: initial roll, pitch, yaw [rad]; roll is held.
+        rpy0: initial roll, pitch, yaw [rad]; roll is held. A roll or pitch beyond ±π,
+            or a yaw beyond ±2π, is a ``ValueError`` (degrees given).
         dt: sample period [s]; more samples than this process can still take are a
             ``ValueError`` naming it (docs/results/performance.md, "Memory").
         name: label carried by the trajectory.
@@ -95,11 +100,21 @@ def trajectory_from_segments(
         segments = [s.as_row() if isinstance(s, Segment) else s for s in segments]
     rows = float_array(segments, "segments", (None, 4))  # type: ignore[arg-type]
     check_type(name, str, "name")
+    lla, rpy = float_array(lla0, "lla0", (3,)), float_array(rpy0, "rpy0", (3,))
+    if np.isfinite(lla).all() and np.isfinite(rpy).all():  # else the core names them
+        # degrees or a depth given here ran: a roll of 10 rad is 213°, upside down
+        problem = (
+            angles_beyond(lla, "lla0")
+            or height_beyond(float(lla[2]), "lla0")
+            or attitude_beyond(rpy, "rpy0")
+        )
+        if problem is not None:
+            raise ValueError(problem)
     return _core.trajectory_from_segments(
         rows,
-        lla0=float_array(lla0, "lla0", (3,)),
+        lla0=lla,
         speed0=scalar(speed0, "speed0"),
-        rpy0=float_array(rpy0, "rpy0", (3,)),
+        rpy0=rpy,
         dt=scalar(dt, "dt"),
         name=name,
     )

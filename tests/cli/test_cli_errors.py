@@ -423,3 +423,20 @@ def test_study_checks_its_arguments_before_saying_anything(tmp_path, capsys) -> 
     assert capsys.readouterr().out == ""  # no "study: ... 0 runs each" first
     assert cli.main(["study", "--runs", "0", "--out", str(tmp_path / "s")]) == 2
     assert one_line(capsys) == "pronet: --runs: must be at least 1, got 0"
+
+
+def test_evaluate_without_a_model_name_is_one_line(tmp_path, capsys) -> None:
+    # "--models ," left no name: the dataset was built, then StopIteration escaped
+    assert cli.main(["evaluate", "--models", " , ", "--quiet"]) == 2
+    assert one_line(capsys) == "pronet: --models: expected shipped names or model files, got ' , '"
+
+
+@pytest.mark.parametrize("command", ["evaluate", "train"])
+def test_a_bad_dataset_file_names_the_option(command, tmp_path, capsys) -> None:
+    junk = tmp_path / "d.npz"
+    junk.write_bytes(b"junk")
+    assert cli.main([command, "--dataset", str(tmp_path / "none.npz"), "--quiet"]) == 2
+    assert one_line(capsys) == f"pronet: --dataset: {tmp_path / 'none.npz'}: no such dataset file"
+    assert cli.main([command, "--dataset", str(junk), "--quiet"]) == 2
+    card = f"pronet: --dataset: cannot read the dataset card {tmp_path}"
+    assert one_line(capsys).startswith(card)

@@ -50,6 +50,16 @@ def test_the_generic_format_trains_with_the_lever_arms_train_takes(generic, tmp_
     assert not list(tmp_path.glob("x*"))
 
 
+def test_a_long_lever_arm_is_one_warning_line_naming_the_option(generic, tmp_path, capsys):
+    """It was Python's two lines, the source file and line of the library's call and the
+    code under it, naming dvl_lever_arm."""
+    argv = ["train", "--recorded", str(generic), "--format", "generic", "--quiet"]
+    argv += ["--imu-lever-arm=0,0,0", "--dvl-lever-arm=-185,-3,12"]
+    assert cli.main([*argv, "--out", str(tmp_path / "m")]) == 0
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("pronet: warning: --dvl-lever-arm: -185,-3,12 m (185 m long)")
+
+
 def test_out_naming_a_folder_writes_the_model_into_it(generic, tmp_path, capsys):
     """``--out mymodels/`` wrote ``mymodels.safetensors`` beside the folder."""
     argv = ["train", "--recorded", str(generic), "--format", "generic", "--quiet", *ARMS]

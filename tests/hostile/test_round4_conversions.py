@@ -228,15 +228,17 @@ def test_a_one_row_truth_file_is_named(folder, tmp_path) -> None:
 
 
 def test_a_dvl_the_clock_search_cannot_overlap_names_the_file_and_streams(folder, tmp_path) -> None:
-    """A DVL with 3 rows (fewer than the 10 its clock search compares): the search finds
-    no offset; it said "recording: the streams do not overlap in time"."""
+    """A DVL with 3 rows (fewer than the 10 its clock search compares): it said
+    "recording: the streams do not overlap in time", then "the DVL and the ground truth do
+    not overlap" (they do, over too few rows); now the count."""
     from pronet.recorded.alignment import estimate_alignment
 
     copy = _copy(folder, tmp_path)
     dvl = copy / "dvl.csv"
     dvl.write_text("\n".join(dvl.read_text().splitlines()[:4]) + "\n")
     with pytest.raises(
-        ValueError, match=r"^.*section: the DVL and the ground truth do not overlap"
+        ValueError,
+        match=r"^.*section: the DVL has 3 rows over .* s; its clock is estimated from 10 ",
     ):
         estimate_alignment(read_recording(copy))
 

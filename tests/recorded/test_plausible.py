@@ -135,12 +135,20 @@ def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recordi
     assert main(argv) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert err[0] == (
-        "pronet: warning: dvl_lever_arm: -185,-3,12 m (185 m long): its x of -185 m from the "
-        "ground-truth point is beyond ±10 m; typed in cm or mm? (used as given)"
-    )
+        "pronet: warning: --dvl-lever-arm: -185,-3,12 m (185 m long): its x of -185 m from "
+        "the ground-truth point is beyond ±10 m; typed in cm or mm? (used as given)"
+    )  # it named dvl_lever_arm, run_real's argument
     # and the filters, run as told, say their DVL disagrees: its lever arm among the causes
     (note,) = err[1:]
     assert note.startswith("pronet: section s: dvl: mean NIS") and "lever arm" in note
+    # A vehicle file's arm is named by the file and its key, not by the option.
+    vehicle = tmp_path / "v.toml"
+    vehicle.write_text("imu_lever_arm = [0, 0, 0]\ndvl_lever_arm = [-185, -3, 12]\n")
+    argv = [a for a in argv if "lever-arm" not in a] + ["--filter", str(vehicle)]
+    argv[argv.index("--out") + 1] = str(tmp_path / "o2")
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith(f"pronet: warning: {vehicle}: dvl_lever_arm: -185,-3,12 m (185 m")
 
 
 def test_vehicle_keys_pronet_real_does_not_apply_are_warned_of(tmp_path, capsys, recording):
@@ -196,3 +204,32 @@ def test_a_biased_mems_gyro_on_a_straight_leg_is_not_taken_for_wrong_angle_units
     gt[:, 9] = np.degrees(np.interp(t_gt, t_imu, yaw))
     found = attitude_units(Table(imu, "imu.csv", []), Table(gt, "gt.csv", [""] * 7 + labels))
     assert found is not None and "deg under a [rad] header" in found, found
+
+
+@pytest.mark.parametrize(
+    ("stream", "keep", "expected"),
+    [
+        (
+            "gt",
+            6,
+            "/s: the ground truth has 6 rows over 5.01 s; its clock is estimated "
+            "from 11 or more inside the IMU record",
+        ),  # fmt: skip
+        (
+            "dvl",
+            6,
+            "/s: the DVL has 6 rows over 5.01 s; its clock is estimated from "
+            "10 or more inside the IMU record",
+        ),  # fmt: skip
+    ],
+)
+def test_a_stream_too_short_to_estimate_its_clock_says_so(
+    tmp_path, capsys, recording, stream, keep, expected
+):
+    """A 6 s truth or DVL was "the ground truth and the IMU do not overlap in time at any
+    clock offset within ±2 s": they overlap, over too few rows."""
+    argv = [*_written(tmp_path, recording), "--imu-lever-arm=0,0,0", "--dvl-lever-arm=0,0,0"]
+    _edit(tmp_path / "s", stream, lambda table: table.iloc[:keep])
+    assert main([*argv, "--no-models", "--no-plots", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert expected in err[0] and "overlap" not in err[0], err

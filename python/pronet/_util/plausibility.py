@@ -130,6 +130,17 @@ def depth_beyond(depth: F64, name: str, rows: NDArray[np.int64] | None = None) -
     )
 
 
+def height_beyond(height: float, name: str) -> str | None:
+    """A height [m, up] beyond :data:`HEIGHT_RANGE`, naming ``name``."""
+    lo, hi = HEIGHT_RANGE
+    if lo <= height <= hi:
+        return None
+    return (
+        f"{name}: height {height:.6g} m is beyond {lo:g} … {hi:g} m (metres, positive up: "
+        "the deepest ocean is 11 km); in another unit, or a depth?"
+    )
+
+
 def angles_beyond(lla: F64, name: str) -> str | None:
     """A latitude of ``lla`` (``(3,)`` or ``(n, 3)`` [rad, rad, m]) beyond ±90° or a
     longitude beyond ``_core.LONGITUDE_RANGE_DEG``, naming ``name`` and the row."""

@@ -20,6 +20,7 @@ import errno
 import signal
 import sys
 import threading
+import warnings
 from typing import NoReturn
 
 from pronet._util.extras import MissingExtra
@@ -35,6 +36,7 @@ from pronet.cli import (
     sweep,
     train,
 )
+from pronet.cli._common import as_option, print_warning
 
 #: The commands, in the order ``pronet --help`` lists them.
 COMMANDS = (info, reproduce, study, dataset, train, evaluate, real, navigate, simulate, sweep)
@@ -81,7 +83,9 @@ def main(argv: list[str] | None = None) -> int:
     on_main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _terminate) if on_main_thread else None
     try:
-        return int(args.func(args))
+        with warnings.catch_warnings():  # one line each, not the source line under it
+            warnings.showwarning = print_warning
+            return int(args.func(args))
     except KeyboardInterrupt as exc:
         for note in getattr(exc, "__notes__", ()):
             print(f"\n{note}", file=sys.stderr)
@@ -113,22 +117,7 @@ def user_error(exc: ValueError | OSError | MemoryError | MissingExtra) -> str:
         if exc.filename2 is not None:
             where = f"{where} -> {exc.filename2}"
         return f"{where}: {reason}"
-    line = " ".join(str(exc).split("\n")).strip()
-    field, sep, reason = line.partition(": ")
-    option = _OPTIONS.get(field)  # the library's argument, as the command line spells it
-    return f"{option}: {reason}" if sep and option else line
-
-
-#: Library arguments whose errors reach the command line, and the options that set them.
-_OPTIONS = {
-    "n_runs": "--runs",
-    "n_levels": "--levels",
-    "seed": "--seed",
-    "threads": "--threads",
-    "imu_lever_arm": "--imu-lever-arm",
-    "dvl_lever_arm": "--dvl-lever-arm",
-    "surface_offset": "--surface-offset",
-}
+    return as_option(" ".join(str(exc).split("\n")).strip())
 
 
 __all__ = ["build_parser", "main", "user_error"]

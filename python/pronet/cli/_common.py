@@ -88,6 +88,33 @@ class Bars:
         self.close()
 
 
+#: Library arguments whose errors and warnings reach the command line, and the options
+#: that set them.
+OPTIONS = {
+    "n_runs": "--runs",
+    "n_levels": "--levels",
+    "seed": "--seed",
+    "threads": "--threads",
+    "imu_lever_arm": "--imu-lever-arm",
+    "dvl_lever_arm": "--dvl-lever-arm",
+    "surface_offset": "--surface-offset",
+}
+
+
+def as_option(line: str) -> str:
+    """``line`` (``"<argument>: <reason>"``) with a library argument of :data:`OPTIONS`
+    named as the command line spells it."""
+    field, sep, reason = line.partition(": ")
+    option = OPTIONS.get(field)
+    return f"{option}: {reason}" if sep and option else line
+
+
+def print_warning(message: Warning | str, *_: object, **__: object) -> None:
+    """A warning as one line on stderr (also with ``--quiet``), a library argument named
+    as its option (:func:`as_option`): for ``warnings.showwarning``."""
+    print(f"pronet: warning: {as_option(str(message))}", file=sys.stderr)
+
+
 def experiment_result(show: Output, folder: Path, start: float) -> None:
     """Print a written experiment folder's tables (or, with --json, its metrics)."""
     show.result(
@@ -194,7 +221,10 @@ def dataset_for(args: argparse.Namespace) -> tuple[Dataset, DatasetParams]:
     from pronet.learn import dataset
 
     if args.dataset:
-        return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
+        try:
+            return dataset.load_dataset(args.dataset), dataset.load_params(args.dataset)
+        except ValueError as exc:  # the library names its argument, path
+            raise ValueError(f"--dataset: {str(exc).removeprefix('path: ')}") from None
     if args.data_seed is not None and args.data_seed < 0:
         raise ValueError(f"--data-seed: must be >= 0, got {args.data_seed}")
     params = dataset.DatasetParams(seed=0 if args.data_seed is None else args.data_seed)

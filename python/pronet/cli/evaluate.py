@@ -40,6 +40,8 @@ def run(args: argparse.Namespace) -> int:
     if args.figure:  # before any model is loaded or scored
         check_new_files([Path(args.figure)], "--figure", args.force)
     names = [n.strip() for n in args.models.split(",") if n.strip()]
+    if not names:  # before the dataset is built (it raised StopIteration after)
+        raise ValueError(f"--models: expected shipped names or model files, got {args.models!r}")
     loaded = {n: models.load(n) for n in names}  # fail on a bad file before any work
     ds, _ = dataset_for(args)
     test = ~ds.train

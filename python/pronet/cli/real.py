@@ -19,6 +19,7 @@ from pronet.cli._common import (
     add_result_folder,
     add_tuning_period,
     bag_topics,
+    print_warning,
     vector3,
 )
 from pronet.recorded.alignment import AIDING_CLOCKS, FORMATS
@@ -170,12 +171,9 @@ def run(args: argparse.Namespace) -> int:
     show = Output(args)
     start = time.perf_counter()
 
-    def warn(message: Warning | str, *_: object, **__: object) -> None:
-        print(f"pronet: warning: {message}", file=sys.stderr)  # also with --quiet
-
     with Bars(show) as bars, warnings.catch_warnings():
         warnings.simplefilter("always", PlausibilityWarning)
-        warnings.showwarning = warn
+        warnings.showwarning = print_warning  # a vehicle file's arm is named by the file
         out = run_real(
             args.data,
             args.out,

@@ -11,15 +11,13 @@ loggers stamp streams differently: in the Snapir data the ground-truth and DVL s
 step by 400/399 s while the rows are 1.000 s apart on the IMU clock, and the ground
 truth is shifted by about ±0.45 s. Both clocks can be given or estimated per section:
 
-- ground truth (:func:`estimate_gt_clock`): the Euler-angle increments between
-  consecutive ground-truth rows are matched against the same increments integrated from
-  the gyro (Euler rates from the body rates and the ground truth's roll and pitch). A
-  coarse grid over scale ∈ [0.99, 1.01] and offset ∈ [−2, 2] s, then a fine one around
-  the best, minimises the mean squared mismatch.
+- ground truth (:func:`estimate_gt_clock`): the Euler-angle increments between consecutive
+  ground-truth rows matched against the same increments integrated from the gyro (Euler rates
+  from the body rates and the truth's roll and pitch); a coarse grid over scale ∈ [0.99, 1.01]
+  and offset ∈ [−2, 2] s, then a fine one around the best, minimises the mean squared mismatch.
 - DVL (:func:`estimate_dvl_clock`): its body velocity is matched against the aligned
-  ground truth's velocity rotated into the body and moved to the DVL
-  (``Cᵀ v + ω × r``), over the same kind of grid of offsets, with the ground truth's
-  scale.
+  ground truth's velocity rotated into the body and moved to the DVL (``Cᵀ v + ω × r``),
+  over the same kind of grid of offsets, with the ground truth's scale.
 
 Without a ground truth (:attr:`Section.has_truth`) neither clock can be estimated: the
 DVL's is then the identity unless given (:func:`estimate_alignment`'s ``dvl_clock``),
@@ -48,6 +46,7 @@ from pronet._util.validate import check_type, float_array, real_array, scalar
 from pronet.recorded.aiding import DepthReadings, PositionFixes
 from pronet.recorded.bags import BagTopics, is_bag
 from pronet.recorded.heading import HeadingReadings
+from pronet.recorded.plausible import CLOCK_MIN_ROWS, too_few_clock_rows
 from pronet.recorded.recordings import Recording
 
 F64 = NDArray[np.float64]
@@ -75,9 +74,8 @@ class Clock:
         return self.offset + self.scale * real_array(stamps, "stamps").astype(np.float64)
 
     def since(self, epoch: float) -> Clock:
-        """The same mapping for stamps and times counted from ``epoch`` [s] instead of
-        from 0 (``offset − epoch·(1 − scale)``): a clock known on absolute stamps, given
-        to :func:`align` for a recording whose first IMU stamp is ``epoch``."""
+        """The mapping for times counted from ``epoch`` [s], not 0 (``offset − epoch·(1 −
+        scale)``): a clock of absolute stamps, for :func:`align` of a recording from there."""
         return Clock(offset=self.offset - float(epoch) * (1.0 - self.scale), scale=self.scale)
 
 
@@ -259,8 +257,8 @@ def _fit(cost: Callable[[F64, float], F64], what: str, scale: float | None = Non
     c, o, s = search(fine, lambda _: o0 + np.linspace(-0.02, 0.02, 41))
     if not np.isfinite(c):
         raise ValueError(
-            f"{what} do not overlap in time at any clock offset within ±2 s; cannot align "
-            "the clocks"
+            f"{what} do not overlap in time by {CLOCK_MIN_ROWS} rows at any clock offset "
+            "within ±2 s; cannot align the clocks"
         )
     return Clock(offset=o, scale=s)
 
@@ -296,6 +294,7 @@ def estimate_gt_clock(rec: Recording) -> Clock:
     attitude increments against the gyro's; ValueError without a ground truth."""
     _truth_needed(rec, "its clock")
     rec, _ = since_epoch(rec)
+    too_few_clock_rows(rec.gt_time, CLOCK_MIN_ROWS + 1, "the ground truth", rec.source)
     euler = np.unwrap(rec.gt_rpy, axis=0)
     t_imu = rec.imu_time
     roll = np.interp(t_imu, rec.gt_time, euler[:, 0])
@@ -329,6 +328,7 @@ def estimate_dvl_clock(
     from the epoch (see the module docstring). ValueError without a ground truth."""
     _truth_needed(rec, "the DVL's clock")
     rec, _ = since_epoch(rec)
+    too_few_clock_rows(rec.dvl_time, CLOCK_MIN_ROWS, "the DVL", rec.source)
     r = lever_arm(dvl_lever_arm, "dvl_lever_arm")
     t_gt = gt_clock(rec.gt_time)
     euler = np.unwrap(rec.gt_rpy, axis=0)
@@ -346,7 +346,7 @@ def estimate_dvl_clock(
         v_body = np.einsum("okji,okj->oki", c, v_ned)
         sq = np.where(inside, np.sum((rec.dvl - v_body) ** 2, axis=-1), 0.0)
         n = inside.sum(axis=1)
-        return np.where(n >= 10, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
+        return np.where(n >= CLOCK_MIN_ROWS, sq.sum(axis=1) / np.maximum(n, 1), np.inf)
 
     return _fit(cost, f"{rec.source}: the DVL and the ground truth", scale=gt_clock.scale)
 

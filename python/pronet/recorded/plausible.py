@@ -329,3 +329,21 @@ def position_units(gt: Table) -> str | None:
         f"{gt.where}: columns {gt.labels[1]!r}, {gt.labels[2]!r} move {ratio:.3g} times as "
         f"far as the velocity between rows; are they in {guess}?"
     )
+
+
+#: The fewest ground-truth steps (pairs of rows), or DVL rows, inside the IMU record a
+#: clock is estimated from (:mod:`pronet.recorded.alignment`): fewer cost infinity at
+#: every offset (the core's ``clocks::MIN_PAIRS`` for the truth's attitude steps).
+CLOCK_MIN_ROWS = 10
+
+
+def too_few_clock_rows(time: F64, need: int, what: str, source: str) -> None:
+    """ValueError when ``what``'s stamps ``time`` are fewer than the ``need`` its clock
+    is estimated from: a section too short, not streams that do not overlap."""
+    n, span = len(time), float(time[-1] - time[0]) if len(time) else 0.0
+    if n < need:
+        raise ValueError(
+            f"{source}: {what} has {n} row{'s' * (n != 1)} over {span:.3g} s; its clock is "
+            f"estimated from {need} or more inside the IMU record (a longer section, or a "
+            "faster stream)"
+        )

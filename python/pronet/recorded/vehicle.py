@@ -338,13 +338,16 @@ def lever_arms(
     read (:func:`pronet.recorded.alignment.load_section`)."""
     from pronet.recorded.alignment import SNAPIR_DVL_LEVER_ARM, SNAPIR_IMU_LEVER_ARM
 
-    if vehicle is not None:
-        imu = vehicle.imu_lever_arm if imu is None else imu
-        dvl = vehicle.dvl_lever_arm if dvl is None else dvl
+    names = {"imu": "imu_lever_arm", "dvl": "dvl_lever_arm"}
+    if vehicle is not None:  # the file's arms named by the file: not an option's
+        if imu is None and vehicle.imu_lever_arm is not None:
+            imu, names["imu"] = vehicle.imu_lever_arm, f"{vehicle.source}: imu_lever_arm"
+        if dvl is None and vehicle.dvl_lever_arm is not None:
+            dvl, names["dvl"] = vehicle.dvl_lever_arm, f"{vehicle.source}: dvl_lever_arm"
     if fmt == "snapir":
         imu = SNAPIR_IMU_LEVER_ARM if imu is None else imu
         dvl = SNAPIR_DVL_LEVER_ARM if dvl is None else dvl
-    for value, name in ((imu, "imu_lever_arm"), (dvl, "dvl_lever_arm")):
+    for value, name in ((imu, names["imu"]), (dvl, names["dvl"])):
         if value is not None:  # a given arm's own error first, then its length
             lever_arm(value, name)
             long_lever_arm(value, name, "the ground-truth point")
