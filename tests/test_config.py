@@ -449,3 +449,10 @@ def test_trajectory_from_segments_refuses_degrees_and_heights_beyond_the_earth(
     with pytest.raises(ValueError) as err:
         pronet.trajectory_from_segments([[60.0, 0.0, 0.0, 0.0]], **start)
     assert str(err.value).startswith(message)
+
+
+def test_a_trajectory_too_long_names_its_duration_in_a_few_digits() -> None:
+    """The core printed an f64 duration in full: 1e300 s as a 301-digit number."""
+    with pytest.raises(ValueError) as err:
+        pronet.trajectory_from_segments([[1e300, 0.0, 0.0, 0.0]], lla0=(0.5, 0.2, 0.0), speed0=1.0)
+    assert "total duration 1.0000e300 s" in str(err.value) and len(str(err.value)) < 200

@@ -178,7 +178,7 @@ impl TrajectorySpec {
             return Err(Error::invalid(
                 "segments",
                 format!(
-                    "total duration {total} s at dt {} s exceeds {MAX_SAMPLES} samples",
+                    "total duration {total:.4e} s at dt {} s exceeds {MAX_SAMPLES} samples",
                     self.dt
                 ),
             ));
