@@ -73,6 +73,15 @@ def _terminate(signum: int, frame: object) -> None:
     raise Terminated
 
 
+def _own_warnings() -> tuple[type[Warning], ...]:
+    """The warnings pronet says to a command-line user (what the data or the filter
+    shows is wrong), whatever ``-W`` or ``PYTHONWARNINGS`` ask of others."""
+    from pronet._util.plausibility import PlausibilityWarning
+    from pronet.stats import FilterHealthWarning
+
+    return (PlausibilityWarning, FilterHealthWarning)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command of ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     parser = build_parser()
@@ -85,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():  # one line each, not the source line under it
             warnings.showwarning = print_warning
+            for said in _own_warnings():  # said whatever Python's own filters are
+                warnings.simplefilter("default", said)
             return int(args.func(args))
     except KeyboardInterrupt as exc:
         for note in getattr(exc, "__notes__", ()):
