@@ -71,10 +71,19 @@ def test_a_bag_reads_as_the_recording_it_was_written_from(tmp_path, storage, tru
 
 
 def test_the_frames_are_options(tmp_path):
-    """A bag recorded in FRD is taken as it is: its vectors differ from FLU's by the flips."""
-    rec, path, topics, _ = _bag(tmp_path)
-    frd = read_recording(path, replace(topics, body_frame="frd"))
-    np.testing.assert_array_equal(frd.imu, rec.imu * [1, -1, -1, 1, -1, -1])
+    """A bag recorded in FRD is taken as it is (``body_frame="frd"``: no flips). Read as
+    FLU, its gyro's z axis turns against the truth's yaw: refused in one line (it read,
+    every vector but x flipped)."""
+    rec = synthetic_recording(seed=3, duration=60.0, name="mission").recording
+    origin = (*np.degrees(rec.gt_lla[0, :2]).tolist(), float(rec.gt_lla[0, 2]))
+    _, write_bag = _rosbags()
+    path, topics = write_bag(
+        tmp_path / "mission", rec, "mcap", topics=BagTopics(origin=origin, body_frame="frd")
+    )
+    assert topics.body_frame == "frd"
+    np.testing.assert_array_equal(read_recording(path, topics).imu, rec.imu)
+    with pytest.raises(RecordingError, match="turns against the gyro's z axis"):
+        read_recording(path, replace(topics, body_frame="flu"))
     with pytest.raises(ValueError, match="body_frame: expected flu or frd"):
         BagTopics(body_frame="rfu")
 
@@ -258,9 +267,10 @@ def test_the_bag_format_refuses_what_is_no_bag(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_frame_and_origin_slips_in_a_bag_are_named(tmp_path, capsys):
-    """Frame slips at the bag level: an ENU world read as NED is refused (the truth puts
-    the IMU's gravity upside down), a FLU body read as FRD is warned of (the truth turns
-    over with the IMU: the pass runs, rolled by 180°, its lever arms mirrored), and an
+    """Frame slips at the bag level: an ENU world read as NED is refused (the truth's
+    yaw turns against the gyro's z), a FLU body read as FRD too (the truth turns over
+    with the IMU, said as a warning, and its yaw turns against the gyro's z: it ran,
+    rolled by 180°, its lever arms mirrored), and an
     ``--origin`` in radians is flagged by the health monitor: the DVL's NIS above its
     band, named in config.json, where the right origin's is not."""
     _, path, topics, _ = _bag(tmp_path, duration=100.0)
@@ -277,10 +287,10 @@ def test_frame_and_origin_slips_in_a_bag_are_named(tmp_path, capsys):
         return code, capsys.readouterr().err, notes
 
     code, err, _ = run("ned", *right, "--world-frame", "ned")
-    assert code == 2 and "imu, rpy0: the specific force" in err and "in FLU" in err
+    assert code == 2 and "turns against the gyro's z axis" in err and "in ENU" in err, err
     code, err, _ = run("frd", *right, "--body-frame", "frd")
-    assert code == 0 and "the roll is beyond ±90° at 100 % of the rows" in err
-    assert "a body frame read as the other (FLU as FRD)" in err
+    assert code == 2 and "the roll is beyond ±90° at 100 % of the rows" in err
+    assert "turns against the gyro's z axis" in err and "(FLU as FRD)" in err, err
     code, err, notes = run("right", *right)
     assert code == 0 and "roll is beyond" not in err
     assert not [n for n in notes if ": dvl: mean NIS" in n and "above its 95 % band" in n]

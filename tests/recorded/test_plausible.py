@@ -60,6 +60,22 @@ def _in_cm_per_s(t):
     return t
 
 
+def _velocity_in_enu(t):
+    n, e, d = (t[f"vel_{a} [m/s]"].copy() for a in "ned")
+    t["vel_n [m/s]"], t["vel_e [m/s]"], t["vel_d [m/s]"] = e, n, -d
+    return t
+
+
+def _yaw_in_enu(t):
+    t["yaw [rad]"] = np.pi / 2 - t["yaw [rad]"]
+    return t
+
+
+def _up_not_down(t):
+    t["vel_d [m/s]"] = -t["vel_d [m/s]"]
+    return t
+
+
 def _unix(t):
     t["time [s]"] = t["time [s]"] + 1.7e9
     return t
@@ -105,6 +121,25 @@ def _dvl_stuck(t):
         ),
         (
             "gt",
+            _velocity_in_enu,
+            # this track runs near 45°, where east and north swapped hardly turn it: the
+            # up axis says it (a track along a meridian: the test after this one)
+            r"gt.csv: column 'vel_d \[m/s\]' moves 'height \[m\]' the wrong way .*(ENU)",
+        ),
+        (
+            "gt",
+            _yaw_in_enu,
+            r"gt.csv: column 'yaw \[rad\]' turns against the gyro's z axis \(correlation "
+            r"-[01]\.\d+ .*a heading in ENU",
+        ),
+        (
+            "gt",
+            _up_not_down,
+            r"gt.csv: column 'vel_d \[m/s\]' moves 'height \[m\]' the wrong way \(cosine "
+            r"-[01]\.\d+.*third axis is up",
+        ),
+        (
+            "gt",
             _unix,
             r"gt.csv: column 'time \[s\]' runs 1700000\d+.* the gt and IMU stamps do not overlap",
         ),
@@ -119,6 +154,28 @@ def test_implausible_data_is_one_line_naming_file_and_column(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert err.startswith("pronet: section s: ") and re.search(expected, err), err
+
+
+def test_a_velocity_with_north_and_east_swapped_is_told_from_its_track() -> None:
+    """A truth along a meridian and then a parallel, 1.5 m/s, its velocity columns
+    swapped (ENU read as NED): the steps of latitude and longitude point one way, the
+    velocity's the other (cosine 0 where NED reads 1)."""
+    from pronet.recorded.plausible import Table, position_units
+
+    t = np.arange(200.0)
+    north_then_east = np.where(t < 100, 1.5, 0.0), np.where(t < 100, 0.0, 1.5)
+    lat = 0.5 + np.cumsum(north_then_east[0]) / 6_371_000.0
+    lon = 0.2 + np.cumsum(north_then_east[1]) / (6_371_000.0 * np.cos(lat))
+    labels = ["time [s]", "lat [rad]", "lon [rad]", "height [m]"]
+    labels += [f"vel_{a} [m/s]" for a in "ned"] + ["roll [rad]", "pitch [rad]", "yaw [rad]"]
+    zeros = np.zeros_like(t)
+    ned = np.stack([t, lat, lon, zeros, *north_then_east, zeros, zeros, zeros, zeros], axis=1)
+    assert position_units(Table(ned, "gt.csv", labels)) is None
+    enu = ned.copy()
+    enu[:, [4, 5]] = ned[:, [5, 4]]
+    found = position_units(Table(enu, "gt.csv", labels))
+    assert found is not None and "do not point along the track" in found, found
+    assert "cosine 0.00" in found and "a velocity in ENU" in found
 
 
 def test_a_lever_arm_beyond_10_m_is_a_warning_and_runs(tmp_path, capsys, recording):

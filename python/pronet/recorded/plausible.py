@@ -20,8 +20,10 @@ increasing time, rate):
   value over the section is the same (a dead gyro reads 0);
 - angles whose unit disagrees with their header (:func:`attitude_units`): the ground
   truth's attitude turning :data:`ANGLE_RATIO` times more or less than the integrated
-  gyro (rad under a ``[deg]`` header turns 57 times less); its latitude and longitude
-  moving so much more or less than its velocity (:func:`position_units`).
+  gyro (rad under a ``[deg]`` header turns 57 times less), or its yaw turning against
+  the gyro's z axis (a heading in ENU); its latitude and longitude moving so much more
+  or less than its velocity, or its velocity not pointing along the track they draw
+  (ENU for NED; :func:`position_units`).
 
 Lever arms beyond 10 m are usable and only warned of
 (:func:`pronet._util.plausibility.long_lever_arm`, a :class:`PlausibilityWarning`): typed
@@ -59,6 +61,12 @@ NOMINAL_RATE_TOLERANCE = 1e-3
 MAX_SPEED: float = _core.MAX_SPEED
 #: The truth's attitude steps over the gyro's, by RMS, outside [1/x, x]: a unit slip.
 ANGLE_RATIO = 5.0
+#: Its velocity's steps against its track's (and its yaw's against the gyro's z), by
+#: cosine, under this (or under its negative): a frame slip. On the Snapir sections the
+#: horizontal cosine is 0.998–1.000, the vertical 0.97–1.00, the yaw's 0.89–1.00.
+DIRECTION_COSINE = 0.5
+#: The least vertical motion [m per truth row] its direction is checked over.
+MIN_CLIMB = 0.01
 #: Below this RMS gyro turn per truth row [rad] the attitude-unit check says nothing.
 MIN_TURN = 1e-3
 #: Plausible magnitudes. The mean specific force over a section near gravity
@@ -230,7 +238,8 @@ def warn_upside_down(gt: Table | None) -> None:
     """Warn (:class:`PlausibilityWarning`) of a ground truth whose roll is beyond ±90°
     at most of its rows: a vehicle upside down all along, or a body frame read as the
     other (FLU as FRD: the truth's attitude turns with the IMU's axes, so that the pass
-    runs, rolled by 180°, with every lever arm mirrored)."""
+    would run rolled by 180°, with every lever arm mirrored; where the vehicle turns,
+    its yaw then turns against the gyro's z, refused by :func:`attitude_units`)."""
     if gt is not None and (flipped := _upside_down(gt)) is not None:
         warnings.warn(flipped, PlausibilityWarning, stacklevel=3)
 
@@ -295,13 +304,41 @@ def attitude_units(imu: Table, gt: Table) -> str | None:
         return None
     ratio = truth / gyro
     if 1 / ANGLE_RATIO <= ratio <= ANGLE_RATIO:
-        return None
+        return _yaw_against_gyro(turned[:, 2], euler[:, 2], gt)
     header = ", ".join(repr(gt.labels[j]) for j in (7, 8, 9))
     guess = "rad under a [deg] header" if ratio < 1 else "deg under a [rad] header"
     return (
         f"{gt.where}: columns {header} turn {ratio:.3g} times as much as the gyro between "
         f"rows; are the angles in {guess}?"
     )
+
+
+def _yaw_against_gyro(turned: F64, yaw: F64, gt: Table) -> str | None:
+    """The truth's yaw steps against the gyro's z turn over them (each less its median
+    step): correlated below −:data:`DIRECTION_COSINE`, the yaw turns the other way: a
+    heading in ENU (90° − yaw) or counted counter-clockwise, or the IMU's z axis up (a
+    body frame read as the other). Silent where the z turn
+    varies less than :data:`MIN_TURN` per row."""
+    a, b = (np.diff(x) - np.median(np.diff(x)) for x in (turned, yaw))
+    size = float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
+    if np.sqrt(np.mean(a * a)) < MIN_TURN or size == 0.0:
+        return None
+    corr = float(np.sum(a * b)) / size
+    if corr >= -DIRECTION_COSINE:
+        return None
+    return (
+        f"{gt.where}: column {gt.labels[9]!r} turns against the gyro's z axis (correlation "
+        f"{corr:.2f} of their steps, about 1 for a yaw from north, clockwise seen from above): "
+        "a heading in ENU (90° − yaw) or counted counter-clockwise, or a body frame read as "
+        "the other (FLU as FRD)?"
+    )
+
+
+def _direction(steps: F64, by_velocity: F64) -> float:
+    """The cosine between the position's steps and the velocity's over the same rows
+    (both ``(n, k)`` [m]), 1 where they point the same way."""
+    size = float(np.sqrt(np.sum(steps**2) * np.sum(by_velocity**2)))
+    return float(np.sum(steps * by_velocity)) / size if size > 0 else 1.0
 
 
 def position_units(gt: Table) -> str | None:
@@ -323,11 +360,38 @@ def position_units(gt: Table) -> str | None:
         return None
     ratio = moved / by_velocity
     if 1 / ANGLE_RATIO <= ratio <= ANGLE_RATIO:
-        return None
+        return _velocity_direction(gt, np.stack([north, east], axis=1), mean_vel * dt[:, None])
     guess = "rad under a [deg] header" if ratio < 1 else "deg under a [rad] header"
     return (
         f"{gt.where}: columns {gt.labels[1]!r}, {gt.labels[2]!r} move {ratio:.3g} times as "
         f"far as the velocity between rows; are they in {guess}?"
+    )
+
+
+def _velocity_direction(gt: Table, horizontal: F64, by_velocity: F64) -> str | None:
+    """The truth's velocity against its track: the horizontal steps its latitude and
+    longitude draw against the north-east velocity's (``(n, 2)`` [m]), at a cosine
+    under :data:`DIRECTION_COSINE` a velocity in ENU or north and east swapped; the
+    height's steps against ``−v_d Δt``, where they move :data:`MIN_CLIMB` or more per
+    row, at a cosine under −:data:`DIRECTION_COSINE` a velocity whose third axis is up."""
+    cos = _direction(horizontal, by_velocity)
+    if cos < DIRECTION_COSINE:
+        return (
+            f"{gt.where}: columns {gt.labels[4]!r}, {gt.labels[5]!r} do not point along the "
+            f"track {gt.labels[1]!r}, {gt.labels[2]!r} draw (cosine {cos:.2f} between their "
+            "steps, about 1 in NED): a velocity in ENU, or north and east swapped?"
+        )
+    v, dt = gt.values, np.diff(gt.values[:, 0])
+    climb = -(v[1:, 6] + v[:-1, 6]) / 2 * dt
+    if np.sqrt(np.mean(climb**2)) < MIN_CLIMB:
+        return None
+    cos = _direction(np.diff(v[:, 3]), climb)
+    if cos >= -DIRECTION_COSINE:
+        return None
+    return (
+        f"{gt.where}: column {gt.labels[6]!r} moves {gt.labels[3]!r} the wrong way (cosine "
+        f"{cos:.2f} between the height's steps and −v_d Δt, about 1 in NED): a velocity "
+        "whose third axis is up (ENU)?"
     )
 
 
