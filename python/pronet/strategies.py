@@ -100,8 +100,10 @@ class StrategySpec:
             return cls(text, kind, float(ADAPTIVE_WINDOW))
         if kind in ("mehra", "adaptive"):
             if not arg.isdigit() or int(arg) < 1:
+                what = "" if arg.isdigit() else f" (a whole number, not {arg!r})"
                 raise ValueError(
-                    f"strategy {text!r}: {kind} needs a window >= 1 [DVL updates], e.g. {kind}:5"
+                    f"strategy {text!r}: {kind} needs a window >= 1 [DVL updates]{what}, "
+                    f"e.g. {kind}:5"
                 )
             return cls(text, kind, float(int(arg)))
         if kind in ("oracle", "detvar"):

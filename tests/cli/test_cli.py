@@ -245,7 +245,8 @@ def test_simulate_help_lists_every_built_in_scenario(capsys) -> None:
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--strategies", "mehra:0"], "mehra needs a window >= 1"),
+        (["--strategies", "mehra:0"], "mehra needs a window >= 1 [DVL updates], e.g."),
+        (["--strategies", "adaptive:1e12"], "updates] (a whole number, not '1e12')"),
         (["--strategies", "constant,constant"], "distinct"),
         (["--strategies", "learned:no/such/model"], "no/such/model"),
         (["--scenario", "lake"], "neither a built-in scenario"),
