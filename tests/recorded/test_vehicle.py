@@ -5,6 +5,7 @@ requires the lever arms; ``--data`` takes one ``.npz``."""
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -211,3 +212,19 @@ def test_both_levels_of_a_vehicle_file_obey_one_rule(tmp_path):
     ):  # fmt: skip
         with pytest.raises(ConfigError, match=message):
             vehicle.load_vehicle(_toml(tmp_path / "both.toml", text))
+
+
+@pytest.mark.parametrize(
+    ("given", "message"),
+    [
+        ("Mems", "--filter: 'Mems' is neither a file nor a grade (fog, tactical, mems;"),
+        ("", "--filter: empty; give a vehicle file or a grade (fog, tactical, mems)"),
+        ("vehicle.toml", "vehicle.toml: no such file"),
+    ],
+)
+def test_a_filter_that_is_no_file_names_the_grades(tmp_path, monkeypatch, given, message):
+    """A grade's name mistyped said only 'Mems: no such file'; an empty one 'Is a
+    directory' (the current folder)."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        vehicle.load_vehicle(given)

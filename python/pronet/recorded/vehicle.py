@@ -193,6 +193,13 @@ def load_vehicle(path_or_grade: str | Path) -> VehicleTuning:
     if text in GRADES and not Path(text).exists():
         return VehicleTuning(grade_config(text, "--filter"), None, None, text)
     path = Path(text)
+    if not text.strip():
+        raise ConfigError(f"--filter: empty; give a vehicle file or a grade ({', '.join(GRADES)})")
+    if not path.exists() and "/" not in text and not text.endswith(".toml"):
+        raise ConfigError(
+            f"--filter: {text!r} is neither a file nor a grade ({', '.join(GRADES)}; "
+            "a vehicle file is a .toml)"
+        )
     table, where = _vehicle_keys(read_toml(path), path)
     if "imu_dt" in table:
         raise ConfigError(
