@@ -418,6 +418,13 @@ def test_dataset_sizes_name_the_option(tmp_path, args, expected, capsys) -> None
     assert not list(tmp_path.iterdir())
 
 
+def test_a_dataset_out_that_is_no_npz_is_refused(tmp_path, capsys) -> None:
+    """It wrote an .npz under a .txt name, which train and evaluate then took as it."""
+    assert cli.main(["dataset", "--out", str(tmp_path / "x.txt"), "--quiet"]) == 2
+    assert one_line(capsys).startswith("pronet: --out: a dataset is an .npz file; got ")
+    assert not list(tmp_path.iterdir())
+
+
 def test_study_checks_its_arguments_before_saying_anything(tmp_path, capsys) -> None:
     assert cli.main(["study", "--runs", "0", "--out", str(tmp_path / "s")]) == 2
     assert capsys.readouterr().out == ""  # no "study: ... 0 runs each" first

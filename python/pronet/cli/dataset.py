@@ -54,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix == ".json":  # the card's own name: the data would be overwritten by it
         raise ValueError(f"--out: {out} is the name of a card; name the .npz file to write")
+    if out.suffix != ".npz":  # train and evaluate read --dataset as an .npz
+        raise ValueError(f"--out: a dataset is an .npz file; got {out}")
     # the data and its card: neither is overwritten without --force
     check_new_files([out, dataset.card_path(out)], "--out", args.force)
     base = dataset.GRADES if args.grades else dataset.DatasetParams()
