@@ -320,10 +320,9 @@ def _yaw_against_gyro(turned: F64, yaw: F64, gt: Table) -> str | None:
     body frame read as the other). Silent where the z turn
     varies less than :data:`MIN_TURN` per row."""
     a, b = (np.diff(x) - np.median(np.diff(x)) for x in (turned, yaw))
-    size = float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
-    if np.sqrt(np.mean(a * a)) < MIN_TURN or size == 0.0:
+    if np.sqrt(np.mean(a * a)) < MIN_TURN:
         return None
-    corr = float(np.sum(a * b)) / size
+    corr = _direction(b, a)  # 1 where either does not move
     if corr >= -DIRECTION_COSINE:
         return None
     return (
