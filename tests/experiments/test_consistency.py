@@ -10,6 +10,8 @@ gyro bias at its prior (σ ≥ 0.8 of it).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from pronet import _core
@@ -79,3 +81,24 @@ def test_the_differentiable_filter_names_what_it_does_not_run() -> None:
         Setup.from_config(_core.FilterConfig(formulation="se23"))
     with pytest.raises(ValueError, match="formulation"):
         _core.FilterConfig(formulation="SE23")
+
+
+@pytest.mark.slow
+def test_the_long_missions_position_error_off_its_thin_axis_is_the_second_order_heading_term() -> (
+    None
+):
+    """docs/results/consistency.md, the long MEMS mission: along each run's thin
+    horizontal axis the position error is ``½ ∫ δψ² v_h dt`` of its own heading error
+    (slope near 1, strongly correlated), and taken off it leaves the error honest there;
+    the linear covariance's NEES is far out of its band, and the ``¾ m mᵀ`` bound brings
+    its mean near 3 dof."""
+    from module_file import load
+
+    script = load(Path(__file__).parents[2] / "scripts" / "heading_nonlinearity.py")
+    result = script.second_order(seed=0, runs=12, hours=0.7, marks=(2400.0,))
+    (_, slope, corr, before, after) = result.fit[0]
+    assert 0.8 < slope < 1.25 and corr > 0.8, result.fit
+    assert before > 3.0 and after < 1.5, result.fit
+    linear, _, bound = result.nees
+    assert linear[1] > 10.0, result.nees
+    assert 2.0 < bound[1] < 6.0, result.nees  # from above 10
