@@ -18,6 +18,7 @@ Definitions:
   ``run_filter(smooth=True)`` over 10 hours of 100 Hz IMU with a 5 Hz DVL at a 0.1 s
   covariance step (half an hour under ``--quick``, extrapolated at its bytes per IMU
   sample), target ≤ 1 GiB.
+- second-order heading term: :func:`bench_second_order`.
 - 10,000 runs: a fresh process runs the Monte Carlo without histories at a tenth of the
   runs and at all of them; peak RSS and the time ratio (10 is linear).
 - online navigator: ``benches/online.py`` in a fresh process (its definitions are
@@ -169,6 +170,45 @@ def bench_monte_carlo(args: argparse.Namespace, ref: Reference) -> list[Row]:
         )
     )
     return rows
+
+
+#: The most the second-order heading term may cost per IMU step (CPU time).
+SECOND_ORDER_TARGET = 1.2
+
+
+def bench_second_order(args: argparse.Namespace, ref: Reference) -> list[Row]:
+    """The second-order heading term's cost: the long MEMS mission's Monte Carlo
+    (``pronet.experiments.consistency``, invariant, 20 runs, 0.1 s covariance step, no
+    histories; 10 minutes under ``--quick``) with the term over without it, the two
+    alternating, CPU time of the process, best of ``--repeat`` each."""
+    import time
+
+    from pronet.experiments import consistency as c
+
+    hours = 1 / 6 if args.quick else 1.0
+    what: tuple[str, c.Formulation, list, str] = (
+        "mems", "invariant", c.lawnmower_segments(hours), "lawnmower"
+    )  # fmt: skip
+    aiding = dict(dvl_period=0.2, dvl_dropout=c.LAWNMOWER_DROPOUT,
+                  depth_sigma=c.LAWNMOWER_DEPTH[0], depth_period=c.LAWNMOWER_DEPTH[1])  # fmt: skip
+    best = {False: np.inf, True: np.inf}
+    for _ in range(args.repeat):
+        for second_order in (False, True):
+            t0 = time.process_time()
+            c._monte_carlo(what, (20, 0, 0, True, False), second_order=second_order, **aiding)
+            best[second_order] = min(best[second_order], time.process_time() - t0)
+    ratio = best[True] / best[False]
+    return [
+        Row(
+            "second-order heading term over the invariant filter: long MEMS mission, 20 runs, CPU",
+            f"{ratio:.2f}× ({best[False]:.2f} → {best[True]:.2f} s of CPU)",
+            f"≤ {SECOND_ORDER_TARGET}×",
+            ratio <= SECOND_ORDER_TARGET,
+            f"{SCRIPT} --only second-order",
+            ratio,
+            "x",
+        )
+    ]
 
 
 #: The covariance step the speed rows time against the per-sample filter [s].

@@ -40,6 +40,7 @@ from filter_rows import (
     bench_monte_carlo,
     bench_online,
     bench_rust,
+    bench_second_order,
     bench_smoother,
     bench_soak,
 )
@@ -65,6 +66,7 @@ BENCHES: dict[str, Callable[[argparse.Namespace, Reference], list[Row]]] = {
     "mechanization": bench_mechanization,
     "monte-carlo": bench_monte_carlo,
     "covariance-step": bench_covariance_step,
+    "second-order": bench_second_order,
     "smoother": bench_smoother,
     "online": bench_online,
     "hybrid": bench_hybrid,

@@ -265,6 +265,7 @@ def run_reference_filter(
     heading_time=(),
     heading_sigma=None,
     anchor=None,
+    heading_second_order=False,
 ):
     """Run the filter; returns dict of time, lla, vel, rpy, bias, sigma (n+1 rows) and
     innovation, nis (one row per DVL measurement applied, in order).
@@ -305,7 +306,12 @@ def run_reference_filter(
     ``heading_time`` with 1σ ``heading_sigma`` (scalar or per row), a scalar update each
     (``heading_h_row``). Rows before the run are skipped. The output has ``depth_nis``,
     ``fix_nis`` and ``heading_nis`` (one per row applied). ``lever_arm`` with
-    ``aiding="nav"``: ``h = v̂ + Ĉ (ω̂ × r)`` (``nav_velocity_h``)."""
+    ``aiding="nav"``: ``h = v̂ + Ĉ (ω̂ × r)`` (``nav_velocity_h``).
+
+    ``heading_second_order``: with the second-order heading term
+    (``numpy_reference_second_order.py``)."""
+    from numpy_reference_second_order import SecondOrder
+
     from numpy_reference_dvl import DvlErrors
     from numpy_reference_se23 import (
         anchor_metres,
@@ -404,6 +410,8 @@ def run_reference_filter(
         ikh = np.eye(n_x) - np.outer(gain, h_row)
         p = ikh @ p @ ikh.T + r * np.outer(gain, gain)
         p = (p + p.T) / 2
+        if second is not None:
+            second.update(ikh)
         dx = -gain * nu
         feed(dx)
         return dx, nu * nu / s_i
@@ -454,6 +462,7 @@ def run_reference_filter(
 
     jd = jf = jh = 0
     depth_arm, fix_arm = _arm(depth_lever_arm), _arm(fix_lever_arm)
+    second = SecondOrder(n_x) if heading_second_order else None
 
     def sigmas():
         """The 15 states' σ (classic coordinates) and the calibration's, from P now."""
@@ -517,8 +526,12 @@ def run_reference_filter(
             qd = np.zeros((n_x, n_x))
             qd[:15, :15] = gam @ qc @ gam.T * dt
             noise = dvl_transition(phi, dt)
+            heading_variance = p[8, 8]
             p = phi @ p @ phi.T + qd + noise
             p = (p + p.T) / 2
+            if second is not None:
+                second.moved(v, dt)
+                p = second.grow(p, phi, heading_variance)
         else:  # docs/reference/filter.md, "Covariance step"
             if interval is None:
                 interval = {"nav": (lla, v, c), "dt": 0.0, "force": np.zeros(3), "q": 0.0}
@@ -526,6 +539,8 @@ def run_reference_filter(
             interval["force"] = interval["force"] + c @ f_hat * dt
             walks = np.array([accel_bias_psd] * 3 + [gyro_bias_psd] * 3) * dt
             interval["q"] = interval["q"] + np.concatenate([q * imu_dt * dt, walks])
+            if second is not None:
+                second.moved(v, dt)
         lla, v, c = strapdown_step(lla, v, c, f_hat, w_hat, dt)
         # A reading stamped before the run is skipped (aiding_rows) and closes no step.
         updating = (j < len(dvl_time) and dvl_time[j] <= t + dt / 2) or any(
@@ -537,7 +552,10 @@ def run_reference_filter(
         if interval is not None and (
             interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
         ):
+            heading_variance = p[8, 8]
             p, phi = close(p, interval)
+            if second is not None:
+                p = second.grow(p, phi, heading_variance)
             interval = None
             closed = sigmas()
         p_prior, dx_sum, v_prior, lla_prior = p.copy(), np.zeros(n_x), v.copy(), lla.copy()
@@ -563,6 +581,8 @@ def run_reference_filter(
             ikh = np.eye(n_x) - gain @ h
             p = ikh @ p @ ikh.T + gain @ r_j @ gain.T
             p = (p + p.T) / 2
+            if second is not None:
+                second.update(ikh)
             dx = -gain @ nu
             feed(dx)
             dx_sum += dx

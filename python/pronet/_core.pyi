@@ -136,27 +136,23 @@ def mechanize(
 
 @final
 class FilterConfig:
-    """EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
-    ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
-    ("body" velocity or "nav" NED velocity), nominal IMU period [s], the chi-square
-    innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate), and
-    the opt-in DVL calibration states (``dvl_calibration=True``, body aiding only): the
-    DVL's scale-factor error and mounting misalignment appended to the 15 error states,
-    with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
-    [1/s, rad²/s] (default 0: constants), the opt-in correlated DVL velocity error
-    (``dvl_bias_sigma``: its stationary 1σ per DVL axis [m/s], body aiding only; a
-    first-order Gauss–Markov process per axis with correlation time
-    ``dvl_bias_time_constant`` [s], default 60), three more states beside the
-    calibration's, and the formulation: the coordinates of the
-    velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
-    consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
-    prior and every output are in the classic coordinates either way; and the
-    covariance step [s]: the interval over which the covariance is propagated at once
-    (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
-    by default (free in accuracy, about half the cost: ``docs/results/covariance-step.md``);
-    0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
-    number of IMU periods (at most :data:`MAX_COVARIANCE_STEP`, 1 s), and the covariance
-    is brought up to date before every DVL update and at the end of a pass. See
+    """EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and ε_g
+    [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding ("body" velocity
+    or "nav" NED velocity), nominal IMU period [s], the χ² innovation gate (a DVL update
+    whose NIS exceeds it is rejected; None: no gate); opt-in DVL calibration states
+    (``dvl_calibration=True``, body aiding): scale-factor error and misalignment, initial
+    1σ (default 0.01, 1° per axis [rad]) and random-walk PSDs [1/s, rad²/s] (default 0);
+    an opt-in correlated DVL velocity error (``dvl_bias_sigma``, stationary 1σ per DVL axis
+    [m/s], body aiding; Gauss–Markov, correlation time ``dvl_bias_time_constant`` [s],
+    default 60), three more states; the formulation, the velocity error's coordinates:
+    "invariant" (default, ``δV = δv − [v̂×]ψ``, consistent in heading), "classic" (``δv``)
+    or "se23" (the prior and every output in the classic ones either way); the covariance
+    step [s] over which P is propagated at once (the navigation at every IMU sample),
+    0.1 s by default (``docs/results/covariance-step.md``); 0 or under 1.5 IMU periods:
+    every sample; longer ones rounded to whole IMU periods (at most
+    :data:`MAX_COVARIANCE_STEP`), P brought up to date before every update and at a pass's
+    end; ``heading_second_order=True``: P carries the second-order heading term of the
+    position error, ``¾ u uᵀ`` (not with "se23" nor the DVL error states). See
     ``docs/reference/filter.md``."""
 
     def __new__(cls, *, p0_sigma: Any | None = None, accel_bias_psd: float = 1e-3,
@@ -168,7 +164,8 @@ class FilterConfig:
                 dvl_misalignment_psd: float | None = None, dvl_bias_sigma: Any | None = None,
                 dvl_bias_time_constant: float | None = None,
                 formulation: Literal["invariant", "classic", "se23"] = "invariant",
-                covariance_step: float = 0.1) -> FilterConfig: ...  # fmt: skip
+                covariance_step: float = 0.1,
+                heading_second_order: bool = False) -> FilterConfig: ...  # fmt: skip
     @property
     def p0_sigma(self) -> list[float]: ...
     @property
@@ -181,6 +178,9 @@ class FilterConfig:
     def lever_arm(self) -> list[float]: ...
     @property
     def aiding(self) -> str: ...
+    @property
+    def heading_second_order(self) -> bool:
+        """Whether the second-order heading term of the position error is carried."""
     @property
     def imu_dt(self) -> float: ...
     @property

@@ -118,6 +118,7 @@ FILTER_KEYS = (
     "covariance_step",
     "dvl_bias_sigma",
     "dvl_bias_time_constant",
+    "heading_second_order",
 )
 #: The DVL calibration states' arguments of a ``FilterConfig``: not keys of a file, but
 #: kept from the base configuration a file's keys are laid over.

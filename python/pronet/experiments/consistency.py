@@ -103,9 +103,12 @@ class Cell:
         return self.heading_rms / self.heading_sigma
 
 
-def filter_config(grade: str, formulation: Formulation) -> _core.FilterConfig:
+def filter_config(
+    grade: str, formulation: Formulation, *, second_order: bool = False
+) -> _core.FilterConfig:
     """The filter told ``grade``'s exact model: its bias priors and walks, position
-    1 m, velocity 0.02 m/s, roll and pitch 1 mrad, heading 1° (1σ)."""
+    1 m, velocity 0.02 m/s, roll and pitch 1 mrad, heading 1° (1σ); ``second_order``:
+    with the second-order heading term (``FilterConfig.heading_second_order``)."""
     g = GRADES[grade]
     p0 = [1.0] * 3 + [0.02] * 3 + [1e-3, 1e-3, _DEG] + [g["b_a"]] * 3 + [g["b_g"]] * 3
     return _core.FilterConfig(
@@ -114,12 +117,15 @@ def filter_config(grade: str, formulation: Formulation) -> _core.FilterConfig:
         gyro_bias_psd=g["w_g"],
         dvl_variance=[DVL_SIGMA**2] * 3,
         formulation=formulation,
+        heading_second_order=second_order,
     )
 
 
 def _monte_carlo(
     what: tuple[str, Formulation, list, str],
     how: tuple[int, int, int, bool, bool],
+    *,
+    second_order: bool = False,
     **aiding: Any,
 ) -> MonteCarloResult:
     """The constant-Q Monte Carlo of ``what`` = (``grade``'s IMU, the filter's
@@ -127,7 +133,7 @@ def _monte_carlo(
     34° E, 20 m deep, 1.5 m/s), its white noise and bias walks simulated and the filter
     told them (:func:`filter_config`), a DVL of σ :data:`DVL_SIGMA` and ``aiding``'s
     other sensor keys; ``how`` = (runs, seed, record_every, sample_initial_error,
-    smooth)."""
+    smooth); ``second_order`` as :func:`filter_config`'s."""
     grade, formulation, segments, name = what
     runs, seed, record_every, draw, smooth = how
     g = GRADES[grade]
@@ -142,7 +148,7 @@ def _monte_carlo(
     )  # fmt: skip
     return monte_carlo(
         trajectory, _core.Strategy.constant(q), sensors=sensors,
-        config=filter_config(grade, formulation), n_runs=runs, seed=seed,
+        config=filter_config(grade, formulation, second_order=second_order), n_runs=runs, seed=seed,
         record_every=record_every, sample_initial_error=draw, smooth=smooth,
     )  # fmt: skip
 
@@ -233,13 +239,15 @@ def run_lawnmower(
     hours: float = LAWNMOWER_HOURS,
     runs: int = 20,
     seed: int = 0,
+    second_order: bool = False,
 ) -> Mission:
     """A long mission without fixes: ``grade``'s IMU on :func:`lawnmower_segments`
     at 1.5 m/s, 20 m deep, a 5 Hz DVL with random bottom-lock losses
     (:data:`LAWNMOWER_DROPOUT`), a depth sensor (:data:`LAWNMOWER_DEPTH`), the filter
     told the exact model (:func:`filter_config`), every initial error drawn from P0,
     smoothed too. The position block's NEES is taken in the filter's own coordinates
-    (in SE₂(3), ``δP = p̂ − Ĉ Cᵀ p`` about the first position)."""
+    (in SE₂(3), ``δP = p̂ − Ĉ Cᵀ p`` about the first position); ``second_order``: the
+    filter carries the second-order heading term (:func:`filter_config`)."""
     out = _monte_carlo(
         (grade, formulation, lawnmower_segments(hours), "lawnmower"),
         (runs, seed, 100 * 60, True, True),
@@ -247,11 +255,12 @@ def run_lawnmower(
         dvl_dropout=LAWNMOWER_DROPOUT,
         depth_sigma=LAWNMOWER_DEPTH[0],
         depth_period=LAWNMOWER_DEPTH[1],
+        second_order=second_order,
     )
     smoothed = out.smoothed
     assert smoothed is not None and out.error is not None  # smooth=True, recorded
     return Mission(
-        formulation=formulation,
+        formulation=formulation + (" + second order" if second_order else ""),
         runs=runs,
         inside=tuple(out.nees_in_band(b) for b in STATE_BLOCKS),
         smoothed_inside=tuple(smoothed.nees_in_band(b) for b in STATE_BLOCKS),

@@ -55,6 +55,11 @@ pub struct FilterConfig {
     /// rad, h m]`); None: the filter's initial position, set by [`super::Ekf::new`] in
     /// its own copy (a pass reads it back from [`super::Ekf::config`]).
     pub anchor: Option<Vector3<f64>>,
+    /// Carry the second-order heading term of the position error (`super::second_order`):
+    /// P then includes the along-track error a large heading error makes, whose variance
+    /// the linear filter lacks. Off by default; not with [`Formulation::Se23`] (its
+    /// position error is taken about the anchor) nor with the DVL calibration states.
+    pub heading_second_order: bool,
 }
 
 impl Default for FilterConfig {
@@ -72,6 +77,7 @@ impl Default for FilterConfig {
             formulation: Formulation::default(),
             covariance_step: DEFAULT_COVARIANCE_STEP,
             anchor: None,
+            heading_second_order: false,
         }
     }
 }
@@ -130,6 +136,21 @@ impl FilterConfig {
         if let Some(c) = &self.dvl_calibration {
             c.validate()?;
             check_aiding(c, self.aiding == Aiding::Body)?;
+        }
+        if self.heading_second_order {
+            let against = if self.formulation.position_invariant() {
+                Some("the se23 formulation, whose position error is taken about its anchor")
+            } else if self.dvl_calibration.is_some() {
+                Some("the DVL calibration or correlated-error states")
+            } else {
+                None
+            };
+            if let Some(against) = against {
+                return Err(Error::invalid(
+                    "heading_second_order",
+                    format!("is not available with {against}"),
+                ));
+            }
         }
         Ok(())
     }

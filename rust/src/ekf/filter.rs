@@ -7,6 +7,7 @@ use super::calibration::Calibration;
 use super::dynamics::{add_imu_noise, ErrorDynamics};
 use super::formulation::{Coordinates, Formulation, Point};
 use super::process_noise::ProcessNoise;
+use super::second_order::SecondOrder;
 use super::state::{Matrix15, Vector15, ACC_BIAS, ATT, GYRO_BIAS, POS, VEL};
 use super::step::{Covariance, CovarianceStep};
 use super::transition::Transition;
@@ -52,6 +53,9 @@ pub struct Ekf {
     /// The covariance step under way (see [`FilterConfig::covariance_step`]): P, M and
     /// the calibration blocks stand at its start.
     pub(super) step: Option<CovarianceStep>,
+    /// The second-order heading term, when [`FilterConfig::heading_second_order`] asks
+    /// for it (P includes it; `super::second_order`).
+    pub second_order: Option<SecondOrder>,
 }
 
 /// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
@@ -96,6 +100,7 @@ impl Ekf {
             calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
             sensitivity_calibration: None,
             step: None,
+            second_order: cfg.heading_second_order.then(SecondOrder::default),
             cfg,
         })
     }
@@ -110,6 +115,7 @@ impl Ekf {
         p: Matrix15,
         calibration: Option<(&super::calibration::Cross, &super::calibration::DvlCov)>,
         step: Option<CovarianceStep>,
+        second_order: Option<SecondOrder>,
     ) -> Result<Self> {
         let b = bias;
         let mut ekf = Ekf::new(
@@ -123,6 +129,9 @@ impl Ekf {
             (c.cross, c.cov) = (*cross, *cov);
         }
         ekf.step = step;
+        if ekf.second_order.is_some() {
+            ekf.second_order = second_order;
+        }
         Ok(ekf)
     }
 
@@ -290,6 +299,9 @@ impl Ekf {
             self.step
                 .get_or_insert_with(|| CovarianceStep::open(&self.nav, tracked))
                 .add(&self.nav, &imu.accel, dt, white, noise);
+            if let Some(s) = self.second_order.as_mut() {
+                s.run(&self.nav.vel, dt);
+            }
         }
         self.nav = step_with_rates(&self.nav, &imu, dt, &rates);
         self.last_gyro = imu.gyro;
@@ -357,8 +369,14 @@ impl Ekf {
         dt: f64,
         noise: ProcessNoise<'_>,
     ) {
+        let heading_variance = self.heading_variance();
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
+        if let Some(s) = self.second_order.as_mut() {
+            s.step(&dynamics.apply(s.direction().as_slice()), dt);
+            s.run(&self.nav.vel, dt);
+            s.grow(&mut self.p, heading_variance);
+        }
         if let Some(c) = self.calibration.as_mut() {
             c.propagate(dynamics, dt, true);
         }
@@ -420,16 +438,22 @@ impl Ekf {
     /// updates and at its end.
     pub fn bring_up_to_date(&mut self) -> Option<Transition> {
         let step = self.step.take()?;
+        let heading_variance = self.heading_variance();
         let sensitivity = self.sensitivity.as_mut().map(|(m, q)| {
             let calibration = self.sensitivity_calibration.as_mut();
             (m, &*q, calibration)
         });
-        step.close(Covariance {
+        let closed = step.close(Covariance {
             coordinates: self.cfg.coordinates(),
             p: &mut self.p,
             calibration: self.calibration.as_mut(),
             sensitivity,
-        })
+        });
+        if let (Some(s), Some(phi)) = (self.second_order.as_mut(), closed.as_ref()) {
+            s.transition(|u| phi.apply(u));
+            s.grow(&mut self.p, heading_variance);
+        }
+        closed
     }
 
     /// The covariance-step part of the smoother's rebuild (`Ekf::predict_covariance_from`
@@ -452,6 +476,9 @@ impl Ekf {
             .step
             .get_or_insert_with(|| CovarianceStep::open(nav, false));
         step.add(nav, &accel, dt, white, noise);
+        if let Some(s) = self.second_order.as_mut() {
+            s.run(&nav.vel, dt);
+        }
         step.due(&self.cfg)
     }
 

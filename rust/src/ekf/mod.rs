@@ -14,8 +14,9 @@
 //! - `update`: the [`Measurement`] a sensor gives and the update it runs;
 //! - `joseph`: the update's Joseph form on the support of H;
 //! - `dynamics`, `transition`, `formulation`, `process_noise`, `calibration`,
-//!   `config`: the error dynamics and Φ, the two velocity-error coordinates, the noise
-//!   of a step, the DVL calibration states, the tuning.
+//!   `second_order`, `config`: the error dynamics and Φ, the two velocity-error
+//!   coordinates, the noise of a step, the DVL calibration states, the second-order
+//!   heading term of the position error, the tuning.
 
 pub mod calibration;
 mod config;
@@ -25,14 +26,15 @@ pub mod formulation;
 mod joseph;
 mod mounting;
 mod process_noise;
+pub mod second_order;
 mod state;
 mod step;
 pub(crate) mod transition;
 mod update;
 
 pub use config::{
-    check_lever_arm, Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP, MAX_COVARIANCE_STEP,
-    MAX_LEVER_ARM,
+    check_lever_arm, Aiding, FilterConfig, DEFAULT_COVARIANCE_STEP, DEFAULT_P0_SIGMA,
+    MAX_COVARIANCE_STEP, MAX_LEVER_ARM,
 };
 pub use filter::{classic_sigma, correct, corrected_position_velocity, ClosedSigma, Ekf};
 pub use formulation::{Coordinates, Formulation, Point};

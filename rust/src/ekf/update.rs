@@ -46,6 +46,20 @@ pub enum ScalarRow {
     Row(Row15),
 }
 
+impl ScalarRow {
+    /// The row over the 15 states.
+    pub fn dense(&self) -> Row15 {
+        match self {
+            Self::Unit(i) => {
+                let mut h = Row15::zeros();
+                h[(0, *i)] = 1.0;
+                h
+            }
+            Self::Row(row) => *row,
+        }
+    }
+}
+
 /// One measurement (or one component of it) linearized at the estimate: innovation
 /// `ν = z − h(x̂)`, Jacobian `H = ∂h/∂δx` (so that `ν ≈ −H δx` plus noise), noise R.
 /// A temporary on the stack between a measurement and the update: its vector variant's
@@ -174,6 +188,9 @@ impl Ekf {
             (VectorRows::Nav(h), None) => {
                 let m = self.sensitivity.as_mut().map(|(m, _)| m);
                 let out = kalman_update(&mut self.p, m, h, innovation, r, gate, name)?;
+                if let (Some(s), true) = (self.second_order.as_mut(), out.info.accepted) {
+                    s.update(&out.info.gain, h);
+                }
                 (out.info, out.dx.map(|d| (d, None)))
             }
             (rows, Some(calibration)) => {
@@ -240,7 +257,10 @@ impl Ekf {
         let (nis, dx, cal) = match self.calibration.as_mut() {
             None => {
                 let m = self.sensitivity.as_mut().map(|(m, _)| m);
-                let (nis, dx) = scalar_update(&mut self.p, m, row, innovation, r, name)?;
+                let (nis, dx, gain) = scalar_update(&mut self.p, m, row, innovation, r, name)?;
+                if let Some(s) = self.second_order.as_mut() {
+                    s.update(&gain, &row.dense());
+                }
                 (nis, dx, None)
             }
             Some(calibration) => {
@@ -250,7 +270,7 @@ impl Ekf {
                     (Some(m15), Some(c)) => Some(c.assemble(m15)),
                     _ => None,
                 };
-                let (nis, d) = scalar_update(&mut p, m.as_mut(), row, innovation, r, name)?;
+                let (nis, d, _) = scalar_update(&mut p, m.as_mut(), row, innovation, r, name)?;
                 calibration.split(&p, &mut self.p);
                 if let (Some(full), Some(m15), Some(c)) = (
                     m.as_ref(),
@@ -372,8 +392,8 @@ fn kalman_update<const N: usize>(
 
 /// The scalar update of an `N`-state covariance `p` (and of the sensitivity `m`, if
 /// tracked) with the row `H` (over the first 15 states), innovation `ν` and variance
-/// `r`: `S = H P Hᵀ + r`, `K = P Hᵀ / S`, Joseph form, symmetrized; its NIS `ν²/S` and
-/// the error estimate `−K ν`. A unit row `e_i` reads column `i` of P directly (the same
+/// `r`: `S = H P Hᵀ + r`, `K = P Hᵀ / S`, Joseph form, symmetrized; its NIS `ν²/S`,
+/// the error estimate `−K ν` and the gain's first 15 rows. A unit row `e_i` reads column `i` of P directly (the same
 /// numbers as the product, without it).
 fn scalar_update<const N: usize>(
     p: &mut SMatrix<f64, N, N>,
@@ -382,7 +402,7 @@ fn scalar_update<const N: usize>(
     innovation: f64,
     r: f64,
     name: &str,
-) -> Result<(f64, SVector<f64, N>)> {
+) -> Result<(f64, SVector<f64, N>, SMatrix<f64, 15, 1>)> {
     let mut h = SMatrix::<f64, 1, N>::zeros();
     match row {
         ScalarRow::Unit(i) => h[(0, *i)] = 1.0,
@@ -409,5 +429,6 @@ fn scalar_update<const N: usize>(
         let mht = support.times_transpose(m, &h);
         support.joseph(m, &mht, &gain, &h, None);
     }
-    Ok((innovation * innovation / s, -(gain * innovation)))
+    let first: SMatrix<f64, 15, 1> = gain.fixed_rows::<15>(0).into_owned();
+    Ok((innovation * innovation / s, -(gain * innovation), first))
 }

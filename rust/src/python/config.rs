@@ -4,34 +4,31 @@ use super::call::{invalid, to_py_err};
 use super::convert::{
     arg_accel_bias_psd, arg_aiding, arg_covariance_step, arg_dvl_bias_time_constant,
     arg_dvl_calibration, arg_dvl_misalignment_psd, arg_dvl_scale_psd, arg_dvl_scale_sigma,
-    arg_formulation, arg_gyro_bias_psd, arg_imu_dt, arg_innovation_gate, fixed, fixed_or,
+    arg_formulation, arg_gyro_bias_psd, arg_heading_second_order, arg_imu_dt, arg_innovation_gate,
+    fixed, fixed_or,
 };
 use crate::ekf::calibration::CalibrationConfig;
 use crate::ekf::{Aiding, FilterConfig, Formulation, DEFAULT_COVARIANCE_STEP};
 use nalgebra::Vector3;
 use pyo3::prelude::*;
 
-/// EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and
-/// ε_g [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding
-/// ("body" velocity or "nav" NED velocity), nominal IMU period [s], the chi-square
-/// innovation gate: a DVL update whose NIS exceeds it is rejected (None: no gate), and
-/// the opt-in DVL calibration states (``dvl_calibration=True``, body aiding only): the
-/// DVL's scale-factor error and mounting misalignment appended to the 15 error states,
-/// with their initial 1σ (default 0.01 and 1° per axis [rad]) and random-walk PSDs
-/// [1/s, rad²/s] (default 0: constants), the opt-in correlated DVL velocity error
-/// (``dvl_bias_sigma``: its stationary 1σ per DVL axis [m/s], body aiding only; a
-/// first-order Gauss–Markov process per axis with correlation time
-/// ``dvl_bias_time_constant`` [s], default 60), three more states beside the
-/// calibration's, and the formulation: the coordinates of the
-/// velocity error the filter runs in, "invariant" (the default: ``δV = δv − [v̂×]ψ``,
-/// consistent in heading) or "classic" (``δv``, the first filter's coordinates); the
-/// prior and every output are in the classic coordinates either way; and the
-/// covariance step [s]: the interval over which the covariance is propagated at once
-/// (Φ and Q_d accumulated, the navigation still integrated at every IMU sample), 0.1 s
-/// by default (free in accuracy, about half the cost: ``docs/results/covariance-step.md``);
-/// 0, or less than 1.5 IMU periods: every sample; a longer step is rounded to a whole
-/// number of IMU periods (at most :data:`MAX_COVARIANCE_STEP`, 1 s), and the covariance
-/// is brought up to date before every DVL update and at the end of a pass. See
+/// EKF tuning: initial 1σ (15), bias random-walk PSDs ε_a [(m/s²)²/s] and ε_g
+/// [(rad/s)²/s], DVL variance R [(m/s)²], DVL lever arm [m, body], aiding ("body" velocity
+/// or "nav" NED velocity), nominal IMU period [s], the χ² innovation gate (a DVL update
+/// whose NIS exceeds it is rejected; None: no gate); opt-in DVL calibration states
+/// (``dvl_calibration=True``, body aiding): scale-factor error and misalignment, initial
+/// 1σ (default 0.01, 1° per axis [rad]) and random-walk PSDs [1/s, rad²/s] (default 0);
+/// an opt-in correlated DVL velocity error (``dvl_bias_sigma``, stationary 1σ per DVL axis
+/// [m/s], body aiding; Gauss–Markov, correlation time ``dvl_bias_time_constant`` [s],
+/// default 60), three more states; the formulation, the velocity error's coordinates:
+/// "invariant" (default, ``δV = δv − [v̂×]ψ``, consistent in heading), "classic" (``δv``)
+/// or "se23" (the prior and every output in the classic ones either way); the covariance
+/// step [s] over which P is propagated at once (the navigation at every IMU sample),
+/// 0.1 s by default (``docs/results/covariance-step.md``); 0 or under 1.5 IMU periods:
+/// every sample; longer ones rounded to whole IMU periods (at most
+/// :data:`MAX_COVARIANCE_STEP`), P brought up to date before every update and at a pass's
+/// end; ``heading_second_order=True``: P carries the second-order heading term of the
+/// position error, ``¾ u uᵀ`` (not with "se23" nor the DVL error states). See
 /// ``docs/reference/filter.md``.
 #[pyclass(name = "FilterConfig", module = "pronet._core", frozen)]
 #[derive(Clone)]
@@ -70,9 +67,9 @@ impl PyFilterConfig {
 #[pymethods]
 impl PyFilterConfig {
     #[new]
-    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, dvl_bias_sigma = None, dvl_bias_time_constant = None, formulation = Formulation::default().name().to_string(), covariance_step = DEFAULT_COVARIANCE_STEP))]
+    #[pyo3(signature = (*, p0_sigma = None, accel_bias_psd = 1e-3, gyro_bias_psd = 1e-3, dvl_variance = None, lever_arm = None, aiding = "body".to_string(), imu_dt = 0.01, innovation_gate = None, dvl_calibration = false, dvl_scale_sigma = None, dvl_misalignment_sigma = None, dvl_scale_psd = None, dvl_misalignment_psd = None, dvl_bias_sigma = None, dvl_bias_time_constant = None, formulation = Formulation::default().name().to_string(), covariance_step = DEFAULT_COVARIANCE_STEP, heading_second_order = false))]
     #[pyo3(
-        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, dvl_bias_sigma=None, dvl_bias_time_constant=None, formulation='invariant', covariance_step=0.1)"
+        text_signature = "(*, p0_sigma=None, accel_bias_psd=0.001, gyro_bias_psd=0.001, dvl_variance=None, lever_arm=None, aiding='body', imu_dt=0.01, innovation_gate=None, dvl_calibration=False, dvl_scale_sigma=None, dvl_misalignment_sigma=None, dvl_scale_psd=None, dvl_misalignment_psd=None, dvl_bias_sigma=None, dvl_bias_time_constant=None, formulation='invariant', covariance_step=0.1, heading_second_order=False)"
     )]
     #[allow(clippy::too_many_arguments)] // keyword-only, one per FilterConfig field
     fn new(
@@ -93,6 +90,7 @@ impl PyFilterConfig {
         #[pyo3(from_py_with = arg_dvl_bias_time_constant)] dvl_bias_time_constant: Option<f64>,
         #[pyo3(from_py_with = arg_formulation)] formulation: String,
         #[pyo3(from_py_with = arg_covariance_step)] covariance_step: f64,
+        #[pyo3(from_py_with = arg_heading_second_order)] heading_second_order: bool,
     ) -> PyResult<Self> {
         let defaults = FilterConfig::default();
         let misalignment_sigma = dvl_misalignment_sigma
@@ -156,6 +154,7 @@ impl PyFilterConfig {
             formulation: parse_formulation(&formulation)?,
             covariance_step,
             anchor: None,
+            heading_second_order,
         };
         inner.validate().map_err(to_py_err)?;
         Ok(Self { inner })
@@ -196,6 +195,11 @@ impl PyFilterConfig {
     #[getter]
     fn covariance_step(&self) -> f64 {
         self.inner.covariance_step
+    }
+    /// Whether the second-order heading term of the position error is carried.
+    #[getter]
+    fn heading_second_order(&self) -> bool {
+        self.inner.heading_second_order
     }
     #[getter]
     fn imu_dt(&self) -> f64 {
@@ -255,6 +259,9 @@ impl PyFilterConfig {
                 ", dvl_bias_sigma={:?}, dvl_bias_time_constant={}",
                 c.bias_sigma, c.bias_time_constant
             );
+        }
+        if self.inner.heading_second_order {
+            calibration += ", heading_second_order=True";
         }
         format!(
             "FilterConfig(accel_bias_psd={}, gyro_bias_psd={}, dvl_variance={:?}, lever_arm={:?}, aiding={:?}, imu_dt={}, innovation_gate={}, formulation={:?}, covariance_step={}{calibration})",

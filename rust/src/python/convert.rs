@@ -338,6 +338,7 @@ arg_converters! {
     arg_sample_initial_error: bool = flag_arg("sample_initial_error");
     arg_smooth: bool = flag_arg("smooth");
     arg_dvl_calibration: bool = flag_arg("dvl_calibration");
+    arg_heading_second_order: bool = flag_arg("heading_second_order");
     arg_dvl_scale: f64 = real_arg("dvl_scale");
 }
 

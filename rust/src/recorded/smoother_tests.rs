@@ -333,3 +333,63 @@ fn smoothing_without_measurements_changes_nothing() {
         .zip(&aided.calibration_sigma)
         .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
 }
+
+/// The second-order heading term (`FilterConfig::heading_second_order`) is rebuilt
+/// between nodes as the forward pass carried it: without measurements the smoothed σ
+/// is the forward σ (it would not be with the term missing from the rebuilt priors),
+/// with and without a covariance step; aided, never above the forward σ and equal at
+/// the end. The term widens the horizontal position σ where the heading is uncertain.
+#[test]
+fn the_second_order_heading_term_is_rebuilt_as_the_forward_pass_carried_it() {
+    let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
+    let spec = StrategySpec::Constant { q: [1e-4; 6] };
+    let pass = |dvl: &[[f64; 3]], dvl_time: &[f64], cfg: &FilterConfig| {
+        let data = RecordedData {
+            imu: &imu,
+            imu_time: &imu_time,
+            streams: vec![Stream::dvl(dvl, dvl_time, &FilterConfig::default())],
+            ..RecordedData::default()
+        };
+        smooth_recorded_until(
+            &data,
+            moving_state(),
+            [0.0; 6],
+            cfg,
+            spec.build(cfg.bias_psd()).as_mut(),
+            Epochs::All,
+            &Cancel::default(),
+        )
+        .unwrap()
+    };
+    let mut p0_sigma = crate::ekf::DEFAULT_P0_SIGMA;
+    p0_sigma[8] = 0.3; // 17° of heading σ
+    for covariance_step in [0.0, 0.1] {
+        let linear = FilterConfig {
+            covariance_step,
+            p0_sigma,
+            ..FilterConfig::default()
+        };
+        let cfg = FilterConfig {
+            heading_second_order: true,
+            ..linear.clone()
+        };
+        let bare = pass(&[], &[], &cfg);
+        let s = bare.smoothed.as_ref().unwrap();
+        for (a, b) in s.sigma.iter().zip(&bare.sigma) {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).abs() <= 1e-12 * y, "{covariance_step}: {x} {y}");
+            }
+        }
+        let without = pass(&[], &[], &linear);
+        let (end, end_linear) = (bare.sigma[300], without.sigma[300]);
+        assert!(end[1] > 1.01 * end_linear[1], "{end:?} {end_linear:?}");
+        let aided = pass(&dvl, &dvl_time, &cfg);
+        let s = aided.smoothed.unwrap();
+        assert_eq!(s.sigma[300], aided.sigma[300]);
+        assert!(s
+            .sigma
+            .iter()
+            .zip(&aided.sigma)
+            .all(|(a, b)| a.iter().zip(b).all(|(x, y)| *x <= y * (1.0 + 1e-12))));
+    }
+}

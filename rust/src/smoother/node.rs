@@ -5,6 +5,7 @@
 use super::forward::Forward;
 use crate::ekf::calibration::{Cross, N_CALIBRATED, SCALE};
 use crate::ekf::calibration::{DvlCov, DvlErrors, N_DVL};
+use crate::ekf::second_order::SecondOrder;
 use crate::ekf::{CovarianceStep, Ekf, FilterConfig, Matrix15, ProcessNoise, Vector15};
 use crate::error::Result;
 use crate::mechanization::NavState;
@@ -91,6 +92,8 @@ pub struct Node {
     /// without the calibration states); the backward pass then needs no covariance
     /// inside an interval where no σ is wanted (`every`).
     pub p_prior: Option<Box<Matrix15>>,
+    /// With the second-order heading term: its state after the updates (boxed).
+    pub(crate) second_order: Option<Box<SecondOrder>>,
 }
 
 /// The calibration part of a [`Node`].
@@ -167,7 +170,8 @@ pub(super) fn restart(forward: &Forward<'_>, cfg: &FilterConfig, a: &Node) -> Re
 pub(super) fn restart_at(nav: NavState, b: &[f64; 6], cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
     let calibration = a.calibration.as_deref().map(|n| (&n.cross, &n.cov));
     let step = a.step.as_deref().cloned();
-    Ekf::restart(cfg, nav, b, a.p_post, calibration, step)
+    let second_order = a.second_order.as_deref().cloned();
+    Ekf::restart(cfg, nav, b, a.p_post, calibration, step, second_order)
 }
 
 /// The nodes of a forward pass, kept as it runs.
@@ -190,6 +194,7 @@ impl Nodes {
                 step: open_step(ekf),
                 calibration: node_calibration(ekf, [0.0; N_DVL]),
                 p_prior: priors.then(|| Box::new(ekf.p)),
+                second_order: node_second_order(ekf),
             }),
         }
     }
@@ -214,6 +219,7 @@ impl Nodes {
             step: open_step(ekf),
             calibration: node_calibration(ekf, calibration),
             p_prior: prior,
+            second_order: node_second_order(ekf),
         });
     }
 
@@ -235,6 +241,7 @@ impl Nodes {
                     .map_or([0.0; N_DVL], |c| c.correction);
                 (last.p_post, last.step) = (ekf.p, None);
                 last.calibration = node_calibration(ekf, correction);
+                last.second_order = node_second_order(ekf);
             }
             return;
         }
@@ -247,8 +254,14 @@ impl Nodes {
             step: None,
             calibration: node_calibration(ekf, [0.0; N_DVL]),
             p_prior: priors.then(|| Box::new(ekf.p)),
+            second_order: node_second_order(ekf),
         });
     }
+}
+
+/// The filter's second-order heading term, if it carries one, copied for a node.
+fn node_second_order(ekf: &Ekf) -> Option<Box<SecondOrder>> {
+    ekf.second_order.clone().map(Box::new)
 }
 
 /// The covariance step under way in `ekf`, if any, copied for a node.

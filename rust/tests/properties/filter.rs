@@ -28,6 +28,8 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
         .prop_map(
             |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, formulation, step)| {
                 let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
+                // the second-order heading term wherever it applies to the invariant
+                let second_order = formulation == 1 && cal.is_none();
                 let mut c = FilterConfig {
                     p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
                     accel_bias_psd: pow(psd_a),
@@ -58,6 +60,7 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
                     },
                     covariance_step: step,
                     anchor: None,
+                    heading_second_order: second_order,
                 };
                 for (field, v) in bad {
                     match (field, c.dvl_calibration.as_mut()) {

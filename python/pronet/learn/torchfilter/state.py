@@ -42,8 +42,8 @@ class Setup:
 
     @classmethod
     def from_config(cls, config: _core.FilterConfig) -> Setup:
-        """The setup of ``config``; the DVL calibration states are not implemented here
-        (a ``ValueError`` naming ``config``)."""
+        """The setup of ``config``; the DVL calibration states and the second-order
+        heading term are not implemented here (a ``ValueError`` naming ``config``)."""
         if config.formulation not in ("invariant", "classic"):
             raise ValueError(
                 f"config: the differentiable filter runs the invariant and classic "
@@ -53,6 +53,11 @@ class Setup:
             raise ValueError(
                 "config: the differentiable filter has no DVL calibration states "
                 "(dvl_calibration=True)"
+            )
+        if config.heading_second_order:
+            raise ValueError(
+                "config: the differentiable filter has no second-order heading term "
+                "(heading_second_order=True)"
             )
         return cls(
             config.formulation, config.aiding, config.covariance_step, config.innovation_gate
