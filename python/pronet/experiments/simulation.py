@@ -9,11 +9,12 @@ import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
+from pronet._util.files import release_folder
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.montecarlo import chance_bound, runs_flag, runs_outside_band
-from pronet.results import table_title, write_result_folder
+from pronet.results import check_a_run_finished, table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.sim.scenarios import Scenario
 from pronet.strategies import StrategySpec, strategy
@@ -118,7 +119,9 @@ def simulate(
         on_done: the callback told each step done.
 
     Raises:
-        ValueError: a bad argument, file or spec, before any computation.
+        ValueError: a bad argument, file or spec, before any computation; or, after
+            it, when every run of every strategy failed (the first one named; no
+            folder is written).
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
     sc = _scenario(scenario, filter_config, seed, formulation, covariance_step)
@@ -142,6 +145,11 @@ def simulate(
         on_done=on_done,
         smooth=smooth,
     )
+    try:  # not one run finished: an error, not a folder of NaN
+        check_a_run_finished((f"{sc.name}: {row.label}", row.result) for row in rows)
+    except ValueError:
+        release_folder(out)
+        raise
     # What the runs say about themselves: rows whose DVL NIS leave their band too often.
     outside = {row.label: runs_outside_band(row.result.nis) for row in rows}
     notes = [line for label, o in outside.items() if (line := runs_flag(label, o))]

@@ -1,0 +1,94 @@
+"""The simulation side under hostile input, fifth round: ``pronet simulate`` and
+``pronet sweep`` when every run fails, what a failed run may count in the tables, and
+what an error before or after the work leaves behind."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from pronet import cli
+
+#: A 20 s scenario keeps every command here to about a second.
+SHORT = """
+name = "short"
+[trajectory]
+segments = [[20, 0, 0, 0]]
+"""
+#: The same with an IMU whose noise overflows the filter in every run.
+OVERFLOWING = f"""{SHORT}
+[sensors]
+imu_variance = [1e30, 1e30, 1e30, 1e30, 1e30, 1e30]
+"""
+
+
+def one_line(capsys) -> str:
+    """The error the command printed: exactly one line on stderr, no traceback."""
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("pronet: "), err
+    return lines[0]
+
+
+def left_beside(out: Path) -> list[str]:
+    """What a command into ``out`` left in its parent folder (lock files aside)."""
+    return sorted(p.name for p in out.parent.iterdir() if not p.name.endswith(".lock"))
+
+
+def test_a_simulation_whose_every_run_fails_exits_non_zero_and_writes_nothing(
+    tmp_path, capsys
+) -> None:
+    """Every run of every strategy a numerical failure: the command wrote a folder of
+    NaN and exited 0 before; now one line naming the first failure, exit 2, no folder."""
+    scenario = tmp_path / "overflowing.toml"
+    scenario.write_text(OVERFLOWING)
+    out = tmp_path / "out"
+    args = ["simulate", "--scenario", str(scenario), "--strategies", "constant,mehra:5"]
+    code = cli.main([*args, "--runs", "2", "--no-plots", "--quiet", "--out", str(out)])
+    line = one_line(capsys)
+    assert code == 2
+    assert line.startswith("pronet: every run failed; the first, short: constant, run 0: t = ")
+    assert "numerical failure" in line
+    assert left_beside(out) == ["overflowing.toml"]
+
+
+@pytest.fixture
+def grid_folder(tmp_path: Path) -> Path:
+    (tmp_path / "short.toml").write_text(SHORT)
+    return tmp_path
+
+
+def sweep(folder: Path, levels: str, capsys) -> tuple[int, Path]:
+    """``pronet sweep`` of ``constant`` at the noise ``levels`` (a TOML list), 2 runs."""
+    grid = folder / "grid.toml"
+    grid.write_text(
+        f'scenarios = ["short.toml"]\nstrategies = ["constant"]\nnoise_levels = {levels}\n'
+        "runs = 2\n"
+    )
+    out = folder / "out"
+    code = cli.main(["sweep", str(grid), "--quiet", "--json", "--out", str(out)])
+    return code, out
+
+
+def test_a_sweep_whose_every_run_fails_exits_non_zero_and_leaves_nothing(
+    grid_folder, capsys
+) -> None:
+    """The known defect: a sweep all of whose runs failed exited 0 with a table of
+    "undefined". Now exit 2, one line, no folder and no ``.partial`` to resume."""
+    code, out = sweep(grid_folder, "[1e30]", capsys)
+    line = one_line(capsys)
+    assert code == 2
+    assert line.startswith("pronet: every run failed; the first, short: constant, noise x1e+30")
+    assert left_beside(out) == ["grid.toml", "short.toml"]
+
+
+def test_a_failed_grid_point_does_not_take_the_others_with_it(grid_folder, capsys) -> None:
+    code, out = sweep(grid_folder, "[1, 1e30]", capsys)
+    assert code == 0
+    summary = pd.read_csv(out / "summary.csv")
+    assert summary["failed_runs"].tolist() == [0, 2]
+    assert json.loads(capsys.readouterr().out)["folder"] == str(out)
