@@ -5,12 +5,17 @@ what an error before or after the work leaves behind."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
-from pronet import cli
+from pronet import cli, config
+from pronet.montecarlo import STATE_BLOCKS
+from pronet.run import run
+from pronet.strategies import StrategySpec, strategy
 
 #: A 20 s scenario keeps every command here to about a second.
 SHORT = """
@@ -92,3 +97,21 @@ def test_a_failed_grid_point_does_not_take_the_others_with_it(grid_folder, capsy
     summary = pd.read_csv(out / "summary.csv")
     assert summary["failed_runs"].tolist() == [0, 2]
     assert json.loads(capsys.readouterr().out)["folder"] == str(out)
+
+
+def test_a_failed_run_counts_in_no_nees(tmp_path) -> None:
+    """The core keeps the epochs a run had before its numerical failure; their NEES were
+    averaged into the run's ``velocity_nees`` ... ``gyro_bias_nees`` and the 3σ share,
+    so a row of failed runs read e.g. ``0.00 (100.0 %)`` (or 5e77) in the tables, and
+    a failed run weighed in a row's mean NEES. Now a failed run's are NaN, as its
+    other metrics."""
+    scenario = tmp_path / "overflowing.toml"
+    scenario.write_text(OVERFLOWING)
+    sc = config.load_scenario(scenario)
+    result = run(strategy(StrategySpec.parse("constant"), sc.q_nominal), sc, n_runs=2).result
+    assert result.n_failed == 2
+    assert np.isfinite(result.nees).any()  # the epochs before the failures are kept
+    per_run = result.to_dataframe()
+    columns = [f"{b}_nees" for b in STATE_BLOCKS] + ["velocity_nees_3sigma", "srmse"]
+    assert per_run[columns].isna().all().all()
+    assert all(math.isnan(ci.mean) for ci in result.summary().values())
