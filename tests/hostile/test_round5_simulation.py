@@ -115,3 +115,39 @@ def test_a_failed_run_counts_in_no_nees(tmp_path) -> None:
     columns = [f"{b}_nees" for b in STATE_BLOCKS] + ["velocity_nees_3sigma", "srmse"]
     assert per_run[columns].isna().all().all()
     assert all(math.isnan(ci.mean) for ci in result.summary().values())
+
+
+@pytest.mark.parametrize(
+    ("grid", "expected"),
+    [
+        (
+            'strategies = ["detvar"]\ntuning_periods_s = [1e300]',
+            "grid: short: detvar, tuning 1e+300 s: tuning_period: 1e+300 s leaves no tuning",
+        ),
+        ('strategies = ["adaptive:100000"]', "grid: short: adaptive:100000: window: adaptive"),
+        ('strategies = ["constant"]\nruns = 100000000000000', "grid: 1 grid points x "),
+    ],
+)
+def test_a_sweep_refused_before_its_work_leaves_no_partial_folder(
+    grid_folder, grid, expected, capsys
+) -> None:
+    """A strategy that could never act (found by the first shard) or a grid beyond
+    memory was refused after ``<out>.partial`` was made, so the same command, corrected
+    or not, was then refused as ``holds an interrupted run; add --resume``."""
+    path = grid_folder / "grid.toml"
+    path.write_text(f'scenarios = ["short.toml"]\n{grid}\n')
+    out = grid_folder / "out"
+    for _ in range(2):  # the second time says the same, not "add --resume"
+        assert cli.main(["sweep", str(path), "--quiet", "--out", str(out)]) == 2
+        assert one_line(capsys).startswith(f"pronet: {expected}")
+        assert left_beside(out) == ["grid.toml", "short.toml"]
+
+
+def test_reproduce_refused_before_its_work_leaves_no_partial_folder(tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    for _ in range(2):
+        code = cli.main(["reproduce", "--tuning-period", "1e300", "--quiet", "--out", str(out)])
+        assert code == 2
+        line = one_line(capsys)
+        assert "tuning_period: 1e+300 s leaves no tuning instant" in line
+        assert left_beside(out) == []

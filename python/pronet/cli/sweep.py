@@ -66,9 +66,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--resume: needs the --out of the interrupted sweep")
     out = new_result_folder(args.out, "sweep")
     partial = partial_folder(out, args.resume)
+    shards = sweep.plan(grid)  # its size and every strategy checked: no .partial yet
     settings = sweep.settings(grid)
     store = ShardStore(partial, settings)
-    shards = sweep.plan(grid)
     points = len({s.point for s in shards})
     show.say(
         f"{points} grid points x {grid.runs} runs = {len(shards)} shards of up to "
