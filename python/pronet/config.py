@@ -92,7 +92,7 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
-from pronet._util.plausibility import HEIGHT_RANGE
+from pronet._util.plausibility import HEIGHT_RANGE, warn_of_imu_dt
 from pronet._util.validate import real_array
 from pronet.sim.paper import PAPER_Q
 from pronet.sim.scenarios import SCENARIOS, Scenario, time_average_q
@@ -379,6 +379,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         # the filter's Q_d = q·imu_dt·Δt is the sample variance only when imu_dt is the
         # IMU period: a new trajectory's period carries over unless [filter] says otherwise
         config = filter_config({"imu_dt": traj.dt}, f"{where}: [trajectory] dt_s", config)
+    warn_of_imu_dt(config.imu_dt, traj.dt, f"{where}: [filter]")  # said outright: kept
     # the DVL period must be a whole number of IMU periods: named with the file now,
     # not by the first Monte Carlo
     periods = ("dvl_period", "depth_period", "heading_period", "fixes")

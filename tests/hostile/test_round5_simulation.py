@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ import pandas as pd
 import pytest
 
 from pronet import cli, config
+from pronet._util.plausibility import PlausibilityWarning
 from pronet.montecarlo import STATE_BLOCKS
 from pronet.run import run
 from pronet.strategies import StrategySpec, strategy
@@ -151,3 +153,36 @@ def test_reproduce_refused_before_its_work_leaves_no_partial_folder(tmp_path, ca
         line = one_line(capsys)
         assert "tuning_period: 1e+300 s leaves no tuning instant" in line
         assert left_beside(out) == []
+
+
+@pytest.mark.parametrize("imu_dt", [100, 0.001])  # a rate in Hz; ms read as s the other way
+def test_a_filter_imu_dt_other_than_the_trajectorys_period_is_warned_of(
+    tmp_path, imu_dt, capsys
+) -> None:
+    """A ``[filter] imu_dt`` (or a ``--filter`` file's) other than the trajectory's IMU
+    period mistunes every row's process noise by their ratio; ``imu_dt = 100`` (Hz
+    for s) ran 10⁴ times mistuned with only the NIS note to say so. ``run_filter``
+    warns of it on recorded data; a simulation now does too, naming the file and key."""
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(f"{SHORT}\n[filter]\nimu_dt = {imu_dt}\n")
+    ratio = f"{imu_dt / 0.01:.3g}×"
+    with pytest.warns(PlausibilityWarning, match=rf"s.toml: \[filter\] imu_dt: {imu_dt:g} s, "):
+        assert config.load_scenario(scenario).config.imu_dt == imu_dt  # used as given
+    filter_file = tmp_path / "f.toml"
+    filter_file.write_text(f"imu_dt = {imu_dt}\n")
+    plain = tmp_path / "plain.toml"
+    plain.write_text(SHORT)
+    out = tmp_path / "out"
+    args = ["simulate", "--scenario", str(plain), "--filter", str(filter_file), "--runs", "1"]
+    assert cli.main([*args, "--strategies", "constant", "--no-plots", "--out", str(out)]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "imu_dt" in line]
+    assert len(said) == 1 and said[0].startswith(f"pronet: warning: {filter_file}: imu_dt: ")
+    assert "is 0.01 s: " in said[0] and ratio in said[0]
+
+
+def test_a_filter_imu_dt_at_the_trajectorys_period_says_nothing(tmp_path) -> None:
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(f"{SHORT}\n[filter]\nimu_dt = 0.0105\n")  # within 15 %
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        config.load_scenario(scenario)

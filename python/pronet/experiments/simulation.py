@@ -11,6 +11,7 @@ from pathlib import Path
 
 from pronet._util.files import release_folder
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
+from pronet._util.plausibility import warn_of_imu_dt
 from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.montecarlo import chance_bound, runs_flag, runs_outside_band
@@ -36,6 +37,8 @@ def _scenario(
         scenario = config.load_scenario(scenario, seed)
     if filter_config:
         tuned = config.load_filter_config(filter_config, base=scenario.config)
+        if tuned.imu_dt != scenario.config.imu_dt:  # the file's: against the trajectory's
+            warn_of_imu_dt(tuned.imu_dt, scenario.trajectory.dt, f"{filter_config}:")
         scenario = dataclasses.replace(scenario, config=tuned)
     for key, value in (("formulation", formulation), ("covariance_step", covariance_step)):
         if value is not None:
