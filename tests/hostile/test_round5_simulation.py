@@ -15,6 +15,7 @@ import pytest
 
 from pronet import cli, config
 from pronet._util.plausibility import PlausibilityWarning
+from pronet.experiments import simulation
 from pronet.montecarlo import STATE_BLOCKS
 from pronet.run import run
 from pronet.strategies import StrategySpec, strategy
@@ -186,3 +187,24 @@ def test_a_filter_imu_dt_at_the_trajectorys_period_says_nothing(tmp_path) -> Non
     with warnings.catch_warnings():
         warnings.simplefilter("error", PlausibilityWarning)
         config.load_scenario(scenario)
+
+
+@pytest.mark.parametrize("seconds", ["1e20", "1e300"])
+def test_a_record_interval_beyond_the_run_keeps_the_first_sample(tmp_path, seconds) -> None:
+    """``--record-every`` longer than the run keeps its first history sample, as 100 s
+    on a 20 s run did; from 1.8e17 s on the core refused it as ``record_every: must be
+    at most 18446744073709551615, got 10000000000000000000000``."""
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(SHORT)
+    folders = {}
+    for every in (seconds, "100"):
+        folders[every] = simulation.simulate(
+            scenario,
+            ["constant"],
+            tmp_path / every,
+            n_runs=1,
+            record_every=float(every),
+            plots=False,
+        )
+    files = [(f / "metrics.csv").read_text() for f in folders.values()]
+    assert files[0] == files[1]

@@ -9,6 +9,7 @@ import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
+from pronet import _core
 from pronet._util.files import release_folder
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
 from pronet._util.plausibility import warn_of_imu_dt
@@ -68,6 +69,13 @@ def _check_numbers(
     seconds_arg(tuning_period, "--tuning-period")
     seconds_arg(record_every, "--record-every")
     threads_arg(threads, "--threads")
+
+
+def _record_steps(seconds: float, trajectory: _core.Trajectory) -> int:
+    """``seconds`` between saved history samples as IMU steps, at least 1: one beyond
+    the trajectory's samples (which keeps its first only) for any longer time, which the
+    core would refuse beyond 2⁶⁴ steps naming its own argument and a 23-digit count."""
+    return min(max(1, round(seconds / trajectory.dt)), trajectory.n_samples + 1)
 
 
 def simulate(
@@ -144,7 +152,7 @@ def simulate(
         n_runs=n_runs,
         seed=seed,
         threads=threads,
-        record_every=max(1, round(record_every / sc.trajectory.dt)),
+        record_every=_record_steps(record_every, sc.trajectory),
         on_done=on_done,
         smooth=smooth,
     )
