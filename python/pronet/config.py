@@ -292,6 +292,9 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
     t = {**TRAJECTORY_DEFAULTS, **table}
     if (t["builtin"] is None) == (t["segments"] is None):
         raise ConfigError(f"{where}: give either builtin or segments")
+    dt = _number(t["dt_s"], f"{where} dt_s")  # named as the file does, builtin or not
+    if not 0 < dt < math.inf:
+        raise ConfigError(f"{where} dt_s: must be a finite period > 0 s, got {dt}")
     if t["builtin"] is not None:
         extra = sorted(set(table) - {"builtin", "dt_s"})
         if extra:
@@ -301,7 +304,6 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
                 f"{where} builtin: {t['builtin']!r} is not one of "
                 f"{', '.join(_core.builtin_trajectory_names())}"
             )
-        dt = _number(t["dt_s"], f"{where} dt_s")
         return _native(where, lambda: builtin_trajectory(t["builtin"], dt))
     rows = _native(where, lambda: real_array(t["segments"], "segments").astype(np.float64))
     if rows.ndim != 2 or rows.shape[1] != 4 or len(rows) == 0:
@@ -312,8 +314,6 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
     rows[:, 2:] = np.radians(rows[:, 2:])
     # numbers checked under their own (unit-carrying) names, not the native arguments'
     v = {k: _number(t[k], f"{where} {k}") for k in TRAJECTORY_DEFAULTS if k.endswith(_UNITS)}
-    if not 0 < v["dt_s"] < math.inf:
-        raise ConfigError(f"{where} dt_s: must be a finite period > 0 s, got {v['dt_s']}")
     if not abs(v["lat_deg"]) <= _core.MAX_LATITUDE_DEG:  # in degrees, as the file gives it
         raise ConfigError(
             f"{where} lat_deg: must be within ±{_core.MAX_LATITUDE_DEG:g}° (NED is singular "

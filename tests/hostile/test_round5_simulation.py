@@ -208,3 +208,14 @@ def test_a_record_interval_beyond_the_run_keeps_the_first_sample(tmp_path, secon
         )
     files = [(f / "metrics.csv").read_text() for f in folders.values()]
     assert files[0] == files[1]
+
+
+@pytest.mark.parametrize("dt", ["0", "-0.01", "nan", "inf"])
+def test_a_builtin_trajectorys_bad_period_names_the_files_key(tmp_path, dt) -> None:
+    """``[trajectory] builtin = "paper"`` with ``dt_s = 0`` was refused as ``[trajectory]
+    dt: must be finite and > 0`` (the native argument); ``segments`` said ``dt_s``."""
+    for rows in ('builtin = "paper"', "segments = [[20, 0, 0, 0]]"):
+        path = tmp_path / "s.toml"
+        path.write_text(f"[trajectory]\n{rows}\ndt_s = {dt}\n")
+        with pytest.raises(config.ConfigError, match=r"s.toml: \[trajectory\] dt_s: must be a "):
+            config.load_scenario(path)
