@@ -219,3 +219,18 @@ def test_a_builtin_trajectorys_bad_period_names_the_files_key(tmp_path, dt) -> N
         path.write_text(f"[trajectory]\n{rows}\ndt_s = {dt}\n")
         with pytest.raises(config.ConfigError, match=r"s.toml: \[trajectory\] dt_s: must be a "):
             config.load_scenario(path)
+
+
+def test_a_heading_sigma_in_degrees_is_warned_of(tmp_path) -> None:
+    """A vehicle file's ``heading_sigma`` is in degrees, a scenario's in radians: ``2``
+    copied across simulated a 115° compass without a word."""
+    path = tmp_path / "s.toml"
+    path.write_text(f"{SHORT}\n[sensors]\nheading_sigma = 2\n")
+    with pytest.warns(
+        PlausibilityWarning, match=r"s.toml: \[sensors\] heading_sigma: 2 rad \(115°\)"
+    ):
+        assert config.load_scenario(path).sensors.heading_sigma == 2  # used as given
+    path.write_text(f"{SHORT}\n[sensors]\nheading_sigma = 0.035\n")  # 2°, in radians
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        config.load_scenario(path)

@@ -288,6 +288,26 @@ def warn_of_imu_dt(imu_dt: float, dt: float, where: str) -> None:
         )
 
 
+#: A simulated heading sensor's largest plausible 1σ [rad] (28.6°, a compass beside
+#: iron); beyond it the value is likely degrees (:func:`warn_of_heading_sigma`).
+MAX_HEADING_SIGMA_RAD = 0.5
+
+
+def warn_of_heading_sigma(sigma: float | None, where: str) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a scenario's heading sensor whose 1σ
+    ``sigma`` [rad] exceeds :data:`MAX_HEADING_SIGMA_RAD`: degrees, as a vehicle file's
+    ``heading_sigma`` is (``2`` simulated a 115° compass, without a word); ``where``
+    (the file and table) names the key. Used as given."""
+    if sigma is not None and sigma > MAX_HEADING_SIGMA_RAD:
+        warnings.warn(
+            f"{where} heading_sigma: {sigma:g} rad ({math.degrees(sigma):.3g}°) is no "
+            f"heading sensor's 1σ; in degrees? A scenario's heading_sigma is in radians "
+            "(a vehicle file's in degrees); used as given",
+            PlausibilityWarning,
+            stacklevel=3,
+        )
+
+
 def unfilled_window(kind: str, window: int | None, accepted: int) -> str | None:
     """A Mehra or adaptive strategy (``kind``) whose ``window`` of accepted velocity
     updates the pass never filled (``accepted`` of them): it ran on its prior q
