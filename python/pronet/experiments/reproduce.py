@@ -47,12 +47,12 @@ def _check_arguments(
     """``(out, partial)``: the result folder and its ``.partial`` sibling, once every
     argument of :func:`reproduce` is checked (``ValueError`` naming the option)."""
     if n_runs < 1:
-        raise ValueError("--runs must be at least 1")
+        raise ValueError(f"--runs: must be at least 1, got {n_runs}")
     seconds_arg(tuning_period, "--tuning-period")
     threads_arg(threads, "--threads")
     if resume and (not out or retrain):
         raise ValueError(
-            "--resume needs the --out of the interrupted run, and cannot be used with --retrain"
+            "--resume: needs the --out of the interrupted run, and cannot be used with --retrain"
         )
     folder = new_result_folder(out, "reproduce")
     return folder, partial_folder(folder, resume)
