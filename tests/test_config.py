@@ -11,6 +11,7 @@ import pytest
 
 import pronet
 from pronet import config
+from pronet._util.plausibility import PlausibilityWarning
 from pronet.config import ConfigError
 from pronet.sim import paper, scenarios
 from pronet.strategies import StrategySpec
@@ -385,7 +386,8 @@ def test_a_new_trajectory_carries_its_period_and_noise_average_into_the_filter(t
     assert sc.q_nominal == pytest.approx(scenarios.time_average_q(times, q, 40.0))
     assert sc.q_nominal != scenarios.varying_noise_scenario().q_nominal
     told = write(tmp_path, "t.toml", path.read_text() + "[filter]\nimu_dt = 0.01\n")
-    assert config.load_scenario(told).config.imu_dt == 0.01  # said outright: kept
+    with pytest.warns(PlausibilityWarning, match=r"t.toml: \[filter\] imu_dt: 0.01 s, but"):
+        assert config.load_scenario(told).config.imu_dt == 0.01  # said outright: kept
 
 
 def test_keys_over_a_base_keep_its_dvl_calibration_states() -> None:

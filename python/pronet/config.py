@@ -92,7 +92,7 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
-from pronet._util.plausibility import HEIGHT_RANGE
+from pronet._util.plausibility import HEIGHT_RANGE, warn_of_heading_sigma, warn_of_imu_dt
 from pronet._util.validate import real_array
 from pronet.sim.paper import PAPER_Q
 from pronet.sim.scenarios import SCENARIOS, Scenario, time_average_q
@@ -293,6 +293,9 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
     t = {**TRAJECTORY_DEFAULTS, **table}
     if (t["builtin"] is None) == (t["segments"] is None):
         raise ConfigError(f"{where}: give either builtin or segments")
+    dt = _number(t["dt_s"], f"{where} dt_s")  # named as the file does, builtin or not
+    if not 0 < dt < math.inf:
+        raise ConfigError(f"{where} dt_s: must be a finite period > 0 s, got {dt}")
     if t["builtin"] is not None:
         extra = sorted(set(table) - {"builtin", "dt_s"})
         if extra:
@@ -302,7 +305,6 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
                 f"{where} builtin: {t['builtin']!r} is not one of "
                 f"{', '.join(_core.builtin_trajectory_names())}"
             )
-        dt = _number(t["dt_s"], f"{where} dt_s")
         return _native(where, lambda: builtin_trajectory(t["builtin"], dt))
     rows = _native(where, lambda: real_array(t["segments"], "segments").astype(np.float64))
     if rows.ndim != 2 or rows.shape[1] != 4 or len(rows) == 0:
@@ -313,8 +315,6 @@ def trajectory(table: Mapping[str, Any], where: str) -> _core.Trajectory:
     rows[:, 2:] = np.radians(rows[:, 2:])
     # numbers checked under their own (unit-carrying) names, not the native arguments'
     v = {k: _number(t[k], f"{where} {k}") for k in TRAJECTORY_DEFAULTS if k.endswith(_UNITS)}
-    if not 0 < v["dt_s"] < math.inf:
-        raise ConfigError(f"{where} dt_s: must be a finite period > 0 s, got {v['dt_s']}")
     if not abs(v["lat_deg"]) <= _core.MAX_LATITUDE_DEG:  # in degrees, as the file gives it
         raise ConfigError(
             f"{where} lat_deg: must be within ±{_core.MAX_LATITUDE_DEG:g}° (NED is singular "
@@ -372,6 +372,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
     sensors = base.sensors
     if "sensors" in data:
         sensors = sensor_config(data["sensors"], f"{where}: [sensors]", base.sensors)
+        warn_of_heading_sigma(sensors.heading_sigma, f"{where}: [sensors]")
     config = base.config
     filter_table = data.get("filter", {})
     if "filter" in data:
@@ -380,6 +381,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
         # the filter's Q_d = q·imu_dt·Δt is the sample variance only when imu_dt is the
         # IMU period: a new trajectory's period carries over unless [filter] says otherwise
         config = filter_config({"imu_dt": traj.dt}, f"{where}: [trajectory] dt_s", config)
+    warn_of_imu_dt(config.imu_dt, traj.dt, f"{where}: [filter]")  # said outright: kept
     # the DVL period must be a whole number of IMU periods: named with the file now,
     # not by the first Monte Carlo
     periods = ("dvl_period", "depth_period", "heading_period", "fixes")

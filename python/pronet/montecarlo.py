@@ -157,7 +157,13 @@ class MonteCarloResult:
         the DVL epochs (3 dof: 3 when consistent, above 3 overconfident; NaN for a failed
         run or one without epochs). The properties ``position_nees`` ...
         ``gyro_bias_nees`` are this for each block."""
-        return _row_mean(self.block_nees(block))
+        return self._unless_failed(_row_mean(self.block_nees(block)))
+
+    def _unless_failed(self, per_run: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``per_run`` with NaN for the failed runs: the core keeps the epochs a run
+        had before its failure, which are no run's metric (they counted as one)."""
+        failed = np.array([f is not None for f in self.failure], dtype=bool)
+        return np.where(failed, np.nan, per_run) if failed.any() else per_run
 
     @property
     def position_nees(self) -> NDArray[np.float64]:
@@ -228,11 +234,11 @@ class MonteCarloResult:
     @property
     def velocity_nees_3sigma(self) -> NDArray[np.float64]:
         """``(n_runs,)`` share of DVL epochs whose velocity NEES is inside the 3σ bound
-        :data:`CHI2_3DOF_3SIGMA` (0.9973 when consistent)."""
+        :data:`CHI2_3DOF_3SIGMA` (0.9973 when consistent; NaN for a failed run)."""
         v = self.block_nees("velocity")
         with np.errstate(invalid="ignore"):
             inside = np.where(np.isfinite(v), (v <= CHI2_3DOF_3SIGMA).astype(np.float64), np.nan)
-        return _row_mean(inside)
+        return self._unless_failed(_row_mean(inside))
 
     @classmethod
     def concat(cls, parts: Sequence[MonteCarloResult]) -> MonteCarloResult:

@@ -123,6 +123,22 @@ def results_dataframe(
     return pd.concat(frames, ignore_index=True)
 
 
+def check_a_run_finished(labelled: Iterable[tuple[str, MonteCarloResult]]) -> None:
+    """``ValueError`` when not one run of any of the ``(label, result)`` pairs finished
+    (every one a numerical failure): such a result folder would hold only NaN, so the
+    experiment fails, as ``pronet real`` does when no section can run. The message names
+    the first failed run and its reason. One finished run anywhere passes (the failed
+    ones are then counted in the tables)."""
+    first: tuple[str, str] | None = None
+    for label, result in labelled:
+        if result.n_failed < result.n_runs:
+            return
+        if first is None and result.n_runs:
+            first = (label, str(result.failure[0]))
+    if first is not None:
+        raise ValueError(f"every run failed; the first, {first[0]}, run 0: {first[1]}")
+
+
 def _row_labels(scenario: str, row: Row) -> dict[str, object]:
     return {"scenario": scenario, "strategy": row.label, "tuning_period_s": row.tuning_period}
 

@@ -415,10 +415,10 @@ def test_simulate_library_reports_through_callbacks_and_never_prints(tmp_path, c
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"n_runs": 0}, "--runs must be at least 1"),
+        ({"n_runs": 0}, "--runs: must be at least 1, got 0"),
         ({"tuning_period": float("nan")}, "--tuning-period: must be a finite number"),
         ({"threads": 0}, "--threads: expected 1 to "),
-        ({"resume": True, "retrain": True}, "--resume needs the --out"),
+        ({"resume": True, "retrain": True}, "--resume: needs the --out"),
         ({"exists": True}, "exists; choose another --out"),
         ({"partial": True}, "add --resume to continue"),
     ],

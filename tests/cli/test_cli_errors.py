@@ -425,6 +425,15 @@ def test_a_dataset_out_that_is_no_npz_is_refused(tmp_path, capsys) -> None:
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("name", ["fig.pdf", "fig.txt", "fig"])
+def test_an_evaluate_figure_that_is_no_png_is_refused(tmp_path, name, capsys) -> None:
+    """It wrote PNG bytes under any name (a .pdf, a .txt), after scoring the models."""
+    figure = tmp_path / name
+    assert cli.main(["evaluate", "--figure", str(figure), "--quiet"]) == 2
+    assert one_line(capsys) == f"pronet: --figure: the figure is a .png file; got {figure}"
+    assert not list(tmp_path.iterdir())
+
+
 def test_study_checks_its_arguments_before_saying_anything(tmp_path, capsys) -> None:
     assert cli.main(["study", "--runs", "0", "--out", str(tmp_path / "s")]) == 2
     assert capsys.readouterr().out == ""  # no "study: ... 0 runs each" first

@@ -121,3 +121,15 @@ def test_options_of_another_kind_of_training_are_refused(tmp_path, capsys, argv,
         argv = [*argv, "--dataset", str(tmp_path / "none.npz")]
     _refused(capsys, ["train", *argv, "--out", str(tmp_path / "out")], message)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("seconds", "reason"),
+    [("1e9", "no pass is long enough for a window of 1"), ("1e-9", "must be at least one")],
+)
+def test_a_window_no_section_holds_names_the_option(generic, tmp_path, seconds, reason, capsys):
+    """It was named ``seconds``, the library's argument."""
+    argv = ["train", "--recorded", str(generic), "--format", "generic", "--quiet", *ARMS]
+    argv += ["--model", "cnn", "--window-seconds", seconds, "--out", str(tmp_path / "m")]
+    _refused(capsys, argv, f"--window-seconds: {reason}")
+    assert not list(tmp_path.iterdir())

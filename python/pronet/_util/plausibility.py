@@ -271,6 +271,43 @@ def imu_period(imu_dt: float, step: float) -> str | None:
     )
 
 
+def warn_of_imu_dt(imu_dt: float, dt: float, where: str) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a simulation's filter whose ``imu_dt`` [s]
+    differs from its trajectory's IMU period ``dt`` [s] beyond :data:`MAX_IMU_JITTER`
+    (:func:`imu_period`: its process noise is ``imu_dt / dt`` times the simulated IMU's;
+    ``imu_dt = 100``, a rate in Hz, ran 10⁴ times mistuned without a word); ``where``
+    (a file and table) names the key. Used as given."""
+    if imu_period(imu_dt, dt) is not None:
+        warnings.warn(
+            f"{where} imu_dt: {imu_dt:.4g} s, but the trajectory's IMU period (dt_s) is "
+            f"{dt:.4g} s: the filter takes q as each sample's variance over imu_dt, so its "
+            f"process noise is {imu_dt / dt:.3g}× the simulated IMU's (used as given; "
+            "without imu_dt the filter takes dt_s)",
+            PlausibilityWarning,
+            stacklevel=3,
+        )
+
+
+#: A simulated heading sensor's largest plausible 1σ [rad] (28.6°, a compass beside
+#: iron); beyond it the value is likely degrees (:func:`warn_of_heading_sigma`).
+MAX_HEADING_SIGMA_RAD = 0.5
+
+
+def warn_of_heading_sigma(sigma: float | None, where: str) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a scenario's heading sensor whose 1σ
+    ``sigma`` [rad] exceeds :data:`MAX_HEADING_SIGMA_RAD`: degrees, as a vehicle file's
+    ``heading_sigma`` is (``2`` simulated a 115° compass, without a word); ``where``
+    (the file and table) names the key. Used as given."""
+    if sigma is not None and sigma > MAX_HEADING_SIGMA_RAD:
+        warnings.warn(
+            f"{where} heading_sigma: {sigma:g} rad ({math.degrees(sigma):.3g}°) is no "
+            f"heading sensor's 1σ; in degrees? A scenario's heading_sigma is in radians "
+            "(a vehicle file's in degrees); used as given",
+            PlausibilityWarning,
+            stacklevel=3,
+        )
+
+
 def unfilled_window(kind: str, window: int | None, accepted: int) -> str | None:
     """A Mehra or adaptive strategy (``kind``) whose ``window`` of accepted velocity
     updates the pass never filled (``accepted`` of them): it ran on its prior q

@@ -38,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from pronet.learn import models, training
 
     if args.figure:  # before any model is loaded or scored
+        if Path(args.figure).suffix.lower() != ".png":  # it wrote a PNG under any name
+            raise ValueError(f"--figure: the figure is a .png file; got {args.figure}")
         check_new_files([Path(args.figure)], "--figure", args.force)
     names = [n.strip() for n in args.models.split(",") if n.strip()]
     if not names:  # before the dataset is built (it raised StopIteration after)

@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from pronet import config
     from pronet._util.outputs import new_result_folder, partial_folder
     from pronet.experiments import sweep
+    from pronet.results import check_a_run_finished
     from pronet.shards import ShardStore
 
     show = Output(args)
@@ -65,9 +66,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--resume: needs the --out of the interrupted sweep")
     out = new_result_folder(args.out, "sweep")
     partial = partial_folder(out, args.resume)
+    shards = sweep.plan(grid)  # its size and every strategy checked: no .partial yet
     settings = sweep.settings(grid)
     store = ShardStore(partial, settings)
-    shards = sweep.plan(grid)
     points = len({s.point for s in shards})
     show.say(
         f"{points} grid points x {grid.runs} runs = {len(shards)} shards of up to "
@@ -93,6 +94,11 @@ def run(args: argparse.Namespace) -> int:
             )
             raise
     seconds = time.perf_counter() - start
+    try:  # not one run finished: an error, not a folder of NaN (and no shards to resume)
+        check_a_run_finished((pr.point.key, pr.result) for pr in result.points)
+    except ValueError:
+        store.remove()
+        raise
     # no wall time in config.json: identical sweeps write identical files
     sweep.write_result_folder(out, result, {**settings, "engine": args.engine})
     store.remove()

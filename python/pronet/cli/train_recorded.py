@@ -6,8 +6,10 @@ or a held-out split) with a ledger of what was scored."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from pronet._util.files import check_new_files
@@ -236,6 +238,19 @@ def model_target(out: str | None, model: str) -> Path:
     return Path(out)
 
 
+@contextlib.contextmanager
+def _window_option() -> Iterator[None]:
+    """The training's window length, its library argument ``seconds``, named as the
+    option that set it: a window no section holds, or one shorter than an IMU period,
+    was refused as ``seconds: ...``."""
+    try:
+        yield
+    except ValueError as exc:
+        if not str(exc).startswith("seconds: "):
+            raise
+        raise ValueError(f"--window-seconds: {str(exc).removeprefix('seconds: ')}") from None
+
+
 def run_recorded(args: argparse.Namespace) -> int:
     from pronet.experiments.qlearn.commands import evaluate, train_model
     from pronet.experiments.qlearn.gradient import RecordedTraining
@@ -278,12 +293,14 @@ def run_recorded(args: argparse.Namespace) -> int:
             if not args.held_out < len(sections):
                 raise ValueError(f"--held-out: between 1 and {len(sections) - 1}")
             train, test = sections[: -args.held_out], sections[-args.held_out :]
-        table, record = evaluate(
-            train, models, folder, test=test, ledger=Ledger(args.ledger), hp=hp, say=say
-        )
+        with _window_option():
+            table, record = evaluate(
+                train, models, folder, test=test, ledger=Ledger(args.ledger), hp=hp, say=say
+            )
         out.result(table, {"folder": str(folder), **record})
         return 0
     model = models[0]
-    card, record = train_model(sections, model, target, hp=hp, say=say)
+    with _window_option():
+        card, record = train_model(sections, model, target, hp=hp, say=say)
     out.result(f"{model}: trained in {record['seconds']:.0f} s -> {card}", {"card": str(card)})
     return 0

@@ -22,7 +22,7 @@ from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.learn.dataset import Dataset, DatasetParams, build_dataset
 from pronet.results import table_title, write_result_folder
-from pronet.run import Row, run_strategies
+from pronet.run import Row, check_acts, run_strategies
 from pronet.shards import ShardStore
 from pronet.sim.paper import LEARNED_LABELS, paper_strategies
 from pronet.sim.scenarios import PAPER_SCENARIOS, SCENARIOS, Scenario
@@ -47,12 +47,12 @@ def _check_arguments(
     """``(out, partial)``: the result folder and its ``.partial`` sibling, once every
     argument of :func:`reproduce` is checked (``ValueError`` naming the option)."""
     if n_runs < 1:
-        raise ValueError("--runs must be at least 1")
+        raise ValueError(f"--runs: must be at least 1, got {n_runs}")
     seconds_arg(tuning_period, "--tuning-period")
     threads_arg(threads, "--threads")
     if resume and (not out or retrain):
         raise ValueError(
-            "--resume needs the --out of the interrupted run, and cannot be used with --retrain"
+            "--resume: needs the --out of the interrupted run, and cannot be used with --retrain"
         )
     folder = new_result_folder(out, "reproduce")
     return folder, partial_folder(folder, resume)
@@ -115,6 +115,9 @@ def reproduce(
                 f"Monte Carlo runs each, seed {seed}; weights: "
                 f"{'retrained' if retrain else 'shipped'}"
             )
+        for sc in scenarios:  # every row could act, before any <out>.partial is made
+            for label, chosen in jobs[sc.name].items():
+                check_acts(chosen, sc, label)
         settings = {"n_runs": n_runs, "seed": seed, "tuning_period": tuning_period}
         shards = None if retrain else _shard_store(partial, settings, say)
         if on_start is not None:

@@ -9,11 +9,14 @@ import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
+from pronet import _core
+from pronet._util.files import release_folder
 from pronet._util.outputs import OnDone, OnStart, Say, new_result_folder
+from pronet._util.plausibility import warn_of_imu_dt
 from pronet._util.validate import seconds as seconds_arg
 from pronet._util.validate import threads as threads_arg
 from pronet.montecarlo import chance_bound, runs_flag, runs_outside_band
-from pronet.results import table_title, write_result_folder
+from pronet.results import check_a_run_finished, table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.sim.scenarios import Scenario
 from pronet.strategies import StrategySpec, strategy
@@ -35,6 +38,8 @@ def _scenario(
         scenario = config.load_scenario(scenario, seed)
     if filter_config:
         tuned = config.load_filter_config(filter_config, base=scenario.config)
+        if tuned.imu_dt != scenario.config.imu_dt:  # the file's: against the trajectory's
+            warn_of_imu_dt(tuned.imu_dt, scenario.trajectory.dt, f"{filter_config}:")
         scenario = dataclasses.replace(scenario, config=tuned)
     for key, value in (("formulation", formulation), ("covariance_step", covariance_step)):
         if value is not None:
@@ -64,6 +69,13 @@ def _check_numbers(
     seconds_arg(tuning_period, "--tuning-period")
     seconds_arg(record_every, "--record-every")
     threads_arg(threads, "--threads")
+
+
+def _record_steps(seconds: float, trajectory: _core.Trajectory) -> int:
+    """``seconds`` between saved history samples as IMU steps, at least 1: one beyond
+    the trajectory's samples (which keeps its first only) for any longer time, which the
+    core would refuse beyond 2⁶⁴ steps naming its own argument and a 23-digit count."""
+    return min(max(1, round(seconds / trajectory.dt)), trajectory.n_samples + 1)
 
 
 def simulate(
@@ -118,7 +130,9 @@ def simulate(
         on_done: the callback told each step done.
 
     Raises:
-        ValueError: a bad argument, file or spec, before any computation.
+        ValueError: a bad argument, file or spec, before any computation; or, after
+            it, when every run of every strategy failed (the first one named; no
+            folder is written).
     """
     _check_numbers(n_runs, threads, record_every, tuning_period)
     sc = _scenario(scenario, filter_config, seed, formulation, covariance_step)
@@ -138,10 +152,15 @@ def simulate(
         n_runs=n_runs,
         seed=seed,
         threads=threads,
-        record_every=max(1, round(record_every / sc.trajectory.dt)),
+        record_every=_record_steps(record_every, sc.trajectory),
         on_done=on_done,
         smooth=smooth,
     )
+    try:  # not one run finished: an error, not a folder of NaN
+        check_a_run_finished((f"{sc.name}: {row.label}", row.result) for row in rows)
+    except ValueError:
+        release_folder(out)
+        raise
     # What the runs say about themselves: rows whose DVL NIS leave their band too often.
     outside = {row.label: runs_outside_band(row.result.nis) for row in rows}
     notes = [line for label, o in outside.items() if (line := runs_flag(label, o))]

@@ -49,6 +49,7 @@ from pronet.results import (
     summary_row,
     write_tables,
 )
+from pronet.run import check_acts as check_acts_on
 from pronet.run import run
 from pronet.shards import ShardStore
 from pronet.sim.scenarios import Scenario
@@ -127,11 +128,32 @@ def check_size(grid: SweepGrid) -> None:
             ) from None
 
 
+def check_acts(grid: SweepGrid) -> None:
+    """``ValueError`` naming the scenario, strategy and tuning period when a strategy
+    could never act on a scenario of ``grid`` (:func:`pronet.run.check_acts`: a tuning
+    period that leaves no tuning instant, a Mehra or adaptive window the run's DVL
+    updates never fill), before any shard runs: a shard found it, after the sweep's
+    ``<out>.partial`` was made."""
+    for source in grid.scenarios:
+        sc = _scenario(source, grid.seed)
+        for spec in grid.strategies:
+            regressor = _model(spec.model) if spec.kind == "learned" else None
+            periods = grid.tuning_periods if spec.uses_tuning_period else (None,)
+            for period in periods:
+                chosen = strategy(spec, sc.q_nominal, 1.0 if period is None else period, regressor)
+                try:
+                    check_acts_on(chosen, sc)
+                except ValueError as exc:
+                    tp = "" if period is None else f", tuning {period!r} s"
+                    raise ValueError(f"grid: {source.name}: {spec.text}{tp}: {exc}") from None
+
+
 def plan(grid: SweepGrid) -> list[Shard]:
     """Every shard of ``grid``, grid point by grid point (scenario, noise level,
     strategy, tuning period), each point's shards in run order (after
-    :func:`check_size`)."""
+    :func:`check_size` and :func:`check_acts`)."""
     check_size(grid)
+    check_acts(grid)
     shards = []
     for source in grid.scenarios:
         for level in grid.noise_levels:

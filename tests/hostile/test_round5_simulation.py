@@ -1,0 +1,236 @@
+"""The simulation side under hostile input, fifth round: ``pronet simulate`` and
+``pronet sweep`` when every run fails, what a failed run may count in the tables, and
+what an error before or after the work leaves behind."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pronet import cli, config
+from pronet._util.plausibility import PlausibilityWarning
+from pronet.experiments import simulation
+from pronet.montecarlo import STATE_BLOCKS
+from pronet.run import run
+from pronet.strategies import StrategySpec, strategy
+
+#: A 20 s scenario keeps every command here to about a second.
+SHORT = """
+name = "short"
+[trajectory]
+segments = [[20, 0, 0, 0]]
+"""
+#: The same with an IMU whose noise overflows the filter in every run.
+OVERFLOWING = f"""{SHORT}
+[sensors]
+imu_variance = [1e30, 1e30, 1e30, 1e30, 1e30, 1e30]
+"""
+
+
+def one_line(capsys) -> str:
+    """The error the command printed: exactly one line on stderr, no traceback."""
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("pronet: "), err
+    return lines[0]
+
+
+def left_beside(out: Path) -> list[str]:
+    """What a command into ``out`` left in its parent folder (lock files aside)."""
+    return sorted(p.name for p in out.parent.iterdir() if not p.name.endswith(".lock"))
+
+
+def test_a_simulation_whose_every_run_fails_exits_non_zero_and_writes_nothing(
+    tmp_path, capsys
+) -> None:
+    """Every run of every strategy a numerical failure: the command wrote a folder of
+    NaN and exited 0 before; now one line naming the first failure, exit 2, no folder."""
+    scenario = tmp_path / "overflowing.toml"
+    scenario.write_text(OVERFLOWING)
+    out = tmp_path / "out"
+    args = ["simulate", "--scenario", str(scenario), "--strategies", "constant,mehra:5"]
+    code = cli.main([*args, "--runs", "2", "--no-plots", "--quiet", "--out", str(out)])
+    line = one_line(capsys)
+    assert code == 2
+    assert line.startswith("pronet: every run failed; the first, short: constant, run 0: t = ")
+    assert "numerical failure" in line
+    assert left_beside(out) == ["overflowing.toml"]
+
+
+@pytest.fixture
+def grid_folder(tmp_path: Path) -> Path:
+    (tmp_path / "short.toml").write_text(SHORT)
+    return tmp_path
+
+
+def sweep(folder: Path, levels: str, capsys) -> tuple[int, Path]:
+    """``pronet sweep`` of ``constant`` at the noise ``levels`` (a TOML list), 2 runs."""
+    grid = folder / "grid.toml"
+    grid.write_text(
+        f'scenarios = ["short.toml"]\nstrategies = ["constant"]\nnoise_levels = {levels}\n'
+        "runs = 2\n"
+    )
+    out = folder / "out"
+    code = cli.main(["sweep", str(grid), "--quiet", "--json", "--out", str(out)])
+    return code, out
+
+
+def test_a_sweep_whose_every_run_fails_exits_non_zero_and_leaves_nothing(
+    grid_folder, capsys
+) -> None:
+    """The known defect: a sweep all of whose runs failed exited 0 with a table of
+    "undefined". Now exit 2, one line, no folder and no ``.partial`` to resume."""
+    code, out = sweep(grid_folder, "[1e30]", capsys)
+    line = one_line(capsys)
+    assert code == 2
+    assert line.startswith("pronet: every run failed; the first, short: constant, noise x1e+30")
+    assert left_beside(out) == ["grid.toml", "short.toml"]
+
+
+def test_a_failed_grid_point_does_not_take_the_others_with_it(grid_folder, capsys) -> None:
+    code, out = sweep(grid_folder, "[1, 1e30]", capsys)
+    assert code == 0
+    summary = pd.read_csv(out / "summary.csv")
+    assert summary["failed_runs"].tolist() == [0, 2]
+    assert json.loads(capsys.readouterr().out)["folder"] == str(out)
+
+
+def test_a_failed_run_counts_in_no_nees(tmp_path) -> None:
+    """The core keeps the epochs a run had before its numerical failure; their NEES were
+    averaged into the run's ``velocity_nees`` ... ``gyro_bias_nees`` and the 3σ share,
+    so a row of failed runs read e.g. ``0.00 (100.0 %)`` (or 5e77) in the tables, and
+    a failed run weighed in a row's mean NEES. Now a failed run's are NaN, as its
+    other metrics."""
+    scenario = tmp_path / "overflowing.toml"
+    scenario.write_text(OVERFLOWING)
+    sc = config.load_scenario(scenario)
+    result = run(strategy(StrategySpec.parse("constant"), sc.q_nominal), sc, n_runs=2).result
+    assert result.n_failed == 2
+    assert np.isfinite(result.nees).any()  # the epochs before the failures are kept
+    per_run = result.to_dataframe()
+    columns = [f"{b}_nees" for b in STATE_BLOCKS] + ["velocity_nees_3sigma", "srmse"]
+    assert per_run[columns].isna().all().all()
+    assert all(math.isnan(ci.mean) for ci in result.summary().values())
+
+
+@pytest.mark.parametrize(
+    ("grid", "expected"),
+    [
+        (
+            'strategies = ["detvar"]\ntuning_periods_s = [1e300]',
+            "grid: short: detvar, tuning 1e+300 s: tuning_period: 1e+300 s leaves no tuning",
+        ),
+        ('strategies = ["adaptive:100000"]', "grid: short: adaptive:100000: window: adaptive"),
+        ('strategies = ["constant"]\nruns = 100000000000000', "grid: 1 grid points x "),
+    ],
+)
+def test_a_sweep_refused_before_its_work_leaves_no_partial_folder(
+    grid_folder, grid, expected, capsys
+) -> None:
+    """A strategy that could never act (found by the first shard) or a grid beyond
+    memory was refused after ``<out>.partial`` was made, so the same command, corrected
+    or not, was then refused as ``holds an interrupted run; add --resume``."""
+    path = grid_folder / "grid.toml"
+    path.write_text(f'scenarios = ["short.toml"]\n{grid}\n')
+    out = grid_folder / "out"
+    for _ in range(2):  # the second time says the same, not "add --resume"
+        assert cli.main(["sweep", str(path), "--quiet", "--out", str(out)]) == 2
+        assert one_line(capsys).startswith(f"pronet: {expected}")
+        assert left_beside(out) == ["grid.toml", "short.toml"]
+
+
+def test_reproduce_refused_before_its_work_leaves_no_partial_folder(tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    for _ in range(2):
+        code = cli.main(["reproduce", "--tuning-period", "1e300", "--quiet", "--out", str(out)])
+        assert code == 2
+        line = one_line(capsys)
+        assert "tuning_period: 1e+300 s leaves no tuning instant" in line
+        assert left_beside(out) == []
+
+
+@pytest.mark.parametrize("imu_dt", [100, 0.001])  # a rate in Hz; ms read as s the other way
+def test_a_filter_imu_dt_other_than_the_trajectorys_period_is_warned_of(
+    tmp_path, imu_dt, capsys
+) -> None:
+    """A ``[filter] imu_dt`` (or a ``--filter`` file's) other than the trajectory's IMU
+    period mistunes every row's process noise by their ratio; ``imu_dt = 100`` (Hz
+    for s) ran 10⁴ times mistuned with only the NIS note to say so. ``run_filter``
+    warns of it on recorded data; a simulation now does too, naming the file and key."""
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(f"{SHORT}\n[filter]\nimu_dt = {imu_dt}\n")
+    ratio = f"{imu_dt / 0.01:.3g}×"
+    with pytest.warns(PlausibilityWarning, match=rf"s.toml: \[filter\] imu_dt: {imu_dt:g} s, "):
+        assert config.load_scenario(scenario).config.imu_dt == imu_dt  # used as given
+    filter_file = tmp_path / "f.toml"
+    filter_file.write_text(f"imu_dt = {imu_dt}\n")
+    plain = tmp_path / "plain.toml"
+    plain.write_text(SHORT)
+    out = tmp_path / "out"
+    args = ["simulate", "--scenario", str(plain), "--filter", str(filter_file), "--runs", "1"]
+    assert cli.main([*args, "--strategies", "constant", "--no-plots", "--out", str(out)]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "imu_dt" in line]
+    assert len(said) == 1 and said[0].startswith(f"pronet: warning: {filter_file}: imu_dt: ")
+    assert "is 0.01 s: " in said[0] and ratio in said[0]
+
+
+def test_a_filter_imu_dt_at_the_trajectorys_period_says_nothing(tmp_path) -> None:
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(f"{SHORT}\n[filter]\nimu_dt = 0.0105\n")  # within 15 %
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        config.load_scenario(scenario)
+
+
+@pytest.mark.parametrize("seconds", ["1e20", "1e300"])
+def test_a_record_interval_beyond_the_run_keeps_the_first_sample(tmp_path, seconds) -> None:
+    """``--record-every`` longer than the run keeps its first history sample, as 100 s
+    on a 20 s run did; from 1.8e17 s on the core refused it as ``record_every: must be
+    at most 18446744073709551615, got 10000000000000000000000``."""
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(SHORT)
+    folders = {}
+    for every in (seconds, "100"):
+        folders[every] = simulation.simulate(
+            scenario,
+            ["constant"],
+            tmp_path / every,
+            n_runs=1,
+            record_every=float(every),
+            plots=False,
+        )
+    files = [(f / "metrics.csv").read_text() for f in folders.values()]
+    assert files[0] == files[1]
+
+
+@pytest.mark.parametrize("dt", ["0", "-0.01", "nan", "inf"])
+def test_a_builtin_trajectorys_bad_period_names_the_files_key(tmp_path, dt) -> None:
+    """``[trajectory] builtin = "paper"`` with ``dt_s = 0`` was refused as ``[trajectory]
+    dt: must be finite and > 0`` (the native argument); ``segments`` said ``dt_s``."""
+    for rows in ('builtin = "paper"', "segments = [[20, 0, 0, 0]]"):
+        path = tmp_path / "s.toml"
+        path.write_text(f"[trajectory]\n{rows}\ndt_s = {dt}\n")
+        with pytest.raises(config.ConfigError, match=r"s.toml: \[trajectory\] dt_s: must be a "):
+            config.load_scenario(path)
+
+
+def test_a_heading_sigma_in_degrees_is_warned_of(tmp_path) -> None:
+    """A vehicle file's ``heading_sigma`` is in degrees, a scenario's in radians: ``2``
+    copied across simulated a 115° compass without a word."""
+    path = tmp_path / "s.toml"
+    path.write_text(f"{SHORT}\n[sensors]\nheading_sigma = 2\n")
+    with pytest.warns(
+        PlausibilityWarning, match=r"s.toml: \[sensors\] heading_sigma: 2 rad \(115°\)"
+    ):
+        assert config.load_scenario(path).sensors.heading_sigma == 2  # used as given
+    path.write_text(f"{SHORT}\n[sensors]\nheading_sigma = 0.035\n")  # 2°, in radians
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        config.load_scenario(path)
