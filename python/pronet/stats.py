@@ -323,7 +323,8 @@ def stream_report(
     cov = getattr(rows, "innovation_cov", None)
     if innovation is not None and cov is not None:
         rho, half = whiteness(np.asarray(innovation), np.asarray(cov), applied)
-    flag = _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
+    empty = len(nis) == 0 and not any(skipped.values())  # no DVL, or --no-dvl: nothing to say
+    flag = "" if empty else _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
     if flag and mean > band[1]:
         flag += _outlier(np.where(seen, nis, 0.0), np.asarray(time), band, rows)
     if abs(rho) > WHITENESS_FLAG / 1.96 * half:  # beyond 4σ of white innovations

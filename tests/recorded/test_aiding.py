@@ -453,3 +453,23 @@ def test_each_depth_row_keeps_its_own_sigma() -> None:
     depth = DepthReadings(time=np.arange(5.0), depth=np.full(5, 10.0), sigma=sigma)
     (stream,) = filter_aiding(depth, None)
     np.testing.assert_array_equal(stream.sigma, sigma)
+
+
+def test_a_recording_without_a_dvl_names_no_dvl_stream(tmp_path, aided_80s) -> None:
+    """A GNSS/INS recording (no dvl.csv), or one with --no-dvl: its passes carry an empty
+    DVL stream, which every row flagged as "dvl: no reading applied", on stderr and in
+    config.json's notes. A stream without a reading has nothing to say; the depth and
+    fixes are still reported."""
+    no_dvl = replace(aided_80s, dvl=np.empty((0, 3)), dvl_time=np.empty(0))
+    folder = write_recording(tmp_path / "data" / "sec", no_dvl)
+    with_dvl = write_recording(tmp_path / "with" / "sec", aided_80s)
+    for data, out, kw in ((folder, "gnss", {}), (with_dvl, "ignored", {"use_dvl": False})):
+        _run(data.parent, tmp_path / out, **kw)
+        notes = json.loads((tmp_path / out / "config.json").read_text())["notes"]
+        assert not any("dvl:" in note for note in notes), notes
+    section, _ = load_section(folder, "generic", **ARMS)
+    q, cfg = white_noise_q(section.imu), real_filter_config(section.alignment.filter_lever_arm)
+    aided = aided_section(section, AidingTuning())
+    streams = run_section(aided, pronet.Strategy.constant(q), cfg).result.health.streams
+    assert [s.name for s in streams] == ["dvl", "depth", "fix"]
+    assert streams[0].flag == "" and streams[0].rows == 0

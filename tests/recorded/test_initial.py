@@ -146,6 +146,13 @@ def test_heading_from_a_stream_is_its_wrapped_mean_with_its_sigma():
     assert abs(error) < 3 * sigma / math.sqrt(10) + 1e-3
     # the stream's σ, not divided by the readings' count (the roll's adds little level)
     assert sigma <= state.p0_sigma[8] <= 1.001 * sigma
+    # one reading in the window (a compass thinned to 1 Hz, as pronet navigate feeds it):
+    # it said "heading stream (1 readings, wrapped mean)"
+    once = np.arange(0.0, 30.0, 1.0)
+    one = initial_state(
+        t, imu, MEMS_P0, heading=(once, readings[::10], sigma), given=GivenState(lla=LLA)
+    )
+    assert one.methods["heading"] == "heading stream (1 reading)"
 
 
 def test_position_and_depth_are_moved_from_their_sensors_to_the_imu():

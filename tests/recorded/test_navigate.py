@@ -291,6 +291,19 @@ def test_no_still_interval_and_no_ahrs_names_what_the_command_takes(tmp_path, sh
     )
 
 
+def test_a_still_interval_outside_the_recording_is_named_by_its_option(tmp_path, short, capsys):
+    """``--still 5,2`` was refused as ``still: expected t_start < t_end ...``, the
+    library's argument, not the option typed; now ``--still: ...``."""
+    from pronet.cli import main
+
+    folder = write_generic(short, tmp_path / "rec")
+    vehicle = write_vehicle_file(tmp_path, short)
+    argv = ["navigate", "--data", str(folder), "--filter", str(vehicle), "--quiet"]
+    assert main([*argv, "--out", str(tmp_path / "out"), "--still", "5,2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pronet: --still: expected t_start < t_end within the IMU's "), err
+
+
 def test_a_window_the_pass_never_fills_is_said_on_the_command_line(tmp_path, short, capsys):
     """``--strategy mehra:2500`` on the 6-minute survey: 2,663 DVL readings (refused
     above that, as a window that could never fill), but 240 fall before the start levelled

@@ -66,3 +66,23 @@ def test_depth_above_the_sea_is_refused_and_one_atmosphere_deep_is_said() -> Non
     assert "its shallowest readings are 10.0" in s.note and "about one atmosphere" in s.note
     assert "atmosphere" not in surface_offset(t, depth + 3.0, ft[deep]).note
     assert "atmosphere" not in surface_offset(t, depth, ft[deep]).note
+
+
+def test_the_report_states_an_offset_taken_off_depths_read_in_metres() -> None:
+    """A CSV's depths are metres, with no pressure: the report said "Not in the
+    configuration (depth offset +0.061 m from 903 readings ...): no depth from pressure,
+    or not recorded" of an offset it had measured and taken off. It now says so."""
+    from pronet.recorded.report import pressure_text
+
+    note = "depth offset +0.061 m from 903 readings at the surface beside fixes"
+    metres = {"surface_pressure": {"pa": None, "offset_m": 0.061, "source": note}}
+    assert pressure_text(metres) == (
+        f"None: the depths were read in metres; {note}, taken off every depth reading."
+    )
+    kept = "no reading at the surface beside a fix: the depth keeps the reader's reference"
+    none = {"surface_pressure": {"pa": None, "offset_m": 0.0, "source": kept}}
+    assert pressure_text(none) == f"None: the depths were read in metres; {kept}."
+    bag = {"surface_pressure": {"pa": 101_934.5, "offset_m": 0.061, "source": note}}
+    assert pressure_text(bag) == f"101934.5 Pa, {note}."
+    no_depth = {"surface_pressure": {"pa": None, "offset_m": None, "source": "no depth"}}
+    assert pressure_text(no_depth).startswith("Not in the configuration (no depth)")

@@ -98,6 +98,7 @@ OPTIONS = {
     "imu_lever_arm": "--imu-lever-arm",
     "dvl_lever_arm": "--dvl-lever-arm",
     "surface_offset": "--surface-offset",
+    "still": "--still",
 }
 
 

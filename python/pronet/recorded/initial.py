@@ -116,6 +116,11 @@ def _read_angle(p: Inputs, name: str, col: int) -> tuple[float, float, int] | No
     return wrapped_mean(r.values[idx, col]), math.hypot(sigma, p.rate() * lag), len(idx)
 
 
+def _read(label: str, n: int) -> str:
+    """The method of an angle read from ``n`` readings of a stream named ``label``."""
+    return f"{label} (1 reading)" if n == 1 else f"{label} ({n} readings, wrapped mean)"
+
+
 def _resting(p: Inputs) -> str:
     """How the vehicle spent the still interval: still, or steady by the DVL's speed."""
     return "still" if p.moving is None else f"steady (the DVL reads {p.moving:.3g} m/s)"
@@ -151,7 +156,7 @@ def _attitude(p: Inputs) -> tuple[F64, F64, str]:
     if angles[0] is not None and angles[1] is not None:
         value = np.array([angles[0][0], angles[1][0]])
         sigma = np.array([angles[0][1], angles[1][1]])
-        found.append((value, sigma, f"AHRS orientation ({angles[0][2]} readings, wrapped mean)"))
+        found.append((value, sigma, _read("AHRS orientation", angles[0][2])))
     if not found:
         raise ValueError(
             f"initial roll and pitch: {p.no_still}, {p.absent('orientation', 'AHRS orientation')}"
@@ -213,7 +218,7 @@ def _heading(p: Inputs, rp: F64, rp_sigma: F64, latitude: float | None) -> tuple
         if read is None:
             absent.append(p.absent(name, label))
         else:
-            found.append((read[0], read[1], f"{label} ({read[2]} readings, wrapped mean)"))
+            found.append((read[0], read[1], _read(label, read[2])))
     compass = _gyrocompassed(p, rp, rp_sigma, latitude)
     if isinstance(compass, str):
         if not found:

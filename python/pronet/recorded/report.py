@@ -387,13 +387,24 @@ def surface_pressure(config: Mapping[str, Any]) -> tuple[float | None, str]:
     return number, str(source) if source else "not stated"
 
 
+def pressure_text(config: Mapping[str, Any]) -> str:
+    """The report's line on the depth's surface reference: the surface pressure and
+    where it came from; for depths read in metres (a CSV's, no pressure to state: the
+    entry's ``offset_m`` set, ``pa`` not), the offset measured at the surface and taken
+    off every reading, or the note that none was."""
+    value, source = surface_pressure(config)
+    if value is not None:
+        return f"{value:.1f} Pa, {source}."
+    entry = config.get("surface_pressure")
+    offset = entry.get("offset_m") if isinstance(entry, Mapping) else None
+    if isinstance(offset, int | float):
+        taken = ", taken off every depth reading" if offset != 0.0 else ""
+        return f"None: the depths were read in metres; {source}{taken}."
+    return f"Not in the configuration ({source}): no depth from pressure, or not recorded."
+
+
 def _pressure_section(navigation: Navigation) -> list[str]:
-    value, source = surface_pressure(navigation.config)
-    if value is None:
-        text = f"Not in the configuration ({source}): no depth from pressure, or not recorded."
-    else:
-        text = f"{value:.1f} Pa, {source}."
-    return ["## Surface pressure", "", text, ""]
+    return ["## Surface pressure", "", pressure_text(navigation.config), ""]
 
 
 def _score_section(navigation: Navigation) -> list[str]:
