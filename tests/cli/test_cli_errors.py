@@ -14,6 +14,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from cli_output import one_line
 
 from pronet import cli
 from pronet._util import files
@@ -47,15 +48,6 @@ def simulate(scenario: Path, out: Path, *extra: str) -> list[str]:
     """``pronet simulate`` of two runs into ``out`` (no plots: only the files matter)."""
     args = ["simulate", "--scenario", str(scenario), "--runs", "2", "--out", str(out)]
     return [*args, "--no-plots", *extra]
-
-
-def one_line(capsys) -> str:
-    """The error the command printed: exactly one line on stderr, no traceback."""
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert lines[0].startswith("pronet: "), err
-    return lines[0]
 
 
 def test_out_below_a_file_is_refused_before_any_work(tmp_path, scenario, no_work, capsys):

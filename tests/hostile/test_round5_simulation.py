@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from cli_output import one_line
 
 from pronet import cli, config
 from pronet._util.plausibility import PlausibilityWarning
@@ -31,15 +32,6 @@ OVERFLOWING = f"""{SHORT}
 [sensors]
 imu_variance = [1e30, 1e30, 1e30, 1e30, 1e30, 1e30]
 """
-
-
-def one_line(capsys) -> str:
-    """The error the command printed: exactly one line on stderr, no traceback."""
-    err = capsys.readouterr().err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert lines[0].startswith("pronet: "), err
-    return lines[0]
 
 
 def left_beside(out: Path) -> list[str]:

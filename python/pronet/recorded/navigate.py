@@ -385,7 +385,8 @@ def _score(section: Section, result: FilterResult, use_dvl: bool) -> dict[str, d
 def _filter_keys(config: _core.FilterConfig) -> dict[str, Any]:
     """The tuning a ``config.json`` states."""
     keys = ("p0_sigma", "accel_bias_psd", "gyro_bias_psd", "dvl_variance", "lever_arm",
-            "aiding", "innovation_gate", "formulation", "covariance_step", "imu_dt")  # fmt: skip
+            "aiding", "innovation_gate", "formulation", "covariance_step", "imu_dt",
+            "heading_second_order")  # fmt: skip
     return {k: getattr(config, k) for k in keys}
 
 

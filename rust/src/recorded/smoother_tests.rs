@@ -273,6 +273,31 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
     }
 }
 
+/// The smoothed pass of constant q over the IMU rows and times `imu`, with the DVL
+/// rows and times `dvl` (none: a pass without measurements), from `moving_state`.
+fn smoothed_pass(
+    (imu, imu_time): (&[[f64; 6]], &[f64]),
+    (dvl, dvl_time): (&[[f64; 3]], &[f64]),
+    cfg: &FilterConfig,
+) -> crate::error::Result<FilterOutput> {
+    let data = RecordedData {
+        imu,
+        imu_time,
+        streams: vec![Stream::dvl(dvl, dvl_time, &FilterConfig::default())],
+        ..RecordedData::default()
+    };
+    let spec = StrategySpec::Constant { q: [1e-4; 6] };
+    smooth_recorded_until(
+        &data,
+        moving_state(),
+        [0.0; 6],
+        cfg,
+        spec.build(cfg.bias_psd()).as_mut(),
+        Epochs::All,
+        &Cancel::default(),
+    )
+}
+
 /// Without a measurement there is nothing to smooth: the smoothed solution is the
 /// forward one. With them, the smoothed σ is below the forward σ inside the pass
 /// and equal at its end, the DVL calibration states' too.
@@ -280,23 +305,8 @@ fn covariances_where_asked_equal_the_step_by_step_ones() {
 fn smoothing_without_measurements_changes_nothing() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
     let cfg = per_sample();
-    let spec = StrategySpec::Constant { q: [1e-4; 6] };
     let pass = |dvl: &[[f64; 3]], dvl_time: &[f64], cfg: &FilterConfig| {
-        let data = RecordedData {
-            imu: &imu,
-            imu_time: &imu_time,
-            streams: vec![Stream::dvl(dvl, dvl_time, &FilterConfig::default())],
-            ..RecordedData::default()
-        };
-        smooth_recorded_until(
-            &data,
-            moving_state(),
-            [0.0; 6],
-            cfg,
-            spec.build(cfg.bias_psd()).as_mut(),
-            Epochs::All,
-            &Cancel::default(),
-        )
+        smoothed_pass((&imu, &imu_time), (dvl, dvl_time), cfg)
     };
     let bare = pass(&[], &[], &cfg).unwrap();
     let s = bare.smoothed.unwrap();
@@ -342,24 +352,8 @@ fn smoothing_without_measurements_changes_nothing() {
 #[test]
 fn the_second_order_heading_term_is_rebuilt_as_the_forward_pass_carried_it() {
     let (imu, imu_time, dvl, dvl_time) = moving_pass(300);
-    let spec = StrategySpec::Constant { q: [1e-4; 6] };
     let pass = |dvl: &[[f64; 3]], dvl_time: &[f64], cfg: &FilterConfig| {
-        let data = RecordedData {
-            imu: &imu,
-            imu_time: &imu_time,
-            streams: vec![Stream::dvl(dvl, dvl_time, &FilterConfig::default())],
-            ..RecordedData::default()
-        };
-        smooth_recorded_until(
-            &data,
-            moving_state(),
-            [0.0; 6],
-            cfg,
-            spec.build(cfg.bias_psd()).as_mut(),
-            Epochs::All,
-            &Cancel::default(),
-        )
-        .unwrap()
+        smoothed_pass((&imu, &imu_time), (dvl, dvl_time), cfg).unwrap()
     };
     let mut p0_sigma = crate::ekf::DEFAULT_P0_SIGMA;
     p0_sigma[8] = 0.3; // 17° of heading σ
