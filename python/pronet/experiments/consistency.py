@@ -162,21 +162,24 @@ def run_cell(
     draw: bool = True,
     runs: int = 20,
     seed: int = 0,
+    second_order: bool = False,
 ) -> Cell:
-    """Run one cell (see the module's docstring)."""
+    """Run one cell (see the module's docstring); ``second_order``: with the
+    second-order heading term (:func:`filter_config`)."""
     g = GRADES[grade]
     every = int(round(100 / dvl_hz))
     out = _monte_carlo(
         (grade, formulation, MOTIONS[motion], motion),
         (runs, seed, every * 50, draw, False),
         dvl_period=1.0 / dvl_hz,
+        second_order=second_order,
     )
     error, sigma = out.error, out.sigma
     assert error is not None and sigma is not None  # record_every > 0
     return Cell(
         grade=grade,
         motion=motion,
-        formulation=formulation,
+        formulation=formulation + (" + second order" if second_order else ""),
         dvl_hz=dvl_hz,
         draw=draw,
         runs=runs,
