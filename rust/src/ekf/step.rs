@@ -17,6 +17,7 @@ use super::calibration::Calibration;
 use super::dynamics::{ErrorDynamics, ImuNoise};
 use super::formulation::Coordinates;
 use super::process_noise::ProcessNoise;
+use super::second_order::SecondOrder;
 use super::state::{Matrix15, ACC_BIAS};
 use super::transition::Transition;
 use super::FilterConfig;
@@ -31,6 +32,8 @@ pub(crate) struct Covariance<'a> {
     pub(crate) p: &'a mut Matrix15,
     pub(crate) calibration: Option<&'a mut Calibration>,
     pub(crate) sensitivity: Option<(&'a mut Matrix15, &'a [f64; 6], Option<&'a mut Calibration>)>,
+    /// The second-order heading term and P's heading variance at the step's start.
+    pub(crate) second_order: Option<(&'a mut SecondOrder, f64)>,
 }
 
 /// A covariance step under way.
@@ -148,6 +151,10 @@ impl CovarianceStep {
             if let Some(c) = calibration {
                 c.propagate_interval(&phi, self.elapsed, false);
             }
+        }
+        if let Some((s, heading_variance)) = covariance.second_order {
+            s.transition(|u| phi.apply(u));
+            s.grow(covariance.p, heading_variance);
         }
         Some(phi)
     }

@@ -170,7 +170,7 @@ pub(super) fn restart(forward: &Forward<'_>, cfg: &FilterConfig, a: &Node) -> Re
 pub(super) fn restart_at(nav: NavState, b: &[f64; 6], cfg: &FilterConfig, a: &Node) -> Result<Ekf> {
     let calibration = a.calibration.as_deref().map(|n| (&n.cross, &n.cov));
     let step = a.step.as_deref().cloned();
-    let second_order = a.second_order.as_deref().cloned();
+    let second_order = a.second_order.clone();
     Ekf::restart(cfg, nav, b, a.p_post, calibration, step, second_order)
 }
 
@@ -261,7 +261,7 @@ impl Nodes {
 
 /// The filter's second-order heading term, if it carries one, copied for a node.
 fn node_second_order(ekf: &Ekf) -> Option<Box<SecondOrder>> {
-    ekf.second_order.clone().map(Box::new)
+    ekf.second_order.clone()
 }
 
 /// The covariance step under way in `ekf`, if any, copied for a node.
