@@ -174,7 +174,9 @@ def test_simulate_runs_chosen_strategies_on_a_scenario_file(tmp_path, capsys) ->
     assert cli.main([*args, *strategies, "--json", "--quiet"]) == 0
     captured = capsys.readouterr()
     printed = json.loads(captured.out)  # stdout is exactly one JSON document
-    assert captured.err == ""
+    # stderr: what the runs say of the filter (its notes), also with --quiet and --json
+    notes = json.loads((out / "config.json").read_text())["notes"]
+    assert notes and captured.err.splitlines() == [f"pronet: {n}" for n in notes]
     assert printed["folder"] == str(out)
     rows = {r["strategy"]: r for r in printed["metrics"]}
     assert list(rows) == ["constant", "constant:20", "mehra:5", "learned:detrend"]

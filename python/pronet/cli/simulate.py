@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from pronet.cli._common import (
@@ -111,6 +112,8 @@ def run(args: argparse.Namespace) -> int:
             say=bars.say,
             on_start=bars.start,
             on_done=bars.done,
+            # what the runs say of the filter: on stderr, also with --quiet and --json
+            note=lambda text: print(f"pronet: {text}", file=sys.stderr),
         )
     experiment_result(show, folder, start)
     return 0

@@ -96,6 +96,7 @@ def simulate(
     say: Say | None = None,
     on_start: OnStart | None = None,
     on_done: OnDone | None = None,
+    note: Say | None = None,
 ) -> Path:
     """Run every strategy of ``specs`` on ``scenario`` and write the result folder;
     returns the folder. Everything is read and checked before anything runs.
@@ -128,6 +129,8 @@ def simulate(
         on_start: the callback told a stage's start: one
             stage, a step per strategy labelled with its spec.
         on_done: the callback told each step done.
+        note: told each note of what the runs say of the filter (a row whose runs leave
+            their NIS band; also in ``config.json``'s ``notes``); default ``say``.
 
     Raises:
         ValueError: a bad argument, file or spec, before any computation; or, after
@@ -165,8 +168,8 @@ def simulate(
     outside = {row.label: runs_outside_band(row.result.nis) for row in rows}
     notes = [line for label, o in outside.items() if (line := runs_flag(label, o))]
     for line in notes:
-        if say is not None:
-            say(line)
+        if (tell := note or say) is not None:
+            tell(line)
     settings: dict[str, object] = {
         "scenario": scenario.name if isinstance(scenario, Scenario) else str(scenario),
         "filter": repr(sc.config),
