@@ -41,7 +41,7 @@ and estimated horizontal velocity ``v_h`` (slope, correlation, and the error's R
 covariance as it is and with ``κ m mᵀ`` added, ``m = ∫ σ_ψ² v_h dt`` from the filter's
 own heading σ: ``κ = ¼`` is the term's squared mean (its second moment's lower bound),
 ``κ = ¾`` its second moment if the heading error were one Gaussian draw for the whole
-run (the upper bound).
+run.
 
     python scripts/heading_nonlinearity.py [--runs 4000] [--seed 0] [--filter | --second-order]
 """

@@ -526,7 +526,7 @@ def run_reference_filter(
             qd = np.zeros((n_x, n_x))
             qd[:15, :15] = gam @ qc @ gam.T * dt
             noise = dvl_transition(phi, dt)
-            heading_variance = p[8, 8]
+            heading_variance = p[8, 8] if second is None else second.linear_heading_variance(p)
             p = phi @ p @ phi.T + qd + noise
             p = (p + p.T) / 2
             if second is not None:
@@ -552,7 +552,7 @@ def run_reference_filter(
         if interval is not None and (
             interval["dt"] + imu_dt / 2 >= covariance_step or updating or k == len(imu) - 1
         ):
-            heading_variance = p[8, 8]
+            heading_variance = p[8, 8] if second is None else second.linear_heading_variance(p)
             p, phi = close(p, interval)
             if second is not None:
                 p = second.grow(p, phi, heading_variance)

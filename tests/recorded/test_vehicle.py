@@ -124,6 +124,21 @@ def test_every_key_of_a_filter_file_reaches_the_sections_filter(tmp_path):
     assert section.dvl_calibration and section.dvl_bias_time_constant == 45.0
 
 
+def test_the_second_order_heading_term_of_a_filter_file_reaches_all_but_the_calibration_rows(
+    tmp_path,
+):
+    """pronet real's DVL calibration rows run without the term, which their states do not
+    take (FilterConfig refuses both: every such row failed); every other row keeps it."""
+    base = vehicle.load_vehicle(_toml(tmp_path / "b.toml", "heading_second_order = true\n")).base
+    arm = (0.1, -0.2, 0.3)
+    assert base.heading_second_order
+    assert real_filter_config(arm, base=base).heading_second_order
+    calibrated = real_filter_config(arm, base=base, calibration=True)
+    assert calibrated.dvl_calibration and not calibrated.heading_second_order
+    with pytest.raises(ValueError, match="^heading_second_order: .* se23"):
+        real_filter_config(arm, base=base, formulation="se23")
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [

@@ -77,7 +77,8 @@ def real_filter_config(
     file (:data:`pronet.config.FILTER_KEYS`: its P0, bias PSDs, DVL noise unless
     ``dvl_variance`` is given, aiding, innovation gate, the DVL's correlated error,
     formulation and covariance step unless ``formulation`` or ``covariance_step`` is
-    given) instead of the FOG defaults above."""
+    given, the second-order heading term but beside ``calibration``, whose states do not
+    take it) instead of the FOG defaults above."""
     given = {
         key: value
         for key, value in (
@@ -99,6 +100,8 @@ def real_filter_config(
         }
     )
     own.update(given, lever_arm=lever_arm, dvl_calibration=calibration)
+    if calibration:  # the calibration rows run without it (FilterConfig refuses both)
+        own["heading_second_order"] = False
     return _core.FilterConfig(**own)
 
 

@@ -131,7 +131,13 @@ impl Ekf {
         }
         ekf.step = step;
         if ekf.second_order.is_some() {
-            ekf.second_order = second_order;
+            debug_assert!(
+                second_order.is_some(),
+                "a node of a pass with the term has it"
+            );
+            if let Some(s) = second_order {
+                ekf.second_order = Some(s);
+            }
         }
         Ok(ekf)
     }
@@ -370,13 +376,17 @@ impl Ekf {
         dt: f64,
         noise: ProcessNoise<'_>,
     ) {
-        let heading_variance = self.heading_variance();
+        let p = &self.p;
+        let heading_variance = self
+            .second_order
+            .as_deref()
+            .map(|s| s.linear_heading_variance(p));
         dynamics.propagate_covariance(&mut self.p, dt);
         self.add_process_noise(noise, dt);
-        if let Some(s) = self.second_order.as_mut() {
+        if let (Some(s), Some(v)) = (self.second_order.as_deref_mut(), heading_variance) {
             s.step(&dynamics.apply(s.direction().as_slice()), dt);
             s.run(&self.nav.vel, dt);
-            s.grow(&mut self.p, heading_variance);
+            s.grow(&mut self.p, v);
         }
         if let Some(c) = self.calibration.as_mut() {
             c.propagate(dynamics, dt, true);
@@ -439,19 +449,22 @@ impl Ekf {
     /// updates and at its end.
     pub fn bring_up_to_date(&mut self) -> Option<Transition> {
         let step = self.step.take()?;
-        let heading_variance = self.heading_variance();
         let sensitivity = self.sensitivity.as_mut().map(|(m, q)| {
             let calibration = self.sensitivity_calibration.as_mut();
             (m, &*q, calibration)
         });
         // The term grows inside the close: the 1.4 kB transition is returned, not moved.
-        let second_order = self.second_order.as_deref_mut();
+        let p = &self.p;
+        let second_order = self.second_order.as_deref_mut().map(|s| {
+            let heading_variance = s.linear_heading_variance(p);
+            (s, heading_variance)
+        });
         step.close(Covariance {
             coordinates: self.cfg.coordinates(),
             p: &mut self.p,
             calibration: self.calibration.as_mut(),
             sensitivity,
-            second_order: second_order.map(|s| (s, heading_variance)),
+            second_order,
         })
     }
 

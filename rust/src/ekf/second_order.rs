@@ -19,7 +19,7 @@
 //! (`κ` = [`KAPPA`]): at each gain `P += κ ((u + δ)(u + δ)ᵀ − u uᵀ)`. The gains, the
 //! NIS, σ and every covariance read out then include the term.
 
-use super::state::{Matrix15, Vector15, POS};
+use super::state::{Matrix15, Vector15, ATT, POS};
 use nalgebra::{SMatrix, Vector2, Vector3};
 
 /// The term's second moment per `m mᵀ`: `¾`, that of `½ z² m` for `z ~ N(0, 1)`.
@@ -47,6 +47,13 @@ impl SecondOrder {
     /// covariance is `KAPPA u uᵀ`.
     pub fn direction(&self) -> &Vector15 {
         &self.u
+    }
+
+    /// The heading variance of the linear part of P, `P[ψ_D, ψ_D] − κ u_ψ²` \[rad²\]
+    /// (after a horizontal fix `u` has a heading component: the term's own share is not
+    /// heading uncertainty that grows it).
+    pub(super) fn linear_heading_variance(&self, p: &Matrix15) -> f64 {
+        p[(ATT + 2, ATT + 2)] - KAPPA * self.u[ATT + 2] * self.u[ATT + 2]
     }
 
     /// Add the horizontal distance run over one IMU sample at the NED velocity `vel`
@@ -80,9 +87,16 @@ impl SecondOrder {
         let mut after = self.u;
         after[POS] += delta[0];
         after[POS + 1] += delta[1];
-        for j in 0..15 {
-            for i in 0..15 {
-                p[(i, j)] += KAPPA * (after[i] * after[j] - self.u[i] * self.u[j]);
+        // Only the rows and columns δ moves change: elsewhere `after` is `u` and the
+        // change is exactly zero (56 elements instead of 225, the same numbers).
+        let u = &self.u;
+        for i in POS..POS + 2 {
+            for j in 0..15 {
+                let change = KAPPA * (after[i] * after[j] - u[i] * u[j]);
+                p[(i, j)] += change;
+                if !(POS..POS + 2).contains(&j) {
+                    p[(j, i)] += change;
+                }
             }
         }
         self.u = after;
@@ -226,6 +240,62 @@ mod filter_tests {
             let smallest = lin.symmetric_eigenvalues().min();
             assert!(smallest > -1e-12 * lin.abs().max(), "{smallest}");
         }
+    }
+}
+
+#[cfg(test)]
+mod gate_tests {
+    use crate::ekf::tests::{dvl, moving_state};
+    use crate::ekf::{Ekf, FilterConfig, ProcessNoise, DEFAULT_P0_SIGMA};
+    use crate::measurement::Fix;
+    use crate::mechanization::ImuSample;
+    use nalgebra::Vector3;
+
+    /// A DVL reading the gate rejects leaves the term's direction as it leaves P; one
+    /// it accepts moves it (after a fix has put `u` into the velocity rows, where the
+    /// DVL sees it).
+    #[test]
+    fn a_rejected_reading_leaves_the_term_alone() {
+        let mut p0_sigma = DEFAULT_P0_SIGMA;
+        p0_sigma[8] = 0.3;
+        let cfg = FilterConfig {
+            p0_sigma,
+            innovation_gate: Some(16.27),
+            heading_second_order: true,
+            ..FilterConfig::default()
+        };
+        let q = [1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8];
+        let noise = ProcessNoise::Continuous {
+            imu_variance: &q,
+            bias_psd: &[1e-9; 6],
+        };
+        let raw = ImuSample {
+            accel: Vector3::new(0.05, 0.0, -9.79),
+            gyro: Vector3::new(0.0, 0.0, 0.02),
+        };
+        let zero = Vector3::zeros();
+        let mut ekf = Ekf::new(&cfg, moving_state(), zero, zero).unwrap();
+        for _ in 0..500 {
+            ekf.propagate(&raw, 0.01, noise).unwrap();
+        }
+        let at = ekf.nav.lla;
+        let fix = Fix {
+            lla: [at[0], at[1], f64::NAN],
+            sigma: [0.5; 3],
+            lever_arm: Vector3::zeros(),
+        };
+        ekf.apply(&fix).unwrap();
+        let direction = |ekf: &Ekf| ekf.second_order.as_ref().unwrap().direction().to_owned();
+        let before = direction(&ekf);
+        assert!(before.rows(3, 3).abs().max() > 0.0, "{before}");
+        let predicted = crate::ekf::tests::dvl_at_estimate(&ekf).z;
+        let far = dvl(&ekf, predicted + Vector3::new(5.0, 0.0, 0.0));
+        let report = ekf.apply(&far).unwrap().report.unwrap();
+        assert!(!report.accepted);
+        assert_eq!(direction(&ekf), before);
+        let near = dvl(&ekf, predicted + Vector3::new(0.01, 0.0, 0.0));
+        assert!(ekf.apply(&near).unwrap().report.unwrap().accepted);
+        assert_ne!(direction(&ekf), before);
     }
 }
 

@@ -24,12 +24,13 @@ pub(super) fn filter_config() -> impl Strategy<Value = FilterConfig> {
         0..3u8,
         // The covariance step: every sample, or intervals of 0.1 s.
         prop_oneof![2 => Just(0.0), 1 => Just(0.1)],
+        // The second-order heading term, wherever it applies, in half the cases.
+        any::<bool>(),
     )
         .prop_map(
-            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, formulation, step)| {
+            |(p0, psd_a, psd_g, r, arm, body, dt, cal, bad, formulation, step, term)| {
                 let pow = |e: f64| if e == 0.0 { 0.0 } else { 10f64.powf(e) };
-                // the second-order heading term wherever it applies to the invariant
-                let second_order = formulation == 1 && cal.is_none();
+                let second_order = term && formulation != 2 && cal.is_none();
                 let mut c = FilterConfig {
                     p0_sigma: std::array::from_fn(|i| 10f64.powf(p0[i])),
                     accel_bias_psd: pow(psd_a),
