@@ -2,19 +2,21 @@
 //! [`super::FilterConfig::heading_second_order`]; `docs/reference/heading.md`).
 //!
 //! A heading error `δψ` turns the track the filter dead-reckons: to first order across
-//! it (the EKF's `[v̂×]`-terms), to second order along it, `½ δψ² v_h dt` per step. The
-//! linear filter has no variance along the track for that part, and on a long mission
-//! without fixes, where heading errors reach tens of degrees, the position error lies
-//! off its thin horizontal ellipse (`docs/results/consistency.md`, "A long MEMS mission
-//! without fixes": along that axis the error is this term, run by run).
+//! it (the EKF's `[v̂×]`-terms), to second order along it, `+½ δψ² v̂_h dt` per step
+//! (the true velocity is `R(−δψ) v̂`). The linear filter has no variance along the
+//! track for that part, and on a long mission without fixes, where heading errors reach
+//! tens of degrees, the position error lies off its thin horizontal ellipse
+//! (`docs/results/consistency.md`, "A long MEMS mission without fixes": along that axis
+//! the error is this term, run by run).
 //!
 //! The term's size is known to the filter through its own heading variance:
-//! `m = ∫ σ_ψ² v_h dt`. A heading error that is one Gaussian draw `δψ = σ_ψ z` over the
+//! `m = ∫ σ_ψ² v̂_h dt`. A heading error that is one Gaussian draw `δψ = σ_ψ z` over the
 //! run (as a bias-driven one nearly is) makes the term `½ z² m`, whose second moment
 //! about zero is `¾ m mᵀ` (`E z⁴ = 3`), uncorrelated with the linear errors (a Gaussian's
-//! third moments vanish). The filter carries it as a 15-vector `u` beside P, the term's
+//! third moments vanish): a consider parameter of a Schmidt–Kalman filter, `x_lin + s u`
+//! with `E s² = κ`. The filter carries it as a 15-vector `u` beside P, the term's
 //! direction in the error state: `u` goes through the transitions (`u ← Φ u`) and the
-//! updates (`u ← (I − K H) u`) as an error does, gains `δ = σ_ψ² Σ v_h dt` in its
+//! updates (`u ← (I − K H) u`) as an error does, gains `δ = σ_ψ² Σ v̂_h dt` in its
 //! position rows at each covariance step (or sample), and P holds `P_lin + κ u uᵀ`
 //! (`κ` = [`KAPPA`]): at each gain `P += κ ((u + δ)(u + δ)ᵀ − u uᵀ)`. The gains, the
 //! NIS, σ and every covariance read out then include the term.
@@ -25,8 +27,8 @@ use nalgebra::{SMatrix, Vector2, Vector3};
 /// The term's second moment per `m mᵀ`: `¾`, that of `½ z² m` for `z ~ N(0, 1)`.
 pub const KAPPA: f64 = 0.75;
 
-/// The term's state: its direction `u` in the error state, and the horizontal distance
-/// \[m, north and east\] run since it last grew.
+/// The term's state: its direction `u` in the error state, and the horizontal
+/// displacement \[m, north and east\] since it last grew.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SecondOrder {
     pub(super) u: Vector15,
@@ -164,12 +166,55 @@ mod tests {
 
 #[cfg(test)]
 mod filter_tests {
-    use super::KAPPA;
-    use crate::ekf::tests::{dvl, moving_state};
-    use crate::ekf::{Ekf, FilterConfig, ProcessNoise, DEFAULT_P0_SIGMA};
+    use super::{SecondOrder, KAPPA};
+    use crate::ekf::tests::{dvl, dvl_at_estimate, moving_state};
+    use crate::ekf::{Ekf, FilterConfig, ProcessNoise, Vector15, DEFAULT_P0_SIGMA};
     use crate::measurement::Fix;
     use crate::mechanization::ImuSample;
     use nalgebra::Vector3;
+
+    const Q: [f64; 6] = [1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8];
+    const NOISE: ProcessNoise<'static> = ProcessNoise::Continuous {
+        imu_variance: &Q,
+        bias_psd: &[1e-9; 6],
+    };
+    /// A turn at 0.02 rad/s, a little forward acceleration.
+    const RAW: ImuSample = ImuSample {
+        accel: Vector3::new(0.05, 0.0, -9.79),
+        gyro: Vector3::new(0.0, 0.0, 0.02),
+    };
+
+    /// The default tuning with the heading 0.3 rad (17°) uncertain, so that the term grows.
+    fn uncertain_heading() -> FilterConfig {
+        let mut p0_sigma = DEFAULT_P0_SIGMA;
+        p0_sigma[8] = 0.3;
+        FilterConfig {
+            p0_sigma,
+            ..FilterConfig::default()
+        }
+    }
+
+    fn started(cfg: &FilterConfig) -> Ekf {
+        let zero = Vector3::zeros();
+        Ekf::new(cfg, moving_state(), zero, zero).unwrap()
+    }
+
+    /// A horizontal fix of 0.5 m at the filter's estimate.
+    fn fix_at(ekf: &Ekf) -> Fix {
+        Fix {
+            lla: [ekf.nav.lla[0], ekf.nav.lla[1], f64::NAN],
+            sigma: [0.5; 3],
+            lever_arm: Vector3::zeros(),
+        }
+    }
+
+    fn direction(ekf: &Ekf) -> Vector15 {
+        ekf.second_order
+            .as_deref()
+            .map(SecondOrder::direction)
+            .unwrap()
+            .to_owned()
+    }
 
     /// Side by side with the linear filter on the same readings (a DVL every 0.2 s):
     /// the filter with the term holds `P_lin + κ u uᵀ` (to the gains' small change: `u`
@@ -178,33 +223,19 @@ mod filter_tests {
     /// covariance step.
     #[test]
     fn the_filter_holds_the_linear_covariance_plus_the_term() {
-        let mut p0_sigma = DEFAULT_P0_SIGMA;
-        p0_sigma[8] = 0.3;
-        let q = [1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8];
-        let noise = ProcessNoise::Continuous {
-            imu_variance: &q,
-            bias_psd: &[1e-9; 6],
-        };
-        let raw = ImuSample {
-            accel: Vector3::new(0.05, 0.0, -9.79),
-            gyro: Vector3::new(0.0, 0.0, 0.02),
-        };
         for covariance_step in [0.0, 0.1] {
             let linear_cfg = FilterConfig {
                 covariance_step,
-                p0_sigma,
-                ..FilterConfig::default()
+                ..uncertain_heading()
             };
             let cfg = FilterConfig {
                 heading_second_order: true,
                 ..linear_cfg.clone()
             };
-            let zero = Vector3::zeros();
-            let mut on = Ekf::new(&cfg, moving_state(), zero, zero).unwrap();
-            let mut off = Ekf::new(&linear_cfg, moving_state(), zero, zero).unwrap();
+            let (mut on, mut off) = (started(&cfg), started(&linear_cfg));
             for k in 1..=600 {
                 for ekf in [&mut on, &mut off] {
-                    ekf.propagate(&raw, 0.01, noise).unwrap();
+                    ekf.propagate(&RAW, 0.01, NOISE).unwrap();
                 }
                 if k % 20 == 0 {
                     let z = Vector3::new(1.1, 0.4, 0.05);
@@ -213,7 +244,7 @@ mod filter_tests {
                     }
                 }
             }
-            let u = on.second_order.as_ref().unwrap().direction().to_owned();
+            let u = direction(&on);
             let lin = on.p - u * u.transpose() * KAPPA;
             let scale = off.p.abs().max();
             assert!(
@@ -227,71 +258,36 @@ mod filter_tests {
             let (wide, narrow) = (on.p[(0, 0)] + on.p[(1, 1)], off.p[(0, 0)] + off.p[(1, 1)]);
             assert!(wide > narrow + 0.01, "{wide} {narrow} {u}");
             // A horizontal fix at the estimate: the term shrinks with the position σ.
-            let fix = Fix {
-                lla: [on.nav.lla[0], on.nav.lla[1], f64::NAN],
-                sigma: [0.5; 3],
-                lever_arm: Vector3::zeros(),
-            };
             let before = u[0].hypot(u[1]);
-            on.apply(&fix).unwrap();
-            let u = on.second_order.as_ref().unwrap().direction().to_owned();
+            on.apply(&fix_at(&on)).unwrap();
+            let u = direction(&on);
             assert!(u[0].hypot(u[1]) < 0.7 * before, "{before} {u}");
             let lin = on.p - u * u.transpose() * KAPPA;
             let smallest = lin.symmetric_eigenvalues().min();
             assert!(smallest > -1e-12 * lin.abs().max(), "{smallest}");
         }
     }
-}
-
-#[cfg(test)]
-mod gate_tests {
-    use crate::ekf::tests::{dvl, moving_state};
-    use crate::ekf::{Ekf, FilterConfig, ProcessNoise, DEFAULT_P0_SIGMA};
-    use crate::measurement::Fix;
-    use crate::mechanization::ImuSample;
-    use nalgebra::Vector3;
 
     /// A DVL reading the gate rejects leaves the term's direction as it leaves P; one
     /// it accepts moves it (after a fix has put `u` into the velocity rows, where the
     /// DVL sees it).
     #[test]
     fn a_rejected_reading_leaves_the_term_alone() {
-        let mut p0_sigma = DEFAULT_P0_SIGMA;
-        p0_sigma[8] = 0.3;
         let cfg = FilterConfig {
-            p0_sigma,
             innovation_gate: Some(16.27),
             heading_second_order: true,
-            ..FilterConfig::default()
+            ..uncertain_heading()
         };
-        let q = [1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8];
-        let noise = ProcessNoise::Continuous {
-            imu_variance: &q,
-            bias_psd: &[1e-9; 6],
-        };
-        let raw = ImuSample {
-            accel: Vector3::new(0.05, 0.0, -9.79),
-            gyro: Vector3::new(0.0, 0.0, 0.02),
-        };
-        let zero = Vector3::zeros();
-        let mut ekf = Ekf::new(&cfg, moving_state(), zero, zero).unwrap();
+        let mut ekf = started(&cfg);
         for _ in 0..500 {
-            ekf.propagate(&raw, 0.01, noise).unwrap();
+            ekf.propagate(&RAW, 0.01, NOISE).unwrap();
         }
-        let at = ekf.nav.lla;
-        let fix = Fix {
-            lla: [at[0], at[1], f64::NAN],
-            sigma: [0.5; 3],
-            lever_arm: Vector3::zeros(),
-        };
-        ekf.apply(&fix).unwrap();
-        let direction = |ekf: &Ekf| ekf.second_order.as_ref().unwrap().direction().to_owned();
+        ekf.apply(&fix_at(&ekf)).unwrap();
         let before = direction(&ekf);
         assert!(before.rows(3, 3).abs().max() > 0.0, "{before}");
-        let predicted = crate::ekf::tests::dvl_at_estimate(&ekf).z;
+        let predicted = dvl_at_estimate(&ekf).z;
         let far = dvl(&ekf, predicted + Vector3::new(5.0, 0.0, 0.0));
-        let report = ekf.apply(&far).unwrap().report.unwrap();
-        assert!(!report.accepted);
+        assert!(!ekf.apply(&far).unwrap().report.unwrap().accepted);
         assert_eq!(direction(&ekf), before);
         let near = dvl(&ekf, predicted + Vector3::new(0.01, 0.0, 0.0));
         assert!(ekf.apply(&near).unwrap().report.unwrap().accepted);
