@@ -55,7 +55,7 @@ pub struct Ekf {
     pub(super) step: Option<CovarianceStep>,
     /// The second-order heading term, when [`FilterConfig::heading_second_order`] asks
     /// for it (P includes it; `super::second_order`). Boxed: the filter without it
-    /// stays the size it was (a larger `Ekf` cost 2 % per IMU step, measured).
+    /// carries 8 bytes for it.
     pub second_order: Option<Box<SecondOrder>>,
 }
 

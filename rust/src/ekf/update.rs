@@ -393,8 +393,8 @@ fn kalman_update<const N: usize>(
 /// The scalar update of an `N`-state covariance `p` (and of the sensitivity `m`, if
 /// tracked) with the row `H` (over the first 15 states), innovation `ν` and variance
 /// `r`: `S = H P Hᵀ + r`, `K = P Hᵀ / S`, Joseph form, symmetrized; its NIS `ν²/S`,
-/// the error estimate `−K ν` and the gain's first 15 rows. A unit row `e_i` reads column `i` of P directly (the same
-/// numbers as the product, without it).
+/// the error estimate `−K ν` and the gain's first 15 rows. A unit row `e_i` reads
+/// column `i` of P directly (the same numbers as the product, without it).
 fn scalar_update<const N: usize>(
     p: &mut SMatrix<f64, N, N>,
     m: Option<&mut SMatrix<f64, N, N>>,
