@@ -1,5 +1,5 @@
 """The SE₂(3) formulation of the NumPy reference filter (``numpy_reference_ekf.py``),
-from docs/reference/filter.md, "The SE₂(3) formulation (opt-in)".
+from docs/reference/heading.md, "The SE₂(3) formulation".
 
 The position error is taken about an anchor, ``δP = δp − [p̂×]ψ`` (beside the invariant
 velocity error ``δV = δv − [v̂×]ψ``), with ``p̂`` the estimate's NED displacement from the

@@ -23,7 +23,7 @@ from numpy_reference_ekf import (
 from numpy_reference_se23 import displacement
 from test_numpy_reference_ekf import P0, Q, _inputs
 
-# SE₂(3) (docs/reference/filter.md, "The SE₂(3) formulation"): its position error is taken about
+# SE₂(3) (docs/reference/heading.md, "The SE₂(3) formulation"): its position error is taken about
 # the run's first position, so its [p̂×] terms need a run that goes far from there. An
 # 80 m/s vehicle (unphysical with a DVL; the algebra does not care) travels 4.8 km in
 # 60 s, with turns and a dive.
