@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
 
     show = Output(args)
     start = time.perf_counter()
+    notes: list[str] = []  # told once the folder is written (a failure is one line)
     with Bars(show) as bars:
         folder = simulate(
             args.scenario,
@@ -112,8 +113,9 @@ def run(args: argparse.Namespace) -> int:
             say=bars.say,
             on_start=bars.start,
             on_done=bars.done,
-            # what the runs say of the filter: on stderr, also with --quiet and --json
-            note=lambda text: print(f"pronet: {text}", file=sys.stderr),
+            note=notes.append,
         )
+    for note in notes:  # what the runs say of the filter, also with --quiet and --json
+        print(f"pronet: {note}", file=sys.stderr)
     experiment_result(show, folder, start)
     return 0
