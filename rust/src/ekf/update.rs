@@ -404,10 +404,7 @@ fn scalar_update<const N: usize>(
     name: &str,
 ) -> Result<(f64, SVector<f64, N>, SMatrix<f64, 15, 1>)> {
     let mut h = SMatrix::<f64, 1, N>::zeros();
-    match row {
-        ScalarRow::Unit(i) => h[(0, *i)] = 1.0,
-        ScalarRow::Row(row) => h.fixed_columns_mut::<15>(0).copy_from(row),
-    }
+    h.fixed_columns_mut::<15>(0).copy_from(&row.dense());
     let support = Support::of(&h);
     let (pht, s) = match row {
         ScalarRow::Unit(i) => (p.column(*i).into_owned(), p[(*i, *i)] + r),
