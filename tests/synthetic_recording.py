@@ -30,6 +30,20 @@ def _at(t: np.ndarray, tp: np.ndarray, fp: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(t, tp, fp[:, j]) for j in range(fp.shape[1])], axis=1)
 
 
+def _gauss_markov(
+    t: np.ndarray, sigma: tuple[float, float, float], tau: float, rng: np.random.Generator
+) -> np.ndarray:
+    """A stationary first-order Gauss–Markov process ``(len(t), 3)`` at the times
+    ``t`` [s]: 1σ ``sigma`` per axis [m/s], correlation time ``tau`` [s]."""
+    s = np.asarray(sigma, dtype=np.float64)
+    out = np.empty((len(t), 3))
+    out[0] = rng.normal(size=3) * s
+    for k in range(1, len(t)):
+        phi = np.exp(-(t[k] - t[k - 1]) / tau)
+        out[k] = phi * out[k - 1] + rng.normal(size=3) * s * np.sqrt(1 - phi * phi)
+    return out
+
+
 def synthetic_recording(
     seed: int = 0,
     duration: float = 80.0,
@@ -42,6 +56,7 @@ def synthetic_recording(
     dvl_rate: float = 1.0,
     imu_bias: tuple[float, ...] | None = None,
     bias_psd: tuple[float, ...] | None = None,
+    dvl_bias: tuple[tuple[float, float, float], float] | None = None,
 ) -> Synthetic:
     """An AUV-like section: turns and depth changes at 1.5–2 m/s, 100 Hz IMU with
     white noise (variance 1e-4 (m/s²)² and 1e-8 (rad/s)²), 1 Hz DVL with white noise of
@@ -53,7 +68,10 @@ def synthetic_recording(
     mean over its own interval (from a truth ten times finer); ``gt_rate``,
     ``dvl_rate`` [Hz]: the ground truth's and the DVL's rates. ``imu_bias`` (6) a turn-on
     bias ``[b_a (m/s²), b_g (rad/s)]`` and ``bias_psd`` (6) its random walk's PSD
-    [(m/s²)²/s, (rad/s)²/s] (as a ``SensorConfig``'s)."""
+    [(m/s²)²/s, (rad/s)²/s] (as a ``SensorConfig``'s). ``dvl_bias = (σ, τ)``: a
+    correlated DVL error on top of the white one, a first-order Gauss–Markov process
+    per body axis of stationary 1σ ``σ`` [m/s] and correlation time ``τ`` [s] (as the
+    filter's ``dvl_bias_sigma`` and ``dvl_bias_time_constant``), drawn stationary."""
     # Smoothly varying turn rate, speed and pitch (one-second segments), as an AUV
     # manoeuvres: 1 Hz rows interpolate such motion well.
     t = np.arange(int(duration)) + 0.5
@@ -127,6 +145,8 @@ def synthetic_recording(
         body_to_dvl = dcm_from_euler(np.asarray(angles, dtype=np.float64)).T
         v_body = (1.0 + scale) * v_body @ body_to_dvl.T
     dvl = v_body + rng.normal(scale=dvl_sigma, size=v_body.shape)
+    if dvl_bias is not None:  # its own draws: the white ones stay those of the seed
+        dvl = dvl + _gauss_markov(t_dvl, *dvl_bias, np.random.default_rng(seed + 3))
 
     def stamps(clock: Clock, t: np.ndarray) -> np.ndarray:
         return (t - clock.offset) / clock.scale

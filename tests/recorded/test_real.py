@@ -20,8 +20,10 @@ from pronet.recorded.alignment import (
     align,
     estimate_alignment,
 )
+from pronet.recorded.dvlnoise import lag_one
 from pronet.recorded.dvltruth import truth_calibration
 from pronet.recorded.metrics import section_metrics
+from pronet.stats import whiteness
 from pronet.strategies import Learned
 
 from synthetic_recording import (
@@ -206,6 +208,27 @@ def test_snapir_r_from_the_data_makes_every_section_consistent():
         for config in (plan.config, plan.variants[real.BOTH]):
             run = real.run_section(aligned, first, config)
             assert 1.5 <= run.metrics.mean_nis <= 6.0, (aligned.name, run.metrics.mean_nis)
+
+
+@pytest.mark.skipif(not SNAPIR.is_dir(), reason="the Snapir data is not on this machine")
+def test_snapir_forward_axis_innovations_are_correlated_where_the_whitened_ones_are_not():
+    """Sections 1–11, the constant row with the datasheet R (docs/results/snapir-smoothed.md):
+    the DVL's forward-axis innovations are positively correlated from one reading to the
+    next beyond their 95 % band on 10 of the 11 sections (all but 11), while the
+    whitened vector's lag-one autocorrelation, the table's whiteness test, is below its
+    band's upper edge on every section (negative on ten): the lateral and vertical
+    axes' alternation hides it."""
+    positive = 0
+    for aligned, _ in alignment.load_snapir_sections(SNAPIR):
+        strategy = pronet.Strategy.constant(real.white_noise_q(aligned.imu))
+        config = real.real_filter_config(aligned.alignment.filter_lever_arm)
+        result = real.run_section(aligned, strategy, config).result
+        _, rho, band = lag_one(result)
+        used = result.accepted & np.isfinite(result.innovation).all(axis=1)
+        vector, half = whiteness(result.innovation, result.innovation_cov, used)
+        assert vector < half, (aligned.name, vector)
+        positive += bool(rho[0] > band)
+    assert positive == 10
 
 
 @pytest.mark.skipif(not SNAPIR.is_dir(), reason="the Snapir data is not on this machine")

@@ -12,13 +12,19 @@ Two estimators, per body axis [(m/s)²]:
   so the mean NIS is near 3. It measures what the *filter* needs: where P is too large
   or too small (Q, the bias walks), R absorbs the difference, so it can differ from
   the sensor's noise. Both are reported by ``pronet real``.
+
+Where the innovations of that fit are correlated from one reading to the next beyond
+their band (a slow DVL error the white R leaves unmodelled), :func:`match_correlated`
+fits R and the 1σ of a first-order Gauss–Markov DVL error together, at a given
+correlation time: the innovations identify the slow error's power in the filter's
+passband, not its correlation time (measured in ``tests/recorded/test_dvlnoise.py``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -39,6 +45,10 @@ DVL_VARIANCE_FLOOR = 1e-6 / 12
 MATCH_TOLERANCE = 0.01
 #: Default most passes of :func:`match_innovations`.
 MATCH_PASSES = 30
+#: Longest secant step of :func:`match_correlated`'s variance, in plain steps: the
+#: filter takes most of a slow error into its velocity, so the lag-one covariance the
+#: plain step reads moves by a few percent of each step (measured on Snapir: 4 %).
+LONGEST_STEP = 100.0
 
 
 def second_difference_variance(dvl: ArrayLike) -> Variance:
@@ -69,6 +79,10 @@ class MatchedVariance:
         converged: whether the last pass changed R by less than the tolerance.
         mean_nis: mean NIS of the last pass (made with the R before its update: within
             the tolerance of ``variance`` when converged).
+        correlated: the DVL's correlated error fitted with R (:func:`match_correlated`):
+            its stationary 1σ per body axis [m/s], or None where the innovations show
+            none (white R only).
+        time_constant: its correlation time [s] (None without it).
     """
 
     variance: Variance
@@ -76,6 +90,8 @@ class MatchedVariance:
     passes: int
     converged: bool
     mean_nis: float
+    correlated: Variance | None = None
+    time_constant: float | None = None
 
 
 def innovation_ratio(result: FilterResult) -> F64:
@@ -147,14 +163,104 @@ def match_innovations(
     )
 
 
-def _secant(x: F64, f: F64, previous: tuple[F64, F64]) -> F64:
+def lag_one(result: FilterResult) -> tuple[F64, F64, float]:
+    """Over the pairs of consecutive applied updates, per axis: the innovations'
+    lag-one autocovariance [(m/s)²], the lag-one autocorrelation of the innovations
+    each divided by its predicted 1σ ``√S_aa``, and the half-width of that
+    correlation's 95 % band for white innovations, ``1.96/√pairs``.
+
+    Raises ValueError with fewer than ten pairs."""
+    applied = result.accepted & np.isfinite(result.innovation).all(axis=1)
+    nu = result.innovation[applied]
+    if len(nu) < 11:
+        raise ValueError(f"needs at least ten pairs of applied updates, got {max(len(nu) - 1, 0)}")
+    e = nu / np.sqrt(np.diagonal(result.innovation_cov[applied], axis1=1, axis2=2))
+    a, b = e[:-1], e[1:]
+    rho = np.sum(a * b, axis=0) / np.sqrt(np.sum(a * a, axis=0) * np.sum(b * b, axis=0))
+    cov = np.mean(nu[:-1] * nu[1:], axis=0)
+    return np.asarray(cov, np.float64), np.asarray(rho, np.float64), 1.96 / math.sqrt(len(a))
+
+
+def match_correlated(
+    run_pass: Callable[[Variance, Variance | None], FilterResult],
+    white: MatchedVariance,
+    time_constant: float,
+    dvl_step: float,
+    *,
+    tolerance: float = MATCH_TOLERANCE,
+    max_passes: int = MATCH_PASSES,
+    floor: float = DVL_VARIANCE_FLOOR,
+) -> MatchedVariance:
+    """R and the DVL's correlated error fitted together, from the white fit ``white``
+    (:func:`match_innovations`).
+
+    Args:
+        run_pass: one filter pass with the given R [(m/s)²] and the correlated error's
+            1σ per body axis [m/s] (None: without its states).
+        white: R matched with ``run_pass(R, None)``.
+        time_constant: the correlated error's correlation time τ [s] (a vehicle file's
+            ``dvl_bias_time_constant``, else the filter's default).
+        dvl_step: the DVL's step [s] (lag one).
+        tolerance, max_passes, floor: as :func:`match_innovations`'s.
+
+    One pass with ``white``'s R reads the innovations' lag-one autocorrelation
+    (:func:`lag_one`). Where no axis's is above its 95 % band, the innovations show no
+    slow error and ``white`` is returned, that pass counted. Otherwise, on those axes,
+    the variance ``b`` of a first-order
+    Gauss–Markov error with τ is fitted beside R: ``b`` takes the lag-one
+    autocovariance ``c₁`` over ``φ = exp(−dvl_step/τ)`` (the error's own lag-one
+    covariance is ``b φ``), then secant steps towards ``c₁ = 0``, as R takes
+    :func:`match_innovations`'s towards its ratio 1, in the same passes, until both
+    change by less than ``tolerance`` (of ``R + b`` for ``b``). At the fixed point
+    the innovations are uncorrelated at lag one and have the variance the filter
+    predicts. ``b`` reaching 0 on every axis ends with no correlated part.
+    """
+    if not (math.isfinite(time_constant) and time_constant > 0):
+        raise ValueError(f"time_constant: must be > 0 s, got {time_constant}")
+    if not (math.isfinite(dvl_step) and dvl_step > 0):
+        raise ValueError(f"dvl_step: must be > 0 s, got {dvl_step}")
+    passes = count(max_passes, "max_passes", 1000)
+    c1, rho, band = lag_one(run_pass(white.variance, None))
+    phi = math.exp(-dvl_step / time_constant)
+    fitted = rho > band
+    if not fitted.any():
+        return replace(white, passes=white.passes + 1)
+    b = np.where(fitted, np.maximum(c1 / phi, 0.0), 0.0)
+    # the white R held the slow part's variance too
+    r = np.maximum(np.asarray(white.variance, dtype=np.float64) - b, floor)
+    made, converged, mean_nis, previous = 1, False, white.mean_nis, None
+    while made < passes and not converged and b.any():
+        result = run_pass(_variance(r), _variance(np.sqrt(b)))
+        made += 1
+        nis = result.nis[result.accepted]
+        mean_nis = float(np.mean(nis)) if nis.size else float("nan")
+        ratio = innovation_ratio(result)
+        f = np.where(fitted, lag_one(result)[0] / phi, 0.0)
+        step = _secant(b, f, previous, LONGEST_STEP) if previous is not None else f
+        previous = (b, f)
+        new_b = np.where(fitted, np.maximum(b + step, 0.0), 0.0)
+        new_r = np.maximum(r * ratio, floor)
+        converged = bool(
+            np.all(np.abs(ratio - 1) < tolerance)
+            and np.all(np.abs(new_b - b) <= tolerance * (new_r + new_b))
+        )
+        r, b = new_r, new_b
+    if not b.any():
+        return MatchedVariance(_variance(r), white.start, white.passes + made, converged, mean_nis)
+    sigma = _variance(np.sqrt(b))
+    return MatchedVariance(
+        _variance(r), white.start, white.passes + made, converged, mean_nis, sigma, time_constant
+    )
+
+
+def _secant(x: F64, f: F64, previous: tuple[F64, F64], longest: float = 10.0) -> F64:
     """Per axis, the secant step towards the root of f through ``previous`` and
     ``(x, f)``; the plain step ``f`` where the secant is undefined, points the other
-    way or is more than 10 times as long."""
+    way or is more than ``longest`` times as long."""
     x0, f0 = previous
     with np.errstate(divide="ignore", invalid="ignore"):
         secant = -f * (x - x0) / (f - f0)
-    good = np.isfinite(secant) & (secant * f > 0) & (np.abs(secant) <= 10 * np.abs(f))
+    good = np.isfinite(secant) & (secant * f > 0) & (np.abs(secant) <= longest * np.abs(f))
     return np.where(good, secant, f)
 
 

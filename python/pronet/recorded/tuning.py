@@ -63,6 +63,7 @@ def real_filter_config(
     imu_dt: float | None = None,
     base: _core.FilterConfig | None = None,
     covariance_step: float | None = None,
+    correlated: tuple[tuple[float, float, float], float] | None = None,
 ) -> _core.FilterConfig:
     """The filter tuning used on recorded sections, with the DVL ``lever_arm`` from the
     IMU [m, body FRD], the DVL noise ``dvl_variance`` per body axis [(m/s)²] (default:
@@ -78,7 +79,10 @@ def real_filter_config(
     ``dvl_variance`` is given, aiding, innovation gate, the DVL's correlated error,
     formulation and covariance step unless ``formulation`` or ``covariance_step`` is
     given, the second-order heading term but beside ``calibration``, whose states do not
-    take it) instead of the FOG defaults above."""
+    take it) instead of the FOG defaults above. ``correlated = (σ, τ)``: the DVL's
+    correlated error fitted from the data (:func:`pronet.recorded.dvlnoise.match_correlated`,
+    1σ per body axis [m/s], correlation time [s]) instead of ``base``'s; its states, as
+    the calibration's, do not take the second-order heading term."""
     given = {
         key: value
         for key, value in (
@@ -100,9 +104,23 @@ def real_filter_config(
         }
     )
     own.update(given, lever_arm=lever_arm, dvl_calibration=calibration)
-    if calibration:  # the calibration rows run without it (FilterConfig refuses both)
+    if correlated is not None:
+        own.update(dvl_bias_sigma=correlated[0], dvl_bias_time_constant=correlated[1])
+    if calibration or correlated is not None:  # FilterConfig refuses both with the term
         own["heading_second_order"] = False
     return _core.FilterConfig(**own)
+
+
+def correlation_time(base: _core.FilterConfig | None) -> float:
+    """The correlation time [s] at which ``pronet real`` fits the DVL's correlated error
+    from the data: ``base``'s (a vehicle file's ``dvl_bias_time_constant``), else the
+    filter's default (read from the core, which owns it)."""
+    own = None if base is None else base.dvl_bias_time_constant
+    if own is not None:
+        return own
+    default = _core.FilterConfig(dvl_bias_sigma=(1.0, 1.0, 1.0)).dvl_bias_time_constant
+    assert default is not None  # set whenever the states are
+    return default
 
 
 def imu_step(imu_time: F64) -> float:
