@@ -603,3 +603,39 @@ def test_names_name_the_streams_in_the_checks_warnings_and_health() -> None:
         run([streams[0], pascals], names=["dvl", "depth.csv"])
     with pytest.raises(ValueError, match=r"^names: expected 2 non-empty strings, one per"):
         run([streams[0], late], names=["dvl"])
+
+
+def test_a_slow_error_on_one_axis_is_named_where_the_whitened_vector_hides_it() -> None:
+    """Innovations whose x component is an AR(1) with φ = 0.5 (a slow error there) and
+    whose y component alternates (φ = −0.7) with ten times its spread, S the identity:
+    the whitened vector's lag-one autocorrelation is negative and flagged as such, and
+    the clause also names x, with its autocorrelation; where the vector itself reads
+    correlated, or no axis is beyond the flag, no axis is named; a scalar stream's
+    vector is its axis."""
+    from pronet._util.whiteness import axis_whiteness, whiteness_clause
+    from pronet.stats import whiteness
+
+    rng = np.random.default_rng(11)
+    n = 2000
+    nu = rng.normal(size=(n, 3))
+    for k in range(1, n):
+        nu[k, 0] = 0.5 * nu[k - 1, 0] + np.sqrt(0.75) * nu[k, 0]
+        nu[k, 1] = -0.7 * nu[k - 1, 1] + np.sqrt(0.51) * nu[k, 1]
+    nu[:, 1] *= 10.0
+    cov = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    used = np.ones(n, dtype=bool)
+    rho, half = whiteness(nu, cov, used)
+    axes, band = axis_whiteness(nu, cov, used)
+    assert band == pytest.approx(1.96 / np.sqrt(n - 1))
+    assert rho < -0.5 and abs(axes[0] - 0.5) < 0.05 and abs(axes[1] + 0.7) < 0.05
+    said = whiteness_clause(rho, half, axes, band)
+    assert said.startswith("its whitened innovations are anti-correlated")
+    assert f"its innovations along x ({axes[0]:+.2f}) (each" in said and "y (" not in said
+    assert "hides" in said and "x is forward" in said
+    assert "along x" not in whiteness_clause(0.3, half, axes, band)  # the vector says it
+    assert whiteness_clause(0.0, half, np.zeros(3), band) == ""
+    # beyond the vector's band but inside the axis's own (√3 wider): not named
+    assert whiteness_clause(0.0, half, np.array([2.5 * half, 0, 0]), band) == ""
+    assert whiteness_clause(0.0, half, np.array([0.5]), band) == ""  # one axis: the vector
+    few = axis_whiteness(nu[:2], cov[:2], used[:2])
+    assert np.isnan(few[1]) and np.isnan(few[0]).all()

@@ -35,6 +35,8 @@ from scipy import special
 
 from pronet import _core
 from pronet._util.validate import count, real_array
+from pronet._util.whiteness import WHITENESS_FLAG as WHITENESS_FLAG
+from pronet._util.whiteness import axis_whiteness, whiteness_clause
 from pronet._util.whiteness import whiteness as whiteness
 
 #: Resamples of a percentile-bootstrap interval.
@@ -318,27 +320,18 @@ def stream_report(
     seen = inside & np.isfinite(nis)
     total = int(round(_dof(rows, lla)[seen].sum()))
     mean, mean_dof, band = _mean_nis(rows.kind, float(nis[seen].sum()), total, int(seen.sum()))
-    rho, half = math.nan, math.nan
+    rho, half, said = math.nan, math.nan, ""
     innovation = getattr(rows, "innovation", None)
     cov = getattr(rows, "innovation_cov", None)
     if innovation is not None and cov is not None:
-        rho, half = whiteness(np.asarray(innovation), np.asarray(cov), applied)
+        innovation, cov = np.asarray(innovation), np.asarray(cov)
+        rho, half = whiteness(innovation, cov, applied)
+        said = whiteness_clause(rho, half, *axis_whiteness(innovation, cov, applied))
     empty = len(nis) == 0 and not any(skipped.values())  # no DVL, or --no-dvl: nothing to say
     flag = "" if empty else _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
     if flag and mean > band[1]:
         flag += _outlier(np.where(seen, nis, 0.0), np.asarray(time), band, rows)
-    if abs(rho) > WHITENESS_FLAG / 1.96 * half:  # beyond 4σ of white innovations
-        said = f"(lag-one autocorrelation {rho:.3g}, white within ±{half:.2g}): " + (
-            "a slowly varying error (a DVL's bottom-track bias, sound speed, alignment, or "
-            "an IMU error the filter does not model) that a white R takes as averaging "
-            "out, so that the σ are too small"
-            if rho > 0
-            else "each update over-corrects (the filter trusts the readings more than "
-            "their errors warrant: R too small against Q) or the readings' errors "
-            "alternate (stamps jittering against the IMU's)"
-        )
-        sign = "correlated" if rho > 0 else "anti-correlated"
-        said = f"its whitened innovations are {sign} from one reading to the next {said}"
+    if said:  # beyond 4σ of white innovations, the vector's or an axis's
         flag = f"{flag}; {said}" if flag else f"{name}: {said}"
     return StreamReport(
         name=name,
@@ -399,11 +392,6 @@ def tally_flag(name: str, kind: str, nis_sum: float, dof: int, accepted: int, re
     rejections; "" where it has nothing to say."""
     mean, mean_dof, band = _mean_nis(kind, nis_sum, dof, accepted + rejected)
     return _flag(name, kind, mean, mean_dof, band, rejected, accepted)
-
-
-#: A stream is flagged when its whiteness statistic is beyond this many σ of white
-#: innovations (4: one pass in 16,000 by chance), reported against its 95 % band.
-WHITENESS_FLAG = 4.0
 
 
 def _flag(

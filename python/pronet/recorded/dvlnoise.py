@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet._util.validate import count, float_array, scalar
+from pronet._util.whiteness import axis_whiteness
 from pronet.filter import FilterResult
 
 F64 = NDArray[np.float64]
@@ -165,20 +166,17 @@ def match_innovations(
 
 def lag_one(result: FilterResult) -> tuple[F64, F64, float]:
     """Over the pairs of consecutive applied updates, per axis: the innovations'
-    lag-one autocovariance [(m/s)²], the lag-one autocorrelation of the innovations
-    each divided by its predicted 1σ ``√S_aa``, and the half-width of that
-    correlation's 95 % band for white innovations, ``1.96/√pairs``.
+    lag-one autocovariance [(m/s)²], then the whiteness test per axis
+    (:func:`pronet._util.whiteness.axis_whiteness`: the lag-one autocorrelation of the
+    innovations each over its predicted 1σ, and its 95 % band's half-width).
 
     Raises ValueError with fewer than ten pairs."""
     applied = result.accepted & np.isfinite(result.innovation).all(axis=1)
     nu = result.innovation[applied]
     if len(nu) < 11:
         raise ValueError(f"needs at least ten pairs of applied updates, got {max(len(nu) - 1, 0)}")
-    e = nu / np.sqrt(np.diagonal(result.innovation_cov[applied], axis1=1, axis2=2))
-    a, b = e[:-1], e[1:]
-    rho = np.sum(a * b, axis=0) / np.sqrt(np.sum(a * a, axis=0) * np.sum(b * b, axis=0))
-    cov = np.mean(nu[:-1] * nu[1:], axis=0)
-    return np.asarray(cov, np.float64), np.asarray(rho, np.float64), 1.96 / math.sqrt(len(a))
+    rho, band = axis_whiteness(result.innovation, result.innovation_cov, applied)
+    return np.asarray(np.mean(nu[:-1] * nu[1:], axis=0), np.float64), rho, band
 
 
 def match_correlated(
@@ -201,7 +199,9 @@ def match_correlated(
         time_constant: the correlated error's correlation time τ [s] (a vehicle file's
             ``dvl_bias_time_constant``, else the filter's default).
         dvl_step: the DVL's step [s] (lag one).
-        tolerance, max_passes, floor: as :func:`match_innovations`'s.
+        tolerance: as :func:`match_innovations`'s (and of ``R + b`` for ``b``).
+        max_passes: most passes, the lag-one pass included (≥ 1).
+        floor: smallest R per axis [(m/s)²].
 
     One pass with ``white``'s R reads the innovations' lag-one autocorrelation
     (:func:`lag_one`). Where no axis's is above its 95 % band, the innovations show no
