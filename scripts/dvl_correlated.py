@@ -6,6 +6,8 @@ For each section, the constant (estimated q) row:
 1. with the datasheet R and with the innovation-matched R (``pronet real``'s "R from
    data"), the lag-one autocorrelation of each body axis's innovations, each divided
    by its predicted 1σ (:func:`pronet.recorded.dvlnoise.lag_one`), with its 95 % band;
+   beside it, without any filter, the DVL − truth residual along the body x axis split
+   into its slow and fast parts (:func:`pronet.recorded.trutherror.residual_parts`);
 2. R and the correlated error's 1σ fitted together at a correlation time τ
    (:func:`pronet.recorded.dvlnoise.match_correlated`), and the row run with them:
    velocity SRMSE, final horizontal error, mean NIS and the share of truth rows within
@@ -33,8 +35,10 @@ from pronet.recorded.dvlnoise import (
     match_innovations,
     second_difference_variance,
 )
+from pronet.recorded.dvltruth import truth_body_velocity
 from pronet.recorded.passes import section_recorded, smoothed_run
 from pronet.recorded.reading import stated_truth_error
+from pronet.recorded.trutherror import residual_parts
 from pronet.recorded.tuning import correlation_time, imu_step, real_filter_config
 from pronet.results import markdown
 from pronet.run import run
@@ -89,7 +93,16 @@ def section_rows(
     _, rho_sheet, band = lag_one(datasheet)
     _, rho_white, _ = lag_one(one_pass(white.variance))
     fit: MatchedVariance = match_correlated(one_pass, white, tau, step)
-    lags = [section.name, axes(rho_sheet), axes(rho_white), f"±{band:.2f}"]
+    rows, v_b = truth_body_velocity(section)  # the DVL against the truth, no filter
+    residual = section.dvl[rows] - v_b
+    own = residual_parts(residual[np.isfinite(residual).all(axis=1)])
+    lags = [
+        section.name,
+        axes(rho_sheet),
+        axes(rho_white),
+        f"±{band:.2f}",
+        f"{own.slow[0]:.4f} / {own.white[0]:.4f}",
+    ]
     alone = scores(section, strategy, config(white.variance))
     both = scores(section, strategy, config(fit.variance, fit.correlated))
     state = f"{fit.passes}" + ("" if fit.converged else ", not converged")
@@ -122,7 +135,13 @@ def main() -> None:
         means.append((alone, both))
     print(
         markdown(
-            ["section", "datasheet R", "R from data", "95 % band"],
+            [
+                "section",
+                "datasheet R",
+                "R from data",
+                "95 % band",
+                "DVL − truth along x, slow / fast [m/s]",
+            ],
             lags,
             "DVL innovations' lag-one autocorrelation per body axis x / y / z "
             "(constant (estimated q) row)",
