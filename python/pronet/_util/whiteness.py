@@ -97,8 +97,9 @@ def whiteness_clause(rho: float, half: float, axes: F64, axes_half: float) -> st
                 f"its innovations along {' and '.join(slow)} (each over its σ, white within "
                 f"±{axes_half:.2g}) are correlated from one reading to the next, which the "
                 f"whitened vector ({rho:+.2f}) hides: a slowly varying error along {where} "
-                "that the filter does not model (for a DVL in the body frame, x is forward: "
-                "its scale or bottom-track bias, or the INS's drift along it), so that the σ "
-                "there are too small"
+                "that the filter does not model (for a DVL in the body frame, x is forward): "
+                "the sensor's scale or bias, the INS's drift there, or an R too large there "
+                "against Q, so that the filter follows the INS and its slow error shows; "
+                "the σ there are too small"
             )
     return "; ".join(said)
