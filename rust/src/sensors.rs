@@ -21,6 +21,42 @@ use nalgebra::Vector3;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
+/// The largest simulated IMU error per channel, accelerometers \[m/s²\] then gyros
+/// \[rad/s\]: a noise 1σ per sample, a bias, or the 1σ a bias walk reaches in a second.
+/// 1000 m/s² (100 g) and 100 rad/s (5,700°/s) are beyond any IMU's full scale (±16 g and
+/// ±2000°/s for a MEMS part), so a value past them is a unit slip (a variance typed
+/// where its σ², or a PSD per hour where per second, was meant), not a sensor.
+pub const MAX_IMU_ERROR: [f64; 2] = [1e3, 1e2];
+
+/// `values` (6: accelerometers, then gyros) within [`MAX_IMU_ERROR`], squared where
+/// `squared` (variances and PSDs), as the error naming `arg` and the element.
+fn within_imu_range(arg: &str, values: &[f64], squared: bool) -> Result<()> {
+    for (i, v) in values.iter().enumerate() {
+        let (limit, unit) = if i < 3 {
+            (MAX_IMU_ERROR[0], "m/s²")
+        } else {
+            (MAX_IMU_ERROR[1], "rad/s")
+        };
+        let bound = if squared { limit * limit } else { limit };
+        if v.abs() > bound {
+            let shown = if v.abs() >= 1e6 {
+                format!("{v:e}")
+            } else {
+                format!("{v}")
+            };
+            let what = if squared { "a σ" } else { "an error" };
+            return Err(Error::invalid(
+                arg,
+                format!(
+                    "element {i} is {shown}, {what} beyond {limit} {unit}, past any IMU's \
+                     full scale (a unit slip?)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 pub mod aiding;
 mod dvl;
 mod rng;
@@ -151,9 +187,12 @@ impl SensorConfig {
         // `VarianceSchedule::constant` builds without checks; `new` checks the same way.
         for v in &self.imu.variance.values {
             check::non_negative("imu_variance", v)?;
+            within_imu_range("imu_variance", v, true)?;
         }
         check::finite("imu_bias", &self.imu.bias)?;
+        within_imu_range("imu_bias", &self.imu.bias, false)?;
         check::non_negative("imu_bias_psd", &self.imu.bias_rw_psd)?;
+        within_imu_range("imu_bias_psd", &self.imu.bias_rw_psd, true)?;
         check::non_negative("dvl_variance", &self.dvl.variance)?;
         if !(self.dvl.period.is_finite() && self.dvl.period >= 0.0) {
             return Err(Error::invalid(
@@ -454,5 +493,32 @@ mod tests {
             "{err}"
         );
         assert!(err.ends_with("element 0 is 1000000000 m"), "{err}");
+    }
+
+    #[test]
+    fn an_imu_error_past_any_full_scale_is_refused_by_name() {
+        let mut cfg = SensorConfig::paper();
+        // At the bounds: accepted (a 100 g noise is absurd, but not a unit slip).
+        cfg.imu.bias = [1e3, -1e3, 0.0, 1e2, 0.0, -1e2];
+        cfg.imu.bias_rw_psd = [1e6, 0.0, 0.0, 1e4, 0.0, 0.0];
+        assert!(cfg.validate().is_ok());
+        cfg.imu.bias[4] = 101.0;
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(
+            err.starts_with("imu_bias: element 4 is 101, an error beyond 100 rad/s"),
+            "{err}"
+        );
+        cfg.imu.bias[4] = 0.0;
+        cfg.imu.bias_rw_psd[1] = 1.1e6;
+        let err = cfg.validate().unwrap_err().to_string();
+        let said = "imu_bias_psd: element 1 is 1.1e6, a σ beyond 1000 m/s², past any IMU's";
+        assert!(err.starts_with(said), "{err}");
+        cfg.imu.bias_rw_psd[1] = 0.0;
+        cfg.imu.variance = VarianceSchedule::constant([1e30; 6]);
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(
+            err.starts_with("imu_variance: element 0 is 1e30, a σ"),
+            "{err}"
+        );
     }
 }
