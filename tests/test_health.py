@@ -394,6 +394,33 @@ def test_simulate_names_a_row_whose_runs_leave_their_band(tmp_path) -> None:
     assert f"- {note}" in (folder / "table.md").read_text()
 
 
+def test_a_failed_runs_partial_nis_is_no_runs_verdict(tmp_path, monkeypatch) -> None:
+    """The runs-out-of-band count reads the runs that finished: five of ten runs made
+    to fail, their NIS so far far above the band, are counted as failed, not as runs
+    outside it (the probe's find: they flagged a consistent row)."""
+    from dataclasses import replace
+
+    from pronet.experiments import simulation
+
+    real = simulation.run_strategies
+
+    def two_fail(*args, **kwargs):
+        rows = real(*args, **kwargs)
+        res = rows[0].result
+        nis = res.nis.copy()
+        nis[:5] = 1e3
+        failure = ["t = 1 s: numerical failure"] * 5 + list(res.failure[5:])
+        return [replace(rows[0], result=replace(res, nis=nis, failure=failure)), *rows[1:]]
+
+    monkeypatch.setattr(simulation, "run_strategies", two_fail)
+    folder = simulation.simulate("matched", ["constant"], tmp_path / "out", n_runs=10,
+                                 plots=False, say=lambda _: None)  # fmt: skip
+    config = json.loads((folder / "config.json").read_text())
+    health = config["health"]["constant"]
+    assert health["failed_runs"] == 5 and health["runs"] == 5
+    assert health["runs_nis_outside_band"] <= health["chance_allows"] and not config["notes"]
+
+
 def test_white_innovations_pass_the_whiteness_test_at_its_nominal_rate() -> None:
     """The lag-one autocorrelation of the whitened DVL innovations
     (:func:`pronet.stats.whiteness`) of a filter told its DVL's white noise lies outside

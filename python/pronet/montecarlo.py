@@ -139,6 +139,11 @@ class MonteCarloResult:
         return sum(f is not None for f in self.failure)
 
     @property
+    def finished(self) -> NDArray[np.bool_]:
+        """``(n_runs,)`` whether each run ran to its end (no numerical failure)."""
+        return np.array([f is None for f in self.failure], dtype=bool)
+
+    @property
     def n_diverged(self) -> int:
         """Runs whose NIS showed divergence (see ``diverged_at``)."""
         return int(np.isfinite(self.diverged_at).sum())
@@ -162,8 +167,8 @@ class MonteCarloResult:
     def _unless_failed(self, per_run: NDArray[np.float64]) -> NDArray[np.float64]:
         """``per_run`` with NaN for the failed runs: the core keeps the epochs a run
         had before its failure, which are no run's metric (they counted as one)."""
-        failed = np.array([f is not None for f in self.failure], dtype=bool)
-        return np.where(failed, np.nan, per_run) if failed.any() else per_run
+        finished = self.finished
+        return per_run if finished.all() else np.where(finished, per_run, np.nan)
 
     @property
     def position_nees(self) -> NDArray[np.float64]:

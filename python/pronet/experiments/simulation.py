@@ -164,8 +164,9 @@ def simulate(
     except ValueError:
         release_folder(out)
         raise
-    # What the runs say about themselves: rows whose DVL NIS leave their band too often.
-    outside = {row.label: runs_outside_band(row.result.nis) for row in rows}
+    # What the runs say about themselves: rows whose DVL NIS leave their band too often,
+    # over the runs that finished (a failed run's NIS stops where it failed).
+    outside = {row.label: runs_outside_band(row.result.nis[row.result.finished]) for row in rows}
     notes = [line for label, o in outside.items() if (line := runs_flag(label, o))]
     for line in notes:
         if (tell := note or say) is not None:
@@ -186,9 +187,10 @@ def simulate(
             label: {
                 "runs_nis_outside_band": int(o.sum()),
                 "runs": len(o),
+                "failed_runs": row.result.n_failed,
                 "chance_allows": chance_bound(len(o)),
             }
-            for label, o in outside.items()
+            for row, (label, o) in zip(rows, outside.items(), strict=True)
         },
         "notes": notes,
     }
