@@ -130,7 +130,6 @@ HALF_WAY = [
     (10, 1, 2.5, [3, 6, 9]),
     (10, 4, 1.5, [4, 6, 8]),
     (10, 1, 0.5, [1, 2, 3, 4, 5, 6, 7, 8, 9]),
-    (5, 1, 0.49999999999999994, [1, 2, 3, 4]),  # rounds to 0: every sample
     (12, 5, 3.5, [8]),
     (5, 5, 1.0, []),  # the window fills at the last sample: nothing left to tune
     (5, 1, 1e300, []),
@@ -152,6 +151,17 @@ def test_tuning_instants_round_half_away_from_zero(n, window, ratio, want) -> No
         tuning_period=ratio,
     )
     np.testing.assert_array_equal(s.time, times[np.array(want, dtype=np.int64) - 1])
+
+
+def test_a_tuning_period_of_no_whole_step_is_refused() -> None:
+    """Just under half a step rounds to none: refused, by the core and so by the loop's
+    schedule, where it once ran the regressor at every sample."""
+    with pytest.raises(ValueError, match="tuning_period: must be at least one IMU period"):
+        _core.tuning_instants(5, 1.0, 1, 0.49999999999999994)
+    with pytest.raises(ValueError, match="tuning_period: must be at least one IMU period"):
+        hybrid.q_schedule(hybrid.ConstantRegressor(PAPER_Q), np.zeros((5, 6)),
+                          np.arange(1.0, 6.0), prior_q=PAPER_Q, window=1,
+                          tuning_period=1e-9)  # fmt: skip
 
 
 def test_q_schedule_takes_its_instants_from_the_core(monkeypatch) -> None:

@@ -29,14 +29,25 @@ pub struct TuningSchedule {
 }
 
 impl TuningSchedule {
-    /// The schedule, or an error naming `dt`, `tuning_period` (finite and > 0 s) or
-    /// `window` (at least 1 sample).
+    /// The schedule, or an error naming `dt`, `tuning_period` (finite and > 0 s, and at
+    /// least one IMU period once rounded to whole steps) or `window` (at least 1 sample).
     pub fn new(n_samples: usize, dt: f64, window: usize, tuning_period: f64) -> Result<Self> {
         check::positive("dt", dt)?;
         if !(tuning_period.is_finite() && tuning_period > 0.0) {
             return Err(Error::invalid(
                 "tuning_period",
                 format!("must be finite and > 0 s, got {tuning_period}"),
+            ));
+        }
+        if (tuning_period / dt).round() < 1.0 {
+            // It would round to no step: a regressor call at every sample, 100 times the
+            // default 1 s period's cost at 100 Hz, where a unit slip is the likely cause.
+            return Err(Error::invalid(
+                "tuning_period",
+                format!(
+                    "must be at least one IMU period once rounded to whole steps of \
+                     {dt} s, got {tuning_period} s"
+                ),
             ));
         }
         if window == 0 {
@@ -413,7 +424,15 @@ mod tests {
         };
         assert_eq!(at(10, 1.0, 1, 2.5), Ok(vec![3, 6, 9]));
         assert_eq!(at(10, 1.0, 4, 1.5), Ok(vec![4, 6, 8]));
-        assert_eq!(at(5, 1.0, 1, 0.49999999999999994), Ok(vec![1, 2, 3, 4]));
+        assert_eq!(at(5, 1.0, 1, 0.5), Ok(vec![1, 2, 3, 4]));
+        assert_eq!(
+            at(5, 1.0, 1, 0.49999999999999994),
+            Err(
+                "tuning_period: must be at least one IMU period once rounded to whole steps \
+                 of 1 s, got 0.49999999999999994 s"
+                    .into()
+            )
+        );
         assert_eq!(at(5, 1.0, 5, 1.0), Ok(vec![]));
         assert_eq!(at(5, 1.0, usize::MAX, 2.0), Ok(vec![]));
         assert_eq!(at(5, 1e-300, 1, 1e300), Ok(vec![]));

@@ -101,9 +101,18 @@ def test_reproduce_writes_a_complete_result_folder(reproduced) -> None:
     assert cli.main(["reproduce", "--runs", "2", "--out", str(out)]) == 2
 
 
-def test_reproduce_rejects_bad_run_count(capsys) -> None:
+def test_reproduce_rejects_bad_run_count(capsys, tmp_path) -> None:
     assert cli.main(["reproduce", "--runs", "0"]) == 2
     assert cli.main(["reproduce", "--tuning-period", "0"]) == 2
+    # Under half an IMU period: no whole step, a regressor call at every sample (the
+    # probe's 1e-9 ran 100 times the default's calls); refused before any run, by name.
+    capsys.readouterr()
+    out = tmp_path / "res"
+    assert cli.main(["reproduce", "--tuning-period", "1e-9", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("pronet: --tuning-period: must be at least one IMU period"), err
+    # nothing written (the folder's lock goes with the process, as after any refusal)
+    assert [p.name for p in tmp_path.iterdir()] in ([], [".res.lock"])
     with pytest.raises(SystemExit):
         cli.main(["reproduce", "--runs", "many"])
 

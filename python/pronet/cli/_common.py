@@ -99,6 +99,7 @@ OPTIONS = {
     "dvl_lever_arm": "--dvl-lever-arm",
     "surface_offset": "--surface-offset",
     "still": "--still",
+    "tuning_period": "--tuning-period",
 }
 
 

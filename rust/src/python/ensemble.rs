@@ -191,7 +191,7 @@ impl PyEnsemble {
 /// samples (at least one; halves round away from zero), from the first such multiple at
 /// which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
 /// there; :func:`pronet.learn.hybrid.q_schedule` evaluates its regressor there.
-/// ``dt`` and ``tuning_period`` finite and > 0, ``window`` >= 1.
+/// ``dt``, ``tuning_period`` finite, > 0 (a period of no step refused), ``window`` >= 1.
 #[pyfunction]
 fn tuning_instants<'py>(
     py: Python<'py>,
