@@ -27,11 +27,13 @@ name = "short"
 [trajectory]
 segments = [[20, 0, 0, 0]]
 """
-#: The same with an IMU whose noise overflows the filter in every run.
-OVERFLOWING = f"""{SHORT}
-[sensors]
-imu_variance = [1e30, 1e30, 1e30, 1e30, 1e30, 1e30]
-"""
+#: A scenario whose filter's covariance overflows in every run, 2 s in: a gyro bias
+#: 1σ of 1e150 rad/s (an IMU noise that did so, 1e30, is now refused as past any IMU's
+#: full scale, which a sweep's noise level of 1e30 meets too).
+OVERFLOWING = SHORT.replace('"short"', '"overflowing"') + (
+    "[filter]\np0_sigma = [1.0, 1.0, 1.0, 0.1, 0.1, 0.1, 1e-3, 1e-3, 5e-3, 1e-3, 1e-3, 1e-3, "
+    "1e150, 1e150, 1e150]\n"
+)
 
 
 def left_beside(out: Path) -> list[str]:
@@ -51,7 +53,9 @@ def test_a_simulation_whose_every_run_fails_exits_non_zero_and_writes_nothing(
     code = cli.main([*args, "--runs", "2", "--no-plots", "--quiet", "--out", str(out)])
     line = one_line(capsys)
     assert code == 2
-    assert line.startswith("pronet: every run failed; the first, short: constant, run 0: t = ")
+    assert line.startswith(
+        "pronet: every run failed; the first, overflowing: constant, run 0: t = "
+    )
     assert "numerical failure" in line
     assert left_beside(out) == ["overflowing.toml"]
 
@@ -62,12 +66,13 @@ def grid_folder(tmp_path: Path) -> Path:
     return tmp_path
 
 
-def sweep(folder: Path, levels: str, capsys) -> tuple[int, Path]:
-    """``pronet sweep`` of ``constant`` at the noise ``levels`` (a TOML list), 2 runs."""
+def sweep(folder: Path, scenarios: str, capsys, levels: str = "[1]") -> tuple[int, Path]:
+    """``pronet sweep`` of ``constant`` over ``scenarios`` at the noise ``levels`` (TOML
+    lists), 2 runs."""
+    (folder / "overflowing.toml").write_text(OVERFLOWING)
     grid = folder / "grid.toml"
     grid.write_text(
-        f'scenarios = ["short.toml"]\nstrategies = ["constant"]\nnoise_levels = {levels}\n'
-        "runs = 2\n"
+        f'scenarios = {scenarios}\nstrategies = ["constant"]\nnoise_levels = {levels}\nruns = 2\n'
     )
     out = folder / "out"
     code = cli.main(["sweep", str(grid), "--quiet", "--json", "--out", str(out)])
@@ -79,15 +84,22 @@ def test_a_sweep_whose_every_run_fails_exits_non_zero_and_leaves_nothing(
 ) -> None:
     """The known defect: a sweep all of whose runs failed exited 0 with a table of
     "undefined". Now exit 2, one line, no folder and no ``.partial`` to resume."""
-    code, out = sweep(grid_folder, "[1e30]", capsys)
+    code, out = sweep(grid_folder, '["overflowing.toml"]', capsys)
     line = one_line(capsys)
     assert code == 2
-    assert line.startswith("pronet: every run failed; the first, short: constant, noise x1e+30")
-    assert left_beside(out) == ["grid.toml", "short.toml"]
+    assert line.startswith("pronet: every run failed; the first, overflowing: constant, noise x1")
+    assert left_beside(out) == ["grid.toml", "overflowing.toml", "short.toml"]
+    # A noise level that takes the IMU past any full scale: refused before any run.
+    code, out = sweep(grid_folder, '["short.toml"]', capsys, levels="[1, 1e30]")
+    line = one_line(capsys)
+    assert code == 2 and line.startswith(
+        "pronet: grid: short, noise x1e+30: imu_variance: element 0 is 1e26, a σ beyond"
+    )
+    assert left_beside(out) == ["grid.toml", "overflowing.toml", "short.toml"]  # no .partial
 
 
 def test_a_failed_grid_point_does_not_take_the_others_with_it(grid_folder, capsys) -> None:
-    code, out = sweep(grid_folder, "[1, 1e30]", capsys)
+    code, out = sweep(grid_folder, '["short.toml", "overflowing.toml"]', capsys)
     assert code == 0
     summary = pd.read_csv(out / "summary.csv")
     assert summary["failed_runs"].tolist() == [0, 2]

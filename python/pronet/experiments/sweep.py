@@ -148,11 +148,24 @@ def check_acts(grid: SweepGrid) -> None:
                     raise ValueError(f"grid: {source.name}: {spec.text}{tp}: {exc}") from None
 
 
+def check_levels(grid: SweepGrid) -> None:
+    """``ValueError`` naming the scenario and noise level whose scaled IMU noise the
+    core refuses (:func:`noisier`: past any IMU's full scale), before any shard runs."""
+    for source in grid.scenarios:
+        sc = _scenario(source, grid.seed)
+        for level in grid.noise_levels:
+            try:
+                noisier(sc.sensors, level)
+            except ValueError as exc:
+                raise ValueError(f"grid: {source.name}, noise x{level!r}: {exc}") from None
+
+
 def plan(grid: SweepGrid) -> list[Shard]:
     """Every shard of ``grid``, grid point by grid point (scenario, noise level,
     strategy, tuning period), each point's shards in run order (after
-    :func:`check_size` and :func:`check_acts`)."""
+    :func:`check_size`, :func:`check_levels` and :func:`check_acts`)."""
     check_size(grid)
+    check_levels(grid)
     check_acts(grid)
     shards = []
     for source in grid.scenarios:
