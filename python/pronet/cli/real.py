@@ -220,7 +220,8 @@ def run(args: argparse.Namespace) -> int:
     left_out += f" ({len(rows)} rows failed)" if rows else ""
     left_out += f" ({len(figures)} figures not written)" if figures else ""
     show.result(
-        f"{(out / 'table.md').read_text()}\n{n} sections{left_out}; results written to {out} "
+        f"{(out / 'table.md').read_text()}\n{n} section{'' if n == 1 else 's'}{left_out}; "
+        f"results written to {out} "
         f"in {time.perf_counter() - start:.0f} s",
         {"folder": str(out), "metrics": json.loads((out / "metrics.json").read_text())},
     )

@@ -74,7 +74,7 @@ def summary_table(runs: list[SectionRun], title: str) -> str:
         ]  # a row left out or failed on some section: over those it ran on
         lines.append([label + (f" ({len(mine)} of {n})" if len(mine) < n else ""), *cells])
     header = ["strategy", *(head for _, head, _ in METRIC_COLUMNS)]
-    return markdown(header, lines, f"{title}: mean over {n} sections")
+    return markdown(header, lines, f"{title}: mean over {n} section{'' if n == 1 else 's'}")
 
 
 def per_section_table(runs: list[SectionRun], key: str, title: str) -> str:
