@@ -92,7 +92,7 @@ from typing import Any
 import numpy as np
 
 from pronet import _core
-from pronet._util.plausibility import HEIGHT_RANGE, warn_of_heading_sigma, warn_of_imu_dt
+from pronet._util.plausibility import HEIGHT_RANGE, warn_of_imu_dt, warn_of_sensors
 from pronet._util.validate import real_array
 from pronet.sim.paper import PAPER_Q
 from pronet.sim.scenarios import SCENARIOS, Scenario, time_average_q
@@ -372,7 +372,7 @@ def scenario(data: Mapping[str, Any], where: str, default_name: str, seed: int =
     sensors = base.sensors
     if "sensors" in data:
         sensors = sensor_config(data["sensors"], f"{where}: [sensors]", base.sensors)
-        warn_of_heading_sigma(sensors.heading_sigma, f"{where}: [sensors]")
+        warn_of_sensors(sensors, traj, f"{where}: [sensors]")
     config = base.config
     filter_table = data.get("filter", {})
     if "filter" in data:

@@ -308,6 +308,31 @@ def warn_of_heading_sigma(sigma: float | None, where: str) -> None:
         )
 
 
+def warn_of_sensors(sensors: _core.SensorConfig, traj: _core.Trajectory, where: str) -> None:
+    """Warn (:class:`PlausibilityWarning`) of a scenario's sensors that make no sensor
+    the user meant: a heading 1σ in degrees (:func:`warn_of_heading_sigma`), and DVL
+    outages that hold every DVL epoch of ``traj`` (every ``round(dvl_period / dt)``
+    IMU steps from the first such, as the core reads them), so that the DVL never
+    reports: every row inertial-only, its NIS and NEES undefined, where
+    ``dvl_period = 0`` says "no DVL". ``where`` (the file and table) names the keys.
+    Used as given."""
+    warn_of_heading_sigma(sensors.heading_sigma, where)
+    outages = np.asarray(sensors.dvl_outages, dtype=np.float64).reshape(-1, 2)
+    if sensors.dvl_period <= 0 or not len(outages):
+        return
+    every = max(1, round(sensors.dvl_period / traj.dt))
+    t = traj.time[every::every]
+    out = ((t[:, None] >= outages[:, 0]) & (t[:, None] < outages[:, 1])).any(axis=1)
+    if out.all():
+        warnings.warn(
+            f"{where} dvl_outages: hold every DVL epoch of the {traj.duration:g} s run, so "
+            "the DVL never reports (no update: the rows are inertial-only, their NIS and "
+            "NEES undefined); dvl_period = 0 says no DVL; used as given",
+            PlausibilityWarning,
+            stacklevel=3,
+        )
+
+
 def unfilled_window(kind: str, window: int | None, accepted: int) -> str | None:
     """A Mehra or adaptive strategy (``kind``) whose ``window`` of accepted velocity
     updates the pass never filled (``accepted`` of them): it ran on its prior q
