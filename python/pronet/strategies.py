@@ -11,6 +11,7 @@ adaptive, oracle) run entirely in the Rust core as a :class:`pronet._core.Strate
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -126,6 +127,17 @@ class StrategySpec:
         """Whether the tuning period changes this strategy (the hybrid loop's: learned
         and detvar)."""
         return self.kind in ("learned", "detvar")
+
+
+def check_distinct(specs: Sequence[StrategySpec], where: str = "strategies") -> None:
+    """``ValueError`` naming ``where`` when two of ``specs`` run the same strategy under
+    different texts (``constant`` and ``constant:1``, ``detvar`` and ``learned:detvar``):
+    two rows, one strategy."""
+    seen: dict[tuple[str, float, str], str] = {}
+    for spec in specs:
+        same = seen.setdefault((spec.kind, spec.factor, spec.model), spec.text)
+        if same != spec.text:
+            raise ValueError(f"{where}: {same!r} and {spec.text!r} are the same strategy")
 
 
 def _spec_number(text: str, spec: str) -> float:

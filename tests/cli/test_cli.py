@@ -259,6 +259,8 @@ def test_simulate_help_lists_every_built_in_scenario(capsys) -> None:
         (["--strategies", "mehra:0"], "mehra needs a window >= 1 [DVL updates], e.g."),
         (["--strategies", "adaptive:1e12"], "updates] (a whole number, not '1e12')"),
         (["--strategies", "constant,constant"], "distinct"),
+        (["--strategies", "constant,constant:1"], "'constant' and 'constant:1' are the same"),
+        (["--strategies", "detvar,learned:detvar"], "'detvar' and 'learned:detvar' are the"),
         (["--strategies", "learned:no/such/model"], "no/such/model"),
         (["--scenario", "lake"], "neither a built-in scenario"),
         (["--filter", "missing.toml"], "missing.toml: no such file"),

@@ -133,6 +133,10 @@ def test_a_failed_run_counts_in_no_nees(tmp_path) -> None:
         ),
         ('strategies = ["adaptive:100000"]', "grid: short: adaptive:100000: window: adaptive"),
         ('strategies = ["constant"]\nruns = 100000000000000', "grid: 1 grid points x "),
+        (
+            'strategies = ["constant", "constant:1"]',
+            "grid: strategies: 'constant' and 'constant:1' are the same strategy",
+        ),
     ],
 )
 def test_a_sweep_refused_before_its_work_leaves_no_partial_folder(

@@ -19,7 +19,7 @@ from pronet.montecarlo import chance_bound, runs_flag, runs_outside_band
 from pronet.results import check_a_run_finished, table_title, write_result_folder
 from pronet.run import Row, run_strategies
 from pronet.sim.scenarios import Scenario
-from pronet.strategies import StrategySpec, strategy
+from pronet.strategies import StrategySpec, check_distinct, strategy
 
 
 def _scenario(
@@ -50,14 +50,17 @@ def _scenario(
 
 
 def _specs(specs: Sequence[str | StrategySpec]) -> list[StrategySpec]:
-    """``specs`` parsed; ``ValueError`` unless there is at least one and all differ."""
+    """``specs`` parsed; ``ValueError`` unless there is at least one and all differ, in
+    text and in what they run (``constant`` and ``constant:1`` are one strategy)."""
     texts = [s.text if isinstance(s, StrategySpec) else str(s).strip() for s in specs]
     kept = [(t, s) for t, s in zip(texts, specs, strict=True) if t]
     if not kept or len({t for t, _ in kept}) != len(kept):
         raise ValueError(
             f"strategies: expected distinct comma-separated specs, got {[t for t, _ in kept]}"
         )
-    return [s if isinstance(s, StrategySpec) else StrategySpec.parse(t) for t, s in kept]
+    parsed = [s if isinstance(s, StrategySpec) else StrategySpec.parse(t) for t, s in kept]
+    check_distinct(parsed)
+    return parsed
 
 
 def _check_numbers(

@@ -54,7 +54,7 @@ from pronet.run import run
 from pronet.shards import ShardStore
 from pronet.sim.scenarios import Scenario
 from pronet.stats import MeanCI
-from pronet.strategies import StrategySpec, strategy
+from pronet.strategies import StrategySpec, check_distinct, strategy
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -166,6 +166,7 @@ def plan(grid: SweepGrid) -> list[Shard]:
     :func:`check_size`, :func:`check_levels` and :func:`check_acts`)."""
     check_size(grid)
     check_levels(grid)
+    check_distinct(grid.strategies, "grid: strategies")
     check_acts(grid)
     shards = []
     for source in grid.scenarios:
