@@ -5,7 +5,8 @@ For each section, the constant (estimated q) row:
 
 1. with the datasheet R and with the innovation-matched R (``pronet real``'s "R from
    data"), the lag-one autocorrelation of each body axis's innovations, each divided
-   by its predicted 1σ (:func:`pronet.recorded.dvlnoise.lag_one`), with its 95 % band;
+   by its predicted 1σ (:func:`pronet.recorded.dvlnoise.lag_one`), with its 95 % band,
+   and the forward (x) axis's with the IMU's q 20 and 100 times the estimate;
    beside it, without any filter, the DVL − truth residual along the body x axis split
    into its slow and fast parts (:func:`pronet.recorded.trutherror.residual_parts`);
 2. R and the correlated error's 1σ fitted together at a correlation time τ
@@ -92,6 +93,13 @@ def section_rows(
     white = match_innovations(one_pass, second_difference_variance(section.dvl))
     _, rho_sheet, band = lag_one(datasheet)
     _, rho_white, _ = lag_one(one_pass(white.variance))
+    # the datasheet R with the IMU's q 20 and 100 times the estimate: the forward axis
+    # then (the INS's own along-track error given room in the model)
+    more_q = [
+        lag_one(run(pronet.Strategy.constant([f * v for v in real.white_noise_q(section.imu)]),
+                    section_recorded(section, config(None), epochs="last")).result)[1][0]
+        for f in (20, 100)
+    ]  # fmt: skip
     fit: MatchedVariance = match_correlated(one_pass, white, tau, step)
     rows, v_b = truth_body_velocity(section)  # the DVL against the truth, no filter
     residual = section.dvl[rows] - v_b
@@ -100,6 +108,7 @@ def section_rows(
         section.name,
         axes(rho_sheet),
         axes(rho_white),
+        axes(np.array(more_q)),
         f"±{band:.2f}",
         f"{own.slow[0]:.4f} / {own.white[0]:.4f}",
     ]
@@ -139,6 +148,7 @@ def main() -> None:
                 "section",
                 "datasheet R",
                 "R from data",
+                "x, datasheet R, 20 × / 100 × q",
                 "95 % band",
                 "DVL − truth along x, slow / fast [m/s]",
             ],
