@@ -163,7 +163,7 @@ def main() -> None:
         "white R alone, 1σ [m/s]",
         "white R with it, 1σ [m/s]",
         f"correlated error 1σ [m/s] (τ {tau:g} s)",
-        "passes",
+        "passes (the white fit's with them)",
         "SRMSE [m/s] fwd / smoothed",
         "final horiz. [m]",
         "within 3σ, truth's error incl., fwd / smoothed",

@@ -30,11 +30,11 @@ def _at(t: np.ndarray, tp: np.ndarray, fp: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(t, tp, fp[:, j]) for j in range(fp.shape[1])], axis=1)
 
 
-def _gauss_markov(
+def gauss_markov(
     t: np.ndarray, sigma: tuple[float, float, float], tau: float, rng: np.random.Generator
 ) -> np.ndarray:
     """A stationary first-order Gauss–Markov process ``(len(t), 3)`` at the times
-    ``t`` [s]: 1σ ``sigma`` per axis [m/s], correlation time ``tau`` [s]."""
+    ``t`` [s], exact at them: 1σ ``sigma`` per axis [m/s], correlation time ``tau`` [s]."""
     s = np.asarray(sigma, dtype=np.float64)
     out = np.empty((len(t), 3))
     out[0] = rng.normal(size=3) * s
@@ -70,7 +70,7 @@ def synthetic_recording(
     bias ``[b_a (m/s²), b_g (rad/s)]`` and ``bias_psd`` (6) its random walk's PSD
     [(m/s²)²/s, (rad/s)²/s] (as a ``SensorConfig``'s). ``dvl_bias = (σ, τ)``: a
     correlated DVL error on top of the white one, a first-order Gauss–Markov process
-    per body axis of stationary 1σ ``σ`` [m/s] and correlation time ``τ`` [s] (as the
+    per DVL axis of stationary 1σ ``σ`` [m/s] and correlation time ``τ`` [s] (as the
     filter's ``dvl_bias_sigma`` and ``dvl_bias_time_constant``), drawn stationary."""
     # Smoothly varying turn rate, speed and pitch (one-second segments), as an AUV
     # manoeuvres: 1 Hz rows interpolate such motion well.
@@ -146,7 +146,7 @@ def synthetic_recording(
         v_body = (1.0 + scale) * v_body @ body_to_dvl.T
     dvl = v_body + rng.normal(scale=dvl_sigma, size=v_body.shape)
     if dvl_bias is not None:  # its own draws: the white ones stay those of the seed
-        dvl = dvl + _gauss_markov(t_dvl, *dvl_bias, np.random.default_rng(seed + 3))
+        dvl = dvl + gauss_markov(t_dvl, *dvl_bias, np.random.default_rng(seed + 3))
 
     def stamps(clock: Clock, t: np.ndarray) -> np.ndarray:
         return (t - clock.offset) / clock.scale

@@ -17,19 +17,11 @@ from scipy.spatial.transform import Rotation
 
 import pronet
 
+from synthetic_recording import gauss_markov
+
 SIGMA_B, TAU, WHITE = 0.03, 60.0, 0.01  # [m/s], [s], [m/s]
 Q = np.array([1e-6] * 3 + [1e-10] * 3)  # per-sample IMU variances
 RUNS = 12
-
-
-def _gauss_markov(rng: np.random.Generator, time: np.ndarray) -> np.ndarray:
-    """Samples ``(len(time), 3)`` of the stationary process, exact at the given times."""
-    b = np.empty((len(time), 3))
-    b[0] = rng.normal(size=3) * SIGMA_B
-    for k in range(1, len(time)):
-        e = math.exp(-(time[k] - time[k - 1]) / TAU)
-        b[k] = e * b[k - 1] + SIGMA_B * math.sqrt(1 - e * e) * rng.normal(size=3)
-    return b
 
 
 def _run(seed: int, cfg: pronet.FilterConfig, smooth: bool = False, **kw: object):
@@ -43,7 +35,7 @@ def _run(seed: int, cfg: pronet.FilterConfig, smooth: bool = False, **kw: object
     k = np.arange(20, n + 1, 20)
     body_to_ned = Rotation.from_euler("ZYX", truth.rpy[k][:, ::-1]).as_matrix()
     body = np.einsum("kji,kj->ki", body_to_ned, truth.vel_ned[k])
-    b = _gauss_markov(rng, truth.time[k])
+    b = gauss_markov(truth.time[k], (SIGMA_B,) * 3, TAU, rng)
     dvl = body + b + rng.normal(size=body.shape) * WHITE
     f = np.arange(3000, n + 1, 3000)
     fix_lla = np.array([pronet.lla_from_ned(rng.normal(size=3), p) for p in truth.lla[f]])

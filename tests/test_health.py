@@ -404,7 +404,7 @@ def test_a_failed_runs_partial_nis_is_no_runs_verdict(tmp_path, monkeypatch) -> 
 
     real = simulation.run_strategies
 
-    def two_fail(*args, **kwargs):
+    def five_fail(*args, **kwargs):
         rows = real(*args, **kwargs)
         res = rows[0].result
         nis = res.nis.copy()
@@ -412,7 +412,7 @@ def test_a_failed_runs_partial_nis_is_no_runs_verdict(tmp_path, monkeypatch) -> 
         failure = ["t = 1 s: numerical failure"] * 5 + list(res.failure[5:])
         return [replace(rows[0], result=replace(res, nis=nis, failure=failure)), *rows[1:]]
 
-    monkeypatch.setattr(simulation, "run_strategies", two_fail)
+    monkeypatch.setattr(simulation, "run_strategies", five_fail)
     folder = simulation.simulate("matched", ["constant"], tmp_path / "out", n_runs=10,
                                  plots=False, say=lambda _: None)  # fmt: skip
     config = json.loads((folder / "config.json").read_text())
@@ -424,17 +424,24 @@ def test_a_failed_runs_partial_nis_is_no_runs_verdict(tmp_path, monkeypatch) -> 
 def test_white_innovations_pass_the_whiteness_test_at_its_nominal_rate() -> None:
     """The lag-one autocorrelation of the whitened DVL innovations
     (:func:`pronet.stats.whiteness`) of a filter told its DVL's white noise lies outside
-    its 95 % band in no more of 100 passes than chance allows, and flags none; a 5 Hz
+    its 95 % band in no more of 100 passes than chance allows, so does each axis's over
+    the 300 axes, and none is flagged; a 5 Hz
     DVL with a correlated error beside its white noise (a first-order Gauss–Markov bias
     of 0.1 m/s, τ = 20 s, its variance added to R) is flagged by name in every pass."""
-    outside, flagged = 0, 0
+    outside, axes_outside, flagged = 0, 0, 0
     for seed in range(100):
         streams, _ = _streams(np.random.default_rng(100 + seed))
         dvl = _pass(streams[:1]).health.streams[0]
         assert np.isfinite(dvl.autocorrelation) and dvl.autocorrelation_band > 0
         outside += abs(dvl.autocorrelation) > dvl.autocorrelation_band
+        # the same test per axis, each innovation over its own σ
+        assert len(dvl.axis_autocorrelation) == 3
+        assert dvl.axis_autocorrelation_band == pytest.approx(np.sqrt(3) * dvl.autocorrelation_band)
+        axes_outside += int(
+            np.sum(np.abs(dvl.axis_autocorrelation) > dvl.axis_autocorrelation_band)
+        )
         flagged += "correlated" in dvl.flag
-    assert outside <= chance_bound(100) and flagged == 0
+    assert outside <= chance_bound(100) and axes_outside <= chance_bound(300) and flagged == 0
     traj = pronet.builtin_trajectory("paper")
     k = np.arange(20, int(SECONDS * 100) + 1, 20)
     body = np.einsum("kji,kj->ki", dcm_from_euler(traj.rpy[k]), traj.vel_ned[k])
@@ -666,3 +673,19 @@ def test_a_slow_error_on_one_axis_is_named_where_the_whitened_vector_hides_it() 
     assert whiteness_clause(0.0, half, np.array([0.5]), band) == ""  # one axis: the vector
     few = axis_whiteness(nu[:2], cov[:2], used[:2])
     assert np.isnan(few[1]) and np.isnan(few[0]).all()
+    # A reading whose predicted σ on an axis is 0 is left out, not divided by.
+    zero = cov.copy()
+    zero[5, 2, 2] = 0.0
+    assert axis_whiteness(nu, zero, used)[1] == pytest.approx(1.96 / np.sqrt(n - 2))
+    # End to end: a velocity stream's report carries the clause and the per-axis test.
+    from types import SimpleNamespace
+
+    from pronet.stats import stream_report
+
+    nis = np.einsum("ki,ki->k", nu, nu)
+    rows = SimpleNamespace(kind="velocity", epoch=np.arange(n), nis=nis, accepted=None,
+                           innovation=nu, innovation_cov=cov)  # fmt: skip
+    report = stream_report("dvl", rows, np.arange(n, dtype=np.float64))
+    assert f"along x ({axes[0]:+.2f})" in report.flag and report.flag.startswith("dvl: ")
+    np.testing.assert_allclose(report.axis_autocorrelation, axes)
+    assert report.axis_autocorrelation_band == pytest.approx(band)

@@ -548,10 +548,10 @@ def tuning_instants(
 ) -> NDArray[np.int64]:
     """The hybrid loop's tuning instants over ``n_samples`` IMU samples of step ``dt``
     [s], each as the number of samples before it: every ``round(tuning_period / dt)``
-    samples (at least one; halves round away from zero), from the first such multiple at
-    which ``window`` samples exist, before the last sample. :class:`Ensemble` stops
-    there; :func:`pronet.learn.hybrid.q_schedule` evaluates its regressor there.
-    ``dt``, ``tuning_period`` finite, > 0 (a period of no step refused), ``window`` >= 1."""
+    samples (halves round away from zero), from the first such multiple at which
+    ``window`` samples exist, before the last sample. :class:`Ensemble` stops there;
+    :func:`pronet.learn.hybrid.q_schedule` evaluates its regressor there. ``dt``,
+    ``tuning_period`` finite, > 0 (a period of no step refused), ``window`` >= 1."""
 
 @final
 class Navigator:

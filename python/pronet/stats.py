@@ -231,6 +231,9 @@ class StreamReport:
             lag-one autocorrelation of its whitened innovations (NaN for the other
             kinds, which keep no innovation, or with fewer than two readings).
         autocorrelation_band: the half-width of its 95 % band for white innovations.
+        axis_autocorrelation: the same test per axis, each innovation over its own σ
+            (:func:`pronet._util.whiteness.axis_whiteness`; empty without innovations).
+        axis_autocorrelation_band: its 95 % band's half-width, √(axes) times the vector's.
     """
 
     name: str
@@ -248,6 +251,8 @@ class StreamReport:
     accepted: NDArray[np.bool_] | None = None
     autocorrelation: float = math.nan
     autocorrelation_band: float = math.nan
+    axis_autocorrelation: tuple[float, ...] = ()
+    axis_autocorrelation_band: float = math.nan
 
     @property
     def gated_share(self) -> float:
@@ -320,13 +325,14 @@ def stream_report(
     seen = inside & np.isfinite(nis)
     total = int(round(_dof(rows, lla)[seen].sum()))
     mean, mean_dof, band = _mean_nis(rows.kind, float(nis[seen].sum()), total, int(seen.sum()))
-    rho, half, said = math.nan, math.nan, ""
+    rho, half, axes, axes_half, said = math.nan, math.nan, np.empty(0), math.nan, ""
     innovation = getattr(rows, "innovation", None)
     cov = getattr(rows, "innovation_cov", None)
     if innovation is not None and cov is not None:
         innovation, cov = np.asarray(innovation), np.asarray(cov)
         rho, half = whiteness(innovation, cov, applied)
-        said = whiteness_clause(rho, half, *axis_whiteness(innovation, cov, applied))
+        axes, axes_half = axis_whiteness(innovation, cov, applied)
+        said = whiteness_clause(rho, half, axes, axes_half)
     empty = len(nis) == 0 and not any(skipped.values())  # no DVL, or --no-dvl: nothing to say
     flag = "" if empty else _flag(name, rows.kind, mean, mean_dof, band, rejected, n)
     if flag and mean > band[1]:
@@ -349,6 +355,8 @@ def stream_report(
         accepted=None if rows.accepted is None else inside & rows.accepted,
         autocorrelation=rho,
         autocorrelation_band=half,
+        axis_autocorrelation=tuple(float(v) for v in axes),
+        axis_autocorrelation_band=axes_half,
     )
 
 

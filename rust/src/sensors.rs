@@ -39,17 +39,27 @@ fn within_imu_range(arg: &str, values: &[f64], squared: bool) -> Result<()> {
         };
         let bound = if squared { limit * limit } else { limit };
         if v.abs() > bound {
-            let shown = if v.abs() >= 1e6 {
-                format!("{v:e}")
-            } else {
-                format!("{v}")
+            let number = |x: f64| {
+                if x.abs() >= 1e6 {
+                    format!("{x:e}")
+                } else {
+                    format!("{x:.4}")
+                        .trim_end_matches('0')
+                        .trim_end_matches('.')
+                        .to_string()
+                }
             };
-            let what = if squared { "a σ" } else { "an error" };
+            // A variance or a PSD (its σ over a second) is compared by its square root.
+            let what = if squared {
+                format!("{} (σ {} {unit})", number(*v), number(v.sqrt()))
+            } else {
+                format!("{} {unit}", number(*v))
+            };
             return Err(Error::invalid(
                 arg,
                 format!(
-                    "element {i} is {shown}, {what} beyond {limit} {unit}, past any IMU's \
-                     full scale (a unit slip?)"
+                    "element {i} is {what}, beyond {limit} {unit}, past any IMU's full \
+                     scale (a unit slip?)"
                 ),
             ));
         }
@@ -505,19 +515,19 @@ mod tests {
         cfg.imu.bias[4] = 101.0;
         let err = cfg.validate().unwrap_err().to_string();
         assert!(
-            err.starts_with("imu_bias: element 4 is 101, an error beyond 100 rad/s"),
+            err.starts_with("imu_bias: element 4 is 101 rad/s, beyond 100 rad/s"),
             "{err}"
         );
         cfg.imu.bias[4] = 0.0;
         cfg.imu.bias_rw_psd[1] = 1.1e6;
         let err = cfg.validate().unwrap_err().to_string();
-        let said = "imu_bias_psd: element 1 is 1.1e6, a σ beyond 1000 m/s², past any IMU's";
+        let said = "imu_bias_psd: element 1 is 1.1e6 (σ 1048.8088 m/s²), beyond 1000 m/s²";
         assert!(err.starts_with(said), "{err}");
         cfg.imu.bias_rw_psd[1] = 0.0;
         cfg.imu.variance = VarianceSchedule::constant([1e30; 6]);
         let err = cfg.validate().unwrap_err().to_string();
         assert!(
-            err.starts_with("imu_variance: element 0 is 1e30, a σ"),
+            err.starts_with("imu_variance: element 0 is 1e30 (σ 1e15 m/s²), beyond"),
             "{err}"
         );
     }

@@ -93,7 +93,7 @@ def test_a_sweep_whose_every_run_fails_exits_non_zero_and_leaves_nothing(
     code, out = sweep(grid_folder, '["short.toml"]', capsys, levels="[1, 1e30]")
     line = one_line(capsys)
     assert code == 2 and line.startswith(
-        "pronet: grid: short, noise x1e+30: imu_variance: element 0 is 1e26, a σ beyond"
+        "pronet: grid: short, noise x1e+30: imu_variance: element 0 is 1e26 (σ 1e13 m/s²), "
     )
     assert left_beside(out) == ["grid.toml", "overflowing.toml", "short.toml"]  # no .partial
 

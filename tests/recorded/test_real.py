@@ -218,7 +218,7 @@ def test_snapir_forward_axis_innovations_are_correlated_where_the_whitened_ones_
     whitened vector's lag-one autocorrelation, the table's whiteness test, is below its
     band's upper edge on every section (negative on ten): the lateral and vertical
     axes' alternation hides it."""
-    positive = 0
+    positive, negative = 0, 0
     for aligned, _ in alignment.load_snapir_sections(SNAPIR):
         strategy = pronet.Strategy.constant(real.white_noise_q(aligned.imu))
         config = real.real_filter_config(aligned.alignment.filter_lever_arm)
@@ -228,7 +228,8 @@ def test_snapir_forward_axis_innovations_are_correlated_where_the_whitened_ones_
         vector, half = whiteness(result.innovation, result.innovation_cov, used)
         assert vector < half, (aligned.name, vector)
         positive += bool(rho[0] > band)
-    assert positive == 10
+        negative += bool(vector < 0)
+    assert positive == 10 and negative == 10
 
 
 @pytest.mark.skipif(not SNAPIR.is_dir(), reason="the Snapir data is not on this machine")

@@ -323,7 +323,7 @@ def warn_of_sensors(sensors: _core.SensorConfig, traj: _core.Trajectory, where: 
     every = max(1, round(sensors.dvl_period / traj.dt))
     t = traj.time[every::every]
     out = ((t[:, None] >= outages[:, 0]) & (t[:, None] < outages[:, 1])).any(axis=1)
-    if out.all():
+    if len(t) and out.all():  # no epoch at all (a period past the run) is not this
         warnings.warn(
             f"{where} dvl_outages: hold every DVL epoch of the {traj.duration:g} s run, so "
             "the DVL never reports (no update: the rows are inertial-only, their NIS and "

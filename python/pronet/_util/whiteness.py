@@ -36,7 +36,9 @@ def whiteness(innovation: F64, cov: F64, used: NDArray[np.bool_]) -> tuple[float
 
 
 #: A stream is flagged when its whiteness statistic is beyond this many σ of white
-#: innovations (4: one pass in 16,000 by chance), reported against its 95 % band.
+#: innovations, reported against its 95 % band: 4, so that a consistent stream is
+#: flagged in about one pass in 6,000 by chance (the whitened vector's test two-sided,
+#: one pass in 16,000, and each of three axes' one-sided, positive only).
 WHITENESS_FLAG = 4.0
 #: The names of a vector stream's axes in its health line.
 AXES = ("x", "y", "z")
@@ -50,6 +52,7 @@ def axis_whiteness(innovation: F64, cov: F64, used: NDArray[np.bool_]) -> tuple[
     positive there even where the other axes alternate and the whitened vector's test
     (:func:`whiteness`) reads negative. NaN with fewer than two pairs."""
     ok = used & np.isfinite(innovation).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
+    ok &= (np.diagonal(cov, axis1=1, axis2=2) > 0).all(axis=1)  # a σ to divide by
     e = innovation[ok] / np.sqrt(np.diagonal(cov[ok], axis1=1, axis2=2))
     if len(e) < 3:
         return np.full(innovation.shape[1], math.nan), math.nan
@@ -88,6 +91,7 @@ def whiteness_clause(rho: float, half: float, axes: F64, axes_half: float) -> st
             f"autocorrelation {rho:.3g}, white within ±{half:.2g}): {why}"
         )
     if len(axes) > 1 and not (flagged(rho, half) and rho > 0):
+        vector = f"the whitened vector ({rho:+.2f})" if math.isfinite(rho) else "its vector"
         slow = [
             f"{AXES[a]} ({r:+.2f})" for a, r in enumerate(axes) if r > 0 and flagged(r, axes_half)
         ]
@@ -95,8 +99,8 @@ def whiteness_clause(rho: float, half: float, axes: F64, axes_half: float) -> st
             where = "that axis" if len(slow) == 1 else "those axes"
             said.append(
                 f"its innovations along {' and '.join(slow)} (each over its σ, white within "
-                f"±{axes_half:.2g}) are correlated from one reading to the next, which the "
-                f"whitened vector ({rho:+.2f}) hides: a slowly varying error along {where} "
+                f"±{axes_half:.2g}) are correlated from one reading to the next, which "
+                f"{vector} hides: a slowly varying error along {where} "
                 "that the filter does not model (for a DVL in the body frame, x is forward): "
                 "the sensor's scale or bias, the INS's drift there, or an R too large there "
                 "against Q, so that the filter follows the INS and its slow error shows; "

@@ -302,9 +302,10 @@ def q_schedule(
     The windows the loop reads are raw IMU samples, which do not depend on the filter,
     so on recorded data the whole schedule is computed first, in one batched call, and
     handed to :func:`pronet.run_filter` (``q_time``, ``q``). Instants are every
-    ``round(tuning_period / Δt)`` samples (at least one; halves round away from zero)
-    once ``window`` samples exist, exactly as :class:`pronet.Ensemble` places them
-    (Δt: the median sample step): both take them from ``_core.tuning_instants``.
+    ``round(tuning_period / Δt)`` samples (halves round away from zero; a period of no
+    step is refused) once ``window`` samples exist, exactly as :class:`pronet.Ensemble`
+    places them (Δt: the median sample step): both take them from
+    ``_core.tuning_instants``.
 
     Args:
         regressor: anything with ``predict(windows (k, 6, window)) -> (k, 6)``.

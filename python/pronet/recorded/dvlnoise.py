@@ -14,10 +14,11 @@ Two estimators, per body axis [(m/s)²]:
   the sensor's noise. Both are reported by ``pronet real``.
 
 Where the innovations of that fit are correlated from one reading to the next beyond
-their band (a slow DVL error the white R leaves unmodelled), :func:`match_correlated`
-fits R and the 1σ of a first-order Gauss–Markov DVL error together, at a given
-correlation time: the innovations identify the slow error's power in the filter's
-passband, not its correlation time (measured in ``tests/recorded/test_dvlnoise.py``).
+4σ of white innovations on an axis (a slow error the white R leaves unmodelled),
+:func:`match_correlated` fits R and the 1σ of a first-order Gauss–Markov DVL error
+together, at a given correlation time: the innovations identify the slow error's power
+in the filter's passband, not its correlation time (measured in
+``tests/recorded/test_dvlnoise.py``).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from pronet._util.validate import count, float_array, scalar
-from pronet._util.whiteness import axis_whiteness
+from pronet._util.whiteness import axis_whiteness, flagged
 from pronet.filter import FilterResult
 
 F64 = NDArray[np.float64]
@@ -138,13 +139,7 @@ def match_innovations(
     r = float_array(start, "start", (3,))
     if not (np.all(np.isfinite(r)) and np.all(r > 0)):
         raise ValueError(f"start: must be finite and > 0 on every axis, got {r.tolist()}")
-    if not scalar(tolerance, "tolerance") > 0:
-        raise ValueError(f"tolerance: must be > 0, got {tolerance}")
-    passes = count(max_passes, "max_passes", 1000)
-    if passes < 1:
-        raise ValueError("max_passes: must be at least 1, got 0")
-    if not scalar(floor, "floor") > 0:
-        raise ValueError(f"floor: must be > 0 (m/s)², got {floor}")
+    passes = _check_matching(tolerance, max_passes, floor)
     first = _variance(r)
     made, converged, mean_nis = 0, False, float("nan")
     x, previous = np.log(r), None
@@ -204,14 +199,18 @@ def match_correlated(
         floor: smallest R per axis [(m/s)²].
 
     One pass with ``white``'s R reads the innovations' lag-one autocorrelation
-    (:func:`lag_one`). Where no axis's is above its 95 % band, the innovations show no
-    slow error and ``white`` is returned, that pass counted. Otherwise, on those axes,
-    the variance ``b`` of a first-order
+    (:func:`lag_one`). Where no axis's is positive beyond 4σ of white innovations (the
+    health line's flag, :func:`pronet._util.whiteness.flagged`: a 95 % one-sided gate
+    would fit a σ to one white axis in 40, as the fit drives the sample's lag-one
+    covariance to zero whatever its cause), the innovations show no slow error and
+    ``white`` is returned, that pass counted. Otherwise, on those axes, the variance
+    ``b`` of a first-order
     Gauss–Markov error with τ is fitted beside R: ``b`` takes the lag-one
     autocovariance ``c₁`` over ``φ = exp(−dvl_step/τ)`` (the error's own lag-one
     covariance is ``b φ``), then secant steps towards ``c₁ = 0``, as R takes
     :func:`match_innovations`'s towards its ratio 1, in the same passes, until both
-    change by less than ``tolerance`` (of ``R + b`` for ``b``). At the fixed point
+    change by less than ``tolerance`` (of ``R + b`` for ``b``; an R held at ``floor``
+    does not change). ``passes`` of the result counts ``white``'s with these. At the fixed point
     the innovations are uncorrelated at lag one and have the variance the filter
     predicts. ``b`` reaching 0 on every axis ends with no correlated part.
     """
@@ -219,10 +218,10 @@ def match_correlated(
         raise ValueError(f"time_constant: must be > 0 s, got {time_constant}")
     if not (math.isfinite(dvl_step) and dvl_step > 0):
         raise ValueError(f"dvl_step: must be > 0 s, got {dvl_step}")
-    passes = count(max_passes, "max_passes", 1000)
+    passes = _check_matching(tolerance, max_passes, floor)
     c1, rho, band = lag_one(run_pass(white.variance, None))
     phi = math.exp(-dvl_step / time_constant)
-    fitted = rho > band
+    fitted = (rho > 0) & np.array([flagged(r, band) for r in rho])
     if not fitted.any():
         return replace(white, passes=white.passes + 1)
     b = np.where(fitted, np.maximum(c1 / phi, 0.0), 0.0)
@@ -240,8 +239,8 @@ def match_correlated(
         previous = (b, f)
         new_b = np.where(fitted, np.maximum(b + step, 0.0), 0.0)
         new_r = np.maximum(r * ratio, floor)
-        converged = bool(
-            np.all(np.abs(ratio - 1) < tolerance)
+        converged = bool(  # R at its floor and still too large counts as settled
+            np.all(np.abs(new_r / r - 1) < tolerance)
             and np.all(np.abs(new_b - b) <= tolerance * (new_r + new_b))
         )
         r, b = new_r, new_b
@@ -251,6 +250,19 @@ def match_correlated(
     return MatchedVariance(
         _variance(r), white.start, white.passes + made, converged, mean_nis, sigma, time_constant
     )
+
+
+def _check_matching(tolerance: float, max_passes: int, floor: float) -> int:
+    """The number of passes, once the matching's ``tolerance`` (> 0), ``max_passes``
+    (≥ 1) and ``floor`` (> 0) are checked (``ValueError`` naming the argument)."""
+    if not scalar(tolerance, "tolerance") > 0:
+        raise ValueError(f"tolerance: must be > 0, got {tolerance}")
+    passes = count(max_passes, "max_passes", 1000)
+    if passes < 1:
+        raise ValueError(f"max_passes: must be at least 1, got {passes}")
+    if not scalar(floor, "floor") > 0:
+        raise ValueError(f"floor: must be > 0 (m/s)², got {floor}")
+    return passes
 
 
 def _secant(x: F64, f: F64, previous: tuple[F64, F64], longest: float = 10.0) -> F64:
