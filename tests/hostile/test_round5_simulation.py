@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 from cli_output import one_line
 
+import pronet
 from pronet import cli, config
 from pronet._util.plausibility import PlausibilityWarning
 from pronet.experiments import simulation
@@ -248,15 +249,23 @@ def test_dvl_outages_over_the_whole_run_are_warned_of(tmp_path) -> None:
     """Outages that hold every DVL epoch of the 20 s run: every row was inertial-only
     with its NIS and NEES "undefined", without a word (found by the probe). Warned of,
     naming the file and key; an outage that leaves one epoch (the last, at 20 s: the
-    outage is half-open) or no DVL at all (``dvl_period = 0``) says nothing."""
+    outage is half-open), no DVL at all (``dvl_period = 0``) or no DVL epoch in the run
+    says nothing."""
     path = tmp_path / "s.toml"
     path.write_text(f"{SHORT}\n[sensors]\ndvl_outages = [[0, 5], [5, 20.5]]\n")
     with pytest.warns(
         PlausibilityWarning, match=r"s.toml: \[sensors\] dvl_outages: hold every DVL epoch"
     ):
         assert len(config.load_scenario(path).sensors.dvl_outages) == 2  # used as given
-    for quiet in ("dvl_outages = [[0, 20]]", "dvl_outages = [[0, 30]]\ndvl_period = 0"):
-        path.write_text(f"{SHORT}\n[sensors]\n{quiet}\n")
+    for table in ("dvl_outages = [[0, 20]]", "dvl_outages = [[0, 30]]\ndvl_period = 0"):
+        path.write_text(f"{SHORT}\n[sensors]\n{table}\n")
         with warnings.catch_warnings():
             warnings.simplefilter("error", PlausibilityWarning)
             config.load_scenario(path)
+    # No epoch in the run (a file refuses such a period; the API's SensorConfig takes it)
+    from pronet._util.plausibility import warn_of_sensors
+
+    sensors = pronet.SensorConfig(dvl_period=400.0, dvl_outages=[[1000.0, 1001.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        warn_of_sensors(sensors, pronet.builtin_trajectory("paper"), "api:")
