@@ -112,9 +112,10 @@ def real_filter_config(
 
 
 def correlation_time(base: _core.FilterConfig | None) -> float:
-    """The correlation time [s] at which ``pronet real`` fits the DVL's correlated error
-    from the data: ``base``'s (a vehicle file's ``dvl_bias_time_constant``), else the
-    filter's default (read from the core, which owns it)."""
+    """The correlation time [s] at which to fit the DVL's correlated error from the data
+    (:func:`pronet.recorded.dvlnoise.match_correlated`, ``scripts/dvl_correlated.py``;
+    ``pronet real`` does not): ``base``'s (a vehicle file's ``dvl_bias_time_constant``),
+    else the filter's default (read from the core, which owns it)."""
     own = None if base is None else base.dvl_bias_time_constant
     if own is not None:
         return own
